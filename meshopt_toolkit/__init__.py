@@ -1,0 +1,70 @@
+"""meshopt-toolkit: keep planar triangle meshes healthy while they move.
+
+The public API is exported here lazily, so ``import meshopt_toolkit`` stays cheap and a
+feature's dependencies load only when it is used.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+__version__ = "0.1.0"
+
+# public name -> module that defines it
+_EXPORTS = {
+    # errors
+    "MeshoptError": "errors",
+    "InvalidMeshError": "errors",
+    "NotAdmissibleError": "errors",
+    "ReadError": "errors",
+    "WriteError": "errors",
+    "FilterError": "errors",
+    "ExpressionError": "errors",
+    "IntegrationError": "errors",
+    "OptimizationError": "errors",
+    # meshes
+    "TriangleMesh": "mesh",
+    "PlanarMesh": "mesh",
+    "MeshReport": "mesh",
+    "check_mesh": "mesh",
+    "require_admissible": "mesh",
+    "quality_summary": "geometry",
+    # file I/O
+    "load": "io",
+    "save": "io",
+    # data
+    "data_path": "datasets",
+    # penalties, metrics, diagnostics
+    "HeightPenalty": "penalties",
+    "QualityPenalty": "penalties",
+    "EuclideanMetric": "metrics",
+    "ElasticityMetric": "metrics",
+    "CompleteMetric": "metrics",
+    "check_gradient": "taylor",
+    "check_hvp": "taylor",
+    # geodesics and deformation
+    "exp_map": "geodesics",
+    "geodesic": "geodesics",
+    "deform": "deform",
+    # shape optimization
+    "PoissonObjective": "poisson",
+    "optimize": "optimize",
+    # morphing
+    "log_map": "morph",
+    "geodesic_morph": "morph",
+}
+
+__all__ = sorted(_EXPORTS) + ["__version__"]
+
+
+def __getattr__(name: str):
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'meshopt_toolkit' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return __all__

@@ -1,0 +1,82 @@
+"""The ``meshopt`` command line: ``main(argv=None)`` with argparse subcommands.
+
+Each subcommand lives in its own module of this package and defines
+
+- ``HELP``: a one-line description,
+- ``add_args(parser)``: its arguments,
+- ``run(args) -> int``: the handler, returning the exit status.
+
+Modules are discovered by name, so adding a subcommand means adding a module. Errors
+derived from :class:`~meshopt_toolkit.errors.MeshoptError` become one line on stderr and
+exit status 1 (2 for usage errors); ``--debug`` shows the traceback instead.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import pkgutil
+import sys
+
+from .. import __version__
+from ..errors import MeshoptError
+
+# the order in which subcommands are listed in --help
+_ORDER = ["optimize", "deform", "morph", "info", "convert", "run", "filters"]
+
+
+def _subcommand_modules() -> list[str]:
+    found = [m.name for m in pkgutil.iter_modules(__path__) if not m.name.startswith("_")]
+    return sorted(found, key=lambda n: (_ORDER.index(n) if n in _ORDER else len(_ORDER), n))
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The full argument parser (used by ``main`` and by the docs)."""
+    parser = argparse.ArgumentParser(
+        prog="meshopt",
+        description="Keep planar triangle meshes healthy while they move.",
+    )
+    parser.add_argument("--version", action="version", version=f"meshopt {__version__}")
+    parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+    parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in _subcommand_modules():
+        module = importlib.import_module(f".{name}", __name__)
+        p = sub.add_parser(name, help=module.HELP, description=module.HELP)
+        p.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
+                       help="show tracebacks on errors")
+        module.add_args(p)
+        p.set_defaults(_handler=module.run)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line; returns the exit status (0 ok, 1 failure, 2 usage error)."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    level = logging.WARNING - 10 * min(args.verbose, 2)
+    logging.basicConfig(level=level, format="%(levelname)s: %(message)s")
+    if not getattr(args, "command", None):
+        parser.print_help(sys.stderr)
+        return 2
+    try:
+        return int(args._handler(args) or 0)
+    except MeshoptError as exc:
+        if args.debug:
+            raise
+        print(f"meshopt {args.command}: error: {exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print(f"meshopt {args.command}: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:  # an unexpected bug: still one line unless --debug
+        if args.debug:
+            raise
+        print(f"meshopt {args.command}: internal error: {type(exc).__name__}: {exc} "
+              "(run with --debug for the traceback)", file=sys.stderr)
+        return 1
+
+
+def entry_point() -> None:  # pragma: no cover - thin wrapper for console scripts
+    sys.exit(main())

@@ -1,0 +1,46 @@
+"""Exception hierarchy of meshopt-toolkit.
+
+The library raises these; only the command line turns them into one-line messages and
+exit codes.
+"""
+
+from __future__ import annotations
+
+
+class MeshoptError(Exception):
+    """Base class of every error raised on purpose by meshopt-toolkit."""
+
+
+class InvalidMeshError(MeshoptError, ValueError):
+    """A mesh fails a validity check (readable, planar-manifold or admissible).
+
+    The message names the offending vertex, triangle or edge.
+    """
+
+
+class NotAdmissibleError(InvalidMeshError):
+    """A configuration has an inverted or zero-area triangle, or self-intersects."""
+
+
+class ReadError(MeshoptError):
+    """A file cannot be read as a mesh; the message names the file."""
+
+
+class WriteError(MeshoptError):
+    """A mesh cannot be written; the message names the file."""
+
+
+class FilterError(MeshoptError):
+    """A filter or pipeline is invalid or failed."""
+
+
+class ExpressionError(MeshoptError, ValueError):
+    """A user expression (e.g. a right-hand side) is malformed or not allowed."""
+
+
+class IntegrationError(MeshoptError):
+    """A geodesic integration failed (step size underflow, drift, or leaving M+)."""
+
+
+class OptimizationError(MeshoptError):
+    """An optimization run cannot proceed (e.g. no descent direction)."""

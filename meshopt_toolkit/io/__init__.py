@@ -1,0 +1,1 @@
+"""Mesh file I/O: one module per format behind an extension registry."""

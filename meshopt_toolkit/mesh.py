@@ -1,0 +1,628 @@
+"""Triangle meshes with fixed connectivity (SPEC §1).
+
+:class:`TriangleMesh` is the *readable* level: finite coordinates in 2D or 3D, indices in
+range, at least one triangle. It is what file I/O and conversion work with.
+:class:`PlanarMesh` adds planarity (points are stored as ``(N, 2)``) and is the object
+every deformation and optimization works on. Both are immutable values: moving nodes
+returns a new mesh (:meth:`PlanarMesh.with_points`), and derived topology is cached.
+
+The planar-manifold checks of SPEC §1 and admissibility are reported by
+:func:`check_mesh` (a :class:`MeshReport`) and enforced by :func:`require_admissible`.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from ._typing import FloatArray, IntArray
+from .errors import InvalidMeshError, NotAdmissibleError
+from .geometry import quality_summary, signed_areas
+
+logger = logging.getLogger(__name__)
+
+__all__ = [
+    "TriangleMesh",
+    "PlanarMesh",
+    "MeshReport",
+    "check_mesh",
+    "require_admissible",
+    "boundary_self_intersections",
+]
+
+
+def _frozen(a: np.ndarray) -> np.ndarray:
+    a.setflags(write=False)
+    return a
+
+
+class TriangleMesh:
+    """A readable triangle mesh: points ``(N, 2)`` or ``(N, 3)``, triangles ``(T, 3)``.
+
+    Parameters
+    ----------
+    points : (N, 2) or (N, 3) array_like of float
+    triangles : (T, 3) array_like of int
+    triangle_tags : (T,) array_like of int, optional
+        Physical tags of the triangles (e.g. gmsh ``$PhysicalNames``).
+    lines : (L, 2) array_like of int, optional
+        Tagged line elements (typically boundary parts) kept from the input file.
+    line_tags : (L,) array_like of int, optional
+        Physical tags of ``lines``; required when ``lines`` is given.
+    tag_names : dict, optional
+        ``{name: (tag, dim)}`` as in gmsh physical names.
+    source : str, optional
+        Where the mesh came from (a file name), used in error messages.
+
+    Raises
+    ------
+    InvalidMeshError
+        Non-finite coordinates, indices out of range, wrong shapes, or no triangle.
+    """
+
+    def __init__(
+        self,
+        points,
+        triangles,
+        *,
+        triangle_tags=None,
+        lines=None,
+        line_tags=None,
+        tag_names: dict | None = None,
+        source: str | None = None,
+    ) -> None:
+        where = f"{source}: " if source else ""
+        pts = np.array(points, dtype=np.float64, copy=True)
+        if pts.ndim != 2 or pts.shape[1] not in (2, 3):
+            raise InvalidMeshError(f"{where}points must have shape (N, 2) or (N, 3), got {pts.shape}")
+        tri_in = np.asarray(triangles)
+        if tri_in.size == 0:
+            raise InvalidMeshError(f"{where}mesh has no triangles")
+        if tri_in.ndim != 2 or tri_in.shape[1] != 3:
+            raise InvalidMeshError(f"{where}triangles must have shape (T, 3), got {tri_in.shape}")
+        if not np.issubdtype(tri_in.dtype, np.integer):
+            if not np.all(np.isfinite(tri_in)) or np.any(tri_in != np.round(tri_in)):
+                raise InvalidMeshError(f"{where}triangle indices must be integers")
+        tri = np.array(tri_in, dtype=np.int64, copy=True)
+        bad = np.flatnonzero(~np.isfinite(pts).all(axis=1))
+        if bad.size:
+            raise InvalidMeshError(
+                f"{where}vertex {bad[0]} has a non-finite coordinate {pts[bad[0]].tolist()}"
+                + (f" ({bad.size} such vertices)" if bad.size > 1 else "")
+            )
+        out = np.flatnonzero(((tri < 0) | (tri >= len(pts))).any(axis=1))
+        if out.size:
+            raise InvalidMeshError(
+                f"{where}triangle {out[0]} {tri[out[0]].tolist()} has a vertex index out of "
+                f"range [0, {len(pts)})"
+            )
+        self._points = _frozen(pts)
+        self._triangles = _frozen(tri)
+        self._source = source
+        self._triangle_tags = None
+        if triangle_tags is not None:
+            tags = np.array(triangle_tags, dtype=np.int64).reshape(-1)
+            if tags.shape != (len(tri),):
+                raise InvalidMeshError(f"{where}triangle_tags must have one entry per triangle")
+            self._triangle_tags = _frozen(tags)
+        self._lines = None
+        self._line_tags = None
+        if lines is not None and len(lines):
+            ln = np.array(lines, dtype=np.int64).reshape(-1, 2)
+            lt = np.zeros(len(ln), np.int64) if line_tags is None else np.array(line_tags, np.int64).reshape(-1)
+            if lt.shape != (len(ln),):
+                raise InvalidMeshError(f"{where}line_tags must have one entry per line")
+            if ((ln < 0) | (ln >= len(pts))).any():
+                raise InvalidMeshError(f"{where}a line element has a vertex index out of range")
+            self._lines = _frozen(ln)
+            self._line_tags = _frozen(lt)
+        self._tag_names = dict(tag_names or {})
+
+    # -- plain data -----------------------------------------------------------------
+    @property
+    def points(self) -> FloatArray:
+        """Node positions, read-only ``(N, d)`` float64."""
+        return self._points
+
+    @property
+    def triangles(self) -> IntArray:
+        """Connectivity, read-only ``(T, 3)`` int64."""
+        return self._triangles
+
+    @property
+    def triangle_tags(self) -> IntArray | None:
+        """Physical tag per triangle ``(T,)``, or None."""
+        return self._triangle_tags
+
+    @property
+    def lines(self) -> IntArray | None:
+        """Tagged line elements ``(L, 2)``, or None."""
+        return self._lines
+
+    @property
+    def line_tags(self) -> IntArray | None:
+        """Physical tag per line element ``(L,)``, or None."""
+        return self._line_tags
+
+    @property
+    def tag_names(self) -> dict:
+        """``{name: (tag, dim)}`` physical names."""
+        return dict(self._tag_names)
+
+    @property
+    def source(self) -> str | None:
+        """The file this mesh was read from, if any."""
+        return self._source
+
+    @property
+    def n_vertices(self) -> int:
+        return len(self._points)
+
+    @property
+    def n_triangles(self) -> int:
+        return len(self._triangles)
+
+    @property
+    def dim(self) -> int:
+        """Number of coordinates per point (2 or 3)."""
+        return self._points.shape[1]
+
+    def _tag_kwargs(self) -> dict:
+        return dict(
+            triangle_tags=self._triangle_tags,
+            lines=self._lines,
+            line_tags=self._line_tags,
+            tag_names=self._tag_names,
+            source=self._source,
+        )
+
+    @property
+    def is_planar(self) -> bool:
+        """True if the points are 2D, or 3D with every z exactly 0."""
+        return self.dim == 2 or not np.any(self._points[:, 2])
+
+    def as_planar(self) -> "PlanarMesh":
+        """This mesh as a :class:`PlanarMesh` (drops z = 0); raises if not planar."""
+        if isinstance(self, PlanarMesh):
+            return self
+        return PlanarMesh(self._points, self._triangles, **self._tag_kwargs())
+
+    def __repr__(self) -> str:
+        name = type(self).__name__
+        src = f", source={self._source!r}" if self._source else ""
+        return f"{name}(n_vertices={self.n_vertices}, n_triangles={self.n_triangles}{src})"
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, TriangleMesh):
+            return NotImplemented
+        return (
+            self._points.shape == other._points.shape
+            and np.array_equal(self._points, other._points)
+            and np.array_equal(self._triangles, other._triangles)
+        )
+
+    __hash__ = None  # type: ignore[assignment]
+
+    # -- topology (cached) ----------------------------------------------------------
+    @cached_property
+    def _edge_data(self) -> tuple[IntArray, IntArray, IntArray]:
+        tri = self._triangles
+        # local edge l is opposite vertex l: (i_{l+1}, i_{l+2})
+        directed = np.stack([np.roll(tri, -1, axis=1), np.roll(tri, -2, axis=1)], axis=-1)
+        flat = np.sort(directed.reshape(-1, 2), axis=1)
+        edges, inverse, counts = np.unique(flat, axis=0, return_inverse=True, return_counts=True)
+        return edges, inverse.reshape(-1, 3), counts
+
+    @property
+    def edges(self) -> IntArray:
+        """Unique undirected edges ``(E, 2)``, each sorted (i < j), lexicographic order."""
+        return self._edge_data[0]
+
+    @property
+    def triangle_edges(self) -> IntArray:
+        """Index into :attr:`edges` of the edge opposite each local vertex, ``(T, 3)``."""
+        return self._edge_data[1]
+
+    @property
+    def edge_triangle_counts(self) -> IntArray:
+        """Number of triangles containing each edge ``(E,)``."""
+        return self._edge_data[2]
+
+    @cached_property
+    def boundary_edges(self) -> IntArray:
+        """Boundary edges ``(B, 2)`` directed as in their triangle (CCW: interior on the left)."""
+        tri = self._triangles
+        directed = np.stack([np.roll(tri, -1, axis=1), np.roll(tri, -2, axis=1)], axis=-1)
+        mask = self.edge_triangle_counts[self.triangle_edges] == 1
+        return _frozen(np.ascontiguousarray(directed[mask]))
+
+    @cached_property
+    def boundary_vertices(self) -> IntArray:
+        """Sorted indices of the boundary vertices ``(V∂,)``."""
+        return _frozen(np.unique(self.boundary_edges))
+
+    @cached_property
+    def vertex_adjacency(self) -> sp.csr_matrix:
+        """Symmetric ``(N, N)`` boolean adjacency matrix of the edge graph."""
+        e = self.edges
+        n = self.n_vertices
+        data = np.ones(2 * len(e), dtype=bool)
+        rows = np.concatenate([e[:, 0], e[:, 1]])
+        cols = np.concatenate([e[:, 1], e[:, 0]])
+        return sp.csr_matrix((data, (rows, cols)), shape=(n, n))
+
+    @cached_property
+    def triangle_adjacency(self) -> sp.csr_matrix:
+        """Symmetric ``(T, T)`` boolean matrix: triangles sharing an edge."""
+        te = self.triangle_edges.ravel()
+        tid = np.repeat(np.arange(self.n_triangles), 3)
+        inc = sp.csr_matrix((np.ones(len(te)), (tid, te)), shape=(self.n_triangles, len(self.edges)))
+        adj = (inc @ inc.T).tocsr()
+        adj.setdiag(0)
+        adj.eliminate_zeros()
+        return adj.astype(bool)
+
+    @cached_property
+    def vertex_triangles(self) -> sp.csr_matrix:
+        """``(N, T)`` incidence matrix: entry (i, k) is 1 if vertex i is in triangle k."""
+        t = self._triangles
+        rows = t.ravel()
+        cols = np.repeat(np.arange(len(t)), 3)
+        return sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(self.n_vertices, len(t)))
+
+
+class PlanarMesh(TriangleMesh):
+    """An immutable planar triangle mesh ``PlanarMesh(points, triangles)``.
+
+    ``points`` is stored as ``(N, 2)`` float64; ``(N, 3)`` input is accepted when every z is
+    exactly 0. Construction performs the *readable* checks of :class:`TriangleMesh`; the
+    planar-manifold and admissibility checks are in :func:`check_mesh`.
+
+    Examples
+    --------
+    >>> m = PlanarMesh([[0, 0], [1, 0], [0, 1]], [[0, 1, 2]])
+    >>> m.refine().n_triangles
+    4
+    """
+
+    def __init__(self, points, triangles, **kwargs) -> None:
+        pts = np.asarray(points, dtype=np.float64)
+        if pts.ndim == 2 and pts.shape[1] == 3:
+            finite = np.isfinite(pts[:, 2])
+            nz = np.flatnonzero(finite & (pts[:, 2] != 0))
+            if nz.size:
+                src = kwargs.get("source")
+                where = f"{src}: " if src else ""
+                raise InvalidMeshError(
+                    f"{where}not planar: vertex {nz[0]} has z = {pts[nz[0], 2]!r} (z must be 0)"
+                )
+            pts = pts[:, :2]
+        super().__init__(pts, triangles, **kwargs)
+
+    def with_points(self, points) -> "PlanarMesh":
+        """A new mesh with the same connectivity and tags at new positions ``(N, 2)``."""
+        q = np.asarray(points, dtype=np.float64)
+        if q.shape != self._points.shape:
+            raise InvalidMeshError(
+                f"new points have shape {q.shape}, the mesh has {self._points.shape}"
+            )
+        new = object.__new__(PlanarMesh)
+        new.__dict__.update({k: v for k, v in self.__dict__.items() if not k.startswith("_geom")})
+        if not np.isfinite(q).all():
+            bad = int(np.flatnonzero(~np.isfinite(q).all(axis=1))[0])
+            raise InvalidMeshError(f"vertex {bad} has a non-finite coordinate")
+        new._points = _frozen(q.copy())
+        return new
+
+    def flipped(self) -> "PlanarMesh":
+        """The same mesh with every triangle's orientation reversed."""
+        return PlanarMesh(self._points, self._triangles[:, ::-1], **self._tag_kwargs())
+
+    def signed_areas(self) -> FloatArray:
+        """Signed area per triangle ``(T,)``."""
+        return signed_areas(self._points, self._triangles)
+
+    def quality(self):
+        """:class:`~meshopt_toolkit.geometry.QualitySummary` of the current positions."""
+        return quality_summary(self._points, self._triangles)
+
+    @property
+    def diameter(self) -> float:
+        """Diagonal of the bounding box."""
+        return float(np.linalg.norm(self._points.max(axis=0) - self._points.min(axis=0)))
+
+    def refine(self) -> "PlanarMesh":
+        """Uniform refinement: every triangle into four at its edge midpoints.
+
+        New vertices are appended after the old ones in edge order. Triangle tags are
+        inherited by the four children; a tagged line element is split into two lines with
+        the same tag. The orientation of every child equals its parent's.
+        """
+        n = self.n_vertices
+        edges = self.edges
+        mid = 0.5 * (self._points[edges[:, 0]] + self._points[edges[:, 1]])
+        pts = np.vstack([self._points, mid])
+        te = self.triangle_edges + n  # midpoint of edge opposite local vertex l
+        a, b, c = self._triangles.T
+        mab, mbc, mca = te[:, 2], te[:, 0], te[:, 1]
+        tri = np.stack(
+            [
+                np.stack([a, mab, mca], 1),
+                np.stack([mab, b, mbc], 1),
+                np.stack([mca, mbc, c], 1),
+                np.stack([mab, mbc, mca], 1),
+            ],
+            axis=1,
+        ).reshape(-1, 3)
+        ttags = None if self._triangle_tags is None else np.repeat(self._triangle_tags, 4)
+        lines = ltags = None
+        if self._lines is not None:
+            key = np.sort(self._lines, axis=1)
+            idx = _edge_index(edges, key)
+            if np.any(idx < 0):
+                # line elements that are not mesh edges: keep them unsplit
+                keep = idx < 0
+                m = n + idx[~keep]
+                l0, l1 = self._lines[~keep, 0], self._lines[~keep, 1]
+                lines = np.vstack(
+                    [np.stack([l0, m], 1), np.stack([m, l1], 1), self._lines[keep]]
+                )
+                lt = self._line_tags
+                ltags = np.concatenate([lt[~keep], lt[~keep], lt[keep]])
+            else:
+                m = n + idx
+                lines = np.stack(
+                    [np.stack([self._lines[:, 0], m], 1), np.stack([m, self._lines[:, 1]], 1)], 1
+                ).reshape(-1, 2)
+                ltags = np.repeat(self._line_tags, 2)
+        return PlanarMesh(
+            pts,
+            tri,
+            triangle_tags=ttags,
+            lines=lines,
+            line_tags=ltags,
+            tag_names=self._tag_names,
+            source=self._source,
+        )
+
+    def tagged_vertices(self, tag: int | str) -> IntArray:
+        """Vertices of the line elements (or triangles) carrying a physical tag or name."""
+        if isinstance(tag, str):
+            if tag not in self._tag_names:
+                raise InvalidMeshError(
+                    f"no physical group named {tag!r}; known: {sorted(self._tag_names)}"
+                )
+            tag = self._tag_names[tag][0]
+        parts = []
+        if self._lines is not None:
+            parts.append(self._lines[self._line_tags == tag].ravel())
+        if self._triangle_tags is not None:
+            parts.append(self._triangles[self._triangle_tags == tag].ravel())
+        if not parts or not sum(len(p) for p in parts):
+            raise InvalidMeshError(f"no element carries physical tag {tag}")
+        return np.unique(np.concatenate(parts))
+
+
+def _edge_index(edges: IntArray, keys: IntArray) -> IntArray:
+    """Row index of each sorted pair in ``keys`` within lexicographically sorted ``edges``.
+
+    Returns -1 where a pair is not an edge.
+    """
+    n = int(max(edges.max(initial=0), keys.max(initial=0))) + 1
+    code_e = edges[:, 0] * n + edges[:, 1]
+    code_k = keys[:, 0] * n + keys[:, 1]
+    pos = np.searchsorted(code_e, code_k)
+    pos = np.clip(pos, 0, len(code_e) - 1)
+    return np.where(code_e[pos] == code_k, pos, -1)
+
+
+# ---------------------------------------------------------------------------------------
+# checks
+# ---------------------------------------------------------------------------------------
+
+
+@dataclass
+class MeshReport:
+    """Outcome of :func:`check_mesh`.
+
+    Attributes
+    ----------
+    planar : bool
+        2D points (or z ≡ 0).
+    manifold : bool
+        Every planar-manifold condition of SPEC §1 holds (planarity included).
+    admissible : bool
+        ``manifold`` and every signed area > 0 and no boundary self-intersection.
+    reoriented : bool
+        The mesh was consistently clockwise; :attr:`mesh` is the CCW version.
+    problems : list of str
+        Human-readable reasons, each naming a vertex/triangle/edge.
+    mesh : TriangleMesh
+        The checked mesh (re-oriented to CCW when ``reoriented``).
+    """
+
+    planar: bool
+    manifold: bool
+    admissible: bool
+    reoriented: bool = False
+    problems: list[str] = field(default_factory=list)
+    mesh: TriangleMesh | None = None
+
+
+def _manifold_problems(mesh: TriangleMesh) -> list[str]:
+    problems: list[str] = []
+    tri = mesh.triangles
+    n = mesh.n_vertices
+    used = np.zeros(n, bool)
+    used[tri.ravel()] = True
+    if not used.all():
+        v = np.flatnonzero(~used)
+        problems.append(f"vertex {v[0]} is not used by any triangle ({v.size} unused)")
+    degenerate = np.flatnonzero(
+        (tri[:, 0] == tri[:, 1]) | (tri[:, 1] == tri[:, 2]) | (tri[:, 0] == tri[:, 2])
+    )
+    if degenerate.size:
+        k = degenerate[0]
+        problems.append(f"triangle {k} {tri[k].tolist()} repeats a vertex")
+        return problems
+    counts = mesh.edge_triangle_counts
+    over = np.flatnonzero(counts > 2)
+    if over.size:
+        e = mesh.edges[over[0]]
+        problems.append(
+            f"edge ({e[0]}, {e[1]}) is shared by {counts[over[0]]} triangles (not edge-manifold)"
+        )
+        return problems
+    # consistent orientation: an interior edge appears once in each direction
+    directed = np.stack([np.roll(tri, -1, axis=1), np.roll(tri, -2, axis=1)], axis=-1).reshape(-1, 2)
+    forward = directed[:, 0] < directed[:, 1]
+    te = mesh.triangle_edges.ravel()
+    fwd_count = np.bincount(te, weights=forward, minlength=len(counts))
+    bad = np.flatnonzero((counts == 2) & (fwd_count != 1))
+    if bad.size:
+        e = mesh.edges[bad[0]]
+        problems.append(
+            f"triangles sharing edge ({e[0]}, {e[1]}) have inconsistent orientation"
+        )
+    ncomp, _ = connected_components(mesh.triangle_adjacency, directed=False)
+    if ncomp > 1:
+        problems.append(f"mesh has {ncomp} pieces not connected through edges")
+    # bow-ties: the corners around each vertex must form one fan (connected via edges)
+    interior = np.flatnonzero(counts == 2)
+    if interior.size and not bad.size:
+        owner = np.repeat(np.arange(len(tri)), 3)
+        order = np.argsort(te, kind="stable")
+        te_sorted = te[order]
+        first = np.searchsorted(te_sorted, interior)
+        t1 = owner[order[first]]
+        t2 = owner[order[first + 1]]
+        e = mesh.edges[interior]
+        corner_id = np.full((len(tri), 3), -1, np.int64)
+        corner_id.ravel()[:] = np.arange(3 * len(tri))
+
+        def corner(t, v):
+            loc = np.argmax(tri[t] == v[:, None], axis=1)
+            return corner_id[t, loc]
+
+        rows = np.concatenate([corner(t1, e[:, 0]), corner(t1, e[:, 1])])
+        cols = np.concatenate([corner(t2, e[:, 0]), corner(t2, e[:, 1])])
+        g = sp.coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(3 * len(tri),) * 2)
+        _, labels = connected_components(g, directed=False)
+        per_vertex = np.zeros(n, np.int64)
+        uniq = np.unique(np.stack([tri.ravel(), labels], 1), axis=0)
+        np.add.at(per_vertex, uniq[:, 0], 1)
+        bow = np.flatnonzero(per_vertex > 1)
+        if bow.size:
+            problems.append(
+                f"vertex {bow[0]} is a bow-tie: its triangles form {per_vertex[bow[0]]} "
+                "separate fans"
+            )
+    return problems
+
+
+def boundary_self_intersections(points: FloatArray, boundary_edges: IntArray) -> IntArray:
+    """Pairs of non-adjacent boundary edges that intersect, ``(K, 2)`` indices.
+
+    A broad phase with a k-d tree on edge midpoints (two segments can only meet when their
+    midpoints are closer than the longest edge) followed by exact orientation tests.
+    """
+    from scipy.spatial import cKDTree
+
+    if len(boundary_edges) < 3:
+        return np.zeros((0, 2), np.int64)
+    a = points[boundary_edges[:, 0]]
+    b = points[boundary_edges[:, 1]]
+    mid = 0.5 * (a + b)
+    reach = float(np.linalg.norm(b - a, axis=1).max())
+    pairs = cKDTree(mid).query_pairs(reach * (1 + 1e-9), output_type="ndarray")
+    if len(pairs) == 0:
+        return np.zeros((0, 2), np.int64)
+    i, j = pairs[:, 0], pairs[:, 1]
+    e = boundary_edges
+    share = (
+        (e[i, 0] == e[j, 0]) | (e[i, 0] == e[j, 1]) | (e[i, 1] == e[j, 0]) | (e[i, 1] == e[j, 1])
+    )
+    i, j = i[~share], j[~share]
+
+    def orient(p, q, r):
+        return (q[:, 0] - p[:, 0]) * (r[:, 1] - p[:, 1]) - (q[:, 1] - p[:, 1]) * (r[:, 0] - p[:, 0])
+
+    d1 = orient(a[i], b[i], a[j])
+    d2 = orient(a[i], b[i], b[j])
+    d3 = orient(a[j], b[j], a[i])
+    d4 = orient(a[j], b[j], b[i])
+    hit = (d1 * d2 <= 0) & (d3 * d4 <= 0)
+    # collinear but disjoint segments satisfy the sign test; exclude them by projection
+    col = hit & (d1 == 0) & (d2 == 0)
+    if col.any():
+        k = np.flatnonzero(col)
+        dvec = b[i[k]] - a[i[k]]
+        t0 = np.einsum("kd,kd->k", a[j[k]] - a[i[k]], dvec)
+        t1 = np.einsum("kd,kd->k", b[j[k]] - a[i[k]], dvec)
+        L = np.einsum("kd,kd->k", dvec, dvec)
+        overlap = (np.maximum(t0, t1) >= 0) & (np.minimum(t0, t1) <= L)
+        hit[k] = overlap
+    return np.stack([i[hit], j[hit]], 1)
+
+
+def check_mesh(mesh: TriangleMesh) -> MeshReport:
+    """Run every check of SPEC §1 and report (never raises for a readable mesh).
+
+    A planar-manifold mesh whose triangles are all clockwise is re-oriented to CCW; the
+    report says so and carries the re-oriented mesh.
+    """
+    if not mesh.is_planar:
+        return MeshReport(False, False, False, problems=["not planar: some z is non-zero"], mesh=mesh)
+    pm = mesh.as_planar()
+    problems = _manifold_problems(pm)
+    if problems:
+        return MeshReport(True, False, False, problems=problems, mesh=pm)
+    reoriented = False
+    area = pm.signed_areas()
+    if area.sum() < 0:
+        pm = pm.flipped()
+        area = -area
+        reoriented = True
+        logger.info("%s: re-oriented from clockwise to counter-clockwise", pm.source or "mesh")
+    problems = []
+    nonpos = np.flatnonzero(area <= 0)
+    if nonpos.size:
+        k = nonpos[0]
+        kind = "zero-area" if area[k] == 0 else "inverted"
+        problems.append(
+            f"triangle {k} {pm.triangles[k].tolist()} is {kind} (signed area {area[k]:.3g})"
+            + (f"; {nonpos.size} non-positive triangles" if nonpos.size > 1 else "")
+        )
+    hits = boundary_self_intersections(pm.points, pm.boundary_edges)
+    if len(hits):
+        e1, e2 = pm.boundary_edges[hits[0, 0]], pm.boundary_edges[hits[0, 1]]
+        problems.append(
+            f"boundary self-intersects: edges ({e1[0]}, {e1[1]}) and ({e2[0]}, {e2[1]}) cross"
+        )
+    return MeshReport(True, True, not problems, reoriented, problems, pm)
+
+
+def require_admissible(mesh: TriangleMesh, what: str = "this operation") -> PlanarMesh:
+    """Return the (CCW-oriented) planar mesh, or raise a clear error naming the problem.
+
+    Raises
+    ------
+    InvalidMeshError
+        Not planar or not a planar manifold.
+    NotAdmissibleError
+        Planar manifold but with an inverted/zero-area triangle or boundary crossing.
+    """
+    report = check_mesh(mesh)
+    where = f"{mesh.source}: " if mesh.source else ""
+    if not report.manifold:
+        raise InvalidMeshError(f"{where}{what} needs a planar manifold mesh: {report.problems[0]}")
+    if not report.admissible:
+        raise NotAdmissibleError(f"{where}{what} needs an admissible mesh: {report.problems[0]}")
+    if report.reoriented:
+        logger.warning("%sre-oriented from clockwise to counter-clockwise", where)
+    return report.mesh  # type: ignore[return-value]

@@ -1,0 +1,1 @@
+"""Filter API, registry, documents and pipelines (JSON and MeshLab .mlx)."""

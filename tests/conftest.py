@@ -1,0 +1,46 @@
+"""Shared tiny meshes and a seeded RNG."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from meshopt_toolkit.mesh import PlanarMesh
+
+
+@pytest.fixture
+def rng() -> np.random.Generator:
+    return np.random.default_rng(20261121)
+
+
+def square5() -> PlanarMesh:
+    """The 5-vertex square [-1, 1]² with a centre vertex (SPEC §6)."""
+    pts = [[-1, -1], [1, -1], [1, 1], [-1, 1], [0, 0]]
+    tri = [[0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4]]
+    return PlanarMesh(pts, tri)
+
+
+def grid_mesh(n: int = 4, jitter: float = 0.0, seed: int = 0) -> PlanarMesh:
+    """Structured triangulation of [0, 1]² with n×n squares, optionally jittered inside."""
+    x = np.linspace(0.0, 1.0, n + 1)
+    X, Y = np.meshgrid(x, x, indexing="xy")
+    pts = np.stack([X.ravel(), Y.ravel()], 1)
+    if jitter:
+        r = np.random.default_rng(seed)
+        inner = (pts > 0).all(1) & (pts < 1).all(1)
+        pts[inner] += jitter / n * r.uniform(-1, 1, (inner.sum(), 2))
+    idx = np.arange((n + 1) ** 2).reshape(n + 1, n + 1)
+    a, b = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel()
+    c, d = idx[1:, 1:].ravel(), idx[1:, :-1].ravel()
+    tri = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
+    return PlanarMesh(pts, tri)
+
+
+@pytest.fixture
+def square() -> PlanarMesh:
+    return square5()
+
+
+@pytest.fixture
+def grid() -> PlanarMesh:
+    return grid_mesh(4, jitter=0.3)
