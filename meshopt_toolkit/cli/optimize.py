@@ -1,0 +1,146 @@
+"""``meshopt optimize``: PDE-constrained shape optimization (the main job).
+
+Without a mesh it solves the thesis' model problem (SPEC §6) on the bundled 146-vertex
+disc with variant complete-euclidean and the thesis' parameter set 2 (table 6.3).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import logging
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import MeshoptError, WriteError
+from ._common import float_list
+
+HELP = "shape optimization: minimize ∫y (P1 Poisson) + f2 over admissible meshes"
+
+DEFAULT_MESH = "disc_146.msh"
+DEFAULT_RHS = "2.5*(x1 + 0.4 - x2**2)**2 + x1**2 + x2**2 - 1"
+OUTPUT_NAMES = ("history.csv", "history.json", "summary.json", "mesh.png", "history.png")
+
+logger = logging.getLogger(__name__)
+
+
+def add_args(p: argparse.ArgumentParser) -> None:
+    from ..optimize import VARIANTS
+
+    p.formatter_class = argparse.RawDescriptionHelpFormatter
+    p.epilog = (
+        "β4 is given unscaled: f2 divides it by 2N (thesis table 6.3 lists β4/N_V).\n"
+        "Default (no MESH): bundled disc_146.msh, complete-euclidean, β^penalty = thesis\n"
+        "parameter set 2 = (0.1, 0.01, 0, 0.001·N), β^metric = (10, 1, 0, 0.01·N)."
+    )
+    p.add_argument("mesh", nargs="?", help=f"input mesh (default: the bundled {DEFAULT_MESH})")
+    p.add_argument("-o", "--output", default="meshopt-optimize",
+                   help="output directory (default: %(default)s)")
+    p.add_argument("--variant", choices=VARIANTS, default="complete-euclidean",
+                   help="gradient metric and retraction (default: %(default)s)")
+    p.add_argument("--penalty", type=float_list(4), metavar="b1,b2,b3,b4",
+                   help="β^penalty of f2 added to j; 0,0,0,0 = unpenalized "
+                        "(default: thesis parameter set 2)")
+    p.add_argument("--metric-penalty", type=float_list(4), metavar="b1,b2,b3,b4",
+                   help="β^metric of the complete metric (default: 10,1,0,0.01·N)")
+    p.add_argument("--rhs", default=DEFAULT_RHS,
+                   help="right-hand side r(x1, x2) of -Δy = r; numbers, + - * / **, x/y/x1/x2, "
+                        "pi, e, sin, cos, tan, exp, log, sqrt, abs, min, max "
+                        "(default: %(default)s)")
+    p.add_argument("--fixed", metavar="TAG",
+                   help="keep the vertices of this physical group (name or number) fixed")
+    p.add_argument("--max-iter", type=int, default=1000, help="maximum iterations (default: %(default)s)")
+    p.add_argument("--tol", type=float, default=1e-6,
+                   help="stopping tolerance of (6.26); 0 = run all iterations (default: %(default)s)")
+    p.add_argument("--no-plots", action="store_true", help="do not write PNG figures")
+    p.add_argument("--force", action="store_true", help="overwrite existing output files")
+    p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
+
+
+def _prepare_outdir(outdir: Path, mesh_name: str, force: bool, input_path: Path) -> None:
+    outdir.mkdir(parents=True, exist_ok=True)
+    names = (mesh_name,) + OUTPUT_NAMES
+    if (outdir / mesh_name).resolve() == input_path.resolve():
+        raise WriteError(f"{outdir / mesh_name}: refusing to overwrite the input mesh")
+    previous_run = (outdir / "summary.json").exists()
+    clash = [n for n in names if (outdir / n).exists()]
+    if clash and not (force or previous_run):
+        raise WriteError(f"{outdir / clash[0]}: exists (use --force to overwrite)")
+
+
+def _atomic_text(path: Path, text: str) -> None:
+    from ..io import atomic_write
+
+    with atomic_write(path, "w") as fh:
+        fh.write(text)
+
+
+def run(args: argparse.Namespace) -> int:
+    from .. import io
+    from ..datasets import data_path
+    from ..optimize import optimize, thesis_penalty_beta
+    from ..poisson import PoissonObjective
+    from ..progress import ProgressBar
+
+    input_path = Path(args.mesh) if args.mesh else data_path(DEFAULT_MESH)
+    mesh = io.load(input_path).as_planar()
+    n = mesh.n_vertices
+    penalty = args.penalty if args.penalty is not None else thesis_penalty_beta(2, n)
+    if args.max_iter < 1:
+        raise MeshoptError("--max-iter must be at least 1")
+    objective = PoissonObjective(mesh, rhs=args.rhs)
+    fixed = mesh.tagged_vertices(int(args.fixed) if args.fixed and args.fixed.isdigit() else args.fixed) \
+        if args.fixed else None
+    outdir = Path(args.output)
+    mesh_name = "optimized" + input_path.suffix.lower()
+    _prepare_outdir(outdir, mesh_name, args.force, input_path)
+
+    bar = ProgressBar(args.max_iter, "optimize")
+
+    def callback(record, Q):
+        bar.update(status=f"j={record.j:.5f} Λ={record.mean_shape_quality:.4f}")
+
+    with bar:
+        result = optimize(
+            mesh, objective, variant=args.variant, penalty_beta=penalty,
+            metric_beta=args.metric_penalty, fixed=fixed, max_iter=args.max_iter,
+            tol=args.tol if args.tol > 0 else None, callback=callback,
+        )
+    io.save(result.mesh, outdir / mesh_name, overwrite=True)
+    summary = result.summary()
+    summary.update(input=str(input_path), output=str(outdir / mesh_name),
+                   penalty_beta=list(penalty), rhs=args.rhs)
+    _write_history(outdir, result)
+    _atomic_text(outdir / "summary.json", json.dumps(summary, indent=2) + "\n")
+    if not args.no_plots:
+        _write_plots(outdir, mesh, result, objective)
+    if args.json:
+        json.dump(summary, sys.stdout)
+        sys.stdout.write("\n")
+    else:
+        print(f"{result.status}: {result.message}")
+        print(f"iterations {result.nit}  j = {result.j:.6f}  j + f2 = {result.fun:.6f}  "
+              f"Λ = {summary['mean_shape_quality']:.4f}  AR = {summary['min_aspect_ratio']:.4f}  "
+              f"({result.seconds:.2f} s)")
+        print(f"wrote {outdir}/ ({mesh_name}, {', '.join(OUTPUT_NAMES)})")
+    return 0 if result.success else 1
+
+
+def _write_history(outdir: Path, result) -> None:
+    from ..io import atomic_write
+
+    rows = [r.as_row() for r in result.history]
+    with atomic_write(outdir / "history.csv", "w") as fh:
+        writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    _atomic_text(outdir / "history.json", json.dumps(rows, indent=1) + "\n")
+
+
+def _write_plots(outdir: Path, mesh, result, objective) -> None:
+    from ..plotting import plot_optimization
+
+    plot_optimization(mesh, result, objective.rhs, outdir / "mesh.png", outdir / "history.png")

@@ -1,0 +1,423 @@
+"""Riemannian steepest descent for discretize-then-optimize shape optimization.
+
+Algorithm 2 of the thesis (§6.4.1, SPEC §7): at every iterate the derivative of
+``F = j + f2`` is turned into a gradient by the Riesz map of a metric, and an Armijo
+backtracking line search along a retraction picks the step. Variants are named
+``"<metric>-<retraction>"``:
+
+=======================  ==================  ==========================================
+variant                  gradient metric     retraction
+=======================  ==================  ==========================================
+euclidean-euclidean      Euclidean (5.2)     Q + s d (6.20), with the travel guard (6.23)
+elasticity-euclidean     elasticity (5.3)    Q + s d, travel guard
+complete-euclidean       complete (5.34)     Q + s d, travel guard
+complete-complete        complete (5.34)     exponential map (6.19), rescaling lemma
+=======================  ==================  ==========================================
+
+The objective is any object with ``value(Q) -> float`` and ``derivative(Q) -> (N, 2)``
+(e.g. :class:`~meshopt_toolkit.poisson.PoissonObjective`); the optional penalty is f2
+(:class:`~meshopt_toolkit.penalties.QualityPenalty`) with its own ``β^penalty``, the
+complete metric uses a second f2 with ``β^metric``.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import asdict, dataclass, field
+from typing import Callable, Protocol, Sequence
+
+import numpy as np
+
+from ._typing import FloatArray
+from .errors import IntegrationError, OptimizationError
+from .geometry import heights, quality_summary, signed_areas
+from .mesh import PlanarMesh, require_admissible
+
+logger = logging.getLogger(__name__)
+
+VARIANTS = (
+    "euclidean-euclidean",
+    "elasticity-euclidean",
+    "complete-euclidean",
+    "complete-complete",
+)
+
+#: the phases timed per iteration (the columns of thesis tables 6.2, 6.5, 6.6)
+PHASES = ("state", "derivative", "penalty_derivative", "gradient", "backtracking", "retraction")
+
+
+class Objective(Protocol):
+    """What :func:`optimize` needs from a shape functional j(Q)."""
+
+    def value(self, Q: FloatArray) -> float: ...
+
+    def derivative(self, Q: FloatArray) -> FloatArray: ...
+
+
+@dataclass
+class IterationRecord:
+    """One row of the optimization history.
+
+    ``objective`` is F = j + f (penalty), ``mean_shape_quality`` is Λ (6.25),
+    ``min_aspect_ratio`` is AR (5.49); ``seconds`` maps each phase of :data:`PHASES` to
+    its wall time in this iteration. Row 0 describes the initial mesh (step 0).
+    """
+
+    iteration: int
+    j: float
+    penalty: float
+    objective: float
+    mean_shape_quality: float
+    min_aspect_ratio: float
+    step: float
+    backtracks: int
+    gradient_norm: float
+    seconds: dict = field(default_factory=dict)
+
+    def as_row(self) -> dict:
+        """Flat dict (phase times as ``time_<phase>`` columns) for CSV/JSON."""
+        row = {k: v for k, v in asdict(self).items() if k != "seconds"}
+        for phase in PHASES:
+            row[f"time_{phase}"] = float(self.seconds.get(phase, 0.0))
+        return row
+
+
+@dataclass
+class OptimizeResult:
+    """Outcome of :func:`optimize` (scipy's field names where they fit).
+
+    Attributes
+    ----------
+    mesh : PlanarMesh
+        The final (admissible) mesh.
+    x : (N, 2) array
+        Its node positions.
+    fun : float
+        Final F = j + f.
+    j : float
+        Final shape functional.
+    nit : int
+        Iterations performed.
+    status : str
+        ``"converged"`` (6.26), ``"max_iterations"`` or ``"step_too_small"``.
+    success : bool
+        True unless the run failed (``step_too_small``).
+    message : str
+    history : list of IterationRecord
+    seconds : float
+        Total wall time.
+    variant : str
+    """
+
+    mesh: PlanarMesh
+    x: FloatArray
+    fun: float
+    j: float
+    nit: int
+    status: str
+    success: bool
+    message: str
+    history: list[IterationRecord]
+    seconds: float
+    variant: str
+
+    def history_columns(self) -> dict[str, np.ndarray]:
+        """The history as named columns (arrays), one entry per record."""
+        rows = [r.as_row() for r in self.history]
+        return {k: np.array([r[k] for r in rows]) for k in rows[0]}
+
+    def phase_totals(self, iterations: int | None = None) -> dict[str, float]:
+        """Wall time per phase summed over the first ``iterations`` iterations (all if None)."""
+        recs = self.history[1 : None if iterations is None else iterations + 1]
+        return {p: float(sum(r.seconds.get(p, 0.0) for r in recs)) for p in PHASES}
+
+    def summary(self) -> dict:
+        """JSON-ready summary of the run."""
+        last = self.history[-1]
+        return {
+            "status": self.status,
+            "success": self.success,
+            "message": self.message,
+            "variant": self.variant,
+            "iterations": self.nit,
+            "j": self.j,
+            "penalty": last.penalty,
+            "objective": self.fun,
+            "mean_shape_quality": last.mean_shape_quality,
+            "min_aspect_ratio": last.min_aspect_ratio,
+            "seconds": self.seconds,
+            "n_vertices": self.mesh.n_vertices,
+            "n_triangles": self.mesh.n_triangles,
+        }
+
+
+def default_metric_beta(n_vertices: int) -> tuple[float, float, float, float]:
+    """β^metric of thesis §6.4.3, (10, 1, 0, 1.46) for 146 vertices, i.e. β4 = 0.01·N."""
+    return (10.0, 1.0, 0.0, 0.01 * n_vertices)
+
+
+#: β^penalty parameter sets of thesis table 6.3, with β4 given per vertex (β4/N_V)
+THESIS_PENALTY_SETS = {
+    1: (1.0, 0.5, 0.0, 0.1),
+    2: (0.1, 0.01, 0.0, 0.001),
+    3: (0.015, 0.005, 0.0, 0.0005),
+}
+
+
+def thesis_penalty_beta(parameter_set: int, n_vertices: int) -> tuple[float, float, float, float]:
+    """β^penalty of thesis table 6.3 with β4 unscaled (table value × N_V)."""
+    b1, b2, b3, b4_per_vertex = THESIS_PENALTY_SETS[parameter_set]
+    return (b1, b2, b3, b4_per_vertex * n_vertices)
+
+
+def max_travel_step(Q: FloatArray, triangles: np.ndarray, d: FloatArray) -> float:
+    """Largest step allowed by the node-travel safeguard (6.23).
+
+    A trial step ``s`` is refused when ``s |d_i| ≥ ½ h_l`` for a vertex ``i`` at local
+    position ``l`` of any triangle, ``h_l`` that triangle's height from ``i``. Returns
+    ``min ½ h_l / |d_i|`` (inf when ``d`` vanishes).
+    """
+    h = heights(Q, triangles)  # (T, 3), height from local vertex l onto the opposite edge
+    speed = np.linalg.norm(d, axis=1)[triangles]  # (T, 3)
+    with np.errstate(divide="ignore"):
+        limit = np.where(speed > 0, 0.5 * h / speed, np.inf)
+    return float(limit.min())
+
+
+class _Timer:
+    def __init__(self) -> None:
+        self.seconds = dict.fromkeys(PHASES, 0.0)
+
+    def add(self, phase: str, t0: float) -> float:
+        now = time.perf_counter()
+        self.seconds[phase] += now - t0
+        return now
+
+
+def _make_metric(variant: str, mesh: PlanarMesh, metric_beta, metric_options: dict):
+    from .metrics import CompleteMetric, ElasticityMetric, EuclideanMetric
+
+    kind = variant.split("-")[0]
+    if kind == "euclidean":
+        return EuclideanMetric()
+    if kind == "elasticity":
+        return ElasticityMetric(mesh, **metric_options)
+    from .penalties import QualityPenalty
+
+    beta = default_metric_beta(mesh.n_vertices) if metric_beta is None else tuple(metric_beta)
+    return CompleteMetric(QualityPenalty(mesh, beta=beta, **metric_options))
+
+
+def _riesz(metric, Q: FloatArray, P: FloatArray, free: np.ndarray | None) -> FloatArray:
+    """Gradient from derivative P; with fixed vertices, the Riesz map of the metric
+    restricted to the free vertices (the fixed rows of the result are zero)."""
+    if free is None:
+        return metric.riesz(Q, P)
+    from .metrics import CompleteMetric, ElasticityMetric
+
+    P = np.where(free[:, None], P, 0.0)
+    if isinstance(metric, CompleteMetric):
+        g = np.where(free[:, None], metric.penalty.gradient(Q), 0.0)
+        return P - g * (np.vdot(g, P) / (1.0 + np.vdot(g, g)))
+    if isinstance(metric, ElasticityMetric):
+        import scipy.sparse.linalg as spla
+
+        A = metric.matrix(Q).tocsr()
+        dof = np.repeat(free, 2)
+        x = np.zeros(2 * len(Q))
+        x[dof] = spla.spsolve(A[dof][:, dof].tocsc(), P.ravel()[dof])
+        return x.reshape(-1, 2)
+    return P  # Euclidean
+
+
+def optimize(
+    mesh: PlanarMesh,
+    objective: Objective,
+    *,
+    variant: str = "complete-euclidean",
+    penalty_beta: Sequence[float] | None = None,
+    metric_beta: Sequence[float] | None = None,
+    fixed: np.ndarray | None = None,
+    max_iter: int = 1000,
+    tol: float | None = 1e-6,
+    sigma: float = 1e-4,
+    tau: float = 0.5,
+    min_step: float = 1e-6,
+    metric_options: dict | None = None,
+    exp_options: dict | None = None,
+    callback: Callable[[IterationRecord, FloatArray], bool | None] | None = None,
+) -> OptimizeResult:
+    """Minimize ``F(Q) = j(Q) + f2(Q; Q0)`` over admissible meshes by Riemannian
+    steepest descent (thesis algorithm 2, §6.4.1).
+
+    Parameters
+    ----------
+    mesh : PlanarMesh
+        Initial mesh; also the reference Q_ref of the penalty. Must be admissible.
+    objective : object with ``value(Q)`` and ``derivative(Q)`` (shape (N, 2))
+    variant : one of :data:`VARIANTS`
+    penalty_beta : (β1, β2, β3, β4) of the penalty f2 added to j (β4 unscaled: f2
+        divides it by 2N); None or all zero = unpenalized.
+    metric_beta : β^metric of the complete metric (default :func:`default_metric_beta`).
+    fixed : vertex indices (or boolean mask) that do not move.
+    max_iter : maximum number of iterations.
+    tol : tolerance of the stopping rule (6.26) ``max_{m=1..5} F_{n−m} − F_n < tol``;
+        None disables it (fixed iteration count, as for the unpenalized runs).
+    sigma, tau : Armijo parameters (6.21) and backtracking factor.
+    min_step : a run fails (``step_too_small``) when a trial step drops below this.
+    metric_options : extra keyword arguments of the metric (e.g. elasticity ``E``, ``nu``).
+    exp_options : keyword arguments for :func:`meshopt_toolkit.geodesics.geodesic`
+        (complete-complete only).
+    callback : called as ``callback(record, Q)`` after each iteration; returning True stops.
+
+    Returns
+    -------
+    OptimizeResult
+
+    Raises
+    ------
+    OptimizationError
+        A direction that is not a descent direction (a wrong derivative), or an unknown
+        variant.
+    """
+    if variant not in VARIANTS:
+        raise OptimizationError(f"unknown variant {variant!r}; choose one of {', '.join(VARIANTS)}")
+    mesh = require_admissible(mesh, "shape optimization")
+    tri = mesh.triangles
+    N = mesh.n_vertices
+    free = None
+    if fixed is not None:
+        fixed = np.asarray(fixed)
+        free = np.ones(N, bool)
+        free[fixed] = False
+        if not free.any():
+            raise OptimizationError("every vertex is fixed: nothing to optimize")
+    penalty = None
+    if penalty_beta is not None and any(b != 0 for b in penalty_beta):
+        from .penalties import QualityPenalty
+
+        penalty = QualityPenalty(mesh, beta=tuple(penalty_beta))
+    metric = _make_metric(variant, mesh, metric_beta, dict(metric_options or {}))
+    use_exp = variant.endswith("-complete")
+
+    def penalty_value(Q):
+        return 0.0 if penalty is None else float(penalty.value(Q))
+
+    start = time.perf_counter()
+    Q = np.array(mesh.points, dtype=float)
+    timer = _Timer()
+    t0 = time.perf_counter()
+    J = float(objective.value(Q))
+    t0 = timer.add("state", t0)
+    fpen = penalty_value(Q)
+    F = J + fpen
+    q = quality_summary(Q, tri)
+    history = [
+        IterationRecord(0, J, fpen, F, q.mean_shape_quality, q.min_aspect_ratio, 0.0, 0, math.nan,
+                        dict(timer.seconds))
+    ]
+    s_prev = slope_prev = None
+    status, message = "max_iterations", f"reached the maximum of {max_iter} iterations"
+    for n in range(1, max_iter + 1):
+        timer = _Timer()
+        t0 = time.perf_counter()
+        dJ = objective.derivative(Q)
+        t0 = timer.add("derivative", t0)
+        P = dJ if penalty is None else dJ + penalty.gradient(Q)
+        t0 = timer.add("penalty_derivative", t0)
+        d = -_riesz(metric, Q, P, free)
+        slope = float(np.vdot(P, d))  # dF(Q)[d]
+        dnorm = float(metric.norm(Q, d))
+        t0 = timer.add("gradient", t0)
+        if not slope < 0:
+            if slope == 0 or dnorm == 0:
+                status, message = "converged", "the gradient vanishes"
+                break
+            raise OptimizationError(
+                f"iteration {n}: the search direction is not a descent direction "
+                f"(dF[d] = {slope:.3e}); the derivative or the metric is wrong"
+            )
+        s = None if s_prev is None else s_prev * slope_prev / slope
+        if s is None or s * dnorm < 1e-4:
+            s = 1.0 / dnorm
+        trial_steps = s * tau ** np.arange(max(1, math.ceil(math.log(min_step / s) / math.log(tau)) + 1))
+        trial_steps = trial_steps[trial_steps >= min_step]
+        geo_points = None
+        if use_exp and len(trial_steps):
+            t_r = time.perf_counter()
+            try:
+                from .geodesics import geodesic
+
+                times = trial_steps / s  # rescaling lemma: γ_{Q, s_k d}(1) = γ_{Q, s d}(s_k / s)
+                geo = geodesic(metric, Q, s * d, 1.0, times=times[::-1], **dict(exp_options or {}))
+                geo_points = geo.points[::-1]
+            except IntegrationError as exc:
+                logger.warning("iteration %d: exponential map failed (%s)", n, exc)
+                geo_points = None
+            timer.add("retraction", t_r)
+        s_max = np.inf if use_exp else max_travel_step(Q, tri, d)
+        accepted = None
+        backtracks = 0
+        t_b = time.perf_counter()
+        state_in_backtracking = 0.0
+        for k, s_k in enumerate(trial_steps):
+            if s_k >= s_max:
+                backtracks += 1
+                continue
+            if use_exp:
+                if geo_points is None:
+                    break
+                Qt = geo_points[k]
+            else:
+                Qt = Q + s_k * d
+            if np.any(signed_areas(Qt, tri) <= 0):
+                backtracks += 1
+                continue
+            t_s = time.perf_counter()
+            Jt = float(objective.value(Qt))
+            state_in_backtracking += time.perf_counter() - t_s
+            Ft = Jt + penalty_value(Qt)
+            if Ft <= F + sigma * s_k * slope:
+                accepted = (s_k, Qt, Jt, Ft)
+                break
+            backtracks += 1
+        timer.seconds["backtracking"] += time.perf_counter() - t_b - state_in_backtracking
+        timer.seconds["state"] += state_in_backtracking
+        if accepted is None:
+            status = "step_too_small"
+            message = f"iteration {n}: no step ≥ {min_step:g} satisfies the Armijo condition"
+            break
+        s_k, Q, J, F = accepted
+        s_prev, slope_prev = s_k, slope
+        q = quality_summary(Q, tri)
+        record = IterationRecord(
+            n, J, F - J, F, q.mean_shape_quality, q.min_aspect_ratio, s_k, backtracks,
+            dnorm, dict(timer.seconds),
+        )
+        history.append(record)
+        logger.debug("iter %d: F=%.6g j=%.6g Λ=%.4f step=%.3g", n, F, J, q.mean_shape_quality, s_k)
+        if callback is not None and callback(record, Q):
+            status, message = "stopped", f"stopped by the callback at iteration {n}"
+            break
+        if tol is not None and n >= 5:
+            past = np.array([h.objective for h in history[n - 5 : n]])
+            if np.max(past - F) < tol:
+                status = "converged"
+                message = f"F changed less than {tol:g} over the last 5 iterations (6.26)"
+                break
+    final = mesh.with_points(Q)
+    return OptimizeResult(
+        mesh=final,
+        x=Q,
+        fun=F,
+        j=J,
+        nit=len(history) - 1,
+        status=status,
+        success=status != "step_too_small",
+        message=message,
+        history=history,
+        seconds=time.perf_counter() - start,
+        variant=variant,
+    )
