@@ -1,0 +1,405 @@
+"""Integrators for the geodesic equation of a complete metric ``g = I + ∇f ∇fᵀ`` (SPEC §5).
+
+Two integrators work on a :class:`GeodesicField`, the closed-form right-hand side
+
+    Q'' = − ∇f(Q) · (Q'ᵀ ∇²f(Q) Q') / (1 + |∇f(Q)|²)                       (5.35)
+
+which costs one call of ``penalty.gradient_and_curvature(Q, V)`` per evaluation (no linear
+solve: the inverse metric is a Sherman–Morrison rank-one update, (5.45)).
+
+- :func:`dopri5`: the fast default. An explicit, adaptive, error-controlled Dormand–Prince
+  5(4) pair (first-same-as-last, 6 evaluations per accepted step) on the first-order system
+  ``(Q, V)' = (V, A(Q, V))``. Steps land exactly on every requested output time, so outputs
+  carry no interpolation error. A step whose stage leaves M+ (a signed area ≤ 0) is rejected
+  and retried with a quarter of the step size.
+- :func:`stormer_verlet`: the thesis' algorithm 1 in Hamiltonian form (5.39–5.40), momentum
+  ``P = g V``, ``V(Q, P) = P − ∇f (∇f·P)/(1+|∇f|²)``, ``P' = (∇f·V) ∇²f V``, with the two
+  implicit half-steps solved by fixed-point iteration (tolerance 1e-8, at most 10
+  iterations). It is second-order, symplectic, and slow: the reference.
+
+Both return arrays over the output times and never return a configuration with a
+non-positive signed area: they raise :class:`~meshopt_toolkit.errors.IntegrationError`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._typing import FloatArray, IntArray
+from .errors import IntegrationError
+from .geometry import signed_areas
+
+__all__ = ["GeodesicField", "IntegrationOutput", "dopri5", "stormer_verlet", "DOPRI5_TABLEAU"]
+
+
+class GeodesicField:
+    """The geodesic right-hand side of the complete metric built from ``penalty``.
+
+    Parameters
+    ----------
+    penalty : object
+        Provides ``gradient_and_curvature(Q, V) -> ((N, 2), float)``, ``gradient(Q)``,
+        ``hvp(Q, V)`` and ``value(Q)`` (the penalty protocol of
+        :mod:`meshopt_toolkit.penalties`).
+    triangles : (T, 3) int array, optional
+        Connectivity used to test ``min signed area > 0`` (membership of M+ up to boundary
+        self-intersection, which the penalty's own boundary term guards). Without it the
+        penalty's ``is_admissible(Q)`` is used.
+
+    Attributes
+    ----------
+    n_evaluations : int
+        Number of penalty calls (gradient, curvature, hvp or value) made so far.
+    """
+
+    def __init__(self, penalty, triangles: IntArray | None = None) -> None:
+        self.penalty = penalty
+        self.triangles = None if triangles is None else np.asarray(triangles)
+        self.n_evaluations = 0
+
+    def admissible(self, Q: FloatArray) -> bool:
+        """True if every triangle of ``Q`` has positive signed area (and ``Q`` is finite)."""
+        if not np.isfinite(Q).all():
+            return False
+        if self.triangles is not None:
+            return bool(signed_areas(Q, self.triangles).min() > 0.0)
+        return bool(self.penalty.is_admissible(Q))
+
+    def acceleration(self, Q: FloatArray, V: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Geodesic acceleration ``A = −∇f (Vᵀ∇²f V)/(1 + |∇f|²)``, (5.35).
+
+        Returns
+        -------
+        A : (N, 2) acceleration
+        grad : (N, 2) ∇f(Q), returned for the energy monitor
+        """
+        self.n_evaluations += 1
+        grad, curv = self.penalty.gradient_and_curvature(Q, V)
+        grad = np.asarray(grad, dtype=float)
+        return (-float(curv) / (1.0 + float(np.vdot(grad, grad)))) * grad, grad
+
+    def gradient(self, Q: FloatArray) -> FloatArray:
+        """∇f(Q), (N, 2)."""
+        self.n_evaluations += 1
+        return np.asarray(self.penalty.gradient(Q), dtype=float)
+
+    def hvp(self, Q: FloatArray, V: FloatArray) -> FloatArray:
+        """∇²f(Q) V, (N, 2)."""
+        self.n_evaluations += 1
+        return np.asarray(self.penalty.hvp(Q, V), dtype=float)
+
+    def value(self, Q: FloatArray) -> float:
+        """f(Q)."""
+        self.n_evaluations += 1
+        return float(self.penalty.value(Q))
+
+
+def energy(grad: FloatArray, V: FloatArray) -> float:
+    """Squared speed ``e = |V|² + (∇f·V)² = (V, V)_g``, constant along a geodesic."""
+    s = float(np.vdot(grad, V))
+    return float(np.vdot(V, V)) + s * s
+
+
+@dataclass
+class IntegrationOutput:
+    """Raw integrator output at the output times (sorted, starting after 0).
+
+    Attributes
+    ----------
+    points, velocities : (K, N, 2)
+    energy : (K,) ``(V, V)_g`` at each output time
+    n_steps, n_rejected : accepted and rejected steps (rejected: error or left M+)
+    n_left_manifold : rejections because a stage had a non-positive signed area
+    max_energy_drift : max over accepted steps of ``|e − e0| / e0``
+    """
+
+    points: FloatArray
+    velocities: FloatArray
+    energy: FloatArray
+    n_steps: int
+    n_rejected: int
+    n_left_manifold: int
+    max_energy_drift: float
+
+
+# --------------------------------------------------------------------------------------
+# Dormand–Prince 5(4), Dormand & Prince (1980); Hairer, Nørsett, Wanner I, table II.5.2
+# --------------------------------------------------------------------------------------
+_C = np.array([0.0, 1 / 5, 3 / 10, 4 / 5, 8 / 9, 1.0, 1.0])
+_A = [
+    np.array([]),
+    np.array([1 / 5]),
+    np.array([3 / 40, 9 / 40]),
+    np.array([44 / 45, -56 / 15, 32 / 9]),
+    np.array([19372 / 6561, -25360 / 2187, 64448 / 6561, -212 / 729]),
+    np.array([9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -5103 / 18656]),
+    np.array([35 / 384, 0.0, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84]),
+]
+_B = np.array([35 / 384, 0.0, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84, 0.0])
+_B_HAT = np.array([5179 / 57600, 0.0, 7571 / 16695, 393 / 640, -92097 / 339200, 187 / 2100, 1 / 40])
+_E = _B - _B_HAT
+
+#: the tableau (c, a rows, b, b̂) — exposed so the tests can check the order conditions
+DOPRI5_TABLEAU = {"c": _C, "a": _A, "b": _B, "b_hat": _B_HAT}
+
+
+def _error_norm(err_q, err_v, q0, v0, q1, v1, rtol, atol) -> float:
+    """Max-norm of the local error scaled by ``atol + rtol · max(|y0|, |y1|)``."""
+    sq = atol + rtol * np.maximum(np.abs(q0), np.abs(q1))
+    sv = atol + rtol * np.maximum(np.abs(v0), np.abs(v1))
+    return float(max(np.max(np.abs(err_q) / sq), np.max(np.abs(err_v) / sv)))
+
+
+def dopri5(
+    field: GeodesicField,
+    Q0: FloatArray,
+    V0: FloatArray,
+    t_out: FloatArray,
+    *,
+    rtol: float,
+    atol: float,
+    h0: float | None = None,
+    max_steps: int = 100_000,
+) -> IntegrationOutput:
+    """Integrate (5.35) from ``(Q0, V0)`` at t = 0 with Dormand–Prince 5(4).
+
+    Parameters
+    ----------
+    field : GeodesicField
+    Q0, V0 : (N, 2) initial position (admissible) and velocity
+    t_out : (K,) strictly increasing positive output times; steps land exactly on them
+    rtol, atol : local error tolerance per component of ``(Q, V)`` in the max-norm,
+        ``|err| ≤ atol + rtol·|y|``
+    h0 : initial step (default: Hairer's heuristic from ``|y|`` and ``|y'|``)
+    max_steps : cap on accepted + rejected steps
+
+    Returns
+    -------
+    IntegrationOutput
+
+    Raises
+    ------
+    IntegrationError
+        Step size underflow, too many steps, or a non-finite right-hand side.
+    """
+    t_out = np.asarray(t_out, dtype=float)
+    K = len(t_out)
+    q = np.array(Q0, dtype=float)
+    v = np.array(V0, dtype=float)
+    a, grad = field.acceleration(q, v)
+    if not (np.isfinite(a).all() and np.isfinite(grad).all()):
+        raise IntegrationError("the geodesic right-hand side is not finite at the initial mesh")
+    e0 = energy(grad, v)
+    out_q = np.empty((K,) + q.shape)
+    out_v = np.empty((K,) + q.shape)
+    out_e = np.empty(K)
+    t_end = float(t_out[-1])
+
+    if h0 is None:
+        # Hairer, Nørsett, Wanner I, II.4: h such that h·|y'| ≈ 1% of |y|
+        d0 = max(np.max(np.abs(q)), np.max(np.abs(v)))
+        d1 = max(np.max(np.abs(v)), np.max(np.abs(a)))
+        h0 = 0.01 * d0 / d1 if d1 > 0 and d0 > 0 else 1e-3
+        h0 = min(h0, t_end)
+    h = float(h0)
+    h_min = 1e-12 * max(t_end, 1.0)
+    kq = np.empty((7,) + q.shape)  # stage velocities (derivative of Q)
+    kv = np.empty((7,) + q.shape)  # stage accelerations (derivative of V)
+    t = 0.0
+    k_out = 0
+    n_steps = n_rej = n_left = 0
+    max_drift = 0.0
+    while k_out < K:
+        if n_steps + n_rej >= max_steps:
+            raise IntegrationError(
+                f"geodesic needed more than {max_steps} steps before t = {t_end:g} "
+                f"(reached t = {t:.6g}); loosen rtol/atol or raise max_steps"
+            )
+        target = float(t_out[k_out])
+        hit = t + h >= target * (1 - 1e-14)
+        h_step = target - t if hit else h
+        kq[0], kv[0] = v, a
+        ok = True
+        grad_new = None
+        for s in range(1, 7):
+            w = _A[s]
+            qs = q + h_step * np.tensordot(w, kq[:s], axes=1)
+            vs = v + h_step * np.tensordot(w, kv[:s], axes=1)
+            if not field.admissible(qs):
+                ok = False
+                break
+            kq[s] = vs
+            kv[s], g_s = field.acceleration(qs, vs)
+            if not np.isfinite(kv[s]).all():
+                ok = False
+                break
+            if s == 6:
+                q_new, v_new, grad_new = qs, vs, g_s
+        if not ok:
+            n_rej += 1
+            n_left += 1
+            h = 0.25 * h_step
+            if h < h_min:
+                raise IntegrationError(
+                    f"geodesic step size underflow at t = {t:.6g}: every step leaves the "
+                    "admissible set (inverted triangle)"
+                )
+            continue
+        err_q = h_step * np.tensordot(_E, kq, axes=1)
+        err_v = h_step * np.tensordot(_E, kv, axes=1)
+        err = _error_norm(err_q, err_v, q, v, q_new, v_new, rtol, atol)
+        if not np.isfinite(err):
+            err = np.inf
+        factor = 5.0 if err == 0 else min(5.0, max(0.2, 0.9 * err ** -0.2))
+        if err > 1.0:
+            n_rej += 1
+            h = h_step * min(factor, 0.5)
+            if h < h_min:
+                raise IntegrationError(f"geodesic step size underflow at t = {t:.6g}")
+            continue
+        # accept (first-same-as-last: stage 7 is the first stage of the next step)
+        n_steps += 1
+        t = target if hit else t + h_step
+        q, v, a = q_new, v_new, kv[6].copy()
+        e = energy(grad_new, v)
+        if e0 > 0:
+            max_drift = max(max_drift, abs(e - e0) / e0)
+        h_next = h_step * factor
+        if hit:
+            out_q[k_out], out_v[k_out], out_e[k_out] = q, v, e
+            k_out += 1
+            h = max(h, h_next)  # a step shortened to land on an output keeps the old size
+        else:
+            h = h_next
+    return IntegrationOutput(out_q, out_v, out_e, n_steps, n_rej, n_left, max_drift)
+
+
+# --------------------------------------------------------------------------------------
+# Störmer–Verlet, thesis algorithm 1
+# --------------------------------------------------------------------------------------
+def _velocity(grad: FloatArray, P: FloatArray) -> FloatArray:
+    """``V = g⁻¹ P = P − ∇f (∇f·P)/(1 + |∇f|²)`` (Sherman–Morrison, (5.45))."""
+    return P - grad * (float(np.vdot(grad, P)) / (1.0 + float(np.vdot(grad, grad))))
+
+
+def _momentum(grad: FloatArray, V: FloatArray) -> FloatArray:
+    """``P = g V = V + ∇f (∇f·V)``."""
+    return V + grad * float(np.vdot(grad, V))
+
+
+def _force(field: GeodesicField, Q, grad, P) -> FloatArray:
+    """``P' = −∂H/∂Q = (∇f·V) ∇²f V`` with ``V = V(Q, P)``, (5.40a)."""
+    V = _velocity(grad, P)
+    return float(np.vdot(grad, V)) * field.hvp(Q, V)
+
+
+def _converged(new, old, tol) -> bool:
+    return float(np.max(np.abs(new - old))) <= tol * (1.0 + float(np.max(np.abs(new))))
+
+
+def stormer_verlet(
+    field: GeodesicField,
+    Q0: FloatArray,
+    V0: FloatArray,
+    t_out: FloatArray,
+    *,
+    steps: int,
+    tol: float = 1e-8,
+    max_iter: int = 10,
+) -> IntegrationOutput:
+    """The thesis' Störmer–Verlet scheme (algorithm 1) for (5.40).
+
+    One step of size Δt (P = momentum, F(Q, P) = (∇f·V)∇²f V, V = V(Q, P)):
+
+    1. ``P½ = P_n + (Δt/2) F(Q_n, P½)``                 (implicit, fixed point from P_n)
+    2. ``Q_{n+1} = Q_n + (Δt/2)(V(Q_n, P½) + V(Q_{n+1}, P½))``  (implicit, from Q_n)
+    3. ``P_{n+1} = P½ + (Δt/2) F(Q_{n+1}, P½)``          (explicit)
+
+    Fixed points stop when ``max|x_{k+1} − x_k| ≤ tol·(1 + max|x_{k+1}|)``.
+
+    Parameters
+    ----------
+    field : GeodesicField
+    Q0, V0 : (N, 2)
+    t_out : (K,) strictly increasing positive output times; ``steps`` uniform steps are
+        spread over ``[0, t_out[-1]]``, each interval between outputs getting
+        ``max(1, round(steps · length / t_end))`` of them (exactly Δt = t_end/steps when
+        the outputs lie on that grid)
+    steps : number of steps on ``[0, t_out[-1]]`` (the thesis used 1024)
+    tol, max_iter : fixed-point tolerance and iteration cap (thesis: 1e-8, 10)
+
+    Raises
+    ------
+    IntegrationError
+        A fixed point does not converge or an iterate leaves M+ ("use more steps").
+    """
+    if steps < 1:
+        raise IntegrationError(f"steps must be a positive integer, got {steps}")
+    t_out = np.asarray(t_out, dtype=float)
+    t_end = float(t_out[-1])
+    K = len(t_out)
+    q = np.array(Q0, dtype=float)
+    grad = field.gradient(q)
+    p = _momentum(grad, np.asarray(V0, dtype=float))
+    e0 = float(np.vdot(p, _velocity(grad, p)))
+    out_q = np.empty((K,) + q.shape)
+    out_v = np.empty((K,) + q.shape)
+    out_e = np.empty(K)
+    max_drift = 0.0
+    n_steps = 0
+    t_prev = 0.0
+
+    def fail(what: str, t: float) -> IntegrationError:
+        return IntegrationError(
+            f"Störmer–Verlet: {what} at t = {t:.6g} (step {n_steps}); use more steps"
+        )
+
+    for k, t_next in enumerate(t_out):
+        n_sub = max(1, int(round(steps * (t_next - t_prev) / t_end)))
+        dt = (t_next - t_prev) / n_sub
+        for j in range(n_sub):
+            t_here = t_prev + j * dt
+            # 1. implicit momentum half-step at Q_n (∇f(Q_n) is fixed during the iteration)
+            p_half = p
+            for _ in range(max_iter):
+                with np.errstate(over="ignore", invalid="ignore"):
+                    new = p + 0.5 * dt * _force(field, q, grad, p_half)
+                if not np.isfinite(new).all():
+                    raise fail("the momentum fixed point diverged", t_here)
+                done = _converged(new, p_half, tol)
+                p_half = new
+                if done:
+                    break
+            else:
+                raise fail("the momentum fixed point did not converge", t_here)
+            # 2. implicit position step
+            v_n = _velocity(grad, p_half)
+            q_new, grad_new = q, grad
+            for _ in range(max_iter):
+                with np.errstate(over="ignore", invalid="ignore"):
+                    cand = q + 0.5 * dt * (v_n + _velocity(grad_new, p_half))
+                if not field.admissible(cand):
+                    raise fail("the position iterate left the admissible set", t_here)
+                done = _converged(cand, q_new, tol)
+                q_new = cand
+                grad_new = field.gradient(q_new)
+                if done:
+                    break
+            else:
+                raise fail("the position fixed point did not converge", t_here)
+            # 3. explicit momentum half-step at Q_{n+1}
+            with np.errstate(over="ignore", invalid="ignore"):
+                p = p_half + 0.5 * dt * _force(field, q_new, grad_new, p_half)
+            if not np.isfinite(p).all():
+                raise fail("the momentum became non-finite", t_here)
+            q, grad = q_new, grad_new
+            n_steps += 1
+            if e0 > 0:
+                e = float(np.vdot(p, _velocity(grad, p)))
+                max_drift = max(max_drift, abs(e - e0) / e0)
+        v = _velocity(grad, p)
+        out_q[k], out_v[k], out_e[k] = q, v, energy(grad, v)
+        t_prev = float(t_next)
+    return IntegrationOutput(out_q, out_v, out_e, n_steps, 0, 0, max_drift)
