@@ -1,0 +1,742 @@
+"""Augmentation (penalty) functions f1 and f2 with exact derivatives (SPEC §3).
+
+Both penalties are sums of independent *terms*, each evaluated vectorized over all
+triangles, all boundary pairs or all nodes:
+
+``f1`` (5.16)/(5.18), :class:`HeightPenalty`, ``alpha = (α1, α2, α3)``::
+
+    f1(Q) = Σ_k Σ_l α1 / h_l(k) + Σ_pairs χ(α2 / D^μ) + (α3/2) ‖Q − Qref‖²_F
+
+``f2`` (5.22)/(5.33), :class:`QualityPenalty`, ``beta = (β1, β2, β3, β4)``::
+
+    f2(Q) = (β1/T) Σ_k 1/ψ_k + β2 / Σ_k A_k
+            + β3/(#E∂ #V∂) Σ_pairs χ(1 / D^μ) + β4/(2N) ‖Q − Qref‖²_F
+
+``χ`` is the identity unless a cut-off ``(s_lo, s_hi)`` is given (remarks 5.2.10, 5.3.4),
+see :func:`cutoff`.
+
+Per-triangle terms are quotients ``N/A`` of a numerator ``N`` (``S = ΣE_l²`` for f2,
+perimeter ``L = ΣE_l`` for f1, since ``Σ_l 1/h_l = L/(2A)``) by the signed area ``A``.
+``S`` and ``A`` are quadratic forms in the six local coordinates, so the gradient, the
+Hessian-vector product and the curvature ``V·∇²f·V`` all follow in closed form from the
+quotient rule; nothing of size ``(T, 6, 6)`` is ever formed. The total area
+``Σ_k A_k = ½ Σ_{(a,b)∈E∂} q_a × q_b`` (shoelace formula over the boundary) depends on
+the boundary nodes only. The boundary-pair term uses
+:func:`meshopt_toolkit.distance.regularized_distance`. The regularized distance is C2
+(its ``h_μ`` has a jump in the third derivative at 0; see ``distance``), which is all the
+geodesic equation needs.
+
+Every method takes node positions ``Q`` of shape ``(N, 2)``. ``value`` returns ``+inf``
+(never NaN) at a non-admissible ``Q``; the derivatives raise
+:class:`~meshopt_toolkit.errors.NotAdmissibleError` there.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._typing import FloatArray, IntArray
+from .errors import InvalidMeshError, NotAdmissibleError
+from .mesh import PlanarMesh, TriangleMesh, boundary_self_intersections
+
+logger = logging.getLogger(__name__)
+
+__all__ = [
+    "HeightPenalty",
+    "QualityPenalty",
+    "Penalty",
+    "cutoff",
+    "DEFAULT_MU",
+]
+
+SQRT3 = np.sqrt(3.0)
+
+try:  # the default regularization parameter lives with the distance kernels
+    from .distance import DEFAULT_MU  # type: ignore[attr-defined]
+except ImportError:  # pragma: no cover - until distance.py provides it
+    DEFAULT_MU = 1.0e3
+
+#: pairs per chunk when the boundary term visits all pairs (memory bound, ~100 MB)
+PAIR_CHUNK = 1_000_000
+
+
+# ---------------------------------------------------------------------------------------
+# the C3 cut-off χ
+# ---------------------------------------------------------------------------------------
+
+
+def _smoothstep7(t: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """C3 smoothstep ``σ(t) = 35t⁴ − 84t⁵ + 70t⁶ − 20t⁷`` on [0, 1] (clamped outside).
+
+    ``σ(0) = 0``, ``σ(1) = 1`` and ``σ', σ'', σ'''`` vanish at both ends. Returns
+    ``(σ, σ', σ'')``.
+    """
+    t = np.clip(t, 0.0, 1.0)
+    t2 = t * t
+    t3 = t2 * t
+    s = t3 * t * (35.0 + t * (-84.0 + t * (70.0 - 20.0 * t)))
+    ds = t3 * (140.0 + t * (-420.0 + t * (420.0 - 140.0 * t)))
+    d2s = t2 * (420.0 + t * (-1680.0 + t * (2100.0 - 840.0 * t)))
+    return s, ds, d2s
+
+
+def cutoff(s: FloatArray, s_lo: float, s_hi: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """The C3 cut-off ``χ(s) = s σ((s − s_lo)/(s_hi − s_lo))`` and its derivatives.
+
+    ``χ = 0`` for ``s ≤ s_lo`` and ``χ = s`` for ``s ≥ s_hi`` (remarks 5.2.10, 5.3.4);
+    ``σ`` is the degree-7 smoothstep whose first three derivatives vanish at 0 and 1, so
+    ``χ`` is C3 at both breakpoints (``χ'''`` involves σ', σ'', σ''' only, all zero
+    there). For ``s ≥ 0``, ``0 ≤ χ(s) ≤ s`` and ``χ' ≥ 0``.
+
+    Parameters
+    ----------
+    s : (K,) float array
+    s_lo, s_hi : float, ``0 ≤ s_lo < s_hi``
+
+    Returns
+    -------
+    (χ, χ', χ'') : three (K,) arrays
+    """
+    w = s_hi - s_lo
+    sig, dsig, d2sig = _smoothstep7((s - s_lo) / w)
+    chi = s * sig
+    dchi = sig + s * dsig / w
+    d2chi = 2.0 * dsig / w + s * d2sig / (w * w)
+    return chi, dchi, d2chi
+
+
+def _check_cutoff(cut) -> tuple[float, float] | None:
+    if cut is None:
+        return None
+    try:
+        lo, hi = (float(c) for c in cut)
+    except (TypeError, ValueError):
+        raise ValueError(f"cutoff must be a pair (s_lo, s_hi), got {cut!r}") from None
+    if not (np.isfinite(lo) and np.isfinite(hi) and 0.0 <= lo < hi):
+        raise ValueError(f"cutoff needs 0 <= s_lo < s_hi, got ({lo}, {hi})")
+    return lo, hi
+
+
+# ---------------------------------------------------------------------------------------
+# evaluation state
+# ---------------------------------------------------------------------------------------
+
+
+@dataclass
+class _Want:
+    """What to compute in one pass: value always; the rest on request."""
+
+    gradient: bool = False
+    hvp: bool = False
+    curvature: bool = False
+
+
+class _Accumulator:
+    """Collects the term contributions of one evaluation."""
+
+    def __init__(self, n: int, want: _Want) -> None:
+        self.want = want
+        self.values: dict[str, float] = {}
+        self.grad = np.zeros((n, 2)) if want.gradient else None
+        self.hvp = np.zeros((n, 2)) if want.hvp else None
+        self.curvature = 0.0
+
+
+class _Geometry:
+    """Local coordinates of every triangle at ``Q`` (and of a direction ``V``).
+
+    Component-major layout: ``ex[l]`` is the x-component of edge ``l`` of every triangle,
+    a contiguous ``(T,)`` array; edge ``l`` is ``q_{i(l+2)} − q_{i(l+1)}`` (opposite
+    vertex ``l``).
+    """
+
+    __slots__ = ("ex", "ey", "area", "wx", "wy")
+
+    def __init__(self, Q: FloatArray, tri_t: IntArray) -> None:
+        self.ex, self.ey = _edges(Q, tri_t)
+        # A = ½ det[e2, e0]   (e2 = q1 − q0, e0 = q2 − q1)   (4.2)
+        self.area = 0.5 * (self.ex[2] * self.ey[0] - self.ey[2] * self.ex[0])
+        self.wx = self.wy = None
+
+    def set_direction(self, V: FloatArray, tri_t: IntArray) -> None:
+        """Edge vectors of the direction field ``V`` (the derivative of ``e`` along V)."""
+        self.wx, self.wy = _edges(V, tri_t)
+
+
+def _edges(Q: FloatArray, tri_t: IntArray) -> tuple[FloatArray, FloatArray]:
+    """Edge vectors ``(3, T)`` x and y components of ``Q`` on triangles ``tri_t (3, T)``."""
+    x = Q[:, 0][tri_t]
+    y = Q[:, 1][tri_t]
+    ex = np.empty_like(x)
+    ey = np.empty_like(y)
+    for l, (a, b) in enumerate(((2, 1), (0, 2), (1, 0))):  # 3 local edges, not triangles
+        np.subtract(x[a], x[b], out=ex[l])
+        np.subtract(y[a], y[b], out=ey[l])
+    return ex, ey
+
+
+_NEXT = (1, 2, 0)
+_PREV = (2, 0, 1)
+
+
+def _to_vertices(
+    phi_x: FloatArray | None, phi_y: FloatArray | None, psi_x: FloatArray, psi_y: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Vertex vectors ``Φ_{m+1} − Φ_{m+2} + ½ R Ψ_m`` per triangle, ``(3, T)`` x and y.
+
+    ``Φ`` is an edge-space field (a derivative w.r.t. the edge vectors ``e_l``; vertex
+    ``m`` is the head of edge ``m+1`` and the tail of edge ``m+2``), ``Ψ`` a field whose
+    quarter-turn ``R(a, b) = (−b, a)`` enters as in ``∇_m A = ½ R e_m``.
+    """
+    vx = -0.5 * psi_y
+    vy = 0.5 * psi_x
+    if phi_x is not None:
+        vx += phi_x[list(_NEXT)] - phi_x[list(_PREV)]
+        vy += phi_y[list(_NEXT)] - phi_y[list(_PREV)]
+    return vx, vy
+
+
+# ---------------------------------------------------------------------------------------
+# terms
+# ---------------------------------------------------------------------------------------
+
+
+class _TriangleQuotientTerm:
+    """``c Σ_k N_k / A_k`` with ``N = S = ΣE_l²`` ("quality") or ``N = L = ΣE_l`` ("height").
+
+    With ``n1 = N'[V]``, ``n2 = N''[V, V]`` and likewise ``a1``, ``a2`` for the area, the
+    quotient rule gives the curvature
+    ``(N/A)'' = n2/A − 2 n1 a1/A² − N a2/A² + 2 N a1²/A³`` and the Hessian-vector product
+    ``H_N V/A − (∇N a1 + ∇A n1)/A² − N H_A V/A² + 2 N a1 ∇A/A³``.
+    """
+
+    def __init__(self, name: str, kind: str, coef: float, scatter) -> None:
+        self.name = name
+        self.kind = kind
+        self.coef = float(coef)
+        self.scatter = scatter
+
+    def _numerator(self, g: _Geometry):
+        """``N``, its edge-space gradient ``F`` and, with a direction, ``n1``, ``n2``, ``K``.
+
+        ``K`` is the edge-space Hessian-vector product (None when not needed).
+        """
+        ex, ey = g.ex, g.ey
+        sq = ex * ex + ey * ey
+        if self.kind == "quality":
+            N = sq.sum(axis=0)
+            Fx, Fy = 2.0 * ex, 2.0 * ey
+            return N, Fx, Fy, None
+        E = np.sqrt(sq)
+        ux, uy = ex / E, ey / E
+        return E.sum(axis=0), ux, uy, E
+
+    def evaluate(self, g: _Geometry, acc: _Accumulator) -> None:
+        c = self.coef
+        A = g.area
+        want = acc.want
+        N, Fx, Fy, E = self._numerator(g)
+        inv_a = 1.0 / A
+        ratio = N * inv_a  # N / A
+        acc.values[self.name] = c * float(ratio.sum())
+        if not (want.gradient or want.hvp or want.curvature):
+            return
+        cinv = c * inv_a
+        if want.gradient:
+            # ∇(N/A) = ∇N/A − (N/A²) ∇A ;  ∇_m A = ½ R e_m
+            gx, gy = _to_vertices(cinv * Fx, cinv * Fy, -(cinv * ratio) * g.ex, -(cinv * ratio) * g.ey)
+            self.scatter(acc.grad, gx, gy)
+        if not (want.hvp or want.curvature):
+            return
+        ex, ey, wx, wy = g.ex, g.ey, g.wx, g.wy
+        # first and second directional derivatives of N and A along V
+        fw = Fx * wx + Fy * wy  # (3, T)  F_l · w_l
+        n1 = fw.sum(axis=0)
+        ww = wx * wx + wy * wy
+        if self.kind == "quality":
+            n2 = 2.0 * ww.sum(axis=0)
+            Kx, Ky = 2.0 * wx, 2.0 * wy
+        else:  # ∂²E_l[w, w] = (|w|² − (u·w)²) / E ;  K_l = (w − u (u·w)) / E
+            n2 = ((ww - fw * fw) / E).sum(axis=0)
+            Kx, Ky = (wx - Fx * fw) / E, (wy - Fy * fw) / E
+        a1 = 0.5 * (wx[2] * ey[0] + ex[2] * wy[0] - wy[2] * ex[0] - ey[2] * wx[0])
+        a2 = wx[2] * wy[0] - wy[2] * wx[0]  # 2 A(V)
+        a1_a = a1 * inv_a
+        if want.curvature:
+            curv = inv_a * (n2 - 2.0 * n1 * a1_a - ratio * a2 + 2.0 * ratio * a1_a * a1)
+            acc.curvature += c * float(curv.sum())
+        if want.hvp:
+            # edge part: (K − F a1/A)/A ; rotation part: e (2N a1/A³ − n1/A²) − w N/A²
+            phi_x = cinv * (Kx - Fx * a1_a)
+            phi_y = cinv * (Ky - Fy * a1_a)
+            r = cinv * inv_a
+            ce = r * (2.0 * N * a1_a - n1)
+            cw = -r * N
+            hx, hy = _to_vertices(phi_x, phi_y, ce * ex + cw * wx, ce * ey + cw * wy)
+            self.scatter(acc.hvp, hx, hy)
+
+
+class _TotalAreaTerm:
+    """``β2 / 𝒜`` with ``𝒜 = Σ_k A_k = ½ Σ_{(a,b)∈E∂} q_a × q_b`` (5.22).
+
+    Only boundary nodes enter; ``𝒜`` is quadratic, so ``𝒜'' = 2𝒜(V)`` and
+    ``(β2/𝒜)'' = β2 (2𝒜'²/𝒜³ − 𝒜''/𝒜²)``.
+    """
+
+    name = "area"
+
+    def __init__(self, coef: float, boundary_edges: IntArray) -> None:
+        self.coef = float(coef)
+        self.a = np.ascontiguousarray(boundary_edges[:, 0])
+        self.b = np.ascontiguousarray(boundary_edges[:, 1])
+
+    def total(self, Q: FloatArray) -> float:
+        qa, qb = Q[self.a], Q[self.b]
+        return 0.5 * float(np.sum(qa[:, 0] * qb[:, 1] - qa[:, 1] * qb[:, 0]))
+
+    def _grad_total(self, Q: FloatArray) -> FloatArray:
+        """∇𝒜 ``(N, 2)``: ``∂/∂q_a (q_a × q_b) = (y_b, −x_b)``, ``∂/∂q_b = (−y_a, x_a)``."""
+        n = len(Q)
+        qa, qb = Q[self.a], Q[self.b]
+        gx = np.bincount(self.a, qb[:, 1], n) - np.bincount(self.b, qa[:, 1], n)
+        gy = np.bincount(self.b, qa[:, 0], n) - np.bincount(self.a, qb[:, 0], n)
+        return 0.5 * np.stack([gx, gy], axis=1)
+
+    def evaluate(self, Q: FloatArray, V: FloatArray | None, acc: _Accumulator) -> None:
+        c = self.coef
+        tot = self.total(Q)
+        acc.values[self.name] = c / tot
+        want = acc.want
+        if not (want.gradient or want.hvp or want.curvature):
+            return
+        grad_tot = self._grad_total(Q)
+        if want.gradient:
+            acc.grad += (-c / tot**2) * grad_tot
+        if want.hvp or want.curvature:
+            d1 = float(np.vdot(grad_tot, V))
+            hv = self._grad_total(V)  # H_𝒜 V (𝒜 is a quadratic form)
+            d2 = float(np.vdot(hv, V))
+            if want.curvature:
+                acc.curvature += c * (2.0 * d1 * d1 / tot**3 - d2 / tot**2)
+            if want.hvp:
+                acc.hvp += (-c / tot**2) * hv + (2.0 * c * d1 / tot**3) * grad_tot
+
+
+class _ReferenceTerm:
+    """``(c/2) ‖Q − Qref‖²_F``; ``c = α3`` (f1) or ``β4/N`` (f2)."""
+
+    name = "reference"
+
+    def __init__(self, coef: float, reference: FloatArray) -> None:
+        self.coef = float(coef)
+        self.reference = reference
+
+    def evaluate(self, Q: FloatArray, V: FloatArray | None, acc: _Accumulator) -> None:
+        c = self.coef
+        d = Q - self.reference
+        acc.values[self.name] = 0.5 * c * float(np.vdot(d, d))
+        want = acc.want
+        if want.gradient:
+            acc.grad += c * d
+        if want.hvp:
+            acc.hvp += c * V
+        if want.curvature:
+            acc.curvature += c * float(np.vdot(V, V))
+
+
+class _BoundaryTerm:
+    """``c Σ_pairs χ(w / D^μ)`` over boundary pairs ``(i0; [j0, j1])``, ``i0 ∉ {j0, j1}``.
+
+    With ``s = w/D``: ``s' = −w D'/D²``, ``s'' = w (2D'²/D³ − D''/D²)``; with χ:
+    ``χ(s)'' = χ''(s) s'² + χ'(s) s''``. Without a cut-off all pairs are visited in chunks
+    (cached when there are at most :data:`PAIR_CHUNK`); with one, only the pairs whose
+    summand can exceed ``s_lo`` are found by a radius search around the current ``Q``:
+    ``χ(w/D^μ) > 0`` needs ``D^μ < w/s_lo``, and ``D^μ ≥ D − 1/(2μ)`` and ``D ≥`` the
+    Euclidean vertex–segment distance, so radius ``w/s_lo + 1/(2μ)`` finds them all.
+    """
+
+    name = "boundary"
+
+    def __init__(
+        self,
+        coef: float,
+        weight: float,
+        mu: float,
+        cut: tuple[float, float] | None,
+        boundary_vertices: IntArray,
+        boundary_edges: IntArray,
+    ) -> None:
+        from . import distance
+
+        self._dist = distance
+        self.coef = float(coef)
+        self.weight = float(weight)
+        self.mu = float(mu)
+        self.cut = cut
+        self.bv = boundary_vertices
+        self.be = boundary_edges
+        self._all_pairs: IntArray | None = None
+        n_pairs = len(boundary_vertices) * len(boundary_edges)
+        if cut is None and n_pairs <= PAIR_CHUNK:
+            self._all_pairs = distance.boundary_pairs(boundary_vertices, boundary_edges)
+
+    def pair_chunks(self, Q: FloatArray):
+        """Iterator over the ``(k, 3)`` pair arrays to visit at ``Q``."""
+        if self.cut is not None:
+            s_lo = self.cut[0]
+            if s_lo <= 0.0:
+                radius = None
+            else:
+                radius = self.weight / s_lo + 0.5 / self.mu
+            yield self._dist.boundary_pairs(self.bv, self.be, points=Q, radius=radius)
+        elif self._all_pairs is not None:
+            yield self._all_pairs
+        else:
+            yield from self._dist.iter_boundary_pairs(self.bv, self.be, chunk=PAIR_CHUNK)
+
+    def evaluate(self, Q: FloatArray, V: FloatArray | None, acc: _Accumulator) -> None:
+        want = acc.want
+        derivs = want.gradient or want.hvp or want.curvature
+        total = 0.0
+        n = len(Q)
+        c, w = self.coef, self.weight
+        for pairs in self.pair_chunks(Q):
+            if len(pairs) and derivs and self.cut is not None:
+                # only pairs with χ > 0 carry derivatives: s = w/D^μ > s_lo
+                Dv = self._dist.regularized_distance_value(Q, pairs, self.mu)
+                pairs = pairs[Dv * self.cut[0] < w]
+            if len(pairs) == 0:
+                continue
+            if not derivs:
+                D = self._dist.regularized_distance_value(Q, pairs, self.mu)
+                with np.errstate(divide="ignore"):
+                    s = w / D
+                if self.cut is not None:
+                    s = cutoff(s, *self.cut)[0]
+                total += float(s.sum())
+                continue
+            ev = self._dist.regularized_distance(
+                Q, pairs, self.mu, direction=V if (want.hvp or want.curvature) else None
+            )
+            D = ev.value
+            inv = 1.0 / D
+            s = w * inv
+            ds_dD = -s * inv  # ds/dD = −w/D²
+            if self.cut is None:
+                chi, dchi, d2chi = s, None, None
+                g1 = ds_dD  # dχ/dD
+            else:
+                chi, dchi, d2chi = cutoff(s, *self.cut)
+                g1 = dchi * ds_dD
+            total += float(chi.sum())
+            if want.gradient:
+                G = (c * g1)[:, None, None] * ev.gradient  # (k, 3, 2)
+                _scatter_pairs(acc.grad, pairs, G, n)
+            if want.hvp or want.curvature:
+                vloc = V[pairs]  # (k, 3, 2)
+                D1 = np.einsum("kij,kij->k", ev.gradient, vloc)
+                d2s_dD2 = 2.0 * s * inv * inv  # d²s/dD² = 2w/D³
+                # d²χ/dD² = χ''(s) (ds/dD)² + χ'(s) d²s/dD²
+                g2 = d2s_dD2 if self.cut is None else d2chi * ds_dD * ds_dD + dchi * d2s_dD2
+                if want.curvature:
+                    acc.curvature += c * float(np.sum(g2 * D1 * D1 + g1 * ev.curvature))
+                if want.hvp:
+                    H = (c * g2 * D1)[:, None, None] * ev.gradient + (c * g1)[:, None, None] * ev.hess_dir
+                    _scatter_pairs(acc.hvp, pairs, H, n)
+        acc.values[self.name] = c * total
+
+
+def _scatter_pairs(out: FloatArray, pairs: IntArray, G: FloatArray, n: int) -> None:
+    """Add per-pair local vectors ``G (k, 3, 2)`` into ``out (N, 2)`` at ``pairs (k, 3)``."""
+    idx = pairs.ravel()
+    out[:, 0] += np.bincount(idx, G[..., 0].ravel(), n)
+    out[:, 1] += np.bincount(idx, G[..., 1].ravel(), n)
+
+
+# ---------------------------------------------------------------------------------------
+# the penalties
+# ---------------------------------------------------------------------------------------
+
+
+class Penalty:
+    """Common machinery of :class:`HeightPenalty` and :class:`QualityPenalty`.
+
+    Subclasses build their terms in ``__init__``; connectivity-derived index arrays are
+    computed once and cached in the instance. ``Q`` and ``V`` are ``(N, 2)`` arrays.
+    """
+
+    def __init__(self, mesh: TriangleMesh, mu: float, cutoff, reference) -> None:
+        if not isinstance(mesh, TriangleMesh):
+            raise TypeError(f"mesh must be a PlanarMesh, got {type(mesh).__name__}")
+        mesh = mesh.as_planar()
+        self.mesh: PlanarMesh = mesh
+        self.mu = float(mu)
+        if not (np.isfinite(self.mu) and self.mu > 0):
+            raise ValueError(f"mu must be positive, got {mu!r}")
+        self.cutoff = _check_cutoff(cutoff)
+        n = mesh.n_vertices
+        self.n_vertices = n
+        self.n_triangles = mesh.n_triangles
+        self._tri = mesh.triangles
+        self._tri_t = np.ascontiguousarray(mesh.triangles.T.astype(np.intp))
+        self._tri_flat = self._tri_t.ravel()
+        self._boundary_edges = np.ascontiguousarray(mesh.boundary_edges.astype(np.intp))
+        self._boundary_vertices = np.ascontiguousarray(mesh.boundary_vertices.astype(np.intp))
+        # consecutive boundary edges (a, b), (b, c) for the fold test in is_admissible
+        be = self._boundary_edges
+        order = np.argsort(be[:, 0], kind="stable")
+        pos = np.searchsorted(be[order, 0], be[:, 1])
+        pos = np.clip(pos, 0, max(len(be) - 1, 0))
+        nxt = order[pos] if len(be) else pos
+        ok = be[nxt, 0] == be[:, 1] if len(be) else np.zeros(0, bool)
+        self._fold = (be[ok, 0], be[ok, 1], be[nxt[ok], 1])
+        if reference is None:
+            ref = np.array(mesh.points, dtype=np.float64)
+        else:
+            ref = np.array(getattr(reference, "points", reference), dtype=np.float64)
+            if ref.shape != (n, 2):
+                raise InvalidMeshError(f"reference has shape {ref.shape}, expected {(n, 2)}")
+        ref.setflags(write=False)
+        self.reference = ref
+        self._triangle_term: _TriangleQuotientTerm | None = None
+        self._other_terms: list = []
+
+    # -- helpers ------------------------------------------------------------------
+    def _scatter(self, out: FloatArray, vx: FloatArray, vy: FloatArray) -> None:
+        """Add per-triangle vertex vectors ``(3, T)`` x/y into ``out (N, 2)``."""
+        n = self.n_vertices
+        out[:, 0] += np.bincount(self._tri_flat, vx.ravel(), n)
+        out[:, 1] += np.bincount(self._tri_flat, vy.ravel(), n)
+
+    def _points(self, Q, what: str = "Q") -> FloatArray:
+        q = np.asarray(Q, dtype=np.float64)
+        if q.shape != (self.n_vertices, 2):
+            raise ValueError(f"{what} must have shape {(self.n_vertices, 2)}, got {q.shape}")
+        return q
+
+    def _admissibility_problem(self, Q: FloatArray, area: FloatArray) -> str | None:
+        """A message naming why ``Q`` is not admissible, or None."""
+        if not np.isfinite(Q).all():
+            v = int(np.flatnonzero(~np.isfinite(Q).all(axis=1))[0])
+            return f"vertex {v} has a non-finite coordinate"
+        if not (area > 0).all():
+            bad = np.flatnonzero(~(area > 0))
+            k = int(bad[0])
+            kind = "zero-area" if area[k] == 0 else "inverted"
+            more = f" ({bad.size} non-positive triangles)" if bad.size > 1 else ""
+            return (
+                f"triangle {k} {self._tri[k].tolist()} is {kind} "
+                f"(signed area {area[k]:.3g}){more}"
+            )
+        a, b, c = self._fold
+        if len(a):
+            u = Q[a] - Q[b]
+            v = Q[c] - Q[b]
+            cross = u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]
+            dot = np.einsum("kd,kd->k", u, v)
+            folded = np.flatnonzero((cross == 0) & (dot > 0))
+            if folded.size:
+                i = folded[0]
+                return (
+                    f"boundary folds onto itself at vertex {b[i]}: edges ({a[i]}, {b[i]}) and "
+                    f"({b[i]}, {c[i]}) overlap"
+                )
+        hits = boundary_self_intersections(Q, self._boundary_edges)
+        if len(hits):
+            e1 = self._boundary_edges[hits[0, 0]]
+            e2 = self._boundary_edges[hits[0, 1]]
+            return (
+                f"boundary self-intersects: edges ({e1[0]}, {e1[1]}) and "
+                f"({e2[0]}, {e2[1]}) touch or cross"
+            )
+        return None
+
+    def _run(self, Q, V, want: _Want, *, strict: bool) -> _Accumulator | None:
+        Q = self._points(Q)
+        if V is not None:
+            V = self._points(V, "V")
+        acc = _Accumulator(self.n_vertices, want)
+        with np.errstate(all="ignore"):
+            geom = _Geometry(Q, self._tri_t)
+        problem = self._admissibility_problem(Q, geom.area)
+        if problem is not None:
+            if strict:
+                raise NotAdmissibleError(f"{type(self).__name__}: Q is not admissible: {problem}")
+            return None
+        if V is not None:
+            geom.set_direction(V, self._tri_t)
+        if self._triangle_term is not None:
+            self._triangle_term.evaluate(geom, acc)
+        for term in self._other_terms:
+            term.evaluate(Q, V, acc)
+        return acc
+
+    # -- public protocol ----------------------------------------------------------
+    def is_admissible(self, Q) -> bool:
+        """True iff every signed area is > 0 and the boundary does not touch itself."""
+        Q = self._points(Q)
+        with np.errstate(all="ignore"):
+            area = _Geometry(Q, self._tri_t).area
+        return self._admissibility_problem(Q, area) is None
+
+    def terms(self, Q) -> dict[str, float]:
+        """Value of each term at ``Q`` (``+inf`` each when not admissible)."""
+        acc = self._run(Q, None, _Want(), strict=False)
+        names = self.term_names
+        if acc is None:
+            return {k: float("inf") for k in names}
+        return {k: float(acc.values[k]) for k in names}
+
+    @property
+    def term_names(self) -> list[str]:
+        """Names of the active terms, in evaluation order."""
+        out = [] if self._triangle_term is None else [self._triangle_term.name]
+        return out + [t.name for t in self._other_terms]
+
+    def value(self, Q) -> float:
+        """``f(Q)``; ``+inf`` at a non-admissible ``Q`` (never NaN)."""
+        acc = self._run(Q, None, _Want(), strict=False)
+        if acc is None:
+            return float("inf")
+        val = float(sum(acc.values.values()))
+        return val if not np.isnan(val) else float("inf")
+
+    __call__ = value
+
+    def gradient(self, Q) -> FloatArray:
+        """``∇f(Q)``, ``(N, 2)``. Raises NotAdmissibleError at a non-admissible Q."""
+        return self._run(Q, None, _Want(gradient=True), strict=True).grad
+
+    def value_and_gradient(self, Q) -> tuple[float, FloatArray]:
+        """``(f(Q), ∇f(Q))`` sharing the work. Raises NotAdmissibleError."""
+        acc = self._run(Q, None, _Want(gradient=True), strict=True)
+        return float(sum(acc.values.values())), acc.grad
+
+    def hvp(self, Q, V) -> FloatArray:
+        """Hessian-vector product ``∇²f(Q) V``, ``(N, 2)``. Raises NotAdmissibleError."""
+        return self._run(Q, V, _Want(hvp=True), strict=True).hvp
+
+    def gradient_and_curvature(self, Q, V) -> tuple[FloatArray, float]:
+        """``(∇f(Q), V·∇²f(Q)·V)`` in one pass without forming ``∇²f V``.
+
+        This is the right-hand side of the geodesic equation
+        ``Q'' = −∇f (V·∇²f V)/(1 + |∇f|²)`` (SPEC §5). Raises NotAdmissibleError.
+        """
+        acc = self._run(Q, V, _Want(gradient=True, curvature=True), strict=True)
+        return acc.grad, float(acc.curvature)
+
+    def curvature(self, Q, V) -> float:
+        """``V·∇²f(Q)·V`` alone. Raises NotAdmissibleError."""
+        return float(self._run(Q, V, _Want(curvature=True), strict=True).curvature)
+
+    def __repr__(self) -> str:
+        return (
+            f"{type(self).__name__}(n_vertices={self.n_vertices}, "
+            f"n_triangles={self.n_triangles}, terms={self.term_names})"
+        )
+
+
+def _coefficients(values, n: int, name: str) -> tuple[float, ...]:
+    try:
+        out = tuple(float(v) for v in values)
+    except TypeError:
+        raise ValueError(f"{name} must be a sequence of {n} numbers, got {values!r}") from None
+    if len(out) != n or not all(np.isfinite(v) and v >= 0 for v in out):
+        raise ValueError(f"{name} must be {n} finite numbers >= 0, got {values!r}")
+    return out
+
+
+class HeightPenalty(Penalty):
+    """The height penalty f1 (5.16), with an optional cut-off on its pair term (5.18).
+
+    ``f1(Q) = Σ_k Σ_l α1/h_l(k) + Σ_pairs χ(α2/D^μ) + (α3/2)‖Q − Qref‖²_F``
+    with heights ``h_l = 2A/E_l`` (5.5), so ``Σ_l 1/h_l = (E0 + E1 + E2)/(2A)``.
+    Not invariant under uniform refinement.
+
+    Parameters
+    ----------
+    mesh : PlanarMesh
+        Connectivity (and the default reference positions).
+    alpha : (α1, α2, α3), each ≥ 0
+    mu : float
+        Regularization parameter μ of ``D^μ`` (appendix B).
+    cutoff : (s_lo, s_hi) or None
+        Wrap each pair summand ``s = α2/D^μ`` as ``χ(s)``, see :func:`cutoff`.
+    reference : (N, 2) array or PlanarMesh, optional
+        ``Qref``; the mesh's points by default.
+
+    Terms (see :meth:`terms`): ``"height"``, ``"boundary"``, ``"reference"``; a term
+    whose coefficient is 0 is skipped.
+    """
+
+    def __init__(
+        self,
+        mesh: TriangleMesh,
+        alpha=(1.0, 1.0, 1.0),
+        mu: float = DEFAULT_MU,
+        cutoff=None,
+        reference=None,
+    ) -> None:
+        super().__init__(mesh, mu, cutoff, reference)
+        a1, a2, a3 = self.alpha = _coefficients(alpha, 3, "alpha")
+        if a1:
+            self._triangle_term = _TriangleQuotientTerm("height", "height", 0.5 * a1, self._scatter)
+        if a2:
+            self._other_terms.append(
+                _BoundaryTerm(1.0, a2, self.mu, self.cutoff, self._boundary_vertices, self._boundary_edges)
+            )
+        if a3:
+            self._other_terms.append(_ReferenceTerm(a3, self.reference))
+
+
+class QualityPenalty(Penalty):
+    """The shape-quality penalty f2 (5.22), with an optional cut-off on its pair term (5.33).
+
+    ``f2(Q) = (β1/T) Σ_k 1/ψ_k + β2/Σ_k A_k + β3/(#E∂ #V∂) Σ_pairs χ(1/D^μ)
+    + β4/(2N) ‖Q − Qref‖²_F`` with ``1/ψ = (E0² + E1² + E2²)/(4√3 A)`` (5.23).
+    The quality and area terms are invariant under rigid motions and exactly invariant
+    under uniform refinement; the reference term is not (refinement adds nodes).
+
+    Parameters
+    ----------
+    mesh : PlanarMesh
+    beta : (β1, β2, β3, β4), each ≥ 0; β4 unscaled (the formula divides by 2N)
+    mu : float
+        Regularization parameter μ of ``D^μ`` (appendix B).
+    cutoff : (s_lo, s_hi) or None
+        Wrap each pair summand ``s = 1/D^μ`` as ``χ(s)``, see :func:`cutoff`.
+    reference : (N, 2) array or PlanarMesh, optional
+        ``Qref``; the mesh's points by default.
+
+    Terms (see :meth:`terms`): ``"quality"``, ``"area"``, ``"boundary"``,
+    ``"reference"``; a term whose coefficient is 0 is skipped.
+    """
+
+    def __init__(
+        self,
+        mesh: TriangleMesh,
+        beta=(1.0, 1.0, 1.0, 1.0),
+        mu: float = DEFAULT_MU,
+        cutoff=None,
+        reference=None,
+    ) -> None:
+        super().__init__(mesh, mu, cutoff, reference)
+        b1, b2, b3, b4 = self.beta = _coefficients(beta, 4, "beta")
+        if b1:
+            coef = b1 / (4.0 * SQRT3 * self.n_triangles)
+            self._triangle_term = _TriangleQuotientTerm("quality", "quality", coef, self._scatter)
+        if b2:
+            self._other_terms.append(_TotalAreaTerm(b2, self._boundary_edges))
+        if b3:
+            n_pairs_norm = len(self._boundary_edges) * len(self._boundary_vertices)
+            self._other_terms.append(
+                _BoundaryTerm(
+                    b3 / n_pairs_norm, 1.0, self.mu, self.cutoff,
+                    self._boundary_vertices, self._boundary_edges,
+                )
+            )
+        if b4:
+            self._other_terms.append(_ReferenceTerm(b4 / self.n_vertices, self.reference))
