@@ -1,0 +1,178 @@
+"""Conversions between :class:`~meshopt_toolkit.mesh.TriangleMesh` and meshio, trimesh and
+pymeshlab objects, keeping the vertex order and connectivity exactly.
+
+trimesh and pymeshlab are imported only when their converter is called. A converted-back
+mesh is a :class:`~meshopt_toolkit.mesh.PlanarMesh` when its points are 2D or every z is
+exactly 0, else a :class:`~meshopt_toolkit.mesh.TriangleMesh`.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from .errors import InvalidMeshError
+from .mesh import PlanarMesh, TriangleMesh
+
+if TYPE_CHECKING:  # pragma: no cover
+    import meshio
+    import pymeshlab
+    import trimesh
+
+logger = logging.getLogger(__name__)
+
+__all__ = [
+    "to_meshio",
+    "from_meshio",
+    "to_trimesh",
+    "from_trimesh",
+    "to_pymeshlab",
+    "from_pymeshlab",
+]
+
+_PHYSICAL = "gmsh:physical"
+_GEOMETRICAL = "gmsh:geometrical"
+
+
+def _points3d(points: np.ndarray) -> np.ndarray:
+    if points.shape[1] == 3:
+        return np.array(points, dtype=np.float64)
+    out = np.zeros((len(points), 3))
+    out[:, :2] = points
+    return out
+
+
+def _mesh(points, triangles, source=None, **tags) -> TriangleMesh:
+    """PlanarMesh when 2D or z ≡ 0, else TriangleMesh."""
+    pts = np.asarray(points, dtype=np.float64)
+    if pts.ndim == 2 and (pts.shape[1] == 2 or (pts.shape[1] == 3 and not np.any(pts[:, 2]))):
+        return PlanarMesh(pts, triangles, source=source, **tags)
+    return TriangleMesh(pts, triangles, source=source, **tags)
+
+
+# ----------------------------------------------------------------------------- meshio
+def to_meshio(mesh: TriangleMesh, *, pad_z: bool = True) -> "meshio.Mesh":
+    """A ``meshio.Mesh`` with a "triangle" block (and a "line" block for tagged lines).
+
+    Parameters
+    ----------
+    mesh : TriangleMesh
+    pad_z : bool
+        Give 2D points a zero z column, ``(N, 3)``; several meshio writers need it.
+
+    Physical tags go to ``cell_data["gmsh:physical"]`` (and ``"gmsh:geometrical"``), names
+    to ``field_data`` as ``{name: [tag, dim]}``, as meshio's gmsh reader produces them.
+    """
+    import meshio
+
+    points = _points3d(mesh.points) if pad_z else np.array(mesh.points)
+    cells = []
+    phys = []
+    if mesh.lines is not None:
+        cells.append(("line", np.array(mesh.lines)))
+        phys.append(np.array(mesh.line_tags))
+    cells.append(("triangle", np.array(mesh.triangles)))
+    tagged = mesh.triangle_tags is not None or mesh.lines is not None
+    if mesh.triangle_tags is not None:
+        phys.append(np.array(mesh.triangle_tags))
+    else:
+        phys.append(np.zeros(mesh.n_triangles, np.int64))
+    cell_data = {}
+    if tagged:
+        cell_data = {_PHYSICAL: phys, _GEOMETRICAL: [np.where(p > 0, p, 1) for p in phys]}
+    field_data = {name: np.array([tag, dim]) for name, (tag, dim) in mesh.tag_names.items()}
+    return meshio.Mesh(points, cells, cell_data=cell_data, field_data=field_data)
+
+
+def from_meshio(m: "meshio.Mesh", source: str | None = None) -> TriangleMesh:
+    """The triangles (and line elements) of a ``meshio.Mesh``, in block order.
+
+    Other cell types (vertices, quads, tetrahedra, …) are skipped with a log message. Every
+    point is kept, in order. ``cell_data["gmsh:physical"]`` becomes ``triangle_tags`` /
+    ``line_tags`` (all-zero triangle tags mean "untagged") and ``field_data`` the
+    ``tag_names``.
+
+    Raises
+    ------
+    InvalidMeshError
+        No triangle, or a readable-level check fails.
+    """
+    tris, ttags, lines, ltags = [], [], [], []
+    phys = m.cell_data.get(_PHYSICAL)
+    skipped = set()
+    for i, block in enumerate(m.cells):
+        data = np.asarray(block.data)
+        tag = None if phys is None else np.asarray(phys[i]).reshape(-1)
+        if block.type == "triangle":
+            tris.append(data)
+            ttags.append(tag)
+        elif block.type == "line":
+            lines.append(data)
+            ltags.append(np.zeros(len(data), np.int64) if tag is None else tag)
+        else:
+            skipped.add(block.type)
+    if skipped:
+        logger.info("%s: skipped cells of type %s", source or "mesh", ", ".join(sorted(skipped)))
+    where = f"{source}: " if source else ""
+    if not tris:
+        found = ", ".join(sorted({b.type for b in m.cells})) or "none"
+        raise InvalidMeshError(f"{where}mesh has no triangles (cell types: {found})")
+    triangles = np.concatenate(tris) if len(tris) > 1 else tris[0]
+    triangle_tags = None
+    if all(t is not None for t in ttags):
+        tt = np.concatenate(ttags)
+        if np.any(tt):
+            triangle_tags = tt
+    tags: dict[str, Any] = {"triangle_tags": triangle_tags}
+    if lines:
+        tags["lines"] = np.concatenate(lines)
+        tags["line_tags"] = np.concatenate(ltags)
+    names = {}
+    for name, value in (m.field_data or {}).items():
+        v = np.asarray(value).reshape(-1)
+        if v.size >= 2:
+            names[str(name)] = (int(v[0]), int(v[1]))
+    tags["tag_names"] = names
+    return _mesh(m.points, triangles, source=source, **tags)
+
+
+# ----------------------------------------------------------------------------- trimesh
+def to_trimesh(mesh: TriangleMesh) -> "trimesh.Trimesh":
+    """A ``trimesh.Trimesh`` built with ``process=False`` (no merging or reordering);
+    2D points get z = 0."""
+    import trimesh
+
+    return trimesh.Trimesh(
+        vertices=_points3d(mesh.points), faces=np.array(mesh.triangles), process=False
+    )
+
+
+def from_trimesh(t: "trimesh.Trimesh", source: str | None = None) -> TriangleMesh:
+    """The vertices and faces of a ``trimesh.Trimesh``, as they are (no processing)."""
+    return _mesh(np.asarray(t.vertices, dtype=np.float64), np.asarray(t.faces), source=source)
+
+
+# ----------------------------------------------------------------------------- pymeshlab
+def to_pymeshlab(mesh: TriangleMesh) -> "pymeshlab.Mesh":
+    """A ``pymeshlab.Mesh`` with ``(N, 3)`` float64 vertices (z = 0 for planar meshes).
+
+    Add it to a ``MeshSet`` with ``ms.add_mesh(m)``; vertex order is kept by filters that
+    do not change the topology.
+    """
+    import pymeshlab
+
+    return pymeshlab.Mesh(
+        vertex_matrix=_points3d(mesh.points),
+        face_matrix=np.ascontiguousarray(mesh.triangles, dtype=np.int32),
+    )
+
+
+def from_pymeshlab(m: "pymeshlab.Mesh", source: str | None = None) -> TriangleMesh:
+    """A mesh from ``pymeshlab.Mesh`` vertices and faces (PlanarMesh when z ≡ 0)."""
+    return _mesh(
+        np.asarray(m.vertex_matrix(), dtype=np.float64),
+        np.asarray(m.face_matrix(), dtype=np.int64),
+        source=source,
+    )

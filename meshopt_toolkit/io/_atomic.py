@@ -1,0 +1,66 @@
+"""Atomic file writes: a temporary file in the target's directory, then a rename."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+
+from ..errors import WriteError
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | os.PathLike, *, overwrite: bool = True) -> Iterator[Path]:
+    """Yield a temporary path next to ``path``; on success move it onto ``path``.
+
+    If the body raises, the temporary file is removed and ``path`` is untouched: a reader
+    never sees a partial file. With ``overwrite=False`` an existing ``path`` is refused,
+    before any work and again at the final (hard-link based, race-free) publish step.
+
+    Raises
+    ------
+    WriteError
+        ``path`` exists and ``overwrite`` is false, its directory is missing, or the
+        temporary file cannot be created or moved.
+    """
+    path = Path(path)
+    if not overwrite and path.exists():
+        raise WriteError(f"{path}: already exists (not overwriting)")
+    if path.is_dir():
+        raise WriteError(f"{path}: is a directory")
+    directory = path.parent if str(path.parent) else Path(".")
+    if not directory.is_dir():
+        raise WriteError(f"{path}: directory {directory} does not exist")
+    try:
+        fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=directory)
+    except OSError as exc:
+        raise WriteError(f"{path}: cannot create a file in {directory}: {exc.strerror}") from None
+    os.close(fd)
+    tmp = Path(tmp_name)
+    try:
+        os.chmod(tmp, 0o666 & ~_umask())
+        yield tmp
+        if overwrite:
+            os.replace(tmp, path)
+        else:
+            try:
+                os.link(tmp, path)
+            except FileExistsError:
+                raise WriteError(f"{path}: already exists (not overwriting)") from None
+            except OSError:  # file system without hard links: best effort
+                if path.exists():
+                    raise WriteError(f"{path}: already exists (not overwriting)") from None
+                os.replace(tmp, path)
+    except OSError as exc:
+        raise WriteError(f"{path}: {exc.strerror or exc}") from None
+    finally:
+        with contextlib.suppress(FileNotFoundError):
+            tmp.unlink()

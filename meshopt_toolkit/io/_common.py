@@ -1,0 +1,105 @@
+"""Helpers shared by the format modules: building the mesh, text number blocks."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InvalidMeshError, ReadError, WriteError
+from ..mesh import PlanarMesh, TriangleMesh
+
+
+def build_mesh(points, triangles, source: str | Path, **tags) -> TriangleMesh:
+    """A :class:`PlanarMesh` when points are 2D or every z is exactly 0, else a
+    :class:`TriangleMesh`; readable-level failures become :class:`ReadError`.
+
+    Parameters
+    ----------
+    points : (N, 2) or (N, 3) array of float
+    triangles : (T, 3) array of int
+    source : file the data came from (named in every error)
+    **tags : ``triangle_tags``, ``lines``, ``line_tags``, ``tag_names``
+    """
+    pts = np.asarray(points, dtype=np.float64)
+    try:
+        planar = pts.ndim == 2 and (
+            pts.shape[1] == 2 or (pts.shape[1] == 3 and not np.any(pts[:, 2]))
+        )
+        cls = PlanarMesh if planar else TriangleMesh
+        return cls(pts, triangles, source=str(source), **tags)
+    except InvalidMeshError as exc:
+        raise ReadError(str(exc)) from exc
+
+
+def points3d(mesh: TriangleMesh) -> np.ndarray:
+    """The points as ``(N, 3)`` float64, padding z = 0 for a planar mesh."""
+    p = mesh.points
+    if p.shape[1] == 3:
+        return np.ascontiguousarray(p, dtype=np.float64)
+    out = np.zeros((len(p), 3))
+    out[:, :2] = p
+    return out
+
+
+def format_rows(values: np.ndarray, fmt: str, prefix: str = "") -> str:
+    """Format an ``(n, k)`` array as text lines ``prefix v1 ... vk`` in one C-level pass.
+
+    ``fmt`` is a ``%`` format for one value: ``"%r"`` gives the shortest repr that reads
+    back bit-exactly for floats (at most 17 significant digits), ``"%d"`` for ints.
+    """
+    values = np.asarray(values)
+    if values.size == 0:
+        return ""
+    n, k = values.shape
+    row = prefix + " ".join([fmt] * k) + "\n"
+    return (row * n) % tuple(values.ravel().tolist())
+
+
+def parse_rows(lines: list[str], source, what: str, min_cols: int, dtype=np.float64) -> np.ndarray:
+    """Parse whitespace-separated numbers, one row per line, into an ``(n, k)`` array.
+
+    Rows may have different lengths; only the first ``k`` = shortest length columns are
+    kept, and a row shorter than ``min_cols`` is an error.
+
+    Raises
+    ------
+    ReadError
+        A token is not a number or a row is too short (names the file and the line).
+    """
+    rows = [s.split() for s in lines]
+    if not rows:
+        return np.zeros((0, min_cols), dtype)
+    lengths = np.fromiter(map(len, rows), dtype=np.int64, count=len(rows))
+    k = int(lengths.min())
+    if k < min_cols:
+        bad = int(np.argmin(lengths))
+        raise ReadError(f"{source}: {what} {bad} has {k} values, expected at least {min_cols}: "
+                        f"{lines[bad].strip()!r}")
+    if (lengths != k).any():
+        rows = [r[:k] for r in rows]
+    try:
+        arr = np.array(rows, dtype=np.float64)
+    except ValueError as exc:
+        raise ReadError(f"{source}: {what} section has a value that is not a number ({exc})") from None
+    if dtype is not np.float64:
+        if not np.isfinite(arr).all() or np.any(arr != np.round(arr)):
+            raise ReadError(f"{source}: {what} indices must be integers")
+        arr = arr.astype(dtype)
+    return arr
+
+
+def decode_text(data: bytes, source) -> str:
+    """Decode a text file (UTF-8 with Latin-1 fallback); NUL bytes mean it is binary junk."""
+    if b"\x00" in data[:4096]:
+        raise ReadError(f"{source}: looks like a binary file, expected text")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        return data.decode("latin-1")
+
+
+def require_text_mode(binary: bool | None, path, fmt: str) -> None:
+    """Raise :class:`WriteError` when binary output is requested from a text-only format."""
+    if binary:
+        raise WriteError(f"{path}: {fmt} is a text format; binary output is not available")

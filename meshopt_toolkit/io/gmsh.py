@@ -1,0 +1,218 @@
+"""Gmsh ``.msh`` files: read 2.2/4.0/4.1 (ASCII and binary), write 2.2 and 4.1.
+
+Reading goes through meshio's gmsh reader (called directly: ``meshio.read`` would try the
+ansys reader first and calls ``sys.exit`` on failure). Writing is our own, vectorized, so
+that physical tags of triangles and boundary lines are always written (meshio 5.3.5 under
+numpy 2 writes ASCII files with cell data it cannot read back, and its 4.1 writer drops
+physical tags without ``gmsh:dim_tags``). Element blocks follow runs of equal tags, so the
+order of triangles and lines in the file is the order in the mesh.
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ReadError, WriteError
+from ..mesh import TriangleMesh
+from ._common import format_rows, points3d
+
+logger = logging.getLogger(__name__)
+
+TRIANGLE, LINE = 2, 1  # gmsh element types
+VERSIONS = ("2.2", "4.1")
+
+
+# ----------------------------------------------------------------------------- reading
+def read(path: Path) -> TriangleMesh:
+    """Read a gmsh file; triangles, tagged lines, physical tags and names are kept."""
+    from meshio.gmsh import read as meshio_gmsh_read
+
+    from ..conversions import from_meshio
+
+    with open(path, "rb") as fh:
+        head = fh.read(64).lstrip()
+    if not (head.startswith(b"$MeshFormat") or head.startswith(b"$Comments")):
+        raise ReadError(f"{path}: not a gmsh file (no $MeshFormat header)")
+    try:
+        m = meshio_gmsh_read(path)
+    except (Exception, SystemExit) as exc:  # meshio may sys.exit on failure
+        detail = str(exc) or type(exc).__name__
+        if isinstance(exc, (ValueError, EOFError, IndexError)) or "buffer" in detail:
+            detail = f"truncated or corrupt ({detail})"
+        raise ReadError(f"{path}: cannot read gmsh file: {detail}") from None
+    return from_meshio(m, source=str(path))
+
+
+# ----------------------------------------------------------------------------- writing
+def _runs(tags: np.ndarray) -> list[tuple[int, int, int]]:
+    """Maximal runs ``(start, stop, tag)`` of equal consecutive tags."""
+    if len(tags) == 0:
+        return []
+    cut = np.flatnonzero(np.diff(tags)) + 1
+    starts = np.concatenate([[0], cut])
+    stops = np.concatenate([cut, [len(tags)]])
+    return [(int(a), int(b), int(tags[a])) for a, b in zip(starts, stops)]
+
+
+def _groups(mesh: TriangleMesh):
+    """Element groups ``(type, elements (M, k), tags (M,) or None)``: lines, then triangles."""
+    out = []
+    if mesh.lines is not None:
+        out.append((LINE, mesh.lines, mesh.line_tags))
+    out.append((TRIANGLE, mesh.triangles, mesh.triangle_tags))
+    return out
+
+
+def _physical_names(mesh: TriangleMesh) -> bytes:
+    names = mesh.tag_names
+    if not names:
+        return b""
+    lines = [f"{int(dim)} {int(tag)} \"{name}\"" for name, (tag, dim) in names.items()]
+    return ("$PhysicalNames\n%d\n%s\n$EndPhysicalNames\n" % (len(lines), "\n".join(lines))).encode()
+
+
+def write(path: Path, mesh: TriangleMesh, binary: bool | None = None, version: str = "4.1") -> None:
+    """Write ``mesh`` as gmsh ``version`` ("2.2" or "4.1"), binary unless ``binary=False``.
+
+    Coordinates are exact: binary doubles, or ``repr`` (≤ 17 significant digits) in ASCII.
+    """
+    version = str(version)
+    if version not in VERSIONS:
+        raise WriteError(f"{path}: unsupported gmsh version {version!r}; use one of {VERSIONS}")
+    binary = True if binary is None else bool(binary)
+    with open(path, "wb") as fh:
+        if version == "2.2":
+            _write22(fh, mesh, binary)
+        else:
+            _write41(fh, mesh, binary)
+
+
+def _header(fh, version: str, binary: bool) -> None:
+    fh.write(f"$MeshFormat\n{version} {int(binary)} 8\n".encode())
+    if binary:
+        fh.write(np.array([1], "<i4").tobytes() + b"\n")
+    fh.write(b"$EndMeshFormat\n")
+
+
+def _write22(fh, mesh: TriangleMesh, binary: bool) -> None:
+    _header(fh, "2.2", binary)
+    fh.write(_physical_names(mesh))
+    pts = points3d(mesh)
+    n = len(pts)
+    fh.write(f"$Nodes\n{n}\n".encode())
+    ids = np.arange(1, n + 1)
+    if binary:
+        rec = np.empty(n, dtype=[("i", "<i4"), ("x", "<f8", (3,))])
+        rec["i"] = ids
+        rec["x"] = pts
+        fh.write(rec.tobytes())
+        fh.write(b"\n")
+    else:
+        rows = zip(ids.tolist(), *pts.T.tolist())
+        fh.write("".join(map("%d %r %r %r\n".__mod__, rows)).encode())
+    fh.write(b"$EndNodes\n")
+    groups = _groups(mesh)
+    total = sum(len(e) for _, e, _ in groups)
+    fh.write(f"$Elements\n{total}\n".encode())
+    first = 1
+    for etype, elems, tags in groups:
+        m, k = elems.shape
+        phys = np.zeros(m, np.int64) if tags is None else tags
+        geom = np.where(phys > 0, phys, 1)
+        table = np.column_stack([np.arange(first, first + m), phys, geom, elems + 1])
+        first += m
+        if binary:
+            fh.write(np.array([etype, m, 2], "<i4").tobytes())
+            fh.write(table.astype("<i4").tobytes())
+        else:
+            cols = np.column_stack([table[:, :1], np.full((m, 1), etype), np.full((m, 1), 2),
+                                    table[:, 1:]])
+            text = format_rows(cols, "%d")
+            fh.write(text.encode())
+    if binary:
+        fh.write(b"\n")
+    fh.write(b"$EndElements\n")
+
+
+def _entities(mesh: TriangleMesh, pts: np.ndarray):
+    """One entity per (dimension, physical tag): ``{dim: [(entity, phys or None, bbox)]}``
+    and the entity of each element run."""
+    ents: dict[int, list] = {1: [], 2: []}
+    blocks = []
+    for etype, elems, tags in _groups(mesh):
+        dim = 1 if etype == LINE else 2
+        tag_arr = np.zeros(len(elems), np.int64) if tags is None else np.asarray(tags)
+        uniq = np.unique(tag_arr)
+        ent_of = {}
+        for i, t in enumerate(uniq.tolist()):
+            sel = pts[elems[tag_arr == t].ravel()]
+            bbox = np.concatenate([sel.min(axis=0), sel.max(axis=0)])
+            ent_of[t] = i + 1
+            ents[dim].append((i + 1, t if t > 0 else None, bbox))
+        for a, b, t in _runs(tag_arr):
+            blocks.append((dim, ent_of[t], etype, elems[a:b]))
+    return ents, blocks
+
+
+def _write41(fh, mesh: TriangleMesh, binary: bool) -> None:
+    _header(fh, "4.1", binary)
+    fh.write(_physical_names(mesh))
+    pts = points3d(mesh)
+    n = len(pts)
+    ents, blocks = _entities(mesh, pts)
+    fh.write(b"$Entities\n")
+    if binary:
+        fh.write(np.array([0, len(ents[1]), len(ents[2]), 0], "<u8").tobytes())
+        for dim in (1, 2):
+            for tag, phys, bbox in ents[dim]:
+                fh.write(np.array([tag], "<i4").tobytes() + bbox.astype("<f8").tobytes())
+                if phys is None:
+                    fh.write(np.array([0], "<u8").tobytes())
+                else:
+                    fh.write(np.array([1], "<u8").tobytes() + np.array([phys], "<i4").tobytes())
+                fh.write(np.array([0], "<u8").tobytes())
+        fh.write(b"\n")
+    else:
+        fh.write(f"0 {len(ents[1])} {len(ents[2])} 0\n".encode())
+        for dim in (1, 2):
+            for tag, phys, bbox in ents[dim]:
+                box = " ".join(repr(float(v)) for v in bbox)
+                ph = "0" if phys is None else f"1 {phys}"
+                fh.write(f"{tag} {box} {ph} 0\n".encode())
+    fh.write(b"$EndEntities\n")
+    # all nodes in one block on the first surface entity
+    fh.write(b"$Nodes\n")
+    if binary:
+        fh.write(np.array([1, n, 1, n], "<u8").tobytes())
+        fh.write(np.array([2, 1, 0], "<i4").tobytes() + np.array([n], "<u8").tobytes())
+        fh.write(np.arange(1, n + 1, dtype="<u8").tobytes())
+        fh.write(pts.astype("<f8").tobytes())
+        fh.write(b"\n")
+    else:
+        fh.write(f"1 {n} 1 {n}\n2 1 0 {n}\n".encode())
+        fh.write(format_rows(np.arange(1, n + 1)[:, None], "%d").encode())
+        fh.write(format_rows(pts, "%r").encode())
+    fh.write(b"$EndNodes\n")
+    total = sum(len(b[3]) for b in blocks)
+    fh.write(b"$Elements\n")
+    if binary:
+        fh.write(np.array([len(blocks), total, 1, total], "<u8").tobytes())
+    else:
+        fh.write(f"{len(blocks)} {total} 1 {total}\n".encode())
+    first = 1
+    for dim, ent, etype, elems in blocks:
+        m = len(elems)
+        table = np.column_stack([np.arange(first, first + m), elems + 1])
+        first += m
+        if binary:
+            fh.write(np.array([dim, ent, etype], "<i4").tobytes() + np.array([m], "<u8").tobytes())
+            fh.write(table.astype("<u8").tobytes())
+        else:
+            fh.write(f"{dim} {ent} {etype} {m}\n".encode())
+            fh.write(format_rows(table, "%d").encode())
+    if binary:
+        fh.write(b"\n")
+    fh.write(b"$EndElements\n")

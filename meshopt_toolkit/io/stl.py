@@ -1,0 +1,67 @@
+"""STL (binary and ASCII). STL stores independent triangles as float32 corners, so it
+is neither exact nor ordered: reading merges equal corners into vertices (sorted
+lexicographically) — "read as unordered". Writing is binary by default.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ReadError
+from ..mesh import TriangleMesh
+from ._common import build_mesh, points3d
+
+_RECORD = np.dtype([("normal", "<f4", (3,)), ("v", "<f4", (3, 3)), ("attr", "<u2")])
+_VERTEX = re.compile(rb"vertex\s+(\S+)\s+(\S+)\s+(\S+)")
+
+
+def read(path: Path) -> TriangleMesh:
+    """Read an STL file; equal corners are merged into one vertex."""
+    data = Path(path).read_bytes()
+    if len(data) >= 84:
+        n = int(np.frombuffer(data, "<u4", 1, 80)[0])
+        binary = len(data) == 84 + 50 * n
+    else:
+        binary = False
+    if binary:
+        corners = np.frombuffer(data, _RECORD, n, 84)["v"].reshape(-1, 3).astype(np.float64)
+    else:
+        if not data.lstrip().startswith(b"solid"):
+            raise ReadError(f"{path}: not an STL file (neither binary size nor 'solid' header)")
+        found = _VERTEX.findall(data)
+        if not found or len(found) % 3:
+            raise ReadError(f"{path}: ASCII STL with {len(found)} vertices (not a multiple of 3)")
+        try:
+            corners = np.array(found, dtype=np.float64)
+        except ValueError:
+            raise ReadError(f"{path}: ASCII STL has a coordinate that is not a number") from None
+    if not np.isfinite(corners).all():
+        raise ReadError(f"{path}: STL has a non-finite coordinate")
+    pts, inverse = np.unique(corners, axis=0, return_inverse=True)
+    return build_mesh(pts, inverse.reshape(-1, 3), path)
+
+
+def write(path: Path, mesh: TriangleMesh, binary: bool | None = None) -> None:
+    """Write an STL file (binary by default) with unit facet normals (float32)."""
+    binary = True if binary is None else bool(binary)
+    corners = points3d(mesh)[mesh.triangles]  # (T, 3, 3)
+    normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    length = np.linalg.norm(normal, axis=1, keepdims=True)
+    normal = np.divide(normal, length, out=np.zeros_like(normal), where=length > 0)
+    with open(path, "wb") as fh:
+        if binary:
+            rec = np.zeros(len(corners), _RECORD)
+            rec["normal"] = normal
+            rec["v"] = corners
+            fh.write(b"meshopt-toolkit binary STL".ljust(80, b" "))
+            fh.write(np.array([len(corners)], "<u4").tobytes())
+            fh.write(rec.tobytes())
+        else:
+            table = np.concatenate([normal[:, None, :], corners], axis=1).reshape(len(corners), 12)
+            facet = ("facet normal %r %r %r\n outer loop\n  vertex %r %r %r\n  vertex %r %r %r\n"
+                     "  vertex %r %r %r\n endloop\nendfacet\n")
+            body = (facet * len(table)) % tuple(table.astype(np.float32).astype(float).ravel().tolist())
+            fh.write(b"solid meshopt\n" + body.encode() + b"endsolid meshopt\n")
