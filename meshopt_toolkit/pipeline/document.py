@@ -1,0 +1,285 @@
+"""A document: the meshes a pipeline works on, with per-vertex and per-face attributes.
+
+Attribute names with a MeshLab meaning are mapped onto MeshLab's own storage when the
+document is converted to a ``pymeshlab.MeshSet``:
+
+=============  =========================  ==============================================
+name           shape                      MeshLab storage
+=============  =========================  ==============================================
+``quality``    vertex ``(N,)``/face ``(T,)``  vertex / face quality (scalar)
+``color``      ``(N, 4)`` / ``(T, 4)``    vertex / face color (RGBA in [0, 1])
+``selected``   ``(N,)`` / ``(T,)`` bool   selection (read back only, see below)
+other          ``(N,)`` / ``(T,)``        custom scalar attributes
+other          ``(N, 3)`` / ``(T, 3)``    custom point attributes
+=============  =========================  ==============================================
+
+So a face quality stored by a meshopt filter is what a following MeshLab filter that reads
+face quality (e.g. "Select by Face Quality") sees. Custom attributes are added to the
+mesh *after* ``add_mesh`` (adding them before and saving PLY crashes pymeshlab).
+pymeshlab has no setter for selections: a selection made by a MeshLab step is read back
+into ``selected`` and kept for the following MeshLab steps of the same run of consecutive
+MeshLab steps (they share one MeshSet), but is not pushed back into a new MeshSet.
+
+Vertex and face order survive the round trip (pymeshlab keeps them for filters that do
+not change topology). When a MeshLab step keeps the faces, physical tags and line
+elements of the mesh are kept too.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..errors import FilterError
+from ..mesh import PlanarMesh, TriangleMesh
+
+logger = logging.getLogger(__name__)
+
+__all__ = ["MeshEntry", "Document"]
+
+_SPECIAL = ("quality", "color", "selected")
+
+
+@dataclass
+class MeshEntry:
+    """One mesh of a document with its attributes.
+
+    Attributes
+    ----------
+    mesh : TriangleMesh
+        The mesh (a :class:`PlanarMesh` when planar).
+    name : str
+        A label (file stem or filter output name).
+    vertex_attributes : dict of str to ndarray
+        ``(N,)`` or ``(N, k)`` arrays.
+    face_attributes : dict of str to ndarray
+        ``(T,)`` or ``(T, k)`` arrays.
+    """
+
+    mesh: TriangleMesh
+    name: str = "mesh"
+    vertex_attributes: dict[str, np.ndarray] = field(default_factory=dict)
+    face_attributes: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def set_vertex_attribute(self, name: str, values) -> None:
+        a = np.asarray(values)
+        if a.shape[:1] != (self.mesh.n_vertices,):
+            raise FilterError(f"vertex attribute {name!r} needs {self.mesh.n_vertices} rows, got {a.shape}")
+        self.vertex_attributes[name] = a
+
+    def set_face_attribute(self, name: str, values) -> None:
+        a = np.asarray(values)
+        if a.shape[:1] != (self.mesh.n_triangles,):
+            raise FilterError(f"face attribute {name!r} needs {self.mesh.n_triangles} rows, got {a.shape}")
+        self.face_attributes[name] = a
+
+    def replace_mesh(self, mesh: TriangleMesh, *, keep_vertex: bool | None = None,
+                     keep_face: bool | None = None) -> None:
+        """Swap in a new mesh; attributes are kept only where the sizes still match."""
+        same_v = mesh.n_vertices == self.mesh.n_vertices
+        same_f = mesh.n_triangles == self.mesh.n_triangles
+        if not (same_v if keep_vertex is None else keep_vertex):
+            self.vertex_attributes = {}
+        if not (same_f if keep_face is None else keep_face):
+            self.face_attributes = {}
+        self.mesh = mesh
+
+
+def _as_best(mesh: TriangleMesh) -> TriangleMesh:
+    return mesh.as_planar() if mesh.is_planar and not isinstance(mesh, PlanarMesh) else mesh
+
+
+class Document:
+    """An ordered list of meshes with a current one (like a MeshLab project).
+
+    Parameters
+    ----------
+    meshes : iterable of TriangleMesh or MeshEntry, optional
+    current : int, optional
+        Index of the current mesh (default: the last one).
+
+    Attributes
+    ----------
+    entries : list of MeshEntry
+    current : int
+    results : list of dict
+        One ``{"filter": name, ...summary}`` per step that returned a summary.
+    output_dir : pathlib.Path or None
+        Where relative output paths of save steps go (set by the runner).
+    overwrite : bool
+        Whether save steps may replace existing files.
+    dry_run : bool
+        Save steps validate but do not write.
+    variables : dict
+        Substitutions for ``{stem}``-style templates in paths.
+    """
+
+    def __init__(self, meshes=(), current: int | None = None) -> None:
+        self.entries: list[MeshEntry] = []
+        for m in meshes:
+            self.add(m)
+        if current is not None:
+            self.set_current(current)
+        self.results: list[dict] = []
+        self.output_dir = None
+        self.overwrite = False
+        self.dry_run = False
+        self.variables: dict[str, str] = {}
+        self.written: list[str] = []
+
+    # -- meshes ---------------------------------------------------------------------
+    def add(self, mesh: TriangleMesh | MeshEntry, name: str | None = None) -> MeshEntry:
+        """Append a mesh and make it current."""
+        entry = mesh if isinstance(mesh, MeshEntry) else MeshEntry(_as_best(mesh))
+        if name is not None:
+            entry.name = name
+        elif not isinstance(mesh, MeshEntry) and getattr(mesh, "source", None):
+            from pathlib import Path
+
+            entry.name = Path(mesh.source).stem
+        self.entries.append(entry)
+        self.current = len(self.entries) - 1
+        return entry
+
+    def set_current(self, index: int) -> None:
+        if not -len(self.entries) <= index < len(self.entries):
+            raise FilterError(f"document has {len(self.entries)} meshes, no mesh {index}")
+        self.current = index % len(self.entries)
+
+    def __len__(self) -> int:
+        return len(self.entries)
+
+    @property
+    def current_entry(self) -> MeshEntry:
+        if not self.entries:
+            raise FilterError("the document has no mesh (load one first)")
+        return self.entries[self.current]
+
+    @property
+    def mesh(self) -> TriangleMesh:
+        """The current mesh."""
+        return self.current_entry.mesh
+
+    # -- pymeshlab ------------------------------------------------------------------
+    def to_meshset(self):
+        """A ``pymeshlab.MeshSet`` with every mesh in order (same vertex/face order).
+
+        Quality and colors go into MeshLab's scalar/color storage; other attributes into
+        custom attributes added after ``add_mesh``. The current mesh is made current.
+        """
+        import pymeshlab
+
+        from ..conversions import to_pymeshlab
+
+        ms = pymeshlab.MeshSet()
+        for e in self.entries:
+            base = to_pymeshlab(e.mesh)
+            kw: dict[str, Any] = {}
+            va, fa = e.vertex_attributes, e.face_attributes
+            if "quality" in va and np.ndim(va["quality"]) == 1:
+                kw["v_scalar_array"] = np.asarray(va["quality"], np.float64)
+            if "quality" in fa and np.ndim(fa["quality"]) == 1:
+                kw["f_scalar_array"] = np.asarray(fa["quality"], np.float64)
+            if "color" in va and np.shape(va["color"])[1:] == (4,):
+                kw["v_color_matrix"] = np.asarray(va["color"], np.float64)
+            if "color" in fa and np.shape(fa["color"])[1:] == (4,):
+                kw["f_color_matrix"] = np.asarray(fa["color"], np.float64)
+            m = pymeshlab.Mesh(base.vertex_matrix(), base.face_matrix(), **kw) if kw else base
+            ms.add_mesh(m, e.name)
+            cm = ms.current_mesh()
+            for name, arr in va.items():
+                if name not in _SPECIAL:
+                    _add_custom(cm, "vertex", name, arr)
+            for name, arr in fa.items():
+                if name not in _SPECIAL:
+                    _add_custom(cm, "face", name, arr)
+        if self.entries:
+            ids = _mesh_ids(ms)
+            ms.set_current_mesh(ids[self.current])
+        return ms
+
+    def update_from_meshset(self, ms) -> None:
+        """Take the meshes of ``ms`` (after MeshLab filters ran) into this document.
+
+        Meshes are matched by position; geometry, quality, colors, selection and the custom
+        attributes this document knows are read back. Tags survive when faces are unchanged.
+        """
+        from ..conversions import from_pymeshlab
+
+        ids = _mesh_ids(ms)
+        new_entries = []
+        for pos, mid in enumerate(ids):
+            m = ms.mesh(mid)
+            old = self.entries[pos] if pos < len(self.entries) else None
+            mesh = from_pymeshlab(m)
+            if old is not None and np.array_equal(mesh.triangles, old.mesh.triangles):
+                kwargs = old.mesh._tag_kwargs()
+                cls = PlanarMesh if mesh.is_planar else TriangleMesh
+                mesh = cls(mesh.points, mesh.triangles, **kwargs)
+            mesh = _as_best(mesh)
+            entry = MeshEntry(mesh, name=m.label() or (old.name if old else f"mesh{pos}"))
+            nv, nf = mesh.n_vertices, mesh.n_triangles
+            if m.has_vertex_scalar():
+                entry.vertex_attributes["quality"] = np.array(m.vertex_scalar_array())
+            if m.has_face_scalar():
+                entry.face_attributes["quality"] = np.array(m.face_scalar_array())
+            if m.has_vertex_color():
+                entry.vertex_attributes["color"] = np.array(m.vertex_color_matrix())
+            if m.has_face_color():
+                entry.face_attributes["color"] = np.array(m.face_color_matrix())
+            vs, fs = np.array(m.vertex_selection_array()), np.array(m.face_selection_array())
+            if vs.shape == (nv,) and vs.any():
+                entry.vertex_attributes["selected"] = vs.astype(bool)
+            if fs.shape == (nf,) and fs.any():
+                entry.face_attributes["selected"] = fs.astype(bool)
+            if old is not None:
+                for name, arr in old.vertex_attributes.items():
+                    if name not in _SPECIAL and len(arr) == nv:
+                        entry.vertex_attributes[name] = _read_custom(m, "vertex", name, arr)
+                for name, arr in old.face_attributes.items():
+                    if name not in _SPECIAL and len(arr) == nf:
+                        entry.face_attributes[name] = _read_custom(m, "face", name, arr)
+            new_entries.append(entry)
+        self.entries = new_entries
+        cur = ms.current_mesh_id()
+        self.current = ids.index(cur) if cur in ids else len(ids) - 1
+
+    @classmethod
+    def from_meshset(cls, ms) -> "Document":
+        """A new document holding the meshes of ``ms``."""
+        doc = cls()
+        doc.update_from_meshset(ms)
+        return doc
+
+
+def _mesh_ids(ms) -> list[int]:
+    """Ids of the meshes in a MeshSet, in insertion order."""
+    ids, i = [], 0
+    n = ms.mesh_number()
+    while len(ids) < n and i < 100 * (n + 1):
+        if ms.mesh_id_exists(i):
+            ids.append(i)
+        i += 1
+    return ids
+
+
+def _add_custom(m, where: str, name: str, arr) -> None:
+    a = np.asarray(arr, np.float64)
+    if a.ndim == 1:
+        getattr(m, f"add_{where}_custom_scalar_attribute")(a, name)
+    elif a.ndim == 2 and a.shape[1] == 3:
+        getattr(m, f"add_{where}_custom_point_attribute")(a, name)
+    else:
+        logger.info("attribute %r of shape %s has no MeshLab equivalent; not passed on", name, a.shape)
+
+
+def _read_custom(m, where: str, name: str, old):
+    try:
+        if np.ndim(old) == 1:
+            return np.array(getattr(m, f"{where}_custom_scalar_attribute_array")(name))
+        return np.array(getattr(m, f"{where}_custom_point_attribute_matrix")(name))
+    except Exception:  # the MeshLab step dropped it
+        return np.asarray(old)

@@ -1,0 +1,455 @@
+"""Typed filter parameters: validation, JSON form and MeshLab ``<Param>`` elements.
+
+Every parameter has a name, a default, an optional range and a help text; that is enough
+to validate user values with clear messages and to write complete MeshLab ``Param``
+elements (``type``, ``name``, ``value``, ``description``, ``tooltip``, ``min``/``max``,
+``enum_cardinality``/``enum_valK``) that MeshLab and pymeshlab read back.
+
+Kinds and their MeshLab types:
+
+========  ==========================  ==============================================
+kind      Python value                MeshLab type
+========  ==========================  ==============================================
+bool      ``bool``                    ``RichBool`` (``true``/``false``)
+int       ``int``                     ``RichInt``
+float     ``float``                   ``RichFloat``, ``RichDynamicFloat`` if bounded
+enum      ``str`` (one of ``choices``) ``RichEnum`` (index in ``value``)
+string    ``str``                     ``RichString``
+path      ``str``                     ``RichOpenFile`` / ``RichSaveFile``
+length    :class:`Length`             ``RichAbsPerc`` (absolute value, min/max)
+========  ==========================  ==============================================
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import re
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+from ..errors import FilterError
+
+__all__ = [
+    "Length",
+    "Param",
+    "BoolParam",
+    "IntParam",
+    "FloatParam",
+    "EnumParam",
+    "StringParam",
+    "PathParam",
+    "LengthParam",
+    "param_from_mlx",
+    "did_you_mean",
+]
+
+
+def did_you_mean(word: str, candidates) -> str:
+    """``" (did you mean 'x'?)"`` for the closest candidate, or ``""``."""
+    close = difflib.get_close_matches(word, list(candidates), n=1, cutoff=0.6)
+    return f" (did you mean {close[0]!r}?)" if close else ""
+
+
+def _fmt(x: float) -> str:
+    """Floats as MeshLab writes them (6 significant digits) unless more are needed."""
+    short = f"{x:.6g}"
+    return short if float(short) == x else repr(float(x))
+
+
+@dataclass(frozen=True)
+class Length:
+    """An absolute length or a percentage of the bounding-box diagonal (MeshLab AbsPerc).
+
+    Parameters
+    ----------
+    value : float
+        The length, or the percentage when ``percent``.
+    percent : bool
+        Whether ``value`` is a percentage of the diagonal.
+
+    Examples
+    --------
+    >>> Length.parse("5%").resolve(diameter=2.0)
+    0.1
+    """
+
+    value: float
+    percent: bool = False
+
+    @classmethod
+    def parse(cls, raw: Any) -> "Length":
+        """From a number (absolute), ``"5%"`` (percentage), ``"0.1"`` or a Length."""
+        if isinstance(raw, Length):
+            return raw
+        if isinstance(raw, bool):
+            raise ValueError("a length must be a number or a percentage like '5%'")
+        if isinstance(raw, (int, float)):
+            return cls(float(raw))
+        if isinstance(raw, str):
+            text = raw.strip()
+            pct = text.endswith("%")
+            try:
+                val = float(text[:-1] if pct else text)
+            except ValueError:
+                raise ValueError(f"{raw!r} is not a length (a number or a percentage like '5%')")
+            return cls(val, pct)
+        raise ValueError(f"{raw!r} is not a length (a number or a percentage like '5%')")
+
+    def resolve(self, diameter: float) -> float:
+        """The absolute length for a mesh with bounding-box diagonal ``diameter``."""
+        return self.value * diameter / 100.0 if self.percent else self.value
+
+    def to_json(self):
+        return f"{_fmt(self.value)}%" if self.percent else self.value
+
+    def __str__(self) -> str:
+        return f"{_fmt(self.value)}%" if self.percent else _fmt(self.value)
+
+
+@dataclass(frozen=True)
+class Param:
+    """Base class of typed parameters.
+
+    Attributes
+    ----------
+    name : str
+        snake_case keyword used in Python and JSON (also the ``Param name`` in .mlx).
+    default
+        Default value (already valid).
+    help : str
+        One-line help, written as the MeshLab ``tooltip``.
+    label : str
+        Short GUI caption, the MeshLab ``description``; defaults to the name.
+    """
+
+    name: str
+    default: Any = None
+    help: str = ""
+    label: str = ""
+
+    kind: ClassVar[str] = "?"
+    mlx_type: ClassVar[str] = "?"
+
+    # -- validation -----------------------------------------------------------------
+    def _error(self, filter_name: str, msg: str) -> FilterError:
+        return FilterError(f"filter {filter_name!r}, parameter {self.name!r}: {msg}")
+
+    def validate(self, value: Any, filter_name: str = "?") -> Any:
+        """The value converted to this parameter's Python type, or a clear FilterError."""
+        raise NotImplementedError
+
+    # -- descriptions ---------------------------------------------------------------
+    def spec(self) -> dict:
+        """JSON-able description: kind, default, help, label and the range fields."""
+        return {
+            "name": self.name,
+            "type": self.kind,
+            "mlx_type": self.mlx_type,
+            "default": self.to_json(self.default),
+            "label": self.label or self.name,
+            "help": self.help,
+        }
+
+    def to_json(self, value: Any) -> Any:
+        return value
+
+    # -- MeshLab --------------------------------------------------------------------
+    def to_mlx(self, value: Any, diameter: float | None = None) -> dict[str, str]:
+        """Attributes of a complete MeshLab ``<Param>`` element for ``value``."""
+        return {
+            "type": self.mlx_type,
+            "name": self.name,
+            "value": self._mlx_value(value),
+            "description": self.label or self.name,
+            "tooltip": self.help,
+        }
+
+    def _mlx_value(self, value: Any) -> str:
+        return str(value)
+
+    def from_mlx(self, attrs: dict[str, str], filter_name: str = "?") -> Any:
+        """Value of a ``<Param>`` element (its ``value`` attribute), validated."""
+        if "value" not in attrs:
+            raise self._error(filter_name, "Param element has no 'value' attribute")
+        return self.validate(attrs["value"], filter_name)
+
+
+@dataclass(frozen=True)
+class BoolParam(Param):
+    default: bool = False
+    kind: ClassVar[str] = "bool"
+    mlx_type: ClassVar[str] = "RichBool"
+
+    def validate(self, value, filter_name="?") -> bool:
+        if isinstance(value, bool):
+            return value
+        if isinstance(value, str) and value.strip().lower() in ("true", "false"):
+            return value.strip().lower() == "true"
+        raise self._error(filter_name, f"expected true or false, got {value!r}")
+
+    def _mlx_value(self, value) -> str:
+        return "true" if value else "false"
+
+
+@dataclass(frozen=True)
+class _NumberParam(Param):
+    min: float | None = None
+    max: float | None = None
+
+    def _check_range(self, v, filter_name):
+        if self.min is not None and v < self.min:
+            raise self._error(filter_name, f"{v!r} is below the minimum {self.min!r}")
+        if self.max is not None and v > self.max:
+            raise self._error(filter_name, f"{v!r} is above the maximum {self.max!r}")
+        return v
+
+    def spec(self) -> dict:
+        return {**super().spec(), "min": self.min, "max": self.max}
+
+
+@dataclass(frozen=True)
+class IntParam(_NumberParam):
+    default: int = 0
+    kind: ClassVar[str] = "int"
+    mlx_type: ClassVar[str] = "RichInt"
+
+    def validate(self, value, filter_name="?") -> int:
+        if isinstance(value, bool):
+            raise self._error(filter_name, f"expected an integer, got {value!r}")
+        if isinstance(value, str):
+            try:
+                value = int(value.strip())
+            except ValueError:
+                raise self._error(filter_name, f"expected an integer, got {value!r}")
+        elif isinstance(value, float) and value.is_integer():
+            value = int(value)
+        if not isinstance(value, int):
+            raise self._error(filter_name, f"expected an integer, got {value!r}")
+        return self._check_range(int(value), filter_name)
+
+    def to_mlx(self, value, diameter=None):
+        out = super().to_mlx(value, diameter)
+        # RichInt has no range in MeshLab: keep ours as extra attributes it ignores
+        if self.min is not None:
+            out["min"] = str(self.min)
+        if self.max is not None:
+            out["max"] = str(self.max)
+        return out
+
+
+@dataclass(frozen=True)
+class FloatParam(_NumberParam):
+    default: float = 0.0
+    kind: ClassVar[str] = "float"
+
+    @property
+    def mlx_type(self) -> str:  # type: ignore[override]
+        bounded = self.min is not None and self.max is not None
+        return "RichDynamicFloat" if bounded else "RichFloat"
+
+    def validate(self, value, filter_name="?") -> float:
+        if isinstance(value, bool):
+            raise self._error(filter_name, f"expected a number, got {value!r}")
+        if isinstance(value, str):
+            try:
+                value = float(value.strip())
+            except ValueError:
+                raise self._error(filter_name, f"expected a number, got {value!r}")
+        if not isinstance(value, (int, float)):
+            raise self._error(filter_name, f"expected a number, got {value!r}")
+        value = float(value)
+        if not math.isfinite(value):
+            raise self._error(filter_name, f"expected a finite number, got {value!r}")
+        return self._check_range(value, filter_name)
+
+    def _mlx_value(self, value) -> str:
+        return _fmt(float(value))
+
+    def to_mlx(self, value, diameter=None):
+        out = super().to_mlx(value, diameter)
+        if self.min is not None:
+            out["min"] = _fmt(self.min)
+        if self.max is not None:
+            out["max"] = _fmt(self.max)
+        return out
+
+
+@dataclass(frozen=True)
+class EnumParam(Param):
+    """A choice among labels; accepts the label (case-insensitive) or its index."""
+
+    default: str = ""
+    choices: tuple[str, ...] = ()
+    kind: ClassVar[str] = "enum"
+    mlx_type: ClassVar[str] = "RichEnum"
+
+    def validate(self, value, filter_name="?") -> str:
+        if isinstance(value, int) and not isinstance(value, bool):
+            if 0 <= value < len(self.choices):
+                return self.choices[value]
+            raise self._error(filter_name, f"enum index {value} out of range 0..{len(self.choices) - 1}")
+        if isinstance(value, str):
+            for c in self.choices:
+                if c == value or c.lower() == value.strip().lower():
+                    return c
+            raise self._error(
+                filter_name,
+                f"unknown choice {value!r}{did_you_mean(value, self.choices)}; "
+                f"valid: {', '.join(map(repr, self.choices))}",
+            )
+        raise self._error(filter_name, f"expected one of {list(self.choices)}, got {value!r}")
+
+    def spec(self) -> dict:
+        return {**super().spec(), "choices": list(self.choices)}
+
+    def to_mlx(self, value, diameter=None):
+        out = super().to_mlx(value, diameter)
+        out["value"] = str(self.choices.index(self.validate(value)))
+        out["enum_cardinality"] = str(len(self.choices))
+        for i, c in enumerate(self.choices):
+            out[f"enum_val{i}"] = c
+        return out
+
+    def from_mlx(self, attrs, filter_name="?"):
+        raw = attrs.get("value")
+        if raw is None:
+            raise self._error(filter_name, "Param element has no 'value' attribute")
+        try:
+            return self.validate(int(raw), filter_name)
+        except ValueError:
+            return self.validate(raw, filter_name)
+
+
+@dataclass(frozen=True)
+class StringParam(Param):
+    default: str = ""
+    kind: ClassVar[str] = "string"
+    mlx_type: ClassVar[str] = "RichString"
+
+    def validate(self, value, filter_name="?") -> str:
+        if not isinstance(value, str):
+            raise self._error(filter_name, f"expected a string, got {value!r}")
+        return value
+
+
+@dataclass(frozen=True)
+class PathParam(StringParam):
+    """A file path; ``save=True`` for output files (``RichSaveFile``)."""
+
+    save: bool = False
+    kind: ClassVar[str] = "path"
+
+    @property
+    def mlx_type(self) -> str:  # type: ignore[override]
+        return "RichSaveFile" if self.save else "RichOpenFile"
+
+    def validate(self, value, filter_name="?") -> str:
+        value = super().validate(str(value) if hasattr(value, "__fspath__") else value, filter_name)
+        if not value.strip():
+            raise self._error(filter_name, "expected a file path, got an empty string")
+        return value
+
+    def to_mlx(self, value, diameter=None):
+        out = super().to_mlx(value, diameter)
+        ext = value.rsplit(".", 1)[-1] if "." in value else ""
+        out["ext"] = ext
+        return out
+
+
+@dataclass(frozen=True)
+class LengthParam(Param):
+    """An absolute-or-percentage length (of the bounding-box diagonal), MeshLab AbsPerc."""
+
+    default: Length = Length(0.0)
+    min: float | None = 0.0
+    kind: ClassVar[str] = "length"
+    mlx_type: ClassVar[str] = "RichAbsPerc"
+
+    def validate(self, value, filter_name="?") -> Length:
+        try:
+            length = Length.parse(value)
+        except ValueError as exc:
+            raise self._error(filter_name, str(exc))
+        if not math.isfinite(length.value):
+            raise self._error(filter_name, f"expected a finite length, got {value!r}")
+        if self.min is not None and length.value < self.min:
+            raise self._error(filter_name, f"{length} is below the minimum {self.min!r}")
+        return length
+
+    def to_json(self, value):
+        return Length.parse(value).to_json()
+
+    def spec(self) -> dict:
+        return {**super().spec(), "min": self.min}
+
+    def to_mlx(self, value, diameter=None):
+        """MeshLab stores the absolute value with ``min=0``, ``max=diagonal``.
+
+        Without a mesh (``diameter=None``) a percentage cannot be made absolute: it is
+        written against a nominal diagonal of 100 with ``percent="true"`` (an attribute
+        MeshLab ignores) so that reading back restores the percentage.
+        """
+        length = Length.parse(value)
+        out = super().to_mlx(value, diameter)
+        if length.percent and diameter is None:
+            out.update(value=_fmt(length.value), min="0", max="100", percent="true")
+        else:
+            d = 1.0 if diameter is None else float(diameter)
+            out.update(value=_fmt(length.resolve(d)), min="0", max=_fmt(max(d, 0.0)))
+        return out
+
+    def from_mlx(self, attrs, filter_name="?"):
+        raw = attrs.get("value")
+        if raw is None:
+            raise self._error(filter_name, "Param element has no 'value' attribute")
+        if attrs.get("percent", "").lower() == "true":
+            return self.validate(f"{raw}%", filter_name)
+        return self.validate(raw, filter_name)
+
+
+_SNAKE = re.compile(r"[^0-9a-zA-Z]+")
+
+
+def param_from_mlx(attrs: dict[str, str]) -> Any:
+    """The Python value of a generic MeshLab ``<Param>`` (used for MeshLab filters).
+
+    Returns values pymeshlab's ``apply_filter`` accepts once passed through
+    :func:`meshopt_toolkit.pipeline.meshlab.to_pymeshlab_value`: ``bool``, ``int``,
+    ``float``, ``str``, ``{"abs": x}`` for RichAbsPerc, lists for colors, positions and
+    matrices.
+
+    Raises
+    ------
+    FilterError
+        Missing or malformed attributes.
+    """
+    kind = attrs.get("type", "")
+    name = attrs.get("name", "?")
+    try:
+        if kind == "RichBool":
+            v = attrs["value"].strip().lower()
+            if v not in ("true", "false"):
+                raise ValueError(v)
+            return v == "true"
+        if kind in ("RichInt", "RichMesh"):
+            return int(attrs["value"])
+        if kind in ("RichFloat", "RichDynamicFloat"):
+            return float(attrs["value"])
+        if kind == "RichEnum":
+            return int(attrs["value"])
+        if kind == "RichAbsPerc":
+            return {"abs": float(attrs["value"])}
+        if kind in ("RichString", "RichOpenFile", "RichSaveFile", "RichFileOpen", "RichFileSave"):
+            return attrs["value"]
+        if kind == "RichColor":
+            return [int(attrs[c]) for c in ("r", "g", "b", "a")]
+        if kind in ("RichPosition", "RichDirection", "RichPoint3f"):
+            return [float(attrs[c]) for c in ("x", "y", "z")]
+        if kind == "RichMatrix44f":
+            return [float(attrs[f"val{i}"]) for i in range(16)]
+        if kind == "RichShotf":
+            raise FilterError(f"parameter {name!r}: RichShotf (camera) parameters are not supported")
+    except (KeyError, ValueError) as exc:
+        raise FilterError(f"parameter {name!r} ({kind}): malformed or missing attribute {exc}") from None
+    raise FilterError(f"parameter {name!r}: unknown MeshLab parameter type {kind!r}")
