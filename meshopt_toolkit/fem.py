@@ -1,0 +1,259 @@
+"""P1 finite elements for the Poisson model problem (SPEC §6, thesis (6.2), (6.12)).
+
+Plain, vectorized kernels over all triangles at once plus a small solver that factorizes
+the Dirichlet-reduced stiffness matrix once and serves several right-hand sides (state and
+adjoint).
+
+Notation for triangle ``K = (i0, i1, i2)`` (counter-clockwise): edge vectors
+``e_l = q_{l+2} − q_{l+1}`` (edge ``l`` opposite vertex ``l``, indices mod 3), area
+``A = ½ (e_2 × e_0)``, ``J v = (−v_y, v_x)`` the rotation by +90°. Then
+
+- barycentric gradients ``∇λ_l = J e_l / (2A)``;
+- element stiffness ``K_ab = A ∇λ_a·∇λ_b = e_a·e_b / (4A)``;
+- ``∂A/∂q_l = ½ J e_l``.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from ._typing import FloatArray, IntArray
+from .errors import MeshoptError
+
+__all__ = [
+    "edge_vectors",
+    "element_stiffness",
+    "p1_stiffness",
+    "centroids",
+    "lumped_load",
+    "nodal_mass_weights",
+    "poisson_shape_derivative",
+    "PoissonSolver",
+    "AMG_THRESHOLD",
+]
+
+logger = logging.getLogger(__name__)
+
+#: ``method="auto"`` uses the direct solver below this many free unknowns, AMG above.
+AMG_THRESHOLD = 100_000
+
+
+def _edge_components(points: FloatArray, triangles: IntArray) -> tuple[FloatArray, FloatArray]:
+    """Components ``(e_x, e_y)``, each ``(T, 3)``, of ``e_l = q_{l+2} − q_{l+1}``."""
+    out = []
+    for c in (0, 1):
+        x = points[:, c][triangles]
+        x0, x1, x2 = x[:, 0], x[:, 1], x[:, 2]
+        out.append(np.stack([x2 - x1, x0 - x2, x1 - x0], axis=1))
+    return out[0], out[1]
+
+
+def _areas(ex: FloatArray, ey: FloatArray) -> FloatArray:
+    """Signed areas ``½ (e_2 × e_0)`` from edge components ``(T, 3)``; returns ``(T,)``."""
+    return 0.5 * (ex[:, 2] * ey[:, 0] - ey[:, 2] * ex[:, 0])
+
+
+def edge_vectors(points: FloatArray, triangles: IntArray) -> FloatArray:
+    """Edge vectors ``e_l = q_{l+2} − q_{l+1}`` of every triangle, shape ``(T, 3, 2)``."""
+    return np.stack(_edge_components(points, triangles), axis=-1)
+
+
+def element_stiffness(points: FloatArray, triangles: IntArray) -> FloatArray:
+    """Local P1 stiffness matrices ``K_ab = e_a·e_b / (4A)``, shape ``(T, 3, 3)``.
+
+    Parameters
+    ----------
+    points : (N, 2) node positions
+    triangles : (T, 3) counter-clockwise vertex indices
+    """
+    ex, ey = _edge_components(points, triangles)
+    s = np.sqrt(1.0 / (4.0 * _areas(ex, ey)))[:, None]
+    ex *= s
+    ey *= s
+    return ex[:, :, None] * ex[:, None, :] + ey[:, :, None] * ey[:, None, :]
+
+
+def p1_stiffness(points: FloatArray, triangles: IntArray) -> sp.csr_matrix:
+    """Global P1 stiffness matrix of ``∫ ∇u·∇v``, (6.2). Returns CSR ``(N, N)``."""
+    n = len(points)
+    ke = element_stiffness(points, triangles)
+    tri = np.asarray(triangles, dtype=np.int32 if n < 2**31 else np.int64)
+    rows = np.repeat(tri, 3, axis=1).ravel()
+    cols = np.tile(tri, (1, 3)).ravel()
+    return sp.csr_matrix((ke.ravel(), (rows, cols)), shape=(n, n))
+
+
+def centroids(points: FloatArray, triangles: IntArray) -> FloatArray:
+    """Centroids ``ξ_K = (q0 + q1 + q2)/3`` of every triangle, shape ``(T, 2)``."""
+    return points[triangles].mean(axis=1)
+
+
+def _scatter(triangles: IntArray, values: FloatArray, n: int) -> FloatArray:
+    """Sum per-corner values ``(T, 3)`` to nodes ``(n,)``."""
+    return np.bincount(triangles.ravel(), weights=values.ravel(), minlength=n)
+
+
+def nodal_mass_weights(points: FloatArray, triangles: IntArray) -> FloatArray:
+    """``m_a = Σ_{K∋a} |K|/3``, so that ``∫ y ≈ mᵀy`` is exact for P1 ``y``. Returns ``(N,)``."""
+    a = _areas(*_edge_components(points, triangles))
+    return _scatter(triangles, np.repeat(a[:, None] / 3.0, 3, axis=1), len(points))
+
+
+def lumped_load(points: FloatArray, triangles: IntArray, r_values: FloatArray) -> FloatArray:
+    """Load vector with centroid quadrature ``b_a = Σ_{K∋a} r(ξ_K)|K|/3`` (SPEC §6).
+
+    Parameters
+    ----------
+    points : (N, 2)
+    triangles : (T, 3)
+    r_values : (T,) right-hand side at the centroids
+
+    Returns
+    -------
+    (N,) load vector.
+    """
+    a = _areas(*_edge_components(points, triangles))
+    w = np.asarray(r_values, dtype=float) * a / 3.0
+    return _scatter(triangles, np.repeat(w[:, None], 3, axis=1), len(points))
+
+
+def poisson_shape_derivative(
+    points: FloatArray,
+    triangles: IntArray,
+    y: FloatArray,
+    p: FloatArray,
+    r_values: FloatArray,
+    r_gradients: FloatArray,
+) -> FloatArray:
+    """Exact derivative of ``j(Q) = mᵀy`` w.r.t. all node positions, (6.12).
+
+    With the state ``K y = b`` and adjoint ``K p = −m`` (both zero on Dirichlet nodes),
+    ``dj/dQ = ∂_Q[mᵀy] + pᵀ(∂_Q K)y − pᵀ ∂_Q b`` is the partial derivative of the
+    Lagrangian ``Σ_K φ_K`` at fixed ``y, p`` with, per triangle,
+
+    ``φ_K = A s_y/3 + (u·w)/(4A) − r(ξ_K) A s_p/3``,
+
+    where ``s_y = Σ_a y_a``, ``s_p = Σ_a p_a``, ``u = Σ_a p_a e_a``, ``w = Σ_a y_a e_a``
+    (so ``pᵀ K_loc y = u·w/(4A)``). Since ``u = Σ_l (p_{l+1} − p_{l+2}) q_l``,
+
+    ``∂φ_K/∂q_l = c ∂A/∂q_l + [(p_{l+1}−p_{l+2}) w + (y_{l+1}−y_{l+2}) u]/(4A)
+    − (A s_p/9) ∇r(ξ_K)``,  with ``c = s_y/3 − r s_p/3 − (u·w)/(4A²)``, ``∂A/∂q_l = ½ J e_l``.
+
+    Parameters
+    ----------
+    points : (N, 2)
+    triangles : (T, 3)
+    y, p : (N,) state and adjoint
+    r_values : (T,) ``r(ξ_K)``
+    r_gradients : (T, 2) ``∇r(ξ_K)``
+
+    Returns
+    -------
+    (N, 2) derivative, including Dirichlet (boundary) vertices.
+    """
+    ex, ey = _edge_components(points, triangles)
+    a = _areas(ex, ey)
+    yk = y[triangles]
+    pk = p[triangles]
+    ux, uy = (pk * ex).sum(axis=1), (pk * ey).sum(axis=1)
+    wx, wy = (yk * ex).sum(axis=1), (yk * ey).sum(axis=1)
+    uw = ux * wx + uy * wy
+    sy = yk.sum(axis=1)
+    sp_ = pk.sum(axis=1)
+    y0, y1, y2 = yk[:, 0], yk[:, 1], yk[:, 2]
+    p0, p1, p2 = pk[:, 0], pk[:, 1], pk[:, 2]
+    dy = np.stack([y1 - y2, y2 - y0, y0 - y1], axis=1)  # y_{l+1} − y_{l+2}
+    dp = np.stack([p1 - p2, p2 - p0, p0 - p1], axis=1)
+    r = np.asarray(r_values, dtype=float)
+    grad_r = np.asarray(r_gradients, dtype=float)
+    inv4a = (0.25 / a)[:, None]
+    c = (sy / 3.0 - r * sp_ / 3.0 - uw / (4.0 * a * a))[:, None]
+    f = (a * sp_ / 9.0)[:, None]
+    # ∂A/∂q_l = ½ J e_l = ½ (−e_y, e_x)
+    gx = -0.5 * c * ey + (dp * wx[:, None] + dy * ux[:, None]) * inv4a - f * grad_r[:, 0:1]
+    gy = 0.5 * c * ex + (dp * wy[:, None] + dy * uy[:, None]) * inv4a - f * grad_r[:, 1:2]
+    n = len(points)
+    return np.stack([_scatter(triangles, gx, n), _scatter(triangles, gy, n)], axis=1)
+
+
+class PoissonSolver:
+    """Solve ``K y = b`` with ``y = 0`` on Dirichlet nodes, factorizing once.
+
+    Parameters
+    ----------
+    K : (N, N) sparse symmetric positive semi-definite stiffness matrix
+    dirichlet : (D,) indices of the nodes where ``y = 0`` (at least one)
+    method : ``"direct"`` (SuperLU with a symmetric minimum-degree ordering),
+        ``"amg"`` (pyamg smoothed aggregation as a preconditioner for CG, iterated to
+        relative residual ``rtol``; one hierarchy serves every right-hand side) or
+        ``"auto"`` (direct below :data:`AMG_THRESHOLD` free nodes, AMG above).
+    rtol : relative residual tolerance of the AMG-CG iteration
+
+    Notes
+    -----
+    The AMG path needs ``pyamg`` (imported lazily). Its solutions are accurate to
+    ``rtol`` only; use ``method="direct"`` when the last digits matter (Taylor tests).
+    """
+
+    def __init__(self, K, dirichlet: IntArray, method: str = "auto", rtol: float = 1e-10):
+        K = sp.csr_matrix(K)
+        n = K.shape[0]
+        fixed = np.zeros(n, dtype=bool)
+        dirichlet = np.asarray(dirichlet, dtype=np.int64).ravel()
+        if dirichlet.size == 0:
+            raise MeshoptError("the Poisson problem needs at least one Dirichlet node")
+        if dirichlet.min() < 0 or dirichlet.max() >= n:
+            raise MeshoptError(f"Dirichlet node index out of range 0..{n - 1}")
+        fixed[dirichlet] = True
+        self.n = n
+        self.free = np.flatnonzero(~fixed)
+        if method == "auto":
+            method = "amg" if self.free.size > AMG_THRESHOLD else "direct"
+        if method not in ("direct", "amg"):
+            raise ValueError(f"unknown method {method!r}; use 'direct', 'amg' or 'auto'")
+        self.method = method
+        self.rtol = float(rtol)
+        kff = K[self.free][:, self.free]
+        self._kff = kff
+        if self.free.size == 0:
+            self._solve = lambda b: b
+        elif method == "direct":
+            lu = spla.splu(
+                kff.tocsc(),
+                permc_spec="MMD_AT_PLUS_A",
+                diag_pivot_thresh=0.0,
+                options={"SymmetricMode": True},
+            )
+            self._solve = lu.solve
+        else:
+            self._solve = self._amg_solver(kff)
+
+    def _amg_solver(self, kff):
+        try:
+            import pyamg
+        except ImportError as exc:  # pragma: no cover - depends on the environment
+            raise MeshoptError("method='amg' needs pyamg (pip install pyamg)") from exc
+        ml = pyamg.smoothed_aggregation_solver(kff, symmetry="symmetric")
+        rtol = self.rtol
+
+        def solve(b):
+            res: list[float] = []
+            x = ml.solve(b, tol=rtol, accel="cg", maxiter=500, residuals=res)
+            logger.debug("AMG-CG: %d iterations, residual %.3e", len(res) - 1, res[-1])
+            if res[-1] > rtol * max(np.linalg.norm(b), 1e-300) * 10:
+                raise MeshoptError(f"AMG-CG did not converge: residual {res[-1]:.3e}")
+            return x
+
+        return solve
+
+    def solve(self, b: FloatArray) -> FloatArray:
+        """Solution ``(N,)`` of ``K y = b`` on free nodes, ``y = 0`` on Dirichlet nodes."""
+        b = np.asarray(b, dtype=float)
+        y = np.zeros(self.n)
+        if self.free.size:
+            y[self.free] = self._solve(b[self.free])
+        return y
