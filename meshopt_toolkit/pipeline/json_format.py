@@ -6,7 +6,7 @@ import json
 from pathlib import Path
 
 from ..errors import FilterError
-from ._atomic import write_text_atomic
+from ..io import atomic_path
 from .runner import Pipeline
 
 __all__ = ["read_json", "write_json", "loads", "dumps"]
@@ -40,4 +40,9 @@ def read_json(path) -> Pipeline:
 
 
 def write_json(pipeline: Pipeline, path, *, overwrite: bool = False) -> None:
-    write_text_atomic(path, dumps(pipeline), overwrite=overwrite)
+    _write_text(path, dumps(pipeline), overwrite=overwrite)
+
+
+def _write_text(path, text: str, *, overwrite: bool) -> None:
+    with atomic_path(path, overwrite=overwrite) as tmp:
+        tmp.write_text(text, encoding="utf-8")

@@ -20,7 +20,7 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 from ..errors import FilterError
-from ._atomic import write_text_atomic
+from ..io import atomic_path
 from .filter import registry
 from .params import did_you_mean, param_from_mlx
 from .runner import MESHLAB, MESHOPT, Pipeline, Step, make_step
@@ -180,4 +180,9 @@ def _meshlab_param(filter_name: str, key: str, value) -> dict[str, str]:
 def write_mlx(pipeline: Pipeline, path, *, overwrite: bool = False,
               diameter: float | None = None) -> None:
     """Write a .mlx file atomically (see :func:`dumps`)."""
-    write_text_atomic(path, dumps(pipeline, diameter), overwrite=overwrite)
+    _write_text(path, dumps(pipeline, diameter), overwrite=overwrite)
+
+
+def _write_text(path, text: str, *, overwrite: bool) -> None:
+    with atomic_path(path, overwrite=overwrite) as tmp:
+        tmp.write_text(text, encoding="utf-8")
