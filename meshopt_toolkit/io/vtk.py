@@ -40,7 +40,8 @@ def _read(path: Path, reader, kind: str) -> TriangleMesh:
         with _quiet():
             m = reader(path)
     except (Exception, SystemExit) as exc:
-        raise ReadError(f"{path}: cannot read {kind} file: {str(exc) or type(exc).__name__}") from None
+        detail = str(exc) or f"not a valid {kind} file or truncated"
+        raise ReadError(f"{path}: cannot read {kind} file: {detail}") from None
     try:
         return from_meshio(m, source=str(path))
     except InvalidMeshError as exc:
