@@ -210,13 +210,44 @@ class TriangleMesh:
 
     # -- topology (cached) ----------------------------------------------------------
     @cached_property
-    def _edge_data(self) -> tuple[IntArray, IntArray, IntArray]:
+    def _edge_data(self) -> tuple[IntArray, IntArray, IntArray, IntArray]:
+        """Edges, triangle→edge map, counts, and the first two corners of each edge.
+
+        A *corner* ``c = 3 k + l`` names local edge ``l`` of triangle ``k`` (opposite local
+        vertex ``l``, endpoints ``i_{l+1}, i_{l+2}``). Edges are found by one stable sort
+        of the integer codes ``min·N + max`` (lexicographic order of the sorted pairs).
+        """
         tri = self._triangles
-        # local edge l is opposite vertex l: (i_{l+1}, i_{l+2})
-        directed = np.stack([np.roll(tri, -1, axis=1), np.roll(tri, -2, axis=1)], axis=-1)
-        flat = np.sort(directed.reshape(-1, 2), axis=1)
-        edges, inverse, counts = np.unique(flat, axis=0, return_inverse=True, return_counts=True)
-        return edges, inverse.reshape(-1, 3), counts
+        n = max(self.n_vertices, 1)
+        a = np.roll(tri, -1, axis=1).ravel()
+        b = np.roll(tri, -2, axis=1).ravel()
+        code = np.minimum(a, b) * n + np.maximum(a, b)
+        order = np.argsort(code, kind="stable")
+        sorted_code = code[order]
+        start = np.empty(len(code), dtype=bool)
+        start[0] = True
+        np.not_equal(sorted_code[1:], sorted_code[:-1], out=start[1:])
+        first = np.flatnonzero(start)
+        inverse = np.empty(len(code), dtype=np.int64)
+        inverse[order] = np.cumsum(start) - 1
+        counts = np.diff(np.append(first, len(code)))
+        u = sorted_code[first]
+        edges = np.stack([u // n, u % n], axis=1)
+        corners = np.full((len(first), 2), -1, dtype=np.int64)
+        corners[:, 0] = order[first]
+        two = counts >= 2
+        corners[two, 1] = order[first[two] + 1]
+        return (
+            _frozen(edges),
+            _frozen(inverse.reshape(-1, 3)),
+            _frozen(counts),
+            _frozen(corners),
+        )
+
+    @property
+    def _edge_corners(self) -> IntArray:
+        """First two corners ``3 k + l`` containing each edge ``(E, 2)``; -1 if only one."""
+        return self._edge_data[3]
 
     @property
     def edges(self) -> IntArray:
@@ -259,9 +290,22 @@ class TriangleMesh:
     @cached_property
     def triangle_adjacency(self) -> sp.csr_matrix:
         """Symmetric ``(T, T)`` boolean matrix: triangles sharing an edge."""
+        nt = self.n_triangles
+        if self.edge_triangle_counts.max(initial=0) <= 2:
+            c = self._edge_corners
+            c = c[c[:, 1] >= 0]
+            t1, t2 = c[:, 0] // 3, c[:, 1] // 3
+            keep = t1 != t2
+            t1, t2 = t1[keep], t2[keep]
+            rows = np.concatenate([t1, t2])
+            cols = np.concatenate([t2, t1])
+            adj = sp.csr_matrix((np.ones(len(rows), dtype=bool), (rows, cols)), shape=(nt, nt))
+            adj.sum_duplicates()
+            return adj
+        # non-manifold edges: every pair of triangles on an edge is adjacent
         te = self.triangle_edges.ravel()
-        tid = np.repeat(np.arange(self.n_triangles), 3)
-        inc = sp.csr_matrix((np.ones(len(te)), (tid, te)), shape=(self.n_triangles, len(self.edges)))
+        tid = np.repeat(np.arange(nt), 3)
+        inc = sp.csr_matrix((np.ones(len(te)), (tid, te)), shape=(nt, len(self.edges)))
         adj = (inc @ inc.T).tocsr()
         adj.setdiag(0)
         adj.eliminate_zeros()
@@ -492,30 +536,29 @@ def _manifold_problems(mesh: TriangleMesh) -> list[str]:
     ncomp, _ = connected_components(mesh.triangle_adjacency, directed=False)
     if ncomp > 1:
         problems.append(f"mesh has {ncomp} pieces not connected through edges")
-    # bow-ties: the corners around each vertex must form one fan (connected via edges)
-    interior = np.flatnonzero(counts == 2)
-    if interior.size and not bad.size:
-        owner = np.repeat(np.arange(len(tri)), 3)
-        order = np.argsort(te, kind="stable")
-        te_sorted = te[order]
-        first = np.searchsorted(te_sorted, interior)
-        t1 = owner[order[first]]
-        t2 = owner[order[first + 1]]
-        e = mesh.edges[interior]
-        corner_id = np.full((len(tri), 3), -1, np.int64)
-        corner_id.ravel()[:] = np.arange(3 * len(tri))
+    # bow-ties: the corners around each vertex must form one fan, i.e. one connected
+    # component of the graph linking the two corners at each endpoint of an interior edge
+    if not bad.size:
+        c = mesh._edge_corners
+        c = c[c[:, 1] >= 0]
+        flat = tri.ravel()  # corner 3k + l sits at vertex flat[3k + l]
 
-        def corner(t, v):
-            loc = np.argmax(tri[t] == v[:, None], axis=1)
-            return corner_id[t, loc]
+        def endpoints(corner):
+            k3, loc = corner - corner % 3, corner % 3
+            return k3 + (loc + 1) % 3, k3 + (loc + 2) % 3
 
-        rows = np.concatenate([corner(t1, e[:, 0]), corner(t1, e[:, 1])])
-        cols = np.concatenate([corner(t2, e[:, 0]), corner(t2, e[:, 1])])
-        g = sp.coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(3 * len(tri),) * 2)
-        _, labels = connected_components(g, directed=False)
-        per_vertex = np.zeros(n, np.int64)
-        uniq = np.unique(np.stack([tri.ravel(), labels], 1), axis=0)
-        np.add.at(per_vertex, uniq[:, 0], 1)
+        p1, q1 = endpoints(c[:, 0])
+        p2, q2 = endpoints(c[:, 1])
+        same = flat[p1] == flat[p2]
+        rows = np.concatenate([p1, q1])
+        cols = np.concatenate([np.where(same, p2, q2), np.where(same, q2, p2)])
+        g = sp.coo_matrix(
+            (np.ones(len(rows), dtype=bool), (rows, cols)), shape=(len(flat), len(flat))
+        )
+        ncorner_comp, labels = connected_components(g, directed=False)
+        comp_vertex = np.empty(ncorner_comp, dtype=np.int64)
+        comp_vertex[labels] = flat
+        per_vertex = np.bincount(comp_vertex, minlength=n)
         bow = np.flatnonzero(per_vertex > 1)
         if bow.size:
             problems.append(

@@ -1,0 +1,74 @@
+"""Benchmark: ``quality_summary`` and ``check_mesh`` on a 1,000,000-triangle mesh.
+
+Times :func:`meshopt_toolkit.geometry.quality_summary` against the cheapest possible
+pass over the same triangles, :func:`meshopt_toolkit.geometry.signed_areas`, side by side
+in this process (interleaved repeats, medians), and prints the ratio (target ≤ 3×). Also
+times :func:`meshopt_toolkit.mesh.check_mesh` on a fresh mesh (topology not cached), which
+should take a few seconds at most.
+
+Run::
+
+    python benchmarks/bench_quality.py [--n 708] [--repeat 7]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from meshopt_toolkit.geometry import quality_summary, signed_areas
+from meshopt_toolkit.mesh import PlanarMesh, check_mesh
+
+
+def jittered_grid(n: int, jitter: float = 0.15, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """n×n squares of [0, 1]², two CCW triangles each (2n² triangles), interior jittered."""
+    x = np.linspace(0.0, 1.0, n + 1)
+    X, Y = np.meshgrid(x, x, indexing="xy")
+    pts = np.stack([X.ravel(), Y.ravel()], 1)
+    inner = (pts > 0).all(1) & (pts < 1).all(1)
+    pts[inner] += jitter / n * np.random.default_rng(seed).uniform(-1, 1, (inner.sum(), 2))
+    idx = np.arange((n + 1) ** 2).reshape(n + 1, n + 1)
+    a, b = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel()
+    c, d = idx[1:, 1:].ravel(), idx[1:, :-1].ravel()
+    tri = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
+    # shuffle the triangles so that memory access is not artificially sequential
+    tri = tri[np.random.default_rng(seed + 1).permutation(len(tri))]
+    return pts, tri
+
+
+def _time(f) -> float:
+    t0 = time.perf_counter()
+    f()
+    return time.perf_counter() - t0
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--n", type=int, default=708, help="grid size (2 n² triangles)")
+    parser.add_argument("--repeat", type=int, default=7)
+    args = parser.parse_args(argv)
+
+    pts, tri = jittered_grid(args.n)
+    print(f"mesh: {len(pts)} vertices, {len(tri)} triangles")
+    t_area, t_quality = [], []
+    for _ in range(args.repeat):  # interleaved, so both see the same machine state
+        t_area.append(_time(lambda: signed_areas(pts, tri)))
+        t_quality.append(_time(lambda: quality_summary(pts, tri)))
+    ma, mq = np.median(t_area), np.median(t_quality)
+    print(f"signed_areas     median {ma * 1e3:8.1f} ms")
+    print(f"quality_summary  median {mq * 1e3:8.1f} ms")
+    print(f"ratio quality_summary / signed_areas = {mq / ma:.2f}  (target <= 3)")
+
+    t_check = []
+    for _ in range(3):
+        mesh = PlanarMesh(pts, tri)  # fresh: no cached topology
+        t_check.append(_time(lambda: check_mesh(mesh)))
+    report = check_mesh(PlanarMesh(pts, tri))
+    print(f"check_mesh       median {np.median(t_check):8.2f} s  (admissible={report.admissible})")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
