@@ -141,7 +141,8 @@ def read(path: Path) -> TriangleMesh:
     key = next((k for k in _FACE_LISTS if k in fprops), None)
     if key is None:
         raise ReadError(f"{path}: PLY face element has no vertex_indices list")
-    faces = np.asarray(f[key]).reshape(len(f[key]), -1)
+    faces = np.asarray(f[key])
+    faces = faces.reshape(len(faces), -1) if len(faces) else np.zeros((0, 3), np.int64)
     if faces.shape[1] != 3 and len(faces):
         raise ReadError(f"{path}: faces have {faces.shape[1]} vertices; only triangles are supported")
     return build_mesh(pts, faces.astype(np.int64), path)
