@@ -213,6 +213,8 @@ class Document:
         new_entries = []
         for pos, mid in enumerate(ids):
             m = ms.mesh(mid)
+            if not m.is_compact():  # filters that delete elements leave holes in the arrays
+                m.compact()
             old = self.entries[pos] if pos < len(self.entries) else None
             mesh = from_pymeshlab(m)
             if old is not None and np.array_equal(mesh.triangles, old.mesh.triangles):

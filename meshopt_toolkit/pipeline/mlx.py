@@ -16,6 +16,7 @@ hostile file fails within milliseconds with a clear :class:`FilterError`.
 
 from __future__ import annotations
 
+import re
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -31,17 +32,28 @@ __all__ = ["read_mlx", "write_mlx", "loads", "dumps", "MAX_BYTES"]
 MAX_BYTES = 4 * 1024 * 1024
 
 
+#: the only document type declaration a filter script may carry (MeshLab writes it)
+_DOCTYPE = re.compile(rb"<!DOCTYPE\s+FilterScript\s*>")
+
+
 def _parse(data: bytes, where: str):
     import defusedxml
     import defusedxml.ElementTree as DET
 
     if len(data) > MAX_BYTES:
         raise FilterError(f"{where}filter script larger than {MAX_BYTES} bytes; refused")
+    # MeshLab's bare <!DOCTYPE FilterScript> is fine; any other DTD (internal subset with
+    # entities, external DTD) is refused before anything is expanded or fetched
+    data = _DOCTYPE.sub(b"", data, count=1)
     try:
-        return DET.fromstring(data, forbid_dtd=False, forbid_entities=True, forbid_external=True)
+        return DET.fromstring(data, forbid_dtd=True, forbid_entities=True, forbid_external=True)
     except defusedxml.EntitiesForbidden:
         raise FilterError(f"{where}the script declares XML entities (possible entity bomb); refused") from None
-    except (defusedxml.ExternalReferenceForbidden, defusedxml.DTDForbidden):
+    except defusedxml.DTDForbidden:
+        raise FilterError(f"{where}the script has a document type definition (DTD) other than "
+                          "<!DOCTYPE FilterScript>; refused (entities and external resources "
+                          "are not allowed)") from None
+    except defusedxml.ExternalReferenceForbidden:
         raise FilterError(f"{where}the script references external XML resources; refused") from None
     except defusedxml.DefusedXmlException as exc:
         raise FilterError(f"{where}unsafe XML refused: {exc}") from None
