@@ -291,7 +291,10 @@ def _factorize_amg(
             "solver='amg' needs pyamg (pip install pyamg); use solver='direct' instead"
         ) from exc
     ml = pyamg.smoothed_aggregation_solver(
-        A, B=rigid_modes(points), symmetry="symmetric", strength="symmetric"
+        A,
+        B=rigid_modes(points),  # rigid motions: near-null space of K
+        symmetry="symmetric",
+        strength=("symmetric", {"theta": 0.05}),
     )
     normA = None
 

@@ -57,39 +57,49 @@ class Metric(Protocol):
 
 
 def _vdot(U: FloatArray, V: FloatArray) -> float:
-    """``vec U · vec V`` without copies for contiguous arrays."""
-    return float(np.vdot(U, V))
+    """``vec U · vec V`` (einsum: no copies, no BLAS threads to wake up per call)."""
+    U = np.asarray(U, dtype=np.float64)
+    V = np.asarray(V, dtype=np.float64)
+    if U.shape != V.shape:
+        raise ValueError(f"tangent vectors have shapes {U.shape} and {V.shape}")
+    return float(np.einsum("i,i->", U.ravel(), V.ravel()))
 
 
 class _LastQCache:
-    """Remember one value computed at the last ``Q`` (and optional mask), keyed on bytes."""
+    """Remember one value computed at the last ``Q`` (and optional mask), keyed on bytes.
 
-    __slots__ = ("_key", "_value")
+    The key is a private copy of ``Q``; a lookup compares the raw 64-bit words of ``Q``
+    with it (exact: ``-0.0`` differs from ``0.0`` and a NaN matches itself), one read
+    pass over two arrays and no allocation of ``Q``'s size.
+    """
+
+    __slots__ = ("_q", "_mask", "_value")
 
     def __init__(self) -> None:
-        self._key: tuple[bytes, bytes] | None = None
+        self._q: np.ndarray | None = None
+        self._mask: np.ndarray | None = None
         self._value = None
 
-    @staticmethod
-    def _make_key(Q: np.ndarray, mask: np.ndarray | None) -> tuple[bytes, bytes]:
-        return Q.tobytes(), (b"" if mask is None else mask.tobytes())
-
     def get(self, Q: np.ndarray, mask: np.ndarray | None = None):
-        """The cached value if ``Q`` (and ``mask``) have exactly the bytes of the last key."""
-        key = self._key
-        if key is None or len(key[0]) != Q.nbytes:
+        """The cached value if ``Q`` (C-contiguous float64) and ``mask`` match the key."""
+        q = self._q
+        if q is None or q.shape != Q.shape:
             return None
-        if Q.tobytes() == key[0] and (b"" if mask is None else mask.tobytes()) == key[1]:
-            return self._value
-        return None
+        if (mask is None) != (self._mask is None):
+            return None
+        if mask is not None and not np.array_equal(mask, self._mask):
+            return None
+        if not np.array_equal(Q.view(np.uint64), q.view(np.uint64)):
+            return None
+        return self._value
 
     def put(self, Q: np.ndarray, value, mask: np.ndarray | None = None) -> None:
-        self._key = self._make_key(Q, mask)
+        self._q = np.array(Q, dtype=np.float64, order="C")
+        self._mask = None if mask is None else mask.copy()
         self._value = value
 
     def clear(self) -> None:
-        self._key = None
-        self._value = None
+        self._q = self._mask = self._value = None
 
 
 def _free_mask(free, n: int) -> np.ndarray | None:
