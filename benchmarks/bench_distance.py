@@ -61,17 +61,20 @@ def main(argv=None) -> None:
     V = rng.standard_normal(pts.shape)
     mu = 4.0
 
-    base = best_of(lambda: euclidean_point_segment(pts, pairs), args.repeat)
-    rows = [
-        ("euclidean point-segment (baseline)", base),
-        ("vertex_edge_distance (exact D)", best_of(lambda: vertex_edge_distance(pts, pairs), args.repeat)),
-        ("regularized_distance_value", best_of(lambda: regularized_distance_value(pts, pairs, mu), args.repeat)),
-        ("regularized_distance (value+grad)", best_of(lambda: regularized_distance(pts, pairs, mu), args.repeat)),
-        (
-            "regularized_distance (+direction)",
-            best_of(lambda: regularized_distance(pts, pairs, mu, direction=V), args.repeat),
-        ),
-    ]
+    variants = {
+        "euclidean point-segment (baseline)": lambda: euclidean_point_segment(pts, pairs),
+        "vertex_edge_distance (exact D)": lambda: vertex_edge_distance(pts, pairs),
+        "regularized_distance_value": lambda: regularized_distance_value(pts, pairs, mu),
+        "regularized_distance (value+grad)": lambda: regularized_distance(pts, pairs, mu),
+        "regularized_distance (+direction)": lambda: regularized_distance(pts, pairs, mu, direction=V),
+    }
+    # interleave the variants in every round so that load changes hit all of them alike
+    times = {name: float("inf") for name in variants}
+    for _ in range(args.repeat):
+        for name, fun in variants.items():
+            times[name] = min(times[name], best_of(fun, 1))
+    base = times["euclidean point-segment (baseline)"]
+    rows = list(times.items())
     print(f"{len(pairs)} pairs, best of {args.repeat}")
     for name, t in rows:
         print(f"  {name:38s} {t:8.3f} s   ratio {t / base:6.2f}")

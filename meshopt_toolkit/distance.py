@@ -94,6 +94,23 @@ def _pair_grid(boundary_vertices, boundary_edges) -> tuple[IntArray, IntArray]:
     return bv, be
 
 
+def _range_rows(bv: IntArray, be: IntArray, start: int, stop: int) -> IntArray:
+    """Pairs for the flat range ``[start, stop)`` of the edge-major (E, V) grid."""
+    V = bv.size
+    e_lo, e_hi = start // V, -(-stop // V)
+    edges = be[e_lo:e_hi]
+    keep = (bv[None, :] != edges[:, :1]) & (bv[None, :] != edges[:, 1:])
+    offset = e_lo * V
+    if start > offset or stop < e_hi * V:  # partial first/last edge rows
+        keep[0, : start - offset] = False
+        keep[-1, stop - (e_hi - 1) * V :] = False
+    e, v = np.nonzero(keep)
+    rows = np.empty((e.size, 3), dtype=np.int64)
+    rows[:, 0] = bv[v]
+    rows[:, 1:] = edges[e]
+    return rows
+
+
 def _rows(bv: IntArray, be: IntArray, flat: IntArray) -> IntArray:
     """Pairs for flat indices ``e * V + v`` into the edge-major grid, endpoints removed."""
     e, v = np.divmod(flat, bv.size)
@@ -126,7 +143,7 @@ def iter_boundary_pairs(
     bv, be = _pair_grid(boundary_vertices, boundary_edges)
     total = bv.size * be.shape[0]
     for start in range(0, total, chunk):
-        rows = _rows(bv, be, np.arange(start, min(start + chunk, total), dtype=np.int64))
+        rows = _range_rows(bv, be, start, min(start + chunk, total))
         if rows.shape[0]:
             yield rows
 
@@ -161,7 +178,9 @@ def boundary_pairs(
     """
     bv, be = _pair_grid(boundary_vertices, boundary_edges)
     if radius is None:
-        return _rows(bv, be, np.arange(bv.size * be.shape[0], dtype=np.int64))
+        if bv.size == 0:
+            return np.empty((0, 3), dtype=np.int64)
+        return _range_rows(bv, be, 0, bv.size * be.shape[0])
     if points is None:
         raise ValueError("boundary_pairs: a radius needs the points")
     radius = float(radius)
@@ -190,14 +209,19 @@ _BLOCK = 16384
 several times faster than whole-array numpy on millions of pairs (benchmarks/)."""
 
 
-def _inputs(points: FloatArray, pairs: IntArray) -> tuple[FloatArray, FloatArray, IntArray]:
+def _inputs(points: FloatArray, pairs: IntArray) -> tuple[np.ndarray, IntArray]:
+    """Validate; return the points as complex numbers ``x + iy`` ``(N,)`` and the pairs."""
     pts = np.asarray(points, dtype=float)
     pairs = np.asarray(pairs)
     if pairs.ndim != 2 or pairs.shape[1] != 3:
         raise ValueError(f"pairs must have shape (K, 3), got {pairs.shape}")
     if pts.ndim != 2 or pts.shape[1] < 2:
         raise ValueError(f"points must have shape (N, 2), got {pts.shape}")
-    return np.ascontiguousarray(pts[:, 0]), np.ascontiguousarray(pts[:, 1]), pairs
+    return _as_complex(pts), pairs
+
+
+def _as_complex(pts: FloatArray) -> np.ndarray:
+    return np.ascontiguousarray(pts[:, :2]).view(np.complex128).ravel()
 
 
 def _blocks(K: int) -> Iterator[slice]:
@@ -205,31 +229,33 @@ def _blocks(K: int) -> Iterator[slice]:
         yield slice(start, min(start + _BLOCK, K))
 
 
-def _frame(X: FloatArray, Y: FloatArray, pairs: IntArray):
-    """Edge-frame quantities for a block of pairs (all ``(k,)``):
-    ``w = p − a``, ``e = b − a``, ``L``, ``t``, ``x̃``, ``ỹ``."""
-    i0, j0, j1 = pairs[:, 0], pairs[:, 1], pairs[:, 2]
-    ax, ay = X[j0], Y[j0]
-    wx, wy = X[i0] - ax, Y[i0] - ay
-    ex, ey = X[j1] - ax, Y[j1] - ay
-    L = np.hypot(ex, ey)
+def _frame(Z: np.ndarray, pairs: IntArray):
+    """Edge frame for a block of pairs, in complex arithmetic (all ``(k,)``).
+
+    Returns ``t`` (unit tangent ``e/L``, complex; the normal is ``n = i t``), ``L`` and
+    ``x̃ + iỹ = (p − a)·conj(t)`` as separate real arrays ``x̃``, ``ỹ``.
+    """
+    j0 = pairs[:, 1]
+    a = Z[j0]
+    e = Z[pairs[:, 2]] - a
+    L = np.abs(e)
     if L.size and not (L.min() > 0):
         k = int(np.argmin(np.where(np.isnan(L), -1.0, L)))
         raise NotAdmissibleError(
-            f"boundary edge [{j0[k]}, {j1[k]}] has length {L[k]}: vertex–edge distance undefined"
+            f"boundary edge [{j0[k]}, {pairs[k, 2]}] has length {L[k]}: "
+            "vertex–edge distance undefined"
         )
-    tx, ty = ex / L, ey / L
-    xt = wx * tx + wy * ty
-    yt = wy * tx - wx * ty
-    return wx, wy, ex, ey, L, tx, ty, xt, yt
+    t = e / L
+    z = (Z[pairs[:, 0]] - a) * t.conj()
+    return t, L, z.real.copy(), z.imag.copy()
 
 
 def _map_blocks(kernel, points: FloatArray, pairs: IntArray) -> FloatArray:
     """``(K,)`` output of ``kernel(L, x̃, ỹ)`` evaluated block by block."""
-    X, Y, pairs = _inputs(points, pairs)
+    Z, pairs = _inputs(points, pairs)
     out = np.empty(pairs.shape[0])
     for blk in _blocks(pairs.shape[0]):
-        *_, L, _, _, xt, yt = _frame(X, Y, pairs[blk])
+        _, L, xt, yt = _frame(Z, pairs[blk])
         out[blk] = kernel(L, xt, yt)
     return out
 
@@ -337,35 +363,44 @@ def h_mu(x: FloatArray, mu: float = DEFAULT_MU, nderiv: int = 0) -> FloatArray:
     raise ValueError(f"nderiv must be 0..3, got {nderiv}")
 
 
+# The fast pieces avoid branches: the polynomials meet the linear parts at u = ½ with value
+# ¼, slope 1 and curvature 0, all exact in binary floating point, so evaluating them at
+# min(u, ½) and adding max(u − ½, 0) to the value gives both zones.
+
+
 def _g_value(d: FloatArray, mu: float) -> FloatArray:
-    u = np.clip(d * mu, 0.0, None)
-    u2 = u * u
-    return np.where(u <= 0.5, u2 * u2 * ((32 * u - 48) * u + 20), u - 0.25) / mu
+    u = d * mu
+    uc = np.clip(u, 0.0, 0.5)
+    u2 = uc * uc
+    return (u2 * u2 * ((32 * uc - 48) * uc + 20) + np.maximum(u - 0.5, 0.0)) / mu
 
 
 def _h_value(x: FloatArray, mu: float) -> FloatArray:
     u = np.abs(x) * mu
-    return np.where(u < 0.5, u * u * ((((40 * u - 64) * u + 32) * u - 4) * u + 0.5), u - 0.25) / mu
+    uc = np.minimum(u, 0.5)
+    return (uc * uc * ((((40 * uc - 64) * uc + 32) * uc - 4) * uc + 0.5) + np.maximum(u - 0.5, 0.0)) / mu
 
 
 def _g_parts(d: FloatArray, mu: float):
     """``g_μ, g_μ', g_μ''`` at once (d may be any sign)."""
-    u = np.clip(d * mu, 0.0, None)
-    poly = u <= 0.5
-    u2 = u * u
-    v0 = np.where(poly, u2 * u2 * ((32 * u - 48) * u + 20), u - 0.25) / mu
-    v1 = np.where(poly, 16 * u2 * u * ((12 * u - 15) * u + 5), 1.0)
-    v2 = np.where(poly, (240 * mu) * u2 * (2 * u - 1) ** 2, 0.0)
+    u = d * mu
+    uc = np.clip(u, 0.0, 0.5)
+    u2 = uc * uc
+    v0 = (u2 * u2 * ((32 * uc - 48) * uc + 20) + np.maximum(u - 0.5, 0.0)) / mu
+    v1 = 16 * u2 * uc * ((12 * uc - 15) * uc + 5)
+    w = 2 * uc - 1
+    v2 = (240 * mu) * u2 * (w * w)
     return v0, v1, v2
 
 
 def _h_parts(x: FloatArray, mu: float):
     """``h_μ, h_μ', h_μ''`` at once."""
     u = np.abs(x) * mu
-    poly = u < 0.5
-    v0 = np.where(poly, u * u * ((((40 * u - 64) * u + 32) * u - 4) * u + 0.5), u - 0.25) / mu
-    v1 = np.copysign(np.where(poly, u * ((((240 * u - 320) * u + 128) * u - 12) * u + 1), 1.0), x)
-    v2 = np.where(poly, mu * (2 * u - 1) ** 2 * ((300 * u - 20) * u + 1), 0.0)
+    uc = np.minimum(u, 0.5)
+    v0 = (uc * uc * ((((40 * uc - 64) * uc + 32) * uc - 4) * uc + 0.5) + np.maximum(u - 0.5, 0.0)) / mu
+    v1 = np.copysign(uc * ((((240 * uc - 320) * uc + 128) * uc - 12) * uc + 1), x)
+    w = 2 * uc - 1
+    v2 = mu * (w * w) * ((300 * uc - 20) * uc + 1)
     return v0, v1, v2
 
 
@@ -397,7 +432,7 @@ def regularized_distance_value(
     mu = _check_mu(mu)
 
     def kernel(L, xt, yt):
-        d = np.where(xt > 0.5 * L, xt - L, -xt)
+        d = np.maximum(-xt, xt - L)
         return _g_value(d, mu) + _h_value(yt, mu)
 
     return _map_blocks(kernel, points, pairs)
@@ -431,77 +466,78 @@ def regularized_distance(
         if an edge of ``pairs`` has zero length.
     """
     mu = _check_mu(mu)
-    X, Y, pairs = _inputs(points, pairs)
+    Z, pairs = _inputs(points, pairs)
     K = pairs.shape[0]
     value = np.empty(K)
     grad = np.empty((K, 3, 2))
+    gz = grad.view(np.complex128)[..., 0]  # (K, 3) complex view: x + iy per vertex
     if direction is None:
         for blk in _blocks(K):
-            _kernel(X, Y, pairs[blk], mu, None, None, value[blk], grad[blk], None, None)
+            _kernel(Z, pairs[blk], mu, None, value[blk], gz[blk], None, None)
         return DistanceEval(value, grad)
     V = np.asarray(direction, dtype=float)
-    if V.shape != (X.size, 2):
-        raise ValueError(f"direction must have shape {(X.size, 2)}, got {V.shape}")
-    VX, VY = np.ascontiguousarray(V[:, 0]), np.ascontiguousarray(V[:, 1])
+    if V.shape != (Z.size, 2):
+        raise ValueError(f"direction must have shape {(Z.size, 2)}, got {V.shape}")
+    VZ = _as_complex(V)
     hv = np.empty((K, 3, 2))
+    hz = hv.view(np.complex128)[..., 0]
     curv = np.empty(K)
     for blk in _blocks(K):
-        _kernel(X, Y, pairs[blk], mu, VX, VY, value[blk], grad[blk], hv[blk], curv[blk])
+        _kernel(Z, pairs[blk], mu, VZ, value[blk], gz[blk], hz[blk], curv[blk])
     return DistanceEval(value, grad, hv, curv)
 
 
-def _kernel(X, Y, pairs, mu, VX, VY, value, grad, hv, curv) -> None:
-    """Evaluate one block of pairs into the given output views (see module docstring)."""
-    wx, wy, ex, ey, L, tx, ty, xt, yt = _frame(X, Y, pairs)
-    nx, ny = -ty, tx
-    right = xt > 0.5 * L  # d = x̃ − L (right) or −x̃ (left); the other g_μ term is 0
-    s = np.where(right, 1.0, -1.0)
-    r = right.astype(float)
-    d = np.where(right, xt - L, -xt)
+def _kernel(Z, pairs, mu, VZ, value, grad, hv, curv) -> None:
+    """Evaluate one block of pairs into the given output views (see module docstring).
+
+    Vectors are complex numbers; a vector ``α t + β n`` is ``t (α + iβ)`` since ``n = i t``.
+    """
+    t, L, xt, yt = _frame(Z, pairs)
+    # d = max(−x̃, x̃ − L): the side that can be positive; s = ∂d/∂x̃, r = 1 on the right.
+    # (At x̃ = L/2 either choice is fine: d = −L/2 < 0 and g' = g'' = 0.)
+    d = np.maximum(-xt, xt - L)
+    s = np.copysign(1.0, xt - 0.5 * L)
+    r = 0.5 * s + 0.5
     g0, g1, g2 = _g_parts(d, mu)
     h0, h1, h2 = _h_parts(yt, mu)
     np.add(g0, h0, out=value)
-    c = yt / L
-    m = xt / L
+    inv_L = 1.0 / L
+    c = yt * inv_L
+    m = xt * inv_L
 
     # gradient: ∇_p = (g's) t + h' n ;  ∇_b = (−g'r) t + (g's c − h'm) n ;  ∇_a = −∇_p − ∇_b
     g1s = g1 * s
-    pt, pn = g1s, h1
-    bt, bn = -g1 * r, g1s * c - h1 * m
-    grad[:, 0, 0] = pt * tx + pn * nx
-    grad[:, 0, 1] = pt * ty + pn * ny
-    grad[:, 2, 0] = bt * tx + bn * nx
-    grad[:, 2, 1] = bt * ty + bn * ny
-    np.negative(grad[:, 0] + grad[:, 2], out=grad[:, 1])
-    if VX is None:
+    gp = t * (g1s + 1j * h1)
+    gb = t * (-g1 * r + 1j * (g1s * c - h1 * m))
+    grad[:, 0] = gp
+    grad[:, 2] = gb
+    grad[:, 1] = -(gp + gb)
+    if VZ is None:
         return
 
-    i0, j0, j1 = pairs[:, 0], pairs[:, 1], pairs[:, 2]
-    vax, vay = VX[j0], VY[j0]
-    vwx, vwy = VX[i0] - vax, VY[i0] - vay
-    vex, vey = VX[j1] - vax, VY[j1] - vay
-    vw_t = vwx * tx + vwy * ty
-    vw_n = vwx * nx + vwy * ny
-    ve_t = vex * tx + vey * ty
-    ve_n = vex * nx + vey * ny
-    sigma = ve_n / L
-    rho = ve_t / L
+    # direction in the edge frame: v_w = v_p − v_a, v_e = v_b − v_a
+    va = VZ[pairs[:, 1]]
+    tc = t.conj()
+    vw = (VZ[pairs[:, 0]] - va) * tc
+    ve = (VZ[pairs[:, 2]] - va) * tc
+    vw_t, vw_n, ve_t, ve_n = vw.real, vw.imag, ve.real, ve.imag
+    sigma = ve_n * inv_L
+    rho = ve_t * inv_L
     dxt = vw_t + yt * sigma
     dyt = vw_n - xt * sigma
-    dd = s * dxt - r * ve_t  # δd
-    dc = (dyt - yt * rho) / L
-    dm = (dxt - xt * rho) / L
-    g2dd = g2 * dd
+    g2dd = g2 * (s * dxt - r * ve_t)  # g'' δd
     h2dy = h2 * dyt
+    dc = (dyt - yt * rho) * inv_L
+    dm = (dxt - xt * rho) * inv_L
 
     # Hessian·v in (t, n) components for the p- and b-blocks
     ap = g2dd * s - h1 * sigma
     bp = g1s * sigma + h2dy
     ab = -g2dd * r + (m * h1 - c * g1s) * sigma
     bb = g2dd * s * c + g1 * (s * dc - r * sigma) - h2dy * m - h1 * dm
-    hv[:, 0, 0] = ap * tx + bp * nx
-    hv[:, 0, 1] = ap * ty + bp * ny
-    hv[:, 2, 0] = ab * tx + bb * nx
-    hv[:, 2, 1] = ab * ty + bb * ny
-    np.negative(hv[:, 0] + hv[:, 2], out=hv[:, 1])
+    hp = t * (ap + 1j * bp)
+    hb = t * (ab + 1j * bb)
+    hv[:, 0] = hp
+    hv[:, 2] = hb
+    hv[:, 1] = -(hp + hb)
     curv[:] = vw_t * ap + vw_n * bp + ve_t * ab + ve_n * bb
