@@ -67,7 +67,9 @@ def run(args) -> int:
         if key in stems:
             raise MeshoptError(f"{p} and {stems[key]} would both be written to {outdir / key}")
         stems[key] = p
-    isolate = {"always": True, "never": False}.get(args.isolate, not pipeline.only_builtin)
+    # a dry run executes no filter, so nothing native can crash
+    auto = not pipeline.only_builtin and not args.dry_run
+    isolate = {"always": True, "never": False}.get(args.isolate, auto)
     runner = BatchRunner(pipeline, outdir, isolate=isolate, ext=ext, force=args.force,
                          dry_run=args.dry_run)
     done = 0
