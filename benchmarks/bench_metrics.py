@@ -153,7 +153,8 @@ def bench_elasticity(mesh: PlanarMesh, repeat: int, direct: bool, amg: bool) -> 
         x, t_s = once(lambda: s.solve(b))
         res = np.linalg.norm(b - A @ x) / nb
         results["direct"] = t_f + t_s
-        print(f"  direct: factorization {t_f:8.3f} s + solve {t_s:7.3f} s   rel. residual {res:.1e}")
+        print(f"  direct: factorization {t_f:8.3f} s + solve {t_s:7.3f} s   "
+              f"rel. residual {res:.1e}")
         del s
     if amg:
         s, t_f = once(lambda: factorize(A, Q, "amg", rtol=1e-10))

@@ -161,19 +161,18 @@ class BlockPattern:
         n_vertices : N
         """
         tri = np.asarray(triangles, dtype=np.int64)
-        rows = np.repeat(tri, 3, axis=1).ravel()  # (t, a, b) -> tri[t, a]
-        cols = np.tile(tri, (1, 3)).ravel()  # (t, a, b) -> tri[t, b]
-        # coo -> csr sums duplicates and sorts the column indices of every row
-        pat = sp.csr_matrix(
-            (np.ones(rows.size, dtype=np.int8), (rows, cols)), shape=(n_vertices, n_vertices)
-        )
-        pat.sum_duplicates()
-        pat.sort_indices()
-        indptr = pat.indptr.astype(np.int64)
-        indices = pat.indices.astype(np.int64)
-        row_of = np.repeat(np.arange(n_vertices, dtype=np.int64), np.diff(indptr))
-        keys = row_of * n_vertices + indices  # globally sorted
-        scatter = np.searchsorted(keys, rows * n_vertices + cols)
+        keys = (tri[:, :, None] * n_vertices + tri[:, None, :]).ravel()  # (t, a, b), C order
+        order = np.argsort(keys)
+        sorted_keys = keys[order]
+        first = np.empty(keys.size, dtype=bool)
+        first[:1] = True
+        np.not_equal(sorted_keys[1:], sorted_keys[:-1], out=first[1:])
+        scatter = np.empty(keys.size, dtype=np.int64)
+        scatter[order] = np.cumsum(first) - 1  # rank among the distinct sorted keys
+        unique = sorted_keys[first]  # row-major: rows ascending, columns sorted in each row
+        rows, indices = np.divmod(unique, n_vertices)
+        indptr = np.zeros(n_vertices + 1, dtype=np.int64)
+        np.cumsum(np.bincount(rows, minlength=n_vertices), out=indptr[1:])
         return cls(n_vertices, indptr, indices, scatter)
 
     @property

@@ -198,10 +198,11 @@ class ElasticityMetric:
     ) -> None:
         self.lam, self.mu = lame_parameters(E, nu)
         if not delta > 0:
-            raise ValueError(f"mass weight delta must be > 0 (else K + δM is singular), got {delta}")
+            raise ValueError(f"mass weight delta must be > 0 (K + δM is singular), got {delta}")
         if solver not in SOLVERS:
             raise ValueError(f"solver must be one of {SOLVERS}, got {solver!r}")
-        self.E, self.nu, self.delta, self.solver, self.rtol = float(E), float(nu), float(delta), solver, rtol
+        self.E, self.nu, self.delta = float(E), float(nu), float(delta)
+        self.solver, self.rtol = solver, float(rtol)
         self.triangles = np.ascontiguousarray(mesh.triangles, dtype=np.int64)
         self.n_vertices = int(np.asarray(mesh.points).shape[0])
         self.pattern = BlockPattern.from_triangles(self.triangles, self.n_vertices)
@@ -355,14 +356,15 @@ class CompleteMetric:
         out += P
         return out
 
-    def exp(self, Q: FloatArray, V: FloatArray, t: float = 1.0) -> FloatArray:
+    def exp(self, Q: FloatArray, V: FloatArray, t: float = 1.0, **options) -> FloatArray:
         """Exponential map ``γ(t)`` of this metric, ``γ(0) = Q``, ``γ'(0) = V`` (5.35).
 
-        Delegates to :func:`meshopt_toolkit.geodesics.exp_map`.
+        Delegates to :func:`meshopt_toolkit.geodesics.exp_map` (imported on first use);
+        ``options`` (integrator, tolerances, ...) are passed through.
         """
         from .geodesics import exp_map
 
-        return exp_map(self, Q, V, t)
+        return exp_map(self, Q, V, t, **options)
 
     def __repr__(self) -> str:
         return f"CompleteMetric({self.penalty!r})"

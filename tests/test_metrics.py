@@ -352,8 +352,9 @@ def test_complete_metric_caches_penalty_gradient(mesh, rng):
 def test_complete_exp_delegates_to_geodesics(mesh, monkeypatch):
     seen = {}
 
-    def fake_exp_map(metric, Q, V, t=1.0):
+    def fake_exp_map(metric, Q, V, t=1.0, **options):
         seen["args"] = (metric, Q, V, t)
+        seen["options"] = options
         return Q + 2 * t * V
 
     fake = types.ModuleType("meshopt_toolkit.geodesics")
@@ -362,6 +363,39 @@ def test_complete_exp_delegates_to_geodesics(mesh, monkeypatch):
     metric = CompleteMetric(InverseAreaPenalty(mesh))
     Q = mesh.points
     V = np.ones_like(Q)
-    out = metric.exp(Q, V, 0.25)
+    out = metric.exp(Q, V, 0.25, rtol=1e-9)
     np.testing.assert_array_equal(out, Q + 0.5 * V)
     assert seen["args"][0] is metric and seen["args"][3] == 0.25
+    assert seen["options"] == {"rtol": 1e-9}
+
+
+def test_complete_exp_with_real_geodesics(rng):
+    """exp_Q(0) = Q, and for a tiny velocity the geodesic is Q + tV to first order."""
+    geodesics = pytest.importorskip("meshopt_toolkit.geodesics")
+    mesh = grid_mesh(3, jitter=0.2, seed=4)
+    metric = CompleteMetric(_real_penalties(mesh)[0])
+    Q = mesh.points
+    V = rng.standard_normal(Q.shape)
+    np.testing.assert_allclose(metric.exp(Q, 0.0 * V), Q, atol=1e-14)
+    h = 1e-4
+    step = metric.exp(Q, V, h)
+    np.testing.assert_allclose(step, geodesics.exp_map(metric, Q, V, h), rtol=1e-12, atol=1e-14)
+    assert np.abs(step - (Q + h * V)).max() < 1e-3 * h * np.abs(V).max()
+
+
+def test_block_pattern_assembly_equals_coo_sum(rng):
+    """Summing element blocks through the precomputed scatter map == plain COO → CSR sum."""
+    mesh = grid_mesh(4, jitter=0.2, seed=6)
+    perm = rng.permutation(len(mesh.points))  # scramble vertex numbers and triangle order
+    tri = perm[mesh.triangles][rng.permutation(mesh.n_triangles)]
+    N, T = len(mesh.points), len(tri)
+    pattern = elasticity.BlockPattern.from_triangles(tri, N)
+    blocks = rng.standard_normal((T, 3, 3, 2, 2))
+    A = pattern.assemble(blocks)
+    shape = (T, 3, 3, 2, 2)
+    c = np.arange(2)
+    rows = np.broadcast_to(2 * tri[:, :, None, None, None] + c[:, None], shape).ravel()
+    cols = np.broadcast_to(2 * tri[:, None, :, None, None] + c, shape).ravel()
+    ref = sp.coo_matrix((blocks.ravel(), (rows, cols)), shape=(2 * N, 2 * N)).toarray()
+    np.testing.assert_allclose(A.toarray(), ref, atol=1e-13)
+    assert pattern.n_blocks == N + 2 * len(mesh.edges)  # diagonal + both directions of edges
