@@ -59,6 +59,7 @@ along ``v``; it is computed in (t, n) components per pair, never as a 6×6 matri
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 from typing import Iterator
 
@@ -191,11 +192,12 @@ def boundary_pairs(
     half = 0.5 * np.hypot(*(b - a).T)
     tree = cKDTree(pts[bv])
     # cKDTree's ball query returns one list per edge; flatten them at C speed.
-    hits = tree.query_ball_point(0.5 * (a + b), radius + half * (1 + 1e-12) + 1e-300)
+    hits = tree.query_ball_point(0.5 * (a + b), radius + half * (1 + 1e-12))
     counts = np.fromiter(map(len, hits), dtype=np.int64, count=len(hits))
-    if counts.sum() == 0:
+    total = int(counts.sum())
+    if total == 0:
         return np.empty((0, 3), dtype=np.int64)
-    v = np.fromiter((k for h in hits for k in h), dtype=np.int64, count=int(counts.sum()))
+    v = np.fromiter(itertools.chain.from_iterable(hits), dtype=np.int64, count=total)
     e = np.repeat(np.arange(be.shape[0], dtype=np.int64), counts)
     flat = np.sort(e * bv.size + v)
     rows = _rows(bv, be, flat)

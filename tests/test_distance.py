@@ -419,13 +419,10 @@ def test_empty_pairs():
 
 
 def _brute_segment_distance(pts, pairs):
-    """Independent point–segment distance by projection onto the segment."""
-    out = np.empty(len(pairs))
-    for k, (i, j0, j1) in enumerate(pairs):
-        p, a, b = pts[i], pts[j0], pts[j1]
-        s = np.clip(np.dot(p - a, b - a) / np.dot(b - a, b - a), 0.0, 1.0)
-        out[k] = np.linalg.norm(p - (a + s * (b - a)))
-    return out
+    """Independent point–segment distance: projection parameter clamped to [0, 1]."""
+    p, a, b = pts[pairs[:, 0]], pts[pairs[:, 1]], pts[pairs[:, 2]]
+    s = np.clip(((p - a) * (b - a)).sum(1) / ((b - a) ** 2).sum(1), 0.0, 1.0)
+    return np.linalg.norm(p - (a + s[:, None] * (b - a)), axis=1)
 
 
 def test_all_pairs_structure(grid):
@@ -481,3 +478,39 @@ def test_radius_edge_cases(grid):
         boundary_pairs(bv, be, radius=0.1)
     assert boundary_pairs([], np.empty((0, 2), int)).shape == (0, 3)
     assert list(iter_boundary_pairs([], np.empty((0, 2), int))) == []
+
+
+def test_blocking_does_not_change_results(rng, monkeypatch):
+    """Results are independent of the internal block size (block edges included)."""
+    import meshopt_toolkit.distance as dist
+
+    pts = rng.uniform(-1, 1, (60, 2))
+    pairs = np.array([rng.choice(60, 3, replace=False) for _ in range(1000)])
+    V = rng.standard_normal(pts.shape)
+    ref = regularized_distance(pts, pairs, MU, direction=V)
+    ref_d = vertex_edge_distance(pts, pairs)
+    monkeypatch.setattr(dist, "_BLOCK", 7)
+    small = regularized_distance(pts, pairs, MU, direction=V)
+    for name in ("value", "gradient", "hess_dir", "curvature"):
+        np.testing.assert_array_equal(getattr(small, name), getattr(ref, name))
+    np.testing.assert_array_equal(vertex_edge_distance(pts, pairs), ref_d)
+    np.testing.assert_array_equal(regularized_distance_value(pts, pairs, MU), ref.value)
+    # a degenerate edge in a later block is still reported
+    pts2 = np.vstack([pts, pts[:1]])
+    bad = np.vstack([pairs, [[3, 0, 60]]])
+    with pytest.raises(NotAdmissibleError):
+        regularized_distance(pts2, bad, MU)
+
+
+def test_radius_pairs_graded_polygon(rng):
+    """A closed polygon with strongly varying edge lengths (long and tiny edges)."""
+    n = 300
+    theta = np.sort(rng.uniform(0, 2 * np.pi, n) ** 1.5 / (2 * np.pi) ** 0.5)
+    rad = 1 + 0.1 * np.sin(7 * theta) + 0.02 * rng.standard_normal(n)
+    pts = np.stack([rad * np.cos(theta), rad * np.sin(theta)], 1)
+    bv = np.arange(n)
+    be = np.stack([bv, np.roll(bv, -1)], 1)
+    allp = boundary_pairs(bv, be)
+    dist = _brute_segment_distance(pts, allp)
+    for radius in (0.01, 0.1, 0.5):
+        np.testing.assert_array_equal(boundary_pairs(bv, be, pts, radius), allp[dist < radius])
