@@ -142,14 +142,17 @@ def _entities(mesh: TriangleMesh, pts: np.ndarray):
     and the entity of each element run."""
     ents: dict[int, list] = {1: [], 2: []}
     blocks = []
+    coords = np.ascontiguousarray(pts.T)  # (3, N): reductions along contiguous rows
     for etype, elems, tags in _groups(mesh):
         dim = 1 if etype == LINE else 2
         tag_arr = np.zeros(len(elems), np.int64) if tags is None else np.asarray(tags)
-        uniq = np.unique(tag_arr)
+        uniq = np.zeros(1, np.int64) if tags is None else np.unique(tag_arr)
         ent_of = {}
         for i, t in enumerate(uniq.tolist()):
-            sel = pts[elems[tag_arr == t].ravel()]
-            bbox = np.concatenate([sel.min(axis=0), sel.max(axis=0)])
+            used = np.zeros(len(pts), bool)
+            used[(elems if len(uniq) == 1 else elems[tag_arr == t]).ravel()] = True
+            sel = coords[:, used]
+            bbox = np.concatenate([sel.min(axis=1), sel.max(axis=1)])
             ent_of[t] = i + 1
             ents[dim].append((i + 1, t if t > 0 else None, bbox))
         for a, b, t in _runs(tag_arr):
@@ -205,11 +208,13 @@ def _write41(fh, mesh: TriangleMesh, binary: bool) -> None:
     first = 1
     for dim, ent, etype, elems in blocks:
         m = len(elems)
-        table = np.column_stack([np.arange(first, first + m), elems + 1])
+        table = np.empty((m, 1 + elems.shape[1]), "<u8" if binary else np.int64)
+        table[:, 0] = np.arange(first, first + m)
+        np.add(elems, 1, out=table[:, 1:], casting="unsafe")
         first += m
         if binary:
             fh.write(np.array([dim, ent, etype], "<i4").tobytes() + np.array([m], "<u8").tobytes())
-            fh.write(table.astype("<u8").tobytes())
+            table.tofile(fh)
         else:
             fh.write(f"{dim} {ent} {etype} {m}\n".encode())
             fh.write(format_rows(table, "%d").encode())

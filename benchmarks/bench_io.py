@@ -1,0 +1,106 @@
+"""Benchmark: our file I/O against meshio on a 1,000,000-triangle planar mesh.
+
+Side by side in one process, best of ``--repeat`` runs each:
+
+* info:  ``meshio.gmsh.read(msh)``  vs  ``load`` + ``check_mesh`` + ``quality_summary``
+  (what ``meshopt info`` does);
+* round trip:  meshio read .msh → write .vtu → read .vtu → write .msh  vs  the same with
+  ``load``/``save`` (atomic writes included).
+
+Prints the times and the ratios ours / meshio (target ≤ 1.5).
+Run: ``python benchmarks/bench_io.py [--n 708] [--repeat 3]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+import time
+from pathlib import Path
+
+import meshio
+import meshio.gmsh
+import meshio.vtu
+import numpy as np
+
+from meshopt_toolkit.geometry import quality_summary
+from meshopt_toolkit.io import load, save
+from meshopt_toolkit.mesh import PlanarMesh, check_mesh
+
+
+def grid(n: int) -> PlanarMesh:
+    """n×n squares of [0, 1]², two triangles each (2 n² triangles), slightly jittered."""
+    x = np.linspace(0.0, 1.0, n + 1)
+    X, Y = np.meshgrid(x, x)
+    pts = np.stack([X.ravel(), Y.ravel()], 1)
+    inner = (pts > 0).all(1) & (pts < 1).all(1)
+    pts[inner] += 0.2 / n * np.random.default_rng(0).uniform(-1, 1, (inner.sum(), 2))
+    idx = np.arange((n + 1) ** 2).reshape(n + 1, n + 1)
+    a, b = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel()
+    c, d = idx[1:, 1:].ravel(), idx[1:, :-1].ravel()
+    return PlanarMesh(pts, np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)]))
+
+
+def best(fn, repeat: int) -> float:
+    times = []
+    for _ in range(repeat):
+        t = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t)
+    return min(times)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=708, help="grid size (2 n^2 triangles)")
+    ap.add_argument("--repeat", type=int, default=3)
+    args = ap.parse_args()
+    mesh = grid(args.n)
+    with tempfile.TemporaryDirectory() as d:
+        d = Path(d)
+        msh = d / "big.msh"
+        save(mesh, msh)
+        print(f"mesh: {mesh.n_vertices} vertices, {mesh.n_triangles} triangles, "
+              f".msh {msh.stat().st_size / 1e6:.1f} MB (gmsh 4.1 binary)")
+
+        def meshio_info():
+            meshio.gmsh.read(msh)
+
+        def ours_info():
+            m = load(msh)
+            r = check_mesh(m)
+            quality_summary(r.mesh.points, r.mesh.triangles)
+
+        def meshio_roundtrip():
+            # geometry only, as ours writes to .vtu: meshio cannot write the cell sets and
+            # gmsh data it reads back into a 4.1 file (KeyError 'gmsh:physical')
+            m = meshio.gmsh.read(msh)
+            meshio.vtu.write(d / "a.vtu", meshio.Mesh(m.points, m.cells))
+            m2 = meshio.vtu.read(d / "a.vtu")
+            meshio.gmsh.write(d / "a.msh", meshio.Mesh(m2.points, m2.cells))
+
+        def ours_roundtrip():
+            m = load(msh)
+            save(m, d / "b.vtu")
+            m2 = load(d / "b.vtu")
+            save(m2, d / "b.msh")
+
+        rows = []
+        for name, base, ours in [("info", meshio_info, ours_info),
+                                 ("msh->vtu->msh", meshio_roundtrip, ours_roundtrip)]:
+            tb = best(base, args.repeat)
+            to = best(ours, args.repeat)
+            rows.append((name, tb, to))
+        # parts of "info", to see where the time goes
+        m = load(msh)
+        t_load = best(lambda: load(msh), args.repeat)
+        t_check = best(lambda: check_mesh(m), 1)
+        t_q = best(lambda: quality_summary(m.points, m.triangles), args.repeat)
+    print(f"{'task':<16}{'meshio s':>10}{'ours s':>10}{'ratio':>8}")
+    for name, tb, to in rows:
+        print(f"{name:<16}{tb:>10.3f}{to:>10.3f}{to / tb:>8.2f}")
+    print(f"info parts: load {t_load:.3f} s, check_mesh {t_check:.3f} s, quality {t_q:.3f} s")
+
+
+if __name__ == "__main__":
+    main()
