@@ -10,7 +10,7 @@ import pytest
 from conftest import grid_mesh, square5
 from meshopt_toolkit.errors import FilterError, MeshoptError
 from meshopt_toolkit.io import load, save
-from meshopt_toolkit.mesh import PlanarMesh, TriangleMesh
+from meshopt_toolkit.mesh import TriangleMesh
 from meshopt_toolkit.pipeline import Document, Pipeline, load_pipeline, registry, save_pipeline
 from meshopt_toolkit.pipeline.batch import run_file
 

@@ -184,3 +184,20 @@ def test_oversized_script_refused(tmp_path):
     path.write_bytes(b"<FilterScript>" + b" " * (mlx.MAX_BYTES + 1) + b"</FilterScript>")
     with pytest.raises(FilterError, match="larger than"):
         load_pipeline(path)
+
+
+def test_json_write_read_round_trip(tmp_path, all_kinds):
+    pipe = Pipeline.from_dict({"filters": [
+        {"name": "test_all_kinds", "params": {"size": 0.25, "mode": 0, "count": "4"}},
+        {"name": "Laplacian Smooth", "params": {"stepsmoothnum": 2}},
+        {"name": "meshing_surface_subdivision_midpoint", "params": {"threshold": "1%"}},
+    ]})
+    path = tmp_path / "p.json"
+    save_pipeline(pipe, path)
+    back = load_pipeline(path)
+    assert back.to_dict() == pipe.to_dict()
+    vals = back.validate()
+    assert vals[0]["size"].resolve(10.0) == 0.25 and vals[0]["mode"] == "area/max side"
+    assert vals[0]["count"] == 4
+    assert [s.kind for s in back.steps] == ["meshopt", "meshlab", "meshlab"]
+    assert back.steps[1].name == "apply_coord_laplacian_smoothing"

@@ -24,7 +24,7 @@ from ..errors import FilterError
 from ..io import atomic_path
 from .filter import registry
 from .params import did_you_mean, param_from_mlx
-from .runner import MESHLAB, MESHOPT, Pipeline, Step, make_step
+from .runner import MESHOPT, Pipeline, Step, make_step
 
 __all__ = ["read_mlx", "write_mlx", "loads", "dumps", "MAX_BYTES"]
 

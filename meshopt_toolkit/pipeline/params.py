@@ -24,8 +24,7 @@ from __future__ import annotations
 
 import difflib
 import math
-import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, ClassVar
 
 from ..errors import FilterError
@@ -406,9 +405,6 @@ class LengthParam(Param):
         if attrs.get("percent", "").lower() == "true":
             return self.validate(f"{raw}%", filter_name)
         return self.validate(raw, filter_name)
-
-
-_SNAKE = re.compile(r"[^0-9a-zA-Z]+")
 
 
 def param_from_mlx(attrs: dict[str, str]) -> Any:

@@ -12,7 +12,7 @@ import logging
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
-from ..errors import FilterError
+from ..errors import FilterError, MeshoptError
 from .document import Document
 from .filter import registry
 from .params import did_you_mean
@@ -192,8 +192,12 @@ class Pipeline:
                         ms = None
                 else:
                     res = s.filter().apply(document, **vals)
-            except FilterError as exc:
-                raise FilterError(f"{self._where()}step {i} ({s.name}): {exc}") from None
+            except MeshoptError as exc:  # keep the error type, add where it happened
+                try:
+                    new = type(exc)(f"{self._where()}step {i} ({s.name}): {exc}")
+                except Exception:  # pragma: no cover - an exotic constructor
+                    new = FilterError(f"{self._where()}step {i} ({s.name}): {exc}")
+                raise new from None
             if res:
                 document.results.append({"step": i, "filter": s.name, **res})
         return document
