@@ -57,7 +57,9 @@ def main(argv=None) -> None:
     n_nodes = 2000
     pts = rng.uniform(-1, 1, (n_nodes, 2))
     pairs = np.column_stack([rng.choice(n_nodes, args.pairs), rng.choice(n_nodes, (args.pairs, 2))])
-    pairs = pairs[(pairs[:, 0] != pairs[:, 1]) & (pairs[:, 0] != pairs[:, 2]) & (pairs[:, 1] != pairs[:, 2])]
+    pairs = pairs[
+        (pairs[:, 0] != pairs[:, 1]) & (pairs[:, 0] != pairs[:, 2]) & (pairs[:, 1] != pairs[:, 2])
+    ]
     V = rng.standard_normal(pts.shape)
     mu = 4.0
 
@@ -66,7 +68,9 @@ def main(argv=None) -> None:
         "vertex_edge_distance (exact D)": lambda: vertex_edge_distance(pts, pairs),
         "regularized_distance_value": lambda: regularized_distance_value(pts, pairs, mu),
         "regularized_distance (value+grad)": lambda: regularized_distance(pts, pairs, mu),
-        "regularized_distance (+direction)": lambda: regularized_distance(pts, pairs, mu, direction=V),
+        "regularized_distance (+direction)": lambda: regularized_distance(
+            pts, pairs, mu, direction=V
+        ),
     }
     # interleave the variants in every round so that load changes hit all of them alike
     times = {name: float("inf") for name in variants}
@@ -85,8 +89,10 @@ def main(argv=None) -> None:
     t_rad = best_of(lambda: boundary_pairs(bv, be, bpts, 0.02), args.repeat)
     n_all = len(boundary_pairs(bv, be))
     n_rad = len(boundary_pairs(bv, be, bpts, 0.02))
-    print(f"boundary_pairs, 4000 boundary vertices: all {n_all} pairs {t_all:.3f} s; "
-          f"radius 0.02 -> {n_rad} pairs {t_rad:.4f} s   ratio {t_rad / t_all:.4f}")
+    print(
+        f"boundary_pairs, 4000 boundary vertices: all {n_all} pairs {t_all:.3f} s; "
+        f"radius 0.02 -> {n_rad} pairs {t_rad:.4f} s   ratio {t_rad / t_all:.4f}"
+    )
 
 
 if __name__ == "__main__":

@@ -55,13 +55,21 @@ With ``v = (v_p, v_a, v_b)``, ``v_w = v_p − v_a``, ``v_e = v_b − v_a``, ``σ
 −(x̃/L)n)``, ``∇L = (0, −t, t)``. The Hessian-vector product differentiates these gradients
 along ``v``; it is computed in (t, n) components per pair, never as a 6×6 matrix. The
 ``a``-block is minus the sum of the ``p``- and ``b``-blocks (translation invariance).
+
+Implementation
+--------------
+Points are handled as complex numbers ``x + iy`` (``n = i t``, so a vector
+``α t + β n`` is ``t (α + iβ)`` and ``x̃ + iỹ = (p − a) conj(t)``), the piecewise pieces are
+evaluated without branches, and pairs are processed in cache-sized blocks of ``_BLOCK``
+pairs; no Python code runs per pair. Non-finite input propagates (NaN in, NaN out), except a
+NaN edge length, which is reported like a zero one.
 """
 
 from __future__ import annotations
 
 import itertools
+from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Iterator
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -73,13 +81,13 @@ __all__ = [
     "DEFAULT_MU",
     "DistanceEval",
     "boundary_pairs",
-    "iter_boundary_pairs",
-    "vertex_edge_distance",
-    "segment_distance",
-    "regularized_distance",
-    "regularized_distance_value",
     "g_mu",
     "h_mu",
+    "iter_boundary_pairs",
+    "regularized_distance",
+    "regularized_distance_value",
+    "segment_distance",
+    "vertex_edge_distance",
 ]
 
 DEFAULT_MU: float = 1.0
@@ -380,7 +388,9 @@ def _g_value(d: FloatArray, mu: float) -> FloatArray:
 def _h_value(x: FloatArray, mu: float) -> FloatArray:
     u = np.abs(x) * mu
     uc = np.minimum(u, 0.5)
-    return (uc * uc * ((((40 * uc - 64) * uc + 32) * uc - 4) * uc + 0.5) + np.maximum(u - 0.5, 0.0)) / mu
+    return (
+        uc * uc * ((((40 * uc - 64) * uc + 32) * uc - 4) * uc + 0.5) + np.maximum(u - 0.5, 0.0)
+    ) / mu
 
 
 def _g_parts(d: FloatArray, mu: float):
@@ -399,7 +409,9 @@ def _h_parts(x: FloatArray, mu: float):
     """``h_μ, h_μ', h_μ''`` at once."""
     u = np.abs(x) * mu
     uc = np.minimum(u, 0.5)
-    v0 = (uc * uc * ((((40 * uc - 64) * uc + 32) * uc - 4) * uc + 0.5) + np.maximum(u - 0.5, 0.0)) / mu
+    v0 = (
+        uc * uc * ((((40 * uc - 64) * uc + 32) * uc - 4) * uc + 0.5) + np.maximum(u - 0.5, 0.0)
+    ) / mu
     v1 = np.copysign(uc * ((((240 * uc - 320) * uc + 128) * uc - 12) * uc + 1), x)
     w = 2 * uc - 1
     v2 = mu * (w * w) * ((300 * uc - 20) * uc + 1)

@@ -53,7 +53,9 @@ def g_spec(d, mu):
 def h_spec(x, mu):
     """(B.5) written exactly as in SPEC §2."""
     a = np.abs(np.asarray(x, float))
-    poly = 40 * mu**5 * a**6 - 64 * mu**4 * a**5 + 32 * mu**3 * a**4 - 4 * mu**2 * a**3 + mu / 2 * a**2
+    poly = (
+        40 * mu**5 * a**6 - 64 * mu**4 * a**5 + 32 * mu**3 * a**4 - 4 * mu**2 * a**3 + mu / 2 * a**2
+    )
     return np.where(a >= 1 / (2 * mu), a - 1 / (4 * mu), poly)
 
 
@@ -103,7 +105,9 @@ def all_configs(breakpoints: bool = True):
     """
     xs = [v for k, v in X_ZONES.items() if breakpoints or k not in BREAKPOINT_ZONES]
     ys = [v for k, v in Y_ZONES.items() if breakpoints or k not in BREAKPOINT_ZONES]
-    blocks = [config(x, y, theta=0.3 + 0.4 * k) for k, (x, y) in enumerate(itertools.product(xs, ys))]
+    blocks = [
+        config(x, y, theta=0.3 + 0.4 * k) for k, (x, y) in enumerate(itertools.product(xs, ys))
+    ]
     points = np.concatenate(blocks)
     pairs = np.arange(points.shape[0]).reshape(-1, 3)
     return points, pairs
@@ -183,7 +187,7 @@ def test_pieces_derivatives_consistent(mu, rng):
     h = 1e-6 / mu
     for fun in (g_mu, h_mu):
         for k in (1, 2, 3):
-            fd = _fd(lambda y: fun(y, mu, k - 1), x, h)
+            fd = _fd(lambda y, fun=fun, k=k: fun(y, mu, k - 1), x, h)
             np.testing.assert_allclose(fun(x, mu, k), fd, rtol=1e-6, atol=1e-6 * mu ** (k - 1))
 
 
@@ -241,8 +245,12 @@ def test_regularized_matches_spec_reference(rng):
     L = np.linalg.norm(pts[pairs[:, 2]] - pts[pairs[:, 1]], axis=1)
     for mu in (1.0, MU, 9.0):
         ref = g_spec(-xt, mu) + g_spec(xt - L, mu) + h_spec(yt, mu)
-        np.testing.assert_allclose(regularized_distance_value(pts, pairs, mu), ref, rtol=1e-11, atol=1e-14)
-        np.testing.assert_allclose(regularized_distance(pts, pairs, mu).value, ref, rtol=1e-11, atol=1e-14)
+        np.testing.assert_allclose(
+            regularized_distance_value(pts, pairs, mu), ref, rtol=1e-11, atol=1e-14
+        )
+        np.testing.assert_allclose(
+            regularized_distance(pts, pairs, mu).value, ref, rtol=1e-11, atol=1e-14
+        )
 
 
 def test_default_mu_is_thesis_value():
@@ -260,7 +268,11 @@ def test_bounds_and_convergence(rng):
     # rate ~ 1/μ: fit the slope of log(D − D^μ) against log μ for a point off both axes
     pts1 = config(-0.4, 0.3)
     mus = np.geomspace(10, 1e4, 8)
-    gap = [vertex_edge_distance(pts1, [[0, 1, 2]])[0] - regularized_distance_value(pts1, [[0, 1, 2]], m)[0] for m in mus]
+    gap = [
+        vertex_edge_distance(pts1, [[0, 1, 2]])[0]
+        - regularized_distance_value(pts1, [[0, 1, 2]], m)[0]
+        for m in mus
+    ]
     slope = np.polyfit(np.log(mus), np.log(gap), 1)[0]
     assert abs(slope + 1) < 0.02
 
@@ -271,7 +283,9 @@ def test_rigid_motion_invariance(rng):
     V = rng.standard_normal(pts.shape)
     R = rotation(1.234)
     moved = pts @ R.T + [3.0, -7.0]
-    np.testing.assert_allclose(vertex_edge_distance(moved, pairs), vertex_edge_distance(pts, pairs), rtol=1e-12, atol=1e-13)
+    np.testing.assert_allclose(
+        vertex_edge_distance(moved, pairs), vertex_edge_distance(pts, pairs), rtol=1e-12, atol=1e-13
+    )
     e0 = regularized_distance(pts, pairs, MU, direction=V)
     e1 = regularized_distance(moved, pairs, MU, direction=V @ R.T)
     np.testing.assert_allclose(e1.value, e0.value, rtol=1e-11, atol=1e-13)
@@ -367,7 +381,9 @@ def test_hessian_symmetric_and_curvature(rng):
     uHv = (U[pairs] * ev.hess_dir).sum((1, 2))
     vHu = (V[pairs] * eu.hess_dir).sum((1, 2))
     np.testing.assert_allclose(uHv, vHu, rtol=1e-10, atol=1e-10)
-    np.testing.assert_allclose(ev.curvature, (V[pairs] * ev.hess_dir).sum((1, 2)), rtol=1e-10, atol=1e-10)
+    np.testing.assert_allclose(
+        ev.curvature, (V[pairs] * ev.hess_dir).sum((1, 2)), rtol=1e-10, atol=1e-10
+    )
     # translation invariance: blocks of the gradient and of H·v sum to zero
     np.testing.assert_allclose(ev.gradient.sum(1), 0.0, atol=1e-12)
     np.testing.assert_allclose(ev.hess_dir.sum(1), 0.0, atol=1e-9)
@@ -393,7 +409,12 @@ def test_hessian_matches_finite_difference_of_gradient(rng):
 def test_degenerate_edge_raises():
     pts = np.array([[0.0, 0.0], [1.0, 1.0], [1.0, 1.0]])
     pairs = np.array([[0, 1, 2]])
-    for fun in (vertex_edge_distance, segment_distance, regularized_distance_value, regularized_distance):
+    for fun in (
+        vertex_edge_distance,
+        segment_distance,
+        regularized_distance_value,
+        regularized_distance,
+    ):
         with pytest.raises(NotAdmissibleError, match=r"\[1, 2\]"):
             fun(pts, pairs)
 
@@ -411,7 +432,9 @@ def test_empty_pairs():
     pts = np.zeros((3, 2))
     empty = np.empty((0, 3), int)
     ev = regularized_distance(pts, empty, direction=pts)
-    assert ev.value.shape == (0,) and ev.gradient.shape == (0, 3, 2) and ev.hess_dir.shape == (0, 3, 2)
+    assert (
+        ev.value.shape == (0,) and ev.gradient.shape == (0, 3, 2) and ev.hess_dir.shape == (0, 3, 2)
+    )
     assert vertex_edge_distance(pts, empty).shape == (0,)
 
 
