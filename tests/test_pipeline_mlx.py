@@ -201,3 +201,38 @@ def test_json_write_read_round_trip(tmp_path, all_kinds):
     assert vals[0]["count"] == 4
     assert [s.kind for s in back.steps] == ["meshopt", "meshlab", "meshlab"]
     assert back.steps[1].name == "apply_coord_laplacian_smoothing"
+
+
+def test_json_meshlab_steps_written_as_real_meshlab_script(tmp_path):
+    """MeshLab steps given in JSON are written with MeshLab labels and camelCase Params
+    (recorded by pymeshlab), so pymeshlab's own script loader runs our file."""
+    pipe = Pipeline.from_dict({"filters": [
+        {"name": "meshing_surface_subdivision_midpoint", "params": {"iterations": 1, "threshold": 0}},
+        {"name": "apply_coord_laplacian_smoothing", "params": {"stepsmoothnum": 3, "cotangentweight": False}},
+        {"name": "compute_scalar_by_aspect_ratio_per_face", "params": {"metric": "Mean ratio"}},
+    ]})
+    path = tmp_path / "j.mlx"
+    save_pipeline(pipe, path)
+    text = path.read_text()
+    assert '<filter name="Laplacian Smooth">' in text and 'name="stepSmoothNum"' in text
+    assert 'enum_cardinality="8"' in text
+    mesh = grid_mesh(3, jitter=0.3)
+    _ms, got = _run_with_pymeshlab(path, mesh)
+    ref = pymeshlab.MeshSet()
+    ref.add_mesh(to_pymeshlab(mesh))
+    ref.meshing_surface_subdivision_midpoint(iterations=1, threshold=pymeshlab.PureValue(0))
+    ref.apply_coord_laplacian_smoothing(stepsmoothnum=3, cotangentweight=False)
+    ref.compute_scalar_by_aspect_ratio_per_face(metric="Mean ratio")
+    np.testing.assert_array_equal(got.vertex_matrix(), ref.current_mesh().vertex_matrix())
+    np.testing.assert_array_equal(got.face_scalar_array(), ref.current_mesh().face_scalar_array())
+    back = load_pipeline(path).to_dict()["filters"]
+    assert back[1]["params"]["stepsmoothnum"] == 3 and back[1]["params"]["cotangentweight"] is False
+
+
+def test_bounded_float_not_clamped_when_recorded(tmp_path):
+    pipe = Pipeline.from_dict({"filters": [
+        {"name": "compute_selection_by_scalar_per_face", "params": {"minq": 2.5, "maxq": 7.25}}]})
+    path = tmp_path / "s.mlx"
+    save_pipeline(pipe, path)
+    params = load_pipeline(path).to_dict()["filters"][0]["params"]
+    assert (params["minq"], params["maxq"]) == (2.5, 7.25)

@@ -9,9 +9,13 @@ hostile file fails within milliseconds with a clear :class:`FilterError`.
 - meshopt parameters are written with complete ``Param`` elements (type, name, value,
   description, tooltip, min/max, enum values) by :mod:`.params`.
 - MeshLab steps read from a script keep their original ``Param`` attributes and are
-  written back unchanged; MeshLab steps that come from JSON are written under their
-  pymeshlab name with pymeshlab parameter names (this toolkit reads them back; MeshLab's
-  GUI may not).
+  written back unchanged. MeshLab steps that come from JSON are recorded by pymeshlab
+  itself (applied to a small probe mesh, then ``save_filter_script``) to get MeshLab's
+  label, camelCase names and complete ``Param`` types; our values are then put back into
+  the recorded elements (pymeshlab clamps bounded floats to the probe's range while
+  recording). A step pymeshlab cannot record on the probe (or a filter refused as unsafe)
+  is written under its pymeshlab name with pymeshlab parameter names: this toolkit reads
+  it back, MeshLab does not.
 """
 
 from __future__ import annotations
@@ -139,6 +143,10 @@ def dumps(pipeline: Pipeline, diameter: float | None = None) -> str:
             for p in cls.parameters:
                 ET.SubElement(el, "Param", p.to_mlx(vals[p.name], diameter))
         else:
+            recorded = None if s.mlx_params is not None else _record(s, diameter)
+            if recorded is not None:
+                root.append(recorded)
+                continue
             el = ET.SubElement(root, "filter", name=s.label or s.name)
             original = {a.get("name", "").lower(): a for a in (s.mlx_params or [])}
             for key, value in s.params.items():
@@ -149,6 +157,82 @@ def dumps(pipeline: Pipeline, diameter: float | None = None) -> str:
                     ET.SubElement(el, "Param", _meshlab_param(s.name, key, value))
     ET.indent(root, space=" ")
     return "<!DOCTYPE FilterScript>\n" + ET.tostring(root, encoding="unicode") + "\n"
+
+
+def _probe_meshset(diameter: float | None):
+    """A MeshSet with a small planar grid (quality, colors) whose diagonal is ``diameter``."""
+    import numpy as np
+    import pymeshlab
+
+    n = 4
+    x = np.linspace(0.0, 1.0, n + 1)
+    X, Y = np.meshgrid(x, x)
+    pts = np.stack([X.ravel(), Y.ravel(), np.zeros(X.size)], 1)
+    pts[:, :2] *= (diameter or 1.0) / np.sqrt(2.0)
+    idx = np.arange((n + 1) ** 2).reshape(n + 1, n + 1)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel(), idx[1:, 1:].ravel(), idx[1:, :-1].ravel()
+    tri = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)]).astype(np.int32)
+    ms = pymeshlab.MeshSet()
+    ms.add_mesh(pymeshlab.Mesh(pts, tri, v_scalar_array=pts[:, 0].copy(),
+                               f_scalar_array=np.linspace(0.0, 1.0, len(tri)),
+                               v_color_matrix=np.full((len(pts), 4), 0.5),
+                               f_color_matrix=np.full((len(tri), 4), 0.5)))
+    return ms
+
+
+def _record(step: Step, diameter: float | None):
+    """The ``<filter>`` element pymeshlab writes for a JSON MeshLab step, or None."""
+    import logging
+    import os
+    import tempfile
+
+    from . import meshlab
+
+    log = logging.getLogger(__name__)
+    if step.name in meshlab.UNSAFE_FILTERS:
+        return None
+    try:
+        ms = _probe_meshset(diameter)
+        kwargs = {k: meshlab.to_pymeshlab_value(step.name, k, v) for k, v in step.params.items()}
+        ms.apply_filter(step.name, **kwargs)
+        fd, tmp = tempfile.mkstemp(suffix=".mlx")
+        os.close(fd)
+        try:
+            ms.save_filter_script(tmp)
+            root = _parse(open(tmp, "rb").read(), "")
+        finally:
+            os.unlink(tmp)
+        el = root[-1]
+    except Exception as exc:  # the probe does not suit this filter: fall back
+        log.info("cannot record MeshLab step %s with pymeshlab (%s); writing its "
+                 "pymeshlab name", step.name, exc)
+        return None
+    for p in el:
+        key = p.get("name", "").lower()
+        if key in step.params:
+            _put_value(p, step.params[key], diameter)
+    return el
+
+
+def _put_value(p, value, diameter) -> None:
+    """Write our value into a recorded ``<Param>`` (undo pymeshlab's clamping)."""
+    from .params import _fmt
+
+    kind = p.get("type")
+    if kind == "RichDynamicFloat":
+        v = float(value)
+        p.set("value", _fmt(v))
+        p.set("min", _fmt(min(v, float(p.get("min", v)))))
+        p.set("max", _fmt(max(v, float(p.get("max", v)))))
+    elif kind == "RichFloat":
+        p.set("value", _fmt(float(value)))
+    elif kind == "RichAbsPerc":
+        if isinstance(value, dict) and "abs" in value:
+            value = value["abs"]
+        if isinstance(value, (int, float)):
+            p.set("value", _fmt(float(value)))
+            p.set("max", _fmt(max(float(value), float(p.get("max", 0)))))
+        # a percentage stays as pymeshlab recorded it (absolute for ``diameter``)
 
 
 def _same(a, b) -> bool:
