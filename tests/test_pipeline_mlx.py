@@ -236,3 +236,25 @@ def test_bounded_float_not_clamped_when_recorded(tmp_path):
     save_pipeline(pipe, path)
     params = load_pipeline(path).to_dict()["filters"][0]["params"]
     assert (params["minq"], params["maxq"]) == (2.5, 7.25)
+
+
+def test_label_resolution_agrees_with_pymeshlab_reader(tmp_path):
+    """Our label → name mapping equals what pymeshlab's own script reader makes of it."""
+    from meshopt_toolkit.pipeline import meshlab
+
+    labels = ["Subdivision Surfaces: Midpoint", "Laplacian Smooth", "Select by Face Quality",
+              "Per Face Quality according to Triangle shape and aspect ratio",
+              "Colorize by face Quality", "Tri to Quad by 4-8 Subdivision", "Merge Close Vertices"]
+    path = tmp_path / "labels.mlx"
+    path.write_text("<!DOCTYPE FilterScript>\n<FilterScript>\n"
+                    + "".join(f' <filter name="{lab}"/>\n' for lab in labels) + "</FilterScript>\n")
+    ms = pymeshlab.MeshSet()
+    ms.load_filter_script(str(path))
+    printed = meshlab._capture_stdout(ms.print_filter_script)
+    old_names = [line.split(": ", 1)[1].strip() for line in printed.splitlines()
+                 if line[:1].isdigit() and ": " in line]
+    assert old_names == [meshlab.snake_case(lab) for lab in labels]
+    keys = meshlab.keys_table()
+    for lab, old in zip(labels, old_names):
+        assert meshlab.resolve(lab) == keys[old]
+        assert meshlab.resolve(lab) in pymeshlab.filter_list()
