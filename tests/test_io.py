@@ -97,6 +97,11 @@ def test_msh_versions_keep_tags(tmp_path, planar, version, binary):
     assert np.array_equal(out.line_tags, mesh.line_tags)
     assert out.tag_names == mesh.tag_names
     np.testing.assert_array_equal(out.tagged_vertices("left"), mesh.tagged_vertices(1))
+    # meshio reads our file, tags included (its own ASCII writer cannot, under numpy 2)
+    m = meshio.read(path)
+    assert np.array_equal(m.points[:, :2], mesh.points)
+    assert np.array_equal(np.concatenate(m.cell_data["gmsh:physical"]),
+                          np.concatenate([mesh.line_tags, mesh.triangle_tags]))
 
 
 @pytest.mark.parametrize("binary", [True, False])

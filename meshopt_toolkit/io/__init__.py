@@ -20,6 +20,7 @@ format     read                                        write (default)
 
 from __future__ import annotations
 
+import logging
 import os
 from collections.abc import Callable
 from pathlib import Path
@@ -28,6 +29,8 @@ from ..errors import MeshoptError, ReadError, WriteError
 from ..mesh import TriangleMesh
 from . import gmsh, obj, off, ply, stl, vtk
 from ._atomic import atomic_path
+
+logger = logging.getLogger(__name__)
 
 __all__ = ["load", "save", "READERS", "WRITERS", "atomic_path", "supported_extensions"]
 
@@ -149,6 +152,8 @@ def save(
     if not isinstance(mesh, TriangleMesh):
         raise WriteError(f"{path}: expected a TriangleMesh, got {type(mesh).__name__}")
     kwargs = {"version": msh_version} if ext == ".msh" else {}
+    if ext != ".msh" and (mesh.lines is not None or mesh.triangle_tags is not None):
+        logger.info("%s: %s files do not keep physical tags or line elements", path, ext)
     with atomic_path(path, overwrite=overwrite) as tmp:
         try:
             writer(tmp, mesh, binary, **kwargs)
