@@ -26,7 +26,7 @@ def _meshlab_spec(name: str) -> dict:
     return {
         "name": name,
         "label": None,
-        "description": f"MeshLab filter run by pymeshlab (script name {reverse.get(name, name)!r})",
+        "description": f"MeshLab filter {reverse.get(name, name)!r}, run by pymeshlab",
         "origin": "pymeshlab",
         "unsafe": name in meshlab.UNSAFE_FILTERS,
         "parameters": [dict(p) for p in meshlab.parameter_list(name)],
@@ -82,6 +82,8 @@ def run(args) -> int:
         return 0
     width = max(len(s["name"]) for s in specs)
     for s in specs:
-        origin = "" if s["origin"] == "builtin" else f" ({s['origin']})"
+        origin = "" if s["origin"] in ("builtin", "pymeshlab") else f" ({s['origin']})"
+        if s.get("unsafe"):
+            origin += " (refused: aborts without a GPU)"
         print(f"{s['name']:<{width}}  {s['description']}{origin}")
     return 0
