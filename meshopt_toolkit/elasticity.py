@@ -120,16 +120,22 @@ def element_blocks(
             f"elasticity metric needs positive triangle areas; triangle {bad} has "
             f"signed area {areas[bad]:.3e}"
         )
-    ga = g * areas[:, None, None]  # A g_a
-    # blocks[t, a, b, c, d]
-    blocks = mu * ga[:, :, None, None, :] * g[:, None, :, :, None]  # μ A g_a,d g_b,c
-    blocks += lam * ga[:, :, None, :, None] * g[:, None, :, None, :]  # λ A g_a,c g_b,d
-    diag = mu * np.einsum("tak,tbk->tab", ga, g)  # μ A g_a·g_b
-    mass = (delta / 12.0) * areas
-    diag += mass[:, None, None]
-    diag[:, [0, 1, 2], [0, 1, 2]] += mass[:, None]
-    blocks[..., 0, 0] += diag
-    blocks[..., 1, 1] += diag
+    gx = np.ascontiguousarray(g[..., 0])  # (T, 3)
+    gy = np.ascontiguousarray(g[..., 1])
+    sx = gx * areas[:, None]
+    sy = gy * areas[:, None]
+    xx = sx[:, :, None] * gx[:, None, :]  # A g_a,x g_b,x, (T, 3, 3)
+    yy = sy[:, :, None] * gy[:, None, :]
+    xy = sx[:, :, None] * gy[:, None, :]  # A g_a,x g_b,y
+    yx = sy[:, :, None] * gx[:, None, :]
+    mass = np.empty((len(areas), 3, 3))
+    mass[:] = (delta / 12.0) * areas[:, None, None]
+    mass[:, [0, 1, 2], [0, 1, 2]] *= 2.0
+    blocks = np.empty((len(areas), 3, 3, 2, 2))
+    blocks[..., 0, 0] = (2.0 * mu + lam) * xx + mu * yy + mass
+    blocks[..., 1, 1] = (2.0 * mu + lam) * yy + mu * xx + mass
+    blocks[..., 0, 1] = mu * yx + lam * xy
+    blocks[..., 1, 0] = mu * xy + lam * yx
     return blocks
 
 
@@ -144,12 +150,15 @@ class BlockPattern:
     indices : (nnzb,) int array, block column indices (sorted within each row)
     scatter : (9 T,) int array, stored block receiving element block ``(t, a, b)``
         (flattened in C order)
+    summation : (nnzb, 9 T) CSR matrix of ones, ``summation[scatter[k], k] = 1``: one
+        sparse product sums all element blocks into the stored blocks
     """
 
     n_vertices: int
     indptr: IntArray
     indices: IntArray
     scatter: IntArray
+    summation: sp.csr_matrix
 
     @classmethod
     def from_triangles(cls, triangles: IntArray, n_vertices: int) -> "BlockPattern":
@@ -173,7 +182,12 @@ class BlockPattern:
         rows, indices = np.divmod(unique, n_vertices)
         indptr = np.zeros(n_vertices + 1, dtype=np.int64)
         np.cumsum(np.bincount(rows, minlength=n_vertices), out=indptr[1:])
-        return cls(n_vertices, indptr, indices, scatter)
+        # CSR of the summation matrix directly: row r holds the entries k with scatter = r
+        summation = sp.csr_matrix(
+            (np.ones(keys.size), order.astype(np.int64), np.flatnonzero(np.append(first, True))),
+            shape=(unique.size, keys.size),
+        )
+        return cls(n_vertices, indptr, indices, scatter, summation)
 
     @property
     def n_blocks(self) -> int:
@@ -191,12 +205,8 @@ class BlockPattern:
         -------
         (2N, 2N) ``scipy.sparse.bsr_matrix`` with blocksize (2, 2)
         """
-        flat = blocks.reshape(-1, 4)
-        data = np.empty((self.n_blocks, 2, 2))
-        for j in range(4):  # four bincounts over all element blocks
-            data[:, j // 2, j % 2] = np.bincount(
-                self.scatter, weights=flat[:, j], minlength=self.n_blocks
-            )
+        flat = np.ascontiguousarray(blocks).reshape(-1, 4)
+        data = (self.summation @ flat).reshape(-1, 2, 2)
         n = 2 * self.n_vertices
         return sp.bsr_matrix((data, self.indices, self.indptr), shape=(n, n))
 
