@@ -58,10 +58,10 @@ along ``v``; it is computed in (t, n) components per pair, never as a 6×6 matri
 
 Implementation
 --------------
-Points are handled as complex numbers ``x + iy`` (``n = i t``, so a vector
-``α t + β n`` is ``t (α + iβ)`` and ``x̃ + iỹ = (p − a) conj(t)``), the piecewise pieces are
-evaluated without branches, and pairs are processed in cache-sized blocks of ``_BLOCK``
-pairs; no Python code runs per pair. Non-finite input propagates (NaN in, NaN out), except a
+Points are gathered as complex numbers ``x + iy`` (one 16-byte load per vertex, and the
+``(K, 3, 2)`` outputs are filled through ``(K, 3)`` complex views), all arithmetic is real in
+(t, n) components, the piecewise pieces are evaluated without branches, and pairs are
+processed in cache-sized blocks of ``_BLOCK`` pairs; no Python code runs per pair. Non-finite input propagates (NaN in, NaN out), except a
 NaN edge length, which is reported like a zero one.
 """
 
@@ -240,24 +240,28 @@ def _blocks(K: int) -> Iterator[slice]:
 
 
 def _frame(Z: np.ndarray, pairs: IntArray):
-    """Edge frame for a block of pairs, in complex arithmetic (all ``(k,)``).
+    """Edge frame for a block of pairs (all ``(k,)`` real arrays).
 
-    Returns ``t`` (unit tangent ``e/L``, complex; the normal is ``n = i t``), ``L`` and
-    ``x̃ + iỹ = (p − a)·conj(t)`` as separate real arrays ``x̃``, ``ỹ``.
+    The complex points are gathered (one 16-byte load per vertex) and split into real
+    parts; returns the unit tangent ``(tx, ty)`` (the normal is ``(−ty, tx)``), ``L``,
+    ``x̃`` and ``ỹ``.
     """
     j0 = pairs[:, 1]
     a = Z[j0]
     e = Z[pairs[:, 2]] - a
-    L = np.abs(e)
+    w = Z[pairs[:, 0]] - a
+    ex, ey = e.real, e.imag
+    L = np.sqrt(ex * ex + ey * ey)
     if L.size and not (L.min() > 0):
         k = int(np.argmin(np.where(np.isnan(L), -1.0, L)))
         raise NotAdmissibleError(
             f"boundary edge [{j0[k]}, {pairs[k, 2]}] has length {L[k]}: "
             "vertex–edge distance undefined"
         )
-    t = e / L
-    z = (Z[pairs[:, 0]] - a) * t.conj()
-    return t, L, z.real.copy(), z.imag.copy()
+    inv_L = 1.0 / L
+    tx, ty = ex * inv_L, ey * inv_L
+    wx, wy = w.real, w.imag
+    return tx, ty, L, wx * tx + wy * ty, wy * tx - wx * ty
 
 
 def _map_blocks(kernel, points: FloatArray, pairs: IntArray) -> FloatArray:
@@ -265,7 +269,7 @@ def _map_blocks(kernel, points: FloatArray, pairs: IntArray) -> FloatArray:
     Z, pairs = _inputs(points, pairs)
     out = np.empty(pairs.shape[0])
     for blk in _blocks(pairs.shape[0]):
-        _, L, xt, yt = _frame(Z, pairs[blk])
+        _, _, L, xt, yt = _frame(Z, pairs[blk])
         out[blk] = kernel(L, xt, yt)
     return out
 
@@ -504,9 +508,10 @@ def regularized_distance(
 def _kernel(Z, pairs, mu, VZ, value, grad, hv, curv) -> None:
     """Evaluate one block of pairs into the given output views (see module docstring).
 
-    Vectors are complex numbers; a vector ``α t + β n`` is ``t (α + iβ)`` since ``n = i t``.
+    ``grad`` and ``hv`` are ``(k, 3)`` complex views (``x + iy`` per vertex); quantities are
+    real arrays in edge-frame components, written out by :func:`_put`.
     """
-    t, L, xt, yt = _frame(Z, pairs)
+    tx, ty, L, xt, yt = _frame(Z, pairs)
     # d = max(−x̃, x̃ − L): the side that can be positive; s = ∂d/∂x̃, r = 1 on the right.
     # (At x̃ = L/2 either choice is fine: d = −L/2 < 0 and g' = g'' = 0.)
     d = np.maximum(-xt, xt - L)
@@ -521,20 +526,23 @@ def _kernel(Z, pairs, mu, VZ, value, grad, hv, curv) -> None:
 
     # gradient: ∇_p = (g's) t + h' n ;  ∇_b = (−g'r) t + (g's c − h'm) n ;  ∇_a = −∇_p − ∇_b
     g1s = g1 * s
-    gp = t * (g1s + 1j * h1)
-    gb = t * (-g1 * r + 1j * (g1s * c - h1 * m))
-    grad[:, 0] = gp
-    grad[:, 2] = gb
-    grad[:, 1] = -(gp + gb)
+    bt = -g1 * r
+    bn = g1s * c - h1 * m
+    _put(grad[:, 0], g1s, h1, tx, ty)
+    _put(grad[:, 2], bt, bn, tx, ty)
+    _put(grad[:, 1], -(g1s + bt), -(h1 + bn), tx, ty)
     if VZ is None:
         return
 
     # direction in the edge frame: v_w = v_p − v_a, v_e = v_b − v_a
     va = VZ[pairs[:, 1]]
-    tc = t.conj()
-    vw = (VZ[pairs[:, 0]] - va) * tc
-    ve = (VZ[pairs[:, 2]] - va) * tc
-    vw_t, vw_n, ve_t, ve_n = vw.real, vw.imag, ve.real, ve.imag
+    vw = VZ[pairs[:, 0]] - va
+    ve = VZ[pairs[:, 2]] - va
+    vwx, vwy, vex, vey = vw.real, vw.imag, ve.real, ve.imag
+    vw_t = vwx * tx + vwy * ty
+    vw_n = vwy * tx - vwx * ty
+    ve_t = vex * tx + vey * ty
+    ve_n = vey * tx - vex * ty
     sigma = ve_n * inv_L
     rho = ve_t * inv_L
     dxt = vw_t + yt * sigma
@@ -549,9 +557,15 @@ def _kernel(Z, pairs, mu, VZ, value, grad, hv, curv) -> None:
     bp = g1s * sigma + h2dy
     ab = -g2dd * r + (m * h1 - c * g1s) * sigma
     bb = g2dd * s * c + g1 * (s * dc - r * sigma) - h2dy * m - h1 * dm
-    hp = t * (ap + 1j * bp)
-    hb = t * (ab + 1j * bb)
-    hv[:, 0] = hp
-    hv[:, 2] = hb
-    hv[:, 1] = -(hp + hb)
+    _put(hv[:, 0], ap, bp, tx, ty)
+    _put(hv[:, 2], ab, bb, tx, ty)
+    _put(hv[:, 1], -(ap + ab), -(bp + bb), tx, ty)
     curv[:] = vw_t * ap + vw_n * bp + ve_t * ab + ve_n * bb
+
+
+def _put(
+    out: np.ndarray, alpha: FloatArray, beta: FloatArray, tx: FloatArray, ty: FloatArray
+) -> None:
+    """``out = α t + β n`` for complex ``out`` (a strided view), ``t = tx + i ty``, ``n = i t``."""
+    np.subtract(alpha * tx, beta * ty, out=out.real)
+    np.add(alpha * ty, beta * tx, out=out.imag)
