@@ -199,7 +199,8 @@ def _record(step: Step, diameter: float | None):
         os.close(fd)
         try:
             ms.save_filter_script(tmp)
-            root = _parse(open(tmp, "rb").read(), "")
+            with open(tmp, "rb") as fh:
+                root = _parse(fh.read(), "")
         finally:
             os.unlink(tmp)
         el = root[-1]
