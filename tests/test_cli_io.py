@@ -74,9 +74,15 @@ def test_convert_single(files, tmp_path, capsys):
     assert io.load(out) == square5()
 
 
+def test_convert_single_into_directory(files, tmp_path):
+    assert main(["convert", str(files["msh"]), "-o", str(tmp_path / "new"), "--to", "obj"]) == 0
+    assert io.load(tmp_path / "new" / "grid.obj") == io.load(files["msh"])
+
+
 def test_convert_ascii_msh22(files, tmp_path):
     out = tmp_path / "g22.msh"
-    assert main(["convert", str(files["msh"]), "-o", str(out), "--ascii", "--msh-version", "2.2"]) == 0
+    argv = ["convert", str(files["msh"]), "-o", str(out), "--ascii", "--msh-version", "2.2"]
+    assert main(argv) == 0
     assert out.read_text().startswith("$MeshFormat\n2.2 0 8")
     assert io.load(out) == io.load(files["msh"])
 

@@ -191,7 +191,8 @@ def test_gmsh_reads_our_files(tmp_path, planar, version, binary):
         xyz = np.zeros((int(tags.max()) + 1, 3))
         xyz[tags.astype(int)] = coords.reshape(-1, 3)
         etypes, etags, enodes = gmsh.model.mesh.getElements(2)
-        groups = {(d, t): gmsh.model.getPhysicalName(d, t) for d, t in gmsh.model.getPhysicalGroups()}
+        groups = {(d, t): gmsh.model.getPhysicalName(d, t)
+                  for d, t in gmsh.model.getPhysicalGroups()}
     finally:
         gmsh.finalize()
     order = np.argsort(etags[0])
@@ -206,7 +207,7 @@ def test_meshio_reads_ours(tmp_path, planar, surface):
             path = tmp_path / f"m{ext}"
             io.save(mesh, path)
             m = meshio.read(path)
-            pts = m.points if m.points.shape[1] == 3 else np.hstack([m.points, np.zeros((len(m.points), 1))])
+            pts = np.hstack([m.points, np.zeros((len(m.points), 3 - m.points.shape[1]))])
             ref = np.hstack([mesh.points, np.zeros((mesh.n_vertices, 3 - mesh.dim))])
             assert np.array_equal(pts, ref), ext
             assert np.array_equal(m.get_cells_type("triangle"), mesh.triangles), ext
@@ -287,11 +288,13 @@ def test_garbage_content(tmp_path, ext):
 def test_out_of_range_index(tmp_path, ext):
     good = PlanarMesh([[0, 0], [1, 0], [0, 1], [1, 1]], [[0, 1, 2], [1, 3, 2]])
     path = tmp_path / f"r{ext}"
-    m = meshio.Mesh(np.hstack([good.points, np.zeros((4, 1))]), [("triangle", [[0, 1, 2], [1, 7, 2]])])
+    m = meshio.Mesh(np.hstack([good.points, np.zeros((4, 1))]),
+                    [("triangle", [[0, 1, 2], [1, 7, 2]])])
     if ext == ".msh":
         # a gmsh file whose element names node 8 of 4
         text = ("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n4\n1 0 0 0\n2 1 0 0\n3 0 1 0\n"
-                "4 1 1 0\n$EndNodes\n$Elements\n2\n1 2 2 0 1 1 2 3\n2 2 2 0 1 2 8 3\n$EndElements\n")
+                "4 1 1 0\n$EndNodes\n$Elements\n2\n1 2 2 0 1 1 2 3\n2 2 2 0 1 2 8 3\n"
+                "$EndElements\n")
         _write(path, text)
         assert_read_error(path, ".")  # meshio's gmsh reader fails on the unknown node 8
         return

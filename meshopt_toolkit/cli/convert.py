@@ -64,8 +64,10 @@ def _plan(args) -> tuple[list[tuple[Path, Path]], list[str]] | int:
             failures.append(str(exc))
     out = Path(args.output)
     batch = batch or len(inputs) > 1
+    as_dir = (out.is_dir() or args.output.endswith(("/", "\\"))
+              or (to is not None and not out.suffix))
     if not batch:
-        if out.is_dir():
+        if as_dir:
             if to is None:
                 return _usage(f"{out} is a directory: give --to EXT or an output file name")
             return ([(p, out / (p.stem + to)) for p in inputs], failures)

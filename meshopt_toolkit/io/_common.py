@@ -81,7 +81,9 @@ def parse_rows(lines: list[str], source, what: str, min_cols: int, dtype=np.floa
     try:
         arr = np.array(rows, dtype=np.float64)
     except ValueError as exc:
-        raise ReadError(f"{source}: {what} section has a value that is not a number ({exc})") from None
+        raise ReadError(
+            f"{source}: {what} section has a value that is not a number ({exc})"
+        ) from None
     if dtype is not np.float64:
         if not np.isfinite(arr).all() or np.any(arr != np.round(arr)):
             raise ReadError(f"{source}: {what} indices must be integers")

@@ -33,7 +33,9 @@ def read(path: Path) -> TriangleMesh:
         pts = pts[:, :3]
     faces = parse_rows([_SLASH.sub("", s) for s in flines], path, "face", 3, dtype=np.int64)
     if faces.shape[1] != 3:
-        raise ReadError(f"{path}: face with {faces.shape[1]} vertices; only triangles are supported")
+        raise ReadError(
+            f"{path}: face with {faces.shape[1]} vertices; only triangles are supported"
+        )
     if (faces < 0).any():
         # relative index: -1 is the last vertex defined before this face line
         kinds = np.array([1 if s.startswith(("v ", "v\t")) else 2 if s.startswith(("f ", "f\t"))

@@ -41,7 +41,9 @@ def read(path: Path) -> TriangleMesh:
     faces = parse_rows(rest[nv:nv + nf], path, "face", 4, dtype=np.int64)
     if (faces[:, 0] != 3).any():
         k = int(np.flatnonzero(faces[:, 0] != 3)[0])
-        raise ReadError(f"{path}: face {k} has {faces[k, 0]} vertices; only triangles are supported")
+        raise ReadError(
+            f"{path}: face {k} has {faces[k, 0]} vertices; only triangles are supported"
+        )
     return build_mesh(pts, faces[:, 1:4], path)
 
 

@@ -130,7 +130,8 @@ def read(path: Path) -> TriangleMesh:
     if fmt == "ascii":
         els = _ascii_elements(data, offset, elements, path)
     else:
-        els = _binary_elements(data, offset, elements, "<" if fmt.endswith("little_endian") else ">", path)
+        endian = "<" if fmt.endswith("little_endian") else ">"
+        els = _binary_elements(data, offset, elements, endian, path)
     v, f = els["vertex"], els["face"]
     vprops = [p[0] for p in elements[names.index("vertex")][2]]
     if "x" not in vprops or "y" not in vprops:
@@ -144,7 +145,9 @@ def read(path: Path) -> TriangleMesh:
     faces = np.asarray(f[key])
     faces = faces.reshape(len(faces), -1) if len(faces) else np.zeros((0, 3), np.int64)
     if faces.shape[1] != 3 and len(faces):
-        raise ReadError(f"{path}: faces have {faces.shape[1]} vertices; only triangles are supported")
+        raise ReadError(
+            f"{path}: faces have {faces.shape[1]} vertices; only triangles are supported"
+        )
     return build_mesh(pts, faces.astype(np.int64), path)
 
 

@@ -63,5 +63,6 @@ def write(path: Path, mesh: TriangleMesh, binary: bool | None = None) -> None:
             table = np.concatenate([normal[:, None, :], corners], axis=1).reshape(len(corners), 12)
             facet = ("facet normal %r %r %r\n outer loop\n  vertex %r %r %r\n  vertex %r %r %r\n"
                      "  vertex %r %r %r\n endloop\nendfacet\n")
-            body = (facet * len(table)) % tuple(table.astype(np.float32).astype(float).ravel().tolist())
+            values = table.astype(np.float32).astype(float).ravel().tolist()
+            body = (facet * len(table)) % tuple(values)
             fh.write(b"solid meshopt\n" + body.encode() + b"endsolid meshopt\n")

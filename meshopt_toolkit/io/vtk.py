@@ -76,7 +76,7 @@ def write_vtk(path: Path, mesh: TriangleMesh, binary: bool | None = None) -> Non
     import meshio.vtk
 
     with _quiet():
-        meshio.vtk.write(str(path), _mesh_out(mesh), binary=True if binary is None else bool(binary))
+        meshio.vtk.write(str(path), _mesh_out(mesh), binary=binary is None or bool(binary))
 
 
 def write_vtu(path: Path, mesh: TriangleMesh, binary: bool | None = None) -> None:
