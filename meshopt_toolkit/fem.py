@@ -188,7 +188,7 @@ class PoissonSolver:
     K : (N, N) sparse symmetric positive semi-definite stiffness matrix
     dirichlet : (D,) indices of the nodes where ``y = 0`` (at least one)
     method : ``"direct"`` (SuperLU with a symmetric minimum-degree ordering),
-        ``"amg"`` (pyamg smoothed aggregation as a preconditioner for CG, iterated to
+        ``"amg"`` (pyamg classical Ruge–Stüben AMG as a preconditioner for CG, iterated to
         relative residual ``rtol``; one hierarchy serves every right-hand side) or
         ``"auto"`` (direct below :data:`AMG_THRESHOLD` free nodes, AMG above).
     rtol : relative residual tolerance of the AMG-CG iteration
@@ -237,7 +237,7 @@ class PoissonSolver:
             import pyamg
         except ImportError as exc:  # pragma: no cover - depends on the environment
             raise MeshoptError("method='amg' needs pyamg (pip install pyamg)") from exc
-        ml = pyamg.smoothed_aggregation_solver(kff, symmetry="symmetric")
+        ml = pyamg.ruge_stuben_solver(kff)
         rtol = self.rtol
 
         def solve(b):
