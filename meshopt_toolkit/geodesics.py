@@ -16,11 +16,15 @@ Methods (``method=``):
 ``"auto"`` / ``"dopri5"``
     Own vectorized Dormand–Prince 5(4) (:func:`~meshopt_toolkit.integrators.dopri5`),
     adaptive, 6 penalty calls per step, steps landing exactly on the requested times.
-    Default tolerance ``rtol = 1e-8``, ``atol = 1e-8 · scale`` (scale = ``max(max|Q|,
+    Default tolerance ``rtol = 1e-7``, ``atol = 1e-7 · scale`` (scale = ``max(max|Q|,
     max|V|·t)``), which gives positions within about 1e-7·max|V| of a tight solution on
-    the benchmark disc; ``rtol = 1e-5`` is plenty for a line search retraction.
+    the benchmark disc (``benchmarks/bench_geodesics.py``); ``rtol = atol = 1e-5`` is
+    plenty for a line-search retraction.
 ``"stormer-verlet"``
     The thesis' algorithm 1 with ``steps`` uniform steps (default 1024): the reference.
+    Its fixed points use the thesis' tolerance 1e-8 and at most 10 iterations
+    (``fixed_point_tol``, ``fixed_point_iter``); when the contraction is slow (stiff
+    penalty, large velocity) it raises "use more steps".
 ``"scipy"``
     ``scipy.integrate.solve_ivp`` with DOP853 on the same right-hand side: an independent
     high-order check (slower on small meshes because of its per-step overhead).
@@ -28,8 +32,10 @@ Methods (``method=``):
 For a Euclidean metric (``EuclideanMetric`` or ``None``) the geodesic is ``Q + tV``.
 
 Guards (``on_violation="warn" | "raise" | "ignore"``): the relative energy drift
-``|e(t) − e(0)|/e(0)`` must stay below ``energy_tol`` (default 1e-4 for the adaptive
-methods; 1e-2 for Störmer–Verlet, whose energy error is O(Δt²)), and
+``|e(t) − e(0)|/e(0)`` must stay below ``energy_tol`` (default ``max(1e-3, 1e4·rtol)``
+for the adaptive methods — the relative energy error is typically 10–1000× the relative
+position error, as ``(∇f·V)²`` amplifies errors in V by ``|∇f|``; 1e-2 for Störmer–Verlet,
+whose energy error is O(Δt²)), and
 ``|f(γ(t)) − f(γ(0))| ≤ √(max e)·t·(1 + energy_tol) + 1e-10·(1 + |f(γ(0))|)`` is checked at
 every output time. A step with a stage outside M+ is rejected and retried smaller; an
 integration that cannot proceed raises :class:`~meshopt_toolkit.errors.IntegrationError`.
@@ -64,6 +70,9 @@ __all__ = [
 ]
 
 METHODS = ("auto", "dopri5", "stormer-verlet", "scipy")
+
+#: default relative tolerance of the adaptive integrator (atol = DEFAULT_RTOL · scale)
+DEFAULT_RTOL = 1e-7
 
 
 class GeodesicWarning(UserWarning):
@@ -210,6 +219,8 @@ def geodesic(
     energy_tol: float | None = None,
     on_violation: str = "warn",
     max_steps: int = 100_000,
+    fixed_point_tol: float = 1e-8,
+    fixed_point_iter: int = 10,
 ) -> GeodesicResult:
     """The geodesic ``γ`` with ``γ(0) = Q``, ``γ'(0) = V``, sampled from ONE integration.
 
@@ -225,10 +236,11 @@ def geodesic(
         Default ``[t_end]``. Include 0 to get the initial state as well.
     method : "auto" | "dopri5" | "stormer-verlet" | "scipy" (see the module docstring)
     steps : Störmer–Verlet steps on [0, t_end] (default 1024)
-    rtol, atol : adaptive tolerances (defaults 1e-8 and 1e-8·scale; see module docstring)
+    rtol, atol : adaptive tolerances (defaults 1e-7 and 1e-7·scale; see module docstring)
     energy_tol : allowed relative energy drift before a violation is reported
     on_violation : "warn" (GeodesicWarning), "raise" (IntegrationError) or "ignore"
     max_steps : cap on adaptive steps
+    fixed_point_tol, fixed_point_iter : Störmer–Verlet fixed-point tolerance and cap
 
     Returns
     -------
@@ -260,7 +272,8 @@ def geodesic(
             raise IntegrationError(f"times must lie in [{t_end}, 0]")
         res = geodesic(metric, Q, -V, -t_end, times=-req, method=method, steps=steps,
                        rtol=rtol, atol=atol, energy_tol=energy_tol,
-                       on_violation=on_violation, max_steps=max_steps)
+                       on_violation=on_violation, max_steps=max_steps,
+                       fixed_point_tol=fixed_point_tol, fixed_point_iter=fixed_point_iter)
         res.times = req
         res.velocities = -res.velocities
         return res
@@ -291,10 +304,11 @@ def geodesic(
     elif method_used == "dopri5":
         scale = max(float(np.max(np.abs(Q))), float(np.max(np.abs(V))) * positive[-1], 1e-300)
         out = dopri5(fld, Q, V, positive,
-                     rtol=1e-8 if rtol is None else rtol,
-                     atol=1e-8 * scale if atol is None else atol, max_steps=max_steps)
+                     rtol=DEFAULT_RTOL if rtol is None else rtol,
+                     atol=DEFAULT_RTOL * scale if atol is None else atol, max_steps=max_steps)
     elif method_used == "stormer-verlet":
-        out = stormer_verlet(fld, Q, V, positive, steps=1024 if steps is None else int(steps))
+        out = stormer_verlet(fld, Q, V, positive, steps=1024 if steps is None else int(steps),
+                             tol=fixed_point_tol, max_iter=fixed_point_iter)
     else:
         scale = max(float(np.max(np.abs(Q))), float(np.max(np.abs(V))) * positive[-1], 1e-300)
         out = _scipy_dop853(fld, Q, V, positive, 1e-10 if rtol is None else rtol,
@@ -319,7 +333,10 @@ def geodesic(
 
     notes: list[str] = []
     if energy_tol is None:
-        energy_tol = 1e-2 if method_used == "stormer-verlet" else 1e-4
+        if method_used == "stormer-verlet":
+            energy_tol = 1e-2
+        else:
+            energy_tol = max(1e-3, 1e4 * (DEFAULT_RTOL if rtol is None else rtol))
     drift = 0.0 if out is None else out.max_energy_drift
     if e0 > 0 and drift > energy_tol:
         _report(f"geodesic energy drifted by {drift:.3g} (relative) > {energy_tol:g}; "

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._typing import FloatArray, IntArray
-from .errors import IntegrationError
+from .errors import IntegrationError, NotAdmissibleError
 from .geometry import signed_areas
 
 __all__ = ["GeodesicField", "IntegrationOutput", "dopri5", "stormer_verlet", "DOPRI5_TABLEAU"]
@@ -162,6 +162,7 @@ def dopri5(
     atol: float,
     h0: float | None = None,
     max_steps: int = 100_000,
+    energy_rtol: float | None = None,
 ) -> IntegrationOutput:
     """Integrate (5.35) from ``(Q0, V0)`` at t = 0 with Dormand–Prince 5(4).
 
@@ -174,6 +175,11 @@ def dopri5(
         ``|err| ≤ atol + rtol·|y|``
     h0 : initial step (default: Hairer's heuristic from ``|y|`` and ``|y'|``)
     max_steps : cap on accepted + rejected steps
+    energy_rtol : a step is also rejected when it changes the energy ``e = (V, V)_g`` by
+        more than ``energy_rtol · e(0)`` (default ``10·rtol``; the gradient at the new point
+        comes for free from the last stage, so this costs nothing). Without it the
+        ``(∇f·V)²`` part of the energy, which amplifies errors in V by ``|∇f|``, can drift
+        far on stiff penalties while the position error is controlled.
 
     Returns
     -------
@@ -191,7 +197,8 @@ def dopri5(
     a, grad = field.acceleration(q, v)
     if not (np.isfinite(a).all() and np.isfinite(grad).all()):
         raise IntegrationError("the geodesic right-hand side is not finite at the initial mesh")
-    e0 = energy(grad, v)
+    e0 = e_prev = energy(grad, v)
+    energy_rtol = 10.0 * rtol if energy_rtol is None else energy_rtol
     out_q = np.empty((K,) + q.shape)
     out_v = np.empty((K,) + q.shape)
     out_e = np.empty(K)
@@ -204,7 +211,7 @@ def dopri5(
         h0 = 0.01 * d0 / d1 if d1 > 0 and d0 > 0 else 1e-3
         h0 = min(h0, t_end)
     h = float(h0)
-    h_min = 1e-12 * max(t_end, 1.0)
+    h_min = 1e-10 * max(t_end, 1.0)
     kq = np.empty((7,) + q.shape)  # stage velocities (derivative of Q)
     kv = np.empty((7,) + q.shape)  # stage accelerations (derivative of V)
     t = 0.0
@@ -221,17 +228,21 @@ def dopri5(
         hit = t + h >= target * (1 - 1e-14)
         h_step = target - t if hit else h
         kq[0], kv[0] = v, a
-        ok = True
+        ok, why = True, ""
         grad_new = None
         for s in range(1, 7):
             w = _A[s]
             qs = q + h_step * np.tensordot(w, kq[:s], axes=1)
             vs = v + h_step * np.tensordot(w, kv[:s], axes=1)
             if not field.admissible(qs):
-                ok = False
+                ok, why = False, "a triangle inverts"
                 break
             kq[s] = vs
-            kv[s], g_s = field.acceleration(qs, vs)
+            try:
+                kv[s], g_s = field.acceleration(qs, vs)
+            except NotAdmissibleError as exc:  # e.g. the boundary touches itself
+                ok, why = False, str(exc).split(": ", 2)[-1]
+                break
             if not np.isfinite(kv[s]).all():
                 ok = False
                 break
@@ -244,12 +255,16 @@ def dopri5(
             if h < h_min:
                 raise IntegrationError(
                     f"geodesic step size underflow at t = {t:.6g}: every step leaves the "
-                    "admissible set (inverted triangle)"
+                    f"admissible set ({why}). A penalty without its boundary term (α2 or "
+                    "β3 = 0) cannot prevent boundary self-intersections"
                 )
             continue
         err_q = h_step * np.tensordot(_E, kq, axes=1)
         err_v = h_step * np.tensordot(_E, kv, axes=1)
         err = _error_norm(err_q, err_v, q, v, q_new, v_new, rtol, atol)
+        e_new = energy(grad_new, v_new)
+        if e0 > 0:  # the energy change of one step is a local error as well
+            err = max(err, abs(e_new - e_prev) / (energy_rtol * e0))
         if not np.isfinite(err):
             err = np.inf
         factor = 5.0 if err == 0 else min(5.0, max(0.2, 0.9 * err ** -0.2))
@@ -263,7 +278,7 @@ def dopri5(
         n_steps += 1
         t = target if hit else t + h_step
         q, v, a = q_new, v_new, kv[6].copy()
-        e = energy(grad_new, v)
+        e = e_prev = e_new
         if e0 > 0:
             max_drift = max(max_drift, abs(e - e0) / e0)
         h_next = h_step * factor

@@ -1,0 +1,288 @@
+"""Geodesics of the complete metric: equation, invariants, integrators (SPEC §5)."""
+
+from __future__ import annotations
+
+import warnings
+from fractions import Fraction
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from conftest import grid_mesh, square5
+from meshopt_toolkit.errors import IntegrationError
+from meshopt_toolkit.geodesics import (
+    GeodesicWarning,
+    exp_map,
+    geodesic,
+    geodesic_acceleration,
+)
+from meshopt_toolkit.geometry import signed_areas
+from meshopt_toolkit.integrators import DOPRI5_TABLEAU, GeodesicField, dopri5
+from meshopt_toolkit.metrics import CompleteMetric, ElasticityMetric, EuclideanMetric
+from meshopt_toolkit.penalties import HeightPenalty, QualityPenalty
+
+
+def squeeze_velocity() -> np.ndarray:
+    """Square5: the two bottom corners move inwards and up; straight lines make triangle
+    (0, 1, 4) collinear at t = 0.8 (our reading of thesis fig. 5.1/5.25)."""
+    V = np.zeros((5, 2))
+    V[0] = [0.5, 1.25]
+    V[1] = [-0.5, 1.25]
+    return V
+
+
+def min_area(points, mesh) -> float:
+    return float(signed_areas(points, mesh.triangles).min())
+
+
+# -- the equation ---------------------------------------------------------------------
+
+
+def test_dopri5_tableau_satisfies_order_conditions():
+    c, a, b, bh = (DOPRI5_TABLEAU[k] for k in ("c", "a", "b", "b_hat"))
+    A = np.zeros((7, 7))
+    for i, row in enumerate(a):
+        A[i, : len(row)] = row
+    assert np.allclose(A.sum(1), c)
+    for w, order in ((b, 5), (bh, 4)):
+        assert np.isclose(w.sum(), 1)
+        for q in range(1, order):  # bushy trees: Σ b c^q = 1/(q+1)
+            assert np.isclose(w @ c**q, 1 / (q + 1))
+        assert np.isclose(w @ A @ c, 1 / 6)
+        if order >= 4:
+            assert np.isclose(w @ A @ c**2, 1 / 12)
+            assert np.isclose(w @ (c * (A @ c)), 1 / 8)
+            assert np.isclose(w @ A @ A @ c, 1 / 24)
+    # the 5th-order weights are not the 4th-order ones (an error estimate exists)
+    assert abs(Fraction(float(b @ c**4)) - Fraction(1, 5)) < 1e-12
+    assert not np.isclose(bh @ c**4, 1 / 5)
+
+
+def test_acceleration_solves_euler_lagrange_by_finite_differences(rng):
+    """d/dt (g V) = ∂_Q ½ Vᵀ g(Q) V with g = I + ∇f∇fᵀ, all derivatives by central
+    differences of the gradient only (independent of the closed form)."""
+    mesh = square5()
+    pen = HeightPenalty(mesh, alpha=(1.0, 0.0, 1.0))
+    Q = mesh.points + 0.05 * rng.standard_normal((5, 2))
+    V = rng.standard_normal((5, 2))
+    A = geodesic_acceleration(CompleteMetric(pen), Q, V)
+
+    def g_times(q, w):
+        gr = pen.gradient(q)
+        return w + gr * np.vdot(gr, w)
+
+    h = 1e-5
+    # d/dt (g(Q(t)) V(t)) = g A + (d/dε g(Q + εV)) V
+    lhs = g_times(Q, A) + (g_times(Q + h * V, V) - g_times(Q - h * V, V)) / (2 * h)
+    rhs = np.zeros_like(Q)
+    for i in range(5):
+        for d in range(2):
+            E = np.zeros_like(Q)
+            E[i, d] = h
+            rhs[i, d] = (0.5 * np.vdot(V, g_times(Q + E, V)) - 0.5 * np.vdot(V, g_times(Q - E, V))) / (2 * h)
+    assert np.allclose(lhs, rhs, rtol=1e-6, atol=1e-6 * np.abs(rhs).max())
+
+
+def test_translation_is_exact_when_alpha3_is_zero():
+    """Prop. 5.2.12: f1 with α3 = 0 is translation invariant, so translations are geodesics."""
+    from meshopt_toolkit import load, data_path
+
+    mesh = load(data_path("square_crossed.msh")).as_planar()
+    pen = HeightPenalty(mesh, alpha=(1.0, 0.0, 0.0))
+    V = np.tile([0.7, -0.3], (mesh.n_vertices, 1))
+    res = geodesic(pen, mesh.points, V, 3.0, times=[1.0, 3.0])
+    assert np.allclose(res.points[1], mesh.points + 3 * V, atol=1e-12)
+    assert np.allclose(res.velocities[1], V, atol=1e-12)
+
+
+# -- invariants and admissibility ------------------------------------------------------
+
+
+@pytest.mark.parametrize("penalty", ["f1", "f2"])
+def test_energy_conserved_and_f_growth_bounded(penalty, rng):
+    from meshopt_toolkit import load, data_path
+
+    mesh = load(data_path("disc_25.msh")).as_planar()
+    if penalty == "f1":
+        pen = HeightPenalty(mesh, alpha=(0.5, 0.0, 0.5))
+    else:
+        pen = QualityPenalty(mesh, beta=(10, 1, 0, 0.001 * mesh.n_vertices))
+    V = 0.5 * rng.standard_normal(mesh.points.shape)
+    times = np.linspace(0, 2, 9)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", GeodesicWarning)
+        res = geodesic(pen, mesh.points, V, 2.0, times=times)
+    e0 = res.energy[0]
+    assert np.allclose(res.energy, e0, rtol=1e-3)
+    assert res.max_energy_drift < 1e-3
+    tight = geodesic(pen, mesh.points, V, 2.0, times=times, rtol=1e-10, atol=1e-10)
+    assert np.allclose(tight.energy, e0, rtol=1e-6)
+    f = np.array([pen.value(p) for p in res.points])
+    assert np.allclose(f, res.penalty)
+    assert np.all(np.abs(f - f[0]) <= np.sqrt(e0) * times * (1 + 1e-3) + 1e-12)
+    assert all(min_area(p, mesh) > 0 for p in res.points)
+
+
+def test_complete_metric_stays_admissible_for_long_times():
+    mesh = square5()
+    V = squeeze_velocity()
+    euclid = geodesic(EuclideanMetric(), mesh.points, V, 1.0, times=[0.7, 0.8, 0.9])
+    assert min_area(euclid.points[0], mesh) > 0
+    assert min_area(euclid.points[1], mesh) == pytest.approx(0, abs=1e-12)
+    assert min_area(euclid.points[2], mesh) < 0
+    pen = HeightPenalty(mesh, alpha=(1.0, 0.0, 1.0))
+    times = np.linspace(0, 50, 51)
+    res = geodesic(CompleteMetric(pen), mesh.points, V, 50.0, times=times, on_violation="raise")
+    areas = np.array([min_area(p, mesh) for p in res.points])
+    assert res.admissible.all() and np.all(areas > 0)
+    e0 = res.energy[0]
+    assert np.all(np.abs(res.penalty - res.penalty[0]) <= np.sqrt(e0) * times * (1 + 1e-4) + 1e-10)
+
+
+@settings(max_examples=8, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.too_slow])
+@given(
+    jitter=st.floats(0.0, 0.6),
+    seed=st.integers(0, 10_000),
+    speed=st.floats(0.5, 2.0),
+    use_f2=st.booleans(),
+)
+def test_random_geodesics_never_invert(jitter, seed, speed, use_f2):
+    """Random small meshes and velocities: a result is always admissible. Without the
+    boundary-pair term the metric cannot stop the boundary from touching itself; then
+    (and only then) an IntegrationError saying so is the correct outcome."""
+    mesh = grid_mesh(2, jitter=jitter, seed=seed)
+    r = np.random.default_rng(seed)
+    V = speed * r.standard_normal(mesh.points.shape)
+    if use_f2:
+        pen = QualityPenalty(mesh, beta=(1.0, 0.1, 0.0, 0.1 * mesh.n_vertices))
+    else:
+        pen = HeightPenalty(mesh, alpha=(0.1, 0.0, 0.5))
+    try:
+        res = geodesic(pen, mesh.points, V, 2.0, times=[0.5, 1.0, 2.0], rtol=1e-5, atol=1e-5,
+                       on_violation="ignore")
+    except IntegrationError as exc:
+        assert "boundary self-intersects" in str(exc)
+        return
+    for p in res.points:
+        assert min_area(p, mesh) > 0
+    assert res.max_energy_drift < 1e-2
+
+
+def test_rejects_steps_that_leave_the_manifold():
+    """A huge first step inverts a triangle: it is rejected and retried, never returned."""
+    mesh = square5()
+    pen = HeightPenalty(mesh, alpha=(1.0, 0.0, 1.0))
+    fld = GeodesicField(pen, mesh.triangles)
+    out = dopri5(fld, mesh.points, squeeze_velocity(), np.array([2.0]), rtol=1e-6, atol=1e-6, h0=2.0)
+    assert out.n_left_manifold >= 1
+    assert min_area(out.points[-1], mesh) > 0
+
+
+# -- integrators agree; orders; rescaling ----------------------------------------------
+
+
+def _mild_case():
+    mesh = square5()
+    pen = HeightPenalty(mesh, alpha=(0.5, 0.0, 0.5))
+    V = np.zeros((5, 2))
+    V[4] = [0.4, 0.3]
+    V[0] = [0.2, 0.3]
+    return mesh, pen, V
+
+
+def test_fast_integrator_agrees_with_scipy_dop853_and_stormer_verlet():
+    mesh, pen, V = _mild_case()
+    fast = geodesic(pen, mesh.points, V, 1.0)
+    tight = geodesic(pen, mesh.points, V, 1.0, method="scipy", rtol=1e-12, atol=1e-12)
+    sv = geodesic(pen, mesh.points, V, 1.0, method="stormer-verlet", steps=256)
+    assert fast.method == "dopri5" and sv.method == "stormer-verlet"
+    assert np.abs(fast.final - tight.final).max() < 1e-6
+    assert np.abs(sv.final - tight.final).max() < 1e-4
+    assert fast.n_evaluations < sv.n_evaluations / 10
+
+
+def test_stormer_verlet_is_second_order():
+    mesh, pen, V = _mild_case()
+    ref = geodesic(pen, mesh.points, V, 1.0, rtol=1e-12, atol=1e-12).final
+    steps = np.array([16, 32, 64, 128])
+    errs = [np.abs(geodesic(pen, mesh.points, V, 1.0, method="stormer-verlet", steps=int(n)).final
+                   - ref).max() for n in steps]
+    slope = -np.polyfit(np.log(steps), np.log(errs), 1)[0]
+    assert abs(slope - 2) < 0.15, (errs, slope)
+
+
+def test_dopri5_global_error_decreases_with_tolerance():
+    mesh, pen, V = _mild_case()
+    ref = geodesic(pen, mesh.points, V, 1.0, method="scipy", rtol=1e-13, atol=1e-13).final
+    errs = [np.abs(geodesic(pen, mesh.points, V, 1.0, rtol=tol, atol=tol).final - ref).max()
+            for tol in (1e-4, 1e-6, 1e-8, 1e-10)]
+    assert all(e1 > e2 for e1, e2 in zip(errs, errs[1:])), errs
+    assert errs[-1] < 1e-9
+
+
+def test_stormer_verlet_asks_for_more_steps():
+    mesh = square5()
+    pen = HeightPenalty(mesh, alpha=(1.0, 0.0, 1.0))
+    with pytest.raises(IntegrationError, match="use more steps"):
+        geodesic(pen, mesh.points, 3 * squeeze_velocity(), 2.0, method="stormer-verlet", steps=4)
+
+
+def test_rescaling_lemma(rng):
+    from meshopt_toolkit import load, data_path
+
+    mesh = load(data_path("disc_25.msh")).as_planar()
+    metric = CompleteMetric(HeightPenalty(mesh, alpha=(0.5, 0.0, 0.5)))
+    V = 0.5 * rng.standard_normal(mesh.points.shape)
+    taus = [1.0, 0.5, 0.25, 0.125]
+    one = geodesic(metric, mesh.points, V, 1.0, times=taus)
+    for tau, p in zip(taus, one.points):
+        assert np.abs(metric.exp(mesh.points, tau * V) - p).max() < 1e-6
+        assert np.abs(exp_map(metric, mesh.points, V, t=tau) - p).max() < 1e-6
+
+
+# -- API details ------------------------------------------------------------------------
+
+
+def test_euclidean_exp_and_output_order_and_negative_time():
+    mesh, pen, V = _mild_case()
+    Q = mesh.points
+    assert np.array_equal(exp_map(EuclideanMetric(), Q, V, 2.0), Q + 2 * V)
+    assert np.array_equal(exp_map(None, Q, V, 2.0), Q + 2 * V)
+    res = geodesic(pen, Q, V, 1.0, times=[1.0, 0.0, 0.5])
+    assert np.array_equal(res.points[1], Q) and np.array_equal(res.velocities[1], V)
+    mid = geodesic(pen, Q, V, 0.5).final
+    assert np.abs(res.points[2] - mid).max() < 1e-7
+    assert np.array_equal(res.at(0.5), res.points[2])
+    back = geodesic(pen, Q, V, -0.5)
+    assert np.abs(back.final - geodesic(pen, Q, -V, 0.5).final).max() < 1e-12
+    still = geodesic(pen, Q, np.zeros_like(V), 3.0)
+    assert np.array_equal(still.final, Q) and still.n_steps == 0
+
+
+def test_refusals():
+    mesh, pen, V = _mild_case()
+    with pytest.raises(IntegrationError, match="not implemented"):
+        exp_map(ElasticityMetric(mesh), mesh.points, V)
+    with pytest.raises(IntegrationError, match="method"):
+        geodesic(pen, mesh.points, V, method="euler")
+    with pytest.raises(IntegrationError, match="shape"):
+        geodesic(pen, mesh.points, V[:3])
+    with pytest.raises(IntegrationError, match="times"):
+        geodesic(pen, mesh.points, V, 1.0, times=[2.0])
+    bad = mesh.points.copy()
+    bad[4] = [5.0, 5.0]
+    with pytest.raises(IntegrationError, match="not admissible"):
+        geodesic(pen, bad, V)
+
+
+def test_invariant_violation_warns_or_raises():
+    mesh, pen, V = _mild_case()
+    with pytest.warns(GeodesicWarning, match="energy"):
+        res = geodesic(pen, mesh.points, V, 1.0, rtol=1e-3, atol=1e-3, energy_tol=1e-15)
+    assert res.warnings
+    with pytest.raises(IntegrationError, match="energy"):
+        geodesic(pen, mesh.points, V, 1.0, rtol=1e-3, atol=1e-3, energy_tol=1e-15,
+                 on_violation="raise")
