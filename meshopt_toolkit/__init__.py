@@ -52,6 +52,12 @@ _EXPORTS = {
     # morphing
     "log_map": "morph",
     "geodesic_morph": "morph",
+    # filters and pipelines
+    "Filter": "pipeline",
+    "Document": "pipeline",
+    "Pipeline": "pipeline",
+    "load_pipeline": "pipeline",
+    "save_pipeline": "pipeline",
 }
 
 __all__ = sorted(_EXPORTS) + ["__version__"]

@@ -72,10 +72,10 @@ def _prepare_outdir(outdir: Path, mesh_name: str, force: bool, input_path: Path)
 
 
 def _atomic_text(path: Path, text: str) -> None:
-    from ..io import atomic_write
+    from ..io import atomic_path
 
-    with atomic_write(path, "w") as fh:
-        fh.write(text)
+    with atomic_path(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -130,10 +130,10 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _write_history(outdir: Path, result) -> None:
-    from ..io import atomic_write
+    from ..io import atomic_path
 
     rows = [r.as_row() for r in result.history]
-    with atomic_write(outdir / "history.csv", "w") as fh:
+    with atomic_path(outdir / "history.csv") as tmp, open(tmp, "w", newline="") as fh:
         writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)

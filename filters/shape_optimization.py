@@ -1,0 +1,74 @@
+"""Filter ``compute_shape_optimization``: minimize ∫y + f2 over admissible meshes."""
+
+from __future__ import annotations
+
+from meshopt_toolkit.errors import FilterError
+from meshopt_toolkit.pipeline.filter import Filter, register
+from meshopt_toolkit.pipeline.params import EnumParam, FloatParam, IntParam, StringParam
+
+VARIANTS = ("euclidean-euclidean", "elasticity-euclidean", "complete-euclidean", "complete-complete")
+DEFAULT_RHS = "2.5*(x1 + 0.4 - x2**2)**2 + x1**2 + x2**2 - 1"
+
+
+def parse_beta(text: str, what: str) -> tuple[float, float, float, float] | None:
+    """``"b1,b2,b3,b4"`` → floats; empty → None (use the default)."""
+    if not text.strip():
+        return None
+    try:
+        values = tuple(float(x) for x in text.split(","))
+    except ValueError:
+        raise FilterError(f"{what}: expected four comma-separated numbers, got {text!r}") from None
+    if len(values) != 4 or min(values) < 0:
+        raise FilterError(f"{what}: expected four non-negative numbers b1,b2,b3,b4, got {text!r}")
+    return values  # type: ignore[return-value]
+
+
+@register
+class ShapeOptimization(Filter):
+    """PDE-constrained shape optimization of the current planar mesh (thesis ch. 6).
+
+    Minimizes ``j(Q) + f2(Q; Q0)`` with ``j = ∫ y``, ``−Δy = r``, ``y = 0`` on the boundary
+    (P1, centroid quadrature), by Riemannian steepest descent
+    (:func:`meshopt_toolkit.optimize.optimize`). ``r`` is parsed by the safe expression
+    evaluator (never ``eval``). β4 is unscaled (f2 divides it by 2N). Empty β strings mean
+    the thesis defaults: β^penalty = parameter set 2 = (0.1, 0.01, 0, 0.001·N),
+    β^metric = (10, 1, 0, 0.01·N). The optimized mesh replaces the current one; the summary
+    holds status, iterations, j, j + f2, Λ and AR.
+    """
+
+    name = "compute_shape_optimization"
+    label = "Shape Optimization (meshopt)"
+    description = "Minimize the integral of the Poisson state plus a mesh-quality penalty, keeping the mesh admissible."
+    parameters = (
+        EnumParam("variant", "complete-euclidean", "gradient metric and retraction",
+                  label="Variant", choices=VARIANTS),
+        StringParam("rhs", DEFAULT_RHS, "right-hand side r(x1, x2) (safe expression)",
+                    label="Right-hand side"),
+        StringParam("penalty", "", "beta^penalty b1,b2,b3,b4 (b4 unscaled); empty = thesis set 2",
+                    label="Penalty beta"),
+        StringParam("metric_penalty", "", "beta^metric b1,b2,b3,b4; empty = 10,1,0,0.01*N",
+                    label="Metric beta"),
+        IntParam("max_iterations", 1000, "maximum number of iterations", label="Max iterations",
+                 min=1, max=100000),
+        FloatParam("tolerance", 1e-6, "stopping tolerance of (6.26); 0 = run all iterations",
+                   label="Tolerance", min=0.0),
+    )
+
+    def apply(self, document, *, variant: str = "complete-euclidean", rhs: str = DEFAULT_RHS,
+              penalty: str = "", metric_penalty: str = "", max_iterations: int = 1000,
+              tolerance: float = 1e-6) -> dict:
+        from meshopt_toolkit.optimize import optimize, thesis_penalty_beta
+        from meshopt_toolkit.poisson import PoissonObjective
+
+        entry = document.current_entry
+        if not entry.mesh.is_planar:
+            raise FilterError(f"{self.name} needs a planar mesh; {entry.name} is a 3D surface")
+        mesh = entry.mesh.as_planar()
+        beta = parse_beta(penalty, "penalty") or thesis_penalty_beta(2, mesh.n_vertices)
+        result = optimize(
+            mesh, PoissonObjective(mesh, rhs=rhs), variant=variant, penalty_beta=beta,
+            metric_beta=parse_beta(metric_penalty, "metric_penalty"), max_iter=max_iterations,
+            tol=tolerance or None,
+        )
+        entry.mesh = result.mesh
+        return result.summary()

@@ -1,0 +1,56 @@
+"""The compute_shape_optimization filter through Python, JSON and .mlx."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from meshopt_toolkit.errors import ExpressionError, FilterError
+from meshopt_toolkit.io import load
+from meshopt_toolkit.datasets import data_path
+from meshopt_toolkit.optimize import optimize
+from meshopt_toolkit.pipeline import Document, Pipeline, load_pipeline, registry, save_pipeline
+from meshopt_toolkit.poisson import PoissonObjective
+
+STEP = {"name": "compute_shape_optimization",
+        "params": {"variant": "complete-euclidean", "rhs": "1", "penalty": "0.1,0.01,0,0.5",
+                   "max_iterations": 4, "tolerance": 0}}
+
+
+@pytest.fixture(scope="module")
+def disc():
+    return load(data_path("disc_25.msh")).as_planar()
+
+
+def _expected(mesh):
+    return optimize(mesh, PoissonObjective(mesh, rhs="1"), variant="complete-euclidean",
+                    penalty_beta=(0.1, 0.01, 0, 0.5), max_iter=4, tol=None)
+
+
+@pytest.mark.parametrize("kind", ["python", "json", "mlx"])
+def test_filter_equals_library_call(kind, disc, tmp_path):
+    doc = Document([disc])
+    if kind == "python":
+        summary = registry.get(STEP["name"])()(doc, **STEP["params"])
+        assert summary["iterations"] == 4
+    else:
+        path = tmp_path / f"p.{kind}"
+        if kind == "json":
+            path.write_text(json.dumps({"filters": [STEP]}))
+        else:
+            save_pipeline(Pipeline.from_dict({"filters": [STEP]}), path)
+            assert "Shape Optimization (meshopt)" in path.read_text()
+        doc = load_pipeline(path).run(doc)
+    expected = _expected(disc)
+    np.testing.assert_allclose(doc.mesh.points, expected.x, rtol=0, atol=1e-12)
+    assert not np.allclose(doc.mesh.points, disc.points)
+
+
+def test_filter_refuses_unsafe_rhs_and_bad_beta(disc):
+    f = registry.get("compute_shape_optimization")()
+    with pytest.raises(ExpressionError):
+        f(Document([disc]), rhs="__import__('os').system('true')", max_iterations=1)
+    with pytest.raises(FilterError, match="four"):
+        f(Document([disc]), penalty="1,2", max_iterations=1)
