@@ -188,12 +188,16 @@ def _to_vertices(phi_x, phi_y, psi_x, psi_y, out_x: FloatArray, out_y: FloatArra
 
     ``Φ`` is an edge-space field (a derivative w.r.t. the edge vectors ``e_l``; vertex
     ``m`` is the head of edge ``m+1`` and the tail of edge ``m+2``), ``Ψ`` a field whose
-    quarter-turn ``R(a, b) = (−b, a)`` enters as in ``∇_m A = ½ R e_m``.
+    quarter-turn ``R(a, b) = (−b, a)`` enters as in ``∇_m A = ½ R e_m``. ``psi_x`` and
+    ``psi_y`` are overwritten.
     """
-    np.subtract(phi_x[_NEXT], phi_x[_PREV], out=out_x)
-    np.subtract(phi_y[_NEXT], phi_y[_PREV], out=out_y)
-    out_x -= 0.5 * psi_y
-    out_y += 0.5 * psi_x
+    for m in range(3):  # the 3 local vertices
+        np.subtract(phi_x[_NEXT[m]], phi_x[_PREV[m]], out=out_x[m])
+        np.subtract(phi_y[_NEXT[m]], phi_y[_PREV[m]], out=out_y[m])
+    psi_x *= 0.5
+    psi_y *= 0.5
+    out_x -= psi_y
+    out_y += psi_x
 
 
 # ---------------------------------------------------------------------------------------
@@ -208,111 +212,128 @@ class _TriangleQuotientTerm:
     quotient rule gives the curvature
     ``(N/A)'' = n2/A − 2 n1 a1/A² − N a2/A² + 2 N a1²/A³`` and the Hessian-vector product
     ``H_N V/A − (∇N a1 + ∇A n1)/A² − N H_A V/A² + 2 N a1 ∇A/A³``, where
-    ``∇_m A = ½ R e_m``, ``H_A V = ½ R w_m``, ``a2 = 2A(w)`` (``w = e(V)``) and
-    ``S' = 2Σ e·w``, ``S'' = 2Σ|w|²``, ``L' = Σ u·w``, ``L'' = Σ (|w|² − (u·w)²)/E``.
-    Evaluated block by block (see :meth:`Penalty._triangle_pass`).
+    ``∇_m A = ½ R e_m``, ``H_A V = ½ R w_m``, ``a2 = 2A(w)`` (``w = e(V)``) and, per edge,
+    ``∂S/∂e = 2e``, ``S' = 2Σ e·w``, ``S'' = 2Σ|w|²``, ``H_S: w ↦ 2w``;
+    ``∂L/∂e = u = e/E``, ``L' = Σ u·w``, ``L'' = Σ (|w|² − (u·w)²)/E``,
+    ``H_L: w ↦ (w − u (u·w))/E``. Evaluated block by block
+    (see :meth:`Penalty._triangle_pass`).
     """
 
     def __init__(self, name: str, kind: str, coef: float) -> None:
         self.name = name
-        self.kind = kind
+        self.quality = kind == "quality"
         self.coef = float(coef)
 
     def block(self, ex, ey, A, wx, wy, want: _Want, gout, hout) -> tuple[float, float]:
         """One block of triangles: ``(value, curvature)``; vertex vectors of the gradient
         and the hvp are written into ``gout``/``hout`` = ``(x (3, b), y (3, b))``."""
         c = self.coef
-        sq = ex * ex + ey * ey
-        if self.kind == "quality":
-            N = sq.sum(axis=0)
-            Fx, Fy, E = 2.0 * ex, 2.0 * ey, None
+        sq = ex * ex
+        sq += ey * ey
+        if self.quality:
+            N = sq[0] + sq[1] + sq[2]
+            iE = None
         else:
             E = np.sqrt(sq)
-            N = E.sum(axis=0)
-            Fx, Fy = ex / E, ey / E  # unit edge vectors u_l
+            N = E[0] + E[1] + E[2]
+            iE = 1.0 / E
         inv_a = 1.0 / A
         ratio = N * inv_a  # N / A
         value = c * float(ratio.sum())
         curvature = 0.0
         cinv = c * inv_a
         if gout is not None:
-            # ∇(N/A) = ∇N/A − (N/A²) ∇A
+            # ∇(N/A) = ∇N/A − (N/A²) ∇A :  Φ = (c/A) ∂N/∂e,  Ψ = −(c N/A²) e
+            f = 2.0 * cinv if iE is None else cinv * iE
             r = -(cinv * ratio)
-            _to_vertices(cinv * Fx, cinv * Fy, r * ex, r * ey, *gout)
+            _to_vertices(f * ex, f * ey, r * ex, r * ey, *gout)
         if wx is None:
             return value, curvature
-        fw = Fx * wx + Fy * wy  # (3, b)  F_l · w_l
-        n1 = fw.sum(axis=0)
-        ww = wx * wx + wy * wy
-        if E is None:
-            n2 = 2.0 * ww.sum(axis=0)
-        else:  # ∂²E_l[w, w] = (|w|² − (u·w)²) / E
-            n2 = ((ww - fw * fw) / E).sum(axis=0)
+        ew = ex * wx
+        ew += ey * wy  # e_l · w_l
+        ww = wx * wx
+        ww += wy * wy
+        if iE is None:
+            n1 = 2.0 * (ew[0] + ew[1] + ew[2])
+            n2 = 2.0 * (ww[0] + ww[1] + ww[2])
+        else:
+            fw = ew * iE  # u_l · w_l
+            n1 = fw[0] + fw[1] + fw[2]
+            t = (ww - fw * fw) * iE
+            n2 = t[0] + t[1] + t[2]
         a1 = 0.5 * (wx[2] * ey[0] + ex[2] * wy[0] - wy[2] * ex[0] - ey[2] * wx[0])
-        a2 = wx[2] * wy[0] - wy[2] * wx[0]  # 2 A(V)
         a1_a = a1 * inv_a
+        a2 = wx[2] * wy[0] - wy[2] * wx[0]  # 2 A(V)
         if want.curvature:
             curv = inv_a * (n2 - 2.0 * n1 * a1_a - ratio * a2 + 2.0 * ratio * a1_a * a1)
             curvature = c * float(curv.sum())
         if hout is not None:
-            if E is None:
-                Kx, Ky = 2.0 * wx, 2.0 * wy
-            else:  # K_l = (w − u (u·w)) / E
-                Kx, Ky = (wx - Fx * fw) / E, (wy - Fy * fw) / E
-            # edge part: (K − F a1/A)/A ; rotation part: e (2N a1/A³ − n1/A²) − w N/A²
-            phi_x = cinv * (Kx - Fx * a1_a)
-            phi_y = cinv * (Ky - Fy * a1_a)
+            # edge part Φ = (c/A)(H_N w − ∂N/∂e a1/A) = g (w − e h)
+            if iE is None:
+                g, h = 2.0 * cinv, a1_a
+            else:
+                g, h = cinv * iE, fw * iE + a1_a
+            phi_x = wx - ex * h
+            phi_x *= g
+            phi_y = wy - ey * h
+            phi_y *= g
+            # rotation part Ψ = (c/A²) [e (2N a1/A − n1) − w N]
             r = cinv * inv_a
             ce = r * (2.0 * N * a1_a - n1)
             cw = -r * N
-            _to_vertices(phi_x, phi_y, ce * ex + cw * wx, ce * ey + cw * wy, *hout)
+            psi_x = ce * ex
+            psi_x += cw * wx
+            psi_y = ce * ey
+            psi_y += cw * wy
+            _to_vertices(phi_x, phi_y, psi_x, psi_y, *hout)
         return value, curvature
 
 
 class _TotalAreaTerm:
     """``β2 / 𝒜`` with ``𝒜 = Σ_k A_k = ½ Σ_{(a,b)∈E∂} q_a × q_b`` (5.22).
 
-    Only boundary nodes enter; ``𝒜`` is quadratic, so ``𝒜'' = 2𝒜(V)`` and
+    Only boundary nodes enter (work and memory are O(#E∂), not O(N)); ``𝒜`` is a
+    quadratic form, so ``H_𝒜 V = ∇𝒜(V)``, ``𝒜'' = 2𝒜(V)`` and
     ``(β2/𝒜)'' = β2 (2𝒜'²/𝒜³ − 𝒜''/𝒜²)``.
     """
 
     name = "area"
 
-    def __init__(self, coef: float, boundary_edges: IntArray) -> None:
+    def __init__(self, coef: float, boundary_edges: IntArray, boundary_vertices: IntArray) -> None:
         self.coef = float(coef)
-        self.a = np.ascontiguousarray(boundary_edges[:, 0])
-        self.b = np.ascontiguousarray(boundary_edges[:, 1])
+        self.nodes = boundary_vertices  # sorted
+        self.a = np.searchsorted(boundary_vertices, boundary_edges[:, 0])
+        self.b = np.searchsorted(boundary_vertices, boundary_edges[:, 1])
 
-    def total(self, Q: FloatArray) -> float:
-        qa, qb = Q[self.a], Q[self.b]
-        return 0.5 * float(np.sum(qa[:, 0] * qb[:, 1] - qa[:, 1] * qb[:, 0]))
-
-    def _grad_total(self, Q: FloatArray) -> FloatArray:
-        """∇𝒜 ``(N, 2)``: ``∂/∂q_a (q_a × q_b) = (y_b, −x_b)``, ``∂/∂q_b = (−y_a, x_a)``."""
-        n = len(Q)
-        qa, qb = Q[self.a], Q[self.b]
+    def _grad_total(self, qa: FloatArray, qb: FloatArray) -> FloatArray:
+        """∇𝒜 on the boundary nodes ``(B, 2)``: ``∂/∂q_a (q_a × q_b) = (y_b, −x_b)``,
+        ``∂/∂q_b = (−y_a, x_a)``."""
+        n = len(self.nodes)
         gx = np.bincount(self.a, qb[:, 1], n) - np.bincount(self.b, qa[:, 1], n)
         gy = np.bincount(self.b, qa[:, 0], n) - np.bincount(self.a, qb[:, 0], n)
         return 0.5 * np.stack([gx, gy], axis=1)
 
     def evaluate(self, Q: FloatArray, V: FloatArray | None, acc: _Accumulator) -> None:
         c = self.coef
-        tot = self.total(Q)
+        q = Q[self.nodes]
+        qa, qb = q[self.a], q[self.b]
+        tot = 0.5 * float(np.sum(qa[:, 0] * qb[:, 1] - qa[:, 1] * qb[:, 0]))
         acc.values[self.name] = c / tot
         want = acc.want
         if not (want.gradient or want.hvp or want.curvature):
             return
-        grad_tot = self._grad_total(Q)
+        grad_tot = self._grad_total(qa, qb)
         if want.gradient:
-            acc.grad += (-c / tot**2) * grad_tot
+            acc.grad[self.nodes] += (-c / tot**2) * grad_tot
         if want.hvp or want.curvature:
-            d1 = _dot(grad_tot, V)
-            hv = self._grad_total(V)  # H_𝒜 V (𝒜 is a quadratic form)
-            d2 = _dot(hv, V)
+            v = V[self.nodes]
+            d1 = _dot(grad_tot, v)
+            hv = self._grad_total(v[self.a], v[self.b])  # H_𝒜 V
+            d2 = _dot(hv, v)
             if want.curvature:
                 acc.curvature += c * (2.0 * d1 * d1 / tot**3 - d2 / tot**2)
             if want.hvp:
-                acc.hvp += (-c / tot**2) * hv + (2.0 * c * d1 / tot**3) * grad_tot
+                acc.hvp[self.nodes] += (-c / tot**2) * hv + (2.0 * c * d1 / tot**3) * grad_tot
 
 
 class _ReferenceTerm:
@@ -779,7 +800,7 @@ class QualityPenalty(Penalty):
             coef = b1 / (4.0 * SQRT3 * self.n_triangles)
             self._triangle_term = _TriangleQuotientTerm("quality", "quality", coef)
         if b2:
-            self._other_terms.append(_TotalAreaTerm(b2, self._boundary_edges))
+            self._other_terms.append(_TotalAreaTerm(b2, self._boundary_edges, self._boundary_vertices))
         if b3:
             n_pairs_norm = len(self._boundary_edges) * len(self._boundary_vertices)
             self._other_terms.append(
