@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib.util
 import sys
 import types
 
@@ -57,17 +58,26 @@ def _real_penalties(mesh):
     ]
 
 
+HAVE_PYAMG = importlib.util.find_spec("pyamg") is not None
+needs_pyamg = pytest.mark.skipif(not HAVE_PYAMG, reason="pyamg not installed")
+
+
 def _metrics(mesh):
     return {
         "euclidean": EuclideanMetric(),
         "elasticity-direct": ElasticityMetric(mesh, solver="direct"),
-        "elasticity-amg": ElasticityMetric(mesh, solver="amg"),
+        "elasticity-amg": ElasticityMetric(mesh, solver="amg"),  # imports pyamg on first solve
         "elasticity-custom": ElasticityMetric(mesh, E=3.0, nu=0.25, delta=0.7, solver="direct"),
         "complete": CompleteMetric(InverseAreaPenalty(mesh)),
     }
 
 
-METRIC_NAMES = list(_metrics(square5()))
+METRIC_NAMES = [
+    pytest.param(name, marks=needs_pyamg) if "amg" in name else name
+    for name in (
+        "euclidean", "elasticity-direct", "elasticity-amg", "elasticity-custom", "complete"
+    )
+]
 
 
 @pytest.fixture
@@ -221,7 +231,7 @@ def test_elasticity_matrix_is_rigidly_equivariant(mesh):
 
 
 def test_elasticity_factorizes_once_per_q(mesh, rng):
-    for solver in ("direct", "amg"):
+    for solver in ("direct", "amg") if HAVE_PYAMG else ("direct",):
         metric = ElasticityMetric(mesh, solver=solver)
         Q = mesh.points.copy()
         P1, P2 = rng.standard_normal((2,) + Q.shape)
@@ -237,6 +247,7 @@ def test_elasticity_factorizes_once_per_q(mesh, rng):
         assert metric.n_assemblies == 2
 
 
+@needs_pyamg
 def test_elasticity_amg_agrees_with_direct(rng):
     mesh = grid_mesh(20, jitter=0.4, seed=1)
     P = rng.standard_normal(mesh.points.shape)
@@ -250,7 +261,20 @@ def test_elasticity_auto_solver_picks_by_size(mesh, monkeypatch):
     Q = mesh.points
     assert metric._solver(Q, None).method == "direct"
     monkeypatch.setattr(elasticity, "AUTO_AMG_MIN_DOFS", 10)
-    assert ElasticityMetric(mesh)._solver(Q, None).method == "amg"
+    assert ElasticityMetric(mesh)._solver(Q, None).method == ("amg" if HAVE_PYAMG else "direct")
+
+
+def test_elasticity_without_pyamg(mesh, monkeypatch, rng):
+    """pyamg is optional: "auto" falls back to SuperLU, "amg" says what to install."""
+    monkeypatch.setitem(sys.modules, "pyamg", None)  # makes `import pyamg` fail
+    monkeypatch.setattr(elasticity, "AUTO_AMG_MIN_DOFS", 10)
+    P = rng.standard_normal(mesh.points.shape)
+    metric = ElasticityMetric(mesh)
+    G = metric.riesz(mesh.points, P)
+    assert metric.inner(mesh.points, G, P) == pytest.approx(np.vdot(P, P))
+    assert metric._solver(mesh.points, None).method == "direct"
+    with pytest.raises(MeshoptError, match="pip install pyamg"):
+        ElasticityMetric(mesh, solver="amg").riesz(mesh.points, P)
 
 
 def test_elasticity_errors(mesh):
