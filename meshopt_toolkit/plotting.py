@@ -1,0 +1,263 @@
+"""Matplotlib helpers: mesh snapshots, strips and overlays of snapshots, quality plots.
+
+matplotlib is imported lazily, only when a function here is called, and figures are drawn
+with the Agg canvas directly (``matplotlib.figure.Figure`` + ``FigureCanvasAgg``), so no
+pyplot global state and no display are involved. Every ``save_*`` function writes one PNG
+and returns its path. Inverted triangles (signed area ≤ 0) are filled in red so a broken
+mesh is visible at a glance.
+
+Install the extra with ``pip install meshopt-toolkit[plot]``.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from ._typing import FloatArray, IntArray
+from .errors import MeshoptError
+from .geometry import signed_areas
+
+__all__ = [
+    "draw_mesh",
+    "save_mesh_png",
+    "save_snapshot_strip",
+    "save_overlay",
+    "save_overlay_grid",
+    "save_quality_plot",
+]
+
+
+def _figure(width: float, height: float):
+    """A new Agg-backed ``Figure`` (lazy import; a clear error when matplotlib is missing)."""
+    try:
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+    except ImportError as exc:  # pragma: no cover - depends on the environment
+        raise MeshoptError(
+            "plotting needs matplotlib: pip install 'meshopt-toolkit[plot]'"
+        ) from exc
+    fig = Figure(figsize=(width, height))
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _save(fig, path) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(os.fspath(path), dpi=fig.dpi)
+    return path
+
+
+def draw_mesh(
+    ax,
+    points: FloatArray,
+    triangles: IntArray,
+    *,
+    color: str = "0.2",
+    linewidth: float = 0.7,
+    alpha: float = 1.0,
+    velocity: FloatArray | None = None,
+    show_inverted: bool = True,
+) -> None:
+    """Draw the edges of a planar mesh on a matplotlib ``Axes``.
+
+    Parameters
+    ----------
+    ax : matplotlib Axes
+    points : (N, 2) positions
+    triangles : (T, 3) connectivity
+    color, linewidth, alpha : edge style
+    velocity : (N, 2), optional
+        Drawn as arrows at the vertices (nonzero ones only).
+    show_inverted : fill triangles with signed area ≤ 0 in red
+    """
+    from matplotlib.collections import LineCollection, PolyCollection
+
+    p = np.asarray(points, dtype=float)
+    tri = np.asarray(triangles)
+    loops = p[tri]  # (T, 3, 2)
+    segs = np.concatenate([loops, loops[:, :1]], axis=1)  # closed triangles (T, 4, 2)
+    ax.add_collection(LineCollection(segs, colors=color, linewidths=linewidth, alpha=alpha))
+    if show_inverted:
+        bad = signed_areas(p, tri) <= 0
+        if bad.any():
+            ax.add_collection(PolyCollection(loops[bad], facecolors="red", alpha=0.4,
+                                             edgecolors="red"))
+    if velocity is not None:
+        v = np.asarray(velocity, dtype=float)
+        moving = np.any(v != 0, axis=1)
+        if moving.any():
+            ax.quiver(p[moving, 0], p[moving, 1], v[moving, 0], v[moving, 1],
+                      angles="xy", scale_units="xy", scale=1.0, color="tab:green", width=0.004)
+    ax.set_aspect("equal")
+    ax.autoscale_view()
+
+
+def _limits(frames: FloatArray, margin: float = 0.05):
+    lo = frames.reshape(-1, 2).min(axis=0)
+    hi = frames.reshape(-1, 2).max(axis=0)
+    pad = margin * max(float(np.max(hi - lo)), 1e-12)
+    return (lo[0] - pad, hi[0] + pad), (lo[1] - pad, hi[1] + pad)
+
+
+def save_mesh_png(
+    path,
+    points: FloatArray,
+    triangles: IntArray,
+    *,
+    title: str | None = None,
+    velocity: FloatArray | None = None,
+    size: float = 4.0,
+    dpi: int = 120,
+) -> Path:
+    """One mesh (optionally with a velocity field) as a PNG."""
+    fig = _figure(size, size)
+    fig.dpi = dpi
+    ax = fig.add_subplot(1, 1, 1)
+    draw_mesh(ax, points, triangles, velocity=velocity)
+    frames = np.asarray(points, float)[None]
+    if velocity is not None:
+        frames = np.concatenate([frames, (np.asarray(points) + np.asarray(velocity))[None]])
+    xl, yl = _limits(frames)
+    ax.set_xlim(*xl)
+    ax.set_ylim(*yl)
+    if title:
+        ax.set_title(title)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def save_snapshot_strip(
+    path,
+    frames: FloatArray,
+    triangles: IntArray,
+    *,
+    titles: Sequence[str] | None = None,
+    ncols: int | None = None,
+    share_axes: bool = True,
+    panel_size: float = 2.5,
+    dpi: int = 100,
+) -> Path:
+    """Snapshots ``frames`` (K, N, 2) side by side (wrapped into rows of ``ncols``).
+
+    ``share_axes`` gives every panel the same limits (as thesis fig. 5.25), so motion and
+    shrinking are visible.
+    """
+    frames = np.asarray(frames, dtype=float)
+    K = len(frames)
+    ncols = min(K, ncols or 6)
+    nrows = -(-K // ncols)
+    fig = _figure(panel_size * ncols, panel_size * nrows + (0.3 if titles else 0))
+    fig.dpi = dpi
+    xl, yl = _limits(frames)
+    for k in range(K):
+        ax = fig.add_subplot(nrows, ncols, k + 1)
+        draw_mesh(ax, frames[k], triangles, linewidth=0.5)
+        if share_axes:
+            ax.set_xlim(*xl)
+            ax.set_ylim(*yl)
+        ax.set_xticks([])
+        ax.set_yticks([])
+        if titles is not None:
+            ax.set_title(titles[k], fontsize=8)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def _overlay(ax, frames: FloatArray, triangles: IntArray) -> None:
+    """Thesis style: first snapshot red, last blue, the ones between light grey."""
+    for k in range(1, len(frames) - 1):
+        draw_mesh(ax, frames[k], triangles, color="0.6", linewidth=0.4, alpha=0.7,
+                  show_inverted=False)
+    draw_mesh(ax, frames[0], triangles, color="tab:red", linewidth=0.9)
+    if len(frames) > 1:
+        draw_mesh(ax, frames[-1], triangles, color="tab:blue", linewidth=0.9)
+    xl, yl = _limits(frames)
+    ax.set_xlim(*xl)
+    ax.set_ylim(*yl)
+
+
+def save_overlay(
+    path,
+    frames: FloatArray,
+    triangles: IntArray,
+    *,
+    title: str | None = None,
+    size: float = 4.0,
+    dpi: int = 120,
+) -> Path:
+    """All snapshots of a path in one axes: initial red, final blue, between grey."""
+    fig = _figure(size, size)
+    fig.dpi = dpi
+    ax = fig.add_subplot(1, 1, 1)
+    _overlay(ax, np.asarray(frames, float), triangles)
+    if title:
+        ax.set_title(title)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def save_overlay_grid(
+    path,
+    panels: Sequence[tuple[FloatArray, str]],
+    triangles: IntArray,
+    *,
+    ncols: int = 3,
+    panel_size: float = 3.0,
+    suptitle: str | None = None,
+    dpi: int = 100,
+) -> Path:
+    """A grid of overlays, one per ``(frames (K, N, 2), title)`` panel (thesis fig. 5.21)."""
+    n = len(panels)
+    ncols = min(ncols, n)
+    nrows = -(-n // ncols)
+    fig = _figure(panel_size * ncols, panel_size * nrows + (0.4 if suptitle else 0))
+    fig.dpi = dpi
+    for k, (frames, title) in enumerate(panels):
+        ax = fig.add_subplot(nrows, ncols, k + 1)
+        _overlay(ax, np.asarray(frames, float), triangles)
+        ax.set_title(title, fontsize=9)
+        ax.tick_params(labelsize=7)
+    if suptitle:
+        fig.suptitle(suptitle)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def save_quality_plot(
+    path,
+    times: FloatArray,
+    series: Mapping[str, FloatArray],
+    *,
+    ylabel: str = "mesh aspect ratio  min 2r/R",
+    title: str | None = None,
+    size: tuple[float, float] = (6.0, 4.0),
+    dpi: int = 120,
+) -> Path:
+    """Quality over time, one line per labelled series (thesis fig. 5.26).
+
+    ``series`` maps a label to values (K,) at ``times`` (K,) (or ``(times_k, values_k)``
+    pairs when the series have different times).
+    """
+    fig = _figure(*size)
+    fig.dpi = dpi
+    ax = fig.add_subplot(1, 1, 1)
+    for label, vals in series.items():
+        if isinstance(vals, tuple):
+            t, y = vals
+        else:
+            t, y = times, vals
+        ax.plot(np.asarray(t), np.asarray(y), marker="o", markersize=3, label=label)
+    ax.set_xlabel("t")
+    ax.set_ylabel(ylabel)
+    ax.axhline(0.0, color="0.7", linewidth=0.8)
+    ax.grid(True, alpha=0.3)
+    ax.legend()
+    if title:
+        ax.set_title(title)
+    fig.tight_layout()
+    return _save(fig, path)
