@@ -40,6 +40,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ._typing import FloatArray, IntArray
+from . import distance as _distance
 from .errors import InvalidMeshError, NotAdmissibleError
 from .mesh import PlanarMesh, TriangleMesh, boundary_self_intersections
 
@@ -55,16 +56,18 @@ __all__ = [
 
 SQRT3 = np.sqrt(3.0)
 
-try:  # the default regularization parameter lives with the distance kernels
-    from .distance import DEFAULT_MU  # type: ignore[attr-defined]
-except ImportError:  # pragma: no cover - until distance.py provides it
-    DEFAULT_MU = 1.0e3
+#: default μ of the regularized distance (defined with the distance kernels)
+DEFAULT_MU = _distance.DEFAULT_MU
 
 #: triangles per block of the per-triangle pass (keeps temporaries in cache)
 BLOCK = 8192
 
-#: pairs per chunk when the boundary term visits all pairs (memory bound, ~100 MB)
-PAIR_CHUNK = 1_000_000
+#: boundary pairs evaluated at once (their derivatives take ~250 bytes per pair)
+PAIR_CHUNK = 250_000
+
+#: without a cut-off, the all-pairs list is cached when it has at most this many rows
+#: (24 bytes per pair); larger sets are regenerated chunk by chunk on every call
+PAIR_CACHE = 2_000_000
 
 
 # ---------------------------------------------------------------------------------------
@@ -251,20 +254,22 @@ class _TriangleQuotientTerm:
             return value, curvature
         ew = ex * wx
         ew += ey * wy  # e_l · w_l
-        ww = wx * wx
-        ww += wy * wy
         if iE is None:
             n1 = 2.0 * (ew[0] + ew[1] + ew[2])
-            n2 = 2.0 * (ww[0] + ww[1] + ww[2])
         else:
             fw = ew * iE  # u_l · w_l
             n1 = fw[0] + fw[1] + fw[2]
-            t = (ww - fw * fw) * iE
-            n2 = t[0] + t[1] + t[2]
         a1 = 0.5 * (wx[2] * ey[0] + ex[2] * wy[0] - wy[2] * ex[0] - ey[2] * wx[0])
         a1_a = a1 * inv_a
-        a2 = wx[2] * wy[0] - wy[2] * wx[0]  # 2 A(V)
-        if want.curvature:
+        if want.curvature:  # second directional derivatives n2 = N''[V, V], a2 = 2 A(V)
+            ww = wx * wx
+            ww += wy * wy
+            if iE is None:
+                n2 = 2.0 * (ww[0] + ww[1] + ww[2])
+            else:
+                t = (ww - fw * fw) * iE
+                n2 = t[0] + t[1] + t[2]
+            a2 = wx[2] * wy[0] - wy[2] * wx[0]
             curv = inv_a * (n2 - 2.0 * n1 * a1_a - ratio * a2 + 2.0 * ratio * a1_a * a1)
             curvature = c * float(curv.sum())
         if hout is not None:
@@ -363,7 +368,7 @@ class _BoundaryTerm:
 
     With ``s = w/D``: ``s' = −w D'/D²``, ``s'' = w (2D'²/D³ − D''/D²)``; with χ:
     ``χ(s)'' = χ''(s) s'² + χ'(s) s''``. Without a cut-off all pairs are visited in chunks
-    (cached when there are at most :data:`PAIR_CHUNK`); with one, only the pairs whose
+    (the list is cached when it has at most :data:`PAIR_CACHE` rows); with one, only the pairs whose
     summand can exceed ``s_lo`` are found by a radius search around the current ``Q``:
     ``χ(w/D^μ) > 0`` needs ``D^μ < w/s_lo``, and ``D^μ ≥ D − 1/(2μ)`` and ``D ≥`` the
     Euclidean vertex–segment distance, so radius ``w/s_lo + 1/(2μ)`` finds them all.
@@ -380,9 +385,6 @@ class _BoundaryTerm:
         boundary_vertices: IntArray,
         boundary_edges: IntArray,
     ) -> None:
-        from . import distance
-
-        self._dist = distance
         self.coef = float(coef)
         self.weight = float(weight)
         self.mu = float(mu)
@@ -391,8 +393,8 @@ class _BoundaryTerm:
         self.be = boundary_edges
         self._all_pairs: IntArray | None = None
         n_pairs = len(boundary_vertices) * len(boundary_edges)
-        if cut is None and n_pairs <= PAIR_CHUNK:
-            self._all_pairs = distance.boundary_pairs(boundary_vertices, boundary_edges)
+        if cut is None and n_pairs <= PAIR_CACHE:
+            self._all_pairs = _distance.boundary_pairs(boundary_vertices, boundary_edges)
 
     def pair_chunks(self, Q: FloatArray):
         """Iterator over the ``(k, 3)`` pair arrays to visit at ``Q``."""
@@ -402,11 +404,14 @@ class _BoundaryTerm:
                 radius = None
             else:
                 radius = self.weight / s_lo + 0.5 / self.mu
-            yield self._dist.boundary_pairs(self.bv, self.be, points=Q, radius=radius)
-        elif self._all_pairs is not None:
-            yield self._all_pairs
+            pairs = _distance.boundary_pairs(self.bv, self.be, points=Q, radius=radius)
         else:
-            yield from self._dist.iter_boundary_pairs(self.bv, self.be, chunk=PAIR_CHUNK)
+            pairs = self._all_pairs
+        if pairs is not None:
+            for start in range(0, len(pairs), PAIR_CHUNK):
+                yield pairs[start : start + PAIR_CHUNK]
+        else:
+            yield from _distance.iter_boundary_pairs(self.bv, self.be, chunk=PAIR_CHUNK)
 
     def evaluate(self, Q: FloatArray, V: FloatArray | None, acc: _Accumulator) -> None:
         want = acc.want
@@ -417,19 +422,19 @@ class _BoundaryTerm:
         for pairs in self.pair_chunks(Q):
             if len(pairs) and derivs and self.cut is not None:
                 # only pairs with χ > 0 carry derivatives: s = w/D^μ > s_lo
-                Dv = self._dist.regularized_distance_value(Q, pairs, self.mu)
+                Dv = _distance.regularized_distance_value(Q, pairs, self.mu)
                 pairs = pairs[Dv * self.cut[0] < w]
             if len(pairs) == 0:
                 continue
             if not derivs:
-                D = self._dist.regularized_distance_value(Q, pairs, self.mu)
+                D = _distance.regularized_distance_value(Q, pairs, self.mu)
                 with np.errstate(divide="ignore"):
                     s = w / D
                 if self.cut is not None:
                     s = cutoff(s, *self.cut)[0]
                 total += float(s.sum())
                 continue
-            ev = self._dist.regularized_distance(
+            ev = _distance.regularized_distance(
                 Q, pairs, self.mu, direction=V if (want.hvp or want.curvature) else None
             )
             D = ev.value

@@ -206,12 +206,15 @@ def test_all_pairs_chunked_equals_cached(monkeypatch):
     V = _direction(Q, 3)
     P = QualityPenalty(mesh, (0, 0, 1.0, 0), mu=10.0)
     ref = (P.value(Q), P.gradient(Q), P.hvp(Q, V))
+    assert P._other_terms[0]._all_pairs is not None  # the cached list
     monkeypatch.setattr(pen, "PAIR_CHUNK", 37)
-    P2 = QualityPenalty(mesh, (0, 0, 1.0, 0), mu=10.0)
-    assert P2._other_terms[0]._all_pairs is None  # really the chunked path
-    assert P2.value(Q) == pytest.approx(ref[0], rel=1e-13)
-    np.testing.assert_allclose(P2.gradient(Q), ref[1], rtol=1e-12, atol=1e-14)
-    np.testing.assert_allclose(P2.hvp(Q, V), ref[2], rtol=1e-12, atol=1e-14)
+    for cache in (10**6, 0):  # cached list in slices, then regenerated chunks
+        monkeypatch.setattr(pen, "PAIR_CACHE", cache)
+        P2 = QualityPenalty(mesh, (0, 0, 1.0, 0), mu=10.0)
+        assert (P2._other_terms[0]._all_pairs is None) == (cache == 0)
+        assert P2.value(Q) == pytest.approx(ref[0], rel=1e-13)
+        np.testing.assert_allclose(P2.gradient(Q), ref[1], rtol=1e-12, atol=1e-14)
+        np.testing.assert_allclose(P2.hvp(Q, V), ref[2], rtol=1e-12, atol=1e-14)
 
 
 # ---------------------------------------------------------------------------------------
