@@ -181,9 +181,10 @@ def quality_summary(points: FloatArray, triangles: IntArray) -> QualitySummary:
     np.add(x0, x1, out=x2)  # e1 + e2 = -e0: its square is E0² and the sign is irrelevant
     np.add(y0, y1, out=y2)
     e0x, e0y, e1x, e1y, e2x, e2y = x2, y2, x0, y0, x1, y1
-    # twice the signed area: 2A = e0 × e1 with e0 = -(e1 + e2)
-    area2 = e1x * e0y
-    area2 -= e0x * e1y
+    # twice the signed area, (q1 - q0) × (q2 - q0) = e2 × (-e1), rounded exactly as in
+    # signed_areas so that min_area and total_area agree with it bit for bit
+    area2 = e1x * e2y
+    area2 -= e2x * e1y
     # squared edge lengths
     s0 = np.square(e0x)
     s0 += np.square(e0y)
@@ -195,7 +196,7 @@ def quality_summary(points: FloatArray, triangles: IntArray) -> QualitySummary:
     ssum += s2
     with np.errstate(divide="ignore", invalid="ignore"):
         # Λ = mean (E0² + E1² + E2²) / (4√3 A)
-        mean_inv_psi = float(np.mean(ssum / area2)) / (2.0 * SQRT3)
+        mean_inv_psi = float(np.mean(ssum / area2) / (2.0 * SQRT3))
         # extreme angles from the cotangents of each triangle's extreme angles
         smin = np.minimum(s0, s1)
         np.minimum(smin, s2, out=smin)
