@@ -102,8 +102,10 @@ def main(argv=None) -> None:
     # cut-off boundary term: pairs with 1/D^μ > s_lo, i.e. within about 3 mesh widths
     cut = (1.0 / (3 * h), 1.0 / h)
     Pc = QualityPenalty(mesh, beta=(1.0, 0.5, 1.0, 1.0), mu=mu, cutoff=cut)
-    report(f"f2 with a cut-off boundary term, cutoff = ({cut[0]:.0f}, {cut[1]:.0f})",
-           round_robin(suite(Pc), args.repeat))
+    report(
+        f"f2 with a cut-off boundary term, cutoff = ({cut[0]:.0f}, {cut[1]:.0f})",
+        round_robin(suite(Pc), args.repeat),
+    )
 
     if not args.skip_all_pairs:
         Pa = QualityPenalty(mesh, beta=(1.0, 0.5, 1.0, 1.0), mu=mu)
@@ -119,7 +121,8 @@ def main(argv=None) -> None:
         print(f"\nf2 with the all-pairs boundary term (~{nb / 1e6:.1f}M pairs, one run)")
         for k, v in t.items():
             print(f"  {k:28s} {1e3 * v:9.1f} ms")
-        print(f"  value+gradient / signed areas        = {t['value_and_gradient'] / t['signed_areas']:6.1f}")
+        ratio = t["value_and_gradient"] / t["signed_areas"]
+        print(f"  value+gradient / signed areas        = {ratio:6.1f}")
 
 
 if __name__ == "__main__":

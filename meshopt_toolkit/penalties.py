@@ -27,8 +27,23 @@ the boundary nodes only. The boundary-pair term uses
 geodesic equation needs.
 
 Every method takes node positions ``Q`` of shape ``(N, 2)``. ``value`` returns ``+inf``
-(never NaN) at a non-admissible ``Q``; the derivatives raise
-:class:`~meshopt_toolkit.errors.NotAdmissibleError` there.
+(never NaN) at a non-admissible ``Q`` (a signed area ≤ 0, a non-finite coordinate, or
+boundary edges that touch, cross or fold onto each other, i.e. a boundary vertex on or
+through a non-incident boundary edge); the derivatives raise
+:class:`~meshopt_toolkit.errors.NotAdmissibleError` there, naming the triangle or edges.
+
+Notes
+-----
+- ``β4`` is given unscaled and divided by ``2N`` as in SPEC §3 (the text of (5.33) prints
+  ``β4/2``); ``α3`` is used as ``α3/2``.
+- ``μ`` (default :data:`DEFAULT_MU` = ``distance.DEFAULT_MU``) has units of 1/length: the
+  smoothing zone of ``D^μ`` is ``1/(2μ)`` wide, so choose ``μ`` of the order of the
+  inverse mesh width for fine meshes.
+- The per-triangle pass runs over blocks of :data:`BLOCK` triangles (temporaries stay in
+  cache; a loop over blocks, vectorized inside) and scatters the per-corner vectors to
+  the nodes with one sparse matvec per component.
+- :meth:`Penalty.gradient_and_curvature` returns ``∇f`` and the scalar ``V·∇²f·V``
+  without forming ``∇²f V`` (the geodesic ODE's right-hand side, SPEC §5).
 """
 
 from __future__ import annotations
@@ -39,19 +54,19 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from ._typing import FloatArray, IntArray
 from . import distance as _distance
+from ._typing import FloatArray, IntArray
 from .errors import InvalidMeshError, NotAdmissibleError
 from .mesh import PlanarMesh, TriangleMesh, boundary_self_intersections
 
 logger = logging.getLogger(__name__)
 
 __all__ = [
-    "HeightPenalty",
-    "QualityPenalty",
-    "Penalty",
-    "cutoff",
     "DEFAULT_MU",
+    "HeightPenalty",
+    "Penalty",
+    "QualityPenalty",
+    "cutoff",
 ]
 
 SQRT3 = np.sqrt(3.0)
@@ -162,9 +177,9 @@ def _edges(qx: FloatArray, qy: FloatArray, tri_t: IntArray) -> tuple[FloatArray,
     y = np.take(qy, tri_t)
     ex = np.empty_like(x)
     ey = np.empty_like(y)
-    for l, (a, b) in enumerate(((2, 1), (0, 2), (1, 0))):  # 3 local edges, not triangles
-        np.subtract(x[a], x[b], out=ex[l])
-        np.subtract(y[a], y[b], out=ey[l])
+    for k, (a, b) in enumerate(((2, 1), (0, 2), (1, 0))):  # 3 local edges, not triangles
+        np.subtract(x[a], x[b], out=ex[k])
+        np.subtract(y[a], y[b], out=ey[k])
     return ex, ey
 
 
@@ -460,7 +475,9 @@ class _BoundaryTerm:
                 if want.curvature:
                     acc.curvature += c * float(np.sum(g2 * D1 * D1 + g1 * ev.curvature))
                 if want.hvp:
-                    H = (c * g2 * D1)[:, None, None] * ev.gradient + (c * g1)[:, None, None] * ev.hess_dir
+                    H = (c * g2 * D1)[:, None, None] * ev.gradient + (c * g1)[
+                        :, None, None
+                    ] * ev.hess_dir
                     _scatter_pairs(acc.hvp, pairs, H, n)
         acc.values[self.name] = c * total
 
@@ -762,7 +779,9 @@ class HeightPenalty(Penalty):
             self._triangle_term = _TriangleQuotientTerm("height", "height", 0.5 * a1)
         if a2:
             self._other_terms.append(
-                _BoundaryTerm(1.0, a2, self.mu, self.cutoff, self._boundary_vertices, self._boundary_edges)
+                _BoundaryTerm(
+                    1.0, a2, self.mu, self.cutoff, self._boundary_vertices, self._boundary_edges
+                )
             )
         if a3:
             self._other_terms.append(_ReferenceTerm(a3, self.reference))
@@ -805,13 +824,19 @@ class QualityPenalty(Penalty):
             coef = b1 / (4.0 * SQRT3 * self.n_triangles)
             self._triangle_term = _TriangleQuotientTerm("quality", "quality", coef)
         if b2:
-            self._other_terms.append(_TotalAreaTerm(b2, self._boundary_edges, self._boundary_vertices))
+            self._other_terms.append(
+                _TotalAreaTerm(b2, self._boundary_edges, self._boundary_vertices)
+            )
         if b3:
             n_pairs_norm = len(self._boundary_edges) * len(self._boundary_vertices)
             self._other_terms.append(
                 _BoundaryTerm(
-                    b3 / n_pairs_norm, 1.0, self.mu, self.cutoff,
-                    self._boundary_vertices, self._boundary_edges,
+                    b3 / n_pairs_norm,
+                    1.0,
+                    self.mu,
+                    self.cutoff,
+                    self._boundary_vertices,
+                    self._boundary_edges,
                 )
             )
         if b4:

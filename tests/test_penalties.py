@@ -174,8 +174,12 @@ def test_cutoff_taylor_and_brute_force(cls):
         assert np.abs(s_e - s_lo).min() > 1e-3 * s_lo
     _taylor(P, Q, seed=7, eps0=2e-3)
     # brute force: χ over every pair
-    pairs, s = _pairs_with_summand(P, Q, w)
-    c = 1.0 if cls is HeightPenalty else 1.0 / (len(mesh.boundary_edges) * len(mesh.boundary_vertices))
+    _, s = _pairs_with_summand(P, Q, w)
+    c = (
+        1.0
+        if cls is HeightPenalty
+        else 1.0 / (len(mesh.boundary_edges) * len(mesh.boundary_vertices))
+    )
     expected = c * cutoff(s, s_lo, s_hi)[0].sum()
     assert P.value(Q) == pytest.approx(expected, rel=1e-12)
     # the unclipped term is larger (χ(s) ≤ s)
@@ -327,7 +331,9 @@ def test_values_against_independent_kernels(mesh_name):
     pairs = boundary_pairs(mesh.boundary_vertices, mesh.boundary_edges)
     inv_d = 1.0 / regularized_distance_value(Q, pairs, mu)
     t2 = QualityPenalty(mesh, (1.0, 1.0, 1.0, 1.0), mu=mu).terms(Q)
-    assert t2["quality"] == pytest.approx(inverse_shape_quality(Q, mesh.triangles).mean(), rel=1e-13)
+    assert t2["quality"] == pytest.approx(
+        inverse_shape_quality(Q, mesh.triangles).mean(), rel=1e-13
+    )
     assert t2["area"] == pytest.approx(1.0 / signed_areas(Q, mesh.triangles).sum(), rel=1e-12)
     nb = len(mesh.boundary_edges) * len(mesh.boundary_vertices)
     assert t2["boundary"] == pytest.approx(inv_d.sum() / nb, rel=1e-13)
@@ -381,7 +387,9 @@ def test_blows_up_as_boundary_vertex_approaches_edge(cls):
     x_left = xs[len(xs) // 2]
     assert xs[len(xs) // 2 + 1] - x_left == pytest.approx(0.1)
     cand = np.flatnonzero(
-        np.isclose(mesh.points[:, 0], x_left) & (mesh.points[:, 1] > 0.7) & (mesh.points[:, 1] < 0.9)
+        np.isclose(mesh.points[:, 0], x_left)
+        & (mesh.points[:, 1] > 0.7)
+        & (mesh.points[:, 1] < 0.9)
     )
     assert cand.size == 1 and cand[0] in mesh.boundary_vertices
     v = cand[0]
@@ -440,10 +448,16 @@ def test_rigid_motion_invariance(mesh_name):
             assert b[k] == pytest.approx(a[k], rel=1e-11), k
         # the gradient and Hessian rotate with the mesh
         V = _direction(Q, 1)
-        np.testing.assert_allclose(Pm.gradient(move(Q)), P.gradient(Q) @ R.T, rtol=1e-9,
-                                   atol=1e-11 * np.abs(P.gradient(Q)).max())
+        np.testing.assert_allclose(
+            Pm.gradient(move(Q)),
+            P.gradient(Q) @ R.T,
+            rtol=1e-9,
+            atol=1e-11 * np.abs(P.gradient(Q)).max(),
+        )
         hv = P.hvp(Q, V) @ R.T
-        np.testing.assert_allclose(Pm.hvp(move(Q), V @ R.T), hv, rtol=1e-8, atol=1e-10 * np.abs(hv).max())
+        np.testing.assert_allclose(
+            Pm.hvp(move(Q), V @ R.T), hv, rtol=1e-8, atol=1e-10 * np.abs(hv).max()
+        )
 
 
 @pytest.mark.parametrize("mesh_name", ["square", "grid", "disc77"])
