@@ -503,3 +503,34 @@ def test_exported_from_package():
     import meshopt_toolkit as mt
 
     assert mt.QualityPenalty is QualityPenalty and mt.HeightPenalty is HeightPenalty
+
+
+def test_blocked_triangle_pass_matches_single_block(monkeypatch):
+    """Several blocks (BLOCK = 7 triangles) give the single-block results, and an inverted
+    triangle in a later block is still found."""
+    mesh = grid_mesh(5, jitter=0.3)
+    Q = perturbed(mesh, 0.1)
+    V = _direction(Q, 4)
+    ref = [QualityPenalty(mesh, (1.0, 0.5, 0, 1.0)), HeightPenalty(mesh, (1.0, 0, 1.0))]
+    monkeypatch.setattr(pen, "BLOCK", 7)
+    blocked = [QualityPenalty(mesh, (1.0, 0.5, 0, 1.0)), HeightPenalty(mesh, (1.0, 0, 1.0))]
+    for P, B in zip(ref, blocked):
+        assert len(B._blocks) == -(-mesh.n_triangles // 7) and len(P._blocks) == 1
+        assert B.value(Q) == pytest.approx(P.value(Q), rel=1e-14)
+        np.testing.assert_allclose(B.gradient(Q), P.gradient(Q), rtol=1e-13, atol=1e-13)
+        np.testing.assert_allclose(B.hvp(Q, V), P.hvp(Q, V), rtol=1e-13, atol=1e-12)
+        gb, cb = B.gradient_and_curvature(Q, V)
+        gp, cp = P.gradient_and_curvature(Q, V)
+        np.testing.assert_allclose(gb, gp, rtol=1e-13, atol=1e-13)
+        assert cb == pytest.approx(cp, rel=1e-13)
+        # invert the last triangle (in the last block) by mirroring its first vertex
+        k = mesh.n_triangles - 1
+        i0, i1, i2 = mesh.triangles[k]
+        Qbad = Q.copy()
+        d = Q[i2] - Q[i1]
+        n = np.array([-d[1], d[0]]) / np.linalg.norm(d)
+        Qbad[i0] = Q[i0] - 2 * np.dot(Q[i0] - Q[i1], n) * n
+        assert B.value(Qbad) == np.inf
+        assert signed_areas(Qbad, mesh.triangles)[:7].min() > 0  # first block is fine
+        with pytest.raises(NotAdmissibleError, match=r"triangle \d+ \[.*\] is inverted"):
+            B.gradient(Qbad)
