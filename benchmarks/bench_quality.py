@@ -64,7 +64,7 @@ def main(argv: list[str] | None = None) -> int:
     t_check = []
     for _ in range(3):
         mesh = PlanarMesh(pts, tri)  # fresh: no cached topology
-        t_check.append(_time(lambda: check_mesh(mesh)))
+        t_check.append(_time(lambda m=mesh: check_mesh(m)))
     report = check_mesh(PlanarMesh(pts, tri))
     print(f"check_mesh       median {np.median(t_check):8.2f} s  (admissible={report.admissible})")
     return 0

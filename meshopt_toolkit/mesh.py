@@ -27,12 +27,12 @@ from .geometry import quality_summary, signed_areas
 logger = logging.getLogger(__name__)
 
 __all__ = [
-    "TriangleMesh",
-    "PlanarMesh",
     "MeshReport",
+    "PlanarMesh",
+    "TriangleMesh",
+    "boundary_self_intersections",
     "check_mesh",
     "require_admissible",
-    "boundary_self_intersections",
 ]
 
 
@@ -186,7 +186,7 @@ class TriangleMesh:
         """True if the points are 2D, or 3D with every z exactly 0."""
         return self.dim == 2 or not np.any(self._points[:, 2])
 
-    def as_planar(self) -> "PlanarMesh":
+    def as_planar(self) -> PlanarMesh:
         """This mesh as a :class:`PlanarMesh` (drops z = 0); raises if not planar."""
         if isinstance(self, PlanarMesh):
             return self
@@ -342,12 +342,12 @@ class PlanarMesh(TriangleMesh):
                 src = kwargs.get("source")
                 where = f"{src}: " if src else ""
                 raise InvalidMeshError(
-                    f"{where}not planar: vertex {nz[0]} has z = {pts[nz[0], 2]!r} (z must be 0)"
+                    f"{where}not planar: vertex {nz[0]} has z = {float(pts[nz[0], 2])!r} (z must be 0)"
                 )
             pts = pts[:, :2]
         super().__init__(pts, triangles, **kwargs)
 
-    def with_points(self, points) -> "PlanarMesh":
+    def with_points(self, points) -> PlanarMesh:
         """A new mesh with the same connectivity and tags at new positions ``(N, 2)``."""
         q = np.asarray(points, dtype=np.float64)
         if q.shape != self._points.shape:
@@ -362,7 +362,7 @@ class PlanarMesh(TriangleMesh):
         new._points = _frozen(q.copy())
         return new
 
-    def flipped(self) -> "PlanarMesh":
+    def flipped(self) -> PlanarMesh:
         """The same mesh with every triangle's orientation reversed."""
         return PlanarMesh(self._points, self._triangles[:, ::-1], **self._tag_kwargs())
 
@@ -379,7 +379,7 @@ class PlanarMesh(TriangleMesh):
         """Diagonal of the bounding box."""
         return float(np.linalg.norm(self._points.max(axis=0) - self._points.min(axis=0)))
 
-    def refine(self) -> "PlanarMesh":
+    def refine(self) -> PlanarMesh:
         """Uniform refinement: every triangle into four at its edge midpoints.
 
         New vertices are appended after the old ones in edge order. Triangle tags are

@@ -59,8 +59,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from meshopt_toolkit.geometry import signed_areas  # noqa: E402
-from meshopt_toolkit.mesh import PlanarMesh, check_mesh  # noqa: E402
+from meshopt_toolkit.geometry import signed_areas
+from meshopt_toolkit.mesh import PlanarMesh, check_mesh
 
 DATA = ROOT / "data"
 DOMAIN_TAG, BOUNDARY_TAG = 1, 2
@@ -114,7 +114,12 @@ def square_crossed(n: int = 2) -> tuple[np.ndarray, np.ndarray]:
     cc, d = idx[1:, 1:].ravel(), idx[1:, :-1].ravel()  # top-right, top-left
     m = (n + 1) ** 2 + np.arange(n * n)
     tri = np.stack(
-        [np.stack([a, b, m], 1), np.stack([b, cc, m], 1), np.stack([cc, d, m], 1), np.stack([d, a, m], 1)],
+        [
+            np.stack([a, b, m], 1),
+            np.stack([b, cc, m], 1),
+            np.stack([cc, d, m], 1),
+            np.stack([d, a, m], 1),
+        ],
         axis=1,
     ).reshape(-1, 3)
     return np.vstack([grid, centres]), tri
@@ -161,7 +166,7 @@ def snap(points: np.ndarray) -> np.ndarray:
     the 16 significant digits of gmsh's ``%.16g`` output, so the file round-trips bit-exactly.
     """
     pts = np.where(np.abs(points) < 1e-14, 0.0, points)
-    return np.array(["%.16g" % v for v in pts.ravel()], dtype=float).reshape(pts.shape)
+    return np.array([f"{v:.16g}" for v in pts.ravel()], dtype=float).reshape(pts.shape)
 
 
 def orient_ccw(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
@@ -249,7 +254,9 @@ def read_msh(path: Path) -> PlanarMesh:
     )
 
 
-def verify(path: Path, points: np.ndarray | None = None, tri: np.ndarray | None = None) -> PlanarMesh:
+def verify(
+    path: Path, points: np.ndarray | None = None, tri: np.ndarray | None = None
+) -> PlanarMesh:
     """Re-read ``path`` and check it: admissible, CCW, all used, no duplicates, tags."""
     mesh = read_msh(path)
     report = check_mesh(mesh)
@@ -302,8 +309,10 @@ def main(argv: list[str] | None = None) -> int:
             path = args.out / name
             write_msh(path, pts, tri, lines)
             m = verify(path, pts, tri)
-            print(f"{name}: {m.n_vertices} vertices, {m.n_triangles} triangles, "
-                  f"{len(lines)} boundary lines ok")
+            print(
+                f"{name}: {m.n_vertices} vertices, {m.n_triangles} triangles, "
+                f"{len(lines)} boundary lines ok"
+            )
     finally:
         gmsh.finalize()
     return 0

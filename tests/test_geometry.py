@@ -37,7 +37,11 @@ def random_triangles(rng, t=50):
 
 
 def heron_area(p):
-    a, b, c = (np.linalg.norm(p[1] - p[2]), np.linalg.norm(p[2] - p[0]), np.linalg.norm(p[0] - p[1]))
+    a, b, c = (
+        np.linalg.norm(p[1] - p[2]),
+        np.linalg.norm(p[2] - p[0]),
+        np.linalg.norm(p[0] - p[1]),
+    )
     s = (a + b + c) / 2
     return math.sqrt(s * (s - a) * (s - b) * (s - c))
 
@@ -229,8 +233,13 @@ def test_quality_summary_matches_kernels(rng, flip):
     assert q.n_inverted == flip == np.count_nonzero(area <= 0)
     d = q.as_dict()
     assert set(d) == {
-        "min_aspect_ratio", "mean_shape_quality", "min_angle_deg", "max_angle_deg",
-        "min_area", "total_area", "n_inverted",
+        "min_aspect_ratio",
+        "mean_shape_quality",
+        "min_angle_deg",
+        "max_angle_deg",
+        "min_area",
+        "total_area",
+        "n_inverted",
     }
     assert isinstance(d["n_inverted"], int) and isinstance(d["min_area"], float)
 
