@@ -57,12 +57,17 @@ class Metric(Protocol):
 
 
 def _vdot(U: FloatArray, V: FloatArray) -> float:
-    """``vec U · vec V`` (BLAS ddot on flat views, no copies for contiguous arrays)."""
+    """``vec U · vec V`` on flat views (no copies for contiguous arrays).
+
+    ``einsum`` rather than BLAS ``ddot``: multi-threaded OpenBLAS has to wake its threads
+    for every call, which costs milliseconds on a busy machine (measured in
+    ``benchmarks/bench_metrics.py``); einsum is single-threaded and predictable.
+    """
     U = np.asarray(U, dtype=np.float64)
     V = np.asarray(V, dtype=np.float64)
     if U.shape != V.shape:
         raise ValueError(f"tangent vectors have shapes {U.shape} and {V.shape}")
-    return float(np.dot(U.ravel(), V.ravel()))
+    return float(np.einsum("i,i->", U.ravel(), V.ravel()))
 
 
 class _LastQCache:
