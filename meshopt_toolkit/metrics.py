@@ -26,7 +26,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ._typing import FloatArray
-from .elasticity import BlockPattern, SPDSolve, assemble, factorize, lame_parameters, SOLVERS
+from .elasticity import SOLVERS, BlockPattern, SPDSolve, assemble, factorize, lame_parameters
 from .errors import InvalidMeshError, MeshoptError
 
 __all__ = [

@@ -9,7 +9,7 @@ import types
 import numpy as np
 import pytest
 import scipy.sparse as sp
-from conftest import grid_mesh, square5
+from conftest import grid_mesh
 
 from meshopt_toolkit import elasticity
 from meshopt_toolkit.errors import InvalidMeshError, MeshoptError, NotAdmissibleError
