@@ -273,12 +273,12 @@ class SPDSolve:
     ----------
     method : "direct" or "amg"
     solve : callable ``(2N,) -> (2N,)``
-    matrix : the CSR matrix that was factorized
+    matrix : the sparse matrix that was factorized
     """
 
     method: str
     solve: Callable[[FloatArray], FloatArray]
-    matrix: sp.csr_matrix
+    matrix: sp.spmatrix
 
 
 def _factorize_direct(A: sp.csr_matrix) -> Callable[[FloatArray], FloatArray]:
@@ -362,7 +362,6 @@ def factorize(
             except ImportError:  # pragma: no cover - depends on the environment
                 logger.info("pyamg not installed: using the direct solver")
     if method == "direct":
-        csr = A.tocsr()
-        return SPDSolve("direct", _factorize_direct(csr), csr)
-    bsr = A if sp.issparse(A) and A.format == "bsr" else sp.bsr_matrix(A, blocksize=(2, 2))
-    return SPDSolve("amg", _factorize_amg(bsr, points, rtol, maxiter), bsr.tocsr())
+        return SPDSolve("direct", _factorize_direct(A.tocsr()), A)
+    bsr = A if A.format == "bsr" else sp.bsr_matrix(A, blocksize=(2, 2))
+    return SPDSolve("amg", _factorize_amg(bsr, points, rtol, maxiter), bsr)
