@@ -8,8 +8,9 @@ Degree-of-freedom ordering is ``vec(Q) = Q.ravel()``: component ``c`` of vertex 
 ``2 i + c``. The matrix is therefore naturally a block matrix with 2×2 blocks (one per pair
 of vertices sharing a triangle). Connectivity never changes while ``Q`` moves, so the block
 sparsity pattern and the scatter map from element blocks to stored blocks are computed once
-(:class:`BlockPattern`); re-assembly at a new ``Q`` is a few vectorized passes over the
-triangles plus four ``np.bincount`` calls.
+(:class:`BlockPattern`, one sort); re-assembly at a new ``Q`` is a few vectorized passes
+over the triangles plus one sparse "summation" product, about half the time of a plain
+COO → CSR assembly of the same element matrices (``benchmarks/bench_metrics.py``).
 """
 
 from __future__ import annotations
