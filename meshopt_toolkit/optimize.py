@@ -186,6 +186,11 @@ def max_travel_step(Q: FloatArray, triangles: np.ndarray, d: FloatArray) -> floa
     return float(limit.min())
 
 
+def _dot(a: FloatArray, b: FloatArray) -> float:
+    """Euclidean dot product of two (N, 2) arrays (einsum: no BLAS threading overhead)."""
+    return float(np.einsum("ij,ij->", a, b))
+
+
 class _Timer:
     def __init__(self) -> None:
         self.seconds = dict.fromkeys(PHASES, 0.0)
@@ -220,7 +225,7 @@ def _riesz(metric, Q: FloatArray, P: FloatArray, free: np.ndarray | None) -> Flo
     P = np.where(free[:, None], P, 0.0)
     if isinstance(metric, CompleteMetric):
         g = np.where(free[:, None], metric.penalty.gradient(Q), 0.0)
-        return P - g * (np.vdot(g, P) / (1.0 + np.vdot(g, g)))
+        return P - g * (_dot(g, P) / (1.0 + _dot(g, g)))
     if isinstance(metric, ElasticityMetric):
         import scipy.sparse.linalg as spla
 
@@ -328,7 +333,7 @@ def optimize(
         P = dJ if penalty is None else dJ + penalty.gradient(Q)
         t0 = timer.add("penalty_derivative", t0)
         d = -_riesz(metric, Q, P, free)
-        slope = float(np.vdot(P, d))  # dF(Q)[d]
+        slope = _dot(P, d)  # dF(Q)[d]
         dnorm = float(metric.norm(Q, d))
         t0 = timer.add("gradient", t0)
         if not slope < 0:
