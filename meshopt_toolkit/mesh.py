@@ -553,7 +553,13 @@ def _manifold_problems(mesh: TriangleMesh) -> list[str]:
         problems.append(
             f"triangles sharing edge ({e[0]}, {e[1]}) have inconsistent orientation"
         )
-    ncomp, _ = connected_components(mesh.triangle_adjacency, directed=False)
+    # 2-path connectivity: components of the graph "triangles sharing an edge", each
+    # interior edge entered once (connected_components symmetrizes it)
+    c = mesh._edge_corners
+    c = c[c[:, 1] >= 0] // 3
+    nt = len(tri)
+    shared = sp.coo_matrix((np.ones(len(c), dtype=bool), (c[:, 0], c[:, 1])), shape=(nt, nt))
+    ncomp, _ = connected_components(shared, directed=False)
     if ncomp > 1:
         problems.append(f"mesh has {ncomp} pieces not connected through edges")
     # bow-ties: the triangles around each vertex must form one fan
@@ -581,24 +587,26 @@ def _fans_per_vertex(mesh: TriangleMesh) -> IntArray:
     tri = mesh.triangles
     flat = tri.ravel()  # corner c sits at vertex flat[c]
     nc = len(flat)
-    corner = np.arange(nc)
-    base = corner - corner % 3
+    # int32 corner ids halve the memory traffic of the random gathers below
+    idx = np.int32 if nc < 2**31 - 1 else np.int64
+    corner = np.arange(nc, dtype=idx)
+    nxt1 = np.tile(np.array([1, 1, -2], dtype=idx), nc // 3)  # c -> 3k + (l + 1) % 3 - c
+    nxt2 = np.tile(np.array([2, -1, -1], dtype=idx), nc // 3)  # c -> 3k + (l + 2) % 3 - c
     # edge-corner e = 3k + l names the edge opposite local vertex l of triangle k;
     # partner[e] is the same edge's edge-corner in the neighbouring triangle (or -1)
     ec = mesh._edge_corners
-    partner = np.full(nc, -1, dtype=np.int64)
     two = ec[:, 1] >= 0
+    partner = np.full(nc, -1, dtype=idx)
     partner[ec[two, 0]] = ec[two, 1]
     partner[ec[two, 1]] = ec[two, 0]
-    # corner c = 3k + l: the edge (v, b) is opposite a = local l + 1
-    across = partner[base + (corner + 1) % 3]
+    # corner c = 3k + l at v in triangle (v, a, b): the edge (v, b) is opposite a = l + 1
+    across = partner[corner + nxt1]
     succ = corner.copy()  # the end of a path points to itself
-    has = across >= 0
+    has = np.flatnonzero(across >= 0)
     e = across[has]
-    eb = e - e % 3
-    cand1 = eb + (e + 1) % 3  # the two endpoints of that edge in the neighbour
-    cand2 = eb + (e + 2) % 3
-    succ[has] = np.where(flat[cand1] == flat[corner[has]], cand1, cand2)
+    cand1 = e + nxt1[e]  # the two endpoints of that edge in the neighbour
+    cand2 = e + nxt2[e]
+    succ[has] = np.where(flat[cand1] == flat[has], cand1, cand2)
     is_end = succ == corner
     label = corner.copy()
     rounds = int(np.ceil(np.log2(max(int(np.bincount(flat).max()), 2))))
