@@ -31,7 +31,16 @@ from ._typing import FloatArray, IntArray
 from .errors import IntegrationError, NotAdmissibleError
 from .geometry import signed_areas
 
-__all__ = ["GeodesicField", "IntegrationOutput", "dopri5", "stormer_verlet", "DOPRI5_TABLEAU"]
+__all__ = [
+    "GeodesicField",
+    "IntegrationOutput",
+    "runge_kutta",
+    "dopri5",
+    "dop853",
+    "rk_pair",
+    "stormer_verlet",
+    "DOPRI5_TABLEAU",
+]
 
 
 class GeodesicField:
@@ -125,8 +134,22 @@ class IntegrationOutput:
 
 
 # --------------------------------------------------------------------------------------
-# Dormand–Prince 5(4), Dormand & Prince (1980); Hairer, Nørsett, Wanner I, table II.5.2
+# Explicit embedded Runge–Kutta pairs
 # --------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class _Pair:
+    """An embedded pair: ``s`` stages from ``a``, solution weights ``b``, error weights over
+    the ``s`` stages plus the derivative at the new point (index ``s``)."""
+
+    name: str
+    a: np.ndarray  # (s, s) strictly lower triangular
+    b: np.ndarray  # (s,)
+    e5: np.ndarray  # (s + 1,) main error estimate
+    e3: np.ndarray | None  # (s + 1,) DOP853's secondary estimate, or None
+    exponent: float  # step control exponent 1/(q + 1)
+
+
+# Dormand–Prince 5(4), Dormand & Prince (1980); Hairer, Nørsett, Wanner I, table II.5.2
 _C = np.array([0.0, 1 / 5, 3 / 10, 4 / 5, 8 / 9, 1.0, 1.0])
 _A = [
     np.array([]),
@@ -145,14 +168,67 @@ _E = _B - _B_HAT
 DOPRI5_TABLEAU = {"c": _C, "a": _A, "b": _B, "b_hat": _B_HAT}
 
 
-def _error_norm(err_q, err_v, q0, v0, q1, v1, rtol, atol) -> float:
-    """Max-norm of the local error scaled by ``atol + rtol · max(|y0|, |y1|)``."""
-    sq = atol + rtol * np.maximum(np.abs(q0), np.abs(q1))
-    sv = atol + rtol * np.maximum(np.abs(v0), np.abs(v1))
-    return float(max(np.max(np.abs(err_q) / sq), np.max(np.abs(err_v) / sv)))
+def _dopri5_pair() -> _Pair:
+    a = np.zeros((6, 6))
+    for i in range(6):
+        a[i, :i] = _A[i]
+    return _Pair("dopri5", a, _B[:6].copy(), _E.copy(), None, 1 / 5)
 
 
-def dopri5(
+def _dop853_pair() -> _Pair:
+    """Hairer's DOP853 (8th order, error estimators of orders 5 and 3).
+
+    Its ~200 rational coefficients are taken from scipy's table
+    (``scipy.integrate._ivp.dop853_coefficients``) rather than retyped; the stepping, error
+    control and admissibility guards are ours.
+    """
+    try:
+        from scipy.integrate._ivp import dop853_coefficients as dc
+    except ImportError as exc:  # pragma: no cover - depends on scipy's layout
+        raise IntegrationError("method 'dop853' needs scipy's DOP853 coefficient table") from exc
+    s = dc.N_STAGES
+    return _Pair("dop853", np.array(dc.A[:s, :s]), np.array(dc.B), np.array(dc.E5),
+                 np.array(dc.E3), 1 / 8)
+
+
+_PAIR_CACHE: dict[str, _Pair] = {}
+
+
+def rk_pair(name: str) -> _Pair:
+    """The embedded pair ``"dopri5"`` or ``"dop853"`` (built once)."""
+    if name not in _PAIR_CACHE:
+        _PAIR_CACHE[name] = {"dopri5": _dopri5_pair, "dop853": _dop853_pair}[name]()
+    return _PAIR_CACHE[name]
+
+
+def _scaled_max(err, y0, y1, rtol, atol) -> float:
+    return float(np.max(np.abs(err) / (atol + rtol * np.maximum(np.abs(y0), np.abs(y1)))))
+
+
+def _error_norm(pair: _Pair, h, kq, kv, q0, v0, q1, v1, rtol, atol) -> float:
+    """Scaled max-norm of the local error estimate (DOP853: Hairer's combined 5/3 form)."""
+    e5 = max(_scaled_max(h * np.tensordot(pair.e5, kq, axes=1), q0, q1, rtol, atol),
+             _scaled_max(h * np.tensordot(pair.e5, kv, axes=1), v0, v1, rtol, atol))
+    if pair.e3 is None:
+        return e5
+    e3 = max(_scaled_max(h * np.tensordot(pair.e3, kq, axes=1), q0, q1, rtol, atol),
+             _scaled_max(h * np.tensordot(pair.e3, kv, axes=1), v0, v1, rtol, atol))
+    if e5 == 0.0 and e3 == 0.0:
+        return 0.0
+    return e5 * e5 / np.sqrt(e5 * e5 + 0.01 * e3 * e3)
+
+
+def dopri5(field: GeodesicField, Q0, V0, t_out, **kwargs) -> IntegrationOutput:
+    """:func:`runge_kutta` with the Dormand–Prince 5(4) pair (6 calls per step)."""
+    return runge_kutta(field, Q0, V0, t_out, pair="dopri5", **kwargs)
+
+
+def dop853(field: GeodesicField, Q0, V0, t_out, **kwargs) -> IntegrationOutput:
+    """:func:`runge_kutta` with Hairer's DOP853 pair (12 calls per step)."""
+    return runge_kutta(field, Q0, V0, t_out, pair="dop853", **kwargs)
+
+
+def runge_kutta(
     field: GeodesicField,
     Q0: FloatArray,
     V0: FloatArray,
@@ -160,11 +236,15 @@ def dopri5(
     *,
     rtol: float,
     atol: float,
+    pair: str = "dopri5",
     h0: float | None = None,
     max_steps: int = 100_000,
     energy_rtol: float | None = None,
 ) -> IntegrationOutput:
-    """Integrate (5.35) from ``(Q0, V0)`` at t = 0 with Dormand–Prince 5(4).
+    """Integrate (5.35) from ``(Q0, V0)`` at t = 0 with an explicit embedded RK pair.
+
+    The derivative at the accepted point is the first stage of the next step
+    (first-same-as-last), so a step costs ``s`` penalty calls (6 for dopri5, 12 for dop853).
 
     Parameters
     ----------
@@ -173,6 +253,7 @@ def dopri5(
     t_out : (K,) strictly increasing positive output times; steps land exactly on them
     rtol, atol : local error tolerance per component of ``(Q, V)`` in the max-norm,
         ``|err| ≤ atol + rtol·|y|``
+    pair : "dopri5" or "dop853"
     h0 : initial step (default: Hairer's heuristic from ``|y|`` and ``|y'|``)
     max_steps : cap on accepted + rejected steps
     energy_rtol : a step is also rejected when it changes the energy ``e = (V, V)_g`` by
@@ -190,6 +271,8 @@ def dopri5(
     IntegrationError
         Step size underflow, too many steps, or a non-finite right-hand side.
     """
+    rk = rk_pair(pair)
+    S = len(rk.b)
     t_out = np.asarray(t_out, dtype=float)
     K = len(t_out)
     q = np.array(Q0, dtype=float)
@@ -212,8 +295,8 @@ def dopri5(
         h0 = min(h0, t_end)
     h = float(h0)
     h_min = 1e-10 * max(t_end, 1.0)
-    kq = np.empty((7,) + q.shape)  # stage velocities (derivative of Q)
-    kv = np.empty((7,) + q.shape)  # stage accelerations (derivative of V)
+    kq = np.empty((S + 1,) + q.shape)  # stage velocities (derivative of Q)
+    kv = np.empty((S + 1,) + q.shape)  # stage accelerations (derivative of V)
     t = 0.0
     k_out = 0
     n_steps = n_rej = n_left = 0
@@ -230,8 +313,8 @@ def dopri5(
         kq[0], kv[0] = v, a
         ok, why = True, ""
         grad_new = None
-        for s in range(1, 7):
-            w = _A[s]
+        for s in range(1, S + 1):
+            w = rk.a[s, :s] if s < S else rk.b
             qs = q + h_step * np.tensordot(w, kq[:s], axes=1)
             vs = v + h_step * np.tensordot(w, kv[:s], axes=1)
             if not field.admissible(qs):
@@ -244,9 +327,9 @@ def dopri5(
                 ok, why = False, str(exc).split(": ", 2)[-1]
                 break
             if not np.isfinite(kv[s]).all():
-                ok = False
+                ok, why = False, "the right-hand side is not finite"
                 break
-            if s == 6:
+            if s == S:
                 q_new, v_new, grad_new = qs, vs, g_s
         if not ok:
             n_rej += 1
@@ -259,25 +342,23 @@ def dopri5(
                     "β3 = 0) cannot prevent boundary self-intersections"
                 )
             continue
-        err_q = h_step * np.tensordot(_E, kq, axes=1)
-        err_v = h_step * np.tensordot(_E, kv, axes=1)
-        err = _error_norm(err_q, err_v, q, v, q_new, v_new, rtol, atol)
+        err = _error_norm(rk, h_step, kq, kv, q, v, q_new, v_new, rtol, atol)
         e_new = energy(grad_new, v_new)
         if e0 > 0:  # the energy change of one step is a local error as well
             err = max(err, abs(e_new - e_prev) / (energy_rtol * e0))
         if not np.isfinite(err):
             err = np.inf
-        factor = 5.0 if err == 0 else min(5.0, max(0.2, 0.9 * err ** -0.2))
+        factor = 5.0 if err == 0 else min(5.0, max(0.2, 0.9 * err ** -rk.exponent))
         if err > 1.0:
             n_rej += 1
             h = h_step * min(factor, 0.5)
             if h < h_min:
                 raise IntegrationError(f"geodesic step size underflow at t = {t:.6g}")
             continue
-        # accept (first-same-as-last: stage 7 is the first stage of the next step)
+        # accept (first-same-as-last: the last stage is the first stage of the next step)
         n_steps += 1
         t = target if hit else t + h_step
-        q, v, a = q_new, v_new, kv[6].copy()
+        q, v, a = q_new, v_new, kv[S].copy()
         e = e_prev = e_new
         if e0 > 0:
             max_drift = max(max_drift, abs(e - e0) / e0)

@@ -198,8 +198,10 @@ def test_fast_integrator_agrees_with_scipy_dop853_and_stormer_verlet():
     fast = geodesic(pen, mesh.points, V, 1.0)
     tight = geodesic(pen, mesh.points, V, 1.0, method="scipy", rtol=1e-12, atol=1e-12)
     sv = geodesic(pen, mesh.points, V, 1.0, method="stormer-verlet", steps=256)
-    assert fast.method == "dopri5" and sv.method == "stormer-verlet"
+    dp5 = geodesic(pen, mesh.points, V, 1.0, method="dopri5")
+    assert fast.method == "dop853" and sv.method == "stormer-verlet"
     assert np.abs(fast.final - tight.final).max() < 1e-6
+    assert np.abs(dp5.final - tight.final).max() < 1e-6
     assert np.abs(sv.final - tight.final).max() < 1e-4
     assert fast.n_evaluations < sv.n_evaluations / 10
 
@@ -214,11 +216,12 @@ def test_stormer_verlet_is_second_order():
     assert abs(slope - 2) < 0.15, (errs, slope)
 
 
-def test_dopri5_global_error_decreases_with_tolerance():
+@pytest.mark.parametrize("method", ["dopri5", "dop853"])
+def test_global_error_decreases_with_tolerance(method):
     mesh, pen, V = _mild_case()
     ref = geodesic(pen, mesh.points, V, 1.0, method="scipy", rtol=1e-13, atol=1e-13).final
-    errs = [np.abs(geodesic(pen, mesh.points, V, 1.0, rtol=tol, atol=tol).final - ref).max()
-            for tol in (1e-4, 1e-6, 1e-8, 1e-10)]
+    errs = [np.abs(geodesic(pen, mesh.points, V, 1.0, method=method, rtol=tol, atol=tol).final
+                   - ref).max() for tol in (1e-4, 1e-6, 1e-8, 1e-10)]
     assert all(e1 > e2 for e1, e2 in zip(errs, errs[1:])), errs
     assert errs[-1] < 1e-9
 
