@@ -43,12 +43,13 @@ logger = logging.getLogger(__name__)
 SOLVERS = ("auto", "direct", "amg")
 
 #: number of dofs from which ``"auto"`` switches from the direct solver to AMG-PCG.
-#: Measured with ``benchmarks/bench_metrics.py`` (factorization/setup + one solve, rtol
-#: 1e-10): direct is ~4× faster at 250k dofs, the two tie at 1M dofs (1M triangles), and
-#: SuperLU grows like dofs^1.5 against ~dofs^0.9 for AMG, so AMG wins beyond. A second
-#: solve at the same ``Q`` costs ~2% of the factorization with SuperLU but a full PCG run
-#: with AMG.
-AUTO_AMG_MIN_DOFS = 1_000_000
+#: Measured with ``benchmarks/bench_metrics.py`` (factorization/setup + one solve, AMG to
+#: relative residual 1e-10) on a shared 2-core machine: direct is ~4× faster at 250k dofs;
+#: at 1M dofs (1M triangles) direct/AMG = 0.73 and 1.06 in two runs (~70–160 s each).
+#: SuperLU grows like dofs^1.5 against ~dofs^0.9 for AMG, so AMG wins from ~2M dofs on
+#: (and needs far less memory). A second solve at the same ``Q`` costs ~2% of the
+#: factorization with SuperLU but a full PCG run with AMG.
+AUTO_AMG_MIN_DOFS = 2_000_000
 
 
 def lame_parameters(E: float, nu: float) -> tuple[float, float]:
