@@ -215,28 +215,6 @@ def _make_metric(variant: str, mesh: PlanarMesh, metric_beta, metric_options: di
     return CompleteMetric(QualityPenalty(mesh, beta=beta, **metric_options))
 
 
-def _riesz(metric, Q: FloatArray, P: FloatArray, free: np.ndarray | None) -> FloatArray:
-    """Gradient from derivative P; with fixed vertices, the Riesz map of the metric
-    restricted to the free vertices (the fixed rows of the result are zero)."""
-    if free is None:
-        return metric.riesz(Q, P)
-    from .metrics import CompleteMetric, ElasticityMetric
-
-    P = np.where(free[:, None], P, 0.0)
-    if isinstance(metric, CompleteMetric):
-        g = np.where(free[:, None], metric.penalty.gradient(Q), 0.0)
-        return P - g * (_dot(g, P) / (1.0 + _dot(g, g)))
-    if isinstance(metric, ElasticityMetric):
-        import scipy.sparse.linalg as spla
-
-        A = metric.matrix(Q).tocsr()
-        dof = np.repeat(free, 2)
-        x = np.zeros(2 * len(Q))
-        x[dof] = spla.spsolve(A[dof][:, dof].tocsc(), P.ravel()[dof])
-        return x.reshape(-1, 2)
-    return P  # Euclidean
-
-
 def optimize(
     mesh: PlanarMesh,
     objective: Objective,
@@ -332,7 +310,7 @@ def optimize(
         t0 = timer.add("derivative", t0)
         P = dJ if penalty is None else dJ + penalty.gradient(Q)
         t0 = timer.add("penalty_derivative", t0)
-        d = -_riesz(metric, Q, P, free)
+        d = -metric.riesz(Q, P, free=free)  # restricted to the free vertices if any
         slope = _dot(P, d)  # dF(Q)[d]
         dnorm = float(metric.norm(Q, d))
         t0 = timer.add("gradient", t0)

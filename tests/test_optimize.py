@@ -101,7 +101,7 @@ def test_non_descent_direction_is_an_error(monkeypatch):
     from meshopt_toolkit.metrics import EuclideanMetric
 
     mesh = grid_mesh(3, jitter=0.1)
-    monkeypatch.setattr(EuclideanMetric, "riesz", lambda self, Q, P: -P)  # a broken metric
+    monkeypatch.setattr(EuclideanMetric, "riesz", lambda self, Q, P, free=None: -P)  # broken
     with pytest.raises(OptimizationError, match="descent"):
         optimize(mesh, PullObjective(mesh, mesh.points + 0.1), variant="euclidean-euclidean",
                  max_iter=3)
