@@ -30,16 +30,17 @@ Methods (``method=``):
     (``fixed_point_tol``, ``fixed_point_iter``); when the contraction is slow (stiff
     penalty, large velocity) it raises "use more steps".
 ``"scipy"``
-    ``scipy.integrate.solve_ivp`` with DOP853 on the same right-hand side: an independent
-    high-order check (slower on small meshes because of its per-step overhead).
+    ``scipy.integrate.solve_ivp`` with DOP853 on the same right-hand side, default
+    ``rtol = 1e-10``: an independent check (it sees a stage outside M+ only as NaN).
 
 For a Euclidean metric (``EuclideanMetric`` or ``None``) the geodesic is ``Q + tV``.
 
 Guards (``on_violation="warn" | "raise" | "ignore"``): the relative energy drift
 ``|e(t) − e(0)|/e(0)`` must stay below ``energy_tol`` (default ``max(1e-3, 1e4·rtol)``
-for the adaptive methods — the relative energy error is typically 10–1000× the relative
-position error, as ``(∇f·V)²`` amplifies errors in V by ``|∇f|``; 1e-2 for Störmer–Verlet,
-whose energy error is O(Δt²)), and
+for the adaptive methods — the energy error can be 10–1000× the relative position error,
+as ``(∇f·V)²`` amplifies errors in V by ``|∇f|``, so the adaptive steppers also reject a
+step changing e by more than ``10·rtol·e(0)``; 1e-2 for Störmer–Verlet, whose energy
+error is O(Δt²)), and
 ``|f(γ(t)) − f(γ(0))| ≤ √(max e)·t·(1 + energy_tol) + 1e-10·(1 + |f(γ(0))|)`` is checked at
 every output time. A step with a stage outside M+ is rejected and retried smaller; an
 integration that cannot proceed raises :class:`~meshopt_toolkit.errors.IntegrationError`.

@@ -45,7 +45,7 @@ def add_args(p: argparse.ArgumentParser) -> None:
                        help="use f2 with these parameters instead (β4 unscaled)")
     p.add_argument("--euclidean", action="store_true",
                    help="follow the Euclidean geodesic Q + tV instead (for comparison)")
-    p.add_argument("--rtol", type=float, help="integrator tolerance (default: 1e-7)")
+    p.add_argument("--rtol", type=float, help="integrator tolerance rtol = atol (default: 1e-6)")
     p.add_argument("--format", default=None, metavar="EXT",
                    help="frame file extension with --frames (default: the input's)")
     p.add_argument("--no-png", action="store_true", help="with --frames: skip the PNG figures")
