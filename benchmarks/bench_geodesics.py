@@ -117,12 +117,12 @@ def part2(max_triangles: int, quick: bool) -> None:
         Q = mesh.points
         V = 0.3 * np.stack([np.sin(np.pi * Q[:, 1]), np.cos(np.pi * Q[:, 0])], axis=1)
         reps = 3 if T < 2e5 else 1
-        t_val, _ = best_of(lambda: pen.value(Q), reps)
-        t_gc, _ = best_of(lambda: pen.gradient_and_curvature(Q, V), reps)
+        t_val, _ = best_of(lambda pen=pen, Q=Q: pen.value(Q), reps)
+        t_gc, _ = best_of(lambda pen=pen, Q=Q, V=V: pen.gradient_and_curvature(Q, V), reps)
         if quick and T > 3e5:
             print(f"{T:9d} {N:9d} {1e3 * t_val:11.2f} {1e3 * t_gc:15.2f} {'(skipped)':>12s}")
             continue
-        t_exp, res = best_of(lambda: geodesic(CompleteMetric(pen), Q, V, 1.0), 1)
+        t_exp, res = best_of(lambda pen=pen, Q=Q, V=V: geodesic(CompleteMetric(pen), Q, V, 1.0), 1)
         print(f"{T:9d} {N:9d} {1e3 * t_val:11.2f} {1e3 * t_gc:15.2f} {t_exp:12.2f} "
               f"{res.n_evaluations:6d} {t_exp / t_gc:9.0f}")
 

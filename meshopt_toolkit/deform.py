@@ -26,7 +26,7 @@ from .geodesics import GeodesicResult, geodesic
 from .geometry import aspect_ratios
 from .mesh import PlanarMesh, TriangleMesh, require_admissible
 
-__all__ = ["DeformResult", "deform", "DEFAULT_ALPHA"]
+__all__ = ["DEFAULT_ALPHA", "DeformResult", "deform"]
 
 #: thesis §5.5.2 parameters of f1 (α1, α2, α3)
 DEFAULT_ALPHA = (1.0, 0.0, 1.0)

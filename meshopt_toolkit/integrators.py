@@ -32,14 +32,14 @@ from .errors import IntegrationError, NotAdmissibleError
 from .geometry import signed_areas
 
 __all__ = [
+    "DOPRI5_TABLEAU",
     "GeodesicField",
     "IntegrationOutput",
-    "runge_kutta",
-    "dopri5",
     "dop853",
+    "dopri5",
     "rk_pair",
+    "runge_kutta",
     "stormer_verlet",
-    "DOPRI5_TABLEAU",
 ]
 
 
@@ -468,7 +468,7 @@ def stormer_verlet(
         )
 
     for k, t_next in enumerate(t_out):
-        n_sub = max(1, int(round(steps * (t_next - t_prev) / t_end)))
+        n_sub = max(1, round(steps * (t_next - t_prev) / t_end))
         dt = (t_next - t_prev) / n_sub
         for j in range(n_sub):
             t_here = t_prev + j * dt

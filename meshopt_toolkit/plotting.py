@@ -24,10 +24,10 @@ from .geometry import signed_areas
 __all__ = [
     "draw_mesh",
     "save_mesh_png",
-    "save_snapshot_strip",
     "save_overlay",
     "save_overlay_grid",
     "save_quality_plot",
+    "save_snapshot_strip",
 ]
 
 

@@ -6,8 +6,8 @@ import shutil
 
 import numpy as np
 import pytest
-
 from conftest import square5
+
 from meshopt_toolkit import data_path, load
 from meshopt_toolkit.cli import main
 from meshopt_toolkit.deform import DEFAULT_ALPHA, deform

@@ -2,15 +2,16 @@
 
 from __future__ import annotations
 
+import itertools
 import warnings
 from fractions import Fraction
 
 import numpy as np
 import pytest
+from conftest import grid_mesh, square5
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from conftest import grid_mesh, square5
 from meshopt_toolkit.errors import IntegrationError
 from meshopt_toolkit.geodesics import (
     GeodesicWarning,
@@ -87,7 +88,7 @@ def test_acceleration_solves_euler_lagrange_by_finite_differences(rng):
 
 def test_translation_is_exact_when_alpha3_is_zero():
     """Prop. 5.2.12: f1 with α3 = 0 is translation invariant, so translations are geodesics."""
-    from meshopt_toolkit import load, data_path
+    from meshopt_toolkit import data_path, load
 
     mesh = load(data_path("square_crossed.msh")).as_planar()
     pen = HeightPenalty(mesh, alpha=(1.0, 0.0, 0.0))
@@ -102,7 +103,7 @@ def test_translation_is_exact_when_alpha3_is_zero():
 
 @pytest.mark.parametrize("penalty", ["f1", "f2"])
 def test_energy_conserved_and_f_growth_bounded(penalty, rng):
-    from meshopt_toolkit import load, data_path
+    from meshopt_toolkit import data_path, load
 
     mesh = load(data_path("disc_25.msh")).as_planar()
     if penalty == "f1":
@@ -222,7 +223,7 @@ def test_global_error_decreases_with_tolerance(method):
     ref = geodesic(pen, mesh.points, V, 1.0, method="scipy", rtol=1e-13, atol=1e-13).final
     errs = [np.abs(geodesic(pen, mesh.points, V, 1.0, method=method, rtol=tol, atol=tol).final
                    - ref).max() for tol in (1e-4, 1e-6, 1e-8, 1e-10)]
-    assert all(e1 > e2 for e1, e2 in zip(errs, errs[1:])), errs
+    assert all(e1 > e2 for e1, e2 in itertools.pairwise(errs)), errs
     assert errs[-1] < 1e-9
 
 
@@ -234,7 +235,7 @@ def test_stormer_verlet_asks_for_more_steps():
 
 
 def test_rescaling_lemma(rng):
-    from meshopt_toolkit import load, data_path
+    from meshopt_toolkit import data_path, load
 
     mesh = load(data_path("disc_25.msh")).as_planar()
     metric = CompleteMetric(HeightPenalty(mesh, alpha=(0.5, 0.0, 0.5)))

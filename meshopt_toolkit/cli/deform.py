@@ -136,8 +136,7 @@ def run(args: argparse.Namespace) -> int:
     with open(out / "quality.csv", "w", encoding="utf-8") as fh:
         fh.write("t,min_aspect_ratio,penalty,energy\n")
         g = res.geodesic
-        for t, ar, f, e in zip(res.times, res.aspect_ratio, g.penalty, g.energy):
-            fh.write(f"{t:.10g},{ar:.10g},{f:.10g},{e:.10g}\n")
+        fh.writelines(f"{t:.10g},{ar:.10g},{f:.10g},{e:.10g}\n" for t, ar, f, e in zip(res.times, res.aspect_ratio, g.penalty, g.energy))
     if not args.no_png:
         from ..plotting import save_quality_plot, save_snapshot_strip
 
