@@ -104,6 +104,16 @@ class GeodesicField:
         self.n_evaluations += 1
         return float(self.penalty.value(Q))
 
+    def value_and_gradient(self, Q: FloatArray) -> tuple[float, FloatArray]:
+        """``(f(Q), ∇f(Q))`` in one penalty call when the penalty offers it."""
+        self.n_evaluations += 1
+        both = getattr(self.penalty, "value_and_gradient", None)
+        if both is None:
+            self.n_evaluations += 1
+            return float(self.penalty.value(Q)), np.asarray(self.penalty.gradient(Q), float)
+        f, g = both(Q)
+        return float(f), np.asarray(g, dtype=float)
+
 
 def _dot(a: FloatArray, b: FloatArray) -> float:
     """Euclidean inner product of two (N, 2) arrays.
@@ -233,6 +243,28 @@ def _error_norm(pair: _Pair, h, kq, kv, q0, v0, q1, v1, rtol, atol) -> float:
     return e5 * e5 / np.sqrt(e5 * e5 + 0.01 * e3 * e3)
 
 
+def _hermite(q0, v0, a0, q1, v1, a1, t0: float, t1: float, t: float):
+    """Quintic Hermite interpolant of a C² path from (Q, Q', Q'') at ``t0`` and ``t1``.
+
+    Returns ``(Q(t), Q'(t))``, each (N, 2); the position error is O((t1 − t0)⁶).
+    """
+    h = t1 - t0
+    s = (t - t0) / h
+    s2, s3 = s * s, s * s * s
+    s4, s5 = s3 * s, s3 * s2
+    # basis of q0, h v0, h² a0, q1, h v1, h² a1 and their s-derivatives
+    b = (1 - 10 * s3 + 15 * s4 - 6 * s5, s - 6 * s3 + 8 * s4 - 3 * s5,
+         0.5 * s2 - 1.5 * s3 + 1.5 * s4 - 0.5 * s5, 10 * s3 - 15 * s4 + 6 * s5,
+         -4 * s3 + 7 * s4 - 3 * s5, 0.5 * s3 - s4 + 0.5 * s5)
+    d = (-30 * s2 + 60 * s3 - 30 * s4, 1 - 18 * s2 + 32 * s3 - 15 * s4,
+         s - 4.5 * s2 + 6 * s3 - 2.5 * s4, 30 * s2 - 60 * s3 + 30 * s4,
+         -12 * s2 + 28 * s3 - 15 * s4, 1.5 * s2 - 4 * s3 + 2.5 * s4)
+    terms = (q0, h * v0, h * h * a0, q1, h * v1, h * h * a1)
+    q = sum(c * x for c, x in zip(b, terms))
+    v = sum(c * x for c, x in zip(d, terms)) / h
+    return q, v
+
+
 def dopri5(field: GeodesicField, Q0, V0, t_out, **kwargs) -> IntegrationOutput:
     """:func:`runge_kutta` with the Dormand–Prince 5(4) pair (6 calls per step)."""
     return runge_kutta(field, Q0, V0, t_out, pair="dopri5", **kwargs)
@@ -255,6 +287,7 @@ def runge_kutta(
     h0: float | None = None,
     max_steps: int = 100_000,
     energy_rtol: float | None = None,
+    dense: bool = True,
 ) -> IntegrationOutput:
     """Integrate (5.35) from ``(Q0, V0)`` at t = 0 with an explicit embedded RK pair.
 
@@ -265,7 +298,7 @@ def runge_kutta(
     ----------
     field : GeodesicField
     Q0, V0 : (N, 2) initial position (admissible) and velocity
-    t_out : (K,) strictly increasing positive output times; steps land exactly on them
+    t_out : (K,) strictly increasing positive output times
     rtol, atol : local error tolerance per component of ``(Q, V)`` in the max-norm,
         ``|err| ≤ atol + rtol·|y|``
     pair : "dopri5" or "dop853"
@@ -276,6 +309,14 @@ def runge_kutta(
         comes for free from the last stage, so this costs nothing). Without it the
         ``(∇f·V)²`` part of the energy, which amplifies errors in V by ``|∇f|``, can drift
         far on stiff penalties while the position error is controlled.
+    dense : bool
+        True (default): steps are chosen by the error control alone (the last one lands on
+        ``t_out[-1]``) and outputs inside a step come from the quintic Hermite interpolant
+        of ``(Q, Q', Q'')`` at both ends (error O(h⁶), no extra penalty call); an
+        interpolated configuration that is not admissible makes the step be redone so
+        that it lands exactly on that output. False: every output is a step end.
+        Many outputs (e.g. the backtracking times ``τ^k`` of a line search) then cost
+        nothing extra.
 
     Returns
     -------
@@ -314,6 +355,7 @@ def runge_kutta(
     kv = np.empty((S + 1,) + q.shape)  # stage accelerations (derivative of V)
     t = 0.0
     k_out = 0
+    land = False  # True: the next step must land on t_out[k_out]
     n_steps = n_rej = n_left = 0
     max_drift = 0.0
     while k_out < K:
@@ -322,7 +364,7 @@ def runge_kutta(
                 f"geodesic needed more than {max_steps} steps before t = {t_end:g} "
                 f"(reached t = {t:.6g}); loosen rtol/atol or raise max_steps"
             )
-        target = float(t_out[k_out])
+        target = float(t_out[k_out]) if (land or not dense) else t_end
         hit = t + h >= target * (1 - 1e-14)
         h_step = target - t if hit else h
         kq[0], kv[0] = v, a
@@ -370,17 +412,35 @@ def runge_kutta(
             if h < h_min:
                 raise IntegrationError(f"geodesic step size underflow at t = {t:.6g}")
             continue
+        t_new = target if hit else t + h_step
+        # outputs strictly inside the step: interpolate, and redo the step if one of them
+        # is not admissible (then it lands exactly on that output)
+        inner = []
+        j = k_out
+        while j < K and t_out[j] < t_new * (1 - 1e-14):
+            inner.append(_hermite(q, v, a, q_new, v_new, kv[S], t, t_new, float(t_out[j])))
+            j += 1
+        if any(not field.admissible(qi) for qi, _ in inner):
+            n_rej += 1
+            land = True
+            h = h_step
+            continue
         # accept (first-same-as-last: the last stage is the first stage of the next step)
         n_steps += 1
-        t = target if hit else t + h_step
+        for qi, vi in inner:
+            out_q[k_out], out_v[k_out], out_e[k_out] = qi, vi, np.nan
+            k_out += 1
+        t = t_new
         q, v, a = q_new, v_new, kv[S].copy()
         e = e_prev = e_new
         if e0 > 0:
             max_drift = max(max_drift, abs(e - e0) / e0)
         h_next = h_step * factor
-        if hit:
+        if k_out < K and t_out[k_out] <= t * (1 + 1e-14):
             out_q[k_out], out_v[k_out], out_e[k_out] = q, v, e
             k_out += 1
+        if hit:
+            land = False
             h = max(h, h_next)  # a step shortened to land on an output keeps the old size
         else:
             h = h_next
