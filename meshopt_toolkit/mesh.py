@@ -18,7 +18,7 @@ from functools import cached_property
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
+from scipy.sparse.csgraph import breadth_first_order, connected_components
 
 from ._typing import FloatArray, IntArray
 from .errors import InvalidMeshError, NotAdmissibleError
@@ -89,14 +89,18 @@ class TriangleMesh:
             if not np.all(np.isfinite(tri_in)) or np.any(tri_in != np.round(tri_in)):
                 raise InvalidMeshError(f"{where}triangle indices must be integers")
         tri = np.array(tri_in, dtype=np.int64, copy=True)
-        bad = np.flatnonzero(~np.isfinite(pts).all(axis=1))
-        if bad.size:
-            raise InvalidMeshError(
-                f"{where}vertex {bad[0]} has a non-finite coordinate {pts[bad[0]].tolist()}"
-                + (f" ({bad.size} such vertices)" if bad.size > 1 else "")
-            )
-        out = np.flatnonzero(((tri < 0) | (tri >= len(pts))).any(axis=1))
-        if out.size:
+        # cheap whole-array tests first; the offending row is searched only on failure
+        # (a sum is non-finite if any term is, and may overflow only with huge values)
+        if not np.isfinite(pts.sum()):
+            bad = np.flatnonzero(~np.isfinite(pts).all(axis=1))
+            if bad.size:
+                raise InvalidMeshError(
+                    f"{where}vertex {bad[0]} has a non-finite coordinate {pts[bad[0]].tolist()}"
+                    + (f" ({bad.size} such vertices)" if bad.size > 1 else "")
+                )
+        # negative indices are huge when read as unsigned: one reduction tests both ends
+        if int(tri.view(np.uint64).max()) >= len(pts):
+            out = np.flatnonzero(((tri < 0) | (tri >= len(pts))).any(axis=1))
             raise InvalidMeshError(
                 f"{where}triangle {out[0]} {tri[out[0]].tolist()} has a vertex index out of "
                 f"range [0, {len(pts)})"
@@ -214,24 +218,23 @@ class TriangleMesh:
         """Edges, triangle→edge map, counts, and the first two corners of each edge.
 
         A *corner* ``c = 3 k + l`` names local edge ``l`` of triangle ``k`` (opposite local
-        vertex ``l``, endpoints ``i_{l+1}, i_{l+2}``). Edges are found by one stable sort
-        of the integer codes ``min·N + max`` (lexicographic order of the sorted pairs).
+        vertex ``l``, endpoints ``i_{l+1}, i_{l+2}``). Edges are found by one sort of the
+        half-edges by (smaller end, larger end, direction, corner), see
+        :func:`_sorted_half_edges`; an edge's corners are listed in that order.
         """
         tri = self._triangles
-        n = max(self.n_vertices, 1)
-        a = np.roll(tri, -1, axis=1).ravel()
-        b = np.roll(tri, -2, axis=1).ravel()
-        code = np.minimum(a, b) * n + np.maximum(a, b)
-        order, sorted_code = _stable_argsort(code)
-        start = np.empty(len(code), dtype=bool)
+        nc = tri.size
+        order, code, bits = _sorted_half_edges(_corner_table(tri), self.n_vertices, np.int64)
+        code >>= 1  # drop the direction bit: lo << bits | hi
+        start = np.empty(nc, dtype=bool)
         start[0] = True
-        np.not_equal(sorted_code[1:], sorted_code[:-1], out=start[1:])
+        np.not_equal(code[1:], code[:-1], out=start[1:])
         first = np.flatnonzero(start)
-        inverse = np.empty(len(code), dtype=np.int64)
+        inverse = np.empty(nc, dtype=np.int64)
         inverse[order] = np.cumsum(start) - 1
-        counts = np.diff(np.append(first, len(code)))
-        u = sorted_code[first]
-        edges = np.stack([u // n, u % n], axis=1)
+        counts = np.diff(np.append(first, nc))
+        u = code[first]
+        edges = np.stack([u >> bits, u & ((1 << bits) - 1)], axis=1).astype(np.int64)
         corners = np.full((len(first), 2), -1, dtype=np.int64)
         corners[:, 0] = order[first]
         two = counts >= 2
@@ -336,9 +339,9 @@ class PlanarMesh(TriangleMesh):
     def __init__(self, points, triangles, **kwargs) -> None:
         pts = np.asarray(points, dtype=np.float64)
         if pts.ndim == 2 and pts.shape[1] == 3:
-            finite = np.isfinite(pts[:, 2])
-            nz = np.flatnonzero(finite & (pts[:, 2] != 0))
-            if nz.size:
+            # NaN counts as non-zero in any(); it is reported as non-finite by TriangleMesh
+            nz = np.flatnonzero(np.isfinite(pts[:, 2]) & (pts[:, 2] != 0)) if pts[:, 2].any() else ()
+            if len(nz):
                 src = kwargs.get("source")
                 where = f"{src}: " if src else ""
                 raise InvalidMeshError(
@@ -451,25 +454,75 @@ class PlanarMesh(TriangleMesh):
         return np.unique(np.concatenate(parts))
 
 
-def _stable_argsort(code: IntArray) -> tuple[IntArray, IntArray]:
-    """``(order, code[order])`` for a stable sort of non-negative int64 ``code``.
+def _corner_table(tri: IntArray) -> IntArray:
+    """The triangles as a contiguous ``(3, T)`` array: row ``l`` holds local vertex ``l``.
 
-    When the code and the position fit together into 63 bits they are packed into one
-    key and sorted by value (``np.sort`` is several times faster than a stable argsort);
-    otherwise a stable argsort is used.
+    int32 when every index fits, which halves the memory traffic of the passes below.
     """
-    m = len(code)
-    shift = max(int(m - 1).bit_length(), 1)
-    top = int(code.max(initial=0))
-    if top.bit_length() + shift <= 63:
-        key = code << shift
-        key |= np.arange(m, dtype=np.int64)
+    small = tri.size < 2**31 - 1 and (tri.size == 0 or int(tri.max()) < 2**31 - 1)
+    return np.ascontiguousarray(tri.T, dtype=np.int32 if small else np.int64)
+
+
+def _sorted_half_edges(table: IntArray, n: int, dtype) -> tuple[IntArray, np.ndarray, int]:
+    """Half-edges sorted by (smaller end, larger end, direction, corner).
+
+    Corner ``c = 3 k + l`` stands for the half-edge of triangle ``k`` opposite local vertex
+    ``l``, from ``i_{l+1}`` to ``i_{l+2}``. Its code is ``lo << (b + 1) | hi << 1 | dir``
+    with ``lo < hi`` its ends, ``b`` bits per vertex index and ``dir = i_{l+1} > i_{l+2}``,
+    so equal codes are the same directed half-edge and codes differing only in the last
+    bit are the two directions of one edge. When code and corner fit together in 64 bits
+    they are packed into one key and sorted by value (much faster than an argsort).
+
+    Parameters
+    ----------
+    table : (3, T) int array
+        :func:`_corner_table` of the triangles.
+    n : int
+        Number of vertices.
+    dtype : numpy integer type of the returned corners.
+
+    Returns
+    -------
+    corners : (3T,) array of ``dtype``
+        Corners in sorted order.
+    codes : (3T,) uint64
+        Their codes, non-decreasing.
+    b : int
+        Bits per vertex index in the codes.
+    """
+    nt = table.shape[1]
+    nc = 3 * nt
+    bits = max(int(n - 1).bit_length(), 1)
+    shift = max(int(nc - 1).bit_length(), 1)
+    packed = 2 * bits + 1 + shift <= 64
+    key = np.empty((3, nt), dtype=np.uint64)
+    tmp = np.empty(nt, dtype=np.uint64)
+    if packed:
+        base = np.arange(0, nc, 3, dtype=np.uint64)
+    for l in range(3):
+        s, d = table[(l + 1) % 3], table[(l + 2) % 3]
+        row = key[l]
+        np.copyto(row, np.minimum(s, d), casting="unsafe")
+        row <<= bits + 1
+        np.copyto(tmp, np.maximum(s, d), casting="unsafe")
+        tmp <<= 1
+        row |= tmp
+        row |= s > d
+        if packed:
+            row <<= shift
+            row |= base
+            if l:
+                row += l  # the corner 3k + l fits in the low bits, no carry
+    key = key.ravel()
+    if packed:
         key.sort()
-        order = key & ((1 << shift) - 1)
+        corners = (key & ((1 << shift) - 1)).astype(dtype)
         key >>= shift
-        return order, key
-    order = np.argsort(code, kind="stable")
-    return order, code[order]
+        return corners, key, bits
+    order = np.argsort(key)
+    # argsort lists the corners row by row of ``table``: translate to 3k + l
+    corners = (order % nt) * 3 + order // nt
+    return corners.astype(dtype), key[order], bits
 
 
 def _edge_index(edges: IntArray, keys: IntArray) -> IntArray:
@@ -607,16 +660,158 @@ def _fans_per_vertex(mesh: TriangleMesh) -> IntArray:
     cand1 = e + nxt1[e]  # the two endpoints of that edge in the neighbour
     cand2 = e + nxt2[e]
     succ[has] = np.where(flat[cand1] == flat[has], cand1, cand2)
+    return _count_fans(succ, flat, mesh.n_vertices)
+
+
+def _count_fans(succ: IntArray, vertex: IntArray, n: int) -> IntArray:
+    """Number of orbits (paths and cycles) of a successor map at each vertex ``(n,)``.
+
+    ``succ`` maps each of a set of corners ``0..m-1`` (each at ``vertex[c]``) to the next
+    corner around the same vertex, or to itself at the end of a path; it is injective.
+    Pointer doubling, ``⌈log2(max corners per vertex)⌉`` rounds over all corners at once,
+    labels each path by its last corner and each cycle by its smallest corner; the orbits
+    at ``v`` are the corners that are their own label.
+    """
+    corner = np.arange(len(succ), dtype=succ.dtype)
     is_end = succ == corner
     label = corner.copy()
-    rounds = int(np.ceil(np.log2(max(int(np.bincount(flat).max()), 2))))
+    rounds = int(np.ceil(np.log2(max(int(np.bincount(vertex).max(initial=0)), 2))))
     for _ in range(rounds):  # after r rounds: label = min over 2^r corners, succ = succ^(2^r)
         np.minimum(label, label[succ], out=label)
         succ = succ[succ]
     # 2^rounds >= corners at the vertex: every path corner has reached its end
     root = np.where(is_end[succ], succ, label)
     own = root == corner
-    return np.bincount(flat[own], minlength=mesh.n_vertices)
+    return np.bincount(vertex[own], minlength=n)
+
+
+#: fans longer than this are checked by pointer doubling instead of a step-by-step walk
+_WALK_STEPS = 64
+
+
+def _clean_manifold(mesh: TriangleMesh) -> IntArray | None:
+    """The boundary corners ``(B,)`` if ``mesh`` passes every planar-manifold check, else None.
+
+    The fast path of :func:`check_mesh`: it decides exactly whether
+    :func:`_manifold_problems` finds nothing (then the sorted corners ``3k + l`` of the
+    boundary half-edges are returned), without building the edge list. Problems are
+    described by :func:`_manifold_problems`, run only when this returns None.
+
+    Every test is a pass over whole arrays:
+
+    * unused vertex: a zero in the vertex degrees (triangles per vertex ``t_v``);
+    * repeated vertex in a triangle;
+    * edge in three or more triangles, or inconsistent orientation: both hold iff some
+      directed half-edge occurs twice (a manifold, consistently oriented mesh has each
+      interior edge once in each direction), seen as equal neighbours after one sort of
+      the half-edge codes (:func:`_sorted_half_edges`);
+    * 2-path connectivity: a breadth-first search over the triangle graph (three slots
+      per triangle: its neighbour across each edge, itself at a boundary edge);
+    * bow-ties: around each vertex the successor map ``succ(c) = next(twin(next(c)))``
+      (corner ``c`` at ``v`` in triangle ``(v, a, b)`` → the corner at ``v`` across edge
+      ``(v, b)``) is injective, so its orbits are paths (boundary fans) and cycles
+      (interior fans). A path starts after each boundary half-edge ending at ``v``; two
+      starts mean two fans. Otherwise one walk per vertex from its path start (or any
+      corner) must make ``t_v - 1`` steps without reaching the path's end or returning to
+      the start: then the orbit has all ``t_v`` corners and is the only fan. All vertices
+      walk together, the ones with more triangles first (``t_v`` steps in total);
+      vertices with more than :data:`_WALK_STEPS` triangles are counted by pointer
+      doubling (:func:`_count_fans`) instead.
+    """
+    tri = mesh.triangles
+    n = mesh.n_vertices
+    nt = len(tri)
+    nc = 3 * nt
+    table = _corner_table(tri)
+    idx = table.dtype
+    deg = np.bincount(table.ravel(), minlength=n)
+    if deg.min() == 0:
+        return None  # an unused vertex
+    a, b, c = table
+    if ((a == b) | (b == c) | (a == c)).any():
+        return None  # a repeated vertex
+    order, code, _ = _sorted_half_edges(table, n, idx)
+    del table, a, b, c
+    diff = code[1:] ^ code[:-1]
+    if not diff.all():
+        return None  # a directed half-edge twice: > 2 triangles or inconsistent orientation
+    pair = np.flatnonzero(diff == 1)  # the two directions of one edge
+    del diff, code
+    p, q = order[pair], order[pair + 1]
+    del order, pair
+    # twin_next[e] = next(twin(e)) for the half-edge of corner e, -1 at the boundary
+    twin_next = np.full(nc, -1, dtype=idx)
+    twin_next[p] = _next_corner(q)
+    twin_next[q] = _next_corner(p)
+    del p, q
+    boundary = np.flatnonzero(twin_next < 0)
+    # 2-path connectivity
+    nbr = twin_next // 3
+    nbr[boundary] = boundary // 3
+    graph = sp.csr_matrix(
+        (np.ones(nc), nbr, np.arange(0, nc + 1, 3, dtype=idx)), shape=(nt, nt)
+    )
+    reached = breadth_first_order(graph, 0, directed=True, return_predecessors=False)
+    if len(reached) != nt:
+        return None
+    del graph, nbr, reached
+    # bow-ties
+    tn = twin_next.reshape(nt, 3)
+    succ = np.empty_like(tn)
+    succ[:, :2] = tn[:, 1:]
+    succ[:, 2] = tn[:, 0]
+    succ = succ.ravel()
+    del tn, twin_next
+    flat = tri.ravel()
+    start = np.empty(n, dtype=idx)
+    start[flat] = np.arange(nc, dtype=idx)  # any corner at each vertex
+    if len(boundary):
+        first = _next_corner(boundary)  # the first corner of each boundary fan
+        at = flat[first]
+        if np.bincount(at, minlength=n).max() > 1:
+            return None  # two boundary fans at a vertex
+        start[at] = first
+    maxdeg = int(deg.max())
+    if maxdeg > 1:
+        key = maxdeg - deg
+        by_degree = np.argsort(key.astype(np.uint16) if maxdeg < 2**16 else key, kind="stable")
+        n_more = n - np.cumsum(np.bincount(deg))  # n_more[s]: vertices with > s triangles
+        cur = start[by_degree]
+        origin = cur.copy()
+        for s in range(1, min(maxdeg, _WALK_STEPS + 1)):
+            m = n_more[s]
+            cur = succ[cur[:m]]
+            if (cur < 0).any() or (cur == origin[:m]).any():
+                return None  # a fan ended or closed before visiting every corner
+    if maxdeg > _WALK_STEPS + 1:
+        sel = np.flatnonzero(deg[flat] > _WALK_STEPS + 1)
+        local = np.full(nc, -1, dtype=idx)
+        local[sel] = np.arange(len(sel), dtype=idx)
+        nxt = succ[sel]
+        sub = np.where(nxt >= 0, local[nxt], np.arange(len(sel), dtype=idx))
+        if _count_fans(sub, flat[sel], n).max() > 1:
+            return None
+    return boundary
+
+
+def _next_corner(c: IntArray) -> IntArray:
+    """``next(3k + l) = 3k + (l + 1) % 3``."""
+    out = c + 1
+    out[c % 3 == 2] -= 3
+    return out
+
+
+def _prev_corner(c: IntArray) -> IntArray:
+    """``prev(3k + l) = 3k + (l + 2) % 3``."""
+    out = c - 1
+    out[c % 3 == 0] += 3
+    return out
+
+
+def _boundary_edges_of(tri: IntArray, corners: IntArray) -> IntArray:
+    """Directed boundary edges ``(B, 2)`` of the half-edges at ``corners`` (sorted)."""
+    flat = tri.ravel()
+    return np.stack([flat[_next_corner(corners)], flat[_prev_corner(corners)]], axis=1)
 
 
 def boundary_self_intersections(points: FloatArray, boundary_edges: IntArray) -> IntArray:
@@ -670,27 +865,45 @@ def check_mesh(mesh: TriangleMesh) -> MeshReport:
     A planar-manifold mesh whose triangles are all clockwise is re-oriented to CCW; the
     report says so and carries the re-oriented mesh.
     """
+    return _check_mesh(mesh)
+
+
+def _check_mesh(mesh: TriangleMesh, positive_areas: bool = False) -> MeshReport:
+    """:func:`check_mesh`; ``positive_areas=True`` is the caller's promise that every
+    signed area of ``mesh`` is > 0 (e.g. from a quality summary), which skips that pass.
+
+    A clean mesh is recognised by :func:`_clean_manifold`; only a mesh with a problem pays
+    for the edge list and the description of the problem (:func:`_manifold_problems`).
+    """
     if not mesh.is_planar:
         return MeshReport(False, False, False, problems=["not planar: some z is non-zero"], mesh=mesh)
     pm = mesh.as_planar()
-    problems = _manifold_problems(pm)
-    if problems:
-        return MeshReport(True, False, False, problems=problems, mesh=pm)
+    corners = _clean_manifold(pm)
+    if corners is None:
+        problems = _manifold_problems(pm)
+        if problems:
+            return MeshReport(True, False, False, problems=problems, mesh=pm)
+    elif "boundary_edges" not in pm.__dict__:
+        pm.__dict__["boundary_edges"] = _frozen(_boundary_edges_of(pm.triangles, corners))
     reoriented = False
-    area = pm.signed_areas()
-    if area.sum() < 0:
+    area = None if positive_areas else pm.signed_areas()
+    if area is not None and area.sum() < 0:
         pm = pm.flipped()
         area = -area
         reoriented = True
+        if corners is not None:
+            # corner 3k + l of the flipped mesh is corner 3k + 2 - l of the original
+            flip = np.sort(corners - 2 * (corners % 3) + 2)
+            pm.__dict__["boundary_edges"] = _frozen(_boundary_edges_of(pm.triangles, flip))
         logger.info("%s: re-oriented from clockwise to counter-clockwise", pm.source or "mesh")
     problems = []
-    nonpos = np.flatnonzero(area <= 0)
-    if nonpos.size:
+    nonpos = np.flatnonzero(area <= 0) if area is not None else ()
+    if len(nonpos):
         k = nonpos[0]
         kind = "zero-area" if area[k] == 0 else "inverted"
         problems.append(
             f"triangle {k} {pm.triangles[k].tolist()} is {kind} (signed area {area[k]:.3g})"
-            + (f"; {nonpos.size} non-positive triangles" if nonpos.size > 1 else "")
+            + (f"; {len(nonpos)} non-positive triangles" if len(nonpos) > 1 else "")
         )
     hits = boundary_self_intersections(pm.points, pm.boundary_edges)
     if len(hits):

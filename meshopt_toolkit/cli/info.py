@@ -37,10 +37,22 @@ def mesh_info(path: str | Path) -> dict:
     """
     from ..geometry import quality_summary
     from ..io import load
-    from ..mesh import check_mesh
+    from ..mesh import _check_mesh
 
     mesh = load(path)
-    report = check_mesh(mesh)
+    keys = ["min_aspect_ratio", "mean_shape_quality", "min_angle_deg", "max_angle_deg",
+            "min_area", "total_area", "n_inverted"]
+    quality = None
+    if mesh.is_planar:
+        # the summary's smallest signed area tells the check whether it may skip its own
+        # area pass (all areas > 0: nothing to re-orient, nothing inverted)
+        pm = mesh.as_planar()
+        quality = quality_summary(pm.points, pm.triangles)
+        report = _check_mesh(pm, positive_areas=quality.min_area > 0)
+        if report.reoriented:
+            quality = quality_summary(report.mesh.points, report.mesh.triangles)
+    else:
+        report = _check_mesh(mesh)
     info = {
         "path": str(path),
         "n_vertices": mesh.n_vertices,
@@ -55,11 +67,8 @@ def mesh_info(path: str | Path) -> dict:
         "n_tagged_lines": 0 if mesh.lines is None else int(len(mesh.lines)),
         "physical_names": {k: list(v) for k, v in mesh.tag_names.items()},
     }
-    keys = ["min_aspect_ratio", "mean_shape_quality", "min_angle_deg", "max_angle_deg",
-            "min_area", "total_area", "n_inverted"]
-    if report.planar:
-        pm = report.mesh
-        q = quality_summary(pm.points, pm.triangles).as_dict()
+    if quality is not None:
+        q = quality.as_dict()
         info.update({k: _clean(q[k]) for k in keys})
     else:
         info.update({k: None for k in keys})
