@@ -463,7 +463,9 @@ def _corner_table(tri: IntArray) -> IntArray:
     return np.ascontiguousarray(tri.T, dtype=np.int32 if small else np.int64)
 
 
-def _sorted_half_edges(table: IntArray, n: int, dtype) -> tuple[IntArray, np.ndarray, int]:
+def _sorted_half_edges(
+    table: IntArray, n: int, dtype, step: int = 0
+) -> tuple[IntArray, np.ndarray, int]:
     """Half-edges sorted by (smaller end, larger end, direction, corner).
 
     Corner ``c = 3 k + l`` stands for the half-edge of triangle ``k`` opposite local vertex
@@ -480,11 +482,14 @@ def _sorted_half_edges(table: IntArray, n: int, dtype) -> tuple[IntArray, np.nda
     n : int
         Number of vertices.
     dtype : numpy integer type of the returned corners.
+    step : int
+        Return corner ``3k + (l + step) % 3`` in place of ``3k + l`` (``step = 1``: the
+        corner after it in its triangle).
 
     Returns
     -------
     corners : (3T,) array of ``dtype``
-        Corners in sorted order.
+        Corners in sorted order (shifted by ``step`` within their triangle).
     codes : (3T,) uint64
         Their codes, non-decreasing.
     b : int
@@ -502,26 +507,26 @@ def _sorted_half_edges(table: IntArray, n: int, dtype) -> tuple[IntArray, np.nda
     for l in range(3):
         s, d = table[(l + 1) % 3], table[(l + 2) % 3]
         row = key[l]
-        np.copyto(row, np.minimum(s, d), casting="unsafe")
-        row <<= bits + 1
-        np.copyto(tmp, np.maximum(s, d), casting="unsafe")
-        tmp <<= 1
+        up = shift if packed else 0
+        np.left_shift(np.minimum(s, d), bits + 1 + up, out=row, dtype=np.uint64, casting="unsafe")
+        np.left_shift(np.maximum(s, d), 1 + up, out=tmp, dtype=np.uint64, casting="unsafe")
         row |= tmp
-        row |= s > d
+        np.left_shift(s > d, up, out=tmp, dtype=np.uint64, casting="unsafe")
+        row |= tmp
         if packed:
-            row <<= shift
             row |= base
-            if l:
-                row += l  # the corner 3k + l fits in the low bits, no carry
+            if (l + step) % 3:
+                row += (l + step) % 3  # the corner 3k + l' fits in the low bits, no carry
     key = key.ravel()
     if packed:
         key.sort()
-        corners = (key & ((1 << shift) - 1)).astype(dtype)
+        corners = np.empty(nc, dtype=dtype)
+        np.bitwise_and(key, (1 << shift) - 1, out=corners, casting="unsafe")
         key >>= shift
         return corners, key, bits
     order = np.argsort(key)
     # argsort lists the corners row by row of ``table``: translate to 3k + l
-    corners = (order % nt) * 3 + order // nt
+    corners = (order % nt) * 3 + (order // nt + step) % 3
     return corners.astype(dtype), key[order], bits
 
 
@@ -724,13 +729,14 @@ def _clean_manifold(mesh: TriangleMesh) -> IntArray | None:
     nc = 3 * nt
     table = _corner_table(tri)
     idx = table.dtype
-    deg = np.bincount(table.ravel(), minlength=n)
+    deg = np.bincount(tri.ravel(), minlength=n)
     if deg.min() == 0:
         return None  # an unused vertex
     a, b, c = table
     if ((a == b) | (b == c) | (a == c)).any():
         return None  # a repeated vertex
-    order, code, _ = _sorted_half_edges(table, n, idx)
+    # corners are labelled by their successor next(c) = 3k + (l + 1) % 3 from here on
+    order, code, _ = _sorted_half_edges(table, n, idx, step=1)
     del table, a, b, c
     diff = code[1:] ^ code[:-1]
     if not diff.all():
@@ -739,15 +745,15 @@ def _clean_manifold(mesh: TriangleMesh) -> IntArray | None:
     del diff, code
     p, q = order[pair], order[pair + 1]
     del order, pair
-    # twin_next[e] = next(twin(e)) for the half-edge of corner e, -1 at the boundary
-    twin_next = np.full(nc, -1, dtype=idx)
-    twin_next[p] = _next_corner(q)
-    twin_next[q] = _next_corner(p)
+    # twin[next(e)] = next(e') for the two half-edges e, e' of an interior edge, else -1
+    twin = np.full(nc, -1, dtype=idx)
+    twin[p] = q
+    twin[q] = p
     del p, q
-    boundary = np.flatnonzero(twin_next < 0)
+    first = np.flatnonzero(twin < 0)  # next(e) of the boundary half-edges e, sorted
     # 2-path connectivity
-    nbr = twin_next // 3
-    nbr[boundary] = boundary // 3
+    nbr = twin // 3
+    nbr[first] = first // 3
     graph = sp.csr_matrix(
         (np.ones(nc), nbr, np.arange(0, nc + 1, 3, dtype=idx)), shape=(nt, nt)
     )
@@ -755,18 +761,18 @@ def _clean_manifold(mesh: TriangleMesh) -> IntArray | None:
     if len(reached) != nt:
         return None
     del graph, nbr, reached
-    # bow-ties
-    tn = twin_next.reshape(nt, 3)
+    # bow-ties: succ(c) = next(twin(next(c))) = twin[prev(c)]
+    tn = twin.reshape(nt, 3)
     succ = np.empty_like(tn)
-    succ[:, :2] = tn[:, 1:]
-    succ[:, 2] = tn[:, 0]
+    succ[:, 1:] = tn[:, :2]
+    succ[:, 0] = tn[:, 2]
     succ = succ.ravel()
-    del tn, twin_next
+    del tn, twin
     flat = tri.ravel()
     start = np.empty(n, dtype=idx)
     start[flat] = np.arange(nc, dtype=idx)  # any corner at each vertex
-    if len(boundary):
-        first = _next_corner(boundary)  # the first corner of each boundary fan
+    if len(first):
+        # a boundary fan at v starts at next(e) for the boundary half-edge e ending at v
         at = flat[first]
         if np.bincount(at, minlength=n).max() > 1:
             return None  # two boundary fans at a vertex
@@ -791,7 +797,7 @@ def _clean_manifold(mesh: TriangleMesh) -> IntArray | None:
         sub = np.where(nxt >= 0, local[nxt], np.arange(len(sel), dtype=idx))
         if _count_fans(sub, flat[sel], n).max() > 1:
             return None
-    return boundary
+    return np.sort(_prev_corner(first))
 
 
 def _next_corner(c: IntArray) -> IntArray:
