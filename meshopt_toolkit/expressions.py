@@ -222,11 +222,29 @@ def parse_expression(text: str) -> "Expression":
 # ------------------------------------------------------------------------- evaluation
 
 
-def _value(node, X: FloatArray) -> FloatArray:
+# Values are float scalars (constant subtrees) or (M,) arrays; gradients are 0.0 (zero),
+# (1, 2) unit rows, (M, 1) or (M, 2) arrays. Broadcasting combines them, so constants and
+# integer powers stay scalar operations; the public methods broadcast the results.
+
+
+def _col(v):
+    """``v`` as a column for products with gradients."""
+    return v[:, None] if np.ndim(v) == 1 else v
+
+
+def _apply(func: str, a):
+    if func == "min":
+        return np.minimum(*a)
+    if func == "max":
+        return np.maximum(*a)
+    return getattr(np, func)(a[0])
+
+
+def _value(node, X: FloatArray):
     if isinstance(node, _Num):
-        return np.full(len(X), node.value)
+        return node.value
     if isinstance(node, _Var):
-        return X[:, node.index].astype(float, copy=True)
+        return X[:, node.index]
     if isinstance(node, _Unary):
         v = _value(node.arg, X)
         return -v if node.op == "-" else v
@@ -240,13 +258,8 @@ def _value(node, X: FloatArray) -> FloatArray:
             return a * b
         if node.op == "/":
             return a / b
-        return a**b
-    a = [_value(arg, X) for arg in node.args]
-    if node.func == "min":
-        return np.minimum(a[0], a[1])
-    if node.func == "max":
-        return np.maximum(a[0], a[1])
-    return getattr(np, node.func)(a[0])
+        return np.power(a, b)
+    return _apply(node.func, [_value(arg, X) for arg in node.args])
 
 
 def _is_constant(node) -> bool:
@@ -261,15 +274,15 @@ def _is_constant(node) -> bool:
     return all(_is_constant(a) for a in node.args)
 
 
-def _forward(node, X: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """Value ``(M,)`` and exact gradient ``(M, 2)`` by forward-mode differentiation."""
-    m = len(X)
+_UNIT = (np.array([[1.0, 0.0]]), np.array([[0.0, 1.0]]))
+
+
+def _forward(node, X: FloatArray):
+    """Value and exact gradient by forward-mode differentiation (see the note above)."""
     if isinstance(node, _Num):
-        return np.full(m, node.value), np.zeros((m, 2))
+        return node.value, 0.0
     if isinstance(node, _Var):
-        g = np.zeros((m, 2))
-        g[:, node.index] = 1.0
-        return X[:, node.index].astype(float, copy=True), g
+        return X[:, node.index], _UNIT[node.index]
     if isinstance(node, _Unary):
         v, g = _forward(node.arg, X)
         return (-v, -g) if node.op == "-" else (v, g)
@@ -281,21 +294,21 @@ def _forward(node, X: FloatArray) -> tuple[FloatArray, FloatArray]:
         if node.op == "-":
             return a - b, da - db
         if node.op == "*":
-            return a * b, da * b[:, None] + a[:, None] * db
+            return a * b, da * _col(b) + _col(a) * db
         if node.op == "/":
-            return a / b, (da * b[:, None] - a[:, None] * db) / (b * b)[:, None]
-        v = a**b
+            return a / b, (da * _col(b) - _col(a) * db) / _col(b * b)
+        v = np.power(a, b)
+        if np.ndim(b) == 0:  # constant exponent: d(a^c) = c a^(c-1) da, 0 when c == 0
+            c = float(b)
+            return v, (0.0 if c == 0.0 else _col(c * np.power(a, c - 1.0)) * da)
         # d(a^b) = b a^(b-1) da + a^b log(a) db; the first term vanishes where b == 0
-        # (also at a == 0), the second is dropped when the exponent is constant.
         safe_b = np.where(b == 0, 1.0, b)
-        g = np.where(b == 0, 0.0, safe_b * a ** (safe_b - 1.0))[:, None] * da
-        if not _is_constant(node.right):
-            g = g + (v * np.log(a))[:, None] * db
-        return v, g
+        d_base = np.where(b == 0, 0.0, safe_b * np.power(a, safe_b - 1.0))
+        return v, _col(d_base) * da + _col(v * np.log(a)) * db
     if node.func in _BINARY:
         (a, da), (b, db) = (_forward(arg, X) for arg in node.args)
         pick_a = a <= b if node.func == "min" else a >= b
-        return np.where(pick_a, a, b), np.where(pick_a[:, None], da, db)
+        return np.where(pick_a, a, b), np.where(_col(pick_a), da, db)
     a, da = _forward(node.args[0], X)
     f = node.func
     if f == "sin":
@@ -315,7 +328,7 @@ def _forward(node, X: FloatArray) -> tuple[FloatArray, FloatArray]:
         d = 0.5 / v
     else:  # abs
         v, d = np.abs(a), np.sign(a)
-    return v, d[:, None] * da
+    return v, _col(d) * da
 
 
 def _as_points(X) -> FloatArray:
@@ -355,7 +368,7 @@ class Expression:
         """Values ``(M,)`` at points ``X (M, 2)``."""
         X = _as_points(X)
         with np.errstate(all="ignore"):
-            v = _value(self._tree, X)
+            v = np.array(np.broadcast_to(_value(self._tree, X), (len(X),)), dtype=float)
         return self._check(v, X, "value")
 
     def value_and_gradient(self, X) -> tuple[FloatArray, FloatArray]:
@@ -363,6 +376,8 @@ class Expression:
         X = _as_points(X)
         with np.errstate(all="ignore"):
             v, g = _forward(self._tree, X)
+            v = np.array(np.broadcast_to(v, (len(X),)), dtype=float)
+            g = np.array(np.broadcast_to(g, (len(X), 2)), dtype=float)
         return self._check(v, X, "value"), self._check(g, X, "gradient")
 
     def gradient(self, X) -> FloatArray:
