@@ -1,0 +1,265 @@
+"""Geodesic morph: path energy derivatives, discrete geodesics, log map, morph, CLI, filter."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from conftest import grid_mesh
+from meshopt_toolkit.datasets import data_path
+from meshopt_toolkit.errors import InvalidMeshError, NotAdmissibleError
+from meshopt_toolkit.geodesics import exp_map
+from meshopt_toolkit.geometry import signed_areas
+from meshopt_toolkit.mesh import PlanarMesh, check_mesh
+from meshopt_toolkit.metrics import CompleteMetric
+from meshopt_toolkit.morph import (
+    SHOOTING_RTOL,
+    _Counter,
+    _PathEnergy,
+    discrete_geodesic,
+    geodesic_morph,
+    initial_path,
+    log_map,
+)
+from meshopt_toolkit.penalties import HeightPenalty, QualityPenalty
+from meshopt_toolkit.taylor import check_gradient, check_hvp
+
+
+def twist(mesh: PlanarMesh, degrees: float = 225.0, power: float = 2.0) -> np.ndarray:
+    """Rotate each vertex about the centre by θ(r) = degrees·(1 − r)^power; boundary fixed."""
+    P = mesh.points
+    r = np.linalg.norm(P, axis=1)
+    th = np.deg2rad(degrees) * np.clip(1.0 - r, 0.0, None) ** power
+    c, s = np.cos(th), np.sin(th)
+    Q = np.stack([c * P[:, 0] - s * P[:, 1], s * P[:, 0] + c * P[:, 1]], 1)
+    Q[mesh.boundary_vertices] = P[mesh.boundary_vertices]
+    return Q
+
+
+def bend(mesh: PlanarMesh, amount: float = 0.15) -> np.ndarray:
+    """A smooth interior deformation of the unit-square grid, boundary fixed."""
+    P = mesh.points
+    bump = np.sin(np.pi * P[:, 0]) * np.sin(np.pi * P[:, 1])
+    return P + amount * bump[:, None] * np.array([1.0, -0.5])
+
+
+@pytest.fixture(scope="module")
+def disc():
+    from meshopt_toolkit.io import load
+
+    return load(data_path("disc_146.msh")).as_planar()
+
+
+@pytest.fixture(scope="module")
+def twist_morph(disc):
+    return geodesic_morph(disc, disc.with_points(twist(disc)), frames=9)
+
+
+# -- the path energy --------------------------------------------------------------------
+
+
+def _path_energy(K=4):
+    mesh = grid_mesh(3, jitter=0.3, seed=2)
+    pen = QualityPenalty(mesh, beta=(1, 1, 0, 1))
+    Q0, Q1 = mesh.points, bend(mesh)
+    path = initial_path(pen, Q0, Q1, K)
+    return _PathEnergy(_Counter(pen), Q0, Q1, K, pen.value(Q0), pen.value(Q1)), path[1:-1]
+
+
+def test_path_energy_gradient_and_hvp_taylor(rng):
+    pe, X = _path_energy()
+    f = pe.value
+
+    def grad(Y):
+        return pe.evaluate(Y)[1]
+
+    def hvp(Y, U):
+        pe.evaluate(Y)
+        return pe.hvp(U)
+
+    d = 0.05 * rng.standard_normal(X.shape)
+    res = check_gradient(f, grad, X, direction=d)
+    assert res.passed, res
+    res = check_hvp(f, grad, hvp, X, direction=d)
+    assert res.passed, res
+    # value of evaluate agrees with value
+    assert np.isclose(pe.evaluate(X)[0], pe.value(X), rtol=1e-13)
+
+
+def test_gauss_newton_preconditioner_is_exact_inverse(rng):
+    pe, X = _path_energy(K=4)
+    pe.evaluate(X)
+    n = X.size
+    I = np.eye(n)
+    # dense Gauss–Newton matrix 2K (L ⊗ I) + 2K Fᵀ L F, built independently
+    K = pe.K
+    L = 2 * np.eye(K - 1) - np.eye(K - 1, k=1) - np.eye(K - 1, k=-1)
+    F = np.zeros((K - 1, n))
+    m = X[0].size
+    for k in range(K - 1):
+        F[k, k * m:(k + 1) * m] = pe.gs[k].ravel()
+    H = 2 * K * (np.kron(L, np.eye(m)) + F.T @ L @ F)
+    G = rng.standard_normal(X.shape)
+    assert np.allclose(pe.precondition(G).ravel(), np.linalg.solve(H, G.ravel()), rtol=1e-10,
+                       atol=1e-12)
+    assert I.shape == H.shape
+
+
+# -- the log map ------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("scale", [0.03, 0.06])
+def test_log_exp_round_trip(rng, scale):
+    mesh = grid_mesh(4, jitter=0.3)
+    metric = CompleteMetric(QualityPenalty(mesh, beta=(1, 1, 0, 1)))
+    Q0 = mesh.points
+    V = scale * rng.standard_normal(Q0.shape)
+    Q1 = exp_map(metric, Q0, V, rtol=SHOOTING_RTOL)
+    res = log_map(metric, Q0, Q1)
+    tol = 1e-8 * mesh.diameter
+    assert res.success and res.residual <= tol
+    back = exp_map(metric, Q0, res.velocity, rtol=SHOOTING_RTOL)
+    assert np.max(np.abs(back - Q1)) <= 2 * tol
+    # short geodesics are minimizing and unique: the velocity itself comes back
+    assert np.allclose(res.velocity, V, atol=1e-6)
+    assert np.isclose(res.path_length, metric.norm(Q0, V), rtol=1e-6)
+
+
+def test_translation_is_the_geodesic_when_alpha3_is_zero(rng):
+    mesh = grid_mesh(4, jitter=0.3)
+    metric = CompleteMetric(HeightPenalty(mesh, alpha=(1.0, 0.0, 0.0)))
+    c = np.array([0.7, -0.4])
+    Q0, Q1 = mesh.points, mesh.points + c
+    res = log_map(metric, Q0, Q1)
+    assert res.success
+    assert np.allclose(res.velocity, np.broadcast_to(c, Q0.shape), atol=1e-7)
+    morph = geodesic_morph(mesh, mesh.with_points(Q1), frames=5, metric=metric)
+    expect = Q0[None] + np.linspace(0, 1, 5)[:, None, None] * c
+    assert np.allclose(morph.points, expect, atol=1e-8)
+    shoot = geodesic_morph(mesh, mesh.with_points(Q1), frames=5, metric=metric, method="shooting")
+    assert shoot.method == "shooting"
+    assert np.allclose(shoot.points, expect, atol=1e-8)
+
+
+# -- the 225° twist ---------------------------------------------------------------------
+
+
+def test_twist_target_admissible_and_linear_interpolation_inverts(disc):
+    Q1 = twist(disc)
+    assert check_mesh(disc.with_points(Q1)).admissible
+    worst = min(signed_areas((1 - t) * disc.points + t * Q1, disc.triangles).min()
+                for t in np.linspace(0, 1, 201))
+    assert worst < 0
+
+
+def test_twist_morph_is_admissible_and_reaches_the_target(disc, twist_morph):
+    res = twist_morph
+    Q1 = twist(disc)
+    assert res.n_frames == 9
+    assert np.array_equal(res.points[0], disc.points)
+    assert np.array_equal(res.points[-1], Q1)
+    assert res.admissible.all()
+    assert (res.min_area > 0).all()
+    assert all(signed_areas(p, disc.triangles).min() > 0 for p in res.points)
+    assert res.discrete.converged
+    assert res.linear_min_area_dense < 0
+    s = res.summary()
+    assert s["admissible"] and s["linear_inverts"] and s["target_error"] == 0.0
+    # the frames are (close to) equally spaced in the graph metric: a discrete geodesic
+    pen = QualityPenalty(disc, beta=(1, 1, 0, 1))
+    f = np.array([pen.value(p) for p in res.discrete.points])
+    seg = np.sqrt(np.sum(np.diff(res.discrete.points, axis=0) ** 2, axis=(1, 2)) + np.diff(f) ** 2)
+    assert seg.max() / seg.min() < 1.5
+    # and the morph is shorter than the barrier-sliding initial path
+    assert res.discrete.length <= np.sum(seg) * (1 + 1e-9)
+
+
+# -- symmetry ---------------------------------------------------------------------------
+
+
+def test_reverse_morph_is_the_reversed_morph():
+    mesh = grid_mesh(4, jitter=0.3)
+    B = mesh.with_points(bend(mesh, 0.12))
+    metric = CompleteMetric(QualityPenalty(mesh, beta=(1, 1, 0, 1)))
+    ab = geodesic_morph(mesh, B, frames=5, metric=metric)
+    ba = geodesic_morph(B, mesh, frames=5, metric=metric)
+    assert np.allclose(ab.points, ba.points[::-1], atol=1e-7)
+    # the default penalty is referenced to the source: with β4 = 0 it is symmetric too
+    ab = geodesic_morph(mesh, B, frames=5, beta=(1, 1, 0, 0))
+    ba = geodesic_morph(B, mesh, frames=5, beta=(1, 1, 0, 0))
+    assert np.allclose(ab.points, ba.points[::-1], atol=1e-7)
+
+
+# -- errors -----------------------------------------------------------------------------
+
+
+def test_errors_are_clear(square):
+    grid = grid_mesh(3)
+    with pytest.raises(InvalidMeshError, match="vertices"):
+        geodesic_morph(square, grid)
+    flipped = PlanarMesh([[-1, -1], [1, -1], [1, 1], [-1, 1], [0.5, 0.5]],
+                         [[0, 1, 3], [1, 2, 3], [0, 1, 4], [1, 2, 4]])
+    with pytest.raises(InvalidMeshError, match="connectivity"):
+        geodesic_morph(square, flipped)
+    inverted = square.with_points(np.array([[-1, -1], [1, -1], [1, 1], [-1, 1], [3.0, 0]]))
+    with pytest.raises(NotAdmissibleError):
+        geodesic_morph(square, inverted)
+    mirror = square.with_points(square.points * [-1.0, 1.0])  # every triangle clockwise
+    with pytest.raises(InvalidMeshError):
+        geodesic_morph(square, mirror)
+    with pytest.raises(ValueError, match="frames"):
+        geodesic_morph(square, square, frames=1)
+
+
+def test_flow_that_does_not_arrive_reports_no_admissible_path(disc):
+    # the straight path inverts, so the barrier-sliding flow runs; 5 steps cannot arrive
+    pen = QualityPenalty(disc, beta=(1, 1, 0, 1))
+    with pytest.raises(NotAdmissibleError, match="no admissible path"):
+        initial_path(pen, disc.points, twist(disc), 8, max_steps=5)
+    path = initial_path(pen, disc.points, twist(disc), 8)
+    assert all(np.isfinite(pen.value(p)) for p in path)
+    assert np.array_equal(path[-1], twist(disc))
+
+
+# -- CLI and filter ---------------------------------------------------------------------
+
+
+def test_cli_morph_json(tmp_path, capsys):
+    from meshopt_toolkit.cli import main
+    from meshopt_toolkit.io import save
+
+    mesh = grid_mesh(4, jitter=0.3)
+    save(mesh, tmp_path / "a.msh")
+    save(mesh.with_points(bend(mesh)), tmp_path / "b.msh")
+    out = tmp_path / "out"
+    rc = main(["morph", str(tmp_path / "a.msh"), str(tmp_path / "b.msh"), "-o", str(out),
+               "--frames", "4", "--json"])
+    assert rc == 0
+    summary = json.loads(capsys.readouterr().out)
+    for key in ("frames", "target_error", "min_aspect_ratio", "admissible", "linear_min_area"):
+        assert key in summary
+    assert summary["frames"] == 4 and summary["admissible"]
+    for name in ("frame_000.msh", "frame_003.msh", "strip.png", "quality.png", "summary.json"):
+        assert (out / name).exists()
+    # refuses to overwrite; different vertex counts give one line and exit 1
+    assert main(["morph", str(tmp_path / "a.msh"), str(tmp_path / "b.msh"), "-o", str(out)]) == 1
+    save(grid_mesh(3), tmp_path / "c.msh")
+    assert main(["morph", str(tmp_path / "a.msh"), str(tmp_path / "c.msh"), "-o",
+                 str(tmp_path / "o2")]) == 1
+    assert "vertices" in capsys.readouterr().err
+
+
+def test_filter_generate_geodesic_morph():
+    from meshopt_toolkit.pipeline.document import Document
+    from meshopt_toolkit.pipeline.filter import registry
+
+    mesh = grid_mesh(4, jitter=0.3)
+    doc = Document([mesh, mesh.with_points(bend(mesh))])
+    cls = registry.get("generate_geodesic_morph")
+    summary = cls()(doc, frames=3)
+    assert len(doc) == 5 and doc.current == 4
+    assert np.allclose(doc.mesh.points[:, :2], bend(mesh))
+    assert doc.current_entry.face_attributes["quality"].min() > 0
+    assert summary["admissible"] and summary["frames"] == 3
