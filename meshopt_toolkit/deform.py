@@ -17,11 +17,12 @@ meshes far from unit size, f2 (``beta=``) or scaled α are the better choice.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
 from ._typing import FloatArray
-from .errors import InvalidMeshError
+from .errors import InvalidMeshError, ReadError
 from .geodesics import GeodesicResult, geodesic
 from .geometry import aspect_ratios
 from .mesh import PlanarMesh, TriangleMesh, require_admissible
@@ -149,3 +150,53 @@ def deform(
         mesh=m.with_points(res.points[-1]), times=times, points=res.points,
         aspect_ratio=ar, penalty=pen, geodesic=res,
     )
+
+
+def load_displacement(spec, mesh: PlanarMesh) -> FloatArray:
+    """Read an initial velocity for ``mesh`` from a file.
+
+    ``spec`` is a ``.npy`` or ``.csv`` (N, 2) array (an (N, 3) array with z = 0 is
+    accepted), or a mesh file with the same connectivity (V = its points − ``mesh``'s).
+
+    Raises
+    ------
+    ReadError
+        The file is missing or unreadable.
+    InvalidMeshError
+        Wrong shape, or a mesh with another connectivity.
+    """
+    from .io import load
+
+    path = Path(spec)
+    if not path.is_file():
+        raise ReadError(f"{spec}: no such file")
+    suffix = path.suffix.lower()
+    if suffix == ".npy":
+        try:
+            arr = np.load(path, allow_pickle=False)
+        except (OSError, ValueError) as exc:
+            raise ReadError(f"{spec}: not a readable .npy array ({exc})") from None
+    elif suffix in (".csv", ".txt"):
+        try:
+            arr = np.loadtxt(path, delimiter=",", ndmin=2, dtype=float)
+        except ValueError as exc:
+            raise ReadError(f"{spec}: not a numeric CSV array ({exc})") from None
+    else:
+        other = load(path)
+        if other.n_vertices != mesh.n_vertices or not np.array_equal(other.triangles, mesh.triangles):
+            raise InvalidMeshError(
+                f"{spec}: the displacement mesh must have the same connectivity as the input "
+                f"({other.n_vertices} vs {mesh.n_vertices} vertices, "
+                f"{other.n_triangles} vs {mesh.n_triangles} triangles)"
+            )
+        if not other.is_planar:
+            raise InvalidMeshError(f"{spec}: the displacement mesh is not planar")
+        arr = np.asarray(other.points)[:, :2] - mesh.points
+    arr = np.asarray(arr, dtype=float)
+    if arr.ndim == 2 and arr.shape[1] == 3 and not np.any(arr[:, 2]):
+        arr = arr[:, :2]
+    if arr.shape != mesh.points.shape:
+        raise InvalidMeshError(
+            f"{spec}: displacement has shape {arr.shape}, the mesh has {mesh.points.shape} points"
+        )
+    return arr

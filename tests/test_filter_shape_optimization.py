@@ -7,9 +7,9 @@ import json
 import numpy as np
 import pytest
 
+from meshopt_toolkit.datasets import data_path
 from meshopt_toolkit.errors import ExpressionError, FilterError
 from meshopt_toolkit.io import load
-from meshopt_toolkit.datasets import data_path
 from meshopt_toolkit.optimize import optimize
 from meshopt_toolkit.pipeline import Document, Pipeline, load_pipeline, registry, save_pipeline
 from meshopt_toolkit.poisson import PoissonObjective

@@ -14,9 +14,7 @@ import argparse
 import logging
 from pathlib import Path
 
-import numpy as np
-
-from ..errors import InvalidMeshError, ReadError, WriteError
+from ..errors import InvalidMeshError, WriteError
 from ._common import float_list
 
 HELP = "deform a mesh along a complete-metric geodesic, keeping it admissible"
@@ -52,52 +50,14 @@ def add_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
 
 
-def _load_displacement(spec: str, mesh) -> np.ndarray:
-    from ..io import load
-
-    path = Path(spec)
-    if not path.is_file():
-        raise ReadError(f"{spec}: no such file")
-    suffix = path.suffix.lower()
-    if suffix == ".npy":
-        try:
-            arr = np.load(path, allow_pickle=False)
-        except (OSError, ValueError) as exc:
-            raise ReadError(f"{spec}: not a readable .npy array ({exc})") from None
-    elif suffix in (".csv", ".txt"):
-        try:
-            arr = np.loadtxt(path, delimiter=",", ndmin=2, dtype=float)
-        except ValueError as exc:
-            raise ReadError(f"{spec}: not a numeric CSV array ({exc})") from None
-    else:
-        other = load(path)
-        if other.n_vertices != mesh.n_vertices or not np.array_equal(other.triangles, mesh.triangles):
-            raise InvalidMeshError(
-                f"{spec}: the displacement mesh must have the same connectivity as the input "
-                f"({other.n_vertices} vs {mesh.n_vertices} vertices, "
-                f"{other.n_triangles} vs {mesh.n_triangles} triangles)"
-            )
-        if not other.is_planar:
-            raise InvalidMeshError(f"{spec}: the displacement mesh is not planar")
-        arr = np.asarray(other.points)[:, :2] - mesh.points
-    arr = np.asarray(arr, dtype=float)
-    if arr.ndim == 2 and arr.shape[1] == 3 and not np.any(arr[:, 2]):
-        arr = arr[:, :2]
-    if arr.shape != mesh.points.shape:
-        raise InvalidMeshError(
-            f"{spec}: displacement has shape {arr.shape}, the mesh has {mesh.points.shape} points"
-        )
-    return arr
-
-
 def run(args: argparse.Namespace) -> int:
-    from ..deform import deform
+    from ..deform import deform, load_displacement
     from ..io import load, save
     from ..mesh import require_admissible
 
     src = Path(args.mesh)
     mesh = require_admissible(load(src), "deform")
-    V = _load_displacement(args.displacement, mesh)
+    V = load_displacement(args.displacement, mesh)
     out = Path(args.output)
     frames = args.frames
     if frames is not None and frames < 2:
