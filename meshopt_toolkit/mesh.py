@@ -91,7 +91,9 @@ class TriangleMesh:
         tri = np.array(tri_in, dtype=np.int64, copy=True)
         # cheap whole-array tests first; the offending row is searched only on failure
         # (a sum is non-finite if any term is, and may overflow only with huge values)
-        if not np.isfinite(pts.sum()):
+        with np.errstate(over="ignore", invalid="ignore"):
+            total = pts.sum()
+        if not np.isfinite(total):
             bad = np.flatnonzero(~np.isfinite(pts).all(axis=1))
             if bad.size:
                 raise InvalidMeshError(

@@ -8,11 +8,17 @@ import numpy as np
 import pytest
 from conftest import grid_mesh, square5
 
+import meshopt_toolkit.mesh as mesh_module
 from meshopt_toolkit.errors import InvalidMeshError, NotAdmissibleError
-from meshopt_toolkit.geometry import inverse_shape_quality, signed_areas
+from meshopt_toolkit.geometry import inverse_shape_quality, quality_summary, signed_areas
 from meshopt_toolkit.mesh import (
     PlanarMesh,
     TriangleMesh,
+    _clean_manifold,
+    _corner_table,
+    _fans_per_vertex,
+    _manifold_problems,
+    _sorted_half_edges,
     boundary_self_intersections,
     check_mesh,
     require_admissible,
@@ -447,3 +453,258 @@ def test_repr_and_equality(square):
     assert repr(square) == "PlanarMesh(n_vertices=5, n_triangles=4)"
     assert square == square5() and square != square.refine()
     assert square.diameter == pytest.approx(2 * math.sqrt(2))
+
+
+# -- the fast check against the exact one and a brute-force reference ---------------------
+
+
+def brute_force_fans(triangles, n) -> np.ndarray:
+    """Fans per vertex by a union-find over the triangles at each vertex (Python loops)."""
+    tri = [tuple(t) for t in np.asarray(triangles).tolist()]
+    by_edge: dict = {}
+    for k, t in enumerate(tri):
+        for l in range(3):
+            by_edge.setdefault(frozenset((t[(l + 1) % 3], t[(l + 2) % 3])), []).append(k)
+    fans = np.zeros(n, int)
+    for v in range(n):
+        at = [k for k, t in enumerate(tri) if v in t]
+        parent = {k: k for k in at}
+
+        def find(k):
+            while parent[k] != k:
+                k = parent[k]
+            return k
+
+        for k in at:
+            for w in tri[k]:
+                if w != v:
+                    for k2 in by_edge[frozenset((v, w))]:
+                        parent[find(k)] = find(k2)
+        fans[v] = len({find(k) for k in at})
+    return fans
+
+
+def brute_force_clean(triangles, n) -> bool:
+    """Every planar-manifold condition of SPEC §1, by direct counting (Python loops)."""
+    tri = [tuple(t) for t in np.asarray(triangles).tolist()]
+    if len({v for t in tri for v in t}) < n or any(len(set(t)) < 3 for t in tri):
+        return False
+    directed: dict = {}
+    undirected: dict = {}
+    for k, t in enumerate(tri):
+        for l in range(3):
+            a, b = t[(l + 1) % 3], t[(l + 2) % 3]
+            directed[(a, b)] = directed.get((a, b), 0) + 1
+            undirected.setdefault(frozenset((a, b)), []).append(k)
+    if max(directed.values()) > 1 or max(map(len, undirected.values())) > 2:
+        return False  # inconsistent orientation or an edge in three triangles
+    piece = list(range(len(tri)))
+
+    def find(k):
+        while piece[k] != k:
+            k = piece[k]
+        return k
+
+    for ks in undirected.values():
+        if len(ks) == 2:
+            piece[find(ks[0])] = find(ks[1])
+    if len({find(k) for k in range(len(tri))}) > 1:
+        return False
+    return brute_force_fans(tri, n).max() <= 1
+
+
+def mutated_mesh(rng) -> PlanarMesh:
+    """A small grid with 0-3 random defects (removed, flipped, duplicated or random
+    triangles, merged vertices, hanging triangles, glued copies), randomly renumbered."""
+    g = grid_mesh(int(rng.integers(2, 5)))
+    tri, pts = g.triangles.copy(), g.points.copy()
+    for op in rng.integers(0, 8, size=int(rng.integers(0, 4))):
+        nv = len(pts)
+        if op == 0 and len(tri) > 2:
+            tri = np.delete(tri, rng.choice(len(tri), int(rng.integers(1, 3)), replace=False), 0)
+        elif op == 1:
+            k = rng.integers(len(tri))
+            tri[k] = tri[k, ::-1]
+        elif op == 2:
+            a, b = rng.choice(nv, 2, replace=False)
+            tri[tri == b] = a
+        elif op == 3:
+            tri = np.vstack([tri, rng.choice(nv, 3, replace=False)])
+        elif op == 4:
+            pts = np.vstack([pts, rng.uniform(2, 3, (2, 2))])
+            tri = np.vstack([tri, [rng.integers(nv), nv, nv + 1]])
+        elif op == 5:
+            tri = np.vstack([tri, tri[rng.integers(len(tri))]])
+        elif op == 6:
+            keep = rng.random(len(tri)) < 0.8  # random subsets: bow-ties, holes, pieces
+            tri = tri[keep] if keep.any() else tri
+        else:  # a second copy sharing one vertex, possibly also glued along an edge
+            v = int(rng.integers(nv))
+            copy = g.triangles + nv
+            copy[copy == v + nv] = v
+            pts = np.vstack([pts, g.points + 5])
+            tri = np.vstack([tri, copy])
+    perm = rng.permutation(len(pts))
+    inv = np.argsort(perm)
+    tri = np.roll(perm[tri][rng.permutation(len(tri))], int(rng.integers(3)), axis=1)
+    return PlanarMesh(pts[inv], tri)
+
+
+@pytest.mark.parametrize("walk_steps", [0, 1, 64])
+def test_fast_check_agrees_with_exact_check_and_brute_force(monkeypatch, walk_steps):
+    # walk_steps 0: every fan by pointer doubling; 1: walks and pointer doubling mixed
+    monkeypatch.setattr(mesh_module, "_WALK_STEPS", walk_steps)
+    rng = np.random.default_rng(walk_steps)
+    seen = set()
+    for _ in range(250):
+        m = mutated_mesh(rng)
+        fast = _clean_manifold(m) is not None
+        exact = _manifold_problems(PlanarMesh(m.points, m.triangles)) == []
+        reference = brute_force_clean(m.triangles, m.n_vertices)
+        assert fast == exact == reference, m.triangles.tolist()
+        seen.add(fast)
+    assert seen == {True, False}
+
+
+def test_fans_per_vertex_against_brute_force():
+    rng = np.random.default_rng(7)
+    n_bow = 0
+    for _ in range(150):
+        m = mutated_mesh(rng)
+        report = check_mesh(m)
+        if any("orientation" in p or "shared by" in p or "repeats" in p for p in report.problems):
+            continue  # _fans_per_vertex needs an edge-manifold, oriented mesh
+        fans = _fans_per_vertex(PlanarMesh(m.points, m.triangles))
+        np.testing.assert_array_equal(fans, brute_force_fans(m.triangles, m.n_vertices))
+        n_bow += int(fans.max() > 1)
+    assert n_bow > 5
+
+
+def bridge(mesh: PlanarMesh, other: PlanarMesh, v: int, w: int) -> PlanarMesh:
+    """``mesh`` and a copy of ``other`` (shifted right) with vertex ``w`` of the copy
+    identified with vertex ``v`` and the pieces joined by two triangles across a
+    boundary edge of each: edge-connected, consistently oriented, edge-manifold."""
+    n = mesh.n_vertices
+    p, q = mesh.boundary_edges[0]
+    r, s = other.boundary_edges[0] + n
+    tri = np.vstack([mesh.triangles, other.triangles + n, [[q, p, s], [s, r, q]]])
+    tri[tri == w + n] = v
+    return compact(np.vstack([mesh.points, other.points + [3, 0]]), tri)
+
+
+def _centre(m: PlanarMesh) -> int:
+    return int(np.argmin(np.linalg.norm(m.points - m.points.mean(axis=0), axis=1)))
+
+
+@pytest.mark.parametrize("kind", ["closed+closed", "closed+open", "open+open"])
+def test_bow_tie_in_an_edge_connected_mesh(kind):
+    g = grid_mesh(4)
+    centre = _centre(g)  # interior vertex: a closed fan
+    corner = int(np.flatnonzero((g.points == [1, 1]).all(1))[0])  # a boundary fan
+    v = corner if kind == "open+open" else centre
+    w = centre if kind == "closed+closed" else corner
+    m = bridge(g, g, v, w)
+    assert _clean_manifold(m) is None
+    fans = brute_force_fans(m.triangles, m.n_vertices)
+    (pinch,) = np.flatnonzero(fans > 1)
+    report = check_mesh(m)
+    assert report.problems == [
+        f"vertex {pinch} is a bow-tie: its triangles form 2 separate fans"
+    ]
+    np.testing.assert_array_equal(_fans_per_vertex(m), fans)
+
+
+def test_bridge_without_a_pinch_is_clean():
+    g = grid_mesh(3)
+    n = g.n_vertices
+    m = bridge(g, g, n + 7, n + 7)  # identifies nothing (w + n is not in the mesh)
+    assert _clean_manifold(m) is not None
+    assert check_mesh(m).manifold
+
+
+@pytest.mark.parametrize("walk_steps", [0, 2, 64])
+def test_high_degree_fans(monkeypatch, walk_steps):
+    # a fan of 40 triangles around the origin (one closed fan), then two such fans glued
+    monkeypatch.setattr(mesh_module, "_WALK_STEPS", walk_steps)
+    k = 40
+    th = 2 * np.pi * np.arange(k) / k
+    pts = np.vstack([[0, 0], np.stack([np.cos(th), np.sin(th)], 1)])
+    tri = np.stack([np.zeros(k, int), 1 + np.arange(k), 1 + (np.arange(k) + 1) % k], 1)
+    disc = PlanarMesh(pts, tri)
+    assert _clean_manifold(disc) is not None and check_mesh(disc).admissible
+    double = bridge(disc, disc, 0, 0)
+    assert _clean_manifold(double) is None
+    assert "is a bow-tie: its triangles form 2 separate fans" in check_mesh(double).problems[0]
+    half = PlanarMesh(pts, tri[: k // 2])  # an open fan
+    assert _clean_manifold(compact(half.points, half.triangles)) is not None
+
+
+def test_check_fills_the_boundary_cache_exactly(rng):
+    for seed in range(6):
+        g = grid_mesh(5, jitter=0.3, seed=seed)
+        tri = np.roll(g.triangles[rng.permutation(g.n_triangles)], seed % 3, axis=1)
+        for t in (tri, tri[:, ::-1]):  # CCW, and CW (re-oriented by the check)
+            m = PlanarMesh(g.points, t)
+            report = check_mesh(m)
+            assert report.admissible and report.reoriented == (t is not tri)
+            fresh = PlanarMesh(report.mesh.points, report.mesh.triangles)
+            np.testing.assert_array_equal(report.mesh.boundary_edges, fresh.boundary_edges)
+            np.testing.assert_array_equal(m.boundary_edges, PlanarMesh(g.points, t).boundary_edges)
+
+
+def test_half_edge_sort_packed_and_unpacked_agree():
+    m = grid_mesh(4, jitter=0.2)
+    table = _corner_table(m.triangles[np.random.default_rng(1).permutation(m.n_triangles)])
+    for step in (0, 1):
+        c1, code1, b1 = _sorted_half_edges(table, m.n_vertices, np.int64, step)
+        c2, code2, b2 = _sorted_half_edges(table, 2**30, np.int64, step)  # no room to pack
+        assert b2 == 30 and b1 < b2
+        np.testing.assert_array_equal(c1, c2)
+        lo1, lo2 = code1 >> np.uint64(b1 + 1), code2 >> np.uint64(b2 + 1)
+        np.testing.assert_array_equal(lo1, lo2)
+    # the codes name the corners' half-edges: (lo, hi, direction) of 3k + l
+    c, code, b = _sorted_half_edges(table, m.n_vertices, np.int64)
+    t = table.T
+    src, dst = t[c // 3, (c % 3 + 1) % 3], t[c // 3, (c % 3 + 2) % 3]
+    np.testing.assert_array_equal(code >> np.uint64(b + 1), np.minimum(src, dst))
+    np.testing.assert_array_equal((code >> np.uint64(1)) & np.uint64(2**b - 1), np.maximum(src, dst))
+    np.testing.assert_array_equal(code & np.uint64(1), src > dst)
+    assert np.all(np.diff(code.astype(np.int64)) >= 0)
+
+
+def test_readable_checks_with_huge_but_finite_coordinates():
+    pts = [[1e308, 0], [1e308, 1e308], [0, 1e308]]  # the coordinate sum overflows
+    assert PlanarMesh(pts, [[0, 1, 2]]).n_vertices == 3
+    with pytest.raises(InvalidMeshError, match=r"vertex 1 has a non-finite"):
+        PlanarMesh([[1e308, 0], [np.inf, 1e308], [0, 1e308]], [[0, 1, 2]])
+    with pytest.raises(InvalidMeshError, match=r"triangle 1 \[0, -2, 1\].*out of range"):
+        PlanarMesh(pts, np.array([[0, 1, 2], [0, -2, 1]], dtype=np.int32))
+
+
+def test_mesh_info_agrees_with_check_mesh_and_quality(tmp_path):
+    from meshopt_toolkit.cli.info import mesh_info
+    from meshopt_toolkit.io import save
+
+    g = grid_mesh(4, jitter=0.3)
+    p = g.points.copy()
+    p[6] = [0.6, 0.6]
+    cases = {
+        "ok": g,
+        "cw": g.flipped(),
+        "inverted": g.with_points(p),
+        "three": PlanarMesh(SQ_PTS + [[0, -2], [0.5, -3]], SQ_TRI + [[1, 0, 5], [0, 1, 6]]),
+        "bowtie": bridge(g, g, _centre(g), _centre(g)),
+        "strip": folded_strip(),
+    }
+    for name, m in cases.items():
+        path = save(m, tmp_path / f"{name}.msh")
+        info = mesh_info(path)
+        report = check_mesh(m)
+        q = quality_summary(report.mesh.points, report.mesh.triangles).as_dict()
+        assert info["problems"] == report.problems, name
+        assert (info["manifold"], info["admissible"], info["reoriented"]) == (
+            report.manifold, report.admissible, report.reoriented
+        )
+        assert info["n_boundary_vertices"] == len(m.boundary_vertices)
+        for key in ("min_area", "total_area", "n_inverted", "min_angle_deg"):
+            assert info[key] == q[key], (name, key)
