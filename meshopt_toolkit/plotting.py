@@ -46,9 +46,13 @@ def _figure(width: float, height: float):
 
 
 def _save(fig, path) -> Path:
+    """Write the PNG atomically (temporary file, then rename)."""
+    from .io import atomic_path
+
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(os.fspath(path), dpi=fig.dpi)
+    with atomic_path(path) as tmp:
+        fig.savefig(os.fspath(tmp), dpi=fig.dpi, format="png")
     return path
 
 
@@ -261,3 +265,60 @@ def save_quality_plot(
         ax.set_title(title)
     fig.tight_layout()
     return _save(fig, path)
+
+
+def save_optimization_plots(
+    mesh_path,
+    history_path,
+    initial: FloatArray,
+    final: FloatArray,
+    triangles: IntArray,
+    history: Mapping[str, FloatArray],
+    rhs=None,
+    *,
+    dpi: int = 120,
+) -> tuple[Path, Path]:
+    """Figures of a shape-optimization run (thesis fig. 6.4–6.7).
+
+    ``mesh_path``: the initial and the final mesh side by side over filled contours of the
+    right-hand side ``rhs`` (a callable on (M, 2) points, optional) with its zero level
+    set. ``history_path``: j and Λ (6.25) per iteration, from ``history`` columns
+    ``iteration``, ``j``, ``objective`` and ``mean_shape_quality``.
+    """
+    initial = np.asarray(initial, float)
+    final = np.asarray(final, float)
+    fig = _figure(10.0, 4.6)
+    fig.dpi = dpi
+    xl, yl = _limits(np.stack([initial, final]), margin=0.08)
+    for k, (pts, title) in enumerate([(initial, "initial mesh"), (final, "optimized mesh")]):
+        ax = fig.add_subplot(1, 2, k + 1)
+        if rhs is not None:
+            gx, gy = np.meshgrid(np.linspace(*xl, 160), np.linspace(*yl, 160))
+            r = np.asarray(rhs(np.stack([gx.ravel(), gy.ravel()], 1)), float).reshape(gx.shape)
+            cs = ax.contourf(gx, gy, r, levels=20, cmap="viridis", alpha=0.55)
+            ax.contour(gx, gy, r, levels=[0.0], colors="white", linewidths=1.2)
+            fig.colorbar(cs, ax=ax, shrink=0.8, label="r")
+        draw_mesh(ax, pts, triangles, linewidth=0.5)
+        ax.set_xlim(*xl)
+        ax.set_ylim(*yl)
+        ax.set_title(title)
+    fig.tight_layout()
+    first = _save(fig, mesh_path)
+
+    it = np.asarray(history["iteration"])
+    fig = _figure(7.0, 4.2)
+    fig.dpi = dpi
+    ax = fig.add_subplot(1, 1, 1)
+    ax.plot(it, history["j"], color="tab:blue", label="j = ∫y")
+    if not np.allclose(history["objective"], history["j"]):
+        ax.plot(it, history["objective"], color="tab:blue", linestyle="--", label="j + f2")
+    ax.set_xlabel("iteration")
+    ax.set_ylabel("shape functional", color="tab:blue")
+    ax.grid(True, alpha=0.3)
+    ax2 = ax.twinx()
+    ax2.plot(it, history["mean_shape_quality"], color="tab:red", label="Λ (mean 1/ψ)")
+    ax2.set_ylabel("Λ (6.25), 1 is best", color="tab:red")
+    lines = ax.get_lines() + ax2.get_lines()
+    ax.legend(lines, [ln.get_label() for ln in lines], loc="upper right")
+    fig.tight_layout()
+    return first, _save(fig, history_path)

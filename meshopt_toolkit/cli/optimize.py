@@ -13,8 +13,6 @@ import logging
 import sys
 from pathlib import Path
 
-import numpy as np
-
 from ..errors import MeshoptError, WriteError
 from ._common import float_list
 
@@ -116,7 +114,7 @@ def run(args: argparse.Namespace) -> int:
     _write_history(outdir, result)
     _atomic_text(outdir / "summary.json", json.dumps(summary, indent=2) + "\n")
     if not args.no_plots:
-        _write_plots(outdir, mesh, result, objective)
+        _write_plots(outdir, mesh, result, args.rhs)
     if args.json:
         json.dump(summary, sys.stdout)
         sys.stdout.write("\n")
@@ -140,7 +138,13 @@ def _write_history(outdir: Path, result) -> None:
     _atomic_text(outdir / "history.json", json.dumps(rows, indent=1) + "\n")
 
 
-def _write_plots(outdir: Path, mesh, result, objective) -> None:
-    from ..plotting import plot_optimization
+def _write_plots(outdir: Path, mesh, result, rhs_text: str) -> None:
+    from ..expressions import parse_expression
+    from ..plotting import save_optimization_plots
 
-    plot_optimization(mesh, result, objective.rhs, outdir / "mesh.png", outdir / "history.png")
+    try:
+        save_optimization_plots(outdir / "mesh.png", outdir / "history.png", mesh.points,
+                                result.x, mesh.triangles, result.history_columns(),
+                                parse_expression(rhs_text))
+    except MeshoptError as exc:  # e.g. matplotlib missing: the run itself succeeded
+        logger.warning("figures not written: %s", exc)
