@@ -297,6 +297,41 @@ def _graph_resample(path: FloatArray, fvals: FloatArray, segments: int) -> Float
     return path[idx].copy()
 
 
+#: scales c tried in turn by the barrier-sliding flow (metric of c·f)
+FLOW_SCALES = (1.0, 4.0, 16.0, 64.0)
+
+
+def _barrier_sliding_flow(pen, Q0, Q1, scale: float, max_steps: int, stop: float):
+    """Explicit Euler steps of ``Q' = −grad ½|Q − Q1|²`` for ``g = I + c²∇f∇fᵀ``.
+
+    Returns ``(trajectory list, f values list)``, or a message when it stalls.
+    """
+    Q = Q0.copy()
+    f = float(pen.value(Q))
+    traj, fv = [Q.copy()], [f]
+    h = 0.05
+    for _ in range(max_steps):
+        g = np.asarray(pen.gradient(Q)) * scale
+        P = Q - Q1
+        d = -(P - g * (float(np.vdot(g, P)) / (1.0 + float(np.vdot(g, g)))))
+        while True:
+            Qn = Q + h * d
+            fn = float(pen.value(Qn))
+            if np.isfinite(fn) and abs(fn - f) <= 0.1 * (1.0 + abs(f)):
+                break
+            h *= 0.5
+            if h < 1e-12:
+                return "the barrier-sliding flow stalled"
+        Q, f = Qn, fn
+        traj.append(Q.copy())
+        fv.append(f)
+        h = min(1.5 * h, 0.2)
+        if np.linalg.norm(Q - Q1) <= stop:
+            return traj, fv
+    return (f"the barrier-sliding flow is still {np.linalg.norm(Q - Q1):.3g} away after "
+            f"{max_steps} steps")
+
+
 def initial_path(
     metric,
     Q0: FloatArray,
@@ -309,9 +344,10 @@ def initial_path(
     """An admissible path of ``segments + 1`` frames from ``Q0`` to ``Q1``.
 
     Straight lines ``(1 − t_k) Q0 + t_k Q1`` if every frame has a finite penalty. Otherwise
-    the gradient flow of ``F(Q) = ½|Q − Q1|²`` for the complete metric of ``f/max(1, f(Q0))``
-    (explicit Euler steps, each accepted only if ``f`` stays finite and changes by less
-    than 10 %), which slides along the barrier instead of crossing it, until
+    the gradient flow of ``F(Q) = ½|Q − Q1|²`` for the complete metric of ``c·f`` (explicit
+    Euler steps, each accepted only if ``f`` stays finite and changes by less than 10 %),
+    which slides along the barrier instead of crossing it — with ``c`` = 1, 4, 16, 64 in
+    turn until one flow arrives (a weak metric can stall against the barrier) — until
     ``|Q − Q1| ≤ rel_tol·|Q0 − Q1|``; the trajectory is resampled by arc length of the
     graph ``(Q, f(Q))`` and its last node replaced by ``Q1``.
 
@@ -334,42 +370,20 @@ def initial_path(
         return lin
     if all(np.isfinite(pen.value(q)) for q in lin[1:-1]):
         return lin
-    f_start = float(pen.value(Q0))
-    scale = 1.0 / max(1.0, abs(f_start))
     dist0 = float(np.linalg.norm(Q1 - Q0))
-    Q = Q0.copy()
-    traj, fv = [Q.copy()], [f_start]
-    f = f_start
-    h = 0.05
-    for _ in range(max_steps):
-        f, g = float(pen.value(Q)), np.asarray(pen.gradient(Q)) * scale
-        P = Q - Q1
-        gg = float(np.vdot(g, g))
-        d = -(P - g * (float(np.vdot(g, P)) / (1.0 + gg)))
-        while True:
-            Qn = Q + h * d
-            fn = float(pen.value(Qn))
-            if np.isfinite(fn) and abs(fn - f) <= 0.1 * (1.0 + abs(f)):
-                break
-            h *= 0.5
-            if h < 1e-12:
-                raise NotAdmissibleError(
-                    "no admissible path from the source to the target was found (the "
-                    "barrier-sliding flow stalled); the target may lie in another "
-                    "component of the admissible meshes"
-                )
-        Q = Qn
-        traj.append(Q.copy())
-        fv.append(fn)
-        h = min(1.5 * h, 0.2)
-        if np.linalg.norm(Q - Q1) <= rel_tol * dist0:
-            break
+    failure = ""
+    for scale in FLOW_SCALES:  # a stronger metric slides more readily along the barrier
+        flow = _barrier_sliding_flow(pen, Q0, Q1, scale, max_steps, rel_tol * dist0)
+        if isinstance(flow, str):
+            failure = flow
+            logger.debug("initial path: flow with metric scale %g failed: %s", scale, flow)
+            continue
+        traj, fv = flow
+        break
     else:
-        raise NotAdmissibleError(
-            f"no admissible path from the source to the target was found: the barrier-"
-            f"sliding flow is still {np.linalg.norm(Q - Q1) / dist0:.3g} (relative) away "
-            f"after {max_steps} steps"
-        )
+        raise NotAdmissibleError(f"no admissible path from the source to the target was found: "
+                                 f"{failure}; the target may lie in another component of the "
+                                 "admissible meshes")
     traj.append(Q1.copy())
     fv.append(float(pen.value(Q1)))
     path = _graph_resample(np.array(traj), np.array(fv), segments)
