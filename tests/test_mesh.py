@@ -708,3 +708,132 @@ def test_mesh_info_agrees_with_check_mesh_and_quality(tmp_path):
         assert info["n_boundary_vertices"] == len(m.boundary_vertices)
         for key in ("min_area", "total_area", "n_inverted", "min_angle_deg"):
             assert info[key] == q[key], (name, key)
+
+
+# -- the direct binary gmsh 4.1 reader (io/gmsh.py) reads exactly what meshio reads -------
+
+
+def _via_meshio(path):
+    import meshio.gmsh
+
+    from meshopt_toolkit.conversions import from_meshio
+
+    return from_meshio(meshio.gmsh.read(path), source=str(path))
+
+
+def _direct(path):
+    from meshopt_toolkit.io import gmsh as gmsh_io
+
+    with open(path, "rb") as fh:
+        return gmsh_io._read_binary41(fh)
+
+
+def _same_mesh(a, b):
+    assert type(a) is type(b) and a == b and a.source == b.source
+    for name in ("triangle_tags", "lines", "line_tags"):
+        x, y = getattr(a, name), getattr(b, name)
+        assert (x is None) == (y is None), name
+        if x is not None:
+            np.testing.assert_array_equal(x, y)
+    assert a.tag_names == b.tag_names
+
+
+@pytest.fixture(scope="module")
+def gmsh_binary_files(tmp_path_factory):
+    """Bundled meshes and a gmsh-meshed square (physical point, lines, surface) written
+    by gmsh itself as binary 4.1, and a square meshed without physical groups."""
+    gmsh = pytest.importorskip("gmsh")
+    from meshopt_toolkit.datasets import data_path
+
+    d = tmp_path_factory.mktemp("msh41")
+    files = []
+    gmsh.initialize(readConfigFiles=False)
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+        gmsh.option.setNumber("Mesh.Binary", 1)
+        for name in ("disc_77.msh", "square5.msh"):
+            gmsh.open(str(data_path(name)))
+            files.append(d / name)
+            gmsh.write(str(files[-1]))
+            gmsh.clear()
+        for groups in (True, False):
+            gmsh.model.add(f"sq{groups}")
+            s = gmsh.model.occ.addRectangle(0, 0, 0, 1, 1)
+            gmsh.model.occ.synchronize()
+            if groups:
+                gmsh.model.addPhysicalGroup(2, [s], 5, "plate")
+                gmsh.model.addPhysicalGroup(1, [1, 2], 6, "sides")
+                gmsh.model.addPhysicalGroup(0, [1], 8, "pin")
+            gmsh.option.setNumber("Mesh.MeshSizeMax", 0.25)
+            gmsh.model.mesh.generate(2)
+            files.append(d / f"square_{groups}.msh")
+            gmsh.write(str(files[-1]))
+            gmsh.clear()
+    finally:
+        gmsh.finalize()
+    return files
+
+
+def test_direct_gmsh_reader_matches_meshio_on_gmsh_files(gmsh_binary_files):
+    from meshopt_toolkit.io import load
+
+    for path in gmsh_binary_files:
+        assert _direct(path) is not None, path  # the fast path is taken
+        _same_mesh(load(path), _via_meshio(path))
+
+
+def test_direct_gmsh_reader_matches_meshio_on_our_files(tmp_path):
+    from meshopt_toolkit.io import load, save
+
+    g = grid_mesh(3, jitter=0.2)
+    b = g.boundary_edges
+    tagged = PlanarMesh(
+        g.points, g.triangles, triangle_tags=np.arange(g.n_triangles) % 2 + 1, lines=b,
+        line_tags=np.where(b[:, 0] < 4, 3, 4), tag_names={"a": (1, 2), "b": (2, 2), "c": (3, 1)},
+    )
+    surface = TriangleMesh(np.column_stack([g.points, g.points[:, 0] ** 2]), g.triangles)
+    for k, m in enumerate([g, tagged, surface]):
+        path = save(m, tmp_path / f"m{k}.msh")
+        assert _direct(path) is not None
+        got = load(path)
+        _same_mesh(got, _via_meshio(path))
+        assert got == m
+
+
+def test_direct_gmsh_reader_hands_unusual_files_to_meshio(tmp_path):
+    from meshopt_toolkit.errors import ReadError
+    from meshopt_toolkit.io import load, save
+
+    path = save(grid_mesh(3), tmp_path / "g.msh")
+    data = path.read_bytes()
+    # sparse node tags (every tag doubled, elements too): meshio's tag map is used
+    nodes = data.index(b"$Nodes\n") + 7
+    head = np.frombuffer(data, "<u8", 4, nodes).copy()
+    n = int(head[1])
+    tags_at = nodes + 32 + 12 + 8
+    tags = np.frombuffer(data, "<u8", n, tags_at) * 2
+    sparse = bytearray(data)
+    sparse[tags_at : tags_at + 8 * n] = tags.tobytes()
+    els = data.index(b"$Elements\n") + 10
+    n_tri = int(np.frombuffer(data, "<u8", 1, els + 8)[0])
+    at = els + 32 + 12 + 8
+    table = np.frombuffer(data, "<u8", 4 * n_tri, at).reshape(-1, 4).copy()
+    table[:, 1:] *= 2
+    sparse[at : at + table.nbytes] = table.tobytes()
+    sparse[nodes + 24 : nodes + 32] = np.array([2 * n], "<u8").tobytes()  # max tag
+    p2 = tmp_path / "sparse.msh"
+    p2.write_bytes(bytes(sparse))
+    assert _direct(p2) is None
+    assert load(p2) == grid_mesh(3)
+    # an unknown section
+    p3 = tmp_path / "extra.msh"
+    p3.write_bytes(data + b"$Comments\nhello\n$EndComments\n")
+    assert _direct(p3) is None
+    _same_mesh(load(p3), _via_meshio(p3))
+    # truncated: the error is meshio's, named by our reader
+    p4 = tmp_path / "cut.msh"
+    p4.write_bytes(data[: len(data) - 200])
+    assert _direct(p4) is None
+    with pytest.raises(ReadError, match=r"cut\.msh: cannot read gmsh file"):
+        load(p4)

@@ -1,7 +1,12 @@
 """Gmsh ``.msh`` files: read 2.2/4.0/4.1 (ASCII and binary), write 2.2 and 4.1.
 
-Reading goes through meshio's gmsh reader (called directly: ``meshio.read`` would try the
-ansys reader first and calls ``sys.exit`` on failure). Writing is our own, vectorized, so
+Binary 4.1 files of the common shape (the sections ``$MeshFormat``, ``$PhysicalNames``,
+``$Entities``, ``$Nodes``, ``$Elements``; node tags ``1..N`` in order; physical tags on
+every element block or on none) are read by :func:`_read_binary41`, a direct numpy
+parser of the blocks (several times faster than meshio's, which maps every node tag).
+Everything else goes through meshio's gmsh reader (called directly: ``meshio.read`` would
+try the ansys reader first and calls ``sys.exit`` on failure), and so does any file the
+direct parser finds unusual or damaged, so that results and error messages are meshio's. Writing is our own, vectorized, so
 that physical tags of triangles and boundary lines are always written (meshio 5.3.5 under
 numpy 2 writes ASCII files with cell data it cannot read back, and its 4.1 writer drops
 physical tags without ``gmsh:dim_tags``). Element blocks follow runs of equal tags, so the
@@ -17,7 +22,7 @@ import numpy as np
 
 from ..errors import ReadError, WriteError
 from ..mesh import TriangleMesh
-from ._common import format_rows, points3d
+from ._common import build_mesh, format_rows, points3d
 
 logger = logging.getLogger(__name__)
 
@@ -36,6 +41,11 @@ def read(path: Path) -> TriangleMesh:
         head = fh.read(64).lstrip()
     if not (head.startswith(b"$MeshFormat") or head.startswith(b"$Comments")):
         raise ReadError(f"{path}: not a gmsh file (no $MeshFormat header)")
+    if head.startswith(b"$MeshFormat\n4.1 1 8\n"):
+        with open(path, "rb") as fh:
+            parsed = _read_binary41(fh)
+        if parsed is not None:
+            return _build(path, *parsed)
     try:
         m = meshio_gmsh_read(path)
     except (Exception, SystemExit) as exc:  # meshio may sys.exit on failure
@@ -44,6 +54,154 @@ def read(path: Path) -> TriangleMesh:
             detail = f"truncated or corrupt ({detail})"
         raise ReadError(f"{path}: cannot read gmsh file: {detail}") from None
     return from_meshio(m, source=str(path))
+
+
+def _build(path: Path, points, blocks, names: dict) -> TriangleMesh:
+    """The mesh of parsed element ``blocks`` ``[(type, nodes (M, k) int64, phys or None)]``,
+    as :func:`~meshopt_toolkit.conversions.from_meshio` builds it from meshio's reading."""
+    from meshio.gmsh.common import _gmsh_to_meshio_type
+
+    tris = [(e, t) for etype, e, t in blocks if etype == TRIANGLE]
+    lines = [(e, t) for etype, e, t in blocks if etype == LINE]
+    skipped = {_gmsh_to_meshio_type[etype] for etype, _, _ in blocks} - {"triangle", "line"}
+    if skipped:
+        logger.info("%s: skipped cells of type %s", path, ", ".join(sorted(skipped)))
+    triangles = tris[0][0] if len(tris) == 1 else np.concatenate([e for e, _ in tris])
+    tags: dict = {"triangle_tags": None, "tag_names": names}
+    if tris[0][1] is not None:  # every block has a physical tag, or none has
+        tt = np.concatenate([np.full(len(e), t, np.int64) for e, t in tris])
+        if np.any(tt):
+            tags["triangle_tags"] = tt
+    if lines:
+        tags["lines"] = np.concatenate([e for e, _ in lines])
+        tags["line_tags"] = np.concatenate(
+            [np.full(len(e), 0 if t is None else t, np.int64) for e, t in lines]
+        )
+    return build_mesh(points, triangles, source=path, **tags)
+
+
+def _read_binary41(fh):
+    """:func:`_parse_binary41`, or None where it fails (truncated or damaged data)."""
+    try:
+        return _parse_binary41(fh)
+    except (ValueError, KeyError, OSError, MemoryError, UnicodeDecodeError):
+        return None
+
+
+def _parse_binary41(fh):
+    """Parse a binary gmsh 4.1 file (size_t of 8 bytes, little-endian) with numpy.
+
+    Returns
+    -------
+    (points (N, 3) float64, blocks, names) or None
+        ``blocks`` lists ``(element type, nodes (M, k) int64 0-based, physical tag or
+        None)`` in file order, ``names`` is ``{name: (tag, dim)}``. None when the file
+        has anything this parser does not handle exactly like meshio (other sections,
+        sparse or unordered node tags, parametric nodes, element nodes out of range,
+        physical tags on some blocks only, no triangle): the caller then reads it with
+        meshio.
+
+    Raises
+    ------
+    ValueError
+        Truncated or malformed data.
+    """
+    import shlex
+
+    from meshio._common import num_nodes_per_cell
+    from meshio.gmsh.common import _gmsh_to_meshio_type
+
+    def take(dtype: str, count: int) -> np.ndarray:
+        a = np.fromfile(fh, dtype=dtype, count=count)
+        if len(a) != count:
+            raise ValueError("truncated")
+        return a
+
+    def end(name: bytes) -> None:
+        line = fh.readline()
+        if line.strip():
+            raise ValueError("unexpected data")
+        if fh.readline().strip() != b"$End" + name:
+            raise ValueError("unclosed section")
+
+    if fh.readline().strip() != b"$MeshFormat" or fh.readline().split() != [b"4.1", b"1", b"8"]:
+        return None
+    if take("<i4", 1)[0] != 1:
+        return None
+    end(b"MeshFormat")
+    names: dict = {}
+    physical: dict | None = None
+    points = None
+    blocks = None
+    while True:
+        line = fh.readline()
+        if not line:
+            break
+        section = line.strip()
+        if not section:
+            continue
+        if section == b"$PhysicalNames" and not names:
+            for _ in range(int(fh.readline())):
+                dim, tag, name = shlex.split(fh.readline().decode())[:3]
+                names[name] = (int(tag), int(dim))
+            if fh.readline().strip() != b"$EndPhysicalNames":
+                return None
+        elif section == b"$Entities" and physical is None:
+            physical = {}
+            for dim, count in enumerate(take("<u8", 4).tolist()):
+                for _ in range(count):
+                    tag = int(take("<i4", 1)[0])
+                    take("<f8", 3 if dim == 0 else 6)
+                    phys = take("<i4", int(take("<u8", 1)[0])).tolist()
+                    physical[(dim, tag)] = phys
+                    if dim > 0:
+                        take("<i4", int(take("<u8", 1)[0]))
+            end(b"Entities")
+        elif section == b"$Nodes" and points is None:
+            n_blocks, n_nodes = take("<u8", 4)[:2].tolist()
+            parts = []
+            first_tag = 1
+            for _ in range(n_blocks):
+                _, _, parametric = take("<i4", 3).tolist()
+                m = int(take("<u8", 1)[0])
+                if parametric:
+                    return None
+                if not np.array_equal(take("<u8", m), np.arange(first_tag, first_tag + m)):
+                    return None  # sparse or unordered node tags: meshio maps them
+                first_tag += m
+                parts.append(take("<f8", 3 * m).reshape(m, 3))
+            if first_tag - 1 != n_nodes:
+                return None
+            points = parts[0] if len(parts) == 1 else np.concatenate(parts)
+            end(b"Nodes")
+        elif section == b"$Elements" and points is not None and blocks is None:
+            n_blocks = int(take("<u8", 4)[0])
+            blocks = []
+            for _ in range(n_blocks):
+                dim, tag, etype = take("<i4", 3).tolist()
+                m = int(take("<u8", 1)[0])
+                if etype not in _gmsh_to_meshio_type:
+                    return None
+                k = num_nodes_per_cell[_gmsh_to_meshio_type[etype]]
+                data = take("<u8", m * (1 + k)).reshape(m, 1 + k)[:, 1:]
+                if etype in (TRIANGLE, LINE):
+                    if m and (int(data.min()) < 1 or int(data.max()) > len(points)):
+                        return None  # meshio's node-tag map decides what that means
+                    nodes = np.subtract(data, 1, dtype=np.int64, casting="unsafe")
+                else:
+                    nodes = np.zeros((0, k), np.int64)
+                if physical is not None and (dim, tag) not in physical:
+                    return None
+                phys = physical.get((dim, tag)) if physical is not None else None
+                blocks.append((etype, nodes, phys[0] if phys else None))
+            end(b"Elements")
+        else:
+            return None  # any other section (or a repeated one): meshio's business
+    if points is None or not blocks or not any(b[0] == TRIANGLE for b in blocks):
+        return None
+    if len({b[2] is None for b in blocks}) > 1:
+        return None  # physical tags on some blocks only: keep meshio's reading of that
+    return points, blocks, names
 
 
 # ----------------------------------------------------------------------------- writing
