@@ -20,6 +20,7 @@ import logging
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from ._typing import FloatArray, IntArray
 from .errors import MeshoptError
@@ -242,7 +243,7 @@ class PoissonSolver:
     ----------
     K : (N, N) sparse symmetric positive semi-definite stiffness matrix
     dirichlet : (D,) indices of the nodes where ``y = 0`` (at least one)
-    method : ``"direct"`` (SuperLU with a symmetric minimum-degree ordering),
+    method : ``"direct"`` (SuperLU, reverse Cuthill–McKee then symmetric minimum degree),
         ``"amg"`` (pyamg classical Ruge–Stüben AMG as a preconditioner for CG, iterated to
         relative residual ``rtol``; one hierarchy serves every right-hand side) or
         ``"auto"`` (direct below :data:`AMG_THRESHOLD` free nodes, AMG above).
@@ -272,31 +273,34 @@ class PoissonSolver:
             raise ValueError(f"unknown method {method!r}; use 'direct', 'amg' or 'auto'")
         self.method = method
         self.rtol = float(rtol)
-        kff = K[self.free][:, self.free]
-        self._kff = kff
+        kff = K[self.free][:, self.free].tocsr()
+        # a bandwidth-reducing order first: it makes the AMG setup and smoothing cache
+        # friendly and halves SuperLU's fill (minimum degree alone is sensitive to the
+        # input numbering, e.g. after repeated refinement)
         if self.free.size == 0:
+            self._order = self.free
             self._solve = lambda b: b
-        elif method == "direct":
+            return
+        perm = reverse_cuthill_mckee(kff, symmetric_mode=True)
+        self._order = self.free[perm]  # unknown k of the permuted system is node _order[k]
+        kp = kff[perm][:, perm].tocsr()
+        if method == "direct":
             lu = spla.splu(
-                kff.tocsc(),
+                kp.tocsc(),
                 permc_spec="MMD_AT_PLUS_A",
                 diag_pivot_thresh=0.0,
                 options={"SymmetricMode": True},
             )
             self._solve = lu.solve
         else:
-            self._solve = self._amg_solver(kff)
+            self._solve = self._amg_solver(kp)
 
-    def _amg_solver(self, kff):
+    def _amg_solver(self, kp):
         try:
             import pyamg
         except ImportError as exc:  # pragma: no cover - depends on the environment
             raise MeshoptError("method='amg' needs pyamg (pip install pyamg)") from exc
-        from scipy.sparse.csgraph import reverse_cuthill_mckee
 
-        # a bandwidth-reducing order makes the AMG setup and smoothing cache friendly
-        perm = reverse_cuthill_mckee(kff, symmetric_mode=True)
-        kp = kff[perm][:, perm].tocsr()
         ml = pyamg.ruge_stuben_solver(kp, coarse_solver="splu")
         rtol = self.rtol
 
@@ -306,9 +310,7 @@ class PoissonSolver:
             return x
 
         def solve(b):
-            x = np.zeros_like(b)
-            x[perm] = _pcg(kp, b[perm], precondition, rtol, maxiter=500)
-            return x
+            return _pcg(kp, b, precondition, rtol, maxiter=500)
 
         return solve
 
@@ -317,5 +319,5 @@ class PoissonSolver:
         b = np.asarray(b, dtype=float)
         y = np.zeros(self.n)
         if self.free.size:
-            y[self.free] = self._solve(b[self.free])
+            y[self._order] = self._solve(b[self._order])
         return y
