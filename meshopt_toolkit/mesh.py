@@ -216,6 +216,16 @@ class TriangleMesh:
 
     # -- topology (cached) ----------------------------------------------------------
     @cached_property
+    def _triangle_columns(self) -> IntArray:
+        """The triangles as a contiguous ``(3, T)`` array, row ``l`` = local vertex ``l``.
+
+        Its transpose is the triangle array in column-major order: per-vertex gathers
+        (``np.take(x, triangles.T)`` in :mod:`~meshopt_toolkit.geometry`) run several
+        times faster on it than on the row-major ``(T, 3)`` array.
+        """
+        return _frozen(np.ascontiguousarray(self._triangles.T))
+
+    @cached_property
     def _edge_data(self) -> tuple[IntArray, IntArray, IntArray, IntArray]:
         """Edges, triangle→edge map, counts, and the first two corners of each edge.
 
@@ -373,11 +383,11 @@ class PlanarMesh(TriangleMesh):
 
     def signed_areas(self) -> FloatArray:
         """Signed area per triangle ``(T,)``."""
-        return signed_areas(self._points, self._triangles)
+        return signed_areas(self._points, self._triangle_columns.T)
 
     def quality(self):
         """:class:`~meshopt_toolkit.geometry.QualitySummary` of the current positions."""
-        return quality_summary(self._points, self._triangles)
+        return quality_summary(self._points, self._triangle_columns.T)
 
     @property
     def diameter(self) -> float:

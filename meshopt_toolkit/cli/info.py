@@ -35,7 +35,6 @@ def mesh_info(path: str | Path) -> dict:
     ReadError
         The file cannot be read.
     """
-    from ..geometry import quality_summary
     from ..io import load
     from ..mesh import _check_mesh
 
@@ -47,10 +46,10 @@ def mesh_info(path: str | Path) -> dict:
         # the summary's smallest signed area tells the check whether it may skip its own
         # area pass (all areas > 0: nothing to re-orient, nothing inverted)
         pm = mesh.as_planar()
-        quality = quality_summary(pm.points, pm.triangles)
+        quality = pm.quality()
         report = _check_mesh(pm, positive_areas=quality.min_area > 0)
         if report.reoriented:
-            quality = quality_summary(report.mesh.points, report.mesh.triangles)
+            quality = report.mesh.quality()
     else:
         report = _check_mesh(mesh)
     info = {
