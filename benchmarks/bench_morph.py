@@ -80,12 +80,12 @@ def main() -> None:
         if not check_mesh(tgt).admissible:
             print(f"{mesh.n_triangles:>10} {mesh.n_vertices:>9}   twisted target not admissible")
             continue
-        t, r = best_of(lambda: geodesic_morph(mesh, tgt, frames=5), 1)
+        t, r = best_of(lambda m=mesh, g=tgt: geodesic_morph(m, g, frames=5), 1)
         pen = QualityPenalty(mesh, beta=DEFAULT_BETA)
-        t_call, _ = best_of(lambda: pen.value_and_gradient(mesh.points), 3)
+        t_call, _ = best_of(lambda p=pen, m=mesh: p.value_and_gradient(m.points), 3)
         print(f"{mesh.n_triangles:>10} {mesh.n_vertices:>9} {t:>9.2f} {r.discrete.nit:>5} "
-              f"{r.discrete.n_evaluations:>7} {1e3 * t_call:>8.2f} {str(bool(r.admissible.all())):>10} "
-              f"{str(r.linear_min_area_dense < 0):>12}")
+              f"{r.discrete.n_evaluations:>7} {1e3 * t_call:>8.2f} {bool(r.admissible.all())!s:>10} "
+              f"{r.linear_min_area_dense < 0!s:>12}")
 
 
 if __name__ == "__main__":

@@ -44,7 +44,7 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -59,11 +59,11 @@ __all__ = [
     "DiscreteGeodesic",
     "LogMapResult",
     "MorphResult",
-    "initial_path",
     "discrete_geodesic",
-    "log_map",
     "geodesic_morph",
+    "initial_path",
     "linear_morph",
+    "log_map",
 ]
 
 #: default f2 coefficients (β1, β2, β3, β4) of the morph metric (β4 unscaled)
@@ -445,14 +445,16 @@ class _PathEnergy:
         self.S = np.linalg.cholesky(self.Linv * (1.0 + self.gram))
         return E, G
 
-    def hvp(self, U: FloatArray) -> FloatArray:
-        """``∇²E · U`` at the last evaluated X, U of shape (K−1, N, 2)."""
+    def hvp(self, U: FloatArray, shift: float = 0.0) -> FloatArray:
+        """``(∇²E + shift·H_GN) · U`` at the last evaluated X, U of shape (K−1, N, 2)."""
         K = self.K
         Ue = np.concatenate([np.zeros_like(U[:1]), U, np.zeros_like(U[:1])])
         s = np.zeros(K + 1)
         s[1:-1] = np.einsum("iab,iab->i", self.gs, U)
         out = 2.0 * K * (2.0 * U - Ue[:-2] - Ue[2:])
         out += (2.0 * K * (2.0 * s[1:-1] - s[:-2] - s[2:]))[:, None, None] * self.gs
+        if shift:
+            out *= 1.0 + shift
         for k in range(K - 1):
             c = 2.0 * K * self.lap_f[k]
             if c != 0.0:
@@ -467,8 +469,11 @@ class _PathEnergy:
         return y - np.einsum("ij,jab->iab", self.Linv, w[:, None, None] * self.gs)
 
 
-def _newton_cg_direction(G, hvp, prec, eta: float, max_cg: int) -> tuple[FloatArray, int]:
-    """Preconditioned truncated CG for ``H d = −G``; stops at negative curvature."""
+def _newton_cg_direction(G, hvp, prec, eta: float, max_cg: int) -> tuple[FloatArray, int, bool]:
+    """Preconditioned truncated CG for ``H d = −G``; stops at negative curvature.
+
+    Returns ``(d, CG iterations, negative curvature met)``.
+    """
     x = np.zeros_like(G)
     r = -G
     z = prec(r)
@@ -479,17 +484,17 @@ def _newton_cg_direction(G, hvp, prec, eta: float, max_cg: int) -> tuple[FloatAr
         Hp = hvp(p)
         pHp = float(np.vdot(p, Hp))
         if pHp <= 0.0:
-            return (z if i == 0 else x), i + 1
+            return (z if i == 0 else x), i + 1, True
         a = rz / pHp
         x += a * p
         r -= a * Hp
         z = prec(r)
         rz_new = float(np.vdot(r, z))
         if np.sqrt(max(rz_new, 0.0)) <= eta * r0:
-            return x, i + 1
+            return x, i + 1, False
         p = z + (rz_new / rz) * p
         rz = rz_new
-    return x, max_cg
+    return x, max_cg, False
 
 
 def discrete_geodesic(
@@ -500,7 +505,7 @@ def discrete_geodesic(
     *,
     path: FloatArray | None = None,
     tol: float = 1e-9,
-    max_iter: int = 200,
+    max_iter: int = 500,
     max_cg: int = 200,
 ) -> DiscreteGeodesic:
     """The ``segments``-segment discrete geodesic from ``Q0`` to ``Q1`` (path energy).
@@ -562,11 +567,13 @@ def discrete_geodesic(
     E, G = pe.evaluate(X)
     gnorm = float(np.sqrt(max(np.vdot(G, pe.precondition(G)), 0.0)))
     nit = 0
+    n_cg = 0
+    negative = False
     converged = gnorm <= tol * np.sqrt(E)
     while not converged and nit < max_iter:
         nit += 1
         eta = min(0.5, np.sqrt(gnorm / max(np.sqrt(E), 1e-300)))
-        D, _ = _newton_cg_direction(G, pe.hvp, pe.precondition, eta, max_cg)
+        D, n_cg, negative = _newton_cg_direction(G, pe.hvp, pe.precondition, eta, max_cg)
         slope = float(np.vdot(G, D))
         if slope >= 0:  # cannot happen with an SPD preconditioner; be safe
             D = -pe.precondition(G)
@@ -586,7 +593,8 @@ def discrete_geodesic(
         E, G = pe.evaluate(X)
         gnorm = float(np.sqrt(max(np.vdot(G, pe.precondition(G)), 0.0)))
         converged = gnorm <= tol * np.sqrt(E)
-        logger.debug("discrete geodesic %d: E = %.12g, |g| = %.3g, step %.3g", nit, E, gnorm, t)
+        logger.debug("discrete geodesic %d: E = %.12g, |g| = %.3g, step %.3g, %d CG%s",
+                     nit, E, gnorm, t, n_cg, " (negative curvature)" if negative else "")
     pts = pe._frames(X)
     fs = pe.fs
     length = float(np.sum(np.sqrt(np.sum(np.diff(pts, axis=0) ** 2, axis=(1, 2))
@@ -721,7 +729,7 @@ def log_map(
             message = "not converged: the exponential map failed at the current velocity"
             break
 
-        def jv(v, base=base):
+        def jv(v, base=base, V=V, h=h):
             v = v.reshape(V.shape)
             nv = float(np.linalg.norm(v))
             if nv == 0.0:

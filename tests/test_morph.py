@@ -6,11 +6,11 @@ import json
 
 import numpy as np
 import pytest
-
 from conftest import grid_mesh
+
 from meshopt_toolkit.datasets import data_path
 from meshopt_toolkit.errors import InvalidMeshError, NotAdmissibleError
-from meshopt_toolkit.geodesics import exp_map
+from meshopt_toolkit.geodesics import exp_map, geodesic
 from meshopt_toolkit.geometry import signed_areas
 from meshopt_toolkit.mesh import PlanarMesh, check_mesh
 from meshopt_toolkit.metrics import CompleteMetric
@@ -174,6 +174,22 @@ def test_twist_morph_is_admissible_and_reaches_the_target(disc, twist_morph):
     assert seg.max() / seg.min() < 1.5
     # and the morph is shorter than the barrier-sliding initial path
     assert res.discrete.length <= np.sum(seg) * (1 + 1e-9)
+
+
+def test_discrete_geodesic_converges_to_the_shooting_geodesic_second_order():
+    mesh = grid_mesh(4, jitter=0.3)
+    metric = CompleteMetric(QualityPenalty(mesh, beta=(1, 1, 0, 1)))
+    Q0, Q1 = mesh.points, bend(mesh, 0.12)
+    V = log_map(metric, Q0, Q1).velocity
+    errors = []
+    for K in (4, 8, 16):
+        dg = discrete_geodesic(metric, Q0, Q1, K)
+        assert dg.converged
+        exact = geodesic(metric, Q0, V, 1.0, times=np.linspace(0, 1, K + 1),
+                         rtol=SHOOTING_RTOL).points
+        errors.append(np.max(np.abs(dg.points - exact)))
+    rate = np.polyfit(np.log([4, 8, 16]), np.log(errors), 1)[0]
+    assert rate < -1.8, (errors, rate)
 
 
 # -- symmetry ---------------------------------------------------------------------------

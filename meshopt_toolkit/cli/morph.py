@@ -33,7 +33,7 @@ def add_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--beta", type=float_list(4), metavar="b1,b2,b3,b4",
                    default=DEFAULT_BETA,
                    help="f2 coefficients of the complete metric, β4 unscaled "
-                        "(default: %s)" % ",".join(f"{b:g}" for b in DEFAULT_BETA))
+                        f"(default: {','.join(f'{b:g}' for b in DEFAULT_BETA)})")
     p.add_argument("--method", choices=("discrete", "shooting", "auto"), default="discrete",
                    help="frames from the discrete geodesic, the shooting geodesic, or shooting "
                         "with a fallback (default: %(default)s)")
