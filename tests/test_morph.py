@@ -279,3 +279,26 @@ def test_filter_generate_geodesic_morph():
     assert np.allclose(doc.mesh.points[:, :2], bend(mesh))
     assert doc.current_entry.face_attributes["quality"].min() > 0
     assert summary["admissible"] and summary["frames"] == 3
+
+
+@pytest.mark.parametrize("kind", ["json", "mlx"])
+def test_filter_through_json_and_mlx_pipelines(kind, tmp_path):
+    from meshopt_toolkit.io import save
+    from meshopt_toolkit.pipeline import Document, Pipeline, load_pipeline, save_pipeline
+
+    mesh = grid_mesh(4, jitter=0.3)
+    save(mesh.with_points(bend(mesh)), tmp_path / "b.msh")
+    steps = [{"name": "load_mesh", "params": {"path": str(tmp_path / "b.msh")}},
+             {"name": "generate_geodesic_morph", "params": {"frames": 3, "beta4": 0.5}}]
+    path = tmp_path / f"morph.{kind}"
+    if kind == "json":
+        path.write_text(json.dumps({"filters": steps}))
+    else:
+        save_pipeline(Pipeline.from_dict({"filters": steps}), path)
+        assert 'name="Geodesic Morph (meshopt)"' in path.read_text()
+    doc = load_pipeline(path).run(Document([mesh]))
+    assert len(doc) == 5
+    assert [e.name for e in doc.entries[2:]] == ["morph_000", "morph_001", "morph_002"]
+    assert np.allclose(doc.entries[2].mesh.points[:, :2], mesh.points)
+    assert np.allclose(doc.mesh.points[:, :2], bend(mesh))
+    assert doc.results[-1]["admissible"]
