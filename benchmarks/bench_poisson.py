@@ -15,10 +15,9 @@ over ``--repeat`` runs; the machine's other load affects both sides alike.
 
 Run: ``python benchmarks/bench_poisson.py [--level 9] [--repeat 2] [--no-direct]``
 
-SuperLU's minimum-degree ordering is poor on the vertex numbering produced by repeated
-refinement: at level 9 our direct path needs many minutes, so compare it at level 8 or
-below (``--level 8``) or skip it with ``--no-direct``; ``solver="auto"`` never picks it at
-this size.
+SuperLU (after RCM + minimum degree) is much slower than AMG at level 9: compare the
+direct path at ``--level 8`` or below, or skip it with ``--no-direct``; ``solver="auto"``
+never picks it at these sizes.
 """
 
 from __future__ import annotations

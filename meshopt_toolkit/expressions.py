@@ -30,7 +30,7 @@ import numpy as np
 from ._typing import FloatArray
 from .errors import ExpressionError
 
-__all__ = ["Expression", "parse_expression", "MAX_LENGTH", "MAX_DEPTH"]
+__all__ = ["MAX_DEPTH", "MAX_LENGTH", "Expression", "parse_expression"]
 
 #: longest accepted expression text (characters)
 MAX_LENGTH = 1000
@@ -179,7 +179,7 @@ def _convert(node: ast.AST):
     raise _err(f"{kind} not allowed", node)
 
 
-def parse_expression(text: str) -> "Expression":
+def parse_expression(text: str) -> Expression:
     """Parse and check an expression in ``x, y`` (see the module docstring for the grammar).
 
     Parameters

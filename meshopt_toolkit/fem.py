@@ -26,15 +26,15 @@ from ._typing import FloatArray, IntArray
 from .errors import MeshoptError
 
 __all__ = [
+    "AMG_THRESHOLD",
+    "PoissonSolver",
+    "centroids",
     "edge_vectors",
     "element_stiffness",
-    "p1_stiffness",
-    "centroids",
     "lumped_load",
     "nodal_mass_weights",
+    "p1_stiffness",
     "poisson_shape_derivative",
-    "PoissonSolver",
-    "AMG_THRESHOLD",
 ]
 
 logger = logging.getLogger(__name__)

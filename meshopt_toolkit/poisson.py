@@ -23,9 +23,10 @@ before optimizing. :class:`PoissonObjective` is the reference implementation.
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass
 from numbers import Real
-from typing import Callable, Protocol, runtime_checkable
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 

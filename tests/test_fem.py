@@ -13,7 +13,7 @@ from meshopt_toolkit.expressions import parse_expression
 from meshopt_toolkit.taylor import check_gradient
 
 skfem = pytest.importorskip("skfem")
-from skfem.models.poisson import laplace  # noqa: E402
+from skfem.models.poisson import laplace
 
 
 def centroid_basis(mesh):
