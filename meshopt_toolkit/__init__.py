@@ -48,6 +48,7 @@ _EXPORTS = {
     "deform": "deform",
     # shape optimization
     "PoissonObjective": "poisson",
+    "parse_expression": "expressions",
     "optimize": "optimize",
     # morphing
     "log_map": "morph",
