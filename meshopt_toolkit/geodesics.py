@@ -75,10 +75,17 @@ __all__ = [
     "penalty_of",
 ]
 
-METHODS = ("auto", "dop853", "dopri5", "stormer-verlet", "scipy")
+METHODS = ("auto", "dop853", "dopri5", "bs3", "line-search", "stormer-verlet", "scipy")
 
 #: default relative tolerance of each adaptive integrator (atol = rtol · scale)
-DEFAULT_RTOL = {"dop853": 1e-6, "dopri5": 1e-7, "scipy": 1e-10}
+DEFAULT_RTOL = {"dop853": 1e-6, "dopri5": 1e-7, "bs3": 1e-5, "line-search": 1e-2,
+                "scipy": 1e-10}
+
+#: how ``method="line-search"`` drives :func:`~meshopt_toolkit.integrators.runge_kutta`
+#: (with the Bogacki–Shampine pair): the velocity is projected back onto the initial
+#: energy after every step instead of rejecting steps that change it, and a step with an
+#: inadmissible stage is retried at half its size
+LINE_SEARCH_OPTIONS = {"project_energy": True, "energy_rtol": np.inf, "exit_shrink": 0.5}
 
 
 class GeodesicWarning(UserWarning):
@@ -100,8 +107,11 @@ class GeodesicResult:
     n_evaluations : penalty calls made
     n_steps, n_rejected : accepted / rejected integrator steps
     method : integrator used
-    max_energy_drift : max relative energy drift over all steps
+    max_energy_drift : max relative energy drift over all steps (per step before the
+        energy projection of ``"line-search"``)
     warnings : messages of violated invariants (empty when all held)
+    last_step : step size the adaptive integrator would have tried next (NaN otherwise):
+        a good ``h0`` for a similar geodesic
     """
 
     times: FloatArray
@@ -116,6 +126,7 @@ class GeodesicResult:
     method: str = "auto"
     max_energy_drift: float = 0.0
     warnings: list[str] = field(default_factory=list)
+    last_step: float = float("nan")
 
     @property
     def final(self) -> FloatArray:
@@ -228,6 +239,8 @@ def geodesic(
     dense: bool = True,
     fixed_point_tol: float = 1e-8,
     fixed_point_iter: int = 10,
+    monitor: bool | None = None,
+    h0: float | None = None,
 ) -> GeodesicResult:
     """The geodesic ``γ`` with ``γ(0) = Q``, ``γ'(0) = V``, sampled from ONE integration.
 
@@ -241,7 +254,8 @@ def geodesic(
     times : (K,) array_like, optional
         Output times between 0 and ``t_end`` (any order; returned in the given order).
         Default ``[t_end]``. Include 0 to get the initial state as well.
-    method : "auto" | "dop853" | "dopri5" | "stormer-verlet" | "scipy" (module docstring)
+    method : "auto" | "dop853" | "dopri5" | "bs3" | "line-search" | "stormer-verlet" |
+        "scipy" (module docstring)
     steps : Störmer–Verlet steps on [0, t_end] (default 1024)
     rtol, atol : adaptive tolerances (defaults per method, atol = rtol·scale; see above)
     energy_tol : allowed relative energy drift before a violation is reported
@@ -253,6 +267,13 @@ def geodesic(
         disc — velocities O(h⁵), so ``energy`` at such outputs shows the interpolation
         error of V, amplified by |∇f|). False: every output time is a step end.
     fixed_point_tol, fixed_point_iter : Störmer–Verlet fixed-point tolerance and cap
+    monitor : bool, optional
+        True: evaluate ``f`` (and ``∇f`` at interpolated outputs, for the energy) at every
+        output and check the invariants (one penalty call per output). False: positions
+        only — ``penalty`` is NaN except at t = 0 and ``energy`` is NaN at interpolated
+        outputs; no invariant is checked. Default: False for ``"line-search"``, else True.
+    h0 : first step size of the adaptive methods (e.g. ``last_step`` of a previous,
+        similar geodesic); default Hairer's heuristic.
 
     Returns
     -------
@@ -263,7 +284,9 @@ def geodesic(
     IntegrationError
         The integration cannot proceed without leaving M+, a Störmer–Verlet fixed point
         fails ("use more steps"), the initial mesh is not admissible, or (with
-        ``on_violation="raise"``) an invariant is violated.
+        ``on_violation="raise"``) an invariant is violated. When an adaptive integration
+        stops early, the exception carries ``partial``: a :class:`GeodesicResult` over the
+        requested times reached (ascending), or None if none was.
     """
     if method not in METHODS:
         raise IntegrationError(f"unknown geodesic method {method!r}; choose one of {METHODS}")
@@ -282,10 +305,18 @@ def geodesic(
     if t_end < 0:
         if np.any(req > 0) or np.any(req < t_end):
             raise IntegrationError(f"times must lie in [{t_end}, 0]")
-        res = geodesic(metric, Q, -V, -t_end, times=-req, method=method, steps=steps,
-                       rtol=rtol, atol=atol, energy_tol=energy_tol,
-                       on_violation=on_violation, max_steps=max_steps, dense=dense,
-                       fixed_point_tol=fixed_point_tol, fixed_point_iter=fixed_point_iter)
+        try:
+            res = geodesic(metric, Q, -V, -t_end, times=-req, method=method, steps=steps,
+                           rtol=rtol, atol=atol, energy_tol=energy_tol,
+                           on_violation=on_violation, max_steps=max_steps, dense=dense,
+                           fixed_point_tol=fixed_point_tol, fixed_point_iter=fixed_point_iter,
+                           monitor=monitor, h0=h0)
+        except IntegrationError as exc:
+            part = getattr(exc, "partial", None)
+            if part is not None:
+                part.times = -part.times
+                part.velocities = -part.velocities
+            raise
         res.times = req
         res.velocities = -res.velocities
         return res
@@ -303,23 +334,33 @@ def geodesic(
             method="euclidean",
         )
 
+    method_used = "dop853" if method == "auto" else method
+    line_search = method_used == "line-search"
+    if monitor is None:
+        monitor = not line_search
     fld = GeodesicField(pen, _triangles_of(pen))
     if not fld.admissible(Q):
         raise IntegrationError("the initial mesh is not admissible (a signed area is <= 0)")
-    f0 = fld.value(Q)
-    if not np.isfinite(f0):
-        raise IntegrationError("the penalty is not finite at the initial mesh")
+    if monitor:
+        f0 = fld.value(Q)
+        if not np.isfinite(f0):
+            raise IntegrationError("the penalty is not finite at the initial mesh")
+    else:
+        problem = fld.boundary_problem(Q)
+        if problem is not None:
+            raise IntegrationError(f"the initial mesh is not admissible: {problem}")
+        f0 = np.nan
     positive = np.unique(req[req > 0])
-    method_used = "dop853" if method == "auto" else method
     if method_used in DEFAULT_RTOL and rtol is None:
         rtol = DEFAULT_RTOL[method_used]
     if positive.size == 0 or not np.any(V):
         out = None
-    elif method_used in ("dop853", "dopri5"):
+    elif method_used in ("dop853", "dopri5", "bs3", "line-search"):
         scale = max(float(np.max(np.abs(Q))), float(np.max(np.abs(V))) * positive[-1], 1e-300)
-        out = runge_kutta(fld, Q, V, positive, pair=method_used, rtol=rtol,
-                          atol=rtol * scale if atol is None else atol, max_steps=max_steps,
-                          dense=dense)
+        extra = LINE_SEARCH_OPTIONS if line_search else {}
+        out = runge_kutta(fld, Q, V, positive, pair="bs3" if line_search else method_used,
+                          rtol=rtol, atol=rtol * scale if atol is None else atol,
+                          max_steps=max_steps, dense=dense, h0=h0, partial=True, **extra)
     elif method_used == "stormer-verlet":
         out = stormer_verlet(fld, Q, V, positive, steps=1024 if steps is None else int(steps),
                              tol=fixed_point_tol, max_iter=fixed_point_iter)
@@ -327,9 +368,28 @@ def geodesic(
         scale = max(float(np.max(np.abs(Q))), float(np.max(np.abs(V))) * positive[-1], 1e-300)
         out = _scipy_dop853(fld, Q, V, positive, rtol, rtol * scale if atol is None else atol)
 
-    g0 = fld.gradient(Q)
-    e0 = energy(g0, V)
-    # assemble outputs in the requested order
+    if out is not None and out.failure:
+        reached = positive[: out.n_reached]
+        keep = np.flatnonzero((req == 0) | np.isin(req, reached))
+        exc = IntegrationError(out.failure)
+        exc.partial = None
+        if keep.size:
+            sub = np.sort(req[keep])
+            exc.partial = _assemble(fld, Q, V, f0, sub, positive, out, method_used, monitor,
+                                    rtol, energy_tol, "ignore")
+        raise exc
+    return _assemble(fld, Q, V, f0, req, positive, out, method_used, monitor, rtol,
+                     energy_tol, on_violation)
+
+
+def _assemble(fld, Q, V, f0, req, positive, out, method_used, monitor, rtol, energy_tol,
+              on_violation) -> GeodesicResult:
+    """Outputs in the requested order, with the invariant checks when ``monitor``."""
+    K = req.size
+    if out is not None and np.isfinite(out.initial_energy):
+        e0 = out.initial_energy
+    else:
+        e0 = energy(fld.gradient(Q), V)
     pts = np.empty((K,) + Q.shape)
     vel = np.empty((K,) + Q.shape)
     en = np.empty(K)
@@ -340,40 +400,47 @@ def geodesic(
             i = int(np.searchsorted(positive, t))
             pts[j], vel[j], en[j] = out.points[i], out.velocities[i], out.energy[i]
     fvals = np.full(K, f0)
-    for j, t in enumerate(req):
-        if t == 0 or out is None:
-            continue
-        if np.isnan(en[j]):  # an interpolated output: energy from the gradient there
-            fvals[j], grad = fld.value_and_gradient(pts[j])
-            en[j] = energy(grad, vel[j])
-        else:
-            fvals[j] = fld.value(pts[j])
+    if monitor:
+        for j, t in enumerate(req):
+            if t == 0 or out is None:
+                continue
+            if np.isnan(en[j]):  # an interpolated output: energy from the gradient there
+                fvals[j], grad = fld.value_and_gradient(pts[j])
+                en[j] = energy(grad, vel[j])
+            else:
+                fvals[j] = fld.value(pts[j])
+    else:
+        fvals[req != 0] = np.nan
+    # every returned configuration was checked by the integrator (areas at every output,
+    # the boundary exactly or by certificate); recheck the areas, which is cheap
     adm = np.array([fld.admissible(p) for p in pts])
     if not adm.all():  # cannot happen: every accepted step is checked
         raise IntegrationError("internal error: the integrator produced an inverted mesh")
 
     notes: list[str] = []
-    if energy_tol is None:
-        if method_used == "stormer-verlet":
-            energy_tol = 1e-2
-        else:
-            energy_tol = max(1e-3, 1e4 * rtol)
     drift = 0.0 if out is None else out.max_energy_drift
-    if e0 > 0 and drift > energy_tol:
-        _report(f"geodesic energy drifted by {drift:.3g} (relative) > {energy_tol:g}; "
-                "tighten the tolerance or use more steps", on_violation, notes)
-    e_max = max(e0, float(np.max(en)))
-    bound = np.sqrt(e_max) * req * (1 + energy_tol) + 1e-10 * (1 + abs(f0))
-    excess = np.abs(fvals - f0) - bound
-    if np.any(excess > 0):
-        j = int(np.argmax(excess))
-        _report(f"f-growth bound violated at t = {req[j]:.6g}: |f(γ(t)) − f(γ(0))| = "
-                f"{abs(fvals[j] - f0):.6g} > √e·t = {bound[j]:.6g}", on_violation, notes)
+    if monitor:
+        if energy_tol is None:
+            if method_used == "stormer-verlet":
+                energy_tol = 1e-2
+            else:
+                energy_tol = max(1e-3, 1e4 * rtol)
+        if e0 > 0 and drift > energy_tol:
+            _report(f"geodesic energy drifted by {drift:.3g} (relative) > {energy_tol:g}; "
+                    "tighten the tolerance or use more steps", on_violation, notes)
+        e_max = max(e0, float(np.max(en)))
+        bound = np.sqrt(e_max) * req * (1 + energy_tol) + 1e-10 * (1 + abs(f0))
+        excess = np.abs(fvals - f0) - bound
+        if np.any(excess > 0):
+            j = int(np.argmax(excess))
+            _report(f"f-growth bound violated at t = {req[j]:.6g}: |f(γ(t)) − f(γ(0))| = "
+                    f"{abs(fvals[j] - f0):.6g} > √e·t = {bound[j]:.6g}", on_violation, notes)
     return GeodesicResult(
         times=req, points=pts, velocities=vel, energy=en, penalty=fvals, admissible=adm,
         n_evaluations=fld.n_evaluations, n_steps=0 if out is None else out.n_steps,
         n_rejected=0 if out is None else out.n_rejected, method=method_used,
         max_energy_drift=drift, warnings=notes,
+        last_step=np.nan if out is None else out.h_last,
     )
 
 

@@ -32,9 +32,12 @@ from .errors import IntegrationError, NotAdmissibleError
 from .geometry import signed_areas
 
 __all__ = [
+    "BS3_TABLEAU",
     "DOPRI5_TABLEAU",
     "GeodesicField",
     "IntegrationOutput",
+    "PAIRS",
+    "bs3",
     "dop853",
     "dopri5",
     "rk_pair",
@@ -53,20 +56,65 @@ class GeodesicField:
         ``hvp(Q, V)`` and ``value(Q)`` (the penalty protocol of
         :mod:`meshopt_toolkit.penalties`).
     triangles : (T, 3) int array, optional
-        Connectivity used to test ``min signed area > 0`` (membership of M+ up to boundary
-        self-intersection, which the penalty's own boundary term guards). Without it the
-        penalty's ``is_admissible(Q)`` is used.
+        Connectivity used to test ``min signed area > 0``. Without it the penalty's
+        ``is_admissible(Q)`` is used.
+
+    Notes
+    -----
+    Admissibility (SPEC §1: positive signed areas and a boundary that does not touch
+    itself) is checked in two places:
+
+    - every right-hand-side evaluation needs positive areas (:meth:`admissible`; a
+      :class:`~meshopt_toolkit.penalties.Penalty` checks them itself in the same pass and
+      raises :class:`~meshopt_toolkit.errors.NotAdmissibleError`, so the integrator does
+      not repeat the test, see :attr:`checks_areas`);
+    - the boundary is checked exactly at every accepted step end and every returned
+      output (:meth:`boundary_problem`), not at the intermediate stages, whose positions
+      are auxiliary. With a ``Penalty`` the exact test is skipped when a cheap
+      certificate proves it: at each exactly checked configuration (the *anchor*) the
+      smallest Euclidean distance ``δ`` between a boundary vertex and a boundary edge not
+      incident to it is computed; a configuration whose boundary vertices all lie within
+      ``δ/2`` of the anchor's cannot have a touching or crossing boundary (along the
+      straight path from the anchor every such distance shrinks by less than ``δ``, and
+      two boundary segments can only start to meet where a vertex touches a segment).
+      For other penalties the penalty's own evaluation (which may check the boundary) and
+      ``is_admissible`` are used.
 
     Attributes
     ----------
     n_evaluations : int
         Number of penalty calls (gradient, curvature, hvp or value) made so far.
+    n_boundary_checks : int
+        Exact boundary tests made (certified configurations excluded).
+    checks_areas : bool
+        True when :meth:`acceleration` itself raises ``NotAdmissibleError`` at a
+        non-positive signed area (the penalty is a ``Penalty``).
     """
 
+    #: certificates are computed when the boundary has at most this many (vertex, edge)
+    #: pairs (beyond, every check is exact: the per-call penalty cost dominates there)
+    CERTIFICATE_PAIRS = 60_000
+
     def __init__(self, penalty, triangles: IntArray | None = None) -> None:
+        from .penalties import Penalty
+
         self.penalty = penalty
         self.triangles = None if triangles is None else np.asarray(triangles)
         self.n_evaluations = 0
+        self.n_boundary_checks = 0
+        self.checks_areas = isinstance(penalty, Penalty)
+        self._pairs = None
+        self._bv = None
+        self._anchor = None
+        self._radius = 0.0
+        if self.checks_areas:
+            bv = penalty.boundary_vertices
+            be = penalty.boundary_edges
+            if len(bv) * len(be) <= self.CERTIFICATE_PAIRS:
+                from .distance import boundary_pairs
+
+                self._bv = bv
+                self._pairs = boundary_pairs(bv, be)
 
     def admissible(self, Q: FloatArray) -> bool:
         """True if every triangle of ``Q`` has positive signed area (and ``Q`` is finite)."""
@@ -76,8 +124,37 @@ class GeodesicField:
             return bool(signed_areas(Q, self.triangles).min() > 0.0)
         return bool(self.penalty.is_admissible(Q))
 
+    def boundary_problem(self, Q: FloatArray) -> str | None:
+        """None if the boundary of ``Q`` does not touch itself, else a description.
+
+        Exact (see the class notes for the certificate that often makes it free); for a
+        penalty that is not a ``Penalty`` this is ``penalty.is_admissible`` when it has one
+        (else None: its evaluations are trusted to raise).
+        """
+        if not self.checks_areas:
+            check = getattr(self.penalty, "is_admissible", None)
+            if check is None or check(Q):
+                return None
+            return "the boundary self-intersects"
+        if self._anchor is not None:
+            move = Q[self._bv] - self._anchor
+            if float(np.einsum("ij,ij->i", move, move).max()) < self._radius * self._radius:
+                return None
+        self.n_boundary_checks += 1
+        problem = self.penalty.boundary_problem(Q)
+        if problem is None and self._pairs is not None and len(self._pairs):
+            from .distance import segment_distance
+
+            delta = float(segment_distance(Q, self._pairs).min())
+            if delta > 0:
+                self._anchor = Q[self._bv].copy()
+                self._radius = 0.5 * delta
+        return problem
+
     def acceleration(self, Q: FloatArray, V: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Geodesic acceleration ``A = −∇f (Vᵀ∇²f V)/(1 + |∇f|²)``, (5.35).
+
+        With a ``Penalty`` the boundary is not tested here (see the class notes).
 
         Returns
         -------
@@ -85,7 +162,10 @@ class GeodesicField:
         grad : (N, 2) ∇f(Q), returned for the energy monitor
         """
         self.n_evaluations += 1
-        grad, curv = self.penalty.gradient_and_curvature(Q, V)
+        if self.checks_areas:
+            grad, curv = self.penalty.gradient_and_curvature(Q, V, check_boundary=False)
+        else:
+            grad, curv = self.penalty.gradient_and_curvature(Q, V)
         grad = np.asarray(grad, dtype=float)
         return (-float(curv) / (1.0 + _dot(grad, grad))) * grad, grad
 
@@ -145,8 +225,14 @@ class IntegrationOutput:
     points, velocities : (K, N, 2)
     energy : (K,) ``(V, V)_g`` at each output time
     n_steps, n_rejected : accepted and rejected steps (rejected: error or left M+)
-    n_left_manifold : rejections because a stage had a non-positive signed area
-    max_energy_drift : max over accepted steps of ``|e − e0| / e0``
+    n_left_manifold : rejections because a stage or a step end was not admissible
+    max_energy_drift : max over accepted steps of ``|e − e0| / e0`` (before the energy
+        projection, when it is used)
+    n_reached : outputs computed (``< K`` only after a failure with ``partial=True``)
+    failure : why the integration stopped early ("" when it did not)
+    h_last : the step size the integrator would have tried next (a good ``h0`` for a
+        similar geodesic)
+    initial_energy : ``e(0) = (V0, V0)_g``
     """
 
     points: FloatArray
@@ -156,6 +242,14 @@ class IntegrationOutput:
     n_rejected: int
     n_left_manifold: int
     max_energy_drift: float
+    n_reached: int = -1
+    failure: str = ""
+    h_last: float = float("nan")
+    initial_energy: float = float("nan")
+
+    def __post_init__(self) -> None:
+        if self.n_reached < 0:
+            self.n_reached = len(self.points)
 
 
 # --------------------------------------------------------------------------------------
@@ -216,13 +310,37 @@ def _dop853_pair() -> _Pair:
                  np.array(dc.E3), 1 / 8)
 
 
+#: Bogacki–Shampine 3(2), Bogacki & Shampine (1989): c = (0, 1/2, 3/4), FSAL
+BS3_TABLEAU = {
+    "c": np.array([0.0, 0.5, 0.75, 1.0]),
+    "a": [np.array([]), np.array([0.5]), np.array([0.0, 0.75]), np.array([2 / 9, 1 / 3, 4 / 9])],
+    "b": np.array([2 / 9, 1 / 3, 4 / 9, 0.0]),
+    "b_hat": np.array([7 / 24, 1 / 4, 1 / 3, 1 / 8]),
+}
+
+
+def _bs3_pair() -> _Pair:
+    """Bogacki–Shampine 3(2): 3 calls per step (first-same-as-last), for loose tolerances."""
+    t = BS3_TABLEAU
+    a = np.zeros((3, 3))
+    for i in range(3):
+        a[i, :i] = t["a"][i]
+    return _Pair("bs3", a, t["b"][:3].copy(), t["b"] - t["b_hat"], None, 1 / 3)
+
+
 _PAIR_CACHE: dict[str, _Pair] = {}
+
+#: the embedded pairs :func:`runge_kutta` knows
+PAIRS = ("dopri5", "dop853", "bs3")
 
 
 def rk_pair(name: str) -> _Pair:
-    """The embedded pair ``"dopri5"`` or ``"dop853"`` (built once)."""
+    """The embedded pair ``"dopri5"``, ``"dop853"`` or ``"bs3"`` (built once)."""
     if name not in _PAIR_CACHE:
-        _PAIR_CACHE[name] = {"dopri5": _dopri5_pair, "dop853": _dop853_pair}[name]()
+        builders = {"dopri5": _dopri5_pair, "dop853": _dop853_pair, "bs3": _bs3_pair}
+        if name not in builders:
+            raise IntegrationError(f"unknown Runge–Kutta pair {name!r}; choose one of {PAIRS}")
+        _PAIR_CACHE[name] = builders[name]()
     return _PAIR_CACHE[name]
 
 
@@ -275,6 +393,11 @@ def dop853(field: GeodesicField, Q0, V0, t_out, **kwargs) -> IntegrationOutput:
     return runge_kutta(field, Q0, V0, t_out, pair="dop853", **kwargs)
 
 
+def bs3(field: GeodesicField, Q0, V0, t_out, **kwargs) -> IntegrationOutput:
+    """:func:`runge_kutta` with the Bogacki–Shampine 3(2) pair (3 calls per step)."""
+    return runge_kutta(field, Q0, V0, t_out, pair="bs3", **kwargs)
+
+
 def runge_kutta(
     field: GeodesicField,
     Q0: FloatArray,
@@ -288,11 +411,15 @@ def runge_kutta(
     max_steps: int = 100_000,
     energy_rtol: float | None = None,
     dense: bool = True,
+    project_energy: bool = False,
+    exit_shrink: float = 0.25,
+    partial: bool = False,
 ) -> IntegrationOutput:
     """Integrate (5.35) from ``(Q0, V0)`` at t = 0 with an explicit embedded RK pair.
 
     The derivative at the accepted point is the first stage of the next step
-    (first-same-as-last), so a step costs ``s`` penalty calls (6 for dopri5, 12 for dop853).
+    (first-same-as-last), so a step costs ``s`` penalty calls (3 for bs3, 6 for dopri5,
+    12 for dop853).
 
     Parameters
     ----------
@@ -301,14 +428,15 @@ def runge_kutta(
     t_out : (K,) strictly increasing positive output times
     rtol, atol : local error tolerance per component of ``(Q, V)`` in the max-norm,
         ``|err| ≤ atol + rtol·|y|``
-    pair : "dopri5" or "dop853"
+    pair : "dopri5", "dop853" or "bs3"
     h0 : initial step (default: Hairer's heuristic from ``|y|`` and ``|y'|``)
     max_steps : cap on accepted + rejected steps
     energy_rtol : a step is also rejected when it changes the energy ``e = (V, V)_g`` by
-        more than ``energy_rtol · e(0)`` (default ``10·rtol``; the gradient at the new point
-        comes for free from the last stage, so this costs nothing). Without it the
-        ``(∇f·V)²`` part of the energy, which amplifies errors in V by ``|∇f|``, can drift
-        far on stiff penalties while the position error is controlled.
+        more than ``energy_rtol · e(0)`` (default ``10·rtol``; ``inf`` disables it; the
+        gradient at the new point comes for free from the last stage, so this costs
+        nothing). Without it the ``(∇f·V)²`` part of the energy, which amplifies errors in
+        V by ``|∇f|``, can drift far on stiff penalties while the position error is
+        controlled.
     dense : bool
         True (default): steps are chosen by the error control alone (the last one lands on
         ``t_out[-1]``) and outputs inside a step come from the quintic Hermite interpolant
@@ -317,6 +445,20 @@ def runge_kutta(
         that it lands exactly on that output. False: every output is a step end.
         Many outputs (e.g. the backtracking times ``τ^k`` of a line search) then cost
         nothing extra.
+    project_energy : bool
+        After each accepted step rescale the velocity to the initial energy,
+        ``V ← V·sqrt(e(0)/e)`` (a projection onto the invariant ``(V, V)_g = e(0)``, Hairer,
+        Lubich & Wanner, *Geometric Numerical Integration*, IV.4; it keeps the order of
+        the method). The acceleration is quadratic in V, so the first stage of the next
+        step is rescaled by ``e(0)/e`` at no cost. At loose tolerances this keeps the
+        bound ``|f(γ(t)) − f(γ(0))| ≤ √e(0)·t`` that prevents the discrete path from
+        running into a degenerate mesh.
+    exit_shrink : factor applied to the step size after a step is rejected because a
+        stage or its end is not admissible.
+    partial : bool
+        False (default): a failure raises. True: a failure (step size underflow, too many
+        steps) ends the integration; the outputs reached so far are returned and
+        ``n_reached``/``failure`` say where and why it stopped.
 
     Returns
     -------
@@ -325,7 +467,8 @@ def runge_kutta(
     Raises
     ------
     IntegrationError
-        Step size underflow, too many steps, or a non-finite right-hand side.
+        Step size underflow, too many steps (unless ``partial``), or a non-finite
+        right-hand side at the initial mesh.
     """
     rk = rk_pair(pair)
     S = len(rk.b)
@@ -342,14 +485,14 @@ def runge_kutta(
     out_v = np.empty((K,) + q.shape)
     out_e = np.empty(K)
     t_end = float(t_out[-1])
+    project = bool(project_energy) and e0 > 0
 
     if h0 is None:
         # Hairer, Nørsett, Wanner I, II.4: h such that h·|y'| ≈ 1% of |y|
         d0 = max(np.max(np.abs(q)), np.max(np.abs(v)))
         d1 = max(np.max(np.abs(v)), np.max(np.abs(a)))
         h0 = 0.01 * d0 / d1 if d1 > 0 and d0 > 0 else 1e-3
-        h0 = min(h0, t_end)
-    h = float(h0)
+    h = min(float(h0), t_end)
     h_min = 1e-10 * max(t_end, 1.0)
     kq = np.empty((S + 1,) + q.shape)  # stage velocities (derivative of Q)
     kv = np.empty((S + 1,) + q.shape)  # stage accelerations (derivative of V)
@@ -358,46 +501,52 @@ def runge_kutta(
     land = False  # True: the next step must land on t_out[k_out]
     n_steps = n_rej = n_left = 0
     max_drift = 0.0
+    failure = ""
+
+    def stop(msg: str) -> None:
+        if not partial:
+            raise IntegrationError(msg)
+        nonlocal failure
+        failure = msg
+
     while k_out < K:
         if n_steps + n_rej >= max_steps:
-            raise IntegrationError(
-                f"geodesic needed more than {max_steps} steps before t = {t_end:g} "
-                f"(reached t = {t:.6g}); loosen rtol/atol or raise max_steps"
-            )
+            stop(f"geodesic needed more than {max_steps} steps before t = {t_end:g} "
+                 f"(reached t = {t:.6g}); loosen rtol/atol or raise max_steps")
+            break
         target = float(t_out[k_out]) if (land or not dense) else t_end
         hit = t + h >= target * (1 - 1e-14)
         h_step = target - t if hit else h
         kq[0], kv[0] = v, a
-        ok, why = True, ""
-        grad_new = None
+        why = ""
         for s in range(1, S + 1):
             w = rk.a[s, :s] if s < S else rk.b
             qs = q + h_step * _combine(w, kq[:s])
             vs = v + h_step * _combine(w, kv[:s])
-            if not field.admissible(qs):
-                ok, why = False, "a triangle inverts"
+            if not field.checks_areas and not field.admissible(qs):
+                why = "a triangle inverts"
                 break
             kq[s] = vs
             try:
                 kv[s], g_s = field.acceleration(qs, vs)
-            except NotAdmissibleError as exc:  # e.g. the boundary touches itself
-                ok, why = False, str(exc).split(": ", 2)[-1]
+            except NotAdmissibleError as exc:  # a triangle inverts, or the boundary touches
+                why = str(exc).split(": ", 2)[-1]
                 break
             if not np.isfinite(kv[s]).all():
-                ok, why = False, "the right-hand side is not finite"
+                why = "the right-hand side is not finite"
                 break
-            if s == S:
-                q_new, v_new, grad_new = qs, vs, g_s
-        if not ok:
+        else:
+            q_new, v_new, grad_new = qs, vs, g_s
+            why = field.boundary_problem(q_new) or ""
+        if why:
             n_rej += 1
             n_left += 1
-            h = 0.25 * h_step
+            h = exit_shrink * h_step
             if h < h_min:
-                raise IntegrationError(
-                    f"geodesic step size underflow at t = {t:.6g}: every step leaves the "
-                    f"admissible set ({why}). A penalty without its boundary term (α2 or "
-                    "β3 = 0) cannot prevent boundary self-intersections"
-                )
+                stop(f"geodesic step size underflow at t = {t:.6g}: every step leaves the "
+                     f"admissible set ({why}). A penalty without its boundary term (α2 or "
+                     "β3 = 0) cannot prevent boundary self-intersections")
+                break
             continue
         err = _error_norm(rk, h_step, kq, kv, q, v, q_new, v_new, rtol, atol)
         e_new = energy(grad_new, v_new)
@@ -410,17 +559,23 @@ def runge_kutta(
             n_rej += 1
             h = h_step * min(factor, 0.5)
             if h < h_min:
-                raise IntegrationError(f"geodesic step size underflow at t = {t:.6g}")
+                stop(f"geodesic step size underflow at t = {t:.6g}")
+                break
             continue
         t_new = target if hit else t + h_step
+        a_new = kv[S]
+        if project:
+            ratio = e0 / e_new
+            v_new = v_new * np.sqrt(ratio)
+            a_new = a_new * ratio
         # outputs strictly inside the step: interpolate, and redo the step if one of them
         # is not admissible (then it lands exactly on that output)
         inner = []
         j = k_out
         while j < K and t_out[j] < t_new * (1 - 1e-14):
-            inner.append(_hermite(q, v, a, q_new, v_new, kv[S], t, t_new, float(t_out[j])))
+            inner.append(_hermite(q, v, a, q_new, v_new, a_new, t, t_new, float(t_out[j])))
             j += 1
-        if any(not field.admissible(qi) for qi, _ in inner):
+        if any(not field.admissible(qi) or field.boundary_problem(qi) for qi, _ in inner):
             n_rej += 1
             land = True
             h = h_step
@@ -431,10 +586,10 @@ def runge_kutta(
             out_q[k_out], out_v[k_out], out_e[k_out] = qi, vi, np.nan
             k_out += 1
         t = t_new
-        q, v, a = q_new, v_new, kv[S].copy()
-        e = e_prev = e_new
+        q, v, a = q_new, v_new, a_new.copy()
         if e0 > 0:
-            max_drift = max(max_drift, abs(e - e0) / e0)
+            max_drift = max(max_drift, abs(e_new - e0) / e0)
+        e = e_prev = e0 if project else e_new
         h_next = h_step * factor
         if k_out < K and t_out[k_out] <= t * (1 + 1e-14):
             out_q[k_out], out_v[k_out], out_e[k_out] = q, v, e
@@ -444,7 +599,9 @@ def runge_kutta(
             h = max(h, h_next)  # a step shortened to land on an output keeps the old size
         else:
             h = h_next
-    return IntegrationOutput(out_q, out_v, out_e, n_steps, n_rej, n_left, max_drift)
+    return IntegrationOutput(out_q[:k_out], out_v[:k_out], out_e[:k_out], n_steps, n_rej,
+                             n_left, max_drift, n_reached=k_out, failure=failure, h_last=h,
+                             initial_energy=e0)
 
 
 # --------------------------------------------------------------------------------------

@@ -334,6 +334,8 @@ class _TotalAreaTerm:
         return 0.5 * np.stack([gx, gy], axis=1)
 
     def evaluate(self, Q: FloatArray, V: FloatArray | None, acc: _Accumulator) -> None:
+        if self.name in acc.values:  # done by the small-mesh pass (Penalty._small_pass)
+            return
         c = self.coef
         q = Q[self.nodes]
         qa, qb = q[self.a], q[self.b]
@@ -542,6 +544,14 @@ class Penalty:
         self._triangle_term: _TriangleQuotientTerm | None = None
         self._other_terms: list = []
         self._scatter_csc = None
+        # small meshes (one block): complex-arithmetic pass, see _small_pass
+        self._small = len(self._blocks) == 1
+        if self._small:
+            tt = self._tri_t
+            self._edge_head = np.ascontiguousarray(tt[[2, 0, 1]])  # e_l = q_head − q_tail
+            self._edge_tail = np.ascontiguousarray(tt[[1, 2, 0]])
+            flat2 = 2 * self._tri_flat
+            self._corner_xy = np.stack([flat2, flat2 + 1], axis=1).ravel()
 
     # -- helpers ------------------------------------------------------------------
     @property
@@ -569,7 +579,7 @@ class Penalty:
         out[:, 1] += M @ buf[1].ravel()
 
     def _points(self, Q, what: str = "Q") -> FloatArray:
-        q = np.asarray(Q, dtype=np.float64)
+        q = np.ascontiguousarray(Q, dtype=np.float64)
         if q.shape != (self.n_vertices, 2):
             raise ValueError(f"{what} must have shape {(self.n_vertices, 2)}, got {q.shape}")
         return q
@@ -614,11 +624,99 @@ class Penalty:
             )
         return None
 
-    def _triangle_pass(self, Q: FloatArray, V: FloatArray | None, acc: _Accumulator) -> bool:
-        """Per-triangle work in blocks of :data:`BLOCK` triangles (temporaries stay in
-        cache); returns False as soon as a block has a non-positive (or NaN) area."""
+    def _small_pass(self, Q: FloatArray, V: FloatArray | None, acc: _Accumulator) -> bool:
+        """The triangle term and the total-area term of a mesh of at most :data:`BLOCK`
+        triangles in one pass (value, gradient, curvature; not the hvp).
+
+        Points are viewed as complex numbers ``z = x + iy`` (a free view of the ``(N, 2)``
+        array), so one operation handles both components; the rotation ``R`` is ``i·``.
+        Per triangle (``e_l`` the edge opposite vertex ``l``, ``w_l`` the same for V):
+        ``∇_m N = Φ_{m+1} − Φ_{m+2}`` with ``Φ = ∂N/∂e`` (``2e`` or ``e/E``),
+        ``∇_m A = ½ i e_m``, so the corner gradient of ``c N/A + β2/𝒜`` is
+        ``(c/A) ∇_m N + ½ i e_m (−c N/A² − β2/𝒜²)``; ``𝒜 = Σ_k A_k``, ``𝒜' = Σ a1``,
+        ``𝒜'' = Σ a2`` come with the per-triangle ``a1 = A'[V]``, ``a2 = A''[V, V]``.
+        The curvature formulas are those of :class:`_TriangleQuotientTerm` and
+        :class:`_TotalAreaTerm`. Corner vectors reach the nodes in one ``np.bincount``
+        over the interleaved (x, y) components. Returns False at a non-positive area.
+        """
         term = self._triangle_term
         want = acc.want
+        area_term = next((t for t in self._other_terms if isinstance(t, _TotalAreaTerm)), None)
+        z = Q.view(np.complex128).ravel()
+        e = z[self._edge_head]
+        e -= z[self._edge_tail]
+        er, ei = e.real, e.imag
+        A = 0.5 * (er[2] * ei[0] - ei[2] * er[0])
+        if not A.min() > 0:
+            return False
+        inv = 1.0 / A
+        with_v = V is not None and want.curvature
+        if with_v:
+            zv = V.view(np.complex128).ravel()
+            w = zv[self._edge_head]
+            w -= zv[self._edge_tail]
+            wr, wi = w.real, w.imag
+            a1 = 0.5 * (wr[2] * ei[0] + er[2] * wi[0] - wi[2] * er[0] - ei[2] * wr[0])
+            a2 = wr[2] * wi[0] - wi[2] * wr[0]
+        rot = None  # coefficient of ½ i e_m in the corner gradient
+        if term is not None:
+            c = term.coef
+            sq = er * er
+            sq += ei * ei
+            if term.quality:
+                N = sq.sum(axis=0)
+            else:
+                E = np.sqrt(sq)
+                N = E.sum(axis=0)
+                iE = 1.0 / E
+            ratio = N * inv
+            acc.values[term.name] = c * float(ratio.sum())
+            if want.gradient:
+                phi = 2.0 * e if term.quality else e * iE  # ∂N/∂e
+                gN = phi[[1, 2, 0]]
+                gN -= phi[[2, 0, 1]]
+                corner = gN * (c * inv)
+                rot = -c * ratio * inv
+            if with_v:
+                ew = er * wr
+                ew += ei * wi
+                ww = wr * wr
+                ww += wi * wi
+                if term.quality:
+                    n1 = 2.0 * ew.sum(axis=0)
+                    n2 = 2.0 * ww.sum(axis=0)
+                else:
+                    fw = ew * iE
+                    n1 = fw.sum(axis=0)
+                    n2 = ((ww - fw * fw) * iE).sum(axis=0)
+                a1_a = a1 * inv
+                curv = inv * (n2 - 2.0 * n1 * a1_a - ratio * a2 + 2.0 * ratio * a1_a * a1)
+                acc.curvature += c * float(curv.sum())
+        if area_term is not None:
+            b2 = area_term.coef
+            tot = float(A.sum())
+            acc.values[area_term.name] = b2 / tot
+            if want.gradient:
+                rot = (-b2 / tot**2) if rot is None else rot - b2 / tot**2
+                if term is None:
+                    corner = np.zeros_like(e)
+            if with_v:
+                d1, d2 = float(a1.sum()), float(a2.sum())
+                acc.curvature += b2 * (2.0 * d1 * d1 / tot**3 - d2 / tot**2)
+        if want.gradient and rot is not None:
+            corner += (0.5j * rot) * e
+            flat = corner.view(np.float64).ravel()
+            acc.grad += np.bincount(self._corner_xy, flat, 2 * self.n_vertices).reshape(-1, 2)
+        return True
+
+    def _triangle_pass(self, Q: FloatArray, V: FloatArray | None, acc: _Accumulator) -> bool:
+        """Per-triangle work in blocks of :data:`BLOCK` triangles (temporaries stay in
+        cache); returns False as soon as a block has a non-positive (or NaN) area.
+        Small meshes without an hvp request go to :meth:`_small_pass`."""
+        term = self._triangle_term
+        want = acc.want
+        if self._small and not want.hvp:
+            return self._small_pass(Q, V, acc)
         T = self.n_triangles
         qx, qy = np.ascontiguousarray(Q[:, 0]), np.ascontiguousarray(Q[:, 1])
         if with_v := (term is not None and V is not None and (want.hvp or want.curvature)):
@@ -649,7 +747,7 @@ class Penalty:
                 self._scatter(acc.hvp, hbuf)
         return True
 
-    def _run(self, Q, V, want: _Want, *, strict: bool) -> _Accumulator | None:
+    def _run(self, Q, V, want: _Want, *, strict: bool, check_boundary: bool = True):
         Q = self._points(Q)
         if V is not None:
             V = self._points(V, "V")
@@ -659,7 +757,7 @@ class Penalty:
             ok = np.isfinite(Q).all() and self._triangle_pass(Q, V, acc)
         if not ok:
             problem = self._area_problem(Q) or "non-positive signed area"
-        else:
+        elif check_boundary:
             problem = self._boundary_problem(Q)
         if problem is not None:
             if strict:
@@ -670,6 +768,21 @@ class Penalty:
         return acc
 
     # -- public protocol ----------------------------------------------------------
+    @property
+    def boundary_edges(self) -> IntArray:
+        """Directed boundary edges of the mesh, ``(E∂, 2)`` (interior on the left)."""
+        return self._boundary_edges
+
+    @property
+    def boundary_vertices(self) -> IntArray:
+        """Sorted boundary vertex indices, ``(V∂,)``."""
+        return self._boundary_vertices
+
+    def boundary_problem(self, Q) -> str | None:
+        """None if the boundary of ``Q`` is simple, else a message naming the boundary
+        edges that fold onto, touch or cross each other (an exact test)."""
+        return self._boundary_problem(self._points(Q))
+
     def is_admissible(self, Q) -> bool:
         """True iff every signed area is > 0 and the boundary does not touch itself."""
         Q = self._points(Q)
@@ -712,13 +825,22 @@ class Penalty:
         """Hessian-vector product ``∇²f(Q) V``, ``(N, 2)``. Raises NotAdmissibleError."""
         return self._run(Q, V, _Want(hvp=True), strict=True).hvp
 
-    def gradient_and_curvature(self, Q, V) -> tuple[FloatArray, float]:
+    def gradient_and_curvature(
+        self, Q, V, *, check_boundary: bool = True
+    ) -> tuple[FloatArray, float]:
         """``(∇f(Q), V·∇²f(Q)·V)`` in one pass without forming ``∇²f V``.
 
         This is the right-hand side of the geodesic equation
-        ``Q'' = −∇f (V·∇²f V)/(1 + |∇f|²)`` (SPEC §5). Raises NotAdmissibleError.
+        ``Q'' = −∇f (V·∇²f V)/(1 + |∇f|²)`` (SPEC §5). Raises NotAdmissibleError at a
+        non-positive signed area and, unless ``check_boundary=False``, at a boundary that
+        touches itself. ``check_boundary=False`` is for callers that test the boundary
+        themselves where it matters (the geodesic integrators check it exactly at every
+        accepted step and output, :class:`~meshopt_toolkit.integrators.GeodesicField`):
+        with ``β3 = 0`` (``α2 = 0``) nothing in ``f`` stops a boundary crossing, and the
+        formulas are finite on both sides of one.
         """
-        acc = self._run(Q, V, _Want(gradient=True, curvature=True), strict=True)
+        acc = self._run(Q, V, _Want(gradient=True, curvature=True), strict=True,
+                        check_boundary=check_boundary)
         return acc.grad, float(acc.curvature)
 
     def curvature(self, Q, V) -> float:
