@@ -61,6 +61,18 @@ def main(argv: list[str] | None = None) -> int:
     print(f"quality_summary  median {mq * 1e3:8.1f} ms")
     print(f"ratio quality_summary / signed_areas = {mq / ma:.2f}  (target <= 3)")
 
+    # the same kernels given the triangles in column-major order (the transpose of a
+    # contiguous (3, T) array, as PlanarMesh.quality() passes them): the per-vertex
+    # gathers then read contiguous index rows
+    cols = np.ascontiguousarray(tri.T)
+    t_row, t_col = [], []
+    for _ in range(args.repeat):
+        t_row.append(_time(lambda: quality_summary(pts, tri)))
+        t_col.append(_time(lambda: quality_summary(pts, cols.T)))
+    mr, mc = np.median(t_row), np.median(t_col)
+    print(f"quality_summary  (T, 3) rows {mr * 1e3:7.1f} ms, column-major {mc * 1e3:7.1f} ms"
+          f"  (ratio {mr / mc:.2f})")
+
     # check_mesh on a fresh mesh (no cached topology); the shuffled triangle order is the
     # worst case for memory locality, a mesher's output is closer to the sorted order
     ordered = tri[np.argsort(tri.min(axis=1), kind="stable")]

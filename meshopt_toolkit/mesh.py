@@ -85,9 +85,10 @@ class TriangleMesh:
             raise InvalidMeshError(f"{where}mesh has no triangles")
         if tri_in.ndim != 2 or tri_in.shape[1] != 3:
             raise InvalidMeshError(f"{where}triangles must have shape (T, 3), got {tri_in.shape}")
-        if not np.issubdtype(tri_in.dtype, np.integer):
-            if not np.all(np.isfinite(tri_in)) or np.any(tri_in != np.round(tri_in)):
-                raise InvalidMeshError(f"{where}triangle indices must be integers")
+        if not np.issubdtype(tri_in.dtype, np.integer) and (
+            not np.all(np.isfinite(tri_in)) or np.any(tri_in != np.round(tri_in))
+        ):
+            raise InvalidMeshError(f"{where}triangle indices must be integers")
         tri = np.array(tri_in, dtype=np.int64, copy=True)
         # cheap whole-array tests first; the offending row is searched only on failure
         # (a sum is non-finite if any term is, and may overflow only with huge values)
@@ -179,13 +180,13 @@ class TriangleMesh:
         return self._points.shape[1]
 
     def _tag_kwargs(self) -> dict:
-        return dict(
-            triangle_tags=self._triangle_tags,
-            lines=self._lines,
-            line_tags=self._line_tags,
-            tag_names=self._tag_names,
-            source=self._source,
-        )
+        return {
+            "triangle_tags": self._triangle_tags,
+            "lines": self._lines,
+            "line_tags": self._line_tags,
+            "tag_names": self._tag_names,
+            "source": self._source,
+        }
 
     @property
     def is_planar(self) -> bool:
@@ -727,11 +728,11 @@ def _clean_manifold(mesh: TriangleMesh) -> IntArray | None:
     * bow-ties: around each vertex the successor map ``succ(c) = next(twin(next(c)))``
       (corner ``c`` at ``v`` in triangle ``(v, a, b)`` → the corner at ``v`` across edge
       ``(v, b)``) is injective, so its orbits are paths (boundary fans) and cycles
-      (interior fans). A path starts after each boundary half-edge ending at ``v``; two
-      starts mean two fans. Otherwise one walk per vertex from its path start (or any
-      corner) must make ``t_v - 1`` steps without reaching the path's end or returning to
-      the start: then the orbit has all ``t_v`` corners and is the only fan. All vertices
-      walk together, the ones with more triangles first (``t_v`` steps in total);
+      (interior fans). A path starts at ``next(e)`` for each boundary half-edge ``e``
+      leaving ``v``; two starts mean two fans. Otherwise one walk per vertex from its
+      path start (or any corner) must make ``t_v - 1`` steps without reaching the path's
+      end or returning to the start: then the orbit has all ``t_v`` corners and is the
+      only fan. All vertices walk together, the ones with more triangles first (``t_v`` steps in total);
       vertices with more than :data:`_WALK_STEPS` triangles are counted by pointer
       doubling (:func:`_count_fans`) instead.
     """
@@ -784,7 +785,7 @@ def _clean_manifold(mesh: TriangleMesh) -> IntArray | None:
     start = np.empty(n, dtype=idx)
     start[flat] = np.arange(nc, dtype=idx)  # any corner at each vertex
     if len(first):
-        # a boundary fan at v starts at next(e) for the boundary half-edge e ending at v
+        # a boundary fan at v starts at next(e) for the boundary half-edge e leaving v
         at = flat[first]
         if np.bincount(at, minlength=n).max() > 1:
             return None  # two boundary fans at a vertex
