@@ -495,7 +495,15 @@ def _newton_cg_direction(G, hvp, prec, eta: float, max_cg: int) -> tuple[FloatAr
         Hp = hvp(p)
         pHp = float(np.vdot(p, Hp))
         if pHp <= 0.0:
-            return (z if i == 0 else x), i + 1, True
+            if i == 0:
+                return z, 1, True
+            # add the direction of negative curvature, oriented downhill, scaled like x
+            # (the line search picks the length)
+            nx, npn = float(np.linalg.norm(x)), float(np.linalg.norm(p))
+            if npn > 0 and nx > 0:
+                d = p if float(np.vdot(G, p)) <= 0 else -p
+                return x + (nx / npn) * d, i + 1, True
+            return x, i + 1, True
         a = rz / pHp
         x += a * p
         r -= a * Hp
