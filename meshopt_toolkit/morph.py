@@ -230,6 +230,7 @@ class MorphResult:
             "shooting_residual": None if self.log is None else float(self.log.residual),
             "shooting_iterations": None if self.log is None else int(self.log.iterations),
             "discrete_iterations": None if self.discrete is None else int(self.discrete.nit),
+            "discrete_converged": None if self.discrete is None else bool(self.discrete.converged),
             "seconds": float(self.seconds),
         }
 
@@ -901,6 +902,10 @@ def geodesic_morph(
         raise ValueError(f"segments ({segments}) must be a multiple of frames − 1 ({frames - 1})")
     K = m * (frames - 1)
     dg = discrete_geodesic(metric, Q0, Q1, K, tol=discrete_tol)
+    if not dg.converged:
+        logger.warning("geodesic_morph: the discrete geodesic did not converge in %d Newton "
+                       "iterations (|∇E| = %.3g); its frames are admissible but not yet a "
+                       "minimizer", dg.nit, dg.gradient_norm)
     log = None
     pts = dg.points[::m].copy()
     times = np.linspace(0.0, 1.0, frames)
