@@ -259,6 +259,12 @@ class TriangleMesh:
             _frozen(corners),
         )
 
+    @cached_property
+    def _clean_corners(self) -> IntArray | None:
+        """:func:`_clean_manifold` of this connectivity (kept by :meth:`PlanarMesh.with_points`)."""
+        corners = _clean_manifold(self)
+        return None if corners is None else _frozen(corners)
+
     @property
     def _edge_corners(self) -> IntArray:
         """First two corners ``3 k + l`` containing each edge ``(E, 2)``; -1 if only one."""
@@ -897,7 +903,7 @@ def _check_mesh(mesh: TriangleMesh, positive_areas: bool = False) -> MeshReport:
     if not mesh.is_planar:
         return MeshReport(False, False, False, problems=["not planar: some z is non-zero"], mesh=mesh)
     pm = mesh.as_planar()
-    corners = _clean_manifold(pm)
+    corners = pm._clean_corners
     if corners is None:
         problems = _manifold_problems(pm)
         if problems:

@@ -470,7 +470,7 @@ def brute_force_fans(triangles, n) -> np.ndarray:
         at = [k for k, t in enumerate(tri) if v in t]
         parent = {k: k for k in at}
 
-        def find(k):
+        def find(k, parent=parent):
             while parent[k] != k:
                 k = parent[k]
             return k
@@ -837,3 +837,18 @@ def test_direct_gmsh_reader_hands_unusual_files_to_meshio(tmp_path):
     assert _direct(p4) is None
     with pytest.raises(ReadError, match=r"cut\.msh: cannot read gmsh file"):
         load(p4)
+
+
+def test_check_after_with_points_reuses_the_topology_check():
+    g = grid_mesh(4, jitter=0.2)
+    assert check_mesh(g).admissible
+    moved = g.with_points(g.points * 2)
+    assert "_clean_corners" in moved.__dict__  # the topological verdict is shared
+    p = g.points.copy()
+    p[6] = [0.6, 0.6]
+    report = check_mesh(g.with_points(p))
+    assert report.manifold and not report.admissible  # areas are still checked
+    broken = compact(g.points, g.triangles[1:])
+    assert check_mesh(broken).manifold  # a different connectivity is checked anew
+    ring = bridge(g, g, _centre(g), _centre(g))
+    assert not check_mesh(ring).manifold and not check_mesh(ring.with_points(ring.points)).manifold
