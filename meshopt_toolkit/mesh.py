@@ -8,6 +8,9 @@ returns a new mesh (:meth:`PlanarMesh.with_points`), and derived topology is cac
 
 The planar-manifold checks of SPEC §1 and admissibility are reported by
 :func:`check_mesh` (a :class:`MeshReport`) and enforced by :func:`require_admissible`.
+A clean mesh is recognised by one exact pass over whole arrays (:func:`_clean_manifold`:
+one sort of the half-edges, a breadth-first search, a walk around every vertex); only a
+mesh with a problem pays for the edge list and the description of its first problem.
 """
 
 from __future__ import annotations

@@ -3,14 +3,16 @@
 Binary 4.1 files of the common shape (the sections ``$MeshFormat``, ``$PhysicalNames``,
 ``$Entities``, ``$Nodes``, ``$Elements``; node tags ``1..N`` in order; physical tags on
 every element block or on none) are read by :func:`_read_binary41`, a direct numpy
-parser of the blocks (several times faster than meshio's, which maps every node tag).
+parser of the blocks (it skips meshio's node-tag map and per-block tag arrays).
 Everything else goes through meshio's gmsh reader (called directly: ``meshio.read`` would
 try the ansys reader first and calls ``sys.exit`` on failure), and so does any file the
-direct parser finds unusual or damaged, so that results and error messages are meshio's. Writing is our own, vectorized, so
-that physical tags of triangles and boundary lines are always written (meshio 5.3.5 under
-numpy 2 writes ASCII files with cell data it cannot read back, and its 4.1 writer drops
-physical tags without ``gmsh:dim_tags``). Element blocks follow runs of equal tags, so the
-order of triangles and lines in the file is the order in the mesh.
+direct parser finds unusual or damaged, so that results and error messages are meshio's.
+
+Writing is our own, vectorized, so that physical tags of triangles and boundary lines are
+always written (meshio 5.3.5 under numpy 2 writes ASCII files with cell data it cannot
+read back, and its 4.1 writer drops physical tags without ``gmsh:dim_tags``). Element
+blocks follow runs of equal tags, so the order of triangles and lines in the file is the
+order in the mesh.
 """
 
 from __future__ import annotations
