@@ -543,6 +543,7 @@ class Penalty:
         self.reference = ref
         self._triangle_term: _TriangleQuotientTerm | None = None
         self._other_terms: list = []
+        self._area_term: _TotalAreaTerm | None = None  # (the small pass evaluates it)
         self._scatter_csc = None
         # small meshes (one block): complex-arithmetic pass, see _small_pass
         self._small = len(self._blocks) == 1
@@ -641,12 +642,13 @@ class Penalty:
         """
         term = self._triangle_term
         want = acc.want
-        area_term = next((t for t in self._other_terms if isinstance(t, _TotalAreaTerm)), None)
+        area_term = self._area_term
         z = Q.view(np.complex128).ravel()
         e = z[self._edge_head]
         e -= z[self._edge_tail]
         er, ei = e.real, e.imag
-        A = 0.5 * (er[2] * ei[0] - ei[2] * er[0])
+        ce2 = e[2].conj()
+        A = 0.5 * (ce2 * e[0]).imag  # ½ e2 × e0, (4.2)
         if not A.min() > 0:
             return False
         inv = 1.0 / A
@@ -656,15 +658,17 @@ class Penalty:
             w = zv[self._edge_head]
             w -= zv[self._edge_tail]
             wr, wi = w.real, w.imag
-            a1 = 0.5 * (wr[2] * ei[0] + er[2] * wi[0] - wi[2] * er[0] - ei[2] * wr[0])
-            a2 = wr[2] * wi[0] - wi[2] * wr[0]
+            cw2 = w[2].conj()
+            a1 = 0.5 * (cw2 * e[0] + ce2 * w[0]).imag  # A'[V]
+            a2 = (cw2 * w[0]).imag  # A''[V, V]
         rot = None  # coefficient of ½ i e_m in the corner gradient
+        corner = None
         if term is not None:
             c = term.coef
             sq = er * er
             sq += ei * ei
             if term.quality:
-                N = sq.sum(axis=0)
+                N = sq.sum(axis=0)  # S = Σ|e_l|²
             else:
                 E = np.sqrt(sq)
                 N = E.sum(axis=0)
@@ -672,39 +676,47 @@ class Penalty:
             ratio = N * inv
             acc.values[term.name] = c * float(ratio.sum())
             if want.gradient:
-                phi = 2.0 * e if term.quality else e * iE  # ∂N/∂e
-                gN = phi[[1, 2, 0]]
-                gN -= phi[[2, 0, 1]]
-                corner = gN * (c * inv)
                 rot = -c * ratio * inv
+                if term.quality:
+                    # ∇_m S = 2(e_{m+1} − e_{m+2}) = −2 e_m − 4 e_{m+2}  (Σ_l e_l = 0)
+                    corner = e[[2, 0, 1]]
+                    corner *= -4.0 * c * inv
+                    corner -= (2.0 * c * inv) * e
+                else:
+                    phi = e * iE  # ∂L/∂e
+                    corner = phi[[1, 2, 0]]
+                    corner -= phi[[2, 0, 1]]
+                    corner *= c * inv
             if with_v:
                 ew = er * wr
-                ew += ei * wi
+                ew += ei * wi  # e_l · w_l
                 ww = wr * wr
                 ww += wi * wi
                 if term.quality:
                     n1 = 2.0 * ew.sum(axis=0)
                     n2 = 2.0 * ww.sum(axis=0)
                 else:
-                    fw = ew * iE
+                    fw = ew * iE  # u_l · w_l
                     n1 = fw.sum(axis=0)
                     n2 = ((ww - fw * fw) * iE).sum(axis=0)
                 a1_a = a1 * inv
-                curv = inv * (n2 - 2.0 * n1 * a1_a - ratio * a2 + 2.0 * ratio * a1_a * a1)
-                acc.curvature += c * float(curv.sum())
+                curv = n2 - ratio * a2
+                curv += 2.0 * a1_a * (ratio * a1 - n1)
+                acc.curvature += c * float(np.einsum("t,t->", curv, inv))
         if area_term is not None:
             b2 = area_term.coef
             tot = float(A.sum())
             acc.values[area_term.name] = b2 / tot
             if want.gradient:
                 rot = (-b2 / tot**2) if rot is None else rot - b2 / tot**2
-                if term is None:
+                if corner is None:
                     corner = np.zeros_like(e)
             if with_v:
                 d1, d2 = float(a1.sum()), float(a2.sum())
                 acc.curvature += b2 * (2.0 * d1 * d1 / tot**3 - d2 / tot**2)
-        if want.gradient and rot is not None:
-            corner += (0.5j * rot) * e
+        if want.gradient and corner is not None:
+            if rot is not None:
+                corner += (0.5j * rot) * e
             flat = corner.view(np.float64).ravel()
             acc.grad += np.bincount(self._corner_xy, flat, 2 * self.n_vertices).reshape(-1, 2)
         return True
@@ -946,9 +958,8 @@ class QualityPenalty(Penalty):
             coef = b1 / (4.0 * SQRT3 * self.n_triangles)
             self._triangle_term = _TriangleQuotientTerm("quality", "quality", coef)
         if b2:
-            self._other_terms.append(
-                _TotalAreaTerm(b2, self._boundary_edges, self._boundary_vertices)
-            )
+            self._area_term = _TotalAreaTerm(b2, self._boundary_edges, self._boundary_vertices)
+            self._other_terms.append(self._area_term)
         if b3:
             n_pairs_norm = len(self._boundary_edges) * len(self._boundary_vertices)
             self._other_terms.append(
