@@ -59,7 +59,7 @@ def _gather_xy(points: FloatArray, triangles: IntArray) -> tuple[FloatArray, Flo
     Row ``l`` holds local vertex ``l`` of every triangle, contiguous in memory.
     """
     pts = np.asarray(points, dtype=np.float64)
-    tri = np.asarray(triangles).T
+    tri = np.ascontiguousarray(np.asarray(triangles).T)  # contiguous index rows: fast take
     return np.take(pts[:, 0], tri), np.take(pts[:, 1], tri)
 
 
