@@ -241,6 +241,7 @@ def geodesic(
     fixed_point_iter: int = 10,
     monitor: bool | None = None,
     h0: float | None = None,
+    free=None,
 ) -> GeodesicResult:
     """The geodesic ``γ`` with ``γ(0) = Q``, ``γ'(0) = V``, sampled from ONE integration.
 
@@ -273,7 +274,11 @@ def geodesic(
         only — ``penalty`` is NaN except at t = 0 and ``energy`` is NaN at interpolated
         outputs; no invariant is checked. Default: False for ``"line-search"``, else True.
     h0 : first step size of the adaptive methods (e.g. ``last_step`` of a previous,
-        similar geodesic); default Hairer's heuristic.
+        similar geodesic); default Hairer's tolerance-aware heuristic (one penalty call).
+    free : (N,) bool mask or vertex indices, optional
+        Free vertices: the geodesic of the metric restricted to tangent vectors vanishing
+        on the fixed vertices (see :class:`~meshopt_toolkit.integrators.GeodesicField`);
+        ``V`` must vanish there, and fixed vertices do not move.
 
     Returns
     -------
@@ -310,7 +315,7 @@ def geodesic(
                            rtol=rtol, atol=atol, energy_tol=energy_tol,
                            on_violation=on_violation, max_steps=max_steps, dense=dense,
                            fixed_point_tol=fixed_point_tol, fixed_point_iter=fixed_point_iter,
-                           monitor=monitor, h0=h0)
+                           monitor=monitor, h0=h0, free=free)
         except IntegrationError as exc:
             part = getattr(exc, "partial", None)
             if part is not None:
@@ -338,7 +343,17 @@ def geodesic(
     line_search = method_used == "line-search"
     if monitor is None:
         monitor = not line_search
-    fld = GeodesicField(pen, _triangles_of(pen))
+    if free is not None:
+        free = np.asarray(free)
+        if free.dtype != bool:
+            mask = np.zeros(len(Q), dtype=bool)
+            mask[free] = True
+            free = mask
+        if free.shape != (len(Q),):
+            raise IntegrationError(f"free must be an (N,) mask, got shape {free.shape}")
+        if np.any(V[~free]):
+            raise IntegrationError("the initial velocity must vanish on the fixed vertices")
+    fld = GeodesicField(pen, _triangles_of(pen), free=free)
     if not fld.admissible(Q):
         raise IntegrationError("the initial mesh is not admissible (a signed area is <= 0)")
     if monitor:

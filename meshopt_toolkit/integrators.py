@@ -231,6 +231,13 @@ class GeodesicField:
     triangles : (T, 3) int array, optional
         Connectivity used to test ``min signed area > 0`` (a ``Penalty`` brings its own).
         Without it the penalty's ``is_admissible(Q)`` is used.
+    free : (N,) bool array, optional
+        Vertices allowed to move. With fixed vertices the field is that of the metric
+        restricted to the affine subspace ``{Q : Q_fixed = const}`` (as
+        ``CompleteMetric.riesz(..., free=...)``): ``g = I + ∇_F f ∇_F fᵀ`` with ``∇_F f``
+        the gradient with the fixed rows zeroed, so (5.35) holds with ``∇_F f`` in place
+        of ``∇f`` (the curvature ``V·∇²f·V`` is unchanged for ``V`` vanishing on the
+        fixed vertices) and fixed vertices never move.
 
     Notes
     -----
@@ -260,7 +267,9 @@ class GeodesicField:
         non-positive signed area (the penalty is a ``Penalty``).
     """
 
-    def __init__(self, penalty, triangles: IntArray | None = None) -> None:
+    def __init__(
+        self, penalty, triangles: IntArray | None = None, free: np.ndarray | None = None
+    ) -> None:
         from .penalties import Penalty
 
         self.penalty = penalty
@@ -272,6 +281,18 @@ class GeodesicField:
         self._guard = BoundaryGuard(penalty) if self.checks_areas else None
         if self.triangles is not None:
             self._tri_t = np.ascontiguousarray(self.triangles.T)
+        self._fixed = None
+        if free is not None:
+            free = np.asarray(free, dtype=bool)
+            if not free.all():
+                self._fixed = np.flatnonzero(~free)
+
+    def _restrict(self, grad: FloatArray) -> FloatArray:
+        """``∇f`` restricted to the free vertices (rows of fixed vertices zeroed)."""
+        if self._fixed is not None:
+            grad = np.array(grad, dtype=float)
+            grad[self._fixed] = 0.0
+        return grad
 
     @property
     def n_boundary_checks(self) -> int:
@@ -334,18 +355,18 @@ class GeodesicField:
             grad, curv = self.penalty.gradient_and_curvature(Q, V, check_boundary=False)
         else:
             grad, curv = self.penalty.gradient_and_curvature(Q, V)
-        grad = np.asarray(grad, dtype=float)
+        grad = self._restrict(np.asarray(grad, dtype=float))
         return (-float(curv) / (1.0 + _dot(grad, grad))) * grad, grad
 
     def gradient(self, Q: FloatArray) -> FloatArray:
-        """∇f(Q), (N, 2)."""
+        """∇f(Q), (N, 2) (restricted to the free vertices, if any are fixed)."""
         self.n_evaluations += 1
-        return np.asarray(self.penalty.gradient(Q), dtype=float)
+        return self._restrict(np.asarray(self.penalty.gradient(Q), dtype=float))
 
     def hvp(self, Q: FloatArray, V: FloatArray) -> FloatArray:
-        """∇²f(Q) V, (N, 2)."""
+        """∇²f(Q) V, (N, 2) (restricted to the free vertices, if any are fixed)."""
         self.n_evaluations += 1
-        return np.asarray(self.penalty.hvp(Q, V), dtype=float)
+        return self._restrict(np.asarray(self.penalty.hvp(Q, V), dtype=float))
 
     def value(self, Q: FloatArray) -> float:
         """f(Q)."""

@@ -342,7 +342,7 @@ def optimize(
                 from .geodesics import geodesic
 
                 times = trial_steps / s  # rescaling lemma: γ_{Q, s_k d}(1) = γ_{Q, s d}(s_k / s)
-                geo = geodesic(metric, Q, s * d, 1.0, times=times[::-1],
+                geo = geodesic(metric, Q, s * d, 1.0, times=times[::-1], free=free,
                                **{**EXP_DEFAULTS, **dict(exp_options or {})})
                 geo_points = geo.points[::-1]
             except IntegrationError as exc:

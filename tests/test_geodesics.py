@@ -12,7 +12,7 @@ from conftest import grid_mesh, square5
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from meshopt_toolkit.errors import IntegrationError
+from meshopt_toolkit.errors import IntegrationError, NotAdmissibleError
 from meshopt_toolkit.geodesics import (
     GeodesicWarning,
     exp_map,
@@ -316,3 +316,181 @@ def test_hermite_interpolant_is_exact_for_quintics(rng):
     for t in (0.3, 0.5, 0.77, 1.1):
         qi, vi = _hermite(q(t0), dq(t0), ddq(t0), q(t1), dq(t1), ddq(t1), t0, t1, t)
         assert np.allclose(qi, q(t), atol=1e-12) and np.allclose(vi, dq(t), atol=1e-11)
+
+
+# -- line-search mode, boundary guard, partial results, fixed vertices --------------------
+
+
+def u_mesh() -> "PlanarMesh":
+    """grid_mesh(4) with the top-middle 2×2 cells removed: a U whose two walls face each
+    other across a gap of 0.5 (boundary edges that can be brought into contact)."""
+    from meshopt_toolkit.mesh import PlanarMesh
+
+    g = grid_mesh(4)
+    tri = g.triangles.reshape(2, 4, 4, 3)  # (kind, row, col, corner)
+    keep = np.ones((2, 4, 4), dtype=bool)
+    keep[:, 2:, 1:3] = False
+    tri = tri[keep]
+    used = np.unique(tri)
+    remap = np.full(g.n_vertices, -1)
+    remap[used] = np.arange(used.size)
+    return PlanarMesh(g.points[used], remap[tri])
+
+
+def test_bs3_tableau_satisfies_order_conditions():
+    from meshopt_toolkit.integrators import BS3_TABLEAU
+
+    c, a, b, bh = (BS3_TABLEAU[k] for k in ("c", "a", "b", "b_hat"))
+    A = np.zeros((4, 4))
+    for i, row in enumerate(a):
+        A[i, : len(row)] = row
+    assert np.allclose(A.sum(1), c)
+    for w, order in ((b, 3), (bh, 2)):
+        assert np.isclose(w.sum(), 1)
+        assert np.isclose(w @ c, 1 / 2)
+        if order >= 3:
+            assert np.isclose(w @ c**2, 1 / 3) and np.isclose(w @ A @ c, 1 / 6)
+    assert not np.isclose(bh @ c**2, 1 / 3)  # the embedded weights are only 2nd order
+    assert np.allclose(A[3, :3], b[:3])  # first same as last
+
+
+def test_bs3_is_third_order():
+    mesh, pen, V = _mild_case()
+    ref = geodesic(pen, mesh.points, V, 1.0, rtol=1e-12, atol=1e-12).final
+    steps = np.array([8, 16, 32, 64])
+    errs = []
+    for n in steps:  # fixed steps: huge tolerances, h0 = 1/n, outputs on the grid
+        res = geodesic(pen, mesh.points, V, 1.0, times=np.arange(1, n + 1) / n, method="bs3",
+                       rtol=1e9, atol=1e9, h0=1.0 / n, dense=False, on_violation="ignore")
+        errs.append(np.abs(res.final - ref).max())
+    slope = -np.polyfit(np.log(steps), np.log(errs), 1)[0]
+    assert abs(slope - 3) < 0.3, (errs, slope)
+
+
+def test_line_search_mode_is_cheap_admissible_and_a_retraction(rng):
+    from meshopt_toolkit import data_path, load
+
+    mesh = load(data_path("disc_85.msh")).as_planar()
+    pen = QualityPenalty(mesh, beta=(10, 1, 0, 0.01 * mesh.n_vertices))
+    V = 0.3 * rng.standard_normal(mesh.points.shape)
+    times = 0.5 ** np.arange(20)[::-1]
+    ref = geodesic(pen, mesh.points, V, 1.0, times=times, rtol=1e-10, on_violation="ignore")
+    fast = geodesic(pen, mesh.points, V, 1.0, times=times, method="line-search")
+    exact = geodesic(pen, mesh.points, V, 1.0, times=times, on_violation="ignore")
+    assert fast.method == "line-search" and fast.n_evaluations < exact.n_evaluations / 3
+    assert fast.admissible.all() and all(pen.is_admissible(p) for p in fast.points)
+    assert np.isnan(fast.penalty).all()  # positions only: no f at the outputs
+    # energy projection: every output landed on a step end has the initial energy
+    landed = ~np.isnan(fast.energy)
+    assert landed.any() and np.allclose(fast.energy[landed], ref.energy[0], rtol=1e-12)
+    # a retraction: accurate for small t (error o(t)), loose only where the path bounces
+    err = np.abs(fast.points - ref.points).max(axis=(1, 2)) / times
+    small = times < 1e-2
+    assert err[small].max() < 1e-3 * np.abs(V).max()
+    assert np.abs(fast.final - ref.final).max() < 0.5 * np.abs(V).max()
+
+
+def test_energy_projection_keeps_the_energy_at_loose_tolerance(rng):
+    from meshopt_toolkit import data_path, load
+    from meshopt_toolkit.integrators import energy, runge_kutta
+
+    mesh = load(data_path("disc_25.msh")).as_planar()
+    pen = QualityPenalty(mesh, beta=(10, 1, 0, 0.01 * mesh.n_vertices))
+    V = 0.5 * rng.standard_normal(mesh.points.shape)
+    t = np.linspace(0.25, 2.0, 8)
+    outs = {}
+    for project in (False, True):
+        fld = GeodesicField(pen)
+        outs[project] = runge_kutta(fld, mesh.points, V, t, rtol=5e-2, atol=5e-2, pair="bs3",
+                                    energy_rtol=np.inf, project_energy=project, dense=False)
+    e0 = energy(pen.gradient(mesh.points), V)
+    e_free = np.array([energy(pen.gradient(q), v) for q, v in zip(outs[False].points,
+                                                                  outs[False].velocities)])
+    e_proj = np.array([energy(pen.gradient(q), v) for q, v in zip(outs[True].points,
+                                                                  outs[True].velocities)])
+    assert np.allclose(e_proj, e0, rtol=1e-12)
+    assert np.abs(e_free / e0 - 1).max() > 1e-6  # without it the energy does drift
+
+
+def test_boundary_guard_agrees_with_the_exact_test(rng):
+    """Random walks of the U-mesh boundary, from harmless to crossing: the guard (dense
+    test + displacement certificate) answers exactly what penalty.boundary_problem does,
+    and most answers along a slow walk come from the certificate."""
+    from meshopt_toolkit.integrators import BoundaryGuard
+
+    for mesh in (u_mesh(), grid_mesh(3)):  # (the square: collinear boundary edges)
+        pen = QualityPenalty(mesh, beta=(1, 0, 0, 0))
+        bv = mesh.boundary_vertices
+        for scale, steps in ((0.004, 60), (0.03, 60), (0.2, 30)):
+            guard = BoundaryGuard(pen)
+            Q = mesh.points.copy()
+            disagree = 0
+            for _ in range(steps):
+                Q[bv] += scale * rng.standard_normal((len(bv), 2))
+                disagree += (guard.problem(Q) is None) != (pen.boundary_problem(Q) is None)
+            assert disagree == 0
+            if scale == 0.004:
+                assert guard.n_exact < steps / 3
+    # touching and crossing walls are found
+    mesh = u_mesh()
+    pen = QualityPenalty(mesh, beta=(1, 0, 0, 0))
+    right = np.flatnonzero(np.isclose(mesh.points[:, 0], 0.75) & (mesh.points[:, 1] > 0.6))
+    for shift, ok in ((0.3, True), (0.5, False), (0.6, False)):
+        Q = mesh.points.copy()
+        Q[right, 0] -= shift
+        Q[right, 1] += 0.01
+        assert (BoundaryGuard(pen).problem(Q) is None) == ok == (pen.boundary_problem(Q) is None)
+
+
+def test_failed_geodesic_carries_the_part_it_integrated():
+    """β3 = 0: nothing stops the U's walls from meeting; the outputs before the contact
+    come with the error."""
+    mesh = u_mesh()
+    pen = QualityPenalty(mesh, beta=(0.1, 0, 0, 0.1))
+    arm = np.flatnonzero((mesh.points[:, 0] > 0.7) & (mesh.points[:, 1] > 0.6))
+    V = np.zeros_like(mesh.points)
+    V[arm, 0] = -1.0  # the right arm shears left: the gap of 0.5 closes near t = 0.5
+    times = np.linspace(0.1, 1.0, 10)
+    with pytest.raises(IntegrationError, match="boundary self-intersects") as info:
+        geodesic(pen, mesh.points, V, 1.0, times=times, method="line-search")
+    part = info.value.partial
+    assert part is not None and 1 <= len(part.times) <= 5
+    np.testing.assert_allclose(part.times, times[: len(part.times)])
+    assert all(pen.is_admissible(p) for p in part.points)
+
+
+def test_fixed_vertices_stay_and_the_restricted_energy_is_conserved(rng):
+    from meshopt_toolkit import data_path, load
+    from meshopt_toolkit.integrators import energy
+
+    mesh = load(data_path("disc_25.msh")).as_planar()
+    pen = QualityPenalty(mesh, beta=(10, 1, 0, 0.01 * mesh.n_vertices))
+    free = np.ones(mesh.n_vertices, dtype=bool)
+    free[mesh.boundary_vertices] = False
+    V = 0.3 * rng.standard_normal(mesh.points.shape) * free[:, None]
+    res = geodesic(pen, mesh.points, V, 1.0, times=[0.5, 1.0], free=free, rtol=1e-9,
+                   dense=False, on_violation="raise")
+    for p in res.points:
+        np.testing.assert_array_equal(p[~free], mesh.points[~free])
+    g0 = pen.gradient(mesh.points) * free[:, None]
+    e0 = energy(g0, V)
+    for p, v in zip(res.points, res.velocities):
+        assert energy(pen.gradient(p) * free[:, None], v) == pytest.approx(e0, rel=1e-6)
+    with pytest.raises(IntegrationError, match="vanish"):
+        geodesic(pen, mesh.points, V + 0.1, 1.0, free=free)
+
+
+def test_curvature_without_the_boundary_check():
+    mesh = u_mesh()
+    pen = QualityPenalty(mesh, beta=(1, 0.5, 0, 1))
+    arm = np.flatnonzero((mesh.points[:, 0] > 0.7) & (mesh.points[:, 1] > 0.6))
+    Q = mesh.points.copy()
+    Q[arm, 0] -= 0.6  # the right arm sheared over the left one: triangles stay positive
+    assert min_area(Q, mesh) > 0 and pen.boundary_problem(Q) is not None
+    with pytest.raises(NotAdmissibleError, match="boundary"):
+        pen.gradient_and_curvature(Q, Q)
+    g, c = pen.gradient_and_curvature(Q, Q, check_boundary=False)
+    g_ok, c_ok = pen.gradient_and_curvature(mesh.points, Q)
+    assert np.isfinite(g).all() and np.isfinite(c)
+    np.testing.assert_array_equal(
+        pen.gradient_and_curvature(mesh.points, Q, check_boundary=False)[0], g_ok)
