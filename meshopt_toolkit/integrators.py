@@ -137,43 +137,42 @@ class BoundaryGuard:
     # -- exact test ---------------------------------------------------------------------
     def _dense_test(self, Q: FloatArray) -> bool:
         """True if the boundary of ``Q`` may touch itself (then confirm exactly); else
-        False, and ``Q`` becomes the anchor."""
+        False, and ``Q`` becomes the anchor. ``Q`` has positive areas (no empty edge)."""
         P = Q[self._bv]  # (B, 2)
-        A = P[self._ea]
-        B = P[self._eb]
-        D = B - A  # (E, 2) edge vectors
-        PA = P[None, :, :] - A[:, None, :]  # (E, B, 2)
+        px, py = P[:, 0], P[:, 1]
+        ax, ay = px[self._ea], py[self._ea]
+        bx, by = px[self._eb], py[self._eb]
+        dx, dy = bx - ax, by - ay  # (E,) edge vectors
+        rx = px[None, :] - ax[:, None]  # (E, B): vertex b relative to the start of edge e
+        ry = py[None, :] - ay[:, None]
         # orientation of vertex b against edge e, as mesh.boundary_self_intersections
-        o = D[:, None, 0] * PA[..., 1] - D[:, None, 1] * PA[..., 0]  # (E, B)
+        o = dx[:, None] * ry - dy[:, None] * rx
         oa, ob = o[:, self._ea], o[:, self._eb]  # (E, E): edge f's ends against e's line
         s = oa * ob
         hit = (s <= 0) & (s.T <= 0) & self._crossable
         if hit.any():
             e, f = np.nonzero(hit)
             # collinear but disjoint segments pass the sign test: keep overlapping ones
-            col = (oa[e, f] == 0) & (ob[e, f] == 0)
-            if col.all():
-                d = D[e]
-                t0 = np.einsum("kd,kd->k", A[f] - A[e], d)
-                t1 = np.einsum("kd,kd->k", B[f] - A[e], d)
-                L = np.einsum("kd,kd->k", d, d)
-                if np.any((np.maximum(t0, t1) >= 0) & (np.minimum(t0, t1) <= L)):
-                    return True
-            else:
+            if not ((oa[e, f] == 0) & (ob[e, f] == 0)).all():
+                return True
+            t0 = (ax[f] - ax[e]) * dx[e] + (ay[f] - ay[e]) * dy[e]
+            t1 = (bx[f] - ax[e]) * dx[e] + (by[f] - ay[e]) * dy[e]
+            L = dx[e] * dx[e] + dy[e] * dy[e]
+            if np.any((np.maximum(t0, t1) >= 0) & (np.minimum(t0, t1) <= L)):
                 return True
         e, f = self._fold
-        if len(e):
-            u, v = -D[e], D[f]  # at the shared vertex: towards a and towards c
-            cross = u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]
-            if np.any((cross == 0) & (np.einsum("kd,kd->k", u, v) > 0)):
+        if len(e):  # at the shared vertex: u towards a (−d_e), v towards c (d_f)
+            cross = dx[e] * dy[f] - dy[e] * dx[f]
+            if np.any((cross == 0) & (dx[e] * dx[f] + dy[e] * dy[f] < 0)):
                 return True
         # distances for the certificate: vertex b to segment e
-        L2 = np.einsum("ek,ek->e", D, D)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t = np.einsum("ebk,ek->eb", PA, D) / L2[:, None]
-        np.clip(np.nan_to_num(t), 0.0, 1.0, out=t)
-        R = PA - t[..., None] * D[:, None, :]
-        d2 = np.einsum("ebk,ebk->eb", R, R)
+        L2 = dx * dx + dy * dy
+        t = (rx * dx[:, None] + ry * dy[:, None]) / L2[:, None]
+        np.clip(t, 0.0, 1.0, out=t)
+        rx -= t * dx[:, None]
+        ry -= t * dy[:, None]
+        d2 = rx * rx
+        d2 += ry * ry
         d2[self._incident] = np.inf
         r2 = d2.min(axis=0)
         per_edge = d2.min(axis=1)
@@ -316,9 +315,10 @@ class GeodesicField:
             return False
         if self.triangles is None:
             return all(self.penalty.is_admissible(q) for q in Qs)
-        x = Qs[..., 0][:, self._tri_t]  # (m, 3, T)
-        y = Qs[..., 1][:, self._tri_t]
-        area2 = (x[:, 1] - x[:, 0]) * (y[:, 2] - y[:, 0]) - (y[:, 1] - y[:, 0]) * (x[:, 2] - x[:, 0])
+        z = np.ascontiguousarray(Qs).view(np.complex128)[..., 0][:, self._tri_t]  # (m, 3, T)
+        z1 = z[:, 1] - z[:, 0]
+        z2 = z[:, 2] - z[:, 0]
+        area2 = (z1.conj() * z2).imag  # 2A = (q1 − q0) × (q2 − q0)
         if not area2.min() > 0.0:
             return False
         if self._guard is None:
@@ -553,18 +553,23 @@ def _error_norm(pair: _Pair, h, k, y0, y1, rtol, atol) -> float:
     return e5 * e5 / np.sqrt(e5 * e5 + 0.01 * e3 * e3)
 
 
+#: quintic Hermite basis (rows: data q0, h v0, h² a0, q1, h v1, h² a1) in powers s⁰…s⁵
+_HERMITE = np.array([
+    [1, 0, 0, -10, 15, -6],
+    [0, 1, 0, -6, 8, -3],
+    [0, 0, 0.5, -1.5, 1.5, -0.5],
+    [0, 0, 0, 10, -15, 6],
+    [0, 0, 0, -4, 7, -3],
+    [0, 0, 0, 0.5, -1, 0.5],
+], dtype=float).T  # (power, datum)
+_HERMITE_D = np.arange(1, 6)[:, None] * _HERMITE[1:]  # s-derivative, powers s⁰…s⁴
+
+
 def _hermite_basis(s: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Quintic Hermite basis at ``s ∈ [0, 1]`` (m,) and its s-derivative, each (m, 6), for
     the data ``q0, h v0, h² a0, q1, h v1, h² a1``."""
-    s2, s3 = s * s, s * s * s
-    s4, s5 = s3 * s, s3 * s2
-    b = np.stack([1 - 10 * s3 + 15 * s4 - 6 * s5, s - 6 * s3 + 8 * s4 - 3 * s5,
-                  0.5 * s2 - 1.5 * s3 + 1.5 * s4 - 0.5 * s5, 10 * s3 - 15 * s4 + 6 * s5,
-                  -4 * s3 + 7 * s4 - 3 * s5, 0.5 * s3 - s4 + 0.5 * s5], axis=1)
-    d = np.stack([-30 * s2 + 60 * s3 - 30 * s4, 1 - 18 * s2 + 32 * s3 - 15 * s4,
-                  s - 4.5 * s2 + 6 * s3 - 2.5 * s4, 30 * s2 - 60 * s3 + 30 * s4,
-                  -12 * s2 + 28 * s3 - 15 * s4, 1.5 * s2 - 4 * s3 + 2.5 * s4], axis=1)
-    return b, d
+    powers = np.asarray(s, dtype=float)[:, None] ** np.arange(6)
+    return powers @ _HERMITE, powers[:, :5] @ _HERMITE_D
 
 
 def _hermite_many(q0, v0, a0, q1, v1, a1, t0: float, t1: float, ts: FloatArray):
