@@ -73,8 +73,7 @@ def run(args: argparse.Namespace) -> int:
     with atomic_path(outdir / "summary.json") as tmp:
         tmp.write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
     if not args.no_plots:
-        plot_strip(result, outdir / "strip.png")
-        plot_quality(result, outdir / "quality.png")
+        _write_plots(result, outdir)
     if args.json:
         json.dump(summary, sys.stdout)
         sys.stdout.write("\n")
@@ -89,61 +88,21 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-# -- figures ------------------------------------------------------------------------------
+def _write_plots(result, outdir: Path, max_panels: int = 9) -> None:
+    """A strip of snapshots and the minimum aspect ratio per frame against linear
+    interpolation (negative = inverted triangles)."""
+    from ..plotting import save_quality_plot, save_snapshot_strip
 
-
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def plot_strip(result, path: Path, max_panels: int = 9) -> None:
-    """A strip of snapshots of the morph (at most ``max_panels`` equally spaced frames)."""
-    from ..io import atomic_path
-
-    plt = _pyplot()
     K = result.n_frames
     idx = np.unique(np.round(np.linspace(0, K - 1, min(K, max_panels))).astype(int))
-    fig, axes = plt.subplots(1, len(idx), figsize=(2.2 * len(idx), 2.4), squeeze=False)
-    lo = result.points.reshape(-1, 2).min(0)
-    hi = result.points.reshape(-1, 2).max(0)
-    pad = 0.03 * (hi - lo).max()
-    for ax, k in zip(axes[0], idx):
-        p = result.points[k]
-        ax.triplot(p[:, 0], p[:, 1], result.triangles, lw=0.4, color="k")
-        ax.set_title(f"t = {result.times[k]:.2f}\nAR {result.min_aspect_ratio[k]:.3f}", fontsize=8)
-        ax.set_xlim(lo[0] - pad, hi[0] + pad)
-        ax.set_ylim(lo[1] - pad, hi[1] + pad)
-        ax.set_aspect("equal")
-        ax.axis("off")
-    fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=120, format="png")
-    plt.close(fig)
-
-
-def plot_quality(result, path: Path) -> None:
-    """Minimum aspect ratio per frame: geodesic morph vs linear interpolation."""
-    from ..io import atomic_path
-
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(6, 3.5))
-    t = result.times
-    ax.plot(t, result.min_aspect_ratio, "o-", label=f"geodesic ({result.method})")
-    ax.plot(t, result.linear_min_aspect_ratio, "s--", label="linear interpolation")
-    inv = result.linear_min_area <= 0
-    if inv.any():
-        ax.plot(t[inv], result.linear_min_aspect_ratio[inv], "rx", ms=10,
-                label="linear: inverted triangles")
-    ax.axhline(0.0, color="0.5", lw=0.8)
-    ax.set_xlabel("t")
-    ax.set_ylabel("min aspect ratio 2r/R (signed)")
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=120, format="png")
-    plt.close(fig)
+    save_snapshot_strip(
+        outdir / "strip.png", result.points[idx], result.triangles, ncols=len(idx),
+        titles=[f"t = {result.times[k]:.2f}, AR {result.min_aspect_ratio[k]:.3f}" for k in idx],
+    )
+    save_quality_plot(
+        outdir / "quality.png", result.times,
+        {f"geodesic ({result.method})": result.min_aspect_ratio,
+         "linear interpolation": result.linear_min_aspect_ratio},
+        ylabel="min aspect ratio 2r/R (signed; < 0: inverted)",
+        title="geodesic morph vs linear interpolation",
+    )
