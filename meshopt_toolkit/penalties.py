@@ -70,6 +70,7 @@ __all__ = [
 ]
 
 SQRT3 = np.sqrt(3.0)
+_OMEGA = np.exp(2j * np.pi / 3 * np.arange(3))  # ω^k, k = 0, 1, 2
 
 #: default μ of the regularized distance (defined with the distance kernels)
 DEFAULT_MU = _distance.DEFAULT_MU
@@ -553,6 +554,14 @@ class Penalty:
             self._edge_tail = np.ascontiguousarray(tt[[1, 2, 0]])
             flat2 = 2 * self._tri_flat
             self._corner_xy = np.stack([flat2, flat2 + 1], axis=1).ravel()
+            # discrete Fourier coordinates of each triangle (see _small_quality_pass):
+            # rows t: p_t = Σ_k ω^k z_{i_k}; rows T + t: m_t = Σ_k ω^{2k} z_{i_k}
+            T = self.n_triangles
+            rows = np.concatenate([np.tile(np.arange(T), 3), np.tile(np.arange(T, 2 * T), 3)])
+            cols = np.concatenate([self._tri_flat, self._tri_flat])
+            vals = np.concatenate([np.repeat(_OMEGA, T), np.repeat(_OMEGA**2, T)])
+            W = sp.csr_matrix((vals, (rows, cols)), shape=(2 * T, n))
+            self._fourier = (W, W.conj().T.tocsr())
 
     # -- helpers ------------------------------------------------------------------
     @property
@@ -641,6 +650,8 @@ class Penalty:
         over the interleaved (x, y) components. Returns False at a non-positive area.
         """
         term = self._triangle_term
+        if term is not None and term.quality:
+            return self._small_quality_pass(Q, V, acc)
         want = acc.want
         area_term = self._area_term
         z = Q.view(np.complex128).ravel()
@@ -719,6 +730,92 @@ class Penalty:
                 corner += (0.5j * rot) * e
             flat = corner.view(np.float64).ravel()
             acc.grad += np.bincount(self._corner_xy, flat, 2 * self.n_vertices).reshape(-1, 2)
+        return True
+
+    def _small_quality_pass(self, Q: FloatArray, V: FloatArray | None, acc: _Accumulator) -> bool:
+        """:meth:`_small_pass` for the quality term (f2), in the triangle's discrete Fourier
+        coordinates.
+
+        With ``ω = e^{2πi/3}`` and corners ``z_k``, ``p = z0 + ω z1 + ω² z2`` and
+        ``m = z0 + ω² z1 + ω z2`` (``p = 0`` for an equilateral CCW triangle) give
+        ``S = ΣE_l² = P + M`` and ``A = (√3/12)(M − P)`` with ``P = |p|²``, ``M = |m|²``, so
+        the term is ``c S/A = K (M + P)/D``, ``K = 4√3 c``, ``D = M − P``. With
+        ``∂P/∂z̄_k = p ω̄^k`` and ``∂M/∂z̄_k = m ω^k`` the corner gradient (x + iy) of
+        ``F(P, M)`` is ``2(F_P p ω̄^k + F_M m ω^k)``: ``F_P = 2KM/D²``, ``F_M = −2KP/D²``,
+        plus ``±β2 √3/(12𝒜²)`` from ``β2/𝒜``, ``𝒜 = (√3/12) Σ D``. Along ``V`` (transforms
+        ``p_v``, ``m_v``): ``P' = 2 Re(p̄ p_v)``, ``P'' = 2|p_v|²`` (likewise M), and the
+        curvature of the quality term is
+        ``(2K/D²)(M P'' − P M'') + (4K/D³)(P' − M')(M P' − P M')``
+        (from ``F_PP = 4KM/D³``, ``F_MM = 4KP/D³``, ``F_PM = −2K(M + P)/D³``); the area
+        term's is ``β2 (2𝒜'²/𝒜³ − 𝒜''/𝒜²)``. Everything but the corner gradient works on
+        ``T``-vectors instead of ``(3, T)`` arrays; ``(p, m) = W z`` and the gradient
+        ``2 Wᴴ (F_P p, F_M m)`` are sparse matvecs with the ``(2T, N)`` matrix ``W`` of the
+        weights ``ω^k`` (rows of p) and ``ω^{2k}`` (rows of m).
+        """
+        want = acc.want
+        term = self._triangle_term
+        area_term = self._area_term
+        W, WH = self._fourier
+        T = self.n_triangles
+
+        def transform(x):  # (N, 2) → p, m (T,) complex: one sparse matvec
+            pm = W @ x.view(np.complex128).ravel()
+            return pm[:T], pm[T:]
+
+        p, m = transform(Q)
+        P = p.real * p.real
+        P += p.imag * p.imag
+        M = m.real * m.real
+        M += m.imag * m.imag
+        D = M - P
+        if not D.min() > 0:
+            return False
+        iD = 1.0 / D
+        K = 4.0 * SQRT3 * term.coef
+        acc.values[term.name] = K * float(np.add.reduce((M + P) * iD))
+        if area_term is not None:
+            b2 = area_term.coef
+            tot = SQRT3 / 12.0 * float(D.sum())
+            acc.values[area_term.name] = b2 / tot
+        iD2 = iD * iD
+        if want.gradient:
+            FP = (2.0 * K) * M * iD2
+            FM = (-2.0 * K) * P * iD2
+            if area_term is not None:
+                da = b2 * SQRT3 / (12.0 * tot * tot)
+                FP += da
+                FM -= da
+            coef = np.empty(2 * T, dtype=np.complex128)
+            np.multiply(FP, p, out=coef[:T])
+            np.multiply(FM, m, out=coef[T:])
+            g = WH @ coef  # Σ over corners of F_P p ω̄^k + F_M m ω^k, (N,) complex
+            g *= 2.0
+            acc.grad += g.view(np.float64).reshape(-1, 2)
+        if V is not None and want.curvature:
+            pv, mv = transform(V)
+            P1 = p.real * pv.real
+            P1 += p.imag * pv.imag
+            P1 *= 2.0
+            M1 = m.real * mv.real
+            M1 += m.imag * mv.imag
+            M1 *= 2.0
+            P2 = pv.real * pv.real
+            P2 += pv.imag * pv.imag
+            P2 *= 2.0
+            M2 = mv.real * mv.real
+            M2 += mv.imag * mv.imag
+            M2 *= 2.0
+            first = M * P2
+            first -= P * M2
+            second = M * P1
+            second -= P * M1
+            second *= (2.0 * iD) * (P1 - M1)
+            first += second
+            acc.curvature += 2.0 * K * float(np.add.reduce(first * iD2))
+            if area_term is not None:
+                d1 = SQRT3 / 12.0 * float(np.add.reduce(M1 - P1))
+                d2 = SQRT3 / 12.0 * float(np.add.reduce(M2 - P2))
+                acc.curvature += b2 * (2.0 * d1 * d1 / tot**3 - d2 / tot**2)
         return True
 
     def _triangle_pass(self, Q: FloatArray, V: FloatArray | None, acc: _Accumulator) -> bool:
