@@ -64,7 +64,9 @@ class BoundaryGuard:
     straight path from the anchor the distance of a pair changes by less than
     ``r_i + max(r_j0, r_j1)``, at most its anchor distance, so no vertex ever touches a
     non-incident edge, and boundary edges can only start to meet (cross, or overlap when
-    adjacent) where a vertex touches an edge.
+    adjacent) where a vertex touches an edge. When that fails, the pairwise form is
+    tried (dense mode): every pair's distance changes by at most
+    ``max(|Δ_b − Δ_a0|, |Δ_b − Δ_a1|)``, which ignores a common translation.
 
     *Exact test.* For at most :data:`DENSE_PAIRS` (vertex, edge) pairs one dense pass
     computes the orientation of every boundary vertex against every boundary edge
@@ -97,6 +99,7 @@ class BoundaryGuard:
         self._eb = np.searchsorted(bv, be[:, 1])
         self._anchor = None
         self._radius2 = None
+        self._pair_d2 = None
         self.dense = len(bv) * E <= self.DENSE_PAIRS
         if self.dense:
             rows = np.arange(E)
@@ -127,12 +130,32 @@ class BoundaryGuard:
         move = Qs[:, self._bv] - self._anchor
         return np.all(np.einsum("mij,mij->mi", move, move) < self._radius2, axis=1)
 
-    def _set_anchor(self, P: FloatArray, r2: FloatArray) -> None:
+    def _set_anchor(self, P: FloatArray, r2: FloatArray, d2: FloatArray | None = None) -> None:
         if len(r2) and r2.min() > 0:  # (a vertex in no pair keeps r = inf)
             self._anchor = P.copy()
             self._radius2 = 0.25 * r2
+            self._pair_d2 = d2
         else:
             self._anchor = None
+
+    def _relative_certified(self, Q: FloatArray) -> bool:
+        """The pairwise, translation-invariant form of the certificate (dense mode): the
+        distance of vertex ``b`` to edge ``e = [a0, a1]`` changes along the straight path
+        by at most ``max(|Δ_b − Δ_a0|, |Δ_b − Δ_a1|)`` (a point of the edge moves by a
+        convex combination of its ends' displacements), so the boundary stays simple if
+        that is below the pair's anchor distance for every pair."""
+        if self._anchor is None or self._pair_d2 is None:
+            return False
+        move = Q[self._bv] - self._anchor  # (B, 2)
+        mx, my = move[:, 0], move[:, 1]
+        worst = None
+        for ends in (self._ea, self._eb):
+            rx = mx[None, :] - mx[ends][:, None]
+            ry = my[None, :] - my[ends][:, None]
+            r2 = rx * rx
+            r2 += ry * ry
+            worst = r2 if worst is None else np.maximum(worst, r2, out=worst)
+        return bool(np.all(worst < self._pair_d2))
 
     # -- exact test ---------------------------------------------------------------------
     def _dense_test(self, Q: FloatArray) -> bool:
@@ -178,7 +201,7 @@ class BoundaryGuard:
         per_edge = d2.min(axis=1)
         np.minimum.at(r2, self._ea, per_edge)
         np.minimum.at(r2, self._eb, per_edge)
-        self._set_anchor(P, r2)
+        self._set_anchor(P, r2, d2)
         return False
 
     def _pairs_anchor(self, Q: FloatArray) -> None:
@@ -207,7 +230,7 @@ class BoundaryGuard:
             return None
         if certified is None:
             certified = bool(self.certified(Q[None])[0])
-        if certified:
+        if certified or (self.dense and self._relative_certified(Q)):
             return None
         self.n_exact += 1
         if self.dense and not self._dense_test(Q):
@@ -306,21 +329,39 @@ class GeodesicField:
             return bool(signed_areas(Q, self.triangles).min() > 0.0)
         return bool(self.penalty.is_admissible(Q))
 
-    def admissible_many(self, Qs: FloatArray) -> bool:
+    def admissible_many(self, Qs: FloatArray, base: FloatArray | None = None) -> bool:
         """True if every configuration of ``Qs (m, N, 2)`` is admissible (areas and
-        boundary), tested together: one vectorized area pass, then the boundary."""
+        boundary), tested together: one vectorized area pass, then the boundary.
+
+        ``base`` (N, 2), an admissible configuration near them (the start of the step
+        they interpolate), lets configurations close to it skip the area pass: moving
+        every vertex by at most ``δ`` changes a signed area by at most ``δ L + 2δ²``
+        (``L`` the perimeter; ``A = ½ e1 × e2`` with ``e1, e2`` changing by ≤ 2δ each), so
+        ``δ < min_k A_k / (2 L_k)`` keeps every area positive.
+        """
         if len(Qs) == 0:
             return True
         if not np.isfinite(Qs).all():
             return False
         if self.triangles is None:
             return all(self.penalty.is_admissible(q) for q in Qs)
-        z = np.ascontiguousarray(Qs).view(np.complex128)[..., 0][:, self._tri_t]  # (m, 3, T)
-        z1 = z[:, 1] - z[:, 0]
-        z2 = z[:, 2] - z[:, 0]
-        area2 = (z1.conj() * z2).imag  # 2A = (q1 − q0) × (q2 − q0)
-        if not area2.min() > 0.0:
-            return False
+        check = Qs
+        if base is not None and len(Qs) > 2:
+            move = (Qs - base).reshape(len(Qs), -1, 2)
+            delta2 = np.einsum("mij,mij->mi", move, move).max(axis=1)
+            zb = base.view(np.complex128)[:, 0][self._tri_t]  # (3, T)
+            e1, e2, e3 = zb[1] - zb[0], zb[2] - zb[0], zb[2] - zb[1]
+            area = 0.5 * (e1.conj() * e2).imag
+            perimeter = np.abs(e1) + np.abs(e2) + np.abs(e3)
+            bound = float((area / (2.0 * perimeter)).min())
+            check = Qs[~(delta2 < bound * bound)]
+        if len(check):
+            z = np.ascontiguousarray(check).view(np.complex128)[..., 0][:, self._tri_t]
+            z1 = z[:, 1] - z[:, 0]  # (m, T)
+            z2 = z[:, 2] - z[:, 0]
+            area2 = (z1.conj() * z2).imag  # 2A = (q1 − q0) × (q2 − q0)
+            if not area2.min() > 0.0:
+                return False
         if self._guard is None:
             return all(self.boundary_problem(q) is None for q in Qs)
         cert = self._guard.certified(Qs)
@@ -806,7 +847,7 @@ def runge_kutta(
         if j > k_out:
             qi, vi = _hermite_many(y[0], y[1], a, y_new[0], y_new[1], a_new, t, t_new,
                                    t_out[k_out:j])
-            if not field.admissible_many(qi):
+            if not field.admissible_many(qi, base=y[0]):
                 n_rej += 1
                 land = True
                 h = h_step

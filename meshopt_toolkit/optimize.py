@@ -50,7 +50,7 @@ PHASES = ("state", "derivative", "penalty_derivative", "gradient", "backtracking
 
 #: default ``exp_options`` of the complete-complete retraction: the geodesic's
 #: line-search mode (:data:`meshopt_toolkit.geodesics.LINE_SEARCH_OPTIONS`; Bogacki–Shampine
-#: 3(2) at rtol 1e-2 with energy projection, positions only). Every trial point is still
+#: 3(2) at rtol 5e-2 with energy projection, positions only). Every trial point is still
 #: a point of an (approximate) geodesic, admissible and checked exactly; pass
 #: ``exp_options={"method": "auto"}`` for the 1e-6-accurate exponential map.
 EXP_DEFAULTS = {"method": "line-search"}
