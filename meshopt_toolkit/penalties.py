@@ -150,11 +150,13 @@ def _check_cutoff(cut) -> tuple[float, float] | None:
 
 @dataclass
 class _Want:
-    """What to compute in one pass: value always; the rest on request."""
+    """What to compute in one pass (``value=False``: the caller ignores the value, which
+    terms may then skip)."""
 
     gradient: bool = False
     hvp: bool = False
     curvature: bool = False
+    value: bool = True
 
 
 class _Accumulator:
@@ -371,8 +373,8 @@ class _ReferenceTerm:
     def evaluate(self, Q: FloatArray, V: FloatArray | None, acc: _Accumulator) -> None:
         c = self.coef
         d = Q - self.reference
-        acc.values[self.name] = 0.5 * c * _dot(d, d)
         want = acc.want
+        acc.values[self.name] = 0.5 * c * _dot(d, d) if want.value else np.nan
         if want.gradient:
             acc.grad += c * d
         if want.hvp:
@@ -862,8 +864,13 @@ class Penalty:
             V = self._points(V, "V")
         acc = _Accumulator(self.n_vertices, want)
         problem = None
-        with np.errstate(all="ignore"):
-            ok = np.isfinite(Q).all() and self._triangle_pass(Q, V, acc)
+        if not np.isfinite(Q).all():
+            ok = False
+        elif self._small and not want.hvp:  # checks the areas before dividing by them
+            ok = self._triangle_pass(Q, V, acc)
+        else:
+            with np.errstate(all="ignore"):
+                ok = self._triangle_pass(Q, V, acc)
         if not ok:
             problem = self._area_problem(Q) or "non-positive signed area"
         elif check_boundary:
@@ -948,7 +955,7 @@ class Penalty:
         with ``β3 = 0`` (``α2 = 0``) nothing in ``f`` stops a boundary crossing, and the
         formulas are finite on both sides of one.
         """
-        acc = self._run(Q, V, _Want(gradient=True, curvature=True), strict=True,
+        acc = self._run(Q, V, _Want(gradient=True, curvature=True, value=False), strict=True,
                         check_boundary=check_boundary)
         return acc.grad, float(acc.curvature)
 
