@@ -24,6 +24,26 @@ Methods (``method=``):
 ``"dopri5"``
     The same stepping with our Dormand–Prince 5(4) pair (6 calls per step), default
     ``rtol = 1e-7``; cheaper per step, better at loose tolerances.
+``"bs3"``
+    The same stepping with the Bogacki–Shampine 3(2) pair (3 calls per step), default
+    ``rtol = 1e-5``.
+``"line-search"``
+    The retraction of a line search (complete-complete optimization,
+    :data:`meshopt_toolkit.optimize.EXP_DEFAULTS`): Bogacki–Shampine 3(2) at
+    ``rtol = atol/scale = 5e-2``, the velocity projected back onto the initial energy after
+    every step (instead of rejecting steps that change it; this keeps the bound on the
+    growth of f, so the discrete path cannot run into a degenerate mesh), a step with an
+    inadmissible stage retried at half its size, and positions only (``monitor=False``:
+    no f evaluations at the outputs, no invariant checks). Every output is still
+    admissible (areas at every stage and output, the boundary exactly at every step end
+    and output) and the map agrees with ``exp`` to O(t³) for small t (the first step's
+    local error), so it is a retraction. It is *not* an accurate exponential map for
+    large t: the geodesics of an optimization step bounce off nearly degenerate triangles,
+    where local errors grow fast; on the bundled discs its γ(1) is 0.1–0.3·max|V| away
+    from a tight solution (dop853 at 1e-6 is 1e-5–1e-6 away), with 25–60 penalty calls
+    instead of 200–1500 (``benchmarks/bench_geodesics.py``). Optimization results are as
+    good (thesis §6.4 runs: F monotone, admissible iterates, same final F and Λ within
+    the run-to-run spread).
 ``"stormer-verlet"``
     The thesis' algorithm 1 with ``steps`` uniform steps (default 1024): the reference.
     Its fixed points use the thesis' tolerance 1e-8 and at most 10 iterations
@@ -46,9 +66,16 @@ every output time. A step with a stage outside M+ is rejected and retried smalle
 integration that cannot proceed raises :class:`~meshopt_toolkit.errors.IntegrationError`.
 A complete-metric result never contains an inverted mesh.
 
+Admissibility: every right-hand-side evaluation needs positive areas (a stage outside
+M+ rejects the step); the boundary (SPEC §1: no boundary self-intersection) is checked
+exactly at every accepted step end and every output, not at intermediate stages
+(:class:`~meshopt_toolkit.integrators.BoundaryGuard`, which proves most configurations
+simple with a displacement certificate instead of the full test).
+
 Rescaling lemma: ``γ_{Q, τV}(1) = γ_{Q, V}(τ)``, so one call of :func:`geodesic` with
 ``times=[1, τ, τ², …]`` serves every backtracking trial of a line search; with the default
-dense output those times cost one penalty call each (the f-growth guard), not extra steps.
+dense output those times cost no extra steps (and no penalty call at all with
+``monitor=False``).
 """
 
 from __future__ import annotations

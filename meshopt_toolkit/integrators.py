@@ -1,17 +1,18 @@
 """Integrators for the geodesic equation of a complete metric ``g = I + ∇f ∇fᵀ`` (SPEC §5).
 
-Two integrators work on a :class:`GeodesicField`, the closed-form right-hand side
+The integrators work on a :class:`GeodesicField`, the closed-form right-hand side
 
     Q'' = − ∇f(Q) · (Q'ᵀ ∇²f(Q) Q') / (1 + |∇f(Q)|²)                       (5.35)
 
 which costs one call of ``penalty.gradient_and_curvature(Q, V)`` per evaluation (no linear
 solve: the inverse metric is a Sherman–Morrison rank-one update, (5.45)).
 
-- :func:`dopri5`: the fast default. An explicit, adaptive, error-controlled Dormand–Prince
-  5(4) pair (first-same-as-last, 6 evaluations per accepted step) on the first-order system
-  ``(Q, V)' = (V, A(Q, V))``. Steps land exactly on every requested output time, so outputs
-  carry no interpolation error. A step whose stage leaves M+ (a signed area ≤ 0) is rejected
-  and retried with a quarter of the step size.
+- :func:`runge_kutta` (:func:`dop853`, :func:`dopri5`, :func:`bs3`): explicit, adaptive,
+  error-controlled embedded pairs (first-same-as-last) on the first-order system
+  ``(Q, V)' = (V, A(Q, V))``, with dense output (quintic Hermite) for many output times,
+  optional energy projection (line searches), and admissibility guards: a step with a
+  stage outside M+ (a signed area ≤ 0) or a step end whose boundary touches itself is
+  rejected and retried smaller; outputs are checked too (:class:`BoundaryGuard`).
 - :func:`stormer_verlet`: the thesis' algorithm 1 in Hamiltonian form (5.39–5.40), momentum
   ``P = g V``, ``V(Q, P) = P − ∇f (∇f·P)/(1+|∇f|²)``, ``P' = (∇f·V) ∇²f V``, with the two
   implicit half-steps solved by fixed-point iteration (tolerance 1e-8, at most 10
@@ -33,11 +34,11 @@ from .geometry import signed_areas
 
 __all__ = [
     "BS3_TABLEAU",
-    "BoundaryGuard",
     "DOPRI5_TABLEAU",
+    "PAIRS",
+    "BoundaryGuard",
     "GeodesicField",
     "IntegrationOutput",
-    "PAIRS",
     "bs3",
     "dop853",
     "dopri5",
