@@ -21,7 +21,12 @@ bundled discs), with a smooth velocity ``0.3·(sin πy, cos πx)`` so that the s
 reflects the geometry rather than per-vertex noise: time per penalty evaluation (value,
 gradient_and_curvature) and per ``exp_map`` (t = 1, default tolerance).
 
-Run: ``python benchmarks/bench_geodesics.py [--max-triangles 2000000] [--quick]``.
+Part 3: the line-search retraction (``method="line-search"``, the default of
+complete-complete optimization) against the default ``exp_map`` on the first step of a
+thesis §6.4 optimization (disc_146/541/2198): time, penalty calls, and the distance from a
+tight solution at t = 1 and over the 23 backtracking times.
+
+Run: ``python benchmarks/bench_geodesics.py [--max-triangles 2000000] [--quick] [--part N]``.
 """
 
 from __future__ import annotations
@@ -127,17 +132,50 @@ def part2(max_triangles: int, quick: bool) -> None:
               f"{res.n_evaluations:6d} {t_exp / t_gc:9.0f}")
 
 
+def part3(repeat: int) -> None:
+    """The line-search retraction of complete-complete optimization against the default
+    exponential map, on the first step of an optimization (thesis §6.4 set-up)."""
+    from meshopt_toolkit.optimize import default_metric_beta, thesis_penalty_beta
+    from meshopt_toolkit.poisson import PoissonObjective
+
+    print("\n# part 3: line-search retraction vs exp_map on an optimization step "
+          "(V = s d, s = 1/|d|_g, 23 backtracking times 2^-k)")
+    print(f"{'mesh':>14s} {'method':>12s} {'time [ms]':>10s} {'calls':>6s} "
+          f"{'err(1)/max|V|':>14s} {'max err/max|V|':>15s} {'speed-up':>9s}")
+    for name in ("disc_146.msh", "disc_541.msh", "disc_2198.msh"):
+        mesh = load(data_path(name)).as_planar()
+        N = mesh.n_vertices
+        metric = CompleteMetric(QualityPenalty(mesh, beta=default_metric_beta(N)))
+        penalty = QualityPenalty(mesh, beta=thesis_penalty_beta(2, N))
+        Q = mesh.points
+        d = -metric.riesz(Q, PoissonObjective(mesh).derivative(Q) + penalty.gradient(Q))
+        V = d / metric.norm(Q, d)
+        times = 0.5 ** np.arange(23)[::-1]
+        ref = geodesic(metric, Q, V, 1.0, times=times, rtol=1e-10, on_violation="ignore")
+        vmax = np.abs(V).max()
+        base = None
+        for method in ("auto", "line-search"):
+            t, r = best_of(lambda m=method: geodesic(metric, Q, V, 1.0, times=times, method=m,
+                                                     on_violation="ignore"), repeat)
+            base = base or t
+            err = np.abs(r.points - ref.points).max(axis=(1, 2)) / vmax
+            print(f"{name:>14s} {method:>12s} {1e3 * t:10.1f} {r.n_evaluations:6d} "
+                  f"{err[-1]:14.1e} {err.max():15.1e} {base / t:9.1f}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--max-triangles", type=int, default=2_000_000)
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--quick", action="store_true", help="skip exp_map above 3e5 triangles")
-    ap.add_argument("--part", type=int, choices=(1, 2))
+    ap.add_argument("--part", type=int, choices=(1, 2, 3))
     args = ap.parse_args()
     if args.part in (None, 1):
         part1(args.repeat)
     if args.part in (None, 2):
         part2(args.max_triangles, args.quick)
+    if args.part in (None, 3):
+        part3(args.repeat)
 
 
 if __name__ == "__main__":
