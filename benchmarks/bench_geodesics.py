@@ -155,8 +155,8 @@ def part3(repeat: int) -> None:
         vmax = np.abs(V).max()
         base = None
         for method in ("auto", "line-search"):
-            t, r = best_of(lambda m=method: geodesic(metric, Q, V, 1.0, times=times, method=m,
-                                                     on_violation="ignore"), repeat)
+            t, r = best_of(lambda m=method, g=metric, Q=Q, V=V, ts=times: geodesic(
+                g, Q, V, 1.0, times=ts, method=m, on_violation="ignore"), repeat)
             base = base or t
             err = np.abs(r.points - ref.points).max(axis=(1, 2)) / vmax
             print(f"{name:>14s} {method:>12s} {1e3 * t:10.1f} {r.n_evaluations:6d} "
