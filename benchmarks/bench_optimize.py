@@ -18,6 +18,7 @@ import argparse
 import numpy as np
 
 import meshopt_toolkit as mt
+from meshopt_toolkit import datasets
 from meshopt_toolkit.optimize import VARIANTS, default_metric_beta, optimize, thesis_penalty_beta
 from meshopt_toolkit.poisson import PoissonObjective
 
@@ -40,7 +41,7 @@ def main(argv=None):
     p.add_argument("--exact", action="store_true",
                    help="also time complete-complete with the exact (1e-6) exponential map")
     args = p.parse_args(argv)
-    names = sorted((n for n in mt.datasets.available() if n.startswith("disc_")),
+    names = sorted((n for n in datasets.available() if n.startswith("disc_")),
                    key=lambda s: int(s[5:-4]))
     print(f"{'N_V':>6} {'variant':<28} {'s/iter':>10} {'/ complete-euclidean':>22}  phases (s/iter)")
     for name in names:
