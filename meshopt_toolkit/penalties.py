@@ -71,6 +71,7 @@ __all__ = [
 
 SQRT3 = np.sqrt(3.0)
 _OMEGA = np.exp(2j * np.pi / 3 * np.arange(3))  # ω^k, k = 0, 1, 2
+_I_SQRT3_2 = 0.5j * SQRT3  # p = z0 − (z1 + z2)/2 + (i√3/2)(z1 − z2), m with −i√3/2
 
 #: default μ of the regularized distance (defined with the distance kernels)
 DEFAULT_MU = _distance.DEFAULT_MU
@@ -563,7 +564,7 @@ class Penalty:
             cols = np.concatenate([self._tri_flat, self._tri_flat])
             vals = np.concatenate([np.repeat(_OMEGA, T), np.repeat(_OMEGA**2, T)])
             W = sp.csr_matrix((vals, (rows, cols)), shape=(2 * T, n))
-            self._fourier = (W, W.conj().T.tocsr())
+            self._fourier_adjoint = W.conj().T.tocsr()  # (N, 2T): the gradient's scatter
 
     # -- helpers ------------------------------------------------------------------
     @property
@@ -750,19 +751,26 @@ class Penalty:
         ``(2K/D²)(M P'' − P M'') + (4K/D³)(P' − M')(M P' − P M')``
         (from ``F_PP = 4KM/D³``, ``F_MM = 4KP/D³``, ``F_PM = −2K(M + P)/D³``); the area
         term's is ``β2 (2𝒜'²/𝒜³ − 𝒜''/𝒜²)``. Everything but the corner gradient works on
-        ``T``-vectors instead of ``(3, T)`` arrays; ``(p, m) = W z`` and the gradient
-        ``2 Wᴴ (F_P p, F_M m)`` are sparse matvecs with the ``(2T, N)`` matrix ``W`` of the
-        weights ``ω^k`` (rows of p) and ``ω^{2k}`` (rows of m).
+        ``T``-vectors instead of ``(3, T)`` arrays; the gradient ``2 Wᴴ (F_P p, F_M m)``
+        is one sparse matvec with the adjoint of the ``(2T, N)`` matrix ``W`` of the
+        weights ``ω^k`` (rows of p) and ``ω^{2k}`` (rows of m); ``p, m`` themselves come
+        from one gather of the corners, ``z0 − (z1 + z2)/2 ± (i√3/2)(z1 − z2)``.
         """
         want = acc.want
         term = self._triangle_term
         area_term = self._area_term
-        W, WH = self._fourier
+        WH = self._fourier_adjoint
         T = self.n_triangles
+        tri = self._tri_t
 
-        def transform(x):  # (N, 2) → p, m (T,) complex: one sparse matvec
-            pm = W @ x.view(np.complex128).ravel()
-            return pm[:T], pm[T:]
+        def transform(x):  # (N, 2) → p, m (T,) complex
+            zc = x.view(np.complex128).ravel()[tri]  # (3, T) corners
+            h = zc[1] + zc[2]
+            h *= -0.5
+            h += zc[0]  # z0 − (z1 + z2)/2
+            b = zc[1] - zc[2]
+            b *= _I_SQRT3_2  # (i√3/2)(z1 − z2)
+            return h + b, h - b
 
         p, m = transform(Q)
         P = p.real * p.real
