@@ -67,7 +67,8 @@ class BoundaryGuard:
     non-incident edge, and boundary edges can only start to meet (cross, or overlap when
     adjacent) where a vertex touches an edge. When that fails, the pairwise form is
     tried (dense mode): every pair's distance changes by at most
-    ``max(|Δ_b − Δ_a0|, |Δ_b − Δ_a1|)``, which ignores a common translation.
+    ``max(|Δ_b − Δ_a0|, |Δ_b − Δ_a1|)``, which ignores a common translation (tested pair
+    by pair for the pairs closer than a few edge lengths, by ``2 max|Δ|`` for the rest).
 
     *Exact test.* For at most :data:`DENSE_PAIRS` (vertex, edge) pairs one dense pass
     computes the orientation of every boundary vertex against every boundary edge
@@ -100,7 +101,7 @@ class BoundaryGuard:
         self._eb = np.searchsorted(bv, be[:, 1])
         self._anchor = None
         self._radius2 = None
-        self._pair_d2 = None
+        self._near = None
         self.dense = len(bv) * E <= self.DENSE_PAIRS
         if self.dense:
             rows = np.arange(E)
@@ -131,11 +132,20 @@ class BoundaryGuard:
         move = Qs[:, self._bv] - self._anchor
         return np.all(np.einsum("mij,mij->mi", move, move) < self._radius2, axis=1)
 
-    def _set_anchor(self, P: FloatArray, r2: FloatArray, d2: FloatArray | None = None) -> None:
+    #: the pairwise certificate keeps the pairs closer than this many mean boundary edge
+    #: lengths at the anchor; farther pairs are covered while no vertex moved half of it
+    NEAR_EDGES = 8.0
+
+    def _set_anchor(self, P: FloatArray, r2: FloatArray, d2: FloatArray | None = None,
+                    edge_length: float = 0.0) -> None:
         if len(r2) and r2.min() > 0:  # (a vertex in no pair keeps r = inf)
             self._anchor = P.copy()
             self._radius2 = 0.25 * r2
-            self._pair_d2 = d2
+            self._near = None
+            if d2 is not None:
+                cap2 = (self.NEAR_EDGES * edge_length) ** 2
+                e, b = np.nonzero(d2 < cap2)
+                self._near = (b, self._ea[e], self._eb[e], d2[e, b], cap2)
         else:
             self._anchor = None
 
@@ -144,19 +154,19 @@ class BoundaryGuard:
         distance of vertex ``b`` to edge ``e = [a0, a1]`` changes along the straight path
         by at most ``max(|Δ_b − Δ_a0|, |Δ_b − Δ_a1|)`` (a point of the edge moves by a
         convex combination of its ends' displacements), so the boundary stays simple if
-        that is below the pair's anchor distance for every pair."""
-        if self._anchor is None or self._pair_d2 is None:
+        that is below the pair's anchor distance for every pair. Only the pairs closer
+        than ``R`` (:data:`NEAR_EDGES` edge lengths) are tested one by one; for the others
+        ``2 max|Δ| < R`` suffices."""
+        if self._anchor is None or self._near is None:
             return False
         move = Q[self._bv] - self._anchor  # (B, 2)
-        mx, my = move[:, 0], move[:, 1]
-        worst = None
-        for ends in (self._ea, self._eb):
-            rx = mx[None, :] - mx[ends][:, None]
-            ry = my[None, :] - my[ends][:, None]
-            r2 = rx * rx
-            r2 += ry * ry
-            worst = r2 if worst is None else np.maximum(worst, r2, out=worst)
-        return bool(np.all(worst < self._pair_d2))
+        b, a0, a1, d2, cap2 = self._near
+        if 4.0 * float(np.einsum("ij,ij->i", move, move).max()) >= cap2:
+            return False
+        r0 = move[b] - move[a0]
+        r1 = move[b] - move[a1]
+        worst = np.maximum(np.einsum("ij,ij->i", r0, r0), np.einsum("ij,ij->i", r1, r1))
+        return bool(np.all(worst < d2))
 
     # -- exact test ---------------------------------------------------------------------
     def _dense_test(self, Q: FloatArray) -> bool:
@@ -202,7 +212,7 @@ class BoundaryGuard:
         per_edge = d2.min(axis=1)
         np.minimum.at(r2, self._ea, per_edge)
         np.minimum.at(r2, self._eb, per_edge)
-        self._set_anchor(P, r2, d2)
+        self._set_anchor(P, r2, d2, float(np.sqrt(L2).mean()))
         return False
 
     def _pairs_anchor(self, Q: FloatArray) -> None:
