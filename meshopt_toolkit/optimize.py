@@ -346,9 +346,10 @@ def optimize(
                                **{**EXP_DEFAULTS, **dict(exp_options or {})})
                 geo_points = geo.points[::-1]
             except IntegrationError as exc:
-                # the geodesic could not be integrated up to t = 1: the trial steps it did
-                # reach are still exact-map trials; the others count as inadmissible
-                # (an all-zero configuration, whose signed areas are 0, is refused below)
+                # the geodesic could not be integrated up to t = 1 (e.g. with β3 = 0 it
+                # runs the boundary into itself): the trial steps it did reach are valid
+                # retraction trials; the others count as inadmissible (an all-zero
+                # configuration, whose signed areas are 0, is refused below)
                 part = getattr(exc, "partial", None)
                 logger.warning("iteration %d: exponential map failed (%s)", n, exc)
                 geo_points = None
