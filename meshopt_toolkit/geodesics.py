@@ -114,6 +114,11 @@ DEFAULT_RTOL = {"dop853": 1e-6, "dopri5": 1e-7, "bs3": 1e-5, "line-search": 5e-2
 #: inadmissible stage is retried at half its size
 LINE_SEARCH_OPTIONS = {"project_energy": True, "energy_rtol": np.inf, "exit_shrink": 0.5}
 
+#: first step of ``method="line-search"`` as a fraction of the interval: its geodesics take
+#: about ten steps, and starting there saves the trial evaluation and the cautious first
+#: steps of the general heuristic (10–20% fewer penalty calls on the bundled discs)
+LINE_SEARCH_FIRST_STEP = 0.1
+
 
 class GeodesicWarning(UserWarning):
     """A runtime invariant (energy, f-growth bound) of a geodesic was violated."""
@@ -301,7 +306,8 @@ def geodesic(
         only — ``penalty`` is NaN except at t = 0 and ``energy`` is NaN at interpolated
         outputs; no invariant is checked. Default: False for ``"line-search"``, else True.
     h0 : first step size of the adaptive methods (e.g. ``last_step`` of a previous,
-        similar geodesic); default Hairer's tolerance-aware heuristic (one penalty call).
+        similar geodesic); default Hairer's tolerance-aware heuristic (one penalty call),
+        for ``"line-search"`` :data:`LINE_SEARCH_FIRST_STEP` of the interval.
     free : (N,) bool mask or vertex indices, optional
         Free vertices: the geodesic of the metric restricted to tangent vectors vanishing
         on the fixed vertices (see :class:`~meshopt_toolkit.integrators.GeodesicField`);
@@ -400,6 +406,8 @@ def geodesic(
     elif method_used in ("dop853", "dopri5", "bs3", "line-search"):
         scale = max(float(np.max(np.abs(Q))), float(np.max(np.abs(V))) * positive[-1], 1e-300)
         extra = LINE_SEARCH_OPTIONS if line_search else {}
+        if line_search and h0 is None:
+            h0 = LINE_SEARCH_FIRST_STEP * positive[-1]
         out = runge_kutta(fld, Q, V, positive, pair="bs3" if line_search else method_used,
                           rtol=rtol, atol=rtol * scale if atol is None else atol,
                           max_steps=max_steps, dense=dense, h0=h0, partial=True, **extra)
