@@ -335,27 +335,26 @@ def optimize(
             s = 1.0 / dnorm
         trial_steps = s * tau ** np.arange(max(1, math.ceil(math.log(min_step / s) / math.log(tau)) + 1))
         trial_steps = trial_steps[trial_steps >= min_step]
-        geo_points = None
+        # complete-complete: one integration gives every trial (None = not reached)
+        geo_points: list | None = None
         if use_exp and len(trial_steps):
             t_r = time.perf_counter()
+            geo_points = [None] * len(trial_steps)
             try:
                 from .geodesics import geodesic
 
                 times = trial_steps / s  # rescaling lemma: γ_{Q, s_k d}(1) = γ_{Q, s d}(s_k / s)
                 geo = geodesic(metric, Q, s * d, 1.0, times=times[::-1], free=free,
                                **{**EXP_DEFAULTS, **dict(exp_options or {})})
-                geo_points = geo.points[::-1]
+                geo_points = list(geo.points[::-1])
             except IntegrationError as exc:
                 # the geodesic could not be integrated up to t = 1 (e.g. with β3 = 0 it
                 # runs the boundary into itself): the trial steps it did reach are valid
-                # retraction trials; the others count as inadmissible (an all-zero
-                # configuration, whose signed areas are 0, is refused below)
-                part = getattr(exc, "partial", None)
+                # retraction trials, the longer ones are skipped
                 logger.warning("iteration %d: exponential map failed (%s)", n, exc)
-                geo_points = None
+                part = getattr(exc, "partial", None)
                 if part is not None:
-                    geo_points = np.zeros((len(trial_steps),) + Q.shape)
-                    geo_points[len(trial_steps) - len(part.times):] = part.points[::-1]
+                    geo_points[len(trial_steps) - len(part.times):] = list(part.points[::-1])
             timer.add("retraction", t_r)
         s_max = np.inf if use_exp else max_travel_step(Q, tri, d)
         accepted = None
@@ -366,13 +365,8 @@ def optimize(
             if s_k >= s_max:
                 backtracks += 1
                 continue
-            if use_exp:
-                if geo_points is None:
-                    break
-                Qt = geo_points[k]
-            else:
-                Qt = Q + s_k * d
-            if np.any(signed_areas(Qt, tri) <= 0):
+            Qt = geo_points[k] if use_exp else Q + s_k * d
+            if Qt is None or np.any(signed_areas(Qt, tri) <= 0):
                 backtracks += 1
                 continue
             t_s = time.perf_counter()
