@@ -24,26 +24,12 @@ import time
 
 import numpy as np
 import scipy.sparse as sp
+from _meshes import jittered_grid
 
 from meshopt_toolkit.elasticity import BlockPattern, element_blocks, factorize, lame_parameters
 from meshopt_toolkit.mesh import PlanarMesh
 from meshopt_toolkit.metrics import CompleteMetric
 from meshopt_toolkit.penalties import QualityPenalty
-
-
-def jittered_grid(n: int, jitter: float = 0.15, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
-    """n×n squares of [0, 1]², two CCW triangles each (2n² triangles), interior jittered,
-    triangles shuffled (memory access not artificially sequential)."""
-    x = np.linspace(0.0, 1.0, n + 1)
-    X, Y = np.meshgrid(x, x, indexing="xy")
-    pts = np.stack([X.ravel(), Y.ravel()], 1)
-    inner = (pts > 0).all(1) & (pts < 1).all(1)
-    pts[inner] += jitter / n * np.random.default_rng(seed).uniform(-1, 1, (inner.sum(), 2))
-    idx = np.arange((n + 1) ** 2).reshape(n + 1, n + 1)
-    a, b = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel()
-    c, d = idx[1:, 1:].ravel(), idx[1:, :-1].ravel()
-    tri = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
-    return pts, tri[np.random.default_rng(seed + 1).permutation(len(tri))]
 
 
 def best_times(fns: dict, repeat: int, min_sample: float = 0.02) -> dict:

@@ -22,18 +22,8 @@ from meshopt_toolkit.datasets import data_path
 from meshopt_toolkit.geodesics import exp_map
 from meshopt_toolkit.io import load
 from meshopt_toolkit.metrics import CompleteMetric
-from meshopt_toolkit.morph import DEFAULT_BETA, geodesic_morph
+from meshopt_toolkit.morph import DEFAULT_BETA, geodesic_morph, twisted
 from meshopt_toolkit.penalties import QualityPenalty
-
-
-def twist(mesh, degrees=225.0, power=2.0):
-    P = mesh.points
-    r = np.linalg.norm(P, axis=1)
-    th = np.deg2rad(degrees) * np.clip(1.0 - r, 0.0, None) ** power
-    c, s = np.cos(th), np.sin(th)
-    Q = np.stack([c * P[:, 0] - s * P[:, 1], s * P[:, 0] + c * P[:, 1]], 1)
-    Q[mesh.boundary_vertices] = P[mesh.boundary_vertices]
-    return mesh.with_points(Q)
 
 
 def best_of(fn, repeat):
@@ -52,7 +42,7 @@ def main() -> None:
     args = ap.parse_args()
 
     disc = load(data_path("disc_146.msh")).as_planar()
-    target = twist(disc)
+    target = twisted(disc).points
     t_morph, res = best_of(lambda: geodesic_morph(disc, target, frames=9), args.repeat)
     metric = CompleteMetric(QualityPenalty(disc, beta=DEFAULT_BETA, reference=disc))
     V = res.discrete.initial_velocity()
@@ -74,7 +64,7 @@ def main() -> None:
     for mesh in meshes:
         if mesh.n_triangles > args.max_triangles:
             break
-        tgt = twist(mesh)
+        tgt = twisted(mesh).points
         from meshopt_toolkit.mesh import check_mesh
 
         if not check_mesh(tgt).admissible:

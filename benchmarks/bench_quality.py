@@ -17,25 +17,10 @@ import argparse
 import time
 
 import numpy as np
+from _meshes import jittered_grid
 
 from meshopt_toolkit.geometry import quality_summary, signed_areas
 from meshopt_toolkit.mesh import PlanarMesh, check_mesh
-
-
-def jittered_grid(n: int, jitter: float = 0.15, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
-    """n×n squares of [0, 1]², two CCW triangles each (2n² triangles), interior jittered."""
-    x = np.linspace(0.0, 1.0, n + 1)
-    X, Y = np.meshgrid(x, x, indexing="xy")
-    pts = np.stack([X.ravel(), Y.ravel()], 1)
-    inner = (pts > 0).all(1) & (pts < 1).all(1)
-    pts[inner] += jitter / n * np.random.default_rng(seed).uniform(-1, 1, (inner.sum(), 2))
-    idx = np.arange((n + 1) ** 2).reshape(n + 1, n + 1)
-    a, b = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel()
-    c, d = idx[1:, 1:].ravel(), idx[1:, :-1].ravel()
-    tri = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
-    # shuffle the triangles so that memory access is not artificially sequential
-    tri = tri[np.random.default_rng(seed + 1).permutation(len(tri))]
-    return pts, tri
 
 
 def _time(f) -> float:

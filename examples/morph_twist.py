@@ -12,33 +12,20 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-import numpy as np
-
 from meshopt_toolkit import data_path, geodesic_morph, load, save
-from meshopt_toolkit.cli.morph import plot_quality, plot_strip
-
-
-def twist(mesh, degrees: float = 225.0, power: float = 2.0):
-    """Rotate each vertex about the centre by θ(r) = degrees·(1 − r)^power, boundary fixed."""
-    P = mesh.points
-    r = np.linalg.norm(P, axis=1)
-    th = np.deg2rad(degrees) * np.clip(1.0 - r, 0.0, None) ** power
-    c, s = np.cos(th), np.sin(th)
-    Q = np.stack([c * P[:, 0] - s * P[:, 1], s * P[:, 0] + c * P[:, 1]], 1)
-    Q[mesh.boundary_vertices] = P[mesh.boundary_vertices]
-    return mesh.with_points(Q)
+from meshopt_toolkit.morph import twisted
+from meshopt_toolkit.plotting import save_morph_figures
 
 
 def main(outdir: str = "morph-twist") -> None:
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)
     disc = load(data_path("disc_146.msh")).as_planar()
-    target = twist(disc)
+    target = twisted(disc).points
     result = geodesic_morph(disc, target, frames=9)
     for k, mesh in enumerate(result.meshes(like=disc)):
         save(mesh, out / f"frame_{k:03d}.msh")
-    plot_strip(result, out / "strip.png")
-    plot_quality(result, out / "quality.png")
+    save_morph_figures(result, out / "strip.png", out / "quality.png")
     s = result.summary()
     print(f"geodesic morph: {s['frames']} frames, all admissible: {s['admissible']}, "
           f"min aspect ratio {s['min_aspect_ratio']:.2e}, length {s['length']:.4f}, "

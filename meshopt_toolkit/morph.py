@@ -62,6 +62,7 @@ import numpy as np
 from ._typing import FloatArray
 from .errors import IntegrationError, InvalidMeshError, NotAdmissibleError
 from .geometry import aspect_ratios, signed_areas
+from .mesh import PlanarMesh
 
 logger = logging.getLogger(__name__)
 
@@ -75,6 +76,7 @@ __all__ = [
     "initial_path",
     "linear_morph",
     "log_map",
+    "twisted",
 ]
 
 #: default f2 coefficients (β1, β2, β3, β4) of the morph metric (β4 unscaled)
@@ -933,3 +935,22 @@ def geodesic_morph(
     lmin = float(min(signed_areas(p, src.triangles).min() for p in dense))
     return MorphResult(pts, times, src.triangles, used, target_error, ar, area, adm, lar, larea,
                        lmin, float(length), log, dg, time.perf_counter() - start)
+
+
+def twisted(mesh: PlanarMesh, degrees: float = 225.0, power: float = 2.0,
+            centre=(0.0, 0.0)) -> PlanarMesh:
+    """The mesh with its interior twisted about ``centre``, boundary fixed (issue #7's test).
+
+    Each vertex at distance r from the centre turns by ``θ(r) = degrees·(1 − r)^power``
+    (r ≥ 1 does not turn); boundary vertices stay put. On a unit disc this makes a target
+    that linear interpolation cannot reach without inverting triangles when ``degrees`` is
+    large (≈ 225°). The result is not checked for admissibility.
+    """
+    P = mesh.points - np.asarray(centre, float)
+    r = np.linalg.norm(P, axis=1)
+    th = np.deg2rad(degrees) * np.clip(1.0 - r, 0.0, None) ** power
+    c, s = np.cos(th), np.sin(th)
+    Q = np.stack([c * P[:, 0] - s * P[:, 1], s * P[:, 0] + c * P[:, 1]], 1) + np.asarray(centre, float)
+    b = mesh.boundary_vertices
+    Q[b] = mesh.points[b]
+    return mesh.with_points(Q)

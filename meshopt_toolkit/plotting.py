@@ -322,3 +322,23 @@ def save_optimization_plots(
     ax.legend(lines, [ln.get_label() for ln in lines], loc="upper right")
     fig.tight_layout()
     return first, _save(fig, history_path)
+
+
+def save_morph_figures(result, strip_path, quality_path, max_panels: int = 9) -> tuple[Path, Path]:
+    """Figures of a geodesic morph (:class:`~meshopt_toolkit.morph.MorphResult`): a strip of
+    at most ``max_panels`` equally spaced frames, and the minimum aspect ratio per frame
+    against linear interpolation of the same pair (negative = inverted triangles)."""
+    K = result.n_frames
+    idx = np.unique(np.round(np.linspace(0, K - 1, min(K, max_panels))).astype(int))
+    strip = save_snapshot_strip(
+        strip_path, result.points[idx], result.triangles, ncols=len(idx),
+        titles=[f"t = {result.times[k]:.2f}, AR {result.min_aspect_ratio[k]:.3f}" for k in idx],
+    )
+    quality = save_quality_plot(
+        quality_path, result.times,
+        {f"geodesic ({result.method})": result.min_aspect_ratio,
+         "linear interpolation": result.linear_min_aspect_ratio},
+        ylabel="min aspect ratio 2r/R (signed; < 0: inverted)",
+        title="geodesic morph vs linear interpolation",
+    )
+    return strip, quality

@@ -22,20 +22,10 @@ from meshopt_toolkit.morph import (
     geodesic_morph,
     initial_path,
     log_map,
+    twisted,
 )
 from meshopt_toolkit.penalties import HeightPenalty, QualityPenalty
 from meshopt_toolkit.taylor import check_gradient, check_hvp
-
-
-def twist(mesh: PlanarMesh, degrees: float = 225.0, power: float = 2.0) -> np.ndarray:
-    """Rotate each vertex about the centre by θ(r) = degrees·(1 − r)^power; boundary fixed."""
-    P = mesh.points
-    r = np.linalg.norm(P, axis=1)
-    th = np.deg2rad(degrees) * np.clip(1.0 - r, 0.0, None) ** power
-    c, s = np.cos(th), np.sin(th)
-    Q = np.stack([c * P[:, 0] - s * P[:, 1], s * P[:, 0] + c * P[:, 1]], 1)
-    Q[mesh.boundary_vertices] = P[mesh.boundary_vertices]
-    return Q
 
 
 def bend(mesh: PlanarMesh, amount: float = 0.15) -> np.ndarray:
@@ -54,7 +44,7 @@ def disc():
 
 @pytest.fixture(scope="module")
 def twist_morph(disc):
-    return geodesic_morph(disc, disc.with_points(twist(disc)), frames=9)
+    return geodesic_morph(disc, disc.with_points(twisted(disc).points), frames=9)
 
 
 # -- the path energy --------------------------------------------------------------------
@@ -147,7 +137,7 @@ def test_translation_is_the_geodesic_when_alpha3_is_zero(rng):
 
 
 def test_twist_target_admissible_and_linear_interpolation_inverts(disc):
-    Q1 = twist(disc)
+    Q1 = twisted(disc).points
     assert check_mesh(disc.with_points(Q1)).admissible
     worst = min(signed_areas((1 - t) * disc.points + t * Q1, disc.triangles).min()
                 for t in np.linspace(0, 1, 201))
@@ -156,7 +146,7 @@ def test_twist_target_admissible_and_linear_interpolation_inverts(disc):
 
 def test_twist_morph_is_admissible_and_reaches_the_target(disc, twist_morph):
     res = twist_morph
-    Q1 = twist(disc)
+    Q1 = twisted(disc).points
     assert res.n_frames == 9
     assert np.array_equal(res.points[0], disc.points)
     assert np.array_equal(res.points[-1], Q1)
@@ -233,10 +223,10 @@ def test_flow_that_does_not_arrive_reports_no_admissible_path(disc):
     # the straight path inverts, so the barrier-sliding flow runs; 5 steps cannot arrive
     pen = QualityPenalty(disc, beta=(1, 1, 0, 1))
     with pytest.raises(NotAdmissibleError, match="no admissible path"):
-        initial_path(pen, disc.points, twist(disc), 8, max_steps=5)
-    path = initial_path(pen, disc.points, twist(disc), 8)
+        initial_path(pen, disc.points, twisted(disc).points, 8, max_steps=5)
+    path = initial_path(pen, disc.points, twisted(disc).points, 8)
     assert all(np.isfinite(pen.value(p)) for p in path)
-    assert np.array_equal(path[-1], twist(disc))
+    assert np.array_equal(path[-1], twisted(disc).points)
 
 
 # -- CLI and filter ---------------------------------------------------------------------

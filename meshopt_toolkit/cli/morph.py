@@ -13,8 +13,6 @@ import json
 import sys
 from pathlib import Path
 
-import numpy as np
-
 from ..errors import MeshoptError, WriteError
 from ._common import float_list
 
@@ -47,6 +45,7 @@ def add_args(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from .. import io
     from ..morph import geodesic_morph
+    from ..plotting import save_morph_figures
 
     if args.frames < 2:
         raise MeshoptError("--frames must be at least 2")
@@ -73,7 +72,7 @@ def run(args: argparse.Namespace) -> int:
     with atomic_path(outdir / "summary.json") as tmp:
         tmp.write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
     if not args.no_plots:
-        _write_plots(result, outdir)
+        save_morph_figures(result, outdir / "strip.png", outdir / "quality.png")
     if args.json:
         json.dump(summary, sys.stdout)
         sys.stdout.write("\n")
@@ -86,23 +85,3 @@ def run(args: argparse.Namespace) -> int:
         print(f"wrote {outdir}/ ({names[0]} … {names[-1]}, summary.json"
               + ("" if args.no_plots else ", " + ", ".join(PLOTS)) + ")")
     return 0
-
-
-def _write_plots(result, outdir: Path, max_panels: int = 9) -> None:
-    """A strip of snapshots and the minimum aspect ratio per frame against linear
-    interpolation (negative = inverted triangles)."""
-    from ..plotting import save_quality_plot, save_snapshot_strip
-
-    K = result.n_frames
-    idx = np.unique(np.round(np.linspace(0, K - 1, min(K, max_panels))).astype(int))
-    save_snapshot_strip(
-        outdir / "strip.png", result.points[idx], result.triangles, ncols=len(idx),
-        titles=[f"t = {result.times[k]:.2f}, AR {result.min_aspect_ratio[k]:.3f}" for k in idx],
-    )
-    save_quality_plot(
-        outdir / "quality.png", result.times,
-        {f"geodesic ({result.method})": result.min_aspect_ratio,
-         "linear interpolation": result.linear_min_aspect_ratio},
-        ylabel="min aspect ratio 2r/R (signed; < 0: inverted)",
-        title="geodesic morph vs linear interpolation",
-    )
