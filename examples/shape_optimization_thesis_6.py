@@ -207,12 +207,12 @@ def section_6_4_4(out: Path, quick: bool) -> str:
             res = _run(mesh, variant, None, default_metric_beta(mesh.n_vertices),
                        10 if quick else 500, None)
             five = res.phase_totals(5)
-            rows.append([mesh.n_vertices, mesh.n_triangles, variant, res.nit, res.j,
+            rows.append([mesh.n_vertices, mesh.n_triangles, variant, res.status, res.nit, res.j,
                          res.history[-1].mean_shape_quality, sum(five.values()),
                          five["derivative"], five["backtracking"],
                          five["penalty_derivative"] + five["gradient"]])
     text = "## §6.4.4 — unpenalized, finer discs, 500 iterations (table 6.6)\n\n"
-    text += md_table(["N_V", "N_T", "variant", "iter", "j", "Λ", "5 it. total [s]",
+    text += md_table(["N_V", "N_T", "variant", "status", "iter", "j", "Λ", "5 it. total [s]",
                       "dObj [s]", "backt [s]", "grad + assemG [s]"], rows)
     return text + "\n"
 
@@ -229,12 +229,15 @@ def main(argv=None) -> None:
     args = p.parse_args(argv)
     out = Path(args.outdir)
     out.mkdir(parents=True, exist_ok=True)
-    report = "# Thesis chapter 6 reproduced with meshopt-toolkit\n\n"
     for key in args.sections.split(","):
         t = time.perf_counter()
-        report += SECTIONS[key](out, args.quick)
+        (out / f"section_{key}.md").write_text(SECTIONS[key](out, args.quick))
         print(f"section {key}: {time.perf_counter() - t:.1f} s")
-        (out / "tables.md").write_text(report)
+    # tables.md collects every section written so far (sections can be rerun alone)
+    report = "# Thesis chapter 6 reproduced with meshopt-toolkit\n\n"
+    report += "".join((out / f"section_{k}.md").read_text() for k in SECTIONS
+                      if (out / f"section_{k}.md").exists())
+    (out / "tables.md").write_text(report)
     print(f"wrote {out / 'tables.md'}")
 
 

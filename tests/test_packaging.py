@@ -136,3 +136,13 @@ def test_bundled_meshes_load_with_their_tags():
 def test_unknown_bundled_mesh_lists_the_available_ones():
     with pytest.raises(ReadError, match=r"nope\.msh: no such bundled mesh; available: .*disc_146"):
         data_path("nope.msh")
+
+
+def test_lazy_exports_and_submodules_resolve():
+    import meshopt_toolkit as mt
+
+    for name in mt.__all__:
+        assert getattr(mt, name) is not None, name
+    assert mt.datasets.available()  # a submodule by attribute
+    with pytest.raises(AttributeError):
+        mt.no_such_thing  # noqa: B018
