@@ -6,19 +6,7 @@ import numpy as np
 
 from meshopt_toolkit.errors import FilterError
 from meshopt_toolkit.pipeline.filter import Filter, register
-from meshopt_toolkit.pipeline.params import FloatParam, PathParam, StringParam
-
-
-def _numbers(text: str, n: int, what: str) -> tuple[float, ...] | None:
-    if not text.strip():
-        return None
-    try:
-        values = tuple(float(x) for x in text.split(","))
-    except ValueError:
-        raise FilterError(f"{what}: expected {n} comma-separated numbers, got {text!r}") from None
-    if len(values) != n or min(values) < 0:
-        raise FilterError(f"{what}: expected {n} non-negative comma-separated numbers, got {text!r}")
-    return values
+from meshopt_toolkit.pipeline.params import FloatParam, PathParam, StringParam, number_list
 
 
 @register
@@ -54,7 +42,7 @@ class QualityPreservingDeformation(Filter):
             raise FilterError(f"{self.name} needs a planar mesh; {entry.name} is a 3D surface")
         if not displacement:
             raise FilterError(f"{self.name}: the displacement parameter is required")
-        a, b = _numbers(alpha, 3, "alpha"), _numbers(beta, 4, "beta")
+        a, b = number_list(alpha, 3, "alpha"), number_list(beta, 4, "beta")
         if a is not None and b is not None:
             raise FilterError(f"{self.name}: give alpha or beta, not both")
         mesh = entry.mesh.as_planar()

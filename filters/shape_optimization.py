@@ -4,23 +4,16 @@ from __future__ import annotations
 
 from meshopt_toolkit.errors import FilterError
 from meshopt_toolkit.pipeline.filter import Filter, register
-from meshopt_toolkit.pipeline.params import EnumParam, FloatParam, IntParam, StringParam
+from meshopt_toolkit.pipeline.params import (
+    EnumParam,
+    FloatParam,
+    IntParam,
+    StringParam,
+    number_list,
+)
 
 VARIANTS = ("euclidean-euclidean", "elasticity-euclidean", "complete-euclidean", "complete-complete")
 DEFAULT_RHS = "2.5*(x1 + 0.4 - x2**2)**2 + x1**2 + x2**2 - 1"
-
-
-def parse_beta(text: str, what: str) -> tuple[float, float, float, float] | None:
-    """``"b1,b2,b3,b4"`` → floats; empty → None (use the default)."""
-    if not text.strip():
-        return None
-    try:
-        values = tuple(float(x) for x in text.split(","))
-    except ValueError:
-        raise FilterError(f"{what}: expected four comma-separated numbers, got {text!r}") from None
-    if len(values) != 4 or min(values) < 0:
-        raise FilterError(f"{what}: expected four non-negative numbers b1,b2,b3,b4, got {text!r}")
-    return values  # type: ignore[return-value]
 
 
 @register
@@ -64,10 +57,10 @@ class ShapeOptimization(Filter):
         if not entry.mesh.is_planar:
             raise FilterError(f"{self.name} needs a planar mesh; {entry.name} is a 3D surface")
         mesh = entry.mesh.as_planar()
-        beta = parse_beta(penalty, "penalty") or thesis_penalty_beta(2, mesh.n_vertices)
+        beta = number_list(penalty, 4, "penalty") or thesis_penalty_beta(2, mesh.n_vertices)
         result = optimize(
             mesh, PoissonObjective(mesh, rhs=rhs), variant=variant, penalty_beta=beta,
-            metric_beta=parse_beta(metric_penalty, "metric_penalty"), max_iter=max_iterations,
+            metric_beta=number_list(metric_penalty, 4, "metric_penalty"), max_iter=max_iterations,
             tol=tolerance or None,
         )
         entry.mesh = result.mesh

@@ -30,17 +30,17 @@ from typing import Any, ClassVar
 from ..errors import FilterError
 
 __all__ = [
-    "Length",
-    "Param",
     "BoolParam",
-    "IntParam",
-    "FloatParam",
     "EnumParam",
-    "StringParam",
-    "PathParam",
+    "FloatParam",
+    "IntParam",
+    "Length",
     "LengthParam",
-    "param_from_mlx",
+    "Param",
+    "PathParam",
+    "StringParam",
     "did_you_mean",
+    "param_from_mlx",
 ]
 
 
@@ -48,6 +48,26 @@ def did_you_mean(word: str, candidates) -> str:
     """``" (did you mean 'x'?)"`` for the closest candidate, or ``""``."""
     close = difflib.get_close_matches(word, list(candidates), n=1, cutoff=0.6)
     return f" (did you mean {close[0]!r}?)" if close else ""
+
+
+def number_list(text: str, n: int, what: str) -> tuple[float, ...] | None:
+    """Parse a string parameter holding ``n`` non-negative comma-separated numbers
+    (e.g. β = ``"10,1,0,1.46"``); an empty string gives None (use the default).
+
+    Raises
+    ------
+    FilterError
+        Not exactly ``n`` numbers, or a negative one; the message names ``what``.
+    """
+    if not text.strip():
+        return None
+    try:
+        values = tuple(float(x) for x in text.split(","))
+    except ValueError:
+        raise FilterError(f"{what}: expected {n} comma-separated numbers, got {text!r}") from None
+    if len(values) != n or min(values) < 0:
+        raise FilterError(f"{what}: expected {n} non-negative comma-separated numbers, got {text!r}")
+    return values
 
 
 def _fmt(x: float) -> str:
@@ -77,7 +97,7 @@ class Length:
     percent: bool = False
 
     @classmethod
-    def parse(cls, raw: Any) -> "Length":
+    def parse(cls, raw: Any) -> Length:
         """From a number (absolute), ``"5%"`` (percentage), ``"0.1"`` or a Length."""
         if isinstance(raw, Length):
             return raw
