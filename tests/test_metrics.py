@@ -19,6 +19,7 @@ from meshopt_toolkit.metrics import (
     EuclideanMetric,
     MetricNotImplementedError,
 )
+from meshopt_toolkit.penalties import HeightPenalty, QualityPenalty
 from meshopt_toolkit.taylor import check_gradient
 
 
@@ -50,11 +51,10 @@ class InverseAreaPenalty:
 
 
 def _real_penalties(mesh):
-    """The toolkit's f2 (QualityPenalty) and f1 (HeightPenalty), once penalties.py exists."""
-    penalties = pytest.importorskip("meshopt_toolkit.penalties")
+    """The toolkit's f2 (QualityPenalty) and f1 (HeightPenalty)."""
     return [
-        penalties.QualityPenalty(mesh, beta=(1.0, 0.5, 0.1, 0.2)),
-        penalties.HeightPenalty(mesh, alpha=(0.1, 0.05, 0.3)),
+        QualityPenalty(mesh, beta=(1.0, 0.5, 0.1, 0.2)),
+        HeightPenalty(mesh, alpha=(0.1, 0.05, 0.3)),
     ]
 
 
