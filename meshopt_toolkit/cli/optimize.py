@@ -13,7 +13,7 @@ import logging
 import sys
 from pathlib import Path
 
-from ..errors import MeshoptError, WriteError
+from ..errors import ExpressionError, MeshoptError, WriteError
 from ._common import float_list
 
 HELP = "shape optimization: minimize ∫y (P1 Poisson) + f2 over admissible meshes"
@@ -89,7 +89,10 @@ def run(args: argparse.Namespace) -> int:
     penalty = args.penalty if args.penalty is not None else thesis_penalty_beta(2, n)
     if args.max_iter < 1:
         raise MeshoptError("--max-iter must be at least 1")
-    objective = PoissonObjective(mesh, rhs=args.rhs)
+    try:
+        objective = PoissonObjective(mesh, rhs=args.rhs)
+    except ExpressionError as exc:
+        raise ExpressionError(f"--rhs {args.rhs!r}: {exc}") from None
     fixed = mesh.tagged_vertices(int(args.fixed) if args.fixed and args.fixed.isdigit() else args.fixed) \
         if args.fixed else None
     outdir = Path(args.output)
