@@ -8,9 +8,9 @@ Prints the time of each variant and its ratio to the baseline.
 from __future__ import annotations
 
 import argparse
-import time
 
 import numpy as np
+from _common import best_of
 
 from meshopt_toolkit.distance import (
     boundary_pairs,
@@ -27,15 +27,6 @@ def euclidean_point_segment(points: np.ndarray, pairs: np.ndarray) -> np.ndarray
     w = p - a
     s = np.clip(np.einsum("ij,ij->i", w, e) / np.einsum("ij,ij->i", e, e), 0.0, 1.0)
     return np.linalg.norm(w - s[:, None] * e, axis=1)
-
-
-def best_of(fun, repeat: int) -> float:
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fun()
-        times.append(time.perf_counter() - t0)
-    return min(times)
 
 
 def circle_boundary(n: int, rng) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -76,7 +67,7 @@ def main(argv=None) -> None:
     times = {name: float("inf") for name in variants}
     for _ in range(args.repeat):
         for name, fun in variants.items():
-            times[name] = min(times[name], best_of(fun, 1))
+            times[name] = min(times[name], best_of(fun, 1)[0])
     base = times["euclidean point-segment (baseline)"]
     rows = list(times.items())
     print(f"{len(pairs)} pairs, best of {args.repeat}")
@@ -85,8 +76,8 @@ def main(argv=None) -> None:
 
     # pair search: all pairs vs radius search on a boundary of 4000 vertices
     bpts, bv, be = circle_boundary(4000, rng)
-    t_all = best_of(lambda: boundary_pairs(bv, be), args.repeat)
-    t_rad = best_of(lambda: boundary_pairs(bv, be, bpts, 0.02), args.repeat)
+    t_all = best_of(lambda: boundary_pairs(bv, be), args.repeat)[0]
+    t_rad = best_of(lambda: boundary_pairs(bv, be, bpts, 0.02), args.repeat)[0]
     n_all = len(boundary_pairs(bv, be))
     n_rad = len(boundary_pairs(bv, be, bpts, 0.02))
     print(

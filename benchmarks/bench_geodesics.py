@@ -35,21 +35,13 @@ import argparse
 import time
 
 import numpy as np
+from _common import best_of
 
 from meshopt_toolkit import data_path, load
 from meshopt_toolkit.errors import IntegrationError
 from meshopt_toolkit.geodesics import exp_map, geodesic
 from meshopt_toolkit.metrics import CompleteMetric
 from meshopt_toolkit.penalties import QualityPenalty
-
-
-def best_of(fn, repeat: int):
-    best, out = np.inf, None
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        out = fn()
-        best = min(best, time.perf_counter() - t0)
-    return best, out
 
 
 def part1(repeat: int) -> None:

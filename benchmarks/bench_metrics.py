@@ -24,7 +24,7 @@ import time
 
 import numpy as np
 import scipy.sparse as sp
-from _meshes import jittered_grid
+from _common import jittered_grid
 
 from meshopt_toolkit.elasticity import BlockPattern, element_blocks, factorize, lame_parameters
 from meshopt_toolkit.mesh import PlanarMesh

@@ -14,9 +14,8 @@ Usage: ``python benchmarks/bench_morph.py [--max-triangles 110000] [--repeat 3]`
 from __future__ import annotations
 
 import argparse
-import time
 
-import numpy as np
+from _common import best_of
 
 from meshopt_toolkit.datasets import data_path
 from meshopt_toolkit.geodesics import exp_map
@@ -24,15 +23,6 @@ from meshopt_toolkit.io import load
 from meshopt_toolkit.metrics import CompleteMetric
 from meshopt_toolkit.morph import DEFAULT_BETA, geodesic_morph, twisted
 from meshopt_toolkit.penalties import QualityPenalty
-
-
-def best_of(fn, repeat):
-    best, out = np.inf, None
-    for _ in range(repeat):
-        t = time.perf_counter()
-        out = fn()
-        best = min(best, time.perf_counter() - t)
-    return best, out
 
 
 def main() -> None:

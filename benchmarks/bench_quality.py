@@ -17,7 +17,7 @@ import argparse
 import time
 
 import numpy as np
-from _meshes import jittered_grid
+from _common import jittered_grid
 
 from meshopt_toolkit.geometry import quality_summary, signed_areas
 from meshopt_toolkit.mesh import PlanarMesh, check_mesh
