@@ -29,7 +29,6 @@ __all__ = [
     "AMG_THRESHOLD",
     "PoissonSolver",
     "centroids",
-    "edge_vectors",
     "element_stiffness",
     "lumped_load",
     "nodal_mass_weights",
@@ -56,11 +55,6 @@ def _edge_components(points: FloatArray, triangles: IntArray) -> tuple[FloatArra
 def _areas(ex: FloatArray, ey: FloatArray) -> FloatArray:
     """Signed areas ``½ (e_2 × e_0)`` from edge components ``(T, 3)``; returns ``(T,)``."""
     return 0.5 * (ex[:, 2] * ey[:, 0] - ey[:, 2] * ex[:, 0])
-
-
-def edge_vectors(points: FloatArray, triangles: IntArray) -> FloatArray:
-    """Edge vectors ``e_l = q_{l+2} − q_{l+1}`` of every triangle, shape ``(T, 3, 2)``."""
-    return np.stack(_edge_components(points, triangles), axis=-1)
 
 
 def element_stiffness(points: FloatArray, triangles: IntArray) -> FloatArray:

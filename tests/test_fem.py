@@ -159,10 +159,13 @@ def test_solver_auto_and_errors():
         fem.PoissonSolver(K, [0], method="cg")
 
 
-def test_edge_vectors_close_the_triangle():
+def test_edge_components_match_geometry_and_close_the_triangle():
+    from meshopt_toolkit.geometry import edge_vectors
+
     mesh = grid_mesh(3, 0.2)
-    e = fem.edge_vectors(mesh.points, mesh.triangles)
+    e = np.stack(fem._edge_components(mesh.points, mesh.triangles), axis=-1)
     assert e.shape == (mesh.n_triangles, 3, 2)
+    np.testing.assert_array_equal(e, edge_vectors(mesh.points, mesh.triangles))
     np.testing.assert_allclose(e.sum(axis=1), 0, atol=1e-15)
     p = mesh.points[mesh.triangles]
     np.testing.assert_array_equal(e[:, 0], p[:, 2] - p[:, 1])
