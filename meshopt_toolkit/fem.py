@@ -22,6 +22,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
+from ._linalg import dot as _dot
 from ._typing import FloatArray, IntArray
 from .errors import MeshoptError
 
@@ -173,12 +174,6 @@ def poisson_shape_derivative(
     gy = 0.5 * c * ex + (dp * wy[:, None] + dy * uy[:, None]) * inv4a - f * grad_r[:, 1:2]
     n = len(points)
     return np.stack([_scatter(triangles, gx, n), _scatter(triangles, gy, n)], axis=1)
-
-
-def _dot(a: FloatArray, b: FloatArray) -> float:
-    # einsum runs single-threaded without BLAS: on a busy machine a threaded ddot per
-    # CG iteration costs more than the whole V-cycle
-    return float(np.einsum("i,i->", a, b))
 
 
 def _v_cycle(ml, lvl: int, x: FloatArray, b: FloatArray) -> None:

@@ -25,6 +25,7 @@ from typing import Protocol
 import numpy as np
 import scipy.sparse as sp
 
+from ._linalg import dot
 from ._typing import FloatArray
 from .elasticity import SOLVERS, BlockPattern, SPDSolve, assemble, factorize, lame_parameters
 from .errors import InvalidMeshError, MeshoptError
@@ -57,17 +58,12 @@ class Metric(Protocol):
 
 
 def _vdot(U: FloatArray, V: FloatArray) -> float:
-    """``vec U · vec V`` on flat views (no copies for contiguous arrays).
-
-    ``einsum`` rather than BLAS ``ddot``: multi-threaded OpenBLAS has to wake its threads
-    for every call, which costs milliseconds on a busy machine (measured in
-    ``benchmarks/bench_metrics.py``); einsum is single-threaded and predictable.
-    """
+    """``vec U · vec V`` of two tangent vectors of equal shape (:func:`_linalg.dot`)."""
     U = np.asarray(U, dtype=np.float64)
     V = np.asarray(V, dtype=np.float64)
     if U.shape != V.shape:
         raise ValueError(f"tangent vectors have shapes {U.shape} and {V.shape}")
-    return float(np.einsum("i,i->", U.ravel(), V.ravel()))
+    return dot(U, V)
 
 
 class _LastQCache:

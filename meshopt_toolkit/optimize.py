@@ -31,6 +31,7 @@ from typing import Protocol
 
 import numpy as np
 
+from ._linalg import dot as _dot
 from ._typing import FloatArray
 from .errors import IntegrationError, OptimizationError
 from .geometry import heights, quality_summary, signed_areas
@@ -192,11 +193,6 @@ def max_travel_step(Q: FloatArray, triangles: np.ndarray, d: FloatArray) -> floa
     with np.errstate(divide="ignore"):
         limit = np.where(speed > 0, 0.5 * h / speed, np.inf)
     return float(limit.min())
-
-
-def _dot(a: FloatArray, b: FloatArray) -> float:
-    """Euclidean dot product of two (N, 2) arrays (einsum: no BLAS threading overhead)."""
-    return float(np.einsum("ij,ij->", a, b))
 
 
 class _Timer:

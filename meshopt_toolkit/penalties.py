@@ -55,6 +55,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from . import distance as _distance
+from ._linalg import dot as _dot
 from ._typing import FloatArray, IntArray
 from .errors import InvalidMeshError, NotAdmissibleError
 from .mesh import PlanarMesh, TriangleMesh, boundary_self_intersections
@@ -190,15 +191,6 @@ def _edges(qx: FloatArray, qy: FloatArray, tri_t: IntArray) -> tuple[FloatArray,
 def _area(ex: FloatArray, ey: FloatArray) -> FloatArray:
     """Signed areas ``A = ½ det[e2, e0]`` (e2 = q1 − q0, e0 = q2 − q1), (4.2). ``(b,)``."""
     return 0.5 * (ex[2] * ey[0] - ey[2] * ex[0])
-
-
-def _dot(a: FloatArray, b: FloatArray) -> float:
-    """Frobenius inner product of two ``(N, 2)`` arrays.
-
-    ``einsum`` rather than ``np.vdot``: the BLAS dot spawns OpenBLAS threads, which on an
-    oversubscribed machine made a 40k-element ``vdot`` take ~20 ms instead of ~20 µs.
-    """
-    return float(np.einsum("ij,ij->", a, b))
 
 
 _NEXT = [1, 2, 0]
