@@ -11,7 +11,7 @@ from conftest import grid_mesh
 from meshopt_toolkit.datasets import data_path
 from meshopt_toolkit.errors import InvalidMeshError, NotAdmissibleError
 from meshopt_toolkit.geodesics import exp_map, geodesic
-from meshopt_toolkit.geometry import signed_areas
+from meshopt_toolkit.geometry import aspect_ratios, signed_areas
 from meshopt_toolkit.mesh import PlanarMesh, check_mesh
 from meshopt_toolkit.metrics import CompleteMetric
 from meshopt_toolkit.morph import (
@@ -232,12 +232,23 @@ def test_errors_are_clear(square):
 
 
 def test_flow_that_does_not_arrive_reports_no_admissible_path(disc):
-    # the straight path inverts, so the barrier-sliding flow runs; 5 steps cannot arrive
+    # without the rigid interpolation the straight path inverts, so the barrier-sliding
+    # flow runs; 5 steps cannot arrive
     pen = QualityPenalty(disc, beta=(1, 1, 0, 1))
     with pytest.raises(NotAdmissibleError, match="no admissible path"):
-        initial_path(pen, disc.points, twisted(disc).points, 8, max_steps=5)
-    path = initial_path(pen, disc.points, twisted(disc).points, 8)
+        initial_path(pen, disc.points, twisted(disc).points, 8, max_steps=5, rigid=False)
+    path = initial_path(pen, disc.points, twisted(disc).points, 8, rigid=False)
     assert all(np.isfinite(pen.value(p)) for p in path)
+
+
+def test_twist_initial_path_is_the_rigid_interpolation(disc):
+    pen = QualityPenalty(disc, beta=(1, 1, 0, 1))
+    Q1 = twisted(disc).points
+    path = initial_path(pen, disc.points, Q1, 8)
+    assert np.array_equal(path[0], disc.points) and np.array_equal(path[-1], Q1)
+    # the straight path inverts; every rigid frame is at least as good as the worse end
+    ends = min(aspect_ratios(q, disc.triangles).min() for q in (disc.points, Q1))
+    assert min(aspect_ratios(p, disc.triangles).min() for p in path[1:-1]) >= ends
     assert np.array_equal(path[-1], twisted(disc).points)
 
 
