@@ -550,6 +550,7 @@ def discrete_geodesic(
     window: int = 20,
     max_iter: int = 500,
     max_cg: int = 200,
+    callback=None,
 ) -> DiscreteGeodesic:
     """The ``segments``-segment discrete geodesic from ``Q0`` to ``Q1`` (path energy).
 
@@ -572,6 +573,7 @@ def discrete_geodesic(
         iterations), so the stagnation test saves most of the work at no visible cost
         (0 disables it)
     max_iter, max_cg : Newton iterations and CG iterations per Newton step
+    callback : called as ``callback(nit, E, gradient_norm)`` after every Newton iteration
 
     Returns
     -------
@@ -649,6 +651,8 @@ def discrete_geodesic(
         converged = gnorm <= tol * np.sqrt(E)
         logger.debug("discrete geodesic %d: E = %.12g, |g| = %.3g, step %.3g, %d CG%s",
                      nit, E, gnorm, t, n_cg, " (negative curvature)" if negative else "")
+        if callback is not None:
+            callback(nit, E, gnorm)
         if converged:
             status = "converged"
         elif (energy_rtol > 0 and nit >= window
@@ -887,7 +891,9 @@ def geodesic_morph(
     segments: int | None = None,
     tol: float | None = None,
     discrete_tol: float = 1e-9,
+    max_iter: int = 500,
     max_exp: int = 400,
+    callback=None,
 ) -> MorphResult:
     """``frames`` meshes along the geodesic from ``source`` to ``target`` (issue #7).
 
@@ -909,7 +915,9 @@ def geodesic_morph(
         the smallest multiple ≥ 16); frames are every m-th node
     tol : shooting tolerance (default 1e-8 · diameter)
     discrete_tol : Newton tolerance of the discrete geodesic
+    max_iter : Newton iterations of the discrete geodesic
     max_exp : exponential-map budget of the shooting
+    callback : passed to :func:`discrete_geodesic` (``callback(nit, E, gradient_norm)``)
 
     Returns
     -------
@@ -942,7 +950,8 @@ def geodesic_morph(
     if segments and int(segments) % (frames - 1):
         raise ValueError(f"segments ({segments}) must be a multiple of frames − 1 ({frames - 1})")
     K = m * (frames - 1)
-    dg = discrete_geodesic(metric, Q0, Q1, K, tol=discrete_tol)
+    dg = discrete_geodesic(metric, Q0, Q1, K, tol=discrete_tol, max_iter=max_iter,
+                           callback=callback)
     if dg.status not in ("converged", "stationary"):
         logger.warning("geodesic_morph: the discrete geodesic did not converge in %d Newton "
                        "iterations (|∇E| = %.3g); its frames are admissible but not yet a "

@@ -280,6 +280,28 @@ def test_cli_morph_json(tmp_path, capsys):
     assert "vertices" in capsys.readouterr().err
 
 
+def test_cli_morph_max_iter_and_callback(tmp_path, capsys, disc):
+    from meshopt_toolkit.cli import main
+    from meshopt_toolkit.io import save
+
+    save(disc, tmp_path / "a.msh")
+    save(twisted(disc), tmp_path / "b.msh")
+    out = tmp_path / "out"
+    assert main(["morph", str(tmp_path / "a.msh"), str(tmp_path / "b.msh"), "-o", str(out),
+                 "--frames", "3", "--max-iter", "2", "--no-plots", "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["discrete_iterations"] == 2 and summary["discrete_status"] == "max_iter"
+    assert summary["admissible"] and summary["linear_inverts"]
+    assert main(["morph", str(tmp_path / "a.msh"), str(tmp_path / "b.msh"), "-o",
+                 str(tmp_path / "o2"), "--max-iter", "0"]) == 1
+    assert "--max-iter" in capsys.readouterr().err
+    seen = []
+    geodesic_morph(disc, twisted(disc), frames=3, max_iter=3,
+                   callback=lambda nit, E, g: seen.append((nit, E, g)))
+    assert [n for n, _, _ in seen] == [1, 2, 3]
+    assert all(b[1] <= a[1] for a, b in zip(seen, seen[1:]))  # the energy never grows
+
+
 def test_filter_generate_geodesic_morph():
     from meshopt_toolkit.pipeline.document import Document
     from meshopt_toolkit.pipeline.filter import registry

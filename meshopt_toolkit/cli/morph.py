@@ -35,6 +35,8 @@ def add_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--method", choices=("discrete", "shooting", "auto"), default="discrete",
                    help="frames from the discrete geodesic, the shooting geodesic, or shooting "
                         "with a fallback (default: %(default)s)")
+    p.add_argument("--max-iter", type=int, default=500,
+                   help="Newton iterations of the discrete geodesic (default: %(default)s)")
     p.add_argument("--format", default=None,
                    help="extension of the frame files, e.g. msh, vtk, obj (default: the source's)")
     p.add_argument("--no-plots", action="store_true", help="do not write PNG figures")
@@ -46,9 +48,12 @@ def run(args: argparse.Namespace) -> int:
     from .. import io
     from ..morph import geodesic_morph
     from ..plotting import save_morph_figures
+    from ..progress import ProgressBar
 
     if args.frames < 2:
         raise MeshoptError("--frames must be at least 2")
+    if args.max_iter < 1:
+        raise MeshoptError("--max-iter must be at least 1")
     src_path, tgt_path = Path(args.source), Path(args.target)
     source = io.load(src_path)
     target = io.load(tgt_path)
@@ -60,7 +65,11 @@ def run(args: argparse.Namespace) -> int:
     clash = [n for n in names + list(PLOTS) + ["summary.json"] if (outdir / n).exists()]
     if clash and not args.force:
         raise WriteError(f"{outdir / clash[0]}: exists (use --force to overwrite)")
-    result = geodesic_morph(source, target, frames=args.frames, beta=args.beta, method=args.method)
+    # the Newton iteration usually stops well before --max-iter (energy stationary)
+    with ProgressBar(args.max_iter, "morph") as bar:
+        result = geodesic_morph(source, target, frames=args.frames, beta=args.beta,
+                                method=args.method, max_iter=args.max_iter,
+                                callback=lambda nit, E, g: bar.update(status=f"E={E:.8g}"))
     base = source.as_planar()
     for name, mesh in zip(names, result.meshes(like=base)):
         io.save(mesh, outdir / name, overwrite=True)
