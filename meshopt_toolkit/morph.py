@@ -59,6 +59,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._linalg import dot as _dot
 from ._typing import FloatArray
 from .errors import IntegrationError, InvalidMeshError, NotAdmissibleError
 from .geometry import aspect_ratios, signed_areas
@@ -332,7 +333,7 @@ def _barrier_sliding_flow(pen, Q0, Q1, scale: float, max_steps: int, stop: float
     for _ in range(max_steps):
         g = np.asarray(pen.gradient(Q)) * scale
         P = Q - Q1
-        d = -(P - g * (float(np.vdot(g, P)) / (1.0 + float(np.vdot(g, g)))))
+        d = -(P - g * (float(_dot(g, P)) / (1.0 + float(_dot(g, g)))))
         while True:
             Qn = Q + h * d
             fn = float(pen.value(Qn))
@@ -345,7 +346,7 @@ def _barrier_sliding_flow(pen, Q0, Q1, scale: float, max_steps: int, stop: float
         traj.append(Q.copy())
         fv.append(f)
         h = min(1.5 * h, 0.2)
-        if np.linalg.norm(Q - Q1) <= stop:
+        if np.sqrt(_dot(Q - Q1, Q - Q1)) <= stop:
             return traj, fv
     return (f"the barrier-sliding flow is still {np.linalg.norm(Q - Q1):.3g} away after "
             f"{max_steps} steps")
@@ -458,7 +459,7 @@ class _PathEnergy:
             if not np.isfinite(fs[k]):
                 return float("inf")
         d = np.diff(self._frames(X), axis=0)
-        return float(self.K * (np.vdot(d, d) + np.vdot(np.diff(fs), np.diff(fs))))
+        return float(self.K * (_dot(d, d) + _dot(np.diff(fs), np.diff(fs))))
 
     def evaluate(self, X: FloatArray) -> tuple[float, FloatArray]:
         """``(E, ∇E)`` at X, storing f_k, ∇f_k for the Hessian products."""
@@ -470,7 +471,7 @@ class _PathEnergy:
             fs[k + 1], gs[k] = self.pen.value_and_gradient(q)
         d = np.diff(self._frames(X), axis=0)
         df = np.diff(fs)
-        E = float(K * (np.vdot(d, d) + np.vdot(df, df)))
+        E = float(K * (_dot(d, d) + _dot(df, df)))
         lap_f = df[:-1] - df[1:]  # 2f_k − f_{k−1} − f_{k+1}
         G = 2.0 * K * (d[:-1] - d[1:]) + (2.0 * K * lap_f)[:, None, None] * gs
         self.X, self.fs, self.gs, self.lap_f = X, fs, gs, lap_f
@@ -511,26 +512,26 @@ def _newton_cg_direction(G, hvp, prec, eta: float, max_cg: int) -> tuple[FloatAr
     r = -G
     z = prec(r)
     p = z.copy()
-    rz = float(np.vdot(r, z))
+    rz = float(_dot(r, z))
     r0 = np.sqrt(max(rz, 0.0))
     for i in range(max_cg):
         Hp = hvp(p)
-        pHp = float(np.vdot(p, Hp))
+        pHp = float(_dot(p, Hp))
         if pHp <= 0.0:
             if i == 0:
                 return z, 1, True
             # add the direction of negative curvature, oriented downhill, scaled like x
             # (the line search picks the length)
-            nx, npn = float(np.linalg.norm(x)), float(np.linalg.norm(p))
+            nx, npn = np.sqrt(_dot(x, x)), np.sqrt(_dot(p, p))
             if npn > 0 and nx > 0:
-                d = p if float(np.vdot(G, p)) <= 0 else -p
+                d = p if float(_dot(G, p)) <= 0 else -p
                 return x + (nx / npn) * d, i + 1, True
             return x, i + 1, True
         a = rz / pHp
         x += a * p
         r -= a * Hp
         z = prec(r)
-        rz_new = float(np.vdot(r, z))
+        rz_new = float(_dot(r, z))
         if np.sqrt(max(rz_new, 0.0)) <= eta * r0:
             return x, i + 1, False
         p = z + (rz_new / rz) * p
@@ -596,7 +597,7 @@ def discrete_geodesic(
         t = np.linspace(0.0, 1.0, K + 1)[:, None, None]
         pts = (1.0 - t) * Q0 + t * Q1
         d = np.diff(pts, axis=0)
-        return DiscreteGeodesic(pts, np.full(K + 1, np.nan), float(K * np.vdot(d, d)),
+        return DiscreteGeodesic(pts, np.full(K + 1, np.nan), float(K * _dot(d, d)),
                                 float(np.linalg.norm(Q1 - Q0)))
     pen = _Counter(raw)
     f0 = _require_finite(pen, Q0, "the source")
@@ -609,15 +610,15 @@ def discrete_geodesic(
     path[0], path[-1] = Q0, Q1
     if K == 1:
         fs = np.array([f0, f1])
-        return DiscreteGeodesic(path, fs, float(np.vdot(Q1 - Q0, Q1 - Q0) + (f1 - f0) ** 2),
-                                float(np.sqrt(np.vdot(Q1 - Q0, Q1 - Q0) + (f1 - f0) ** 2)),
+        return DiscreteGeodesic(path, fs, float(_dot(Q1 - Q0, Q1 - Q0) + (f1 - f0) ** 2),
+                                float(np.sqrt(_dot(Q1 - Q0, Q1 - Q0) + (f1 - f0) ** 2)),
                                 n_evaluations=pen.n)
     pe = _PathEnergy(pen, Q0, Q1, K, f0, f1)
     X = path[1:-1].copy()
     if not np.isfinite(pe.value(X)):
         raise NotAdmissibleError("the initial path has an inadmissible frame")
     E, G = pe.evaluate(X)
-    gnorm = float(np.sqrt(max(np.vdot(G, pe.precondition(G)), 0.0)))
+    gnorm = float(np.sqrt(max(_dot(G, pe.precondition(G)), 0.0)))
     nit = 0
     n_cg = 0
     negative = False
@@ -628,10 +629,10 @@ def discrete_geodesic(
         nit += 1
         eta = min(0.5, np.sqrt(gnorm / max(np.sqrt(E), 1e-300)))
         D, n_cg, negative = _newton_cg_direction(G, pe.hvp, pe.precondition, eta, max_cg)
-        slope = float(np.vdot(G, D))
+        slope = float(_dot(G, D))
         if slope >= 0:  # cannot happen with an SPD preconditioner; be safe
             D = -pe.precondition(G)
-            slope = float(np.vdot(G, D))
+            slope = float(_dot(G, D))
         t = 1.0
         while True:
             En = pe.value(X + t * D)
@@ -647,7 +648,7 @@ def discrete_geodesic(
         X = X + t * D
         E, G = pe.evaluate(X)
         energies.append(E)
-        gnorm = float(np.sqrt(max(np.vdot(G, pe.precondition(G)), 0.0)))
+        gnorm = float(np.sqrt(max(_dot(G, pe.precondition(G)), 0.0)))
         converged = gnorm <= tol * np.sqrt(E)
         logger.debug("discrete geodesic %d: E = %.12g, |g| = %.3g, step %.3g, %d CG%s",
                      nit, E, gnorm, t, n_cg, " (negative curvature)" if negative else "")

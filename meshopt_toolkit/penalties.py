@@ -48,7 +48,9 @@ Notes
 
 from __future__ import annotations
 
+import hashlib
 import logging
+from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
@@ -76,6 +78,9 @@ _I_SQRT3_2 = 0.5j * SQRT3  # p = z0 − (z1 + z2)/2 + (i√3/2)(z1 − z2), m wi
 
 #: default μ of the regularized distance (defined with the distance kernels)
 DEFAULT_MU = _distance.DEFAULT_MU
+
+#: boundary configurations remembered as simple by each penalty
+SIMPLE_BOUNDARY_CACHE = 64
 
 #: triangles per block of the per-triangle pass (keeps temporaries in cache)
 BLOCK = 8192
@@ -529,6 +534,8 @@ class Penalty:
         nxt = order[pos] if len(be) else pos
         ok = be[nxt, 0] == be[:, 1] if len(be) else np.zeros(0, bool)
         self._fold = (be[ok, 0], be[ok, 1], be[nxt[ok], 1])
+        # digests of boundary positions already found simple (see _boundary_problem)
+        self._simple_boundaries: OrderedDict[bytes, None] = OrderedDict()
         if reference is None:
             ref = np.array(mesh.points, dtype=np.float64)
         else:
@@ -605,7 +612,26 @@ class Penalty:
         return f"triangle {k} {self._tri[k].tolist()} is {kind} (signed area {area[k]:.3g}){more}"
 
     def _boundary_problem(self, Q: FloatArray) -> str | None:
-        """A message naming boundary edges that fold onto, touch or cross each other."""
+        """A message naming boundary edges that fold onto, touch or cross each other.
+
+        The test depends on the boundary positions only; the 128-bit digests of the last
+        :data:`SIMPLE_BOUNDARY_CACHE` boundaries found simple are remembered, so iterative
+        methods that come back to the same configurations (the morph's path energy
+        evaluates value, gradient and Hessian products at each frame; half its penalty
+        time was this test) pay for it once per configuration.
+        """
+        key = hashlib.blake2b(Q[self._boundary_vertices].tobytes(), digest_size=16).digest()
+        if key in self._simple_boundaries:
+            self._simple_boundaries.move_to_end(key)
+            return None
+        problem = self._boundary_test(Q)
+        if problem is None:
+            self._simple_boundaries[key] = None
+            if len(self._simple_boundaries) > SIMPLE_BOUNDARY_CACHE:
+                self._simple_boundaries.popitem(last=False)
+        return problem
+
+    def _boundary_test(self, Q: FloatArray) -> str | None:
         a, b, c = self._fold
         if len(a):
             u = Q[a] - Q[b]

@@ -410,6 +410,32 @@ def test_blows_up_as_boundary_vertex_approaches_edge(cls):
             P.gradient(Q)
 
 
+def test_simple_boundary_cache_is_exact():
+    # the cache of boundaries found simple never hides a crossing boundary
+    mesh = slot_mesh(gap=0.1)
+    P = QualityPenalty(mesh, (1.0, 1.0, 0.0, 0.0))
+    xs = np.unique(mesh.points[:, 0])
+    v = np.flatnonzero(np.isclose(mesh.points[:, 0], xs[len(xs) // 2])
+                       & (mesh.points[:, 1] > 0.7) & (mesh.points[:, 1] < 0.9))[0]
+    good, bad = mesh.points.copy(), mesh.points.copy()
+    good[v, 0] += 0.05
+    bad[v, 0] += 0.12  # through the opposite wall, every area still positive
+    assert (mesh.with_points(bad).signed_areas() > 0).all()
+    calls = []
+    test = P._boundary_test
+    P._boundary_test = lambda Q: calls.append(1) or test(Q)
+    for _ in range(3):
+        assert np.isfinite(P.value(good)) and P.value(bad) == np.inf
+        P.gradient(good)
+        with pytest.raises(NotAdmissibleError, match="boundary"):
+            P.gradient(bad)
+    assert len(calls) == 1 + 6  # the simple one once, the crossing one every time
+    nudged = good.copy()
+    nudged[v, 0] = np.nextafter(nudged[v, 0], np.inf)  # any change of a bit is a new key
+    P.value(nudged)
+    assert len(calls) == 8
+
+
 def test_value_never_nan():
     m = square5()
     P = QualityPenalty(m, (1.0, 1.0, 1.0, 1.0))
