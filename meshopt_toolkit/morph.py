@@ -10,9 +10,11 @@ The key identity: ``|dQ|²_g = |dQ|² + (df)² = |d(Q, f(Q))|²``, so ``(M+, g)`
 to the graph of ``f`` in ``R^{2N+1}`` with the Euclidean metric. Three stages:
 
 1. **An admissible initial path** (:func:`initial_path`): straight lines if every node is
-   admissible, otherwise the complete-metric gradient flow of ``½|Q − Q1|²`` — the
-   direction ``−(P − ∇f (∇f·P)/(1 + |∇f|²))``, ``P = Q − Q1`` slides along the barrier
-   instead of crossing it — resampled by arc length in the graph metric.
+   admissible, else the as-rigid-as-possible interpolation
+   (:mod:`~meshopt_toolkit.interpolation`) if every node is admissible, otherwise the
+   complete-metric gradient flow of ``½|Q − Q1|²`` — the direction
+   ``−(P − ∇f (∇f·P)/(1 + |∇f|²))``, ``P = Q − Q1`` slides along the barrier instead of
+   crossing it — resampled by arc length in the graph metric.
 2. **The discrete geodesic** (:func:`discrete_geodesic`): the ``K``-segment path
    minimizing the path energy
 
@@ -23,7 +25,9 @@ to the graph of ``f`` in ``R^{2N+1}`` with the Euclidean metric. Three stages:
    ``2K (L ⊗ I + Fᵀ L F)`` (``L`` the path Laplacian, ``F`` the frame gradients) via the
    Woodbury identity at O(K² N) cost. ``f = +inf`` at inverted meshes is a barrier: the
    backtracking line search never leaves ``M+``. Its length ``√E`` converges to the
-   geodesic distance like ``O(1/K²)``.
+   geodesic distance like ``O(1/K²)``. Near the minimizer the frames hold nearly
+   degenerate triangles, the quadratic model holds only in a tiny region and Newton
+   creeps; the iteration also stops when ``E`` stagnates (status "stationary").
 3. **Shooting** (:func:`log_map`): Newton–Krylov on the residual ``exp_{Q0}(V) − Q1``,
    started at the second-order one-sided difference ``V ≈ K(−3Q_0 + 4Q_1 − Q_2)/2`` of
    the discrete geodesic, Jacobian-vector products by directional differences of the
@@ -32,9 +36,16 @@ to the graph of ``f`` in ``R^{2N+1}`` with the Euclidean metric. Three stages:
 Measured (``benchmarks/bench_morph.py``): stage 2 is robust and cheap — the 225° twist of
 the 146-vertex disc takes about 10 exp_map calls' worth of time — and converges to the
 shooting geodesic at second order in ``1/K`` (tested). Stage 3 meets 1e-8·diameter on
-moderate deformations (tested round trips) but is far more expensive on stiff pairs: on
-the 225° twist the geodesic runs close to degenerate meshes, one exponential map at
-``rtol = 1e-10`` takes seconds and Newton–Krylov stalls near a residual of 3e-2. Hence
+moderate deformations (tested round trips) but not on the 225° twist, where the geodesic
+passes triangles of aspect ratio ~5e-4 and the exponential map is strongly nonlinear: one
+exponential map at ``rtol = 1e-10`` takes ~0.6 s (3300 penalty calls), the integration is
+accurate (1.5e-9 from ``rtol = 1e-13``) and the Jacobian only moderately ill-conditioned
+(GMRES: 14–24 products for 1e-3), but a full Newton step raises the residual 7-fold and
+only ~1/8 of it lowers it. Newton–Krylov stalls near 1e-2 from the discrete geodesic's
+velocity (the residual of that start is 1.4e-2 for K = 32 and 64: the frames do not
+resolve the thin-triangle stretch); an exact forward-mode Jacobian of the discretized map
+and multiple shooting (K = 8) from the same start stall as well, at 4e-3 and 5e-3 after
+~500 s (prototypes measured during issue #7). Hence
 :func:`geodesic_morph` uses the discrete geodesic by default (``method="discrete"``:
 every frame admissible, end frames exact) and shooting on request (``"shooting"``,
 ``"auto"``).
@@ -909,9 +920,9 @@ def geodesic_morph(
     method : "discrete" (default: nodes of the discrete geodesic, admissible by
         construction), "shooting" (frames ``exp(t_k V)`` of the shooting geodesic; must
         converge) or "auto" (shooting within ``max_exp`` exponential maps, the discrete
-        frames otherwise). Shooting is exact but can be far more expensive: on the 225°
-        twist of the 146-vertex disc one exponential map at ``rtol = 1e-10`` takes
-        seconds and Newton–Krylov stalls (see ``benchmarks/bench_morph.py``)
+        frames otherwise). Shooting is exact where it converges, but on the 225° twist
+        of the 146-vertex disc Newton–Krylov stalls near a residual of 1e-2 (module
+        docstring)
     segments : segments of the discrete geodesic: a multiple of ``frames − 1`` (default
         the smallest multiple ≥ 16); frames are every m-th node
     tol : shooting tolerance (default 1e-8 · diameter)

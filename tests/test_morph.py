@@ -167,11 +167,13 @@ def test_twist_morph_is_admissible_and_reaches_the_target(disc, twist_morph):
     assert res.discrete.length <= np.sum(seg) * (1 + 1e-9)
 
 
-def test_stationary_stop_is_close_to_the_minimum(disc, twist_morph):
+def test_stationary_stop_is_close_to_the_minimum(disc):
     # the energy-stagnation stop ends within 1e-5 of the energy of a run to |∇E| ≤ 1e-9·√E
-    stopped = twist_morph.discrete
-    tight = discrete_geodesic(CompleteMetric(QualityPenalty(disc, beta=DEFAULT_BETA, reference=disc)),
-                              disc.points, twisted(disc).points, stopped.segments, energy_rtol=0)
+    metric = CompleteMetric(QualityPenalty(disc, beta=DEFAULT_BETA, reference=disc))
+    Q1 = twisted(disc).points
+    stopped = discrete_geodesic(metric, disc.points, Q1, 8)
+    tight = discrete_geodesic(metric, disc.points, Q1, 8, energy_rtol=0)
+    assert stopped.status in ("converged", "stationary")
     assert tight.converged and tight.status == "converged"
     assert tight.energy <= stopped.energy * (1 + 1e-12)
     assert stopped.energy - tight.energy <= 1e-5 * tight.energy
