@@ -201,6 +201,10 @@ class MorphResult:
     log : the LogMapResult of the shooting (None when not attempted)
     discrete : the DiscreteGeodesic used
     seconds : wall time
+    rigid_min_aspect_ratio, rigid_min_area : (K,) the same for the as-rigid-as-possible
+        interpolation (:func:`~.interpolation.arap_interpolation`) at the same times: no
+        guarantee of admissibility, but often far from degenerate where the geodesic of
+        ``g = I + ∇f∇fᵀ`` squeezes triangles (the metric only resists motion along ∇f)
     """
 
     points: FloatArray
@@ -218,6 +222,8 @@ class MorphResult:
     log: LogMapResult | None = None
     discrete: DiscreteGeodesic | None = None
     seconds: float = 0.0
+    rigid_min_aspect_ratio: FloatArray | None = None
+    rigid_min_area: FloatArray | None = None
 
     @property
     def n_frames(self) -> int:
@@ -244,6 +250,10 @@ class MorphResult:
             "linear_min_area": float(self.linear_min_area_dense),
             "linear_min_aspect_ratio": float(np.min(self.linear_min_aspect_ratio)),
             "linear_inverts": bool(self.linear_min_area_dense <= 0),
+            "rigid_min_aspect_ratio": (None if self.rigid_min_aspect_ratio is None
+                                       else float(np.min(self.rigid_min_aspect_ratio))),
+            "rigid_inverts": (None if self.rigid_min_area is None
+                              else bool(np.min(self.rigid_min_area) <= 0)),
             "length": float(self.length),
             "shooting_residual": None if self.log is None else float(self.log.residual),
             "shooting_iterations": None if self.log is None else int(self.log.iterations),
@@ -945,6 +955,7 @@ def geodesic_morph(
         ``method="shooting"`` and the shooting does not converge.
     """
     from .geodesics import geodesic
+    from .interpolation import arap_interpolation
     from .metrics import CompleteMetric
     from .penalties import QualityPenalty
 
@@ -991,10 +1002,12 @@ def geodesic_morph(
     adm = np.array([bool(a > 0) and np.isfinite(pen.value(p)) for a, p in zip(area, pts)])
     lin = linear_morph(Q0, Q1, times)
     lar, larea = _frame_stats(lin, src.triangles)
+    rar, rarea = _frame_stats(arap_interpolation(Q0, Q1, src.triangles, times), src.triangles)
     dense = linear_morph(Q0, Q1, np.linspace(0.0, 1.0, 201))
     lmin = float(min(signed_areas(p, src.triangles).min() for p in dense))
     return MorphResult(pts, times, src.triangles, used, target_error, ar, area, adm, lar, larea,
-                       lmin, float(length), log, dg, time.perf_counter() - start)
+                       lmin, float(length), log, dg, time.perf_counter() - start,
+                       rar, rarea)
 
 
 def twisted(mesh: PlanarMesh, degrees: float = 225.0, power: float = 2.0,

@@ -241,11 +241,13 @@ def save_quality_plot(
     title: str | None = None,
     size: tuple[float, float] = (6.0, 4.0),
     dpi: int = 120,
+    yscale: str = "linear",
 ) -> Path:
     """Quality over time, one line per labelled series (thesis fig. 5.26).
 
     ``series`` maps a label to values (K,) at ``times`` (K,) (or ``(times_k, values_k)``
-    pairs when the series have different times).
+    pairs when the series have different times). ``yscale="symlog"`` shows values over
+    several decades of either sign (linear below the smallest nonzero |value|).
     """
     fig = _figure(*size)
     fig.dpi = dpi
@@ -258,6 +260,13 @@ def save_quality_plot(
         ax.plot(np.asarray(t), np.asarray(y), marker="o", markersize=3, label=label)
     ax.set_xlabel("t")
     ax.set_ylabel(ylabel)
+    if yscale == "symlog":
+        values = np.concatenate([np.ravel(v[1] if isinstance(v, tuple) else v)
+                                 for v in series.values()])
+        nonzero = np.abs(values[np.isfinite(values) & (values != 0)])
+        ax.set_yscale("symlog", linthresh=float(nonzero.min()) if nonzero.size else 1.0)
+    elif yscale != "linear":
+        ax.set_yscale(yscale)
     ax.axhline(0.0, color="0.7", linewidth=0.8)
     ax.grid(True, alpha=0.3)
     ax.legend()
@@ -332,13 +341,16 @@ def save_morph_figures(result, strip_path, quality_path, max_panels: int = 9) ->
     idx = np.unique(np.round(np.linspace(0, K - 1, min(K, max_panels))).astype(int))
     strip = save_snapshot_strip(
         strip_path, result.points[idx], result.triangles, ncols=len(idx),
-        titles=[f"t = {result.times[k]:.2f}, AR {result.min_aspect_ratio[k]:.3f}" for k in idx],
+        titles=[f"t = {result.times[k]:.2f}, AR {result.min_aspect_ratio[k]:.2g}" for k in idx],
     )
+    series = {f"geodesic ({result.method})": result.min_aspect_ratio,
+              "linear interpolation": result.linear_min_aspect_ratio}
+    if getattr(result, "rigid_min_aspect_ratio", None) is not None:
+        series["as-rigid-as-possible"] = result.rigid_min_aspect_ratio
     quality = save_quality_plot(
-        quality_path, result.times,
-        {f"geodesic ({result.method})": result.min_aspect_ratio,
-         "linear interpolation": result.linear_min_aspect_ratio},
+        quality_path, result.times, series,
         ylabel="min aspect ratio 2r/R (signed; < 0: inverted)",
-        title="geodesic morph vs linear interpolation",
+        title="geodesic morph vs interpolation",
+        yscale="symlog",
     )
     return strip, quality

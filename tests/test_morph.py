@@ -12,6 +12,7 @@ from meshopt_toolkit.datasets import data_path
 from meshopt_toolkit.errors import InvalidMeshError, NotAdmissibleError
 from meshopt_toolkit.geodesics import exp_map, geodesic
 from meshopt_toolkit.geometry import aspect_ratios, signed_areas
+from meshopt_toolkit.interpolation import arap_interpolation
 from meshopt_toolkit.mesh import PlanarMesh, check_mesh
 from meshopt_toolkit.metrics import CompleteMetric
 from meshopt_toolkit.morph import (
@@ -158,6 +159,11 @@ def test_twist_morph_is_admissible_and_reaches_the_target(disc, twist_morph):
     assert res.linear_min_area_dense < 0
     s = res.summary()
     assert s["admissible"] and s["linear_inverts"] and s["target_error"] == 0.0
+    # the as-rigid-as-possible comparison at the same times
+    rigid = arap_interpolation(disc.points, Q1, disc.triangles, res.times)
+    assert np.allclose(res.rigid_min_aspect_ratio,
+                       [aspect_ratios(p, disc.triangles).min() for p in rigid])
+    assert s["rigid_inverts"] is False and s["rigid_min_aspect_ratio"] > 0
     # the frames are (close to) equally spaced in the graph metric: a discrete geodesic
     pen = QualityPenalty(disc, beta=(1, 1, 0, 1))
     f = np.array([pen.value(p) for p in res.discrete.points])
