@@ -57,8 +57,9 @@ def rotation_angles(Q0: FloatArray, Q1: FloatArray, triangles: IntArray) -> tupl
     Returns
     -------
     theta : (T,) rotation angle of each triangle's affine map, continuous across edges
-        (neighbours differ by less than π; each connected part's first triangle keeps its
-        angle in (−π, π])
+        (neighbours differ by less than π); in each connected part the least rotated
+        triangle keeps its angle in (−π, π] (on a twist with a clamped boundary: a boundary
+        triangle, so the boundary does not spin by a full turn)
     stretch : (T, 2, 2) symmetric factors ``S_t`` with ``A_t = R(θ_t) S_t``
     """
     A = _edge_matrices(Q1, triangles) @ np.linalg.inv(_edge_matrices(Q0, triangles))
@@ -69,8 +70,10 @@ def rotation_angles(Q0: FloatArray, Q1: FloatArray, triangles: IntArray) -> tupl
     stretch = 0.5 * (stretch + stretch.transpose(0, 2, 1))
     graph = _dual_graph(triangles)
     theta = wrapped.copy()
-    _, labels = connected_components(graph, directed=False)
-    for root in np.unique(labels, return_index=True)[1]:
+    n_parts, labels = connected_components(graph, directed=False)
+    for part in range(n_parts):
+        members = np.flatnonzero(labels == part)
+        root = int(members[np.argmin(np.abs(wrapped[members]))])
         order, parent = breadth_first_order(graph, root, directed=False)
         depth = shortest_path(graph, unweighted=True, indices=root)[order].astype(np.int64)
         for d in range(1, int(depth.max()) + 1):  # a BFS parent is one level up

@@ -60,6 +60,11 @@ def test_twist_angles_are_unwrapped_and_frames_admissible():
     assert all(signed_areas(p, disc.triangles).min() > 0 for p in P)
     b = disc.boundary_vertices
     assert np.array_equal(P[:, b], np.broadcast_to(disc.points[b], P[:, b].shape))
+    # the same angles whatever the triangle order (the anchor is the least rotated one),
+    # also with the most rotated triangle (beyond π) first
+    perm = np.argsort(-theta)
+    theta_perm, _ = rotation_angles(disc.points, Q1, disc.triangles[perm])
+    assert np.allclose(theta_perm, theta[perm])
 
 
 def test_refuses_nothing_and_keeps_fixed_vertices():
