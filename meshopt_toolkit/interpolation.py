@@ -51,7 +51,9 @@ def _dual_graph(triangles: IntArray) -> sp.csr_matrix:
     return sp.coo_matrix((np.ones(2 * len(a)), (np.r_[a, b], np.r_[b, a])), shape=(T, T)).tocsr()
 
 
-def rotation_angles(Q0: FloatArray, Q1: FloatArray, triangles: IntArray) -> tuple[FloatArray, FloatArray]:
+def rotation_angles(
+    Q0: FloatArray, Q1: FloatArray, triangles: IntArray
+) -> tuple[FloatArray, FloatArray]:
     """Unwrapped rotation angles and stretches of the per-triangle maps ``Q0 → Q1``.
 
     Returns
