@@ -53,6 +53,35 @@ def signed_areas(points: FloatArray, triangles: IntArray) -> FloatArray:
     return ax
 
 
+def min_signed_areas_on_segment(
+    start: FloatArray, end: FloatArray, triangles: IntArray
+) -> FloatArray:
+    """Smallest signed area of each triangle along ``(1 − s)·start + s·end``, s ∈ [0, 1].
+
+    Along a straight segment every signed area is a quadratic ``a + b s + c s²`` in s
+    (the cross product of two edge vectors linear in s), so its minimum over [0, 1] is
+    exact: the smaller end value, or the vertex ``−b/(2c)`` when ``c > 0`` and it lies
+    inside. All positive means that no triangle inverts or collapses between the two
+    configurations. Returns (T,).
+    """
+    x0, y0 = _gather_xy(start, triangles)
+    x1, y1 = _gather_xy(end, triangles)
+    ux, uy, vx, vy = x0[1] - x0[0], y0[1] - y0[0], x0[2] - x0[0], y0[2] - y0[0]
+    dux = (x1[1] - x1[0]) - ux
+    duy = (y1[1] - y1[0]) - uy
+    dvx = (x1[2] - x1[0]) - vx
+    dvy = (y1[2] - y1[0]) - vy
+    a = 0.5 * (ux * vy - uy * vx)
+    b = 0.5 * (ux * dvy - uy * dvx + dux * vy - duy * vx)
+    c = 0.5 * (dux * dvy - duy * dvx)
+    low = np.minimum(a, a + b + c)
+    positive = c > 0
+    s = np.zeros_like(c)
+    np.divide(-b, 2.0 * c, out=s, where=positive)
+    inside = positive & (s > 0) & (s < 1)
+    return np.where(inside, np.minimum(low, a + b * s + c * s * s), low)
+
+
 def _gather_xy(points: FloatArray, triangles: IntArray) -> tuple[FloatArray, FloatArray]:
     """Vertex coordinates of every triangle as two ``(3, T)`` arrays ``x``, ``y``.
 

@@ -73,7 +73,7 @@ import numpy as np
 from ._linalg import dot as _dot
 from ._typing import FloatArray
 from .errors import IntegrationError, InvalidMeshError, NotAdmissibleError
-from .geometry import aspect_ratios, signed_areas
+from .geometry import aspect_ratios, min_signed_areas_on_segment, signed_areas
 from .mesh import PlanarMesh
 
 logger = logging.getLogger(__name__)
@@ -205,6 +205,9 @@ class MorphResult:
         interpolation (:func:`~.interpolation.arap_interpolation`) at the same times: no
         guarantee of admissibility, but often far from degenerate where the geodesic of
         ``g = I + ∇f∇fᵀ`` squeezes triangles (the metric only resists motion along ∇f)
+    between_frames_min_area : (K − 1,) exact smallest signed area along the straight
+        segment between consecutive frames (:func:`~.geometry.min_signed_areas_on_segment`):
+        all positive means that linear in-betweening of the frames never inverts either
     """
 
     points: FloatArray
@@ -224,6 +227,7 @@ class MorphResult:
     seconds: float = 0.0
     rigid_min_aspect_ratio: FloatArray | None = None
     rigid_min_area: FloatArray | None = None
+    between_frames_min_area: FloatArray | None = None
 
     @property
     def n_frames(self) -> int:
@@ -254,6 +258,9 @@ class MorphResult:
                                        else float(np.min(self.rigid_min_aspect_ratio))),
             "rigid_inverts": (None if self.rigid_min_area is None
                               else bool(np.min(self.rigid_min_area) <= 0)),
+            "inversion_free_between_frames": (
+                None if self.between_frames_min_area is None
+                else bool(np.min(self.between_frames_min_area) > 0)),
             "length": float(self.length),
             "shooting_residual": None if self.log is None else float(self.log.residual),
             "shooting_iterations": None if self.log is None else int(self.log.iterations),
@@ -1006,11 +1013,13 @@ def geodesic_morph(
     lar, larea = _frame_stats(lin, src.triangles)
     rigid = arap_interpolation(Q0, Q1, src.triangles, times)
     rar, rarea = _frame_stats(rigid, src.triangles)
+    between = np.array([min_signed_areas_on_segment(pts[k], pts[k + 1], src.triangles).min()
+                        for k in range(len(pts) - 1)])
     dense = linear_morph(Q0, Q1, np.linspace(0.0, 1.0, 201))
     lmin = float(min(signed_areas(p, src.triangles).min() for p in dense))
     return MorphResult(pts, times, src.triangles, used, target_error, ar, area, adm, lar, larea,
                        lmin, float(length), log, dg, time.perf_counter() - start,
-                       rar, rarea)
+                       rar, rarea, between)
 
 
 def twisted(mesh: PlanarMesh, degrees: float = 225.0, power: float = 2.0,

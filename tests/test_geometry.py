@@ -303,3 +303,24 @@ def test_measures_follow_vertex_permutation(perm):
     # angle at local vertex l is the angle at point perm[l]
     np.testing.assert_allclose(angles(p, t)[0], angles(p, ONE)[0][perm], rtol=1e-14)
     np.testing.assert_allclose(edge_lengths(p, t)[0], edge_lengths(p, ONE)[0][perm], rtol=1e-14)
+
+
+def test_min_signed_areas_on_segment_is_exact(rng):
+    from meshopt_toolkit.geometry import min_signed_areas_on_segment
+
+    tri = np.array([[0, 1, 2]])
+    P0 = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    # a half turn about the centroid: positive at both ends, zero area halfway
+    c = P0.mean(axis=0)
+    P1 = 2 * c - P0
+    assert signed_areas(P1, tri)[0] == pytest.approx(0.5)
+    assert min_signed_areas_on_segment(P0, P1, tri)[0] == pytest.approx(0.0, abs=1e-15)
+    # random segments against dense sampling (which can only see a larger minimum)
+    pts0 = rng.normal(size=(40, 2))
+    pts1 = rng.normal(size=(40, 2))
+    tris = rng.integers(0, 40, size=(200, 3))
+    exact = min_signed_areas_on_segment(pts0, pts1, tris)
+    s = np.linspace(0, 1, 4001)[:, None, None]
+    sampled = np.min([signed_areas(p, tris) for p in (1 - s) * pts0 + s * pts1], axis=0)
+    assert np.all(exact <= sampled + 1e-12)
+    assert np.allclose(exact, sampled, atol=1e-6)

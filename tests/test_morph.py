@@ -164,6 +164,13 @@ def test_twist_morph_is_admissible_and_reaches_the_target(disc, twist_morph):
     assert np.allclose(res.rigid_min_aspect_ratio,
                        [aspect_ratios(p, disc.triangles).min() for p in rigid])
     assert s["rigid_inverts"] is False and s["rigid_min_aspect_ratio"] > 0
+    # straight in-betweens of consecutive frames: checked against dense sampling
+    sub = np.linspace(0, 1, 101)[:, None, None]
+    for k, low in enumerate(res.between_frames_min_area):
+        a, b = res.points[k], res.points[k + 1]
+        sampled = min(signed_areas(p, disc.triangles).min() for p in (1 - sub) * a + sub * b)
+        assert low <= sampled + 1e-15 and low >= sampled - 1e-3 * abs(sampled)
+    assert s["inversion_free_between_frames"] == bool(res.between_frames_min_area.min() > 0)
     # the frames are (close to) equally spaced in the graph metric: a discrete geodesic
     pen = QualityPenalty(disc, beta=(1, 1, 0, 1))
     f = np.array([pen.value(p) for p in res.discrete.points])
