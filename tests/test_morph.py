@@ -9,7 +9,7 @@ import pytest
 from conftest import grid_mesh
 
 from meshopt_toolkit.datasets import data_path
-from meshopt_toolkit.errors import InvalidMeshError, NotAdmissibleError
+from meshopt_toolkit.errors import IntegrationError, InvalidMeshError, NotAdmissibleError
 from meshopt_toolkit.geodesics import exp_map, geodesic
 from meshopt_toolkit.geometry import aspect_ratios, signed_areas
 from meshopt_toolkit.interpolation import arap_interpolation
@@ -353,3 +353,16 @@ def test_filter_through_json_and_mlx_pipelines(kind, tmp_path):
     assert np.allclose(doc.entries[2].mesh.points[:, :2], mesh.points)
     assert np.allclose(doc.mesh.points[:, :2], bend(mesh))
     assert doc.results[-1]["admissible"]
+
+
+def test_auto_method_shoots_or_falls_back():
+    mesh = grid_mesh(4, jitter=0.3)
+    B = mesh.with_points(bend(mesh, 0.12))
+    shot = geodesic_morph(mesh, B, frames=3, method="auto")
+    assert shot.method == "shooting" and shot.log.success
+    assert shot.target_error <= 1e-8 * mesh.diameter
+    starved = geodesic_morph(mesh, B, frames=3, method="auto", max_exp=1)
+    assert starved.method == "discrete" and not starved.log.success
+    assert starved.summary()["shooting_residual"] > 0
+    with pytest.raises(IntegrationError):
+        geodesic_morph(mesh, B, frames=3, method="shooting", max_exp=1)
