@@ -622,7 +622,10 @@ class Penalty:
         """
         key = hashlib.blake2b(Q[self._boundary_vertices].tobytes(), digest_size=16).digest()
         if key in self._simple_boundaries:
-            self._simple_boundaries.move_to_end(key)
+            try:
+                self._simple_boundaries.move_to_end(key)
+            except KeyError:  # evicted meanwhile by another thread: still simple
+                pass
             return None
         problem = self._boundary_test(Q)
         if problem is None:
