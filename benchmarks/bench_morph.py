@@ -5,11 +5,14 @@
    the time of ONE ``exp_map`` of the same metric along the morph's own initial velocity,
    measured side by side in this process: the issue asks for at most 100 exp_map calls.
 2. Growth with mesh size: the same twist on the bundled discs and uniform refinements up to
-   ``--max-triangles`` triangles; time, Newton iterations, penalty calls and time per
-   penalty call (the unit of work).
+   ``--max-triangles`` triangles; time, Newton iterations and why they stopped, penalty
+   calls, the time of one ``value_and_gradient`` (ms/call, the unit of work), the morph's
+   time per penalty call in those units (s/call), and the smallest aspect ratio of the
+   geodesic's nodes. The 100k-triangle row takes tens of minutes: cap it with
+   ``--max-iter`` and run it alone with ``--skip-twist --min-triangles 100000``.
 
 Usage: ``python benchmarks/bench_morph.py [--max-triangles 110000] [--repeat 3]
-[--max-iter 500] [--skip-twist]``
+[--max-iter 500] [--min-triangles 0] [--skip-twist]``
 """
 
 from __future__ import annotations
