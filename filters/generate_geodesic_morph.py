@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from meshopt_toolkit.errors import FilterError, MeshoptError
 from meshopt_toolkit.pipeline.filter import Filter, register
-from meshopt_toolkit.pipeline.params import EnumParam, FloatParam, IntParam
+from meshopt_toolkit.pipeline.params import BoolParam, EnumParam, FloatParam, IntParam
 
 METHODS = ("discrete", "shooting", "auto")
 
@@ -39,13 +39,15 @@ class GenerateGeodesicMorph(Filter):
                    min=0.0),
         FloatParam("beta4", 1.0, "f2 weight of the distance to the source (unscaled)",
                    label="beta4", min=0.0),
+        BoolParam("normalize", True, "metric of √N·f2 (motion counted per vertex) instead "
+                  "of f2", label="Normalize"),
         EnumParam("method", METHODS[0], "discrete geodesic, shooting geodesic, or shooting "
                   "with a fallback", label="Method", choices=METHODS),
     )
 
     def apply(self, document, *, source: int = 0, target: int = -1, frames: int = 9,
               beta1: float = 1.0, beta2: float = 1.0, beta3: float = 0.0, beta4: float = 1.0,
-              method: str = METHODS[0]) -> dict:
+              normalize: bool = True, method: str = METHODS[0]) -> dict:
         from meshopt_toolkit.geometry import aspect_ratios
         from meshopt_toolkit.morph import geodesic_morph
 
@@ -60,7 +62,8 @@ class GenerateGeodesicMorph(Filter):
                 raise FilterError(f"{self.name}: the {what} mesh is not planar")
         try:
             result = geodesic_morph(src.as_planar(), tgt.as_planar(), frames=frames,
-                                    beta=(beta1, beta2, beta3, beta4), method=method)
+                                    beta=(beta1, beta2, beta3, beta4), normalize=normalize,
+                                    method=method)
         except MeshoptError as exc:
             raise FilterError(f"{self.name}: {exc}") from None
         width = max(3, len(str(frames - 1)))

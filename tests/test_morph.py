@@ -24,6 +24,7 @@ from meshopt_toolkit.morph import (
     geodesic_morph,
     initial_path,
     log_map,
+    morph_metric,
     twisted,
 )
 from meshopt_toolkit.penalties import HeightPenalty, QualityPenalty
@@ -172,7 +173,9 @@ def test_twist_morph_is_admissible_and_reaches_the_target(disc, twist_morph):
         assert low <= sampled + 1e-15 and low >= sampled - 1e-3 * abs(sampled)
     assert s["inversion_free_between_frames"] == bool(res.between_frames_min_area.min() > 0)
     # the frames are (close to) equally spaced in the graph metric: a discrete geodesic
-    pen = QualityPenalty(disc, beta=(1, 1, 0, 1))
+    pen = morph_metric(disc).penalty  # √N·f2 (default normalization)
+    assert np.allclose(pen.beta, np.sqrt(disc.n_vertices) * np.array(DEFAULT_BETA))
+    assert s["metric_scale"] == pytest.approx(np.sqrt(disc.n_vertices))
     f = np.array([pen.value(p) for p in res.discrete.points])
     seg = np.sqrt(np.sum(np.diff(res.discrete.points, axis=0) ** 2, axis=(1, 2)) + np.diff(f) ** 2)
     assert seg.max() / seg.min() < 1.5
@@ -366,3 +369,20 @@ def test_auto_method_shoots_or_falls_back():
     assert starved.summary()["shooting_residual"] > 0
     with pytest.raises(IntegrationError):
         geodesic_morph(mesh, B, frames=3, method="shooting", max_exp=1)
+
+
+def test_normalized_metric_keeps_a_half_turn_rigid(disc):
+    # a half turn: straight lines collapse the mesh to a point at t = 1/2; the plain metric
+    # of f2 stays close to them on a 146-vertex mesh, the metric of √N·f2 turns it
+    target = disc.with_points(-disc.points)
+    normalized = geodesic_morph(disc, target, frames=5)
+    plain = geodesic_morph(disc, target, frames=5, normalize=False)
+    assert normalized.admissible.all() and plain.admissible.all()
+    assert normalized.summary()["metric_scale"] == pytest.approx(np.sqrt(disc.n_vertices))
+    assert plain.summary()["metric_scale"] == 1.0
+    assert normalized.min_aspect_ratio.min() > 0.05 > 0.01 > plain.min_aspect_ratio.min()
+    # the middle frame: shrunk far less (rms radius of the source 0.77)
+    def rms(P):
+        return np.sqrt(np.mean(np.sum(P**2, axis=1)))
+
+    assert rms(normalized.points[2]) > 1.5 * rms(plain.points[2])

@@ -32,6 +32,9 @@ def add_args(p: argparse.ArgumentParser) -> None:
                    default=DEFAULT_BETA,
                    help="f2 coefficients of the complete metric, β4 unscaled "
                         f"(default: {','.join(f'{b:g}' for b in DEFAULT_BETA)})")
+    p.add_argument("--no-normalize", action="store_true",
+                   help="use the plain complete metric of f2 instead of that of √N·f2 "
+                        "(which keeps the balance between motion and quality on fine meshes)")
     p.add_argument("--method", choices=("discrete", "shooting", "auto"), default="discrete",
                    help="frames from the discrete geodesic, the shooting geodesic, or shooting "
                         "with a fallback (default: %(default)s)")
@@ -68,6 +71,7 @@ def run(args: argparse.Namespace) -> int:
     # the Newton iteration usually stops well before --max-iter (energy stationary)
     with ProgressBar(args.max_iter, "morph") as bar:
         result = geodesic_morph(source, target, frames=args.frames, beta=args.beta,
+                                normalize=not args.no_normalize,
                                 method=args.method, max_iter=args.max_iter,
                                 callback=lambda nit, E, g: bar.update(status=f"E={E:.8g}"))
     base = source.as_planar()
