@@ -34,7 +34,8 @@ to the graph of ``f`` in ``R^{2N+1}`` with the Euclidean metric. Three stages:
    exponential map, GMRES, step halving when the residual grows.
 
 Measured (``benchmarks/bench_morph.py``): stage 2 is robust and cheap — the 225° twist of
-the 146-vertex disc takes about 10 exp_map calls' worth of time — and converges to the
+the 146-vertex disc takes about 17 exp_map calls' worth of time (4.5 s), the twist of a
+107k-triangle disc 31 s — and converges to the
 shooting geodesic at second order in ``1/K`` (tested). Stage 3 meets 1e-8·diameter on
 moderate deformations (tested round trips) but not on the 225° twist, where the geodesic
 passes triangles of aspect ratio ~5e-4 and the exponential map is strongly nonlinear: one
@@ -410,8 +411,8 @@ def initial_path(
     triangle rotations and stretches interpolated, one Poisson solve per frame) if every
     frame has a finite penalty — on the twisted discs its frames keep a minimum aspect
     ratio above 0.03 where the flow below squeezes triangles flat (on the 2198-vertex twist
-    :func:`discrete_geodesic` reached a lower energy from it in 308 Newton iterations than
-    from the flow in 500). Otherwise the gradient flow of ``F(Q) = ½|Q − Q1|²`` for the
+    with the plain metric of f2, :func:`discrete_geodesic` reached a lower energy from it in
+    308 Newton iterations than from the flow in 500). Otherwise the gradient flow of ``F(Q) = ½|Q − Q1|²`` for the
     complete metric of ``c·f`` (explicit Euler steps, each accepted only if ``f`` stays
     finite and changes by less than 10 %), which slides along the barrier instead of
     crossing it — with ``c`` = 1, 4, 16, 64 in turn until one flow arrives (a weak metric
