@@ -36,8 +36,8 @@ to the graph of ``f`` in ``R^{2N+1}`` with the Euclidean metric. Three stages:
 Measured (``benchmarks/bench_morph.py``): stage 2 is robust and cheap — the 225° twist of
 the 146-vertex disc takes about 17 exp_map calls' worth of time (4.5 s), the twist of a
 107k-triangle disc 31 s — and converges to the shooting geodesic at second order in
-``1/K`` (tested). Stage 3 meets 1e-8·diameter on moderate deformations (tested round trips) but not on the 225° twist, where the geodesic
-passes triangles of aspect ratio ~5e-4 and the exponential map is strongly nonlinear: one
+``1/K`` (tested). Stage 3 meets 1e-8·diameter on moderate deformations (tested round
+trips) but not on the 225° twist, where the geodesic passes triangles of aspect ratio ~5e-4 and the exponential map is strongly nonlinear: one
 exponential map at ``rtol = 1e-10`` takes ~0.6 s (3300 penalty calls), the integration is
 accurate (1.5e-9 from ``rtol = 1e-13``) and the Jacobian only moderately ill-conditioned
 (GMRES: 14–24 products for 1e-3), but a full Newton step raises the residual 7-fold and
