@@ -31,7 +31,7 @@ __all__ = [
 ]
 
 
-def _figure(width: float, height: float):
+def _figure(width: float, height: float, dpi: int):
     """A new Agg-backed ``Figure`` (lazy import; a clear error when matplotlib is missing)."""
     try:
         from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -40,7 +40,7 @@ def _figure(width: float, height: float):
         raise MeshoptError(
             "plotting needs matplotlib: pip install 'meshopt-toolkit[plot]'"
         ) from exc
-    fig = Figure(figsize=(width, height))
+    fig = Figure(figsize=(width, height), dpi=dpi)
     FigureCanvasAgg(fig)
     return fig
 
@@ -119,8 +119,7 @@ def save_mesh_png(
     dpi: int = 120,
 ) -> Path:
     """One mesh (optionally with a velocity field) as a PNG."""
-    fig = _figure(size, size)
-    fig.dpi = dpi
+    fig = _figure(size, size, dpi)
     ax = fig.add_subplot(1, 1, 1)
     draw_mesh(ax, points, triangles, velocity=velocity)
     frames = np.asarray(points, float)[None]
@@ -155,8 +154,7 @@ def save_snapshot_strip(
     K = len(frames)
     ncols = min(K, ncols or 6)
     nrows = -(-K // ncols)
-    fig = _figure(panel_size * ncols, panel_size * nrows + (0.3 if titles else 0))
-    fig.dpi = dpi
+    fig = _figure(panel_size * ncols, panel_size * nrows + (0.3 if titles else 0), dpi)
     xl, yl = _limits(frames)
     for k in range(K):
         ax = fig.add_subplot(nrows, ncols, k + 1)
@@ -195,8 +193,7 @@ def save_overlay(
     dpi: int = 120,
 ) -> Path:
     """All snapshots of a path in one axes: initial red, final blue, between grey."""
-    fig = _figure(size, size)
-    fig.dpi = dpi
+    fig = _figure(size, size, dpi)
     ax = fig.add_subplot(1, 1, 1)
     _overlay(ax, np.asarray(frames, float), triangles)
     if title:
@@ -219,8 +216,7 @@ def save_overlay_grid(
     n = len(panels)
     ncols = min(ncols, n)
     nrows = -(-n // ncols)
-    fig = _figure(panel_size * ncols, panel_size * nrows + (0.4 if suptitle else 0))
-    fig.dpi = dpi
+    fig = _figure(panel_size * ncols, panel_size * nrows + (0.4 if suptitle else 0), dpi)
     for k, (frames, title) in enumerate(panels):
         ax = fig.add_subplot(nrows, ncols, k + 1)
         _overlay(ax, np.asarray(frames, float), triangles)
@@ -249,8 +245,7 @@ def save_quality_plot(
     pairs when the series have different times). ``yscale="symlog"`` shows values over
     several decades of either sign (linear below the smallest nonzero |value|).
     """
-    fig = _figure(*size)
-    fig.dpi = dpi
+    fig = _figure(*size, dpi)
     ax = fig.add_subplot(1, 1, 1)
     for label, vals in series.items():
         if isinstance(vals, tuple):
@@ -296,8 +291,7 @@ def save_optimization_plots(
     """
     initial = np.asarray(initial, float)
     final = np.asarray(final, float)
-    fig = _figure(10.0, 4.6)
-    fig.dpi = dpi
+    fig = _figure(10.0, 4.6, dpi)
     xl, yl = _limits(np.stack([initial, final]), margin=0.08)
     for k, (pts, title) in enumerate([(initial, "initial mesh"), (final, "optimized mesh")]):
         ax = fig.add_subplot(1, 2, k + 1)
@@ -315,8 +309,7 @@ def save_optimization_plots(
     first = _save(fig, mesh_path)
 
     it = np.asarray(history["iteration"])
-    fig = _figure(7.0, 4.2)
-    fig.dpi = dpi
+    fig = _figure(7.0, 4.2, dpi)
     ax = fig.add_subplot(1, 1, 1)
     ax.plot(it, history["j"], color="tab:blue", label="j = ∫y")
     if not np.allclose(history["objective"], history["j"]):
