@@ -28,6 +28,7 @@ from scipy.sparse.csgraph import breadth_first_order, connected_components, shor
 from scipy.sparse.linalg import splu
 
 from ._typing import FloatArray, IntArray
+from .elasticity import p1_gradients
 from .fem import p1_stiffness
 
 __all__ = ["arap_interpolation", "rotation_angles"]
@@ -37,6 +38,12 @@ def _edge_matrices(points: FloatArray, triangles: IntArray) -> FloatArray:
     """(T, 2, 2) matrices with columns ``q1 − q0`` and ``q2 − q0``."""
     p = points[triangles]
     return np.stack([p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]], axis=2)
+
+
+def _rotations(theta: FloatArray) -> FloatArray:
+    """(T, 2, 2) rotation matrices ``R(θ_t)``."""
+    c, s = np.cos(theta), np.sin(theta)
+    return np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], 1)
 
 
 def _dual_graph(triangles: IntArray) -> sp.csr_matrix:
@@ -66,9 +73,7 @@ def rotation_angles(
     """
     A = _edge_matrices(Q1, triangles) @ np.linalg.inv(_edge_matrices(Q0, triangles))
     wrapped = np.arctan2(A[:, 1, 0] - A[:, 0, 1], A[:, 0, 0] + A[:, 1, 1])
-    c, s = np.cos(wrapped), np.sin(wrapped)
-    Rt = np.stack([np.stack([c, s], -1), np.stack([-s, c], -1)], 1)  # R(θ)ᵀ
-    stretch = Rt @ A
+    stretch = _rotations(wrapped).transpose(0, 2, 1) @ A  # R(θ)ᵀ A
     stretch = 0.5 * (stretch + stretch.transpose(0, 2, 1))
     graph = _dual_graph(triangles)
     theta = wrapped.copy()
@@ -105,10 +110,7 @@ def arap_interpolation(Q0: FloatArray, Q1: FloatArray, triangles: IntArray, time
     times = np.atleast_1d(np.asarray(times, dtype=np.float64))
     N = len(Q0)
     theta, stretch = rotation_angles(Q0, Q1, triangles)
-    E0inv = np.linalg.inv(_edge_matrices(Q0, triangles))
-    # gradients of the hat functions: rows of E0⁻¹ give ∇φ1, ∇φ2; ∇φ0 = −∇φ1 − ∇φ2
-    grads = np.stack([-E0inv[:, 0] - E0inv[:, 1], E0inv[:, 0], E0inv[:, 1]], axis=1)  # (T, 3, 2)
-    area = 0.5 * np.abs(np.linalg.det(_edge_matrices(Q0, triangles)))
+    grads, area = p1_gradients(Q0, triangles)  # (T, 3, 2) hat-function gradients, areas
     K = p1_stiffness(Q0, triangles).tocsr()
     fixed = np.flatnonzero(np.all(Q0 == Q1, axis=1))
     pinned_still = fixed.size > 0
@@ -124,9 +126,7 @@ def arap_interpolation(Q0: FloatArray, Q1: FloatArray, triangles: IntArray, time
     rows = triangles.ravel()
     eye = np.eye(2)
     for k, s in enumerate(times):
-        c, sn = np.cos(s * theta), np.sin(s * theta)
-        R = np.stack([np.stack([c, -sn], -1), np.stack([sn, c], -1)], 1)
-        J = R @ ((1.0 - s) * eye + s * stretch)  # (T, 2, 2): row i = target gradient of coord i
+        J = _rotations(s * theta) @ ((1.0 - s) * eye + s * stretch)  # (T, 2, 2): row i = target gradient of coord i
         # load b_a = Σ_t A_t J_t ∇φ_a (per coordinate)
         contrib = area[:, None, None] * np.einsum("tij,taj->tai", J, grads)  # (T, 3, 2)
         contrib = contrib.reshape(-1, 2)
