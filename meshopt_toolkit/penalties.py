@@ -193,6 +193,15 @@ def _edges(qx: FloatArray, qy: FloatArray, tri_t: IntArray) -> tuple[FloatArray,
     return ex, ey
 
 
+def _re_dot(a: np.ndarray, b: np.ndarray, scale: float = 1.0) -> FloatArray:
+    """``scale · Re(a · conj b)`` elementwise for complex arrays (one temporary)."""
+    out = a.real * b.real
+    out += a.imag * b.imag
+    if scale != 1.0:
+        out *= scale
+    return out
+
+
 def _area(ex: FloatArray, ey: FloatArray) -> FloatArray:
     """Signed areas ``A = ½ det[e2, e0]`` (e2 = q1 − q0, e0 = q2 − q1), (4.2). ``(b,)``."""
     return 0.5 * (ex[2] * ey[0] - ey[2] * ex[0])
@@ -794,10 +803,8 @@ class Penalty:
             return h + b, h - b
 
         p, m = transform(Q)
-        P = p.real * p.real
-        P += p.imag * p.imag
-        M = m.real * m.real
-        M += m.imag * m.imag
+        P = _re_dot(p, p)
+        M = _re_dot(m, m)
         D = M - P
         if not D.min() > 0:
             return False
@@ -824,18 +831,10 @@ class Penalty:
             acc.grad += g.view(np.float64).reshape(-1, 2)
         if V is not None and want.curvature:
             pv, mv = transform(V)
-            P1 = p.real * pv.real
-            P1 += p.imag * pv.imag
-            P1 *= 2.0
-            M1 = m.real * mv.real
-            M1 += m.imag * mv.imag
-            M1 *= 2.0
-            P2 = pv.real * pv.real
-            P2 += pv.imag * pv.imag
-            P2 *= 2.0
-            M2 = mv.real * mv.real
-            M2 += mv.imag * mv.imag
-            M2 *= 2.0
+            P1 = _re_dot(p, pv, 2.0)
+            M1 = _re_dot(m, mv, 2.0)
+            P2 = _re_dot(pv, pv, 2.0)
+            M2 = _re_dot(mv, mv, 2.0)
             first = M * P2
             first -= P * M2
             second = M * P1
