@@ -205,8 +205,9 @@ class MorphResult:
     admissible : (K,) every signed area > 0 and the penalty finite
     linear_min_aspect_ratio, linear_min_area : (K,) the same for linear interpolation
         ``(1 − t) Q0 + t Q1`` at the same times (negative area = inverted)
-    linear_min_area_dense : smallest signed area of linear interpolation over a fine grid
-        of 201 times (the linear path may invert between frames)
+    linear_min_area_dense : smallest signed area of linear interpolation over the whole
+        segment from source to target, exact (:func:`~.geometry.min_signed_areas_on_segment`;
+        the linear path may invert between frames)
     length : geodesic length (``|V|_g`` for shooting, polygon length for discrete)
     log : the LogMapResult of the shooting (None when not attempted)
     discrete : the DiscreteGeodesic used
@@ -1051,8 +1052,7 @@ def geodesic_morph(
     rar, rarea = _frame_stats(rigid, src.triangles)
     between = np.array([min_signed_areas_on_segment(pts[k], pts[k + 1], src.triangles).min()
                         for k in range(len(pts) - 1)])
-    dense = linear_morph(Q0, Q1, np.linspace(0.0, 1.0, 201))
-    lmin = float(min(signed_areas(p, src.triangles).min() for p in dense))
+    lmin = float(min_signed_areas_on_segment(Q0, Q1, src.triangles).min())
     return MorphResult(pts, times, src.triangles, used, target_error, ar, area, adm, lar, larea,
                        lmin, float(length), log, dg, time.perf_counter() - start,
                        rar, rarea, between, scale)
