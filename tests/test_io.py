@@ -12,6 +12,7 @@ import pytest
 from conftest import grid_mesh
 
 from meshopt_toolkit import io
+from meshopt_toolkit.gmsh_session import gmsh_session
 from meshopt_toolkit.errors import ReadError, WriteError
 from meshopt_toolkit.mesh import PlanarMesh, TriangleMesh
 
@@ -126,11 +127,9 @@ def test_binary_flag_refused_for_text_formats(tmp_path, planar):
 def gmsh_files(tmp_path_factory):
     """A tiny rectangle meshed by gmsh itself, written in 2.2/4.1 ASCII/binary, with the
     reference coordinates of each triangle's and line's nodes from the gmsh API."""
-    gmsh = pytest.importorskip("gmsh")
+    pytest.importorskip("gmsh")
     d = tmp_path_factory.mktemp("gmsh")
-    gmsh.initialize(readConfigFiles=False)
-    try:
-        gmsh.option.setNumber("General.Terminal", 0)
+    with gmsh_session() as gmsh:
         gmsh.model.add("rect")
         s = gmsh.model.occ.addRectangle(0, 0, 0, 2, 1)
         gmsh.model.occ.synchronize()
@@ -155,8 +154,6 @@ def gmsh_files(tmp_path_factory):
                 path = d / f"rect_{version}_{binary}.msh"
                 gmsh.write(str(path))
                 files[(version, binary)] = path
-    finally:
-        gmsh.finalize()
     return files, tri_ref, n_bottom
 
 
@@ -179,13 +176,11 @@ def test_reads_gmsh_written_files(gmsh_files, key):
 @pytest.mark.parametrize("version", ["2.2", "4.1"])
 @pytest.mark.parametrize("binary", [True, False])
 def test_gmsh_reads_our_files(tmp_path, planar, version, binary):
-    gmsh = pytest.importorskip("gmsh")
+    pytest.importorskip("gmsh")
     mesh = tagged(planar)
     path = tmp_path / "ours.msh"
     io.save(mesh, path, binary=binary, msh_version=version)
-    gmsh.initialize(readConfigFiles=False)
-    try:
-        gmsh.option.setNumber("General.Terminal", 0)
+    with gmsh_session() as gmsh:
         gmsh.open(str(path))
         tags, coords, _ = gmsh.model.mesh.getNodes()
         xyz = np.zeros((int(tags.max()) + 1, 3))
@@ -193,8 +188,6 @@ def test_gmsh_reads_our_files(tmp_path, planar, version, binary):
         etypes, etags, enodes = gmsh.model.mesh.getElements(2)
         groups = {(d, t): gmsh.model.getPhysicalName(d, t)
                   for d, t in gmsh.model.getPhysicalGroups()}
-    finally:
-        gmsh.finalize()
     order = np.argsort(etags[0])
     tri = enodes[0].astype(int).reshape(-1, 3)[order]
     assert np.array_equal(xyz[tri][:, :, :2], mesh.points[mesh.triangles])

@@ -9,6 +9,7 @@ import pytest
 from conftest import grid_mesh, square5
 
 import meshopt_toolkit.mesh as mesh_module
+from meshopt_toolkit.gmsh_session import gmsh_session
 from meshopt_toolkit.errors import InvalidMeshError, NotAdmissibleError
 from meshopt_toolkit.geometry import inverse_shape_quality, quality_summary, signed_areas
 from meshopt_toolkit.mesh import (
@@ -742,14 +743,12 @@ def _same_mesh(a, b):
 def gmsh_binary_files(tmp_path_factory):
     """Bundled meshes and a gmsh-meshed square (physical point, lines, surface) written
     by gmsh itself as binary 4.1, and a square meshed without physical groups."""
-    gmsh = pytest.importorskip("gmsh")
+    pytest.importorskip("gmsh")
     from meshopt_toolkit.datasets import data_path
 
     d = tmp_path_factory.mktemp("msh41")
     files = []
-    gmsh.initialize(readConfigFiles=False)
-    try:
-        gmsh.option.setNumber("General.Terminal", 0)
+    with gmsh_session() as gmsh:
         gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
         gmsh.option.setNumber("Mesh.Binary", 1)
         for name in ("disc_77.msh", "square5.msh"):
@@ -770,8 +769,6 @@ def gmsh_binary_files(tmp_path_factory):
             files.append(d / f"square_{groups}.msh")
             gmsh.write(str(files[-1]))
             gmsh.clear()
-    finally:
-        gmsh.finalize()
     return files
 
 

