@@ -1,0 +1,14 @@
+"""Mesh motion with per-triangle quality guarantees.
+
+The metric of this package is the graph metric of the per-triangle distortion
+(:mod:`.strain`): a mesh ``Q`` is embedded as ``X(Q) = (m^½ ⊙ Q, w·φ(Q))`` where ``φ_t`` is the
+strain of triangle ``t`` relative to a reference mesh, and ``g = M + w² JᵀJ`` (``J = ∂φ/∂Q``).
+Along any path, ``|φ_t(γ(s)) − φ_t(γ(0))| ≤ ℓ(s)/w`` for EVERY triangle (``ℓ`` the length of
+the path so far), whatever the number of triangles; with ``φ_t`` → ∞ at every degenerate
+triangle the metric is complete. See :mod:`.strain` for the bound on the shape quality.
+
+Modules: :mod:`.strain` (φ and its Jacobian), :mod:`.similarity` (the global similarity
+factored out of every motion), :mod:`.path` (discrete geodesics: a sparse nonlinear least-
+squares problem), :mod:`.move` (prescribed motion of handle vertices), :mod:`.morph`
+(morphing between two meshes).
+"""

@@ -1,0 +1,143 @@
+"""Admissible paths built frame by frame: each frame is the previous one with the handles
+moved a little, the rest extended by the metric and relaxed (a minimizing movement of the
+graph metric). Every frame is reached by accepted feasible steps, so every frame is
+admissible by construction; a step that cannot be made admissible is split in two.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import splu
+
+from .._typing import FloatArray, IntArray
+from ..errors import MeshoptError
+from .path import GraphMetric, discrete_geodesic
+
+logger = logging.getLogger(__name__)
+
+
+class NoAdmissiblePathError(MeshoptError):
+    """No admissible motion was found within the effort allowed."""
+
+
+def extend(metric: GraphMetric, Q: FloatArray, handles: IntArray,
+           new_positions: FloatArray) -> FloatArray:
+    """``Q`` with the handles at ``new_positions`` and the other vertices moved by the
+    linearized metric: ``δ_f = −H_ff⁻¹ H_fh δ_h`` with ``H = M + w² JᵀJ`` at ``Q``."""
+    N = Q.shape[0]
+    _, blocks = metric.strain.values_and_jacobian(Q)
+    J = sp.diags(metric.row_weights) @ metric.strain.jacobian_matrix(blocks)
+    H = ((J.T @ J) + sp.diags(np.repeat(metric.mass, 2))).tocsr()
+    fixed = np.zeros(N, bool)
+    fixed[handles] = True
+    f = np.flatnonzero(np.repeat(~fixed, 2))
+    h = np.flatnonzero(np.repeat(fixed, 2))
+    dh = (new_positions - Q[handles])
+    delta_h = np.zeros(2 * N)
+    delta_h[2 * handles] = dh[:, 0]
+    delta_h[2 * handles + 1] = dh[:, 1]
+    out = Q.ravel().copy()
+    out[h] += delta_h[h]
+    if f.size:
+        Hff = H[f][:, f].tocsc()
+        rhs = -(H[f][:, h] @ delta_h[h])
+        lu = splu(Hff, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                  options={"SymmetricMode": True})
+        out[f] += lu.solve(rhs)
+    Qn = out.reshape(N, 2)
+    Qn[handles] = new_positions  # bitwise
+    return Qn
+
+
+@dataclass
+class ContinuationResult:
+    frames: list[FloatArray]
+    times: list[float]
+    relax_iterations: int = 0
+    splits: int = 0
+    seconds: list[float] = field(default_factory=list)
+
+
+def continuation_path(
+    metric: GraphMetric,
+    start: FloatArray,
+    handles: IntArray,
+    handle_path: Callable[[float], FloatArray],
+    times: FloatArray,
+    *,
+    boundary_edges: IntArray | None,
+    strain_target: Callable[[float], FloatArray] | None = None,
+    max_splits: int = 12,
+    relax_iter: int = 50,
+    progress: Callable[[float], None] | None = None,
+) -> ContinuationResult:
+    """Frames at ``times`` (increasing, from 0) of an admissible motion of the handles.
+
+    Parameters
+    ----------
+    metric : GraphMetric
+    start : (N, 2) admissible positions at time ``times[0]``
+    handles : (k,) int array
+    handle_path : callable ``s -> (k, 2)`` handle positions
+    times : (F,) float array, ``times[0]`` the start
+    boundary_edges : (E, 2) int array or None
+    strain_target : callable ``s -> (T, 3)``, optional
+        Strain each frame is relaxed towards (default: the previous frame's, i.e. a
+        minimizing movement that keeps every triangle as it was).
+    max_splits : int
+        How many times one step may be halved before giving up (bounded effort).
+    relax_iter : int
+        Levenberg–Marquardt iterations per frame.
+    """
+    import time as _time
+
+    N = start.shape[0]
+    free = np.ones((2, N), bool)
+    free[0] = False
+    free[1, handles] = False
+    Q = np.array(start, float)
+    s_now = float(times[0])
+    frames, out_times, secs = [Q.copy()], [s_now], []
+    nit = splits = 0
+    t0 = _time.perf_counter()
+    for s_goal in times[1:]:
+        while s_now < s_goal:
+            ds = s_goal - s_now
+            for attempt in range(max_splits + 1):
+                s_try = s_goal if ds == s_goal - s_now else s_now + ds
+                trial = extend(metric, Q, handles, handle_path(s_try))
+                if (metric.strain.determinants(trial) > 0).all() and _simple(trial, boundary_edges):
+                    break
+                ds *= 0.5
+                splits += 1
+            else:
+                raise NoAdmissiblePathError(
+                    f"no admissible position of the mesh for the handles at s = {s_now + ds:.4g} "
+                    f"(the step was halved {max_splits} times)")
+            anchor = (metric.strain.values(Q) if strain_target is None
+                      else strain_target(s_try))
+            res = discrete_geodesic(metric, np.stack([Q, trial]), free,
+                                    boundary_edges=boundary_edges, anchor_strain=anchor,
+                                    max_iter=relax_iter, gtol=1e-6)
+            nit += res.nit
+            Q = res.frames[1]
+            s_now = s_try
+            if progress is not None:
+                progress(s_now)
+        frames.append(Q.copy())
+        out_times.append(s_now)
+        secs.append(_time.perf_counter() - t0)
+    return ContinuationResult(frames, out_times, nit, splits, secs)
+
+
+def _simple(Q: FloatArray, boundary_edges: IntArray | None) -> bool:
+    if boundary_edges is None:
+        return True
+    from ..mesh import boundary_self_intersections
+
+    return len(boundary_self_intersections(Q, boundary_edges)) == 0

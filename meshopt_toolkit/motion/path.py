@@ -1,0 +1,324 @@
+"""Discrete geodesics of the per-triangle graph metric ``g = M + w² JᵀJ``.
+
+A path of ``K`` segments, frames ``Q_0 … Q_K``, has the discrete energy
+
+    E = K · Σ_k ( |Q_{k+1} − Q_k|²_M + w² |φ(Q_{k+1}) − φ(Q_k)|² ),
+
+the energy of the polygon through the embedded points ``X(Q) = (m^½ ⊙ Q, w φ(Q))``: a sparse
+nonlinear least-squares problem in the free coordinates, solved by Levenberg–Marquardt
+(the Gauss–Newton normal matrix is block tridiagonal over frames, each block a sparse
+mesh-shaped matrix) with a feasibility test: a trial with an inverted triangle (``φ = ∞``)
+or a self-intersecting boundary is rejected like a trial that raises the energy.
+
+The per-triangle bound holds for every discrete path, exactly (triangle inequality):
+``|φ_t(Q_k) − φ_t(Q_0)| ≤ ℓ_k / w`` with ``ℓ_k = Σ_{j<k} |X(Q_{j+1}) − X(Q_j)|``.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import LinearOperator, cg, splu
+
+from .._typing import FloatArray, IntArray
+from .strain import TriangleDistortion
+
+logger = logging.getLogger(__name__)
+
+
+def lumped_mass(points: FloatArray, triangles: IntArray) -> FloatArray:
+    """Vertex weights ``m_i`` with ``Σ m_i |v_i|²`` = area-weighted mean of ``|v|²`` divided
+    by the mean squared distance from the centroid (a dimensionless, size- and
+    resolution-independent norm of a displacement field)."""
+    p = points[triangles]
+    area = 0.5 * np.abs((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1])
+                        - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0]))
+    m = np.bincount(triangles.ravel(), np.repeat(area / 3.0, 3), minlength=len(points))
+    m /= m.sum()
+    centroid = m @ points
+    spread = float(m @ np.sum((points - centroid) ** 2, axis=1))
+    return m / spread
+
+
+@dataclass
+class GraphMetric:
+    """``g = M + w² JᵀJ`` of the triangle distortion ``φ`` relative to ``reference``.
+
+    Parameters
+    ----------
+    reference : (N, 2) float array
+        The mesh at which ``φ = 0`` (and whose areas define ``M``).
+    triangles : (T, 3) int array
+    weight : float
+        ``w``; the bound ``|Δφ_t| ≤ ℓ/w`` (every triangle) and the balance between moving
+        vertices (``M``) and straining triangles (``JᵀJ``).
+    triangle_weights : (T,) float array, optional
+        Extra weights ``c_t ≥ 1`` of the triangles' rows (default 1): they only add to the
+        metric, so every bound of the unweighted metric still holds.
+    """
+
+    reference: FloatArray
+    triangles: IntArray
+    weight: float = 1.0
+    triangle_weights: FloatArray | None = None
+    strain: TriangleDistortion = field(init=False)
+    mass: FloatArray = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.reference = np.asarray(self.reference, dtype=float)
+        self.strain = TriangleDistortion(self.reference, self.triangles)
+        self.mass = lumped_mass(self.reference, self.triangles)
+        if self.triangle_weights is not None:
+            c = np.asarray(self.triangle_weights, float)
+            if c.shape != (len(self.triangles),) or not (c >= 1).all():
+                raise ValueError("triangle_weights must be T values ≥ 1")
+            self.triangle_weights = c
+
+    @property
+    def row_weights(self) -> FloatArray:
+        """``w·c_t`` repeated over the 3 components of each triangle, (3T,)."""
+        c = np.ones(len(self.triangles)) if self.triangle_weights is None else self.triangle_weights
+        return self.weight * np.repeat(c, 3)
+
+    def embed(self, Q: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """``(m^½ ⊙ Q, w φ(Q))`` flattened; ``inf`` in the second part where inverted."""
+        return (np.sqrt(self.mass)[:, None] * Q).ravel(), self.row_weights * self.strain.values(Q).ravel()
+
+    def segment_lengths(self, frames: FloatArray) -> FloatArray:
+        """``|X(Q_{k+1}) − X(Q_k)|`` for consecutive frames (K+1, N, 2) → (K,)."""
+        X = [np.concatenate(self.embed(Q)) for Q in frames]
+        return np.array([np.linalg.norm(b - a) for a, b in zip(X[:-1], X[1:])])
+
+
+@dataclass
+class PathResult:
+    """A discrete geodesic: ``frames`` (K+1, N, 2), its ``energy``, gradient norm,
+    iterations and ``status`` in {"converged", "stalled", "max_iter"}."""
+
+    frames: FloatArray
+    energy: float
+    gradient_norm: float
+    nit: int
+    status: str
+    history: list = field(default_factory=list)
+
+    @property
+    def converged(self) -> bool:
+        return self.status == "converged"
+
+
+class _Path:
+    """Residuals and Jacobian of the discrete path energy in the free coordinates."""
+
+    def __init__(self, metric: GraphMetric, frames: FloatArray, free: np.ndarray,
+                 boundary_edges: IntArray | None, anchor_strain: FloatArray | None = None) -> None:
+        self.metric = metric
+        self.anchor_strain = None if anchor_strain is None else np.ravel(anchor_strain)
+        self.K = frames.shape[0] - 1
+        self.frames = frames.copy()
+        self.free = free  # (K+1, N) bool, frame 0 all False
+        self.free_coords = np.repeat(free[:, :, None], 2, axis=2)  # (K+1, N, 2)
+        self.boundary_edges = boundary_edges
+        N = frames.shape[1]
+        self.sqrt_m = np.repeat(np.sqrt(metric.mass), 2)
+        # column index of each free coordinate
+        self.col = -np.ones(self.free_coords.shape, dtype=np.int64)
+        self.col[self.free_coords] = np.arange(int(self.free_coords.sum()))
+        self.n_unknowns = int(self.free_coords.sum())
+        self.N = N
+
+    def unknowns(self, frames: FloatArray) -> FloatArray:
+        return frames[self.free_coords]
+
+    def with_unknowns(self, x: FloatArray) -> FloatArray:
+        frames = self.frames.copy()
+        frames[self.free_coords] = x
+        return frames
+
+    def evaluate(self, frames: FloatArray, jacobian: bool):
+        """Residual vector (and its sparse Jacobian in the unknowns)."""
+        K, w = self.K, self.metric.row_weights
+        sK = np.sqrt(K)
+        phis, blocks = [], []
+        for Q in frames:
+            if jacobian:
+                phi, jb = self.metric.strain.values_and_jacobian(Q)
+                blocks.append(jb)
+            else:
+                phi = self.metric.strain.values(Q)
+            phis.append(phi.ravel())
+        if self.anchor_strain is not None:
+            phis[0] = self.anchor_strain
+        res = []
+        for k in range(K):
+            res.append(sK * self.sqrt_m * (frames[k + 1] - frames[k]).ravel())
+            res.append(sK * w * (phis[k + 1] - phis[k]))
+        r = np.concatenate(res)
+        if not jacobian:
+            return r, None
+        nM, nP = 2 * self.N, phis[0].size
+        Jframes = [self.metric.strain.jacobian_matrix(b) for b in blocks]
+        rows, cols, vals = [], [], []
+        dm = sK * self.sqrt_m
+        for k in range(K):
+            base = k * (nM + nP)
+            for frame, sign in ((k + 1, 1.0), (k, -1.0)):
+                colmap = self.col[frame].ravel()
+                if not (colmap >= 0).any():
+                    continue
+                # mass part: diagonal
+                sel = np.flatnonzero(colmap >= 0)
+                rows.append(base + sel)
+                cols.append(colmap[sel])
+                vals.append(sign * dm[sel])
+                # strain part
+                Jf = Jframes[frame].tocoo()
+                keep = colmap[Jf.col] >= 0
+                rows.append(base + nM + Jf.row[keep])
+                cols.append(colmap[Jf.col[keep]])
+                vals.append(sign * sK * w[Jf.row[keep]] * Jf.data[keep])
+        J = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                          shape=(r.size, self.n_unknowns))
+        return r, J
+
+    def frame_block_preconditioner(self, A: sp.csr_matrix) -> LinearOperator:
+        """Block Jacobi over frames: each frame's diagonal block factorized once."""
+        blocks = []
+        for k in range(1, self.K + 1):
+            idx = self.col[k].ravel()
+            idx = idx[idx >= 0]
+            if idx.size:
+                lu = splu(A[idx][:, idx].tocsc(), permc_spec="MMD_AT_PLUS_A",
+                          diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+                blocks.append((idx, lu))
+
+        def apply(v: FloatArray) -> FloatArray:
+            out = np.empty_like(v)
+            for idx, lu in blocks:
+                out[idx] = lu.solve(v[idx])
+            return out
+
+        return LinearOperator(A.shape, apply)
+
+    def admissible(self, frames: FloatArray) -> bool:
+        """Every triangle of every frame positive, no boundary self-intersection."""
+        for Q in frames[1:]:
+            if not (self.metric.strain.determinants(Q) > 0).all():
+                return False
+        if self.boundary_edges is not None:
+            from ..mesh import boundary_self_intersections
+
+            for Q in frames[1:]:
+                if len(boundary_self_intersections(Q, self.boundary_edges)):
+                    return False
+        return True
+
+
+def discrete_geodesic(
+    metric: GraphMetric,
+    frames: FloatArray,
+    free: np.ndarray,
+    *,
+    boundary_edges: IntArray | None = None,
+    anchor_strain: FloatArray | None = None,
+    gtol: float = 1e-7,
+    max_iter: int = 200,
+    callback: Callable[[int, float, float], None] | None = None,
+) -> PathResult:
+    """Minimize the discrete path energy over the free coordinates by Levenberg–Marquardt.
+
+    Parameters
+    ----------
+    metric : GraphMetric
+    frames : (K+1, N, 2) float array
+        An admissible initial path (every triangle positive, boundaries simple).
+    free : (K+1, N) bool array
+        Which vertices of which frame move (frame 0 never does).
+    boundary_edges : (E, 2) int array, optional
+        Checked for self-intersection in every accepted frame.
+    anchor_strain : (T, 3) float array, optional
+        Used instead of ``φ(Q_0)`` in the first segment: with one segment, the frame that
+        stays close to ``Q_0`` while its strain approaches ``anchor_strain``.
+    gtol : float
+        Stop when ``|∇E| ≤ gtol · max(1, √E)``.
+    max_iter : int
+    callback : callable ``(iteration, E, |∇E|)``, optional
+
+    Returns
+    -------
+    PathResult
+    """
+    frames = np.array(frames, dtype=float)
+    free = np.array(free, dtype=bool)
+    free[0] = False
+    path = _Path(metric, frames, free, boundary_edges, anchor_strain)
+    if not path.admissible(frames):
+        raise ValueError("the initial path is not admissible")
+    if path.n_unknowns == 0:
+        r, _ = path.evaluate(frames, jacobian=False)
+        return PathResult(frames, float(r @ r), 0.0, 0, "converged")
+    r, J = path.evaluate(frames, jacobian=True)
+    E = float(r @ r)
+    lam = 1e-3
+    status = "max_iter"
+    history = []
+    g = J.T @ r
+    it = 0
+    for it in range(1, max_iter + 1):
+        gnorm = 2.0 * float(np.linalg.norm(g))
+        history.append((E, gnorm))
+        if callback is not None:
+            callback(it - 1, E, gnorm)
+        if gnorm <= gtol * max(1.0, np.sqrt(E)):
+            status = "converged"
+            it -= 1
+            break
+        H = (J.T @ J).tocsr()
+        d = H.diagonal()
+        x = path.unknowns(frames)
+        accepted = False
+        precondition = None
+        for _ in range(30):
+            A = H + sp.diags(lam * (d + 1e-12 * d.max()))
+            if precondition is None:
+                precondition = path.frame_block_preconditioner(A)
+            step = _solve(A, -g, precondition)
+            trial = path.with_unknowns(x + step)
+            if path.admissible(trial):
+                r_t, _ = path.evaluate(trial, jacobian=False)
+                E_t = float(r_t @ r_t)
+                predicted = -(2 * g @ step + np.sum((J @ step) ** 2))  # decrease of the GN model
+                if np.isfinite(E_t) and E_t < E:
+                    rho = (E - E_t) / max(predicted, 1e-300)
+                    frames = trial
+                    lam = lam * (1 / 3 if rho > 0.75 else 1.0 if rho > 0.25 else 2.0)
+                    lam = max(lam, 1e-12)
+                    accepted = True
+                    break
+            lam *= 4.0
+        if not accepted:
+            status = "stalled"
+            break
+        path.frames = frames
+        r_new, J = path.evaluate(frames, jacobian=True)
+        E_new = float(r_new @ r_new)
+        r, E = r_new, E_new
+        g = J.T @ r
+    gnorm = 2.0 * float(np.linalg.norm(J.T @ r))
+    if status == "max_iter" and gnorm <= gtol * max(1.0, np.sqrt(E)):
+        status = "converged"
+    return PathResult(frames, E, gnorm, it, status, history)
+
+
+def _solve(A: sp.csr_matrix, b: FloatArray, precondition: LinearOperator) -> FloatArray:
+    """Conjugate gradients on the SPD Levenberg–Marquardt system (an inexact step is fine:
+    the ratio test of the caller judges it)."""
+    x, info = cg(A, b, rtol=1e-8, maxiter=max(200, 4 * precondition.shape[0] // 10_000),
+                 M=precondition)
+    if info < 0 or not np.all(np.isfinite(x)):  # pragma: no cover - breakdown
+        raise FloatingPointError("conjugate gradients broke down on the path system")
+    return x
