@@ -146,6 +146,7 @@ def move(
     weight: float = 1.0,
     relax_iter: int = 60,
     quality_rounds: int = 4,
+    max_splits: int = 12,
     progress: Callable[[float], None] | None = None,
 ) -> MoveResult:
     """Move the ``handles`` vertices exactly to ``targets``; place the rest to keep quality.
@@ -215,7 +216,7 @@ def move(
         details = {"continuation_splits": 0, "relax_iterations": 0}
     else:
         cont = continuation_path(metric, P, h, path, times, boundary_edges=be,
-                                 max_splits=12, relax_iter=relax_iter, progress=progress)
+                                 max_splits=max_splits, relax_iter=relax_iter, progress=progress)
         residual = cont.frames
         residual[-1], finish = _finish(metric, residual[-1], h, be, relax_iter, quality_rounds)
         details = {"continuation_splits": cont.splits,

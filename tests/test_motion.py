@@ -1,0 +1,305 @@
+"""The per-triangle distortion metric, its discrete geodesics, move and morph (issues 14, 15).
+
+Guarantees are checked as invariants on random inputs: Taylor remainders of every
+derivative, the closed forms of φ (singular values), its invariances, the per-triangle
+quality bound along paths, similarity motions followed exactly, handles exact.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import grid_mesh
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from meshopt_toolkit.errors import InvalidMeshError
+from meshopt_toolkit.geometry import aspect_ratios, inverse_shape_quality
+from meshopt_toolkit.motion.move import move
+from meshopt_toolkit.motion.morph import distortion_morph
+from meshopt_toolkit.motion.path import GraphMetric, _Path, discrete_geodesic
+from meshopt_toolkit.motion.similarity import fit_similarity
+from meshopt_toolkit.motion.strain import (
+    TriangleDistortion,
+    shape_quality_bound,
+    stretch_ratios,
+)
+from meshopt_toolkit.taylor import check_gradient
+
+FAST = settings(max_examples=15, deadline=None)
+
+
+def _similar(points, angle, scale, shift):
+    c, s = np.cos(angle), np.sin(angle)
+    return scale * points @ np.array([[c, -s], [s, c]]).T + np.asarray(shift)
+
+
+def _random_admissible(mesh, rng, amplitude):
+    """An affine image of ``mesh`` plus a small interior perturbation (admissible)."""
+    A = np.eye(2) + amplitude * rng.uniform(-1, 1, (2, 2))
+    Q = mesh.points @ A.T + rng.uniform(-1, 1, 2)
+    Q = Q + 0.05 * amplitude / np.sqrt(mesh.n_vertices) * rng.standard_normal(Q.shape)
+    assert (mesh.with_points(Q).signed_areas() > 0).all()
+    return Q
+
+
+@pytest.fixture(scope="module")
+def disc():
+    return grid_mesh(6, jitter=0.3)
+
+
+# ------------------------------------------------------------------ φ and its Jacobian
+def test_distortion_matches_singular_values(disc, rng):
+    P, T = disc.points, disc.triangles
+    Q = _random_admissible(disc, rng, 0.4)
+    phi = TriangleDistortion(P, T).values(Q)
+    D0 = np.stack([P[T[:, 1]] - P[T[:, 0]], P[T[:, 2]] - P[T[:, 0]]], axis=2)
+    D1 = np.stack([Q[T[:, 1]] - Q[T[:, 0]], Q[T[:, 2]] - Q[T[:, 0]]], axis=2)
+    s = np.linalg.svd(D1 @ np.linalg.inv(D0), compute_uv=False)
+    np.testing.assert_allclose(np.sqrt(2) * phi[:, 0], np.log(s[:, 0] * s[:, 1]), atol=1e-12)
+    kappa = s[:, 0] / s[:, 1]
+    np.testing.assert_allclose(np.sqrt(2) * np.hypot(phi[:, 1], phi[:, 2]),
+                               (kappa - 1 / kappa) / 2, rtol=1e-10, atol=1e-13)
+    np.testing.assert_allclose(stretch_ratios(phi), kappa, rtol=1e-10)
+
+
+@pytest.mark.parametrize("at_reference", [True, False])
+def test_distortion_jacobian_taylor(disc, rng, at_reference):
+    P, T = disc.points, disc.triangles
+    dist = TriangleDistortion(P, T)
+    Q = P.copy() if at_reference else _random_admissible(disc, rng, 0.3)
+    weights = rng.standard_normal((len(T), 3))  # a scalar functional of φ tests every row
+
+    def f(X):
+        return float(np.sum(weights * dist.values(X)))
+
+    def grad(X):
+        _, blocks = dist.values_and_jacobian(X)
+        return (dist.jacobian_matrix(blocks).T @ weights.ravel()).reshape(X.shape)
+
+    result = check_gradient(f, grad, Q, eps0=1e-3, rng=rng)
+    assert abs(result.order - 2) < 0.2, result
+
+
+@FAST
+@given(angle=st.floats(-3.1, 3.1), scale=st.floats(0.01, 100), shift=st.tuples(
+    st.floats(-1e3, 1e3), st.floats(-1e3, 1e3)), seed=st.integers(0, 2**16))
+def test_distortion_invariances(angle, scale, shift, seed):
+    mesh = grid_mesh(3, jitter=0.3)
+    rng = np.random.default_rng(seed)
+    dist = TriangleDistortion(mesh.points, mesh.triangles)
+    Q = _random_admissible(mesh, rng, 0.3)
+    phi = dist.values(Q)
+    moved = dist.values(_similar(Q, angle, scale, shift))
+    np.testing.assert_allclose(moved[:, 1:], phi[:, 1:], atol=1e-9 * (1 + np.abs(phi).max()))
+    np.testing.assert_allclose(moved[:, 0] - phi[:, 0], np.sqrt(2) * np.log(scale), atol=1e-9)
+    assert np.abs(dist.values(mesh.points)).max() < 1e-12
+
+
+def test_distortion_is_infinite_where_inverted(disc):
+    Q = disc.points.copy()
+    t = disc.triangles[5]
+    Q[t[0]] = Q[t[1]] + 2 * (Q[t[2]] - Q[t[1]]) * 0.5  # onto the opposite edge: degenerate
+    phi = TriangleDistortion(disc.points, disc.triangles).values(Q)
+    assert np.isinf(phi[5]).all()
+
+
+# ------------------------------------------------------------------ quality bounds
+@FAST
+@given(seed=st.integers(0, 2**16), amplitude=st.floats(0.01, 0.6))
+def test_shape_quality_bound_holds_for_every_triangle(seed, amplitude):
+    mesh = grid_mesh(4, jitter=0.3, seed=seed)
+    rng = np.random.default_rng(seed)
+    Q = _random_admissible(mesh, rng, amplitude)
+    phi = TriangleDistortion(mesh.points, mesh.triangles).values(Q)
+    bound = shape_quality_bound(inverse_shape_quality(mesh.points, mesh.triangles),
+                                np.linalg.norm(phi, axis=1))
+    assert (inverse_shape_quality(Q, mesh.triangles) <= bound * (1 + 1e-12)).all()
+
+
+@FAST
+@given(seed=st.integers(0, 2**16), amplitude=st.floats(0.05, 0.5), weight=st.floats(0.2, 5))
+def test_path_bounds_every_triangle_by_its_length(seed, amplitude, weight):
+    """Along any discrete path, |φ_t(Q_k) − φ_t(Q_0)| ≤ ℓ_k/w, hence the 1/ψ bound."""
+    mesh = grid_mesh(3, jitter=0.3, seed=seed)
+    rng = np.random.default_rng(seed)
+    frames = np.array([mesh.points] + [_random_admissible(mesh, rng, amplitude)
+                                       for _ in range(4)])
+    metric = GraphMetric(mesh.points, mesh.triangles, weight)
+    ell = np.concatenate([[0.0], np.cumsum(metric.segment_lengths(frames))])
+    q0 = inverse_shape_quality(mesh.points, mesh.triangles)
+    for k, Q in enumerate(frames):
+        change = np.linalg.norm(metric.strain.values(Q), axis=1)
+        assert (change <= ell[k] / weight * (1 + 1e-12) + 1e-15).all()
+        bound = shape_quality_bound(q0, np.full(len(q0), ell[k] / weight))
+        assert (inverse_shape_quality(Q, mesh.triangles) <= bound * (1 + 1e-12)).all()
+
+
+# ------------------------------------------------------------------ discrete geodesic
+def test_path_energy_gradient_taylor(disc, rng):
+    P, T = disc.points, disc.triangles
+    frames = np.array([P] + [_random_admissible(disc, rng, 0.1 * k) for k in (1, 2, 3)])
+    free = np.ones((4, disc.n_vertices), bool)
+    free[0] = False
+    free[3, :3] = False
+    metric = GraphMetric(P, T, 1.7, triangle_weights=1 + rng.uniform(0, 1, len(T)))
+    path = _Path(metric, frames, free, None, anchor_strain=None)
+    x0 = path.unknowns(frames)
+
+    def E(x):
+        r, _ = path.evaluate(path.with_unknowns(x), jacobian=False)
+        return float(r @ r)
+
+    def grad(x):
+        r, J = path.evaluate(path.with_unknowns(x), jacobian=True)
+        return 2 * (J.T @ r)
+
+    result = check_gradient(E, grad, x0, eps0=1e-3, rng=rng)
+    assert abs(result.order - 2) < 0.2, result
+
+
+def test_discrete_geodesic_converges_and_lowers_energy(disc, rng):
+    P = disc.points
+    target = _random_admissible(disc, rng, 0.3)
+    frames = np.array([(1 - s) * P + s * target for s in np.linspace(0, 1, 5)])
+    free = np.ones((5, disc.n_vertices), bool)
+    free[0] = free[-1] = False
+    metric = GraphMetric(P, disc.triangles)
+    r0, _ = _Path(metric, frames, free, None).evaluate(frames, jacobian=False)
+    res = discrete_geodesic(metric, frames, free, boundary_edges=disc.boundary_edges)
+    assert res.converged and res.energy <= float(r0 @ r0)
+    assert res.gradient_norm <= 1e-7 * max(1, np.sqrt(res.energy))
+    assert np.array_equal(res.frames[0], P) and np.array_equal(res.frames[-1], target)
+
+
+# ------------------------------------------------------------------ similarity
+@FAST
+@given(angle=st.floats(-3.1, 3.1), scale=st.floats(0.1, 10), shift=st.tuples(
+    st.floats(-10, 10), st.floats(-10, 10)))
+def test_fit_similarity_recovers_a_similarity(angle, scale, shift):
+    P = grid_mesh(3, jitter=0.3).points
+    S = fit_similarity(P, _similar(P, angle, scale, shift))
+    np.testing.assert_allclose(S(P), _similar(P, angle, scale, shift), atol=1e-9 * (1 + scale))
+    np.testing.assert_allclose(S.inverse(S(P)), P, atol=1e-9)
+
+
+@FAST
+@given(angle=st.floats(-3.1, 3.1), scale=st.floats(0.2, 5), shift=st.tuples(
+    st.floats(-5, 5), st.floats(-5, 5)))
+def test_morph_between_similar_meshes_is_similar_in_every_frame(angle, scale, shift):
+    mesh = grid_mesh(3, jitter=0.3)
+    target = mesh.with_points(_similar(mesh.points, angle, scale, shift))
+    result = distortion_morph(mesh, target, frames=4)
+    ar0 = aspect_ratios(mesh.points, mesh.triangles)
+    for Q in result.points:
+        np.testing.assert_allclose(aspect_ratios(Q, mesh.triangles), ar0, rtol=1e-9)
+    assert np.array_equal(result.points[-1], target.points)
+
+
+@FAST
+@given(angle=st.floats(-3.1, 3.1), scale=st.floats(0.2, 5), shift=st.tuples(
+    st.floats(-5, 5), st.floats(-5, 5)))
+def test_move_by_a_similarity_moves_the_whole_mesh_by_it(angle, scale, shift):
+    mesh = grid_mesh(3, jitter=0.3)
+    handles = np.unique(mesh.boundary_edges)
+    targets = _similar(mesh.points[handles], angle, scale, shift)
+    result = move(mesh, handles, targets, frames=3)
+    assert np.array_equal(result.mesh.points[handles], targets)
+    expected = _similar(mesh.points, angle, scale, shift)
+    np.testing.assert_allclose(result.mesh.points, expected, atol=1e-9 * (1 + scale))
+    for frame in result.frames:
+        np.testing.assert_allclose(aspect_ratios(frame.points, mesh.triangles),
+                                   aspect_ratios(mesh.points, mesh.triangles), rtol=1e-9)
+
+
+# ------------------------------------------------------------------ move
+@pytest.fixture(scope="module")
+def annulus():
+    pytest.importorskip("gmsh")
+    from meshopt_toolkit.generate import annulus as make
+
+    return make(0.1)
+
+
+def _harmonic_inverts(mesh, handles, targets) -> int:
+    """Harmonic extension with the same handles (the classical reference): inverted count."""
+    import scipy.sparse.linalg as spla
+
+    from meshopt_toolkit.elasticity import p1_gradients
+
+    P, T = mesh.points, mesh.triangles
+    grads, area = p1_gradients(P, T)
+    Ke = np.einsum("t,tid,tjd->tij", area, grads, grads)
+    rows = np.repeat(T, 3, axis=1).ravel()
+    cols = np.tile(T, (1, 3)).ravel()
+    import scipy.sparse as sp
+
+    L = sp.csr_matrix((Ke.ravel(), (rows, cols)), shape=(len(P),) * 2)
+    free = np.setdiff1d(np.arange(len(P)), handles)
+    Q = P.copy()
+    Q[handles] = targets
+    rhs = -(L[free][:, handles] @ targets)
+    Q[free] = spla.spsolve(L[free][:, free].tocsc(), rhs)
+    return int(np.sum(mesh.with_points(Q).signed_areas() <= 0))
+
+
+@pytest.mark.parametrize("degrees", [90, 180])
+def test_move_turns_the_annulus_hole_without_inverting(annulus, degrees):
+    from meshopt_toolkit.generate import rotate_inner_boundary
+
+    handles, targets = rotate_inner_boundary(annulus, degrees)
+    assert _harmonic_inverts(annulus, handles, targets) > 0  # the classical method fails here
+    result = move(annulus, handles, targets, frames=4)
+    assert np.array_equal(result.mesh.points[handles], targets)  # bitwise
+    for frame in result.frames:
+        assert (frame.signed_areas() > 0).all()
+    assert result.inverted == 0 and result.handle_error == 0.0
+    assert np.array_equal(result.mesh.triangles, annulus.triangles)
+
+
+def test_move_rejects_bad_input(annulus):
+    b = np.unique(annulus.boundary_edges)
+    with pytest.raises(InvalidMeshError, match="out of range"):
+        move(annulus, np.array([annulus.n_vertices]), np.zeros((1, 2)))
+    with pytest.raises(InvalidMeshError, match="not finite"):
+        move(annulus, b[:2], np.array([[0.0, np.nan], [1.0, 1.0]]))
+    with pytest.raises(InvalidMeshError, match="twice with different targets"):
+        move(annulus, np.array([b[0], b[0]]), np.array([[0.0, 0.0], [1.0, 1.0]]))
+    crossing = annulus.points[b].copy()
+    inner = np.hypot(*crossing.T) < 0.5
+    crossing[inner] += [0.9, 0.0]  # the hole's circle cuts the outer circle
+    with pytest.raises(InvalidMeshError, match="cross itself"):
+        move(annulus, b, crossing)
+
+
+def test_move_reports_targets_without_admissible_interior(annulus):
+    from meshopt_toolkit.motion.continuation import NoAdmissiblePathError
+
+    b = np.unique(annulus.boundary_edges)
+    outside = annulus.points[b].copy()
+    inner = np.hypot(*outside.T) < 0.5
+    outside[inner] *= 4.0  # the hole would enclose the outer circle: no mesh fits between
+    with pytest.raises(NoAdmissiblePathError, match="no admissible"):
+        move(annulus, b, outside, steps=2, max_splits=3)
+
+
+# ------------------------------------------------------------------ morph
+def test_morph_frames_stay_as_healthy_as_the_ends(annulus):
+    """Issue 15's pair: every frame's min aspect ratio ≥ 0.9 × the worse end's, and never
+    below linear or as-rigid-as-possible interpolation where those stay valid."""
+    from meshopt_toolkit.generate import log_twist
+
+    target = log_twist(annulus, 90)
+    result = distortion_morph(annulus, target, frames=9)
+    worse_end = min(aspect_ratios(annulus.points, annulus.triangles).min(),
+                    aspect_ratios(target.points, target.triangles).min())
+    assert result.converged
+    assert (result.stats.inverted == 0).all()
+    assert result.stats.min_aspect_ratio.min() >= 0.9 * worse_end
+    for other in (result.linear, result.rigid):
+        if (other.inverted == 0).all():
+            assert result.stats.min_aspect_ratio.min() >= other.min_aspect_ratio.min() * (1 - 1e-9)
+    q0 = inverse_shape_quality(annulus.points, annulus.triangles)
+    for Q, ell in zip(result.points, result.strain_bound):  # the proven bound, every frame
+        assert (inverse_shape_quality(Q, annulus.triangles)
+                <= shape_quality_bound(q0, np.full(len(q0), ell)) * (1 + 1e-9)).all()
