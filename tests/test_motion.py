@@ -303,3 +303,42 @@ def test_morph_frames_stay_as_healthy_as_the_ends(annulus):
     for Q, ell in zip(result.points, result.strain_bound):  # the proven bound, every frame
         assert (inverse_shape_quality(Q, annulus.triangles)
                 <= shape_quality_bound(q0, np.full(len(q0), ell)) * (1 + 1e-9)).all()
+
+
+def test_move_filter_and_cli_agree(annulus, tmp_path):
+    """The pipeline filter and ``meshopt move`` run the same operation."""
+    from meshopt_toolkit.cli import main
+    from meshopt_toolkit.io import load, save
+    from meshopt_toolkit.pipeline import Pipeline
+
+    src = tmp_path / "annulus.msh"
+    save(annulus, src)
+    mapping = "x*cos(pi/3) - y*sin(pi/3); x*sin(pi/3) + y*cos(pi/3)"
+    where = "x**2 + y**2 < 0.25"
+    assert main(["move", str(src), "-o", str(tmp_path / "cli.msh"), "--map", mapping,
+                 "--where", where]) == 0
+    pipe = Pipeline.from_dict({"filters": [
+        {"name": "apply_prescribed_motion", "params": {"map": mapping, "where": where}}]})
+    from meshopt_toolkit.pipeline import Document
+
+    doc = Document()
+    doc.add(annulus, name="annulus")
+    pipe.run(doc)
+    cli = load(tmp_path / "cli.msh")
+    assert (cli.signed_areas() > 0).all()
+    assert np.array_equal(doc.current_entry.mesh.points, cli.points)
+
+
+def test_move_cli_errors_are_one_line(annulus, tmp_path, capsys):
+    from meshopt_toolkit.cli import main
+    from meshopt_toolkit.io import save
+
+    src = tmp_path / "annulus.msh"
+    save(annulus, src)
+    for extra, expected in ((["--map", "1/0; y"], "--map"),
+                            (["--map", "x; y", "--where", "x <"], "--where"),
+                            (["--map", "x; y", "--frames", "1"], "--frames")):
+        assert main(["move", str(src), "-o", str(tmp_path / "o.msh"), *extra]) == 1
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and expected in err[0] and "internal error" not in err[0]
+    assert not (tmp_path / "o.msh").exists()

@@ -144,7 +144,7 @@ def move(
     frames: int | None = None,
     steps: int = 8,
     weight: float = 1.0,
-    relax_iter: int = 60,
+    relax_iter: int = 20,
     quality_rounds: int = 4,
     max_splits: int = 12,
     progress: Callable[[float], None] | None = None,

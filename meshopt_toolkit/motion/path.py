@@ -317,7 +317,7 @@ def discrete_geodesic(
 def _solve(A: sp.csr_matrix, b: FloatArray, precondition: LinearOperator) -> FloatArray:
     """Conjugate gradients on the SPD Levenberg–Marquardt system (an inexact step is fine:
     the ratio test of the caller judges it)."""
-    x, info = cg(A, b, rtol=1e-8, maxiter=max(200, 4 * precondition.shape[0] // 10_000),
+    x, info = cg(A, b, rtol=1e-6, maxiter=max(200, 4 * precondition.shape[0] // 10_000),
                  M=precondition)
     if info < 0 or not np.all(np.isfinite(x)):  # pragma: no cover - breakdown
         raise FloatingPointError("conjugate gradients broke down on the path system")

@@ -1,0 +1,53 @@
+"""Filter ``apply_prescribed_motion``: move handle vertices exactly, keep every triangle healthy."""
+
+from __future__ import annotations
+
+from meshopt_toolkit.errors import FilterError
+from meshopt_toolkit.pipeline.filter import Filter, register
+from meshopt_toolkit.pipeline.params import FloatParam, IntParam, PathParam, StringParam
+
+
+@register
+class PrescribedMotion(Filter):
+    """Move chosen vertices of the current planar mesh exactly to their targets; the other
+    vertices follow along a path of the per-triangle distortion metric, so no triangle
+    inverts (``mt.move``, ``meshopt move``).
+
+    Give either ``targets`` (CSV rows ``index,x,y`` or a ``.npy`` k × 3 array; ``{stem}`` is
+    replaced by the input file's stem) or ``map`` (``"X_EXPR; Y_EXPR"``: the new position of
+    each boundary vertex where ``where`` holds, e.g. ``"x**2 + y**2 < 0.25"``; the other
+    boundary vertices stay). The moved mesh replaces the current one.
+    """
+
+    name = "apply_prescribed_motion"
+    label = "Prescribed Motion (meshopt)"
+    description = "Move handle vertices exactly to targets; the rest follows without inverting."
+    parameters = (
+        PathParam("targets", "", "CSV 'index,x,y' or .npy (k, 3) handle targets", label="Targets"),
+        StringParam("map", "", "new boundary positions 'X_EXPR; Y_EXPR' in x, y", label="Map"),
+        StringParam("where", "", "with map: which boundary vertices move, e.g. 'x < 0.5'",
+                    label="Where"),
+        IntParam("steps", 8, "continuation steps", label="Steps", min=1, max=1000),
+        FloatParam("weight", 1.0, "w of the metric M + w² JᵀJ", label="Weight", min=1e-6),
+    )
+
+    def apply(self, document, *, targets: str = "", map: str = "", where: str = "",
+              steps: int = 8, weight: float = 1.0) -> dict:
+        from meshopt_toolkit.motion.move import move
+        from meshopt_toolkit.motion.targets import read_target_table, targets_from_map
+
+        entry = document.current_entry
+        if not entry.mesh.is_planar:
+            raise FilterError(f"{self.name} needs a planar mesh; {entry.name} is a 3D surface")
+        if bool(targets) == bool(map):
+            raise FilterError(f"{self.name}: give exactly one of targets and map")
+        if where and not map:
+            raise FilterError(f"{self.name}: where needs map")
+        mesh = entry.mesh.as_planar()
+        if targets:
+            handles, positions = read_target_table(targets.replace("{stem}", entry.name))
+        else:
+            handles, positions = targets_from_map(mesh, map, where or None)
+        result = move(mesh, handles, positions, steps=steps, weight=weight)
+        entry.mesh = result.mesh
+        return result.summary()
