@@ -4,9 +4,9 @@
 exactly, free of strain) and a residual motion of the handles along :class:`HandlePath`
 (each connected piece of boundary turns and scales with its own best similarity), built
 frame by frame as a minimizing movement of the graph metric ``M + w² JᵀJ`` of the triangle
-strain (:mod:`.continuation`), and finished by relaxing the last frame towards the source's
-triangle shapes with the handles fixed. Every frame is admissible by construction and the
-handles end bitwise at their targets.
+distortion (:mod:`.continuation`), and finished by a quality step with the handles fixed
+that presses on the worst triangles. Every frame is admissible by construction (every
+accepted step is checked) and the handles end bitwise at their targets.
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ from ..mesh import PlanarMesh, boundary_self_intersections, require_admissible
 from .continuation import NoAdmissiblePathError, continuation_path
 from .path import GraphMetric, discrete_geodesic
 from .similarity import HandlePath, Similarity, fit_similarity, handle_groups
+from .strain import TriangleDistortion
 
 __all__ = ["MoveResult", "move", "NoAdmissiblePathError"]
 
@@ -109,15 +110,20 @@ def _check_handles(mesh: PlanarMesh, handles, targets) -> tuple[IntArray, FloatA
 
 def _finish(metric: GraphMetric, Q: FloatArray, handles: IntArray, boundary_edges: IntArray,
             relax_iter: int, rounds: int) -> tuple[FloatArray, dict]:
-    """The final quality step with the handles fixed (see :func:`move`)."""
+    """The final quality step with the handles fixed (see :func:`move`): proximal
+    least-squares rounds on the distortion from equilateral triangles of the source's
+    areas, reweighted by ``max(1, |F_t|/rms|F|)`` (an ℓ⁴ fit of ``1/ψ² − 1``); the mesh with
+    the best minimum aspect ratio is kept (the unfinished one included)."""
     tri = metric.triangles
     free = np.ones((2, len(Q)), bool)
     free[0] = False
     free[1, handles] = False
+    absolute = TriangleDistortion.equilateral(metric.reference, tri)
     best, best_ar, kept, nit = Q, aspect_ratios(Q, tri).min(), 0, 0
     weights = None
     for k in range(1, rounds + 1):
         m = GraphMetric(metric.reference, tri, metric.weight, triangle_weights=weights)
+        m.strain = absolute
         res = discrete_geodesic(m, np.stack([Q, Q]), free, boundary_edges=boundary_edges,
                                 anchor_strain=np.zeros((len(tri), 3)), max_iter=relax_iter,
                                 gtol=1e-6)
@@ -126,7 +132,8 @@ def _finish(metric: GraphMetric, Q: FloatArray, handles: IntArray, boundary_edge
         ar = aspect_ratios(Q, tri).min()
         if ar > best_ar:
             best, best_ar, kept = Q, ar, k
-        size = np.linalg.norm(m.strain.values(Q), axis=1)
+        phi = absolute.values(Q)
+        size = np.hypot(phi[:, 1], phi[:, 2])
         weights = np.maximum(1.0, size / np.sqrt(np.mean(size**2)))
     return best, {"iterations": nit, "kept": kept}
 
@@ -170,8 +177,8 @@ def move(
         Levenberg–Marquardt iterations of each relaxation.
     quality_rounds : int
         Rounds of the final quality step (handles fixed): least squares of the distortion
-        from the source with weights ``max(1, |φ_t|/rms|φ|)`` (an ℓ⁴ fit), which presses
-        on the worst triangles; the round with the best minimum aspect ratio is kept.
+        from equilateral triangles, reweighted towards the worst triangles (an ℓ⁴ fit of
+        ``1/ψ² − 1``); the round with the best minimum aspect ratio is kept.
     progress : callable ``s -> None``, optional
 
     Returns

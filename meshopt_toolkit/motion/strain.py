@@ -83,6 +83,22 @@ class TriangleDistortion:
         self.n_vertices = self.reference.shape[0]
         self._a, self._b = wirtinger_coefficients(self.reference, self.triangles)
 
+    @classmethod
+    def equilateral(cls, points: FloatArray, triangles: IntArray) -> TriangleDistortion:
+        """Distortion from equilateral triangles of the same areas as ``points``' ones:
+        its shape part measures absolute quality, ``|F_t|² = 1/ψ_t² − 1`` (5.23)."""
+        p = np.asarray(points, float)[triangles]
+        area = 0.5 * np.abs((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1])
+                            - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0]))
+        side = np.sqrt(4.0 * area / np.sqrt(3.0))
+        unit = np.array([[0.0, 0.0], [1.0, 0.0], [0.5, np.sqrt(3.0) / 2]])
+        ref = (side[:, None, None] * unit).reshape(-1, 2)
+        out = cls(ref, np.arange(3 * len(triangles)).reshape(-1, 3))
+        out.reference = np.asarray(points, float)
+        out.triangles = np.asarray(triangles)
+        out.n_vertices = len(points)
+        return out
+
     def alpha_beta(self, Q: FloatArray) -> tuple[np.ndarray, np.ndarray]:
         """``α_t, β_t`` (complex, shape (T,)) of the current positions ``Q``."""
         z = _complex_points(Q)[self.triangles]
