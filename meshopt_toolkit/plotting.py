@@ -336,7 +336,7 @@ def save_morph_figures(result, strip_path, quality_path, max_panels: int = 9) ->
         strip_path, result.points[idx], result.triangles, ncols=len(idx),
         titles=[f"t = {result.times[k]:.2f}, AR {result.min_aspect_ratio[k]:.2g}" for k in idx],
     )
-    series = {f"geodesic ({result.method})": result.min_aspect_ratio,
+    series = {f"geodesic ({getattr(result, 'metric_name', result.method)})": result.min_aspect_ratio,
               "linear interpolation": result.linear_min_aspect_ratio}
     if getattr(result, "rigid_min_aspect_ratio", None) is not None:
         series["as-rigid-as-possible"] = result.rigid_min_aspect_ratio

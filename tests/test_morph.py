@@ -288,11 +288,21 @@ def test_cli_morph_json(tmp_path, capsys):
     save(mesh.with_points(bend(mesh)), tmp_path / "b.msh")
     out = tmp_path / "out"
     rc = main(["morph", str(tmp_path / "a.msh"), str(tmp_path / "b.msh"), "-o", str(out),
-               "--frames", "4", "--json"])
+               "--frames", "4", "--json", "--metric", "scalar"])
     assert rc == 0
     summary = json.loads(capsys.readouterr().out)
     for key in ("frames", "target_error", "min_aspect_ratio", "admissible", "linear_min_area"):
         assert key in summary
+    rc = main(["morph", str(tmp_path / "a.msh"), str(tmp_path / "b.msh"), "-o", str(out),
+               "--frames", "4", "--json", "--force"])  # default: the distortion metric
+    assert rc == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["metric"] == "distortion" and summary["converged"]
+    for key in ("frames", "target_error", "min_aspect_ratio", "admissible", "linear_inverts"):
+        assert key in summary
+    for part in ("ours", "linear", "rigid"):  # per frame: min AR, mean Λ, inverted count
+        assert set(summary[part]) == {"min_aspect_ratio", "mean_quality", "inverted"}
+        assert len(summary[part]["inverted"]) == 4
     assert summary["frames"] == 4 and summary["admissible"]
     for name in ("frame_000.msh", "frame_003.msh", "strip.png", "quality.png", "summary.json"):
         assert (out / name).exists()
@@ -312,10 +322,17 @@ def test_cli_morph_max_iter_and_callback(tmp_path, capsys, disc):
     save(twisted(disc), tmp_path / "b.msh")
     out = tmp_path / "out"
     assert main(["morph", str(tmp_path / "a.msh"), str(tmp_path / "b.msh"), "-o", str(out),
-                 "--frames", "3", "--max-iter", "2", "--no-plots", "--json"]) == 0
+                 "--frames", "3", "--max-iter", "2", "--no-plots", "--json",
+                 "--metric", "scalar"]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["discrete_iterations"] == 2 and summary["discrete_status"] == "max_iter"
     assert summary["admissible"] and summary["linear_inverts"]
+    assert main(["morph", str(tmp_path / "a.msh"), str(tmp_path / "b.msh"), "-o",
+                 str(tmp_path / "o3"), "--frames", "3", "--max-iter", "1", "--no-plots",
+                 "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["iterations"] == 1 and summary["status"] == "max_iter"
+    assert summary["admissible"] and not summary["converged"]
     assert main(["morph", str(tmp_path / "a.msh"), str(tmp_path / "b.msh"), "-o",
                  str(tmp_path / "o2"), "--max-iter", "0"]) == 1
     assert "--max-iter" in capsys.readouterr().err

@@ -1,7 +1,7 @@
 """Morphing with the per-triangle distortion metric: frames as healthy as their ends.
 
-The pair is factored as the similarity that best fits target to source (mass-weighted
-Procrustes, followed exactly) and a residual pair with the same similarity class; the
+The pair is factored as the similarity that best fits the target's boundary to the
+source's (Procrustes with scale, followed exactly) and a residual pair with the same similarity class; the
 residual frames are the nodes of a discrete geodesic of ``g = M + w² JᵀJ`` (:mod:`.path`)
 started from the as-rigid-as-possible interpolation (else linear, else a continuation of
 the boundary with the interior relaxed towards interpolated distortions).
@@ -87,14 +87,47 @@ class DistortionMorph:
     seconds: float
     details: dict = field(default_factory=dict)
 
+    triangles: IntArray | None = None
+    method: str = "discrete"
+    metric_name: str = "distortion metric"
+
     @property
     def converged(self) -> bool:
         return self.status == "converged"
 
+    @property
+    def n_frames(self) -> int:
+        return len(self.points)
+
+    @property
+    def min_aspect_ratio(self) -> FloatArray:
+        return self.stats.min_aspect_ratio
+
+    @property
+    def linear_min_aspect_ratio(self) -> FloatArray:
+        return self.linear.min_aspect_ratio
+
+    @property
+    def rigid_min_aspect_ratio(self) -> FloatArray:
+        return self.rigid.min_aspect_ratio
+
+    def meshes(self, like: PlanarMesh | None = None) -> list[PlanarMesh]:
+        """The frames as meshes (tags of ``like`` kept when given)."""
+        if like is not None:
+            return [like.as_planar().with_points(p) for p in self.points]
+        return [PlanarMesh(p, self.triangles) for p in self.points]
+
     def summary(self) -> dict:
+        worst_end = float(min(self.stats.min_aspect_ratio[0], self.stats.min_aspect_ratio[-1]))
         return {
             "metric": "distortion",
             "frames": int(len(self.points)),
+            "admissible": bool((self.stats.inverted == 0).all()),
+            "min_aspect_ratio": float(np.min(self.stats.min_aspect_ratio)),
+            "worse_end_min_aspect_ratio": worst_end,
+            "target_error": 0.0,
+            "linear_inverts": bool((self.linear.inverted > 0).any()),
+            "rigid_inverts": bool((self.rigid.inverted > 0).any()),
             "status": self.status,
             "converged": self.converged,
             "gradient_norm": float(self.gradient_norm),
@@ -163,10 +196,11 @@ def distortion_morph(
     tri = source.triangles
     P0, P1 = source.points, target.points
     metric = GraphMetric(P0, tri, weight)
-    S = fit_similarity(P0, P1, weights=metric.mass)
+    be = source.boundary_edges
+    boundary = np.unique(be)
+    S = fit_similarity(P0[boundary], P1[boundary])  # the domain's motion
     R1 = S.inverse(P1)
     times = np.linspace(0.0, 1.0, int(frames))
-    be = source.boundary_edges
     rigid_frames = arap_interpolation(P0, P1, tri, times)
     linear_frames = np.array([(1 - s) * P0 + s * P1 for s in times])
     init = arap_interpolation(P0, R1, tri, times)
@@ -175,7 +209,7 @@ def distortion_morph(
         init = np.array([(1 - s) * P0 + s * R1 for s in times])
         kind = "linear"
         if not _admissible_path(init[1:-1], tri, be):
-            b = np.unique(be)
+            b = boundary
             phi1 = metric.strain.values(R1)
             cont = continuation_path(
                 metric, P0, b, HandlePath(P0[b], R1[b], handle_groups(b, be, len(P0))),
@@ -194,4 +228,4 @@ def distortion_morph(
         linear=FrameStats.of(linear_frames, tri), rigid=FrameStats.of(rigid_frames, tri),
         status=res.status, gradient_norm=res.gradient_norm, energy=res.energy, nit=res.nit,
         strain_bound=np.concatenate([[0.0], np.cumsum(lengths)]) / weight, similarity=S,
-        initial_path=kind, seconds=time.perf_counter() - t_start)
+        initial_path=kind, seconds=time.perf_counter() - t_start, triangles=tri)
