@@ -185,24 +185,15 @@ class _Path:
                           shape=(r.size, self.n_unknowns))
         return r, J
 
-    def frame_block_preconditioner(self, A: sp.csr_matrix) -> LinearOperator:
-        """Block Jacobi over frames: each frame's diagonal block factorized once."""
-        blocks = []
+    def frame_indices(self) -> list[np.ndarray]:
+        """Column indices of each frame's free coordinates (frames with none left out)."""
+        out = []
         for k in range(1, self.K + 1):
             idx = self.col[k].ravel()
             idx = idx[idx >= 0]
             if idx.size:
-                lu = splu(A[idx][:, idx].tocsc(), permc_spec="MMD_AT_PLUS_A",
-                          diag_pivot_thresh=0.0, options={"SymmetricMode": True})
-                blocks.append((idx, lu))
-
-        def apply(v: FloatArray) -> FloatArray:
-            out = np.empty_like(v)
-            for idx, lu in blocks:
-                out[idx] = lu.solve(v[idx])
-            return out
-
-        return LinearOperator(A.shape, apply)
+                out.append(idx)
+        return out
 
     def admissible(self, frames: FloatArray) -> bool:
         """Every triangle of every frame positive, no boundary self-intersection."""
@@ -264,6 +255,7 @@ def discrete_geodesic(
     r, J = path.evaluate(frames, jacobian=True)
     E = float(r @ r)
     lam = 1e-3
+    blocks = _FrameBlocks(path.frame_indices())
     status = "max_iter"
     history = []
     g = J.T @ r
@@ -281,12 +273,12 @@ def discrete_geodesic(
         d = H.diagonal()
         x = path.unknowns(frames)
         accepted = False
-        precondition = None
         for _ in range(30):
             A = H + sp.diags(lam * (d + 1e-12 * d.max()))
-            if precondition is None:
-                precondition = path.frame_block_preconditioner(A)
-            step = _solve(A, -g, precondition)
+            if blocks.stale:
+                blocks.factorize(A)
+            step, cg_iterations = _solve(A, -g, blocks.preconditioner(A))
+            blocks.stale = cg_iterations > REFACTOR_AFTER_CG
             trial = path.with_unknowns(x + step)
             if path.admissible(trial):
                 r_t, _ = path.evaluate(trial, jacobian=False)
@@ -314,11 +306,63 @@ def discrete_geodesic(
     return PathResult(frames, E, gnorm, it, status, history)
 
 
-def _solve(A: sp.csr_matrix, b: FloatArray, precondition: LinearOperator) -> FloatArray:
+REFACTOR_AFTER_CG = 12  # refactorize the frame blocks when CG needed more iterations
+
+
+class _FrameBlocks:
+    """Symmetric block Gauss–Seidel over the frames, for CG on the path system.
+
+    The diagonal blocks (one per frame, mesh-sized) are factorized once and kept across
+    Levenberg–Marquardt iterations until CG slows down (``stale``); the coupling blocks
+    between consecutive frames always come from the current matrix. With exact diagonal
+    blocks this is ``P = (D + L) D⁻¹ (D + U)``, symmetric positive definite.
+    """
+
+    def __init__(self, indices: list[np.ndarray]) -> None:
+        self.indices = indices
+        self.factors: list = []
+        self.stale = True
+
+    def factorize(self, A: sp.csr_matrix) -> None:
+        self.factors = [splu(A[idx][:, idx].tocsc(), permc_spec="MMD_AT_PLUS_A",
+                             diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+                        for idx in self.indices]
+        self.stale = False
+
+    def preconditioner(self, A: sp.csr_matrix) -> LinearOperator:
+        idx, lus = self.indices, self.factors
+        lower = [A[idx[k]][:, idx[k - 1]].tocsr() for k in range(1, len(idx))]
+        upper = [blk.T.tocsr() for blk in lower]
+        diag = [A[i][:, i].tocsr() for i in idx]
+
+        def apply(v: FloatArray) -> FloatArray:
+            n = len(idx)
+            z = [None] * n
+            for k in range(n):  # forward: (D + L) z = v
+                rhs = v[idx[k]] if k == 0 else v[idx[k]] - lower[k - 1] @ z[k - 1]
+                z[k] = lus[k].solve(rhs)
+            x = [None] * n
+            for k in range(n - 1, -1, -1):  # backward: (D + U) x = D z
+                rhs = diag[k] @ z[k] if k == n - 1 else diag[k] @ z[k] - upper[k] @ x[k + 1]
+                x[k] = lus[k].solve(rhs)
+            out = np.empty_like(v)
+            for k in range(n):
+                out[idx[k]] = x[k]
+            return out
+
+        return LinearOperator(A.shape, apply)
+
+
+def _solve(A: sp.csr_matrix, b: FloatArray, precondition: LinearOperator) -> tuple[FloatArray, int]:
     """Conjugate gradients on the SPD Levenberg–Marquardt system (an inexact step is fine:
-    the ratio test of the caller judges it)."""
-    x, info = cg(A, b, rtol=1e-6, maxiter=max(200, 4 * precondition.shape[0] // 10_000),
-                 M=precondition)
+    the ratio test of the caller judges it); returns the step and the iteration count."""
+    count = [0]
+
+    def tick(_):
+        count[0] += 1
+
+    x, info = cg(A, b, rtol=1e-6, maxiter=max(200, precondition.shape[0] // 2_000),
+                 M=precondition, callback=tick)
     if info < 0 or not np.all(np.isfinite(x)):  # pragma: no cover - breakdown
         raise FloatingPointError("conjugate gradients broke down on the path system")
-    return x
+    return x, count[0]
