@@ -13,27 +13,46 @@ from meshopt_toolkit.pipeline.params import PathParam
 class LoadMesh(Filter):
     """Load a mesh (any format ``meshopt_toolkit.io.load`` reads) as the new current mesh.
 
-    ``{stem}``, ``{name}`` and ``{input_dir}`` in the path are replaced by the run's
-    variables; a relative path is relative to the folder of the pipeline's input.
+    The path is a template (``{stem}``, ``{name}``, ``{ext}``, ``{input_dir}``, ... see
+    :mod:`meshopt_toolkit.pipeline.paths`); a relative path is relative to the folder of
+    the pipeline's input. Only the run's inputs and paths given with ``--allow-read``
+    (``Document.allow_read``) can be read; symlinks are followed before deciding.
     """
 
     name = "load_mesh"
     label = "Load Mesh (meshopt)"
     description = "Read a mesh file into the document and make it current."
     parameters = (
-        PathParam("path", "mesh.msh", "mesh file to read ({stem}, {input_dir} expand)", label="File"),
+        PathParam("path", "mesh.msh", "mesh file to read ({stem}, {input_dir} expand); only "
+                  "inputs and --allow-read paths", label="File"),
     )
+
+    @classmethod
+    def _path(cls, document, path: str) -> Path:
+        from meshopt_toolkit.pipeline.paths import resolve_input
+
+        p = resolve_input(document, path)
+        if not p.exists():
+            raise FilterError(f"{p}: no such file")
+        if not p.is_file():
+            raise FilterError(f"{p}: not a regular file")
+        return p
+
+    @classmethod
+    def plan(cls, document, params, stats):
+        """The path must be readable; in a dry run the mesh is read to know its size."""
+        p = cls._path(document, params["path"])
+        if not document.dry_run:
+            return None  # measured after the step
+        from meshopt_toolkit.io import load
+        from meshopt_toolkit.pipeline.budget import stats_of
+
+        return stats_of(load(p))
 
     def apply(self, document, *, path: str) -> dict:
         from meshopt_toolkit.io import load
 
-        try:
-            text = path.format(**document.variables)
-        except (KeyError, IndexError, ValueError) as exc:
-            raise FilterError(f"bad template in path {path!r}: {exc}") from None
-        p = Path(text)
-        if not p.is_absolute() and document.variables.get("input_dir"):
-            p = Path(document.variables["input_dir"]) / p
+        p = self._path(document, path)
         mesh = load(p)
         document.add(mesh, name=p.stem)
         return {"loaded": str(p), "n_vertices": mesh.n_vertices, "n_triangles": mesh.n_triangles}

@@ -6,7 +6,7 @@ import numpy as np
 
 from meshopt_toolkit.errors import FilterError
 from meshopt_toolkit.pipeline.filter import Filter, register
-from meshopt_toolkit.pipeline.params import FloatParam, PathParam, StringParam, number_list
+from meshopt_toolkit.pipeline.params import FloatParam, NumberListParam, PathParam, number_list
 
 
 @register
@@ -29,8 +29,8 @@ class QualityPreservingDeformation(Filter):
         PathParam("displacement", "", "initial velocity: .npy/.csv (N, 2) array or a mesh with the same connectivity",
                   label="Displacement"),
         FloatParam("time", 1.0, "final time of the geodesic", label="Time", min=0.0),
-        StringParam("alpha", "", "f1 parameters a1,a2,a3 (default 1,0,1)", label="Alpha"),
-        StringParam("beta", "", "use f2 with b1,b2,b3,b4 instead (b4 unscaled)", label="Beta"),
+        NumberListParam("alpha", "", "f1 parameters a1,a2,a3 (default 1,0,1)", label="Alpha", count=3),
+        NumberListParam("beta", "", "use f2 with b1,b2,b3,b4 instead (b4 unscaled)", label="Beta", count=4),
     )
 
     def apply(self, document, *, displacement: str = "", time: float = 1.0, alpha: str = "",

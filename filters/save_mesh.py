@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from meshopt_toolkit.errors import FilterError
 from meshopt_toolkit.pipeline.filter import Filter, register
 from meshopt_toolkit.pipeline.params import BoolParam, PathParam
@@ -13,36 +11,46 @@ from meshopt_toolkit.pipeline.params import BoolParam, PathParam
 class SaveMesh(Filter):
     """Write the current mesh with ``meshopt_toolkit.io.save``.
 
-    ``{stem}`` and ``{name}`` (input file stem, current mesh name) expand; a relative path
-    goes into the document's output folder (``meshopt run -o``). The file appears
-    atomically and an existing file is replaced only with ``overwrite`` (or ``--force``).
-    In a dry run nothing is written.
+    The path is a template (``{stem}``, ``{name}``, ``{ext}``, ``{index}``, ... see
+    :mod:`meshopt_toolkit.pipeline.paths`) relative to the document's output folder
+    (``meshopt run -o``); absolute paths, ``..`` and symlinks leading outside it are
+    refused. The file appears atomically. An existing file is replaced only when the
+    command line says so (``--force``, ``Document.overwrite``); the ``overwrite``
+    parameter is kept so that older pipelines still load, but a pipeline cannot grant
+    itself that permission. In a dry run nothing is written.
     """
 
     name = "save_mesh"
     label = "Save Mesh (meshopt)"
-    description = "Write the current mesh to a file (atomic, never overwrites unless asked)."
+    description = "Write the current mesh to a file in the output folder (atomic, never overwrites without --force)."
     parameters = (
-        PathParam("path", "{stem}.msh", "output file ({stem}, {name} expand)", label="File", save=True),
-        BoolParam("overwrite", False, "replace an existing file", label="Overwrite"),
+        PathParam("path", "{stem}.msh", "output file inside the output folder ({stem}, {name} "
+                  "expand)", label="File", save=True),
+        BoolParam("overwrite", False, "ignored: only --force on the command line replaces "
+                  "files", label="Overwrite"),
     )
+
+    @classmethod
+    def _path(cls, document, path: str):
+        from meshopt_toolkit.pipeline.paths import resolve_output
+
+        p = resolve_output(document, path)
+        if p.exists() and not document.overwrite:
+            raise FilterError(f"{p}: already exists (only --force on the command line "
+                              "replaces files)")
+        return p
+
+    @classmethod
+    def plan(cls, document, params, stats):
+        cls._path(document, params["path"])
+        return stats
 
     def apply(self, document, *, path: str, overwrite: bool = False) -> dict:
         from meshopt_toolkit.io import save
 
-        variables = {"stem": "mesh", **document.variables, "name": document.current_entry.name}
-        try:
-            text = path.format(**variables)
-        except (KeyError, IndexError, ValueError) as exc:
-            raise FilterError(f"bad template in path {path!r}: {exc}") from None
-        p = Path(text)
-        if not p.is_absolute() and document.output_dir is not None:
-            p = Path(document.output_dir) / p
-        force = overwrite or document.overwrite
+        p = self._path(document, path)
         if document.dry_run:
-            if p.exists() and not force:
-                raise FilterError(f"{p}: exists (use --force to replace it)")
             return {"would_write": str(p)}
-        save(document.mesh, p, overwrite=force)  # atomic
+        save(document.mesh, p, overwrite=document.overwrite)  # atomic
         document.written.append(str(p))
         return {"written": str(p)}

@@ -186,6 +186,7 @@ def test_load_and_save_steps(kind, tmp_path):
     doc = Document()
     doc.output_dir = outdir
     doc.variables = {"stem": "in", "input_dir": str(tmp_path)}
+    doc.inputs, doc.allow_read = [src], []  # confined reads: only the input
     if kind == "python":
         for s in steps:
             registry.get(s["name"])()(doc, **s.get("params", {}))
@@ -200,7 +201,12 @@ def test_load_and_save_steps(kind, tmp_path):
     with pytest.raises(MeshoptError, match="exists"):
         registry.get("save_mesh")()(doc, path="{stem}_fine.ply")
     assert (outdir / "in_fine.ply").read_bytes() == before
-    registry.get("save_mesh")()(doc, path="{stem}_fine.ply", overwrite=True)
+    # the step's own "overwrite" cannot grant it; only the command line (--force) can
+    with pytest.raises(MeshoptError, match="only --force"):
+        registry.get("save_mesh")()(doc, path="{stem}_fine.ply", overwrite=True)
+    assert (outdir / "in_fine.ply").read_bytes() == before
+    doc.overwrite = True
+    registry.get("save_mesh")()(doc, path="{stem}_fine.ply")
 
 
 def test_save_step_bad_template(tmp_path):

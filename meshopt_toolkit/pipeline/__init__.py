@@ -24,7 +24,8 @@ from .params import (
     PathParam,
     StringParam,
 )
-from .runner import Pipeline, Step, load_pipeline, make_step, save_pipeline
+from .files import load_pipeline, save_pipeline
+from .runner import Pipeline, Step, make_step
 
 __all__ = [
     "Filter", "FilterRegistry", "PluginWarning", "registry", "register", "ENTRY_POINT_GROUP",

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import logging
 import time
+from dataclasses import dataclass, field
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
@@ -19,11 +20,12 @@ from typing import Callable
 
 from ..errors import MeshoptError
 from .document import Document
+from .limits import DEFAULT_MAX_TRIANGLES
 from .runner import Pipeline
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["output_path", "run_file", "BatchRunner"]
+__all__ = ["output_path", "run_file", "RunOptions", "BatchRunner"]
 
 
 def output_path(src: Path, outdir: Path, ext: str | None) -> Path:
@@ -34,38 +36,96 @@ def output_path(src: Path, outdir: Path, ext: str | None) -> Path:
     return Path(outdir) / (src.stem + ext.lower())
 
 
+@dataclass
+class RunOptions:
+    """How a pipeline runs on each file (picklable, passed to worker processes).
+
+    Attributes
+    ----------
+    ext : str or None
+        Output format of the automatic save (default: the input's).
+    force : bool
+        Replace existing files (``--force``; nothing else can grant it).
+    dry_run : bool
+        Check everything (:meth:`Pipeline.check`), write nothing.
+    inputs : list of str
+        All inputs of the batch (a pipeline may read these).
+    allow_read : list of str
+        Further files or folders a pipeline may read (``--allow-read``).
+    max_triangles : int
+        Size budget (``--max-triangles``).
+    allow_inverted : bool
+        Write meshes a MeshLab step left with inverted triangles (warning only).
+    """
+
+    ext: str | None = None
+    force: bool = False
+    dry_run: bool = False
+    inputs: list[str] = field(default_factory=list)
+    allow_read: list[str] = field(default_factory=list)
+    max_triangles: int = DEFAULT_MAX_TRIANGLES
+    allow_inverted: bool = False
+
+
+def _document(src: Path, outdir, options: RunOptions, index: int) -> Document:
+    doc = Document()
+    doc.output_dir = None if outdir is None else Path(outdir)
+    doc.overwrite = options.force
+    doc.dry_run = options.dry_run
+    doc.variables = {"stem": src.stem, "input_dir": str(src.parent), "suffix": src.suffix,
+                     "ext": src.suffix.lstrip("."), "index": str(index)}
+    doc.inputs = [Path(p) for p in options.inputs] or [src]
+    doc.allow_read = [Path(p) for p in options.allow_read]
+    doc.max_triangles = options.max_triangles
+    doc.allow_inverted = options.allow_inverted
+    return doc
+
+
 def run_file(pipeline: Pipeline | dict, src, outdir, *, ext: str | None = None,
-             force: bool = False, dry_run: bool = False) -> dict:
+             force: bool = False, dry_run: bool = False, options: RunOptions | None = None,
+             index: int = 1, source: str | None = None) -> dict:
     """Load ``src``, run ``pipeline``, save the current mesh into ``outdir``.
 
-    The automatic save is skipped when the pipeline has its own ``save_mesh`` step. Nothing
-    is written in a dry run (the pipeline is validated, the input loaded, the outputs
-    checked).
+    The automatic save is skipped when the pipeline has its own ``save_mesh`` step. In a
+    dry run nothing is written and no filter runs: the input is loaded and
+    :meth:`Pipeline.check` checks parameters, paths, existing outputs and the size budget
+    (``outdir`` may then be None: existing outputs are not looked for).
+
+    Parameters
+    ----------
+    options : RunOptions, optional
+        Everything else; ``ext``, ``force`` and ``dry_run`` are shortcuts for it.
+    index : int
+        Position of ``src`` in the batch, from 1 (the ``{index}`` template field).
+    source : str, optional
+        The pipeline's file name for messages when ``pipeline`` is a dict.
 
     Returns
     -------
     dict
-        ``{"input", "status": "ok"|"failed", "outputs", "results", "error", "seconds"}``.
+        ``{"input", "status": "ok"|"failed", "outputs", "results", "warnings", "error",
+        "seconds"}``.
     """
     from ..io import load, save
 
+    if options is None:
+        options = RunOptions(ext=ext, force=force, dry_run=dry_run)
     t0 = time.perf_counter()
     src = Path(src)
-    record: dict = {"input": str(src), "status": "ok", "outputs": [], "results": [], "error": None}
+    record: dict = {"input": str(src), "status": "ok", "outputs": [], "results": [],
+                    "warnings": [], "error": None}
+    doc = None
     try:
         if isinstance(pipeline, dict):
-            pipeline = Pipeline.from_dict(pipeline)
+            pipeline = Pipeline.from_dict(pipeline, source)
         pipeline.validate()
-        doc = Document()
-        doc.output_dir = Path(outdir)
-        doc.overwrite = force
-        doc.dry_run = dry_run
-        doc.variables = {"stem": src.stem, "input_dir": str(src.parent), "suffix": src.suffix}
+        doc = _document(src, outdir, options, index)
         doc.add(load(src), name=src.stem)
         own_save = any(s.name == "save_mesh" for s in pipeline.steps)
-        dst = None if own_save else output_path(src, outdir, ext)
-        if dry_run:
-            if dst is not None and dst.exists() and not force:
+        dst = None if own_save or outdir is None else output_path(src, outdir, options.ext)
+        if options.dry_run:
+            pipeline.check(doc)
+            if dst is not None and dst.exists() and not options.force:
                 raise MeshoptError(f"{dst}: already exists (use --force to overwrite)")
             record["outputs"] = [] if dst is None else [str(dst)]
         else:
@@ -73,13 +133,18 @@ def run_file(pipeline: Pipeline | dict, src, outdir, *, ext: str | None = None,
             record["results"] = doc.results
             record["outputs"] = list(doc.written)
             if dst is not None:
-                save(doc.mesh, dst, overwrite=force)
+                save(doc.mesh, dst, overwrite=options.force)
                 record["outputs"].append(str(dst))
     except MeshoptError as exc:
         record.update(status="failed", error=str(exc))
+    except OSError as exc:  # a file system refusal the layers below did not name
+        name = exc.filename or src
+        record.update(status="failed", error=f"{name}: {exc.strerror or exc}")
     except Exception as exc:  # a bug or a library failure: still per file
         logger.debug("unexpected error on %s", src, exc_info=True)
         record.update(status="failed", error=f"{src}: internal error: {type(exc).__name__}: {exc}")
+    if doc is not None:
+        record["warnings"] = list(doc.warnings)
     record["seconds"] = time.perf_counter() - t0
     return record
 
@@ -94,19 +159,23 @@ class BatchRunner:
     Parameters
     ----------
     pipeline : Pipeline
-    outdir : path
+    outdir : path or None
+        None only in a dry run.
     isolate : bool
         Run files in a child process (one reused worker; recreated after a crash).
     ext, force, dry_run :
         As in :func:`run_file`.
+    options : RunOptions, optional
+        Everything at once (then ``ext``, ``force``, ``dry_run`` are ignored).
     """
 
     def __init__(self, pipeline: Pipeline, outdir, *, isolate: bool = False,
-                 ext: str | None = None, force: bool = False, dry_run: bool = False) -> None:
+                 ext: str | None = None, force: bool = False, dry_run: bool = False,
+                 options: RunOptions | None = None) -> None:
         self.pipeline = pipeline
-        self.outdir = Path(outdir)
+        self.outdir = None if outdir is None else Path(outdir)
         self.isolate = isolate
-        self.kwargs = dict(ext=ext, force=force, dry_run=dry_run)
+        self.options = options or RunOptions(ext=ext, force=force, dry_run=dry_run)
         self._pool: ProcessPoolExecutor | None = None
 
     def _executor(self) -> ProcessPoolExecutor:
@@ -117,17 +186,20 @@ class BatchRunner:
                                              mp_context=multiprocessing.get_context("spawn"))
         return self._pool
 
-    def run_one(self, src) -> dict:
+    def run_one(self, src, index: int = 1) -> dict:
         if not self.isolate:
-            return run_file(self.pipeline, src, self.outdir, **self.kwargs)
+            return run_file(self.pipeline, src, self.outdir, options=self.options, index=index)
         t0 = time.perf_counter()
         data = self.pipeline.to_dict()
+        outdir = None if self.outdir is None else str(self.outdir)
         try:
-            return self._executor().submit(run_file, data, str(src), str(self.outdir),
-                                           **self.kwargs).result()
+            return self._executor().submit(run_file, data, str(src), outdir,
+                                           options=self.options, index=index,
+                                           source=self.pipeline.source).result()
         except BrokenProcessPool:
             self.close()
             return {"input": str(src), "status": "failed", "outputs": [], "results": [],
+                    "warnings": [],
                     "error": f"{src}: the worker process crashed (a native MeshLab filter "
                              "aborted?); other files go on",
                     "seconds": time.perf_counter() - t0}
@@ -135,8 +207,8 @@ class BatchRunner:
     def run(self, sources, callback: Callable[[dict], None] | None = None) -> list[dict]:
         records = []
         try:
-            for src in sources:
-                rec = self.run_one(src)
+            for index, src in enumerate(sources, start=1):
+                rec = self.run_one(src, index)
                 records.append(rec)
                 if callback is not None:
                     callback(rec)

@@ -35,6 +35,7 @@ import numpy as np
 
 from ..errors import FilterError
 from ..mesh import PlanarMesh, TriangleMesh
+from .limits import DEFAULT_MAX_TRIANGLES
 
 logger = logging.getLogger(__name__)
 
@@ -108,13 +109,31 @@ class Document:
     results : list of dict
         One ``{"filter": name, ...summary}`` per step that returned a summary.
     output_dir : pathlib.Path or None
-        Where relative output paths of save steps go (set by the runner).
+        The only folder a pipeline writes into (``meshopt run -o``); the current
+        directory when None. See :mod:`meshopt_toolkit.pipeline.paths`.
     overwrite : bool
-        Whether save steps may replace existing files.
+        Whether save steps may replace existing files (``--force``: the command line is
+        the only authority; a pipeline's own ``overwrite`` parameter cannot grant it).
     dry_run : bool
         Save steps validate but do not write.
     variables : dict
-        Substitutions for ``{stem}``-style templates in paths.
+        Values of the path template fields ``{stem}``, ``{suffix}``, ``{ext}``,
+        ``{index}``, ``{input_dir}`` (``{name}`` is the current mesh's name).
+    inputs : list of path
+        Files a pipeline may read (the run's inputs) when reads are confined.
+    allow_read : list of path or None
+        Further files or folders a pipeline may read (``--allow-read``). None (the
+        default for documents made in Python) leaves reads to the calling program; a list
+        (``meshopt run`` always gives one) confines them to ``inputs`` and these paths.
+    max_triangles : int
+        The size budget: triangles of the current mesh after any step (``--max-triangles``).
+    allow_inverted : bool
+        Let a MeshLab step that inverts triangles of a planar mesh go on with a warning
+        instead of failing (``--allow-inverted``).
+    warnings : list of str
+        One line per warning of the run (step named, from 1).
+    written : list of str
+        Files written by save steps.
     """
 
     def __init__(self, meshes=(), current: int | None = None) -> None:
@@ -128,6 +147,11 @@ class Document:
         self.overwrite = False
         self.dry_run = False
         self.variables: dict[str, str] = {}
+        self.inputs: list = []
+        self.allow_read: list | None = None
+        self.max_triangles: int = DEFAULT_MAX_TRIANGLES
+        self.allow_inverted = False
+        self.warnings: list[str] = []
         self.written: list[str] = []
 
     # -- meshes ---------------------------------------------------------------------

@@ -33,6 +33,7 @@ from ..errors import FilterError
 from .params import Param, did_you_mean
 
 if TYPE_CHECKING:  # pragma: no cover
+    from .budget import MeshStats
     from .document import Document
 
 logger = logging.getLogger(__name__)
@@ -64,6 +65,23 @@ class Filter:
     def apply(self, document: "Document", **params: Any) -> dict | None:
         """Run on ``document`` (mutating it); return a JSON-able summary dict or None."""
         raise NotImplementedError(f"{type(self).__name__}.apply is not implemented")
+
+    @classmethod
+    def plan(cls, document: "Document", params: dict[str, Any],
+             stats: "MeshStats | None") -> "MeshStats | None":
+        """Check what can be checked without running, and estimate the mesh after it.
+
+        Called by the runner before every step and by ``--dry-run`` instead of
+        :meth:`apply`, with validated ``params`` whose paths are already confined.
+        ``stats`` describes the current mesh before the step (None if unknown).
+
+        Returns
+        -------
+        MeshStats or None
+            The current mesh after this step (an upper bound of its triangles), or None
+            when unknown until run time. The default: unchanged.
+        """
+        return stats
 
     # -- parameters -----------------------------------------------------------------
     @classmethod

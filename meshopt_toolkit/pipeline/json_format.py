@@ -1,4 +1,9 @@
-"""Pipelines as JSON: ``{"filters": [{"name": ..., "params": {...}}, ...]}``."""
+"""Pipelines as JSON: ``{"filters": [{"name": ..., "params": {...}}, ...]}``.
+
+The text is bounded before parsing (size, nesting depth: :mod:`.limits`), and the
+non-standard constants ``NaN``, ``Infinity`` and ``-Infinity`` that Python's parser accepts
+are refused, so every problem is a one-line :class:`FilterError` naming the file.
+"""
 
 from __future__ import annotations
 
@@ -7,21 +12,46 @@ from pathlib import Path
 
 from ..errors import FilterError
 from ..io import atomic_path
+from .limits import MAX_PIPELINE_BYTES, check_json_text, read_bounded
 from .runner import Pipeline
 
-__all__ = ["read_json", "write_json", "loads", "dumps"]
+__all__ = ["read_json", "write_json", "loads", "dumps", "MAX_BYTES"]
 
-MAX_BYTES = 16 * 1024 * 1024
+#: JSON pipelines larger than this are refused before parsing
+MAX_BYTES = MAX_PIPELINE_BYTES
 
 
-def loads(text: str, source: str | None = None) -> Pipeline:
-    """Parse JSON text into a :class:`Pipeline` (clear errors with line and column)."""
+def _no_constant(name: str):
+    raise FilterError(f"{name} is not a number a pipeline may hold (finite numbers only)")
+
+
+def loads(text: str | bytes, source: str | None = None) -> Pipeline:
+    """Parse JSON text into a :class:`Pipeline` (clear errors with line and column).
+
+    Raises
+    ------
+    FilterError
+        Too large, nested too deep, not UTF-8, not JSON, ``NaN``/``Infinity``, or not a
+        valid pipeline; the message names ``source``.
+    """
     where = f"{source}: " if source else ""
+    data = text.encode("utf-8", "surrogatepass") if isinstance(text, str) else bytes(text)
+    if len(data) > MAX_BYTES:
+        raise FilterError(f"{where}pipeline file larger than {MAX_BYTES} bytes; refused")
+    check_json_text(data, where)
     try:
-        data = json.loads(text)
+        decoded = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise FilterError(f"{where}not UTF-8 text: {exc.reason} at byte {exc.start}") from None
+    try:
+        parsed = json.loads(decoded, parse_constant=_no_constant)
     except json.JSONDecodeError as exc:
         raise FilterError(f"{where}not valid JSON: {exc.msg} at line {exc.lineno} column {exc.colno}") from None
-    return Pipeline.from_dict(data, source)
+    except FilterError as exc:
+        raise FilterError(f"{where}{exc}") from None
+    except RecursionError:  # pragma: no cover - check_json_text bounds the depth first
+        raise FilterError(f"{where}JSON nested too deep") from None
+    return Pipeline.from_dict(parsed, source)
 
 
 def dumps(pipeline: Pipeline) -> str:
@@ -29,14 +59,9 @@ def dumps(pipeline: Pipeline) -> str:
 
 
 def read_json(path) -> Pipeline:
+    """Read a JSON pipeline file (a regular file, bounded; see :func:`loads`)."""
     p = Path(path)
-    if p.stat().st_size > MAX_BYTES:
-        raise FilterError(f"{p}: pipeline file larger than {MAX_BYTES} bytes")
-    try:
-        text = p.read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        raise FilterError(f"{p}: not UTF-8 text: {exc}") from None
-    return loads(text, str(p))
+    return loads(read_bounded(p, MAX_BYTES), str(p))
 
 
 def write_json(pipeline: Pipeline, path, *, overwrite: bool = False) -> None:

@@ -9,7 +9,11 @@
 - :func:`parameter_list` gives a filter's parameters as pymeshlab documents them.
 - :func:`to_pymeshlab_value` turns JSON-friendly values into what ``apply_filter`` wants.
 - :data:`UNSAFE_FILTERS` / :func:`check_safe`: filters known to abort the whole process on
-  a headless machine (GPU filters) are refused before anything runs.
+  a headless machine (GPU filters), and :data:`FILE_FILTERS` that read or write files (or
+  the network) at paths of their own, are refused before anything runs.
+- :data:`READ_PATH_PARAMS`: parameters naming a file a filter reads; the runner confines
+  them like ``load_mesh`` paths (:mod:`.paths`).
+- :func:`validate_params` checks names and types (:mod:`.meshlab_values`).
 
 pymeshlab is imported lazily (only when a pipeline has a MeshLab step).
 """
@@ -25,6 +29,8 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import FilterError
+from .limits import check_name
+from .meshlab_values import check_value
 from .params import did_you_mean
 
 __all__ = [
@@ -38,6 +44,8 @@ __all__ = [
     "from_pymeshlab_value",
     "apply",
     "UNSAFE_FILTERS",
+    "FILE_FILTERS",
+    "READ_PATH_PARAMS",
 ]
 
 #: filters that abort the Python process (uncatchable) on a machine without a GPU/display
@@ -45,6 +53,23 @@ UNSAFE_FILTERS = frozenset({
     "compute_scalar_ambient_occlusion_gpu",
     "compute_scalar_by_volumetric_obscurance_gpu",
     "compute_scalar_by_shape_diameter_function_per_vertex_gpu",
+})
+
+#: filters that write or read files at paths of their own, or talk to the network: a
+#: pipeline cannot confine them to the output directory, so they are refused
+FILE_FILTERS = frozenset({
+    "nxs_build",
+    "nxs_compress",
+    "save_snapshot",
+    "save_active_raster_cameras",
+    "load_active_raster_cameras",
+    "export_mesh_to_sketchfab",
+})
+
+#: (filter, parameter) naming a file the filter reads (confined like load_mesh paths)
+READ_PATH_PARAMS = frozenset({
+    ("compute_color_from_scalar_using_transfer_function_per_vertex", "csvfilename"),
+    ("set_texture_per_mesh", "textname"),
 })
 
 
@@ -110,11 +135,17 @@ def suggestions(name_or_label: str) -> str:
 
 
 def check_safe(name: str) -> None:
-    """Raise FilterError for a filter known to abort the process here."""
+    """Raise FilterError for a filter known to abort the process here, or one that reads
+    or writes files (or the network) outside the pipeline's control."""
     if name in UNSAFE_FILTERS:
         raise FilterError(
             f"MeshLab filter {name!r} needs a GPU/OpenGL context and aborts the whole process "
             "on a headless machine; refused"
+        )
+    if name in FILE_FILTERS:
+        raise FilterError(
+            f"MeshLab filter {name!r} reads or writes files (or the network) at paths of its "
+            "own, which a pipeline cannot confine to its output directory; refused"
         )
 
 
@@ -157,14 +188,25 @@ def parameter_list(name: str) -> tuple[dict, ...]:
 
 
 def validate_params(name: str, params: dict[str, Any]) -> None:
-    """Unknown parameter names of a MeshLab filter give a FilterError with a suggestion."""
-    known = [p["name"] for p in parameter_list(name)]
-    for key in params:
-        if key not in known:
+    """Check the parameters of a MeshLab filter: known names and values of the right type.
+
+    Raises
+    ------
+    FilterError
+        An unknown name (with a suggestion), or a value that does not suit the type
+        pymeshlab documents (see :func:`.meshlab_values.check_value`), e.g. a string for an
+        integer or a non-finite number.
+    """
+    types = {p["name"]: p["type"] for p in parameter_list(name)}
+    for key, value in params.items():
+        check_name(key, "parameter")
+        if key not in types:
+            known = list(types)
             raise FilterError(
                 f"MeshLab filter {name!r} has no parameter {key!r}{did_you_mean(key, known)}; "
                 f"parameters: {', '.join(known) or 'none'}"
             )
+        check_value(name, key, types[key], value)
 
 
 def to_pymeshlab_value(name: str, key: str, value: Any):
@@ -196,6 +238,8 @@ def to_pymeshlab_value(name: str, key: str, value: Any):
             return arr.reshape(4, 4) if arr.size == 16 else arr
         if ptype.startswith("float") and isinstance(value, int) and not isinstance(value, bool):
             return float(value)
+        if ptype == "int" and isinstance(value, float) and value.is_integer():
+            return int(value)
     except (TypeError, ValueError) as exc:
         raise FilterError(f"MeshLab filter {name!r}, parameter {key!r}: bad value {value!r}: {exc}")
     return value

@@ -27,13 +27,14 @@ from pathlib import Path
 from ..errors import FilterError
 from ..io import atomic_path
 from .filter import registry
+from .limits import MAX_PIPELINE_BYTES, check_name, check_step_count, read_bounded
 from .params import did_you_mean, param_from_mlx
 from .runner import MESHOPT, Pipeline, Step, make_step
 
 __all__ = ["read_mlx", "write_mlx", "loads", "dumps", "MAX_BYTES"]
 
 #: scripts larger than this are refused before parsing
-MAX_BYTES = 4 * 1024 * 1024
+MAX_BYTES = MAX_PIPELINE_BYTES
 
 
 #: the only document type declaration a filter script may carry (MeshLab writes it)
@@ -82,19 +83,26 @@ def loads(data: bytes | str, source: str | None = None) -> Pipeline:
     if root.tag != "FilterScript":
         raise FilterError(f"{where}not a MeshLab filter script (root element <{root.tag}>, "
                           "expected <FilterScript>)")
+    check_step_count(len(root), where)
     steps = []
-    for i, el in enumerate(root):
+    for i, el in enumerate(root, start=1):
         if el.tag != "filter":
-            raise FilterError(f"{where}filter {i}: unexpected element <{el.tag}>")
+            raise FilterError(f"{where}step {i}: unexpected element <{_short(el.tag)}>")
         label = el.get("name")
         if not label:
-            raise FilterError(f"{where}filter {i}: <filter> without a name attribute")
+            raise FilterError(f"{where}step {i}: <filter> without a name attribute")
         params = [dict(p.attrib) for p in el if p.tag in ("Param", "xmlparam")]
         try:
+            check_name(label, "filter")
             steps.append(_step_from_mlx(label, params))
         except FilterError as exc:
-            raise FilterError(f"{where}filter {i} ({label!r}): {exc}") from None
+            raise FilterError(f"{where}step {i} ({_short(label)}): {exc}") from None
     return Pipeline(steps, source)
+
+
+def _short(text: str) -> str:
+    shown = repr(text)
+    return shown if len(shown) <= 60 else shown[:57] + "..."
 
 
 def _step_from_mlx(label: str, params: list[dict[str, str]]) -> Step:
@@ -104,6 +112,7 @@ def _step_from_mlx(label: str, params: list[dict[str, str]]) -> Step:
         names = [p.name for p in cls.parameters]
         for attrs in params:
             pname = attrs.get("name", "")
+            check_name(pname, "parameter")
             match = next((n for n in names if n == pname or n.lower() == pname.lower()), None)
             if match is None:
                 raise FilterError(f"filter {cls.name!r} has no parameter {pname!r}"
@@ -115,17 +124,15 @@ def _step_from_mlx(label: str, params: list[dict[str, str]]) -> Step:
         pname = attrs.get("name")
         if not pname:
             raise FilterError("<Param> without a name attribute")
+        check_name(pname, "parameter")
         values[pname.lower()] = param_from_mlx(attrs)
     return make_step(label, values, label=label, mlx_params=params)
 
 
 def read_mlx(path) -> Pipeline:
-    """Read a .mlx file (see :func:`loads`)."""
+    """Read a .mlx file (a regular file, bounded; see :func:`loads`)."""
     p = Path(path)
-    size = p.stat().st_size
-    if size > MAX_BYTES:
-        raise FilterError(f"{p}: filter script larger than {MAX_BYTES} bytes; refused")
-    return loads(p.read_bytes(), str(p))
+    return loads(read_bounded(p, MAX_BYTES), str(p))
 
 
 def dumps(pipeline: Pipeline, diameter: float | None = None) -> str:

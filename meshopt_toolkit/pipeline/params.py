@@ -36,6 +36,7 @@ __all__ = [
     "IntParam",
     "Length",
     "LengthParam",
+    "NumberListParam",
     "Param",
     "PathParam",
     "StringParam",
@@ -57,16 +58,20 @@ def number_list(text: str, n: int, what: str) -> tuple[float, ...] | None:
     Raises
     ------
     FilterError
-        Not exactly ``n`` numbers, or a negative one; the message names ``what``.
+        Not exactly ``n`` numbers, a negative or a non-finite one (``nan``, ``inf``); the
+        message names ``what``.
     """
     if not text.strip():
         return None
+    shown = text if len(text) <= 60 else text[:57] + "..."
     try:
-        values = tuple(float(x) for x in text.split(","))
+        values = tuple(float(x) for x in text.split(",", n))
     except ValueError:
-        raise FilterError(f"{what}: expected {n} comma-separated numbers, got {text!r}") from None
+        raise FilterError(f"{what}: expected {n} comma-separated numbers, got {shown!r}") from None
+    if not all(math.isfinite(v) for v in values):
+        raise FilterError(f"{what}: expected {n} finite numbers, got {shown!r}")
     if len(values) != n or min(values) < 0:
-        raise FilterError(f"{what}: expected {n} non-negative comma-separated numbers, got {text!r}")
+        raise FilterError(f"{what}: expected {n} non-negative comma-separated numbers, got {shown!r}")
     return values
 
 
@@ -350,6 +355,23 @@ class StringParam(Param):
         if not isinstance(value, str):
             raise self._error(filter_name, f"expected a string, got {value!r}")
         return value
+
+
+@dataclass(frozen=True)
+class NumberListParam(StringParam):
+    """A string of ``count`` non-negative finite comma-separated numbers, or empty (the
+    filter's default); checked when the pipeline is validated (``--dry-run``), passed on
+    as the string (the filter parses it with :func:`number_list`)."""
+
+    count: int = 1
+
+    def validate(self, value, filter_name="?") -> str:
+        value = super().validate(value, filter_name)
+        number_list(value, self.count, f"filter {filter_name!r}, parameter {self.name!r}")
+        return value
+
+    def spec(self) -> dict:
+        return {**super().spec(), "count": self.count}
 
 
 @dataclass(frozen=True)
