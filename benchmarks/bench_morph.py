@@ -1,94 +1,110 @@
-"""Benchmark of the geodesic morph (issue #7).
+"""Benchmark of the morph (issue #15): frame quality against the ends and the alternatives,
+and cost against one linear elasticity solve.
 
-1. The 225° twist of the 146-vertex disc (interior rotated by θ(r) = 225°·(1 − r)², boundary
-   fixed): time of ``geodesic_morph`` (discrete geodesic, 9 frames / 16 segments) against
-   the time of ONE ``exp_map`` of the same metric along the morph's own initial velocity,
-   measured side by side in this process: the issue asks for at most 100 exp_map calls.
-2. Growth with mesh size: the same twist on the bundled discs and uniform refinements up to
-   ``--max-triangles`` triangles; time, Newton iterations and why they stopped, penalty
-   calls, the time of one ``value_and_gradient`` (ms/call, the unit of work), the morph's
-   time per penalty call in those units (s/call), and the smallest aspect ratio of the
-   geodesic's nodes. The 100k-triangle row takes tens of minutes: cap it with
-   ``--max-iter`` and run it alone with ``--skip-twist --min-triangles 100000``.
+1. Pairs (source, target of the same connectivity): an annulus (r 0.3–1) and its copy with
+   the inner circle turned 90° by a log-radius twist; the annulus and ``move``'s result for a
+   180° turn; the 146- and 2198-vertex discs and their 225° twist; the channel and ``move``'s
+   result for the cylinder pushed down 0.2; the 146-vertex disc and a copy turned 90° and
+   scaled 1.5 (a similarity: every frame must be a similar copy). Columns: the worse end's
+   min aspect ratio, the worst frame of ours (``distortion_morph``, 9 frames) and its ratio
+   to the worse end (the issue asks ≥ 0.9), the worst frame of linear and of
+   as-rigid-as-possible interpolation (with inverted triangles), optionally the worst frame
+   of the complete metric of f2 (``--with-scalar``: ``geodesic_morph``, slow), time and
+   Levenberg–Marquardt status.
+2. ``--growth``: the 90° annulus twist on finer meshes up to ``--max-triangles``: seconds,
+   seconds per elasticity solve (same mesh, same process), iterations, worst frame.
 
-Usage: ``python benchmarks/bench_morph.py [--max-triangles 110000] [--repeat 3]
-[--max-iter 500] [--min-triangles 0] [--skip-twist]``
+Usage: ``python benchmarks/bench_morph.py [--growth] [--max-triangles 50000] [--with-scalar]``
 """
 
 from __future__ import annotations
 
 import argparse
+import time
 
-from _common import best_of
+import numpy as np
+from _anchors import elasticity_motion
 
-from meshopt_toolkit.datasets import data_path
-from meshopt_toolkit.geodesics import exp_map
-from meshopt_toolkit.io import load
-from meshopt_toolkit.morph import DEFAULT_BETA, geodesic_morph, morph_metric, twisted
-from meshopt_toolkit.penalties import QualityPenalty
+import meshopt_toolkit as mt
+from meshopt_toolkit.generate import (annulus, channel_with_cylinder, log_twist,
+                                      rotate_inner_boundary, shift_hole)
+from meshopt_toolkit.geometry import aspect_ratios
+from meshopt_toolkit.morph import twisted
+
+
+def _min_ar(points, triangles) -> float:
+    return float(aspect_ratios(points, triangles).min())
+
+
+def pairs():
+    ring = annulus(0.05)
+    yield "annulus, 90° log twist", ring, log_twist(ring, 90)
+    yield "annulus, 180° turn (move)", ring, mt.move(ring, *rotate_inner_boundary(ring, 180)).mesh
+    for name in ("disc_146.msh", "disc_2198.msh"):
+        disc = mt.load(mt.data_path(name)).as_planar()
+        yield f"{name[:-4]}, 225° twist", disc, twisted(disc)
+    channel = channel_with_cylinder(0.05)
+    yield "channel, cylinder −0.2 (move)", channel, mt.move(channel, *shift_hole(channel, (0, -0.2))).mesh
+    disc = mt.load(mt.data_path("disc_146.msh")).as_planar()
+    c, s = np.cos(np.pi / 2), np.sin(np.pi / 2)
+    yield "disc_146, turned 90° ×1.5", disc, disc.with_points(1.5 * disc.points @ [[c, s], [-s, c]])
+
+
+def _worst(stats) -> str:
+    inv = int(stats.inverted.max())
+    return f"{'inverts ' + str(inv):>12}" if inv else f"{np.nanmin(stats.min_aspect_ratio):12.4f}"
+
+
+def table(with_scalar: bool) -> None:
+    print(f"{'pair':<31}{'tri':>6}{'worse end':>10}{'ours':>9}{'/end':>6}{'linear':>12}"
+          f"{'ARAP':>12}{'scalar f2':>11}{'s':>7}  status")
+    for name, src, tgt in pairs():
+        tri = src.triangles
+        end = min(_min_ar(src.points, tri), _min_ar(tgt.points, tri))
+        t0 = time.perf_counter()
+        res = mt.distortion_morph(src, tgt, frames=9)
+        sec = time.perf_counter() - t0
+        ours = float(np.min(res.stats.min_aspect_ratio))
+        scalar = ""
+        if with_scalar:
+            old = mt.geodesic_morph(src, tgt, frames=9)
+            scalar = f"{min(_min_ar(p, tri) for p in old.discrete.points):11.1e}"
+        print(f"{name:<31}{len(tri):>6}{end:10.4f}{ours:9.4f}{ours / end:6.2f}{_worst(res.linear)}"
+              f"{_worst(res.rigid)}{scalar:>11}{sec:7.1f}  {res.status} ({res.nit} its, "
+              f"start {res.initial_path})", flush=True)
+
+
+def growth(max_triangles: int) -> None:
+    print("\ngrowth: annulus, 90° log twist, 9 frames")
+    print(f"{'triangles':>10}{'seconds':>9}{'elast. s':>10}{'ratio':>8}{'its':>5}{'worst frame':>12}")
+    size = 0.05
+    while True:
+        src = annulus(size)
+        if src.n_triangles > max_triangles:
+            break
+        tgt = log_twist(src, 90)
+        b = np.unique(src.boundary_edges)
+        t0 = time.perf_counter()
+        elasticity_motion(src.points, src.triangles, b, tgt.points[b])
+        unit = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        res = mt.distortion_morph(src, tgt, frames=9)
+        sec = time.perf_counter() - t0
+        print(f"{src.n_triangles:>10}{sec:9.1f}{unit:10.3f}{sec / unit:8.0f}{res.nit:5d}"
+              f"{np.min(res.stats.min_aspect_ratio):12.4f}", flush=True)
+        size /= 2
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--max-triangles", type=int, default=110_000)
-    ap.add_argument("--repeat", type=int, default=3)
-    ap.add_argument("--max-iter", type=int, default=500, help="Newton cap of the growth runs")
-    ap.add_argument("--min-triangles", type=int, default=0, help="skip smaller growth runs")
-    ap.add_argument("--skip-twist", action="store_true", help="only the growth table")
+    ap.add_argument("--growth", action="store_true")
+    ap.add_argument("--max-triangles", type=int, default=50_000)
+    ap.add_argument("--with-scalar", action="store_true",
+                    help="also the complete metric of f2 (geodesic_morph; minutes)")
     args = ap.parse_args()
-    if not args.skip_twist:
-        twist_against_exp_map(args.repeat)
-    growth(args.min_triangles, args.max_triangles, args.max_iter)
-
-
-def twist_against_exp_map(repeat: int) -> None:
-    disc = load(data_path("disc_146.msh")).as_planar()
-    target = twisted(disc)
-    t_morph, res = best_of(lambda: geodesic_morph(disc, target, frames=9), repeat)
-    metric = morph_metric(disc)  # the morph's own metric (√N·f2)
-    V = res.discrete.initial_velocity()
-    t_exp, _ = best_of(lambda: exp_map(metric, disc.points, V, on_violation="ignore"), repeat)
-    print("225° twist, disc_146 (146 vertices, 254 triangles), 9 frames / 16 segments")
-    print(f"  geodesic_morph   {t_morph:8.3f} s  (Newton its {res.discrete.nit}, "
-          f"{res.discrete.status}, penalty calls "
-          f"{res.discrete.n_evaluations}, admissible {bool(res.admissible.all())}, "
-          f"linear min area {res.linear_min_area_dense:.2e})")
-    print(f"  one exp_map      {t_exp:8.3f} s  (default rtol, same metric, V = morph's γ'(0))")
-    print(f"  ratio            {t_morph / t_exp:8.1f} exp_map calls  (issue #7 asks <= 100)")
-
-
-def growth(min_triangles: int, max_triangles: int, max_iter: int) -> None:
-    from meshopt_toolkit.geometry import aspect_ratios
-    from meshopt_toolkit.mesh import check_mesh
-
-    print(f"\ngrowth with mesh size (same twist, 5 frames / 16 segments, best of 1, "
-          f"at most {max_iter} Newton iterations)")
-    print(f"{'triangles':>10} {'vertices':>9} {'seconds':>9} {'its':>5} {'status':>10} "
-          f"{'calls':>7} {'ms/call':>8} {'s/call':>7} {'admissible':>10} {'min AR':>8} "
-          f"{'lin. inverts':>12}", flush=True)
-    meshes = [load(data_path(n)).as_planar() for n in
-              ("disc_146.msh", "disc_541.msh", "disc_2198.msh", "disc_13586.msh")]
-    while meshes[-1].n_triangles * 4 <= max_triangles:
-        meshes.append(meshes[-1].refine())
-    for mesh in meshes:
-        if mesh.n_triangles > max_triangles:
-            break
-        if mesh.n_triangles < min_triangles:
-            continue
-        tgt = twisted(mesh).points
-        if not check_mesh(mesh.with_points(tgt)).admissible:
-            print(f"{mesh.n_triangles:>10} {mesh.n_vertices:>9}   twisted target not admissible")
-            continue
-        t, r = best_of(lambda m=mesh, g=tgt: geodesic_morph(m, m.with_points(g), frames=5,
-                                                            max_iter=max_iter), 1)
-        pen = QualityPenalty(mesh, beta=DEFAULT_BETA)
-        t_call, _ = best_of(lambda p=pen, m=mesh: p.value_and_gradient(m.points), 3)
-        d = r.discrete
-        min_ar = min(aspect_ratios(p, mesh.triangles).min() for p in d.points)
-        print(f"{mesh.n_triangles:>10} {mesh.n_vertices:>9} {t:>9.2f} {d.nit:>5} {d.status:>10} "
-              f"{d.n_evaluations:>7} {1e3 * t_call:>8.2f} {t / d.n_evaluations / t_call:>7.2f} "
-              f"{bool(r.admissible.all())!s:>10} {min_ar:>8.1e} "
-              f"{r.linear_min_area_dense < 0!s:>12}", flush=True)
+    table(args.with_scalar)
+    if args.growth:
+        growth(args.max_triangles)
 
 
 if __name__ == "__main__":

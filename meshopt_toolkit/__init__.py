@@ -47,6 +47,11 @@ _EXPORTS = {
     "exp_map": "geodesics",
     "geodesic": "geodesics",
     "deform": "deform",
+    # prescribed motion (the per-triangle distortion metric)
+    "move": "motion.move",
+    "MoveResult": "motion.move",
+    "NoAdmissiblePathError": "motion.continuation",
+    "TriangleDistortion": "motion.strain",
     # shape optimization
     "PoissonObjective": "poisson",
     "parse_expression": "expressions",
@@ -54,6 +59,7 @@ _EXPORTS = {
     # morphing
     "log_map": "morph",
     "geodesic_morph": "morph",
+    "distortion_morph": "motion.morph",
     # filters and pipelines
     "Filter": "pipeline",
     "Document": "pipeline",

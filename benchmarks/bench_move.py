@@ -1,0 +1,129 @@
+"""Benchmark of ``move`` (issue #14) against what users would otherwise use.
+
+Cases (all boundary vertices are handles; only their end positions are prescribed):
+  annulus r 0.3–1 whose inner circle turns by 45°, 90°, 180°; a channel [0,3]×[0,1] whose
+  cylinder (r 0.15 at (1, 0.5)) is pushed down by 0.2 and 0.3 (0.05 and below 0.0 from the
+  wall at the end).
+Methods: ``move`` (ours), linear elasticity with E = 1/area (one solve: the cost unit),
+harmonic and biharmonic extension, ARAP and SLIM (libigl), TMOP (mfem: worst-case untangler
+then shape metric 2). Columns: min aspect ratio 2r/R over the triangles (0 when any is
+inverted), inverted triangles, max handle error, seconds and seconds / elasticity solve, all
+run side by side in this process.
+
+``--growth`` adds the cost of ``move`` against one elasticity solve on refined annuli (90°)
+up to ``--max-triangles``.
+
+Usage: ``python benchmarks/bench_move.py [--size 0.05] [--growth] [--max-triangles 110000]
+[--skip METHOD ...]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+from _anchors import (arap_motion, elasticity_motion, harmonic_motion, slim_motion,
+                      tmop_motion)
+
+import meshopt_toolkit as mt
+from meshopt_toolkit.generate import annulus, channel_with_cylinder, rotate_inner_boundary, shift_hole
+from meshopt_toolkit.geometry import aspect_ratios
+
+
+def ours(points, triangles, handles, targets):
+    mesh = mt.PlanarMesh(points, triangles)
+    return mt.move(mesh, handles, targets).mesh.points
+
+
+METHODS = {
+    "elasticity 1/A": elasticity_motion,
+    "move (ours)": ours,
+    "harmonic": harmonic_motion,
+    "biharmonic": lambda *a: harmonic_motion(*a, order=2),
+    "ARAP (libigl)": arap_motion,
+    "SLIM (libigl)": slim_motion,
+    "TMOP (mfem)": tmop_motion,
+}
+
+
+def cases(size: float):
+    ring = annulus(size)
+    for degrees in (45, 90, 180):
+        yield f"annulus, inner circle turned {degrees}°", ring, *rotate_inner_boundary(ring, degrees)
+    channel = channel_with_cylinder(size)
+    for drop in (0.2, 0.3):
+        yield f"channel, cylinder pushed down {drop}", channel, *shift_hole(channel, (0.0, -drop))
+
+
+def measure(fn, mesh, handles, targets):
+    t0 = time.perf_counter()
+    try:
+        Q = fn(mesh.points, mesh.triangles, handles, targets)
+    except ImportError as exc:
+        return None, f"unavailable ({exc.name} not installed: pip install meshopt-toolkit[bench])"
+    except Exception as exc:  # a reference method failing is a result, not a crash
+        return None, f"failed: {type(exc).__name__}: {str(exc)[:60]}"
+    seconds = time.perf_counter() - t0
+    ar = aspect_ratios(Q, mesh.triangles)
+    inverted = int((ar <= 0).sum())
+    err = float(np.abs(Q[handles] - targets).max())
+    return (0.0 if inverted else float(ar.min()), inverted, err, seconds), None
+
+
+def table(size: float, skip: set[str]) -> None:
+    for name, mesh, handles, targets in cases(size):
+        src = aspect_ratios(mesh.points, mesh.triangles).min()
+        print(f"\n{name}: {mesh.n_triangles} triangles, {len(handles)} handles, "
+              f"source min AR {src:.3f}")
+        print(f"  {'method':<16}{'min AR':>9}{'inverted':>10}{'handle err':>12}"
+              f"{'seconds':>9}{'× elast.':>10}")
+        unit = None
+        for method, fn in METHODS.items():
+            if method in skip:
+                continue
+            row, why = measure(fn, mesh, handles, targets)
+            if row is None:
+                print(f"  {method:<16}{why}")
+                continue
+            ar, inv, err, sec = row
+            if method.startswith("elasticity"):
+                unit = sec
+            ratio = f"{sec / unit:10.1f}" if unit else f"{'':>10}"
+            shown = f"{ar:9.4f}" if ar == 0 or ar >= 1e-3 else f"{ar:9.1e}"
+            print(f"  {method:<16}{shown}{inv:10d}{err:12.1e}{sec:9.2f}{ratio}")
+
+
+def growth(size: float, max_triangles: int) -> None:
+    print("\ngrowth: annulus, inner circle turned 90°; move vs one elasticity solve")
+    print(f"  {'triangles':>10}{'move s':>9}{'elast. s':>10}{'ratio':>8}{'min AR':>9}")
+    while True:
+        mesh = annulus(size)
+        if mesh.n_triangles > max_triangles:
+            break
+        handles, targets = rotate_inner_boundary(mesh, 90)
+        t0 = time.perf_counter()
+        elasticity_motion(mesh.points, mesh.triangles, handles, targets)
+        unit = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        res = mt.move(mesh, handles, targets)
+        sec = time.perf_counter() - t0
+        print(f"  {mesh.n_triangles:>10}{sec:9.1f}{unit:10.2f}{sec / unit:8.0f}"
+              f"{res.min_aspect_ratio[-1]:9.4f}", flush=True)
+        size /= 2
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--size", type=float, default=0.05, help="gmsh element size (0.05: ~2.7k)")
+    ap.add_argument("--growth", action="store_true")
+    ap.add_argument("--max-triangles", type=int, default=110_000)
+    ap.add_argument("--skip", nargs="*", default=[], help="method names to leave out")
+    args = ap.parse_args()
+    table(args.size, set(args.skip))
+    if args.growth:
+        growth(args.size, args.max_triangles)
+
+
+if __name__ == "__main__":
+    main()
