@@ -130,7 +130,8 @@ def test_path_bounds_every_triangle_by_its_length(seed, amplitude, weight):
     q0 = inverse_shape_quality(mesh.points, mesh.triangles)
     for k, Q in enumerate(frames):
         change = np.linalg.norm(metric.strain.values(Q), axis=1)
-        assert (change <= ell[k] / weight * (1 + 1e-12) + 1e-15).all()
+        # rounding only: φ at the reference itself evaluates to a few ulps, not to 0
+        assert (change <= ell[k] / weight * (1 + 1e-12) + 64 * np.finfo(float).eps).all()
         bound = shape_quality_bound(q0, np.full(len(q0), ell[k] / weight))
         assert (inverse_shape_quality(Q, mesh.triangles) <= bound * (1 + 1e-12)).all()
 
