@@ -830,7 +830,8 @@ def runge_kutta(
             if h < h_min:
                 stop(f"geodesic step size underflow at t = {t:.6g}: every step leaves the "
                      f"admissible set ({why}). A penalty without its boundary term (α2 or "
-                     "β3 = 0) cannot prevent boundary self-intersections")
+                     "β3 = 0) cannot prevent boundary self-intersections; to put boundary "
+                     "vertices at prescribed positions, use `meshopt move` (mt.move)")
                 break
             continue
         err = _error_norm(rk, h_step, k, y, y_new, rtol, atol)
