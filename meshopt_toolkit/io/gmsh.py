@@ -82,6 +82,19 @@ def read_cells(path: Path) -> CellMesh:
     except (ValueError, TypeError) as exc:
         raise ReadError(f"{path}: cannot read gmsh file: {exc}") from None
     check_cells(cm)
+    return _without_trivial_tags(cm)
+
+
+def _without_trivial_tags(cm: CellMesh) -> CellMesh:
+    """Leave out tags that hold nothing our writer would not write again: physical tags
+    that are all 0 (no group), then geometrical tags that are all 1 (one entity)."""
+    def all_equal(key, value):
+        return all(not len(a) or (np.asarray(a) == value).all() for a in cm.cell_data[key])
+
+    if PHYSICAL in cm.cell_data and all_equal(PHYSICAL, 0):
+        del cm.cell_data[PHYSICAL]
+    if PHYSICAL not in cm.cell_data and GEOMETRICAL in cm.cell_data and all_equal(GEOMETRICAL, 1):
+        del cm.cell_data[GEOMETRICAL]
     return cm
 
 
@@ -97,7 +110,7 @@ def _build(path: Path, points, blocks, names: dict) -> CellMesh:
     field_data = {name: np.array([tag, dim]) for name, (tag, dim) in names.items()}
     cm = CellMesh(points, cells, cell_data=cell_data, field_data=field_data, source=str(path))
     check_cells(cm)
-    return cm
+    return _without_trivial_tags(cm)
 
 
 def _read_binary41(fh):
