@@ -583,11 +583,15 @@ class MeshReport:
     admissible : bool
         ``manifold`` and every signed area > 0 and no boundary self-intersection.
     reoriented : bool
-        The mesh was consistently clockwise; :attr:`mesh` is the CCW version.
+        Some triangles were flipped (each component is oriented by propagation across its
+        edges, then counter-clockwise); :attr:`mesh` is the oriented version.
     problems : list of str
         Human-readable reasons, each naming a vertex/triangle/edge.
     mesh : TriangleMesh
-        The checked mesh (re-oriented to CCW when ``reoriented``).
+        The checked mesh (re-oriented to CCW when ``reoriented``; in plane coordinates,
+        with ``embedding`` set, when the input lies on a plane other than z = 0).
+    n_reoriented : int
+        Number of triangles flipped.
     """
 
     planar: bool
@@ -596,6 +600,7 @@ class MeshReport:
     reoriented: bool = False
     problems: list[str] = field(default_factory=list)
     mesh: TriangleMesh | None = None
+    n_reoriented: int = 0
 
 
 def _manifold_problems(mesh: TriangleMesh) -> list[str]:
@@ -903,28 +908,34 @@ def _check_mesh(mesh: TriangleMesh, positive_areas: bool = False) -> MeshReport:
     A clean mesh is recognised by :func:`_clean_manifold`; only a mesh with a problem pays
     for the edge list and the description of the problem (:func:`_manifold_problems`).
     """
-    if not mesh.is_planar:
-        return MeshReport(False, False, False, problems=["not planar: some z is non-zero"], mesh=mesh)
-    pm = mesh.as_planar()
+    from .orientation import diagnose, planar_view, with_embedding_of  # issue 12 hooks
+
+    pm, why = planar_view(mesh)
+    if pm is None:
+        return MeshReport(False, False, False, problems=[why], mesh=mesh)
     corners = pm._clean_corners
+    n_flipped, soft = 0, []
     if corners is None:
-        problems = _manifold_problems(pm)
-        if problems:
-            return MeshReport(True, False, False, problems=problems, mesh=pm)
-    elif "boundary_edges" not in pm.__dict__:
+        pm, n_flipped, hard, soft = diagnose(pm)
+        if hard:
+            return MeshReport(True, False, False, n_flipped > 0, hard + soft, pm, n_flipped)
+        corners = pm._clean_corners
+    if corners is not None and "boundary_edges" not in pm.__dict__:
         pm.__dict__["boundary_edges"] = _frozen(_boundary_edges_of(pm.triangles, corners))
     reoriented = False
     area = None if positive_areas else pm.signed_areas()
-    if area is not None and area.sum() < 0:
-        pm = pm.flipped()
+    if area is not None and area.sum() < 0 and corners is not None:
+        pm = with_embedding_of(pm.flipped(), pm)
         area = -area
         reoriented = True
+        n_flipped = pm.n_triangles
         if corners is not None:
             # corner 3k + l of the flipped mesh is corner 3k + 2 - l of the original
             flip = np.sort(corners - 2 * (corners % 3) + 2)
             pm.__dict__["boundary_edges"] = _frozen(_boundary_edges_of(pm.triangles, flip))
         logger.info("%s: re-oriented from clockwise to counter-clockwise", pm.source or "mesh")
-    problems = []
+    problems = list(soft)
+    reoriented = reoriented or n_flipped > 0
     nonpos = np.flatnonzero(area <= 0) if area is not None else ()
     if len(nonpos):
         k = nonpos[0]
@@ -939,7 +950,7 @@ def _check_mesh(mesh: TriangleMesh, positive_areas: bool = False) -> MeshReport:
         problems.append(
             f"boundary self-intersects: edges ({e1[0]}, {e1[1]}) and ({e2[0]}, {e2[1]}) cross"
         )
-    return MeshReport(True, True, not problems, reoriented, problems, pm)
+    return MeshReport(True, True, not problems, reoriented, problems, pm, n_flipped)
 
 
 def require_admissible(mesh: TriangleMesh, what: str = "this operation") -> PlanarMesh:
@@ -959,5 +970,5 @@ def require_admissible(mesh: TriangleMesh, what: str = "this operation") -> Plan
     if not report.admissible:
         raise NotAdmissibleError(f"{where}{what} needs an admissible mesh: {report.problems[0]}")
     if report.reoriented:
-        logger.warning("%sre-oriented from clockwise to counter-clockwise", where)
+        logger.warning("%sreoriented %d triangles", where, report.n_reoriented)
     return report.mesh  # type: ignore[return-value]

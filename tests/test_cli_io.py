@@ -23,7 +23,8 @@ def files(tmp_path) -> dict[str, Path]:
         "msh": io.save(grid, tmp_path / "grid.msh"),
         "ply": io.save(square5(), tmp_path / "square.ply"),
         "cw": io.save(square5().flipped(), tmp_path / "cw.off"),
-        "surf": io.save(TriangleMesh([[0, 0, 0], [1, 0, 1], [0, 1, 2]], [[0, 1, 2]]),
+        "surf": io.save(TriangleMesh([[0, 0, 0], [1, 0, 1], [0, 1, 2], [1, 1, 0]],
+                                     [[0, 1, 2], [1, 3, 2]]),
                         tmp_path / "surf.obj"),
     }
     (tmp_path / "bad.obj").write_text("v 0 0 0\nv 1 0 0\nf 1 2 3\n")
@@ -45,7 +46,7 @@ def test_info_json_lines(files, capsys):
     assert grid["mean_shape_quality"] == q.mean_shape_quality
     assert grid["min_angle_deg"] == q.min_angle_deg and grid["min_area"] == q.min_area
     assert grid["problems"] == []
-    assert not surf["planar"] and surf["n_triangles"] == 1 and surf["min_aspect_ratio"] is None
+    assert not surf["planar"] and surf["n_triangles"] == 2 and surf["min_aspect_ratio"] is None
     assert not surf["admissible"] and surf["problems"]
     assert cw["reoriented"] and cw["admissible"] and cw["min_area"] == 1.0
 
