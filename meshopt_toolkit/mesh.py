@@ -20,8 +20,10 @@ from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.sparse.csgraph import breadth_first_order, connected_components
+from ._lazy import lazy_module
+
+sp = lazy_module("scipy.sparse")  # imported on first use: info/convert need no scipy
+_csgraph = lazy_module("scipy.sparse.csgraph")
 
 from ._typing import FloatArray, IntArray
 from .errors import InvalidMeshError, NotAdmissibleError
@@ -644,7 +646,7 @@ def _manifold_problems(mesh: TriangleMesh) -> list[str]:
     c = c[c[:, 1] >= 0] // 3
     nt = len(tri)
     shared = sp.coo_matrix((np.ones(len(c), dtype=bool), (c[:, 0], c[:, 1])), shape=(nt, nt))
-    ncomp, _ = connected_components(shared, directed=False)
+    ncomp, _ = _csgraph.connected_components(shared, directed=False)
     if ncomp > 1:
         problems.append(f"mesh has {ncomp} pieces not connected through edges")
     # bow-ties: the triangles around each vertex must form one fan
@@ -719,6 +721,10 @@ def _count_fans(succ: IntArray, vertex: IntArray, n: int) -> IntArray:
 
 #: fans longer than this are checked by pointer doubling instead of a step-by-step walk
 _WALK_STEPS = 64
+#: meshes with at most this many triangles are checked for connectivity in numpy alone,
+#: and at most this many boundary edges are intersected pairwise (no scipy import)
+_NUMPY_CONNECTIVITY = 20000
+_NUMPY_PAIRS = 600
 
 
 def _clean_manifold(mesh: TriangleMesh) -> IntArray | None:
@@ -781,13 +787,22 @@ def _clean_manifold(mesh: TriangleMesh) -> IntArray | None:
     # 2-path connectivity
     nbr = twin // 3
     nbr[first] = first // 3
-    graph = sp.csr_matrix(
-        (np.ones(nc), nbr, np.arange(0, nc + 1, 3, dtype=idx)), shape=(nt, nt)
-    )
-    reached = breadth_first_order(graph, 0, directed=True, return_predecessors=False)
-    if len(reached) != nt:
-        return None
-    del graph, nbr, reached
+    if nt <= _NUMPY_CONNECTIVITY:  # small meshes: numpy only, no scipy import
+        from .orientation import component_labels
+
+        inner = np.flatnonzero(twin >= 0)
+        if component_labels(nt, inner // 3, twin[inner] // 3).any():
+            return None
+    else:
+        graph = sp.csr_matrix(
+            (np.ones(nc), nbr, np.arange(0, nc + 1, 3, dtype=idx)), shape=(nt, nt)
+        )
+        reached = _csgraph.breadth_first_order(graph, 0, directed=True,
+                                               return_predecessors=False)
+        if len(reached) != nt:
+            return None
+        del graph, reached
+    del nbr
     # bow-ties: succ(c) = next(twin(next(c))) = twin[prev(c)]
     tn = twin.reshape(nt, 3)
     succ = np.empty_like(tn)
@@ -853,15 +868,20 @@ def boundary_self_intersections(points: FloatArray, boundary_edges: IntArray) ->
     A broad phase with a k-d tree on edge midpoints (two segments can only meet when their
     midpoints are closer than the longest edge) followed by exact orientation tests.
     """
-    from scipy.spatial import cKDTree
-
     if len(boundary_edges) < 3:
         return np.zeros((0, 2), np.int64)
     a = points[boundary_edges[:, 0]]
     b = points[boundary_edges[:, 1]]
+    if len(boundary_edges) > _NUMPY_PAIRS:
+        from scipy.spatial import cKDTree
     mid = 0.5 * (a + b)
     reach = float(np.linalg.norm(b - a, axis=1).max())
-    pairs = cKDTree(mid).query_pairs(reach * (1 + 1e-9), output_type="ndarray")
+    if len(boundary_edges) <= _NUMPY_PAIRS:  # the same pairs as the k-d tree, no scipy
+        pairs = np.stack(np.triu_indices(len(boundary_edges), 1), axis=1)
+        gap = np.linalg.norm(mid[pairs[:, 0]] - mid[pairs[:, 1]], axis=1)
+        pairs = pairs[gap <= reach * (1 + 1e-9)]
+    else:
+        pairs = cKDTree(mid).query_pairs(reach * (1 + 1e-9), output_type="ndarray")
     if len(pairs) == 0:
         return np.zeros((0, 2), np.int64)
     i, j = pairs[:, 0], pairs[:, 1]

@@ -161,3 +161,23 @@ def test_console_script(files):
     assert res.returncode == 0
     assert json.loads(res.stdout)["n_triangles"] == 4
     assert np.isclose(json.loads(res.stdout)["total_area"], 4.0)
+
+
+def test_info_and_convert_import_no_heavy_package(tmp_path):
+    """Issue 12: `meshopt info`/`convert` on a small file load neither scipy nor pymeshlab,
+    gmsh or matplotlib (the parser builds only the chosen subcommand)."""
+    import subprocess
+    import sys
+
+    obj = tmp_path / "s.obj"
+    obj.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 2 4 3\n")
+    code = (
+        "import sys\nfrom meshopt_toolkit.cli import main\n"
+        f"assert main(['info', {str(obj)!r}]) == 0\n"
+        f"assert main(['convert', {str(obj)!r}, '-o', {str(tmp_path / 's.ply')!r}]) == 0\n"
+        "print(sorted(m for m in ('scipy', 'pymeshlab', 'gmsh', 'matplotlib', 'trimesh') "
+        "if m in sys.modules))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip().splitlines()[-1] == "[]"

@@ -159,3 +159,31 @@ def test_component_labels_agree_with_scipy(n, edges):
     for comp in np.unique(ref):
         members = np.flatnonzero(ref == comp)
         assert (labels[members] == members.min()).all()
+
+
+def test_numpy_and_scipy_paths_of_the_check_agree(monkeypatch):
+    import meshopt_toolkit.mesh as mesh_module
+    from meshopt_toolkit.datasets import data_path
+
+    disc = io.load(data_path("disc_25.msh")).as_planar().refine().refine()
+    g = grid(3)
+    pieces = PlanarMesh(np.vstack([g.points, g.points + 3]),
+                        np.vstack([g.triangles, g.triangles + g.n_vertices]))
+    p = g.points.copy()
+    p[3] = [0.2, -0.3]  # a boundary vertex pulled across: boundary crossing
+    cases = [disc, split_grid(), pieces, g.with_points(p)]
+    def run():
+        reports = [check_mesh(PlanarMesh(m.points, m.triangles)) for m in cases]
+        hits = [{tuple(sorted(h)) for h in mesh_module.boundary_self_intersections(
+            r.mesh.points, r.mesh.boundary_edges).tolist()} for r in reports]
+        short = [[q.split(":")[0] for q in r.problems] for r in reports]
+        return reports, hits, short
+
+    fast, fast_hits, fast_problems = run()
+    monkeypatch.setattr(mesh_module, "_NUMPY_CONNECTIVITY", -1)
+    monkeypatch.setattr(mesh_module, "_NUMPY_PAIRS", -1)
+    slow, slow_hits, slow_problems = run()
+    assert fast_hits == slow_hits and fast_problems == slow_problems
+    for a, b in zip(fast, slow):
+        assert (a.manifold, a.admissible) == (b.manifold, b.admissible)
+    assert [r.admissible for r in fast] == [True, False, False, False]

@@ -15,7 +15,6 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 from typing import TYPE_CHECKING
-from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
@@ -134,6 +133,12 @@ def write_vtu_cells(path: Path, cm: CellMesh, binary: bool | None = None) -> Non
                                    text[at:])
         return
     _write_vtu_ascii(path, cm)
+
+
+def quoteattr(text: str) -> str:
+    """An XML attribute value in double quotes (no xml.sax import: it pulls in urllib)."""
+    return '"' + (str(text).replace("&", "&amp;").replace('"', "&quot;")
+                  .replace("<", "&lt;").replace(">", "&gt;")) + '"'
 
 
 def _vtu_type(a: np.ndarray) -> str:
