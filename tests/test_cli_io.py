@@ -181,3 +181,33 @@ def test_info_and_convert_import_no_heavy_package(tmp_path):
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip().splitlines()[-1] == "[]"
+
+
+def test_stale_part_file_of_a_killed_run_is_removed(tmp_path):
+    import subprocess
+    import sys
+
+    from meshopt_toolkit.io._atomic import clean_stale_parts
+
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True, check=True).stdout.strip()
+    stale = tmp_path / f".m.msh.{dead}.abc123.part"
+    live = tmp_path / ".n.msh.1.abc123.part"  # pid 1 is alive: someone else's, kept
+    stale.write_text("half")
+    live.write_text("busy")
+    io.save(TriangleMesh([[0, 0], [1, 0], [0, 1]], [[0, 1, 2]]), tmp_path / "other.obj")
+    assert not stale.exists() and live.exists()
+    assert clean_stale_parts(tmp_path) == []
+
+
+def test_directory_input_names_skipped_subfolders_or_recurses(files, tmp_path, caplog):
+    src = tmp_path / "in"
+    (src / "sub").mkdir(parents=True)
+    io.save(io.load(files["msh"]), src / "a.msh")
+    io.save(io.load(files["msh"]), src / "sub" / "b.msh")
+    with caplog.at_level("WARNING"):
+        assert main(["convert", str(src), "-o", str(tmp_path / "o1"), "--to", "vtu"]) == 0
+    assert "1 sub-folder(s) not searched (sub); use --recursive" in caplog.text
+    assert sorted(p.name for p in (tmp_path / "o1").rglob("*.vtu")) == ["a.vtu"]
+    assert main(["convert", str(src), "-o", str(tmp_path / "o2"), "--to", "vtu", "-r"]) == 0
+    assert (tmp_path / "o2" / "sub" / "b.vtu").exists() and (tmp_path / "o2" / "a.vtu").exists()
