@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import glob
+import logging
 from pathlib import Path
 
 from ..errors import MeshoptError
@@ -12,8 +13,11 @@ from ..errors import MeshoptError
 MESH_SUFFIXES = (".msh", ".obj", ".ply", ".off", ".vtk", ".vtu", ".stl")
 
 
-def expand_inputs(items: list[str]) -> list[Path]:
-    """Files, globs and directories (their mesh files, not recursive) → sorted unique paths.
+def expand_inputs(items: list[str], recursive: bool = False) -> list[Path]:
+    """Files, globs and directories (their mesh files) → sorted unique paths.
+
+    A directory contributes the mesh files directly in it; with ``recursive`` also those
+    in its sub-folders (hidden ones excluded). Skipped sub-folders are logged as a warning.
 
     Raises
     ------
@@ -24,7 +28,7 @@ def expand_inputs(items: list[str]) -> list[Path]:
     for item in items:
         p = Path(item)
         if p.is_dir():
-            found = sorted(q for q in p.iterdir() if q.suffix.lower() in MESH_SUFFIXES)
+            found = _directory_meshes(p, recursive)
             if not found:
                 raise MeshoptError(f"{item}: directory has no mesh files ({', '.join(MESH_SUFFIXES)})")
             paths.extend(found)
@@ -45,6 +49,19 @@ def expand_inputs(items: list[str]) -> list[Path]:
             seen.add(key)
             unique.append(p)
     return unique
+
+
+def _directory_meshes(p: Path, recursive: bool) -> list[Path]:
+    files = sorted(q for q in (p.rglob("*") if recursive else p.iterdir())
+                   if q.suffix.lower() in MESH_SUFFIXES and q.is_file()
+                   and not any(part.startswith(".") for part in q.relative_to(p).parts))
+    if not recursive:
+        subs = sorted(q.name for q in p.iterdir() if q.is_dir() and not q.name.startswith("."))
+        if subs:
+            logging.getLogger("meshopt").warning(
+                "%s: %d sub-folder(s) not searched (%s); use --recursive to include them",
+                p, len(subs), ", ".join(subs[:5]) + (", ..." if len(subs) > 5 else ""))
+    return files
 
 
 def float_list(n: int | None = None):

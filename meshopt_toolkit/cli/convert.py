@@ -1,19 +1,31 @@
 """``meshopt convert INPUT... -o OUTPUT [--to EXT] [--force]``: convert mesh files.
 
 One input: OUTPUT is a file and its extension picks the format. Several inputs (or a glob
-or directory): OUTPUT is a directory (created if missing) and ``--to`` picks the format.
+or directory): OUTPUT is a directory (created if missing) and ``--to`` picks the format;
+``--recursive`` includes the sub-folders of an input directory (mirrored under OUTPUT),
+otherwise skipped sub-folders are named in a warning.
+
+Conversion is lossless or refused: every cell block (triangles, quads, polygons, lines,
+vertices, ...), point, cell and field data is written, physical groups travel as
+``gmsh:physical``/``gmsh:geometrical`` cell data; a target format that cannot hold a part
+refuses the file with one line naming it, and so does an input with content the reader
+cannot represent (e.g. OBJ texture coordinates). Each success prints
+``wrote OUT (N vertices, M cells)``.
+
 Existing outputs, the input included, are never overwritten without ``--force``; each
 write is atomic. A bad file in a batch is reported and skipped; the exit status is then 1.
-Usage errors exit with 2.
+Usage errors exit with 2. :func:`convert_file` converts one file (for batch runners).
 """
 
 from __future__ import annotations
 
+import argparse
 import glob
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import MeshoptError
+from ..errors import MeshoptError, ReadError
 
 HELP = "convert mesh files between formats (msh, obj, ply, off, vtk, vtu, stl)"
 
@@ -34,6 +46,68 @@ def add_args(parser) -> None:
                       help="text output")
     parser.add_argument("--msh-version", choices=("4.1", "2.2"), default="4.1",
                         help="gmsh version for .msh output (default 4.1)")
+    parser.add_argument("-r", "--recursive", action="store_true",
+                        help="include the sub-folders of input directories")
+    parser.add_argument("--max-file-size", type=_size, default=None, metavar="SIZE",
+                        help="refuse input files larger than this (default 4G; e.g. 500M, 16G)")
+
+
+def _size(text: str) -> int:
+    from ..io._files import parse_size
+
+    try:
+        return parse_size(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+@dataclass
+class ConvertOptions:
+    """What :func:`convert_file` needs of the command line."""
+
+    force: bool = False
+    binary: bool | None = None
+    msh_version: str = "4.1"
+    max_bytes: int | None = None
+
+    @classmethod
+    def from_args(cls, args) -> "ConvertOptions":
+        return cls(force=bool(getattr(args, "force", False)),
+                   binary=getattr(args, "binary", None),
+                   msh_version=getattr(args, "msh_version", "4.1"),
+                   max_bytes=getattr(args, "max_file_size", None))
+
+
+def convert_file(src: str | Path, dst: str | Path, options: ConvertOptions):
+    """Convert one file losslessly (or refuse) and return the written
+    :class:`~meshopt_toolkit.io.CellMesh`.
+
+    Raises
+    ------
+    ReadError
+        Unreadable input, or content the reader cannot represent (``dropped``).
+    WriteError
+        Existing output without ``force``, or a part the output format cannot hold.
+    """
+    from ..errors import WriteError
+    from ..io import load_cells, save_cells
+
+    src, dst = Path(src), Path(dst)
+    if not options.force and dst.exists():
+        same = dst.resolve() == src.resolve()
+        raise WriteError(f"{dst}: {'is the input file' if same else 'already exists'} "
+                         "(use --force to overwrite)")
+    cells = load_cells(src, max_bytes=options.max_bytes)
+    if cells.dropped:
+        raise ReadError(f"{src}: cannot convert without loss: {', '.join(cells.dropped)} "
+                        "would not be kept")
+    save_cells(cells, dst, overwrite=options.force, binary=options.binary,
+               msh_version=options.msh_version)
+    return cells
+
+
+def _wrote(dst: Path, cells) -> str:
+    return f"wrote {dst} ({cells.n_points} vertices, {cells.n_cells} cells)"
 
 
 def _usage(msg: str) -> int:
@@ -53,13 +127,19 @@ def _plan(args) -> tuple[list[tuple[Path, Path]], list[str]] | int:
         if to not in writable:
             return _usage(f"--to {args.to}: unknown format; choose from {', '.join(writable)}")
     inputs: list[Path] = []
+    rel: dict[Path, Path] = {}  # input → output name relative to OUTPUT
     failures: list[str] = []
     batch = len(args.inputs) > 1
+    recursive = bool(getattr(args, "recursive", False))
     for item in args.inputs:
-        if Path(item).is_dir() or (not Path(item).exists() and glob.has_magic(item)):
+        is_dir = Path(item).is_dir()
+        if is_dir or (not Path(item).exists() and glob.has_magic(item)):
             batch = True
         try:
-            inputs.extend(p for p in expand_inputs([item]) if p not in inputs)
+            for p in expand_inputs([item], recursive=recursive):
+                if p not in inputs:
+                    inputs.append(p)
+                    rel[p] = p.relative_to(item).parent if is_dir and recursive else Path()
         except MeshoptError as exc:
             failures.append(str(exc))
     out = Path(args.output)
@@ -82,25 +162,13 @@ def _plan(args) -> tuple[list[tuple[Path, Path]], list[str]] | int:
         return _usage("several inputs: OUTPUT is a directory and --to EXT picks the format")
     if out.exists() and not out.is_dir():
         return _usage(f"several inputs: OUTPUT {out} must be a directory, it is a file")
-    jobs = [(p, out / (p.stem + to)) for p in inputs]
+    jobs = [(p, out / rel.get(p, Path()) / (p.stem + to)) for p in inputs]
     seen: dict[Path, Path] = {}
     for src, dst in jobs:
         if dst in seen:
             return _usage(f"{src} and {seen[dst]} would both be written to {dst}")
         seen[dst] = src
     return jobs, failures
-
-
-def _convert_one(src: Path, dst: Path, args) -> None:
-    from ..errors import WriteError
-    from ..io import load, save
-
-    if not args.force and dst.exists():
-        same = dst.resolve() == src.resolve()
-        raise WriteError(f"{dst}: {'is the input file' if same else 'already exists'} "
-                         "(use --force to overwrite)")
-    mesh = load(src)
-    save(mesh, dst, overwrite=args.force, binary=args.binary, msh_version=args.msh_version)
 
 
 def run(args) -> int:
@@ -114,22 +182,28 @@ def run(args) -> int:
         print(f"meshopt convert: error: {msg}", file=sys.stderr)
     if not jobs:
         return 1
+    options = ConvertOptions.from_args(args)
     if len(jobs) == 1 and not failures and jobs[0][1] == Path(args.output):
-        _convert_one(*jobs[0], args)  # a single file: errors go to main()
+        cells = convert_file(*jobs[0], options)  # a single file: errors go to main()
+        print(_wrote(jobs[0][1], cells), flush=True)
         return 0
-    jobs[0][1].parent.mkdir(parents=True, exist_ok=True)
     done = 0
     with ProgressBar(len(jobs), "convert") as bar:
         for src, dst in jobs:
             try:
-                _convert_one(src, dst, args)
+                dst.parent.mkdir(parents=True, exist_ok=True)
+                cells = convert_file(src, dst, options)
                 done += 1
-                bar.update(status=src.name)
-            except MeshoptError as exc:
                 if bar.enabled:
                     bar.stream.write("\n")
-                failures.append(str(exc))
-                print(f"meshopt convert: error: {exc}", file=sys.stderr)
+                print(_wrote(dst, cells), flush=True)
+                bar.update(status=src.name)
+            except (MeshoptError, OSError) as exc:
+                if bar.enabled:
+                    bar.stream.write("\n")
+                msg = str(exc) if isinstance(exc, MeshoptError) else f"{dst.parent}: {exc.strerror}"
+                failures.append(msg)
+                print(f"meshopt convert: error: {msg}", file=sys.stderr)
                 bar.update(status="failed")
     if failures:
         print(f"meshopt convert: {done} of {done + len(failures)} files converted, "
