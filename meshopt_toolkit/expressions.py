@@ -19,7 +19,8 @@ Anything else is an :class:`~meshopt_toolkit.errors.ExpressionError` naming the 
 and its column. So is a constant part that is not finite (``1/0``, ``exp(1000)``,
 ``log(-1)``, ``1e400``): it is evaluated once when parsing and refused with its text and
 column. Values that are not finite at some point (``x/0``) are reported when evaluated,
-naming the expression and the point; no other exception ever leaves the evaluator. ``abs``, ``min`` and ``max`` are differentiated almost everywhere
+naming the expression and the point; no other exception ever leaves the evaluator.
+``abs``, ``min`` and ``max`` are differentiated almost everywhere
 (``abs'(0) = 0``; ``min``/``max`` take the first argument's gradient on ties).
 """
 

@@ -163,7 +163,8 @@ def test_nonfinite_values_name_the_expression_and_point(text):
     X = np.array([[1.0, 0.5]])
     expr = parse_expression(text)
     for evaluate in (expr, expr.gradient, expr.value_and_gradient):
-        with pytest.raises(ExpressionError, match=r"of '.*' is not finite at \(x, y\) = \(1, 0.5\)"):
+        with pytest.raises(ExpressionError,
+                           match=r"of '.*' is not finite at \(x, y\) = \(1, 0.5\)"):
             evaluate(X)
 
 
