@@ -193,11 +193,13 @@ def test_permission_denied_is_one_line_naming_the_path(work, read_only, capsys, 
     assert list(read_only.iterdir()) == []
 
 
-def test_permission_denied_in_an_existing_frames_directory(work, read_only, capsys, no_work):
+def test_permission_denied_in_an_existing_output_directory(work, read_only, capsys, no_work):
     c = _commands(work)
+    run = ["run", str(_empty_pipeline(work)), str(work / "disc.msh")]
     for argv in ([*c["deform"], "--frames", "3", "-o", str(read_only)],
                  [*c["move"], "--frames", "3", "-o", str(read_only)],
-                 [*c["morph"], "-o", str(read_only)]):
+                 [*c["morph"], "-o", str(read_only)],
+                 [*run, "-o", str(read_only)]):  # refused before the first file
         assert main(argv) == 1
         line = one_line(capsys)
         assert f"{read_only}: cannot write in {read_only}: Permission denied" in line

@@ -92,3 +92,27 @@ def test_deform_morph_move_work_at_any_scale(tmp_path, capsys, factor):
     both = unit_scale(load(big / "m.msh"), load(big / "t.msh"))  # one scale for both ends
     assert summary["unit_scale"] == both.factor and summary["admissible"]
     assert "error" not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("factor", [1e300, 1e-300])
+def test_filters_work_at_any_scale(tmp_path, factor):
+    from meshopt_toolkit.pipeline import Document
+    from meshopt_toolkit.pipeline.filter import registry
+
+    mesh = DISC.with_points(DISC.points * factor)
+    V = np.zeros_like(DISC.points)
+    V[DISC.boundary_vertices, 0] = -0.4 * DISC.points[DISC.boundary_vertices, 0] * factor
+    np.save(tmp_path / "v.npy", V)
+    doc = Document([mesh])
+    registry.get("apply_prescribed_motion")()(doc, map="1.1*x; 1.1*y")
+    moved = doc.mesh.as_planar()
+    b = DISC.boundary_vertices
+    assert np.array_equal(moved.points[b], mesh.points[b] * 1.1)
+    doc = Document([mesh])
+    summary = registry.get("apply_quality_preserving_deformation")()(
+        doc, displacement=str(tmp_path / "v.npy"))
+    assert summary["min_aspect_ratio"] > 0.3 and np.isfinite(doc.mesh.points).all()
+    doc = Document([mesh, mesh.with_points(mesh.points * 1.2)])
+    summary = registry.get("generate_geodesic_morph")()(doc, frames=3)
+    assert summary["admissible"] and len(doc) == 5
+    assert np.allclose(doc.mesh.points[:, :2] / factor, DISC.points * 1.2, rtol=0, atol=1e-12)

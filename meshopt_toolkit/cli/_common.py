@@ -72,8 +72,12 @@ def float_list(n: int | None = None):
 # the path, not after a long computation with "internal error: PermissionError".
 
 
-def _probe_writable(directory: Path, shown: Path) -> None:
-    """Create and remove a temporary file in ``directory``; WriteError naming ``shown``."""
+def check_writable(directory: Path, shown: Path | None = None) -> None:
+    """Create and remove a temporary file in ``directory``; WriteError naming ``shown``.
+
+    A real write, not ``os.access``: right for root, ACLs and read-only file systems.
+    """
+    shown = directory if shown is None else shown
     try:
         fd, name = tempfile.mkstemp(prefix=".meshopt-probe.", dir=directory)
     except OSError as exc:
@@ -107,7 +111,7 @@ def check_output_file(out: Path, *, force: bool, inputs: Iterable[Path] = ()) ->
     if not parent.is_dir():
         what = "is not a directory" if parent.exists() else "does not exist"
         raise WriteError(f"{out}: {parent} {what}")
-    _probe_writable(parent, out)
+    check_writable(parent, out)
     return out
 
 
@@ -139,7 +143,7 @@ def prepare_output_dir(out: Path, *, force: bool, names: Iterable[str] | None = 
     except OSError as exc:
         raise WriteError(f"{out}: cannot create the output directory: "
                          f"{exc.strerror or exc}") from None
-    _probe_writable(out, out)
+    check_writable(out, out)
     return out
 
 
