@@ -349,6 +349,7 @@ def test_filter_generate_geodesic_morph(metric):
     from meshopt_toolkit.motion.morph import distortion_morph
     from meshopt_toolkit.pipeline.document import Document
     from meshopt_toolkit.pipeline.filter import registry
+    from meshopt_toolkit.scaling import unit_scale
 
     mesh = grid_mesh(4, jitter=0.3)
     target = mesh.with_points(bend(mesh))
@@ -359,10 +360,13 @@ def test_filter_generate_geodesic_morph(metric):
     assert np.allclose(doc.mesh.points[:, :2], bend(mesh))
     assert doc.current_entry.face_attributes["quality"].min() > 0
     assert summary["admissible"] and summary["frames"] == 3
-    library = (distortion_morph(mesh, target, frames=3) if metric == "distortion"
-               else geodesic_morph(mesh, target, frames=3))
+    # the filter morphs at unit size (meshopt_toolkit.scaling), as meshopt morph does
+    scale = unit_scale(mesh, target)
+    a, b = scale.mesh_down(mesh), scale.mesh_down(target)
+    library = (distortion_morph(a, b, frames=3) if metric == "distortion"
+               else geodesic_morph(a, b, frames=3))
     middle = doc.entries[3].mesh.points[:, :2]
-    assert np.allclose(middle, library.meshes(like=mesh)[1].points, atol=1e-9)
+    assert np.allclose(middle, scale.up(library.meshes(like=a)[1].points), atol=1e-9)
 
 
 @pytest.mark.parametrize("kind", ["json", "mlx"])

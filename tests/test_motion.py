@@ -35,12 +35,16 @@ def _similar(points, angle, scale, shift):
 
 
 def _random_admissible(mesh, rng, amplitude):
-    """An affine image of ``mesh`` plus a small interior perturbation (admissible)."""
-    A = np.eye(2) + amplitude * rng.uniform(-1, 1, (2, 2))
+    """An affine image of ``mesh`` plus a small perturbation, admissible by construction:
+    ``A = I + a·B`` with ``‖B‖₂ ≤ ‖B‖_F ≤ 1`` and ``a < 1`` keeps ``det A > 0``; the noise is
+    halved until no triangle inverts (the affine image alone is admissible)."""
+    assert amplitude < 1
+    A = np.eye(2) + amplitude * rng.uniform(-0.5, 0.5, (2, 2))
     Q = mesh.points @ A.T + rng.uniform(-1, 1, 2)
-    Q = Q + 0.05 * amplitude / np.sqrt(mesh.n_vertices) * rng.standard_normal(Q.shape)
-    assert (mesh.with_points(Q).signed_areas() > 0).all()
-    return Q
+    noise = 0.05 * amplitude / np.sqrt(mesh.n_vertices) * rng.standard_normal(Q.shape)
+    while not (mesh.with_points(Q + noise).signed_areas() > 0).all():
+        noise /= 2
+    return Q + noise
 
 
 @pytest.fixture(scope="module")

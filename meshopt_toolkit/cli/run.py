@@ -29,6 +29,7 @@ import sys
 from pathlib import Path
 
 from ..errors import MeshoptError
+from ._common import check_writable
 
 HELP = "run a pipeline (.json or MeshLab .mlx) over one mesh or a batch"
 
@@ -88,6 +89,7 @@ def _outdir(args) -> Path | None:
         except OSError as exc:
             raise MeshoptError(f"{outdir}: cannot create the output directory: "
                                f"{exc.strerror or exc}") from None
+        check_writable(outdir)  # before any file is processed
     return outdir
 
 
