@@ -254,7 +254,8 @@ def parse_expression(text: str) -> Expression:
         tree = ast.parse(text, mode="eval")
     except SyntaxError as exc:
         col = f" at column {exc.offset}" if exc.offset else ""
-        raise ExpressionError(f"invalid syntax{col}: {exc.msg}") from None
+        detail = "" if exc.msg in ("invalid syntax", "") else f": {exc.msg}"
+        raise ExpressionError(f"invalid syntax{col}{detail}") from None
     except (RecursionError, MemoryError, ValueError):
         raise ExpressionError(f"expression too deeply nested (at most {MAX_DEPTH} levels)") from None
     if _depth(tree) > MAX_DEPTH:

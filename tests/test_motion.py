@@ -340,12 +340,16 @@ def test_move_cli_errors_are_one_line(annulus, tmp_path, capsys):
 
     src = tmp_path / "annulus.msh"
     save(annulus, src)
-    for extra, expected in ((["--map", "1/0; y"], "--map"),
-                            (["--map", "x; y", "--where", "x <"], "--where"),
+    for extra, expected in ((["--map", "1/0; y"], "--map '1/0; y'"),
+                            (["--map", "x; y +"], "--map 'x; y +': invalid syntax"),
+                            (["--map", "x; q"], "--map 'x; q': unknown name 'q'"),
+                            (["--map", "x; y", "--where", "x <"], "--where 'x <'"),
+                            (["--map", "x; y", "--where", "z < 1"], "--where 'z < 1': unknown"),
                             (["--map", "x; y", "--frames", "1"], "--frames")):
         assert main(["move", str(src), "-o", str(tmp_path / "o.msh"), *extra]) == 1
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and expected in err[0] and "internal error" not in err[0]
+        assert "syntax: invalid syntax" not in err[0]
     assert not (tmp_path / "o.msh").exists()
 
 
