@@ -24,6 +24,7 @@ import scipy.sparse as sp
 
 from ._typing import FloatArray, IntArray
 from .errors import MeshoptError, NotAdmissibleError
+from .solvers import SOLVERS, choose_method, factorize_spd
 
 __all__ = [
     "lame_parameters",
@@ -40,7 +41,6 @@ __all__ = [
 logger = logging.getLogger(__name__)
 
 #: names accepted by :func:`factorize` (``"auto"`` picks by size)
-SOLVERS = ("auto", "direct", "amg")
 
 #: number of dofs from which ``"auto"`` switches from the direct solver to AMG-PCG.
 #: Measured with ``benchmarks/bench_metrics.py`` (factorization/setup + one solve, AMG to
@@ -283,19 +283,6 @@ class SPDSolve:
     matrix: sp.spmatrix
 
 
-def _factorize_direct(A: sp.csr_matrix) -> Callable[[FloatArray], FloatArray]:
-    from scipy.sparse.linalg import splu
-
-    # SPD: symmetric mode, no pivoting, minimum degree ordering on A + Aᵀ
-    lu = splu(
-        A.tocsc(),
-        permc_spec="MMD_AT_PLUS_A",
-        diag_pivot_thresh=0.0,
-        options={"SymmetricMode": True},
-    )
-    return lu.solve
-
-
 def _factorize_amg(
     A: sp.bsr_matrix, points: FloatArray, rtol: float, maxiter: int
 ) -> Callable[[FloatArray], FloatArray]:
@@ -352,18 +339,8 @@ def factorize(
     -------
     SPDSolve
     """
-    if method not in SOLVERS:
-        raise ValueError(f"solver must be one of {SOLVERS}, got {method!r}")
-    if method == "auto":
-        method = "direct"
-        if A.shape[0] >= AUTO_AMG_MIN_DOFS:
-            try:
-                import pyamg  # noqa: F401
-
-                method = "amg"
-            except ImportError:  # pragma: no cover - depends on the environment
-                logger.info("pyamg not installed: using the direct solver")
+    method = choose_method(method, A.shape[0], AUTO_AMG_MIN_DOFS)
     if method == "direct":
-        return SPDSolve("direct", _factorize_direct(A.tocsr()), A)
+        return SPDSolve("direct", factorize_spd(A), A)
     bsr = A if A.format == "bsr" else sp.bsr_matrix(A, blocksize=(2, 2))
     return SPDSolve("amg", _factorize_amg(bsr, points, rtol, maxiter), bsr)

@@ -19,12 +19,11 @@ import logging
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
-from ._linalg import dot as _dot
 from ._typing import FloatArray, IntArray
 from .errors import MeshoptError
+from .solvers import choose_method, factorize_spd, pcg
 
 __all__ = [
     "AMG_THRESHOLD",
@@ -195,36 +194,6 @@ def _v_cycle(ml, lvl: int, x: FloatArray, b: FloatArray) -> None:
     level.postsmoother(A, x, b)
 
 
-def _pcg(A, b: FloatArray, precondition, rtol: float, maxiter: int) -> FloatArray:
-    """Preconditioned conjugate gradients to ``‖b − Ax‖ ≤ rtol ‖b‖``."""
-    x = np.zeros_like(b)
-    r = b.copy()
-    bnorm = np.sqrt(_dot(b, b))
-    if bnorm == 0.0:
-        return x
-    z = precondition(r)
-    p = z.copy()
-    rz = _dot(r, z)
-    for it in range(1, maxiter + 1):
-        ap = A @ p
-        alpha = rz / _dot(p, ap)
-        x += alpha * p
-        r -= alpha * ap
-        rnorm = np.sqrt(_dot(r, r))
-        if rnorm <= rtol * bnorm:
-            logger.debug("AMG-PCG: %d iterations, relative residual %.2e", it, rnorm / bnorm)
-            return x
-        z = precondition(r)
-        rz_new = _dot(r, z)
-        p *= rz_new / rz
-        p += z
-        rz = rz_new
-    raise MeshoptError(
-        f"AMG-CG did not converge in {maxiter} iterations "
-        f"(relative residual {rnorm / bnorm:.2e} > {rtol:.1e})"
-    )
-
-
 class PoissonSolver:
     """Solve ``K y = b`` with ``y = 0`` on Dirichlet nodes, factorizing once.
 
@@ -256,10 +225,7 @@ class PoissonSolver:
         fixed[dirichlet] = True
         self.n = n
         self.free = np.flatnonzero(~fixed)
-        if method == "auto":
-            method = "amg" if self.free.size > AMG_THRESHOLD else "direct"
-        if method not in ("direct", "amg"):
-            raise ValueError(f"unknown method {method!r}; use 'direct', 'amg' or 'auto'")
+        method = choose_method(method, self.free.size, AMG_THRESHOLD + 1)
         self.method = method
         self.rtol = float(rtol)
         kff = K[self.free][:, self.free].tocsr()
@@ -274,13 +240,7 @@ class PoissonSolver:
         self._order = self.free[perm]  # unknown k of the permuted system is node _order[k]
         kp = kff[perm][:, perm].tocsr()
         if method == "direct":
-            lu = spla.splu(
-                kp.tocsc(),
-                permc_spec="MMD_AT_PLUS_A",
-                diag_pivot_thresh=0.0,
-                options={"SymmetricMode": True},
-            )
-            self._solve = lu.solve
+            self._solve = factorize_spd(kp)
         else:
             self._solve = self._amg_solver(kp)
 
@@ -299,7 +259,12 @@ class PoissonSolver:
             return x
 
         def solve(b):
-            return _pcg(kp, b, precondition, rtol, maxiter=500)
+            x, iterations, residual = pcg(kp, b, precondition, rtol, maxiter=500)
+            if residual > rtol:
+                raise MeshoptError(f"AMG-CG did not converge in {iterations} iterations "
+                                   f"(relative residual {residual:.2e} > {rtol:.1e})")
+            logger.debug("AMG-PCG: %d iterations, relative residual %.2e", iterations, residual)
+            return x
 
         return solve
 

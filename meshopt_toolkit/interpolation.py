@@ -25,11 +25,11 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import breadth_first_order, connected_components, shortest_path
-from scipy.sparse.linalg import splu
 
 from ._typing import FloatArray, IntArray
 from .elasticity import p1_gradients
 from .fem import p1_stiffness
+from .solvers import factorize_spd
 
 __all__ = ["arap_interpolation", "rotation_angles"]
 
@@ -121,7 +121,7 @@ def arap_interpolation(Q0: FloatArray, Q1: FloatArray, triangles: IntArray, time
     if free.size == 0:
         out[:] = Q0
         return out
-    lu = splu(K[free][:, free].tocsc())
+    solve = factorize_spd(K[free][:, free])
     coupling = K[free][:, fixed]
     rows = triangles.ravel()
     eye = np.eye(2)
@@ -134,7 +134,7 @@ def arap_interpolation(Q0: FloatArray, Q1: FloatArray, triangles: IntArray, time
         P = np.empty((N, 2))
         P[fixed] = Q0[fixed] if pinned_still else (1.0 - s) * Q0[fixed] + s * Q1[fixed]
         rhs = b[free] - coupling @ P[fixed]
-        P[free] = lu.solve(np.ascontiguousarray(rhs))
+        P[free] = solve(np.ascontiguousarray(rhs))
         out[k] = P
     out[times == 0.0] = Q0  # exact ends (the solves reproduce them to round-off)
     out[times == 1.0] = Q1

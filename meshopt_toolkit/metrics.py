@@ -27,7 +27,8 @@ import scipy.sparse as sp
 
 from ._linalg import dot
 from ._typing import FloatArray
-from .elasticity import SOLVERS, BlockPattern, SPDSolve, assemble, factorize, lame_parameters
+from .elasticity import BlockPattern, SPDSolve, assemble, factorize, lame_parameters
+from .solvers import SOLVERS
 from .errors import InvalidMeshError, MeshoptError
 
 __all__ = [

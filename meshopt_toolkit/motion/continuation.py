@@ -12,10 +12,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.linalg import splu
 
 from .._typing import FloatArray, IntArray
 from ..errors import MeshoptError
+from ..solvers import factorize_spd
 from .path import GraphMetric, discrete_geodesic
 
 logger = logging.getLogger(__name__)
@@ -46,9 +46,7 @@ def extend(metric: GraphMetric, Q: FloatArray, handles: IntArray,
     if f.size:
         Hff = H[f][:, f].tocsc()
         rhs = -(H[f][:, h] @ delta_h[h])
-        lu = splu(Hff, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                  options={"SymmetricMode": True})
-        out[f] += lu.solve(rhs)
+        out[f] += factorize_spd(Hff)(rhs)
     Qn = out.reshape(N, 2)
     Qn[handles] = new_positions  # bitwise
     return Qn

@@ -22,10 +22,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.linalg import splu
 
-from .._linalg import dot
 from .._typing import FloatArray, IntArray
+from ..solvers import factorize_spd, pcg
 from .strain import TriangleDistortion
 
 logger = logging.getLogger(__name__)
@@ -325,9 +324,7 @@ class _FrameBlocks:
         self.stale = True
 
     def factorize(self, A: sp.csr_matrix) -> None:
-        self.factors = [splu(A[idx][:, idx].tocsc(), permc_spec="MMD_AT_PLUS_A",
-                             diag_pivot_thresh=0.0, options={"SymmetricMode": True})
-                        for idx in self.indices]
+        self.factors = [factorize_spd(A[idx][:, idx]) for idx in self.indices]
         self.stale = False
 
     def preconditioner(self, A: sp.csr_matrix) -> Callable[[FloatArray], FloatArray]:
@@ -341,11 +338,11 @@ class _FrameBlocks:
             z = [None] * n
             for k in range(n):  # forward: (D + L) z = v
                 rhs = v[idx[k]] if k == 0 else v[idx[k]] - lower[k - 1] @ z[k - 1]
-                z[k] = lus[k].solve(rhs)
+                z[k] = lus[k](rhs)
             x = [None] * n
             for k in range(n - 1, -1, -1):  # backward: (D + U) x = D z
                 rhs = diag[k] @ z[k] if k == n - 1 else diag[k] @ z[k] - upper[k] @ x[k + 1]
-                x[k] = lus[k].solve(rhs)
+                x[k] = lus[k](rhs)
             out = np.empty_like(v)
             for k in range(n):
                 out[idx[k]] = x[k]
@@ -356,36 +353,8 @@ class _FrameBlocks:
 
 def _solve(A: sp.csr_matrix, b: FloatArray, precondition: Callable[[FloatArray], FloatArray],
            rtol: float = 1e-6) -> tuple[FloatArray, int]:
-    """Preconditioned conjugate gradients on the SPD Levenberg–Marquardt system, to the
-    relative residual ``rtol`` (an inexact step is fine: the ratio test of the caller judges
-    it); returns the step and the iteration count.
-
-    Written out rather than ``scipy.sparse.linalg.cg``: its inner products and residual
-    norms go through multi-threaded BLAS, which on a busy machine cost milliseconds per call
-    (measured: half of ``move``'s time on 10.8k triangles); :func:`.._linalg.dot` does not.
-    """
-    maxiter = max(200, b.size // 2_000)
-    x = np.zeros_like(b)
-    r = b.copy()
-    z = precondition(r)
-    p = z.copy()
-    rz = dot(r, z)
-    stop = rtol * np.sqrt(dot(b, b))
-    for iteration in range(1, maxiter + 1):
-        q = A @ p
-        curvature = dot(p, q)
-        if not curvature > 0:  # pragma: no cover - breakdown (A is SPD)
-            raise FloatingPointError("conjugate gradients broke down on the path system")
-        alpha = rz / curvature
-        x += alpha * p
-        r -= alpha * q
-        if np.sqrt(dot(r, r)) <= stop:
-            break
-        z = precondition(r)
-        rz_next = dot(r, z)
-        p *= rz_next / rz
-        p += z
-        rz = rz_next
-    if not np.all(np.isfinite(x)):  # pragma: no cover - breakdown
-        raise FloatingPointError("conjugate gradients broke down on the path system")
-    return x, iteration
+    """PCG on the SPD Levenberg–Marquardt system to the relative residual ``rtol``; an
+    inexact step is fine (the caller's ratio test judges it). Returns the step and the
+    iteration count."""
+    x, iterations, _ = pcg(A, b, precondition, rtol, maxiter=max(200, b.size // 2_000))
+    return x, iterations
