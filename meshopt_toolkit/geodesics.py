@@ -191,7 +191,7 @@ def penalty_of(metric):
     pen = getattr(metric, "penalty", None)
     if pen is not None:
         return pen
-    if type(metric).__name__ == "EuclideanMetric":
+    if getattr(metric, "is_flat", False):
         return None
     raise IntegrationError(
         f"{type(metric).__name__}.exp is not implemented: geodesics are available for the "

@@ -310,20 +310,19 @@ class GeodesicField:
         Exact boundary tests made (certified configurations excluded).
     checks_areas : bool
         True when :meth:`acceleration` itself raises ``NotAdmissibleError`` at a
-        non-positive signed area (the penalty is a ``Penalty``).
+        non-positive signed area (the penalty declares ``checks_areas``, as
+        :class:`~meshopt_toolkit.penalties.Penalty` does).
     """
 
     def __init__(
         self, penalty, triangles: IntArray | None = None, free: np.ndarray | None = None
     ) -> None:
-        from .penalties import Penalty
-
         self.penalty = penalty
-        if triangles is None and isinstance(penalty, Penalty):
+        self.checks_areas = bool(getattr(penalty, "checks_areas", False))
+        if triangles is None and self.checks_areas:
             triangles = penalty.mesh.triangles
         self.triangles = None if triangles is None else np.asarray(triangles)
         self.n_evaluations = 0
-        self.checks_areas = isinstance(penalty, Penalty)
         self._guard = BoundaryGuard(penalty) if self.checks_areas else None
         if self.triangles is not None:
             self._tri_t = np.ascontiguousarray(self.triangles.T)

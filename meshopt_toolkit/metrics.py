@@ -47,7 +47,13 @@ class MetricNotImplementedError(MeshoptError, NotImplementedError):
 
 
 class Metric(Protocol):
-    """The interface shared by all metrics (see the module docstring)."""
+    """The interface shared by all metrics (see the module docstring).
+
+    ``is_flat`` declares the Euclidean metric (straight lines are its geodesics), so code
+    that needs geodesics asks the metric instead of comparing class names.
+    """
+
+    is_flat: bool
 
     def inner(self, Q: FloatArray, U: FloatArray, V: FloatArray) -> float: ...
 
@@ -127,6 +133,8 @@ class EuclideanMetric:
     It does not depend on ``Q``; the Riesz map is the identity (a copy of ``P``).
     """
 
+    is_flat = True
+
     def inner(self, Q: FloatArray, U: FloatArray, V: FloatArray) -> float:
         """``vec U · vec V``. ``Q, U, V`` : (N, 2)."""
         return _vdot(U, V)
@@ -188,6 +196,8 @@ class ElasticityMetric:
     There is no exponential map: the thesis pairs this metric with the Euclidean
     retraction (``EuclideanMetric().exp``); :meth:`exp` raises.
     """
+
+    is_flat = False
 
     def __init__(
         self,
@@ -310,6 +320,8 @@ class CompleteMetric:
     penalty : object with ``gradient(Q) -> (N, 2)`` (and ``value``, ``hvp`` for
         geodesics), e.g. ``QualityPenalty`` (f2) or ``HeightPenalty`` (f1)
     """
+
+    is_flat = False
 
     def __init__(self, penalty) -> None:
         self.penalty = penalty

@@ -513,6 +513,10 @@ class Penalty:
     computed once and cached in the instance. ``Q`` and ``V`` are ``(N, 2)`` arrays.
     """
 
+    #: declared for the integrators: every evaluation raises ``NotAdmissibleError`` at a
+    #: non-positive signed area, and ``mesh`` and the boundary are available
+    checks_areas = True
+
     def __init__(self, mesh: TriangleMesh, mu: float, cutoff, reference) -> None:
         if not isinstance(mesh, TriangleMesh):
             raise TypeError(f"mesh must be a PlanarMesh, got {type(mesh).__name__}")
