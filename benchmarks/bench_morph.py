@@ -32,7 +32,7 @@ import meshopt_toolkit as mt
 from meshopt_toolkit.generate import (annulus, channel_with_cylinder, log_twist,
                                       rotate_inner_boundary, shift_hole)
 from meshopt_toolkit.geometry import aspect_ratios
-from meshopt_toolkit.morph import twisted
+from meshopt_toolkit.generate import twisted
 
 
 def _min_ar(points, triangles) -> float:

@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 
 from meshopt_toolkit import data_path, geodesic_morph, load, save
-from meshopt_toolkit.morph import twisted
+from meshopt_toolkit.generate import twisted
 from meshopt_toolkit.plotting import save_morph_figures
 
 

@@ -1,7 +1,8 @@
-"""Meshes for the mesh-motion cases (gmsh, an optional dependency: ``pip install gmsh``).
+"""Meshes and motions for the test and benchmark cases (gmsh for the meshes).
 
 The annulus (inner circle turned) and the channel with a cylinder (cylinder pushed towards
-a wall) are the standard cases of ``benchmarks/bench_move.py`` and the README.
+a wall) are the standard cases of ``benchmarks/bench_move.py`` and the README; ``twisted``
+and ``log_twist`` make the morph targets.
 """
 
 from __future__ import annotations
@@ -91,3 +92,23 @@ def log_twist(mesh: PlanarMesh, degrees: float, inner: float = 0.3, outer: float
     s = np.clip(np.log(r / outer) / np.log(inner / outer), 0.0, 1.0)
     th = np.arctan2(P[:, 1], P[:, 0]) + np.radians(degrees) * s
     return mesh.with_points(np.column_stack([r * np.cos(th), r * np.sin(th)]))
+
+
+def twisted(mesh: PlanarMesh, degrees: float = 225.0, power: float = 2.0,
+            centre=(0.0, 0.0)) -> PlanarMesh:
+    """The mesh with its interior twisted about ``centre``, boundary fixed (issue #7's test).
+
+    Each vertex at distance r from the centre turns by ``θ(r) = degrees·(1 − r)^power``
+    (r ≥ 1 does not turn); boundary vertices stay put. On a unit disc this makes a target
+    that linear interpolation cannot reach without inverting triangles when ``degrees`` is
+    large (≈ 225°). The result is not checked for admissibility.
+    """
+    P = mesh.points - np.asarray(centre, float)
+    r = np.linalg.norm(P, axis=1)
+    th = np.deg2rad(degrees) * np.clip(1.0 - r, 0.0, None) ** power
+    c, s = np.cos(th), np.sin(th)
+    Q = np.stack([c * P[:, 0] - s * P[:, 1], s * P[:, 0] + c * P[:, 1]], 1)
+    Q += np.asarray(centre, float)
+    b = mesh.boundary_vertices
+    Q[b] = mesh.points[b]
+    return mesh.with_points(Q)

@@ -81,6 +81,7 @@ import numpy as np
 from ._linalg import dot as _dot
 from ._typing import FloatArray
 from .errors import IntegrationError, InvalidMeshError, NotAdmissibleError
+from .generate import twisted  # the 225° twist target lives in generate; kept importable here
 from .geometry import aspect_ratios, min_signed_areas_on_segment, signed_areas
 from .mesh import PlanarMesh
 
@@ -1056,23 +1057,3 @@ def geodesic_morph(
     return MorphResult(pts, times, src.triangles, used, target_error, ar, area, adm, lar, larea,
                        lmin, float(length), log, dg, time.perf_counter() - start,
                        rar, rarea, between, scale)
-
-
-def twisted(mesh: PlanarMesh, degrees: float = 225.0, power: float = 2.0,
-            centre=(0.0, 0.0)) -> PlanarMesh:
-    """The mesh with its interior twisted about ``centre``, boundary fixed (issue #7's test).
-
-    Each vertex at distance r from the centre turns by ``θ(r) = degrees·(1 − r)^power``
-    (r ≥ 1 does not turn); boundary vertices stay put. On a unit disc this makes a target
-    that linear interpolation cannot reach without inverting triangles when ``degrees`` is
-    large (≈ 225°). The result is not checked for admissibility.
-    """
-    P = mesh.points - np.asarray(centre, float)
-    r = np.linalg.norm(P, axis=1)
-    th = np.deg2rad(degrees) * np.clip(1.0 - r, 0.0, None) ** power
-    c, s = np.cos(th), np.sin(th)
-    Q = np.stack([c * P[:, 0] - s * P[:, 1], s * P[:, 0] + c * P[:, 1]], 1)
-    Q += np.asarray(centre, float)
-    b = mesh.boundary_vertices
-    Q[b] = mesh.points[b]
-    return mesh.with_points(Q)

@@ -9,7 +9,7 @@ from meshopt_toolkit.datasets import data_path
 from meshopt_toolkit.geometry import signed_areas
 from meshopt_toolkit.interpolation import arap_interpolation, rotation_angles
 from meshopt_toolkit.io import load
-from meshopt_toolkit.morph import twisted
+from meshopt_toolkit.generate import twisted
 
 
 def _rot(a):
