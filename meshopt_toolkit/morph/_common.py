@@ -1,0 +1,91 @@
+"""Constants and small helpers shared by the scalar-metric morph modules."""
+
+from __future__ import annotations
+
+
+import numpy as np
+
+from .._typing import FloatArray
+from ..errors import InvalidMeshError, NotAdmissibleError
+from ..geometry import aspect_ratios, signed_areas
+
+
+#: default f2 coefficients (β1, β2, β3, β4) of the morph metric (β4 unscaled)
+DEFAULT_BETA = (1.0, 1.0, 0.0, 1.0)
+
+#: tolerance of log_map relative to the mesh diameter
+DEFAULT_TOL = 1e-8
+
+#: relative tolerance of the exponential maps evaluated by the shooting
+SHOOTING_RTOL = 1e-10
+
+
+
+
+def _penalty(metric):
+    from ..geodesics import penalty_of
+
+    return penalty_of(metric)
+
+
+def _as_points(Q, what: str) -> FloatArray:
+    Q = np.array(getattr(Q, "points", Q), dtype=np.float64)
+    if Q.ndim != 2 or Q.shape[1] < 2:
+        raise InvalidMeshError(f"{what} must have shape (N, 2), got {Q.shape}")
+    return np.ascontiguousarray(Q[:, :2])
+
+
+def _require_finite(pen, Q: FloatArray, what: str) -> float:
+    try:
+        f = float(pen.value(Q))
+    except ValueError as exc:
+        raise InvalidMeshError(f"{what}: {exc}") from None
+    if not np.isfinite(f):
+        problem = ""
+        if hasattr(pen, "_area_problem"):
+            problem = pen._area_problem(Q) or pen._boundary_problem(Q) or ""
+        raise NotAdmissibleError(
+            f"{what} is not admissible for the morph metric" + (f": {problem}" if problem else "")
+        )
+    return f
+
+
+class _Counter:
+    """Wrap a penalty, counting calls."""
+
+    def __init__(self, pen) -> None:
+        self.pen = pen
+        self.n = 0
+
+    def value(self, Q):
+        self.n += 1
+        return float(self.pen.value(Q))
+
+    def value_and_gradient(self, Q):
+        self.n += 1
+        if hasattr(self.pen, "value_and_gradient"):
+            f, g = self.pen.value_and_gradient(Q)
+        else:
+            f, g = self.pen.value(Q), self.pen.gradient(Q)
+        return float(f), np.asarray(g, dtype=np.float64)
+
+    def hvp(self, Q, V):
+        self.n += 1
+        return np.asarray(self.pen.hvp(Q, V), dtype=np.float64)
+
+
+# ---------------------------------------------------------------------------------------
+# stage 1: an admissible initial path
+# ---------------------------------------------------------------------------------------
+
+
+def _diameter(Q: FloatArray) -> float:
+    return float(np.linalg.norm(Q.max(axis=0) - Q.min(axis=0)))
+
+
+def _frame_stats(points: FloatArray, triangles) -> tuple[FloatArray, FloatArray]:
+    ar = np.array([aspect_ratios(p, triangles).min() for p in points])
+    area = np.array([signed_areas(p, triangles).min() for p in points])
+    return ar, area
+
+

@@ -1,0 +1,191 @@
+"""Result records of the scalar-metric morph: discrete geodesic, log map, morph."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._typing import FloatArray
+from ..mesh import PlanarMesh
+
+
+# ---------------------------------------------------------------------------------------
+# results
+# ---------------------------------------------------------------------------------------
+
+
+@dataclass
+class DiscreteGeodesic:
+    """A minimizer of the discrete path energy.
+
+    Attributes
+    ----------
+    points : (K+1, N, 2) frames, ``points[0] = Q0`` and ``points[K] = Q1`` exactly
+    penalty : (K+1,) ``f`` at each frame
+    energy : path energy ``E`` (``√E`` is the discrete length for an equally spaced path)
+    length : ``Σ_k |(Q_{k+1}, f_{k+1}) − (Q_k, f_k)|`` (length of the polygon in the graph)
+    nit : Newton iterations
+    gradient_norm : final ``√(∇E · H_GN⁻¹ ∇E)`` (0 for K = 1)
+    converged : whether ``gradient_norm ≤ tol·√E`` was reached
+    n_evaluations : penalty calls (values, gradients and Hessian-vector products)
+    status : why the Newton iteration stopped: "converged" (gradient test), "stationary"
+        (the energy stagnated, see :func:`discrete_geodesic`), "max_iter" or
+        "line_search" (no decrease found)
+    """
+
+    points: FloatArray
+    penalty: FloatArray
+    energy: float
+    length: float
+    nit: int = 0
+    gradient_norm: float = 0.0
+    converged: bool = True
+    n_evaluations: int = 0
+    status: str = "converged"
+
+    @property
+    def segments(self) -> int:
+        return len(self.points) - 1
+
+    def initial_velocity(self) -> FloatArray:
+        """``γ'(0)`` from the frames: ``K(−3Q_0 + 4Q_1 − Q_2)/2`` (second order), (N, 2)."""
+        K = self.segments
+        P = self.points
+        if K == 1:
+            return P[1] - P[0]
+        return 0.5 * K * (-3.0 * P[0] + 4.0 * P[1] - P[2])
+
+
+@dataclass
+class LogMapResult:
+    """Outcome of :func:`log_map`.
+
+    Attributes
+    ----------
+    velocity : (N, 2) ``V`` with ``exp_{Q0}(V) ≈ Q1``
+    residual : ``max |exp_{Q0}(V) − Q1|`` (max-norm over coordinates)
+    tol : the tolerance asked for
+    iterations : Newton iterations of the shooting
+    path_length : ``|V|_g`` at ``Q0`` = length of the geodesic ``t ↦ exp(tV)``, t ∈ [0, 1]
+    success : ``residual ≤ tol``
+    n_exp : exponential maps evaluated (residuals and directional differences)
+    discrete : the discrete geodesic that gave the initial guess (None if not used)
+    message : a one-line account
+    seconds : wall time
+    """
+
+    velocity: FloatArray
+    residual: float
+    tol: float
+    iterations: int
+    path_length: float
+    success: bool
+    n_exp: int = 0
+    discrete: DiscreteGeodesic | None = None
+    message: str = ""
+    seconds: float = 0.0
+
+
+@dataclass
+class MorphResult:
+    """Frames of a geodesic morph and their diagnostics.
+
+    Attributes
+    ----------
+    points : (K, N, 2) frame positions, ``points[0]`` the source, ``points[-1]`` the target
+    times : (K,) curve parameter of each frame in [0, 1]
+    triangles : (T, 3) the shared connectivity
+    method : "shooting" (frames on the exact geodesic ``exp(tV)``) or "discrete"
+    target_error : max-norm distance of the geodesic's end from the target before the last
+        frame is set to the target (0 for "discrete": its end frame is the target)
+    min_aspect_ratio : (K,) ``min 2r/R`` per frame
+    min_area : (K,) smallest signed area per frame
+    admissible : (K,) every signed area > 0 and the penalty finite
+    linear_min_aspect_ratio, linear_min_area : (K,) the same for linear interpolation
+        ``(1 − t) Q0 + t Q1`` at the same times (negative area = inverted)
+    linear_min_area_dense : smallest signed area of linear interpolation over the whole
+        segment from source to target, exact (:func:`~.geometry.min_signed_areas_on_segment`;
+        the linear path may invert between frames)
+    length : geodesic length (``|V|_g`` for shooting, polygon length for discrete)
+    log : the LogMapResult of the shooting (None when not attempted)
+    discrete : the DiscreteGeodesic used
+    seconds : wall time
+    rigid_min_aspect_ratio, rigid_min_area : (K,) the same for the as-rigid-as-possible
+        interpolation (:func:`~.interpolation.arap_interpolation`) at the same times: no
+        guarantee of admissibility, but often far from degenerate where the geodesic of
+        ``g = I + ∇f∇fᵀ`` squeezes triangles (the metric only resists motion along ∇f)
+    metric_scale : the factor c of the default metric ``c · f2`` (None for a given metric)
+    between_frames_min_area : (K − 1,) exact smallest signed area along the straight
+        segment between consecutive frames (:func:`~.geometry.min_signed_areas_on_segment`):
+        all positive means that linear in-betweening of the frames never inverts either
+    """
+
+    points: FloatArray
+    times: FloatArray
+    triangles: np.ndarray
+    method: str
+    target_error: float
+    min_aspect_ratio: FloatArray
+    min_area: FloatArray
+    admissible: np.ndarray
+    linear_min_aspect_ratio: FloatArray
+    linear_min_area: FloatArray
+    linear_min_area_dense: float
+    length: float
+    log: LogMapResult | None = None
+    discrete: DiscreteGeodesic | None = None
+    seconds: float = 0.0
+    rigid_min_aspect_ratio: FloatArray | None = None
+    rigid_min_area: FloatArray | None = None
+    between_frames_min_area: FloatArray | None = None
+    metric_scale: float | None = None
+
+    @property
+    def n_frames(self) -> int:
+        return len(self.points)
+
+    def meshes(self, like=None) -> list:
+        """The frames as PlanarMesh objects (tags of ``like`` kept when given)."""
+        from ..mesh import PlanarMesh
+
+        if like is not None:
+            base = like.as_planar()
+            return [base.with_points(p) for p in self.points]
+        return [PlanarMesh(p, self.triangles) for p in self.points]
+
+    def summary(self) -> dict:
+        """JSON-able summary (frames, target_error, min_aspect_ratio, admissible, ...)."""
+        return {
+            "frames": int(self.n_frames),
+            "method": self.method,
+            "target_error": float(self.target_error),
+            "min_aspect_ratio": float(np.min(self.min_aspect_ratio)),
+            "min_aspect_ratio_per_frame": [float(x) for x in self.min_aspect_ratio],
+            "admissible": bool(np.all(self.admissible)),
+            "linear_min_area": float(self.linear_min_area_dense),
+            "linear_min_aspect_ratio": float(np.min(self.linear_min_aspect_ratio)),
+            "linear_inverts": bool(self.linear_min_area_dense <= 0),
+            "rigid_min_aspect_ratio": (None if self.rigid_min_aspect_ratio is None
+                                       else float(np.min(self.rigid_min_aspect_ratio))),
+            "rigid_inverts": (None if self.rigid_min_area is None
+                              else bool(np.min(self.rigid_min_area) <= 0)),
+            "inversion_free_between_frames": (
+                None if self.between_frames_min_area is None
+                else bool(np.min(self.between_frames_min_area) > 0)),
+            "metric_scale": self.metric_scale,
+            "length": float(self.length),
+            "shooting_residual": None if self.log is None else float(self.log.residual),
+            "shooting_iterations": None if self.log is None else int(self.log.iterations),
+            "discrete_iterations": None if self.discrete is None else int(self.discrete.nit),
+            "discrete_converged": None if self.discrete is None else bool(self.discrete.converged),
+            "discrete_status": None if self.discrete is None else self.discrete.status,
+            "seconds": float(self.seconds),
+        }
+
+
+# ---------------------------------------------------------------------------------------
+# helpers
+# ---------------------------------------------------------------------------------------
+
+

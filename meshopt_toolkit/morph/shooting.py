@@ -1,0 +1,184 @@
+"""The log map by shooting: Newton–Krylov on ``exp_{Q0}(V) − Q1``."""
+
+from __future__ import annotations
+
+import logging
+import time
+
+import numpy as np
+
+from .._typing import FloatArray
+from ..errors import IntegrationError, InvalidMeshError, NotAdmissibleError
+from ._common import DEFAULT_TOL, SHOOTING_RTOL, _as_points, _diameter, _penalty, _require_finite
+from .discrete import discrete_geodesic
+from .results import DiscreteGeodesic, LogMapResult
+
+logger = logging.getLogger(__name__)
+
+
+def log_map(
+    metric,
+    Q0: FloatArray,
+    Q1: FloatArray,
+    *,
+    tol: float | None = None,
+    V0: FloatArray | None = None,
+    segments: int = 16,
+    discrete: DiscreteGeodesic | None = None,
+    max_iter: int = 12,
+    max_exp: int = 2000,
+    krylov: int = 60,
+    rtol: float = SHOOTING_RTOL,
+    jacobian_rtol: float = 1e-7,
+    jacobian_step: float = 1e-3,
+    raise_on_failure: bool = True,
+) -> LogMapResult:
+    """The logarithm ``V = log_{Q0}(Q1)``: ``exp_map(metric, Q0, V, rtol=rtol) ≈ Q1``.
+
+    Newton–Krylov shooting on ``R(V) = exp_{Q0}(V) − Q1`` (module docstring, stage 3)
+    from the initial guess of a discrete geodesic of ``segments`` segments (or ``V0``).
+
+    Parameters
+    ----------
+    metric : CompleteMetric (or its penalty); EuclideanMetric/None give ``Q1 − Q0``
+    Q0, Q1 : (N, 2) admissible meshes of the same connectivity (arrays or meshes)
+    tol : max-norm tolerance on the residual (default ``1e-8 ·`` diameter of ``Q0``)
+    V0 : (N, 2) initial guess (skips the discrete geodesic)
+    segments : segments of the discrete geodesic of the initial guess
+    discrete : a precomputed discrete geodesic from Q0 to Q1 to start from
+    max_iter : Newton iterations
+    max_exp : budget of exponential maps (a Newton step needs 1 + #GMRES iterations)
+    krylov : GMRES iterations per Newton step
+    rtol : relative tolerance of the exponential maps of the residual
+        (:func:`~.geodesics.geodesic`); check a log with ``exp_map(metric, Q0, V, rtol=rtol)``
+    jacobian_rtol, jacobian_step : tolerance of the exponential maps of the directional
+        differences ``J v ≈ (exp(V + h v̂) − exp(V))/h·|v|`` and ``h = jacobian_step·|V|``
+        (integration noise ~1e-7/1e-3 and truncation ~1e-3: Newton converges linearly
+        with a rate of about 1e-3)
+    raise_on_failure : raise IntegrationError when the tolerance is not met (else return
+        the result with ``success = False``)
+
+    Returns
+    -------
+    LogMapResult
+        ``velocity``, ``residual``, ``iterations``, ``path_length`` (= ``|V|_g``), ...
+
+    Raises
+    ------
+    InvalidMeshError
+        Shapes differ.
+    NotAdmissibleError
+        ``Q0`` or ``Q1`` is not admissible, or no admissible path joins them.
+    IntegrationError
+        The shooting did not reach ``tol`` (with ``raise_on_failure``).
+    """
+    from scipy.sparse.linalg import LinearOperator, gmres
+
+    from ..geodesics import exp_map
+
+    start = time.perf_counter()
+    Q0 = _as_points(Q0, "Q0")
+    Q1 = _as_points(Q1, "Q1")
+    if Q0.shape != Q1.shape:
+        raise InvalidMeshError(f"Q0 and Q1 have shapes {Q0.shape} and {Q1.shape}")
+    tol = DEFAULT_TOL * _diameter(Q0) if tol is None else float(tol)
+    pen = _penalty(metric)
+    if pen is None:
+        V = Q1 - Q0
+        return LogMapResult(V, 0.0, tol, 0, float(np.linalg.norm(V)), True,
+                            message="Euclidean metric: V = Q1 − Q0",
+                            seconds=time.perf_counter() - start)
+    _require_finite(pen, Q0, "the source")
+    _require_finite(pen, Q1, "the target")
+    if V0 is None:
+        if discrete is None:
+            discrete = discrete_geodesic(metric, Q0, Q1, segments)
+        V = discrete.initial_velocity()
+    else:
+        V = np.array(V0, dtype=np.float64)
+        if V.shape != Q0.shape:
+            raise InvalidMeshError(f"V0 must have shape {Q0.shape}, got {V.shape}")
+    n_exp = 0
+
+    def expo(W, tolerance=rtol):
+        nonlocal n_exp
+        n_exp += 1
+        return exp_map(metric, Q0, W, rtol=tolerance, on_violation="ignore")
+
+    def residual_of(W):
+        try:
+            E = expo(W)
+        except (IntegrationError, NotAdmissibleError) as exc:
+            logger.debug("shooting: exp failed: %s", exc)
+            return None, np.inf
+        R = E - Q1
+        return R, float(np.max(np.abs(R)))
+
+    R, res = residual_of(V)
+    if R is None:
+        raise IntegrationError("log_map: the exponential map of the initial guess failed")
+    it = 0
+    message = "converged" if res <= tol else ""
+    while res > tol:
+        if it >= max_iter or n_exp >= max_exp:
+            message = (f"not converged: residual {res:.3g} > tol {tol:.3g} after {it} Newton "
+                       f"iterations ({n_exp} exponential maps)")
+            break
+        it += 1
+        # directional differences at a looser tolerance (cheaper steps; J needs ~1e-3)
+        vnorm = max(float(np.linalg.norm(V)), 1e-3 * _diameter(Q0))
+        h = jacobian_step * vnorm
+        try:
+            base = expo(V, jacobian_rtol)
+        except (IntegrationError, NotAdmissibleError):
+            message = "not converged: the exponential map failed at the current velocity"
+            break
+
+        def jv(v, base=base, V=V, h=h):
+            v = v.reshape(V.shape)
+            nv = float(np.linalg.norm(v))
+            if nv == 0.0:
+                return np.zeros(v.size)
+            try:
+                E = expo(V + (h / nv) * v, jacobian_rtol)
+                sign = 1.0
+            except (IntegrationError, NotAdmissibleError):
+                E = expo(V - (h / nv) * v, jacobian_rtol)
+                sign = -1.0
+            return (sign * (E - base) * (nv / h)).ravel()
+
+        A = LinearOperator((V.size, V.size), matvec=jv, dtype=np.float64)
+        k = min(krylov, V.size, max(1, max_exp - n_exp))
+        dV, _info = gmres(A, -R.ravel(), rtol=1e-3, atol=0.0,
+                          restart=k, maxiter=1)
+        dV = dV.reshape(V.shape)
+        lam = 1.0
+        for _ in range(8):  # damping: halve the step while the residual grows
+            Rn, rn = residual_of(V + lam * dV)
+            if rn < res:
+                break
+            lam *= 0.5
+        else:
+            message = f"not converged: the Newton step does not reduce the residual {res:.3g}"
+            break
+        V = V + lam * dV
+        R, res = Rn, rn
+        logger.debug("shooting %d: residual %.3g (step %.3g, %d exps)", it, res, lam, n_exp)
+    success = res <= tol
+    if success:
+        message = f"converged: residual {res:.3g} <= {tol:.3g} in {it} Newton iterations"
+    from ..metrics import CompleteMetric
+
+    cm = metric if hasattr(metric, "norm") else CompleteMetric(pen)
+    out = LogMapResult(V, res, tol, it, float(cm.norm(Q0, V)), bool(success), n_exp, discrete,
+                       message, time.perf_counter() - start)
+    if not success and raise_on_failure:
+        raise IntegrationError(f"log_map: {message}")
+    return out
+
+
+# ---------------------------------------------------------------------------------------
+# the morph
+# ---------------------------------------------------------------------------------------
+
+
