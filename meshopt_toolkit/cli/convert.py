@@ -34,6 +34,9 @@ def add_args(parser) -> None:
                       help="text output")
     parser.add_argument("--msh-version", choices=("4.1", "2.2"), default="4.1",
                         help="gmsh version for .msh output (default 4.1)")
+    from .run import add_batch_args
+
+    add_batch_args(parser)
 
 
 def _usage(msg: str) -> int:
@@ -104,8 +107,12 @@ def _convert_one(src: Path, dst: Path, args) -> None:
 
 
 def run(args) -> int:
-    from ..progress import ProgressBar
+    from ..pipeline.batch_progress import BatchProgress
+    from ..pipeline.batch_run import Job, execute
+    from ..pipeline.tasks import ConvertTask
+    from .run import batch_client, check_batch_args, reporter
 
+    check_batch_args(args)
     plan = _plan(args)
     if isinstance(plan, int):
         return plan
@@ -114,25 +121,18 @@ def run(args) -> int:
         print(f"meshopt convert: error: {msg}", file=sys.stderr)
     if not jobs:
         return 1
-    if len(jobs) == 1 and not failures and jobs[0][1] == Path(args.output):
+    simple = args.jobs == 1 and not args.resume and not args.scheduler
+    if simple and len(jobs) == 1 and not failures and jobs[0][1] == Path(args.output):
         _convert_one(*jobs[0], args)  # a single file: errors go to main()
         return 0
-    jobs[0][1].parent.mkdir(parents=True, exist_ok=True)
-    done = 0
-    with ProgressBar(len(jobs), "convert") as bar:
-        for src, dst in jobs:
-            try:
-                _convert_one(src, dst, args)
-                done += 1
-                bar.update(status=src.name)
-            except MeshoptError as exc:
-                if bar.enabled:
-                    bar.stream.write("\n")
-                failures.append(str(exc))
-                print(f"meshopt convert: error: {exc}", file=sys.stderr)
-                bar.update(status="failed")
-    if failures:
-        print(f"meshopt convert: {done} of {done + len(failures)} files converted, "
-              f"{len(failures)} failed", file=sys.stderr)
-        return 1
-    return 0
+    outdir = jobs[0][1].parent
+    task = ConvertTask(_convert_one, args, args.to and jobs[0][1].suffix)
+    with BatchProgress(len(jobs), "convert") as bar, batch_client(args) as client:
+        result = execute(task, (Job(i, src, dst.name) for i, (src, dst) in enumerate(jobs, 1)),
+                         outdir, workers=args.jobs, client=client,
+                         send_inputs="path" if args.shared_inputs else "bytes",
+                         resume=args.resume, force=args.force,
+                         on_record=reporter("convert", False, bar), progress=bar)
+    result.failed += len(failures)  # inputs that matched nothing
+    print(f"meshopt convert: {result.summary()}", file=sys.stderr)
+    return 1 if result.failed else 0

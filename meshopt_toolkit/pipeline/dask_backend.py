@@ -1,0 +1,193 @@
+"""Running a batch on an existing Dask distributed cluster (``--scheduler``, ``client=``).
+
+Needs ``dask[distributed]`` (the ``meshopt-toolkit[dask]`` extra) here and on the workers,
+with the same meshopt-toolkit (and plugins) installed there.
+
+Inputs travel in one of two ways:
+
+- ``"bytes"`` (the default): the client reads each input and sends its content; the
+  worker writes it into a private temporary folder under the same file name. Works with
+  no shared file system. A pipeline then reads only its own input (no ``--allow-read``).
+- ``"path"`` (``--shared-inputs``): the client sends the absolute path and the worker
+  reads it; the inputs must be visible to the workers at the same path (NFS, a cluster
+  file system). Reads of other inputs and ``--allow-read`` paths work as locally.
+
+Either way the worker writes its outputs into a temporary folder and sends their bytes
+back; the client moves them into the output directory atomically and keeps the journal
+(:mod:`.journal`), so results and outputs are the same as a local run's.
+
+A worker that dies on a file (a native abort) is restarted by its nanny and Dask retries
+the file on another worker up to ``distributed.scheduler.allowed-failures`` times; then
+the file fails with ``KilledWorker`` and the others go on.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+from ..errors import MeshoptError
+
+__all__ = ["connect", "DaskExecutor", "SEND_MODES"]
+
+SEND_MODES = ("bytes", "path")
+_SCATTER_ABOVE = 1 << 20  # inputs larger than this go by scatter, not inside the task
+
+
+def _import_distributed():
+    try:
+        import distributed
+    except ImportError:
+        raise MeshoptError("a Dask cluster needs dask.distributed: "
+                           "pip install 'meshopt-toolkit[dask]'") from None
+    return distributed
+
+
+def _probe() -> str:  # pragma: no cover - runs on the workers
+    import meshopt_toolkit
+
+    return meshopt_toolkit.__version__
+
+
+def connect(address: str, timeout: float = 10.0):
+    """A ``distributed.Client`` for the scheduler at ``address``, with at least one worker.
+
+    Raises
+    ------
+    MeshoptError
+        Dask is not installed, the scheduler cannot be reached in ``timeout`` seconds,
+        it has no worker, or its workers cannot import meshopt_toolkit.
+    """
+    distributed = _import_distributed()
+    try:
+        client = distributed.Client(address, timeout=f"{timeout}s", set_as_default=False)
+    except Exception as exc:  # OSError, TimeoutError, ValueError (bad address)...
+        msg = " ".join(str(exc).split()) or type(exc).__name__
+        raise MeshoptError(f"cannot reach the Dask scheduler at {address}: {msg}") from None
+    try:
+        check_workers(client, timeout)
+    except BaseException:
+        client.close()
+        raise
+    return client
+
+
+def check_workers(client, timeout: float = 10.0) -> None:
+    """Wait for a worker and check that the workers import meshopt_toolkit."""
+    from .. import __version__
+
+    try:
+        client.wait_for_workers(1, timeout=timeout)
+    except Exception:
+        raise MeshoptError(f"the Dask scheduler at {client.scheduler.address} has no "
+                           f"worker (waited {timeout:g} s)") from None
+    try:
+        versions = client.run(_probe)
+    except Exception as exc:
+        raise MeshoptError(f"the Dask workers cannot run meshopt-toolkit ({type(exc).__name__}:"
+                           f" {exc}); install it on every worker") from None
+    other = sorted({v for v in versions.values() if v != __version__})
+    if other:
+        raise MeshoptError(f"the Dask workers have meshopt-toolkit {', '.join(other)}, this "
+                           f"client {__version__}; install the same version everywhere")
+
+
+def remote_run(task, src: str, data, index: int, name) -> dict:
+    """Run ``task`` on one input on a worker; return the record and the outputs' bytes.
+
+    ``data`` is the input's content (bytes mode) or None (path mode: ``src`` is read).
+    """
+    with tempfile.TemporaryDirectory(prefix="meshopt-batch-") as tmp:
+        tmp = Path(tmp)
+        if data is not None:
+            (tmp / "in").mkdir()
+            local = tmp / "in" / Path(src).name
+            local.write_bytes(data)
+        else:
+            local = Path(src)
+        out = tmp / "out"
+        out.mkdir()
+        record = task((str(local), index, name, str(out)))
+        files = {}
+        if record.get("status") == "ok":
+            root = os.path.realpath(out)
+            for p in record.get("outputs", ()):
+                rel = os.path.relpath(os.path.realpath(p), root)
+                if not rel.startswith("..") and os.path.isfile(p):
+                    files[rel] = Path(p).read_bytes()
+        return {"record": record, "files": files, "local": str(local), "outdir": str(out)}
+
+
+class DaskExecutor:
+    """Submit payloads to a Dask cluster (see the module docstring).
+
+    Parameters
+    ----------
+    client : distributed.Client
+    task : callable
+        Scattered once to every worker.
+    send : {"bytes", "path"}
+    slots : int, optional
+        Payloads in flight at once (default: twice the cluster's threads).
+    """
+
+    def __init__(self, client, task, *, send: str = "bytes", slots: int | None = None) -> None:
+        distributed = _import_distributed()
+        if send not in SEND_MODES:
+            raise MeshoptError(f"send_inputs={send!r}: choose from {', '.join(SEND_MODES)}")
+        self.client = client
+        self.send = send
+        [self._task] = client.scatter([task], broadcast=True, hash=False)
+        threads = sum(client.nthreads().values()) or 1
+        self._slots = slots or 2 * threads
+        self._pending = distributed.as_completed()
+        self._ids: dict = {}
+
+    @property
+    def slots(self) -> int:
+        return self._slots
+
+    @property
+    def free(self) -> int:
+        return self._slots - len(self._ids)
+
+    def submit(self, ident, payload) -> None:
+        """Send one input (read here in bytes mode: an unreadable file raises OSError)."""
+        src, index, name, _ = payload
+        if self.send == "bytes":
+            data = Path(src).read_bytes()
+            if len(data) > _SCATTER_ABOVE:
+                [data] = self.client.scatter([data], hash=False)
+            where = str(src)
+        else:
+            data, where = None, os.path.abspath(src)
+        future = self.client.submit(remote_run, self._task, where, data, index, name,
+                                    pure=False)
+        self._ids[future.key] = (ident, future)
+        self._pending.add(future)
+
+    def wait(self) -> list:
+        """Block until at least one input is finished; ``[(id, result), ...]`` where a
+        result is :func:`remote_run`'s dict or the exception the task ended with."""
+        if not self._ids:
+            return []
+        finished = [next(self._pending)]
+        finished.extend(self._pending.next_batch(block=False))
+        out = []
+        for future in finished:
+            ident, _ = self._ids.pop(future.key)
+            try:
+                result = future.result()
+            except Exception as exc:  # KilledWorker, a lost connection, ...
+                result = exc
+            future.release()
+            out.append((ident, result))
+        return out
+
+    def close(self, *, kill: bool = False) -> None:
+        futures = [f for _, f in self._ids.values()]
+        self._ids.clear()
+        self._pending.clear()
+        if futures:
+            self.client.cancel(futures)
