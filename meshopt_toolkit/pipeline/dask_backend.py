@@ -141,7 +141,7 @@ class DaskExecutor:
         [self._task] = client.scatter([task], broadcast=True, hash=False)
         threads = sum(client.nthreads().values()) or 1
         self._slots = slots or 2 * threads
-        self._pending = distributed.as_completed()
+        self._wait = distributed.wait
         self._ids: dict = {}
 
     @property
@@ -165,15 +165,16 @@ class DaskExecutor:
         future = self.client.submit(remote_run, self._task, where, data, index, name,
                                     pure=False)
         self._ids[future.key] = (ident, future)
-        self._pending.add(future)
 
     def wait(self) -> list:
         """Block until at least one input is finished; ``[(id, result), ...]`` where a
         result is :func:`remote_run`'s dict or the exception the task ended with."""
         if not self._ids:
             return []
-        finished = [next(self._pending)]
-        finished.extend(self._pending.next_batch(block=False))
+        with self.client.as_current():  # the client need not be the default one
+            done, _ = self._wait([f for _, f in self._ids.values()],
+                                 return_when="FIRST_COMPLETED")
+        finished = sorted(done, key=lambda f: self._ids[f.key][0])
         out = []
         for future in finished:
             ident, _ = self._ids.pop(future.key)
@@ -188,6 +189,5 @@ class DaskExecutor:
     def close(self, *, kill: bool = False) -> None:
         futures = [f for _, f in self._ids.values()]
         self._ids.clear()
-        self._pending.clear()
         if futures:
             self.client.cancel(futures)
