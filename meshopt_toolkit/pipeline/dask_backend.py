@@ -32,6 +32,8 @@ from ..errors import MeshoptError
 __all__ = ["connect", "DaskExecutor", "SEND_MODES"]
 
 SEND_MODES = ("bytes", "path")
+#: seconds to reach the scheduler and to wait for a first worker
+CONNECT_TIMEOUT = 10.0
 _SCATTER_ABOVE = 1 << 20  # inputs larger than this go by scatter, not inside the task
 
 
@@ -50,7 +52,7 @@ def _probe() -> str:  # pragma: no cover - runs on the workers
     return meshopt_toolkit.__version__
 
 
-def connect(address: str, timeout: float = 10.0):
+def connect(address: str, timeout: float | None = None):
     """A ``distributed.Client`` for the scheduler at ``address``, with at least one worker.
 
     Raises
@@ -60,6 +62,7 @@ def connect(address: str, timeout: float = 10.0):
         it has no worker, or its workers cannot import meshopt_toolkit.
     """
     distributed = _import_distributed()
+    timeout = CONNECT_TIMEOUT if timeout is None else timeout
     try:
         client = distributed.Client(address, timeout=f"{timeout}s", set_as_default=False)
     except Exception as exc:  # OSError, TimeoutError, ValueError (bad address)...
