@@ -4,7 +4,8 @@ One input: OUTPUT is a file and its extension picks the format. Several inputs (
 or directory): OUTPUT is a directory (created if missing) and ``--to`` picks the format.
 Existing outputs, the input included, are never overwritten without ``--force``; each
 write is atomic. A bad file in a batch is reported and skipped; the exit status is then 1.
-Usage errors exit with 2.
+Usage errors exit with 2. ``-j``, ``--resume``, ``--scheduler`` and ``--shared-inputs``
+work as in ``meshopt run``.
 """
 
 from __future__ import annotations

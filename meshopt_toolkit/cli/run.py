@@ -19,6 +19,13 @@ The pipeline file is untrusted; the command line is the only authority:
 
 ``--dry-run`` runs no filter and writes nothing, but checks all of this from the inputs
 (``-o`` is optional then: without it existing outputs are not looked for).
+
+Batches (shared with ``meshopt convert``, see :mod:`meshopt_toolkit.pipeline.batch_run`):
+``-j N`` runs files in N worker processes (0: all cores), each file isolated; ``--resume``
+skips files a journal in OUTDIR knows as done with the same input and pipeline;
+``--scheduler ADDRESS`` runs on a Dask cluster (inputs sent as bytes, or read from the
+same path with ``--shared-inputs``). Records and errors come in input order; the last
+line is ``N done, K skipped, F failed in T s``.
 """
 
 from __future__ import annotations

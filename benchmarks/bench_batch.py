@@ -1,0 +1,88 @@
+"""Benchmark: a batch of small shape-optimization jobs with 1, 2 and 4 worker processes.
+
+120 inputs (the 146-vertex disc, interior nodes jittered differently in each file), one
+``compute_shape_optimization`` step each (complete-euclidean, 30 iterations: about 0.08 s
+a file), run with :func:`meshopt_toolkit.run_batch` exactly as ``meshopt run -j N`` runs
+them: ``jobs=1`` in this process, ``jobs=N`` in N worker processes (their start-up
+included). Every output is checked to be byte-identical to the ``jobs=1`` run.
+
+Prints the wall time, files per second and speedup over ``jobs=1`` for each worker count
+(target: ``-j 2`` ≥ 1.6× faster than ``-j 1`` on 2 cores).
+Run: ``python benchmarks/bench_batch.py [--files 120] [--iterations 30] [--repeat 1]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+import meshopt_toolkit as mt
+from meshopt_toolkit.datasets import data_path
+from meshopt_toolkit.pipeline.workers import cpu_count
+
+from _common import best_of
+
+
+def make_inputs(folder: Path, n: int) -> list[Path]:
+    """``n`` copies of the 146-vertex disc, interior nodes jittered by up to 10 % of h."""
+    base = mt.load(data_path("disc_146.msh"))
+    inner = np.ones(base.n_vertices, bool)
+    inner[base.boundary_vertices] = False
+    h = float(np.sqrt(2.0 * np.pi / base.n_triangles))
+    paths = []
+    for i in range(n):
+        rng = np.random.default_rng(i)
+        pts = base.points.copy()
+        pts[inner] += 0.1 * h * rng.uniform(-1, 1, (int(inner.sum()), 2))
+        path = folder / f"job{i:04d}.msh"
+        mt.save(base.with_points(pts), path)
+        paths.append(path)
+    return paths
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--files", type=int, default=120)
+    ap.add_argument("--iterations", type=int, default=30)
+    ap.add_argument("--workers", default="1,2,4", help="comma-separated worker counts")
+    ap.add_argument("--repeat", type=int, default=1, help="best of this many runs each")
+    args = ap.parse_args()
+    pipeline = {"filters": [{"name": "compute_shape_optimization",
+                             "params": {"variant": "complete-euclidean", "rhs": "1",
+                                        "penalty": "0.1,0.01,0,0.5",
+                                        "max_iterations": args.iterations, "tolerance": 0}}]}
+    counts = [int(w) for w in args.workers.split(",")]
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        (tmp / "in").mkdir()
+        inputs = make_inputs(tmp / "in", args.files)
+        print(f"{args.files} shape-optimization jobs (disc_146, {args.iterations} iterations), "
+              f"{cpu_count()} cores available")
+        print(f"{'workers':>7} {'seconds':>8} {'files/s':>8} {'speedup':>8}")
+        base = None
+        for w in counts:
+            outdir = tmp / f"out{w}"
+
+            def once():
+                return mt.run_batch(pipeline, inputs, outdir, jobs=w, force=True,
+                                    on_record=lambda rec: None)
+
+            seconds, res = best_of(once, args.repeat)
+            assert res.failed == 0, res.summary()
+            if base is None:
+                base = seconds
+                reference = outdir
+            else:
+                for p in inputs:
+                    same = (outdir / p.name).read_bytes() == (reference / p.name).read_bytes()
+                    assert same, f"{p.name}: -j {w} differs from -j {counts[0]}"
+            print(f"{w:>7} {seconds:8.2f} {args.files / seconds:8.1f} {base / seconds:7.2f}x")
+        if 2 in counts and counts[0] == 1:
+            print("target: -j 2 >= 1.6x faster than -j 1 on 2 cores")
+
+
+if __name__ == "__main__":
+    main()
