@@ -221,7 +221,8 @@ class _Batch:
             hint = " (its worker died each time it ran it)" if name == "KilledWorker" else ""
             return failed_record(src, f"{src}: {name}{hint}: {raw}")
         if isinstance(raw, dict) and "files" in raw:  # from a Dask worker
-            rec = raw["record"]
+            rec = dict(raw["record"])
+            rec.pop(RESTART_KEY, None)  # Dask's nanny restarts a worker, not we
             pairs = [(raw["outdir"], str(pending.stage)), (raw["local"], str(src))]
             rec = _replace_text(rec, pairs)
             if rec["status"] == "ok":
