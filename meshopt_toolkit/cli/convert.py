@@ -122,7 +122,7 @@ def run(args) -> int:
         print(f"meshopt convert: error: {msg}", file=sys.stderr)
     if not jobs:
         return 1
-    simple = args.jobs == 1 and not args.resume and not args.scheduler
+    simple = not args.resume and not args.scheduler  # -j does not matter for one file
     if simple and len(jobs) == 1 and not failures and jobs[0][1] == Path(args.output):
         _convert_one(*jobs[0], args)  # a single file: errors go to main()
         return 0
