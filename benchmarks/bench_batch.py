@@ -32,7 +32,8 @@ from meshopt_toolkit.pipeline.workers import cpu_count
 
 def _cpu_seconds() -> float:
     """User + system time of this process and its finished children (the workers)."""
-    me, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    me = resource.getrusage(resource.RUSAGE_SELF)
+    kids = resource.getrusage(resource.RUSAGE_CHILDREN)
     return me.ru_utime + me.ru_stime + kids.ru_utime + kids.ru_stime
 
 

@@ -180,9 +180,8 @@ class _Batch:
             dst = self.outdir / name
             if (dst.exists() and not self.force
                     and not self.journal.is_own(pending.key, name)):
-                same = dst.resolve() == src.resolve()
-                return failed_record(src, f"{dst}: {'is the input file' if same else 'already exists'}"
-                                          " (use --force to overwrite)")
+                why = "is the input file" if dst.resolve() == src.resolve() else "already exists"
+                return failed_record(src, f"{dst}: {why} (use --force to overwrite)")
         self._seq += 1
         pending.stage = self.staging / str(self._seq)
         if not self.remote:

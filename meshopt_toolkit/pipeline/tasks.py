@@ -1,4 +1,4 @@
-"""What a batch does to one file: run a pipeline (:class:`RunTask`) or convert (:class:`ConvertTask`).
+"""What a batch does to one file: run a pipeline (:class:`RunTask`) or convert one.
 
 A task is a picklable callable, sent once to each worker process or Dask worker. It is
 called with a payload ``(src, index, name, outdir)``: the input, its position in the
