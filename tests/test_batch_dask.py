@@ -102,3 +102,24 @@ def test_unreachable_scheduler_is_one_line(batch, capsys, monkeypatch):
                           f"tcp://127.0.0.1:{port}: ") and err.count("\n") == 1
     with pytest.raises(MeshoptError, match="cannot reach"):
         dask_backend.connect("tcp://127.0.0.1:%d" % port, timeout=0.5)
+
+
+def test_a_crash_on_the_cluster_fails_only_its_file(tmp_path, cluster):
+    """Last in this module: it kills workers (their nannies restart them)."""
+    import argparse
+
+    from test_batch import copy_or_fail
+    from meshopt_toolkit.pipeline.batch_run import Job, execute
+    from meshopt_toolkit.pipeline.tasks import ConvertTask
+
+    names = ["a.txt", "b_abort.txt", "c.txt", "d_oom.txt"]
+    for n in names:
+        (tmp_path / n).write_text(n)
+    task = ConvertTask(copy_or_fail, argparse.Namespace(), ".out")
+    with distributed.Client(cluster, set_as_default=False) as client:
+        res = execute(task, (Job(i, tmp_path / n) for i, n in enumerate(names, 1)),
+                      tmp_path / "out", client=client)
+    assert [r["status"] for r in res.records] == ["ok", "failed", "ok", "failed"]
+    assert "each Dask worker that ran it died (KilledWorker" in res.records[1]["error"]
+    assert res.records[3]["error"].endswith("out of memory (MemoryError)")
+    assert (tmp_path / "out" / "c.out").read_text().startswith("c.txt")

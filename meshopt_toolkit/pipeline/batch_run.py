@@ -217,8 +217,10 @@ class _Batch:
             return failed_record(src, f"{src}: out of memory (MemoryError)")
         if isinstance(raw, BaseException):
             name = type(raw).__name__
-            hint = " (its worker died each time it ran it)" if name == "KilledWorker" else ""
-            return failed_record(src, f"{src}: {name}{hint}: {raw}")
+            if name == "KilledWorker":
+                return failed_record(src, f"{src}: each Dask worker that ran it died "
+                                          "(KilledWorker: a native crash?); other files go on")
+            return failed_record(src, f"{src}: {name}: {raw}")
         if isinstance(raw, dict) and "files" in raw:  # from a Dask worker
             rec = dict(raw["record"])
             rec.pop(RESTART_KEY, None)  # Dask's nanny restarts a worker, not we

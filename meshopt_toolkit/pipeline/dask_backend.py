@@ -96,6 +96,10 @@ def check_workers(client, timeout: float = 10.0) -> None:
                            f"client {__version__}; install the same version everywhere")
 
 
+def _identity(value):  # pragma: no cover - runs on the workers
+    return value
+
+
 def remote_run(task, src: str, data, index: int, name) -> dict:
     """Run ``task`` on one input on a worker; return the record and the outputs' bytes.
 
@@ -141,7 +145,8 @@ class DaskExecutor:
             raise MeshoptError(f"send_inputs={send!r}: choose from {', '.join(SEND_MODES)}")
         self.client = client
         self.send = send
-        [self._task] = client.scatter([task], broadcast=True, hash=False)
+        # a computed (not scattered) value: if the workers holding it die, Dask recomputes it
+        self._task = client.submit(_identity, task, pure=False)
         threads = sum(client.nthreads().values()) or 1
         self._slots = slots or 2 * threads
         self._wait = distributed.wait
@@ -174,9 +179,14 @@ class DaskExecutor:
         result is :func:`remote_run`'s dict or the exception the task ended with."""
         if not self._ids:
             return []
-        with self.client.as_current():  # the client need not be the default one
-            done, _ = self._wait([f for _, f in self._ids.values()],
-                                 return_when="FIRST_COMPLETED")
+        futures = [f for _, f in self._ids.values()]
+        try:
+            with self.client.as_current():  # the client need not be the default one
+                done, _ = self._wait(futures, return_when="FIRST_COMPLETED")
+        except Exception:  # some were cancelled (their dependencies lost): report them
+            done = [f for f in futures if f.done() or f.cancelled()]
+            if not done:
+                raise
         finished = sorted(done, key=lambda f: self._ids[f.key][0])
         out = []
         for future in finished:
@@ -190,7 +200,6 @@ class DaskExecutor:
         return out
 
     def close(self, *, kill: bool = False) -> None:
-        futures = [f for _, f in self._ids.values()]
+        futures = [f for _, f in self._ids.values()] + [self._task]
         self._ids.clear()
-        if futures:
-            self.client.cancel(futures)
+        self.client.cancel(futures)
