@@ -165,3 +165,22 @@ def test_kill_9_then_resume_does_the_rest_once(batch):
     with sqlite3.connect(Path("out") / JOURNAL_NAME) as db:
         assert db.execute("SELECT count(*) FROM done").fetchone()[0] == 16
         assert db.execute("SELECT count(*) FROM published").fetchone()[0] == 0
+
+
+def test_one_input_under_two_output_names_is_two_jobs(tmp_path):
+    import argparse
+
+    from test_batch import copy_or_fail
+    from meshopt_toolkit.pipeline.batch_run import Job, execute
+    from meshopt_toolkit.pipeline.tasks import ConvertTask
+
+    (tmp_path / "a.txt").write_text("a")
+    task = ConvertTask(copy_or_fail, argparse.Namespace())
+
+    def jobs():
+        return (Job(i, tmp_path / "a.txt", name) for i, name in enumerate(["x", "y"], 1))
+
+    assert execute(task, jobs(), tmp_path / "out").done == 2
+    (tmp_path / "out" / "x").unlink()
+    res = execute(task, jobs(), tmp_path / "out", resume=True)
+    assert [r["status"] for r in res.records] == ["ok", "skipped"]

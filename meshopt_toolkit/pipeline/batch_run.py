@@ -167,7 +167,7 @@ class _Batch:
             pending.input_sha = file_sha256(src)
         except OSError as exc:
             return failed_record(src, f"{src}: cannot read: {exc.strerror or exc}")
-        pending.key = Journal.key(src, pending.input_sha, self.config_sha)
+        pending.key = Journal.key(src, pending.input_sha, self.config_sha, job.name)
         if self.resume:
             outputs = self.journal.completed(pending.key)
             if outputs is not None:

@@ -2,11 +2,11 @@
 
 A small SQLite file, ``OUTDIR/.meshopt-journal.db``, written only by the process that runs
 the batch (the client, for a Dask cluster). For each file it records a *job key* — the
-hash of the input's resolved path, the input's content hash and the *config hash* (the
-pipeline and every option that changes an output) — and the outputs with their sizes and
-content hashes. ``--resume`` skips a file when the journal has its key as done and every
-output it recorded is still there, unchanged; a changed pipeline or input gives another
-key, so it is done again.
+hash of the input's resolved path, the input's content hash, the *config hash* (the
+pipeline and every option that changes an output) and the output name the batch fixes —
+and the outputs with their sizes and content hashes. ``--resume`` skips a file when the
+journal has its key as done and every output it recorded is still there, unchanged; a
+changed pipeline or input gives another key, so it is done again.
 
 Protocol per file, each step committed before the next:
 
@@ -143,9 +143,9 @@ class Journal:
         return _Tx()
 
     @staticmethod
-    def key(src, input_sha: str, config_sha: str) -> str:
-        """The job key of one input under one configuration."""
-        text = f"{os.path.realpath(src)}\0{input_sha}\0{config_sha}"
+    def key(src, input_sha: str, config_sha: str, name: str | None = None) -> str:
+        """The job key of one input under one configuration (and output name, if fixed)."""
+        text = f"{os.path.realpath(src)}\0{input_sha}\0{config_sha}\0{name or ''}"
         return hashlib.sha256(text.encode()).hexdigest()[:40]
 
     def completed(self, key: str) -> list[dict] | None:
