@@ -18,7 +18,9 @@ back; the client moves them into the output directory atomically and keeps the j
 
 A worker that dies on a file (a native abort) is restarted by its nanny and Dask retries
 the file on another worker up to ``distributed.scheduler.allowed-failures`` times; then
-the file fails with ``KilledWorker`` and the others go on.
+the file ends in ``KilledWorker``. Files queued on the dying workers can end so too: each
+such file is retried once alone on the cluster, so only the file that crashes fails, and
+the others go on.
 """
 
 from __future__ import annotations
@@ -133,7 +135,7 @@ class DaskExecutor:
     ----------
     client : distributed.Client
     task : callable
-        Scattered once to every worker.
+        Sent once (a future the workers share).
     send : {"bytes", "path"}
     slots : int, optional
         Payloads in flight at once (default: twice the cluster's threads).
@@ -150,7 +152,9 @@ class DaskExecutor:
         threads = sum(client.nthreads().values()) or 1
         self._slots = slots or 2 * threads
         self._wait = distributed.wait
-        self._ids: dict = {}
+        self._ids: dict = {}  # future key -> (id, future, payload)
+        self._suspects: list = []  # (id, payload) that ended in KilledWorker once
+        self._retried: set = set()
 
     @property
     def slots(self) -> int:
@@ -158,6 +162,8 @@ class DaskExecutor:
 
     @property
     def free(self) -> int:
+        if self._suspects:  # drain, then retry the suspects one at a time
+            return 0
         return self._slots - len(self._ids)
 
     def submit(self, ident, payload) -> None:
@@ -172,14 +178,31 @@ class DaskExecutor:
             data, where = None, os.path.abspath(src)
         future = self.client.submit(remote_run, self._task, where, data, index, name,
                                     pure=False)
-        self._ids[future.key] = (ident, future)
+        self._ids[future.key] = (ident, future, payload)
 
     def wait(self) -> list:
         """Block until at least one input is finished; ``[(id, result), ...]`` where a
-        result is :func:`remote_run`'s dict or the exception the task ended with."""
-        if not self._ids:
-            return []
-        futures = [f for _, f in self._ids.values()]
+        result is :func:`remote_run`'s dict or the exception the task ended with.
+
+        A worker that dies takes down the tasks queued with it, not only the one that
+        crashed it: a file that ends in ``KilledWorker`` is retried once, alone on the
+        cluster, so that only the file that really crashes fails.
+        """
+        while self._ids or self._suspects:
+            if self._suspects and not self._ids:
+                ident, payload = self._suspects.pop(0)
+                self._retried.add(ident)
+                try:
+                    self.submit(ident, payload)
+                except OSError as exc:
+                    return [(ident, exc)]
+            out = self._collect()
+            if out:
+                return out
+        return []
+
+    def _collect(self) -> list:
+        futures = [entry[1] for entry in self._ids.values()]
         try:
             with self.client.as_current():  # the client need not be the default one
                 done, _ = self._wait(futures, return_when="FIRST_COMPLETED")
@@ -187,19 +210,23 @@ class DaskExecutor:
             done = [f for f in futures if f.done() or f.cancelled()]
             if not done:
                 raise
-        finished = sorted(done, key=lambda f: self._ids[f.key][0])
         out = []
-        for future in finished:
-            ident, _ = self._ids.pop(future.key)
+        for future in sorted(done, key=lambda f: self._ids[f.key][0]):
+            ident, _, payload = self._ids.pop(future.key)
             try:
                 result = future.result()
             except Exception as exc:  # KilledWorker, a lost connection, ...
                 result = exc
             future.release()
+            if type(result).__name__ == "KilledWorker" and ident not in self._retried:
+                self._suspects.append((ident, payload))
+                continue
+            self._retried.discard(ident)
             out.append((ident, result))
         return out
 
     def close(self, *, kill: bool = False) -> None:
-        futures = [f for _, f in self._ids.values()] + [self._task]
+        futures = [entry[1] for entry in self._ids.values()] + [self._task]
         self._ids.clear()
+        self._suspects.clear()
         self.client.cancel(futures)
