@@ -10,7 +10,9 @@ Prints the best wall time of ``--repeat`` interleaved runs (load from other proc
 ever adds time), files per second and speedup over ``jobs=1`` for each worker count
 (target: ``-j 2`` ≥ 1.6× faster than ``-j 1`` on 2 cores), and the CPU seconds each run
 used (this process and its workers): with N free cores the wall time of ``-j N`` is about
-the ``-j 1`` time / N plus the workers' start-up, which the CPU column shows.
+the ``-j 1`` time / N plus the workers' start-up, which the CPU column shows. A last line
+says how much parallelism the machine offered at that moment (a pure-Python loop in two
+processes against one): on a shared machine, read the speedups against it.
 Run: ``python benchmarks/bench_batch.py [--files 120] [--iterations 30] [--repeat 3]``.
 """
 
@@ -35,6 +37,28 @@ def _cpu_seconds() -> float:
     me = resource.getrusage(resource.RUSAGE_SELF)
     kids = resource.getrusage(resource.RUSAGE_CHILDREN)
     return me.ru_utime + me.ru_stime + kids.ru_utime + kids.ru_stime
+
+
+def _spin(n: int) -> float:
+    t0 = time.perf_counter()
+    x = 0
+    for i in range(n):
+        x += i * i
+    return time.perf_counter() - t0
+
+
+def parallelism_now(n: int = 5_000_000) -> float:
+    """How much faster two CPU-bound processes finish twice the work than one does it once,
+    right now (2.0 on two free cores; less when other programs share them)."""
+    import multiprocessing
+
+    one = _spin(n)
+    with multiprocessing.get_context("spawn").Pool(2) as pool:
+        pool.map(_spin, [n // 10] * 2)  # started
+        t0 = time.perf_counter()
+        pool.map(_spin, [n, n])
+        two = time.perf_counter() - t0
+    return 2 * one / two
 
 
 def make_inputs(folder: Path, n: int) -> list[Path]:
@@ -95,6 +119,8 @@ def main() -> None:
                   f"{best[counts[0]] / best[w]:7.2f}x {cpu[w]:7.2f}")
         if 2 in counts and counts[0] == 1:
             print("target: -j 2 >= 1.6x faster than -j 1 on 2 cores")
+        print(f"parallelism available now: {parallelism_now():.2f}x (two CPU-bound processes "
+              "against one; 2.00 on two free cores)")
 
 
 if __name__ == "__main__":
