@@ -42,7 +42,7 @@ class BatchProgress(ProgressBar):
     --------
     >>> bar = BatchProgress(2, "run", enabled=False)
     >>> bar.record("ok"); bar.record("skipped")
-    >>> bar.line().split(" · ")[:2]
+    >>> bar.line().split(" | ")[:2]
     ['run [########################] 2/2', '1 done, 1 skipped']
     """
 
@@ -63,8 +63,8 @@ class BatchProgress(ProgressBar):
         self.update()
 
     def line(self) -> str:
-        """The bar's text, e.g. ``run [####......] 40/120 · 38 done, 2 failed · 3.1 files/s
-        · 0:26 left``."""
+        """The bar's text, e.g. ``run [####......] 40/120 | 38 done, 2 failed | 3.1 files/s
+        | 0:26 left``."""
         finished = self.done + self.skipped + self.failed
         elapsed = time.perf_counter() - self._start
         rate = (self.done + self.failed) / elapsed if elapsed > 0 else 0.0
@@ -77,10 +77,10 @@ class BatchProgress(ProgressBar):
         if self.known:
             width = 24
             filled = int(width * finished / self.total)
-            text += f"[{'#' * filled}{'.' * (width - filled)}] {finished}/{self.total} · "
-        text += ", ".join(parts) + f" · {rate:.1f} files/s"
+            text += f"[{'#' * filled}{'.' * (width - filled)}] {finished}/{self.total} | "
+        text += ", ".join(parts) + f" | {rate:.1f} files/s"
         if self.known and rate > 0 and finished < self.total:
-            text += f" · {_clock((self.total - finished) / rate)} left"
+            text += f" | {_clock((self.total - finished) / rate)} left"
         return text
 
     def update(self, n: int = 1, status: str = "") -> None:
