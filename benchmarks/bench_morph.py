@@ -11,10 +11,13 @@ and cost against one linear elasticity solve.
    as-rigid-as-possible interpolation (with inverted triangles), optionally the worst frame
    of the complete metric of f2 (``--with-scalar``: ``geodesic_morph``, slow), time and
    Levenberg–Marquardt status.
-2. ``--growth``: the 90° annulus twist on finer meshes up to ``--max-triangles``: seconds,
-   seconds per elasticity solve (same mesh, same process), iterations, worst frame.
+2. ``--growth``: the 225° twist of disc_2198 (4.2k triangles), disc_13586 (27k) and its
+   refinement (107k) up to ``--max-triangles``: seconds, seconds per elasticity solve (same
+   mesh, same process), iterations, worst frame of ours, linear and ARAP.
+3. ``--figures DIR``: the README's strip and quality plot of the 90° annulus pair.
 
-Usage: ``python benchmarks/bench_morph.py [--growth] [--max-triangles 50000] [--with-scalar]``
+Usage: ``python benchmarks/bench_morph.py [--growth] [--max-triangles 30000] [--with-scalar]
+[--figures DIR]``
 """
 
 from __future__ import annotations
@@ -75,15 +78,16 @@ def table(with_scalar: bool) -> None:
 
 
 def growth(max_triangles: int) -> None:
-    print("\ngrowth: annulus, 90° log twist, 9 frames")
-    print(f"{'triangles':>10}{'seconds':>9}{'elast. s':>10}{'ratio':>8}{'its':>5}{'worst frame':>12}")
-    size = 0.05
-    while True:
-        src = annulus(size)
+    print("\ngrowth: the 225° twist of the bundled discs and their refinements, 9 frames")
+    print(f"{'triangles':>10}{'seconds':>9}{'elast. s':>10}{'ratio':>8}{'its':>5}"
+          f"{'ours':>9}{'linear':>12}{'ARAP':>12}")
+    meshes = [mt.load(mt.data_path(n)).as_planar() for n in ("disc_2198.msh", "disc_13586.msh")]
+    meshes.append(meshes[-1].refine())
+    for src in meshes:
         if src.n_triangles > max_triangles:
             break
-        tgt = log_twist(src, 90)
-        b = np.unique(src.boundary_edges)
+        tgt = twisted(src)
+        b = src.boundary_vertices
         t0 = time.perf_counter()
         elasticity_motion(src.points, src.triangles, b, tgt.points[b])
         unit = time.perf_counter() - t0
@@ -91,17 +95,36 @@ def growth(max_triangles: int) -> None:
         res = mt.distortion_morph(src, tgt, frames=9)
         sec = time.perf_counter() - t0
         print(f"{src.n_triangles:>10}{sec:9.1f}{unit:10.3f}{sec / unit:8.0f}{res.nit:5d}"
-              f"{np.min(res.stats.min_aspect_ratio):12.4f}", flush=True)
-        size /= 2
+              f"{np.min(res.stats.min_aspect_ratio):9.4f}{_worst(res.linear)}{_worst(res.rigid)}",
+              flush=True)
+
+
+def figures(outdir: str) -> None:
+    """The README's pictures: strip and per-frame quality of the 90° annulus pair."""
+    from pathlib import Path
+
+    from meshopt_toolkit.plotting import save_morph_figures
+
+    ring = annulus(0.05)
+    res = mt.distortion_morph(ring, log_twist(ring, 90), frames=9)
+    out = Path(outdir)
+    for path in save_morph_figures(res, out / "morph_annulus_90_strip.png",
+                                   out / "morph_annulus_90_quality.png", max_panels=5):
+        print(f"wrote {path}")
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--growth", action="store_true")
-    ap.add_argument("--max-triangles", type=int, default=50_000)
+    ap.add_argument("--max-triangles", type=int, default=30_000,
+                    help="largest growth mesh (the 107k-triangle twist: 110000, minutes)")
+    ap.add_argument("--figures", metavar="DIR", help="only write the README's morph pictures")
     ap.add_argument("--with-scalar", action="store_true",
                     help="also the complete metric of f2 (geodesic_morph; minutes)")
     args = ap.parse_args()
+    if args.figures:
+        figures(args.figures)
+        return
     table(args.with_scalar)
     if args.growth:
         growth(args.max_triangles)

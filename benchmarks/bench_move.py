@@ -2,19 +2,23 @@
 
 Cases (all boundary vertices are handles; only their end positions are prescribed):
   annulus r 0.3–1 whose inner circle turns by 45°, 90°, 180°; a channel [0,3]×[0,1] whose
-  cylinder (r 0.15 at (1, 0.5)) is pushed down by 0.2 and 0.3 (0.05 and below 0.0 from the
-  wall at the end).
+  cylinder (r 0.15 at (1, 0.5)) is pushed down by 0.2 and 0.3 (ending 0.15 and 0.05 from
+  the wall).
 Methods: ``move`` (ours), linear elasticity with E = 1/area (one solve: the cost unit),
 harmonic and biharmonic extension, ARAP and SLIM (libigl), TMOP (mfem: worst-case untangler
 then shape metric 2). Columns: min aspect ratio 2r/R over the triangles (0 when any is
-inverted), inverted triangles, max handle error, seconds and seconds / elasticity solve, all
-run side by side in this process.
+inverted), mean Λ = mean 1/ψ (6.25; 1 when all are equilateral), inverted triangles, max
+handle error, seconds and seconds per elasticity solve, all run side by side in this
+process.
 
 ``--growth`` adds the cost of ``move`` against one elasticity solve on refined annuli (90°)
 up to ``--max-triangles``.
 
+``--figure PNG`` draws the 90° annulus (source, harmonic, elasticity, TMOP, ours) instead;
+the README's picture is ``--figure examples/results/move_annulus_90.png``.
+
 Usage: ``python benchmarks/bench_move.py [--size 0.05] [--growth] [--max-triangles 110000]
-[--skip METHOD ...]``
+[--skip METHOD ...] [--figure PNG]``
 """
 
 from __future__ import annotations
@@ -28,7 +32,7 @@ from _anchors import (arap_motion, elasticity_motion, harmonic_motion, slim_moti
 
 import meshopt_toolkit as mt
 from meshopt_toolkit.generate import annulus, channel_with_cylinder, rotate_inner_boundary, shift_hole
-from meshopt_toolkit.geometry import aspect_ratios
+from meshopt_toolkit.geometry import aspect_ratios, inverse_shape_quality
 
 
 def ours(points, triangles, handles, targets):
@@ -68,7 +72,8 @@ def measure(fn, mesh, handles, targets):
     ar = aspect_ratios(Q, mesh.triangles)
     inverted = int((ar <= 0).sum())
     err = float(np.abs(Q[handles] - targets).max())
-    return (0.0 if inverted else float(ar.min()), inverted, err, seconds), None
+    mean_q = float(np.mean(inverse_shape_quality(Q, mesh.triangles))) if not inverted else np.nan
+    return (0.0 if inverted else float(ar.min()), mean_q, inverted, err, seconds, Q), None
 
 
 def table(size: float, skip: set[str]) -> None:
@@ -76,7 +81,7 @@ def table(size: float, skip: set[str]) -> None:
         src = aspect_ratios(mesh.points, mesh.triangles).min()
         print(f"\n{name}: {mesh.n_triangles} triangles, {len(handles)} handles, "
               f"source min AR {src:.3f}")
-        print(f"  {'method':<16}{'min AR':>9}{'inverted':>10}{'handle err':>12}"
+        print(f"  {'method':<16}{'min AR':>9}{'mean Λ':>8}{'inverted':>10}{'handle err':>12}"
               f"{'seconds':>9}{'× elast.':>10}")
         unit = None
         for method, fn in METHODS.items():
@@ -86,12 +91,12 @@ def table(size: float, skip: set[str]) -> None:
             if row is None:
                 print(f"  {method:<16}{why}")
                 continue
-            ar, inv, err, sec = row
+            ar, lam, inv, err, sec, _ = row
             if method.startswith("elasticity"):
                 unit = sec
             ratio = f"{sec / unit:10.1f}" if unit else f"{'':>10}"
             shown = f"{ar:9.4f}" if ar == 0 or ar >= 1e-3 else f"{ar:9.1e}"
-            print(f"  {method:<16}{shown}{inv:10d}{err:12.1e}{sec:9.2f}{ratio}")
+            print(f"  {method:<16}{shown}{lam:8.3f}{inv:10d}{err:12.1e}{sec:9.2f}{ratio}")
 
 
 def growth(size: float, max_triangles: int) -> None:
@@ -113,13 +118,41 @@ def growth(size: float, max_triangles: int) -> None:
         size /= 2
 
 
+def figure(path: str, size: float) -> None:
+    """Source, harmonic, elasticity 1/A, TMOP and ours on the 90° annulus turn (inverted in red)."""
+    from meshopt_toolkit.plotting import _figure, _save, draw_mesh
+
+    mesh = annulus(size)
+    handles, targets = rotate_inner_boundary(mesh, 90)
+    panels = [("source", lambda *a: mesh.points)]
+    panels += [(m, METHODS[m]) for m in ("harmonic", "elasticity 1/A", "TMOP (mfem)", "move (ours)")]
+    fig = _figure(4 * len(panels), 4.3, 110)
+    for k, (name, fn) in enumerate(panels, start=1):
+        row, why = measure(fn, mesh, handles, targets)
+        ax = fig.add_subplot(1, len(panels), k)
+        ax.set_axis_off()
+        if row is None:
+            ax.set_title(f"{name}: {why[:30]}", fontsize=9)
+            continue
+        ar, _, inv, _, sec, Q = row
+        draw_mesh(ax, Q, mesh.triangles, linewidth=0.3)
+        label = f"{inv} inverted" if inv else f"min AR {ar:.3f}"
+        ax.set_title(f"{name}\n{label}, {sec:.1f} s", fontsize=10)
+    fig.subplots_adjust(left=0.01, right=0.99, bottom=0.02, top=0.86, wspace=0.05)
+    print(f"wrote {_save(fig, path)}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--size", type=float, default=0.05, help="gmsh element size (0.05: ~2.7k)")
     ap.add_argument("--growth", action="store_true")
     ap.add_argument("--max-triangles", type=int, default=110_000)
     ap.add_argument("--skip", nargs="*", default=[], help="method names to leave out")
+    ap.add_argument("--figure", metavar="PNG", help="only draw the 90° annulus figure")
     args = ap.parse_args()
+    if args.figure:
+        figure(args.figure, args.size)
+        return
     table(args.size, set(args.skip))
     if args.growth:
         growth(args.size, args.max_triangles)

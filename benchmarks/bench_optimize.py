@@ -1,5 +1,15 @@
-"""Time per optimization iteration of each variant on the bundled discs (like thesis
-table 6.6), side by side in one process with the runs interleaved (the machine is shared
+"""Thesis table 6.4, parameter set 2, per method (``--table``, the default) and the time
+per optimization iteration of each variant on the bundled discs (``--per-iteration``, like
+thesis table 6.6).
+
+``--table``: every variant × method (steepest, lbfgs, cg) on disc_146 with the default
+stopping rules; iterations, seconds, final j + f2 and its difference from steepest
+descent's (must be within 2e-4), the ratios to steepest descent (targets ≤ 1/4 of the
+iterations and ≤ 1/2 of the time for complete-euclidean, elasticity-euclidean and
+complete-complete), then the elasticity-euclidean L-BFGS iteration counts and final min AR
+on the bundled discs up to ``--max-vertices`` (a good metric: nearly mesh-independent).
+
+``--per-iteration``: side by side in one process with the runs interleaved (the machine is shared
 and noisy), and the ratio complete-complete / complete-euclidean (target ≤ 3 on the
 ~541-vertex disc; the thesis: about 2000).
 
@@ -7,7 +17,8 @@ complete-complete uses the default retraction (the geodesic's line-search mode,
 ``optimize.EXP_DEFAULTS``); ``--exact`` adds a row with the 1e-6-accurate exponential map
 (``exp_options={"method": "auto"}``) for comparison.
 
-Usage: python benchmarks/bench_optimize.py [--iterations 10] [--repeats 3]
+Usage: python benchmarks/bench_optimize.py [--table] [--max-vertices 2200]
+       python benchmarks/bench_optimize.py --per-iteration [--iterations 10] [--repeats 3]
        [--max-vertices 14000] [--exact]
 """
 
@@ -26,21 +37,71 @@ from meshopt_toolkit.poisson import PoissonObjective
 def run(mesh, variant, iterations, exp_options=None):
     """(wall time / iteration, result) of a run with penalty parameter set 2 and the
     default metric β, no early stop."""
-    res = optimize(mesh, PoissonObjective(mesh), variant=variant,
+    res = optimize(mesh, PoissonObjective(mesh), variant=variant, method="steepest",
                    penalty_beta=thesis_penalty_beta(2, mesh.n_vertices),
                    metric_beta=default_metric_beta(mesh.n_vertices),
                    max_iter=iterations, tol=None, exp_options=exp_options)
     return res.seconds / max(res.nit, 1), res
 
 
+def solve(mesh, variant, method, **kw):
+    """A run of table 6.4 set 2 with the default stopping rules."""
+    return optimize(mesh, PoissonObjective(mesh), variant=variant, method=method,
+                    penalty_beta=thesis_penalty_beta(2, mesh.n_vertices),
+                    metric_beta=default_metric_beta(mesh.n_vertices), **kw)
+
+
+def table(max_vertices: int) -> None:
+    mesh = mt.load(mt.data_path("disc_146.msh")).as_planar()
+    targets = ("complete-euclidean", "elasticity-euclidean", "complete-complete")
+    print("table 6.4, parameter set 2, disc_146 (default stopping rules)")
+    print(f"{'variant':<22} {'method':<9} {'status':<15} {'iter':>5} {'s':>7} {'j+f2':>10} "
+          f"{'Δ vs sd':>9} {'iter/sd':>8} {'s/sd':>6} {'minAR':>6} {'rej.pairs':>9}")
+    for variant in VARIANTS:
+        base = None
+        for method in ("steepest", "lbfgs", "cg"):
+            res = solve(mesh, variant, method)
+            base = base or res
+            last = res.history[-1]
+            di, dt = res.nit / base.nit, res.seconds / base.seconds
+            ok = ""
+            if method != "steepest" and variant in targets:
+                ok = "  ok" if di <= 0.25 and dt <= 0.5 and abs(res.fun - base.fun) <= 2e-4 \
+                    else "  MISSED"
+            print(f"{variant:<22} {method:<9} {res.status:<15} {res.nit:>5} {res.seconds:>7.2f} "
+                  f"{res.fun:>10.6f} {res.fun - base.fun:>+9.1e} {di:>8.2f} {dt:>6.2f} "
+                  f"{last.min_aspect_ratio:>6.3f} {res.rejected_pairs:>9}{ok}", flush=True)
+    print("\nelasticity-euclidean, lbfgs, parameter set 2, per disc")
+    print(f"{'N_V':>6} {'status':<15} {'iter':>5} {'s':>8} {'j+f2':>10} {'AR0':>6} {'AR':>6}")
+    for name in _discs(max_vertices):
+        m = mt.load(mt.data_path(name)).as_planar()
+        res = solve(m, "elasticity-euclidean", "lbfgs")
+        print(f"{m.n_vertices:>6} {res.status:<15} {res.nit:>5} {res.seconds:>8.2f} {res.fun:>10.6f} "
+              f"{res.history[0].min_aspect_ratio:>6.3f} {res.history[-1].min_aspect_ratio:>6.3f}",
+              flush=True)
+
+
+def _discs(max_vertices: int) -> list[str]:
+    names = sorted((n for n in datasets.available() if n.startswith("disc_")),
+                   key=lambda s: int(s[5:-4]))
+    return [n for n in names if 140 <= int(n[5:-4]) <= max_vertices]
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--table", action="store_true", help="table 6.4 set 2 per method (default)")
+    p.add_argument("--per-iteration", action="store_true", help="time per iteration per variant")
     p.add_argument("--iterations", type=int, default=10)
     p.add_argument("--repeats", type=int, default=3)
-    p.add_argument("--max-vertices", type=int, default=14000)
+    p.add_argument("--max-vertices", type=int, default=None,
+                   help="largest disc (default: 2200 for --table, 14000 for --per-iteration)")
     p.add_argument("--exact", action="store_true",
                    help="also time complete-complete with the exact (1e-6) exponential map")
     args = p.parse_args(argv)
+    if not args.per_iteration:
+        table(args.max_vertices or 2200)
+        return
+    args.max_vertices = args.max_vertices or 14000
     names = sorted((n for n in datasets.available() if n.startswith("disc_")),
                    key=lambda s: int(s[5:-4]))
     print(f"{'N_V':>6} {'variant':<28} {'s/iter':>10} {'/ complete-euclidean':>22}  phases (s/iter)")

@@ -2,25 +2,33 @@
 
 from __future__ import annotations
 
+from meshopt_toolkit.bounds import MAX_FRAMES
 from meshopt_toolkit.errors import FilterError, MeshoptError
 from meshopt_toolkit.pipeline.filter import Filter, register
 from meshopt_toolkit.pipeline.params import BoolParam, EnumParam, FloatParam, IntParam
 
 METHODS = ("discrete", "shooting", "auto")
+METRICS = ("distortion", "scalar")
 
 
 @register
 class GenerateGeodesicMorph(Filter):
-    """Inversion-free morph along a geodesic of the complete metric of f2 (issue #7).
+    """Morph along a geodesic: frames as healthy as their ends (``metric="distortion"``,
+    the per-triangle metric ``M + w² JᵀJ`` of :func:`meshopt_toolkit.distortion_morph`, as
+    ``meshopt morph``), or only non-inverted (``metric="scalar"``: the complete metric of f2,
+    :func:`meshopt_toolkit.morph.geodesic_morph`; the ``beta*``, ``normalize`` and ``method``
+    parameters apply to it alone).
 
     The source is document mesh ``source`` (default 0, the first), the target mesh
     ``target`` (default −1, the current one); both must be planar, admissible and share
     vertices and triangles. The ``frames`` meshes of
-    :func:`meshopt_toolkit.morph.geodesic_morph` (frame 0 the source, the last the
-    target) are appended to the document as ``morph_000``, ``morph_001``, …, the last
+    the morph (frame 0 the source, the last the target) are appended to the document as ``morph_000``, ``morph_001``, …, the last
     one current, each with its per-face aspect ratio 2r/R as face quality. The summary
     holds the morph's diagnostics (``target_error``, ``min_aspect_ratio``,
-    ``admissible``, ``linear_min_area``, …).
+    ``admissible``, ``linear_min_area``, …). The morph runs at unit size (both meshes
+    divided by one power of two, :mod:`meshopt_toolkit.scaling`) and the frames are scaled
+    back, like ``meshopt morph``; the diagnostics are those of the unit-size problem, with
+    the factor as ``unit_scale``.
     """
 
     name = "generate_geodesic_morph"
@@ -32,7 +40,12 @@ class GenerateGeodesicMorph(Filter):
         IntParam("target", -1, "document index of the target mesh (-1: the current mesh)",
                  label="Target mesh"),
         IntParam("frames", 9, "number of frames, source and target included", label="Frames",
-                 min=2, max=1000),
+                 min=2, max=MAX_FRAMES),
+        EnumParam("metric", METRICS[0], "per-triangle distortion metric (frames as healthy as "
+                  "their ends) or the complete metric of f2 (frames only non-inverted)",
+                  label="Metric", choices=METRICS),
+        FloatParam("weight", 1.0, "distortion metric: w of M + w² JᵀJ", label="Weight",
+                   min=1e-6),
         FloatParam("beta1", 1.0, "f2 weight of the mean shape quality", label="beta1", min=0.0),
         FloatParam("beta2", 1.0, "f2 weight of the inverse total area", label="beta2", min=0.0),
         FloatParam("beta3", 0.0, "f2 weight of the boundary-pair term (costly)", label="beta3",
@@ -46,10 +59,12 @@ class GenerateGeodesicMorph(Filter):
     )
 
     def apply(self, document, *, source: int = 0, target: int = -1, frames: int = 9,
-              beta1: float = 1.0, beta2: float = 1.0, beta3: float = 0.0, beta4: float = 1.0,
+              metric: str = METRICS[0], weight: float = 1.0, beta1: float = 1.0, beta2: float = 1.0, beta3: float = 0.0, beta4: float = 1.0,
               normalize: bool = True, method: str = METHODS[0]) -> dict:
         from meshopt_toolkit.geometry import aspect_ratios
         from meshopt_toolkit.morph import geodesic_morph
+        from meshopt_toolkit.motion.morph import distortion_morph
+        from meshopt_toolkit.scaling import unit_scale
 
         n = len(document)
         for idx, what in ((source, "source"), (target, "target")):
@@ -61,13 +76,21 @@ class GenerateGeodesicMorph(Filter):
             if not mesh.is_planar:
                 raise FilterError(f"{self.name}: the {what} mesh is not planar")
         try:
-            result = geodesic_morph(src.as_planar(), tgt.as_planar(), frames=frames,
-                                    beta=(beta1, beta2, beta3, beta4), normalize=normalize,
-                                    method=method)
+            scale = unit_scale(src, tgt)  # at unit size, the frames scaled back
+            base, end = scale.mesh_down(src.as_planar()), scale.mesh_down(tgt.as_planar())
+            if metric == "distortion":
+                result = distortion_morph(base, end, frames=frames, weight=weight)
+            else:
+                result = geodesic_morph(base, end, frames=frames,
+                                        beta=(beta1, beta2, beta3, beta4), normalize=normalize,
+                                        method=method)
+            width = max(3, len(str(frames - 1)))
+            meshes = [(f"morph_{k:0{width}d}", scale.mesh_up(m, what=f"frame {k}"),
+                       aspect_ratios(m.points, m.triangles))
+                      for k, m in enumerate(result.meshes(like=base))]
         except MeshoptError as exc:
             raise FilterError(f"{self.name}: {exc}") from None
-        width = max(3, len(str(frames - 1)))
-        for k, mesh in enumerate(result.meshes(like=src.as_planar())):
-            entry = document.add(mesh, name=f"morph_{k:0{width}d}")
-            entry.set_face_attribute("quality", aspect_ratios(mesh.points, mesh.triangles))
-        return result.summary()
+        for name, mesh, quality in meshes:
+            entry = document.add(mesh, name=name)
+            entry.set_face_attribute("quality", quality)
+        return {**result.summary(), "unit_scale": scale.factor}

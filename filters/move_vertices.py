@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from meshopt_toolkit.bounds import MAX_STEPS
 from meshopt_toolkit.errors import FilterError
 from meshopt_toolkit.pipeline.filter import Filter, register
 from meshopt_toolkit.pipeline.params import FloatParam, IntParam, PathParam, StringParam
@@ -16,7 +17,8 @@ class PrescribedMotion(Filter):
     Give either ``targets`` (CSV rows ``index,x,y`` or a ``.npy`` k × 3 array; ``{stem}`` is
     replaced by the input file's stem) or ``map`` (``"X_EXPR; Y_EXPR"``: the new position of
     each boundary vertex where ``where`` holds, e.g. ``"x**2 + y**2 < 0.25"``; the other
-    boundary vertices stay). The moved mesh replaces the current one.
+    boundary vertices stay). The moved mesh replaces the current one. The motion is computed
+    at unit size (:mod:`meshopt_toolkit.scaling`) and scaled back, like ``meshopt move``.
     """
 
     name = "apply_prescribed_motion"
@@ -27,13 +29,15 @@ class PrescribedMotion(Filter):
         StringParam("map", "", "new boundary positions 'X_EXPR; Y_EXPR' in x, y", label="Map"),
         StringParam("where", "", "with map: which boundary vertices move, e.g. 'x < 0.5'",
                     label="Where"),
-        IntParam("steps", 8, "continuation steps", label="Steps", min=1, max=1000),
+        IntParam("steps", 8, "continuation steps", label="Steps", min=1, max=MAX_STEPS),
         FloatParam("weight", 1.0, "w of the metric M + w² JᵀJ", label="Weight", min=1e-6),
     )
 
     def apply(self, document, *, targets: str = "", map: str = "", where: str = "",
               steps: int = 8, weight: float = 1.0) -> dict:
+        from meshopt_toolkit.mesh import require_admissible
         from meshopt_toolkit.motion.move import move
+        from meshopt_toolkit.scaling import unit_scale
         from meshopt_toolkit.motion.targets import read_target_table, targets_from_map
 
         entry = document.current_entry
@@ -44,10 +48,12 @@ class PrescribedMotion(Filter):
         if where and not map:
             raise FilterError(f"{self.name}: where needs map")
         mesh = entry.mesh.as_planar()
+        scale = unit_scale(mesh)  # at unit size, the result scaled back
+        unit = require_admissible(scale.mesh_down(mesh), self.name)
         if targets:
             handles, positions = read_target_table(targets.replace("{stem}", entry.name))
-        else:
-            handles, positions = targets_from_map(mesh, map, where or None)
-        result = move(mesh, handles, positions, steps=steps, weight=weight)
-        entry.mesh = result.mesh
-        return result.summary()
+        else:  # the expressions are in the mesh's units
+            handles, positions = targets_from_map(scale.mesh_up(unit), map, where or None)
+        result = move(unit, handles, scale.down(positions), steps=steps, weight=weight)
+        entry.mesh = scale.mesh_up(result.mesh)
+        return {**result.summary(), "unit_scale": scale.factor}

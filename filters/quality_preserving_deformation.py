@@ -19,7 +19,10 @@ class QualityPreservingDeformation(Filter):
     replaced by the input file's stem. At ``time = 1`` a Euclidean path would have moved
     every vertex by exactly ``V``; the geodesic never inverts a triangle. The penalty is f1
     with ``alpha`` (default thesis §5.5: 1, 0, 1) or f2 with ``beta`` (β4 unscaled). The
-    deformed mesh replaces the current one; per-face quality is left untouched.
+    deformed mesh replaces the current one; per-face quality is left untouched. Like
+    ``meshopt deform``, the deformation is computed at unit size
+    (:mod:`meshopt_toolkit.scaling`) and scaled back; the penalties reported are those of
+    the unit-size problem.
     """
 
     name = "apply_quality_preserving_deformation"
@@ -36,6 +39,8 @@ class QualityPreservingDeformation(Filter):
     def apply(self, document, *, displacement: str = "", time: float = 1.0, alpha: str = "",
               beta: str = "") -> dict:
         from meshopt_toolkit.deform import deform, load_displacement
+        from meshopt_toolkit.mesh import require_admissible
+        from meshopt_toolkit.scaling import unit_scale
 
         entry = document.current_entry
         if not entry.mesh.is_planar:
@@ -45,11 +50,14 @@ class QualityPreservingDeformation(Filter):
         a, b = number_list(alpha, 3, "alpha"), number_list(beta, 4, "beta")
         if a is not None and b is not None:
             raise FilterError(f"{self.name}: give alpha or beta, not both")
-        mesh = entry.mesh.as_planar()
-        V = load_displacement(displacement.replace("{stem}", entry.name), mesh)
-        result = deform(mesh, V, t=time, alpha=a, beta=b)
-        entry.mesh = result.mesh
+        scale = unit_scale(entry.mesh)  # at unit size, the result scaled back
+        mesh = require_admissible(scale.mesh_down(entry.mesh.as_planar()), self.name)
+        V = load_displacement(displacement.replace("{stem}", entry.name), scale.mesh_up(mesh))
+        result = deform(mesh, scale.down(V), t=time, alpha=a, beta=b)
+        entry.mesh = scale.mesh_up(result.mesh)
+        moved = float(np.abs(result.mesh.points - mesh.points).max())
         return {"time": float(time), "min_aspect_ratio": float(np.min(result.aspect_ratio)),
-                "max_displacement": float(np.abs(result.mesh.points - mesh.points).max()),
+                "max_displacement": float(scale.up(moved)),
                 "penalty_start": float(result.geodesic.penalty[0]),
-                "penalty_end": float(result.geodesic.penalty[-1])}
+                "penalty_end": float(result.geodesic.penalty[-1]),
+                "unit_scale": scale.factor}

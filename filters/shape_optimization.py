@@ -14,6 +14,7 @@ from meshopt_toolkit.pipeline.params import (
 )
 
 VARIANTS = ("euclidean-euclidean", "elasticity-euclidean", "complete-euclidean", "complete-complete")
+METHODS = ("lbfgs", "cg", "steepest")
 DEFAULT_RHS = "2.5*(x1 + 0.4 - x2**2)**2 + x1**2 + x2**2 - 1"
 
 
@@ -22,8 +23,8 @@ class ShapeOptimization(Filter):
     """PDE-constrained shape optimization of the current planar mesh (thesis ch. 6).
 
     Minimizes ``j(Q) + f2(Q; Q0)`` with ``j = ∫ y``, ``−Δy = r``, ``y = 0`` on the boundary
-    (P1, centroid quadrature), by Riemannian steepest descent
-    (:func:`meshopt_toolkit.optimize.optimize`). ``r`` is parsed by the safe expression
+    (P1, centroid quadrature), by Riemannian L-BFGS (default), nonlinear CG or the thesis'
+    steepest descent (:func:`meshopt_toolkit.optimize.optimize`). ``r`` is parsed by the safe expression
     evaluator (never ``eval``). β4 is unscaled (f2 divides it by 2N). Empty β strings mean
     the thesis defaults: β^penalty = parameter set 2 = (0.1, 0.01, 0, 0.001·N),
     β^metric = (10, 1, 0, 0.01·N). The optimized mesh replaces the current one; the summary
@@ -36,6 +37,10 @@ class ShapeOptimization(Filter):
     parameters = (
         EnumParam("variant", "complete-euclidean", "gradient metric and retraction",
                   label="Variant", choices=VARIANTS),
+        EnumParam("method", "lbfgs", "optimization method: lbfgs, cg or steepest",
+                  label="Method", choices=METHODS),
+        IntParam("memory", 10, "L-BFGS memory (curvature pairs kept)", label="L-BFGS memory",
+                 min=1, max=1000),
         StringParam("rhs", DEFAULT_RHS, "right-hand side r(x1, x2) (safe expression)",
                     label="Right-hand side"),
         NumberListParam("penalty", "", "beta^penalty b1,b2,b3,b4 (b4 unscaled); empty = thesis set 2",
@@ -44,11 +49,13 @@ class ShapeOptimization(Filter):
                     label="Metric beta", count=4),
         IntParam("max_iterations", 1000, "maximum number of iterations", label="Max iterations",
                  min=1, max=100000),
-        FloatParam("tolerance", 1e-6, "stopping tolerance of (6.26); 0 = run all iterations",
+        FloatParam("tolerance", 1e-6, "stopping tolerance of (6.26) (relative for lbfgs/cg); "
+                   "0 = off",
                    label="Tolerance", min=0.0),
     )
 
-    def apply(self, document, *, variant: str = "complete-euclidean", rhs: str = DEFAULT_RHS,
+    def apply(self, document, *, variant: str = "complete-euclidean", method: str = "lbfgs",
+              memory: int = 10, rhs: str = DEFAULT_RHS,
               penalty: str = "", metric_penalty: str = "", max_iterations: int = 1000,
               tolerance: float = 1e-6) -> dict:
         from meshopt_toolkit.optimize import optimize, thesis_penalty_beta
@@ -60,9 +67,9 @@ class ShapeOptimization(Filter):
         mesh = entry.mesh.as_planar()
         beta = number_list(penalty, 4, "penalty") or thesis_penalty_beta(2, mesh.n_vertices)
         result = optimize(
-            mesh, PoissonObjective(mesh, rhs=rhs), variant=variant, penalty_beta=beta,
-            metric_beta=number_list(metric_penalty, 4, "metric_penalty"), max_iter=max_iterations,
-            tol=tolerance or None,
+            mesh, PoissonObjective(mesh, rhs=rhs), variant=variant, method=method, memory=memory,
+            penalty_beta=beta, metric_beta=number_list(metric_penalty, 4, "metric_penalty"),
+            max_iter=max_iterations, tol=tolerance or None, ftol=tolerance or None,
         )
         entry.mesh = result.mesh
         return result.summary()

@@ -89,53 +89,20 @@ def to_meshio(mesh: TriangleMesh, *, pad_z: bool = True) -> "meshio.Mesh":
 def from_meshio(m: "meshio.Mesh", source: str | None = None) -> TriangleMesh:
     """The triangles (and line elements) of a ``meshio.Mesh``, in block order.
 
-    Other cell types (vertices, quads, tetrahedra, …) are skipped with a log message. Every
-    point is kept, in order. ``cell_data["gmsh:physical"]`` becomes ``triangle_tags`` /
-    ``line_tags`` (all-zero triangle tags mean "untagged") and ``field_data`` the
-    ``tag_names``.
+    Every point is kept, in order. ``cell_data["gmsh:physical"]`` becomes
+    ``triangle_tags`` / ``line_tags`` (all-zero triangle tags mean "untagged") and
+    ``field_data`` the ``tag_names``. Vertex cells and other data are left out (logged);
+    for everything use :meth:`meshopt_toolkit.io.CellMesh.from_meshio`.
 
     Raises
     ------
     InvalidMeshError
-        No triangle, or a readable-level check fails.
+        Cells other than triangles, lines and vertices (quads, polygons, volumes: named
+        with their counts), no triangle, or a readable-level check fails.
     """
-    tris, ttags, lines, ltags = [], [], [], []
-    phys = m.cell_data.get(_PHYSICAL)
-    skipped = set()
-    for i, block in enumerate(m.cells):
-        data = np.asarray(block.data)
-        tag = None if phys is None else np.asarray(phys[i]).reshape(-1)
-        if block.type == "triangle":
-            tris.append(data)
-            ttags.append(tag)
-        elif block.type == "line":
-            lines.append(data)
-            ltags.append(np.zeros(len(data), np.int64) if tag is None else tag)
-        else:
-            skipped.add(block.type)
-    if skipped:
-        logger.info("%s: skipped cells of type %s", source or "mesh", ", ".join(sorted(skipped)))
-    where = f"{source}: " if source else ""
-    if not tris:
-        found = ", ".join(sorted({b.type for b in m.cells})) or "none"
-        raise InvalidMeshError(f"{where}mesh has no triangles (cell types: {found})")
-    triangles = np.concatenate(tris) if len(tris) > 1 else tris[0]
-    triangle_tags = None
-    if all(t is not None for t in ttags):
-        tt = np.concatenate(ttags)
-        if np.any(tt):
-            triangle_tags = tt
-    tags: dict[str, Any] = {"triangle_tags": triangle_tags}
-    if lines:
-        tags["lines"] = np.concatenate(lines)
-        tags["line_tags"] = np.concatenate(ltags)
-    names = {}
-    for name, value in (m.field_data or {}).items():
-        v = np.asarray(value).reshape(-1)
-        if v.size >= 2:
-            names[str(name)] = (int(v[0]), int(v[1]))
-    tags["tag_names"] = names
-    return _mesh(m.points, triangles, source=source, **tags)
+    from .io.cells import CellMesh
+
+    return CellMesh.from_meshio(m, source=source).to_triangle_mesh()
 
 
 # ----------------------------------------------------------------------------- trimesh

@@ -89,6 +89,7 @@ def deform(
     rtol: float | None = None,
     atol: float | None = None,
     on_violation: str = "warn",
+    progress=None,
 ) -> DeformResult:
     """Deform ``mesh`` along the geodesic with initial velocity ``displacement``.
 
@@ -106,7 +107,8 @@ def deform(
         default f1 with ``α = (1, 0, 1)`` (thesis §5.5), ``Qref`` = the input mesh
     metric : "complete" (default) or "euclidean" (straight lines ``Q + tV``, for
         comparison; may invert triangles, which ``aspect_ratio`` then shows as ≤ 0)
-    method, rtol, atol, on_violation : see :func:`~meshopt_toolkit.geodesics.geodesic`
+    method, rtol, atol, on_violation, progress : see
+        :func:`~meshopt_toolkit.geodesics.geodesic` (``progress(fraction)`` per step)
 
     Returns
     -------
@@ -144,7 +146,7 @@ def deform(
         raise InvalidMeshError(f"metric must be 'complete' or 'euclidean', got {metric!r}")
     # frames are few: land on each (exact velocities and energies in the result)
     res = geodesic(met, m.points, V, float(t), times=times, method=method, rtol=rtol,
-                   atol=atol, on_violation=on_violation, dense=False)
+                   atol=atol, on_violation=on_violation, dense=False, progress=progress)
     ar = np.array([float(aspect_ratios(p, m.triangles).min()) for p in res.points])
     return DeformResult(
         mesh=m.with_points(res.points[-1]), times=times, points=res.points,

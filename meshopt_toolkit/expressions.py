@@ -16,13 +16,19 @@ to ``eval``, ``exec`` or ``compile``):
 - functions ``sin cos tan exp log sqrt abs`` (one argument), ``min max`` (two).
 
 Anything else is an :class:`~meshopt_toolkit.errors.ExpressionError` naming the construct
-and its column. ``abs``, ``min`` and ``max`` are differentiated almost everywhere
+and its column. So is a constant part that is not finite (``1/0``, ``exp(1000)``,
+``log(-1)``, ``1e400``): it is evaluated once when parsing and refused with its text and
+column. Values that are not finite at some point (``x/0``) are reported when evaluated,
+naming the expression and the point; no other exception ever leaves the evaluator.
+``abs``, ``min`` and ``max`` are differentiated almost everywhere
 (``abs'(0) = 0``; ``min``/``max`` take the first argument's gradient on ties).
 """
 
 from __future__ import annotations
 
 import ast
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
@@ -79,7 +85,7 @@ _REFUSED = {
 
 @dataclass(frozen=True)
 class _Num:
-    value: float
+    value: np.float64  # numpy scalar: 1/0 gives inf (checked), never ZeroDivisionError
 
 
 @dataclass(frozen=True)
@@ -125,10 +131,42 @@ def _depth(tree: ast.AST) -> int:
     return deepest
 
 
-def _convert(node: ast.AST):
-    """Whitelist check and conversion of one AST node (recursion depth is bounded)."""
+def _source(node: ast.AST, text: str) -> str:
+    """The text of ``node`` in ``text``, shortened for messages."""
+    seg = ast.get_source_segment(text, node) or ast.unparse(node)
+    return seg if len(seg) <= 40 else seg[:37] + "..."
+
+
+def _convert(node: ast.AST, text: str):
+    """Whitelist check and conversion of one AST node (recursion depth is bounded).
+
+    A constant subtree (no ``x``, ``y``) is evaluated once here: a non-finite one (``1/0``,
+    ``exp(1000)``, ``log(-1)``) is refused with its text and column, before any point is
+    evaluated.
+    """
     if isinstance(node, ast.Expression):
-        return _convert(node.body)
+        return _convert(node.body, text)
+    out = _convert_node(node, text)
+    if not isinstance(out, (_Num, _Var)) and _is_constant(out):
+        with np.errstate(all="ignore"):
+            value = _value(out, np.zeros((1, 2)))
+        if not np.isfinite(value):
+            raise _err(f"{_source(node, text)!r} is not finite ({_why(out)})", node)
+    return out
+
+
+def _why(node) -> str:
+    """A guess at why the constant ``node`` is not finite, for the message."""
+    if isinstance(node, _Bin) and node.op == "/":
+        with np.errstate(all="ignore"):
+            if _value(node.right, np.zeros((1, 2))) == 0:
+                return "division by zero"
+    if isinstance(node, _Call) and node.func in ("log", "sqrt"):
+        return "outside the domain of " + node.func
+    return "overflow or a domain error"
+
+
+def _convert_node(node: ast.AST, text: str):
     if isinstance(node, ast.Constant):
         v = node.value
         if isinstance(v, bool) or not isinstance(v, (int, float)):
@@ -136,14 +174,17 @@ def _convert(node: ast.AST):
                 raise _err("strings are not allowed", node)
             raise _err(f"the constant {v!r} is not allowed", node)
         try:
-            return _Num(float(v))
+            value = np.float64(float(v))
         except OverflowError:
-            raise _err("number too large", node) from None
+            value = np.float64(np.inf)
+        if not np.isfinite(value):
+            raise _err(f"number too large ({_source(node, text)})", node)
+        return _Num(value)
     if isinstance(node, ast.Name):
         if node.id in _VARIABLES:
             return _Var(_VARIABLES[node.id])
         if node.id in _CONSTANTS:
-            return _Num(float(_CONSTANTS[node.id]))
+            return _Num(np.float64(_CONSTANTS[node.id]))
         if node.id in _UNARY or node.id in _BINARY:
             raise _err(f"function {node.id!r} must be called", node)
         raise ExpressionError(
@@ -153,12 +194,12 @@ def _convert(node: ast.AST):
         op = _BINOPS.get(type(node.op))
         if op is None:
             raise _err(f"operator {type(node.op).__name__} is not allowed; use + - * / **", node)
-        return _Bin(op, _convert(node.left), _convert(node.right))
+        return _Bin(op, _convert(node.left, text), _convert(node.right, text))
     if isinstance(node, ast.UnaryOp):
         op = _UNOPS.get(type(node.op))
         if op is None:
             raise _err(f"operator {type(node.op).__name__} is not allowed", node)
-        return _Unary(op, _convert(node.operand))
+        return _Unary(op, _convert(node.operand, text))
     if isinstance(node, ast.Call):
         if not isinstance(node.func, ast.Name):
             raise _err("only calls of named functions are allowed", node)
@@ -174,7 +215,7 @@ def _convert(node: ast.AST):
         if len(node.args) != want:
             raise _err(f"{name}() takes {want} argument{'s' if want > 1 else ''}, "
                        f"got {len(node.args)}", node)
-        return _Call(name, tuple(_convert(a) for a in node.args))
+        return _Call(name, tuple(_convert(a, text) for a in node.args))
     kind = _REFUSED.get(type(node), f"{type(node).__name__} nodes are")
     raise _err(f"{kind} not allowed", node)
 
@@ -194,7 +235,8 @@ def parse_expression(text: str) -> Expression:
     ------
     ExpressionError
         Syntax errors, refused constructs, unknown names or functions, too long or too
-        deeply nested input. The message names the problem and its column.
+        deeply nested input, constant parts that are not finite (``1/0``). The message
+        names the problem and its column.
     """
     if not isinstance(text, str):
         raise ExpressionError(f"an expression must be a string, not {type(text).__name__}")
@@ -207,16 +249,18 @@ def parse_expression(text: str) -> Expression:
         raise ExpressionError(
             f"expression too deeply nested: {level} levels of brackets (at most {MAX_DEPTH})"
         )
+    text = text.strip()
     try:
-        tree = ast.parse(text.strip(), mode="eval")
+        tree = ast.parse(text, mode="eval")
     except SyntaxError as exc:
         col = f" at column {exc.offset}" if exc.offset else ""
-        raise ExpressionError(f"invalid syntax{col}: {exc.msg}") from None
+        detail = "" if exc.msg in ("invalid syntax", "") else f": {exc.msg}"
+        raise ExpressionError(f"invalid syntax{col}{detail}") from None
     except (RecursionError, MemoryError, ValueError):
         raise ExpressionError(f"expression too deeply nested (at most {MAX_DEPTH} levels)") from None
     if _depth(tree) > MAX_DEPTH:
         raise ExpressionError(f"expression too deeply nested (at most {MAX_DEPTH} levels)")
-    return Expression(text.strip(), _convert(tree))
+    return Expression(text, _convert(tree, text))
 
 
 # ------------------------------------------------------------------------- evaluation
@@ -308,7 +352,8 @@ def _forward(node, X: FloatArray):
     if node.func in _BINARY:
         (a, da), (b, db) = (_forward(arg, X) for arg in node.args)
         pick_a = a <= b if node.func == "min" else a >= b
-        return np.where(pick_a, a, b), np.where(_col(pick_a), da, db)
+        # the value as in _apply: a NaN argument (a domain error) gives NaN, never the other
+        return _apply(node.func, (a, b)), np.where(_col(pick_a), da, db)
     a, da = _forward(node.args[0], X)
     f = node.func
     if f == "sin":
@@ -354,6 +399,15 @@ class Expression:
     def __repr__(self) -> str:
         return f"Expression({self.text!r})"
 
+    @contextmanager
+    def _arithmetic(self) -> Iterator[None]:
+        """Any arithmetic exception left (none is expected: constants are numpy scalars)
+        becomes an :class:`ExpressionError` naming the expression."""
+        try:
+            yield
+        except ArithmeticError as exc:
+            raise ExpressionError(f"{self.text!r} cannot be evaluated: {exc}") from None
+
     def _check(self, v: FloatArray, X: FloatArray, what: str) -> FloatArray:
         bad = ~np.isfinite(v)
         if bad.any():
@@ -367,14 +421,14 @@ class Expression:
     def __call__(self, X) -> FloatArray:
         """Values ``(M,)`` at points ``X (M, 2)``."""
         X = _as_points(X)
-        with np.errstate(all="ignore"):
+        with np.errstate(all="ignore"), self._arithmetic():
             v = np.array(np.broadcast_to(_value(self._tree, X), (len(X),)), dtype=float)
         return self._check(v, X, "value")
 
     def value_and_gradient(self, X) -> tuple[FloatArray, FloatArray]:
         """Values ``(M,)`` and exact gradients ``(M, 2)`` in one pass."""
         X = _as_points(X)
-        with np.errstate(all="ignore"):
+        with np.errstate(all="ignore"), self._arithmetic():
             v, g = _forward(self._tree, X)
             v = np.array(np.broadcast_to(v, (len(X),)), dtype=float)
             g = np.array(np.broadcast_to(g, (len(X), 2)), dtype=float)

@@ -274,6 +274,7 @@ def geodesic(
     monitor: bool | None = None,
     h0: float | None = None,
     free=None,
+    progress=None,
 ) -> GeodesicResult:
     """The geodesic ``γ`` with ``γ(0) = Q``, ``γ'(0) = V``, sampled from ONE integration.
 
@@ -312,6 +313,9 @@ def geodesic(
         Free vertices: the geodesic of the metric restricted to tangent vectors vanishing
         on the fixed vertices (see :class:`~meshopt_toolkit.integrators.GeodesicField`);
         ``V`` must vanish there, and fixed vertices do not move.
+    progress : callable, optional
+        Adaptive methods: ``progress(fraction)`` after each accepted step, the fraction
+        of ``[0, t_end]`` integrated (for a progress bar).
 
     Returns
     -------
@@ -348,7 +352,7 @@ def geodesic(
                            rtol=rtol, atol=atol, energy_tol=energy_tol,
                            on_violation=on_violation, max_steps=max_steps, dense=dense,
                            fixed_point_tol=fixed_point_tol, fixed_point_iter=fixed_point_iter,
-                           monitor=monitor, h0=h0, free=free)
+                           monitor=monitor, h0=h0, free=free, progress=progress)
         except IntegrationError as exc:
             part = getattr(exc, "partial", None)
             if part is not None:
@@ -410,7 +414,8 @@ def geodesic(
             h0 = LINE_SEARCH_FIRST_STEP * positive[-1]
         out = runge_kutta(fld, Q, V, positive, pair="bs3" if line_search else method_used,
                           rtol=rtol, atol=rtol * scale if atol is None else atol,
-                          max_steps=max_steps, dense=dense, h0=h0, partial=True, **extra)
+                          max_steps=max_steps, dense=dense, h0=h0, partial=True,
+                          progress=progress, **extra)
     elif method_used == "stormer-verlet":
         out = stormer_verlet(fld, Q, V, positive, steps=1024 if steps is None else int(steps),
                              tol=fixed_point_tol, max_iter=fixed_point_iter)

@@ -705,6 +705,7 @@ def runge_kutta(
     project_energy: bool = False,
     exit_shrink: float = 0.25,
     partial: bool = False,
+    progress=None,
 ) -> IntegrationOutput:
     """Integrate (5.35) from ``(Q0, V0)`` at t = 0 with an explicit embedded RK pair.
 
@@ -750,6 +751,8 @@ def runge_kutta(
         False (default): a failure raises. True: a failure (step size underflow, too many
         steps) ends the integration; the outputs reached so far are returned and
         ``n_reached``/``failure`` say where and why it stopped.
+    progress : callable, optional
+        ``progress(t / t_end)`` after each accepted step (for a progress bar).
 
     Returns
     -------
@@ -830,7 +833,8 @@ def runge_kutta(
             if h < h_min:
                 stop(f"geodesic step size underflow at t = {t:.6g}: every step leaves the "
                      f"admissible set ({why}). A penalty without its boundary term (α2 or "
-                     "β3 = 0) cannot prevent boundary self-intersections")
+                     "β3 = 0) cannot prevent boundary self-intersections; to put boundary "
+                     "vertices at prescribed positions, use `meshopt move` (mt.move)")
                 break
             continue
         err = _error_norm(rk, h_step, k, y, y_new, rtol, atol)
@@ -872,6 +876,8 @@ def runge_kutta(
         n_steps += 1
         t = t_new
         y, a = y_new, a_new.copy()
+        if progress is not None:
+            progress(t / t_end)
         if e0 > 0:
             max_drift = max(max_drift, abs(e_new - e0) / e0)
         e = e_prev = e0 if project else e_new

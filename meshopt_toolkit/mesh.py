@@ -20,8 +20,10 @@ from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.sparse.csgraph import breadth_first_order, connected_components
+from ._lazy import lazy_module
+
+sp = lazy_module("scipy.sparse")  # imported on first use: info/convert need no scipy
+_csgraph = lazy_module("scipy.sparse.csgraph")
 
 from ._typing import FloatArray, IntArray
 from .errors import InvalidMeshError, NotAdmissibleError
@@ -583,11 +585,15 @@ class MeshReport:
     admissible : bool
         ``manifold`` and every signed area > 0 and no boundary self-intersection.
     reoriented : bool
-        The mesh was consistently clockwise; :attr:`mesh` is the CCW version.
+        Some triangles were flipped (each component is oriented by propagation across its
+        edges, then counter-clockwise); :attr:`mesh` is the oriented version.
     problems : list of str
         Human-readable reasons, each naming a vertex/triangle/edge.
     mesh : TriangleMesh
-        The checked mesh (re-oriented to CCW when ``reoriented``).
+        The checked mesh (re-oriented to CCW when ``reoriented``; in plane coordinates,
+        with ``embedding`` set, when the input lies on a plane other than z = 0).
+    n_reoriented : int
+        Number of triangles flipped.
     """
 
     planar: bool
@@ -596,6 +602,7 @@ class MeshReport:
     reoriented: bool = False
     problems: list[str] = field(default_factory=list)
     mesh: TriangleMesh | None = None
+    n_reoriented: int = 0
 
 
 def _manifold_problems(mesh: TriangleMesh) -> list[str]:
@@ -639,7 +646,7 @@ def _manifold_problems(mesh: TriangleMesh) -> list[str]:
     c = c[c[:, 1] >= 0] // 3
     nt = len(tri)
     shared = sp.coo_matrix((np.ones(len(c), dtype=bool), (c[:, 0], c[:, 1])), shape=(nt, nt))
-    ncomp, _ = connected_components(shared, directed=False)
+    ncomp, _ = _csgraph.connected_components(shared, directed=False)
     if ncomp > 1:
         problems.append(f"mesh has {ncomp} pieces not connected through edges")
     # bow-ties: the triangles around each vertex must form one fan
@@ -714,6 +721,10 @@ def _count_fans(succ: IntArray, vertex: IntArray, n: int) -> IntArray:
 
 #: fans longer than this are checked by pointer doubling instead of a step-by-step walk
 _WALK_STEPS = 64
+#: meshes with at most this many triangles are checked for connectivity in numpy alone,
+#: and at most this many boundary edges are intersected pairwise (no scipy import)
+_NUMPY_CONNECTIVITY = 20000
+_NUMPY_PAIRS = 600
 
 
 def _clean_manifold(mesh: TriangleMesh) -> IntArray | None:
@@ -776,13 +787,22 @@ def _clean_manifold(mesh: TriangleMesh) -> IntArray | None:
     # 2-path connectivity
     nbr = twin // 3
     nbr[first] = first // 3
-    graph = sp.csr_matrix(
-        (np.ones(nc), nbr, np.arange(0, nc + 1, 3, dtype=idx)), shape=(nt, nt)
-    )
-    reached = breadth_first_order(graph, 0, directed=True, return_predecessors=False)
-    if len(reached) != nt:
-        return None
-    del graph, nbr, reached
+    if nt <= _NUMPY_CONNECTIVITY:  # small meshes: numpy only, no scipy import
+        from .orientation import component_labels
+
+        inner = np.flatnonzero(twin >= 0)
+        if component_labels(nt, inner // 3, twin[inner] // 3).any():
+            return None
+    else:
+        graph = sp.csr_matrix(
+            (np.ones(nc), nbr, np.arange(0, nc + 1, 3, dtype=idx)), shape=(nt, nt)
+        )
+        reached = _csgraph.breadth_first_order(graph, 0, directed=True,
+                                               return_predecessors=False)
+        if len(reached) != nt:
+            return None
+        del graph, reached
+    del nbr
     # bow-ties: succ(c) = next(twin(next(c))) = twin[prev(c)]
     tn = twin.reshape(nt, 3)
     succ = np.empty_like(tn)
@@ -848,15 +868,20 @@ def boundary_self_intersections(points: FloatArray, boundary_edges: IntArray) ->
     A broad phase with a k-d tree on edge midpoints (two segments can only meet when their
     midpoints are closer than the longest edge) followed by exact orientation tests.
     """
-    from scipy.spatial import cKDTree
-
     if len(boundary_edges) < 3:
         return np.zeros((0, 2), np.int64)
     a = points[boundary_edges[:, 0]]
     b = points[boundary_edges[:, 1]]
+    if len(boundary_edges) > _NUMPY_PAIRS:
+        from scipy.spatial import cKDTree
     mid = 0.5 * (a + b)
     reach = float(np.linalg.norm(b - a, axis=1).max())
-    pairs = cKDTree(mid).query_pairs(reach * (1 + 1e-9), output_type="ndarray")
+    if len(boundary_edges) <= _NUMPY_PAIRS:  # the same pairs as the k-d tree, no scipy
+        pairs = np.stack(np.triu_indices(len(boundary_edges), 1), axis=1)
+        gap = np.linalg.norm(mid[pairs[:, 0]] - mid[pairs[:, 1]], axis=1)
+        pairs = pairs[gap <= reach * (1 + 1e-9)]
+    else:
+        pairs = cKDTree(mid).query_pairs(reach * (1 + 1e-9), output_type="ndarray")
     if len(pairs) == 0:
         return np.zeros((0, 2), np.int64)
     i, j = pairs[:, 0], pairs[:, 1]
@@ -903,28 +928,34 @@ def _check_mesh(mesh: TriangleMesh, positive_areas: bool = False) -> MeshReport:
     A clean mesh is recognised by :func:`_clean_manifold`; only a mesh with a problem pays
     for the edge list and the description of the problem (:func:`_manifold_problems`).
     """
-    if not mesh.is_planar:
-        return MeshReport(False, False, False, problems=["not planar: some z is non-zero"], mesh=mesh)
-    pm = mesh.as_planar()
+    from .orientation import diagnose, planar_view, with_embedding_of  # issue 12 hooks
+
+    pm, why = planar_view(mesh)
+    if pm is None:
+        return MeshReport(False, False, False, problems=[why], mesh=mesh)
     corners = pm._clean_corners
+    n_flipped, soft = 0, []
     if corners is None:
-        problems = _manifold_problems(pm)
-        if problems:
-            return MeshReport(True, False, False, problems=problems, mesh=pm)
-    elif "boundary_edges" not in pm.__dict__:
+        pm, n_flipped, hard, soft = diagnose(pm)
+        if hard:
+            return MeshReport(True, False, False, n_flipped > 0, hard + soft, pm, n_flipped)
+        corners = pm._clean_corners
+    if corners is not None and "boundary_edges" not in pm.__dict__:
         pm.__dict__["boundary_edges"] = _frozen(_boundary_edges_of(pm.triangles, corners))
     reoriented = False
     area = None if positive_areas else pm.signed_areas()
-    if area is not None and area.sum() < 0:
-        pm = pm.flipped()
+    if area is not None and area.sum() < 0 and corners is not None:
+        pm = with_embedding_of(pm.flipped(), pm)
         area = -area
         reoriented = True
+        n_flipped = pm.n_triangles
         if corners is not None:
             # corner 3k + l of the flipped mesh is corner 3k + 2 - l of the original
             flip = np.sort(corners - 2 * (corners % 3) + 2)
             pm.__dict__["boundary_edges"] = _frozen(_boundary_edges_of(pm.triangles, flip))
         logger.info("%s: re-oriented from clockwise to counter-clockwise", pm.source or "mesh")
-    problems = []
+    problems = list(soft)
+    reoriented = reoriented or n_flipped > 0
     nonpos = np.flatnonzero(area <= 0) if area is not None else ()
     if len(nonpos):
         k = nonpos[0]
@@ -939,7 +970,7 @@ def _check_mesh(mesh: TriangleMesh, positive_areas: bool = False) -> MeshReport:
         problems.append(
             f"boundary self-intersects: edges ({e1[0]}, {e1[1]}) and ({e2[0]}, {e2[1]}) cross"
         )
-    return MeshReport(True, True, not problems, reoriented, problems, pm)
+    return MeshReport(True, True, not problems, reoriented, problems, pm, n_flipped)
 
 
 def require_admissible(mesh: TriangleMesh, what: str = "this operation") -> PlanarMesh:
@@ -959,5 +990,5 @@ def require_admissible(mesh: TriangleMesh, what: str = "this operation") -> Plan
     if not report.admissible:
         raise NotAdmissibleError(f"{where}{what} needs an admissible mesh: {report.problems[0]}")
     if report.reoriented:
-        logger.warning("%sre-oriented from clockwise to counter-clockwise", where)
+        logger.warning("%sreoriented %d triangles", where, report.n_reoriented)
     return report.mesh  # type: ignore[return-value]

@@ -1,9 +1,12 @@
-"""Riemannian steepest descent for discretize-then-optimize shape optimization.
+"""Riemannian descent methods for discretize-then-optimize shape optimization.
 
 Algorithm 2 of the thesis (§6.4.1, SPEC §7): at every iterate the derivative of
-``F = j + f2`` is turned into a gradient by the Riesz map of a metric, and an Armijo
-backtracking line search along a retraction picks the step. Variants are named
-``"<metric>-<retraction>"``:
+``F = j + f2`` is turned into a gradient by the Riesz map of a metric, and a line search
+along a retraction picks the step. ``method="steepest"`` is the thesis' steepest descent
+with Armijo backtracking (kept for its tables); ``"lbfgs"`` (Riemannian L-BFGS) and
+``"cg"`` (nonlinear CG, Hestenes–Stiefel+) use the same metric as inner product, the same
+retraction and a Wolfe line search (:mod:`meshopt_toolkit.shape`). Variants are
+named ``"<metric>-<retraction>"``:
 
 =======================  ==================  ==========================================
 variant                  gradient metric     retraction
@@ -49,6 +52,17 @@ VARIANTS = (
 #: the phases timed per iteration (the columns of thesis tables 6.2, 6.5, 6.6)
 PHASES = ("state", "derivative", "penalty_derivative", "gradient", "backtracking", "retraction")
 
+#: optimization methods; the default was chosen from ``benchmarks/bench_optimize.py``
+METHODS = ("lbfgs", "cg", "steepest")
+DEFAULT_METHOD = "lbfgs"
+
+#: meshes whose bounding box diagonal lies outside this range are refused: the penalty
+#: and the metrics are not scale-invariant (β2/Σ A and the β4 term scale like L⁻² and L²),
+#: so the problem changes with the unit of length; on disc_146 (diagonal 2.8) scaled to a
+#: diagonal of 3e-3 the complete metric's Riesz map already cancels to a non-descent
+#: direction, and a diagonal of 100 with the default rhs ends with min AR ~1e-12
+SIZE_RANGE = (1e-2, 1e2)
+
 #: default ``exp_options`` of the complete-complete retraction: the geodesic's
 #: line-search mode (:data:`meshopt_toolkit.geodesics.LINE_SEARCH_OPTIONS`; Bogacki–Shampine
 #: 3(2) at rtol 5e-2 with energy projection, positions only). Every trial point is still
@@ -84,6 +98,16 @@ class IterationRecord:
     backtracks: int
     gradient_norm: float
     seconds: dict = field(default_factory=dict)
+    #: "steepest", "lbfgs" or "cg"
+    method: str = "steepest"
+    #: ‖grad F‖ at the start of the iteration over its first value (NaN in row 0)
+    relative_gradient_norm: float = math.nan
+    #: whether the accepted step satisfied the Wolfe conditions (None: Armijo-only search)
+    wolfe: bool | None = None
+    #: L-BFGS: the curvature pair of this step was rejected (s·ŷ not positive enough)
+    pair_rejected: bool = False
+    #: line-search trials outside M+ (f = +∞), rejected
+    rejected_trials: int = 0
 
     def as_row(self) -> dict:
         """Flat dict (phase times as ``time_<phase>`` columns) for CSV/JSON."""
@@ -110,9 +134,10 @@ class OptimizeResult:
     nit : int
         Iterations performed.
     status : str
-        ``"converged"`` (6.26), ``"max_iterations"`` or ``"step_too_small"``.
+        ``"converged"`` (gradient norm, objective change or (6.26)), ``"stopped"`` (by the
+        callback), ``"max_iterations"`` or ``"step_too_small"``.
     success : bool
-        True unless the run failed (``step_too_small``).
+        True for ``"converged"`` and ``"stopped"``; reaching max iterations is a failure.
     message : str
     history : list of IterationRecord
     seconds : float
@@ -131,6 +156,8 @@ class OptimizeResult:
     history: list[IterationRecord]
     seconds: float
     variant: str
+    method: str = "steepest"
+    rejected_pairs: int = 0
 
     def history_columns(self) -> dict[str, np.ndarray]:
         """The history as named columns (arrays), one entry per record."""
@@ -150,7 +177,10 @@ class OptimizeResult:
             "success": self.success,
             "message": self.message,
             "variant": self.variant,
+            "method": self.method,
             "iterations": self.nit,
+            "rejected_curvature_pairs": self.rejected_pairs,
+            "rejected_trials": int(sum(r.rejected_trials for r in self.history)),
             "j": self.j,
             "penalty": last.penalty,
             "objective": self.fun,
@@ -224,20 +254,30 @@ def optimize(
     objective: Objective,
     *,
     variant: str = "complete-euclidean",
+    method: str = DEFAULT_METHOD,
     penalty_beta: Sequence[float] | None = None,
     metric_beta: Sequence[float] | None = None,
     fixed: np.ndarray | None = None,
     max_iter: int = 1000,
     tol: float | None = 1e-6,
+    gtol: float | None = 1e-5,
+    ftol: float | None = 1e-6,
+    memory: int = 10,
     sigma: float = 1e-4,
     tau: float = 0.5,
+    c2: float | None = None,
+    segment_fraction: float = 0.5,
     min_step: float = 1e-6,
     metric_options: dict | None = None,
     exp_options: dict | None = None,
     callback: Callable[[IterationRecord, FloatArray], bool | None] | None = None,
 ) -> OptimizeResult:
-    """Minimize ``F(Q) = j(Q) + f2(Q; Q0)`` over admissible meshes by Riemannian
-    steepest descent (thesis algorithm 2, §6.4.1).
+    """Minimize ``F(Q) = j(Q) + f2(Q; Q0)`` over admissible meshes by a Riemannian
+    descent method: L-BFGS, nonlinear CG or steepest descent (thesis algorithm 2, §6.4.1).
+
+    Every trial configuration outside M+ (a non-positive area, a boundary touching
+    itself, an objective refusing it) counts as ``F = +∞`` and is rejected by the line
+    search; every iterate is admissible.
 
     Parameters
     ----------
@@ -245,14 +285,27 @@ def optimize(
         Initial mesh; also the reference Q_ref of the penalty. Must be admissible.
     objective : object with ``value(Q)`` and ``derivative(Q)`` (shape (N, 2))
     variant : one of :data:`VARIANTS`
+    method : one of :data:`METHODS`: ``"lbfgs"`` (Riemannian L-BFGS with the metric as
+        inner product and a Wolfe line search), ``"cg"`` (Hestenes–Stiefel+), or
+        ``"steepest"`` (the thesis' Armijo steepest descent).
     penalty_beta : (β1, β2, β3, β4) of the penalty f2 added to j (β4 unscaled: f2
         divides it by 2N); None or all zero = unpenalized.
     metric_beta : β^metric of the complete metric (default :func:`default_metric_beta`).
     fixed : vertex indices (or boolean mask) that do not move.
     max_iter : maximum number of iterations.
-    tol : tolerance of the stopping rule (6.26) ``max_{m=1..5} F_{n−m} − F_n < tol``;
-        None disables it (fixed iteration count, as for the unpenalized runs).
-    sigma, tau : Armijo parameters (6.21) and backtracking factor.
+    tol : steepest descent only: tolerance of the stopping rule (6.26)
+        ``max_{m=1..5} F_{n−m} − F_n < tol``; None disables it (fixed iteration count, as
+        for the unpenalized runs).
+    gtol : stop when the Riemannian gradient norm ``‖grad F‖_g`` falls to ``gtol`` times
+        its first value (every method); None disables it.
+    ftol : lbfgs/cg only: stop when ``max_{m=1..5} F_{n−m} − F_n ≤ ftol · max(|F_n|, 1)``
+        (the relative version of (6.26)); None disables it.
+    memory : number of L-BFGS curvature pairs kept.
+    sigma, tau : Armijo parameters (6.21) (``sigma`` is ``c1`` of the Wolfe search) and
+        the backtracking factor of steepest descent.
+    c2 : Wolfe curvature constant (default 0.9 for lbfgs, 0.1 for cg).
+    segment_fraction : lbfgs/cg with the straight-line retraction: trial steps go at most
+        this fraction of the way to the first degenerate triangle along ``Q + t d``.
     min_step : a run fails (``step_too_small``) when a trial step drops below this.
     metric_options : extra keyword arguments of the metric (e.g. elasticity ``E``, ``nu``).
     exp_options : keyword arguments for :func:`meshopt_toolkit.geodesics.geodesic`
@@ -266,12 +319,17 @@ def optimize(
     Raises
     ------
     OptimizationError
-        A direction that is not a descent direction (a wrong derivative), or an unknown
-        variant.
+        A direction that is not a descent direction (a wrong derivative), an unknown
+        variant or method, or a mesh whose size is outside :data:`SIZE_RANGE`.
     """
+    from .shape.problem import ShapeProblem
+
     if variant not in VARIANTS:
         raise OptimizationError(f"unknown variant {variant!r}; choose one of {', '.join(VARIANTS)}")
+    if method not in METHODS:
+        raise OptimizationError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
     mesh = require_admissible(mesh, "shape optimization")
+    _check_size(mesh.points)
     tri = mesh.triangles
     N = mesh.n_vertices
     free = None
@@ -288,6 +346,16 @@ def optimize(
         penalty = QualityPenalty(mesh, beta=tuple(penalty_beta))
     metric = _make_metric(variant, mesh, metric_beta, dict(metric_options or {}))
     use_exp = variant.endswith("-complete")
+    problem = ShapeProblem(objective, penalty, metric, tri, mesh.boundary_edges, free)
+    if method != "steepest":
+        from .shape.driver import run_descent
+
+        return run_descent(
+            mesh, problem, method=method, variant=variant, use_exp=use_exp,
+            exp_options={**EXP_DEFAULTS, **dict(exp_options or {})}, max_iter=max_iter,
+            gtol=gtol, ftol=ftol, memory=memory, c1=sigma, c2=c2,
+            segment_fraction=segment_fraction, min_step=min_step, callback=callback,
+        )
 
     def penalty_value(Q):
         return 0.0 if penalty is None else float(penalty.value(Q))
@@ -305,8 +373,9 @@ def optimize(
         IterationRecord(0, J, fpen, F, q.mean_shape_quality, q.min_aspect_ratio, 0.0, 0, math.nan,
                         dict(timer.seconds))
     ]
-    s_prev = slope_prev = None
-    status, message = "max_iterations", f"reached the maximum of {max_iter} iterations"
+    s_prev = slope_prev = dnorm0 = None
+    status = "max_iterations"
+    message = f"reached the maximum of {max_iter} iterations without converging"
     for n in range(1, max_iter + 1):
         timer = _Timer()
         t0 = time.perf_counter()
@@ -318,6 +387,8 @@ def optimize(
         slope = _dot(P, d)  # dF(Q)[d]
         dnorm = float(metric.norm(Q, d))
         t0 = timer.add("gradient", t0)
+        if dnorm0 is None:
+            dnorm0 = dnorm
         if not slope < 0:
             if slope == 0 or dnorm == 0:
                 status, message = "converged", "the gradient vanishes"
@@ -326,6 +397,10 @@ def optimize(
                 f"iteration {n}: the search direction is not a descent direction "
                 f"(dF[d] = {slope:.3e}); the derivative or the metric is wrong"
             )
+        if gtol is not None and dnorm <= gtol * dnorm0:
+            status = "converged"
+            message = f"‖grad F‖ fell to {dnorm / dnorm0:.2e} of its first value (gtol {gtol:g})"
+            break
         s = None if s_prev is None else s_prev * slope_prev / slope
         if s is None or s * dnorm < 1e-4:
             s = 1.0 / dnorm
@@ -354,7 +429,7 @@ def optimize(
             timer.add("retraction", t_r)
         s_max = np.inf if use_exp else max_travel_step(Q, tri, d)
         accepted = None
-        backtracks = 0
+        backtracks = rejected = 0
         t_b = time.perf_counter()
         state_in_backtracking = 0.0
         for k, s_k in enumerate(trial_steps):
@@ -364,11 +439,15 @@ def optimize(
             Qt = geo_points[k] if use_exp else Q + s_k * d
             if Qt is None or np.any(signed_areas(Qt, tri) <= 0):
                 backtracks += 1
+                rejected += 1
                 continue
             t_s = time.perf_counter()
-            Jt = float(objective.value(Qt))
+            Ft, Jt = problem.values(Qt)  # +inf outside M+ (e.g. a boundary touching itself)
             state_in_backtracking += time.perf_counter() - t_s
-            Ft = Jt + penalty_value(Qt)
+            if not np.isfinite(Ft):
+                backtracks += 1
+                rejected += 1
+                continue
             if Ft <= F + sigma * s_k * slope:
                 accepted = (s_k, Qt, Jt, Ft)
                 break
@@ -384,7 +463,8 @@ def optimize(
         q = quality_summary(Q, tri)
         record = IterationRecord(
             n, J, F - J, F, q.mean_shape_quality, q.min_aspect_ratio, s_k, backtracks,
-            dnorm, dict(timer.seconds),
+            dnorm, dict(timer.seconds), relative_gradient_norm=dnorm / dnorm0,
+            rejected_trials=rejected,
         )
         history.append(record)
         logger.debug("iter %d: F=%.6g j=%.6g Λ=%.4f step=%.3g", n, F, J, q.mean_shape_quality, s_k)
@@ -405,9 +485,21 @@ def optimize(
         j=J,
         nit=len(history) - 1,
         status=status,
-        success=status != "step_too_small",
+        success=status in ("converged", "stopped"),
         message=message,
         history=history,
         seconds=time.perf_counter() - start,
         variant=variant,
     )
+
+
+def _check_size(points: FloatArray) -> None:
+    """Refuse a mesh whose bounding-box diagonal is outside :data:`SIZE_RANGE`."""
+    size = float(np.linalg.norm(np.ptp(points, axis=0)))
+    lo, hi = SIZE_RANGE
+    if not lo <= size <= hi:
+        raise OptimizationError(
+            f"the mesh is {size:.3g} across (bounding-box diagonal); shape optimization "
+            f"needs a size between {lo:g} and {hi:g} because the penalty and the metrics "
+            f"are not scale-invariant: rescale the mesh (e.g. to unit size) first"
+        )

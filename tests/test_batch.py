@@ -240,3 +240,15 @@ def test_missing_dask_is_one_line(meshes, capsys, monkeypatch):
     err = capsys.readouterr().err
     assert err.strip() == ("meshopt run: error: a Dask cluster needs dask.distributed: "
                            "pip install 'meshopt-toolkit[dask]'")
+
+
+def test_convert_recursive_in_parallel_then_resume(meshes, capsys):
+    Path("in/sub").mkdir()
+    save(grid_mesh(3), Path("in/sub/deep.msh"))
+    assert main(["convert", "in", "-r", "-o", "out", "--to", "vtu", "-j", "2"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[-1].startswith(f"wrote {Path('out') / 'sub' / 'deep.vtu'} (16 vertices, ")
+    assert len(out) == 6 and load(Path("out/sub/deep.vtu")) == grid_mesh(3)
+    assert main(["convert", "in", "-r", "-o", "out", "--to", "vtu", "--resume"]) == 0
+    cap = capsys.readouterr()
+    assert cap.out == "" and "0 done, 6 skipped, 0 failed in " in cap.err

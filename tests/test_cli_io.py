@@ -23,7 +23,8 @@ def files(tmp_path) -> dict[str, Path]:
         "msh": io.save(grid, tmp_path / "grid.msh"),
         "ply": io.save(square5(), tmp_path / "square.ply"),
         "cw": io.save(square5().flipped(), tmp_path / "cw.off"),
-        "surf": io.save(TriangleMesh([[0, 0, 0], [1, 0, 1], [0, 1, 2]], [[0, 1, 2]]),
+        "surf": io.save(TriangleMesh([[0, 0, 0], [1, 0, 1], [0, 1, 2], [1, 1, 0]],
+                                     [[0, 1, 2], [1, 3, 2]]),
                         tmp_path / "surf.obj"),
     }
     (tmp_path / "bad.obj").write_text("v 0 0 0\nv 1 0 0\nf 1 2 3\n")
@@ -45,7 +46,7 @@ def test_info_json_lines(files, capsys):
     assert grid["mean_shape_quality"] == q.mean_shape_quality
     assert grid["min_angle_deg"] == q.min_angle_deg and grid["min_area"] == q.min_area
     assert grid["problems"] == []
-    assert not surf["planar"] and surf["n_triangles"] == 1 and surf["min_aspect_ratio"] is None
+    assert not surf["planar"] and surf["n_triangles"] == 2 and surf["min_aspect_ratio"] is None
     assert not surf["admissible"] and surf["problems"]
     assert cw["reoriented"] and cw["admissible"] and cw["min_area"] == 1.0
 
@@ -162,3 +163,53 @@ def test_console_script(files):
     assert res.returncode == 0
     assert json.loads(res.stdout)["n_triangles"] == 4
     assert np.isclose(json.loads(res.stdout)["total_area"], 4.0)
+
+
+def test_info_and_convert_import_no_heavy_package(tmp_path):
+    """Issue 12: `meshopt info`/`convert` on a small file load neither scipy nor pymeshlab,
+    gmsh or matplotlib (the parser builds only the chosen subcommand)."""
+    import subprocess
+    import sys
+
+    obj = tmp_path / "s.obj"
+    obj.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 2 4 3\n")
+    code = (
+        "import sys\nfrom meshopt_toolkit.cli import main\n"
+        f"assert main(['info', {str(obj)!r}]) == 0\n"
+        f"assert main(['convert', {str(obj)!r}, '-o', {str(tmp_path / 's.ply')!r}]) == 0\n"
+        "print(sorted(m for m in ('scipy', 'pymeshlab', 'gmsh', 'matplotlib', 'trimesh') "
+        "if m in sys.modules))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip().splitlines()[-1] == "[]"
+
+
+def test_stale_part_file_of_a_killed_run_is_removed(tmp_path):
+    import subprocess
+    import sys
+
+    from meshopt_toolkit.io._atomic import clean_stale_parts
+
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True, check=True).stdout.strip()
+    stale = tmp_path / f".m.msh.{dead}.abc123.part"
+    live = tmp_path / ".n.msh.1.abc123.part"  # pid 1 is alive: someone else's, kept
+    stale.write_text("half")
+    live.write_text("busy")
+    io.save(TriangleMesh([[0, 0], [1, 0], [0, 1]], [[0, 1, 2]]), tmp_path / "other.obj")
+    assert not stale.exists() and live.exists()
+    assert clean_stale_parts(tmp_path) == []
+
+
+def test_directory_input_names_skipped_subfolders_or_recurses(files, tmp_path, caplog):
+    src = tmp_path / "in"
+    (src / "sub").mkdir(parents=True)
+    io.save(io.load(files["msh"]), src / "a.msh")
+    io.save(io.load(files["msh"]), src / "sub" / "b.msh")
+    with caplog.at_level("WARNING"):
+        assert main(["convert", str(src), "-o", str(tmp_path / "o1"), "--to", "vtu"]) == 0
+    assert "1 sub-folder(s) not searched (sub); use --recursive" in caplog.text
+    assert sorted(p.name for p in (tmp_path / "o1").rglob("*.vtu")) == ["a.vtu"]
+    assert main(["convert", str(src), "-o", str(tmp_path / "o2"), "--to", "vtu", "-r"]) == 0
+    assert (tmp_path / "o2" / "sub" / "b.vtu").exists() and (tmp_path / "o2" / "a.vtu").exists()

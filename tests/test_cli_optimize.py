@@ -13,8 +13,13 @@ from meshopt_toolkit.io import load, save
 
 def test_default_run_writes_everything(tmp_path, capsys):
     out = tmp_path / "out"
-    assert main(["optimize", "-o", str(out), "--max-iter", "3", "--json"]) == 0
-    summary = json.loads(capsys.readouterr().out)
+    # 3 iterations do not converge: exit 1 with one line on stderr, the files still written
+    assert main(["optimize", "-o", str(out), "--max-iter", "3", "--json"]) == 1
+    captured = capsys.readouterr()
+    summary = json.loads(captured.out)
+    assert summary["success"] is False and summary["status"] == "max_iterations"
+    assert summary["method"] == "lbfgs"
+    assert captured.err.count("\n") == 1 and "not converged" in captured.err
     for key in ("status", "iterations", "j", "objective", "mean_shape_quality",
                 "min_aspect_ratio", "seconds"):
         assert key in summary
@@ -30,8 +35,17 @@ def test_default_run_writes_everything(tmp_path, capsys):
     mesh = load(out / "optimized.msh")
     assert mesh.n_vertices == 146 and mesh.signed_areas().min() > 0
     assert mesh.tag_names  # physical groups survive
-    # a second run into the same directory replaces the previous run's files
-    assert main(["optimize", "-o", str(out), "--max-iter", "2", "--no-plots"]) == 0
+    # a second run into the same directory is refused without --force ...
+    before = (out / "summary.json").read_text()
+    assert main(["optimize", "-o", str(out), "--max-iter", "2", "--no-plots"]) == 1
+    assert "exists" in capsys.readouterr().err
+    assert (out / "summary.json").read_text() == before
+    # ... and with --force replaces the whole previous run (no stale figures beside it)
+    assert main(["optimize", "-o", str(out), "--max-iter", "2", "--no-plots", "--force"]) == 1
+    printed = capsys.readouterr().out
+    assert "png" not in printed  # --no-plots: the PNGs are not claimed
+    assert not (out / "mesh.png").exists() and not (out / "history.png").exists()
+    assert json.loads((out / "summary.json").read_text())["iterations"] == 2
 
 
 def test_refuses_unsafe_rhs_without_running_it(tmp_path, capsys):
@@ -62,7 +76,39 @@ def test_refuses_inverted_mesh_and_foreign_files(tmp_path, capsys, square):
 def test_custom_mesh_rhs_and_variant(tmp_path, capsys):
     out = tmp_path / "o"
     assert main(["optimize", "--variant", "euclidean-euclidean", "--rhs", "1", "--penalty",
-                 "0,0,0,0", "--max-iter", "2", "--no-plots", "-o", str(out), "--json"]) == 0
+                 "0,0,0,0", "--max-iter", "2", "--no-plots", "-o", str(out), "--json",
+                 "--method", "steepest"]) == 1
     summary = json.loads(capsys.readouterr().out)
     assert summary["variant"] == "euclidean-euclidean" and summary["penalty"] == 0.0
+    assert summary["method"] == "steepest"
     assert np.isfinite(summary["j"])
+
+
+@pytest.mark.parametrize("method", ["lbfgs", "cg"])
+def test_default_problem_converges_with_exit_0(tmp_path, capsys, method):
+    out = tmp_path / "o"
+    assert main(["optimize", "-o", str(out), "--method", method, "--no-plots", "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["success"] is True and summary["status"] == "converged"
+    assert summary["method"] == method and summary["iterations"] < 200
+    assert summary["objective"] < 0.0165  # thesis table 6.4 set 2: j + f2 ≈ 0.019 (initmesh)
+    rows = json.loads((out / "history.json").read_text())
+    assert {"method", "step", "wolfe", "pair_rejected", "rejected_trials"} <= set(rows[0])
+
+
+def test_unwritable_output_directory_is_one_clean_line(tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    code = main(["optimize", "-o", str(blocker / "sub"), "--max-iter", "1"])
+    err = capsys.readouterr().err
+    assert code == 1 and err.count("\n") == 1
+    assert "internal error" not in err and "cannot write" in err and str(blocker) in err
+
+
+def test_mesh_at_an_extreme_scale_is_refused_naming_the_scale(tmp_path, capsys, square):
+    path = tmp_path / "huge.msh"
+    save(square.with_points(square.points * 1e12), path)
+    code = main(["optimize", str(path), "-o", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert code == 1 and err.count("\n") == 1
+    assert "across" in err and "rescale" in err and "internal error" not in err

@@ -50,13 +50,22 @@ def test_meshio_roundtrip_with_tags(planar):
     assert to_meshio(mesh, pad_z=False).points.shape == (mesh.n_vertices, 2)
 
 
-def test_from_meshio_keeps_block_order_and_skips_other_cells():
+def test_from_meshio_keeps_block_order_and_skips_vertex_cells():
     pts = np.array([[0, 0], [1, 0], [0, 1], [1, 1], [2, 2]], float)
-    m = meshio.Mesh(pts, [("triangle", [[0, 1, 2]]), ("vertex", [[4]]), ("quad", [[0, 1, 3, 2]]),
+    m = meshio.Mesh(pts, [("triangle", [[0, 1, 2]]), ("vertex", [[4]]),
                           ("triangle", [[1, 3, 2]])])
     out = from_meshio(m)
     assert out.triangles.tolist() == [[0, 1, 2], [1, 3, 2]]
     assert out.n_vertices == 5 and out.triangle_tags is None
+
+
+def test_from_meshio_refuses_quads_naming_them():
+    pts = np.array([[0, 0], [1, 0], [0, 1], [1, 1], [2, 2]], float)
+    m = meshio.Mesh(pts, [("triangle", [[0, 1, 2]]), ("quad", [[0, 1, 3, 2]]),
+                          ("polygon", [[0, 1, 4, 3, 2]])])
+    with pytest.raises(InvalidMeshError, match=r"m\.vtu: has 1 quad, 1 polygon cells; only "
+                                                r"triangles are supported"):
+        from_meshio(m, source="m.vtu")
 
 
 def test_from_meshio_no_triangles():

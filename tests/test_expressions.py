@@ -6,6 +6,8 @@ import builtins
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from meshopt_toolkit.errors import ExpressionError
 from meshopt_toolkit.expressions import MAX_LENGTH, parse_expression
@@ -128,3 +130,68 @@ def test_not_a_string():
 def test_points_shape_checked():
     with pytest.raises(ExpressionError, match=r"\(M, 2\)"):
         parse_expression("x")(np.zeros(3))
+
+
+# constant parts that are not finite: refused when parsing, with their text and column
+NONFINITE_CONSTANTS = [
+    ("1/0", "'1/0' is not finite (division by zero) at column 1"),
+    ("0/0", "'0/0' is not finite (division by zero) at column 1"),
+    ("x + 2*(1/(1-1))", "'1/(1-1)' is not finite (division by zero) at column 8"),
+    ("2**10000", "'2**10000' is not finite (overflow or a domain error) at column 1"),
+    ("exp(1000)*x", "'exp(1000)' is not finite (overflow or a domain error) at column 1"),
+    ("1e308*10", "'1e308*10' is not finite (overflow or a domain error) at column 1"),
+    ("log(-1)", "'log(-1)' is not finite (outside the domain of log) at column 1"),
+    ("y + log(0)", "'log(0)' is not finite (outside the domain of log) at column 5"),
+    ("sqrt(-1)", "'sqrt(-1)' is not finite (outside the domain of sqrt) at column 1"),
+    ("(-8)**(1/3)", "'(-8)**(1/3)' is not finite (overflow or a domain error) at column 1"),
+    ("1e400", "number too large (1e400) at column 1"),
+    ("x**1e999", "number too large (1e999) at column 4"),
+    ("9" * 400, "number too large (" + "9" * 37 + "...) at column 1"),
+]
+
+
+@pytest.mark.parametrize("text,message", NONFINITE_CONSTANTS,
+                         ids=[t[0][:20] for t in NONFINITE_CONSTANTS])
+def test_nonfinite_constants_refused_when_parsed(text, message):
+    with pytest.raises(ExpressionError) as info:
+        parse_expression(text)
+    assert str(info.value) == message
+
+
+@pytest.mark.parametrize("text", ["x/0", "(0*x)**-1", "log(x - 10)", "exp(1000*x)"])
+def test_nonfinite_values_name_the_expression_and_point(text):
+    X = np.array([[1.0, 0.5]])
+    expr = parse_expression(text)
+    for evaluate in (expr, expr.gradient, expr.value_and_gradient):
+        with pytest.raises(ExpressionError,
+                           match=r"of '.*' is not finite at \(x, y\) = \(1, 0.5\)"):
+            evaluate(X)
+
+
+_LEAVES = st.sampled_from(["x", "y", "0", "1", "2", "0.5", "1e300", "1e-300", "pi"])
+
+
+def _combine(children):
+    binary = st.tuples(children, st.sampled_from(["+", "-", "*", "/", "**"]), children).map(
+        lambda t: f"({t[0]} {t[1]} {t[2]})")
+    unary = st.tuples(st.sampled_from(["sin", "cos", "tan", "exp", "log", "sqrt", "abs", "-"]),
+                      children).map(lambda t: f"{t[0]}({t[1]})")
+    pair = st.tuples(st.sampled_from(["min", "max"]), children, children).map(
+        lambda t: f"{t[0]}({t[1]}, {t[2]})")
+    return binary | unary | pair
+
+
+@settings(max_examples=300, deadline=None)
+@given(text=st.recursive(_LEAVES, _combine, max_leaves=8))
+def test_fuzz_only_expression_errors_or_finite_values(text):
+    """Any expression of the grammar: a finite value and gradient, or an ExpressionError
+    (never ZeroDivisionError, OverflowError, a warning or a non-finite number)."""
+    X = np.array([[0.0, 0.0], [1.0, -1.0], [0.3, 0.7]])
+    try:
+        expr = parse_expression(text)
+        v, g = expr.value_and_gradient(X)
+    except ExpressionError as exc:
+        assert "\n" not in str(exc)
+        return
+    assert np.isfinite(v).all() and np.isfinite(g).all()
+    np.testing.assert_array_equal(expr(X), v)

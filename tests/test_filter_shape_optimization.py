@@ -24,9 +24,10 @@ def disc():
     return load(data_path("disc_25.msh")).as_planar()
 
 
-def _expected(mesh):
+def _expected(mesh, method="lbfgs"):
     return optimize(mesh, PoissonObjective(mesh, rhs="1"), variant="complete-euclidean",
-                    penalty_beta=(0.1, 0.01, 0, 0.5), max_iter=4, tol=None)
+                    method=method, penalty_beta=(0.1, 0.01, 0, 0.5), max_iter=4, tol=None,
+                    ftol=None)
 
 
 @pytest.mark.parametrize("kind", ["python", "json", "mlx"])
@@ -54,3 +55,11 @@ def test_filter_refuses_unsafe_rhs_and_bad_beta(disc):
         f(Document([disc]), rhs="__import__('os').system('true')", max_iterations=1)
     with pytest.raises(FilterError, match="expected 4"):
         f(Document([disc]), penalty="1,2", max_iterations=1)
+
+
+@pytest.mark.parametrize("method", ["cg", "steepest"])
+def test_filter_method_parameter_selects_the_method(method, disc):
+    doc = Document([disc])
+    summary = registry.get(STEP["name"])()(doc, **{**STEP["params"], "method": method})
+    assert summary["method"] == method
+    np.testing.assert_allclose(doc.mesh.points, _expected(disc, method).x, rtol=0, atol=1e-12)

@@ -116,13 +116,14 @@ def test_square_is_admissible(square):
 
 
 def test_non_planar_is_reported():
-    r = check_mesh(TriangleMesh([[0, 0, 0], [1, 0, 0], [0, 1, 1e-3]], [[0, 1, 2]]))
+    r = check_mesh(TriangleMesh([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 1e-3]],
+                                [[0, 1, 2], [1, 3, 2]]))
     assert not r.planar and not r.manifold and "not planar" in r.problems[0]
 
 
 def test_unused_vertex():
     r = _problem(SQ_PTS + [[5, 5]], SQ_TRI)
-    assert not r.manifold
+    assert r.manifold  # not a non-manifold edge or vertex, but not admissible either
     assert "vertex 5 is not used" in r.problems[0]
 
 
@@ -140,10 +141,9 @@ def test_edge_in_three_triangles():
 def test_inconsistent_orientation():
     tri = [list(t) for t in SQ_TRI]
     tri[2] = tri[2][::-1]
-    r = _problem(SQ_PTS, tri)
-    assert not r.manifold
-    assert "inconsistent orientation" in r.problems[0]
-    assert any(f"({a}, {b})" in r.problems[0] for a, b in [(2, 4), (3, 4)])
+    r = check_mesh(TriangleMesh(SQ_PTS, tri))  # oriented by propagation (issue 12)
+    assert r.manifold and r.admissible and r.reoriented and r.n_reoriented == 1
+    assert r.mesh.triangles.tolist() == SQ_TRI
 
 
 def test_disconnected_pieces():
@@ -573,9 +573,9 @@ def test_fans_per_vertex_against_brute_force():
     for _ in range(150):
         m = mutated_mesh(rng)
         report = check_mesh(m)
-        if any("orientation" in p or "shared by" in p or "repeats" in p for p in report.problems):
+        if any("orientable" in p or "shared by" in p or "repeats" in p for p in report.problems):
             continue  # _fans_per_vertex needs an edge-manifold, oriented mesh
-        fans = _fans_per_vertex(PlanarMesh(m.points, m.triangles))
+        fans = _fans_per_vertex(PlanarMesh(m.points, report.mesh.triangles))
         np.testing.assert_array_equal(fans, brute_force_fans(m.triangles, m.n_vertices))
         n_bow += int(fans.max() > 1)
     assert n_bow > 5

@@ -344,18 +344,29 @@ def test_cli_morph_max_iter_and_callback(tmp_path, capsys, disc):
     assert np.all(np.diff(energies) <= 0)  # the energy never grows
 
 
-def test_filter_generate_geodesic_morph():
+@pytest.mark.parametrize("metric", ["distortion", "scalar"])
+def test_filter_generate_geodesic_morph(metric):
+    from meshopt_toolkit.motion.morph import distortion_morph
     from meshopt_toolkit.pipeline.document import Document
     from meshopt_toolkit.pipeline.filter import registry
+    from meshopt_toolkit.scaling import unit_scale
 
     mesh = grid_mesh(4, jitter=0.3)
-    doc = Document([mesh, mesh.with_points(bend(mesh))])
+    target = mesh.with_points(bend(mesh))
+    doc = Document([mesh, target])
     cls = registry.get("generate_geodesic_morph")
-    summary = cls()(doc, frames=3)
+    summary = cls()(doc, frames=3, metric=metric)
     assert len(doc) == 5 and doc.current == 4
     assert np.allclose(doc.mesh.points[:, :2], bend(mesh))
     assert doc.current_entry.face_attributes["quality"].min() > 0
     assert summary["admissible"] and summary["frames"] == 3
+    # the filter morphs at unit size (meshopt_toolkit.scaling), as meshopt morph does
+    scale = unit_scale(mesh, target)
+    a, b = scale.mesh_down(mesh), scale.mesh_down(target)
+    library = (distortion_morph(a, b, frames=3) if metric == "distortion"
+               else geodesic_morph(a, b, frames=3))
+    middle = doc.entries[3].mesh.points[:, :2]
+    assert np.allclose(middle, scale.up(library.meshes(like=a)[1].points), atol=1e-9)
 
 
 @pytest.mark.parametrize("kind", ["json", "mlx"])

@@ -6,7 +6,10 @@ Each subcommand lives in its own module of this package and defines
 - ``add_args(parser)``: its arguments,
 - ``run(args) -> int``: the handler, returning the exit status.
 
-Modules are discovered by name, so adding a subcommand means adding a module. Errors
+Modules are discovered by name, so adding a subcommand means adding a module. Only the
+chosen subcommand's ``add_args`` runs (it may import heavy defaults, e.g. the optimizer's
+variants), so ``meshopt info`` and ``meshopt convert`` load neither scipy nor pymeshlab nor
+gmsh nor matplotlib; ``build_parser()`` without a command builds every subcommand. Errors
 derived from :class:`~meshopt_toolkit.errors.MeshoptError` become one line on stderr and
 exit status 1 (2 for usage errors); ``--debug`` shows the traceback instead.
 """
@@ -31,8 +34,28 @@ def _subcommand_modules() -> list[str]:
     return sorted(found, key=lambda n: (_ORDER.index(n) if n in _ORDER else len(_ORDER), n))
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The full argument parser (used by ``main`` and by the docs)."""
+def _command_of(argv: list[str]) -> str | None:
+    """The subcommand named in ``argv`` (its first word not starting with ``-``), if any.
+
+    The top-level options take no value, so the first plain word is the subcommand.
+    """
+    for word in argv:
+        if word == "--":
+            return None
+        if not word.startswith("-"):
+            return word
+    return None
+
+
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The argument parser (used by ``main`` and by the docs).
+
+    Parameters
+    ----------
+    command : str, optional
+        Build only this subcommand's arguments (the others are listed with their help
+        line but take no arguments); None builds all of them.
+    """
     parser = argparse.ArgumentParser(
         prog="meshopt",
         description="Keep planar triangle meshes healthy while they move.",
@@ -41,9 +64,12 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
     parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for name in _subcommand_modules():
+    names = _subcommand_modules()
+    for name in names:
         module = importlib.import_module(f".{name}", __name__)
         p = sub.add_parser(name, help=module.HELP, description=module.HELP)
+        if command is not None and command in names and name != command:
+            continue
         p.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
                        help="show tracebacks on errors")
         module.add_args(p)
@@ -53,8 +79,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit status (0 ok, 1 failure, 2 usage error)."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    words = sys.argv[1:] if argv is None else list(argv)
+    parser = build_parser(_command_of(words))
+    args = parser.parse_args(words)
     level = logging.WARNING - 10 * min(args.verbose, 2)
     logging.basicConfig(level=level, format="%(levelname)s: %(message)s")
     if not getattr(args, "command", None):

@@ -1,19 +1,28 @@
-"""Helpers shared by the subcommands: expanding batch inputs, parsing number lists."""
+"""Helpers shared by the subcommands: expanding batch inputs, parsing number lists,
+checking and writing outputs."""
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import glob
+import logging
+import os
+import tempfile
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
-from ..errors import MeshoptError
+from ..errors import MeshoptError, WriteError
 
 #: extensions treated as meshes when a directory is given as input
 MESH_SUFFIXES = (".msh", ".obj", ".ply", ".off", ".vtk", ".vtu", ".stl")
 
 
-def expand_inputs(items: list[str]) -> list[Path]:
-    """Files, globs and directories (their mesh files, not recursive) → sorted unique paths.
+def expand_inputs(items: list[str], recursive: bool = False) -> list[Path]:
+    """Files, globs and directories (their mesh files) → sorted unique paths.
+
+    A directory contributes the mesh files directly in it; with ``recursive`` also those
+    in its sub-folders (hidden ones excluded). Skipped sub-folders are logged as a warning.
 
     Raises
     ------
@@ -24,7 +33,7 @@ def expand_inputs(items: list[str]) -> list[Path]:
     for item in items:
         p = Path(item)
         if p.is_dir():
-            found = sorted(q for q in p.iterdir() if q.suffix.lower() in MESH_SUFFIXES)
+            found = _directory_meshes(p, recursive)
             if not found:
                 raise MeshoptError(f"{item}: directory has no mesh files ({', '.join(MESH_SUFFIXES)})")
             paths.extend(found)
@@ -47,6 +56,19 @@ def expand_inputs(items: list[str]) -> list[Path]:
     return unique
 
 
+def _directory_meshes(p: Path, recursive: bool) -> list[Path]:
+    files = sorted(q for q in (p.rglob("*") if recursive else p.iterdir())
+                   if q.suffix.lower() in MESH_SUFFIXES and q.is_file()
+                   and not any(part.startswith(".") for part in q.relative_to(p).parts))
+    if not recursive:
+        subs = sorted(q.name for q in p.iterdir() if q.is_dir() and not q.name.startswith("."))
+        if subs:
+            logging.getLogger("meshopt").warning(
+                "%s: %d sub-folder(s) not searched (%s); use --recursive to include them",
+                p, len(subs), ", ".join(subs[:5]) + (", ..." if len(subs) > 5 else ""))
+    return files
+
+
 def float_list(n: int | None = None):
     """An argparse type for comma-separated floats, e.g. ``--beta 10,1,0,0.1``."""
 
@@ -60,3 +82,100 @@ def float_list(n: int | None = None):
         return values
 
     return parse
+
+
+# ------------------------------------------------------------------------------ outputs
+# Checked before any work, so an unwritable output fails in a second with one line naming
+# the path, not after a long computation with "internal error: PermissionError".
+
+
+def check_writable(directory: Path, shown: Path | None = None) -> None:
+    """Create and remove a temporary file in ``directory``; WriteError naming ``shown``.
+
+    A real write, not ``os.access``: right for root, ACLs and read-only file systems.
+    """
+    shown = directory if shown is None else shown
+    try:
+        fd, name = tempfile.mkstemp(prefix=".meshopt-probe.", dir=directory)
+    except OSError as exc:
+        raise WriteError(f"{shown}: cannot write in {directory}: "
+                         f"{exc.strerror or exc}") from None
+    os.close(fd)
+    with contextlib.suppress(OSError):
+        os.unlink(name)
+
+
+def check_output_file(out: Path, *, force: bool, inputs: Iterable[Path] = ()) -> Path:
+    """Check that the mesh file ``out`` can be written: the checks of every subcommand.
+
+    Refused: an existing file without ``force``, a directory, one of ``inputs``, a missing
+    or unwritable parent directory.
+
+    Raises
+    ------
+    WriteError
+        One line naming ``out`` and the reason.
+    """
+    out = Path(out)
+    if out.is_dir():
+        raise WriteError(f"{out}: is a directory (give a file name, or use --frames)")
+    if out.exists() and not force:
+        raise WriteError(f"{out}: exists (use --force to overwrite)")
+    for src in inputs:
+        if out.resolve() == Path(src).resolve():
+            raise WriteError(f"{out}: refusing to overwrite the input mesh")
+    parent = out.parent if str(out.parent) else Path(".")
+    if not parent.is_dir():
+        what = "is not a directory" if parent.exists() else "does not exist"
+        raise WriteError(f"{out}: {parent} {what}")
+    check_writable(parent, out)
+    return out
+
+
+def prepare_output_dir(out: Path, *, force: bool, names: Iterable[str] | None = None) -> Path:
+    """Create the output directory ``out`` (with parents) and check it is writable.
+
+    An existing directory must be empty, or (with ``names``) hold none of ``names``,
+    unless ``force``.
+
+    Raises
+    ------
+    WriteError
+        ``out`` exists and is not a directory, cannot be created or written, or holds
+        outputs and ``force`` is false. One line naming the path.
+    """
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise WriteError(f"{out}: exists and is not a directory (a directory is written)")
+    if out.is_dir() and not force:
+        if names is None:
+            if any(out.iterdir()):
+                raise WriteError(f"{out}: directory is not empty (use --force to overwrite)")
+        else:
+            clash = [n for n in names if (out / n).exists()]
+            if clash:
+                raise WriteError(f"{out / clash[0]}: exists (use --force to overwrite)")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise WriteError(f"{out}: cannot create the output directory: "
+                         f"{exc.strerror or exc}") from None
+    check_writable(out, out)
+    return out
+
+
+@contextlib.contextmanager
+def writing(path: Path) -> Iterator[None]:
+    """Turn an ``OSError`` while writing ``path`` into one WriteError line naming it."""
+    try:
+        yield
+    except OSError as exc:
+        raise WriteError(f"{path}: cannot write: {exc.strerror or exc}") from None
+
+
+def write_text(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` atomically (temporary file, then rename)."""
+    from ..io import atomic_path
+
+    with atomic_path(path) as tmp, writing(path):
+        tmp.write_text(text, encoding="utf-8")

@@ -1,20 +1,32 @@
 """``meshopt convert INPUT... -o OUTPUT [--to EXT] [--force]``: convert mesh files.
 
 One input: OUTPUT is a file and its extension picks the format. Several inputs (or a glob
-or directory): OUTPUT is a directory (created if missing) and ``--to`` picks the format.
+or directory): OUTPUT is a directory (created if missing) and ``--to`` picks the format;
+``--recursive`` includes the sub-folders of an input directory (mirrored under OUTPUT),
+otherwise skipped sub-folders are named in a warning.
+
+Conversion is lossless or refused: every cell block (triangles, quads, polygons, lines,
+vertices, ...), point, cell and field data is written, physical groups travel as
+``gmsh:physical``/``gmsh:geometrical`` cell data; a target format that cannot hold a part
+refuses the file with one line naming it, and so does an input with content the reader
+cannot represent (e.g. OBJ texture coordinates). Each success prints
+``wrote OUT (N vertices, M cells)``.
+
 Existing outputs, the input included, are never overwritten without ``--force``; each
 write is atomic. A bad file in a batch is reported and skipped; the exit status is then 1.
-Usage errors exit with 2. ``-j``, ``--resume``, ``--scheduler`` and ``--shared-inputs``
-work as in ``meshopt run``.
+Usage errors exit with 2. :func:`convert_file` converts one file (for batch runners).
+``-j``, ``--resume``, ``--scheduler`` and ``--shared-inputs`` work as in ``meshopt run``.
 """
 
 from __future__ import annotations
 
+import argparse
 import glob
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import MeshoptError
+from ..errors import MeshoptError, ReadError
 
 HELP = "convert mesh files between formats (msh, obj, ply, off, vtk, vtu, stl)"
 
@@ -35,9 +47,77 @@ def add_args(parser) -> None:
                       help="text output")
     parser.add_argument("--msh-version", choices=("4.1", "2.2"), default="4.1",
                         help="gmsh version for .msh output (default 4.1)")
+    parser.add_argument("-r", "--recursive", action="store_true",
+                        help="include the sub-folders of input directories")
+    parser.add_argument("--max-file-size", type=_size, default=None, metavar="SIZE",
+                        help="refuse input files larger than this (default 4G; e.g. 500M, 16G)")
     from .run import add_batch_args
 
     add_batch_args(parser)
+
+
+def _size(text: str) -> int:
+    from ..io._files import parse_size
+
+    try:
+        return parse_size(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+@dataclass
+class ConvertOptions:
+    """What :func:`convert_file` needs of the command line."""
+
+    force: bool = False
+    binary: bool | None = None
+    msh_version: str = "4.1"
+    max_bytes: int | None = None
+
+    @classmethod
+    def from_args(cls, args) -> "ConvertOptions":
+        return cls(force=bool(getattr(args, "force", False)),
+                   binary=getattr(args, "binary", None),
+                   msh_version=getattr(args, "msh_version", "4.1"),
+                   max_bytes=getattr(args, "max_file_size", None))
+
+
+def convert_file(src: str | Path, dst: str | Path, options: ConvertOptions):
+    """Convert one file losslessly (or refuse) and return the written
+    :class:`~meshopt_toolkit.io.CellMesh`.
+
+    Raises
+    ------
+    ReadError
+        Unreadable input, or content the reader cannot represent (``dropped``).
+    WriteError
+        Existing output without ``force``, or a part the output format cannot hold.
+    """
+    from ..errors import WriteError
+    from ..io import load_cells, save_cells
+
+    src, dst = Path(src), Path(dst)
+    if not options.force and dst.exists():
+        same = dst.resolve() == src.resolve()
+        raise WriteError(f"{dst}: {'is the input file' if same else 'already exists'} "
+                         "(use --force to overwrite)")
+    cells = load_cells(src, max_bytes=options.max_bytes)
+    if cells.dropped:
+        raise ReadError(f"{src}: cannot convert without loss: {', '.join(cells.dropped)} "
+                        "would not be kept")
+    save_cells(cells, dst, overwrite=options.force, binary=options.binary,
+               msh_version=options.msh_version)
+    return cells
+
+
+def _wrote(dst: Path, cells) -> str:
+    return f"wrote {dst} ({cells.n_points} vertices, {cells.n_cells} cells)"
+
+
+def _convert_in_batch(src: Path, dst: Path, args) -> dict:
+    """:func:`convert_file` as a batch task calls it (a worker process or a Dask worker)."""
+    cells = convert_file(src, dst, ConvertOptions.from_args(args))
+    return {"n_points": int(cells.n_points), "n_cells": int(cells.n_cells)}
 
 
 def _usage(msg: str) -> int:
@@ -57,13 +137,19 @@ def _plan(args) -> tuple[list[tuple[Path, Path]], list[str]] | int:
         if to not in writable:
             return _usage(f"--to {args.to}: unknown format; choose from {', '.join(writable)}")
     inputs: list[Path] = []
+    rel: dict[Path, Path] = {}  # input → output name relative to OUTPUT
     failures: list[str] = []
     batch = len(args.inputs) > 1
+    recursive = bool(getattr(args, "recursive", False))
     for item in args.inputs:
-        if Path(item).is_dir() or (not Path(item).exists() and glob.has_magic(item)):
+        is_dir = Path(item).is_dir()
+        if is_dir or (not Path(item).exists() and glob.has_magic(item)):
             batch = True
         try:
-            inputs.extend(p for p in expand_inputs([item]) if p not in inputs)
+            for p in expand_inputs([item], recursive=recursive):
+                if p not in inputs:
+                    inputs.append(p)
+                    rel[p] = p.relative_to(item).parent if is_dir and recursive else Path()
         except MeshoptError as exc:
             failures.append(str(exc))
     out = Path(args.output)
@@ -86,25 +172,13 @@ def _plan(args) -> tuple[list[tuple[Path, Path]], list[str]] | int:
         return _usage("several inputs: OUTPUT is a directory and --to EXT picks the format")
     if out.exists() and not out.is_dir():
         return _usage(f"several inputs: OUTPUT {out} must be a directory, it is a file")
-    jobs = [(p, out / (p.stem + to)) for p in inputs]
+    jobs = [(p, out / rel.get(p, Path()) / (p.stem + to)) for p in inputs]
     seen: dict[Path, Path] = {}
     for src, dst in jobs:
         if dst in seen:
             return _usage(f"{src} and {seen[dst]} would both be written to {dst}")
         seen[dst] = src
     return jobs, failures
-
-
-def _convert_one(src: Path, dst: Path, args) -> None:
-    from ..errors import WriteError
-    from ..io import load, save
-
-    if not args.force and dst.exists():
-        same = dst.resolve() == src.resolve()
-        raise WriteError(f"{dst}: {'is the input file' if same else 'already exists'} "
-                         "(use --force to overwrite)")
-    mesh = load(src)
-    save(mesh, dst, overwrite=args.force, binary=args.binary, msh_version=args.msh_version)
 
 
 def run(args) -> int:
@@ -122,18 +196,26 @@ def run(args) -> int:
         print(f"meshopt convert: error: {msg}", file=sys.stderr)
     if not jobs:
         return 1
+    options = ConvertOptions.from_args(args)
     simple = not args.resume and not args.scheduler  # -j does not matter for one file
     if simple and len(jobs) == 1 and not failures and jobs[0][1] == Path(args.output):
-        _convert_one(*jobs[0], args)  # a single file: errors go to main()
+        cells = convert_file(*jobs[0], options)  # a single file: errors go to main()
+        print(_wrote(jobs[0][1], cells), flush=True)
         return 0
-    outdir = jobs[0][1].parent
-    task = ConvertTask(_convert_one, args, args.to and jobs[0][1].suffix)
+    outdir = Path(args.output) if jobs[0][1] != Path(args.output) else jobs[0][1].parent
+
+    def wrote(rec: dict) -> str:
+        info = rec["results"][0]
+        return f"wrote {rec['outputs'][0]} ({info['n_points']} vertices, {info['n_cells']} cells)"
+
+    task = ConvertTask(_convert_in_batch, args, args.to and jobs[0][1].suffix)
     with BatchProgress(len(jobs), "convert") as bar, batch_client(args) as client:
-        result = execute(task, (Job(i, src, dst.name) for i, (src, dst) in enumerate(jobs, 1)),
+        result = execute(task, (Job(i, src, str(dst.relative_to(outdir)))
+                                for i, (src, dst) in enumerate(jobs, 1)),
                          outdir, workers=args.jobs, client=client,
                          send_inputs="path" if args.shared_inputs else "bytes",
                          resume=args.resume, force=args.force,
-                         on_record=reporter("convert", False, bar), progress=bar)
+                         on_record=reporter("convert", False, bar, wrote), progress=bar)
     result.failed += len(failures)  # inputs that matched nothing
     print(f"meshopt convert: {result.summary()}", file=sys.stderr)
     return 1 if result.failed else 0

@@ -5,7 +5,14 @@ file, or a mesh with the same connectivity (velocity = its points − the input'
 Without ``--frames`` the final mesh is written to ``-o OUT`` (a mesh file). With
 ``--frames K`` OUT is a directory receiving ``frame_000.<ext>`` … (K meshes along the
 path), ``snapshots.png``, ``aspect_ratio.png`` (mesh aspect ratio over time, like thesis
-fig. 5.26) and ``quality.csv``. Existing outputs are never overwritten without ``--force``.
+fig. 5.26) and ``quality.csv``. Existing outputs are never overwritten without ``--force``;
+outputs are checked before the integration starts, which shows a progress bar on a
+terminal.
+
+The mesh is deformed at unit size (divided by the power of two nearest its size, see
+:mod:`meshopt_toolkit.scaling`) and scaled back, so the result does not depend on the
+units of the file, and coordinates near 1e300 or 1e-300 work; the ``penalty`` and
+``energy`` columns of ``quality.csv`` are those of the unit-size problem.
 """
 
 from __future__ import annotations
@@ -14,8 +21,13 @@ import argparse
 import logging
 from pathlib import Path
 
-from ..errors import InvalidMeshError, WriteError
-from ._common import float_list
+from ..bounds import MAX_FRAMES
+from ..errors import WriteError
+from ._common import check_output_file, float_list, prepare_output_dir, write_text
+from ._validate import check_int, check_number, check_numbers
+
+#: accepted range of --rtol (tighter stalls in round-off, looser is not an integration)
+MIN_RTOL, MAX_RTOL = 1e-14, 0.1
 
 HELP = "deform a mesh along a complete-metric geodesic, keeping it admissible"
 
@@ -34,8 +46,10 @@ def add_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--displacement", required=True, metavar="D",
                    help="initial velocity: .npy or .csv (N, 2) array, or a mesh with the same "
                         "connectivity")
-    p.add_argument("--time", type=float, default=1.0, help="final time T (default: %(default)s)")
-    p.add_argument("--frames", type=int, help="write K frames on [0, T] into the OUT directory")
+    p.add_argument("--time", type=float, default=1.0,
+                   help="final time T >= 0 (default: %(default)s)")
+    p.add_argument("--frames", type=int,
+                   help=f"write K frames on [0, T] into the OUT directory (2 <= K <= {MAX_FRAMES})")
     group = p.add_mutually_exclusive_group()
     group.add_argument("--alpha", type=float_list(3), metavar="a1,a2,a3",
                        help="f1 parameters (default: 1,0,1)")
@@ -43,60 +57,71 @@ def add_args(p: argparse.ArgumentParser) -> None:
                        help="use f2 with these parameters instead (β4 unscaled)")
     p.add_argument("--euclidean", action="store_true",
                    help="follow the Euclidean geodesic Q + tV instead (for comparison)")
-    p.add_argument("--rtol", type=float, help="integrator tolerance rtol = atol (default: 1e-6)")
+    p.add_argument("--rtol", type=float,
+                   help=f"integrator tolerance rtol = atol, in [{MIN_RTOL:g}, {MAX_RTOL:g}] "
+                        "(default: 1e-6)")
     p.add_argument("--format", default=None, metavar="EXT",
                    help="frame file extension with --frames (default: the input's)")
     p.add_argument("--no-png", action="store_true", help="with --frames: skip the PNG figures")
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
 
 
+def _check_numbers(args: argparse.Namespace) -> None:
+    check_number("--time", args.time, low=0.0)
+    check_int("--frames", args.frames, 2, MAX_FRAMES)
+    check_numbers("--alpha", args.alpha)
+    check_numbers("--beta", args.beta)
+    check_number("--rtol", args.rtol, low=MIN_RTOL, high=MAX_RTOL)
+
+
 def run(args: argparse.Namespace) -> int:
     from ..deform import deform, load_displacement
     from ..io import load, save
     from ..mesh import require_admissible
+    from ..progress import ProgressBar
+    from ..scaling import unit_scale
 
+    _check_numbers(args)
     src = Path(args.mesh)
-    mesh = require_admissible(load(src), "deform")
-    V = load_displacement(args.displacement, mesh)
     out = Path(args.output)
     frames = args.frames
-    if frames is not None and frames < 2:
-        raise InvalidMeshError(f"--frames must be at least 2, got {frames}")
     ext = (args.format or src.suffix).lower()
     if not ext.startswith("."):
         ext = "." + ext
     if frames is None:
-        if out.exists() and not args.force:
-            raise WriteError(f"{out}: exists (use --force to overwrite)")
-        if out.is_dir():
-            raise WriteError(f"{out}: is a directory (give a file name, or use --frames)")
-        if out.resolve() == src.resolve():
-            raise WriteError(f"{out}: refusing to overwrite the input mesh")
-    else:
-        if out.exists() and not out.is_dir():
-            raise WriteError(f"{out}: exists and is not a directory (--frames writes a directory)")
-        if out.is_dir() and any(out.iterdir()) and not args.force:
-            raise WriteError(f"{out}: directory is not empty (use --force to overwrite)")
+        check_output_file(out, force=args.force, inputs=[src])
+    elif out.exists() and not out.is_dir():
+        raise WriteError(f"{out}: exists and is not a directory (--frames writes a directory)")
+    raw = load(src)
+    scale = unit_scale(raw)  # work at unit size (exact powers of two), results scaled back
+    mesh = require_admissible(scale.mesh_down(raw), "deform")
+    V = scale.down(load_displacement(args.displacement, scale.mesh_up(mesh)))
+    if frames is not None:
+        prepare_output_dir(out, force=args.force)
 
-    res = deform(
-        mesh, V, t=args.time, frames=frames, alpha=args.alpha, beta=args.beta,
-        metric="euclidean" if args.euclidean else "complete", rtol=args.rtol,
-        atol=None if args.rtol is None else args.rtol,
-    )
+    with ProgressBar(1000, "deform") as bar:
+        def progress(fraction: float) -> None:
+            bar.update(int(1000 * fraction) - bar.count)
+
+        res = deform(
+            mesh, V, t=args.time, frames=frames, alpha=args.alpha, beta=args.beta,
+            metric="euclidean" if args.euclidean else "complete", rtol=args.rtol,
+            atol=None if args.rtol is None else args.rtol, progress=progress,
+        )
     if frames is None:
-        save(res.mesh, out, overwrite=True)
+        save(scale.mesh_up(res.mesh), out, overwrite=args.force)
         print(f"{out}: t = {args.time:g}, mesh aspect ratio {res.aspect_ratio[0]:.4f} -> "
               f"{res.aspect_ratio[-1]:.4f}")
         return 0
 
-    out.mkdir(parents=True, exist_ok=True)
     width = max(3, len(str(frames - 1)))
     for k, m in enumerate(res.meshes()):
-        save(m, out / f"frame_{k:0{width}d}{ext}", overwrite=True)
-    with open(out / "quality.csv", "w", encoding="utf-8") as fh:
-        fh.write("t,min_aspect_ratio,penalty,energy\n")
-        g = res.geodesic
-        fh.writelines(f"{t:.10g},{ar:.10g},{f:.10g},{e:.10g}\n" for t, ar, f, e in zip(res.times, res.aspect_ratio, g.penalty, g.energy))
+        name = f"frame_{k:0{width}d}{ext}"
+        save(scale.mesh_up(m, what=name), out / name, overwrite=True)
+    g = res.geodesic
+    write_text(out / "quality.csv", "t,min_aspect_ratio,penalty,energy\n" + "".join(
+        f"{t:.10g},{ar:.10g},{f:.10g},{e:.10g}\n"
+        for t, ar, f, e in zip(res.times, res.aspect_ratio, g.penalty, g.energy)))
     if not args.no_png:
         from ..plotting import save_quality_plot, save_snapshot_strip
 

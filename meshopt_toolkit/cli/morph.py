@@ -8,6 +8,12 @@ Writes ``frame_000.<ext>`` … (frame 0 the source, the last the target), ``stri
 strip of snapshots), ``quality.png`` (minimum aspect ratio per frame of the geodesic and
 of linear interpolation, with the linear path's inverted frames marked) and
 ``summary.json``.
+
+Both meshes are morphed at unit size (divided by one power of two nearest their size, see
+:mod:`meshopt_toolkit.scaling`) and the frames scaled back, so coordinates near 1e300 or
+1e-300 work and the frames do not depend on the units; the numbers in ``summary.json`` are
+those of the unit-size problem (lengths, areas, energies), with the factor as
+``unit_scale``.
 """
 
 from __future__ import annotations
@@ -17,8 +23,9 @@ import json
 import sys
 from pathlib import Path
 
-from ..errors import MeshoptError, WriteError
-from ._common import float_list
+from ..bounds import MAX_FRAMES, MAX_ITERATIONS
+from ._common import float_list, prepare_output_dir, write_text
+from ._validate import check_int, check_number, check_numbers
 
 HELP = "geodesic morph between two meshes of the same connectivity (never inverts)"
 
@@ -31,7 +38,8 @@ def add_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("source", help="source mesh (frame 0)")
     p.add_argument("target", help="target mesh (last frame), same vertices and triangles")
     p.add_argument("-o", "--output", required=True, help="output directory")
-    p.add_argument("--frames", type=int, default=9, help="number of frames K >= 2 (default: %(default)s)")
+    p.add_argument("--frames", type=int, default=9,
+                   help=f"number of frames, 2 <= K <= {MAX_FRAMES} (default: %(default)s)")
     p.add_argument("--metric", choices=("distortion", "scalar"), default="distortion",
                    help="per-triangle distortion metric (frames as healthy as their ends) or "
                         "the complete metric of the scalar penalty f2 (default: %(default)s)")
@@ -57,29 +65,32 @@ def add_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
 
 
+def _check_numbers(args: argparse.Namespace) -> None:
+    check_int("--frames", args.frames, 2, MAX_FRAMES)
+    check_int("--max-iter", args.max_iter, 1, MAX_ITERATIONS)
+    check_number("--weight", args.weight, low=0.0, low_open=True)
+    check_numbers("--beta", args.beta)
+
+
 def run(args: argparse.Namespace) -> int:
     from .. import io
     from ..morph import geodesic_morph
     from ..plotting import save_morph_figures
     from ..progress import ProgressBar
+    from ..scaling import unit_scale
 
-    if args.frames < 2:
-        raise MeshoptError("--frames must be at least 2")
-    if args.max_iter is not None and args.max_iter < 1:
-        raise MeshoptError("--max-iter must be at least 1")
-    if not args.weight > 0 or args.weight == float("inf"):
-        raise MeshoptError(f"--weight must be a positive number, got {args.weight}")
+    _check_numbers(args)
     src_path, tgt_path = Path(args.source), Path(args.target)
     source = io.load(src_path)
     target = io.load(tgt_path)
+    # work at unit size (one exact power of two for both ends), results scaled back
+    scale = unit_scale(source, target)
+    source, target = scale.mesh_down(source), scale.mesh_down(target)
     ext = (args.format or src_path.suffix.lstrip(".") or "msh").lower().lstrip(".")
     outdir = Path(args.output)
     width = max(3, len(str(args.frames - 1)))
     names = [f"frame_{k:0{width}d}.{ext}" for k in range(args.frames)]
-    outdir.mkdir(parents=True, exist_ok=True)
-    clash = [n for n in names + list(PLOTS) + ["summary.json"] if (outdir / n).exists()]
-    if clash and not args.force:
-        raise WriteError(f"{outdir / clash[0]}: exists (use --force to overwrite)")
+    prepare_output_dir(outdir, force=args.force, names=names + list(PLOTS) + ["summary.json"])
     if args.metric == "distortion":
         from ..motion.morph import distortion_morph
 
@@ -98,15 +109,13 @@ def run(args: argparse.Namespace) -> int:
                                     callback=lambda nit, E, g: bar.update(status=f"E={E:.8g}"))
     base = source.as_planar()
     for name, mesh in zip(names, result.meshes(like=base)):
-        io.save(mesh, outdir / name, overwrite=True)
+        io.save(scale.mesh_up(mesh, what=name), outdir / name, overwrite=True)
     summary = result.summary()
-    summary.update(source=str(src_path), target=str(tgt_path), files=names)
+    summary.update(source=str(src_path), target=str(tgt_path), files=names,
+                   unit_scale=scale.factor)
     if args.metric == "scalar":
         summary["beta"] = list(args.beta)
-    from ..io import atomic_path
-
-    with atomic_path(outdir / "summary.json") as tmp:
-        tmp.write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
+    write_text(outdir / "summary.json", json.dumps(summary, indent=2) + "\n")
     if not args.no_plots:
         save_morph_figures(result, outdir / "strip.png", outdir / "quality.png")
     if args.json:

@@ -5,7 +5,13 @@ or by ``--map "X_EXPR; Y_EXPR"`` (new positions of the boundary vertices where `
 holds; the other boundary vertices stay). Without ``--frames`` the moved mesh is written to
 ``-o OUT``; with ``--frames K``, OUT is a directory with ``frame_000.<ext>`` … and
 ``quality.csv``. ``--json`` prints a summary (inverted count, min aspect ratio, mean Λ,
-handle error, seconds). Existing outputs are never overwritten without ``--force``.
+handle error, seconds). Existing outputs are never overwritten without ``--force``; they
+are checked before the motion is computed.
+
+The mesh moves at unit size (divided by the power of two nearest its size, see
+:mod:`meshopt_toolkit.scaling`; ``--map`` and ``--targets`` stay in the file's units) and
+is scaled back, so coordinates near 1e300 or 1e-300 work; the summary's numbers are those
+of the unit-size problem, with the factor as ``unit_scale``.
 """
 
 from __future__ import annotations
@@ -14,7 +20,10 @@ import argparse
 import json
 from pathlib import Path
 
-from ..errors import InvalidMeshError, WriteError
+from ..errors import WriteError
+from ._common import check_output_file, prepare_output_dir, write_text
+from ..bounds import MAX_FRAMES, MAX_STEPS
+from ._validate import OptionError, check_int, check_number
 
 HELP = "move chosen vertices exactly to targets; the rest follows, no triangle inverts"
 
@@ -39,9 +48,11 @@ def add_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--where", metavar="EXPR",
                    help="with --map: which boundary vertices move, e.g. 'x < 0.5' "
                         "(default: all; the others stay fixed)")
-    p.add_argument("--frames", type=int, help="write K frames of the motion into OUT/")
+    p.add_argument("--frames", type=int,
+                   help=f"write K frames of the motion into OUT/ (2 <= K <= {MAX_FRAMES})")
     p.add_argument("--steps", type=int, default=8,
-                   help="continuation steps (default: %(default)s; split further when needed)")
+                   help=f"continuation steps, 1 to {MAX_STEPS} (default: %(default)s; split "
+                        "further when needed)")
     p.add_argument("--weight", type=float, default=1.0,
                    help="w of the metric M + w² JᵀJ (default: %(default)s)")
     p.add_argument("--format", default=None, metavar="EXT",
@@ -51,16 +62,11 @@ def add_args(p: argparse.ArgumentParser) -> None:
 
 
 def _check_numbers(args: argparse.Namespace) -> None:
-    import math
-
-    if args.frames is not None and not 2 <= args.frames <= 1000:
-        raise InvalidMeshError(f"--frames must be between 2 and 1000, got {args.frames}")
-    if not 1 <= args.steps <= 1000:
-        raise InvalidMeshError(f"--steps must be between 1 and 1000, got {args.steps}")
-    if not (math.isfinite(args.weight) and args.weight > 0):
-        raise InvalidMeshError(f"--weight must be a positive number, got {args.weight}")
+    check_int("--frames", args.frames, 2, MAX_FRAMES)
+    check_int("--steps", args.steps, 1, MAX_STEPS)
+    check_number("--weight", args.weight, low=0.0, low_open=True)
     if args.where is not None and args.map is None:
-        raise InvalidMeshError("--where needs --map")
+        raise OptionError("--where needs --map")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -69,50 +75,47 @@ def run(args: argparse.Namespace) -> int:
     from ..motion.move import move
     from ..motion.targets import read_target_table, targets_from_map
     from ..progress import ProgressBar
+    from ..scaling import unit_scale
 
     _check_numbers(args)
     src = Path(args.mesh)
     out = Path(args.output)
     frames = args.frames
     if frames is None:
-        if out.exists() and not args.force:
-            raise WriteError(f"{out}: exists (use --force to overwrite)")
-        if out.is_dir():
-            raise WriteError(f"{out}: is a directory (give a file name, or use --frames)")
-    else:
-        if out.exists() and not out.is_dir():
-            raise WriteError(f"{out}: exists and is not a directory (--frames writes a directory)")
-        if out.is_dir() and any(out.iterdir()) and not args.force:
-            raise WriteError(f"{out}: directory is not empty (use --force to overwrite)")
-    mesh = require_admissible(load(src), "move")
+        check_output_file(out, force=args.force, inputs=[src])
+    elif out.exists() and not out.is_dir():
+        raise WriteError(f"{out}: exists and is not a directory (--frames writes a directory)")
+    raw = load(src)
+    scale = unit_scale(raw)  # work at unit size (exact powers of two), results scaled back
+    mesh = require_admissible(scale.mesh_down(raw), "move")
     if args.targets is not None:
         handles, targets = read_target_table(args.targets)
-    else:
-        handles, targets = targets_from_map(mesh, args.map, args.where)
+    else:  # the expressions are in the file's units
+        handles, targets = targets_from_map(scale.mesh_up(mesh), args.map, args.where)
+    if frames is not None:
+        prepare_output_dir(out, force=args.force)
     with ProgressBar(1000, "move") as bar:
         def progress(s: float) -> None:
             bar.update(int(1000 * s) - bar.count)
 
-        result = move(mesh, handles, targets, frames=frames, steps=args.steps,
+        result = move(mesh, handles, scale.down(targets), frames=frames, steps=args.steps,
                       weight=args.weight, progress=progress)
     if frames is None:
-        if out.resolve() == src.resolve():
-            raise WriteError(f"{out}: refusing to overwrite the input mesh")
-        save(result.mesh, out, overwrite=args.force)
+        save(scale.mesh_up(result.mesh), out, overwrite=args.force)
         written = str(out)
     else:
         ext = (args.format or src.suffix).lower()
         ext = ext if ext.startswith(".") else "." + ext
-        out.mkdir(parents=True, exist_ok=True)
         width = max(3, len(str(frames - 1)))
         for k, m in enumerate(result.frames):
-            save(m, out / f"frame_{k:0{width}d}{ext}", overwrite=True)
-        with open(out / "quality.csv", "w", encoding="utf-8") as fh:
-            fh.write("frame,min_aspect_ratio,mean_quality,strain_bound\n")
-            fh.writelines(f"{k},{a:.10g},{q:.10g},{b:.10g}\n" for k, (a, q, b) in enumerate(
-                zip(result.min_aspect_ratio, result.mean_quality, result.strain_bound)))
+            name = f"frame_{k:0{width}d}{ext}"
+            save(scale.mesh_up(m, what=name), out / name, overwrite=True)
+        rows = zip(result.min_aspect_ratio, result.mean_quality, result.strain_bound)
+        write_text(out / "quality.csv", "frame,min_aspect_ratio,mean_quality,strain_bound\n"
+                   + "".join(f"{k},{a:.10g},{q:.10g},{b:.10g}\n"
+                             for k, (a, q, b) in enumerate(rows)))
         written = f"{out}/ ({frames} frames, quality.csv)"
-    summary = result.summary()
+    summary = {**result.summary(), "unit_scale": scale.factor}
     if args.json:
         print(json.dumps({"output": str(out), **summary}, indent=2))
     else:

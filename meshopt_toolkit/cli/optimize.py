@@ -1,7 +1,8 @@
 """``meshopt optimize``: PDE-constrained shape optimization (the main job).
 
 Without a mesh it solves the thesis' model problem (SPEC §6) on the bundled 146-vertex
-disc with variant complete-euclidean and the thesis' parameter set 2 (table 6.3).
+disc with variant complete-euclidean and the thesis' parameter set 2 (table 6.3), by
+Riemannian L-BFGS (``--method``; the default is chosen in ``benchmarks/bench_optimize.py``).
 """
 
 from __future__ import annotations
@@ -10,7 +11,9 @@ import argparse
 import csv
 import json
 import logging
+import os
 import sys
+import tempfile
 from pathlib import Path
 
 from ..errors import ExpressionError, MeshoptError, WriteError
@@ -26,19 +29,26 @@ logger = logging.getLogger(__name__)
 
 
 def add_args(p: argparse.ArgumentParser) -> None:
-    from ..optimize import VARIANTS
+    from ..optimize import DEFAULT_METHOD, METHODS, VARIANTS
 
     p.formatter_class = argparse.RawDescriptionHelpFormatter
     p.epilog = (
         "β4 is given unscaled: f2 divides it by 2N (thesis table 6.3 lists β4/N_V).\n"
         "Default (no MESH): bundled disc_146.msh, complete-euclidean, β^penalty = thesis\n"
-        "parameter set 2 = (0.1, 0.01, 0, 0.001·N), β^metric = (10, 1, 0, 0.01·N)."
+        "parameter set 2 = (0.1, 0.01, 0, 0.001·N), β^metric = (10, 1, 0, 0.01·N).\n"
+        "Exit status 1 when the run does not converge (max iterations, step too small);\n"
+        "its (admissible) last mesh is still written."
     )
     p.add_argument("mesh", nargs="?", help=f"input mesh (default: the bundled {DEFAULT_MESH})")
     p.add_argument("-o", "--output", default="meshopt-optimize",
                    help="output directory (default: %(default)s)")
     p.add_argument("--variant", choices=VARIANTS, default="complete-euclidean",
                    help="gradient metric and retraction (default: %(default)s)")
+    p.add_argument("--method", choices=METHODS, default=DEFAULT_METHOD,
+                   help="lbfgs: Riemannian L-BFGS, cg: nonlinear CG (Hestenes-Stiefel+), "
+                        "steepest: the thesis' steepest descent (default: %(default)s)")
+    p.add_argument("--memory", type=int, default=10,
+                   help="L-BFGS memory (curvature pairs kept, default: %(default)s)")
     p.add_argument("--penalty", type=float_list(4), metavar="b1,b2,b3,b4",
                    help="β^penalty of f2 added to j; 0,0,0,0 = unpenalized "
                         "(default: thesis parameter set 2)")
@@ -52,21 +62,39 @@ def add_args(p: argparse.ArgumentParser) -> None:
                    help="keep the vertices of this physical group (name or number) fixed")
     p.add_argument("--max-iter", type=int, default=1000, help="maximum iterations (default: %(default)s)")
     p.add_argument("--tol", type=float, default=1e-6,
-                   help="stopping tolerance of (6.26); 0 = run all iterations (default: %(default)s)")
+                   help="steepest: stopping tolerance of (6.26); lbfgs/cg: the same test relative "
+                        "to max(|F|, 1); 0 = off (default: %(default)s)")
+    p.add_argument("--gtol", type=float, default=1e-5,
+                   help="stop when the Riemannian gradient norm falls to GTOL times its first "
+                        "value; 0 = off (default: %(default)s)")
     p.add_argument("--no-plots", action="store_true", help="do not write PNG figures")
     p.add_argument("--force", action="store_true", help="overwrite existing output files")
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
 
 
 def _prepare_outdir(outdir: Path, mesh_name: str, force: bool, input_path: Path) -> None:
-    outdir.mkdir(parents=True, exist_ok=True)
+    """Check (before the run) that ``outdir`` can take this run's files.
+
+    Without ``force`` any existing output file (a previous run's included) is refused; with
+    it the previous run's files are removed first, so a directory never mixes two runs.
+    The directory is created and probed for writing, so a permission problem is reported
+    as one line before hours of work.
+    """
     names = (mesh_name,) + OUTPUT_NAMES
     if (outdir / mesh_name).resolve() == input_path.resolve():
         raise WriteError(f"{outdir / mesh_name}: refusing to overwrite the input mesh")
-    previous_run = (outdir / "summary.json").exists()
     clash = [n for n in names if (outdir / n).exists()]
-    if clash and not (force or previous_run):
+    if clash and not force:
         raise WriteError(f"{outdir / clash[0]}: exists (use --force to overwrite)")
+    try:
+        outdir.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(prefix=".meshopt-probe-", dir=outdir)
+        os.close(fd)
+        os.unlink(probe)
+        for name in clash:
+            (outdir / name).unlink()
+    except OSError as exc:
+        raise WriteError(f"{outdir}: cannot write the results there ({exc.strerror or exc})") from None
 
 
 def _atomic_text(path: Path, text: str) -> None:
@@ -106,18 +134,24 @@ def run(args: argparse.Namespace) -> int:
 
     with bar:
         result = optimize(
-            mesh, objective, variant=args.variant, penalty_beta=penalty,
-            metric_beta=args.metric_penalty, fixed=fixed, max_iter=args.max_iter,
-            tol=args.tol if args.tol > 0 else None, callback=callback,
+            mesh, objective, variant=args.variant, method=args.method,
+            penalty_beta=penalty, metric_beta=args.metric_penalty, fixed=fixed,
+            max_iter=args.max_iter, tol=args.tol if args.tol > 0 else None,
+            ftol=args.tol if args.tol > 0 else None,
+            gtol=args.gtol if args.gtol > 0 else None, memory=args.memory, callback=callback,
         )
-    io.save(result.mesh, outdir / mesh_name, overwrite=True)
     summary = result.summary()
     summary.update(input=str(input_path), output=str(outdir / mesh_name),
                    penalty_beta=list(penalty), rhs=args.rhs)
-    _write_history(outdir, result)
-    _atomic_text(outdir / "summary.json", json.dumps(summary, indent=2) + "\n")
-    if not args.no_plots:
-        _write_plots(outdir, mesh, result, args.rhs)
+    written = [mesh_name, "history.csv", "history.json", "summary.json"]
+    try:
+        io.save(result.mesh, outdir / mesh_name, overwrite=True)
+        _write_history(outdir, result)
+        _atomic_text(outdir / "summary.json", json.dumps(summary, indent=2) + "\n")
+        if not args.no_plots and _write_plots(outdir, mesh, result, args.rhs):
+            written += ["mesh.png", "history.png"]
+    except OSError as exc:
+        raise WriteError(f"{outdir}: cannot write the results ({exc.strerror or exc})") from None
     if args.json:
         json.dump(summary, sys.stdout)
         sys.stdout.write("\n")
@@ -126,7 +160,11 @@ def run(args: argparse.Namespace) -> int:
         print(f"iterations {result.nit}  j = {result.j:.6f}  j + f2 = {result.fun:.6f}  "
               f"Λ = {summary['mean_shape_quality']:.4f}  AR = {summary['min_aspect_ratio']:.4f}  "
               f"({result.seconds:.2f} s)")
-        print(f"wrote {outdir}/ ({mesh_name}, {', '.join(OUTPUT_NAMES)})")
+        print(f"wrote {outdir}/ ({', '.join(written)})")
+    if not result.success:
+        print(f"meshopt optimize: error: {input_path}: not converged ({result.status}): "
+              f"{result.message}; the last iterate was written to {outdir / mesh_name}",
+              file=sys.stderr)
     return 0 if result.success else 1
 
 
@@ -141,7 +179,8 @@ def _write_history(outdir: Path, result) -> None:
     _atomic_text(outdir / "history.json", json.dumps(rows, indent=1) + "\n")
 
 
-def _write_plots(outdir: Path, mesh, result, rhs_text: str) -> None:
+def _write_plots(outdir: Path, mesh, result, rhs_text: str) -> bool:
+    """Write mesh.png and history.png; False (with a warning) when they cannot be made."""
     from ..expressions import parse_expression
     from ..plotting import save_optimization_plots
 
@@ -151,3 +190,5 @@ def _write_plots(outdir: Path, mesh, result, rhs_text: str) -> None:
                                 parse_expression(rhs_text))
     except MeshoptError as exc:  # e.g. matplotlib missing: the run itself succeeded
         logger.warning("figures not written: %s", exc)
+        return False
+    return True

@@ -37,6 +37,7 @@ import sys
 from pathlib import Path
 
 from ..errors import MeshoptError
+from ._common import check_writable
 
 HELP = "run a pipeline (.json or MeshLab .mlx) over one mesh or a batch"
 
@@ -97,6 +98,7 @@ def _outdir(args) -> Path | None:
         except OSError as exc:
             raise MeshoptError(f"{outdir}: cannot create the output directory: "
                                f"{exc.strerror or exc}") from None
+        check_writable(outdir)  # before any file is processed
     return outdir
 
 
@@ -220,14 +222,18 @@ def batch_client(args):
         client.close()
 
 
-def reporter(command: str, as_json: bool, bar):
-    """The per-record callback: warnings and errors on stderr, JSON lines on stdout."""
+def reporter(command: str, as_json: bool, bar, line_ok=None):
+    """The per-record callback: warnings and errors on stderr, JSON lines on stdout, and
+    ``line_ok(record)`` on stdout for each file done (``meshopt convert``'s "wrote ...")."""
 
     def report(rec: dict) -> None:
         for warning in rec.get("warnings") or ():
             bar.message(f"meshopt {command}: warning: {rec['input']}: {warning}")
         if rec["status"] == "failed":
             bar.message(f"meshopt {command}: error: {rec['error']}")
+        elif rec["status"] == "ok" and line_ok is not None:
+            bar.clear()
+            print(line_ok(rec), flush=True)
         if as_json:
             print(json.dumps(rec), flush=True)
 

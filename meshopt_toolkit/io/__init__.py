@@ -1,9 +1,14 @@
 """Mesh file I/O: one module per format behind an extension registry.
 
 ``load(path)`` and ``save(mesh, path)`` pick the reader/writer from the file extension in
-:data:`READERS` / :data:`WRITERS` (plain dicts: extension → function). Every failure is a
-:class:`~meshopt_toolkit.errors.ReadError` or :class:`~meshopt_toolkit.errors.WriteError`
-naming the file; writes are atomic (temporary file in the same directory, then rename).
+:data:`READERS` / :data:`WRITERS` (plain dicts: extension → function) and work with
+triangle meshes. ``load_cells(path)`` and ``save_cells(cells, path)`` (:data:`CELL_READERS`
+/ :data:`CELL_WRITERS`) move everything a file holds, as a :class:`~.cells.CellMesh`:
+every cell type, point, cell and field data; a writer refuses what its format cannot
+hold. Every failure is a :class:`~meshopt_toolkit.errors.ReadError` or
+:class:`~meshopt_toolkit.errors.WriteError` naming the file; only regular files are read
+(a FIFO or a device is refused before it is opened), up to :data:`MAX_FILE_BYTES`; writes
+are atomic (temporary file in the same directory, then rename).
 
 =========  ==========================================  ===================================
 format     read                                        write (default)
@@ -29,10 +34,14 @@ from ..errors import MeshoptError, ReadError, WriteError
 from ..mesh import TriangleMesh
 from . import gmsh, obj, off, ply, stl, vtk
 from ._atomic import atomic_path
+from ._files import MAX_FILE_BYTES, check_input_file
+from .cells import CellMesh
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["load", "save", "READERS", "WRITERS", "atomic_path", "supported_extensions"]
+__all__ = ["load", "save", "load_cells", "save_cells", "CellMesh", "READERS", "WRITERS",
+           "CELL_READERS", "CELL_WRITERS", "MAX_FILE_BYTES", "atomic_path",
+           "supported_extensions"]
 
 Reader = Callable[[Path], TriangleMesh]
 Writer = Callable[..., None]
@@ -60,17 +69,42 @@ WRITERS: dict[str, Writer] = {
 }
 
 
+#: extension → reader(path) -> CellMesh (everything the file holds)
+CELL_READERS: dict[str, Callable[[Path], CellMesh]] = {
+    ".msh": gmsh.read_cells,
+    ".obj": obj.read_cells,
+    ".off": off.read_cells,
+    ".ply": ply.read_cells,
+    ".vtk": vtk.read_vtk_cells,
+    ".vtu": vtk.read_vtu_cells,
+    ".stl": stl.read_cells,
+}
+
+#: extension → writer(path, cells, binary) -> None; refuses what the format cannot hold
+CELL_WRITERS: dict[str, Writer] = {
+    ".msh": gmsh.write_cells,
+    ".obj": obj.write_cells,
+    ".off": off.write_cells,
+    ".ply": ply.write_cells,
+    ".vtk": vtk.write_vtk_cells,
+    ".vtu": vtk.write_vtu_cells,
+    ".stl": stl.write_cells,
+}
+
+
 def supported_extensions(kind: str = "read") -> list[str]:
     """Registered extensions for ``"read"`` or ``"write"``."""
     return sorted(READERS if kind == "read" else WRITERS)
 
 
-def load(path: str | os.PathLike) -> TriangleMesh:
+def load(path: str | os.PathLike, *, max_bytes: int | None = None) -> TriangleMesh:
     """Read a mesh file, choosing the format from its extension.
 
     Parameters
     ----------
     path : str or PathLike
+    max_bytes : int, optional
+        Refuse larger files (default :data:`MAX_FILE_BYTES`).
 
     Returns
     -------
@@ -83,20 +117,45 @@ def load(path: str | os.PathLike) -> TriangleMesh:
     Raises
     ------
     ReadError
-        Missing or unreadable file, unknown extension, malformed or truncated content, or a
-        failed readable-level check (NaN coordinate, index out of range, no triangle);
-        the message starts with the file name.
+        Missing or unreadable file, not a regular file, larger than ``max_bytes``,
+        unknown extension, malformed or truncated content, cells other than triangles,
+        lines and vertices, or a failed readable-level check (NaN coordinate, index out
+        of range, no triangle); the message starts with the file name.
     """
+    return _read(path, READERS, max_bytes)
+
+
+def load_cells(path: str | os.PathLike, *, max_bytes: int | None = None) -> CellMesh:
+    """Read everything a mesh file holds (every cell block, point, cell and field data).
+
+    Parameters
+    ----------
+    path : str or PathLike
+    max_bytes : int, optional
+        Refuse larger files (default :data:`MAX_FILE_BYTES`).
+
+    Returns
+    -------
+    CellMesh
+        ``dropped`` lists what the file holds that the reader cannot represent (e.g. OBJ
+        texture coordinates).
+
+    Raises
+    ------
+    ReadError
+        As :func:`load`, except that cell types are not checked.
+    """
+    return _read(path, CELL_READERS, max_bytes)
+
+
+def _read(path, table: dict, max_bytes: int | None):
     path = Path(path)
     ext = path.suffix.lower()
-    reader = READERS.get(ext)
+    reader = table.get(ext)
     if reader is None:
         raise ReadError(f"{path}: unknown mesh format {ext or '(no extension)'!r}; "
                         f"known: {', '.join(supported_extensions())}")
-    if not path.exists():
-        raise ReadError(f"{path}: no such file")
-    if path.is_dir():
-        raise ReadError(f"{path}: is a directory")
+    check_input_file(path, max_bytes)
     try:
         return reader(path)
     except ReadError:
@@ -105,7 +164,9 @@ def load(path: str | os.PathLike) -> TriangleMesh:
         raise ReadError(f"{exc}" if str(path) in str(exc) else f"{path}: {exc}") from exc
     except OSError as exc:
         raise ReadError(f"{path}: {exc.strerror or exc}") from None
-    except (ValueError, IndexError, TypeError, KeyError, UnicodeDecodeError, MemoryError) as exc:
+    except (ValueError, IndexError, TypeError, KeyError, UnicodeDecodeError, MemoryError,
+            OverflowError, EOFError, AttributeError, AssertionError, LookupError,
+            ArithmeticError) as exc:
         raise ReadError(f"{path}: malformed {ext} file ({type(exc).__name__}: {exc})") from None
 
 
@@ -151,12 +212,43 @@ def save(
                          f"known: {', '.join(supported_extensions('write'))}")
     if not isinstance(mesh, TriangleMesh):
         raise WriteError(f"{path}: expected a TriangleMesh, got {type(mesh).__name__}")
-    kwargs = {"version": msh_version} if ext == ".msh" else {}
     if ext != ".msh" and (mesh.lines is not None or mesh.triangle_tags is not None):
         logger.info("%s: %s files do not keep physical tags or line elements", path, ext)
+    return _write(writer, mesh, path, ext, overwrite, binary, msh_version)
+
+
+def save_cells(
+    cells: CellMesh,
+    path: str | os.PathLike,
+    *,
+    overwrite: bool = True,
+    binary: bool | None = None,
+    msh_version: str = "4.1",
+) -> Path:
+    """Write everything of ``cells`` atomically, or refuse.
+
+    Parameters are those of :func:`save`.
+
+    Raises
+    ------
+    WriteError
+        As :func:`save`, and when the format cannot hold a part of ``cells`` (a cell
+        type, point, cell or field data): the message names it; nothing is written.
+    """
+    path = Path(path)
+    ext = path.suffix.lower()
+    writer = CELL_WRITERS.get(ext)
+    if writer is None:
+        raise WriteError(f"{path}: unknown mesh format {ext or '(no extension)'!r}; "
+                         f"known: {', '.join(supported_extensions('write'))}")
+    return _write(writer, cells, path, ext, overwrite, binary, msh_version)
+
+
+def _write(writer, data, path: Path, ext: str, overwrite, binary, msh_version) -> Path:
+    kwargs = {"version": msh_version} if ext == ".msh" else {}
     with atomic_path(path, overwrite=overwrite) as tmp:
         try:
-            writer(tmp, mesh, binary, **kwargs)
+            writer(tmp, data, binary, **kwargs)
         except WriteError as exc:
             raise WriteError(str(exc).replace(str(tmp), str(path))) from None
         except (OSError, ValueError, TypeError) as exc:

@@ -2,12 +2,63 @@
 
 from __future__ import annotations
 
+import contextlib
+import io
+import logging
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InvalidMeshError, ReadError, WriteError
 from ..mesh import PlanarMesh, TriangleMesh
+
+logger = logging.getLogger(__name__)
+
+
+@contextlib.contextmanager
+def quiet() -> Iterator[None]:
+    """Route meshio's console warnings (printed to stderr) to the log instead."""
+    buf = io.StringIO()
+    with contextlib.redirect_stderr(buf):
+        yield
+    if buf.getvalue().strip():
+        logger.debug("meshio: %s", buf.getvalue().strip())
+
+
+def refuse(path, fmt: str, what: list[str], hint: str = "use .vtu") -> None:
+    """Raise :class:`WriteError` ``PATH: FMT files cannot hold WHAT (HINT)`` if ``what``."""
+    if what:
+        raise WriteError(f"{path}: {fmt} files cannot hold {', '.join(what)} ({hint})")
+
+
+def data_names(cm, point: bool = True, cell: bool = True, fields: bool = True) -> list[str]:
+    """``["point data 'u'", "cell data 'gmsh:physical'", ...]`` of a cell mesh."""
+    out = []
+    if point:
+        out += [f"point data {k!r}" for k in cm.point_data]
+    if cell:
+        out += [f"cell data {k!r}" for k in cm.cell_data]
+    if fields:
+        out += [f"field data {k!r}" for k in cm.field_data]
+    return out
+
+
+def cells_other_than(cm, allowed) -> list[str]:
+    """``["18 quad cells", ...]`` for the blocks whose type is not in ``allowed``."""
+    counts = {}
+    for t, c in cm.cells:
+        if t not in allowed and len(c):
+            counts[t] = counts.get(t, 0) + len(c)
+    return [f"{n} {t} cells" for t, n in counts.items()]
+
+
+def pad3(points: np.ndarray) -> np.ndarray:
+    """``(N, 3)`` float64 points (z = 0 added to 2D points)."""
+    p = np.asarray(points, dtype=np.float64)
+    if p.shape[1] == 3:
+        return np.ascontiguousarray(p)
+    return np.column_stack([p, np.zeros(len(p))])
 
 
 def build_mesh(points, triangles, source: str | Path, **tags) -> TriangleMesh:

@@ -19,26 +19,41 @@ from __future__ import annotations
 
 import logging
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..errors import ReadError, WriteError
-from ..mesh import TriangleMesh
-from ._common import build_mesh, format_rows, points3d
+from ._common import format_rows, quiet
+from .cells import (GEOMETRICAL, NODES_PER_CELL, PHYSICAL, CellMesh, cell_dimension, check_cells,
+                    triangle_mesh)
+
+if TYPE_CHECKING:  # pragma: no cover
+    from ..mesh import TriangleMesh
+
+_quiet = quiet
 
 logger = logging.getLogger(__name__)
 
-TRIANGLE, LINE = 2, 1  # gmsh element types
 VERSIONS = ("2.2", "4.1")
 
 
 # ----------------------------------------------------------------------------- reading
+#: gmsh element type → meshio cell type, for the types the direct parser reads
+GMSH_TO_MESHIO = {15: "vertex", 1: "line", 2: "triangle", 3: "quad", 4: "tetra",
+                  5: "hexahedron", 6: "wedge", 7: "pyramid", 8: "line3", 9: "triangle6",
+                  10: "quad9", 11: "tetra10", 16: "quad8"}
+
+
 def read(path: Path) -> TriangleMesh:
-    """Read a gmsh file; triangles, tagged lines, physical tags and names are kept."""
-    from meshio.gmsh import read as meshio_gmsh_read
+    """Read a gmsh file as a triangle mesh (triangles, tagged lines, physical tags and
+    names); other cell types are refused (see :func:`~.cells.CellMesh.to_triangle_mesh`)."""
+    return triangle_mesh(read_cells(path))
 
-    from ..conversions import from_meshio
 
+def read_cells(path: Path) -> CellMesh:
+    """Read everything of a gmsh file: every element block, physical and geometrical
+    tags, physical names, and node/element data (through meshio)."""
     with open(path, "rb") as fh:
         head = fh.read(64).lstrip()
     if not (head.startswith(b"$MeshFormat") or head.startswith(b"$Comments")):
@@ -48,45 +63,61 @@ def read(path: Path) -> TriangleMesh:
             parsed = _read_binary41(fh)
         if parsed is not None:
             return _build(path, *parsed)
+    from meshio.gmsh import read as meshio_gmsh_read
+
     try:
-        m = meshio_gmsh_read(path)
+        with _quiet():
+            m = meshio_gmsh_read(path)
     except (Exception, SystemExit) as exc:  # meshio may sys.exit on failure
         detail = str(exc) or type(exc).__name__
         if isinstance(exc, (ValueError, EOFError, IndexError)) or "buffer" in detail:
             detail = f"truncated or corrupt ({detail})"
         raise ReadError(f"{path}: cannot read gmsh file: {detail}") from None
-    return from_meshio(m, source=str(path))
+    for key in (PHYSICAL, GEOMETRICAL):
+        if key in m.cell_data and len(m.cell_data[key]) != len(m.cells):
+            raise ReadError(f"{path}: physical tags on some element entities only "
+                            "(cannot tell which elements they belong to)")
+    try:
+        cm = CellMesh.from_meshio(m, source=str(path))
+    except (ValueError, TypeError) as exc:
+        raise ReadError(f"{path}: cannot read gmsh file: {exc}") from None
+    check_cells(cm)
+    return _without_trivial_tags(cm)
 
 
-def _build(path: Path, points, blocks, names: dict) -> TriangleMesh:
-    """The mesh of parsed element ``blocks`` ``[(type, nodes (M, k) int64, phys or None)]``,
-    as :func:`~meshopt_toolkit.conversions.from_meshio` builds it from meshio's reading."""
-    from meshio.gmsh.common import _gmsh_to_meshio_type
+def _without_trivial_tags(cm: CellMesh) -> CellMesh:
+    """Leave out tags that hold nothing our writer would not write again: physical tags
+    that are all 0 (no group), then geometrical tags that are all 1 (one entity)."""
+    def all_equal(key, value):
+        return all(not len(a) or (np.asarray(a) == value).all() for a in cm.cell_data[key])
 
-    tris = [(e, t) for etype, e, t in blocks if etype == TRIANGLE]
-    lines = [(e, t) for etype, e, t in blocks if etype == LINE]
-    skipped = {_gmsh_to_meshio_type[etype] for etype, _, _ in blocks} - {"triangle", "line"}
-    if skipped:
-        logger.info("%s: skipped cells of type %s", path, ", ".join(sorted(skipped)))
-    triangles = tris[0][0] if len(tris) == 1 else np.concatenate([e for e, _ in tris])
-    tags: dict = {"triangle_tags": None, "tag_names": names}
-    if tris[0][1] is not None:  # every block has a physical tag, or none has
-        tt = np.concatenate([np.full(len(e), t, np.int64) for e, t in tris])
-        if np.any(tt):
-            tags["triangle_tags"] = tt
-    if lines:
-        tags["lines"] = np.concatenate([e for e, _ in lines])
-        tags["line_tags"] = np.concatenate(
-            [np.full(len(e), 0 if t is None else t, np.int64) for e, t in lines]
-        )
-    return build_mesh(points, triangles, source=path, **tags)
+    if PHYSICAL in cm.cell_data and all_equal(PHYSICAL, 0):
+        del cm.cell_data[PHYSICAL]
+    if PHYSICAL not in cm.cell_data and GEOMETRICAL in cm.cell_data and all_equal(GEOMETRICAL, 1):
+        del cm.cell_data[GEOMETRICAL]
+    return cm
+
+
+def _build(path: Path, points, blocks, names: dict) -> CellMesh:
+    """The cell mesh of parsed element ``blocks`` ``[(type, nodes, phys, entity)]`` as
+    meshio's gmsh reader builds it (physical tag 0 where an entity has none)."""
+    cells = [(GMSH_TO_MESHIO[etype], e) for etype, e, _, _ in blocks]
+    cell_data = {}
+    if any(t is not None for _, _, t, _ in blocks):
+        cell_data[PHYSICAL] = [np.full(len(e), 0 if t is None else t, np.int64)
+                               for _, e, t, _ in blocks]
+    cell_data[GEOMETRICAL] = [np.full(len(e), g, np.int64) for _, e, _, g in blocks]
+    field_data = {name: np.array([tag, dim]) for name, (tag, dim) in names.items()}
+    cm = CellMesh(points, cells, cell_data=cell_data, field_data=field_data, source=str(path))
+    check_cells(cm)
+    return _without_trivial_tags(cm)
 
 
 def _read_binary41(fh):
     """:func:`_parse_binary41`, or None where it fails (truncated or damaged data)."""
     try:
         return _parse_binary41(fh)
-    except (ValueError, KeyError, OSError, MemoryError, UnicodeDecodeError):
+    except (ValueError, KeyError, OSError, MemoryError, UnicodeDecodeError, IndexError):
         return None
 
 
@@ -97,11 +128,11 @@ def _parse_binary41(fh):
     -------
     (points (N, 3) float64, blocks, names) or None
         ``blocks`` lists ``(element type, nodes (M, k) int64 0-based, physical tag or
-        None)`` in file order, ``names`` is ``{name: (tag, dim)}``. None when the file
-        has anything this parser does not handle exactly like meshio (other sections,
-        sparse or unordered node tags, parametric nodes, element nodes out of range,
-        physical tags on some blocks only, no triangle): the caller then reads it with
-        meshio.
+        None, entity tag)`` in file order, ``names`` is ``{name: (tag, dim)}``. None when
+        the file has anything this parser does not handle exactly like meshio (other
+        sections, sparse or unordered node tags, parametric nodes, element nodes out of
+        range, element types outside :data:`GMSH_TO_MESHIO`): the caller then reads it
+        with meshio.
 
     Raises
     ------
@@ -110,10 +141,9 @@ def _parse_binary41(fh):
     """
     import shlex
 
-    from meshio._common import num_nodes_per_cell
-    from meshio.gmsh.common import _gmsh_to_meshio_type
-
     def take(dtype: str, count: int) -> np.ndarray:
+        if count < 0 or count > 1 << 40:
+            raise ValueError("bad count")
         a = np.fromfile(fh, dtype=dtype, count=count)
         if len(a) != count:
             raise ValueError("truncated")
@@ -182,72 +212,103 @@ def _parse_binary41(fh):
             for _ in range(n_blocks):
                 dim, tag, etype = take("<i4", 3).tolist()
                 m = int(take("<u8", 1)[0])
-                if etype not in _gmsh_to_meshio_type:
+                if etype not in GMSH_TO_MESHIO:
                     return None
-                k = num_nodes_per_cell[_gmsh_to_meshio_type[etype]]
+                k = NODES_PER_CELL[GMSH_TO_MESHIO[etype]]
                 data = take("<u8", m * (1 + k)).reshape(m, 1 + k)[:, 1:]
-                if etype in (TRIANGLE, LINE):
-                    if m and (int(data.min()) < 1 or int(data.max()) > len(points)):
-                        return None  # meshio's node-tag map decides what that means
-                    nodes = np.subtract(data, 1, dtype=np.int64, casting="unsafe")
-                else:
-                    nodes = np.zeros((0, k), np.int64)
+                if m and (int(data.min()) < 1 or int(data.max()) > len(points)):
+                    return None  # meshio's node-tag map decides what that means
+                nodes = np.subtract(data, 1, dtype=np.int64, casting="unsafe")
                 if physical is not None and (dim, tag) not in physical:
                     return None
                 phys = physical.get((dim, tag)) if physical is not None else None
-                blocks.append((etype, nodes, phys[0] if phys else None))
+                blocks.append((etype, nodes, phys[0] if phys else None, tag))
             end(b"Elements")
         else:
             return None  # any other section (or a repeated one): meshio's business
-    if points is None or not blocks or not any(b[0] == TRIANGLE for b in blocks):
+    if points is None or blocks is None:
         return None
-    if len({b[2] is None for b in blocks}) > 1:
-        return None  # physical tags on some blocks only: keep meshio's reading of that
     return points, blocks, names
 
 
 # ----------------------------------------------------------------------------- writing
-def _runs(tags: np.ndarray) -> list[tuple[int, int, int]]:
-    """Maximal runs ``(start, stop, tag)`` of equal consecutive tags."""
-    if len(tags) == 0:
-        return []
-    cut = np.flatnonzero(np.diff(tags)) + 1
-    starts = np.concatenate([[0], cut])
-    stops = np.concatenate([cut, [len(tags)]])
-    return [(int(a), int(b), int(tags[a])) for a, b in zip(starts, stops)]
+def _gmsh_type(cell_type: str, path) -> int:
+    from meshio.gmsh.common import _meshio_to_gmsh_type
+
+    if cell_type not in _meshio_to_gmsh_type:
+        raise WriteError(f"{path}: gmsh files cannot hold {cell_type} cells")
+    return int(_meshio_to_gmsh_type[cell_type])
 
 
-def _groups(mesh: TriangleMesh):
-    """Element groups ``(type, elements (M, k), tags (M,) or None)``: lines, then triangles."""
+def _groups(cm: CellMesh, path):
+    """Element groups ``(gmsh type, dim, elements (M, k), phys (M,) or None, geom or None)``."""
+    phys = cm.cell_data.get(PHYSICAL)
+    geom = cm.cell_data.get(GEOMETRICAL)
     out = []
-    if mesh.lines is not None:
-        out.append((LINE, mesh.lines, mesh.line_tags))
-    out.append((TRIANGLE, mesh.triangles, mesh.triangle_tags))
+    for i, (t, c) in enumerate(cm.cells):
+        p = None if phys is None else np.asarray(phys[i]).reshape(-1).astype(np.int64)
+        g = None if geom is None else np.asarray(geom[i]).reshape(-1).astype(np.int64)
+        out.append((_gmsh_type(t, path), cell_dimension(t), np.asarray(c), p, g))
     return out
 
 
-def _physical_names(mesh: TriangleMesh) -> bytes:
-    names = mesh.tag_names
-    if not names:
+def _refuse_data(cm: CellMesh, path) -> None:
+    """What our gmsh writer cannot hold: point data, other cell data, other field data."""
+    what = [f"point data {k!r}" for k in cm.point_data]
+    what += [f"cell data {k!r}" for k in cm.cell_data if k not in (PHYSICAL, GEOMETRICAL)]
+    for name, value in cm.field_data.items():
+        v = np.asarray(value).reshape(-1)
+        if v.size != 2 or not np.issubdtype(v.dtype, np.integer):
+            what.append(f"field data {name!r}")
+    if what:
+        raise WriteError(f"{path}: the .msh writer keeps only physical groups, not "
+                         f"{', '.join(what)} (use .vtu)")
+
+
+def _physical_names(cm: CellMesh) -> bytes:
+    if not cm.field_data:
         return b""
-    lines = [f"{int(dim)} {int(tag)} \"{name}\"" for name, (tag, dim) in names.items()]
+    lines = []
+    for name, value in cm.field_data.items():
+        tag, dim = (int(x) for x in np.asarray(value).reshape(-1)[:2])
+        quoted = str(name).replace('"', "")
+        lines.append(f'{dim} {tag} "{quoted}"')
     return ("$PhysicalNames\n%d\n%s\n$EndPhysicalNames\n" % (len(lines), "\n".join(lines))).encode()
 
 
 def write(path: Path, mesh: TriangleMesh, binary: bool | None = None, version: str = "4.1") -> None:
-    """Write ``mesh`` as gmsh ``version`` ("2.2" or "4.1"), binary unless ``binary=False``.
+    """Write a triangle mesh (triangles, tagged lines, physical names) as gmsh ``version``."""
+    write_cells(path, CellMesh.from_triangle_mesh(mesh), binary, version)
+
+
+def write_cells(path: Path, cm: CellMesh, binary: bool | None = None,
+                version: str = "4.1") -> None:
+    """Write ``cm`` as gmsh ``version`` ("2.2" or "4.1"), binary unless ``binary=False``.
 
     Coordinates are exact: binary doubles, or ``repr`` (≤ 17 significant digits) in ASCII.
+    Every cell block is written in order with its ``gmsh:physical`` and
+    ``gmsh:geometrical`` tags (0 and a tag per physical group where missing).
+
+    Raises
+    ------
+    WriteError
+        A cell type gmsh has no element for (polygon), point or cell data other than the
+        physical groups, or (4.1) elements of one geometrical entity with different
+        physical tags (gmsh 2.2 can hold them).
     """
     version = str(version)
     if version not in VERSIONS:
         raise WriteError(f"{path}: unsupported gmsh version {version!r}; use one of {VERSIONS}")
+    _refuse_data(cm, path)
+    groups = _groups(cm, path)
     binary = True if binary is None else bool(binary)
+    if version == "4.1":
+        ents, blocks = _entities(groups, _points3d(cm), path)
     with open(path, "wb") as fh:
         if version == "2.2":
-            _write22(fh, mesh, binary)
+            _write22(fh, cm, groups, binary)
         else:
-            _write41(fh, mesh, binary)
+            _write41(fh, cm, ents, blocks, binary)
 
 
 def _header(fh, version: str, binary: bool) -> None:
@@ -257,10 +318,17 @@ def _header(fh, version: str, binary: bool) -> None:
     fh.write(b"$EndMeshFormat\n")
 
 
-def _write22(fh, mesh: TriangleMesh, binary: bool) -> None:
+def _points3d(cm: CellMesh) -> np.ndarray:
+    p = np.asarray(cm.points, np.float64)
+    if p.shape[1] == 3:
+        return np.ascontiguousarray(p)
+    return np.column_stack([p, np.zeros(len(p))])
+
+
+def _write22(fh, cm: CellMesh, groups, binary: bool) -> None:
     _header(fh, "2.2", binary)
-    fh.write(_physical_names(mesh))
-    pts = points3d(mesh)
+    fh.write(_physical_names(cm))
+    pts = _points3d(cm)
     n = len(pts)
     fh.write(f"$Nodes\n{n}\n".encode())
     ids = np.arange(1, n + 1)
@@ -274,14 +342,14 @@ def _write22(fh, mesh: TriangleMesh, binary: bool) -> None:
         rows = zip(ids.tolist(), *pts.T.tolist())
         fh.write("".join(map("%d %r %r %r\n".__mod__, rows)).encode())
     fh.write(b"$EndNodes\n")
-    groups = _groups(mesh)
-    total = sum(len(e) for _, e, _ in groups)
+    total = sum(len(e) for _, _, e, _, _ in groups)
     fh.write(f"$Elements\n{total}\n".encode())
     first = 1
-    for etype, elems, tags in groups:
+    for etype, _, elems, tags, geom in groups:
         m, k = elems.shape
         phys = np.zeros(m, np.int64) if tags is None else tags
-        geom = np.where(phys > 0, phys, 1)
+        if geom is None:
+            geom = np.where(phys > 0, phys, 1)
         table = np.column_stack([np.arange(first, first + m), phys, geom, elems + 1])
         first += m
         if binary:
@@ -290,72 +358,112 @@ def _write22(fh, mesh: TriangleMesh, binary: bool) -> None:
         else:
             cols = np.column_stack([table[:, :1], np.full((m, 1), etype), np.full((m, 1), 2),
                                     table[:, 1:]])
-            text = format_rows(cols, "%d")
-            fh.write(text.encode())
+            fh.write(format_rows(cols, "%d").encode())
     if binary:
         fh.write(b"\n")
     fh.write(b"$EndElements\n")
 
 
-def _entities(mesh: TriangleMesh, pts: np.ndarray):
-    """One entity per (dimension, physical tag): ``{dim: [(entity, phys or None, bbox)]}``
-    and the entity of each element run."""
-    ents: dict[int, list] = {1: [], 2: []}
+def _entities(groups, pts: np.ndarray, path):
+    """Entities ``{dim: [(tag, phys or None, bbox)]}`` and element blocks
+    ``[(dim, entity, type, elements)]`` in order.
+
+    With ``gmsh:geometrical`` tags the entities are those tags (each must carry one
+    physical tag); without, one entity per (dimension, physical tag), numbered from 1.
+    """
+    ents: dict[int, dict[int, list]] = {0: {}, 1: {}, 2: {}, 3: {}}
     blocks = []
-    coords = np.ascontiguousarray(pts.T)  # (3, N): reductions along contiguous rows
-    for etype, elems, tags in _groups(mesh):
-        dim = 1 if etype == LINE else 2
-        tag_arr = np.zeros(len(elems), np.int64) if tags is None else np.asarray(tags)
-        uniq = np.zeros(1, np.int64) if tags is None else np.unique(tag_arr)
-        ent_of = {}
-        for i, t in enumerate(uniq.tolist()):
+    for etype, dim, elems, tags, geom in groups:
+        phys = np.zeros(len(elems), np.int64) if tags is None else tags
+        if geom is None:  # one entity per physical tag of this dimension
+            uniq, inv = np.unique(phys, return_inverse=True)
+            known = {p: e for e, (p, _) in ents[dim].items()}
+            ent_of = {}
+            for t in uniq.tolist():
+                if t not in known:
+                    known[t] = max(ents[dim], default=0) + 1
+                    ents[dim][known[t]] = [t, []]
+                ent_of[t] = known[t]
+            ent = np.array([ent_of[t] for t in uniq.tolist()], np.int64)[inv]
+        else:
+            ent = geom
+        keys = np.stack([ent, phys], axis=1)
+        for e, p in np.unique(keys, axis=0).tolist():
+            have = ents[dim].setdefault(e, [p, []])
+            if have[0] != p:
+                raise WriteError(f"{path}: gmsh 4.1 entity {e} (dimension {dim}) has elements "
+                                 f"with physical tags {have[0]} and {p}; use --msh-version 2.2")
+        for a, b, e in _runs(ent):
+            blocks.append((dim, e, etype, elems[a:b]))
+            ents[dim][e][1].append(elems[a:b])
+    coords = np.ascontiguousarray(pts.T)
+    out: dict[int, list] = {}
+    for dim, table in ents.items():
+        out[dim] = []
+        for e, (p, parts) in sorted(table.items()):
             used = np.zeros(len(pts), bool)
-            used[(elems if len(uniq) == 1 else elems[tag_arr == t]).ravel()] = True
+            for part in parts:
+                used[part.ravel()] = True
             sel = coords[:, used]
-            bbox = np.concatenate([sel.min(axis=1), sel.max(axis=1)])
-            ent_of[t] = i + 1
-            ents[dim].append((i + 1, t if t > 0 else None, bbox))
-        for a, b, t in _runs(tag_arr):
-            blocks.append((dim, ent_of[t], etype, elems[a:b]))
-    return ents, blocks
+            if sel.shape[1]:
+                bbox = np.concatenate([sel.min(axis=1), sel.max(axis=1)])
+            else:
+                bbox = np.zeros(6)
+            out[dim].append((e, p if p > 0 else None, bbox))
+    return out, blocks
 
 
-def _write41(fh, mesh: TriangleMesh, binary: bool) -> None:
+def _runs(tags: np.ndarray) -> list[tuple[int, int, int]]:
+    """Maximal runs ``(start, stop, tag)`` of equal consecutive tags."""
+    if len(tags) == 0:
+        return []
+    cut = np.flatnonzero(np.diff(tags)) + 1
+    starts = np.concatenate([[0], cut])
+    stops = np.concatenate([cut, [len(tags)]])
+    return [(int(a), int(b), int(tags[a])) for a, b in zip(starts, stops)]
+
+
+def _write41(fh, cm: CellMesh, ents, blocks, binary: bool) -> None:
     _header(fh, "4.1", binary)
-    fh.write(_physical_names(mesh))
-    pts = points3d(mesh)
+    fh.write(_physical_names(cm))
+    pts = _points3d(cm)
     n = len(pts)
-    ents, blocks = _entities(mesh, pts)
+    counts = [len(ents[d]) for d in range(4)]
     fh.write(b"$Entities\n")
     if binary:
-        fh.write(np.array([0, len(ents[1]), len(ents[2]), 0], "<u8").tobytes())
-        for dim in (1, 2):
-            for tag, phys, bbox in ents[dim]:
-                fh.write(np.array([tag], "<i4").tobytes() + bbox.astype("<f8").tobytes())
+        fh.write(np.array(counts, "<u8").tobytes())
+    else:
+        fh.write(" ".join(map(str, counts)).encode() + b"\n")
+    for dim in range(4):
+        for tag, phys, bbox in ents[dim]:
+            box = bbox[:3] if dim == 0 else bbox
+            if binary:
+                fh.write(np.array([tag], "<i4").tobytes() + box.astype("<f8").tobytes())
                 if phys is None:
                     fh.write(np.array([0], "<u8").tobytes())
                 else:
                     fh.write(np.array([1], "<u8").tobytes() + np.array([phys], "<i4").tobytes())
-                fh.write(np.array([0], "<u8").tobytes())
-        fh.write(b"\n")
-    else:
-        fh.write(f"0 {len(ents[1])} {len(ents[2])} 0\n".encode())
-        for dim in (1, 2):
-            for tag, phys, bbox in ents[dim]:
-                box = " ".join(repr(float(v)) for v in bbox)
+                if dim > 0:
+                    fh.write(np.array([0], "<u8").tobytes())
+            else:
+                text = " ".join(repr(float(v)) for v in box)
                 ph = "0" if phys is None else f"1 {phys}"
-                fh.write(f"{tag} {box} {ph} 0\n".encode())
+                fh.write(f"{tag} {text} {ph}{' 0' if dim > 0 else ''}\n".encode())
+    if binary:
+        fh.write(b"\n")
     fh.write(b"$EndEntities\n")
-    # all nodes in one block on the first surface entity
+    # all nodes in one block on the first entity of the highest dimension
+    ndim = max((d for d in range(4) if ents[d]), default=2)
+    first_ent = ents[ndim][0][0] if ents[ndim] else 1
     fh.write(b"$Nodes\n")
     if binary:
         fh.write(np.array([1, n, 1, n], "<u8").tobytes())
-        fh.write(np.array([2, 1, 0], "<i4").tobytes() + np.array([n], "<u8").tobytes())
+        fh.write(np.array([ndim, first_ent, 0], "<i4").tobytes() + np.array([n], "<u8").tobytes())
         fh.write(np.arange(1, n + 1, dtype="<u8").tobytes())
         fh.write(pts.astype("<f8").tobytes())
         fh.write(b"\n")
     else:
-        fh.write(f"1 {n} 1 {n}\n2 1 0 {n}\n".encode())
+        fh.write(f"1 {n} 1 {n}\n{ndim} {first_ent} 0 {n}\n".encode())
         fh.write(format_rows(np.arange(1, n + 1)[:, None], "%d").encode())
         fh.write(format_rows(pts, "%r").encode())
     fh.write(b"$EndNodes\n")

@@ -1,21 +1,30 @@
 """Stanford ``.ply``: ASCII and binary (little/big endian) reading, writing as binary
-little-endian doubles (bit-exact) or ASCII with ``repr`` coordinates.
+little-endian (bit-exact) or ASCII with ``repr`` coordinates.
 
 Reading needs a ``vertex`` element with ``x``, ``y`` (and usually ``z``) and a ``face``
-element with a ``vertex_indices``/``vertex_index`` list; other properties (colours,
-normals, quality) are skipped. Binary lists are read vectorized on the assumption that
-every face has three vertices, which is verified.
+element with a ``vertex_indices``/``vertex_index`` list. Faces of any size are kept (runs
+of one size are one cell block); other scalar vertex properties (colours, normals,
+quality) become point data and other scalar face properties cell data, with their PLY
+type, so that they are written back. List properties other than the face's vertices and
+other elements are listed in :attr:`~.cells.CellMesh.dropped`. Binary faces are read
+vectorized when every face has the same number of vertices, else row by row.
 """
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import ReadError
-from ..mesh import TriangleMesh
-from ._common import build_mesh, format_rows, parse_rows, points3d
+from typing import TYPE_CHECKING
+
+from ..errors import ReadError, WriteError
+from ._common import cells_other_than, pad3, parse_rows, refuse
+from .cells import CellMesh, check_cells, face_blocks, triangle_mesh, triangles_only
+
+if TYPE_CHECKING:  # pragma: no cover
+    from ..mesh import TriangleMesh
 
 _TYPES = {
     "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1",
@@ -24,6 +33,9 @@ _TYPES = {
     "float": "f4", "float32": "f4", "double": "f8", "float64": "f8",
 }
 _FACE_LISTS = ("vertex_indices", "vertex_index")
+#: numpy dtype (kind + size) → PLY type name, for writing
+_NAMES = {"i1": "char", "u1": "uchar", "i2": "short", "u2": "ushort", "i4": "int",
+          "u4": "uint", "f4": "float", "f8": "double"}
 
 
 def _parse_header(data: bytes, path) -> tuple[str, list, int]:
@@ -45,6 +57,8 @@ def _parse_header(data: bytes, path) -> tuple[str, list, int]:
             if words[0] == "format":
                 fmt = words[1]
             elif words[0] == "element":
+                if int(words[2]) < 0:
+                    raise ValueError("negative count")
                 elements.append((words[1], int(words[2]), []))
             elif words[0] == "property" and words[1] == "list":
                 elements[-1][2].append((words[4], _TYPES[words[2]], _TYPES[words[3]]))
@@ -60,34 +74,77 @@ def _parse_header(data: bytes, path) -> tuple[str, list, int]:
 
 
 def _binary_elements(data: bytes, offset: int, elements: list, endian: str, path) -> dict:
+    """``{element: {property: array}}``; a list property gives a list of per-row arrays
+    when its rows differ in length, else an ``(M, k)`` array."""
     out = {}
     for name, count, props in elements:
-        fields = []
+        cols, offset = _binary_element(data, offset, count, props, endian, path, name)
+        out[name] = cols
+    return out
+
+
+def _binary_element(data, offset, count, props, endian, path, name):
+    fields = []
+    for p in props:
+        if len(p) == 2:
+            fields.append((p[0], endian + p[1]))
+        else:
+            if count == 0:
+                fields.append((p[0] + "#n", endian + p[1]))
+                continue
+            first = np.frombuffer(data, endian + p[1], 1, offset + _size(fields)) \
+                if offset + _size(fields) + np.dtype(p[1]).itemsize <= len(data) else []
+            if len(first) == 0:
+                raise ReadError(f"{path}: truncated binary PLY file")
+            k = int(first[0])
+            if k < 0 or k > 1 << 20:
+                raise ReadError(f"{path}: element {name!r} has a list of length {k}")
+            fields.append((p[0] + "#n", endian + p[1]))
+            fields.append((p[0], endian + p[2], (k,)))
+    dtype = np.dtype(fields)
+    if dtype.itemsize * count <= len(data) - offset:
+        arr = np.frombuffer(data, dtype, count, offset)
+        same = all(len(p) == 2 or count == 0 or (arr[p[0] + "#n"] == arr[p[0] + "#n"][0]).all()
+                   for p in props)
+        if same:
+            cols = {}
+            for p in props:
+                if len(p) == 2:
+                    cols[p[0]] = arr[p[0]]
+                else:
+                    cols[p[0]] = arr[p[0]] if count else np.zeros((0, 3), np.int64)
+            return cols, offset + dtype.itemsize * count
+    elif not any(len(p) == 3 for p in props):
+        raise ReadError(f"{path}: truncated binary PLY file: element {name!r} needs "
+                        f"{dtype.itemsize * count} bytes, {len(data) - offset} left")
+    return _binary_rows(data, offset, count, props, endian, path, name)
+
+
+def _binary_rows(data, offset, count, props, endian, path, name):
+    """Row-by-row reading of an element whose lists differ in length."""
+    cols: dict[str, list] = {p[0]: [] for p in props}
+    for _ in range(count):
         for p in props:
             if len(p) == 2:
-                fields.append((p[0], endian + p[1]))
+                t = np.dtype(endian + p[1])
+                if offset + t.itemsize > len(data):
+                    raise ReadError(f"{path}: truncated binary PLY file (element {name!r})")
+                cols[p[0]].append(np.frombuffer(data, t, 1, offset)[0])
+                offset += t.itemsize
             else:
-                if count == 0:
-                    fields.append((p[0] + "#n", endian + p[1]))
-                    continue
-                first = np.frombuffer(data, endian + p[1], 1, offset + _size(fields))
-                if len(first) == 0:
-                    raise ReadError(f"{path}: truncated binary PLY file")
-                k = int(first[0])
-                fields.append((p[0] + "#n", endian + p[1]))
-                fields.append((p[0], endian + p[2], (k,)))
-        dtype = np.dtype(fields)
-        if offset + dtype.itemsize * count > len(data):
-            raise ReadError(f"{path}: truncated binary PLY file: element {name!r} needs "
-                            f"{dtype.itemsize * count} bytes, {len(data) - offset} left")
-        arr = np.frombuffer(data, dtype, count, offset)
-        for p in props:
-            if len(p) == 3 and count and (arr[p[0] + "#n"] != arr[p[0] + "#n"][0]).any():
-                raise ReadError(f"{path}: element {name!r} has lists of different lengths "
-                                "(only triangle faces are supported)")
-        offset += dtype.itemsize * count
-        out[name] = arr
-    return out
+                tn, ti = np.dtype(endian + p[1]), np.dtype(endian + p[2])
+                if offset + tn.itemsize > len(data):
+                    raise ReadError(f"{path}: truncated binary PLY file (element {name!r})")
+                k = int(np.frombuffer(data, tn, 1, offset)[0])
+                offset += tn.itemsize
+                if k < 0 or offset + k * ti.itemsize > len(data):
+                    raise ReadError(f"{path}: truncated binary PLY file (element {name!r})")
+                cols[p[0]].append(np.frombuffer(data, ti, k, offset))
+                offset += k * ti.itemsize
+    out = {}
+    for p in props:
+        out[p[0]] = np.array(cols[p[0]], dtype=np.dtype(p[1])) if len(p) == 2 else cols[p[0]]
+    return out, offset
 
 
 def _size(fields) -> int:
@@ -103,25 +160,41 @@ def _ascii_elements(data: bytes, offset: int, elements: list, path) -> dict:
             raise ReadError(f"{path}: truncated PLY file: element {name!r} has {len(block)} of "
                             f"{count} rows")
         pos += count
-        rows = parse_rows(block, path, name, 1) if count else np.zeros((0, 0))
-        cols, c = {}, 0
-        for p in props:
-            if len(p) == 2:
-                cols[p[0]] = rows[:, c] if count else np.zeros(0)
-                c += 1
-            else:
-                k = int(rows[0, c]) if count else 3
-                if count and (rows[:, c] != k).any():
-                    raise ReadError(f"{path}: element {name!r} has lists of different lengths "
-                                    "(only triangle faces are supported)")
-                cols[p[0]] = rows[:, c + 1:c + 1 + k] if count else np.zeros((0, 3))
-                c += 1 + k
-        out[name] = cols
+        has_list = any(len(p) == 3 for p in props)
+        if not has_list:
+            rows = parse_rows(block, path, name, len(props)) if count else \
+                np.zeros((0, len(props)))
+            out[name] = {p[0]: rows[:, c].astype(np.dtype(p[1])) for c, p in enumerate(props)}
+            continue
+        cols: dict[str, list] = {p[0]: [] for p in props}
+        try:
+            for row in block:
+                values = row.split()
+                c = 0
+                for p in props:
+                    if len(p) == 2:
+                        cols[p[0]].append(float(values[c]))
+                        c += 1
+                    else:
+                        k = int(values[c])
+                        if k < 0 or c + 1 + k > len(values):
+                            raise ValueError(f"list of {k} items in {row.strip()!r}")
+                        cols[p[0]].append(np.array(values[c + 1:c + 1 + k], dtype=np.float64))
+                        c += 1 + k
+        except (ValueError, IndexError) as exc:
+            raise ReadError(f"{path}: bad {name!r} row in PLY file ({exc})") from None
+        out[name] = {p[0]: (np.array(cols[p[0]]).astype(np.dtype(p[1])) if len(p) == 2
+                            else cols[p[0]]) for p in props}
     return out
 
 
 def read(path: Path) -> TriangleMesh:
-    """Read vertices and triangular faces of a PLY file, in file order."""
+    """Read a PLY file as a triangle mesh (other faces are refused)."""
+    return triangle_mesh(read_cells(path))
+
+
+def read_cells(path: Path) -> CellMesh:
+    """Read vertices, faces of any size and scalar vertex/face properties, in file order."""
     data = Path(path).read_bytes()
     fmt, elements, offset = _parse_header(data, path)
     names = [e[0] for e in elements]
@@ -133,42 +206,154 @@ def read(path: Path) -> TriangleMesh:
         endian = "<" if fmt.endswith("little_endian") else ">"
         els = _binary_elements(data, offset, elements, endian, path)
     v, f = els["vertex"], els["face"]
-    vprops = [p[0] for p in elements[names.index("vertex")][2]]
+    vspec = elements[names.index("vertex")][2]
+    vprops = [p[0] for p in vspec]
     if "x" not in vprops or "y" not in vprops:
         raise ReadError(f"{path}: PLY vertex element has no x/y properties")
     axes = ["x", "y", "z"] if "z" in vprops else ["x", "y"]
     pts = np.column_stack([np.asarray(v[a], dtype=np.float64) for a in axes])
-    fprops = [p[0] for p in elements[names.index("face")][2]]
+    fspec = elements[names.index("face")][2]
+    fprops = [p[0] for p in fspec]
     key = next((k for k in _FACE_LISTS if k in fprops), None)
     if key is None:
         raise ReadError(f"{path}: PLY face element has no vertex_indices list")
-    faces = np.asarray(f[key])
-    faces = faces.reshape(len(faces), -1) if len(faces) else np.zeros((0, 3), np.int64)
-    if faces.shape[1] != 3 and len(faces):
-        raise ReadError(
-            f"{path}: faces have {faces.shape[1]} vertices; only triangles are supported"
-        )
-    return build_mesh(pts, faces.astype(np.int64), path)
+    faces = f[key]
+    if isinstance(faces, list):
+        sizes = np.fromiter(map(len, faces), np.int64, count=len(faces))
+        flat = np.concatenate(faces) if faces else np.zeros(0)
+    else:
+        faces = np.asarray(faces)
+        nf = len(faces)
+        faces = faces.reshape(nf, -1) if nf else np.zeros((0, 3))
+        sizes = np.full(nf, faces.shape[1], np.int64)
+        flat = faces.ravel()
+    flat = np.asarray(flat)
+    if flat.size and (not np.isfinite(flat.astype(np.float64)).all()
+                      or (flat.astype(np.float64) != np.round(flat.astype(np.float64))).any()):
+        raise ReadError(f"{path}: PLY face indices must be integers")
+    if len(sizes) and sizes.min() < 3:
+        bad = int(np.argmin(sizes))
+        raise ReadError(f"{path}: face {bad} has {sizes[bad]} vertices (at least 3 needed)")
+    cells = face_blocks(flat.astype(np.int64), sizes)
+    dropped = []
+    point_data = {}
+    for p in vspec:
+        if p[0] in axes:
+            continue
+        if len(p) == 2:
+            point_data[p[0]] = np.asarray(v[p[0]])
+        else:
+            dropped.append(f"vertex list property {p[0]!r}")
+    cell_data = {}
+    bounds = np.cumsum([0] + [len(c) for _, c in cells])
+    for p in fspec:
+        if p[0] == key:
+            continue
+        if len(p) == 2:
+            col = np.asarray(f[p[0]])
+            cell_data[p[0]] = [col[a:b] for a, b in zip(bounds[:-1], bounds[1:])]
+        else:
+            dropped.append(f"face list property {p[0]!r}")
+    dropped += [f"PLY element {n!r}" for n in names if n not in ("vertex", "face")]
+    cm = CellMesh(pts, cells, point_data=point_data, cell_data=cell_data, source=str(path),
+                  dropped=dropped)
+    check_cells(cm)
+    return cm
 
 
 def write(path: Path, mesh: TriangleMesh, binary: bool | None = None) -> None:
-    """Write a PLY file: binary little-endian doubles by default, ASCII if ``binary=False``."""
+    """Write a triangle mesh as PLY: binary little-endian doubles by default."""
+    write_cells(path, triangles_only(mesh), binary)
+
+
+def _ply_type(name: str, a: np.ndarray, path) -> tuple[str, np.ndarray]:
+    """PLY type name and the array to write (int64 values that fit become int32)."""
+    if not re.fullmatch(r"[A-Za-z0-9_:.\-]+", name) or name in ("x", "y", "z", *_FACE_LISTS):
+        raise WriteError(f"{path}: PLY cannot hold a property named {name!r}")
+    a = np.asarray(a)
+    if a.ndim != 1:
+        raise WriteError(f"{path}: PLY files cannot hold data {name!r} with "
+                         f"{a.shape[1:]} components per entry (use .vtu)")
+    code = f"{a.dtype.kind}{a.dtype.itemsize}"
+    if code in ("i8", "u8") and (a.size == 0 or (int(a.min()) >= -2**31 and int(a.max()) < 2**31)):
+        a, code = a.astype(np.int32), "i4"
+    if code == "b1":
+        a, code = a.astype(np.uint8), "u1"
+    if code not in _NAMES:
+        raise WriteError(f"{path}: PLY files cannot hold data {name!r} of type {a.dtype}")
+    return _NAMES[code], a
+
+
+def write_cells(path: Path, cm: CellMesh, binary: bool | None = None) -> None:
+    """Write a PLY file: faces of any size, scalar point and cell data as properties;
+    binary little-endian by default, ASCII (``repr`` floats) with ``binary=False``.
+
+    Raises
+    ------
+    WriteError
+        Line, vertex or volume cells, field data, or data that is not one number per
+        point or cell.
+    """
+    refuse(path, "PLY", cells_other_than(cm, ("triangle", "quad", "polygon"))
+           + [f"field data {k!r}" for k in cm.field_data])
     binary = True if binary is None else bool(binary)
-    pts = points3d(mesh)
+    pts = pad3(cm.points)
+    pdata = [(k, *_ply_type(k, v, path)) for k, v in cm.point_data.items()]
+    cdata = [(k, *_ply_type(k, np.concatenate([np.asarray(x) for x in v]) if v else
+                            np.zeros(0), path)) for k, v in cm.cell_data.items()]
+    nf = cm.n_cells
+    kmax = max((c.shape[1] for _, c in cm.cells), default=3)
+    count_t = "uchar" if kmax < 256 else "int"
     fmt = "binary_little_endian" if binary else "ascii"
-    header = (
-        f"ply\nformat {fmt} 1.0\ncomment meshopt-toolkit\n"
-        f"element vertex {len(pts)}\nproperty double x\nproperty double y\nproperty double z\n"
-        f"element face {mesh.n_triangles}\nproperty list uchar int vertex_indices\nend_header\n"
-    )
+    header = [f"ply\nformat {fmt} 1.0\ncomment meshopt-toolkit",
+              f"element vertex {len(pts)}", "property double x", "property double y",
+              "property double z"]
+    header += [f"property {t} {k}" for k, t, _ in pdata]
+    header += [f"element face {nf}", f"property list {count_t} int vertex_indices"]
+    header += [f"property {t} {k}" for k, t, _ in cdata]
+    header.append("end_header\n")
     with open(path, "wb") as fh:
-        fh.write(header.encode("ascii"))
+        fh.write("\n".join(header).encode("ascii"))
+        start = 0
         if binary:
-            fh.write(pts.astype("<f8").tobytes())
-            rec = np.empty(mesh.n_triangles, dtype=[("n", "u1"), ("v", "<i4", (3,))])
-            rec["n"] = 3
-            rec["v"] = mesh.triangles
+            rec = np.empty(len(pts), dtype=[("p", "<f8", (3,))] +
+                           [(k, "<" + _code(a)) for k, _, a in pdata])
+            rec["p"] = pts
+            for k, _, a in pdata:
+                rec[k] = a
             fh.write(rec.tobytes())
-        else:
-            fh.write(format_rows(pts, "%r").encode())
-            fh.write(format_rows(mesh.triangles, "%d", "3 ").encode())
+            for _, c in cm.cells:
+                m, k = c.shape
+                rec = np.empty(m, dtype=[("n", "u1" if count_t == "uchar" else "<i4"),
+                                         ("v", "<i4", (k,))] +
+                               [(name, "<" + _code(a)) for name, _, a in cdata])
+                rec["n"] = k
+                rec["v"] = c
+                for name, _, a in cdata:
+                    rec[name] = a[start:start + m]
+                start += m
+                fh.write(rec.tobytes())
+            return
+        cols = [pts[:, 0], pts[:, 1], pts[:, 2]] + [a for _, _, a in pdata]
+        fh.write(_ascii_rows(cols).encode())
+        for _, c in cm.cells:
+            m, k = c.shape
+            ccols = [np.full(m, k)] + [c[:, j] for j in range(k)] + \
+                [a[start:start + m] for _, _, a in cdata]
+            start += m
+            fh.write(_ascii_rows(ccols).encode())
+
+
+def _code(a: np.ndarray) -> str:
+    return f"{a.dtype.kind}{a.dtype.itemsize}"
+
+
+def _ascii_rows(cols: list[np.ndarray]) -> str:
+    """One text row per entry: ``repr`` for floats (bit-exact), ``%d`` for integers."""
+    n = len(cols[0]) if cols else 0
+    if n == 0:
+        return ""
+    row = " ".join("%r" if np.asarray(c).dtype.kind == "f" else "%d" for c in cols) + "\n"
+    values = [np.asarray(c).tolist() for c in cols]
+    flat = [x for r in zip(*values) for x in r]
+    return (row * n) % tuple(flat)

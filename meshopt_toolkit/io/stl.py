@@ -10,9 +10,14 @@ from pathlib import Path
 
 import numpy as np
 
+from typing import TYPE_CHECKING
+
 from ..errors import ReadError
-from ..mesh import TriangleMesh
-from ._common import build_mesh, points3d
+from ._common import cells_other_than, data_names, pad3, refuse
+from .cells import CellMesh, check_cells, triangle_mesh, triangles_only
+
+if TYPE_CHECKING:  # pragma: no cover
+    from ..mesh import TriangleMesh
 
 _RECORD = np.dtype([("normal", "<f4", (3,)), ("v", "<f4", (3, 3)), ("attr", "<u2")])
 _VERTEX = re.compile(rb"vertex\s+(\S+)\s+(\S+)\s+(\S+)")
@@ -20,12 +25,19 @@ _VERTEX = re.compile(rb"vertex\s+(\S+)\s+(\S+)\s+(\S+)")
 
 def read(path: Path) -> TriangleMesh:
     """Read an STL file; equal corners are merged into one vertex."""
+    return triangle_mesh(read_cells(path))
+
+
+def read_cells(path: Path) -> CellMesh:
+    """Read an STL file as points and one triangle block (equal corners merged)."""
     data = Path(path).read_bytes()
     if len(data) >= 84:
         n = int(np.frombuffer(data, "<u4", 1, 80)[0])
         binary = len(data) == 84 + 50 * n
     else:
         binary = False
+    if binary and n == 0:
+        raise ReadError(f"{path}: binary STL file with no triangle")
     if binary:
         corners = np.frombuffer(data, _RECORD, n, 84)["v"].reshape(-1, 3).astype(np.float64)
     else:
@@ -41,13 +53,28 @@ def read(path: Path) -> TriangleMesh:
     if not np.isfinite(corners).all():
         raise ReadError(f"{path}: STL has a non-finite coordinate")
     pts, inverse = np.unique(corners, axis=0, return_inverse=True)
-    return build_mesh(pts, inverse.reshape(-1, 3), path)
+    cm = CellMesh(pts, [("triangle", inverse.reshape(-1, 3).astype(np.int64))], source=str(path))
+    check_cells(cm)
+    return cm
 
 
 def write(path: Path, mesh: TriangleMesh, binary: bool | None = None) -> None:
-    """Write an STL file (binary by default) with unit facet normals (float32)."""
+    """Write a triangle mesh as STL (binary by default)."""
+    write_cells(path, triangles_only(mesh), binary)
+
+
+def write_cells(path: Path, cm: CellMesh, binary: bool | None = None) -> None:
+    """Write an STL file (binary by default) with unit facet normals (float32).
+
+    Raises
+    ------
+    WriteError
+        Cells other than triangles, or any data (STL holds independent triangles only).
+    """
+    refuse(path, "STL", cells_other_than(cm, ("triangle",)) + data_names(cm), "use .vtu or .msh")
     binary = True if binary is None else bool(binary)
-    corners = points3d(mesh)[mesh.triangles]  # (T, 3, 3)
+    tris = np.concatenate([c for _, c in cm.cells]) if cm.cells else np.zeros((0, 3), np.int64)
+    corners = pad3(cm.points)[tris]  # (T, 3, 3)
     normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
     length = np.linalg.norm(normal, axis=1, keepdims=True)
     normal = np.divide(normal, length, out=np.zeros_like(normal), where=length > 0)

@@ -1,55 +1,48 @@
 """VTK legacy ``.vtk`` and XML ``.vtu`` through meshio, with its traps guarded.
 
 meshio's readers are called directly (``meshio.read`` calls ``sys.exit`` on failure);
-points are written as ``(N, 3)`` (z = 0 for planar meshes). Binary output (the default)
-stores doubles exactly; ``.vtu`` binary is zlib-compressed.
+everything they return is kept: every cell block, point and cell data (physical groups as
+``gmsh:physical``/``gmsh:geometrical`` cell data) and, for ``.vtu``, field data (the
+physical names; meshio reads ``<FieldData>`` but does not write it, so it is added to the
+file here). Points are written as ``(N, 3)`` (z = 0 for planar meshes). Binary output (the
+default) stores doubles exactly; ``.vtu`` binary is zlib-compressed; ASCII ``.vtu`` is our
+own writer with ``repr`` values (meshio's keeps only 12 significant digits). Legacy
+``.vtk`` output refuses field data (meshio cannot write it).
 """
 
 from __future__ import annotations
 
-import contextlib
-import io
 import logging
-from collections.abc import Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..errors import ReadError
-from ..mesh import TriangleMesh
-from ._common import format_rows, points3d
+from ..errors import ReadError, WriteError
+from ._common import format_rows, pad3, quiet
+from .cells import CellMesh, check_cells, triangle_mesh, triangles_only
+
+if TYPE_CHECKING:  # pragma: no cover
+    from ..mesh import TriangleMesh
 
 logger = logging.getLogger(__name__)
+_quiet = quiet
 
 
-@contextlib.contextmanager
-def _quiet() -> Iterator[None]:
-    """Route meshio's console warnings (printed to stderr) to the log instead."""
-    buf = io.StringIO()
-    with contextlib.redirect_stderr(buf):
-        yield
-    if buf.getvalue().strip():
-        logger.debug("meshio: %s", buf.getvalue().strip())
-
-
-def _read(path: Path, reader, kind: str) -> TriangleMesh:
-    from ..conversions import from_meshio
-    from ..errors import InvalidMeshError
-
+def _read(path: Path, reader, kind: str) -> CellMesh:
     try:
-        with _quiet():
+        with quiet():
             m = reader(path)
+        cm = CellMesh.from_meshio(m, source=str(path))
     except (Exception, SystemExit) as exc:
         detail = str(exc) or f"not a valid {kind} file or truncated"
         raise ReadError(f"{path}: cannot read {kind} file: {detail}") from None
-    try:
-        return from_meshio(m, source=str(path))
-    except InvalidMeshError as exc:
-        raise ReadError(str(exc)) from None
+    check_cells(cm)
+    return cm
 
 
-def read_vtk(path: Path) -> TriangleMesh:
-    """Read a legacy VTK file (unstructured grid or polydata triangles)."""
+def read_vtk_cells(path: Path) -> CellMesh:
+    """Everything of a legacy VTK file (unstructured grid or polydata)."""
     import meshio.vtk
 
     with open(path, "rb") as fh:
@@ -58,50 +51,161 @@ def read_vtk(path: Path) -> TriangleMesh:
     return _read(path, meshio.vtk.read, "VTK")
 
 
-def read_vtu(path: Path) -> TriangleMesh:
-    """Read a VTK XML unstructured grid."""
+def read_vtu_cells(path: Path) -> CellMesh:
+    """Everything of a VTK XML unstructured grid."""
     import meshio.vtu
 
+    with open(path, "rb") as fh:
+        head = fh.read(256).lstrip()
+    if not (head.startswith(b"<?xml") or head.startswith(b"<VTKFile")):
+        raise ReadError(f"{path}: not a VTU file (no XML header)")
     return _read(path, meshio.vtu.read, "VTU")
 
 
-def _mesh_out(mesh: TriangleMesh):
-    import meshio
+def read_vtk(path: Path) -> TriangleMesh:
+    """Read a legacy VTK file as a triangle mesh."""
+    return triangle_mesh(read_vtk_cells(path))
 
-    return meshio.Mesh(points3d(mesh), [("triangle", mesh.triangles)])
+
+def read_vtu(path: Path) -> TriangleMesh:
+    """Read a VTU file as a triangle mesh."""
+    return triangle_mesh(read_vtu_cells(path))
 
 
 def write_vtk(path: Path, mesh: TriangleMesh, binary: bool | None = None) -> None:
-    """Write legacy VTK 5.1 (binary by default)."""
-    import meshio.vtk
-
-    with _quiet():
-        meshio.vtk.write(str(path), _mesh_out(mesh), binary=binary is None or bool(binary))
+    """Write a triangle mesh as legacy VTK 5.1 (binary by default)."""
+    write_vtk_cells(path, triangles_only(mesh), binary)
 
 
 def write_vtu(path: Path, mesh: TriangleMesh, binary: bool | None = None) -> None:
-    """Write VTU: binary zlib-compressed by meshio by default; with ``binary=False`` our own
-    ASCII writer with ``repr`` coordinates (meshio's keeps only 12 significant digits)."""
-    import meshio.vtu
+    """Write a triangle mesh as VTU (binary zlib by default)."""
+    write_vtu_cells(path, triangles_only(mesh), binary)
 
+
+def _check_data(cm: CellMesh, path) -> None:
+    n = cm.n_points
+    for k, v in cm.point_data.items():
+        if np.asarray(v).dtype.kind not in "biuf" or len(v) != n:
+            raise WriteError(f"{path}: point data {k!r} is not numeric with one row per point")
+    for k, v in cm.cell_data.items():
+        if any(np.asarray(a).dtype.kind not in "biuf" for a in v):
+            raise WriteError(f"{path}: cell data {k!r} is not numeric")
+
+
+def write_vtk_cells(path: Path, cm: CellMesh, binary: bool | None = None) -> None:
+    """Write legacy VTK 5.1 with every cell block, point and cell data.
+
+    Raises
+    ------
+    WriteError
+        Field data (e.g. physical names): legacy VTK output cannot hold it.
+    """
+    import meshio.vtk
+
+    if cm.field_data:
+        raise WriteError(f"{path}: legacy VTK files cannot hold field data "
+                         f"({', '.join(map(repr, cm.field_data))}; use .vtu)")
+    _check_data(cm, path)
+    with quiet():
+        meshio.vtk.write(str(path), cm.to_meshio(), binary=binary is None or bool(binary))
+
+
+def write_vtu_cells(path: Path, cm: CellMesh, binary: bool | None = None) -> None:
+    """Write VTU with every cell block, point, cell and field data.
+
+    Binary (default): meshio's zlib-compressed writer, then a ``<FieldData>`` element is
+    added. ``binary=False``: our own ASCII writer with ``repr`` values.
+    """
+    _check_data(cm, path)
     if binary is None or binary:
-        with _quiet():
-            meshio.vtu.write(str(path), _mesh_out(mesh), binary=True)
+        import meshio.vtu
+
+        with quiet():
+            meshio.vtu.write(str(path), cm.to_meshio(), binary=True)
+        if cm.field_data:
+            text = Path(path).read_bytes()
+            tag = b"<UnstructuredGrid>"
+            at = text.find(tag)
+            if at < 0:
+                raise WriteError(f"{path}: unexpected VTU layout from meshio")
+            at += len(tag)
+            Path(path).write_bytes(text[:at] + b"\n" + _field_data_xml(cm).encode() +
+                                   text[at:])
         return
-    n, t = mesh.n_vertices, mesh.n_triangles
-    with open(path, "w", encoding="ascii") as fh:
-        fh.write(
-            '<?xml version="1.0"?>\n'
-            '<VTKFile type="UnstructuredGrid" version="0.1" byte_order="LittleEndian">\n'
-            f'<UnstructuredGrid>\n<Piece NumberOfPoints="{n}" NumberOfCells="{t}">\n<Points>\n'
-            '<DataArray type="Float64" NumberOfComponents="3" format="ascii">\n'
-        )
-        fh.write(format_rows(points3d(mesh), "%r"))
+    _write_vtu_ascii(path, cm)
+
+
+def quoteattr(text: str) -> str:
+    """An XML attribute value in double quotes (no xml.sax import: it pulls in urllib)."""
+    return '"' + (str(text).replace("&", "&amp;").replace('"', "&quot;")
+                  .replace("<", "&lt;").replace(">", "&gt;")) + '"'
+
+
+def _vtu_type(a: np.ndarray) -> str:
+    kind = {"f": "Float", "i": "Int", "u": "UInt", "b": "UInt"}[a.dtype.kind]
+    return f"{kind}{8 * (1 if a.dtype.kind == 'b' else a.dtype.itemsize)}"
+
+
+def _array_xml(name: str, a: np.ndarray, tuples: bool = False) -> str:
+    a = np.asarray(a)
+    if a.dtype.kind == "b":
+        a = a.astype(np.uint8)
+    comps = 1 if a.ndim == 1 else int(np.prod(a.shape[1:]))
+    flat = a.reshape(len(a), comps) if len(a) else a.reshape(0, comps)
+    extra = f' NumberOfTuples="{len(a)}"' if tuples else ""
+    if a.ndim > 1:
+        extra = f' NumberOfComponents="{comps}"' + extra
+    body = format_rows(flat, "%r" if a.dtype.kind == "f" else "%d")
+    return (f'<DataArray type="{_vtu_type(a)}" Name={quoteattr(name)}{extra} '
+            f'format="ascii">\n{body}</DataArray>\n')
+
+
+def _field_data_xml(cm: CellMesh) -> str:
+    parts = [_array_xml(k, np.atleast_1d(np.asarray(v)), tuples=True)
+             for k, v in cm.field_data.items()]
+    return "<FieldData>\n" + "".join(parts) + "</FieldData>\n"
+
+
+def _write_vtu_ascii(path: Path, cm: CellMesh) -> None:
+    from meshio._vtk_common import meshio_to_vtk_type
+
+    for t, _ in cm.cells:
+        if t not in meshio_to_vtk_type:
+            raise WriteError(f"{path}: VTU files cannot hold {t} cells")
+    pts = pad3(cm.points)
+    n = len(pts)
+    ncell = cm.n_cells
+    conn = [np.asarray(c).reshape(-1) for _, c in cm.cells]
+    sizes = np.concatenate([np.full(len(c), c.shape[1]) for _, c in cm.cells]) \
+        if cm.cells else np.zeros(0, np.int64)
+    types = np.concatenate([np.full(len(c), meshio_to_vtk_type[t]) for t, c in cm.cells]) \
+        if cm.cells else np.zeros(0, np.int64)
+    with open(path, "w", encoding="utf-8") as fh:
+        fh.write('<?xml version="1.0"?>\n'
+                 '<VTKFile type="UnstructuredGrid" version="0.1" byte_order="LittleEndian">\n'
+                 '<UnstructuredGrid>\n')
+        if cm.field_data:
+            fh.write(_field_data_xml(cm))
+        fh.write(f'<Piece NumberOfPoints="{n}" NumberOfCells="{ncell}">\n<Points>\n'
+                 '<DataArray type="Float64" NumberOfComponents="3" format="ascii">\n')
+        fh.write(format_rows(pts, "%r"))
         fh.write('</DataArray>\n</Points>\n<Cells>\n'
                  '<DataArray type="Int64" Name="connectivity" format="ascii">\n')
-        fh.write(format_rows(mesh.triangles, "%d"))
+        for c in conn:
+            fh.write(format_rows(c[:, None], "%d"))
         fh.write('</DataArray>\n<DataArray type="Int64" Name="offsets" format="ascii">\n')
-        fh.write(format_rows(3 * np.arange(1, t + 1)[:, None], "%d"))
+        fh.write(format_rows(np.cumsum(sizes)[:, None], "%d"))
         fh.write('</DataArray>\n<DataArray type="UInt8" Name="types" format="ascii">\n')
-        fh.write("5\n" * t)
-        fh.write("</DataArray>\n</Cells>\n</Piece>\n</UnstructuredGrid>\n</VTKFile>\n")
+        fh.write(format_rows(types[:, None], "%d"))
+        fh.write("</DataArray>\n</Cells>\n")
+        if cm.point_data:
+            fh.write("<PointData>\n")
+            for k, v in cm.point_data.items():
+                fh.write(_array_xml(k, v))
+            fh.write("</PointData>\n")
+        if cm.cell_data:
+            fh.write("<CellData>\n")
+            for k, v in cm.cell_data.items():
+                fh.write(_array_xml(k, np.concatenate([np.asarray(x) for x in v])))
+            fh.write("</CellData>\n")
+        fh.write("</Piece>\n</UnstructuredGrid>\n</VTKFile>\n")

@@ -60,11 +60,20 @@ def _is_number(text: str) -> bool:
     return True
 
 
+def _naming(option: str, text: str, exc: ExpressionError) -> ExpressionError:
+    """The error with the option and its text in front (once)."""
+    message = str(exc)
+    prefix = f"{option} {text!r}"
+    return exc if message.startswith(prefix) else ExpressionError(f"{prefix}: {message}")
+
+
 def _condition(text: str, X: FloatArray) -> np.ndarray:
     try:
         tree = ast.parse(text.strip(), mode="eval").body
     except SyntaxError as exc:
         raise ExpressionError(f"--where {text!r}: {exc.msg}") from None
+    except (RecursionError, MemoryError, ValueError):
+        raise ExpressionError(f"--where {text!r}: too deeply nested") from None
 
     def evaluate(node) -> np.ndarray:
         if isinstance(node, ast.BoolOp):
@@ -86,7 +95,10 @@ def _condition(text: str, X: FloatArray) -> np.ndarray:
             return out
         raise ExpressionError(f"--where {text!r}: expected a comparison such as 'x < 0.5'")
 
-    return evaluate(tree)
+    try:
+        return evaluate(tree)
+    except ExpressionError as exc:
+        raise _naming("--where", text, exc) from None
 
 
 def targets_from_map(mesh: PlanarMesh, mapping: str, where: str | None = None
@@ -97,6 +109,8 @@ def targets_from_map(mesh: PlanarMesh, mapping: str, where: str | None = None
         raise ExpressionError(f"--map {mapping!r}: expected two expressions 'X_EXPR; Y_EXPR'")
     try:
         fx, fy = (parse_expression(p.strip()) for p in parts)
+    except ExpressionError as exc:
+        raise _naming("--map", mapping, exc) from None
     except (ZeroDivisionError, OverflowError, ValueError) as exc:
         raise ExpressionError(f"--map {mapping!r}: {exc}") from None
     handles = np.unique(mesh.boundary_edges)

@@ -94,10 +94,16 @@ class BatchProgress(ProgressBar):
         self.stream.write("\r" + self.line()[:119].ljust(119))
         self.stream.flush()
 
-    def message(self, text: str) -> None:
-        """Write a line (a warning or an error) without mixing it into the bar."""
+    def clear(self) -> None:
+        """Blank the bar's line (before something else is printed on the terminal)."""
         if self.enabled:
             self.stream.write("\r" + " " * 119 + "\r")
+            self.stream.flush()
+            self._last = 0.0
+
+    def message(self, text: str) -> None:
+        """Write a line (a warning or an error) without mixing it into the bar."""
+        self.clear()
         self.stream.write(text + "\n")
         self.stream.flush()
         if self.enabled:

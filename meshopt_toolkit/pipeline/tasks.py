@@ -86,7 +86,8 @@ class ConvertTask:
     ----------
     func : callable
         A module-level function (picklable by reference); it writes ``dst`` and raises
-        :class:`~meshopt_toolkit.errors.MeshoptError` for a bad file.
+        :class:`~meshopt_toolkit.errors.MeshoptError` for a bad file. A dict it returns
+        becomes the record's ``results``.
     args : argparse.Namespace
         Passed to ``func``; only its plain values are kept.
     ext : str
@@ -95,7 +96,8 @@ class ConvertTask:
 
     #: options that change how a batch runs, not what it writes
     RUN_CONTROL = frozenset({"inputs", "output", "force", "jobs", "resume", "scheduler",
-                             "shared_inputs", "json", "debug", "verbose", "command"})
+                             "shared_inputs", "json", "debug", "verbose", "command",
+                             "recursive", "max_file_size"})
 
     def __init__(self, func: Callable, args, ext: str | None = None) -> None:
         self.func = func
@@ -121,8 +123,11 @@ class ConvertTask:
         record = {"input": str(src), "status": "ok", "outputs": [], "results": [],
                   "warnings": [], "error": None}
         try:
-            self.func(src, dst, self.args)
+            dst.parent.mkdir(parents=True, exist_ok=True)
+            info = self.func(src, dst, self.args)
             record["outputs"] = [str(dst)]
+            if isinstance(info, dict):
+                record["results"] = [info]
         except MeshoptError as exc:
             record.update(status="failed", error=str(exc))
         except MemoryError:

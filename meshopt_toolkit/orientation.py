@@ -1,0 +1,367 @@
+"""Consistent orientation, planes in 3D, coincident vertices: what meshes from FEM codes
+need before the planar-manifold checks (issue 12).
+
+* :func:`orient_components`: orient each connected component (triangles sharing an edge)
+  by propagation across its interior edges, then turn each planar component
+  counter-clockwise (positive total area). Vectorized: the parity constraints of all
+  edges are solved at once as connected components of a doubled graph.
+* :func:`plane_of` / :class:`PlaneEmbedding`: points that all lie on one plane (any
+  plane) are mapped to 2D by a rigid transform and back; axis-parallel planes exactly.
+* :func:`coincident_vertices`: vertices sharing their position with another one.
+* :func:`merge_vertices`: merge vertices closer than a tolerance.
+* :func:`component_labels`: connected components in pure numpy (no scipy import).
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._typing import FloatArray, IntArray
+
+logger = logging.getLogger(__name__)
+
+__all__ = [
+    "PlaneEmbedding",
+    "coincident_vertices",
+    "component_labels",
+    "merge_vertices",
+    "orient_components",
+    "plane_of",
+]
+
+#: relative distance (to the bounding-box diagonal) within which points count as coplanar
+PLANE_TOLERANCE = 1e-10
+
+
+def component_labels(n: int, a: IntArray, b: IntArray) -> IntArray:
+    """Connected components of the graph with ``n`` nodes and edges ``(a[i], b[i])``.
+
+    Returns the smallest node of each node's component, ``(n,)``. Min-label hooking of
+    roots and full path compression: a few passes over the edge arrays.
+    """
+    label = np.arange(n, dtype=np.int64)
+    a = np.asarray(a, np.int64)
+    b = np.asarray(b, np.int64)
+    while True:
+        la, lb = label[a], label[b]
+        differ = la != lb
+        if not differ.any():
+            return label
+        la, lb = la[differ], lb[differ]
+        m = np.minimum(la, lb)
+        np.minimum.at(label, la, m)
+        np.minimum.at(label, lb, m)
+        while True:
+            nxt = label[label]
+            if np.array_equal(nxt, label):
+                break
+            label = nxt
+        a, b = a[differ], b[differ]
+
+
+def _edge_pairs(triangles: IntArray, n_vertices: int):
+    """Interior edges shared by exactly two triangles: ``(t1, t2, same_direction)``."""
+    tri = np.asarray(triangles, np.int64)
+    nt = len(tri)
+    s = np.concatenate([tri[:, 1], tri[:, 2], tri[:, 0]])
+    d = np.concatenate([tri[:, 2], tri[:, 0], tri[:, 1]])
+    owner = np.tile(np.arange(nt), 3)
+    key = np.minimum(s, d) * np.int64(max(n_vertices, 1)) + np.maximum(s, d)
+    order = np.argsort(key, kind="stable")
+    k = key[order]
+    if len(k) < 2:
+        z = np.zeros(0, np.int64)
+        return z, z, np.zeros(0, bool)
+    eq = k[1:] == k[:-1]
+    prev = np.concatenate([[False], eq[:-1]])
+    nxt = np.concatenate([eq[1:], [False]])
+    first = np.flatnonzero(eq & ~prev & ~nxt)  # groups of exactly two
+    i, j = order[first], order[first + 1]
+    same = (s[i] > d[i]) == (s[j] > d[j])
+    return owner[i], owner[j], same
+
+
+def orient_components(triangles: IntArray, n_vertices: int,
+                      points: FloatArray | None = None) -> tuple[IntArray, int, bool]:
+    """Orient triangles consistently within each edge-connected component.
+
+    Parameters
+    ----------
+    triangles : (T, 3) int array
+    n_vertices : int
+    points : (N, 2) float array, optional
+        Planar positions: each component is then turned so that its total signed area is
+        positive (counter-clockwise). Without points the orientation of the majority of a
+        component's triangles is kept.
+
+    Returns
+    -------
+    triangles : (T, 3) int array
+        Flipped triangles have their vertex order reversed.
+    n_flipped : int
+    orientable : bool
+        False if some component cannot be oriented (a Möbius strip); its triangles are
+        left as they are.
+    """
+    tri = np.asarray(triangles, np.int64)
+    nt = len(tri)
+    t1, t2, same = _edge_pairs(tri, n_vertices)
+    # node k: triangle k as it is; node T + k: triangle k flipped
+    a = np.concatenate([t1, t1 + nt])
+    b = np.concatenate([np.where(same, t2 + nt, t2), np.where(same, t2, t2 + nt)])
+    label = component_labels(2 * nt, a, b)
+    keep, flip = label[:nt], label[nt:]
+    bad = keep == flip
+    flipped = (keep > flip) & ~bad
+    comp = np.minimum(keep, flip)
+    ids, comp = np.unique(comp, return_inverse=True)
+    if points is not None:
+        p = np.asarray(points, np.float64)
+        e1 = p[tri[:, 1]] - p[tri[:, 0]]
+        e2 = p[tri[:, 2]] - p[tri[:, 0]]
+        area = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+        area = np.where(flipped, -area, area)
+        total = np.bincount(comp, weights=area, minlength=len(ids))
+        turn = total < 0
+    else:
+        nflip = np.bincount(comp, weights=flipped, minlength=len(ids))
+        turn = nflip > np.bincount(comp, minlength=len(ids)) / 2
+    turn_t = turn[comp] & ~bad
+    flipped ^= turn_t
+    out = np.where(flipped[:, None], tri[:, ::-1], tri)
+    return out, int(flipped.sum()), not bad.any()
+
+
+def n_components(triangles: IntArray, n_vertices: int) -> int:
+    """Number of edge-connected components of the triangles (numpy only)."""
+    nt = len(triangles)
+    t1, t2, _ = _edge_pairs(triangles, n_vertices)
+    return int(len(np.unique(component_labels(nt, t1, t2))))
+
+
+@dataclass(frozen=True)
+class PlaneEmbedding:
+    """A plane in 3D with an orthonormal frame: ``x3 = origin + x2 @ basis``.
+
+    Attributes
+    ----------
+    origin : (3,) float array
+    basis : (2, 3) float array
+        Orthonormal rows ``e1, e2``; ``e1 × e2`` is the plane's normal.
+    """
+
+    origin: np.ndarray
+    basis: np.ndarray
+
+    def to_2d(self, points: FloatArray) -> FloatArray:
+        """Plane coordinates ``(N, 2)`` of points ``(N, 3)`` (projection onto the plane)."""
+        return (np.asarray(points, np.float64) - self.origin) @ self.basis.T
+
+    def to_3d(self, points: FloatArray) -> FloatArray:
+        """Points ``(N, 3)`` of plane coordinates ``(N, 2)``."""
+        return self.origin + np.asarray(points, np.float64) @ self.basis
+
+
+def plane_of(points: FloatArray, triangles: IntArray | None = None,
+             tol: float = PLANE_TOLERANCE) -> tuple[PlaneEmbedding | None, float]:
+    """The plane of 3D ``points`` if they all lie on one, else None.
+
+    A plane ``x_i = c`` is exact (its frame is a permutation of the axes and the 2D
+    coordinates are the other two coordinates, unchanged). Otherwise the least-squares
+    plane through the centroid is used and every point must be within ``tol`` times the
+    bounding-box diagonal of it. The frame's normal is chosen along the triangles' total
+    area vector when triangles are given (so a consistently oriented mesh stays CCW).
+
+    Returns
+    -------
+    (embedding or None, largest distance to the plane relative to the diagonal)
+    """
+    p = np.asarray(points, np.float64)
+    if len(p) == 0:
+        return None, 0.0
+    lo, hi = p.min(axis=0), p.max(axis=0)
+    diag = float(np.linalg.norm(hi - lo)) or 1.0
+    normal_hint = None
+    if triangles is not None and len(triangles):
+        t = np.asarray(triangles)
+        normal_hint = np.cross(p[t[:, 1]] - p[t[:, 0]], p[t[:, 2]] - p[t[:, 0]]).sum(axis=0)
+    flat = np.flatnonzero(hi == lo)
+    if flat.size:
+        axis = int(flat[-1])
+        others = [i for i in range(3) if i != axis]
+        basis = np.zeros((2, 3))
+        basis[0, others[0]] = 1.0
+        basis[1, others[1]] = 1.0
+        normal = np.cross(basis[0], basis[1])
+        if normal_hint is not None and normal_hint @ normal < 0:
+            basis[1] *= -1.0
+        origin = np.zeros(3)
+        origin[axis] = lo[axis]
+        return PlaneEmbedding(origin, basis), 0.0
+    centre = p.mean(axis=0)
+    _, _, vt = np.linalg.svd(p - centre, full_matrices=False)
+    normal = vt[2]
+    dist = float(np.abs((p - centre) @ normal).max()) / diag
+    if dist > tol:
+        return None, dist
+    if normal_hint is not None and normal_hint @ normal < 0:
+        normal = -normal
+    e1 = vt[0] - (vt[0] @ normal) * normal
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(normal, e1)
+    return PlaneEmbedding(centre, np.stack([e1, e2])), dist
+
+
+def coincident_vertices(points: FloatArray, used: IntArray | None = None) -> IntArray:
+    """Indices of the vertices whose position equals another vertex's, sorted.
+
+    Parameters
+    ----------
+    points : (N, d) float array
+    used : int array, optional
+        Only these vertices are compared (e.g. those of some triangle).
+    """
+    p = np.asarray(points, np.float64)
+    idx = np.arange(len(p)) if used is None else np.unique(used)
+    if len(idx) < 2:
+        return np.zeros(0, np.int64)
+    _, inverse, counts = np.unique(p[idx], axis=0, return_inverse=True, return_counts=True)
+    return idx[counts[inverse.reshape(-1)] > 1]
+
+
+def merge_groups(points: FloatArray, tol: float) -> IntArray:
+    """Representative (smallest index) of each vertex after merging vertices closer than
+    ``tol`` (transitively; ``tol = 0``: equal positions only), ``(N,)``."""
+    p = np.asarray(points, np.float64)
+    n = len(p)
+    if n == 0:
+        return np.zeros(0, np.int64)
+    if tol <= 0:
+        _, inverse = np.unique(p, axis=0, return_inverse=True)
+        inverse = inverse.reshape(-1)
+        first = np.full(inverse.max() + 1, n, np.int64)
+        np.minimum.at(first, inverse, np.arange(n))
+        return first[inverse]
+    from scipy.spatial import cKDTree
+
+    pairs = cKDTree(p).query_pairs(tol, output_type="ndarray")
+    return component_labels(n, pairs[:, 0], pairs[:, 1])
+
+
+def merge_vertices(points: FloatArray, cells: list[tuple[str, IntArray]], tol: float):
+    """Merge vertices closer than ``tol``; the first of each group stays, in order.
+
+    Returns
+    -------
+    keep : (M,) int array
+        The kept vertices (old indices, increasing): new points are ``points[keep]``.
+    cells : list of (type, array)
+        The cells renumbered.
+    n_merged : int
+        Vertices removed.
+    """
+    rep = merge_groups(points, tol)
+    keep = np.flatnonzero(rep == np.arange(len(rep)))
+    new_index = np.full(len(rep), -1, np.int64)
+    new_index[keep] = np.arange(len(keep))
+    mapping = new_index[rep]
+    out = [(t, mapping[np.asarray(c, np.int64)]) for t, c in cells]
+    return keep, out, int(len(rep) - len(keep))
+
+
+# ----------------------------------------------------------------------------- hooks of mesh.check_mesh
+def planar_view(mesh):
+    """``(PlanarMesh, "")`` for a mesh whose points lie on one plane, else ``(None, why)``.
+
+    A 3D mesh on a plane other than z = 0 becomes a :class:`~meshopt_toolkit.mesh.PlanarMesh`
+    in the plane's coordinates with ``embedding`` (a :class:`PlaneEmbedding`) set, which
+    :func:`meshopt_toolkit.io.save` uses to write the points back in 3D.
+    """
+    from .mesh import PlanarMesh
+
+    if mesh.is_planar:
+        return mesh.as_planar(), ""
+    used = np.unique(mesh.triangles)
+    emb, dist = plane_of(mesh.points[used], mesh.triangles if len(used) == mesh.n_vertices
+                         else None)
+    if emb is None:
+        return None, (f"not planar: the points are not on one plane (a point is "
+                      f"{dist:.3g} × the diameter away from the best-fitting plane)")
+    if len(used) != mesh.n_vertices:  # unused vertices must be on the plane too
+        off = np.abs((mesh.points - emb.origin) @ np.cross(*emb.basis))
+        if off.max() > PLANE_TOLERANCE * (np.ptp(mesh.points, axis=0).max() or 1.0):
+            return None, "not planar: an unused vertex is off the plane of the triangles"
+    pm = PlanarMesh(emb.to_2d(mesh.points), mesh.triangles, **mesh._tag_kwargs())
+    pm.__dict__["embedding"] = emb
+    return pm, ""
+
+
+def with_embedding_of(new, old):
+    """``new`` with ``old``'s plane embedding (if any)."""
+    emb = old.__dict__.get("embedding")
+    if emb is not None:
+        new.__dict__["embedding"] = emb
+    return new
+
+
+def diagnose(pm):
+    """Topology of a planar mesh that is not clean: orient it, then sort its problems.
+
+    Returns
+    -------
+    mesh : PlanarMesh
+        Each component oriented counter-clockwise (the input if nothing was flipped).
+    n_flipped : int
+    hard : list of str
+        Real non-manifold problems: a triangle repeating a vertex, an edge in three or
+        more triangles, a non-orientable component, a bow-tie vertex.
+    soft : list of str
+        Problems of a manifold mesh that still keep it from being admissible:
+        coincident vertices, unused vertices, several pieces.
+    """
+    from .mesh import PlanarMesh, _fans_per_vertex
+
+    tri = pm.triangles
+    n = pm.n_vertices
+    hard: list[str] = []
+    soft: list[str] = []
+    used = np.zeros(n, bool)
+    used[tri.ravel()] = True
+    same = coincident_vertices(pm.points, tri.ravel())
+    if same.size:
+        soft.append(f"{same.size} coincident vertices (vertex {same[0]} and others share "
+                    "a position; merge them with --merge-tolerance)")
+    if not used.all():
+        v = np.flatnonzero(~used)
+        soft.append(f"vertex {v[0]} is not used by any triangle ({v.size} unused)")
+    degenerate = np.flatnonzero((tri[:, 0] == tri[:, 1]) | (tri[:, 1] == tri[:, 2])
+                                | (tri[:, 0] == tri[:, 2]))
+    if degenerate.size:
+        k = degenerate[0]
+        hard.append(f"triangle {k} {tri[k].tolist()} repeats a vertex")
+        return pm, 0, hard, soft
+    counts = pm.edge_triangle_counts
+    over = np.flatnonzero(counts > 2)
+    if over.size:
+        e = pm.edges[over[0]]
+        hard.append(f"edge ({e[0]}, {e[1]}) is shared by {counts[over[0]]} triangles "
+                    "(not edge-manifold)")
+    oriented, n_flipped, orientable = orient_components(tri, n, pm.points)
+    if n_flipped:
+        pm = with_embedding_of(PlanarMesh(pm.points, oriented, **pm._tag_kwargs()), pm)
+        logger.info("%s: reoriented %d triangles", pm.source or "mesh", n_flipped)
+    if not orientable:
+        hard.append("mesh is not orientable (a component is a Möbius strip)")
+    pieces = n_components(pm.triangles, n)
+    if pieces > 1:
+        soft.append(f"mesh has {pieces} pieces not connected through edges")
+    if not hard:
+        fans = _fans_per_vertex(pm)
+        bow = np.flatnonzero(fans > 1)
+        if bow.size:
+            hard.append(f"vertex {bow[0]} is a bow-tie: its triangles form "
+                        f"{fans[bow[0]]} separate fans")
+    return pm, n_flipped, hard, soft

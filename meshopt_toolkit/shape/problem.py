@@ -1,0 +1,117 @@
+"""The penalized shape problem ``F = j + f2`` on ``M+`` as the quasi-Newton methods see it.
+
+:class:`ShapeProblem` bundles the objective, the penalty, the gradient metric, the fixed
+vertices and the admissibility test, and turns every way of leaving ``M+`` into
+``F = +∞``: a trial configuration with a non-positive signed area, a boundary that touches
+itself, a non-finite value, or an objective that refuses it (``NotAdmissibleError``) is
+*rejected*, never fatal.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._linalg import dot
+from .._typing import FloatArray
+from ..errors import NotAdmissibleError
+from ..geometry import signed_areas
+from ..mesh import boundary_self_intersections
+
+
+def segment_limit(Q: FloatArray, triangles: np.ndarray, d: FloatArray) -> float:
+    """First ``t > 0`` at which a signed area of ``Q + t d`` vanishes (``inf`` if none).
+
+    The doubled area of each triangle along the segment is the quadratic
+    ``c + b t + a t²`` (``c`` > 0 at an admissible ``Q``); every area stays positive on
+    ``[0, t)`` for ``t`` below the returned value, so the straight-line retraction cannot
+    pass through an inverted configuration and come out on the other side.
+    """
+    q = Q[triangles]  # (T, 3, 2)
+    w = d[triangles]
+    e1, e2 = q[:, 1] - q[:, 0], q[:, 2] - q[:, 0]
+    w1, w2 = w[:, 1] - w[:, 0], w[:, 2] - w[:, 0]
+
+    def cross(u, v):
+        return u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]
+
+    c = cross(e1, e2)
+    b = cross(e1, w2) + cross(w1, e2)
+    a = cross(w1, w2)
+    with np.errstate(all="ignore"):
+        disc = b * b - 4.0 * a * c
+        sq = np.sqrt(np.maximum(disc, 0.0))
+        qq = -0.5 * (b + np.where(b >= 0, sq, -sq))
+        r1 = np.where(a != 0, qq / a, np.inf)
+        r2 = np.where(qq != 0, c / qq, np.inf)
+        lin = np.where(b < 0, -c / b, np.inf)  # a == 0: linear area
+    r1 = np.where((r1 > 0) & np.isfinite(r1), r1, np.inf)
+    r2 = np.where((r2 > 0) & np.isfinite(r2), r2, np.inf)
+    roots = np.where(a == 0, lin, np.minimum(r1, r2))
+    roots = np.where((a != 0) & (disc < 0), np.inf, roots)
+    return float(roots.min()) if roots.size else np.inf
+
+
+class ShapeProblem:
+    """``F(Q) = j(Q) + f2(Q)`` with its gradient metric on the free vertices.
+
+    Parameters
+    ----------
+    objective : object with ``value(Q)`` and ``derivative(Q)`` (the shape functional j)
+    penalty : QualityPenalty or None (f2 added to j)
+    metric : a metric of :mod:`meshopt_toolkit.metrics` (its Riesz map gives gradients)
+    triangles : (T, 3) connectivity
+    boundary_edges : (E, 2) directed boundary edges (for the boundary self-contact test)
+    free : (N,) bool mask of the free vertices, or None (all free)
+    """
+
+    def __init__(self, objective, penalty, metric, triangles, boundary_edges, free=None) -> None:
+        self.objective = objective
+        self.penalty = penalty
+        self.metric = metric
+        self.triangles = np.asarray(triangles)
+        self.boundary_edges = np.asarray(boundary_edges)
+        self.free = free
+        self.n_rejected = 0  # trial configurations outside M+
+
+    def admissible(self, Q: FloatArray) -> bool:
+        """All coordinates finite, every signed area > 0, the boundary simple."""
+        if not np.isfinite(Q).all():
+            return False
+        if not np.all(signed_areas(Q, self.triangles) > 0):
+            return False
+        return len(boundary_self_intersections(Q, self.boundary_edges)) == 0
+
+    def values(self, Q: FloatArray) -> tuple[float, float]:
+        """``(F, j)`` at ``Q``; ``(inf, inf)`` outside ``M+`` (counted in ``n_rejected``)."""
+        if not self.admissible(Q):
+            self.n_rejected += 1
+            return np.inf, np.inf
+        try:
+            J = float(self.objective.value(Q))
+            fp = 0.0 if self.penalty is None else float(self.penalty.value(Q))
+        except NotAdmissibleError:
+            self.n_rejected += 1
+            return np.inf, np.inf
+        F = J + fp
+        if not np.isfinite(F):
+            self.n_rejected += 1
+            return np.inf, np.inf
+        return F, J
+
+    def derivative(self, Q: FloatArray) -> FloatArray:
+        """``dF(Q)`` as an (N, 2) array, zero on the fixed vertices."""
+        P = np.asarray(self.objective.derivative(Q), dtype=float)
+        if self.penalty is not None:
+            P = P + self.penalty.gradient(Q)
+        if self.free is not None:
+            P = np.where(self.free[:, None], P, 0.0)
+        return P
+
+    def riesz(self, Q: FloatArray, P: FloatArray) -> FloatArray:
+        """The metric's Riesz map ``g_Q⁻¹ P`` restricted to the free vertices."""
+        return self.metric.riesz(Q, P, free=self.free)
+
+    @staticmethod
+    def pair(P: FloatArray, V: FloatArray) -> float:
+        """The duality pairing ``P[V] = vec P · vec V`` of a derivative and a vector."""
+        return dot(P, V)

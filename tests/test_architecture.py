@@ -1,0 +1,87 @@
+"""The layering of ARCHITECTURE.md: no import cycle among the package's module-level
+imports (a cycle makes import order matter and hides which layer owns a concept)."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import meshopt_toolkit
+
+ROOT = Path(meshopt_toolkit.__file__).parent
+PACKAGE = ROOT.name
+
+
+def _module_name(path: Path) -> str:
+    parts = list(path.relative_to(ROOT.parent).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+MODULES = {_module_name(p): p for p in ROOT.rglob("*.py")}
+
+
+def _targets(module: str, node: ast.ImportFrom, is_package: bool) -> set[str]:
+    if node.level:
+        base = module.split(".") if is_package else module.split(".")[:-1]
+        base = base[: len(base) - (node.level - 1)]
+        target = ".".join(base + ([node.module] if node.module else []))
+    else:
+        target = node.module or ""
+    out = set()
+    for alias in node.names:
+        if f"{target}.{alias.name}" in MODULES:
+            out.add(f"{target}.{alias.name}")
+        elif target in MODULES:
+            out.add(target)
+    return out
+
+
+def module_level_imports() -> dict[str, set[str]]:
+    """For every module of the package, the package modules its top-level code imports."""
+    graph = {}
+    for module, path in MODULES.items():
+        out: set[str] = set()
+        for node in ast.parse(path.read_text(encoding="utf-8")).body:
+            if isinstance(node, ast.ImportFrom):
+                out |= _targets(module, node, path.name == "__init__.py")
+            elif isinstance(node, ast.Import):
+                out |= {a.name for a in node.names if a.name in MODULES}
+        graph[module] = out - {module}
+    return graph
+
+
+def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
+    state: dict[str, int] = {}
+    stack: list[str] = []
+
+    def visit(node: str) -> list[str] | None:
+        state[node] = 1
+        stack.append(node)
+        for nxt in sorted(graph.get(node, ())):
+            if state.get(nxt) == 1:
+                return stack[stack.index(nxt):] + [nxt]
+            if nxt not in state and (found := visit(nxt)):
+                return found
+        stack.pop()
+        state[node] = 2
+        return None
+
+    for node in sorted(graph):
+        if node not in state and (found := visit(node)):
+            return found
+    return None
+
+
+def test_no_module_level_import_cycle():
+    assert find_cycle(module_level_imports()) is None
+
+
+def test_the_cycle_finder_finds_cycles():
+    assert find_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
+    assert find_cycle({"a": {"b"}, "b": set()}) is None
+
+
+def test_the_graph_sees_relative_imports():
+    graph = module_level_imports()
+    assert f"{PACKAGE}.mesh" in graph[f"{PACKAGE}.motion.move"]
+    assert f"{PACKAGE}.motion.strain" in graph[f"{PACKAGE}.motion.path"]

@@ -1,0 +1,118 @@
+"""Unit-size work: exact power-of-two scaling, and deform/morph/move at 1e±300."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from meshopt_toolkit import data_path
+from meshopt_toolkit.cli import main
+from meshopt_toolkit.errors import InvalidMeshError
+from meshopt_toolkit.io import load, save
+from meshopt_toolkit.scaling import UnitScale, unit_scale
+
+DISC = load(data_path("disc_25.msh")).as_planar()
+
+
+@settings(max_examples=60, deadline=None)
+@given(exponent=st.integers(-1000, 1000), mantissa=st.floats(0.5, 2.0))
+def test_scale_is_a_power_of_two_near_the_size_and_exact(exponent, mantissa):
+    size = mantissa * 2.0 ** (exponent // 2) * 2.0 ** (exponent - exponent // 2)
+    pts = DISC.points * size  # the disc has half-extent 1 (to rounding)
+    s = unit_scale(pts)
+    down = s.down(pts)
+    half = 0.5 * (down.max(axis=0) - down.min(axis=0)).max()
+    assert 2 ** -0.5 * (1 - 1e-12) <= half < 2 ** 0.5 * (1 + 1e-12)
+    if np.isfinite(pts).all() and np.abs(pts).min(initial=np.inf) > 1e-300:
+        assert np.array_equal(s.up(down), pts)  # exact both ways
+
+
+def test_unit_size_meshes_are_untouched_and_edge_cases():
+    assert unit_scale(DISC).exponent == 0
+    assert unit_scale(DISC).mesh_down(DISC) == DISC
+    assert unit_scale(np.zeros((3, 2))).is_identity  # all points coincide
+    assert unit_scale(np.empty((0, 2))).is_identity
+    assert unit_scale(np.array([[-1.7e308, 0.0], [1.7e308, 1.0]])).exponent == 1024
+    with pytest.raises(InvalidMeshError, match="not finite"):
+        unit_scale(np.array([[0.0, np.nan]]))
+
+
+def test_scaling_back_past_the_float_range_names_the_scale():
+    s = UnitScale(1000)
+    with pytest.raises(InvalidMeshError, match=r"scale 2\^1000 \(about 1\.07e\+301\)"):
+        s.up(np.array([[1e10, 0.0]]))
+    assert np.isinf(s.up(np.array([np.inf]))).all()  # already infinite: not an overflow
+
+
+def _scaled_files(tmp_path, factor):
+    save(DISC.with_points(DISC.points * factor), tmp_path / "m.msh")
+    target = DISC.points * np.array([1.2, 0.9])
+    save(DISC.with_points(target * factor), tmp_path / "t.msh")
+    V = np.zeros_like(DISC.points)
+    V[DISC.boundary_vertices, 0] = -0.4 * DISC.points[DISC.boundary_vertices, 0]
+    np.save(tmp_path / "v.npy", V * factor)
+    return tmp_path
+
+
+# the CLI at 2**j gives the unit result times 2**j, bit for bit; at 1e±300 it works (no
+# overflow, no underflow) and equals the unit-size result scaled by the same power of two
+@pytest.mark.parametrize("factor", [2.0 ** 40, 2.0 ** -40, 1e300, 1e-300])
+def test_deform_morph_move_work_at_any_scale(tmp_path, capsys, factor):
+    (tmp_path / "unit").mkdir()
+    (tmp_path / "big").mkdir()
+    unit = _scaled_files(tmp_path / "unit", 1.0)
+    big = _scaled_files(tmp_path / "big", factor)
+    s = unit_scale(load(big / "m.msh"))
+    rel = factor / s.factor  # 1 when factor is a power of two
+    runs = {
+        "deform": lambda d, o: ["deform", str(d / "m.msh"), "--displacement",
+                                str(d / "v.npy"), "-o", str(o)],
+        "move": lambda d, o: ["move", str(d / "m.msh"), "--map", "1.1*x; 1.1*y", "-o",
+                              str(o)],
+        "morph": lambda d, o: ["morph", str(d / "m.msh"), str(d / "t.msh"), "--frames", "3",
+                               "--no-plots", "--metric", "scalar", "-o", str(o)],
+    }
+    for name, argv in runs.items():
+        out = f"{name}.msh" if name != "morph" else name
+        assert main(argv(big, big / out)) == 0, capsys.readouterr().err
+        got = load(big / out if name != "morph" else big / out / "frame_001.msh").points
+        assert np.isfinite(got).all()
+        if rel == 1.0:  # a power of two: bit for bit the unit result, scaled
+            assert main(argv(unit, unit / out)) == 0
+            ref = load(unit / out if name != "morph" else unit / out / "frame_001.msh").points
+            assert np.array_equal(got, ref * factor), name
+        # every triangle positive at the file's scale (checked at unit size: no overflow)
+        m = DISC.with_points(s.down(got[:, :2]))
+        assert (m.signed_areas() > 0).all(), name
+    summary = json.loads((big / "morph" / "summary.json").read_text())
+    both = unit_scale(load(big / "m.msh"), load(big / "t.msh"))  # one scale for both ends
+    assert summary["unit_scale"] == both.factor and summary["admissible"]
+    assert "error" not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("factor", [1e300, 1e-300])
+def test_filters_work_at_any_scale(tmp_path, factor):
+    from meshopt_toolkit.pipeline import Document
+    from meshopt_toolkit.pipeline.filter import registry
+
+    mesh = DISC.with_points(DISC.points * factor)
+    V = np.zeros_like(DISC.points)
+    V[DISC.boundary_vertices, 0] = -0.4 * DISC.points[DISC.boundary_vertices, 0] * factor
+    np.save(tmp_path / "v.npy", V)
+    doc = Document([mesh])
+    registry.get("apply_prescribed_motion")()(doc, map="1.1*x; 1.1*y")
+    moved = doc.mesh.as_planar()
+    b = DISC.boundary_vertices
+    assert np.array_equal(moved.points[b], mesh.points[b] * 1.1)
+    doc = Document([mesh])
+    summary = registry.get("apply_quality_preserving_deformation")()(
+        doc, displacement=str(tmp_path / "v.npy"))
+    assert summary["min_aspect_ratio"] > 0.3 and np.isfinite(doc.mesh.points).all()
+    doc = Document([mesh, mesh.with_points(mesh.points * 1.2)])
+    summary = registry.get("generate_geodesic_morph")()(doc, frames=3)
+    assert summary["admissible"] and len(doc) == 5
+    assert np.allclose(doc.mesh.points[:, :2] / factor, DISC.points * 1.2, rtol=0, atol=1e-12)
