@@ -85,6 +85,16 @@ def test_run_batch_with_a_notebook_client(batch, cluster):
         assert (Path("out") / p.name).read_bytes() == (Path("out_local") / p.name).read_bytes()
 
 
+def test_a_dry_run_is_checked_here(batch, cluster, capsys):
+    """A dry run runs no filter: it is checked by the client, against the real outputs."""
+    assert main(["run", "p.json", "in/m0.msh", "-o", "out", "--to", "vtu"]) == 0
+    status = main(["run", "p.json", "in/m0.msh", "in/m1.msh", "-o", "out", "--to", "vtu",
+                   "--dry-run", "--scheduler", cluster])
+    err = capsys.readouterr().err
+    assert status == 1 and "m0.vtu: already exists" in err
+    assert "1 done, 0 skipped, 1 failed in " in err
+
+
 def test_allow_read_needs_shared_inputs(batch, cluster, capsys):
     status = main(["run", "p.json", "in", "-o", "o", "--scheduler", cluster,
                    "--allow-read", "in"])

@@ -284,7 +284,8 @@ def execute(task, jobs: Iterable[Job], outdir, *, workers: int = 1, isolate: boo
     isolate : bool
         Use a worker process even for ``workers=1``.
     client : distributed.Client, optional
-        Run on this Dask cluster instead (``workers`` is then ignored).
+        Run on this Dask cluster instead (``workers`` is then ignored); a dry run, which
+        runs no filter, is checked here all the same.
     send_inputs : {"bytes", "path"}
         How a Dask cluster gets the inputs (see :mod:`.dask_backend`).
     resume, force, dry_run : bool
@@ -297,6 +298,8 @@ def execute(task, jobs: Iterable[Job], outdir, *, workers: int = 1, isolate: boo
     BatchResult
     """
     t0 = time.perf_counter()
+    if dry_run:  # runs no filter and needs the real output directory: checked here
+        client = None
     batch = _Batch(task, outdir, force=force, resume=resume, dry_run=dry_run,
                    remote=client is not None)
     if client is not None:
