@@ -66,6 +66,7 @@ _EXPORTS = {
     "Pipeline": "pipeline",
     "load_pipeline": "pipeline",
     "save_pipeline": "pipeline",
+    "run_batch": "pipeline.batch_run",
 }
 
 __all__ = sorted(_EXPORTS) + ["__version__"]

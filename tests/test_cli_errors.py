@@ -230,7 +230,7 @@ def test_pipeline_steps_count_from_one_and_dry_run_needs_no_output(work, capsys)
     assert "step 2 (compute_shape_optimization)" in err and "finite" in err
     assert "internal error" not in err
     assert main(["run", str(_empty_pipeline(work)), str(work / "disc.msh"), "--dry-run"]) == 0
-    assert "1 of 1 files checked" in capsys.readouterr().err
+    assert "1 done, 0 skipped, 0 failed in " in capsys.readouterr().err
     assert main(["run", str(_empty_pipeline(work)), str(work / "disc.msh")]) == 1
     assert "-o/--output OUTDIR is required" in capsys.readouterr().err
 

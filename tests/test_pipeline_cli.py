@@ -68,7 +68,7 @@ def test_run_mixed_mlx_batch_with_a_bad_file(tmp_path, capsys, monkeypatch):
     args = ["run", "p.mlx", "in", "-o", "out", "--isolate", "never", "--to", "ply", "--json"]
     assert main(args) == 1
     cap = capsys.readouterr()
-    assert "c.off" in cap.err and "2 of 3 files processed, 1 failed" in cap.err
+    assert "c.off" in cap.err and "2 done, 0 skipped, 1 failed in " in cap.err
     records = [json.loads(line) for line in cap.out.splitlines()]
     assert [r["status"] for r in records] == ["ok", "ok", "failed"]
     quality = records[0]["results"][-1]
@@ -94,7 +94,7 @@ def test_dry_run_writes_nothing(tmp_path, capsys, monkeypatch):
     (tmp_path / "bad.msh").write_text("garbage")
     assert main(["run", "p.json", "a.msh", "bad.msh", "-o", "out", "--dry-run"]) == 1
     err = capsys.readouterr().err
-    assert "bad.msh" in err and "1 of 2 files checked, 1 failed" in err
+    assert "bad.msh" in err and "1 done, 0 skipped, 1 failed in " in err
     assert not (tmp_path / "out").exists()
     assert main(["run", "p.json", "a.msh", "-o", "out", "--dry-run"]) == 0
 

@@ -15,6 +15,7 @@ cannot represent (e.g. OBJ texture coordinates). Each success prints
 Existing outputs, the input included, are never overwritten without ``--force``; each
 write is atomic. A bad file in a batch is reported and skipped; the exit status is then 1.
 Usage errors exit with 2. :func:`convert_file` converts one file (for batch runners).
+``-j``, ``--resume``, ``--scheduler`` and ``--shared-inputs`` work as in ``meshopt run``.
 """
 
 from __future__ import annotations
@@ -50,6 +51,9 @@ def add_args(parser) -> None:
                         help="include the sub-folders of input directories")
     parser.add_argument("--max-file-size", type=_size, default=None, metavar="SIZE",
                         help="refuse input files larger than this (default 4G; e.g. 500M, 16G)")
+    from .run import add_batch_args
+
+    add_batch_args(parser)
 
 
 def _size(text: str) -> int:
@@ -108,6 +112,12 @@ def convert_file(src: str | Path, dst: str | Path, options: ConvertOptions):
 
 def _wrote(dst: Path, cells) -> str:
     return f"wrote {dst} ({cells.n_points} vertices, {cells.n_cells} cells)"
+
+
+def _convert_in_batch(src: Path, dst: Path, args) -> dict:
+    """:func:`convert_file` as a batch task calls it (a worker process or a Dask worker)."""
+    cells = convert_file(src, dst, ConvertOptions.from_args(args))
+    return {"n_points": int(cells.n_points), "n_cells": int(cells.n_cells)}
 
 
 def _usage(msg: str) -> int:
@@ -172,8 +182,12 @@ def _plan(args) -> tuple[list[tuple[Path, Path]], list[str]] | int:
 
 
 def run(args) -> int:
-    from ..progress import ProgressBar
+    from ..pipeline.batch_progress import BatchProgress
+    from ..pipeline.batch_run import Job, execute
+    from ..pipeline.tasks import ConvertTask
+    from .run import batch_client, check_batch_args, reporter
 
+    check_batch_args(args)
     plan = _plan(args)
     if isinstance(plan, int):
         return plan
@@ -183,30 +197,25 @@ def run(args) -> int:
     if not jobs:
         return 1
     options = ConvertOptions.from_args(args)
-    if len(jobs) == 1 and not failures and jobs[0][1] == Path(args.output):
+    simple = not args.resume and not args.scheduler  # -j does not matter for one file
+    if simple and len(jobs) == 1 and not failures and jobs[0][1] == Path(args.output):
         cells = convert_file(*jobs[0], options)  # a single file: errors go to main()
         print(_wrote(jobs[0][1], cells), flush=True)
         return 0
-    done = 0
-    with ProgressBar(len(jobs), "convert") as bar:
-        for src, dst in jobs:
-            try:
-                dst.parent.mkdir(parents=True, exist_ok=True)
-                cells = convert_file(src, dst, options)
-                done += 1
-                if bar.enabled:
-                    bar.stream.write("\n")
-                print(_wrote(dst, cells), flush=True)
-                bar.update(status=src.name)
-            except (MeshoptError, OSError) as exc:
-                if bar.enabled:
-                    bar.stream.write("\n")
-                msg = str(exc) if isinstance(exc, MeshoptError) else f"{dst.parent}: {exc.strerror}"
-                failures.append(msg)
-                print(f"meshopt convert: error: {msg}", file=sys.stderr)
-                bar.update(status="failed")
-    if failures:
-        print(f"meshopt convert: {done} of {done + len(failures)} files converted, "
-              f"{len(failures)} failed", file=sys.stderr)
-        return 1
-    return 0
+    outdir = Path(args.output) if jobs[0][1] != Path(args.output) else jobs[0][1].parent
+
+    def wrote(rec: dict) -> str:
+        info = rec["results"][0]
+        return f"wrote {rec['outputs'][0]} ({info['n_points']} vertices, {info['n_cells']} cells)"
+
+    task = ConvertTask(_convert_in_batch, args, args.to and jobs[0][1].suffix)
+    with BatchProgress(len(jobs), "convert") as bar, batch_client(args) as client:
+        result = execute(task, (Job(i, src, str(dst.relative_to(outdir)))
+                                for i, (src, dst) in enumerate(jobs, 1)),
+                         outdir, workers=args.jobs, client=client,
+                         send_inputs="path" if args.shared_inputs else "bytes",
+                         resume=args.resume, force=args.force,
+                         on_record=reporter("convert", False, bar, wrote), progress=bar)
+    result.failed += len(failures)  # inputs that matched nothing
+    print(f"meshopt convert: {result.summary()}", file=sys.stderr)
+    return 1 if result.failed else 0

@@ -19,11 +19,19 @@ The pipeline file is untrusted; the command line is the only authority:
 
 ``--dry-run`` runs no filter and writes nothing, but checks all of this from the inputs
 (``-o`` is optional then: without it existing outputs are not looked for).
+
+Batches (shared with ``meshopt convert``, see :mod:`meshopt_toolkit.pipeline.batch_run`):
+``-j N`` runs files in N worker processes (0: all cores), each file isolated; ``--resume``
+skips files a journal in OUTDIR knows as done with the same input and pipeline;
+``--scheduler ADDRESS`` runs on a Dask cluster (inputs sent as bytes, or read from the
+same path with ``--shared-inputs``). Records and errors come in input order; the last
+line is ``N done, K skipped, F failed in T s``.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
 from pathlib import Path
@@ -73,6 +81,7 @@ def add_args(parser) -> None:
                              "has MeshLab or plugin steps)")
     parser.add_argument("--json", action="store_true",
                         help="print one JSON record per file (results of each step)")
+    add_batch_args(parser)
 
 
 def _outdir(args) -> Path | None:
@@ -95,20 +104,28 @@ def _outdir(args) -> Path | None:
 
 def run(args) -> int:
     from ..pipeline import load_pipeline
-    from ..pipeline.batch import BatchRunner, RunOptions
-    from ..progress import ProgressBar
+    from ..pipeline.batch import RunOptions
+    from ..pipeline.batch_progress import BatchProgress
+    from ..pipeline.batch_run import Job, execute
+    from ..pipeline.tasks import RunTask
     from ._common import expand_inputs
 
     pipeline = load_pipeline(args.pipeline)  # errors here are fatal (one line, exit 1)
     pipeline.validate()
-    failures: list[str] = []
+    check_batch_args(args)
+    errors: list[str] = []
     inputs: list[Path] = []
+    seen: set[Path] = set()
     for item in args.inputs:
         try:
-            inputs.extend(p for p in expand_inputs([item]) if p not in inputs)
+            for p in expand_inputs([item]):
+                if p not in seen:
+                    seen.add(p)
+                    inputs.append(p)
         except MeshoptError as exc:
-            failures.append(str(exc))
+            errors.append(str(exc))
             print(f"meshopt run: error: {exc}", file=sys.stderr)
+    del seen
     for item in args.allow_read:
         if not Path(item).exists():
             raise MeshoptError(f"--allow-read {item}: no such file or directory")
@@ -123,35 +140,101 @@ def run(args) -> int:
             where = key if outdir is None else outdir / key
             raise MeshoptError(f"{p} and {stems[key]} would both be written to {where}")
         stems[key] = p
+    del stems
     # a dry run executes no filter, so nothing native can crash
     auto = not pipeline.only_builtin and not args.dry_run
     isolate = {"always": True, "never": False}.get(args.isolate, auto)
     options = RunOptions(ext=ext, force=args.force, dry_run=args.dry_run,
                          inputs=[str(p) for p in inputs], allow_read=list(args.allow_read),
                          max_triangles=args.max_triangles, allow_inverted=args.allow_inverted)
-    runner = BatchRunner(pipeline, outdir, isolate=isolate, options=options)
-    done = 0
-    with ProgressBar(len(inputs), "run") as bar:
-        def report(rec: dict) -> None:
-            nonlocal done
-            for warning in rec.get("warnings", ()):
-                if bar.enabled:
-                    bar.stream.write("\n")
-                print(f"meshopt run: warning: {rec['input']}: {warning}", file=sys.stderr)
-            if rec["status"] == "ok":
-                done += 1
-            else:
-                if bar.enabled:
-                    bar.stream.write("\n")
-                failures.append(rec["error"])
-                print(f"meshopt run: error: {rec['error']}", file=sys.stderr)
-            if args.json:
-                print(json.dumps(rec), flush=True)
-            bar.update(status=Path(rec["input"]).name)
+    with BatchProgress(len(inputs), "run") as bar, batch_client(args) as client:
+        result = execute(RunTask(pipeline, options),
+                         (Job(i, p) for i, p in enumerate(inputs, start=1)), outdir,
+                         workers=args.jobs, isolate=isolate, client=client,
+                         send_inputs="path" if args.shared_inputs else "bytes",
+                         resume=args.resume, force=args.force, dry_run=args.dry_run,
+                         on_record=reporter("run", args.json, bar), progress=bar)
+    result.failed += len(errors)  # inputs that matched nothing
+    print(f"meshopt run: {result.summary()}", file=sys.stderr)
+    return 1 if errors or result.failed or not inputs else 0
 
-        runner.run(inputs, report)
-    verb = "checked" if args.dry_run else "processed"
-    total = done + len(failures)
-    print(f"meshopt run: {done} of {total} files {verb}"
-          + (f", {len(failures)} failed" if failures else ""), file=sys.stderr)
-    return 1 if failures or not inputs else 0
+
+# -- shared with ``meshopt convert`` -------------------------------------------------------
+
+def add_batch_args(parser) -> None:
+    """``--jobs``, ``--resume``, ``--scheduler``, ``--shared-inputs``."""
+    parser.add_argument("-j", "--jobs", type=_jobs, default=1, metavar="N",
+                        help="files processed in N worker processes (0: all cores; "
+                             "default 1)")
+    parser.add_argument("--resume", action="store_true",
+                        help="skip files an earlier run (killed or not) completely did with "
+                             "the same input and settings (journal in the output directory)")
+    parser.add_argument("--scheduler", metavar="ADDRESS",
+                        help="run on this Dask cluster, e.g. tcp://10.0.0.5:8786 (needs "
+                             "meshopt-toolkit[dask])")
+    parser.add_argument("--shared-inputs", action="store_true",
+                        help="with --scheduler: workers read the inputs from the same path "
+                             "(a shared file system) instead of receiving their bytes")
+
+
+def _jobs(text: str) -> int:
+    from ..pipeline.workers import cpu_count
+
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected 0 (all cores) or a positive integer, "
+                                         f"got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected 0 (all cores) or a positive integer, "
+                                         f"got {text!r}")
+    return cpu_count() if value == 0 else value
+
+
+def check_batch_args(args) -> None:
+    """Refuse contradictory batch options (one line, exit 1)."""
+    if args.shared_inputs and not args.scheduler:
+        raise MeshoptError("--shared-inputs is for --scheduler (local workers read the "
+                           "inputs directly)")
+    if args.scheduler and args.jobs != 1:
+        raise MeshoptError("--jobs is for local workers; with --scheduler the cluster's "
+                           "workers do the work")
+    if getattr(args, "isolate", None) == "never" and args.jobs > 1:
+        raise MeshoptError("--isolate never needs --jobs 1 (several jobs run in worker "
+                           "processes)")
+    if args.resume and getattr(args, "dry_run", False):
+        raise MeshoptError("--resume and --dry-run cannot be combined (a dry run writes "
+                           "nothing)")
+
+
+@contextlib.contextmanager
+def batch_client(args):
+    """A Dask client for ``--scheduler`` (closed afterwards), else None."""
+    if not args.scheduler:
+        yield None
+        return
+    from ..pipeline.dask_backend import connect
+
+    client = connect(args.scheduler)
+    try:
+        yield client
+    finally:
+        client.close()
+
+
+def reporter(command: str, as_json: bool, bar, line_ok=None):
+    """The per-record callback: warnings and errors on stderr, JSON lines on stdout, and
+    ``line_ok(record)`` on stdout for each file done (``meshopt convert``'s "wrote ...")."""
+
+    def report(rec: dict) -> None:
+        for warning in rec.get("warnings") or ():
+            bar.message(f"meshopt {command}: warning: {rec['input']}: {warning}")
+        if rec["status"] == "failed":
+            bar.message(f"meshopt {command}: error: {rec['error']}")
+        elif rec["status"] == "ok" and line_ok is not None:
+            bar.clear()
+            print(line_ok(rec), flush=True)
+        if as_json:
+            print(json.dumps(rec), flush=True)
+
+    return report

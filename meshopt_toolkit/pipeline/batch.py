@@ -1,11 +1,9 @@
-"""Running a pipeline over many files with per-file isolation of errors and crashes.
+"""Running a pipeline on one file of a batch, with errors reported per file.
 
 :func:`run_file` runs one input (load → pipeline → save) and returns a JSON-able record;
-errors become ``status="failed"`` records instead of exceptions. :class:`BatchRunner`
-calls it for each file, either in this process or — for pipelines with MeshLab or plugin
-steps, whose native code can abort the process (GPU filters without a display, some
-attribute/PLY combinations) — in a child process: a crash then fails only that file and
-a fresh worker takes the next one.
+errors become ``status="failed"`` records instead of exceptions. Running it over many
+files — in worker processes, on a Dask cluster, resumable — is :mod:`.batch_run`
+(:func:`~.batch_run.run_batch`).
 """
 
 from __future__ import annotations
@@ -13,19 +11,17 @@ from __future__ import annotations
 import logging
 import time
 from dataclasses import dataclass, field
-from concurrent.futures import ProcessPoolExecutor
-from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
-from typing import Callable
 
 from ..errors import MeshoptError
 from .document import Document
 from .limits import DEFAULT_MAX_TRIANGLES
 from .runner import Pipeline
+from .workers import RESTART_KEY
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["output_path", "run_file", "RunOptions", "BatchRunner"]
+__all__ = ["output_path", "run_file", "RunOptions"]
 
 
 def output_path(src: Path, outdir: Path, ext: str | None) -> Path:
@@ -140,6 +136,9 @@ def run_file(pipeline: Pipeline | dict, src, outdir, *, ext: str | None = None,
     except OSError as exc:  # a file system refusal the layers below did not name
         name = exc.filename or src
         record.update(status="failed", error=f"{name}: {exc.strerror or exc}")
+    except MemoryError:  # this file only; the worker process is then replaced
+        record.update(status="failed", error=f"{src}: out of memory (MemoryError)")
+        record[RESTART_KEY] = True
     except Exception as exc:  # a bug or a library failure: still per file
         logger.debug("unexpected error on %s", src, exc_info=True)
         record.update(status="failed", error=f"{src}: internal error: {type(exc).__name__}: {exc}")
@@ -147,76 +146,3 @@ def run_file(pipeline: Pipeline | dict, src, outdir, *, ext: str | None = None,
         record["warnings"] = list(doc.warnings)
     record["seconds"] = time.perf_counter() - t0
     return record
-
-
-def _child_init() -> None:  # pragma: no cover - runs in the worker
-    logging.basicConfig(level=logging.WARNING)
-
-
-class BatchRunner:
-    """Run a pipeline over files, optionally each in a worker process.
-
-    Parameters
-    ----------
-    pipeline : Pipeline
-    outdir : path or None
-        None only in a dry run.
-    isolate : bool
-        Run files in a child process (one reused worker; recreated after a crash).
-    ext, force, dry_run :
-        As in :func:`run_file`.
-    options : RunOptions, optional
-        Everything at once (then ``ext``, ``force``, ``dry_run`` are ignored).
-    """
-
-    def __init__(self, pipeline: Pipeline, outdir, *, isolate: bool = False,
-                 ext: str | None = None, force: bool = False, dry_run: bool = False,
-                 options: RunOptions | None = None) -> None:
-        self.pipeline = pipeline
-        self.outdir = None if outdir is None else Path(outdir)
-        self.isolate = isolate
-        self.options = options or RunOptions(ext=ext, force=force, dry_run=dry_run)
-        self._pool: ProcessPoolExecutor | None = None
-
-    def _executor(self) -> ProcessPoolExecutor:
-        if self._pool is None:
-            import multiprocessing
-
-            self._pool = ProcessPoolExecutor(max_workers=1, initializer=_child_init,
-                                             mp_context=multiprocessing.get_context("spawn"))
-        return self._pool
-
-    def run_one(self, src, index: int = 1) -> dict:
-        if not self.isolate:
-            return run_file(self.pipeline, src, self.outdir, options=self.options, index=index)
-        t0 = time.perf_counter()
-        data = self.pipeline.to_dict()
-        outdir = None if self.outdir is None else str(self.outdir)
-        try:
-            return self._executor().submit(run_file, data, str(src), outdir,
-                                           options=self.options, index=index,
-                                           source=self.pipeline.source).result()
-        except BrokenProcessPool:
-            self.close()
-            return {"input": str(src), "status": "failed", "outputs": [], "results": [],
-                    "warnings": [],
-                    "error": f"{src}: the worker process crashed (a native MeshLab filter "
-                             "aborted?); other files go on",
-                    "seconds": time.perf_counter() - t0}
-
-    def run(self, sources, callback: Callable[[dict], None] | None = None) -> list[dict]:
-        records = []
-        try:
-            for index, src in enumerate(sources, start=1):
-                rec = self.run_one(src, index)
-                records.append(rec)
-                if callback is not None:
-                    callback(rec)
-        finally:
-            self.close()
-        return records
-
-    def close(self) -> None:
-        if self._pool is not None:
-            self._pool.shutdown(wait=True, cancel_futures=True)
-            self._pool = None

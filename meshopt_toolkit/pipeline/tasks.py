@@ -1,0 +1,143 @@
+"""What a batch does to one file: run a pipeline (:class:`RunTask`) or convert one.
+
+A task is a picklable callable, sent once to each worker process or Dask worker. It is
+called with a payload ``(src, index, name, outdir)``: the input, its position in the
+batch (from 1), the output's file name when the batch fixes it (None: the task's own
+rule), and the folder to write into (the batch's scratch folder; the driver moves the
+outputs into place). It returns a JSON-able record ``{"input", "status", "outputs",
+"results", "warnings", "error", "seconds"}`` and never raises for a bad file.
+
+:meth:`config` is what the journal hashes: every setting that changes an output.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import time
+from pathlib import Path
+from typing import Callable
+
+from ..errors import MeshoptError
+from .batch import RunOptions, output_path, run_file
+from .runner import Pipeline
+from .workers import RESTART_KEY
+
+logger = logging.getLogger(__name__)
+
+__all__ = ["RunTask", "ConvertTask", "failed_record"]
+
+
+def failed_record(src, error: str, seconds: float = 0.0) -> dict:
+    """A record for a file that failed before or outside its task."""
+    return {"input": str(src), "status": "failed", "outputs": [], "results": [],
+            "warnings": [], "error": error, "seconds": seconds}
+
+
+class RunTask:
+    """Run a pipeline on one file (:func:`~.batch.run_file`).
+
+    Parameters
+    ----------
+    pipeline : Pipeline
+    options : RunOptions
+    """
+
+    def __init__(self, pipeline: Pipeline, options: RunOptions) -> None:
+        self.pipeline = pipeline
+        self.options = options
+        self._data = pipeline.to_dict()
+
+    def __getstate__(self) -> dict:  # workers rebuild the pipeline from its dict once
+        return {"data": self._data, "source": self.pipeline.source, "options": self.options}
+
+    def __setstate__(self, state: dict) -> None:
+        self._data = state["data"]
+        self.options = state["options"]
+        self.pipeline = Pipeline.from_dict(state["data"], state["source"])
+
+    @property
+    def own_save(self) -> bool:
+        return any(s.name == "save_mesh" for s in self.pipeline.steps)
+
+    def config(self) -> dict:
+        o = self.options
+        return {"task": "run", "pipeline": self._data, "ext": o.ext,
+                "max_triangles": o.max_triangles, "allow_inverted": o.allow_inverted}
+
+    def output_name(self, src: Path) -> str | None:
+        """The automatic save's file name (None when the pipeline saves by itself)."""
+        return None if self.own_save else output_path(Path(src), Path("."), self.options.ext).name
+
+    def with_options(self, **changes) -> "RunTask":
+        """A copy with some :class:`RunOptions` fields changed."""
+        fields = dict(vars(self.options), **changes)
+        return RunTask(self.pipeline, RunOptions(**fields))
+
+    def __call__(self, payload) -> dict:
+        src, index, _name, outdir = payload
+        return run_file(self.pipeline, src, outdir, options=self.options, index=index)
+
+
+class ConvertTask:
+    """Convert one file with ``func(src, dst, args)`` (``meshopt convert``'s per-file step).
+
+    Parameters
+    ----------
+    func : callable
+        A module-level function (picklable by reference); it writes ``dst`` and raises
+        :class:`~meshopt_toolkit.errors.MeshoptError` for a bad file. A dict it returns
+        becomes the record's ``results``.
+    args : argparse.Namespace
+        Passed to ``func``; only its plain values are kept.
+    ext : str
+        The output extension (``.vtu``) when a payload names no file.
+    """
+
+    #: options that change how a batch runs, not what it writes
+    RUN_CONTROL = frozenset({"inputs", "output", "force", "jobs", "resume", "scheduler",
+                             "shared_inputs", "json", "debug", "verbose", "command",
+                             "recursive", "max_file_size"})
+
+    def __init__(self, func: Callable, args, ext: str | None = None) -> None:
+        self.func = func
+        plain = {k: v for k, v in vars(args).items()
+                 if not k.startswith("_") and isinstance(v, (str, int, float, bool, type(None),
+                                                               list, tuple))}
+        self.args = argparse.Namespace(**plain)
+        self.ext = ext
+
+    def config(self) -> dict:
+        opts = {k: v for k, v in vars(self.args).items() if k not in self.RUN_CONTROL}
+        return {"task": "convert", "func": f"{self.func.__module__}.{self.func.__qualname__}",
+                "ext": self.ext, "options": opts}
+
+    def output_name(self, src: Path) -> str:
+        return Path(src).stem + (self.ext or Path(src).suffix.lower())
+
+    def __call__(self, payload) -> dict:
+        src, _index, name, outdir = payload
+        t0 = time.perf_counter()
+        src = Path(src)
+        dst = Path(outdir) / (name or self.output_name(src))
+        record = {"input": str(src), "status": "ok", "outputs": [], "results": [],
+                  "warnings": [], "error": None}
+        try:
+            dst.parent.mkdir(parents=True, exist_ok=True)
+            info = self.func(src, dst, self.args)
+            record["outputs"] = [str(dst)]
+            if isinstance(info, dict):
+                record["results"] = [info]
+        except MeshoptError as exc:
+            record.update(status="failed", error=str(exc))
+        except MemoryError:
+            record.update(status="failed", error=f"{src}: out of memory (MemoryError)")
+            record[RESTART_KEY] = True
+        except OSError as exc:
+            record.update(status="failed", error=f"{exc.filename or src}: {exc.strerror or exc}")
+        except Exception as exc:  # a bug or a library failure: still per file
+            logger.debug("unexpected error on %s", src, exc_info=True)
+            record.update(status="failed",
+                          error=f"{src}: internal error: {type(exc).__name__}: {exc}")
+        record["seconds"] = time.perf_counter() - t0
+        return record
