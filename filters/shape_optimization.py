@@ -6,10 +6,10 @@ from meshopt_toolkit.errors import FilterError
 from meshopt_toolkit.pipeline.filter import Filter, register
 from meshopt_toolkit.pipeline.params import (
     EnumParam,
+    ExpressionParam,
     FloatParam,
     IntParam,
     NumberListParam,
-    StringParam,
     number_list,
 )
 
@@ -41,7 +41,7 @@ class ShapeOptimization(Filter):
                   label="Method", choices=METHODS),
         IntParam("memory", 10, "L-BFGS memory (curvature pairs kept)", label="L-BFGS memory",
                  min=1, max=1000),
-        StringParam("rhs", DEFAULT_RHS, "right-hand side r(x1, x2) (safe expression)",
+        ExpressionParam("rhs", DEFAULT_RHS, "right-hand side r(x1, x2) (safe expression)",
                     label="Right-hand side"),
         NumberListParam("penalty", "", "beta^penalty b1,b2,b3,b4 (b4 unscaled); empty = thesis set 2",
                     label="Penalty beta", count=4),

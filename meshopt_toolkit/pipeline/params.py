@@ -32,6 +32,7 @@ from ..errors import FilterError
 __all__ = [
     "BoolParam",
     "EnumParam",
+    "ExpressionParam",
     "FloatParam",
     "IntParam",
     "Length",
@@ -372,6 +373,24 @@ class NumberListParam(StringParam):
 
     def spec(self) -> dict:
         return {**super().spec(), "count": self.count}
+
+
+@dataclass(frozen=True)
+class ExpressionParam(StringParam):
+    """A user expression in ``x, y`` (:mod:`meshopt_toolkit.expressions`: whitelisted, never
+    ``eval``-ed), parsed when the pipeline is validated (``--dry-run``) so that a bad one
+    (``1/0``, an unknown name) names the filter and parameter before any file is read."""
+
+    def validate(self, value, filter_name="?") -> str:
+        from ..errors import ExpressionError
+        from ..expressions import parse_expression
+
+        value = super().validate(value, filter_name)
+        try:
+            parse_expression(value)
+        except ExpressionError as exc:
+            raise self._error(filter_name, f"{value!r}: {exc}") from None
+        return value
 
 
 @dataclass(frozen=True)
