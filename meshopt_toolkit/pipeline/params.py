@@ -389,7 +389,8 @@ class ExpressionParam(StringParam):
         try:
             parse_expression(value)
         except ExpressionError as exc:
-            raise self._error(filter_name, f"{value!r}: {exc}") from None
+            message = str(exc) if repr(value) in str(exc) else f"{value!r}: {exc}"
+            raise self._error(filter_name, message) from None
         return value
 
 
