@@ -112,3 +112,22 @@ def test_mesh_at_an_extreme_scale_is_refused_naming_the_scale(tmp_path, capsys, 
     err = capsys.readouterr().err
     assert code == 1 and err.count("\n") == 1
     assert "across" in err and "rescale" in err and "internal error" not in err
+
+
+def test_two_runs_into_one_directory_cannot_mix(tmp_path, capsys):
+    """While one run holds the output directory, a second fails at once with one line and
+    writes nothing; the lock is gone when the run ends."""
+    from meshopt_toolkit.cli import main
+    from meshopt_toolkit.cli._common import LOCK_NAME, exclusive_output_dir
+
+    out = tmp_path / "run"
+    out.mkdir()
+    with exclusive_output_dir(out):
+        assert main(["optimize", "-o", str(out), "--max-iter", "2", "--no-plots"]) == 1
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "another meshopt run is writing there" in err[0]
+        assert sorted(p.name for p in out.iterdir()) == [LOCK_NAME]
+    assert not (out / LOCK_NAME).exists()
+    main(["optimize", "-o", str(out), "--max-iter", "2", "--no-plots"])
+    names = {p.name for p in out.iterdir()}
+    assert "summary.json" in names and LOCK_NAME not in names

@@ -179,3 +179,36 @@ def write_text(path: Path, text: str) -> None:
 
     with atomic_path(path) as tmp, writing(path):
         tmp.write_text(text, encoding="utf-8")
+
+
+LOCK_NAME = ".meshopt.lock"
+
+
+@contextlib.contextmanager
+def exclusive_output_dir(outdir: Path) -> Iterator[None]:
+    """Hold an exclusive lock on ``outdir`` while a run writes its set of files there, so
+    two runs into one directory cannot leave one run's summary beside the other's mesh:
+    the second fails at once with one line. The lock file is removed when the run ends."""
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX: no lock
+        yield
+        return
+    lock = outdir / LOCK_NAME
+    try:
+        fd = os.open(lock, os.O_CREAT | os.O_RDWR, 0o644)
+    except OSError as exc:
+        raise WriteError(f"{outdir}: cannot write there: {exc.strerror or exc}") from None
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise WriteError(f"{outdir}: another meshopt run is writing there "
+                             f"(it holds {lock}); use another -o") from None
+        try:
+            yield
+        finally:
+            with contextlib.suppress(OSError):
+                lock.unlink()
+    finally:
+        os.close(fd)

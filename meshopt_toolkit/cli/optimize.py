@@ -17,7 +17,7 @@ import tempfile
 from pathlib import Path
 
 from ..errors import ExpressionError, MeshoptError, WriteError
-from ._common import float_list
+from ._common import exclusive_output_dir, float_list
 
 HELP = "shape optimization: minimize ∫y (P1 Poisson) + f2 over admissible meshes"
 
@@ -126,32 +126,34 @@ def run(args: argparse.Namespace) -> int:
     outdir = Path(args.output)
     mesh_name = "optimized" + input_path.suffix.lower()
     _prepare_outdir(outdir, mesh_name, args.force, input_path)
+    with exclusive_output_dir(outdir):
+        _prepare_outdir(outdir, mesh_name, args.force, input_path)  # again, under the lock
 
-    bar = ProgressBar(args.max_iter, "optimize")
+        bar = ProgressBar(args.max_iter, "optimize")
 
-    def callback(record, Q):
-        bar.update(status=f"j={record.j:.5f} Λ={record.mean_shape_quality:.4f}")
+        def callback(record, Q):
+            bar.update(status=f"j={record.j:.5f} Λ={record.mean_shape_quality:.4f}")
 
-    with bar:
-        result = optimize(
-            mesh, objective, variant=args.variant, method=args.method,
-            penalty_beta=penalty, metric_beta=args.metric_penalty, fixed=fixed,
-            max_iter=args.max_iter, tol=args.tol if args.tol > 0 else None,
-            ftol=args.tol if args.tol > 0 else None,
-            gtol=args.gtol if args.gtol > 0 else None, memory=args.memory, callback=callback,
-        )
-    summary = result.summary()
-    summary.update(input=str(input_path), output=str(outdir / mesh_name),
-                   penalty_beta=list(penalty), rhs=args.rhs)
-    written = [mesh_name, "history.csv", "history.json", "summary.json"]
-    try:
-        io.save(result.mesh, outdir / mesh_name, overwrite=True)
-        _write_history(outdir, result)
-        _atomic_text(outdir / "summary.json", json.dumps(summary, indent=2) + "\n")
-        if not args.no_plots and _write_plots(outdir, mesh, result, args.rhs):
-            written += ["mesh.png", "history.png"]
-    except OSError as exc:
-        raise WriteError(f"{outdir}: cannot write the results ({exc.strerror or exc})") from None
+        with bar:
+            result = optimize(
+                mesh, objective, variant=args.variant, method=args.method,
+                penalty_beta=penalty, metric_beta=args.metric_penalty, fixed=fixed,
+                max_iter=args.max_iter, tol=args.tol if args.tol > 0 else None,
+                ftol=args.tol if args.tol > 0 else None,
+                gtol=args.gtol if args.gtol > 0 else None, memory=args.memory, callback=callback,
+            )
+        summary = result.summary()
+        summary.update(input=str(input_path), output=str(outdir / mesh_name),
+                       penalty_beta=list(penalty), rhs=args.rhs)
+        written = [mesh_name, "history.csv", "history.json", "summary.json"]
+        try:
+            io.save(result.mesh, outdir / mesh_name, overwrite=True)
+            _write_history(outdir, result)
+            _atomic_text(outdir / "summary.json", json.dumps(summary, indent=2) + "\n")
+            if not args.no_plots and _write_plots(outdir, mesh, result, args.rhs):
+                written += ["mesh.png", "history.png"]
+        except OSError as exc:
+            raise WriteError(f"{outdir}: cannot write the results ({exc.strerror or exc})") from None
     if args.json:
         json.dump(summary, sys.stdout)
         sys.stdout.write("\n")
