@@ -36,12 +36,15 @@ def _targets(module: str, node: ast.ImportFrom, is_package: bool) -> set[str]:
     return out
 
 
-def module_level_imports() -> dict[str, set[str]]:
-    """For every module of the package, the package modules its top-level code imports."""
+def module_level_imports(any_depth: bool = False) -> dict[str, set[str]]:
+    """For every module of the package, the package modules its top-level code imports
+    (``any_depth``: also the imports inside functions — a lazy import is still a
+    dependency)."""
     graph = {}
     for module, path in MODULES.items():
         out: set[str] = set()
-        for node in ast.parse(path.read_text(encoding="utf-8")).body:
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        for node in (ast.walk(tree) if any_depth else tree.body):
             if isinstance(node, ast.ImportFrom):
                 out |= _targets(module, node, path.name == "__init__.py")
             elif isinstance(node, ast.Import):

@@ -2,68 +2,20 @@
 
 from __future__ import annotations
 
-import ast
 import subprocess
 import sys
-from pathlib import Path
 
-import meshopt_toolkit.pipeline as pkg
+from test_architecture import find_cycle, module_level_imports
 
 PKG = "meshopt_toolkit.pipeline"
-ROOT = Path(pkg.__file__).parent
-
-
-def _imports(path: Path, module: str) -> set[str]:
-    """Every module of the package that ``module`` imports, at any depth of its code
-    (function-level imports included: a lazy import is still a dependency)."""
-    tree = ast.parse(path.read_text(encoding="utf-8"))
-    out = set()
-    base = module.rsplit(".", 1)[0]
-    for node in ast.walk(tree):
-        if isinstance(node, ast.ImportFrom):
-            if node.level:
-                parent = base.rsplit(".", node.level - 1)[0] if node.level > 1 else base
-                target = f"{parent}.{node.module}" if node.module else parent
-            else:
-                target = node.module or ""
-            if target == PKG:  # from . import meshlab
-                out.update(f"{PKG}.{a.name}" for a in node.names)
-            else:
-                out.add(target)
-        elif isinstance(node, ast.Import):
-            out.update(a.name for a in node.names)
-    return {m for m in out if m.startswith(PKG + ".") and (ROOT / (m.split(".")[-1] + ".py")).exists()}
 
 
 def _graph() -> dict[str, set[str]]:
-    return {f"{PKG}.{p.stem}": _imports(p, f"{PKG}.{p.stem}")
-            for p in sorted(ROOT.glob("*.py")) if p.stem != "__init__"}
-
-
-def _cycle(graph: dict[str, set[str]]) -> list[str] | None:
-    state: dict[str, int] = {}
-    stack: list[str] = []
-
-    def visit(n: str) -> list[str] | None:
-        state[n] = 1
-        stack.append(n)
-        for m in sorted(graph.get(n, ())):
-            if state.get(m) == 1:
-                return stack[stack.index(m):] + [m]
-            if m not in state:
-                found = visit(m)
-                if found:
-                    return found
-        stack.pop()
-        state[n] = 2
-        return None
-
-    for n in sorted(graph):
-        if n not in state:
-            found = visit(n)
-            if found:
-                return found
-    return None
+    """The pipeline modules and the pipeline modules each imports, at any depth (function-
+    level imports included), the package ``__init__`` left out."""
+    graph = module_level_imports(any_depth=True)
+    return {m: {d for d in deps if d.startswith(PKG + ".")}
+            for m, deps in graph.items() if m.startswith(PKG + ".")}
 
 
 def test_module_graph_has_no_cycle():
@@ -71,12 +23,7 @@ def test_module_graph_has_no_cycle():
     assert f"{PKG}.runner" in graph and f"{PKG}.json_format" in graph
     assert f"{PKG}.runner" in graph[f"{PKG}.json_format"]  # the edge that must stay one-way
     assert not graph[f"{PKG}.runner"] & {f"{PKG}.json_format", f"{PKG}.mlx", f"{PKG}.files"}
-    assert _cycle(graph) is None, " -> ".join(_cycle(graph))
-
-
-def test_cycle_finder_finds_a_cycle():
-    assert _cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
-    assert _cycle({"a": {"b"}, "b": set()}) is None
+    assert find_cycle(graph) is None, " -> ".join(find_cycle(graph))
 
 
 def test_each_order_imports_in_a_fresh_interpreter():

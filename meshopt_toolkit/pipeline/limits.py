@@ -8,14 +8,12 @@ hostile file fails in milliseconds with a one-line :class:`FilterError` naming t
 
 from __future__ import annotations
 
-import os
 import re
-import stat
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import FilterError
+from ..errors import FilterError, ReadError
 
 __all__ = [
     "MAX_PIPELINE_BYTES",
@@ -91,17 +89,18 @@ def read_bounded(path, limit: int = MAX_PIPELINE_BYTES) -> bytes:
         Missing, not a regular file, larger than ``limit``, or unreadable; the message
         names the file.
     """
+    from ..io._files import check_input_file
+
     p = Path(path)
     try:
-        st = os.stat(p)
-    except FileNotFoundError:
-        raise FilterError(f"{p}: no such pipeline file") from None
-    except OSError as exc:
-        raise FilterError(f"{p}: cannot read the pipeline file: {exc.strerror or exc}") from None
-    if not stat.S_ISREG(st.st_mode):
-        raise FilterError(f"{p}: not a regular file (a pipeline must be a .json or .mlx file)")
-    if st.st_size > limit:
-        raise FilterError(f"{p}: pipeline file larger than {limit} bytes; refused")
+        check_input_file(p, limit)
+    except ReadError as exc:  # the same checks as for meshes, named as a pipeline's
+        message = str(exc).removeprefix(f"{p}: ")
+        if message == "no such file":
+            message = "no such pipeline file"
+        elif "larger than the limit" in message:
+            message = f"pipeline file larger than {limit} bytes; refused"
+        raise FilterError(f"{p}: {message}") from None
     try:
         with open(p, "rb") as fh:
             data = fh.read(limit + 1)
