@@ -164,6 +164,27 @@ def prepare_output_dir(out: Path, *, force: bool, names: Iterable[str] | None = 
     return out
 
 
+def check_output_target(out: Path, src: Path, frames: int | None, force: bool) -> None:
+    """Before any work: ``out`` may be written (a file), or with ``frames`` is (or will be)
+    a directory of frames."""
+    if frames is None:
+        check_output_file(out, force=force, inputs=[src])
+    elif out.exists() and not out.is_dir():
+        raise WriteError(f"{out}: exists and is not a directory (--frames writes a directory)")
+
+
+def load_at_unit_size(src: Path, what: str):
+    """``(scale, mesh)``: the file's mesh scaled by an exact power of two to unit size and
+    checked admissible for ``what``; ``scale.mesh_up``/``scale.up`` bring results back."""
+    from ..io import load
+    from ..mesh import require_admissible
+    from ..scaling import unit_scale
+
+    raw = load(src)
+    scale = unit_scale(raw)
+    return scale, require_admissible(scale.mesh_down(raw), what)
+
+
 @contextlib.contextmanager
 def writing(path: Path) -> Iterator[None]:
     """Turn an ``OSError`` while writing ``path`` into one WriteError line naming it."""

@@ -22,8 +22,8 @@ import logging
 from pathlib import Path
 
 from ..bounds import MAX_FRAMES
-from ..errors import WriteError
-from ._common import check_output_file, float_list, prepare_output_dir, write_text
+from ._common import (check_output_target, float_list, load_at_unit_size, prepare_output_dir,
+                      write_text)
 from ._validate import check_int, check_number, check_numbers
 
 #: accepted range of --rtol (tighter stalls in round-off, looser is not an integration)
@@ -76,10 +76,8 @@ def _check_numbers(args: argparse.Namespace) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..deform import deform, load_displacement
-    from ..io import load, save
-    from ..mesh import require_admissible
+    from ..io import save
     from ..progress import ProgressBar
-    from ..scaling import unit_scale
 
     _check_numbers(args)
     src = Path(args.mesh)
@@ -88,13 +86,9 @@ def run(args: argparse.Namespace) -> int:
     ext = (args.format or src.suffix).lower()
     if not ext.startswith("."):
         ext = "." + ext
-    if frames is None:
-        check_output_file(out, force=args.force, inputs=[src])
-    elif out.exists() and not out.is_dir():
-        raise WriteError(f"{out}: exists and is not a directory (--frames writes a directory)")
-    raw = load(src)
-    scale = unit_scale(raw)  # work at unit size (exact powers of two), results scaled back
-    mesh = require_admissible(scale.mesh_down(raw), "deform")
+    check_output_target(out, src, frames, args.force)
+    # work at unit size (exact powers of two), results scaled back
+    scale, mesh = load_at_unit_size(src, "deform")
     V = scale.down(load_displacement(args.displacement, scale.mesh_up(mesh)))
     if frames is not None:
         prepare_output_dir(out, force=args.force)

@@ -20,8 +20,7 @@ import argparse
 import json
 from pathlib import Path
 
-from ..errors import WriteError
-from ._common import check_output_file, prepare_output_dir, write_text
+from ._common import check_output_target, load_at_unit_size, prepare_output_dir, write_text
 from ..bounds import MAX_FRAMES, MAX_STEPS
 from ._validate import OptionError, check_int, check_number
 
@@ -70,24 +69,18 @@ def _check_numbers(args: argparse.Namespace) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..io import load, save
-    from ..mesh import require_admissible
+    from ..io import save
     from ..motion.move import move
     from ..motion.targets import read_target_table, targets_from_map
     from ..progress import ProgressBar
-    from ..scaling import unit_scale
 
     _check_numbers(args)
     src = Path(args.mesh)
     out = Path(args.output)
     frames = args.frames
-    if frames is None:
-        check_output_file(out, force=args.force, inputs=[src])
-    elif out.exists() and not out.is_dir():
-        raise WriteError(f"{out}: exists and is not a directory (--frames writes a directory)")
-    raw = load(src)
-    scale = unit_scale(raw)  # work at unit size (exact powers of two), results scaled back
-    mesh = require_admissible(scale.mesh_down(raw), "move")
+    check_output_target(out, src, frames, args.force)
+    # work at unit size (exact powers of two), results scaled back
+    scale, mesh = load_at_unit_size(src, "move")
     if args.targets is not None:
         handles, targets = read_target_table(args.targets)
     else:  # the expressions are in the file's units
