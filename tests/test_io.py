@@ -397,3 +397,28 @@ def test_atomic_write_keeps_old_file(tmp_path, planar, monkeypatch):
 def test_missing_directory(tmp_path, planar):
     with pytest.raises(WriteError, match="does not exist"):
         io.save(planar, tmp_path / "no" / "m.msh")
+
+
+def test_register_format_adds_a_format_to_load_save_and_convert(tmp_path):
+    """A format registered by extension is used by load/save and by the lossless path."""
+    import meshopt_toolkit.io as mio
+    from meshopt_toolkit.datasets import data_path
+    from meshopt_toolkit.io import obj
+
+    saved = {k: dict(t) for k, t in (("r", mio.READERS), ("w", mio.WRITERS),
+                                     ("rc", mio.CELL_READERS), ("wc", mio.CELL_WRITERS))}
+    try:
+        mio.register_format("OBJX", read=obj.read, write=obj.write, read_cells=obj.read_cells,
+                            write_cells=obj.write_cells)
+        assert ".objx" in mio.supported_extensions("read")
+        mesh = mio.load(data_path("disc_25.msh"))
+        mio.save(mesh, tmp_path / "m.objx")
+        again = mio.load(tmp_path / "m.objx")
+        assert np.array_equal(again.triangles, mesh.triangles)
+        assert mio.load_cells(tmp_path / "m.objx").points.shape[0] == mesh.n_vertices
+    finally:
+        for table, key in ((mio.READERS, "r"), (mio.WRITERS, "w"), (mio.CELL_READERS, "rc"),
+                           (mio.CELL_WRITERS, "wc")):
+            table.clear()
+            table.update(saved[key])
+    assert ".objx" not in mio.supported_extensions("read")

@@ -1,7 +1,8 @@
 """Mesh file I/O: one module per format behind an extension registry.
 
 ``load(path)`` and ``save(mesh, path)`` pick the reader/writer from the file extension in
-:data:`READERS` / :data:`WRITERS` (plain dicts: extension → function) and work with
+:data:`READERS` / :data:`WRITERS` (extension → function, filled by
+:func:`register_format`, which third-party formats use too) and work with
 triangle meshes. ``load_cells(path)`` and ``save_cells(cells, path)`` (:data:`CELL_READERS`
 / :data:`CELL_WRITERS`) move everything a file holds, as a :class:`~.cells.CellMesh`:
 every cell type, point, cell and field data; a writer refuses what its format cannot
@@ -41,55 +42,57 @@ logger = logging.getLogger(__name__)
 
 __all__ = ["load", "save", "load_cells", "save_cells", "CellMesh", "READERS", "WRITERS",
            "CELL_READERS", "CELL_WRITERS", "MAX_FILE_BYTES", "atomic_path",
-           "supported_extensions"]
+           "register_format", "supported_extensions"]
 
 Reader = Callable[[Path], TriangleMesh]
 Writer = Callable[..., None]
 
 #: extension → reader(path) -> TriangleMesh
-READERS: dict[str, Reader] = {
-    ".msh": gmsh.read,
-    ".obj": obj.read,
-    ".off": off.read,
-    ".ply": ply.read,
-    ".vtk": vtk.read_vtk,
-    ".vtu": vtk.read_vtu,
-    ".stl": stl.read,
-}
-
+READERS: dict[str, Reader] = {}
 #: extension → writer(path, mesh, binary) -> None
-WRITERS: dict[str, Writer] = {
-    ".msh": gmsh.write,
-    ".obj": obj.write,
-    ".off": off.write,
-    ".ply": ply.write,
-    ".vtk": vtk.write_vtk,
-    ".vtu": vtk.write_vtu,
-    ".stl": stl.write,
-}
-
-
+WRITERS: dict[str, Writer] = {}
 #: extension → reader(path) -> CellMesh (everything the file holds)
-CELL_READERS: dict[str, Callable[[Path], CellMesh]] = {
-    ".msh": gmsh.read_cells,
-    ".obj": obj.read_cells,
-    ".off": off.read_cells,
-    ".ply": ply.read_cells,
-    ".vtk": vtk.read_vtk_cells,
-    ".vtu": vtk.read_vtu_cells,
-    ".stl": stl.read_cells,
-}
-
+CELL_READERS: dict[str, Callable[[Path], CellMesh]] = {}
 #: extension → writer(path, cells, binary) -> None; refuses what the format cannot hold
-CELL_WRITERS: dict[str, Writer] = {
-    ".msh": gmsh.write_cells,
-    ".obj": obj.write_cells,
-    ".off": off.write_cells,
-    ".ply": ply.write_cells,
-    ".vtk": vtk.write_vtk_cells,
-    ".vtu": vtk.write_vtu_cells,
-    ".stl": stl.write_cells,
-}
+CELL_WRITERS: dict[str, Writer] = {}
+
+
+def register_format(extension: str, *, read: Reader | None = None, write: Writer | None = None,
+                    read_cells: Callable[[Path], CellMesh] | None = None,
+                    write_cells: Writer | None = None) -> None:
+    """Register the reader/writer functions of a file format by its extension (as meshio's
+    ``register_format``): ``load``/``save`` use ``read``/``write`` (triangle meshes),
+    ``load_cells``/``save_cells`` and ``meshopt convert`` the lossless ``read_cells`` /
+    ``write_cells``. A later registration of the same extension replaces the earlier one.
+
+    Parameters
+    ----------
+    extension : str
+        ``".ext"`` (case-insensitive; the dot is added when missing).
+    read, write, read_cells, write_cells : callables, optional
+        Left out: that direction is not supported for the format.
+    """
+    ext = extension.lower() if extension.startswith(".") else "." + extension.lower()
+    for table, function in ((READERS, read), (WRITERS, write), (CELL_READERS, read_cells),
+                            (CELL_WRITERS, write_cells)):
+        if function is not None:
+            table[ext] = function
+
+
+register_format(".msh", read=gmsh.read, write=gmsh.write, read_cells=gmsh.read_cells,
+                write_cells=gmsh.write_cells)
+register_format(".obj", read=obj.read, write=obj.write, read_cells=obj.read_cells,
+                write_cells=obj.write_cells)
+register_format(".off", read=off.read, write=off.write, read_cells=off.read_cells,
+                write_cells=off.write_cells)
+register_format(".ply", read=ply.read, write=ply.write, read_cells=ply.read_cells,
+                write_cells=ply.write_cells)
+register_format(".vtk", read=vtk.read_vtk, write=vtk.write_vtk, read_cells=vtk.read_vtk_cells,
+                write_cells=vtk.write_vtk_cells)
+register_format(".vtu", read=vtk.read_vtu, write=vtk.write_vtu, read_cells=vtk.read_vtu_cells,
+                write_cells=vtk.write_vtu_cells)
+register_format(".stl", read=stl.read, write=stl.write, read_cells=stl.read_cells,
+                write_cells=stl.write_cells)
 
 
 def supported_extensions(kind: str = "read") -> list[str]:
