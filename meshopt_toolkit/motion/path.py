@@ -333,6 +333,16 @@ class _FrameBlocks:
         upper = [blk.T.tocsr() for blk in lower]
         diag = [A[i][:, i].tocsr() for i in idx]
 
+        if len(idx) == 1:  # one frame (move's steps): P = D̃, one solve per application
+            only, solve = idx[0], lus[0]
+
+            def apply_one(v: FloatArray) -> FloatArray:
+                out = np.empty_like(v)
+                out[only] = solve(v[only])
+                return out
+
+            return apply_one
+
         def apply(v: FloatArray) -> FloatArray:
             n = len(idx)
             z = [None] * n
