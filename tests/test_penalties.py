@@ -211,9 +211,9 @@ def test_all_pairs_chunked_equals_cached(monkeypatch):
     P = QualityPenalty(mesh, (0, 0, 1.0, 0), mu=10.0)
     ref = (P.value(Q), P.gradient(Q), P.hvp(Q, V))
     assert P._other_terms[0]._all_pairs is not None  # the cached list
-    monkeypatch.setattr(pen.terms, "PAIR_CHUNK", 37)
+    monkeypatch.setattr(pen, "PAIR_CHUNK", 37)
     for cache in (10**6, 0):  # cached list in slices, then regenerated chunks
-        monkeypatch.setattr(pen.terms, "PAIR_CACHE", cache)
+        monkeypatch.setattr(pen, "PAIR_CACHE", cache)
         P2 = QualityPenalty(mesh, (0, 0, 1.0, 0), mu=10.0)
         assert (P2._other_terms[0]._all_pairs is None) == (cache == 0)
         assert P2.value(Q) == pytest.approx(ref[0], rel=1e-13)
@@ -538,7 +538,7 @@ def test_blocked_triangle_pass_matches_single_block(monkeypatch):
     Q = perturbed(mesh, 0.1)
     V = _direction(Q, 4)
     ref = [QualityPenalty(mesh, (1.0, 0.5, 0, 1.0)), HeightPenalty(mesh, (1.0, 0, 1.0))]
-    monkeypatch.setattr(pen.penalty, "BLOCK", 7)
+    monkeypatch.setattr(pen, "BLOCK", 7)
     blocked = [QualityPenalty(mesh, (1.0, 0.5, 0, 1.0)), HeightPenalty(mesh, (1.0, 0, 1.0))]
     for P, B in zip(ref, blocked):
         assert len(B._blocks) == -(-mesh.n_triangles // 7) and len(P._blocks) == 1
