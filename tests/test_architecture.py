@@ -88,15 +88,3 @@ def test_the_graph_sees_relative_imports():
     graph = module_level_imports()
     assert f"{PACKAGE}.mesh" in graph[f"{PACKAGE}.motion.move"]
     assert f"{PACKAGE}.motion.strain" in graph[f"{PACKAGE}.motion.path"]
-
-
-def test_the_geodesic_field_implements_the_integrators_interface():
-    """ode.py integrates any SecondOrderField; the library's one is GeodesicField."""
-    from meshopt_toolkit.integrators import GeodesicField
-    from meshopt_toolkit.ode import SecondOrderField
-
-    members = {n for n in vars(SecondOrderField) if not n.startswith("_")}
-    members |= set(SecondOrderField.__annotations__)
-    missing = {n for n in members if not hasattr(GeodesicField, n)
-               and n not in getattr(GeodesicField.__init__, "__code__").co_names}
-    assert not missing, f"GeodesicField lacks {sorted(missing)}"
