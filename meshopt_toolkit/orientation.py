@@ -9,7 +9,7 @@ need before the planar-manifold checks (issue 12).
   plane) are mapped to 2D by a rigid transform and back; axis-parallel planes exactly.
 * :func:`coincident_vertices`: vertices sharing their position with another one.
 * :func:`merge_vertices`: merge vertices closer than a tolerance.
-* :func:`component_labels` (re-exported from :mod:`.mesh.topology`): connected components in pure numpy.
+* :func:`component_labels`: connected components in pure numpy (no scipy import).
 """
 
 from __future__ import annotations
@@ -20,7 +20,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._typing import FloatArray, IntArray
-from .mesh.topology import component_labels
 
 logger = logging.getLogger(__name__)
 
@@ -35,6 +34,32 @@ __all__ = [
 
 #: relative distance (to the bounding-box diagonal) within which points count as coplanar
 PLANE_TOLERANCE = 1e-10
+
+
+def component_labels(n: int, a: IntArray, b: IntArray) -> IntArray:
+    """Connected components of the graph with ``n`` nodes and edges ``(a[i], b[i])``.
+
+    Returns the smallest node of each node's component, ``(n,)``. Min-label hooking of
+    roots and full path compression: a few passes over the edge arrays.
+    """
+    label = np.arange(n, dtype=np.int64)
+    a = np.asarray(a, np.int64)
+    b = np.asarray(b, np.int64)
+    while True:
+        la, lb = label[a], label[b]
+        differ = la != lb
+        if not differ.any():
+            return label
+        la, lb = la[differ], lb[differ]
+        m = np.minimum(la, lb)
+        np.minimum.at(label, la, m)
+        np.minimum.at(label, lb, m)
+        while True:
+            nxt = label[label]
+            if np.array_equal(nxt, label):
+                break
+            label = nxt
+        a, b = a[differ], b[differ]
 
 
 def _edge_pairs(triangles: IntArray, n_vertices: int):
@@ -255,7 +280,7 @@ def planar_view(mesh):
     in the plane's coordinates with ``embedding`` (a :class:`PlaneEmbedding`) set, which
     :func:`meshopt_toolkit.io.save` uses to write the points back in 3D.
     """
-    from .mesh.core import PlanarMesh
+    from .mesh import PlanarMesh
 
     if mesh.is_planar:
         return mesh.as_planar(), ""
@@ -297,8 +322,7 @@ def diagnose(pm):
         Problems of a manifold mesh that still keep it from being admissible:
         coincident vertices, unused vertices, several pieces.
     """
-    from .mesh.core import PlanarMesh
-    from .mesh.topology import _fans_per_vertex
+    from .mesh import PlanarMesh, _fans_per_vertex
 
     tri = pm.triangles
     n = pm.n_vertices

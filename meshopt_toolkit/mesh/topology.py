@@ -17,32 +17,6 @@ sp = lazy_module("scipy.sparse")  # imported on first use: info/convert need no 
 _csgraph = lazy_module("scipy.sparse.csgraph")
 
 
-def component_labels(n: int, a: IntArray, b: IntArray) -> IntArray:
-    """Connected components of the graph with ``n`` nodes and edges ``(a[i], b[i])``.
-
-    Returns the smallest node of each node's component, ``(n,)``. Min-label hooking of
-    roots and full path compression: a few passes over the edge arrays.
-    """
-    label = np.arange(n, dtype=np.int64)
-    a = np.asarray(a, np.int64)
-    b = np.asarray(b, np.int64)
-    while True:
-        la, lb = label[a], label[b]
-        differ = la != lb
-        if not differ.any():
-            return label
-        la, lb = la[differ], lb[differ]
-        m = np.minimum(la, lb)
-        np.minimum.at(label, la, m)
-        np.minimum.at(label, lb, m)
-        while True:
-            nxt = label[label]
-            if np.array_equal(nxt, label):
-                break
-            label = nxt
-        a, b = a[differ], b[differ]
-
-
 def _corner_table(tri: IntArray) -> IntArray:
     """The triangles as a contiguous ``(3, T)`` array: row ``l`` holds local vertex ``l``.
 
@@ -314,6 +288,8 @@ def _clean_manifold(mesh: TriangleMesh) -> IntArray | None:
     nbr = twin // 3
     nbr[first] = first // 3
     if nt <= _NUMPY_CONNECTIVITY:  # small meshes: numpy only, no scipy import
+        from ..orientation import component_labels
+
         inner = np.flatnonzero(twin >= 0)
         if component_labels(nt, inner // 3, twin[inner] // 3).any():
             return None

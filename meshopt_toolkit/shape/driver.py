@@ -23,7 +23,6 @@ from ..geometry import quality_summary
 from .directions import LBFGSMemory, hestenes_stiefel_plus
 from .linesearch import wolfe_line_search
 from .problem import ShapeProblem, segment_limit
-from .records import IterationRecord, OptimizeResult, _Timer
 
 logger = logging.getLogger(__name__)
 
@@ -54,6 +53,7 @@ def run_descent(
     callback,
 ):
     """Run L-BFGS (``method="lbfgs"``) or HS+ CG (``"cg"``); returns an OptimizeResult."""
+    from ..optimize import IterationRecord, OptimizeResult, _Timer
 
     c2 = DEFAULT_C2[method] if c2 is None else float(c2)
     tri = problem.triangles
