@@ -554,7 +554,7 @@ def mutated_mesh(rng) -> PlanarMesh:
 @pytest.mark.parametrize("walk_steps", [0, 1, 64])
 def test_fast_check_agrees_with_exact_check_and_brute_force(monkeypatch, walk_steps):
     # walk_steps 0: every fan by pointer doubling; 1: walks and pointer doubling mixed
-    monkeypatch.setattr(mesh_module.topology, "_WALK_STEPS", walk_steps)
+    monkeypatch.setattr(mesh_module, "_WALK_STEPS", walk_steps)
     rng = np.random.default_rng(walk_steps)
     seen = set()
     for _ in range(250):
@@ -626,7 +626,7 @@ def test_bridge_without_a_pinch_is_clean():
 @pytest.mark.parametrize("walk_steps", [0, 2, 64])
 def test_high_degree_fans(monkeypatch, walk_steps):
     # a fan of 40 triangles around the origin (one closed fan), then two such fans glued
-    monkeypatch.setattr(mesh_module.topology, "_WALK_STEPS", walk_steps)
+    monkeypatch.setattr(mesh_module, "_WALK_STEPS", walk_steps)
     k = 40
     th = 2 * np.pi * np.arange(k) / k
     pts = np.vstack([[0, 0], np.stack([np.cos(th), np.sin(th)], 1)])

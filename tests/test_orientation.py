@@ -180,8 +180,8 @@ def test_numpy_and_scipy_paths_of_the_check_agree(monkeypatch):
         return reports, hits, short
 
     fast, fast_hits, fast_problems = run()
-    monkeypatch.setattr(mesh_module.topology, "_NUMPY_CONNECTIVITY", -1)
-    monkeypatch.setattr(mesh_module.checks, "_NUMPY_PAIRS", -1)
+    monkeypatch.setattr(mesh_module, "_NUMPY_CONNECTIVITY", -1)
+    monkeypatch.setattr(mesh_module, "_NUMPY_PAIRS", -1)
     slow, slow_hits, slow_problems = run()
     assert fast_hits == slow_hits and fast_problems == slow_problems
     for a, b in zip(fast, slow):
