@@ -23,8 +23,8 @@ import numpy as np
 
 from ._typing import FloatArray
 from .errors import InvalidMeshError, ReadError
-from .geodesics import GeodesicResult, geodesic
-from .geometry import aspect_ratios
+from .riemannian.geodesics import GeodesicResult, geodesic
+from .kernels.triangles import aspect_ratios
 from .mesh import PlanarMesh, TriangleMesh, require_admissible
 
 __all__ = ["DEFAULT_ALPHA", "DeformResult", "deform"]

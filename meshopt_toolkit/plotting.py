@@ -19,7 +19,7 @@ import numpy as np
 
 from ._typing import FloatArray, IntArray
 from .errors import MeshoptError
-from .geometry import signed_areas
+from .kernels.triangles import signed_areas
 
 __all__ = [
     "draw_mesh",

@@ -300,7 +300,7 @@ def test_invariant_violation_warns_or_raises():
 
 
 def test_hermite_interpolant_is_exact_for_quintics(rng):
-    from meshopt_toolkit.integrators import _hermite
+    from meshopt_toolkit.ode import _hermite
 
     c = rng.standard_normal((6, 3, 2))  # q(t) = Σ c_k t^k, per coordinate
 

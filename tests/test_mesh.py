@@ -8,21 +8,23 @@ import numpy as np
 import pytest
 from conftest import grid_mesh, square5
 
-import meshopt_toolkit.mesh as mesh_module
+import meshopt_toolkit.mesh.topology as mesh_module
 from meshopt_toolkit.gmsh_session import gmsh_session
 from meshopt_toolkit.errors import InvalidMeshError, NotAdmissibleError
 from meshopt_toolkit.geometry import inverse_shape_quality, quality_summary, signed_areas
 from meshopt_toolkit.mesh import (
     PlanarMesh,
     TriangleMesh,
-    _clean_manifold,
-    _corner_table,
-    _fans_per_vertex,
-    _manifold_problems,
-    _sorted_half_edges,
     boundary_self_intersections,
     check_mesh,
     require_admissible,
+)
+from meshopt_toolkit.mesh.checks import _manifold_problems
+from meshopt_toolkit.mesh.topology import (
+    _clean_manifold,
+    _corner_table,
+    _fans_per_vertex,
+    _sorted_half_edges,
 )
 
 SQ_PTS = [[-1, -1], [1, -1], [1, 1], [-1, 1], [0, 0]]

@@ -381,9 +381,9 @@ def test_complete_exp_delegates_to_geodesics(mesh, monkeypatch):
         seen["options"] = options
         return Q + 2 * t * V
 
-    fake = types.ModuleType("meshopt_toolkit.geodesics")
+    fake = types.ModuleType("meshopt_toolkit.riemannian.geodesics")
     fake.exp_map = fake_exp_map
-    monkeypatch.setitem(sys.modules, "meshopt_toolkit.geodesics", fake)
+    monkeypatch.setitem(sys.modules, "meshopt_toolkit.riemannian.geodesics", fake)
     metric = CompleteMetric(InverseAreaPenalty(mesh))
     Q = mesh.points
     V = np.ones_like(Q)

@@ -162,7 +162,8 @@ def test_component_labels_agree_with_scipy(n, edges):
 
 
 def test_numpy_and_scipy_paths_of_the_check_agree(monkeypatch):
-    import meshopt_toolkit.mesh as mesh_module
+    import meshopt_toolkit.kernels.boundary as boundary_module
+    import meshopt_toolkit.mesh.topology as mesh_module
     from meshopt_toolkit.datasets import data_path
 
     disc = io.load(data_path("disc_25.msh")).as_planar().refine().refine()
@@ -174,14 +175,14 @@ def test_numpy_and_scipy_paths_of_the_check_agree(monkeypatch):
     cases = [disc, split_grid(), pieces, g.with_points(p)]
     def run():
         reports = [check_mesh(PlanarMesh(m.points, m.triangles)) for m in cases]
-        hits = [{tuple(sorted(h)) for h in mesh_module.boundary_self_intersections(
+        hits = [{tuple(sorted(h)) for h in boundary_module.boundary_self_intersections(
             r.mesh.points, r.mesh.boundary_edges).tolist()} for r in reports]
         short = [[q.split(":")[0] for q in r.problems] for r in reports]
         return reports, hits, short
 
     fast, fast_hits, fast_problems = run()
     monkeypatch.setattr(mesh_module, "_NUMPY_CONNECTIVITY", -1)
-    monkeypatch.setattr(mesh_module, "_NUMPY_PAIRS", -1)
+    monkeypatch.setattr(boundary_module, "_NUMPY_PAIRS", -1)
     slow, slow_hits, slow_problems = run()
     assert fast_hits == slow_hits and fast_problems == slow_problems
     for a, b in zip(fast, slow):

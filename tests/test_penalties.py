@@ -11,7 +11,7 @@ import pytest
 from conftest import grid_mesh, square5
 
 from meshopt_toolkit import data_path, load
-from meshopt_toolkit import penalties as pen
+from meshopt_toolkit.penalties import tuning as pen
 from meshopt_toolkit.distance import boundary_pairs, regularized_distance_value
 from meshopt_toolkit.errors import NotAdmissibleError
 from meshopt_toolkit.geometry import heights, inverse_shape_quality, signed_areas

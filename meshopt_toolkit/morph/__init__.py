@@ -79,7 +79,7 @@ import numpy as np
 
 from ..errors import InvalidMeshError
 from ..generate import twisted  # the 225° twist target lives in generate; kept importable
-from ..geometry import min_signed_areas_on_segment
+from ..kernels.triangles import min_signed_areas_on_segment
 from ..mesh import PlanarMesh
 from ._common import (  # noqa: F401 (DEFAULT_TOL, SHOOTING_RTOL, _Counter re-exported)
     DEFAULT_BETA, DEFAULT_TOL, SHOOTING_RTOL, _Counter, _frame_stats, _penalty)
@@ -143,7 +143,7 @@ def morph_metric(source, beta=DEFAULT_BETA, *, normalize: bool = True):
     ``f2 = QualityPenalty(source, beta, reference=source)`` and ``c = √N`` when
     ``normalize`` (else 1); since f2 is linear in β, ``c · f2(β) = f2(c β)``.
     """
-    from ..metrics import CompleteMetric
+    from ..riemannian.metrics import CompleteMetric
     from ..penalties import QualityPenalty
 
     c = metric_scale(source, normalize)
@@ -206,8 +206,8 @@ def geodesic_morph(
     IntegrationError
         ``method="shooting"`` and the shooting does not converge.
     """
-    from ..geodesics import geodesic
-    from ..interpolation import arap_interpolation
+    from ..riemannian.geodesics import geodesic
+    from ..fem.interpolation import arap_interpolation
 
     start = time.perf_counter()
     if method not in ("auto", "discrete", "shooting"):

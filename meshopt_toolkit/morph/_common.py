@@ -7,7 +7,7 @@ import numpy as np
 
 from .._typing import FloatArray
 from ..errors import InvalidMeshError, NotAdmissibleError
-from ..geometry import aspect_ratios, signed_areas
+from ..kernels.triangles import aspect_ratios, signed_areas
 
 
 #: default f2 coefficients (β1, β2, β3, β4) of the morph metric (β4 unscaled)
@@ -23,7 +23,7 @@ SHOOTING_RTOL = 1e-10
 
 
 def _penalty(metric):
-    from ..geodesics import penalty_of
+    from ..riemannian.geodesics import penalty_of
 
     return penalty_of(metric)
 

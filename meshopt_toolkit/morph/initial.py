@@ -98,8 +98,8 @@ def initial_path(
         The flow stalls: no admissible path was found (e.g. the target is a mirror image
         of the source, or lies in another component of M+).
     """
-    from ..geodesics import _triangles_of
-    from ..interpolation import arap_interpolation
+    from ..riemannian.geodesics import triangles_of as _triangles_of
+    from ..fem.interpolation import arap_interpolation
 
     pen = _penalty(metric)
     Q0 = _as_points(Q0, "Q0")

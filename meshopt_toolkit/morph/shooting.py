@@ -74,7 +74,7 @@ def log_map(
     """
     from scipy.sparse.linalg import LinearOperator, gmres
 
-    from ..geodesics import exp_map
+    from ..riemannian.geodesics import exp_map
 
     start = time.perf_counter()
     Q0 = _as_points(Q0, "Q0")
@@ -167,7 +167,7 @@ def log_map(
     success = res <= tol
     if success:
         message = f"converged: residual {res:.3g} <= {tol:.3g} in {it} Newton iterations"
-    from ..metrics import CompleteMetric
+    from ..riemannian.metrics import CompleteMetric
 
     cm = metric if hasattr(metric, "norm") else CompleteMetric(pen)
     out = LogMapResult(V, res, tol, it, float(cm.norm(Q0, V)), bool(success), n_exp, discrete,

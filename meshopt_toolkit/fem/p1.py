@@ -21,9 +21,9 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
-from ._typing import FloatArray, IntArray
-from .errors import MeshoptError
-from .solvers import choose_method, factorize_spd, pcg
+from .._typing import FloatArray, IntArray
+from ..errors import MeshoptError
+from ..solvers import choose_method, factorize_spd, pcg
 
 __all__ = [
     "AMG_THRESHOLD",

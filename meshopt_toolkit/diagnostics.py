@@ -1,0 +1,163 @@
+"""Taylor tests: verify derivatives by the decay rate of expansion remainders.
+
+For a smooth ``f`` and direction ``v``
+
+- first order:  ``|f(x + εv) − f(x) − ε ∇f(x)·v|                  = O(ε²)``
+- second order: ``|f(x + εv) − f(x) − ε ∇f(x)·v − ½ε² v·∇²f(x) v| = O(ε³)``
+
+A wrong derivative gives order 1 (or 2). The observed order is the slope of
+``log(remainder)`` against ``log(ε)`` on a log-spaced sweep, fitted only where the
+remainder stands clear of floating-point round-off. These are public diagnostics: run them
+on your own objectives before handing them to an optimizer.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+__all__ = ["TaylorResult", "check_gradient", "check_hvp", "taylor_remainders"]
+
+
+@dataclass(frozen=True)
+class TaylorResult:
+    """Outcome of a Taylor test.
+
+    Attributes
+    ----------
+    eps : (K,) step sizes (decreasing)
+    remainders : (K,) remainder magnitudes
+    order : observed order (median slope over the usable range)
+    expected : the order a correct derivative gives
+    usable : (K,) bool, points above the round-off floor used for the fit
+    """
+
+    eps: np.ndarray
+    remainders: np.ndarray
+    order: float
+    expected: int
+    usable: np.ndarray
+
+    @property
+    def passed(self) -> bool:
+        """True when the observed order is within 0.3 of the expected one (or the
+        remainders sit at round-off for every ε, i.e. the expansion is exact)."""
+        if not self.usable.any():
+            return True
+        return bool(self.order > self.expected - 0.3)
+
+    def __str__(self) -> str:
+        rows = "\n".join(f"  eps={e:9.3e}  remainder={r:10.3e}" for e, r in zip(self.eps, self.remainders))
+        return f"Taylor test: observed order {self.order:.3f} (expected {self.expected})\n{rows}"
+
+
+def _as_direction(x: np.ndarray, direction, rng) -> np.ndarray:
+    if direction is None:
+        rng = np.random.default_rng(rng)
+        direction = rng.standard_normal(np.shape(x))
+    v = np.asarray(direction, dtype=float)
+    if v.shape != np.shape(x):
+        raise ValueError(f"direction has shape {v.shape}, x has {np.shape(x)}")
+    return v
+
+
+def taylor_remainders(
+    f: Callable[[np.ndarray], float],
+    x: np.ndarray,
+    v: np.ndarray,
+    slope: float,
+    curvature: float | None,
+    eps: np.ndarray,
+) -> np.ndarray:
+    """Remainders ``|f(x+εv) − f(x) − ε slope [− ½ε² curvature]|`` for each ε."""
+    f0 = float(f(x))
+    out = np.empty(len(eps))
+    for k, e in enumerate(eps):
+        model = f0 + e * slope
+        if curvature is not None:
+            model += 0.5 * e * e * curvature
+        out[k] = abs(float(f(x + e * v)) - model)
+    return out
+
+
+def _observed_order(eps, rem, scale, expected):
+    floor = 1e3 * np.finfo(float).eps * max(scale, 1e-300)
+    usable = rem > floor
+    idx = np.flatnonzero(usable)
+    if idx.size < 2:
+        return float("nan") if idx.size else float(expected), usable
+    le, lr = np.log(eps[idx]), np.log(rem[idx])
+    slopes = np.diff(lr) / np.diff(le)
+    return float(np.median(slopes)), usable
+
+
+def _sweep(eps0: float, n: int) -> np.ndarray:
+    return eps0 * 2.0 ** -np.arange(n)
+
+
+def check_gradient(
+    f: Callable[[np.ndarray], float],
+    gradient: Callable[[np.ndarray], np.ndarray],
+    x: np.ndarray,
+    direction: np.ndarray | None = None,
+    *,
+    eps0: float = 1e-2,
+    n: int = 10,
+    rng=None,
+) -> TaylorResult:
+    """First-order Taylor test of ``gradient`` against ``f`` at ``x``: expect order 2.
+
+    Parameters
+    ----------
+    f : callable, x -> float
+    gradient : callable, x -> array shaped like x
+    x : array (any shape, e.g. (N, 2) node positions)
+    direction : array shaped like x, optional (random normal by default)
+    eps0 : largest step; the sweep halves it ``n - 1`` times
+    n : number of steps
+    rng : seed or Generator for the random direction
+
+    Returns
+    -------
+    TaylorResult with ``expected = 2``.
+    """
+    x = np.asarray(x, dtype=float)
+    v = _as_direction(x, direction, rng)
+    slope = float(np.vdot(gradient(x), v))
+    eps = _sweep(eps0, n)
+    rem = taylor_remainders(f, x, v, slope, None, eps)
+    scale = abs(float(f(x))) + abs(slope) * eps0
+    order, usable = _observed_order(eps, rem, scale, 2)
+    return TaylorResult(eps, rem, order, 2, usable)
+
+
+def check_hvp(
+    f: Callable[[np.ndarray], float],
+    gradient: Callable[[np.ndarray], np.ndarray],
+    hvp: Callable[[np.ndarray, np.ndarray], np.ndarray],
+    x: np.ndarray,
+    direction: np.ndarray | None = None,
+    *,
+    eps0: float = 1e-2,
+    n: int = 10,
+    rng=None,
+) -> TaylorResult:
+    """Second-order Taylor test of ``hvp(x, v) = ∇²f(x) v``: expect order 3.
+
+    Parameters are as in :func:`check_gradient`; ``hvp`` takes ``(x, v)``.
+
+    Returns
+    -------
+    TaylorResult with ``expected = 3``.
+    """
+    x = np.asarray(x, dtype=float)
+    v = _as_direction(x, direction, rng)
+    slope = float(np.vdot(gradient(x), v))
+    curvature = float(np.vdot(v, hvp(x, v)))
+    eps = _sweep(eps0, n)
+    rem = taylor_remainders(f, x, v, slope, curvature, eps)
+    scale = abs(float(f(x))) + abs(slope) * eps0 + abs(curvature) * eps0**2
+    order, usable = _observed_order(eps, rem, scale, 3)
+    return TaylorResult(eps, rem, order, 3, usable)

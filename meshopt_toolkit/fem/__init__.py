@@ -1,0 +1,24 @@
+"""P1 finite elements: stiffness and loads (``p1``), the Poisson model problem and its
+shape derivative (``poisson``), linear elasticity (``elasticity``) and the
+as-rigid-as-possible interpolation built on them (``interpolation``).
+
+``from meshopt_toolkit import fem; fem.PoissonSolver`` keeps working: the names of
+``fem.p1`` are re-exported here.
+"""
+
+from __future__ import annotations
+
+from .p1 import (  # noqa: F401 (_edge_components: tests)
+    _edge_components,
+    AMG_THRESHOLD,
+    PoissonSolver,
+    centroids,
+    element_stiffness,
+    lumped_load,
+    nodal_mass_weights,
+    p1_stiffness,
+    poisson_shape_derivative,
+)
+from .p1 import __all__ as _p1_all
+
+__all__ = list(_p1_all)
