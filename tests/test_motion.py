@@ -177,6 +177,21 @@ def test_discrete_geodesic_converges_and_lowers_energy(disc, rng):
     assert np.array_equal(res.frames[0], P) and np.array_equal(res.frames[-1], target)
 
 
+def test_discrete_geodesic_relative_stop(disc, rng):
+    """``rtol`` stops a relaxation once the gradient fell by that factor: converged, the
+    gradient at most ``rtol`` times the first one, in fewer iterations than the full solve."""
+    P = disc.points
+    target = _random_admissible(disc, rng, 0.3)
+    frames = np.array([(1 - s) * P + s * target for s in np.linspace(0, 1, 5)])
+    free = np.ones((5, disc.n_vertices), bool)
+    free[0] = free[-1] = False
+    metric = GraphMetric(P, disc.triangles)
+    full = discrete_geodesic(metric, frames, free)
+    quick = discrete_geodesic(metric, frames, free, rtol=1e-3)
+    assert quick.converged and quick.nit < full.nit
+    assert quick.gradient_norm <= 1e-3 * full.history[0][1]
+
+
 # ------------------------------------------------------------------ similarity
 @FAST
 @given(angle=st.floats(-3.1, 3.1), scale=st.floats(0.1, 10), shift=st.tuples(

@@ -21,6 +21,9 @@ from .path import GraphMetric, discrete_geodesic
 logger = logging.getLogger(__name__)
 
 
+RELAX_RTOL = 1e-3  # a frame's relaxation stops when its gradient fell by this factor
+
+
 class NoAdmissiblePathError(MeshoptError):
     """No admissible motion was found within the effort allowed."""
 
@@ -121,7 +124,7 @@ def continuation_path(
                       else strain_target(s_try))
             res = discrete_geodesic(metric, np.stack([Q, trial]), free,
                                     boundary_edges=boundary_edges, anchor_strain=anchor,
-                                    max_iter=relax_iter, gtol=1e-6)
+                                    max_iter=relax_iter, gtol=1e-6, rtol=RELAX_RTOL)
             nit += res.nit
             Q = res.frames[1]
             s_now = s_try

@@ -151,8 +151,8 @@ def move(
     frames: int | None = None,
     steps: int = 8,
     weight: float = 1.0,
-    relax_iter: int = 20,
-    quality_rounds: int = 4,
+    relax_iter: int = 15,
+    quality_rounds: int = 3,
     max_splits: int = 12,
     progress: Callable[[float], None] | None = None,
 ) -> MoveResult:

@@ -217,6 +217,7 @@ def discrete_geodesic(
     boundary_edges: IntArray | None = None,
     anchor_strain: FloatArray | None = None,
     gtol: float = 1e-7,
+    rtol: float = 0.0,
     max_iter: int = 200,
     callback: Callable[[int, float, float], None] | None = None,
 ) -> PathResult:
@@ -236,6 +237,9 @@ def discrete_geodesic(
         stays close to ``Q_0`` while its strain approaches ``anchor_strain``.
     gtol : float
         Stop when ``|∇E| ≤ gtol · max(1, √E)``.
+    rtol : float
+        Or when ``|∇E| ≤ rtol · |∇E₀|`` (the first gradient): enough for a relaxation
+        whose start is already close (the Gauss–Newton steps then converge fast).
     max_iter : int
     callback : callable ``(iteration, E, |∇E|)``, optional
 
@@ -265,7 +269,9 @@ def discrete_geodesic(
         history.append((E, gnorm))
         if callback is not None:
             callback(it - 1, E, gnorm)
-        if gnorm <= gtol * max(1.0, np.sqrt(E)):
+        if it == 1:
+            g0 = gnorm
+        if gnorm <= max(gtol * max(1.0, np.sqrt(E)), rtol * g0):
             status = "converged"
             it -= 1
             break
