@@ -163,6 +163,30 @@ def test_path_energy_gradient_taylor(disc, rng):
     assert abs(result.order - 2) < 0.2, result
 
 
+@pytest.mark.parametrize("K, anchored", [(4, False), (1, True), (1, False)])
+def test_normal_equations_match_the_sparse_jacobian(disc, rng, K, anchored):
+    """The Gauss–Newton system assembled from per-triangle blocks is ``Jᵀr`` and ``JᵀJ``
+    of the sparse Jacobian, with fixed vertices, weights and an anchor."""
+    P = disc.points
+    target = _random_admissible(disc, rng, 0.3)
+    frames = np.array([(1 - s) * P + s * target for s in np.linspace(0, 1, K + 1)])
+    free = np.ones((K + 1, disc.n_vertices), bool)
+    free[0] = False
+    if K > 1:
+        free[-1] = False
+    free[:, np.unique(disc.boundary_edges)[:5]] = False
+    metric = GraphMetric(P, disc.triangles, 1.3,
+                         triangle_weights=1 + rng.random(disc.n_triangles))
+    anchor = metric.strain.values(P) + 0.1 if anchored else None
+    path = _Path(metric, frames, free, None, anchor_strain=anchor)
+    r, J = path.evaluate(frames, jacobian=True)
+    r2, g, H = path.normal_equations(frames)
+    assert np.array_equal(r, r2)
+    gJ, HJ = J.T @ r, (J.T @ J).toarray()
+    assert np.abs(g - gJ).max() <= 1e-12 * np.abs(gJ).max()
+    assert np.abs(H.toarray() - HJ).max() <= 1e-12 * np.abs(HJ).max()
+
+
 def test_discrete_geodesic_converges_and_lowers_energy(disc, rng):
     P = disc.points
     target = _random_admissible(disc, rng, 0.3)

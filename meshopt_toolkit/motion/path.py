@@ -130,6 +130,7 @@ class _Path:
         self.col[self.free_coords] = np.arange(int(self.free_coords.sum()))
         self.n_unknowns = int(self.free_coords.sum())
         self.N = N
+        self._pattern: tuple | None = None
 
     def unknowns(self, frames: FloatArray) -> FloatArray:
         return frames[self.free_coords]
@@ -184,6 +185,80 @@ class _Path:
         J = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                           shape=(r.size, self.n_unknowns))
         return r, J
+
+    def normal_equations(self, frames: FloatArray) -> tuple[FloatArray, FloatArray, sp.csr_matrix]:
+        """Residual ``r``, gradient ``Jᵀr`` and Gauss–Newton matrix ``JᵀJ`` in the unknowns,
+        assembled from the per-triangle 6×6 products ``B_kᵀ W² B_l`` of the frames' Jacobian
+        blocks (no sparse ``J``, no sparse product): with ``D_k`` the embedding's Jacobian at
+        frame ``k``, segment ``k`` contributes ``K·D_kᵀD_k``, ``K·D_{k+1}ᵀD_{k+1}`` and
+        ``−K·D_kᵀD_{k+1}`` (and its transpose). Agrees with :meth:`evaluate` (tested)."""
+        K, N = self.K, self.N
+        sK = np.sqrt(K)
+        strain = self.metric.strain
+        w_rows = self.metric.row_weights.reshape(-1, 3)  # (T, 3)
+        phis, blocks = [], []
+        for Q in frames:
+            phi, jb = strain.values_and_jacobian(Q)
+            phis.append(phi)
+            blocks.append(w_rows[:, :, None] * jb)  # W B_k, (T, 3, 6)
+        if self.anchor_strain is not None:
+            phis[0] = self.anchor_strain.reshape(-1, 3)
+        res_m = [sK * self.sqrt_m * (frames[k + 1] - frames[k]).ravel() for k in range(K)]
+        res_p = [sK * w_rows * (phis[k + 1] - phis[k]) for k in range(K)]  # (T, 3) each
+        r = np.concatenate([np.concatenate([a, b.ravel()]) for a, b in zip(res_m, res_p)])
+        tri_cols = (2 * strain.triangles[:, :, None] + np.arange(2)).reshape(-1, 6)  # (T, 6)
+        g = np.zeros(self.n_unknowns)
+        for k in range(1, K + 1):
+            cols = self.col[k].ravel()
+            gm = (res_m[k - 1] - (res_m[k] if k < K else 0.0)) * sK * self.sqrt_m
+            gp = res_p[k - 1] - (res_p[k] if k < K else 0.0)
+            gp = sK * np.einsum("tc,tci->ti", gp, blocks[k])
+            full = gm + np.bincount(tri_cols.ravel(), gp.ravel(), minlength=2 * N)
+            keep = cols >= 0
+            g[cols[keep]] += full[keep]
+        data = []
+        mass2 = np.repeat(self.metric.mass, 2)
+        for k in range(1, K + 1):  # diagonal frame blocks
+            count = 2.0 if k < K else 1.0
+            data.append(count * K * np.einsum("tci,tcj->tij", blocks[k], blocks[k]).ravel())
+            data.append(count * K * mass2)
+        for k in range(1, K):  # couplings of frames k and k + 1, both orders
+            prod = -K * np.einsum("tci,tcj->tij", blocks[k], blocks[k + 1])
+            data += [prod.ravel(), np.swapaxes(prod, 1, 2).ravel(), -K * mass2, -K * mass2]
+        nnz, indices, indptr, perm, keep = self._assembly_pattern(tri_cols)
+        values = np.bincount(perm, np.concatenate(data)[keep], minlength=nnz)
+        H = sp.csr_matrix((values, indices, indptr), shape=(self.n_unknowns, self.n_unknowns))
+        return r, g, H
+
+    def _assembly_pattern(self, tri_cols: IntArray):
+        """The CSR structure of ``JᵀJ`` and where each of :meth:`normal_equations`'
+        coordinate entries lands in it (computed once: it depends only on which
+        coordinates are free)."""
+        if self._pattern is not None:
+            return self._pattern
+        K, N = self.K, self.N
+        T = tri_cols.shape[0]
+        coord = np.arange(2 * N)
+        R, C = [], []
+        blk_r = np.broadcast_to(tri_cols[:, :, None], (T, 6, 6)).ravel()
+        blk_c = np.broadcast_to(tri_cols[:, None, :], (T, 6, 6)).ravel()
+        for k in range(1, K + 1):
+            ck = self.col[k].ravel()
+            R += [ck[blk_r], ck[coord]]
+            C += [ck[blk_c], ck[coord]]
+        for k in range(1, K):
+            ck, cl = self.col[k].ravel(), self.col[k + 1].ravel()
+            R += [ck[blk_r], cl[blk_r], ck[coord], cl[coord]]
+            C += [cl[blk_c], ck[blk_c], cl[coord], ck[coord]]
+        R, C = np.concatenate(R), np.concatenate(C)
+        keep = (R >= 0) & (C >= 0)
+        R, C = R[keep], C[keep]
+        n = self.n_unknowns
+        key = R * n + C
+        uniq, perm = np.unique(key, return_inverse=True)
+        indptr = np.searchsorted(uniq // n, np.arange(n + 1)) if n else np.zeros(1, np.int64)
+        self._pattern = (uniq.size, uniq % n, indptr, perm.ravel(), keep)
+        return self._pattern
 
     def frame_indices(self) -> list[np.ndarray]:
         """Column indices of each frame's free coordinates (frames with none left out)."""
@@ -261,7 +336,7 @@ def discrete_geodesic(
     if path.n_unknowns == 0:
         r, _ = path.evaluate(frames, jacobian=False)
         return PathResult(frames, float(r @ r), 0.0, 0, "converged")
-    r, J = path.evaluate(frames, jacobian=True)
+    r, g, H = path.normal_equations(frames)
     E = float(r @ r)
     lam = 1e-3
     blocks = FrameBlocks(path.frame_indices()) if factors is None else factors
@@ -270,7 +345,6 @@ def discrete_geodesic(
         raise ValueError("factors were made for other free coordinates")
     status = "max_iter"
     history = []
-    g = J.T @ r
     it = 0
     for it in range(1, max_iter + 1):
         gnorm = 2.0 * float(np.linalg.norm(g))
@@ -283,7 +357,6 @@ def discrete_geodesic(
             status = "converged"
             it -= 1
             break
-        H = (J.T @ J).tocsr()
         d = H.diagonal()
         x = path.unknowns(frames)
         accepted = False
@@ -297,7 +370,7 @@ def discrete_geodesic(
             if path.admissible(trial):
                 r_t, _ = path.evaluate(trial, jacobian=False)
                 E_t = float(r_t @ r_t)
-                predicted = -(2 * g @ step + np.sum((J @ step) ** 2))  # decrease of the GN model
+                predicted = -(2 * g @ step + step @ (H @ step))  # decrease of the GN model
                 if np.isfinite(E_t) and E_t < E:
                     rho = (E - E_t) / max(predicted, 1e-300)
                     frames = trial
@@ -310,11 +383,9 @@ def discrete_geodesic(
             status = "stalled"
             break
         path.frames = frames
-        r_new, J = path.evaluate(frames, jacobian=True)
-        E_new = float(r_new @ r_new)
-        r, E = r_new, E_new
-        g = J.T @ r
-    gnorm = 2.0 * float(np.linalg.norm(J.T @ r))
+        r, g, H = path.normal_equations(frames)
+        E = float(r @ r)
+    gnorm = 2.0 * float(np.linalg.norm(g))
     if status == "max_iter" and gnorm <= gtol * max(1.0, np.sqrt(E)):
         status = "converged"
     return PathResult(frames, E, gnorm, it, status, history)
@@ -338,7 +409,10 @@ class FrameBlocks:
         self.stale = True
 
     def factorize(self, A: sp.csr_matrix) -> None:
-        self.factors = [factorize_spd(A[idx][:, idx]) for idx in self.indices]
+        if len(self.indices) == 1 and self.indices[0].size == A.shape[0]:
+            self.factors = [factorize_spd(A)]  # the frame's columns are all columns, in order
+        else:
+            self.factors = [factorize_spd(A[idx][:, idx]) for idx in self.indices]
         self.stale = False
 
     def solve_one_frame(self, A: sp.csr_matrix, b: FloatArray, rtol: float = 1e-8) -> FloatArray:
@@ -355,10 +429,6 @@ class FrameBlocks:
 
     def preconditioner(self, A: sp.csr_matrix) -> Callable[[FloatArray], FloatArray]:
         idx, lus = self.indices, self.factors
-        lower = [A[idx[k]][:, idx[k - 1]].tocsr() for k in range(1, len(idx))]
-        upper = [blk.T.tocsr() for blk in lower]
-        diag = [A[i][:, i].tocsr() for i in idx]
-
         if len(idx) == 1:  # one frame (move's steps): P = D̃, one solve per application
             only, solve = idx[0], lus[0]
 
@@ -368,6 +438,9 @@ class FrameBlocks:
                 return out
 
             return apply_one
+        lower = [A[idx[k]][:, idx[k - 1]].tocsr() for k in range(1, len(idx))]
+        upper = [blk.T.tocsr() for blk in lower]
+        diag = [A[i][:, i].tocsr() for i in idx]
 
         def apply(v: FloatArray) -> FloatArray:
             n = len(idx)
