@@ -16,6 +16,7 @@ The per-triangle bound holds for every discrete path, exactly (triangle inequali
 
 from __future__ import annotations
 
+import hashlib
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -109,6 +110,14 @@ class PathResult:
     @property
     def converged(self) -> bool:
         return self.status == "converged"
+
+
+_PATTERNS: dict = {}  # the last few assembly patterns, by structure
+
+
+def _block_products(a: FloatArray, b: FloatArray) -> FloatArray:
+    """``aᵀb`` per triangle: (T, 3, 6) × (T, 3, 6) → (T, 6, 6)."""
+    return np.matmul(a.transpose(0, 2, 1), b)
 
 
 class _Path:
@@ -212,7 +221,7 @@ class _Path:
             cols = self.col[k].ravel()
             gm = (res_m[k - 1] - (res_m[k] if k < K else 0.0)) * sK * self.sqrt_m
             gp = res_p[k - 1] - (res_p[k] if k < K else 0.0)
-            gp = sK * np.einsum("tc,tci->ti", gp, blocks[k])
+            gp = sK * np.matmul(gp[:, None, :], blocks[k])[:, 0]
             full = gm + np.bincount(tri_cols.ravel(), gp.ravel(), minlength=2 * N)
             keep = cols >= 0
             g[cols[keep]] += full[keep]
@@ -220,10 +229,10 @@ class _Path:
         mass2 = np.repeat(self.metric.mass, 2)
         for k in range(1, K + 1):  # diagonal frame blocks
             count = 2.0 if k < K else 1.0
-            data.append(count * K * np.einsum("tci,tcj->tij", blocks[k], blocks[k]).ravel())
+            data.append(count * K * _block_products(blocks[k], blocks[k]).ravel())
             data.append(count * K * mass2)
         for k in range(1, K):  # couplings of frames k and k + 1, both orders
-            prod = -K * np.einsum("tci,tcj->tij", blocks[k], blocks[k + 1])
+            prod = -K * _block_products(blocks[k], blocks[k + 1])
             data += [prod.ravel(), np.swapaxes(prod, 1, 2).ravel(), -K * mass2, -K * mass2]
         nnz, indices, indptr, perm, keep = self._assembly_pattern(tri_cols)
         values = np.bincount(perm, np.concatenate(data)[keep], minlength=nnz)
@@ -232,9 +241,14 @@ class _Path:
 
     def _assembly_pattern(self, tri_cols: IntArray):
         """The CSR structure of ``JᵀJ`` and where each of :meth:`normal_equations`'
-        coordinate entries lands in it (computed once: it depends only on which
-        coordinates are free)."""
+        coordinate entries lands in it (it depends only on the triangles and on which
+        coordinates are free: kept for the path, and for the next paths with the same
+        structure — a continuation's steps, the rounds of a quality step)."""
         if self._pattern is not None:
+            return self._pattern
+        structure = (self.K, hashlib.blake2b(tri_cols.tobytes() + self.free.tobytes()).digest())
+        if structure in _PATTERNS:
+            self._pattern = _PATTERNS[structure]
             return self._pattern
         K, N = self.K, self.N
         T = tri_cols.shape[0]
@@ -258,6 +272,9 @@ class _Path:
         uniq, perm = np.unique(key, return_inverse=True)
         indptr = np.searchsorted(uniq // n, np.arange(n + 1)) if n else np.zeros(1, np.int64)
         self._pattern = (uniq.size, uniq % n, indptr, perm.ravel(), keep)
+        if len(_PATTERNS) >= 4:
+            _PATTERNS.pop(next(iter(_PATTERNS)))
+        _PATTERNS[structure] = self._pattern
         return self._pattern
 
     def frame_indices(self) -> list[np.ndarray]:

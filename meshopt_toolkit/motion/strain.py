@@ -159,7 +159,7 @@ class TriangleDistortion:
         _antilinear_block(d_ab[:, 1:, 2:4], R / np.conj(al_s))
         d_ab *= SQRT_HALF
         d_ab[bad] = 0.0
-        return phi, np.einsum("tck,tkl->tcl", d_ab, self._ab_blocks)
+        return phi, np.matmul(d_ab, self._ab_blocks)
 
     @property
     def _ab_blocks(self) -> FloatArray:
