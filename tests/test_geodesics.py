@@ -414,17 +414,22 @@ def test_energy_projection_keeps_the_energy_at_loose_tolerance(rng):
     assert np.abs(e_free / e0 - 1).max() > 1e-6  # without it the energy does drift
 
 
-def test_boundary_guard_agrees_with_the_exact_test(rng):
+@pytest.mark.parametrize("dense", [True, False])
+def test_boundary_guard_agrees_with_the_exact_test(rng, monkeypatch, dense):
     """Random walks of the U-mesh boundary, from harmless to crossing: the guard (dense
-    test + displacement certificate) answers exactly what penalty.boundary_problem does,
-    and most answers along a slow walk come from the certificate."""
+    test + displacement certificate; or, as for large boundaries, the penalty's test and
+    the k-d tree certificate) answers exactly what penalty.boundary_problem does, and most
+    answers along a slow walk come from the certificate."""
     from meshopt_toolkit.integrators import BoundaryGuard
 
+    if not dense:
+        monkeypatch.setattr(BoundaryGuard, "DENSE_PAIRS", 0)
     for mesh in (u_mesh(), grid_mesh(3)):  # (the square: collinear boundary edges)
         pen = QualityPenalty(mesh, beta=(1, 0, 0, 0))
         bv = mesh.boundary_vertices
         for scale, steps in ((0.004, 60), (0.03, 60), (0.2, 30)):
             guard = BoundaryGuard(pen)
+            assert guard.dense == dense
             Q = mesh.points.copy()
             disagree = 0
             for _ in range(steps):

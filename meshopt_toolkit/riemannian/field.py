@@ -203,7 +203,7 @@ class BoundaryGuard:
 
     def _pairs_anchor(self, Q: FloatArray) -> None:
         """Certificate of a large boundary from the pairs closer than ``R``."""
-        from .kernels.distance import boundary_pairs, segment_distance
+        from ..kernels.distance import boundary_pairs, segment_distance
 
         bv, be = self._bv, self._be
         edge = Q[be[:, 1]] - Q[be[:, 0]]

@@ -1,0 +1,128 @@
+"""Cost against size (issue 16): seconds per optimization iteration of each variant, the
+exponential map, and peak memory, on disc_13586 and its uniform refinements
+(27k, 107k, 429k, 1.7M triangles, up to ``--max-triangles``).
+
+Each size runs in its own process (so that its peak RSS is its own); inside it the four
+variants run side by side, a few steepest-descent iterations each with table 6.4's
+parameter set 2 (``bench_optimize.run``: no early stop, the time per iteration), then
+one ``exp_map`` of the smooth velocity of ``bench_geodesics`` part 2, one penalty pass
+(value and gradient) and one Riesz map of the complete metric (its ∇f cached). Printed per
+size: seconds per iteration per variant, the ratios the issue sets targets for
+(complete-complete / complete-euclidean ≤ 1.5, elasticity-euclidean / complete-euclidean
+≤ 2, Riesz map / penalty pass ≤ 2), exp_map seconds per triangle (its growth
+from one size to the next ≤ 1.3), the exp_map's penalty evaluations, and the peak RSS
+(1.7M triangles, all variants: under 8 GB).
+
+``--plot PNG`` draws seconds per iteration against N on log–log axes, one line per
+variant.
+
+Usage: ``python benchmarks/bench_scale.py [--max-triangles 110000] [--iterations 3]
+[--plot examples/results/scale.png]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+VARIANTS = ("euclidean-euclidean", "complete-euclidean", "elasticity-euclidean",
+            "complete-complete")
+REFINEMENTS = (0, 1, 2, 3)  # disc_13586: 27k, 107k, 429k, 1.7M triangles
+
+
+def measure(refinements: int, iterations: int) -> dict:
+    """One size, in this process: per-iteration seconds per variant, exp_map, RSS."""
+    from bench_optimize import run
+
+    import meshopt_toolkit as mt
+    from meshopt_toolkit.geodesics import geodesic
+    from meshopt_toolkit.metrics import CompleteMetric
+    from meshopt_toolkit.penalties import QualityPenalty
+
+    mesh = mt.load(mt.data_path("disc_13586.msh")).as_planar()
+    for _ in range(refinements):
+        mesh = mesh.refine()
+    out = {"triangles": mesh.n_triangles, "vertices": mesh.n_vertices, "per_iteration": {}}
+    for variant in VARIANTS:
+        seconds, _ = run(mesh, variant, iterations)
+        out["per_iteration"][variant] = seconds
+    pen = QualityPenalty(mesh, beta=(10, 1, 0, 0.001 * mesh.n_vertices))
+    Q = mesh.points
+    V = 0.3 * np.stack([np.sin(np.pi * Q[:, 1]), np.cos(np.pi * Q[:, 0])], axis=1)
+    t0 = time.perf_counter()
+    pen.value_and_gradient(Q)
+    out["penalty_pass"] = time.perf_counter() - t0
+    metric = CompleteMetric(pen)
+    metric.riesz(Q, V)  # fills the metric's cache of ∇f at Q
+    t0 = time.perf_counter()
+    metric.riesz(Q, V)
+    out["riesz"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    res = geodesic(CompleteMetric(pen), Q, V, 1.0)
+    out["exp_map"] = time.perf_counter() - t0
+    out["exp_evaluations"] = int(res.n_evaluations)
+    out["peak_rss_gb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--max-triangles", type=int, default=110_000,
+                    help="largest size (the issue's 1.7M: 1800000; hours on 2 cores)")
+    ap.add_argument("--iterations", type=int, default=3)
+    ap.add_argument("--plot", metavar="PNG")
+    ap.add_argument("--one", type=int, help=argparse.SUPPRESS)  # internal: one size
+    args = ap.parse_args()
+    if args.one is not None:
+        print(json.dumps(measure(args.one, args.iterations)))
+        return
+    rows = []
+    print(f"{'triangles':>10}" + "".join(f"{v:>22}" for v in VARIANTS)
+          + f"{'cc/ce':>7}{'ee/ce':>7}{'riesz/f':>8}{'exp s':>8}{'exp µs/T':>10}{'growth':>8}"
+          f"{'evals':>7}{'RSS GB':>8}")
+    for refinements, triangles in zip(REFINEMENTS, (26_794, 107_176, 428_704, 1_714_816)):
+        if triangles > args.max_triangles:
+            break
+        proc = subprocess.run([sys.executable, __file__, "--one", str(refinements),
+                               "--iterations", str(args.iterations)],
+                              capture_output=True, text=True, cwd=Path(__file__).parent)
+        if proc.returncode != 0:
+            print(f"{triangles:>10}  failed: {proc.stderr.strip().splitlines()[-1:]}")
+            break
+        row = json.loads(proc.stdout.strip().splitlines()[-1])
+        per = row["per_iteration"]
+        exp_per_t = 1e6 * row["exp_map"] / row["triangles"]
+        growth = f"{exp_per_t / rows[-1][1]:8.2f}" if rows else f"{'':>8}"
+        rows.append((row, exp_per_t))
+        print(f"{row['triangles']:>10}" + "".join(f"{per[v]:22.3f}" for v in VARIANTS)
+              + f"{per['complete-complete'] / per['complete-euclidean']:7.2f}"
+              f"{per['elasticity-euclidean'] / per['complete-euclidean']:7.2f}"
+              f"{row['riesz'] / row['penalty_pass']:8.2f}"
+              f"{row['exp_map']:8.2f}{exp_per_t:10.2f}{growth}{row['exp_evaluations']:7d}"
+              f"{row['peak_rss_gb']:8.2f}", flush=True)
+    if args.plot and rows:
+        from meshopt_toolkit.plotting import _figure, _save
+
+        fig = _figure(5.5, 4.0, 120)
+        ax = fig.add_subplot(1, 1, 1)
+        n = [r["triangles"] for r, _ in rows]
+        for v in VARIANTS:
+            ax.loglog(n, [r["per_iteration"][v] for r, _ in rows], "o-", label=v)
+        ax.loglog(n, [rows[0][0]["per_iteration"]["complete-euclidean"] * t / n[0] for t in n],
+                  "k:", label="∝ N")
+        ax.set_xlabel("triangles")
+        ax.set_ylabel("seconds per iteration")
+        ax.legend(fontsize=7)
+        _save(fig, args.plot)
+        print(f"wrote {args.plot}")
+
+
+if __name__ == "__main__":
+    main()
