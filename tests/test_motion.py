@@ -163,10 +163,12 @@ def test_path_energy_gradient_taylor(disc, rng):
     assert abs(result.order - 2) < 0.2, result
 
 
-@pytest.mark.parametrize("K, anchored", [(4, False), (1, True), (1, False)])
-def test_normal_equations_match_the_sparse_jacobian(disc, rng, K, anchored):
+@pytest.mark.parametrize("K, anchored, uneven", [(4, False, False), (4, False, True),
+                                                 (1, True, False), (1, False, False)])
+def test_normal_equations_match_the_sparse_jacobian(disc, rng, K, anchored, uneven):
     """The Gauss–Newton system assembled from per-triangle blocks is ``Jᵀr`` and ``JᵀJ``
-    of the sparse Jacobian, with fixed vertices, weights and an anchor."""
+    of the sparse Jacobian, with fixed vertices, weights and an anchor, and with frames
+    that fix different vertices (``uneven``)."""
     P = disc.points
     target = _random_admissible(disc, rng, 0.3)
     frames = np.array([(1 - s) * P + s * target for s in np.linspace(0, 1, K + 1)])
@@ -175,6 +177,9 @@ def test_normal_equations_match_the_sparse_jacobian(disc, rng, K, anchored):
     if K > 1:
         free[-1] = False
     free[:, np.unique(disc.boundary_edges)[:5]] = False
+    if uneven:
+        free[2, rng.choice(disc.n_vertices, 7, replace=False)] = False
+        free[1, :3] = False
     metric = GraphMetric(P, disc.triangles, 1.3,
                          triangle_weights=1 + rng.random(disc.n_triangles))
     anchor = metric.strain.values(P) + 0.1 if anchored else None

@@ -1,0 +1,105 @@
+"""Assembly of the path's Gauss–Newton matrix: block tridiagonal over the frames, every
+block on the mesh's vertex-coordinate pattern.
+
+The structure is computed once from the mesh pattern (one sort of the ``36 T`` per-triangle
+entries) and the frames' free coordinates, without sorting the whole matrix: in CSR
+order a row of frame ``k`` holds, in this order, its entries in the blocks of frames
+``k − 1``, ``k`` and ``k + 1``, each in the mesh row's order. Each assembly is then one
+``bincount`` per block onto the mesh pattern and one gather.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from .._typing import FloatArray, IntArray
+
+
+class MeshPattern:
+    """The CSR pattern of a symmetric ``2N × 2N`` matrix with one dense 6×6 block per
+    triangle (its vertices' coordinates) and the diagonal.
+
+    Attributes
+    ----------
+    rows, cols : (nnz,) int arrays, in CSR order
+    slot_of_entry : (36 T + 2N,) int array
+        Where each per-triangle entry (``(T, 6, 6)`` raveled), then each diagonal entry,
+        lands.
+    transposed : (nnz,) int array
+        The slot of ``(col, row)`` for each slot.
+    """
+
+    def __init__(self, tri_cols: IntArray, n_coords: int) -> None:
+        T = tri_cols.shape[0]
+        rows = np.concatenate([np.broadcast_to(tri_cols[:, :, None], (T, 6, 6)).ravel(),
+                               np.arange(n_coords)])
+        cols = np.concatenate([np.broadcast_to(tri_cols[:, None, :], (T, 6, 6)).ravel(),
+                               np.arange(n_coords)])
+        keys, self.slot_of_entry = np.unique(rows * n_coords + cols, return_inverse=True)
+        self.slot_of_entry = self.slot_of_entry.ravel()
+        self.rows, self.cols = keys // n_coords, keys % n_coords
+        self.nnz = keys.size
+        self.n_coords = n_coords
+        self.transposed = np.searchsorted(keys, self.cols * n_coords + self.rows)
+
+    def values(self, products: FloatArray, diagonal: FloatArray) -> FloatArray:
+        """Slot values of ``Σ_t`` the 6×6 ``products`` (T, 6, 6) plus ``diag(diagonal)``."""
+        weights = np.concatenate([products.ravel(), diagonal])
+        return np.bincount(self.slot_of_entry, weights, minlength=self.nnz)
+
+
+class PathPattern:
+    """CSR structure of the path matrix in the free coordinates.
+
+    Parameters
+    ----------
+    mesh : MeshPattern
+    col : (K+1, 2N) int array
+        Column (unknown) index of each frame's coordinates, −1 where fixed; increasing in
+        frame, then coordinate.
+    """
+
+    def __init__(self, mesh: MeshPattern, col: IntArray) -> None:
+        self.mesh = mesh
+        self.n = int(col.max(initial=-1)) + 1
+        K = col.shape[0] - 1
+        self.pairs = [(k, k) for k in range(1, K + 1)] + [(k, k + 1) for k in range(1, K)] \
+            + [(k + 1, k) for k in range(1, K)]
+        block_of = {pair: b for b, pair in enumerate(self.pairs)}
+        counts = np.zeros(self.n, np.int64)
+        pieces = []  # per block: kept slots, their global rows and columns
+        for k, l in self.pairs:
+            rk, cl = col[k][mesh.rows], col[l][mesh.cols]
+            kept = np.flatnonzero((rk >= 0) & (cl >= 0))
+            pieces.append((kept, rk[kept], cl[kept]))
+        # entries per global row, by block: rows of frame k take blocks (k, k−1), (k, k), (k, k+1)
+        per_block_rows = [np.bincount(g_rows, minlength=self.n) for _, g_rows, _ in pieces]
+        counts = np.sum(per_block_rows, axis=0) if pieces else counts
+        self.indptr = np.concatenate([[0], np.cumsum(counts)])
+        nnz = int(self.indptr[-1])
+        self.indices = np.empty(nnz, np.int64)
+        self.source = np.empty(nnz, np.int64)
+        before = np.zeros(self.n, np.int64)  # entries already placed in each row
+        for k in range(1, K + 1):
+            for l in (k - 1, k, k + 1):
+                b = block_of.get((k, l))
+                if b is None:
+                    continue
+                kept, g_rows, g_cols = pieces[b]
+                first = np.searchsorted(g_rows, g_rows)  # kept slots are in row order
+                pos = self.indptr[g_rows] + before[g_rows] + np.arange(kept.size) - first
+                self.indices[pos] = g_cols
+                self.source[pos] = b * mesh.nnz + kept
+                before += per_block_rows[b]
+
+    def matrix(self, diagonal_blocks: list[FloatArray], coupling_blocks: list[FloatArray]
+               ) -> sp.csr_matrix:
+        """The matrix from slot values of its blocks: ``diagonal_blocks[k − 1]`` for frame
+        ``k`` (k = 1 … K), ``coupling_blocks[k − 1]`` for frames ``(k, k + 1)``; the block
+        ``(k + 1, k)`` is its transpose."""
+        t = self.mesh.transposed
+        stacked = np.concatenate([*diagonal_blocks, *coupling_blocks,
+                                  *(c[t] for c in coupling_blocks)])
+        return sp.csr_matrix((stacked[self.source], self.indices, self.indptr),
+                             shape=(self.n, self.n))
