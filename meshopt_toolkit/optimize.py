@@ -30,7 +30,7 @@ import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
-from typing import Protocol
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 
@@ -71,8 +71,20 @@ SIZE_RANGE = (1e-2, 1e2)
 EXP_DEFAULTS = {"method": "line-search"}
 
 
+@runtime_checkable
 class Objective(Protocol):
-    """What :func:`optimize` needs from a shape functional j(Q)."""
+    """What :func:`optimize` needs from a shape functional j(Q).
+
+    - ``value(Q) -> float`` for ``Q`` of shape ``(N, 2)``;
+    - ``derivative(Q) -> (N, 2)`` — the Euclidean derivative: ``dF(Q)[V] = Σ derivative(Q) * V``
+      (the metric turns it into a gradient);
+    - optionally ``value_and_derivative(Q) -> (float, (N, 2))`` sharing work between the two.
+
+    Raise :class:`~meshopt_toolkit.errors.NotAdmissibleError` for configurations the
+    objective cannot evaluate, and check the derivative with
+    :func:`meshopt_toolkit.diagnostics.check_gradient` before optimizing.
+    :class:`~meshopt_toolkit.fem.poisson.PoissonObjective` is the reference implementation.
+    """
 
     def value(self, Q: FloatArray) -> float: ...
 

@@ -13,7 +13,8 @@ from meshopt_toolkit import fem
 from meshopt_toolkit.datasets import available, data_path
 from meshopt_toolkit.errors import ExpressionError, MeshoptError, NotAdmissibleError
 from meshopt_toolkit.mesh import PlanarMesh
-from meshopt_toolkit.poisson import DEFAULT_RHS, Objective, PoissonObjective
+from meshopt_toolkit.optimize import Objective
+from meshopt_toolkit.poisson import DEFAULT_RHS, PoissonObjective
 from meshopt_toolkit.taylor import check_gradient
 
 

@@ -6,18 +6,9 @@ the Dirichlet nodes (all boundary vertices by default), load by centroid quadrat
 discrete functional, by the adjoint method (6.12), w.r.t. every node including boundary
 nodes; see :func:`meshopt_toolkit.fem.poisson_shape_derivative`.
 
-Objective protocol
-------------------
-The optimizers accept any object with
-
-- ``value(Q) -> float`` for ``Q`` of shape ``(N, 2)``;
-- ``derivative(Q) -> (N, 2)`` — the Euclidean derivative: ``dF(Q)[V] = Σ derivative(Q) * V``
-  (the metric turns it into a gradient);
-- optionally ``value_and_derivative(Q) -> (float, (N, 2))`` sharing work between the two.
-
-Raise :class:`~meshopt_toolkit.errors.NotAdmissibleError` for configurations the objective
-cannot evaluate. Check your derivative with :func:`meshopt_toolkit.taylor.check_gradient`
-before optimizing. :class:`PoissonObjective` is the reference implementation.
+:class:`PoissonObjective` is the reference implementation of the optimizers' objective
+interface, :class:`meshopt_toolkit.optimize.Objective` (``value``, ``derivative``,
+optionally ``value_and_derivative``).
 """
 
 from __future__ import annotations
@@ -26,7 +17,6 @@ import logging
 from collections.abc import Callable
 from dataclasses import dataclass
 from numbers import Real
-from typing import Protocol, runtime_checkable
 
 import numpy as np
 
@@ -37,21 +27,12 @@ from ..expressions import Expression, parse_expression
 from ..kernels.triangles import signed_areas
 from ..mesh import PlanarMesh, TriangleMesh, boundary_self_intersections, require_admissible
 
-__all__ = ["DEFAULT_RHS", "Objective", "PoissonObjective"]
+__all__ = ["DEFAULT_RHS", "PoissonObjective"]
 
 logger = logging.getLogger(__name__)
 
 #: right-hand side of the thesis experiments (SPEC §6)
 DEFAULT_RHS = "2.5*(x1 + 0.4 - x2**2)**2 + x1**2 + x2**2 - 1"
-
-
-@runtime_checkable
-class Objective(Protocol):
-    """What an optimizer needs from an objective (see the module docstring)."""
-
-    def value(self, Q: FloatArray) -> float: ...
-
-    def derivative(self, Q: FloatArray) -> FloatArray: ...
 
 
 RhsFunction = Callable[[FloatArray], FloatArray]
