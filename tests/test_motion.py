@@ -192,13 +192,19 @@ def test_normal_equations_match_the_sparse_jacobian(disc, rng, K, anchored, unev
     assert np.abs(H.toarray() - HJ).max() <= 1e-12 * np.abs(HJ).max()
 
 
-def test_discrete_geodesic_converges_and_lowers_energy(disc, rng):
+def _straight_path(disc, rng, K=4):
+    """Frames on the straight line to a random admissible target, ends fixed."""
     P = disc.points
     target = _random_admissible(disc, rng, 0.3)
-    frames = np.array([(1 - s) * P + s * target for s in np.linspace(0, 1, 5)])
-    free = np.ones((5, disc.n_vertices), bool)
+    frames = np.array([(1 - s) * P + s * target for s in np.linspace(0, 1, K + 1)])
+    free = np.ones((K + 1, disc.n_vertices), bool)
     free[0] = free[-1] = False
-    metric = GraphMetric(P, disc.triangles)
+    return frames, free, GraphMetric(P, disc.triangles)
+
+
+def test_discrete_geodesic_converges_and_lowers_energy(disc, rng):
+    frames, free, metric = _straight_path(disc, rng)
+    P, target = frames[0], frames[-1]
     r0, _ = _Path(metric, frames, free, None).evaluate(frames, jacobian=False)
     res = discrete_geodesic(metric, frames, free, boundary_edges=disc.boundary_edges)
     assert res.converged and res.energy <= float(r0 @ r0)
@@ -209,12 +215,7 @@ def test_discrete_geodesic_converges_and_lowers_energy(disc, rng):
 def test_discrete_geodesic_relative_stop(disc, rng):
     """``rtol`` stops a relaxation once the gradient fell by that factor: converged, the
     gradient at most ``rtol`` times the first one, in fewer iterations than the full solve."""
-    P = disc.points
-    target = _random_admissible(disc, rng, 0.3)
-    frames = np.array([(1 - s) * P + s * target for s in np.linspace(0, 1, 5)])
-    free = np.ones((5, disc.n_vertices), bool)
-    free[0] = free[-1] = False
-    metric = GraphMetric(P, disc.triangles)
+    frames, free, metric = _straight_path(disc, rng)
     full = discrete_geodesic(metric, frames, free)
     quick = discrete_geodesic(metric, frames, free, rtol=1e-3)
     assert quick.converged and quick.nit < full.nit
