@@ -11,12 +11,11 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.sparse as sp
 
 from .._typing import FloatArray, IntArray
 from ..errors import MeshoptError
 from ..solvers import factorize_spd
-from .path import FrameBlocks, GraphMetric, discrete_geodesic
+from .path import FrameBlocks, GraphMetric, _Path, discrete_geodesic
 
 logger = logging.getLogger(__name__)
 
@@ -38,29 +37,26 @@ def extend(metric: GraphMetric, Q: FloatArray, handles: IntArray,
            new_positions: FloatArray, factors: FrameBlocks | None = None) -> FloatArray:
     """``Q`` with the handles at ``new_positions`` and the other vertices moved by the
     linearized metric: ``δ_f = −H_ff⁻¹ H_fh δ_h`` with ``H = M + w² JᵀJ`` at ``Q``
-    (through ``factors`` when given: a kept factorization of a nearby ``H_ff``)."""
+    (through ``factors`` when given: a kept factorization of a nearby ``H_ff``).
+    ``H_ff`` is the one-segment path matrix at ``(Q, Q)`` (the same structure as the
+    relaxations', assembled from per-triangle blocks); ``H_fh δ_h`` is applied triangle
+    by triangle."""
     N = Q.shape[0]
-    _, blocks = metric.strain.values_and_jacobian(Q)
-    J = sp.diags(metric.row_weights) @ metric.strain.jacobian_matrix(blocks)
-    H = ((J.T @ J) + sp.diags(np.repeat(metric.mass, 2))).tocsr()
-    fixed = np.zeros(N, bool)
-    fixed[handles] = True
-    f = np.flatnonzero(np.repeat(~fixed, 2))
-    h = np.flatnonzero(np.repeat(fixed, 2))
-    dh = (new_positions - Q[handles])
-    delta_h = np.zeros(2 * N)
-    delta_h[2 * handles] = dh[:, 0]
-    delta_h[2 * handles + 1] = dh[:, 1]
-    out = Q.ravel().copy()
-    out[h] += delta_h[h]
-    if f.size:
-        Hff = H[f][:, f]
-        rhs = -(H[f][:, h] @ delta_h[h])
-        out[f] += (factorize_spd(Hff)(rhs) if factors is None
-                   else factors.solve(Hff.tocsr(), rhs, 1e-8))
-    Qn = out.reshape(N, 2)
-    Qn[handles] = new_positions  # bitwise
-    return Qn
+    free = np.ones((2, N), bool)
+    free[0] = False
+    free[1, handles] = False
+    delta = np.zeros((N, 2))
+    delta[handles] = new_positions - Q[handles]
+    out = Q.copy()
+    out[handles] = new_positions
+    if free[1].any():
+        pair = np.stack([Q, Q])
+        _, _, Hff = _Path(metric, pair, free, None).normal_equations(pair)
+        rhs = -metric.apply(Q, delta)[free[1]].ravel()
+        step = factorize_spd(Hff)(rhs) if factors is None else factors.solve(Hff, rhs, 1e-8)
+        out[free[1]] += step.reshape(-1, 2)
+    out[handles] = new_positions  # bitwise
+    return out
 
 
 @dataclass

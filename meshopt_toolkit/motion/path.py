@@ -92,6 +92,18 @@ class GraphMetric:
         """``(m^½ ⊙ Q, w φ(Q))`` flattened; ``inf`` in the second part where inverted."""
         return (np.sqrt(self.mass)[:, None] * Q).ravel(), self.row_weights * self.strain.values(Q).ravel()
 
+    def apply(self, Q: FloatArray, V: FloatArray) -> FloatArray:
+        """``g_Q V = (M + w² JᵀJ) V`` for a displacement ``V`` (N, 2), triangle by
+        triangle (no matrix)."""
+        _, jb = self.strain.values_and_jacobian(Q)
+        tri_cols = (2 * self.triangles[:, :, None] + np.arange(2)).reshape(-1, 6)
+        v = V.ravel()[tri_cols]  # (T, 6)
+        w2 = self.row_weights.reshape(-1, 3) ** 2
+        strain = np.matmul(jb, v[:, :, None])[:, :, 0] * w2  # W² J V per triangle (T, 3)
+        back = np.matmul(strain[:, None, :], jb)[:, 0]  # Jᵀ(...) per triangle (T, 6)
+        out = np.bincount(tri_cols.ravel(), back.ravel(), minlength=V.size)
+        return out.reshape(V.shape) + self.mass[:, None] * V
+
     def segment_lengths(self, frames: FloatArray) -> FloatArray:
         """``|X(Q_{k+1}) − X(Q_k)|`` for consecutive frames (K+1, N, 2) → (K,)."""
         X = [np.concatenate(self.embed(Q)) for Q in frames]
