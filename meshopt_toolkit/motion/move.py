@@ -21,7 +21,7 @@ from .._typing import FloatArray, IntArray
 from ..errors import InvalidMeshError
 from ..geometry import aspect_ratios, inverse_shape_quality
 from ..mesh import PlanarMesh, boundary_self_intersections, require_admissible
-from .continuation import RELAX_CG_RTOL, NoAdmissiblePathError, continuation_path
+from .continuation import NoAdmissiblePathError, continuation_path
 from .path import GraphMetric, discrete_geodesic
 from .similarity import HandlePath, Similarity, fit_similarity, handle_groups
 from .strain import TriangleDistortion
@@ -126,7 +126,7 @@ def _finish(metric: GraphMetric, Q: FloatArray, handles: IntArray, boundary_edge
         m.strain = absolute
         res = discrete_geodesic(m, np.stack([Q, Q]), free, boundary_edges=boundary_edges,
                                 anchor_strain=np.zeros((len(tri), 3)), max_iter=relax_iter,
-                                gtol=1e-6, cg_rtol=RELAX_CG_RTOL)
+                                gtol=1e-6)  # the default CG rtol: see RELAX_CG_RTOL
         nit += res.nit
         Q = res.frames[1]
         ar = aspect_ratios(Q, tri).min()
