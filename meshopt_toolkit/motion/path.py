@@ -165,7 +165,9 @@ class _Path:
         return frames
 
     def evaluate(self, frames: FloatArray, jacobian: bool):
-        """Residual vector (and its sparse Jacobian in the unknowns)."""
+        """Residual vector (and its sparse Jacobian in the unknowns). The solver uses
+        :meth:`normal_equations`; the sparse Jacobian is the plain reference it is tested
+        against (and that the path energy's Taylor test differentiates)."""
         K, w = self.K, self.metric.row_weights
         sK = np.sqrt(K)
         phis, blocks = [], []
