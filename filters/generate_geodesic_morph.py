@@ -44,8 +44,8 @@ class GenerateGeodesicMorph(Filter):
         EnumParam("metric", METRICS[0], "per-triangle distortion metric (frames as healthy as "
                   "their ends) or the complete metric of f2 (frames only non-inverted)",
                   label="Metric", choices=METRICS),
-        FloatParam("weight", 1.0, "distortion metric: w of M + w² JᵀJ", label="Weight",
-                   min=1e-6),
+        FloatParam("weight", 1.0, "with the distortion metric: w of M + w² JᵀJ",
+                   label="Weight", min=0.0, exclusive_min=True),
         FloatParam("beta1", 1.0, "f2 weight of the mean shape quality", label="beta1", min=0.0),
         FloatParam("beta2", 1.0, "f2 weight of the inverse total area", label="beta2", min=0.0),
         FloatParam("beta3", 0.0, "f2 weight of the boundary-pair term (costly)", label="beta3",

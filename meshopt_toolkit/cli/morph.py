@@ -23,11 +23,16 @@ import json
 import sys
 from pathlib import Path
 
-from ..bounds import MAX_FRAMES, MAX_ITERATIONS
+from ..bounds import MAX_ITERATIONS
+from ..filters.generate_geodesic_morph import GenerateGeodesicMorph
 from ._common import float_list, prepare_output_dir, write_text
-from ._validate import check_int, check_number, check_numbers
+from ._params import add_options, check_options
+from ._validate import check_int, check_numbers
 
 HELP = "geodesic morph between two meshes of the same connectivity (never inverts)"
+#: options generated from the filter's parameters (one schema: cli/_params.py)
+OPTIONS = {"frames": "--frames", "metric": "--metric", "weight": "--weight",
+           "method": "--method"}
 
 PLOTS = ("strip.png", "quality.png")
 
@@ -38,13 +43,7 @@ def add_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("source", help="source mesh (frame 0)")
     p.add_argument("target", help="target mesh (last frame), same vertices and triangles")
     p.add_argument("-o", "--output", required=True, help="output directory")
-    p.add_argument("--frames", type=int, default=9,
-                   help=f"number of frames, 2 <= K <= {MAX_FRAMES} (default: %(default)s)")
-    p.add_argument("--metric", choices=("distortion", "scalar"), default="distortion",
-                   help="per-triangle distortion metric (frames as healthy as their ends) or "
-                        "the complete metric of the scalar penalty f2 (default: %(default)s)")
-    p.add_argument("--weight", type=float, default=1.0,
-                   help="with --metric distortion: w of M + w² JᵀJ (default: %(default)s)")
+    add_options(p, GenerateGeodesicMorph, OPTIONS)
     p.add_argument("--beta", type=float_list(4), metavar="b1,b2,b3,b4",
                    default=DEFAULT_BETA,
                    help="--metric scalar: f2 coefficients of the complete metric, β4 unscaled "
@@ -52,9 +51,6 @@ def add_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-normalize", action="store_true",
                    help="use the plain complete metric of f2 instead of that of √N·f2 "
                         "(which keeps the balance between motion and quality on fine meshes)")
-    p.add_argument("--method", choices=("discrete", "shooting", "auto"), default="discrete",
-                   help="frames from the discrete geodesic, the shooting geodesic, or shooting "
-                        "with a fallback (default: %(default)s)")
     p.add_argument("--max-iter", type=int, default=None,
                    help="iterations of the discrete geodesic (default: 200 Levenberg–Marquardt "
                         "for the distortion metric, 500 Newton for the scalar one)")
@@ -66,9 +62,8 @@ def add_args(p: argparse.ArgumentParser) -> None:
 
 
 def _check_numbers(args: argparse.Namespace) -> None:
-    check_int("--frames", args.frames, 2, MAX_FRAMES)
+    check_options(args, GenerateGeodesicMorph, OPTIONS)
     check_int("--max-iter", args.max_iter, 1, MAX_ITERATIONS)
-    check_number("--weight", args.weight, low=0.0, low_open=True)
     check_numbers("--beta", args.beta)
 
 

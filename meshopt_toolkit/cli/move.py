@@ -21,10 +21,14 @@ import json
 from pathlib import Path
 
 from ._common import check_output_target, load_at_unit_size, prepare_output_dir, write_text
-from ..bounds import MAX_FRAMES, MAX_STEPS
-from ._validate import OptionError, check_int, check_number
+from ..bounds import MAX_FRAMES
+from ..filters.move_vertices import PrescribedMotion
+from ._params import add_options, check_options
+from ._validate import OptionError, check_int
 
 HELP = "move chosen vertices exactly to targets; the rest follows, no triangle inverts"
+#: options generated from the filter's parameters (one schema: cli/_params.py)
+OPTIONS = {"steps": "--steps", "weight": "--weight"}
 
 
 def add_args(p: argparse.ArgumentParser) -> None:
@@ -49,11 +53,7 @@ def add_args(p: argparse.ArgumentParser) -> None:
                         "(default: all; the others stay fixed)")
     p.add_argument("--frames", type=int,
                    help=f"write K frames of the motion into OUT/ (2 <= K <= {MAX_FRAMES})")
-    p.add_argument("--steps", type=int, default=8,
-                   help=f"continuation steps, 1 to {MAX_STEPS} (default: %(default)s; split "
-                        "further when needed)")
-    p.add_argument("--weight", type=float, default=1.0,
-                   help="w of the metric M + w² JᵀJ (default: %(default)s)")
+    add_options(p, PrescribedMotion, OPTIONS)
     p.add_argument("--format", default=None, metavar="EXT",
                    help="frame file extension with --frames (default: the input's)")
     p.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
@@ -62,8 +62,7 @@ def add_args(p: argparse.ArgumentParser) -> None:
 
 def _check_numbers(args: argparse.Namespace) -> None:
     check_int("--frames", args.frames, 2, MAX_FRAMES)
-    check_int("--steps", args.steps, 1, MAX_STEPS)
-    check_number("--weight", args.weight, low=0.0, low_open=True)
+    check_options(args, PrescribedMotion, OPTIONS)
     if args.where is not None and args.map is None:
         raise OptionError("--where needs --map")
 

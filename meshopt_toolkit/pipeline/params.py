@@ -221,16 +221,20 @@ class BoolParam(Param):
 class _NumberParam(Param):
     min: float | None = None
     max: float | None = None
+    #: the minimum itself is not allowed (``> min``, e.g. a positive weight)
+    exclusive_min: bool = False
 
     def _check_range(self, v, filter_name):
-        if self.min is not None and v < self.min:
-            raise self._error(filter_name, f"{v!r} is below the minimum {self.min!r}")
+        if self.min is not None and (v <= self.min if self.exclusive_min else v < self.min):
+            bound = "must be above" if self.exclusive_min else "is below the minimum"
+            raise self._error(filter_name, f"{v!r} {bound} {self.min!r}")
         if self.max is not None and v > self.max:
             raise self._error(filter_name, f"{v!r} is above the maximum {self.max!r}")
         return v
 
     def spec(self) -> dict:
-        return {**super().spec(), "min": self.min, "max": self.max}
+        return {**super().spec(), "min": self.min, "max": self.max,
+                "exclusive_min": self.exclusive_min}
 
 
 @dataclass(frozen=True)
