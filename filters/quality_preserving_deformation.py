@@ -31,7 +31,7 @@ class QualityPreservingDeformation(Filter):
     parameters = (
         PathParam("displacement", "", "initial velocity: .npy/.csv (N, 2) array or a mesh with the same connectivity",
                   label="Displacement"),
-        FloatParam("time", 1.0, "final time of the geodesic", label="Time", min=0.0),
+        FloatParam("time", 1.0, "final time T of the geodesic", label="Time", min=0.0),
         NumberListParam("alpha", "", "f1 parameters a1,a2,a3 (default 1,0,1)", label="Alpha", count=3),
         NumberListParam("beta", "", "use f2 with b1,b2,b3,b4 instead (b4 unscaled)", label="Beta", count=4),
     )

@@ -9,11 +9,14 @@ import inspect
 
 import pytest
 
+from meshopt_toolkit.cli import deform as cli_deform
 from meshopt_toolkit.cli import morph as cli_morph
 from meshopt_toolkit.cli import move as cli_move
 from meshopt_toolkit.cli._params import add_options, check_options
 from meshopt_toolkit.cli._validate import OptionError
+from meshopt_toolkit.deform import deform
 from meshopt_toolkit.filters.generate_geodesic_morph import GenerateGeodesicMorph
+from meshopt_toolkit.filters.quality_preserving_deformation import QualityPreservingDeformation
 from meshopt_toolkit.filters.move_vertices import PrescribedMotion
 from meshopt_toolkit.motion.morph import distortion_morph
 from meshopt_toolkit.motion.move import move
@@ -60,17 +63,18 @@ def test_generated_options_take_type_default_choices_and_range_from_the_paramete
             check_options(p.parse_args(argv), _Demo, OPTIONS)
 
 
-@pytest.mark.parametrize("cli, filter_cls, library", [
-    (cli_move, PrescribedMotion, move),
-    (cli_morph, GenerateGeodesicMorph, distortion_morph),
+@pytest.mark.parametrize("cli, filter_cls, library, renamed", [
+    (cli_move, PrescribedMotion, move, {}),
+    (cli_morph, GenerateGeodesicMorph, distortion_morph, {}),
+    (cli_deform, QualityPreservingDeformation, deform, {"time": "t"}),
 ])
-def test_cli_filter_and_library_defaults_agree(cli, filter_cls, library):
+def test_cli_filter_and_library_defaults_agree(cli, filter_cls, library, renamed):
     p = argparse.ArgumentParser()
     cli.add_args(p)
     defaults = {name: p.get_default(name) for name in cli.OPTIONS}
     assert defaults == {name: filter_cls.param(name).default for name in cli.OPTIONS}
     signature = inspect.signature(library).parameters
-    shared = [name for name in cli.OPTIONS if name in signature]
+    shared = [name for name in cli.OPTIONS if renamed.get(name, name) in signature]
     assert shared  # the library names the same parameters
     for name in shared:
-        assert signature[name].default == defaults[name], name
+        assert signature[renamed.get(name, name)].default == defaults[name], name

@@ -24,12 +24,16 @@ from pathlib import Path
 from ..bounds import MAX_FRAMES
 from ._common import (check_output_target, float_list, load_at_unit_size, prepare_output_dir,
                       write_text)
+from ..filters.quality_preserving_deformation import QualityPreservingDeformation
+from ._params import add_options, check_options
 from ._validate import check_int, check_number, check_numbers
 
 #: accepted range of --rtol (tighter stalls in round-off, looser is not an integration)
 MIN_RTOL, MAX_RTOL = 1e-14, 0.1
 
 HELP = "deform a mesh along a complete-metric geodesic, keeping it admissible"
+#: options generated from the filter's parameters (one schema: cli/_params.py)
+OPTIONS = {"time": "--time"}
 
 logger = logging.getLogger(__name__)
 
@@ -46,8 +50,7 @@ def add_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--displacement", required=True, metavar="D",
                    help="initial velocity: .npy or .csv (N, 2) array, or a mesh with the same "
                         "connectivity")
-    p.add_argument("--time", type=float, default=1.0,
-                   help="final time T >= 0 (default: %(default)s)")
+    add_options(p, QualityPreservingDeformation, OPTIONS)
     p.add_argument("--frames", type=int,
                    help=f"write K frames on [0, T] into the OUT directory (2 <= K <= {MAX_FRAMES})")
     group = p.add_mutually_exclusive_group()
@@ -67,7 +70,7 @@ def add_args(p: argparse.ArgumentParser) -> None:
 
 
 def _check_numbers(args: argparse.Namespace) -> None:
-    check_number("--time", args.time, low=0.0)
+    check_options(args, QualityPreservingDeformation, OPTIONS)
     check_int("--frames", args.frames, 2, MAX_FRAMES)
     check_numbers("--alpha", args.alpha)
     check_numbers("--beta", args.beta)
