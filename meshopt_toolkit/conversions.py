@@ -9,11 +9,10 @@ exactly 0, else a :class:`~meshopt_toolkit.mesh.TriangleMesh`.
 from __future__ import annotations
 
 import logging
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .errors import InvalidMeshError
 from .mesh import PlanarMesh, TriangleMesh
 
 if TYPE_CHECKING:  # pragma: no cover

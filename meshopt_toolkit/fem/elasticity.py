@@ -298,10 +298,7 @@ def _factorize_amg(
         symmetry="symmetric",
         strength=("symmetric", {"theta": 0.05}),
     )
-    normA = None
-
     def solve(b: FloatArray) -> FloatArray:
-        nonlocal normA
         residuals: list[float] = []
         x = ml.solve(b, tol=rtol, maxiter=maxiter, accel="cg", residuals=residuals)
         nb = np.linalg.norm(b)

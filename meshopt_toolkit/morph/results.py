@@ -147,8 +147,6 @@ class MorphResult:
 
     def meshes(self, like=None) -> list:
         """The frames as PlanarMesh objects (tags of ``like`` kept when given)."""
-        from ..mesh import PlanarMesh
-
         if like is not None:
             base = like.as_planar()
             return [base.with_points(p) for p in self.points]
