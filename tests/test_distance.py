@@ -505,14 +505,14 @@ def test_radius_edge_cases(grid):
 
 def test_blocking_does_not_change_results(rng, monkeypatch):
     """Results are independent of the internal block size (block edges included)."""
-    import meshopt_toolkit.distance as dist
+    import meshopt_toolkit.kernels.pairs as pairs_module
 
     pts = rng.uniform(-1, 1, (60, 2))
     pairs = np.array([rng.choice(60, 3, replace=False) for _ in range(1000)])
     V = rng.standard_normal(pts.shape)
     ref = regularized_distance(pts, pairs, MU, direction=V)
     ref_d = vertex_edge_distance(pts, pairs)
-    monkeypatch.setattr(dist, "_BLOCK", 7)
+    monkeypatch.setattr(pairs_module, "_BLOCK", 7)
     small = regularized_distance(pts, pairs, MU, direction=V)
     for name in ("value", "gradient", "hess_dir", "curvature"):
         np.testing.assert_array_equal(getattr(small, name), getattr(ref, name))
