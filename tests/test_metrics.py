@@ -241,10 +241,27 @@ def test_elasticity_factorizes_once_per_q(mesh, rng):
         metric.riesz(Q.copy(), P1)  # equal bytes, different object: still cached
         assert metric.n_factorizations == 1
         assert metric.n_assemblies == 1
-        Q[5] += 1e-3  # in-place change invalidates the cache
-        metric.riesz(Q, P1)
-        assert metric.n_factorizations == 2
+        Q[5] += 1e-3  # in-place change invalidates the cache ...
+        G = metric.riesz(Q, P1)
         assert metric.n_assemblies == 2
+        # ... and a nearby Q is solved by CG on the kept factorization, to rtol
+        assert metric.n_factorizations == 1
+        exact = ElasticityMetric(mesh, solver="direct").riesz(Q, P1)
+        np.testing.assert_allclose(G, exact, rtol=0, atol=1e-8 * abs(exact).max())
+
+
+def test_elasticity_refactorizes_when_the_kept_factorization_stops_paying(mesh, rng):
+    """A far-away Q (CG does not converge within REFACTOR_AFTER_CG iterations on the kept
+    factorization) gets its own factorization; the result is exact either way."""
+    metric = ElasticityMetric(mesh, solver="direct")
+    Q = mesh.points.copy()
+    P = rng.standard_normal(Q.shape)
+    metric.riesz(Q, P)
+    far = Q * [3.0, 0.2]  # an admissible affine image, far from Q
+    G = metric.riesz(far, P)
+    assert metric.n_factorizations == 2
+    exact = ElasticityMetric(mesh, solver="direct").riesz(far, P)
+    np.testing.assert_allclose(G, exact, rtol=0, atol=1e-12 * abs(exact).max())
 
 
 @needs_pyamg

@@ -28,7 +28,7 @@ import scipy.sparse as sp
 from .._linalg import dot
 from .._typing import FloatArray
 from ..fem.elasticity import BlockPattern, SPDSolve, assemble, factorize, lame_parameters
-from ..solvers import SOLVERS
+from ..solvers import SOLVERS, pcg
 from ..errors import InvalidMeshError, MeshoptError
 
 __all__ = [
@@ -222,6 +222,7 @@ class ElasticityMetric:
         self.n_factorizations = 0
         self._matrix_cache = _LastQCache()
         self._solver_cache = _LastQCache()
+        self._kept: dict = {}  # the last factorization, by free mask
 
     # -- assembly and factorization -------------------------------------------------------
 
@@ -248,18 +249,55 @@ class ElasticityMetric:
         """
         return self._bsr(self._points(Q)).tocsr()
 
+    #: CG iterations with a kept factorization after which the matrix is refactorized
+    REFACTOR_AFTER_CG = 25
+
     def _solver(self, Q: FloatArray, free: np.ndarray | None) -> SPDSolve:
+        """The solve at ``Q``: exact with a factorization made at ``Q``; else conjugate
+        gradients to ``rtol`` preconditioned by the factorization kept from an earlier
+        ``Q`` (an optimizer's consecutive iterates are close, so a few iterations do),
+        refactorizing at ``Q`` when CG does not converge within ``REFACTOR_AFTER_CG``
+        iterations. The decision is by iteration count, so results do not depend on
+        timing; ``SPDSolve.method`` is "kept" for such a solve."""
         s = self._solver_cache.get(Q, free)
-        if s is None:
-            A = self._bsr(Q)
-            points = Q
-            if free is not None:  # principal block submatrix of the free vertices
-                A = _block_submatrix(A, free)
-                points = Q[free]
-            s = factorize(A, points, self.solver, rtol=self.rtol)
+        if s is not None:
+            return s
+        A = self._bsr(Q)
+        points = Q
+        if free is not None:  # principal block submatrix of the free vertices
+            A = _block_submatrix(A, free)
+            points = Q[free]
+        key = None if free is None else free.tobytes()
+        kept = self._kept.get(key)
+
+        def refactorize() -> SPDSolve:
+            fresh = factorize(A, points, self.solver, rtol=self.rtol)
             self.n_factorizations += 1
-            logger.debug("elasticity metric: %s factorization #%d", s.method, self.n_factorizations)
-            self._solver_cache.put(Q, s, free)
+            logger.debug("elasticity metric: %s factorization #%d", fresh.method,
+                         self.n_factorizations)
+            self._kept = {key: fresh}
+            self._solver_cache.put(Q, fresh, free)
+            return fresh
+
+        if kept is None or kept.matrix.shape != A.shape:
+            return refactorize()
+        csr = A.tocsr()
+
+        def solve(b: FloatArray) -> FloatArray:
+            current = self._solver_cache.get(Q, free)
+            if current is not None and current.method != "kept":
+                return current.solve(b)  # refactorized at this Q meanwhile
+            try:
+                x, _, residual = pcg(csr, b, kept.solve, self.rtol,
+                                     maxiter=self.REFACTOR_AFTER_CG)
+            except FloatingPointError:  # the kept factor is too far off to precondition
+                residual = np.inf
+            if not residual <= self.rtol:
+                return refactorize().solve(b)
+            return x
+
+        s = SPDSolve("kept", solve, A)
+        self._solver_cache.put(Q, s, free)
         return s
 
     # -- metric interface -------------------------------------------------------------------
