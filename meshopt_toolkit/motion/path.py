@@ -332,8 +332,9 @@ def discrete_geodesic(
         factorizes only when conjugate gradients slow down, not once per problem.
     cg_rtol : float
         Relative residual of the conjugate-gradient solve of each step. An inexact step
-        is fine (the ratio test judges it): measured, 1e-2 takes the same iterations to
-        the same path as 1e-6 with a third fewer solves; relaxations use 0.1.
+        is fine (the ratio test judges it): measured on the 225° twist of the 4.2k disc,
+        1e-6, 1e-3 and 1e-2 take the same 14 iterations to the same frames, 1e-2 with
+        25 % less time than 1e-6; relaxations use 0.1.
 
     Returns
     -------
