@@ -9,6 +9,11 @@ iterations and ≤ 1/2 of the time for complete-euclidean, elasticity-euclidean 
 complete-complete), then the elasticity-euclidean L-BFGS iteration counts and final min AR
 on the bundled discs up to ``--max-vertices`` (a good metric: nearly mesh-independent).
 
+``--defaults``: what ``meshopt optimize MESH`` does on every bundled disc (146 to 13,586
+vertices; issue 17's criterion: converged and min AR ≥ ½ its initial value) — the
+default variant, method and penalty — beside the two choices they replace: thesis set 2
+with β4 = 0.001·N, and variant complete-euclidean.
+
 ``--per-iteration``: side by side in one process with the runs interleaved (the machine is shared
 and noisy), and the ratio complete-complete / complete-euclidean (target ≤ 3 on the
 ~541-vertex disc; the thesis: about 2000).
@@ -18,6 +23,7 @@ complete-complete uses the default retraction (the geodesic's line-search mode,
 (``exp_options={"method": "auto"}``) for comparison.
 
 Usage: python benchmarks/bench_optimize.py [--table] [--max-vertices 2200]
+       python benchmarks/bench_optimize.py --defaults [--max-vertices 14000]
        python benchmarks/bench_optimize.py --per-iteration [--iterations 10] [--repeats 3]
        [--max-vertices 14000] [--exact]
 """
@@ -30,7 +36,16 @@ import numpy as np
 
 import meshopt_toolkit as mt
 from meshopt_toolkit import datasets
-from meshopt_toolkit.optimize import VARIANTS, default_metric_beta, optimize, thesis_penalty_beta
+from meshopt_toolkit.cli.optimize import DEFAULT_RHS
+from meshopt_toolkit.optimize import (
+    DEFAULT_METHOD,
+    DEFAULT_PENALTY_BETA,
+    DEFAULT_VARIANT,
+    VARIANTS,
+    default_metric_beta,
+    optimize,
+    thesis_penalty_beta,
+)
 from meshopt_toolkit.poisson import PoissonObjective
 
 
@@ -81,6 +96,27 @@ def table(max_vertices: int) -> None:
               flush=True)
 
 
+def defaults(max_vertices: int) -> None:
+    print(f"meshopt optimize's defaults ({DEFAULT_VARIANT}, {DEFAULT_METHOD}, "
+          f"β = {DEFAULT_PENALTY_BETA}, default rhs) beside what they replace")
+    print(f"{'N_V':>6} {'run':<34} {'status':<15} {'iter':>5} {'s':>8} {'j':>9} "
+          f"{'AR0':>6} {'AR':>7} {'AR/AR0':>7}")
+    for name in _discs(max_vertices):
+        mesh = mt.load(mt.data_path(name)).as_planar()
+        runs = {
+            "defaults": (DEFAULT_VARIANT, DEFAULT_PENALTY_BETA),
+            "thesis set 2 (β4 = 0.001·N)": (DEFAULT_VARIANT, thesis_penalty_beta(2, mesh.n_vertices)),
+            "variant complete-euclidean": ("complete-euclidean", DEFAULT_PENALTY_BETA),
+        }
+        for label, (variant, beta) in runs.items():
+            res = optimize(mesh, PoissonObjective(mesh, rhs=DEFAULT_RHS), variant=variant,
+                           penalty_beta=beta)
+            ar0, ar = res.history[0].min_aspect_ratio, res.history[-1].min_aspect_ratio
+            print(f"{mesh.n_vertices:>6} {label:<34} {res.status:<15} {res.nit:>5} "
+                  f"{res.seconds:>8.2f} {res.j:>9.5f} {ar0:>6.3f} {ar:>7.4f} {ar / ar0:>7.2f}",
+                  flush=True)
+
+
 def _discs(max_vertices: int) -> list[str]:
     names = sorted((n for n in datasets.available() if n.startswith("disc_")),
                    key=lambda s: int(s[5:-4]))
@@ -90,6 +126,8 @@ def _discs(max_vertices: int) -> list[str]:
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--table", action="store_true", help="table 6.4 set 2 per method (default)")
+    p.add_argument("--defaults", action="store_true",
+                   help="meshopt optimize's defaults on every bundled disc")
     p.add_argument("--per-iteration", action="store_true", help="time per iteration per variant")
     p.add_argument("--iterations", type=int, default=10)
     p.add_argument("--repeats", type=int, default=3)
@@ -98,6 +136,9 @@ def main(argv=None):
     p.add_argument("--exact", action="store_true",
                    help="also time complete-complete with the exact (1e-6) exponential map")
     args = p.parse_args(argv)
+    if args.defaults:
+        defaults(args.max_vertices or 14000)
+        return
     if not args.per_iteration:
         table(args.max_vertices or 2200)
         return

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from meshopt_toolkit.errors import FilterError
+from meshopt_toolkit.optimize import DEFAULT_METHOD, DEFAULT_VARIANT, METHODS, VARIANTS
 from meshopt_toolkit.pipeline.filter import Filter, register
 from meshopt_toolkit.pipeline.params import (
     EnumParam,
@@ -13,8 +14,6 @@ from meshopt_toolkit.pipeline.params import (
     number_list,
 )
 
-VARIANTS = ("euclidean-euclidean", "elasticity-euclidean", "complete-euclidean", "complete-complete")
-METHODS = ("lbfgs", "cg", "steepest")
 DEFAULT_RHS = "2.5*(x1 + 0.4 - x2**2)**2 + x1**2 + x2**2 - 1"
 
 
@@ -26,7 +25,8 @@ class ShapeOptimization(Filter):
     (P1, centroid quadrature), by Riemannian L-BFGS (default), nonlinear CG or the thesis'
     steepest descent (:func:`meshopt_toolkit.optimize.optimize`). ``r`` is parsed by the safe expression
     evaluator (never ``eval``). β4 is unscaled (f2 divides it by 2N). Empty β strings mean
-    the thesis defaults: β^penalty = parameter set 2 = (0.1, 0.01, 0, 0.001·N),
+    the defaults: β^penalty = (0.1, 0.01, 0, 0.146), thesis parameter set 2 at 146 vertices
+    with β4 fixed on every mesh (:data:`meshopt_toolkit.optimize.DEFAULT_PENALTY_BETA`),
     β^metric = (10, 1, 0, 0.01·N). The optimized mesh replaces the current one; the summary
     holds status, iterations, j, j + f2, Λ and AR.
     """
@@ -35,15 +35,17 @@ class ShapeOptimization(Filter):
     label = "Shape Optimization (meshopt)"
     description = "Minimize the integral of the Poisson state plus a mesh-quality penalty, keeping the mesh admissible."
     parameters = (
-        EnumParam("variant", "complete-euclidean", "gradient metric and retraction",
+        EnumParam("variant", DEFAULT_VARIANT, "gradient metric and retraction",
                   label="Variant", choices=VARIANTS),
-        EnumParam("method", "lbfgs", "optimization method: lbfgs, cg or steepest",
+        EnumParam("method", DEFAULT_METHOD, "lbfgs: Riemannian L-BFGS, cg: nonlinear CG "
+                  "(Hestenes-Stiefel+), steepest: the thesis' steepest descent",
                   label="Method", choices=METHODS),
         IntParam("memory", 10, "L-BFGS memory (curvature pairs kept)", label="L-BFGS memory",
                  min=1, max=1000),
-        ExpressionParam("rhs", DEFAULT_RHS, "right-hand side r(x1, x2) (safe expression)",
+        ExpressionParam("rhs", DEFAULT_RHS, "right-hand side r(x1, x2) of -Δy = r; numbers, "
+                        "+ - * / **, x/y/x1/x2, pi, e, sin, cos, tan, exp, log, sqrt, abs, min, max",
                     label="Right-hand side"),
-        NumberListParam("penalty", "", "beta^penalty b1,b2,b3,b4 (b4 unscaled); empty = thesis set 2",
+        NumberListParam("penalty", "", "beta^penalty b1,b2,b3,b4 (b4 unscaled); empty = 0.1,0.01,0,0.146",
                     label="Penalty beta", count=4),
         NumberListParam("metric_penalty", "", "beta^metric b1,b2,b3,b4; empty = 10,1,0,0.01*N",
                     label="Metric beta", count=4),
@@ -54,18 +56,18 @@ class ShapeOptimization(Filter):
                    label="Tolerance", min=0.0),
     )
 
-    def apply(self, document, *, variant: str = "complete-euclidean", method: str = "lbfgs",
+    def apply(self, document, *, variant: str = DEFAULT_VARIANT, method: str = DEFAULT_METHOD,
               memory: int = 10, rhs: str = DEFAULT_RHS,
               penalty: str = "", metric_penalty: str = "", max_iterations: int = 1000,
               tolerance: float = 1e-6) -> dict:
-        from meshopt_toolkit.optimize import optimize, thesis_penalty_beta
+        from meshopt_toolkit.optimize import DEFAULT_PENALTY_BETA, optimize
         from meshopt_toolkit.poisson import PoissonObjective
 
         entry = document.current_entry
         if not entry.mesh.is_planar:
             raise FilterError(f"{self.name} needs a planar mesh; {entry.name} is a 3D surface")
         mesh = entry.mesh.as_planar()
-        beta = number_list(penalty, 4, "penalty") or thesis_penalty_beta(2, mesh.n_vertices)
+        beta = number_list(penalty, 4, "penalty") or DEFAULT_PENALTY_BETA
         result = optimize(
             mesh, PoissonObjective(mesh, rhs=rhs), variant=variant, method=method, memory=memory,
             penalty_beta=beta, metric_beta=number_list(metric_penalty, 4, "metric_penalty"),

@@ -1,6 +1,6 @@
-"""One parameter schema per operation: the CLI options of ``move`` and ``morph`` are
-generated from their filters' typed parameters (type, default, choices, help, range and
-range errors), and the library's defaults agree with them."""
+"""One parameter schema per operation: the CLI options of ``move``, ``morph``, ``deform``
+and ``optimize`` are generated from their filters' typed parameters (type, default,
+choices, help, range and range errors), and the library's defaults agree with them."""
 
 from __future__ import annotations
 
@@ -12,14 +12,17 @@ import pytest
 from meshopt_toolkit.cli import deform as cli_deform
 from meshopt_toolkit.cli import morph as cli_morph
 from meshopt_toolkit.cli import move as cli_move
+from meshopt_toolkit.cli import optimize as cli_optimize
 from meshopt_toolkit.cli._params import add_options, check_options
 from meshopt_toolkit.cli._validate import OptionError
 from meshopt_toolkit.deform import deform
 from meshopt_toolkit.filters.generate_geodesic_morph import GenerateGeodesicMorph
 from meshopt_toolkit.filters.quality_preserving_deformation import QualityPreservingDeformation
 from meshopt_toolkit.filters.move_vertices import PrescribedMotion
+from meshopt_toolkit.filters.shape_optimization import ShapeOptimization
 from meshopt_toolkit.motion.morph import distortion_morph
 from meshopt_toolkit.motion.move import move
+from meshopt_toolkit.optimize import optimize
 from meshopt_toolkit.pipeline.filter import Filter
 from meshopt_toolkit.pipeline.params import EnumParam, FloatParam, IntParam
 
@@ -67,6 +70,7 @@ def test_generated_options_take_type_default_choices_and_range_from_the_paramete
     (cli_move, PrescribedMotion, move, {}),
     (cli_morph, GenerateGeodesicMorph, distortion_morph, {}),
     (cli_deform, QualityPreservingDeformation, deform, {"time": "t"}),
+    (cli_optimize, ShapeOptimization, optimize, {"max_iterations": "max_iter", "tolerance": "tol"}),
 ])
 def test_cli_filter_and_library_defaults_agree(cli, filter_cls, library, renamed):
     p = argparse.ArgumentParser()

@@ -137,3 +137,60 @@ def test_refuses_inverted_mesh_and_unknown_variant():
 def test_thesis_parameter_sets_scale_beta4_by_vertex_count():
     assert thesis_penalty_beta(1, 146) == pytest.approx((1, 0.5, 0, 14.6))
     assert thesis_penalty_beta(2, 146) == pytest.approx((0.1, 0.01, 0, 0.146))
+
+
+def _anchor_term(mesh, beta4, displacement):
+    """f2's reference term (β4/2N)‖Q − Q_ref‖² at Q = Q_ref + displacement(Q_ref)."""
+    from meshopt_toolkit.penalties import QualityPenalty
+
+    f = QualityPenalty(mesh, beta=(0.0, 0.0, 0.0, beta4))
+    return f.value(mesh.points + displacement(mesh.points))
+
+
+def test_default_penalty_means_the_same_on_every_resolution():
+    """The default anchor term is a vertex mean of |Q − Q_ref|²: for one smooth displacement
+    field it takes the same value on the 146- and the 2198-vertex disc (both approximate
+    (β4/2) times the mean of |u|² over the unit disc); thesis set 2's
+    β4 = 0.001·N turns it into a sum that grows with N (the cause of squeezed boundary
+    triangles on fine meshes)."""
+    from meshopt_toolkit import datasets, io
+    from meshopt_toolkit.optimize import DEFAULT_PENALTY_BETA
+
+    def u(X):  # |u|² = 0.01 (x² + y²): its mean over the unit disc is 0.01 · 1/2
+        return 0.1 * X
+
+    for name in ("disc_146.msh", "disc_2198.msh"):
+        mesh = io.load(datasets.data_path(name)).as_planar()
+        # the vertex mean of |x|² on a quasi-uniform disc exceeds the area mean 1/2 by the
+        # weight of the boundary circle (|x|² = 1), at most the boundary vertices' fraction b
+        area_mean = 0.5 * DEFAULT_PENALTY_BETA[3] * 0.01 * 0.5
+        b = len(mesh.boundary_vertices) / mesh.n_vertices
+        assert 1.0 <= _anchor_term(mesh, DEFAULT_PENALTY_BETA[3], u) / area_mean <= 1.0 + b
+    coarse, fine = (io.load(datasets.data_path(n)).as_planar() for n in ("disc_146.msh", "disc_2198.msh"))
+    ratio = _anchor_term(fine, thesis_penalty_beta(2, fine.n_vertices)[3], u) \
+        / _anchor_term(coarse, thesis_penalty_beta(2, coarse.n_vertices)[3], u)
+    assert ratio > 0.5 * fine.n_vertices / coarse.n_vertices
+
+
+def test_default_method_and_penalty_keep_half_the_quality_on_a_fine_disc(tmp_path, capsys):
+    """Issue 17's criterion on the bundled 2198-vertex disc with the CLI's defaults:
+    converged, ``"success": true``, min aspect ratio ≥ ½ its initial value (thesis set 2
+    with β4 = 0.001·N ends at 0.340 of 0.682, < ½)."""
+    import json
+
+    from meshopt_toolkit import datasets
+    from meshopt_toolkit.cli import main
+    from meshopt_toolkit.geometry import quality_summary
+    from meshopt_toolkit.io import load
+
+    source = datasets.data_path("disc_2198.msh")
+    out = tmp_path / "out"
+    assert main(["optimize", str(source), "-o", str(out), "--no-plots", "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["success"] is True and summary["status"] == "converged"
+    initial = load(source).as_planar()
+    final = load(out / "optimized.msh").as_planar()
+    ar0 = quality_summary(initial.points, initial.triangles).min_aspect_ratio
+    ar = quality_summary(final.points, final.triangles).min_aspect_ratio
+    assert final.signed_areas().min() > 0 and ar >= 0.5 * ar0
+    assert summary["min_aspect_ratio"] == pytest.approx(ar)
