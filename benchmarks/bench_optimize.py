@@ -36,7 +36,6 @@ import numpy as np
 
 import meshopt_toolkit as mt
 from meshopt_toolkit import datasets
-from meshopt_toolkit.cli.optimize import DEFAULT_RHS
 from meshopt_toolkit.optimize import (
     DEFAULT_METHOD,
     DEFAULT_PENALTY_BETA,
@@ -46,7 +45,7 @@ from meshopt_toolkit.optimize import (
     optimize,
     thesis_penalty_beta,
 )
-from meshopt_toolkit.poisson import PoissonObjective
+from meshopt_toolkit.poisson import DEFAULT_RHS, PoissonObjective
 
 
 def run(mesh, variant, iterations, exp_options=None):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from meshopt_toolkit.errors import FilterError
+from meshopt_toolkit.fem.poisson import DEFAULT_RHS
 from meshopt_toolkit.optimize import DEFAULT_METHOD, DEFAULT_VARIANT, METHODS, VARIANTS
 from meshopt_toolkit.pipeline.filter import Filter, register
 from meshopt_toolkit.pipeline.params import (
@@ -14,7 +15,6 @@ from meshopt_toolkit.pipeline.params import (
     number_list,
 )
 
-DEFAULT_RHS = "2.5*(x1 + 0.4 - x2**2)**2 + x1**2 + x2**2 - 1"
 
 
 @register
@@ -61,7 +61,7 @@ class ShapeOptimization(Filter):
               penalty: str = "", metric_penalty: str = "", max_iterations: int = 1000,
               tolerance: float = 1e-6) -> dict:
         from meshopt_toolkit.optimize import DEFAULT_PENALTY_BETA, optimize
-        from meshopt_toolkit.poisson import PoissonObjective
+        from meshopt_toolkit.fem.poisson import PoissonObjective
 
         entry = document.current_entry
         if not entry.mesh.is_planar:

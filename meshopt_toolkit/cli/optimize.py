@@ -19,7 +19,6 @@ import tempfile
 from pathlib import Path
 
 from ..errors import ExpressionError, MeshoptError, WriteError
-from ..filters.shape_optimization import ShapeOptimization
 from ._common import exclusive_output_dir, float_list
 from ._params import add_options, check_options
 
@@ -35,6 +34,8 @@ logger = logging.getLogger(__name__)
 
 
 def add_args(p: argparse.ArgumentParser) -> None:
+    from ..filters.shape_optimization import ShapeOptimization  # imports scipy: not for `info`
+
     p.formatter_class = argparse.RawDescriptionHelpFormatter
     p.epilog = (
         "β4 is given unscaled: f2 divides it by 2N (thesis table 6.3 lists β4/N_V).\n"
@@ -99,6 +100,7 @@ def _atomic_text(path: Path, text: str) -> None:
 def run(args: argparse.Namespace) -> int:
     from .. import io
     from ..datasets import data_path
+    from ..filters.shape_optimization import ShapeOptimization
     from ..optimize import DEFAULT_PENALTY_BETA, optimize
     from ..poisson import PoissonObjective
     from ..progress import ProgressBar
