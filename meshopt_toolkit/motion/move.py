@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -22,7 +23,7 @@ from ..errors import InvalidMeshError
 from ..geometry import aspect_ratios, inverse_shape_quality
 from ..mesh import PlanarMesh, boundary_self_intersections, require_admissible
 from .continuation import NoAdmissiblePathError, continuation_path
-from .path import GraphMetric, discrete_geodesic
+from .path import GraphMetric, available_cores, discrete_geodesic
 from .similarity import HandlePath, Similarity, fit_similarity, handle_groups
 from .strain import TriangleDistortion
 
@@ -153,6 +154,7 @@ def move(
     weight: float = 1.0,
     relax_iter: int = 15,
     quality_rounds: int = 3,
+    finish_frames: bool = True,
     max_splits: int = 12,
     progress: Callable[[float], None] | None = None,
 ) -> MoveResult:
@@ -179,6 +181,11 @@ def move(
         Rounds of the final quality step (handles fixed): least squares of the distortion
         from equilateral triangles, reweighted towards the worst triangles (an ℓ⁴ fit of
         ``1/ψ² − 1``); the round with the best minimum aspect ratio is kept.
+    finish_frames : bool
+        With ``frames``: give every intermediate frame the same quality step (handles
+        fixed where they are at that time). The continuation's own frames are admissible
+        but squeezed towards the end (90° annulus turn, 9 frames: min AR 0.19 at 45°,
+        0.075 at 79° before the step); False returns them as they are, for speed.
     progress : callable ``s -> None``, optional
 
     Returns
@@ -216,6 +223,7 @@ def move(
     metric = GraphMetric(P, tri, weight)
     n_steps = max(int(steps), (frames or 2) - 1)
     times = np.linspace(0.0, 1.0, n_steps + 1)
+    pick = np.round(np.linspace(0, n_steps, int(frames or 2))).astype(int)
     if not callable(targets) and np.allclose(residual_targets, P[h], rtol=0,
                                              atol=1e-12 * mesh.diameter):
         # the handles move by a similarity: so does the whole mesh (no strain at all)
@@ -229,17 +237,24 @@ def move(
         details = {"continuation_splits": cont.splits,
                    "relax_iterations": cont.relax_iterations + finish["iterations"],
                    "finish_rounds_kept": finish["kept"]}
+        inner = pick[1:-1] if frames is not None and finish_frames else []
+        if len(inner):
+            # independent problems; SuperLU releases the GIL (a pool of its own: the
+            # frame pool of .path may be in use by the steps)
+            with ThreadPoolExecutor(min(len(inner), available_cores())) as pool:
+                done = list(pool.map(lambda i: _finish(metric, residual[i], h, be, relax_iter,
+                                                       quality_rounds), inner))
+            for i, (Q, more) in zip(inner, done):
+                residual[i] = Q
+                details["relax_iterations"] += more["iterations"]
     moved = []
     for s, R in zip(times, residual):
         Q = S.at(float(s))(R) if not S.is_identity else R.copy()
         moved.append(Q)
     moved[-1][h] = tg  # bitwise at the targets
-    lengths = metric.segment_lengths(np.stack(residual))
+    # the proven bound along the frames returned: chords of the embedding (triangle inequality)
+    lengths = metric.segment_lengths(np.stack([residual[i] for i in pick]))
     bound = np.concatenate([[0.0], np.cumsum(lengths)]) / weight
-    if frames is not None:
-        pick = np.round(np.linspace(0, n_steps, int(frames))).astype(int)
-    else:
-        pick = np.array([0, n_steps])
     q = np.array([_frame_quality(moved[i], tri) for i in pick])
     inverted = int(np.sum(metric.strain.determinants(moved[-1]) <= 0))
     if inverted or len(boundary_self_intersections(moved[-1], be)):
@@ -249,5 +264,5 @@ def move(
     return MoveResult(
         mesh=result_mesh, frames=out, min_aspect_ratio=q[:, 0], mean_quality=q[:, 1],
         handle_error=float(np.abs(moved[-1][h] - tg).max()),
-        seconds=time.perf_counter() - t_start, similarity=S, strain_bound=bound[pick],
+        seconds=time.perf_counter() - t_start, similarity=S, strain_bound=bound,
         inverted=inverted, details=details)

@@ -413,14 +413,19 @@ PARALLEL_FROM = 20_000
 _POOL: list[ThreadPoolExecutor] = []  # one pool for the process, made on first use
 
 
+def available_cores() -> int:
+    """The number of cores this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not on Linux
+        return os.cpu_count() or 1
+
+
 def _frame_pool() -> ThreadPoolExecutor | None:
     """Threads for :class:`FrameBlocks`, one per core this process may run on (None on
     one core)."""
     if not _POOL:
-        try:
-            cores = len(os.sched_getaffinity(0))
-        except AttributeError:  # pragma: no cover - not on Linux
-            cores = os.cpu_count() or 1
+        cores = available_cores()
         _POOL.append(ThreadPoolExecutor(cores) if cores > 1 else None)
     return _POOL[0]
 
