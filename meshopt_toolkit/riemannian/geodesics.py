@@ -80,10 +80,6 @@ dense output those times cost no extra steps (and no penalty call at all with
 
 from __future__ import annotations
 
-import logging
-import warnings
-from dataclasses import dataclass, field
-
 import numpy as np
 
 from .._typing import FloatArray
@@ -91,8 +87,7 @@ from ..errors import IntegrationError
 from ..kernels.triangles import signed_areas
 from ..ode import IntegrationOutput, energy, runge_kutta, stormer_verlet
 from .field import GeodesicField
-
-logger = logging.getLogger(__name__)
+from .geodesic_result import GeodesicResult, GeodesicWarning, _assemble  # noqa: F401 (re-exported)
 
 __all__ = [
     "GeodesicResult",
@@ -120,59 +115,6 @@ LINE_SEARCH_OPTIONS = {"project_energy": True, "energy_rtol": np.inf, "exit_shri
 #: about ten steps, and starting there saves the trial evaluation and the cautious first
 #: steps of the general heuristic (10–20% fewer penalty calls on the bundled discs)
 LINE_SEARCH_FIRST_STEP = 0.1
-
-
-class GeodesicWarning(UserWarning):
-    """A runtime invariant (energy, f-growth bound) of a geodesic was violated."""
-
-
-@dataclass
-class GeodesicResult:
-    """A geodesic sampled at output times.
-
-    Attributes
-    ----------
-    times : (K,) output times (as requested, including t = 0 first when asked for)
-    points : (K, N, 2) positions γ(t)
-    velocities : (K, N, 2) velocities γ'(t)
-    energy : (K,) ``(γ', γ')_g`` (constant along an exact geodesic)
-    penalty : (K,) f(γ(t)) (NaN for the Euclidean metric)
-    admissible : (K,) bool, all signed areas positive (always True for a complete metric)
-    n_evaluations : penalty calls made
-    n_steps, n_rejected : accepted / rejected integrator steps
-    method : integrator used
-    max_energy_drift : max relative energy drift over all steps (per step before the
-        energy projection of ``"line-search"``)
-    warnings : messages of violated invariants (empty when all held)
-    last_step : step size the adaptive integrator would have tried next (NaN otherwise):
-        a good ``h0`` for a similar geodesic
-    """
-
-    times: FloatArray
-    points: FloatArray
-    velocities: FloatArray
-    energy: FloatArray
-    penalty: FloatArray
-    admissible: np.ndarray
-    n_evaluations: int = 0
-    n_steps: int = 0
-    n_rejected: int = 0
-    method: str = "auto"
-    max_energy_drift: float = 0.0
-    warnings: list[str] = field(default_factory=list)
-    last_step: float = float("nan")
-
-    @property
-    def final(self) -> FloatArray:
-        """Position at the last output time, (N, 2)."""
-        return self.points[-1]
-
-    def at(self, t: float) -> FloatArray:
-        """Position at an output time ``t`` (exact match up to 1e-12), (N, 2)."""
-        idx = np.flatnonzero(np.abs(self.times - t) <= 1e-12 * max(1.0, abs(t)))
-        if idx.size == 0:
-            raise KeyError(f"t = {t} is not an output time of this geodesic")
-        return self.points[idx[0]]
 
 
 def penalty_of(metric):
@@ -250,15 +192,6 @@ def _scipy_dop853(fld: GeodesicField, Q0, V0, t_out, rtol, atol) -> IntegrationO
             raise IntegrationError("scipy DOP853 produced an inverted mesh; tighten rtol/atol")
     drift = float(np.max(np.abs(en - e0)) / e0) if e0 > 0 else 0.0
     return IntegrationOutput(pts, vel, en, int(sol.nfev), 0, 0, drift)
-
-
-def _report(msg: str, on_violation: str, bucket: list[str]) -> None:
-    bucket.append(msg)
-    if on_violation == "raise":
-        raise IntegrationError(msg)
-    if on_violation == "warn":
-        warnings.warn(msg, GeodesicWarning, stacklevel=3)
-    logger.info(msg)
 
 
 def geodesic(
@@ -442,73 +375,6 @@ def geodesic(
         raise exc
     return _assemble(fld, Q, V, f0, req, positive, out, method_used, monitor, rtol,
                      energy_tol, on_violation)
-
-
-def _assemble(fld, Q, V, f0, req, positive, out, method_used, monitor, rtol, energy_tol,
-              on_violation) -> GeodesicResult:
-    """Outputs in the requested order, with the invariant checks when ``monitor``."""
-    K = req.size
-    if out is not None and np.isfinite(out.initial_energy):
-        e0 = out.initial_energy
-    else:
-        e0 = energy(fld.gradient(Q), V)
-    pts = np.empty((K,) + Q.shape)
-    vel = np.empty((K,) + Q.shape)
-    en = np.empty(K)
-    for j, t in enumerate(req):
-        if t == 0 or out is None:  # (out is None: t = 0 only, or V = 0 and γ is constant)
-            pts[j], vel[j], en[j] = Q, V, e0
-        else:
-            i = int(np.searchsorted(positive, t))
-            pts[j], vel[j], en[j] = out.points[i], out.velocities[i], out.energy[i]
-    fvals = np.full(K, f0)
-    if monitor:
-        for j, t in enumerate(req):
-            if t == 0 or out is None:
-                continue
-            if np.isnan(en[j]):  # an interpolated output: energy from the gradient there
-                fvals[j], grad = fld.value_and_gradient(pts[j])
-                en[j] = energy(grad, vel[j])
-            else:
-                fvals[j] = fld.value(pts[j])
-    else:
-        fvals[req != 0] = np.nan
-    # every returned configuration was checked by the integrator (areas at every output,
-    # the boundary exactly or by certificate); recheck the areas in one batched pass
-    adm = np.ones(K, dtype=bool)
-    if fld.triangles is not None:
-        z = np.ascontiguousarray(pts).view(np.complex128)[..., 0][:, fld.triangles.T]
-        adm = ((z[:, 1] - z[:, 0]).conj() * (z[:, 2] - z[:, 0])).imag.min(axis=1) > 0
-    else:
-        adm = np.array([fld.admissible(p) for p in pts])
-    if not adm.all():  # cannot happen: every accepted step is checked
-        raise IntegrationError("internal error: the integrator produced an inverted mesh")
-
-    notes: list[str] = []
-    drift = 0.0 if out is None else out.max_energy_drift
-    if monitor:
-        if energy_tol is None:
-            if method_used == "stormer-verlet":
-                energy_tol = 1e-2
-            else:
-                energy_tol = max(1e-3, 1e4 * rtol)
-        if e0 > 0 and drift > energy_tol:
-            _report(f"geodesic energy drifted by {drift:.3g} (relative) > {energy_tol:g}; "
-                    "tighten the tolerance or use more steps", on_violation, notes)
-        e_max = max(e0, float(np.max(en)))
-        bound = np.sqrt(e_max) * req * (1 + energy_tol) + 1e-10 * (1 + abs(f0))
-        excess = np.abs(fvals - f0) - bound
-        if np.any(excess > 0):
-            j = int(np.argmax(excess))
-            _report(f"f-growth bound violated at t = {req[j]:.6g}: |f(γ(t)) − f(γ(0))| = "
-                    f"{abs(fvals[j] - f0):.6g} > √e·t = {bound[j]:.6g}", on_violation, notes)
-    return GeodesicResult(
-        times=req, points=pts, velocities=vel, energy=en, penalty=fvals, admissible=adm,
-        n_evaluations=fld.n_evaluations, n_steps=0 if out is None else out.n_steps,
-        n_rejected=0 if out is None else out.n_rejected, method=method_used,
-        max_energy_drift=drift, warnings=notes,
-        last_step=np.nan if out is None else out.h_last,
-    )
 
 
 def _all_positive(points, metric) -> bool:
