@@ -319,6 +319,51 @@ def test_hermite_interpolant_is_exact_for_quintics(rng):
         assert np.allclose(qi, q(t), atol=1e-12) and np.allclose(vi, dq(t), atol=1e-11)
 
 
+def test_dop853_continuous_extension_has_order_seven():
+    """One DOP853 step of the harmonic oscillator y' = (y₂, −y₁) (closed form: a rotation):
+    the continuous extension inside the step has local error O(h⁸); halving h divides it
+    by ≈ 2⁸ (asserted ≥ 2⁷)."""
+    from meshopt_toolkit.ode.tableaus import dense_evaluate, dense_polynomial, rk_pair
+
+    pair = rk_pair("dop853")
+    S = len(pair.b)
+
+    def f(y):
+        return np.array([y[1], -y[0]])
+
+    def error(h):
+        y0 = np.array([1.0, 0.0])
+        a = np.zeros((S, S))
+        a[:, :] = pair.a
+        k = np.zeros((S + 4, 2))
+        k[0] = f(y0)
+        for s in range(1, S):
+            k[s] = f(y0 + h * a[s, :s] @ k[:s])
+        y1 = y0 + h * pair.b @ k[:S]
+        k[S] = f(y1)
+        for i, row in enumerate(pair.dense_a):
+            k[S + 1 + i] = f(y0 + h * row[:S + 1 + i] @ k[:S + 1 + i])
+        theta = np.array([0.2, 0.5, 0.9])
+        y = dense_evaluate(dense_polynomial(pair, k, y0, y1, h), y0, theta)
+        exact = np.stack([np.cos(theta * h), -np.sin(theta * h)], axis=1)
+        return np.abs(y - exact).max()
+
+    e1, e2 = error(0.4), error(0.2)
+    assert e2 < 1e-9 and e1 / e2 >= 2.0**7
+
+
+def test_energy_at_interpolated_outputs_holds_at_the_default_tolerance():
+    """Issue 16's target: the energy (V, V)_g at output times inside steps (dense output)
+    stays within 1e-4 of e(0) at the default tolerance on the 5-second squeeze with the
+    boundary-pair term (h_μ) on; the quintic Hermite velocities gave 1.9e-3."""
+    mesh = square5()
+    pen = HeightPenalty(mesh, alpha=(1.0, 1.0, 1.0))
+    res = geodesic(CompleteMetric(pen), mesh.points, squeeze_velocity(), 5.0,
+                   times=np.linspace(0, 5, 51), on_violation="raise")
+    assert res.n_steps < 50  # outputs inside steps: the interpolant is what is tested
+    assert np.max(np.abs(res.energy - res.energy[0])) <= 1e-4 * res.energy[0]
+
+
 # -- line-search mode, boundary guard, partial results, fixed vertices --------------------
 
 

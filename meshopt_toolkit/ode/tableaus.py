@@ -23,6 +23,12 @@ class _Pair:
     e5: np.ndarray  # (s + 1,) main error estimate
     e3: np.ndarray | None  # (s + 1,) DOP853's secondary estimate, or None
     exponent: float  # step control exponent 1/(q + 1)
+    #: DOP853's continuous extension: rows of the 3 extra stages' a (3, s + 4), their c
+    #: (3,), and the interpolation weights d (4, s + 4) over all s + 4 stages; None: the
+    #: pair has none (outputs inside a step use the quintic Hermite interpolant)
+    dense_a: np.ndarray | None = None
+    dense_c: np.ndarray | None = None
+    dense_d: np.ndarray | None = None
 
 
 # Dormand–Prince 5(4), Dormand & Prince (1980); Hairer, Nørsett, Wanner I, table II.5.2
@@ -64,7 +70,36 @@ def _dop853_pair() -> _Pair:
         raise IntegrationError("method 'dop853' needs scipy's DOP853 coefficient table") from exc
     s = dc.N_STAGES
     return _Pair("dop853", np.array(dc.A[:s, :s]), np.array(dc.B), np.array(dc.E5),
-                 np.array(dc.E3), 1 / 8)
+                 np.array(dc.E3), 1 / 8, dense_a=np.array(dc.A[s + 1:]),
+                 dense_c=np.array(dc.C[s + 1:]), dense_d=np.array(dc.D))
+
+
+def dense_polynomial(pair: _Pair, k: FloatArray, y0: FloatArray, y1: FloatArray, h: float):
+    """The coefficients ``F`` (7, ...) of DOP853's 7th-order continuous extension
+    (Hairer, Nørsett & Wanner I, §II.6; the form of scipy's ``Dop853DenseOutput``):
+    ``y(t0 + θh) = y0 + θ(F0 + (1−θ)(F1 + θ(F2 + (1−θ)(F3 + θ(F4 + (1−θ)(F5 + θF6))))))``.
+
+    ``k`` : (s + 4, ...) all stage derivatives — the ``s`` of the step, the derivative at
+    ``y1`` and the 3 extra stages.
+    """
+    dy = y1 - y0
+    F = np.empty((7,) + dy.shape)
+    F[0] = dy
+    F[1] = h * k[0] - dy
+    F[2] = 2 * dy - h * (k[len(pair.b)] + k[0])
+    for i, w in enumerate(pair.dense_d):
+        F[3 + i] = h * _combine(w, k)
+    return F
+
+
+def dense_evaluate(F: FloatArray, y0: FloatArray, theta: FloatArray) -> FloatArray:
+    """:func:`dense_polynomial`'s interpolant at the step fractions ``theta`` (m,): (m, ...)."""
+    x = np.asarray(theta, dtype=float).reshape((-1,) + (1,) * y0.ndim)
+    y = np.zeros((len(x),) + y0.shape)
+    for i, f in enumerate(F[::-1]):
+        y += f
+        y *= x if i % 2 == 0 else 1 - x
+    return y + y0
 
 
 #: Bogacki–Shampine 3(2), Bogacki & Shampine (1989): c = (0, 1/2, 3/4), FSAL
