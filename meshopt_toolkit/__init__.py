@@ -46,7 +46,9 @@ _EXPORTS = {
     # geodesics and deformation
     "exp_map": "geodesics",
     "geodesic": "geodesics",
+    "GeodesicResult": "geodesics",
     "deform": "deform",
+    "DeformResult": "deform",
     # prescribed motion (the per-triangle distortion metric)
     "move": "motion.move",
     "MoveResult": "motion.move",
@@ -56,12 +58,16 @@ _EXPORTS = {
     "PoissonObjective": "poisson",
     "parse_expression": "expressions",
     "optimize": "optimize",
+    "OptimizeResult": "optimize",
     # morphing
     "log_map": "morph",
     "geodesic_morph": "morph",
+    "MorphResult": "morph",
     "distortion_morph": "motion.morph",
+    "DistortionMorph": "motion.morph",
     # filters and pipelines
     "Filter": "pipeline",
+    "register": "pipeline.filter",
     "Document": "pipeline",
     "Pipeline": "pipeline",
     "load_pipeline": "pipeline",

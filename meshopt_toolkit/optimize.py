@@ -42,12 +42,14 @@ from .mesh import PlanarMesh, require_admissible
 
 logger = logging.getLogger(__name__)
 
-VARIANTS = (
-    "euclidean-euclidean",
-    "elasticity-euclidean",
-    "complete-euclidean",
-    "complete-complete",
-)
+#: variant -> (gradient metric, retraction by the exponential map?), the table above
+VARIANT_PARTS: dict[str, tuple[str, bool]] = {
+    "euclidean-euclidean": ("euclidean", False),
+    "elasticity-euclidean": ("elasticity", False),
+    "complete-euclidean": ("complete", False),
+    "complete-complete": ("complete", True),
+}
+VARIANTS = tuple(VARIANT_PARTS)
 
 #: the phases timed per iteration (the columns of thesis tables 6.2, 6.5, 6.6)
 PHASES = ("state", "derivative", "penalty_derivative", "gradient", "backtracking", "retraction")
@@ -270,7 +272,7 @@ class _Timer:
 def _make_metric(variant: str, mesh: PlanarMesh, metric_beta, metric_options: dict):
     from .metrics import CompleteMetric, ElasticityMetric, EuclideanMetric
 
-    kind = variant.split("-")[0]
+    kind = VARIANT_PARTS[variant][0]
     if kind == "euclidean":
         return EuclideanMetric()
     if kind == "elasticity":
@@ -377,7 +379,7 @@ def optimize(
 
         penalty = QualityPenalty(mesh, beta=tuple(penalty_beta))
     metric = _make_metric(variant, mesh, metric_beta, dict(metric_options or {}))
-    use_exp = variant.endswith("-complete")
+    use_exp = VARIANT_PARTS[variant][1]
     problem = ShapeProblem(objective, penalty, metric, tri, mesh.boundary_edges, free)
     if method != "steepest":
         from .shape.driver import run_descent

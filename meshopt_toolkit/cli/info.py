@@ -54,7 +54,7 @@ def mesh_info(path: str | Path, merge_tolerance: float | None = None) -> dict:
         The file cannot be read.
     """
     from ..io import load
-    from ..mesh import _check_mesh
+    from ..mesh import check_mesh
 
     mesh = load(path)
     n_merged = 0
@@ -68,11 +68,11 @@ def mesh_info(path: str | Path, merge_tolerance: float | None = None) -> dict:
         # area pass (all areas > 0: nothing to re-orient, nothing inverted)
         pm = mesh.as_planar()
         quality = pm.quality()
-        report = _check_mesh(pm, positive_areas=quality.min_area > 0)
+        report = check_mesh(pm, positive_areas=quality.min_area > 0)
         if report.reoriented:
             quality = report.mesh.quality()
     else:
-        report = _check_mesh(mesh)
+        report = check_mesh(mesh)
         if report.planar:
             quality = report.mesh.quality()
     info = {

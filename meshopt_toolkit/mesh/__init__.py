@@ -7,7 +7,8 @@
 from __future__ import annotations
 
 from ..kernels.boundary import boundary_self_intersections
-from .checks import MeshReport, _check_mesh, check_mesh, require_admissible
+from .checks import MeshReport, check_mesh, require_admissible
+_check_mesh = check_mesh  # the former private name
 from .core import PlanarMesh, TriangleMesh
 from .topology import _fans_per_vertex
 

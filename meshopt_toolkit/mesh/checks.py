@@ -117,18 +117,13 @@ def _manifold_problems(mesh: TriangleMesh) -> list[str]:
 
 
 
-def check_mesh(mesh: TriangleMesh) -> MeshReport:
+def check_mesh(mesh: TriangleMesh, positive_areas: bool = False) -> MeshReport:
     """Run every check of SPEC §1 and report (never raises for a readable mesh).
 
     A planar-manifold mesh whose triangles are all clockwise is re-oriented to CCW; the
-    report says so and carries the re-oriented mesh.
-    """
-    return _check_mesh(mesh)
-
-
-def _check_mesh(mesh: TriangleMesh, positive_areas: bool = False) -> MeshReport:
-    """:func:`check_mesh`; ``positive_areas=True`` is the caller's promise that every
-    signed area of ``mesh`` is > 0 (e.g. from a quality summary), which skips that pass.
+    report says so and carries the re-oriented mesh. ``positive_areas=True`` is the
+    caller's promise that every signed area of ``mesh`` is > 0 (e.g. from a quality
+    summary), which skips that pass.
 
     A clean mesh is recognised by :func:`_clean_manifold`; only a mesh with a problem pays
     for the edge list and the description of the problem (:func:`_manifold_problems`).

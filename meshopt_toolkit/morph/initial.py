@@ -98,7 +98,7 @@ def initial_path(
         The flow stalls: no admissible path was found (e.g. the target is a mirror image
         of the source, or lies in another component of M+).
     """
-    from ..riemannian.geodesics import triangles_of as _triangles_of
+    from ..riemannian.geodesics import triangles_of
     from ..fem.interpolation import arap_interpolation
 
     pen = _penalty(metric)
@@ -110,7 +110,7 @@ def initial_path(
         return lin
     if all(np.isfinite(pen.value(q)) for q in lin[1:-1]):
         return lin
-    triangles = _triangles_of(pen)
+    triangles = triangles_of(pen)
     if rigid and triangles is not None:
         arap = arap_interpolation(Q0, Q1, triangles, t)
         if all(np.isfinite(pen.value(q)) for q in arap[1:-1]):
