@@ -47,6 +47,7 @@ _EXPORTS = {
     "exp_map": "geodesics",
     "geodesic": "geodesics",
     "GeodesicResult": "geodesics",
+    "GeodesicOptions": "geodesics",
     "deform": "deform",
     "DeformResult": "deform",
     # prescribed motion (the per-triangle distortion metric)

@@ -319,6 +319,32 @@ def test_hermite_interpolant_is_exact_for_quintics(rng):
         assert np.allclose(qi, q(t), atol=1e-12) and np.allclose(vi, dq(t), atol=1e-11)
 
 
+def test_options_object_equals_keyword_settings_and_names_unknown_ones():
+    """``geodesic(options=GeodesicOptions(...))`` = the same settings as keywords (and as a
+    mapping); keywords override the object; an unknown setting is a TypeError naming it;
+    the signature stays short (issue 13: no 18-argument functions)."""
+    import inspect
+
+    from meshopt_toolkit.geodesics import GeodesicOptions
+
+    mesh = square5()
+    pen = HeightPenalty(mesh, alpha=(1.0, 1.0, 1.0))
+    V, times = squeeze_velocity(), [0.3, 1.0]
+    by_kw = geodesic(pen, mesh.points, V, 1.0, times=times, method="dopri5", rtol=1e-8)
+    opts = GeodesicOptions(method="dopri5", rtol=1e-8)
+    by_obj = geodesic(pen, mesh.points, V, 1.0, times=times, options=opts)
+    by_map = geodesic(pen, mesh.points, V, 1.0, times=times, options={"method": "dopri5", "rtol": 1e-8})
+    over = geodesic(pen, mesh.points, V, 1.0, times=times, options=GeodesicOptions(method="bs3"),
+                    method="dopri5", rtol=1e-8)
+    for res in (by_obj, by_map, over):
+        assert res.method == "dopri5" and np.array_equal(res.points, by_kw.points)
+    with pytest.raises(TypeError, match="rtoll"):
+        geodesic(pen, mesh.points, V, 1.0, rtoll=1e-3)
+    with pytest.raises(IntegrationError, match="unknown geodesic method"):
+        GeodesicOptions(method="euler")
+    assert len(inspect.signature(geodesic).parameters) <= 10
+
+
 def test_dop853_continuous_extension_has_order_seven():
     """One DOP853 step of the harmonic oscillator y' = (y₂, −y₁) (closed form: a rotation):
     the continuous extension inside the step has local error O(h⁸); halving h divides it

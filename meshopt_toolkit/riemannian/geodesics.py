@@ -87,9 +87,11 @@ from ..errors import IntegrationError
 from ..kernels.triangles import signed_areas
 from ..ode import IntegrationOutput, energy, runge_kutta, stormer_verlet
 from .field import GeodesicField
+from .geodesic_options import GeodesicOptions
 from .geodesic_result import GeodesicResult, GeodesicWarning, _assemble  # noqa: F401 (re-exported)
 
 __all__ = [
+    "GeodesicOptions",
     "GeodesicResult",
     "GeodesicWarning",
     "exp_map",
@@ -99,7 +101,6 @@ __all__ = [
     "triangles_of",
 ]
 
-METHODS = ("auto", "dop853", "dopri5", "bs3", "line-search", "stormer-verlet", "scipy")
 
 #: default relative tolerance of each adaptive integrator (atol = rtol · scale)
 DEFAULT_RTOL = {"dop853": 1e-6, "dopri5": 1e-7, "bs3": 1e-5, "line-search": 5e-2,
@@ -201,20 +202,10 @@ def geodesic(
     t_end: float = 1.0,
     *,
     times=None,
-    method: str = "auto",
-    steps: int | None = None,
-    rtol: float | None = None,
-    atol: float | None = None,
-    energy_tol: float | None = None,
-    on_violation: str = "warn",
-    max_steps: int = 100_000,
-    dense: bool = True,
-    fixed_point_tol: float = 1e-8,
-    fixed_point_iter: int = 10,
-    monitor: bool | None = None,
-    h0: float | None = None,
+    options: GeodesicOptions | None = None,
     free=None,
     progress=None,
+    **settings,
 ) -> GeodesicResult:
     """The geodesic ``γ`` with ``γ(0) = Q``, ``γ'(0) = V``, sampled from ONE integration.
 
@@ -228,27 +219,12 @@ def geodesic(
     times : (K,) array_like, optional
         Output times between 0 and ``t_end`` (any order; returned in the given order).
         Default ``[t_end]``. Include 0 to get the initial state as well.
-    method : "auto" | "dop853" | "dopri5" | "bs3" | "line-search" | "stormer-verlet" |
-        "scipy" (module docstring)
-    steps : Störmer–Verlet steps on [0, t_end] (default 1024)
-    rtol, atol : adaptive tolerances (defaults per method, atol = rtol·scale; see above)
-    energy_tol : allowed relative energy drift before a violation is reported
-    on_violation : "warn" (GeodesicWarning), "raise" (IntegrationError) or "ignore"
-    max_steps : cap on adaptive steps
-    dense : adaptive methods only. True (default): outputs inside a step are interpolated
-        (quintic Hermite in (Q, Q', Q''), no extra steps, so many output times are cheap;
-        positions O(h⁶) — about 3e-7·max|V| at the default tolerance on the benchmark
-        disc — velocities O(h⁵), so ``energy`` at such outputs shows the interpolation
-        error of V, amplified by |∇f|). False: every output time is a step end.
-    fixed_point_tol, fixed_point_iter : Störmer–Verlet fixed-point tolerance and cap
-    monitor : bool, optional
-        True: evaluate ``f`` (and ``∇f`` at interpolated outputs, for the energy) at every
-        output and check the invariants (one penalty call per output). False: positions
-        only — ``penalty`` is NaN except at t = 0 and ``energy`` is NaN at interpolated
-        outputs; no invariant is checked. Default: False for ``"line-search"``, else True.
-    h0 : first step size of the adaptive methods (e.g. ``last_step`` of a previous,
-        similar geodesic); default Hairer's tolerance-aware heuristic (one penalty call),
-        for ``"line-search"`` :data:`LINE_SEARCH_FIRST_STEP` of the interval.
+    options : GeodesicOptions, optional
+        How to integrate: method, tolerances, invariant checks, dense output, first step,
+        Störmer–Verlet settings (default ``GeodesicOptions()``).
+    **settings
+        Fields of :class:`GeodesicOptions` overriding ``options`` (e.g.
+        ``method="bs3", rtol=1e-4``); an unknown name is a TypeError.
     free : (N,) bool mask or vertex indices, optional
         Free vertices: the geodesic of the metric restricted to tangent vectors vanishing
         on the fixed vertices (see :class:`~meshopt_toolkit.integrators.GeodesicField`);
@@ -270,10 +246,9 @@ def geodesic(
         stops early, the exception carries ``partial``: a :class:`GeodesicResult` over the
         requested times reached (ascending), or None if none was.
     """
-    if method not in METHODS:
-        raise IntegrationError(f"unknown geodesic method {method!r}; choose one of {METHODS}")
-    if on_violation not in ("warn", "raise", "ignore"):
-        raise IntegrationError(f"on_violation must be 'warn', 'raise' or 'ignore', got {on_violation!r}")
+    opts = GeodesicOptions.of(options, **settings)
+    method, rtol, atol, energy_tol = opts.method, opts.rtol, opts.atol, opts.energy_tol
+    monitor, h0 = opts.monitor, opts.h0
     Q = np.asarray(Q, dtype=float)
     V = np.asarray(V, dtype=float)
     if Q.shape != V.shape or Q.ndim != 2 or Q.shape[1] != 2:
@@ -288,11 +263,8 @@ def geodesic(
         if np.any(req > 0) or np.any(req < t_end):
             raise IntegrationError(f"times must lie in [{t_end}, 0]")
         try:
-            res = geodesic(metric, Q, -V, -t_end, times=-req, method=method, steps=steps,
-                           rtol=rtol, atol=atol, energy_tol=energy_tol,
-                           on_violation=on_violation, max_steps=max_steps, dense=dense,
-                           fixed_point_tol=fixed_point_tol, fixed_point_iter=fixed_point_iter,
-                           monitor=monitor, h0=h0, free=free, progress=progress)
+            res = geodesic(metric, Q, -V, -t_end, times=-req, options=opts, free=free,
+                           progress=progress)
         except IntegrationError as exc:
             part = getattr(exc, "partial", None)
             if part is not None:
@@ -354,11 +326,12 @@ def geodesic(
             h0 = LINE_SEARCH_FIRST_STEP * positive[-1]
         out = runge_kutta(fld, Q, V, positive, pair="bs3" if line_search else method_used,
                           rtol=rtol, atol=rtol * scale if atol is None else atol,
-                          max_steps=max_steps, dense=dense, h0=h0, partial=True,
+                          max_steps=opts.max_steps, dense=opts.dense, h0=h0, partial=True,
                           progress=progress, **extra)
     elif method_used == "stormer-verlet":
-        out = stormer_verlet(fld, Q, V, positive, steps=1024 if steps is None else int(steps),
-                             tol=fixed_point_tol, max_iter=fixed_point_iter)
+        out = stormer_verlet(fld, Q, V, positive,
+                             steps=1024 if opts.steps is None else int(opts.steps),
+                             tol=opts.fixed_point_tol, max_iter=opts.fixed_point_iter)
     else:
         scale = max(float(np.max(np.abs(Q))), float(np.max(np.abs(V))) * positive[-1], 1e-300)
         out = _scipy_dop853(fld, Q, V, positive, rtol, rtol * scale if atol is None else atol)
@@ -374,7 +347,7 @@ def geodesic(
                                     rtol, energy_tol, "ignore")
         raise exc
     return _assemble(fld, Q, V, f0, req, positive, out, method_used, monitor, rtol,
-                     energy_tol, on_violation)
+                     energy_tol, opts.on_violation)
 
 
 def _all_positive(points, metric) -> bool:
