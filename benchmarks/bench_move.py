@@ -11,6 +11,9 @@ inverted), mean Λ = mean 1/ψ (6.25; 1 when all are equilateral), inverted tria
 handle error, seconds and seconds per elasticity solve, all run side by side in this
 process.
 
+``--more`` runs seven more motions instead (disc boundary sheared, made an ellipse or a
+star; annulus hole scaled or shifted; channel cylinder moved along or 0.01 from the wall).
+
 ``--growth`` adds the cost of ``move`` against one elasticity solve on refined annuli (90°)
 up to ``--max-triangles``.
 
@@ -18,7 +21,7 @@ up to ``--max-triangles``.
 the README's picture is ``--figure examples/results/move_annulus_90.png``.
 
 Usage: ``python benchmarks/bench_move.py [--size 0.05] [--growth] [--max-triangles 110000]
-[--skip METHOD ...] [--figure PNG]``
+[--skip METHOD ...] [--more] [--figure PNG]``
 """
 
 from __future__ import annotations
@@ -76,8 +79,29 @@ def measure(fn, mesh, handles, targets):
     return (0.0 if inverted else float(ar.min()), mean_q, inverted, err, seconds, Q), None
 
 
-def table(size: float, skip: set[str]) -> None:
-    for name, mesh, handles, targets in cases(size):
+def more_cases(size: float):
+    """Motions beyond the issue's five (``--more``): what a user would try next."""
+    import meshopt_toolkit as mt
+
+    disc = mt.load(mt.data_path("disc_2198.msh")).as_planar()
+    b = np.unique(disc.boundary_edges)
+    P = disc.points[b]
+    angle = np.arctan2(P[:, 1], P[:, 0])
+    yield "disc, boundary sheared x += 0.5 y", disc, b, P + np.c_[0.5 * P[:, 1], 0 * P[:, 0]]
+    yield "disc, boundary to a 4 × 0.25 ellipse", disc, b, P * [4.0, 0.25]
+    yield "disc, boundary to a star r = 1 + 0.3 cos 5θ", disc, b, P * (1 + 0.3 * np.cos(5 * angle))[:, None]
+    ring = annulus(size)
+    h = np.unique(ring.boundary_edges)
+    inner = (np.linalg.norm(ring.points[h], axis=1) < 0.5)[:, None]
+    yield "annulus, hole scaled 2.5×", ring, h, np.where(inner, 2.5 * ring.points[h], ring.points[h])
+    yield "annulus, hole shifted 0.4", ring, h, ring.points[h] + np.where(inner, [0.4, 0.0], [0.0, 0.0])
+    channel = channel_with_cylinder(size)
+    yield "channel, cylinder moved along 1.5", channel, *shift_hole(channel, (1.5, 0.0))
+    yield "channel, cylinder 0.01 from the wall", channel, *shift_hole(channel, (0.0, 0.34))
+
+
+def table(size: float, skip: set[str], more: bool = False) -> None:
+    for name, mesh, handles, targets in (more_cases if more else cases)(size):
         src = aspect_ratios(mesh.points, mesh.triangles).min()
         print(f"\n{name}: {mesh.n_triangles} triangles, {len(handles)} handles, "
               f"source min AR {src:.3f}")
@@ -148,11 +172,13 @@ def main() -> None:
     ap.add_argument("--max-triangles", type=int, default=110_000)
     ap.add_argument("--skip", nargs="*", default=[], help="method names to leave out")
     ap.add_argument("--figure", metavar="PNG", help="only draw the 90° annulus figure")
+    ap.add_argument("--more", action="store_true",
+                    help="seven more motions (shear, ellipse, star, hole scaled/shifted, ...)")
     args = ap.parse_args()
     if args.figure:
         figure(args.figure, args.size)
         return
-    table(args.size, set(args.skip))
+    table(args.size, set(args.skip), more=args.more)
     if args.growth:
         growth(args.size, args.max_triangles)
 
