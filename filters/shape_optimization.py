@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from meshopt_toolkit.errors import FilterError
-from meshopt_toolkit.fem.poisson import DEFAULT_RHS
+from meshopt_toolkit.expressions import DEFAULT_RHS
 from meshopt_toolkit.optimize import DEFAULT_METHOD, DEFAULT_VARIANT, METHODS, VARIANTS
 from meshopt_toolkit.pipeline.filter import Filter, register
 from meshopt_toolkit.pipeline.params import (

@@ -83,6 +83,10 @@ _REFUSED = {
 # The checked tree is rebuilt from these small immutable records; evaluation walks them.
 
 
+#: the right-hand side of the thesis' experiments (SPEC §6), the default of ``meshopt
+#: optimize --rhs`` and of :class:`~meshopt_toolkit.fem.poisson.PoissonObjective` ("default")
+DEFAULT_RHS = "2.5*(x1 + 0.4 - x2**2)**2 + x1**2 + x2**2 - 1"
+
 @dataclass(frozen=True)
 class _Num:
     value: np.float64  # numpy scalar: 1/0 gives inf (checked), never ZeroDivisionError

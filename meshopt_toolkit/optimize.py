@@ -269,6 +269,17 @@ class _Timer:
         return now
 
 
+def _retraction_options(exp_options: dict | None):
+    """The complete-complete retraction's :class:`~meshopt_toolkit.geodesics.GeodesicOptions`:
+    ``exp_options`` on top of :data:`EXP_DEFAULTS`; an ``"options"`` entry (a
+    ``GeodesicOptions``) replaces the defaults, the other entries override its fields."""
+    from .riemannian.geodesic_options import GeodesicOptions
+
+    user = dict(exp_options or {})
+    base = user.pop("options", None)
+    return GeodesicOptions.of(GeodesicOptions.of(EXP_DEFAULTS) if base is None else base, **user)
+
+
 def _make_metric(variant: str, mesh: PlanarMesh, metric_beta, metric_options: dict):
     from .metrics import CompleteMetric, ElasticityMetric, EuclideanMetric
 
@@ -342,7 +353,8 @@ def optimize(
         this fraction of the way to the first degenerate triangle along ``Q + t d``.
     min_step : a run fails (``step_too_small``) when a trial step drops below this.
     metric_options : extra keyword arguments of the metric (e.g. elasticity ``E``, ``nu``).
-    exp_options : keyword arguments for :func:`meshopt_toolkit.geodesics.geodesic`
+    exp_options : settings of the complete-complete retraction (fields of
+        :class:`~meshopt_toolkit.geodesics.GeodesicOptions`, or ``{"options": GeodesicOptions(...)}``)
         (complete-complete only), on top of :data:`EXP_DEFAULTS`.
     callback : called as ``callback(record, Q)`` after each iteration; returning True stops.
 
@@ -380,13 +392,14 @@ def optimize(
         penalty = QualityPenalty(mesh, beta=tuple(penalty_beta))
     metric = _make_metric(variant, mesh, metric_beta, dict(metric_options or {}))
     use_exp = VARIANT_PARTS[variant][1]
+    retraction = {"options": _retraction_options(exp_options)} if use_exp else {}
     problem = ShapeProblem(objective, penalty, metric, tri, mesh.boundary_edges, free)
     if method != "steepest":
         from .shape.driver import run_descent
 
         return run_descent(
             mesh, problem, method=method, variant=variant, use_exp=use_exp,
-            exp_options={**EXP_DEFAULTS, **dict(exp_options or {})}, max_iter=max_iter,
+            exp_options=retraction, max_iter=max_iter,
             gtol=gtol, ftol=ftol, memory=memory, c1=sigma, c2=c2,
             segment_fraction=segment_fraction, min_step=min_step, callback=callback,
         )
@@ -450,7 +463,7 @@ def optimize(
 
                 times = trial_steps / s  # rescaling lemma: γ_{Q, s_k d}(1) = γ_{Q, s d}(s_k / s)
                 geo = geodesic(metric, Q, s * d, 1.0, times=times[::-1], free=free,
-                               **{**EXP_DEFAULTS, **dict(exp_options or {})})
+                               **retraction)
                 geo_points = list(geo.points[::-1])
             except IntegrationError as exc:
                 # the geodesic could not be integrated up to t = 1 (e.g. with β3 = 0 it

@@ -185,6 +185,19 @@ def test_info_and_convert_import_no_heavy_package(tmp_path):
     assert out.stdout.strip().splitlines()[-1] == "[]"
 
 
+def test_loading_the_builtin_filters_imports_no_scipy():
+    """Every pipeline run and batch worker loads the built-in filters: their modules import
+    the library lazily (the filters' defaults come from scipy-free modules)."""
+    import subprocess
+    import sys
+
+    code = ("import sys\nfrom meshopt_toolkit.pipeline.filter import registry\n"
+            "registry._load_builtins()\nprint('scipy' in sys.modules)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip().splitlines()[-1] == "False"
+
+
 def test_stale_part_file_of_a_killed_run_is_removed(tmp_path):
     import subprocess
     import sys

@@ -131,3 +131,16 @@ def test_two_runs_into_one_directory_cannot_mix(tmp_path, capsys):
     main(["optimize", "-o", str(out), "--max-iter", "2", "--no-plots"])
     names = {p.name for p in out.iterdir()}
     assert "summary.json" in names and LOCK_NAME not in names
+
+
+def test_metric_penalty_is_refused_where_it_has_no_effect(tmp_path, capsys):
+    """β^metric belongs to the complete metric: with the default (elasticity) variant it
+    would be ignored, so it is refused before any work (one line, no output)."""
+    out = tmp_path / "o"
+    assert main(["optimize", "-o", str(out), "--metric-penalty", "1,1,0,1"]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--metric-penalty" in err and "elasticity-euclidean" in err
+    assert not out.exists()
+    assert main(["optimize", "-o", str(out), "--variant", "complete-euclidean",
+                 "--metric-penalty", "10,1,0,1.46", "--max-iter", "2", "--no-plots"]) == 1
+    assert "not converged" in capsys.readouterr().err  # it ran (2 iterations)

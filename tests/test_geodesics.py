@@ -342,7 +342,18 @@ def test_options_object_equals_keyword_settings_and_names_unknown_ones():
         geodesic(pen, mesh.points, V, 1.0, rtoll=1e-3)
     with pytest.raises(IntegrationError, match="unknown geodesic method"):
         GeodesicOptions(method="euler")
+    for bad in ({"rtol": 0.0}, {"rtol": float("nan")}, {"max_steps": 0}, {"atol": -1.0}):
+        with pytest.raises(IntegrationError, match=next(iter(bad))):
+            GeodesicOptions(**bad)
+    with pytest.raises(TypeError, match="GeodesicOptions or a mapping"):
+        geodesic(pen, mesh.points, V, 1.0, options="bs3")
     assert len(inspect.signature(geodesic).parameters) <= 10
+    # exp_map and the metric's exp honour an options object (no defaults on top of it)
+    from meshopt_toolkit.geodesics import exp_map
+
+    end = exp_map(pen, mesh.points, V, 1.0, options=opts)
+    assert np.array_equal(end, by_kw.points[-1])
+    assert np.array_equal(CompleteMetric(pen).exp(mesh.points, V, 1.0, options=opts), end)
 
 
 def test_dop853_continuous_extension_has_order_seven():

@@ -280,6 +280,11 @@ def test_quality_invariant_under_rigid_motion_and_scaling(pts, angle, scale, shi
     # only reasonably shaped triangles: the measures are ill-conditioned near degeneracy
     if not abs(a) > 1e-3 * max(E.max(), 1e-300) ** 2:
         return
+    # and triangles not tiny against their coordinates: rounding the moved coordinates
+    # perturbs the shape by ε·(scale·|p| + |shift|)/(scale·E) (found by hypothesis: an
+    # 8e-14-wide triangle shifted by 1)
+    if not scale * E.max() > 1e-5 * (scale * np.abs(p).max() + max(abs(shift[0]), abs(shift[1]))):
+        return
     c, s = math.cos(angle), math.sin(angle)
     rot = np.array([[c, -s], [s, c]])
     q = scale * p @ rot.T + np.array(shift)

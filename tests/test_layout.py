@@ -109,7 +109,7 @@ def test_old_module_paths_are_the_new_modules(old, new):
 
 @pytest.mark.parametrize("module, names", [
     ("mesh", ["TriangleMesh", "PlanarMesh", "MeshReport", "check_mesh", "require_admissible",
-              "boundary_self_intersections", "_check_mesh", "_fans_per_vertex"]),
+              "boundary_self_intersections", "_fans_per_vertex"]),
     ("penalties", ["Penalty", "HeightPenalty", "QualityPenalty", "cutoff", "DEFAULT_MU",
                    "BLOCK", "PAIR_CHUNK", "PAIR_CACHE", "SIMPLE_BOUNDARY_CACHE"]),
     ("fem", ["PoissonSolver", "p1_stiffness", "element_stiffness", "lumped_load",

@@ -194,3 +194,17 @@ def test_default_method_and_penalty_keep_half_the_quality_on_a_fine_disc(tmp_pat
     ar = quality_summary(final.points, final.triangles).min_aspect_ratio
     assert final.signed_areas().min() > 0 and ar >= 0.5 * ar0
     assert summary["min_aspect_ratio"] == pytest.approx(ar)
+
+
+def test_complete_complete_retraction_settings():
+    """``exp_options`` on top of the line-search defaults; a GeodesicOptions object replaces
+    the defaults and its fields can still be overridden (nothing silently ignored)."""
+    from meshopt_toolkit.geodesics import GeodesicOptions
+    from meshopt_toolkit.optimize import _retraction_options
+
+    assert _retraction_options(None).method == "line-search"
+    assert _retraction_options({"method": "auto"}).method == "auto"
+    opts = _retraction_options({"options": GeodesicOptions(method="dopri5"), "rtol": 1e-4})
+    assert (opts.method, opts.rtol) == ("dopri5", 1e-4)
+    with pytest.raises(TypeError, match="rtoll"):
+        _retraction_options({"rtoll": 1e-3})

@@ -21,6 +21,7 @@ from pathlib import Path
 from ..errors import ExpressionError, MeshoptError, WriteError
 from ._common import exclusive_output_dir, float_list
 from ._params import add_options, check_options
+from ._validate import OptionError
 
 HELP = "shape optimization: minimize ∫y (P1 Poisson) + f2 over admissible meshes"
 
@@ -34,7 +35,7 @@ logger = logging.getLogger(__name__)
 
 
 def add_args(p: argparse.ArgumentParser) -> None:
-    from ..filters.shape_optimization import ShapeOptimization  # imports scipy: not for `info`
+    from ..filters.shape_optimization import ShapeOptimization
 
     p.formatter_class = argparse.RawDescriptionHelpFormatter
     p.epilog = (
@@ -54,7 +55,8 @@ def add_args(p: argparse.ArgumentParser) -> None:
                    help="β^penalty of f2 added to j; 0,0,0,0 = unpenalized "
                         "(default: 0.1,0.01,0,0.146, thesis set 2 with β4 fixed)")
     p.add_argument("--metric-penalty", type=float_list(4), metavar="b1,b2,b3,b4",
-                   help="β^metric of the complete metric (default: 10,1,0,0.01·N)")
+                   help="β^metric of the complete metric, complete-* variants only "
+                        "(default: 10,1,0,0.01·N)")
     p.add_argument("--fixed", metavar="TAG",
                    help="keep the vertices of this physical group (name or number) fixed")
     p.add_argument("--gtol", type=float, default=1e-5,
@@ -101,14 +103,17 @@ def run(args: argparse.Namespace) -> int:
     from .. import io
     from ..datasets import data_path
     from ..filters.shape_optimization import ShapeOptimization
-    from ..optimize import DEFAULT_PENALTY_BETA, optimize
+    from ..optimize import DEFAULT_PENALTY_BETA, VARIANT_PARTS, optimize
     from ..poisson import PoissonObjective
     from ..progress import ProgressBar
 
+    check_options(args, ShapeOptimization, OPTIONS)
+    if args.metric_penalty is not None and VARIANT_PARTS[args.variant][0] != "complete":
+        raise OptionError(f"--metric-penalty sets the complete metric's β: it has no effect "
+                          f"with --variant {args.variant}")
     input_path = Path(args.mesh) if args.mesh else data_path(DEFAULT_MESH)
     mesh = io.load(input_path).as_planar()
     penalty = args.penalty if args.penalty is not None else DEFAULT_PENALTY_BETA
-    check_options(args, ShapeOptimization, OPTIONS)
     try:
         objective = PoissonObjective(mesh, rhs=args.rhs)
     except ExpressionError as exc:

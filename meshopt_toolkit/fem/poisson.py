@@ -23,7 +23,7 @@ import numpy as np
 from . import p1 as fem
 from .._typing import FloatArray, IntArray
 from ..errors import ExpressionError, InvalidMeshError, MeshoptError, NotAdmissibleError
-from ..expressions import Expression, parse_expression
+from ..expressions import DEFAULT_RHS, Expression, parse_expression
 from ..kernels.triangles import signed_areas
 from ..mesh import PlanarMesh, TriangleMesh, boundary_self_intersections, require_admissible
 
@@ -31,8 +31,6 @@ __all__ = ["DEFAULT_RHS", "PoissonObjective"]
 
 logger = logging.getLogger(__name__)
 
-#: right-hand side of the thesis experiments (SPEC §6)
-DEFAULT_RHS = "2.5*(x1 + 0.4 - x2**2)**2 + x1**2 + x2**2 - 1"
 
 
 RhsFunction = Callable[[FloatArray], FloatArray]

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 from ..kernels.boundary import boundary_self_intersections
 from .checks import MeshReport, check_mesh, require_admissible
-_check_mesh = check_mesh  # the former private name
 from .core import PlanarMesh, TriangleMesh
 from .topology import _fans_per_vertex
 
@@ -21,5 +20,5 @@ __all__ = [
     "require_admissible",
 ]
 
-# private names other modules import from here (cli.info, orientation), kept importable
-_PRIVATE_REEXPORTS = (_check_mesh, _fans_per_vertex)
+# a private name another module imports from here (orientation), kept importable
+_PRIVATE_REEXPORTS = (_fans_per_vertex,)

@@ -117,7 +117,7 @@ def _manifold_problems(mesh: TriangleMesh) -> list[str]:
 
 
 
-def check_mesh(mesh: TriangleMesh, positive_areas: bool = False) -> MeshReport:
+def check_mesh(mesh: TriangleMesh, *, positive_areas: bool = False) -> MeshReport:
     """Run every check of SPEC §1 and report (never raises for a readable mesh).
 
     A planar-manifold mesh whose triangles are all clockwise is re-oriented to CCW; the

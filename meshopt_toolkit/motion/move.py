@@ -21,9 +21,10 @@ import numpy as np
 from .._typing import FloatArray, IntArray
 from ..errors import InvalidMeshError
 from ..geometry import aspect_ratios, inverse_shape_quality
+from ..cores import thread_budget
 from ..mesh import PlanarMesh, boundary_self_intersections, require_admissible
 from .continuation import NoAdmissiblePathError, continuation_path
-from .path import GraphMetric, available_cores, discrete_geodesic
+from .path import GraphMetric, discrete_geodesic
 from .similarity import HandlePath, Similarity, fit_similarity, handle_groups
 from .strain import TriangleDistortion
 
@@ -230,23 +231,31 @@ def move(
         residual = [P.copy() for _ in times]
         details = {"continuation_splits": 0, "relax_iterations": 0}
     else:
+        inner = pick[1:-1] if frames is not None and finish_frames else []
+        # progress: the continuation and each quality step (about as long as the
+        # continuation) share [0, 1]
+        share = 1.0 / (2 + len(inner))
+        report = (lambda s: progress(s * share)) if progress is not None else None
         cont = continuation_path(metric, P, h, path, times, boundary_edges=be,
-                                 max_splits=max_splits, relax_iter=relax_iter, progress=progress)
+                                 max_splits=max_splits, relax_iter=relax_iter, progress=report)
         residual = cont.frames
         residual[-1], finish = _finish(metric, residual[-1], h, be, relax_iter, quality_rounds)
         details = {"continuation_splits": cont.splits,
                    "relax_iterations": cont.relax_iterations + finish["iterations"],
                    "finish_rounds_kept": finish["kept"]}
-        inner = pick[1:-1] if frames is not None and finish_frames else []
+        if report is not None:
+            report(2.0)
         if len(inner):
             # independent problems; SuperLU releases the GIL (a pool of its own: the
             # frame pool of .path may be in use by the steps)
-            with ThreadPoolExecutor(min(len(inner), available_cores())) as pool:
-                done = list(pool.map(lambda i: _finish(metric, residual[i], h, be, relax_iter,
-                                                       quality_rounds), inner))
-            for i, (Q, more) in zip(inner, done):
-                residual[i] = Q
-                details["relax_iterations"] += more["iterations"]
+            with ThreadPoolExecutor(min(len(inner), thread_budget())) as pool:
+                done = pool.map(lambda i: _finish(metric, residual[i], h, be, relax_iter,
+                                                  quality_rounds), inner)
+                for n, (i, (Q, more)) in enumerate(zip(inner, done), start=1):
+                    residual[i] = Q
+                    details["relax_iterations"] += more["iterations"]
+                    if report is not None:
+                        report(2.0 + n)
     moved = []
     for s, R in zip(times, residual):
         Q = S.at(float(s))(R) if not S.is_identity else R.copy()

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import hashlib
 import logging
-import os
+import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -27,6 +27,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .._typing import FloatArray, IntArray
+from ..cores import thread_budget
 from ..solvers import factorize_spd, pcg
 from .assembly import MeshPattern, PathPattern
 from .strain import TriangleDistortion
@@ -128,6 +129,7 @@ class PathResult:
 
 
 _PATTERNS: dict = {}  # the last few assembly patterns, by structure
+_LOCK = threading.Lock()  # guards _PATTERNS and the frame pool
 
 
 def _block_products(a: FloatArray, b: FloatArray) -> FloatArray:
@@ -259,12 +261,15 @@ class _Path:
         if self._pattern is None:
             structure = (self.K, hashlib.blake2b(tri_cols.tobytes() + self.free.tobytes()
                                                  ).digest())
-            if structure not in _PATTERNS:
-                if len(_PATTERNS) >= 4:
-                    _PATTERNS.pop(next(iter(_PATTERNS)))
-                mesh = MeshPattern(tri_cols, 2 * self.N)
-                _PATTERNS[structure] = PathPattern(mesh, self.col.reshape(self.K + 1, -1))
-            self._pattern = _PATTERNS[structure]
+            with _LOCK:  # paths may be solved in threads (move's frames)
+                pattern = _PATTERNS.get(structure)
+                if pattern is None:
+                    if len(_PATTERNS) >= 4:
+                        _PATTERNS.pop(next(iter(_PATTERNS)))
+                    mesh = MeshPattern(tri_cols, 2 * self.N)
+                    pattern = PathPattern(mesh, self.col.reshape(self.K + 1, -1))
+                    _PATTERNS[structure] = pattern
+            self._pattern = pattern
         return self._pattern
 
     def frame_indices(self) -> list[np.ndarray]:
@@ -413,21 +418,13 @@ PARALLEL_FROM = 20_000
 _POOL: list[ThreadPoolExecutor] = []  # one pool for the process, made on first use
 
 
-def available_cores() -> int:
-    """The number of cores this process may run on."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # pragma: no cover - not on Linux
-        return os.cpu_count() or 1
-
-
 def _frame_pool() -> ThreadPoolExecutor | None:
-    """Threads for :class:`FrameBlocks`, one per core this process may run on (None on
-    one core)."""
-    if not _POOL:
-        cores = available_cores()
-        _POOL.append(ThreadPoolExecutor(cores) if cores > 1 else None)
-    return _POOL[0]
+    """Threads for :class:`FrameBlocks`, one per core this process may use (None on one)."""
+    with _LOCK:
+        if not _POOL:
+            cores = thread_budget()
+            _POOL.append(ThreadPoolExecutor(cores) if cores > 1 else None)
+        return _POOL[0]
 
 
 class FrameBlocks:

@@ -8,7 +8,8 @@ monitor (:func:`energy`) and Störmer–Verlet's Hamiltonian form assume that me
 
 - :func:`runge_kutta` (:func:`dop853`, :func:`dopri5`, :func:`bs3`): explicit, adaptive,
   error-controlled embedded pairs (first-same-as-last) on the first-order system
-  ``(Q, V)' = (V, A(Q, V))``, with dense output (quintic Hermite) for many output times,
+  ``(Q, V)' = (V, A(Q, V))``, with dense output for many output times (DOP853's own
+  7th-order continuous extension, quintic Hermite for the other pairs),
   optional energy projection (line searches), and admissibility guards: a step with a
   stage outside M+ (a signed area ≤ 0) or a step end whose boundary touches itself is
   rejected and retried smaller; outputs are checked too (``field.boundary_problem``).

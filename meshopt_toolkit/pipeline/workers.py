@@ -23,6 +23,8 @@ from dataclasses import dataclass
 from multiprocessing.connection import wait as _wait_any
 from typing import Any, Callable
 
+from ..cores import available_cores
+
 __all__ = ["WorkerCrash", "InlineExecutor", "ProcessPool", "cpu_count", "RESTART_KEY"]
 
 #: a task's result dict with this key true asks for a fresh worker (after a MemoryError)
@@ -33,11 +35,8 @@ _env_lock = threading.Lock()
 
 
 def cpu_count() -> int:
-    """The cores this process may use (``-j 0``)."""
-    try:
-        return max(len(os.sched_getaffinity(0)), 1)
-    except AttributeError:  # pragma: no cover - not Linux
-        return max(os.cpu_count() or 1, 1)
+    """The cores this process may use (``-j 0``): :func:`meshopt_toolkit.cores.available_cores`."""
+    return available_cores()
 
 
 @dataclass

@@ -66,6 +66,16 @@ class GeodesicOptions:
         if self.on_violation not in ON_VIOLATION:
             raise IntegrationError("on_violation must be 'warn', 'raise' or 'ignore', got "
                                    f"{self.on_violation!r}")
+        for name in ("rtol", "energy_tol", "h0"):
+            value = getattr(self, name)
+            if value is not None and not value > 0:  # NaN fails too
+                raise IntegrationError(f"{name} must be > 0, got {value!r}")
+        if self.atol is not None and not self.atol >= 0:
+            raise IntegrationError(f"atol must be >= 0, got {self.atol!r}")
+        for name in ("max_steps", "fixed_point_iter", "steps"):
+            value = getattr(self, name)
+            if value is not None and not value >= 1:
+                raise IntegrationError(f"{name} must be at least 1, got {value!r}")
 
     @classmethod
     def of(cls, options: GeodesicOptions | Mapping | None = None, **settings) -> GeodesicOptions:
@@ -75,8 +85,11 @@ class GeodesicOptions:
             base = cls()
         elif isinstance(options, Mapping):
             base = cls.of(None, **options)
-        else:
+        elif isinstance(options, cls):
             base = options
+        else:
+            raise TypeError(f"options must be a GeodesicOptions or a mapping of its fields, "
+                            f"got {type(options).__name__}")
         known = {f.name for f in dataclasses.fields(cls)}
         unknown = sorted(set(settings) - known)
         if unknown:

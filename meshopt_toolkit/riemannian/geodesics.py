@@ -74,8 +74,9 @@ simple with a displacement certificate instead of the full test).
 
 Rescaling lemma: ``γ_{Q, τV}(1) = γ_{Q, V}(τ)``, so one call of :func:`geodesic` with
 ``times=[1, τ, τ², …]`` serves every backtracking trial of a line search; with the default
-dense output those times cost no extra steps (and no penalty call at all with
-``monitor=False``).
+dense output those times cost no extra steps (the line-search mode's Hermite outputs no
+penalty call at all with ``monitor=False``; DOP853's continuous extension 3 calls in a
+step that holds outputs).
 """
 
 from __future__ import annotations
@@ -362,7 +363,7 @@ def exp_map(
     Q: FloatArray,
     V: FloatArray,
     t: float = 1.0,
-    method: str = "auto",
+    method: str | None = None,
     rtol: float | None = None,
     atol: float | None = None,
     **kwargs,
@@ -385,4 +386,5 @@ def exp_map(
         if Q.shape != V.shape:
             raise IntegrationError(f"Q and V must have the same shape, got {Q.shape} and {V.shape}")
         return Q + float(t) * V
-    return geodesic(metric, Q, V, t, method=method, rtol=rtol, atol=atol, **kwargs).points[-1]
+    given = {k: v for k, v in (("method", method), ("rtol", rtol), ("atol", atol)) if v is not None}
+    return geodesic(metric, Q, V, t, **given, **kwargs).points[-1]
