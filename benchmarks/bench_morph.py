@@ -14,10 +14,12 @@ and cost against one linear elasticity solve.
 2. ``--growth``: the 225° twist of disc_2198 (4.2k triangles), disc_13586 (27k) and its
    refinement (107k) up to ``--max-triangles``: seconds, seconds per elasticity solve (same
    mesh, same process), iterations, worst frame of ours, linear and ARAP.
+``--more`` runs seven more pairs instead: each source with ``move``'s result for the
+motions of ``bench_move.py --more``.
 3. ``--figures DIR``: the README's strip and quality plot of the 90° annulus pair.
 
 Usage: ``python benchmarks/bench_morph.py [--growth] [--max-triangles 30000] [--with-scalar]
-[--figures DIR]``
+[--more] [--figures DIR]``
 """
 
 from __future__ import annotations
@@ -53,15 +55,24 @@ def pairs():
     yield "disc_146, turned 90° ×1.5", disc, disc.with_points(1.5 * disc.points @ [[c, s], [-s, c]])
 
 
+def more_pairs():
+    """``--more``: each source with ``move``'s result for the seven motions of
+    ``bench_move.py --more`` (shear, ellipse, star, hole scaled/shifted, cylinder moved)."""
+    from bench_move import more_cases
+
+    for name, mesh, handles, targets in more_cases(0.05):
+        yield f"{name} (move)"[:30], mesh, mt.move(mesh, handles, targets).mesh
+
+
 def _worst(stats) -> str:
     inv = int(stats.inverted.max())
     return f"{'inverts ' + str(inv):>12}" if inv else f"{np.nanmin(stats.min_aspect_ratio):12.4f}"
 
 
-def table(with_scalar: bool) -> None:
+def table(with_scalar: bool, more: bool = False) -> None:
     print(f"{'pair':<31}{'tri':>6}{'worse end':>10}{'ours':>9}{'/end':>6}{'linear':>12}"
           f"{'ARAP':>12}{'scalar f2':>11}{'s':>7}  status")
-    for name, src, tgt in pairs():
+    for name, src, tgt in (more_pairs if more else pairs)():
         tri = src.triangles
         end = min(_min_ar(src.points, tri), _min_ar(tgt.points, tri))
         t0 = time.perf_counter()
@@ -121,11 +132,13 @@ def main() -> None:
     ap.add_argument("--figures", metavar="DIR", help="only write the README's morph pictures")
     ap.add_argument("--with-scalar", action="store_true",
                     help="also the complete metric of f2 (geodesic_morph; minutes)")
+    ap.add_argument("--more", action="store_true",
+                    help="the seven motions of bench_move.py --more as pairs instead")
     args = ap.parse_args()
     if args.figures:
         figures(args.figures)
         return
-    table(args.with_scalar)
+    table(args.with_scalar, more=args.more)
     if args.growth:
         growth(args.max_triangles)
 
