@@ -16,7 +16,6 @@ from meshopt_toolkit.pipeline.params import (
 )
 
 
-
 @register
 class ShapeOptimization(Filter):
     """PDE-constrained shape optimization of the current planar mesh (thesis ch. 6).
@@ -60,8 +59,8 @@ class ShapeOptimization(Filter):
               memory: int = 10, rhs: str = DEFAULT_RHS,
               penalty: str = "", metric_penalty: str = "", max_iterations: int = 1000,
               tolerance: float = 1e-6) -> dict:
-        from meshopt_toolkit.optimize import DEFAULT_PENALTY_BETA, optimize
         from meshopt_toolkit.fem.poisson import PoissonObjective
+        from meshopt_toolkit.optimize import DEFAULT_PENALTY_BETA, optimize
 
         entry = document.current_entry
         if not entry.mesh.is_planar:

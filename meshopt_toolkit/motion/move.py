@@ -19,9 +19,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._typing import FloatArray, IntArray
+from ..cores import thread_budget
 from ..errors import InvalidMeshError
 from ..geometry import aspect_ratios, inverse_shape_quality
-from ..cores import thread_budget
 from ..mesh import PlanarMesh, boundary_self_intersections, require_admissible
 from .continuation import NoAdmissiblePathError, continuation_path
 from .path import GraphMetric, discrete_geodesic
