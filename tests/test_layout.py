@@ -4,11 +4,10 @@ working as aliases of the new modules."""
 
 from __future__ import annotations
 
-import ast
 import importlib
 
 import pytest
-from test_architecture import MODULES, PACKAGE, ROOT, _targets, find_cycle
+from test_architecture import PACKAGE, ROOT, find_cycle, module_level_imports
 
 # the layers, lowest first: a module may import its own layer and the layers below
 LAYERS = {
@@ -26,20 +25,6 @@ SIZE_CHECKED = ["mesh", "kernels", "penalties", "riemannian", "fem", "ode", "sol
 MAX_LINES = 500
 
 
-def all_imports() -> dict[str, set[str]]:
-    """For every module, the package modules it imports anywhere in its code."""
-    graph = {}
-    for module, path in MODULES.items():
-        out: set[str] = set()
-        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
-            if isinstance(node, ast.ImportFrom):
-                out |= _targets(module, node, path.name == "__init__.py")
-            elif isinstance(node, ast.Import):
-                out |= {a.name for a in node.names if a.name in MODULES}
-        graph[module] = out - {module}
-    return graph
-
-
 def _top(module: str) -> str:
     return module.split(".")[1] if module.count(".") else ""
 
@@ -53,7 +38,7 @@ def _layer_of(module: str) -> int | None:
 
 def test_layers_import_only_downwards_at_any_depth():
     bad = []
-    for module, targets in all_imports().items():
+    for module, targets in module_level_imports(any_depth=True).items():
         mine = _layer_of(module)
         if mine is None:
             continue
@@ -71,7 +56,7 @@ def test_the_layer_test_sees_an_upward_import():
 
 
 def test_no_import_cycle_within_a_concept_package_at_any_depth():
-    graph = all_imports()
+    graph = module_level_imports(any_depth=True)
     for pkg in ("kernels", "penalties", "riemannian", "fem"):
         sub = {m: {t for t in ts if _top(t) == pkg} for m, ts in graph.items() if _top(m) == pkg}
         assert find_cycle(sub) is None, pkg
