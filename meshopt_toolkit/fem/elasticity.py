@@ -41,8 +41,6 @@ __all__ = [
 
 logger = logging.getLogger(__name__)
 
-#: names accepted by :func:`factorize` (``"auto"`` picks by size)
-
 #: number of dofs from which ``"auto"`` switches from the direct solver to AMG-PCG.
 #: Measured with ``benchmarks/bench_metrics.py`` (factorization/setup + one solve, AMG to
 #: relative residual 1e-10) on a shared 2-core machine: direct is ~4× faster at 250k dofs;
