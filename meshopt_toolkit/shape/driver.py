@@ -23,6 +23,7 @@ from ..geometry import quality_summary
 from .directions import LBFGSMemory, hestenes_stiefel_plus
 from .linesearch import wolfe_line_search
 from .problem import ShapeProblem, segment_limit
+from .result import IterationRecord, OptimizeResult, PhaseTimer
 
 logger = logging.getLogger(__name__)
 
@@ -53,13 +54,11 @@ def run_descent(
     callback,
 ):
     """Run L-BFGS (``method="lbfgs"``) or HS+ CG (``"cg"``); returns an OptimizeResult."""
-    from ..optimize import IterationRecord, OptimizeResult, _Timer
-
     c2 = DEFAULT_C2[method] if c2 is None else float(c2)
     tri = problem.triangles
     start = time.perf_counter()
     Q = np.array(mesh.points, dtype=float)
-    timer = _Timer()
+    timer = PhaseTimer()
     F, J = problem.values(Q)
     if not math.isfinite(F):
         raise OptimizationError("the objective is not finite at the initial mesh")
@@ -74,7 +73,7 @@ def run_descent(
     status, message = "max_iterations", f"reached the maximum of {max_iter} iterations without converging"
     n = 0
     while True:
-        timer = _Timer()
+        timer = PhaseTimer()
         t0 = time.perf_counter()
         grad = problem.riesz(Q, P)
         gg = problem.pair(P, grad)
