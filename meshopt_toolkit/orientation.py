@@ -1,5 +1,6 @@
 """Consistent orientation, planes in 3D, coincident vertices: what meshes from FEM codes
-need before the planar-manifold checks (issue 12).
+need before the planar-manifold checks (issue 12). Functions of point and index arrays;
+what :func:`~meshopt_toolkit.mesh.check_mesh` does with them is in :mod:`.mesh.diagnosis`.
 
 * :func:`orient_components`: orient each connected component (triangles sharing an edge)
   by propagation across its interior edges, then turn each planar component
@@ -14,14 +15,11 @@ need before the planar-manifold checks (issue 12).
 
 from __future__ import annotations
 
-import logging
 from dataclasses import dataclass
 
 import numpy as np
 
 from ._typing import FloatArray, IntArray
-
-logger = logging.getLogger(__name__)
 
 __all__ = [
     "PlaneEmbedding",
@@ -270,98 +268,3 @@ def merge_vertices(points: FloatArray, cells: list[tuple[str, IntArray]], tol: f
     mapping = new_index[rep]
     out = [(t, mapping[np.asarray(c, np.int64)]) for t, c in cells]
     return keep, out, int(len(rep) - len(keep))
-
-
-# ----------------------------------------------------------------------------- hooks of mesh.check_mesh
-def planar_view(mesh):
-    """``(PlanarMesh, "")`` for a mesh whose points lie on one plane, else ``(None, why)``.
-
-    A 3D mesh on a plane other than z = 0 becomes a :class:`~meshopt_toolkit.mesh.PlanarMesh`
-    in the plane's coordinates with ``embedding`` (a :class:`PlaneEmbedding`) set, which
-    :func:`meshopt_toolkit.io.save` uses to write the points back in 3D.
-    """
-    from .mesh import PlanarMesh
-
-    if mesh.is_planar:
-        return mesh.as_planar(), ""
-    used = np.unique(mesh.triangles)
-    emb, dist = plane_of(mesh.points[used], mesh.triangles if len(used) == mesh.n_vertices
-                         else None)
-    if emb is None:
-        return None, (f"not planar: the points are not on one plane (a point is "
-                      f"{dist:.3g} × the diameter away from the best-fitting plane)")
-    if len(used) != mesh.n_vertices:  # unused vertices must be on the plane too
-        off = np.abs((mesh.points - emb.origin) @ np.cross(*emb.basis))
-        if off.max() > PLANE_TOLERANCE * (np.ptp(mesh.points, axis=0).max() or 1.0):
-            return None, "not planar: an unused vertex is off the plane of the triangles"
-    pm = PlanarMesh(emb.to_2d(mesh.points), mesh.triangles, **mesh._tag_kwargs())
-    pm.__dict__["embedding"] = emb
-    return pm, ""
-
-
-def with_embedding_of(new, old):
-    """``new`` with ``old``'s plane embedding (if any)."""
-    emb = old.__dict__.get("embedding")
-    if emb is not None:
-        new.__dict__["embedding"] = emb
-    return new
-
-
-def diagnose(pm):
-    """Topology of a planar mesh that is not clean: orient it, then sort its problems.
-
-    Returns
-    -------
-    mesh : PlanarMesh
-        Each component oriented counter-clockwise (the input if nothing was flipped).
-    n_flipped : int
-    hard : list of str
-        Real non-manifold problems: a triangle repeating a vertex, an edge in three or
-        more triangles, a non-orientable component, a bow-tie vertex.
-    soft : list of str
-        Problems of a manifold mesh that still keep it from being admissible:
-        coincident vertices, unused vertices, several pieces.
-    """
-    from .mesh import PlanarMesh, _fans_per_vertex
-
-    tri = pm.triangles
-    n = pm.n_vertices
-    hard: list[str] = []
-    soft: list[str] = []
-    used = np.zeros(n, bool)
-    used[tri.ravel()] = True
-    same = coincident_vertices(pm.points, tri.ravel())
-    if same.size:
-        soft.append(f"{same.size} coincident vertices (vertex {same[0]} and others share "
-                    "a position; merge them with --merge-tolerance)")
-    if not used.all():
-        v = np.flatnonzero(~used)
-        soft.append(f"vertex {v[0]} is not used by any triangle ({v.size} unused)")
-    degenerate = np.flatnonzero((tri[:, 0] == tri[:, 1]) | (tri[:, 1] == tri[:, 2])
-                                | (tri[:, 0] == tri[:, 2]))
-    if degenerate.size:
-        k = degenerate[0]
-        hard.append(f"triangle {k} {tri[k].tolist()} repeats a vertex")
-        return pm, 0, hard, soft
-    counts = pm.edge_triangle_counts
-    over = np.flatnonzero(counts > 2)
-    if over.size:
-        e = pm.edges[over[0]]
-        hard.append(f"edge ({e[0]}, {e[1]}) is shared by {counts[over[0]]} triangles "
-                    "(not edge-manifold)")
-    oriented, n_flipped, orientable = orient_components(tri, n, pm.points)
-    if n_flipped:
-        pm = with_embedding_of(PlanarMesh(pm.points, oriented, **pm._tag_kwargs()), pm)
-        logger.info("%s: reoriented %d triangles", pm.source or "mesh", n_flipped)
-    if not orientable:
-        hard.append("mesh is not orientable (a component is a Möbius strip)")
-    pieces = n_components(pm.triangles, n)
-    if pieces > 1:
-        soft.append(f"mesh has {pieces} pieces not connected through edges")
-    if not hard:
-        fans = _fans_per_vertex(pm)
-        bow = np.flatnonzero(fans > 1)
-        if bow.size:
-            hard.append(f"vertex {bow[0]} is a bow-tie: its triangles form "
-                        f"{fans[bow[0]]} separate fans")
-    return pm, n_flipped, hard, soft

@@ -17,6 +17,7 @@ from .._lazy import lazy_module
 from ..errors import InvalidMeshError, NotAdmissibleError
 from ..kernels.boundary import boundary_self_intersections
 from .core import PlanarMesh, TriangleMesh
+from .diagnosis import diagnose, planar_view, with_embedding_of
 from .topology import _boundary_edges_of, _fans_per_vertex, _frozen
 
 sp = lazy_module("scipy.sparse")
@@ -128,8 +129,6 @@ def check_mesh(mesh: TriangleMesh, *, positive_areas: bool = False) -> MeshRepor
     A clean mesh is recognised by :func:`_clean_manifold`; only a mesh with a problem pays
     for the edge list and the description of the problem (:func:`_manifold_problems`).
     """
-    from ..orientation import diagnose, planar_view, with_embedding_of  # issue 12 hooks
-
     pm, why = planar_view(mesh)
     if pm is None:
         return MeshReport(False, False, False, problems=[why], mesh=mesh)

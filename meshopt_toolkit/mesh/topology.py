@@ -10,18 +10,28 @@ every vertex). Only a mesh with a problem pays for the description of its first 
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 
 from .._lazy import lazy_module
 from .._typing import IntArray
 
-if TYPE_CHECKING:
-    from .core import TriangleMesh
-
 sp = lazy_module("scipy.sparse")
 _csgraph = lazy_module("scipy.sparse.csgraph")
+
+
+class MeshTables(Protocol):
+    """What the fan walk and the manifold test read of a mesh (a ``TriangleMesh`` has it)."""
+
+    @property
+    def triangles(self) -> IntArray: ...
+
+    @property
+    def n_vertices(self) -> int: ...
+
+    @property
+    def _edge_corners(self) -> IntArray: ...
 
 
 def _frozen(a: np.ndarray) -> np.ndarray:
@@ -119,7 +129,7 @@ def _edge_index(edges: IntArray, keys: IntArray) -> IntArray:
 
 
 
-def _fans_per_vertex(mesh: TriangleMesh) -> IntArray:
+def _fans_per_vertex(mesh: MeshTables) -> IntArray:
     """Number of fans (edge-connected groups of incident triangles) at each vertex ``(N,)``.
 
     Needs an edge-manifold, consistently oriented mesh without repeated vertices. The
@@ -185,7 +195,7 @@ _WALK_STEPS = 64
 _NUMPY_CONNECTIVITY = 20000
 
 
-def _clean_manifold(mesh: TriangleMesh) -> IntArray | None:
+def _clean_manifold(mesh: MeshTables) -> IntArray | None:
     """The boundary corners ``(B,)`` if ``mesh`` passes every planar-manifold check, else None.
 
     The fast path of :func:`check_mesh`: it decides exactly whether
