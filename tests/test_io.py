@@ -408,8 +408,7 @@ def test_register_format_adds_a_format_to_load_save_and_convert(tmp_path):
     saved = {k: dict(t) for k, t in (("r", mio.READERS), ("w", mio.WRITERS),
                                      ("rc", mio.CELL_READERS), ("wc", mio.CELL_WRITERS))}
     try:
-        mio.register_format("OBJX", read=obj.read, write=obj.write, read_cells=obj.read_cells,
-                            write_cells=obj.write_cells)
+        mio.register_format("OBJX", read_cells=obj.read_cells, write_cells=obj.write_cells)
         assert ".objx" in mio.supported_extensions("read")
         mesh = mio.load(data_path("disc_25.msh"))
         mio.save(mesh, tmp_path / "m.objx")

@@ -36,7 +36,7 @@ from ..mesh import TriangleMesh
 from . import gmsh, obj, off, ply, stl, vtk
 from ._atomic import atomic_path
 from ._files import MAX_FILE_BYTES, check_input_file
-from .cells import CellMesh
+from .cells import CellMesh, triangle_mesh, triangles_only
 
 logger = logging.getLogger(__name__)
 
@@ -57,6 +57,18 @@ CELL_READERS: dict[str, Callable[[Path], CellMesh]] = {}
 CELL_WRITERS: dict[str, Writer] = {}
 
 
+def _triangle_reader(read_cells: Callable[[Path], CellMesh]) -> Reader:
+    def read(path: Path) -> TriangleMesh:
+        return triangle_mesh(read_cells(path))
+    return read
+
+
+def _triangle_writer(write_cells: Writer) -> Writer:
+    def write(path: Path, mesh: TriangleMesh, binary: bool | None = None) -> None:
+        write_cells(path, triangles_only(mesh), binary)
+    return write
+
+
 def register_format(extension: str, *, read: Reader | None = None, write: Writer | None = None,
                     read_cells: Callable[[Path], CellMesh] | None = None,
                     write_cells: Writer | None = None) -> None:
@@ -69,10 +81,19 @@ def register_format(extension: str, *, read: Reader | None = None, write: Writer
     ----------
     extension : str
         ``".ext"`` (case-insensitive; the dot is added when missing).
-    read, write, read_cells, write_cells : callables, optional
-        Left out: that direction is not supported for the format.
+    read_cells, write_cells : callables, optional
+        ``read_cells(path) -> CellMesh`` and ``write_cells(path, cells, binary)``.
+    read, write : callables, optional
+        ``read(path) -> TriangleMesh`` and ``write(path, mesh, binary)``; by default derived
+        from ``read_cells`` (the triangle mesh of what it reads; other cells refused) and
+        ``write_cells`` (the mesh's points and triangles). Left out with no cell
+        counterpart: that direction is not supported for the format.
     """
     ext = extension.lower() if extension.startswith(".") else "." + extension.lower()
+    if read is None and read_cells is not None:
+        read = _triangle_reader(read_cells)
+    if write is None and write_cells is not None:
+        write = _triangle_writer(write_cells)
     for table, function in ((READERS, read), (WRITERS, write), (CELL_READERS, read_cells),
                             (CELL_WRITERS, write_cells)):
         if function is not None:
@@ -81,18 +102,12 @@ def register_format(extension: str, *, read: Reader | None = None, write: Writer
 
 register_format(".msh", read=gmsh.read, write=gmsh.write, read_cells=gmsh.read_cells,
                 write_cells=gmsh.write_cells)
-register_format(".obj", read=obj.read, write=obj.write, read_cells=obj.read_cells,
-                write_cells=obj.write_cells)
-register_format(".off", read=off.read, write=off.write, read_cells=off.read_cells,
-                write_cells=off.write_cells)
-register_format(".ply", read=ply.read, write=ply.write, read_cells=ply.read_cells,
-                write_cells=ply.write_cells)
-register_format(".vtk", read=vtk.read_vtk, write=vtk.write_vtk, read_cells=vtk.read_vtk_cells,
-                write_cells=vtk.write_vtk_cells)
-register_format(".vtu", read=vtk.read_vtu, write=vtk.write_vtu, read_cells=vtk.read_vtu_cells,
-                write_cells=vtk.write_vtu_cells)
-register_format(".stl", read=stl.read, write=stl.write, read_cells=stl.read_cells,
-                write_cells=stl.write_cells)
+register_format(".obj", read_cells=obj.read_cells, write_cells=obj.write_cells)
+register_format(".off", read_cells=off.read_cells, write_cells=off.write_cells)
+register_format(".ply", read_cells=ply.read_cells, write_cells=ply.write_cells)
+register_format(".vtk", read_cells=vtk.read_vtk_cells, write_cells=vtk.write_vtk_cells)
+register_format(".vtu", read_cells=vtk.read_vtu_cells, write_cells=vtk.write_vtu_cells)
+register_format(".stl", read_cells=stl.read_cells, write_cells=stl.write_cells)
 
 
 def supported_extensions(kind: str = "read") -> list[str]:

@@ -15,25 +15,16 @@ from __future__ import annotations
 
 import re
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..errors import ReadError
 from ._common import (cells_other_than, data_names, decode_text, format_rows, pad3, refuse,
                       require_text_mode)
-from .cells import CellMesh, check_cells, triangle_mesh, triangles_only
-
-if TYPE_CHECKING:  # pragma: no cover
-    from ..mesh import TriangleMesh
+from .cells import CellMesh, check_cells
 
 _SLASH = re.compile(r"/\S*")
 _ELEMENTS = ("f", "l", "p")
-
-
-def read(path: Path) -> TriangleMesh:
-    """Read an OBJ file as a triangle mesh (non-triangle faces are refused)."""
-    return triangle_mesh(read_cells(path))
 
 
 def read_cells(path: Path) -> CellMesh:
@@ -150,11 +141,6 @@ def _elements(rows: list[tuple[str, str, int]], path) -> list[tuple[str, np.ndar
             {3: "triangle", 4: "quad"}.get(k, "polygon")
         cells.append((name, idx[offsets[a]:offsets[b]].reshape(b - a, k)))
     return cells
-
-
-def write(path: Path, mesh: TriangleMesh, binary: bool | None = None) -> None:
-    """Write a triangle mesh as OBJ (text only); planar meshes get z = 0."""
-    write_cells(path, triangles_only(mesh), binary)
 
 
 def write_cells(path: Path, cm: CellMesh, binary: bool | None = None) -> None:

@@ -10,24 +10,15 @@ from __future__ import annotations
 
 import re
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..errors import ReadError
 from ._common import (cells_other_than, data_names, decode_text, format_rows, pad3, refuse,
                       require_text_mode)
-from .cells import CellMesh, face_blocks, check_cells, triangle_mesh, triangles_only
-
-if TYPE_CHECKING:  # pragma: no cover
-    from ..mesh import TriangleMesh
+from .cells import CellMesh, face_blocks, check_cells
 
 _COMMENT = re.compile(r"#.*")
-
-
-def read(path: Path) -> TriangleMesh:
-    """Read an OFF file as a triangle mesh (other faces are refused)."""
-    return triangle_mesh(read_cells(path))
 
 
 def read_cells(path: Path) -> CellMesh:
@@ -79,11 +70,6 @@ def read_cells(path: Path) -> CellMesh:
     cm = CellMesh(pts, face_blocks(flat, sizes), source=str(path), dropped=dropped)
     check_cells(cm)
     return cm
-
-
-def write(path: Path, mesh: TriangleMesh, binary: bool | None = None) -> None:
-    """Write a triangle mesh as OFF (text only); planar meshes get z = 0."""
-    write_cells(path, triangles_only(mesh), binary)
 
 
 def write_cells(path: Path, cm: CellMesh, binary: bool | None = None) -> None:

@@ -17,14 +17,10 @@ from pathlib import Path
 
 import numpy as np
 
-from typing import TYPE_CHECKING
 
 from ..errors import ReadError, WriteError
 from ._common import cells_other_than, pad3, parse_rows, refuse
-from .cells import CellMesh, check_cells, face_blocks, triangle_mesh, triangles_only
-
-if TYPE_CHECKING:  # pragma: no cover
-    from ..mesh import TriangleMesh
+from .cells import CellMesh, check_cells, face_blocks
 
 _TYPES = {
     "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1",
@@ -188,11 +184,6 @@ def _ascii_elements(data: bytes, offset: int, elements: list, path) -> dict:
     return out
 
 
-def read(path: Path) -> TriangleMesh:
-    """Read a PLY file as a triangle mesh (other faces are refused)."""
-    return triangle_mesh(read_cells(path))
-
-
 def read_cells(path: Path) -> CellMesh:
     """Read vertices, faces of any size and scalar vertex/face properties, in file order."""
     data = Path(path).read_bytes()
@@ -259,11 +250,6 @@ def read_cells(path: Path) -> CellMesh:
                   dropped=dropped)
     check_cells(cm)
     return cm
-
-
-def write(path: Path, mesh: TriangleMesh, binary: bool | None = None) -> None:
-    """Write a triangle mesh as PLY: binary little-endian doubles by default."""
-    write_cells(path, triangles_only(mesh), binary)
 
 
 def _ply_type(name: str, a: np.ndarray, path) -> tuple[str, np.ndarray]:

@@ -10,22 +10,13 @@ from pathlib import Path
 
 import numpy as np
 
-from typing import TYPE_CHECKING
 
 from ..errors import ReadError
 from ._common import cells_other_than, data_names, pad3, refuse
-from .cells import CellMesh, check_cells, triangle_mesh, triangles_only
-
-if TYPE_CHECKING:  # pragma: no cover
-    from ..mesh import TriangleMesh
+from .cells import CellMesh, check_cells
 
 _RECORD = np.dtype([("normal", "<f4", (3,)), ("v", "<f4", (3, 3)), ("attr", "<u2")])
 _VERTEX = re.compile(rb"vertex\s+(\S+)\s+(\S+)\s+(\S+)")
-
-
-def read(path: Path) -> TriangleMesh:
-    """Read an STL file; equal corners are merged into one vertex."""
-    return triangle_mesh(read_cells(path))
 
 
 def read_cells(path: Path) -> CellMesh:
@@ -56,11 +47,6 @@ def read_cells(path: Path) -> CellMesh:
     cm = CellMesh(pts, [("triangle", inverse.reshape(-1, 3).astype(np.int64))], source=str(path))
     check_cells(cm)
     return cm
-
-
-def write(path: Path, mesh: TriangleMesh, binary: bool | None = None) -> None:
-    """Write a triangle mesh as STL (binary by default)."""
-    write_cells(path, triangles_only(mesh), binary)
 
 
 def write_cells(path: Path, cm: CellMesh, binary: bool | None = None) -> None:

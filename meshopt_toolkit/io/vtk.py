@@ -14,16 +14,12 @@ from __future__ import annotations
 
 import logging
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..errors import ReadError, WriteError
 from ._common import format_rows, pad3, quiet
-from .cells import CellMesh, check_cells, triangle_mesh, triangles_only
-
-if TYPE_CHECKING:  # pragma: no cover
-    from ..mesh import TriangleMesh
+from .cells import CellMesh, check_cells
 
 logger = logging.getLogger(__name__)
 _quiet = quiet
@@ -60,26 +56,6 @@ def read_vtu_cells(path: Path) -> CellMesh:
     if not (head.startswith(b"<?xml") or head.startswith(b"<VTKFile")):
         raise ReadError(f"{path}: not a VTU file (no XML header)")
     return _read(path, meshio.vtu.read, "VTU")
-
-
-def read_vtk(path: Path) -> TriangleMesh:
-    """Read a legacy VTK file as a triangle mesh."""
-    return triangle_mesh(read_vtk_cells(path))
-
-
-def read_vtu(path: Path) -> TriangleMesh:
-    """Read a VTU file as a triangle mesh."""
-    return triangle_mesh(read_vtu_cells(path))
-
-
-def write_vtk(path: Path, mesh: TriangleMesh, binary: bool | None = None) -> None:
-    """Write a triangle mesh as legacy VTK 5.1 (binary by default)."""
-    write_vtk_cells(path, triangles_only(mesh), binary)
-
-
-def write_vtu(path: Path, mesh: TriangleMesh, binary: bool | None = None) -> None:
-    """Write a triangle mesh as VTU (binary zlib by default)."""
-    write_vtu_cells(path, triangles_only(mesh), binary)
 
 
 def _check_data(cm: CellMesh, path) -> None:
