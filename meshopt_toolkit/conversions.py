@@ -66,18 +66,11 @@ def to_meshio(mesh: TriangleMesh, *, pad_z: bool = True) -> "meshio.Mesh":
     """
     import meshio
 
+    from .io.cells import tagged_blocks
+
     points = _points3d(mesh.points) if pad_z else np.array(mesh.points)
-    cells = []
-    phys = []
-    if mesh.lines is not None:
-        cells.append(("line", np.array(mesh.lines)))
-        phys.append(np.array(mesh.line_tags))
-    cells.append(("triangle", np.array(mesh.triangles)))
-    tagged = mesh.triangle_tags is not None or mesh.lines is not None
-    if mesh.triangle_tags is not None:
-        phys.append(np.array(mesh.triangle_tags))
-    else:
-        phys.append(np.zeros(mesh.n_triangles, np.int64))
+    cells, phys, tagged = tagged_blocks(mesh)
+    cells = [(kind, np.array(block)) for kind, block in cells]  # writable copies
     cell_data = {}
     if tagged:
         cell_data = {_PHYSICAL: phys, _GEOMETRICAL: [np.where(p > 0, p, 1) for p in phys]}

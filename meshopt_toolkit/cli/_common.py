@@ -18,6 +18,30 @@ from ..errors import MeshoptError, WriteError
 MESH_SUFFIXES = (".msh", ".obj", ".ply", ".off", ".vtk", ".vtu", ".stl")
 
 
+def add_output_flags(p: argparse.ArgumentParser, *, json: bool = True, plots: bool = False,
+                     frames: int | None = None, frame_format: str | None = None) -> None:
+    """The options a writing subcommand shares, with one spelling and help everywhere.
+
+    ``--force`` always; ``--json`` (summary on stdout) and ``--no-plots`` (skip the PNG
+    figures; ``--no-png`` is kept as its old spelling) where asked; ``--frames K`` with
+    ``frames`` (the most frames allowed) and ``--format EXT`` of the frame files with
+    ``frame_format`` (what the default is, e.g. "the input's").
+    """
+    if frames is not None:
+        p.add_argument("--frames", type=int,
+                       help=f"write K frames into the OUT directory (2 <= K <= {frames})")
+    if frame_format is not None:
+        p.add_argument("--format", default=None, metavar="EXT",
+                       help=f"extension of the frame files, e.g. msh, vtk, obj "
+                            f"(default: {frame_format})")
+    if plots:
+        p.add_argument("--no-plots", "--no-png", dest="no_plots", action="store_true",
+                       help="do not write PNG figures")
+    p.add_argument("--force", action="store_true", help="overwrite existing output files")
+    if json:
+        p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
+
+
 def expand_inputs(items: list[str], recursive: bool = False) -> list[Path]:
     """Files, globs and directories (their mesh files) → sorted unique paths.
 

@@ -22,8 +22,8 @@ import logging
 from pathlib import Path
 
 from ..bounds import MAX_FRAMES
-from ._common import (check_output_target, float_list, load_at_unit_size, prepare_output_dir,
-                      write_text)
+from ._common import (add_output_flags, check_output_target, float_list, load_at_unit_size,
+                      prepare_output_dir, write_text)
 from ..filters.quality_preserving_deformation import QualityPreservingDeformation
 from ._params import add_options, check_options
 from ._validate import check_int, check_number, check_numbers
@@ -51,8 +51,6 @@ def add_args(p: argparse.ArgumentParser) -> None:
                    help="initial velocity: .npy or .csv (N, 2) array, or a mesh with the same "
                         "connectivity")
     add_options(p, QualityPreservingDeformation, OPTIONS)
-    p.add_argument("--frames", type=int,
-                   help=f"write K frames on [0, T] into the OUT directory (2 <= K <= {MAX_FRAMES})")
     group = p.add_mutually_exclusive_group()
     group.add_argument("--alpha", type=float_list(3), metavar="a1,a2,a3",
                        help="f1 parameters (default: 1,0,1)")
@@ -63,10 +61,7 @@ def add_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--rtol", type=float,
                    help=f"integrator tolerance rtol = atol, in [{MIN_RTOL:g}, {MAX_RTOL:g}] "
                         "(default: 1e-6)")
-    p.add_argument("--format", default=None, metavar="EXT",
-                   help="frame file extension with --frames (default: the input's)")
-    p.add_argument("--no-png", action="store_true", help="with --frames: skip the PNG figures")
-    p.add_argument("--force", action="store_true", help="overwrite existing outputs")
+    add_output_flags(p, json=False, plots=True, frames=MAX_FRAMES, frame_format="the input's")
 
 
 def _check_numbers(args: argparse.Namespace) -> None:
@@ -119,7 +114,7 @@ def run(args: argparse.Namespace) -> int:
     write_text(out / "quality.csv", "t,min_aspect_ratio,penalty,energy\n" + "".join(
         f"{t:.10g},{ar:.10g},{f:.10g},{e:.10g}\n"
         for t, ar, f, e in zip(res.times, res.aspect_ratio, g.penalty, g.energy)))
-    if not args.no_png:
+    if not args.no_plots:
         from ..plotting import save_quality_plot, save_snapshot_strip
 
         titles = [f"t = {t:.3g}" for t in res.times]

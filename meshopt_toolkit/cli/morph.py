@@ -25,7 +25,7 @@ from pathlib import Path
 
 from ..bounds import MAX_ITERATIONS
 from ..filters.generate_geodesic_morph import GenerateGeodesicMorph
-from ._common import float_list, prepare_output_dir, write_text
+from ._common import add_output_flags, float_list, prepare_output_dir, write_text
 from ._params import add_options, check_options
 from ._validate import check_int, check_numbers
 
@@ -54,11 +54,7 @@ def add_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--max-iter", type=int, default=None,
                    help="iterations of the discrete geodesic (default: 200 Levenberg–Marquardt "
                         "for the distortion metric, 500 Newton for the scalar one)")
-    p.add_argument("--format", default=None,
-                   help="extension of the frame files, e.g. msh, vtk, obj (default: the source's)")
-    p.add_argument("--no-plots", action="store_true", help="do not write PNG figures")
-    p.add_argument("--force", action="store_true", help="overwrite existing output files")
-    p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
+    add_output_flags(p, plots=True, frame_format="the source's")
 
 
 def _check_numbers(args: argparse.Namespace) -> None:

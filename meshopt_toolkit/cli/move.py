@@ -20,7 +20,8 @@ import argparse
 import json
 from pathlib import Path
 
-from ._common import check_output_target, load_at_unit_size, prepare_output_dir, write_text
+from ._common import (add_output_flags, check_output_target, load_at_unit_size,
+                      prepare_output_dir, write_text)
 from ..bounds import MAX_FRAMES
 from ..filters.move_vertices import PrescribedMotion
 from ._params import add_options, check_options
@@ -51,13 +52,8 @@ def add_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--where", metavar="EXPR",
                    help="with --map: which boundary vertices move, e.g. 'x < 0.5' "
                         "(default: all; the others stay fixed)")
-    p.add_argument("--frames", type=int,
-                   help=f"write K frames of the motion into OUT/ (2 <= K <= {MAX_FRAMES})")
     add_options(p, PrescribedMotion, OPTIONS)
-    p.add_argument("--format", default=None, metavar="EXT",
-                   help="frame file extension with --frames (default: the input's)")
-    p.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
-    p.add_argument("--force", action="store_true", help="overwrite existing outputs")
+    add_output_flags(p, frames=MAX_FRAMES, frame_format="the input's")
 
 
 def _check_numbers(args: argparse.Namespace) -> None:

@@ -19,7 +19,7 @@ import tempfile
 from pathlib import Path
 
 from ..errors import ExpressionError, MeshoptError, WriteError
-from ._common import exclusive_output_dir, float_list
+from ._common import add_output_flags, exclusive_output_dir, float_list
 from ._params import add_options, check_options
 from ._validate import OptionError
 
@@ -62,9 +62,7 @@ def add_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--gtol", type=float, default=1e-5,
                    help="stop when the Riemannian gradient norm falls to GTOL times its first "
                         "value; 0 = off (default: %(default)s)")
-    p.add_argument("--no-plots", action="store_true", help="do not write PNG figures")
-    p.add_argument("--force", action="store_true", help="overwrite existing output files")
-    p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
+    add_output_flags(p, plots=True)
 
 
 def _prepare_outdir(outdir: Path, mesh_name: str, force: bool, input_path: Path) -> None:

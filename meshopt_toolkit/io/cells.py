@@ -149,15 +149,7 @@ class CellMesh:
 
         No ``gmsh:geometrical`` data is made up: the gmsh writer numbers the entities.
         """
-        cells = []
-        phys = []
-        if mesh.lines is not None:
-            cells.append(("line", np.asarray(mesh.lines)))
-            phys.append(np.asarray(mesh.line_tags))
-        cells.append(("triangle", np.asarray(mesh.triangles)))
-        tagged = mesh.triangle_tags is not None or mesh.lines is not None
-        phys.append(np.zeros(mesh.n_triangles, np.int64) if mesh.triangle_tags is None
-                    else np.asarray(mesh.triangle_tags))
+        cells, phys, tagged = tagged_blocks(mesh)
         pts = mesh.points
         embed = getattr(mesh, "embedding", None)
         if embed is not None:
@@ -230,6 +222,20 @@ class CellMesh:
                                     or (pts.shape[1] == 3 and not np.any(pts[:, 2])))
         cls = PlanarMesh if planar else TriangleMesh
         return cls(pts, triangles, source=self.source, **tags)
+
+
+def tagged_blocks(mesh: "TriangleMesh") -> tuple[list, list, bool]:
+    """The cell blocks of a triangle mesh, ``line`` (if any) then ``triangle``, their
+    physical tags (zeros for untagged triangles) and whether the mesh has any tags."""
+    cells = []
+    phys = []
+    if mesh.lines is not None:
+        cells.append(("line", np.asarray(mesh.lines)))
+        phys.append(np.asarray(mesh.line_tags))
+    cells.append(("triangle", np.asarray(mesh.triangles)))
+    phys.append(np.zeros(mesh.n_triangles, np.int64) if mesh.triangle_tags is None
+                else np.asarray(mesh.triangle_tags))
+    return cells, phys, mesh.triangle_tags is not None or mesh.lines is not None
 
 
 def triangles_only(mesh: "TriangleMesh") -> CellMesh:
