@@ -7,12 +7,19 @@ from typing import IO
 
 from ..progress import ProgressBar
 
-__all__ = ["BatchProgress", "format_summary"]
+__all__ = ["BatchProgress", "count_outcome", "format_summary"]
 
 
 def format_summary(done: int, skipped: int, failed: int, seconds: float) -> str:
     """``N done, K skipped, F failed in T s`` (the last line of a batch)."""
     return f"{done} done, {skipped} skipped, {failed} failed in {seconds:.1f} s"
+
+
+def count_outcome(counts, status: str) -> None:
+    """Add one file with ``status`` (``"ok"``, ``"skipped"``, anything else: failed) to
+    the ``done`` / ``skipped`` / ``failed`` counters of ``counts``."""
+    name = {"ok": "done", "skipped": "skipped"}.get(status, "failed")
+    setattr(counts, name, getattr(counts, name) + 1)
 
 
 def _clock(seconds: float) -> str:
@@ -54,12 +61,7 @@ class BatchProgress(ProgressBar):
 
     def record(self, status: str) -> None:
         """Count one file (``"ok"``, ``"skipped"`` or ``"failed"``) and redraw."""
-        if status == "ok":
-            self.done += 1
-        elif status == "skipped":
-            self.skipped += 1
-        else:
-            self.failed += 1
+        count_outcome(self, status)
         self.update()
 
     def line(self) -> str:

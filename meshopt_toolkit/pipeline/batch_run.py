@@ -32,7 +32,7 @@ from typing import Any, Callable
 
 from ..errors import MeshoptError, WriteError
 from .batch import RunOptions
-from .batch_progress import BatchProgress, format_summary
+from .batch_progress import BatchProgress, count_outcome, format_summary
 from .journal import Journal, config_sha256, file_sha256, remove_stray_parts, reset_staging
 from .runner import Pipeline
 from .tasks import RunTask, failed_record
@@ -327,19 +327,13 @@ def execute(task, jobs: Iterable[Job], outdir, *, workers: int = 1, isolate: boo
         while emitted in ready:
             rec = ready.pop(emitted)
             emitted += 1
-            status = rec["status"]
-            if status == "ok":
-                result.done += 1
-            elif status == "skipped":
-                result.skipped += 1
-            else:
-                result.failed += 1
+            count_outcome(result, rec["status"])
             if on_record is not None:
                 on_record(rec)
             else:
                 result.records.append(rec)
             if progress is not None:
-                progress.record(status)
+                progress.record(rec["status"])
 
     batch.open()
     clean = False
