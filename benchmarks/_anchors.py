@@ -13,8 +13,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
-from meshopt_toolkit.elasticity import BlockPattern, element_blocks, lame_parameters
-from meshopt_toolkit.geometry import signed_areas
+from meshopt_toolkit.fem.elasticity import BlockPattern, element_blocks, lame_parameters
+from meshopt_toolkit.kernels.triangles import signed_areas
 
 
 def _free_solve(A: sp.spmatrix, handles: np.ndarray, values: np.ndarray, n_vertices: int,

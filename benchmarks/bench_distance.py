@@ -12,7 +12,7 @@ import argparse
 import numpy as np
 from _common import best_of
 
-from meshopt_toolkit.distance import (
+from meshopt_toolkit.kernels.distance import (
     boundary_pairs,
     regularized_distance,
     regularized_distance_value,

@@ -39,8 +39,8 @@ from _common import best_of
 
 from meshopt_toolkit import data_path, load
 from meshopt_toolkit.errors import IntegrationError
-from meshopt_toolkit.geodesics import exp_map, geodesic
-from meshopt_toolkit.metrics import CompleteMetric
+from meshopt_toolkit.riemannian.geodesics import exp_map, geodesic
+from meshopt_toolkit.riemannian.metrics import CompleteMetric
 from meshopt_toolkit.penalties import QualityPenalty
 
 
@@ -128,7 +128,7 @@ def part3(repeat: int) -> None:
     """The line-search retraction of complete-complete optimization against the default
     exponential map, on the first step of an optimization (thesis §6.4 set-up)."""
     from meshopt_toolkit.optimize import default_metric_beta, thesis_penalty_beta
-    from meshopt_toolkit.poisson import PoissonObjective
+    from meshopt_toolkit.fem.poisson import PoissonObjective
 
     print("\n# part 3: line-search retraction vs exp_map on an optimization step "
           "(V = s d, s = 1/|d|_g, 23 backtracking times 2^-k)")

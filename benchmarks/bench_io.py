@@ -27,7 +27,7 @@ import meshio.vtu
 import numpy as np
 
 from meshopt_toolkit.cli.info import mesh_info
-from meshopt_toolkit.geometry import quality_summary
+from meshopt_toolkit.kernels.triangles import quality_summary
 from meshopt_toolkit.io import load, save
 from meshopt_toolkit.mesh import PlanarMesh, check_mesh
 

@@ -26,9 +26,9 @@ import numpy as np
 import scipy.sparse as sp
 from _common import jittered_grid
 
-from meshopt_toolkit.elasticity import BlockPattern, element_blocks, factorize, lame_parameters
+from meshopt_toolkit.fem.elasticity import BlockPattern, element_blocks, factorize, lame_parameters
 from meshopt_toolkit.mesh import PlanarMesh
-from meshopt_toolkit.metrics import CompleteMetric
+from meshopt_toolkit.riemannian.metrics import CompleteMetric
 from meshopt_toolkit.penalties import QualityPenalty
 
 

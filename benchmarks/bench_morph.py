@@ -33,7 +33,7 @@ from _anchors import elasticity_motion
 import meshopt_toolkit as mt
 from meshopt_toolkit.generate import (annulus, channel_with_cylinder, log_twist,
                                       rotate_inner_boundary, shift_hole)
-from meshopt_toolkit.geometry import aspect_ratios
+from meshopt_toolkit.kernels.triangles import aspect_ratios
 from meshopt_toolkit.generate import twisted
 
 

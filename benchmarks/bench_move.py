@@ -35,7 +35,7 @@ from _anchors import (arap_motion, elasticity_motion, harmonic_motion, slim_moti
 
 import meshopt_toolkit as mt
 from meshopt_toolkit.generate import annulus, channel_with_cylinder, rotate_inner_boundary, shift_hole
-from meshopt_toolkit.geometry import aspect_ratios, inverse_shape_quality
+from meshopt_toolkit.kernels.triangles import aspect_ratios, inverse_shape_quality
 
 
 def ours(points, triangles, handles, targets):

@@ -45,7 +45,7 @@ from meshopt_toolkit.optimize import (
     optimize,
     thesis_penalty_beta,
 )
-from meshopt_toolkit.poisson import DEFAULT_RHS, PoissonObjective
+from meshopt_toolkit.fem.poisson import DEFAULT_RHS, PoissonObjective
 
 
 def run(mesh, variant, iterations, exp_options=None):

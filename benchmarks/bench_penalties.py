@@ -22,7 +22,7 @@ import time
 import numpy as np
 from _common import jittered_grid
 
-from meshopt_toolkit.geometry import signed_areas
+from meshopt_toolkit.kernels.triangles import signed_areas
 from meshopt_toolkit.mesh import PlanarMesh
 from meshopt_toolkit.penalties import QualityPenalty
 

@@ -28,7 +28,7 @@ import time
 import numpy as np
 
 from meshopt_toolkit.mesh import PlanarMesh
-from meshopt_toolkit.poisson import DEFAULT_RHS, PoissonObjective
+from meshopt_toolkit.fem.poisson import DEFAULT_RHS, PoissonObjective
 
 
 def square_mesh(level: int) -> PlanarMesh:

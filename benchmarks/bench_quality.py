@@ -19,7 +19,7 @@ import time
 import numpy as np
 from _common import jittered_grid
 
-from meshopt_toolkit.geometry import quality_summary, signed_areas
+from meshopt_toolkit.kernels.triangles import quality_summary, signed_areas
 from meshopt_toolkit.mesh import PlanarMesh, check_mesh
 
 

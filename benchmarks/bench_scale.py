@@ -42,8 +42,8 @@ def measure(refinements: int, iterations: int) -> dict:
     from bench_optimize import run
 
     import meshopt_toolkit as mt
-    from meshopt_toolkit.geodesics import geodesic
-    from meshopt_toolkit.metrics import CompleteMetric
+    from meshopt_toolkit.riemannian.geodesics import geodesic
+    from meshopt_toolkit.riemannian.metrics import CompleteMetric
     from meshopt_toolkit.penalties import QualityPenalty
 
     mesh = mt.load(mt.data_path("disc_13586.msh")).as_planar()

@@ -33,8 +33,8 @@ import numpy as np
 
 from meshopt_toolkit import data_path, load
 from meshopt_toolkit.deform import deform
-from meshopt_toolkit.geodesics import geodesic
-from meshopt_toolkit.geometry import aspect_ratios, signed_areas
+from meshopt_toolkit.riemannian.geodesics import geodesic
+from meshopt_toolkit.kernels.triangles import aspect_ratios, signed_areas
 from meshopt_toolkit.penalties import HeightPenalty
 from meshopt_toolkit.plotting import (
     save_overlay_grid,

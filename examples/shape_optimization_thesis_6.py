@@ -31,7 +31,7 @@ import numpy as np
 
 import meshopt_toolkit as mt
 from meshopt_toolkit.optimize import PHASES, default_metric_beta, optimize, thesis_penalty_beta
-from meshopt_toolkit.poisson import PoissonObjective
+from meshopt_toolkit.fem.poisson import PoissonObjective
 
 THESIS_TABLE_6_1 = {  # variant: (iter, j, Λ)
     "euclidean-euclidean": (60, -0.0502, 259.9215),

@@ -61,7 +61,7 @@ class GenerateGeodesicMorph(Filter):
     def apply(self, document, *, source: int = 0, target: int = -1, frames: int = 9,
               metric: str = METRICS[0], weight: float = 1.0, beta1: float = 1.0, beta2: float = 1.0, beta3: float = 0.0, beta4: float = 1.0,
               normalize: bool = True, method: str = METHODS[0]) -> dict:
-        from meshopt_toolkit.geometry import aspect_ratios
+        from meshopt_toolkit.kernels.triangles import aspect_ratios
         from meshopt_toolkit.morph import geodesic_morph
         from meshopt_toolkit.motion.morph import distortion_morph
         from meshopt_toolkit.scaling import unit_scale

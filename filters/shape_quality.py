@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from meshopt_toolkit.errors import FilterError
-from meshopt_toolkit.geometry import aspect_ratios, inverse_shape_quality, quality_summary
+from meshopt_toolkit.kernels.triangles import aspect_ratios, inverse_shape_quality, quality_summary
 from meshopt_toolkit.pipeline.filter import Filter, register
 from meshopt_toolkit.pipeline.params import EnumParam
 

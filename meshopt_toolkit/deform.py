@@ -44,7 +44,7 @@ class DeformResult:
     points : (K, N, 2) positions per frame
     aspect_ratio : (K,) mesh aspect ratio ``min 2r/R`` (5.49) per frame
     penalty : the penalty f defining the metric (None for ``metric="euclidean"``)
-    geodesic : the underlying :class:`~meshopt_toolkit.geodesics.GeodesicResult`
+    geodesic : the underlying :class:`~meshopt_toolkit.riemannian.geodesics.GeodesicResult`
     """
 
     mesh: PlanarMesh
@@ -108,7 +108,7 @@ def deform(
     metric : "complete" (default) or "euclidean" (straight lines ``Q + tV``, for
         comparison; may invert triangles, which ``aspect_ratio`` then shows as ≤ 0)
     method, rtol, atol, on_violation, progress : see
-        :func:`~meshopt_toolkit.geodesics.geodesic` (``progress(fraction)`` per step)
+        :func:`~meshopt_toolkit.riemannian.geodesics.geodesic` (``progress(fraction)`` per step)
 
     Returns
     -------

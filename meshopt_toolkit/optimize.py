@@ -18,7 +18,7 @@ complete-complete        complete (5.34)     exponential map (6.19), rescaling l
 =======================  ==================  ==========================================
 
 The objective is any object with ``value(Q) -> float`` and ``derivative(Q) -> (N, 2)``
-(e.g. :class:`~meshopt_toolkit.poisson.PoissonObjective`); the optional penalty is f2
+(e.g. :class:`~meshopt_toolkit.fem.poisson.PoissonObjective`); the optional penalty is f2
 (:class:`~meshopt_toolkit.penalties.QualityPenalty`) with its own ``β^penalty``, the
 complete metric uses a second f2 with ``β^metric``.
 """
@@ -36,7 +36,7 @@ import numpy as np
 from ._linalg import dot as _dot
 from ._typing import FloatArray
 from .errors import IntegrationError, OptimizationError
-from .geometry import heights, quality_summary, signed_areas
+from .kernels.triangles import heights, quality_summary, signed_areas
 from .mesh import PlanarMesh, require_admissible
 from .shape.result import PHASES, IterationRecord, OptimizeResult, PhaseTimer
 
@@ -91,9 +91,9 @@ DEFAULT_METHOD = "lbfgs"
 SIZE_RANGE = (1e-2, 1e2)
 
 #: default ``exp_options`` of the complete-complete retraction: the geodesic's
-#: line-search mode (:data:`meshopt_toolkit.geodesics.LINE_SEARCH_OPTIONS`; Bogacki–Shampine
-#: 3(2) at rtol 5e-2 with energy projection, positions only). Every trial point is still
-#: a point of an (approximate) geodesic, admissible and checked exactly; pass
+#: line-search mode (:data:`meshopt_toolkit.riemannian.geodesics.LINE_SEARCH_OPTIONS`;
+#: Bogacki–Shampine 3(2) at rtol 5e-2 with energy projection, positions only). Every trial
+#: point is still a point of an (approximate) geodesic, admissible and checked exactly; pass
 #: ``exp_options={"method": "auto"}`` for the 1e-6-accurate exponential map.
 EXP_DEFAULTS = {"method": "line-search"}
 
@@ -164,9 +164,10 @@ def max_travel_step(Q: FloatArray, triangles: np.ndarray, d: FloatArray) -> floa
 
 
 def _retraction_options(exp_options: dict | None):
-    """The complete-complete retraction's :class:`~meshopt_toolkit.geodesics.GeodesicOptions`:
-    ``exp_options`` on top of :data:`EXP_DEFAULTS`; an ``"options"`` entry (a
-    ``GeodesicOptions``) replaces the defaults, the other entries override its fields."""
+    """The complete-complete retraction's
+    :class:`~meshopt_toolkit.riemannian.geodesics.GeodesicOptions`: ``exp_options`` on top
+    of :data:`EXP_DEFAULTS`; an ``"options"`` entry (a ``GeodesicOptions``) replaces the
+    defaults, the other entries override its fields."""
     from .riemannian.geodesic_options import GeodesicOptions
 
     user = dict(exp_options or {})
@@ -175,7 +176,7 @@ def _retraction_options(exp_options: dict | None):
 
 
 def _make_metric(variant: str, mesh: PlanarMesh, metric_beta, metric_options: dict):
-    from .metrics import CompleteMetric, ElasticityMetric, EuclideanMetric
+    from .riemannian.metrics import CompleteMetric, ElasticityMetric, EuclideanMetric
 
     kind = VARIANT_PARTS[variant][0]
     if kind == "euclidean":
@@ -248,8 +249,9 @@ def optimize(
     min_step : a run fails (``step_too_small``) when a trial step drops below this.
     metric_options : extra keyword arguments of the metric (e.g. elasticity ``E``, ``nu``).
     exp_options : settings of the complete-complete retraction (fields of
-        :class:`~meshopt_toolkit.geodesics.GeodesicOptions`, or ``{"options": GeodesicOptions(...)}``)
-        (complete-complete only), on top of :data:`EXP_DEFAULTS`.
+        :class:`~meshopt_toolkit.riemannian.geodesics.GeodesicOptions`, or
+        ``{"options": GeodesicOptions(...)}``) (complete-complete only), on top of
+        :data:`EXP_DEFAULTS`.
     callback : called as ``callback(record, Q)`` after each iteration; returning True stops.
 
     Returns
@@ -353,7 +355,7 @@ def optimize(
             t_r = time.perf_counter()
             geo_points = [None] * len(trial_steps)
             try:
-                from .geodesics import geodesic
+                from .riemannian.geodesics import geodesic
 
                 times = trial_steps / s  # rescaling lemma: γ_{Q, s_k d}(1) = γ_{Q, s d}(s_k / s)
                 geo = geodesic(metric, Q, s * d, 1.0, times=times[::-1], free=free,

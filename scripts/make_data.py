@@ -59,7 +59,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from meshopt_toolkit.geometry import signed_areas
+from meshopt_toolkit.kernels.triangles import signed_areas
 from meshopt_toolkit.mesh import PlanarMesh, check_mesh
 
 DATA = ROOT / "data"

@@ -11,7 +11,7 @@ from conftest import grid_mesh, square5
 
 from meshopt_toolkit import io
 from meshopt_toolkit.cli import main
-from meshopt_toolkit.geometry import quality_summary
+from meshopt_toolkit.kernels.triangles import quality_summary
 from meshopt_toolkit.mesh import PlanarMesh, TriangleMesh
 
 

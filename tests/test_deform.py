@@ -12,7 +12,7 @@ from meshopt_toolkit import data_path, load
 from meshopt_toolkit.cli import main
 from meshopt_toolkit.deform import DEFAULT_ALPHA, deform
 from meshopt_toolkit.errors import InvalidMeshError, NotAdmissibleError
-from meshopt_toolkit.geometry import aspect_ratios, signed_areas
+from meshopt_toolkit.kernels.triangles import aspect_ratios, signed_areas
 from meshopt_toolkit.penalties import HeightPenalty, QualityPenalty
 
 

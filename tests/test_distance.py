@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from conftest import grid_mesh
 
-from meshopt_toolkit.distance import (
+from meshopt_toolkit.kernels.distance import (
     DEFAULT_MU,
     boundary_pairs,
     g_mu,
@@ -20,7 +20,7 @@ from meshopt_toolkit.distance import (
     vertex_edge_distance,
 )
 from meshopt_toolkit.errors import NotAdmissibleError
-from meshopt_toolkit.taylor import check_gradient, check_hvp
+from meshopt_toolkit.diagnostics import check_gradient, check_hvp
 
 MU = 2.0
 

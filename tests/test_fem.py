@@ -10,7 +10,7 @@ from conftest import grid_mesh, square5
 from meshopt_toolkit import fem
 from meshopt_toolkit.errors import MeshoptError
 from meshopt_toolkit.expressions import parse_expression
-from meshopt_toolkit.taylor import check_gradient
+from meshopt_toolkit.diagnostics import check_gradient
 
 skfem = pytest.importorskip("skfem")
 from skfem.models.poisson import laplace
@@ -160,7 +160,7 @@ def test_solver_auto_and_errors():
 
 
 def test_edge_components_match_geometry_and_close_the_triangle():
-    from meshopt_toolkit.geometry import edge_vectors
+    from meshopt_toolkit.kernels.triangles import edge_vectors
 
     mesh = grid_mesh(3, 0.2)
     e = np.stack(fem._edge_components(mesh.points, mesh.triangles), axis=-1)

@@ -10,7 +10,7 @@ import pytest
 from meshopt_toolkit.datasets import data_path
 from meshopt_toolkit.deform import deform
 from meshopt_toolkit.errors import FilterError, InvalidMeshError
-from meshopt_toolkit.geometry import signed_areas
+from meshopt_toolkit.kernels.triangles import signed_areas
 from meshopt_toolkit.io import load
 from meshopt_toolkit.pipeline import Document, Pipeline, load_pipeline, registry, save_pipeline
 

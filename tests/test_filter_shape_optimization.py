@@ -12,7 +12,7 @@ from meshopt_toolkit.errors import FilterError
 from meshopt_toolkit.io import load
 from meshopt_toolkit.optimize import optimize
 from meshopt_toolkit.pipeline import Document, Pipeline, load_pipeline, registry, save_pipeline
-from meshopt_toolkit.poisson import PoissonObjective
+from meshopt_toolkit.fem.poisson import PoissonObjective
 
 STEP = {"name": "compute_shape_optimization",
         "params": {"variant": "complete-euclidean", "rhs": "1", "penalty": "0.1,0.01,0,0.5",

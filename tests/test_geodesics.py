@@ -13,16 +13,17 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from meshopt_toolkit.errors import IntegrationError, NotAdmissibleError
-from meshopt_toolkit.geodesics import (
+from meshopt_toolkit.riemannian.geodesics import (
     GeodesicWarning,
     exp_map,
     geodesic,
     geodesic_acceleration,
 )
-from meshopt_toolkit.geometry import signed_areas
-from meshopt_toolkit.integrators import DOPRI5_TABLEAU, GeodesicField, dopri5
+from meshopt_toolkit.kernels.triangles import signed_areas
+from meshopt_toolkit.ode import DOPRI5_TABLEAU, dopri5
+from meshopt_toolkit.riemannian.field import GeodesicField
 from meshopt_toolkit.mesh import PlanarMesh
-from meshopt_toolkit.metrics import CompleteMetric, ElasticityMetric, EuclideanMetric
+from meshopt_toolkit.riemannian.metrics import CompleteMetric, ElasticityMetric, EuclideanMetric
 from meshopt_toolkit.penalties import HeightPenalty, QualityPenalty
 
 
@@ -325,7 +326,7 @@ def test_options_object_equals_keyword_settings_and_names_unknown_ones():
     the signature stays short (issue 13: no 18-argument functions)."""
     import inspect
 
-    from meshopt_toolkit.geodesics import GeodesicOptions
+    from meshopt_toolkit.riemannian.geodesics import GeodesicOptions
 
     mesh = square5()
     pen = HeightPenalty(mesh, alpha=(1.0, 1.0, 1.0))
@@ -349,7 +350,7 @@ def test_options_object_equals_keyword_settings_and_names_unknown_ones():
         geodesic(pen, mesh.points, V, 1.0, options="bs3")
     assert len(inspect.signature(geodesic).parameters) <= 10
     # exp_map and the metric's exp honour an options object (no defaults on top of it)
-    from meshopt_toolkit.geodesics import exp_map
+    from meshopt_toolkit.riemannian.geodesics import exp_map
 
     end = exp_map(pen, mesh.points, V, 1.0, options=opts)
     assert np.array_equal(end, by_kw.points[-1])
@@ -419,7 +420,7 @@ def u_mesh() -> PlanarMesh:
 
 
 def test_bs3_tableau_satisfies_order_conditions():
-    from meshopt_toolkit.integrators import BS3_TABLEAU
+    from meshopt_toolkit.ode import BS3_TABLEAU
 
     c, a, b, bh = (BS3_TABLEAU[k] for k in ("c", "a", "b", "b_hat"))
     A = np.zeros((4, 4))
@@ -476,7 +477,7 @@ def test_line_search_mode_is_cheap_admissible_and_a_retraction(rng):
 
 def test_energy_projection_keeps_the_energy_at_loose_tolerance(rng):
     from meshopt_toolkit import data_path, load
-    from meshopt_toolkit.integrators import energy, runge_kutta
+    from meshopt_toolkit.ode import energy, runge_kutta
 
     mesh = load(data_path("disc_25.msh")).as_planar()
     pen = QualityPenalty(mesh, beta=(10, 1, 0, 0.01 * mesh.n_vertices))
@@ -502,7 +503,7 @@ def test_boundary_guard_agrees_with_the_exact_test(rng, monkeypatch, dense):
     test + displacement certificate; or, as for large boundaries, the penalty's test and
     the k-d tree certificate) answers exactly what penalty.boundary_problem does, and most
     answers along a slow walk come from the certificate."""
-    from meshopt_toolkit.integrators import BoundaryGuard
+    from meshopt_toolkit.riemannian.field import BoundaryGuard
 
     if not dense:
         monkeypatch.setattr(BoundaryGuard, "DENSE_PAIRS", 0)
@@ -550,7 +551,7 @@ def test_failed_geodesic_carries_the_part_it_integrated():
 
 def test_fixed_vertices_stay_and_the_restricted_energy_is_conserved(rng):
     from meshopt_toolkit import data_path, load
-    from meshopt_toolkit.integrators import energy
+    from meshopt_toolkit.ode import energy
 
     mesh = load(data_path("disc_25.msh")).as_planar()
     pen = QualityPenalty(mesh, beta=(10, 1, 0, 0.01 * mesh.n_vertices))

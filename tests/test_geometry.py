@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from meshopt_toolkit.geometry import (
+from meshopt_toolkit.kernels.triangles import (
     angles,
     aspect_ratios,
     circumradii,
@@ -311,7 +311,7 @@ def test_measures_follow_vertex_permutation(perm):
 
 
 def test_min_signed_areas_on_segment_is_exact(rng):
-    from meshopt_toolkit.geometry import min_signed_areas_on_segment
+    from meshopt_toolkit.kernels.triangles import min_signed_areas_on_segment
 
     tri = np.array([[0, 1, 2]])
     P0 = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])

@@ -6,8 +6,8 @@ import numpy as np
 from conftest import grid_mesh
 
 from meshopt_toolkit.datasets import data_path
-from meshopt_toolkit.geometry import signed_areas
-from meshopt_toolkit.interpolation import arap_interpolation, rotation_angles
+from meshopt_toolkit.kernels.triangles import signed_areas
+from meshopt_toolkit.fem.interpolation import arap_interpolation, rotation_angles
 from meshopt_toolkit.io import load
 from meshopt_toolkit.generate import twisted
 

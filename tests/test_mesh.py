@@ -11,7 +11,7 @@ from conftest import grid_mesh, square5
 import meshopt_toolkit.mesh.topology as mesh_module
 from meshopt_toolkit.gmsh_session import gmsh_session
 from meshopt_toolkit.errors import InvalidMeshError, NotAdmissibleError
-from meshopt_toolkit.geometry import inverse_shape_quality, quality_summary, signed_areas
+from meshopt_toolkit.kernels.triangles import inverse_shape_quality, quality_summary, signed_areas
 from meshopt_toolkit.mesh import (
     PlanarMesh,
     TriangleMesh,

@@ -11,16 +11,16 @@ import pytest
 import scipy.sparse as sp
 from conftest import grid_mesh
 
-from meshopt_toolkit import elasticity
+from meshopt_toolkit.fem import elasticity
 from meshopt_toolkit.errors import InvalidMeshError, MeshoptError, NotAdmissibleError
-from meshopt_toolkit.metrics import (
+from meshopt_toolkit.riemannian.metrics import (
     CompleteMetric,
     ElasticityMetric,
     EuclideanMetric,
     MetricNotImplementedError,
 )
 from meshopt_toolkit.penalties import HeightPenalty, QualityPenalty
-from meshopt_toolkit.taylor import check_gradient
+from meshopt_toolkit.diagnostics import check_gradient
 
 
 class InverseAreaPenalty:

@@ -10,16 +10,14 @@ from conftest import grid_mesh
 
 from meshopt_toolkit.datasets import data_path
 from meshopt_toolkit.errors import IntegrationError, InvalidMeshError, NotAdmissibleError
-from meshopt_toolkit.geodesics import exp_map, geodesic
-from meshopt_toolkit.geometry import aspect_ratios, signed_areas
-from meshopt_toolkit.interpolation import arap_interpolation
+from meshopt_toolkit.riemannian.geodesics import exp_map, geodesic
+from meshopt_toolkit.kernels.triangles import aspect_ratios, signed_areas
+from meshopt_toolkit.fem.interpolation import arap_interpolation
 from meshopt_toolkit.mesh import PlanarMesh, check_mesh
-from meshopt_toolkit.metrics import CompleteMetric
+from meshopt_toolkit.riemannian.metrics import CompleteMetric
 from meshopt_toolkit.morph import (
     DEFAULT_BETA,
     SHOOTING_RTOL,
-    _Counter,
-    _PathEnergy,
     discrete_geodesic,
     geodesic_morph,
     initial_path,
@@ -27,8 +25,10 @@ from meshopt_toolkit.morph import (
     morph_metric,
     twisted,
 )
+from meshopt_toolkit.morph._common import _Counter
+from meshopt_toolkit.morph.discrete import _PathEnergy
 from meshopt_toolkit.penalties import HeightPenalty, QualityPenalty
-from meshopt_toolkit.taylor import check_gradient, check_hvp
+from meshopt_toolkit.diagnostics import check_gradient, check_hvp
 
 
 def bend(mesh: PlanarMesh, amount: float = 0.15) -> np.ndarray:

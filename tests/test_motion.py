@@ -14,7 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from meshopt_toolkit.errors import InvalidMeshError
-from meshopt_toolkit.geometry import aspect_ratios, inverse_shape_quality
+from meshopt_toolkit.kernels.triangles import aspect_ratios, inverse_shape_quality
 from meshopt_toolkit.motion.move import move
 from meshopt_toolkit.motion.morph import distortion_morph
 from meshopt_toolkit.motion.path import GraphMetric, _Path, discrete_geodesic
@@ -24,7 +24,7 @@ from meshopt_toolkit.motion.strain import (
     shape_quality_bound,
     stretch_ratios,
 )
-from meshopt_toolkit.taylor import check_gradient
+from meshopt_toolkit.diagnostics import check_gradient
 
 FAST = settings(max_examples=15, deadline=None)
 
@@ -310,7 +310,7 @@ def _harmonic_inverts(mesh, handles, targets) -> int:
     """Harmonic extension with the same handles (the classical reference): inverted count."""
     import scipy.sparse.linalg as spla
 
-    from meshopt_toolkit.elasticity import p1_gradients
+    from meshopt_toolkit.fem.elasticity import p1_gradients
 
     P, T = mesh.points, mesh.triangles
     grads, area = p1_gradients(P, T)

@@ -9,7 +9,7 @@ import pytest
 from conftest import grid_mesh, square5
 
 from meshopt_toolkit.errors import NotAdmissibleError, OptimizationError
-from meshopt_toolkit.geometry import signed_areas
+from meshopt_toolkit.kernels.triangles import signed_areas
 from meshopt_toolkit.optimize import (
     METHODS,
     VARIANTS,
@@ -103,7 +103,7 @@ def test_travel_guard_6_23():
 
 @pytest.mark.parametrize("method", METHODS)
 def test_non_descent_direction_is_an_error(monkeypatch, method):
-    from meshopt_toolkit.metrics import EuclideanMetric
+    from meshopt_toolkit.riemannian.metrics import EuclideanMetric
 
     mesh = grid_mesh(3, jitter=0.1)
     monkeypatch.setattr(EuclideanMetric, "riesz", lambda self, Q, P, free=None: -P)  # broken
@@ -180,7 +180,7 @@ def test_default_method_and_penalty_keep_half_the_quality_on_a_fine_disc(tmp_pat
 
     from meshopt_toolkit import datasets
     from meshopt_toolkit.cli import main
-    from meshopt_toolkit.geometry import quality_summary
+    from meshopt_toolkit.kernels.triangles import quality_summary
     from meshopt_toolkit.io import load
 
     source = datasets.data_path("disc_2198.msh")
@@ -199,7 +199,7 @@ def test_default_method_and_penalty_keep_half_the_quality_on_a_fine_disc(tmp_pat
 def test_complete_complete_retraction_settings():
     """``exp_options`` on top of the line-search defaults; a GeodesicOptions object replaces
     the defaults and its fields can still be overridden (nothing silently ignored)."""
-    from meshopt_toolkit.geodesics import GeodesicOptions
+    from meshopt_toolkit.riemannian.geodesics import GeodesicOptions
     from meshopt_toolkit.optimize import _retraction_options
 
     assert _retraction_options(None).method == "line-search"

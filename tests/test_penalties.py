@@ -12,12 +12,12 @@ from conftest import grid_mesh, square5
 
 from meshopt_toolkit import data_path, load
 from meshopt_toolkit.penalties import tuning as pen
-from meshopt_toolkit.distance import boundary_pairs, regularized_distance_value
+from meshopt_toolkit.kernels.distance import boundary_pairs, regularized_distance_value
 from meshopt_toolkit.errors import NotAdmissibleError
-from meshopt_toolkit.geometry import heights, inverse_shape_quality, signed_areas
+from meshopt_toolkit.kernels.triangles import heights, inverse_shape_quality, signed_areas
 from meshopt_toolkit.mesh import PlanarMesh
 from meshopt_toolkit.penalties import HeightPenalty, QualityPenalty, cutoff
-from meshopt_toolkit.taylor import check_gradient, check_hvp
+from meshopt_toolkit.diagnostics import check_gradient, check_hvp
 
 # ---------------------------------------------------------------------------------------
 # meshes
@@ -194,7 +194,7 @@ def test_cutoff_gradient_matches_all_pairs_evaluation(monkeypatch):
     P = QualityPenalty(mesh, (0, 0, 1.0, 0), mu=20.0, cutoff=(20.0, 200.0))
     g_search, curv_search = P.gradient_and_curvature(Q, _direction(Q, 2))
     all_pairs = boundary_pairs(mesh.boundary_vertices, mesh.boundary_edges)
-    import meshopt_toolkit.distance as dist
+    import meshopt_toolkit.kernels.distance as dist
 
     monkeypatch.setattr(dist, "boundary_pairs", lambda *a, **k: all_pairs)
     g_all, curv_all = P.gradient_and_curvature(Q, _direction(Q, 2))

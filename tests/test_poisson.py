@@ -14,8 +14,8 @@ from meshopt_toolkit.datasets import available, data_path
 from meshopt_toolkit.errors import ExpressionError, MeshoptError, NotAdmissibleError
 from meshopt_toolkit.mesh import PlanarMesh
 from meshopt_toolkit.optimize import Objective
-from meshopt_toolkit.poisson import DEFAULT_RHS, PoissonObjective
-from meshopt_toolkit.taylor import check_gradient
+from meshopt_toolkit.fem.poisson import DEFAULT_RHS, PoissonObjective
+from meshopt_toolkit.diagnostics import check_gradient
 
 
 def _bump(X):

@@ -14,7 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from meshopt_toolkit.errors import OptimizationError
-from meshopt_toolkit.geometry import signed_areas
+from meshopt_toolkit.kernels.triangles import signed_areas
 from meshopt_toolkit.mesh import boundary_self_intersections
 from meshopt_toolkit.optimize import METHODS, VARIANTS, optimize
 from meshopt_toolkit.shape import LBFGSMemory, segment_limit, wolfe_line_search
@@ -189,7 +189,7 @@ def test_annulus_trials_across_the_boundary_are_rejected_not_fatal(method, annul
     """Issue 12: on an annulus with β3 = 0 a trial step crossed the boundary (areas still
     positive) and the run stopped with 'boundary self-intersects'."""
     from meshopt_toolkit.optimize import thesis_penalty_beta
-    from meshopt_toolkit.poisson import PoissonObjective
+    from meshopt_toolkit.fem.poisson import PoissonObjective
 
     mesh = annulus_mesh
     edges = mesh.boundary_edges
@@ -234,7 +234,7 @@ def test_reaching_max_iterations_is_not_success(method):
 
 @pytest.mark.parametrize("scale", [1e12, 1e-12])
 def test_meshes_far_from_unit_size_are_refused_naming_the_scale(scale):
-    from meshopt_toolkit.poisson import PoissonObjective
+    from meshopt_toolkit.fem.poisson import PoissonObjective
 
     mesh = grid_mesh(3, jitter=0.1)
     big = mesh.with_points(mesh.points * scale)

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from meshopt_toolkit.taylor import check_gradient, check_hvp
+from meshopt_toolkit.diagnostics import check_gradient, check_hvp
 
 
 def f(x):

@@ -102,7 +102,7 @@ def run(args: argparse.Namespace) -> int:
     from ..datasets import data_path
     from ..filters.shape_optimization import ShapeOptimization
     from ..optimize import DEFAULT_PENALTY_BETA, VARIANT_PARTS, optimize
-    from ..poisson import PoissonObjective
+    from ..fem.poisson import PoissonObjective
     from ..progress import ProgressBar
 
     check_options(args, ShapeOptimization, OPTIONS)

@@ -206,7 +206,7 @@ class TriangleMesh:
         """The triangles as a contiguous ``(3, T)`` array, row ``l`` = local vertex ``l``.
 
         Its transpose is the triangle array in column-major order: per-vertex gathers
-        (``np.take(x, triangles.T)`` in :mod:`~meshopt_toolkit.geometry`) run several
+        (``np.take(x, triangles.T)`` in :mod:`~meshopt_toolkit.kernels.triangles`) run several
         times faster on it than on the row-major ``(T, 3)`` array.
         """
         return _frozen(np.ascontiguousarray(self._triangles.T))
@@ -378,7 +378,7 @@ class PlanarMesh(TriangleMesh):
         return signed_areas(self._points, self._triangle_columns.T)
 
     def quality(self):
-        """:class:`~meshopt_toolkit.geometry.QualitySummary` of the current positions."""
+        """:class:`~meshopt_toolkit.kernels.triangles.QualitySummary` of the current positions."""
         return quality_summary(self._points, self._triangle_columns.T)
 
     @property

@@ -11,7 +11,7 @@ to the graph of ``f`` in ``R^{2N+1}`` with the Euclidean metric. Three stages:
 
 1. **An admissible initial path** (:func:`initial_path`): straight lines if every node is
    admissible, else the as-rigid-as-possible interpolation
-   (:mod:`~meshopt_toolkit.interpolation`) if every node is admissible, otherwise the
+   (:mod:`~meshopt_toolkit.fem.interpolation`) if every node is admissible, otherwise the
    complete-metric gradient flow of ``½|Q − Q1|²`` — the direction
    ``−(P − ∇f (∇f·P)/(1 + |∇f|²))``, ``P = Q − Q1`` slides along the barrier instead of
    crossing it — resampled by arc length in the graph metric.
@@ -80,10 +80,8 @@ import numpy as np
 from ..errors import InvalidMeshError
 from ..generate import twisted  # the 225° twist target lives in generate; kept importable
 from ..kernels.triangles import min_signed_areas_on_segment
-from ..mesh import PlanarMesh
-from ._common import (  # noqa: F401 (DEFAULT_TOL, SHOOTING_RTOL, _Counter re-exported)
-    DEFAULT_BETA, DEFAULT_TOL, SHOOTING_RTOL, _Counter, _frame_stats, _penalty)
-from .discrete import _PathEnergy, discrete_geodesic  # noqa: F401 (re-exported)
+from ._common import DEFAULT_BETA, DEFAULT_TOL, SHOOTING_RTOL, _frame_stats, _penalty
+from .discrete import discrete_geodesic
 from .initial import initial_path, linear_morph
 from .results import DiscreteGeodesic, LogMapResult, MorphResult
 from .shooting import log_map
@@ -92,6 +90,8 @@ logger = logging.getLogger(__name__)
 
 __all__ = [
     "DEFAULT_BETA",
+    "DEFAULT_TOL",
+    "SHOOTING_RTOL",
     "DiscreteGeodesic",
     "LogMapResult",
     "MorphResult",

@@ -17,7 +17,7 @@ import numpy as np
 
 from .._typing import FloatArray, IntArray
 from ..errors import InvalidMeshError
-from ..geometry import aspect_ratios, inverse_shape_quality, signed_areas
+from ..kernels.triangles import aspect_ratios, inverse_shape_quality, signed_areas
 from ..mesh import PlanarMesh, boundary_self_intersections, require_admissible
 from .continuation import continuation_path
 from .path import GraphMetric, discrete_geodesic
@@ -183,7 +183,7 @@ def distortion_morph(
     -------
     DistortionMorph
     """
-    from ..interpolation import arap_interpolation
+    from ..fem.interpolation import arap_interpolation
 
     t_start = time.perf_counter()
     source = require_admissible(source, "morph (source)")

@@ -21,7 +21,7 @@ import numpy as np
 from .._typing import FloatArray, IntArray
 from ..cores import thread_budget
 from ..errors import InvalidMeshError
-from ..geometry import aspect_ratios, inverse_shape_quality
+from ..kernels.triangles import aspect_ratios, inverse_shape_quality
 from ..mesh import PlanarMesh, boundary_self_intersections, require_admissible
 from .continuation import NoAdmissiblePathError, continuation_path
 from .path import GraphMetric, discrete_geodesic

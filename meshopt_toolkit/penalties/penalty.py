@@ -22,7 +22,7 @@ Hessian-vector product and the curvature ``V·∇²f·V`` all follow in closed f
 quotient rule; nothing of size ``(T, 6, 6)`` is ever formed. The total area
 ``Σ_k A_k = ½ Σ_{(a,b)∈E∂} q_a × q_b`` (shoelace formula over the boundary) depends on
 the boundary nodes only. The boundary-pair term uses
-:func:`meshopt_toolkit.distance.regularized_distance`. The regularized distance is C2
+:func:`meshopt_toolkit.kernels.distance.regularized_distance`. The regularized distance is C2
 (its ``h_μ`` has a jump in the third derivative at 0; see ``distance``), which is all the
 geodesic equation needs.
 
@@ -272,7 +272,7 @@ class Penalty:
         non-positive signed area and, unless ``check_boundary=False``, at a boundary that
         touches itself. ``check_boundary=False`` is for callers that test the boundary
         themselves where it matters (the geodesic integrators check it exactly at every
-        accepted step and output, :class:`~meshopt_toolkit.integrators.GeodesicField`):
+        accepted step and output, :class:`~meshopt_toolkit.riemannian.field.GeodesicField`):
         with ``β3 = 0`` (``α2 = 0``) nothing in ``f`` stops a boundary crossing, and the
         formulas are finite on both sides of one.
         """

@@ -27,6 +27,7 @@ from pathlib import Path
 from ..errors import FilterError
 from ..io import atomic_path
 from .filter import registry
+from .length import meshlab_float
 from .limits import MAX_PIPELINE_BYTES, check_name, check_step_count, read_bounded
 from .params import did_you_mean, param_from_mlx
 from .runner import MESHOPT, Pipeline, Step, make_step
@@ -224,22 +225,20 @@ def _record(step: Step, diameter: float | None):
 
 def _put_value(p, value, diameter) -> None:
     """Write our value into a recorded ``<Param>`` (undo pymeshlab's clamping)."""
-    from .params import _fmt
-
     kind = p.get("type")
     if kind == "RichDynamicFloat":
         v = float(value)
-        p.set("value", _fmt(v))
-        p.set("min", _fmt(min(v, float(p.get("min", v)))))
-        p.set("max", _fmt(max(v, float(p.get("max", v)))))
+        p.set("value", meshlab_float(v))
+        p.set("min", meshlab_float(min(v, float(p.get("min", v)))))
+        p.set("max", meshlab_float(max(v, float(p.get("max", v)))))
     elif kind == "RichFloat":
-        p.set("value", _fmt(float(value)))
+        p.set("value", meshlab_float(float(value)))
     elif kind == "RichAbsPerc":
         if isinstance(value, dict) and "abs" in value:
             value = value["abs"]
         if isinstance(value, (int, float)):
-            p.set("value", _fmt(float(value)))
-            p.set("max", _fmt(max(float(value), float(p.get("max", 0)))))
+            p.set("value", meshlab_float(float(value)))
+            p.set("max", meshlab_float(max(float(value), float(p.get("max", 0)))))
         # a percentage stays as pymeshlab recorded it (absolute for ``diameter``)
 
 
@@ -250,7 +249,6 @@ def _same(a, b) -> bool:
 def _meshlab_param(filter_name: str, key: str, value) -> dict[str, str]:
     """A ``<Param>`` for a MeshLab step given in JSON (pymeshlab names and types)."""
     from . import meshlab
-    from .params import _fmt
 
     ptype = next((p["type"] for p in meshlab.parameter_list(filter_name) if p["name"] == key), "str")
     attrs = {"name": key, "description": key, "tooltip": ""}
@@ -261,21 +259,24 @@ def _meshlab_param(filter_name: str, key: str, value) -> dict[str, str]:
     elif ptype.startswith("int"):
         attrs.update(type="RichInt", value=str(int(value)))
     elif ptype.startswith("float (bounded)"):
-        attrs.update(type="RichDynamicFloat", value=_fmt(float(value)),
-                     min=_fmt(float(value)), max=_fmt(float(value)))
+        attrs.update(type="RichDynamicFloat", value=meshlab_float(float(value)),
+                     min=meshlab_float(float(value)), max=meshlab_float(float(value)))
     elif ptype.startswith("float"):
-        attrs.update(type="RichFloat", value=_fmt(float(value)))
+        attrs.update(type="RichFloat", value=meshlab_float(float(value)))
     elif ptype.startswith("PercentageValue"):
         if isinstance(value, (str, dict)):
             raise FilterError(f"MeshLab step {filter_name!r}: parameter {key!r} is a percentage; "
                               ".mlx needs an absolute value (write the pipeline as JSON instead)")
-        attrs.update(type="RichAbsPerc", value=_fmt(float(value)), min="0", max=_fmt(float(value)))
+        text = meshlab_float(float(value))
+        attrs.update(type="RichAbsPerc", value=text, min="0", max=text)
     elif ptype.startswith("Color"):
         attrs.update(type="RichColor", **{c: str(int(v)) for c, v in zip("rgba", value)})
     elif ptype.startswith("numpy") and len(value) == 3:
-        attrs.update(type="RichPosition", **{c: _fmt(float(v)) for c, v in zip("xyz", value)})
+        attrs.update(type="RichPosition",
+                     **{c: meshlab_float(float(v)) for c, v in zip("xyz", value)})
     elif ptype.startswith("numpy"):
-        attrs.update(type="RichMatrix44f", **{f"val{i}": _fmt(float(v)) for i, v in enumerate(value)})
+        attrs.update(type="RichMatrix44f",
+                     **{f"val{i}": meshlab_float(float(v)) for i, v in enumerate(value)})
     else:
         attrs.update(type="RichString", value=str(value))
     return attrs

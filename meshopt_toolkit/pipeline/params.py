@@ -28,6 +28,7 @@ from dataclasses import dataclass
 from typing import Any, ClassVar
 
 from ..errors import FilterError
+from .length import Length, meshlab_float
 
 __all__ = [
     "BoolParam",
@@ -74,62 +75,6 @@ def number_list(text: str, n: int, what: str) -> tuple[float, ...] | None:
     if len(values) != n or min(values) < 0:
         raise FilterError(f"{what}: expected {n} non-negative comma-separated numbers, got {shown!r}")
     return values
-
-
-def _fmt(x: float) -> str:
-    """Floats as MeshLab writes them (6 significant digits) unless more are needed."""
-    short = f"{x:.6g}"
-    return short if float(short) == x else repr(float(x))
-
-
-@dataclass(frozen=True)
-class Length:
-    """An absolute length or a percentage of the bounding-box diagonal (MeshLab AbsPerc).
-
-    Parameters
-    ----------
-    value : float
-        The length, or the percentage when ``percent``.
-    percent : bool
-        Whether ``value`` is a percentage of the diagonal.
-
-    Examples
-    --------
-    >>> Length.parse("5%").resolve(diameter=2.0)
-    0.1
-    """
-
-    value: float
-    percent: bool = False
-
-    @classmethod
-    def parse(cls, raw: Any) -> Length:
-        """From a number (absolute), ``"5%"`` (percentage), ``"0.1"`` or a Length."""
-        if isinstance(raw, Length):
-            return raw
-        if isinstance(raw, bool):
-            raise ValueError("a length must be a number or a percentage like '5%'")
-        if isinstance(raw, (int, float)):
-            return cls(float(raw))
-        if isinstance(raw, str):
-            text = raw.strip()
-            pct = text.endswith("%")
-            try:
-                val = float(text[:-1] if pct else text)
-            except ValueError:
-                raise ValueError(f"{raw!r} is not a length (a number or a percentage like '5%')")
-            return cls(val, pct)
-        raise ValueError(f"{raw!r} is not a length (a number or a percentage like '5%')")
-
-    def resolve(self, diameter: float) -> float:
-        """The absolute length for a mesh with bounding-box diagonal ``diameter``."""
-        return self.value * diameter / 100.0 if self.percent else self.value
-
-    def to_json(self):
-        return f"{_fmt(self.value)}%" if self.percent else self.value
-
-    def __str__(self) -> str:
-        return f"{_fmt(self.value)}%" if self.percent else _fmt(self.value)
 
 
 @dataclass(frozen=True)
@@ -293,14 +238,14 @@ class FloatParam(_NumberParam):
         return self._check_range(value, filter_name)
 
     def _mlx_value(self, value) -> str:
-        return _fmt(float(value))
+        return meshlab_float(float(value))
 
     def to_mlx(self, value, diameter=None):
         out = super().to_mlx(value, diameter)
         if self.min is not None:
-            out["min"] = _fmt(self.min)
+            out["min"] = meshlab_float(self.min)
         if self.max is not None:
-            out["max"] = _fmt(self.max)
+            out["max"] = meshlab_float(self.max)
         return out
 
 
@@ -458,10 +403,11 @@ class LengthParam(Param):
         length = Length.parse(value)
         out = super().to_mlx(value, diameter)
         if length.percent and diameter is None:
-            out.update(value=_fmt(length.value), min="0", max="100", percent="true")
+            out.update(value=meshlab_float(length.value), min="0", max="100", percent="true")
         else:
             d = 1.0 if diameter is None else float(diameter)
-            out.update(value=_fmt(length.resolve(d)), min="0", max=_fmt(max(d, 0.0)))
+            out.update(value=meshlab_float(length.resolve(d)), min="0",
+                       max=meshlab_float(max(d, 0.0)))
         return out
 
     def from_mlx(self, attrs, filter_name="?"):

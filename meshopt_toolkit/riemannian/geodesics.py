@@ -14,7 +14,7 @@ with it the inverse heights or areas — grows at most linearly: a geodesic neve
 Methods (``method=``):
 
 ``"auto"`` / ``"dop853"``
-    Own adaptive stepping (:func:`~meshopt_toolkit.integrators.runge_kutta`) with
+    Own adaptive stepping (:func:`~meshopt_toolkit.ode.runge_kutta`) with
     Hairer's 8th-order DOP853 pair (12 penalty calls per step; coefficient table from
     scipy), steps landing exactly on the requested times, stages outside M+ rejected.
     Default tolerance ``rtol = 1e-6``, ``atol = 1e-6 · scale`` (scale = ``max(max|Q|,
@@ -69,7 +69,7 @@ A complete-metric result never contains an inverted mesh.
 Admissibility: every right-hand-side evaluation needs positive areas (a stage outside
 M+ rejects the step); the boundary (SPEC §1: no boundary self-intersection) is checked
 exactly at every accepted step end and every output, not at intermediate stages
-(:class:`~meshopt_toolkit.integrators.BoundaryGuard`, which proves most configurations
+(:class:`~meshopt_toolkit.riemannian.field.BoundaryGuard`, which proves most configurations
 simple with a displacement certificate instead of the full test).
 
 Rescaling lemma: ``γ_{Q, τV}(1) = γ_{Q, V}(τ)``, so one call of :func:`geodesic` with
@@ -107,7 +107,7 @@ __all__ = [
 DEFAULT_RTOL = {"dop853": 1e-6, "dopri5": 1e-7, "bs3": 1e-5, "line-search": 5e-2,
                 "scipy": 1e-10}
 
-#: how ``method="line-search"`` drives :func:`~meshopt_toolkit.integrators.runge_kutta`
+#: how ``method="line-search"`` drives :func:`~meshopt_toolkit.ode.runge_kutta`
 #: (with the Bogacki–Shampine pair): the velocity is projected back onto the initial
 #: energy after every step instead of rejecting steps that change it, and a step with an
 #: inadmissible stage is retried at half its size
@@ -228,7 +228,7 @@ def geodesic(
         ``method="bs3", rtol=1e-4``); an unknown name is a TypeError.
     free : (N,) bool mask or vertex indices, optional
         Free vertices: the geodesic of the metric restricted to tangent vectors vanishing
-        on the fixed vertices (see :class:`~meshopt_toolkit.integrators.GeodesicField`);
+        on the fixed vertices (see :class:`~meshopt_toolkit.riemannian.field.GeodesicField`);
         ``V`` must vanish there, and fixed vertices do not move.
     progress : callable, optional
         Adaptive methods: ``progress(fraction)`` after each accepted step, the fraction

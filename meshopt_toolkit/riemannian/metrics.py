@@ -411,7 +411,7 @@ class CompleteMetric:
     def exp(self, Q: FloatArray, V: FloatArray, t: float = 1.0, **options) -> FloatArray:
         """Exponential map ``γ(t)`` of this metric, ``γ(0) = Q``, ``γ'(0) = V`` (5.35).
 
-        Delegates to :func:`meshopt_toolkit.geodesics.exp_map` (imported on first use);
+        Delegates to :func:`meshopt_toolkit.riemannian.geodesics.exp_map` (imported on first use);
         ``options`` (integrator, tolerances, ...) are passed through.
         """
         from .geodesics import exp_map

@@ -19,7 +19,7 @@ import time
 import numpy as np
 
 from ..errors import IntegrationError, NotAdmissibleError, OptimizationError
-from ..geometry import quality_summary
+from ..kernels.triangles import quality_summary
 from .directions import LBFGSMemory, hestenes_stiefel_plus
 from .linesearch import wolfe_line_search
 from .problem import ShapeProblem, segment_limit
@@ -183,7 +183,7 @@ def _line_search(problem, Q, d, F, slope, t_init, *, use_exp, exp_options, c1, c
                  segment_fraction, min_step, timer):
     """Weak-Wolfe search along the variant's retraction; payload ``(Q_t, j_t, P_t)``."""
     if use_exp:
-        from ..geodesics import geodesic
+        from ..riemannian.geodesics import geodesic
 
         def point(t):
             t0 = time.perf_counter()

@@ -14,7 +14,7 @@ import numpy as np
 from .._linalg import dot
 from .._typing import FloatArray
 from ..errors import NotAdmissibleError
-from ..geometry import signed_areas
+from ..kernels.triangles import signed_areas
 from ..mesh import boundary_self_intersections
 
 
@@ -58,7 +58,7 @@ class ShapeProblem:
     ----------
     objective : object with ``value(Q)`` and ``derivative(Q)`` (the shape functional j)
     penalty : QualityPenalty or None (f2 added to j)
-    metric : a metric of :mod:`meshopt_toolkit.metrics` (its Riesz map gives gradients)
+    metric : a metric of :mod:`meshopt_toolkit.riemannian.metrics` (its Riesz map gives gradients)
     triangles : (T, 3) connectivity
     boundary_edges : (E, 2) directed boundary edges (for the boundary self-contact test)
     free : (N,) bool mask of the free vertices, or None (all free)
