@@ -4,7 +4,17 @@ from __future__ import annotations
 
 from meshopt_toolkit.errors import FilterError
 from meshopt_toolkit.pipeline.filter import Filter, register
-from meshopt_toolkit.pipeline.params import BoolParam, PathParam
+from meshopt_toolkit.pipeline.params import BoolParam, EnumParam, PathParam
+
+#: file encodings: the format's default (binary where it has one), binary, text
+ENCODINGS = ("default", "binary", "ascii")
+#: gmsh versions written for .msh files
+MSH_VERSIONS = ("4.1", "2.2")
+
+
+def binary_of(encoding: str) -> bool | None:
+    """The ``binary`` argument of :func:`meshopt_toolkit.io.save` for an encoding."""
+    return {"default": None, "binary": True, "ascii": False}[encoding]
 
 
 @register
@@ -26,6 +36,11 @@ class SaveMesh(Filter):
     parameters = (
         PathParam("path", "{stem}.msh", "output file inside the output folder ({stem}, {name} "
                   "expand)", label="File", save=True),
+        EnumParam("encoding", ENCODINGS[0], "binary or text output where the format has "
+                  "both (default: binary, except the text formats obj and off)",
+                  choices=ENCODINGS, label="Encoding"),
+        EnumParam("msh_version", MSH_VERSIONS[0], "gmsh file version of .msh output",
+                  choices=MSH_VERSIONS, label="MSH version"),
         BoolParam("overwrite", False, "ignored: only --force on the command line replaces "
                   "files", label="Overwrite"),
     )
@@ -45,12 +60,14 @@ class SaveMesh(Filter):
         cls._path(document, params["path"])
         return stats
 
-    def apply(self, document, *, path: str, overwrite: bool = False) -> dict:
+    def apply(self, document, *, path: str, encoding: str = ENCODINGS[0],
+              msh_version: str = MSH_VERSIONS[0], overwrite: bool = False) -> dict:
         from meshopt_toolkit.io import save
 
         p = self._path(document, path)
         if document.dry_run:
             return {"would_write": str(p)}
-        save(document.mesh, p, overwrite=document.overwrite)  # atomic
+        save(document.mesh, p, overwrite=document.overwrite, binary=binary_of(encoding),
+             msh_version=msh_version)  # atomic
         document.written.append(str(p))
         return {"written": str(p)}

@@ -27,8 +27,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import MeshoptError, ReadError
+from ._params import add_options
 
 HELP = "convert mesh files between formats (msh, obj, ply, off, vtk, vtu, stl)"
+#: options generated from the save_mesh filter's parameters (one schema: cli/_params.py)
+OPTIONS = {"msh_version": "--msh-version"}
 
 
 def add_args(parser) -> None:
@@ -40,13 +43,16 @@ def add_args(parser) -> None:
                         help="output format for a batch, e.g. vtu or .msh")
     parser.add_argument("--force", action="store_true",
                         help="overwrite existing output files (even an input)")
+    from ..filters.save_mesh import SaveMesh, binary_of
+
+    # the output options of save_mesh (one schema): --binary/--ascii are its "encoding"
     mode = parser.add_mutually_exclusive_group()
-    mode.add_argument("--binary", dest="binary", action="store_const", const=True, default=None,
-                      help="binary output where the format allows (the default)")
-    mode.add_argument("--ascii", dest="binary", action="store_const", const=False,
-                      help="text output")
-    parser.add_argument("--msh-version", choices=("4.1", "2.2"), default="4.1",
-                        help="gmsh version for .msh output (default 4.1)")
+    for encoding, help_text in (("binary", "binary output where the format has both (the "
+                                           "default for all but obj and off)"),
+                                ("ascii", "text output")):
+        mode.add_argument(f"--{encoding}", dest="binary", action="store_const",
+                          const=binary_of(encoding), default=binary_of("default"), help=help_text)
+    add_options(parser, SaveMesh, OPTIONS)
     parser.add_argument("-r", "--recursive", action="store_true",
                         help="include the sub-folders of input directories")
     parser.add_argument("--max-file-size", type=_size, default=None, metavar="SIZE",
