@@ -159,13 +159,18 @@ def test_solver_auto_and_errors():
         fem.PoissonSolver(K, [0], method="cg")
 
 
-def test_edge_components_match_geometry_and_close_the_triangle():
-    from meshopt_toolkit.kernels.triangles import edge_vectors
+def test_p1_edges_and_areas_come_from_the_kernels():
+    """P1 assembly's component-major edges (``kernels.edges_xy``) equal ``edge_vectors``,
+    close every triangle, and their areas equal ``signed_areas``."""
+    from meshopt_toolkit.fem.p1 import _edges_and_areas
+    from meshopt_toolkit.kernels.triangles import edge_vectors, signed_areas
 
     mesh = grid_mesh(3, 0.2)
-    e = np.stack(fem._edge_components(mesh.points, mesh.triangles), axis=-1)
+    ex, ey, a = _edges_and_areas(mesh.points, mesh.triangles)
+    e = np.stack([ex, ey], axis=-1)
     assert e.shape == (mesh.n_triangles, 3, 2)
     np.testing.assert_array_equal(e, edge_vectors(mesh.points, mesh.triangles))
     np.testing.assert_allclose(e.sum(axis=1), 0, atol=1e-15)
     p = mesh.points[mesh.triangles]
     np.testing.assert_array_equal(e[:, 0], p[:, 2] - p[:, 1])
+    np.testing.assert_allclose(a, signed_areas(mesh.points, mesh.triangles), rtol=1e-14)

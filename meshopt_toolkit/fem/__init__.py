@@ -8,8 +8,7 @@ as-rigid-as-possible interpolation built on them (``interpolation``).
 
 from __future__ import annotations
 
-from .p1 import (  # noqa: F401 (_edge_components: tests)
-    _edge_components,
+from .p1 import (  # noqa: F401 (re-exported)
     AMG_THRESHOLD,
     PoissonSolver,
     centroids,

@@ -24,7 +24,7 @@ import scipy.sparse as sp
 
 from .._typing import FloatArray, IntArray
 from ..errors import MeshoptError, NotAdmissibleError
-from ..kernels.triangles import edge_vectors
+from ..kernels.triangles import areas_from_edges, edge_vectors
 from ..solvers import SOLVERS, choose_method, factorize_spd
 
 __all__ = [
@@ -81,7 +81,7 @@ def p1_gradients(points: FloatArray, triangles: IntArray) -> tuple[FloatArray, F
     areas : (T,) float array of signed areas (4.2)
     """
     e = edge_vectors(points, triangles)  # edge a opposite vertex a, (T, 3, 2)
-    areas = 0.5 * (e[:, 0, 0] * e[:, 1, 1] - e[:, 0, 1] * e[:, 1, 0])
+    areas = areas_from_edges(e[..., 0].T, e[..., 1].T)
     grads = np.empty_like(e)
     inv2a = 0.5 / areas
     grads[..., 0] = -e[..., 1] * inv2a[:, None]

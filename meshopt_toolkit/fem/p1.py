@@ -23,6 +23,7 @@ from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from .._typing import FloatArray, IntArray
 from ..errors import MeshoptError
+from ..kernels.triangles import areas_from_edges, edges_xy
 from ..solvers import choose_method, factorize_spd, pcg
 
 __all__ = [
@@ -42,19 +43,12 @@ logger = logging.getLogger(__name__)
 AMG_THRESHOLD = 100_000
 
 
-def _edge_components(points: FloatArray, triangles: IntArray) -> tuple[FloatArray, FloatArray]:
-    """Components ``(e_x, e_y)``, each ``(T, 3)``, of ``e_l = q_{l+2} − q_{l+1}``."""
-    out = []
-    for c in (0, 1):
-        x = points[:, c][triangles]
-        x0, x1, x2 = x[:, 0], x[:, 1], x[:, 2]
-        out.append(np.stack([x2 - x1, x0 - x2, x1 - x0], axis=1))
-    return out[0], out[1]
-
-
-def _areas(ex: FloatArray, ey: FloatArray) -> FloatArray:
-    """Signed areas ``½ (e_2 × e_0)`` from edge components ``(T, 3)``; returns ``(T,)``."""
-    return 0.5 * (ex[:, 2] * ey[:, 0] - ey[:, 2] * ex[:, 0])
+def _edges_and_areas(points: FloatArray, triangles: IntArray
+                     ) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Edge components ``e_x, e_y`` ``(T, 3)`` (``e_l = q_{l+2} − q_{l+1}``) and signed
+    areas ``(T,)``, from :mod:`~meshopt_toolkit.kernels.triangles` (their one owner)."""
+    ex, ey = edges_xy(points[:, 0], points[:, 1], np.asarray(triangles).T)
+    return ex.T, ey.T, areas_from_edges(ex, ey)
 
 
 def element_stiffness(points: FloatArray, triangles: IntArray) -> FloatArray:
@@ -65,8 +59,8 @@ def element_stiffness(points: FloatArray, triangles: IntArray) -> FloatArray:
     points : (N, 2) node positions
     triangles : (T, 3) counter-clockwise vertex indices
     """
-    ex, ey = _edge_components(points, triangles)
-    s = np.sqrt(1.0 / (4.0 * _areas(ex, ey)))[:, None]
+    ex, ey, a = _edges_and_areas(points, triangles)
+    s = np.sqrt(1.0 / (4.0 * a))[:, None]
     ex *= s
     ey *= s
     return ex[:, :, None] * ex[:, None, :] + ey[:, :, None] * ey[:, None, :]
@@ -94,7 +88,7 @@ def _scatter(triangles: IntArray, values: FloatArray, n: int) -> FloatArray:
 
 def nodal_mass_weights(points: FloatArray, triangles: IntArray) -> FloatArray:
     """``m_a = Σ_{K∋a} |K|/3``, so that ``∫ y ≈ mᵀy`` is exact for P1 ``y``. Returns ``(N,)``."""
-    a = _areas(*_edge_components(points, triangles))
+    a = _edges_and_areas(points, triangles)[2]
     return _scatter(triangles, np.repeat(a[:, None] / 3.0, 3, axis=1), len(points))
 
 
@@ -111,7 +105,7 @@ def lumped_load(points: FloatArray, triangles: IntArray, r_values: FloatArray) -
     -------
     (N,) load vector.
     """
-    a = _areas(*_edge_components(points, triangles))
+    a = _edges_and_areas(points, triangles)[2]
     w = np.asarray(r_values, dtype=float) * a / 3.0
     return _scatter(triangles, np.repeat(w[:, None], 3, axis=1), len(points))
 
@@ -150,8 +144,7 @@ def poisson_shape_derivative(
     -------
     (N, 2) derivative, including Dirichlet (boundary) vertices.
     """
-    ex, ey = _edge_components(points, triangles)
-    a = _areas(ex, ey)
+    ex, ey, a = _edges_and_areas(points, triangles)
     yk = y[triangles]
     pk = p[triangles]
     ux, uy = (pk * ex).sum(axis=1), (pk * ey).sum(axis=1)

@@ -24,8 +24,8 @@ from . import p1 as fem
 from .._typing import FloatArray, IntArray
 from ..errors import ExpressionError, InvalidMeshError, MeshoptError, NotAdmissibleError
 from ..expressions import DEFAULT_RHS, Expression, parse_expression
-from ..kernels.triangles import signed_areas
-from ..mesh import PlanarMesh, TriangleMesh, boundary_self_intersections, require_admissible
+from ..kernels.admissibility import BoundaryCheck, area_problem
+from ..mesh import PlanarMesh, TriangleMesh, require_admissible
 
 __all__ = ["DEFAULT_RHS", "PoissonObjective"]
 
@@ -150,6 +150,9 @@ class PoissonObjective:
         self.mesh: PlanarMesh = require_admissible(mesh, "the Poisson objective")
         self.triangles: IntArray = self.mesh.triangles
         self.n_vertices = self.mesh.n_vertices
+        self._tri_t = np.ascontiguousarray(self.triangles.T)
+        self._boundary_check = BoundaryCheck(self.mesh.boundary_edges,
+                                             self.mesh.boundary_vertices)
         self.dirichlet: IntArray = self._resolve_dirichlet(dirichlet)
         self.rhs_text, self._r, self._grad_r = _resolve_rhs(
             rhs, rhs_gradient, max(self.mesh.diameter, np.finfo(float).tiny)
@@ -201,21 +204,9 @@ class PoissonObjective:
         Q = np.asarray(Q, dtype=float)
         if Q.shape != (self.n_vertices, 2):
             raise InvalidMeshError(f"Q has shape {Q.shape}, expected ({self.n_vertices}, 2)")
-        if not np.isfinite(Q).all():
-            bad = int(np.flatnonzero(~np.isfinite(Q).all(axis=1))[0])
-            raise NotAdmissibleError(f"vertex {bad} has a non-finite coordinate")
-        a = signed_areas(Q, self.triangles)
-        if not (a > 0).all():
-            k = int(np.argmin(a))
-            raise NotAdmissibleError(
-                f"triangle {k} is inverted or degenerate (signed area {a[k]:.3g})"
-            )
-        hits = boundary_self_intersections(Q, self.mesh.boundary_edges)
-        if len(hits):
-            e1, e2 = self.mesh.boundary_edges[hits[0]]
-            raise NotAdmissibleError(
-                f"boundary self-intersects: edges ({e1[0]}, {e1[1]}) and ({e2[0]}, {e2[1]}) cross"
-            )
+        problem = area_problem(Q, self._tri_t) or self._boundary_check.problem(Q)
+        if problem is not None:
+            raise NotAdmissibleError(problem)
         return Q
 
     def _eval_r(self, xi: FloatArray) -> FloatArray:

@@ -1,9 +1,9 @@
 """Admissibility of node positions (SPEC §1): every signed area > 0, every coordinate
 finite, and a boundary that neither folds onto, touches nor crosses itself.
 
-The one owner of these tests and of their messages for the numerics (penalties, the
-geodesic integrators' boundary guard, the Poisson objective). ``mesh.checks`` reports the
-same conditions for a mesh read from a file.
+The one owner of these tests and of their messages: the penalties, the geodesic
+integrators' boundary guard, the Poisson objective and ``mesh.checks`` (a mesh read from
+a file) all use them.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from .._typing import FloatArray, IntArray
 from .boundary import boundary_self_intersections
 from .triangles import areas_from_edges, edges_xy
 
-__all__ = ["BoundaryCheck", "area_problem"]
+__all__ = ["BoundaryCheck", "area_message", "area_problem"]
 
 
 def area_problem(Q: FloatArray, tri_t: IntArray) -> str | None:
@@ -30,6 +30,12 @@ def area_problem(Q: FloatArray, tri_t: IntArray) -> str | None:
         return f"vertex {v} has a non-finite coordinate"
     with np.errstate(all="ignore"):
         area = areas_from_edges(*edges_xy(Q[:, 0], Q[:, 1], tri_t))
+    return area_message(area, tri_t)
+
+
+def area_message(area: FloatArray, tri_t: IntArray) -> str | None:
+    """A message naming the first non-positive triangle of signed areas ``area`` ``(T,)``
+    (and how many there are), or None; ``tri_t`` the triangles as a ``(3, T)`` array."""
     bad = np.flatnonzero(~(area > 0))
     if not bad.size:
         return None

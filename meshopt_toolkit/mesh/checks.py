@@ -15,7 +15,7 @@ import numpy as np
 
 from .._lazy import lazy_module
 from ..errors import InvalidMeshError, NotAdmissibleError
-from ..kernels.boundary import boundary_self_intersections
+from ..kernels.admissibility import BoundaryCheck, area_message
 from .core import PlanarMesh, TriangleMesh
 from .diagnosis import diagnose, planar_view, with_embedding_of
 from .topology import _boundary_edges_of, _fans_per_vertex, _frozen
@@ -155,20 +155,10 @@ def check_mesh(mesh: TriangleMesh, *, positive_areas: bool = False) -> MeshRepor
         logger.info("%s: re-oriented from clockwise to counter-clockwise", pm.source or "mesh")
     problems = list(soft)
     reoriented = reoriented or n_flipped > 0
-    nonpos = np.flatnonzero(area <= 0) if area is not None else ()
-    if len(nonpos):
-        k = nonpos[0]
-        kind = "zero-area" if area[k] == 0 else "inverted"
-        problems.append(
-            f"triangle {k} {pm.triangles[k].tolist()} is {kind} (signed area {area[k]:.3g})"
-            + (f"; {len(nonpos)} non-positive triangles" if len(nonpos) > 1 else "")
-        )
-    hits = boundary_self_intersections(pm.points, pm.boundary_edges)
-    if len(hits):
-        e1, e2 = pm.boundary_edges[hits[0, 0]], pm.boundary_edges[hits[0, 1]]
-        problems.append(
-            f"boundary self-intersects: edges ({e1[0]}, {e1[1]}) and ({e2[0]}, {e2[1]}) cross"
-        )
+    if area is not None and (message := area_message(area, pm.triangles.T)):
+        problems.append(message)
+    if message := BoundaryCheck(pm.boundary_edges, pm.boundary_vertices).test(pm.points):
+        problems.append(message)
     return MeshReport(True, True, not problems, reoriented, problems, pm, n_flipped)
 
 
