@@ -16,6 +16,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ._linalg import dot
+from .errors import MeshoptError
 from ._typing import FloatArray
 
 logger = logging.getLogger(__name__)
@@ -121,3 +122,57 @@ def pcg(A, b: FloatArray, precondition: Callable[[FloatArray], FloatArray], rtol
     if not np.all(np.isfinite(x)):
         raise FloatingPointError("conjugate gradients broke down (non-finite iterate)")
     return x, iteration, rnorm / bnorm
+
+
+def import_pyamg():
+    """The ``pyamg`` module, or a :class:`MeshoptError` saying how to get it."""
+    try:
+        import pyamg
+    except ImportError as exc:  # pragma: no cover - depends on the environment
+        raise MeshoptError("solver='amg' needs pyamg (pip install pyamg); use "
+                           "solver='direct' instead") from exc
+    return pyamg
+
+
+def _v_cycle(ml, lvl: int, x: FloatArray, b: FloatArray) -> None:
+    """One V-cycle of a pyamg hierarchy on level ``lvl``, in place on ``x``.
+
+    The same cycle as pyamg's ``solve(maxiter=1)`` without its residual-norm bookkeeping
+    (a threaded BLAS call per application).
+    """
+    level = ml.levels[lvl]
+    A = level.A
+    level.presmoother(A, x, b)
+    coarse_b = level.R @ (b - A @ x)
+    if lvl == len(ml.levels) - 2:
+        coarse_x = ml.coarse_solver(ml.levels[-1].A, coarse_b)
+    else:
+        coarse_x = np.zeros_like(coarse_b)
+        _v_cycle(ml, lvl + 1, coarse_x, coarse_b)
+    x += level.P @ coarse_x
+    level.postsmoother(A, x, b)
+
+
+def amg_pcg_solve(A, ml, rtol: float, maxiter: int = 500) -> Callable[[FloatArray], FloatArray]:
+    """``b ↦ x`` with ``‖b − Ax‖ ≤ rtol ‖b‖``: :func:`pcg` preconditioned by one V-cycle of
+    the pyamg hierarchy ``ml`` (built once for ``A``, reused for every right-hand side).
+
+    Raises
+    ------
+    MeshoptError
+        When CG does not reach ``rtol`` within ``maxiter`` iterations.
+    """
+    def precondition(r: FloatArray) -> FloatArray:
+        x = np.zeros_like(r)
+        _v_cycle(ml, 0, x, r)
+        return x
+
+    def solve(b: FloatArray) -> FloatArray:
+        x, iterations, residual = pcg(A, b, precondition, rtol, maxiter)
+        if residual > rtol:
+            raise MeshoptError(f"AMG-preconditioned CG did not converge: relative residual "
+                               f"{residual:.2e} > {rtol:.1e} after {iterations} iterations")
+        logger.debug("AMG-PCG: %d iterations, relative residual %.2e", iterations, residual)
+        return x
+
+    return solve

@@ -25,8 +25,8 @@ from meshopt_toolkit.morph import (
     morph_metric,
     twisted,
 )
-from meshopt_toolkit.morph._common import _Counter
-from meshopt_toolkit.morph.discrete import _PathEnergy
+from meshopt_toolkit.riemannian._boundary_value import _Counter
+from meshopt_toolkit.riemannian.discrete_geodesic import _PathEnergy
 from meshopt_toolkit.penalties import HeightPenalty, QualityPenalty
 from meshopt_toolkit.diagnostics import check_gradient, check_hvp
 

@@ -23,9 +23,9 @@ import numpy as np
 import scipy.sparse as sp
 
 from .._typing import FloatArray, IntArray
-from ..errors import MeshoptError, NotAdmissibleError
+from ..errors import NotAdmissibleError
 from ..kernels.triangles import areas_from_edges, edge_vectors
-from ..solvers import SOLVERS, choose_method, factorize_spd
+from ..solvers import SOLVERS, amg_pcg_solve, choose_method, factorize_spd, import_pyamg
 
 __all__ = [
     "lame_parameters",
@@ -284,32 +284,13 @@ class SPDSolve:
 def _factorize_amg(
     A: sp.bsr_matrix, points: FloatArray, rtol: float, maxiter: int
 ) -> Callable[[FloatArray], FloatArray]:
-    try:
-        import pyamg
-    except ImportError as exc:  # pragma: no cover - depends on the environment
-        raise MeshoptError(
-            "solver='amg' needs pyamg (pip install pyamg); use solver='direct' instead"
-        ) from exc
-    ml = pyamg.smoothed_aggregation_solver(
+    ml = import_pyamg().smoothed_aggregation_solver(
         A,
         B=rigid_modes(points),  # rigid motions: near-null space of K
         symmetry="symmetric",
         strength=("symmetric", {"theta": 0.05}),
     )
-    def solve(b: FloatArray) -> FloatArray:
-        residuals: list[float] = []
-        x = ml.solve(b, tol=rtol, maxiter=maxiter, accel="cg", residuals=residuals)
-        nb = np.linalg.norm(b)
-        res = np.linalg.norm(b - A @ x)
-        if res > 10.0 * rtol * max(nb, np.finfo(float).tiny):
-            raise MeshoptError(
-                f"AMG-preconditioned CG did not converge: relative residual "
-                f"{res / nb:.2e} > {rtol:.0e} after {len(residuals) - 1} iterations"
-            )
-        logger.debug("AMG-PCG: %d iterations, relative residual %.2e", len(residuals) - 1, res / nb)
-        return x
-
-    return solve
+    return amg_pcg_solve(A, ml, rtol, maxiter)
 
 
 def factorize(

@@ -16,7 +16,7 @@ centroid follows the straight line. Frame 0 is the source and frame 1 the target
 The angles ``θ_t`` are unwrapped across triangle neighbours (a tree of the dual graph,
 summed level by level), so a disc twisted by 225° is interpolated as a 225° twist and
 not as a −135° one. The result is not guaranteed to be admissible (it usually is for
-smooth deformations): :func:`meshopt_toolkit.morph.initial_path` checks it and falls back
+smooth deformations): :func:`meshopt_toolkit.riemannian.initial_path.initial_path` checks it and falls back
 to a barrier-sliding flow.
 """
 

@@ -24,7 +24,7 @@ from scipy.sparse.csgraph import reverse_cuthill_mckee
 from .._typing import FloatArray, IntArray
 from ..errors import MeshoptError
 from ..kernels.triangles import areas_from_edges, edges_xy
-from ..solvers import choose_method, factorize_spd, pcg
+from ..solvers import amg_pcg_solve, choose_method, factorize_spd, import_pyamg
 
 __all__ = [
     "AMG_THRESHOLD",
@@ -168,25 +168,6 @@ def poisson_shape_derivative(
     return np.stack([_scatter(triangles, gx, n), _scatter(triangles, gy, n)], axis=1)
 
 
-def _v_cycle(ml, lvl: int, x: FloatArray, b: FloatArray) -> None:
-    """One V-cycle of a pyamg hierarchy on level ``lvl``, in place on ``x``.
-
-    The same cycle as pyamg's ``solve(maxiter=1)`` without its residual-norm bookkeeping
-    (a threaded BLAS call per application).
-    """
-    level = ml.levels[lvl]
-    A = level.A
-    level.presmoother(A, x, b)
-    coarse_b = level.R @ (b - A @ x)
-    if lvl == len(ml.levels) - 2:
-        coarse_x = ml.coarse_solver(ml.levels[-1].A, coarse_b)
-    else:
-        coarse_x = np.zeros_like(coarse_b)
-        _v_cycle(ml, lvl + 1, coarse_x, coarse_b)
-    x += level.P @ coarse_x
-    level.postsmoother(A, x, b)
-
-
 class PoissonSolver:
     """Solve ``K y = b`` with ``y = 0`` on Dirichlet nodes, factorizing once.
 
@@ -235,31 +216,8 @@ class PoissonSolver:
         if method == "direct":
             self._solve = factorize_spd(kp)
         else:
-            self._solve = self._amg_solver(kp)
-
-    def _amg_solver(self, kp):
-        try:
-            import pyamg
-        except ImportError as exc:  # pragma: no cover - depends on the environment
-            raise MeshoptError("method='amg' needs pyamg (pip install pyamg)") from exc
-
-        ml = pyamg.ruge_stuben_solver(kp, coarse_solver="splu")
-        rtol = self.rtol
-
-        def precondition(b):
-            x = np.zeros_like(b)
-            _v_cycle(ml, 0, x, b)
-            return x
-
-        def solve(b):
-            x, iterations, residual = pcg(kp, b, precondition, rtol, maxiter=500)
-            if residual > rtol:
-                raise MeshoptError(f"AMG-CG did not converge in {iterations} iterations "
-                                   f"(relative residual {residual:.2e} > {rtol:.1e})")
-            logger.debug("AMG-PCG: %d iterations, relative residual %.2e", iterations, residual)
-            return x
-
-        return solve
+            ml = import_pyamg().ruge_stuben_solver(kp, coarse_solver="splu")
+            self._solve = amg_pcg_solve(kp, ml, self.rtol)
 
     def solve(self, b: FloatArray) -> FloatArray:
         """Solution ``(N,)`` of ``K y = b`` on free nodes, ``y = 0`` on Dirichlet nodes."""

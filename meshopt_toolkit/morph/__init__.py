@@ -1,5 +1,10 @@
 """Geodesic morphs: the log map of a complete metric and inversion-free interpolation.
 
+This package is the operation (:func:`geodesic_morph`, :func:`morph_metric`); the manifold
+computations it is built on live in :mod:`meshopt_toolkit.riemannian` next to the
+exponential map: :mod:`~.riemannian.initial_path`, :mod:`~.riemannian.discrete_geodesic`
+and :mod:`~.riemannian.log_map` (re-exported here).
+
 With a complete metric ``g = I + ∇f ∇fᵀ`` (5.17, 5.34) the manifold ``M+(Δ; Qref)`` is
 complete, so two admissible meshes of the same connectivity in the same component are
 joined by a minimizing geodesic (Hopf–Rinow), and every mesh on it is admissible. Linear
@@ -77,16 +82,21 @@ import time
 
 import numpy as np
 
+from .._typing import FloatArray
 from ..errors import InvalidMeshError
 from ..generate import twisted  # the 225° twist target lives in generate; kept importable
-from ..kernels.triangles import min_signed_areas_on_segment
-from ._common import DEFAULT_BETA, DEFAULT_TOL, SHOOTING_RTOL, _frame_stats, _penalty
-from .discrete import discrete_geodesic
-from .initial import initial_path, linear_morph
-from .results import DiscreteGeodesic, LogMapResult, MorphResult
-from .shooting import log_map
+from ..kernels.triangles import aspect_ratios, min_signed_areas_on_segment, signed_areas
+from ..riemannian.discrete_geodesic import discrete_geodesic
+from ..riemannian.geodesic_result import DiscreteGeodesic, LogMapResult
+from ..riemannian.geodesics import penalty_of
+from ..riemannian.initial_path import initial_path, linear_morph
+from ..riemannian.log_map import DEFAULT_TOL, SHOOTING_RTOL, log_map
+from .results import MorphResult
 
 logger = logging.getLogger(__name__)
+
+#: default f2 coefficients (β1, β2, β3, β4) of the morph metric (β4 unscaled)
+DEFAULT_BETA = (1.0, 1.0, 0.0, 1.0)
 
 __all__ = [
     "DEFAULT_BETA",
@@ -104,6 +114,13 @@ __all__ = [
     "morph_metric",
     "twisted",
 ]
+
+
+def _frame_stats(points: FloatArray, triangles) -> tuple[FloatArray, FloatArray]:
+    """Min aspect ratio and min signed area of every frame."""
+    ar = np.array([aspect_ratios(p, triangles).min() for p in points])
+    area = np.array([signed_areas(p, triangles).min() for p in points])
+    return ar, area
 
 
 def _check_pair(source, target):
@@ -250,7 +267,7 @@ def geodesic_morph(
             logger.info("geodesic_morph: shooting did not converge (%s); using the discrete "
                         "geodesic", log.message)
     pts[0] = Q0
-    pen = _penalty(metric)
+    pen = penalty_of(metric)
     ar, area = _frame_stats(pts, src.triangles)
     adm = np.array([bool(a > 0) and np.isfinite(pen.value(p)) for a, p in zip(area, pts)])
     lin = linear_morph(Q0, Q1, times)

@@ -1,6 +1,9 @@
-"""The result of :func:`~meshopt_toolkit.riemannian.geodesics.geodesic` and the invariant
-checks made when it is assembled (energy drift, the growth bound of f, admissibility of
-every returned configuration); see the guards in :mod:`.geodesics`' docstring."""
+"""The results of the geodesic computations: :class:`GeodesicResult` of
+:func:`~meshopt_toolkit.riemannian.geodesics.geodesic` with the invariant checks made when
+it is assembled (energy drift, the growth bound of f, admissibility of every returned
+configuration; see the guards in :mod:`.geodesics`' docstring), and the boundary-value
+results :class:`DiscreteGeodesic` (:mod:`.discrete_geodesic`) and :class:`LogMapResult`
+(:mod:`.log_map`)."""
 
 from __future__ import annotations
 
@@ -144,3 +147,75 @@ def _assemble(fld, Q, V, f0, req, positive, out, method_used, monitor, rtol, ene
         max_energy_drift=drift, warnings=notes,
         last_step=np.nan if out is None else out.h_last,
     )
+
+
+@dataclass
+class DiscreteGeodesic:
+    """A minimizer of the discrete path energy.
+
+    Attributes
+    ----------
+    points : (K+1, N, 2) frames, ``points[0] = Q0`` and ``points[K] = Q1`` exactly
+    penalty : (K+1,) ``f`` at each frame
+    energy : path energy ``E`` (``√E`` is the discrete length for an equally spaced path)
+    length : ``Σ_k |(Q_{k+1}, f_{k+1}) − (Q_k, f_k)|`` (length of the polygon in the graph)
+    nit : Newton iterations
+    gradient_norm : final ``√(∇E · H_GN⁻¹ ∇E)`` (0 for K = 1)
+    converged : whether ``gradient_norm ≤ tol·√E`` was reached
+    n_evaluations : penalty calls (values, gradients and Hessian-vector products)
+    status : why the Newton iteration stopped: "converged" (gradient test), "stationary"
+        (the energy stagnated, see :func:`discrete_geodesic`), "max_iter" or
+        "line_search" (no decrease found)
+    """
+
+    points: FloatArray
+    penalty: FloatArray
+    energy: float
+    length: float
+    nit: int = 0
+    gradient_norm: float = 0.0
+    converged: bool = True
+    n_evaluations: int = 0
+    status: str = "converged"
+
+    @property
+    def segments(self) -> int:
+        return len(self.points) - 1
+
+    def initial_velocity(self) -> FloatArray:
+        """``γ'(0)`` from the frames: ``K(−3Q_0 + 4Q_1 − Q_2)/2`` (second order), (N, 2)."""
+        K = self.segments
+        P = self.points
+        if K == 1:
+            return P[1] - P[0]
+        return 0.5 * K * (-3.0 * P[0] + 4.0 * P[1] - P[2])
+
+
+@dataclass
+class LogMapResult:
+    """Outcome of :func:`log_map`.
+
+    Attributes
+    ----------
+    velocity : (N, 2) ``V`` with ``exp_{Q0}(V) ≈ Q1``
+    residual : ``max |exp_{Q0}(V) − Q1|`` (max-norm over coordinates)
+    tol : the tolerance asked for
+    iterations : Newton iterations of the shooting
+    path_length : ``|V|_g`` at ``Q0`` = length of the geodesic ``t ↦ exp(tV)``, t ∈ [0, 1]
+    success : ``residual ≤ tol``
+    n_exp : exponential maps evaluated (residuals and directional differences)
+    discrete : the discrete geodesic that gave the initial guess (None if not used)
+    message : a one-line account
+    seconds : wall time
+    """
+
+    velocity: FloatArray
+    residual: float
+    tol: float
+    iterations: int
+    path_length: float
+    success: bool
+    n_exp: int = 0
+    discrete: DiscreteGeodesic | None = None
+    message: str = ""
+    seconds: float = 0.0

@@ -10,9 +10,10 @@ import numpy as np
 from .._linalg import dot as _dot
 from .._typing import FloatArray
 from ..errors import InvalidMeshError, NotAdmissibleError
-from ._common import _Counter, _as_points, _penalty, _require_finite
-from .initial import initial_path
-from .results import DiscreteGeodesic
+from ._boundary_value import _Counter, _as_points, _require_finite
+from .geodesic_result import DiscreteGeodesic
+from .geodesics import penalty_of
+from .initial_path import initial_path
 
 logger = logging.getLogger(__name__)
 
@@ -176,7 +177,7 @@ def discrete_geodesic(
         raise ValueError(f"segments must be >= 1, got {segments}")
     if Q0.shape != Q1.shape:
         raise InvalidMeshError(f"Q0 and Q1 have shapes {Q0.shape} and {Q1.shape}")
-    raw = _penalty(metric)
+    raw = penalty_of(metric)
     if raw is None:
         t = np.linspace(0.0, 1.0, K + 1)[:, None, None]
         pts = (1.0 - t) * Q0 + t * Q1

@@ -9,9 +9,10 @@ import numpy as np
 
 from .._typing import FloatArray
 from ..errors import IntegrationError, InvalidMeshError, NotAdmissibleError
-from ._common import DEFAULT_TOL, SHOOTING_RTOL, _as_points, _diameter, _penalty, _require_finite
-from .discrete import discrete_geodesic
-from .results import DiscreteGeodesic, LogMapResult
+from ._boundary_value import DEFAULT_TOL, SHOOTING_RTOL, _as_points, _diameter, _require_finite
+from .discrete_geodesic import discrete_geodesic
+from .geodesic_result import DiscreteGeodesic, LogMapResult
+from .geodesics import penalty_of
 
 logger = logging.getLogger(__name__)
 
@@ -74,7 +75,7 @@ def log_map(
     """
     from scipy.sparse.linalg import LinearOperator, gmres
 
-    from ..riemannian.geodesics import exp_map
+    from .geodesics import exp_map
 
     start = time.perf_counter()
     Q0 = _as_points(Q0, "Q0")
@@ -82,7 +83,7 @@ def log_map(
     if Q0.shape != Q1.shape:
         raise InvalidMeshError(f"Q0 and Q1 have shapes {Q0.shape} and {Q1.shape}")
     tol = DEFAULT_TOL * _diameter(Q0) if tol is None else float(tol)
-    pen = _penalty(metric)
+    pen = penalty_of(metric)
     if pen is None:
         V = Q1 - Q0
         return LogMapResult(V, 0.0, tol, 0, float(np.linalg.norm(V)), True,
@@ -167,7 +168,7 @@ def log_map(
     success = res <= tol
     if success:
         message = f"converged: residual {res:.3g} <= {tol:.3g} in {it} Newton iterations"
-    from ..riemannian.metrics import CompleteMetric
+    from .metrics import CompleteMetric
 
     cm = metric if hasattr(metric, "norm") else CompleteMetric(pen)
     out = LogMapResult(V, res, tol, it, float(cm.norm(Q0, V)), bool(success), n_exp, discrete,

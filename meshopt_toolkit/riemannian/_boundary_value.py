@@ -1,4 +1,5 @@
-"""Constants and small helpers shared by the scalar-metric morph modules."""
+"""Constants and helpers of the boundary-value geodesics (discrete geodesic, log map,
+initial paths) of the scalar complete metric."""
 
 from __future__ import annotations
 
@@ -7,25 +8,13 @@ import numpy as np
 
 from .._typing import FloatArray
 from ..errors import InvalidMeshError, NotAdmissibleError
-from ..kernels.triangles import aspect_ratios, signed_areas
 
-
-#: default f2 coefficients (β1, β2, β3, β4) of the morph metric (β4 unscaled)
-DEFAULT_BETA = (1.0, 1.0, 0.0, 1.0)
 
 #: tolerance of log_map relative to the mesh diameter
 DEFAULT_TOL = 1e-8
 
 #: relative tolerance of the exponential maps evaluated by the shooting
 SHOOTING_RTOL = 1e-10
-
-
-
-
-def _penalty(metric):
-    from ..riemannian.geodesics import penalty_of
-
-    return penalty_of(metric)
 
 
 def _as_points(Q, what: str) -> FloatArray:
@@ -74,18 +63,5 @@ class _Counter:
         return np.asarray(self.pen.hvp(Q, V), dtype=np.float64)
 
 
-# ---------------------------------------------------------------------------------------
-# stage 1: an admissible initial path
-# ---------------------------------------------------------------------------------------
-
-
 def _diameter(Q: FloatArray) -> float:
     return float(np.linalg.norm(Q.max(axis=0) - Q.min(axis=0)))
-
-
-def _frame_stats(points: FloatArray, triangles) -> tuple[FloatArray, FloatArray]:
-    ar = np.array([aspect_ratios(p, triangles).min() for p in points])
-    area = np.array([signed_areas(p, triangles).min() for p in points])
-    return ar, area
-
-

@@ -10,7 +10,8 @@ import numpy as np
 from .._linalg import dot as _dot
 from .._typing import FloatArray
 from ..errors import NotAdmissibleError
-from ._common import _as_points, _penalty
+from ._boundary_value import _as_points
+from .geodesics import penalty_of, triangles_of
 
 logger = logging.getLogger(__name__)
 
@@ -98,10 +99,9 @@ def initial_path(
         The flow stalls: no admissible path was found (e.g. the target is a mirror image
         of the source, or lies in another component of M+).
     """
-    from ..riemannian.geodesics import triangles_of
     from ..fem.interpolation import arap_interpolation
 
-    pen = _penalty(metric)
+    pen = penalty_of(metric)
     Q0 = _as_points(Q0, "Q0")
     Q1 = _as_points(Q1, "Q1")
     t = np.linspace(0.0, 1.0, segments + 1)
