@@ -329,3 +329,15 @@ def test_min_signed_areas_on_segment_is_exact(rng):
     sampled = np.min([signed_areas(p, tris) for p in (1 - s) * pts0 + s * pts1], axis=0)
     assert np.all(exact <= sampled + 1e-12)
     assert np.allclose(exact, sampled, atol=1e-6)
+
+
+def test_doubled_areas_of_frames_equal_signed_areas_frame_by_frame():
+    from conftest import grid_mesh
+    from meshopt_toolkit.kernels.triangles import doubled_areas_of_frames
+
+    rng = np.random.default_rng(7)
+    mesh = grid_mesh(6, jitter=0.3, seed=2)
+    frames = mesh.points + 0.05 * rng.standard_normal((4, *mesh.points.shape))
+    got = doubled_areas_of_frames(frames, np.ascontiguousarray(mesh.triangles.T))
+    want = np.stack([2 * signed_areas(f, mesh.triangles) for f in frames])
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-15)

@@ -105,6 +105,18 @@ def min_signed_areas_on_segment(
     return np.where(inside, np.minimum(low, a + b * s + c * s * s), low)
 
 
+def doubled_areas_of_frames(frames: FloatArray, tri_t: IntArray) -> FloatArray:
+    """Twice the signed areas, ``2A = (q1 − q0) × (q2 − q0)``, of every triangle of many
+    configurations at once: ``frames`` ``(m, N, 2)``, ``tri_t`` ``(3, T)``; returns
+    ``(m, T)``.
+
+    Points are viewed as complex numbers ``z = x + iy`` (no copy of C-contiguous input),
+    so ``2A = Im(conj(z1 − z0)(z2 − z0))`` costs one gather per corner for all frames.
+    """
+    z = np.ascontiguousarray(frames, dtype=np.float64).view(np.complex128)[..., 0][:, tri_t]
+    return ((z[:, 1] - z[:, 0]).conj() * (z[:, 2] - z[:, 0])).imag
+
+
 def _gather_xy(points: FloatArray, triangles: IntArray) -> tuple[FloatArray, FloatArray]:
     """Vertex coordinates of every triangle as two ``(3, T)`` arrays ``x``, ``y``.
 

@@ -17,7 +17,7 @@ import numpy as np
 
 from .._linalg import dot as _dot
 from .._typing import FloatArray, IntArray
-from ..kernels.triangles import signed_areas
+from ..kernels.triangles import doubled_areas_of_frames, signed_areas
 
 __all__ = ["BoundaryGuard", "GeodesicField"]
 
@@ -352,11 +352,7 @@ class GeodesicField:
             bound = float((area / (2.0 * perimeter)).min())
             check = Qs[~(delta2 < bound * bound)]
         if len(check):
-            z = np.ascontiguousarray(check).view(np.complex128)[..., 0][:, self._tri_t]
-            z1 = z[:, 1] - z[:, 0]  # (m, T)
-            z2 = z[:, 2] - z[:, 0]
-            area2 = (z1.conj() * z2).imag  # 2A = (q1 − q0) × (q2 − q0)
-            if not area2.min() > 0.0:
+            if not doubled_areas_of_frames(check, self._tri_t).min() > 0.0:
                 return False
         if self._guard is None:
             return all(self.boundary_problem(q) is None for q in Qs)
