@@ -56,6 +56,14 @@ def _save(fig, path) -> Path:
     return path
 
 
+def _save_titled(fig, ax, title: str | None, path) -> Path:
+    """Set the axes' title (if any), tighten the layout and :func:`_save`."""
+    if title:
+        ax.set_title(title)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
 def draw_mesh(
     ax,
     points: FloatArray,
@@ -128,10 +136,7 @@ def save_mesh_png(
     xl, yl = _limits(frames)
     ax.set_xlim(*xl)
     ax.set_ylim(*yl)
-    if title:
-        ax.set_title(title)
-    fig.tight_layout()
-    return _save(fig, path)
+    return _save_titled(fig, ax, title, path)
 
 
 def save_snapshot_strip(
@@ -196,10 +201,7 @@ def save_overlay(
     fig = _figure(size, size, dpi)
     ax = fig.add_subplot(1, 1, 1)
     _overlay(ax, np.asarray(frames, float), triangles)
-    if title:
-        ax.set_title(title)
-    fig.tight_layout()
-    return _save(fig, path)
+    return _save_titled(fig, ax, title, path)
 
 
 def save_overlay_grid(
@@ -265,10 +267,7 @@ def save_quality_plot(
     ax.axhline(0.0, color="0.7", linewidth=0.8)
     ax.grid(True, alpha=0.3)
     ax.legend()
-    if title:
-        ax.set_title(title)
-    fig.tight_layout()
-    return _save(fig, path)
+    return _save_titled(fig, ax, title, path)
 
 
 def save_optimization_plots(
