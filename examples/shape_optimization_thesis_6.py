@@ -124,8 +124,11 @@ def section_6_1(out: Path, quick: bool) -> str:
 
 def _run(mesh, variant, penalty, metric_beta, max_iter, tol):
     obj = PoissonObjective(mesh)
+    # complete-complete as in the thesis: along the exponential map (6.19), not the
+    # second-order retraction that is the library's default
+    exp = {"retraction": "exp"} if variant == "complete-complete" else {}
     return optimize(mesh, obj, variant=variant, penalty_beta=penalty, metric_beta=metric_beta,
-                    max_iter=max_iter, tol=tol)
+                    max_iter=max_iter, tol=tol, method="steepest", **exp)
 
 
 def _plot_meshes(results: dict, path: Path, title: str) -> None:

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from meshopt_toolkit.errors import FilterError
 from meshopt_toolkit.expressions import DEFAULT_RHS
-from meshopt_toolkit.optimize import DEFAULT_METHOD, DEFAULT_VARIANT, METHODS, VARIANTS
+from meshopt_toolkit.optimize import (DEFAULT_METHOD, DEFAULT_RETRACTION, DEFAULT_VARIANT, METHODS,
+                                      RETRACTIONS, VARIANTS)
 from meshopt_toolkit.pipeline.filter import Filter, register
 from meshopt_toolkit.pipeline.params import (
     EnumParam,
@@ -39,6 +40,9 @@ class ShapeOptimization(Filter):
         EnumParam("method", DEFAULT_METHOD, "lbfgs: Riemannian L-BFGS, cg: nonlinear CG "
                   "(Hestenes-Stiefel+), steepest: the thesis' steepest descent",
                   label="Method", choices=METHODS),
+        EnumParam("retraction", DEFAULT_RETRACTION, "complete-complete only: second-order "
+                  "(Q + s d + s²A/2, one Hessian product per iteration) or exp (the thesis' "
+                  "exponential map)", label="Retraction", choices=RETRACTIONS),
         IntParam("memory", 10, "L-BFGS memory (curvature pairs kept)", label="L-BFGS memory",
                  min=1, max=1000),
         ExpressionParam("rhs", DEFAULT_RHS, "right-hand side r(x1, x2) of -Δy = r; numbers, "
@@ -56,7 +60,7 @@ class ShapeOptimization(Filter):
     )
 
     def apply(self, document, *, variant: str = DEFAULT_VARIANT, method: str = DEFAULT_METHOD,
-              memory: int = 10, rhs: str = DEFAULT_RHS,
+              retraction: str = DEFAULT_RETRACTION, memory: int = 10, rhs: str = DEFAULT_RHS,
               penalty: str = "", metric_penalty: str = "", max_iterations: int = 1000,
               tolerance: float = 1e-6) -> dict:
         from meshopt_toolkit.fem.poisson import PoissonObjective
@@ -68,7 +72,8 @@ class ShapeOptimization(Filter):
         mesh = entry.mesh.as_planar()
         beta = number_list(penalty, 4, "penalty") or DEFAULT_PENALTY_BETA
         result = optimize(
-            mesh, PoissonObjective(mesh, rhs=rhs), variant=variant, method=method, memory=memory,
+            mesh, PoissonObjective(mesh, rhs=rhs), variant=variant, method=method,
+            retraction=retraction, memory=memory,
             penalty_beta=beta, metric_beta=number_list(metric_penalty, 4, "metric_penalty"),
             max_iter=max_iterations, tol=tolerance or None, ftol=tolerance or None,
         )

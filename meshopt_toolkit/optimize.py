@@ -14,8 +14,14 @@ variant                  gradient metric     retraction
 euclidean-euclidean      Euclidean (5.2)     Q + s d (6.20), with the travel guard (6.23)
 elasticity-euclidean     elasticity (5.3)    Q + s d, travel guard
 complete-euclidean       complete (5.34)     Q + s d, travel guard
-complete-complete        complete (5.34)     exponential map (6.19), rescaling lemma
+complete-complete        complete (5.34)     a retraction of the complete metric
 =======================  ==================  ==========================================
+
+complete-complete's retraction (:mod:`meshopt_toolkit.riemannian.retractions`) is by
+default the second-order one, ``Q + s d + ½ s² A(Q, d)`` with the geodesic acceleration
+``A`` (5.35): one Hessian-vector product per iteration instead of a geodesic integration
+whose step count grows with the mesh (issue 16). ``retraction="exp"`` is the thesis'
+exponential map (6.19) with the rescaling lemma, integrated as ``exp_options`` say.
 
 The objective is any object with ``value(Q) -> float`` and ``derivative(Q) -> (N, 2)``
 (e.g. :class:`~meshopt_toolkit.fem.poisson.PoissonObjective`); the optional penalty is f2
@@ -35,7 +41,7 @@ import numpy as np
 
 from ._linalg import dot as _dot
 from ._typing import FloatArray
-from .errors import IntegrationError, OptimizationError
+from .errors import OptimizationError
 from .kernels.triangles import heights, quality_summary, signed_areas
 from .mesh import PlanarMesh, require_admissible
 from .shape.result import PHASES, IterationRecord, OptimizeResult, PhaseTimer
@@ -43,10 +49,12 @@ from .shape.result import PHASES, IterationRecord, OptimizeResult, PhaseTimer
 __all__ = [
     "DEFAULT_METHOD",
     "DEFAULT_PENALTY_BETA",
+    "DEFAULT_RETRACTION",
     "DEFAULT_VARIANT",
     "EXP_DEFAULTS",
     "METHODS",
     "PHASES",
+    "RETRACTIONS",
     "SIZE_RANGE",
     "THESIS_PENALTY_SETS",
     "VARIANTS",
@@ -62,7 +70,8 @@ __all__ = [
 
 logger = logging.getLogger(__name__)
 
-#: variant -> (gradient metric, retraction by the exponential map?), the table above
+#: variant -> (gradient metric, retraction along a curve of the complete metric?), the
+#: table above (False: the straight line ``Q + s d``)
 VARIANT_PARTS: dict[str, tuple[str, bool]] = {
     "euclidean-euclidean": ("euclidean", False),
     "elasticity-euclidean": ("elasticity", False),
@@ -90,7 +99,11 @@ DEFAULT_METHOD = "lbfgs"
 #: direction, and a diagonal of 100 with the default rhs ends with min AR ~1e-12
 SIZE_RANGE = (1e-2, 1e2)
 
-#: default ``exp_options`` of the complete-complete retraction: the geodesic's
+#: complete-complete's retractions: second order (the default) or the exponential map
+RETRACTIONS = ("second-order", "exp")
+DEFAULT_RETRACTION = "second-order"
+
+#: default ``exp_options`` of ``retraction="exp"``: the geodesic's
 #: line-search mode (:data:`meshopt_toolkit.riemannian.geodesics.LINE_SEARCH_OPTIONS`;
 #: Bogacki–Shampine 3(2) at rtol 5e-2 with energy projection, positions only). Every trial
 #: point is still a point of an (approximate) geodesic, admissible and checked exactly; pass
@@ -175,6 +188,32 @@ def _retraction_options(exp_options: dict | None):
     return GeodesicOptions.of(GeodesicOptions.of(EXP_DEFAULTS) if base is None else base, **user)
 
 
+def _retraction_kind(variant: str, retraction: str | None, exp_options: dict | None) -> str | None:
+    """The retraction asked for, checked against the variant (None: the straight line;
+    the default retraction names no request, so it passes with every variant)."""
+    if not VARIANT_PARTS[variant][1]:
+        if retraction not in (None, DEFAULT_RETRACTION) or exp_options is not None:
+            raise OptimizationError(f"{variant} moves along straight lines; a retraction and "
+                                    "exp_options apply to complete-complete only")
+        return None
+    if retraction is None:
+        return "exp" if exp_options is not None else DEFAULT_RETRACTION
+    if retraction not in RETRACTIONS:
+        raise OptimizationError(f"unknown retraction {retraction!r}; choose one of "
+                                f"{', '.join(RETRACTIONS)}")
+    if retraction != "exp" and exp_options is not None:
+        raise OptimizationError("exp_options apply to retraction='exp' only")
+    return retraction
+
+
+def _make_retraction(kind: str, metric, exp_options: dict | None, free):
+    from .riemannian.retractions import ExponentialRetraction, SecondOrderRetraction
+
+    if kind == "exp":
+        return ExponentialRetraction(metric, _retraction_options(exp_options), free)
+    return SecondOrderRetraction(metric, free)
+
+
 def _make_metric(variant: str, mesh: PlanarMesh, metric_beta, metric_options: dict):
     from .riemannian.metrics import CompleteMetric, ElasticityMetric, EuclideanMetric
 
@@ -209,6 +248,7 @@ def optimize(
     segment_fraction: float = 0.5,
     min_step: float = 1e-6,
     metric_options: dict | None = None,
+    retraction: str | None = None,
     exp_options: dict | None = None,
     callback: Callable[[IterationRecord, FloatArray], bool | None] | None = None,
 ) -> OptimizeResult:
@@ -248,10 +288,11 @@ def optimize(
         this fraction of the way to the first degenerate triangle along ``Q + t d``.
     min_step : a run fails (``step_too_small``) when a trial step drops below this.
     metric_options : extra keyword arguments of the metric (e.g. elasticity ``E``, ``nu``).
-    exp_options : settings of the complete-complete retraction (fields of
+    retraction : complete-complete only: ``"second-order"`` (default) or ``"exp"`` (the
+        exponential map; implied by ``exp_options``), see :data:`RETRACTIONS`.
+    exp_options : settings of ``retraction="exp"`` (fields of
         :class:`~meshopt_toolkit.riemannian.geodesics.GeodesicOptions`, or
-        ``{"options": GeodesicOptions(...)}``) (complete-complete only), on top of
-        :data:`EXP_DEFAULTS`.
+        ``{"options": GeodesicOptions(...)}``), on top of :data:`EXP_DEFAULTS`.
     callback : called as ``callback(record, Q)`` after each iteration; returning True stops.
 
     Returns
@@ -262,7 +303,9 @@ def optimize(
     ------
     OptimizationError
         A direction that is not a descent direction (a wrong derivative), an unknown
-        variant or method, or a mesh whose size is outside :data:`SIZE_RANGE`.
+        variant, method or retraction, a retraction or ``exp_options`` given to a variant
+        that moves along straight lines, or a mesh whose size is outside
+        :data:`SIZE_RANGE`.
     """
     from .shape.problem import ShapeProblem
 
@@ -270,6 +313,8 @@ def optimize(
         raise OptimizationError(f"unknown variant {variant!r}; choose one of {', '.join(VARIANTS)}")
     if method not in METHODS:
         raise OptimizationError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
+    curved = VARIANT_PARTS[variant][1]
+    retraction = _retraction_kind(variant, retraction, exp_options)
     mesh = require_admissible(mesh, "shape optimization")
     _check_size(mesh.points)
     tri = mesh.triangles
@@ -287,15 +332,14 @@ def optimize(
 
         penalty = QualityPenalty(mesh, beta=tuple(penalty_beta))
     metric = _make_metric(variant, mesh, metric_beta, dict(metric_options or {}))
-    use_exp = VARIANT_PARTS[variant][1]
-    retraction = {"options": _retraction_options(exp_options)} if use_exp else {}
+    retract = _make_retraction(retraction, metric, exp_options, free) if curved else None
     problem = ShapeProblem(objective, penalty, metric, tri, mesh.boundary_edges, free)
     if method != "steepest":
         from .shape.driver import run_descent
 
         return run_descent(
-            mesh, problem, method=method, variant=variant, use_exp=use_exp,
-            exp_options=retraction, max_iter=max_iter,
+            mesh, problem, method=method, variant=variant, retraction=retract,
+            max_iter=max_iter,
             gtol=gtol, ftol=ftol, memory=memory, c1=sigma, c2=c2,
             segment_fraction=segment_fraction, min_step=min_step, callback=callback,
         )
@@ -349,28 +393,15 @@ def optimize(
             s = 1.0 / dnorm
         trial_steps = s * tau ** np.arange(max(1, math.ceil(math.log(min_step / s) / math.log(tau)) + 1))
         trial_steps = trial_steps[trial_steps >= min_step]
-        # complete-complete: one integration gives every trial (None = not reached)
+        # complete-complete: one retraction call gives every trial (None = not admissible)
         geo_points: list | None = None
-        if use_exp and len(trial_steps):
+        if retract is not None and len(trial_steps):
             t_r = time.perf_counter()
-            geo_points = [None] * len(trial_steps)
-            try:
-                from .riemannian.geodesics import geodesic
-
-                times = trial_steps / s  # rescaling lemma: γ_{Q, s_k d}(1) = γ_{Q, s d}(s_k / s)
-                geo = geodesic(metric, Q, s * d, 1.0, times=times[::-1], free=free,
-                               **retraction)
-                geo_points = list(geo.points[::-1])
-            except IntegrationError as exc:
-                # the geodesic could not be integrated up to t = 1 (e.g. with β3 = 0 it
-                # runs the boundary into itself): the trial steps it did reach are valid
-                # retraction trials, the longer ones are skipped
-                logger.warning("iteration %d: exponential map failed (%s)", n, exc)
-                part = getattr(exc, "partial", None)
-                if part is not None:
-                    geo_points[len(trial_steps) - len(part.times):] = list(part.points[::-1])
+            # rescaling lemma: R_Q(s_k d) = R_Q((s_k / s) · s d) for the exponential map;
+            # the second-order retraction has the same property
+            geo_points = retract(Q, s * d, trial_steps / s)[0]
             timer.add("retraction", t_r)
-        s_max = np.inf if use_exp else max_travel_step(Q, tri, d)
+        s_max = np.inf if retract is not None else max_travel_step(Q, tri, d)
         accepted = None
         backtracks = rejected = 0
         t_b = time.perf_counter()
@@ -379,7 +410,7 @@ def optimize(
             if s_k >= s_max:
                 backtracks += 1
                 continue
-            Qt = geo_points[k] if use_exp else Q + s_k * d
+            Qt = geo_points[k] if retract is not None else Q + s_k * d
             if Qt is None or np.any(signed_areas(Qt, tri) <= 0):
                 backtracks += 1
                 rejected += 1

@@ -144,3 +144,16 @@ def test_metric_penalty_is_refused_where_it_has_no_effect(tmp_path, capsys):
     assert main(["optimize", "-o", str(out), "--variant", "complete-euclidean",
                  "--metric-penalty", "10,1,0,1.46", "--max-iter", "2", "--no-plots"]) == 1
     assert "not converged" in capsys.readouterr().err  # it ran (2 iterations)
+
+
+def test_retraction_is_refused_where_it_has_no_effect(tmp_path, capsys):
+    """--retraction belongs to complete-complete: with a straight-line variant it is
+    refused before any work; with complete-complete the exponential map runs."""
+    out = tmp_path / "o"
+    assert main(["optimize", "-o", str(out), "--retraction", "exp"]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--retraction" in err and "elasticity-euclidean" in err
+    assert not out.exists()
+    assert main(["optimize", "-o", str(out), "--variant", "complete-complete", "--retraction",
+                 "exp", "--max-iter", "2", "--no-plots", "--json"]) == 1
+    assert "not converged" in capsys.readouterr().err  # it ran (2 iterations)

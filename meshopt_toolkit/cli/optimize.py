@@ -27,8 +27,9 @@ HELP = "shape optimization: minimize ∫y (P1 Poisson) + f2 over admissible mesh
 
 DEFAULT_MESH = "disc_146.msh"
 #: options generated from the filter's parameters (one schema: cli/_params.py)
-OPTIONS = {"variant": "--variant", "method": "--method", "memory": "--memory",
-           "rhs": "--rhs", "max_iterations": "--max-iter", "tolerance": "--tol"}
+OPTIONS = {"variant": "--variant", "method": "--method", "retraction": "--retraction",
+           "memory": "--memory", "rhs": "--rhs", "max_iterations": "--max-iter",
+           "tolerance": "--tol"}
 OUTPUT_NAMES = ("history.csv", "history.json", "summary.json", "mesh.png", "history.png")
 
 logger = logging.getLogger(__name__)
@@ -101,7 +102,7 @@ def run(args: argparse.Namespace) -> int:
     from .. import io
     from ..datasets import data_path
     from ..filters.shape_optimization import ShapeOptimization
-    from ..optimize import DEFAULT_PENALTY_BETA, VARIANT_PARTS, optimize
+    from ..optimize import DEFAULT_PENALTY_BETA, DEFAULT_RETRACTION, VARIANT_PARTS, optimize
     from ..fem.poisson import PoissonObjective
     from ..progress import ProgressBar
 
@@ -109,6 +110,9 @@ def run(args: argparse.Namespace) -> int:
     if args.metric_penalty is not None and VARIANT_PARTS[args.variant][0] != "complete":
         raise OptionError(f"--metric-penalty sets the complete metric's β: it has no effect "
                           f"with --variant {args.variant}")
+    if args.retraction != DEFAULT_RETRACTION and not VARIANT_PARTS[args.variant][1]:
+        raise OptionError(f"--retraction applies to complete-complete; --variant {args.variant} "
+                          "moves along straight lines")
     input_path = Path(args.mesh) if args.mesh else data_path(DEFAULT_MESH)
     mesh = io.load(input_path).as_planar()
     penalty = args.penalty if args.penalty is not None else DEFAULT_PENALTY_BETA
@@ -132,7 +136,7 @@ def run(args: argparse.Namespace) -> int:
         with bar:
             result = optimize(
                 mesh, objective, variant=args.variant, method=args.method,
-                penalty_beta=penalty, metric_beta=args.metric_penalty, fixed=fixed,
+                retraction=args.retraction, penalty_beta=penalty, metric_beta=args.metric_penalty, fixed=fixed,
                 max_iter=args.max_iterations, tol=args.tolerance or None,
                 ftol=args.tolerance or None,
                 gtol=args.gtol if args.gtol > 0 else None, memory=args.memory, callback=callback,

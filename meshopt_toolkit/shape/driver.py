@@ -5,9 +5,9 @@ Per iteration: the derivative ``P = dF(Q)`` (already known from the line search)
 gradient ``G_Q⁻¹P`` (its norm is the stopping quantity), the direction
 (:mod:`.directions`), the line search (:mod:`.linesearch`) along the variant's
 retraction — ``Q + t d`` with trials capped at ``segment_fraction`` of the first
-degeneracy along the line (:func:`.problem.segment_limit`), or the exponential map of the
-complete metric (one geodesic integration per trial, the Wolfe slope from the geodesic's
-velocity) — then the curvature pair (L-BFGS) and the stopping tests.
+degeneracy along the line (:func:`.problem.segment_limit`), or a retraction of the
+complete metric (:mod:`meshopt_toolkit.riemannian.retractions`; the Wolfe slope from the
+retraction curve's velocity) — then the curvature pair (L-BFGS) and the stopping tests.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import time
 
 import numpy as np
 
-from ..errors import IntegrationError, NotAdmissibleError, OptimizationError
+from ..errors import OptimizationError
 from ..kernels.triangles import quality_summary
 from .directions import LBFGSMemory, hestenes_stiefel_plus
 from .linesearch import wolfe_line_search
@@ -41,8 +41,7 @@ def run_descent(
     *,
     method: str,
     variant: str,
-    use_exp: bool,
-    exp_options: dict,
+    retraction,
     max_iter: int,
     gtol: float | None,
     ftol: float | None,
@@ -124,16 +123,15 @@ def run_descent(
                 t_init = 1.0 / dnorm
         else:
             t_init = 1.0 / dnorm
-        ls = _line_search(problem, Q, d, F, slope, t_init, use_exp=use_exp, exp_options=exp_options,
-                          c1=c1, c2=c2, segment_fraction=segment_fraction, min_step=min_step,
+        ls = _line_search(problem, Q, d, F, slope, t_init, retraction=retraction, c1=c1, c2=c2, segment_fraction=segment_fraction, min_step=min_step,
                           timer=timer)
         if not ls.success and not (d_prev is None and lbfgs is not None and not lbfgs.pairs):
             # the quasi-Newton / CG direction failed: retry along −grad F before giving up
             if lbfgs is not None:
                 lbfgs.clear()
             d, slope = -grad, -gnorm * gnorm
-            ls = _line_search(problem, Q, d, F, slope, 1.0 / gnorm, use_exp=use_exp,
-                              exp_options=exp_options, c1=c1, c2=c2,
+            ls = _line_search(problem, Q, d, F, slope, 1.0 / gnorm, retraction=retraction,
+                              c1=c1, c2=c2,
                               segment_fraction=segment_fraction, min_step=min_step, timer=timer)
         if not ls.success:
             status = "step_too_small"
@@ -179,23 +177,16 @@ def run_descent(
     )
 
 
-def _line_search(problem, Q, d, F, slope, t_init, *, use_exp, exp_options, c1, c2,
-                 segment_fraction, min_step, timer):
-    """Weak-Wolfe search along the variant's retraction; payload ``(Q_t, j_t, P_t)``."""
-    if use_exp:
-        from ..riemannian.geodesics import geodesic
-
+def _line_search(problem, Q, d, F, slope, t_init, *, retraction, c1, c2, segment_fraction,
+                 min_step, timer):
+    """Weak-Wolfe search along the variant's retraction (None: the straight line, capped
+    by :func:`segment_limit`); payload ``(Q_t, j_t, P_t)``."""
+    if retraction is not None:
         def point(t):
             t0 = time.perf_counter()
-            try:
-                geo = geodesic(problem.metric, Q, d, t, times=[t], free=problem.free,
-                               **exp_options)
-            except (IntegrationError, NotAdmissibleError) as exc:
-                logger.debug("exponential map to t = %.3g failed: %s", t, exc)
-                return None, None
-            finally:
-                timer.add("retraction", t0)
-            return geo.points[-1], geo.velocities[-1]
+            points, velocities = retraction(Q, d, [t])
+            timer.add("retraction", t0)
+            return points[0], velocities[0]
 
         t_max = math.inf
     else:
