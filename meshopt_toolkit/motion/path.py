@@ -173,10 +173,12 @@ class _Path:
         K, w = self.K, self.metric.row_weights
         sK = np.sqrt(K)
         phis, blocks = [], []
-        for Q in frames:
+        for k, Q in enumerate(frames):
             if jacobian:
                 phi, jb = self.metric.strain.values_and_jacobian(Q)
                 blocks.append(jb)
+            elif k == 0 and self.anchor_strain is not None:
+                phi = self.anchor_strain  # φ(Q_0) is replaced below: not evaluated
             else:
                 phi = self.metric.strain.values(Q)
             phis.append(phi.ravel())
@@ -224,13 +226,14 @@ class _Path:
         sK = np.sqrt(K)
         strain = self.metric.strain
         w_rows = self.metric.row_weights.reshape(-1, 3)  # (T, 3)
-        phis, blocks = [], []
-        for Q in frames:
+        # frame 0 is fixed: only its strain enters (and not even that with an anchor)
+        phis = [strain.values(frames[0]) if self.anchor_strain is None
+                else self.anchor_strain.reshape(-1, 3)]
+        blocks: list = [None]
+        for Q in frames[1:]:
             phi, jb = strain.values_and_jacobian(Q)
             phis.append(phi)
             blocks.append(w_rows[:, :, None] * jb)  # W B_k, (T, 3, 6)
-        if self.anchor_strain is not None:
-            phis[0] = self.anchor_strain.reshape(-1, 3)
         res_m = [sK * self.sqrt_m * (frames[k + 1] - frames[k]).ravel() for k in range(K)]
         res_p = [sK * w_rows * (phis[k + 1] - phis[k]) for k in range(K)]  # (T, 3) each
         r = np.concatenate([np.concatenate([a, b.ravel()]) for a, b in zip(res_m, res_p)])
