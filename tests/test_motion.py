@@ -192,6 +192,32 @@ def test_normal_equations_match_the_sparse_jacobian(disc, rng, K, anchored, unev
     assert np.abs(H.toarray() - HJ).max() <= 1e-12 * np.abs(HJ).max()
 
 
+def test_frame_blocks_in_nested_dissection_order_solve_the_path_system(disc, rng):
+    """The frames' blocks factorized in nested-dissection order (``points`` given) are the
+    same preconditioner as in minimum-degree order: PCG reaches the direct solution."""
+    from scipy.sparse.linalg import spsolve
+
+    from meshopt_toolkit.motion.path import FrameBlocks
+
+    P, K = disc.points, 3
+    target = _random_admissible(disc, rng, 0.3)
+    frames = np.array([(1 - s) * P + s * target for s in np.linspace(0, 1, K + 1)])
+    free = np.ones((K + 1, disc.n_vertices), bool)
+    free[0] = False
+    free[:, np.unique(disc.boundary_edges)] = False
+    free[2, :4] = False  # frames of different sizes
+    path = _Path(GraphMetric(P, disc.triangles), frames, free, None)
+    _, g, H = path.normal_equations(frames)
+    exact = spsolve(H.tocsc(), g)
+    for points in (None, path.frame_points()):
+        blocks = FrameBlocks(path.frame_indices(), points)
+        x = blocks.solve(H, g, 1e-10)
+        assert np.abs(x - exact).max() <= 1e-8 * np.abs(exact).max()
+        assert (blocks.orderings is None) == (points is None)
+    with pytest.raises(ValueError, match="one vertex per two columns"):
+        FrameBlocks(path.frame_indices(), path.frame_points()[1:] + [P[:1]])
+
+
 def _straight_path(disc, rng, K=4):
     """Frames on the straight line to a random admissible target, ends fixed."""
     P = disc.points

@@ -28,7 +28,7 @@ import scipy.sparse as sp
 
 from .._typing import FloatArray, IntArray
 from ..cores import thread_budget
-from ..solvers import factorize_spd, pcg
+from ..solvers import factorize_spd, nested_dissection, pcg
 from .assembly import MeshPattern, PathPattern
 from .strain import TriangleDistortion
 
@@ -285,6 +285,10 @@ class _Path:
                 out.append(idx)
         return out
 
+    def frame_points(self) -> list[FloatArray]:
+        """Reference positions of each frame's free vertices, as :meth:`frame_indices`."""
+        return [self.metric.reference[f] for f in self.free[1:] if f.any()]
+
     def admissible(self, frames: FloatArray) -> bool:
         """Every triangle of every frame positive, no boundary self-intersection."""
         for Q in frames[1:]:
@@ -361,7 +365,8 @@ def discrete_geodesic(
     r, g, H = path.normal_equations(frames)
     E = float(r @ r)
     lam = 1e-3
-    blocks = FrameBlocks(path.frame_indices()) if factors is None else factors
+    blocks = (FrameBlocks(path.frame_indices(), path.frame_points()) if factors is None
+              else factors)
     if len(blocks.indices) != len(path.frame_indices()) or any(
             a.size != b.size for a, b in zip(blocks.indices, path.frame_indices())):
         raise ValueError("factors were made for other free coordinates")
@@ -442,10 +447,19 @@ class FrameBlocks:
     core (the results do not depend on it). Measured on the 225° twist of the 4.2k disc:
     block Jacobi needs 35 % fewer triangular solves than symmetric block Gauss–Seidel
     (which does two per block) and is 20 % faster.
+
+    ``indices`` are each frame's columns, its vertices' ``x, y`` in turn; with ``points``,
+    the positions of each frame's vertices (the reference mesh), the blocks are factorized
+    in :func:`.solvers.nested_dissection` order (computed once) instead of minimum degree:
+    about half the factorization time.
     """
 
-    def __init__(self, indices: list[np.ndarray]) -> None:
+    def __init__(self, indices: list[np.ndarray], points: list[FloatArray] | None = None):
+        if points is not None and [2 * len(p) for p in points] != [i.size for i in indices]:
+            raise ValueError("points must give one vertex per two columns of each frame")
         self.indices = indices
+        self.points = points
+        self.orderings: list | None = None
         self.factors: list = []
         self.stale = True
         large = len(indices) > 1 and min(i.size for i in indices) >= PARALLEL_FROM
@@ -454,10 +468,13 @@ class FrameBlocks:
 
     def factorize(self, A: sp.csr_matrix) -> None:
         if len(self.indices) == 1 and self.indices[0].size == A.shape[0]:
-            self.factors = [factorize_spd(A)]  # the frame's columns are all columns, in order
+            blocks = [A]  # the frame's columns are all columns, in order
         else:
             blocks = [A[idx][:, idx] for idx in self.indices]
-            self.factors = list(self._map(factorize_spd, blocks))
+        if self.points is not None and self.orderings is None:
+            self.orderings = [nested_dissection(p, B, 2) for p, B in zip(self.points, blocks)]
+        orderings = self.orderings or [None] * len(blocks)
+        self.factors = list(self._map(factorize_spd, blocks, orderings))
         self.stale = False
 
     def solve(self, A: sp.csr_matrix, b: FloatArray, rtol: float) -> FloatArray:
