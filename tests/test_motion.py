@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 from conftest import grid_mesh
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -216,6 +217,25 @@ def test_frame_blocks_in_nested_dissection_order_solve_the_path_system(disc, rng
         assert (blocks.orderings is None) == (points is None)
     with pytest.raises(ValueError, match="one vertex per two columns"):
         FrameBlocks(path.frame_indices(), path.frame_points()[1:] + [P[:1]])
+
+
+def test_frame_blocks_redo_a_failed_single_precision_solve_in_double(monkeypatch):
+    """Where CG does not converge on the float32 factors, the solve is redone (and the
+    next ones made) on double-precision factors."""
+    import meshopt_toolkit.motion.path as path_module
+    from meshopt_toolkit.solvers import factorize_spd
+
+    def float32_is_useless(A, ordering=None, single=False):  # stands for a bad float32 factor
+        return (lambda v: v.copy()) if single else factorize_spd(A, ordering)
+
+    monkeypatch.setattr(path_module, "factorize_spd", float32_is_useless)
+    n = 2000
+    A = (sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(n, n)) + 1e-8 * sp.eye(n)).tocsr()
+    b = np.random.default_rng(4).standard_normal(n)
+    blocks = path_module.FrameBlocks([np.arange(n)])
+    x = blocks.solve(A, b, 1e-10)
+    assert not blocks.single
+    assert np.linalg.norm(A @ x - b) <= 1e-9 * np.linalg.norm(b)
 
 
 def _straight_path(disc, rng, K=4):

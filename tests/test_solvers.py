@@ -90,3 +90,25 @@ def test_factorize_spd_with_an_ordering_matches_the_default():
     x = factorize_spd(A, nested_dissection(points, A))(b)
     assert np.allclose(x, factorize_spd(A)(b), rtol=1e-12, atol=1e-12)
     assert np.allclose(A @ x, b, rtol=1e-10, atol=1e-10)
+
+
+def test_factorize_spd_in_single_precision():
+    """float32 factors solve to float32 accuracy (a preconditioner for PCG in double), also
+    in nested-dissection order; a matrix that float32 rounding makes singular is factorized
+    in double precision instead."""
+    from meshopt_toolkit.solvers import nested_dissection
+
+    rng = np.random.default_rng(2)
+    points, A = _grid(20)
+    b = rng.standard_normal(A.shape[0])
+    exact = factorize_spd(A)(b)
+    for ordering in (None, nested_dissection(points, A)):
+        x = factorize_spd(A, ordering, single=True)(b)
+        assert x.dtype == np.float64
+        assert np.abs(x - exact).max() <= 1e-5 * np.abs(exact).max()
+        y, iterations, _ = pcg(A, b, factorize_spd(A, ordering, single=True), 1e-12, 50)
+        assert iterations <= 4 and np.allclose(y, exact, rtol=1e-10, atol=1e-10)
+    near = sp.csr_matrix(np.array([[1.0, 1 - 1e-9], [1 - 1e-9, 1.0]]))  # all 1 in float32
+    b2 = np.array([1.0, -1.0])
+    assert np.allclose(factorize_spd(near, single=True)(b2), np.linalg.solve(near.toarray(), b2),
+                       rtol=1e-6)

@@ -277,13 +277,8 @@ class _Path:
 
     def frame_indices(self) -> list[np.ndarray]:
         """Column indices of each frame's free coordinates (frames with none left out)."""
-        out = []
-        for k in range(1, self.K + 1):
-            idx = self.col[k].ravel()
-            idx = idx[idx >= 0]
-            if idx.size:
-                out.append(idx)
-        return out
+        cols = [c.ravel() for c in self.col[1:]]
+        return [c[c >= 0] for c in cols if (c >= 0).any()]
 
     def frame_points(self) -> list[FloatArray]:
         """Reference positions of each frame's free vertices, as :meth:`frame_indices`."""
@@ -460,6 +455,7 @@ class FrameBlocks:
         self.indices = indices
         self.points = points
         self.orderings: list | None = None
+        self.single = True  # factors in float32 (.solvers.factorize_spd) while CG converges
         self.factors: list = []
         self.stale = True
         large = len(indices) > 1 and min(i.size for i in indices) >= PARALLEL_FROM
@@ -474,16 +470,20 @@ class FrameBlocks:
         if self.points is not None and self.orderings is None:
             self.orderings = [nested_dissection(p, B, 2) for p, B in zip(self.points, blocks)]
         orderings = self.orderings or [None] * len(blocks)
-        self.factors = list(self._map(factorize_spd, blocks, orderings))
+        self.factors = [*self._map(factorize_spd, blocks, orderings, [self.single] * len(blocks))]
         self.stale = False
 
     def solve(self, A: sp.csr_matrix, b: FloatArray, rtol: float) -> FloatArray:
         """PCG on ``A x = b`` to the relative residual ``rtol``, factorizing first when
-        there is no factorization or it went stale; judges staleness afterwards."""
+        there is no factorization or it went stale; judges staleness afterwards. A solve
+        that fails on float32 factors is redone, in double precision from then on."""
         if self.stale or not self.factors:
             self.factorize(A)
-        x, iterations, _ = pcg(A, b, self.preconditioner(), rtol,
-                               maxiter=max(200, b.size // 2_000))
+        x, iterations, residual = pcg(A, b, self.preconditioner(), rtol,
+                                      maxiter=max(200, b.size // 2_000))
+        if residual > rtol and self.single:
+            self.single, self.stale = False, True
+            return self.solve(A, b, rtol)
         self.stale = iterations > REFACTOR_AFTER_CG
         return x
 
