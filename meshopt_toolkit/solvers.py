@@ -8,20 +8,23 @@ package's path and continuation systems. Factorize once, reuse the returned solv
 
 from __future__ import annotations
 
+import hashlib
 import importlib.util
 import logging
+import threading
 from collections.abc import Callable
 
 import numpy as np
 import scipy.sparse as sp
 
 from ._linalg import dot
+from ._typing import FloatArray, IntArray
 from .errors import MeshoptError
-from ._typing import FloatArray
 
 logger = logging.getLogger(__name__)
 
 SOLVERS = ("auto", "direct", "amg")
+_ORDERINGS_LOCK = threading.Lock()  # nested_dissection may be called from threads
 
 
 def choose_method(method: str, n_unknowns: int, amg_from: int) -> str:
@@ -51,17 +54,120 @@ def choose_method(method: str, n_unknowns: int, amg_from: int) -> str:
     return "amg"
 
 
-def factorize_spd(A: sp.spmatrix) -> Callable[[FloatArray], FloatArray]:
+def factorize_spd(A: sp.spmatrix, ordering: IntArray | None = None, single: bool = False
+                  ) -> Callable[[FloatArray], FloatArray]:
     """SuperLU factorization of an SPD matrix, returned as its ``solve``.
 
-    Symmetric mode, no pivoting (an SPD matrix needs none) and minimum-degree ordering on
-    ``A + Aᵀ``: about half the fill and time of SuperLU's general defaults.
+    Symmetric mode, no pivoting (an SPD matrix needs none) and, without ``ordering``,
+    minimum-degree ordering on ``A + Aᵀ``: about half the fill and time of SuperLU's
+    general defaults.
+
+    Parameters
+    ----------
+    A : (n, n) sparse SPD matrix
+    ordering : (n,) int array, optional
+        A fill-reducing permutation (new → old, e.g. from :func:`nested_dissection`) used
+        instead of minimum degree: the factorization is of ``A[ordering][:, ordering]``.
+    single : bool
+        Factorize and solve in single precision (the solve takes and returns float64):
+        for a preconditioner, where float32 accuracy is enough. Half the memory traffic:
+        on the motion's Gauss–Newton matrices (42.6k triangles) factorization and
+        triangular solves take about 25 % less time, with the same CG iterations.
+        Falls back to double precision where rounding to float32 makes ``A`` singular.
     """
     from scipy.sparse.linalg import splu
 
-    lu = splu(sp.csc_matrix(A), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-              options={"SymmetricMode": True})
-    return lu.solve
+    options = {"diag_pivot_thresh": 0.0, "options": {"SymmetricMode": True}}
+    p = np.arange(A.shape[0]) if ordering is None else np.asarray(ordering)
+    spec = "MMD_AT_PLUS_A" if ordering is None else "NATURAL"
+    permuted = sp.csc_matrix(A if ordering is None else sp.csr_matrix(A)[p][:, p])
+    dtype = np.float32 if single else np.float64
+    try:
+        lu = splu(permuted.astype(dtype), permc_spec=spec, **options)
+    except RuntimeError:  # exactly singular (in float32: a double-precision fallback)
+        if not single:
+            raise
+        return factorize_spd(A, ordering)
+
+    def solve(b: FloatArray) -> FloatArray:
+        x = np.empty_like(b)
+        x[p] = lu.solve(b[p].astype(dtype, copy=False))
+        return x
+
+    return solve
+
+
+_ORDERINGS: dict = {}  # the last few nested-dissection orderings, by their inputs
+
+
+def nested_dissection(points: FloatArray, graph: sp.spmatrix, block: int = 1, leaf: int = 16
+                      ) -> IntArray:
+    """Geometric nested dissection of a mesh graph: a fill-reducing ordering for
+    :func:`factorize_spd`.
+
+    The vertices are split at the median of their longer extent; the vertices of the
+    first half adjacent to the second separate them and are numbered last, after both
+    halves (ordered the same way, down to ``leaf`` vertices). On planar meshes this
+    gives less fill than minimum degree and SuperLU factorizes much faster (the
+    motion's Gauss–Newton matrices, 2 × 2 blocks per vertex: 42.6k triangles 0.18 s
+    against 0.31 s with 11 % less fill, 106k 0.62–0.83 s against 1.22–1.66 s with 17 %
+    less; triangular solves as fast). The result depends only on the inputs and is kept
+    for the next calls with the same ones (the rounds of a computation).
+
+    Parameters
+    ----------
+    points : (n, 2) float array
+        Vertex positions (any embedding of the graph that is close to planar).
+    graph : (block·n, block·n) sparse matrix
+        Its nonzero pattern is the (symmetric) adjacency; with ``block > 1``, of the
+        vertices' unknowns, ``block`` consecutive ones per vertex (``x, y`` interleaved).
+    block : int
+        Unknowns per vertex: they are kept together, in their order.
+    leaf : int
+        Parts of at most this many vertices are not split further.
+
+    Returns
+    -------
+    (block·n,) int array: the ordering of the unknowns, new → old.
+    """
+    points = np.asarray(points, float)
+    adjacency = sp.csr_matrix(graph)[::block, ::block]
+    key = hashlib.blake2b(points.tobytes() + adjacency.indptr.tobytes()
+                          + adjacency.indices.tobytes() + bytes(f"{block} {leaf}", "ascii")
+                          ).digest()
+    with _ORDERINGS_LOCK:
+        cached = _ORDERINGS.get(key)
+    if cached is not None:
+        return cached
+    side = np.zeros(points.shape[0], np.int8)  # scratch: 2 marks the current second half
+    parts: list[IntArray] = []
+
+    def dissect(nodes: IntArray) -> None:
+        if nodes.size <= leaf:
+            parts.append(nodes)
+            return
+        P = points[nodes]
+        axis = int(np.argmax(P.max(axis=0) - P.min(axis=0)))
+        ranked = nodes[np.argsort(P[:, axis], kind="stable")]
+        first, second = ranked[: nodes.size // 2], ranked[nodes.size // 2:]
+        side[second] = 2
+        rows = adjacency[first]
+        touches = np.zeros(first.size, bool)
+        touches[np.repeat(np.arange(first.size), np.diff(rows.indptr))[
+            side[rows.indices] == 2]] = True
+        side[second] = 0
+        dissect(np.sort(first[~touches]))
+        dissect(np.sort(second))
+        parts.append(first[touches])
+
+    dissect(np.arange(points.shape[0]))
+    vertices = np.concatenate(parts)
+    order = (block * vertices[:, None] + np.arange(block)).ravel()
+    with _ORDERINGS_LOCK:
+        if len(_ORDERINGS) >= 4:
+            _ORDERINGS.pop(next(iter(_ORDERINGS)))
+        _ORDERINGS[key] = order
+    return order
 
 
 def pcg(A, b: FloatArray, precondition: Callable[[FloatArray], FloatArray], rtol: float,

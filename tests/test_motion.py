@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 from conftest import grid_mesh
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -190,6 +191,51 @@ def test_normal_equations_match_the_sparse_jacobian(disc, rng, K, anchored, unev
     gJ, HJ = J.T @ r, (J.T @ J).toarray()
     assert np.abs(g - gJ).max() <= 1e-12 * np.abs(gJ).max()
     assert np.abs(H.toarray() - HJ).max() <= 1e-12 * np.abs(HJ).max()
+
+
+def test_frame_blocks_in_nested_dissection_order_solve_the_path_system(disc, rng):
+    """The frames' blocks factorized in nested-dissection order (``points`` given) are the
+    same preconditioner as in minimum-degree order: PCG reaches the direct solution."""
+    from scipy.sparse.linalg import spsolve
+
+    from meshopt_toolkit.motion.path import FrameBlocks
+
+    P, K = disc.points, 3
+    target = _random_admissible(disc, rng, 0.3)
+    frames = np.array([(1 - s) * P + s * target for s in np.linspace(0, 1, K + 1)])
+    free = np.ones((K + 1, disc.n_vertices), bool)
+    free[0] = False
+    free[:, np.unique(disc.boundary_edges)] = False
+    free[2, :4] = False  # frames of different sizes
+    path = _Path(GraphMetric(P, disc.triangles), frames, free, None)
+    _, g, H = path.normal_equations(frames)
+    exact = spsolve(H.tocsc(), g)
+    for points in (None, path.frame_points()):
+        blocks = FrameBlocks(path.frame_indices(), points)
+        x = blocks.solve(H, g, 1e-10)
+        assert np.abs(x - exact).max() <= 1e-8 * np.abs(exact).max()
+        assert (blocks.orderings is None) == (points is None)
+    with pytest.raises(ValueError, match="one vertex per two columns"):
+        FrameBlocks(path.frame_indices(), path.frame_points()[1:] + [P[:1]])
+
+
+def test_frame_blocks_redo_a_failed_single_precision_solve_in_double(monkeypatch):
+    """Where CG does not converge on the float32 factors, the solve is redone (and the
+    next ones made) on double-precision factors."""
+    import meshopt_toolkit.motion.path as path_module
+    from meshopt_toolkit.solvers import factorize_spd
+
+    def float32_is_useless(A, ordering=None, single=False):  # stands for a bad float32 factor
+        return (lambda v: v.copy()) if single else factorize_spd(A, ordering)
+
+    monkeypatch.setattr(path_module, "factorize_spd", float32_is_useless)
+    n = 2000
+    A = (sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(n, n)) + 1e-8 * sp.eye(n)).tocsr()
+    b = np.random.default_rng(4).standard_normal(n)
+    blocks = path_module.FrameBlocks([np.arange(n)])
+    x = blocks.solve(A, b, 1e-10)
+    assert not blocks.single
+    assert np.linalg.norm(A @ x - b) <= 1e-9 * np.linalg.norm(b)
 
 
 def _straight_path(disc, rng, K=4):

@@ -69,3 +69,64 @@ def test_amg_pcg_solve_reaches_rtol_or_says_it_did_not():
     assert np.linalg.norm(grid @ x - b) <= 1e-10 * np.linalg.norm(b)
     with pytest.raises(MeshoptError, match="did not converge"):
         amg_pcg_solve(grid, ml, 1e-14, maxiter=2)(b)
+
+
+def _grid(n: int) -> tuple[np.ndarray, sp.csr_matrix]:
+    """An ``n × n`` grid's vertices and its 5-point Laplacian (plus a shift)."""
+    x, y = np.meshgrid(np.arange(n, dtype=float), np.arange(n, dtype=float))
+    points = np.c_[x.ravel(), y.ravel()]
+    L1 = _laplacian(n, 0.0)
+    A = sp.kron(sp.eye(n), L1) + sp.kron(L1, sp.eye(n)) + 0.01 * sp.eye(n * n)
+    return points, A.tocsr()
+
+
+def test_nested_dissection_is_a_kept_permutation_with_less_fill():
+    from scipy.sparse.linalg import splu
+
+    from meshopt_toolkit.solvers import nested_dissection
+
+    points, A = _grid(40)
+    order = nested_dissection(points, A)
+    assert np.array_equal(np.sort(order), np.arange(len(points)))
+    assert nested_dissection(points, A) is order  # kept for the same inputs
+    permuted = sp.csc_matrix(A[order][:, order])
+    nd = splu(permuted, permc_spec="NATURAL", diag_pivot_thresh=0.0,
+              options={"SymmetricMode": True})
+    natural = splu(A.tocsc(), permc_spec="NATURAL", diag_pivot_thresh=0.0,
+                   options={"SymmetricMode": True})
+    assert nd.L.nnz < 0.5 * natural.L.nnz
+    pairs = nested_dissection(points, sp.kron(A, np.ones((2, 2))), block=2)
+    assert np.array_equal(pairs, np.stack([2 * order, 2 * order + 1], axis=1).ravel())
+
+
+def test_factorize_spd_with_an_ordering_matches_the_default():
+    from meshopt_toolkit.solvers import nested_dissection
+
+    rng = np.random.default_rng(1)
+    points, A = _grid(25)
+    b = rng.standard_normal(A.shape[0])
+    x = factorize_spd(A, nested_dissection(points, A))(b)
+    assert np.allclose(x, factorize_spd(A)(b), rtol=1e-12, atol=1e-12)
+    assert np.allclose(A @ x, b, rtol=1e-10, atol=1e-10)
+
+
+def test_factorize_spd_in_single_precision():
+    """float32 factors solve to float32 accuracy (a preconditioner for PCG in double), also
+    in nested-dissection order; a matrix that float32 rounding makes singular is factorized
+    in double precision instead."""
+    from meshopt_toolkit.solvers import nested_dissection
+
+    rng = np.random.default_rng(2)
+    points, A = _grid(20)
+    b = rng.standard_normal(A.shape[0])
+    exact = factorize_spd(A)(b)
+    for ordering in (None, nested_dissection(points, A)):
+        x = factorize_spd(A, ordering, single=True)(b)
+        assert x.dtype == np.float64
+        assert np.abs(x - exact).max() <= 1e-5 * np.abs(exact).max()
+        y, iterations, _ = pcg(A, b, factorize_spd(A, ordering, single=True), 1e-12, 50)
+        assert iterations <= 4 and np.allclose(y, exact, rtol=1e-10, atol=1e-10)
+    near = sp.csr_matrix(np.array([[1.0, 1 - 1e-9], [1 - 1e-9, 1.0]]))  # all 1 in float32
+    b2 = np.array([1.0, -1.0])
+    assert np.allclose(factorize_spd(near, single=True)(b2), np.linalg.solve(near.toarray(), b2),
+                       rtol=1e-6)

@@ -111,7 +111,8 @@ def continuation_path(
     s_now = float(times[0])
     frames, out_times, secs = [Q.copy()], [s_now], []
     nit = splits = 0
-    factors = FrameBlocks([np.arange(2 * int(free[1].sum()))])  # shared by every step
+    # shared by every step
+    factors = FrameBlocks([np.arange(2 * int(free[1].sum()))], [metric.reference[free[1]]])
     t0 = _time.perf_counter()
     for s_goal in times[1:]:
         while s_now < s_goal:

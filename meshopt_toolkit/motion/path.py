@@ -28,7 +28,7 @@ import scipy.sparse as sp
 
 from .._typing import FloatArray, IntArray
 from ..cores import thread_budget
-from ..solvers import factorize_spd, pcg
+from ..solvers import factorize_spd, nested_dissection, pcg
 from .assembly import MeshPattern, PathPattern
 from .strain import TriangleDistortion
 
@@ -173,10 +173,12 @@ class _Path:
         K, w = self.K, self.metric.row_weights
         sK = np.sqrt(K)
         phis, blocks = [], []
-        for Q in frames:
+        for k, Q in enumerate(frames):
             if jacobian:
                 phi, jb = self.metric.strain.values_and_jacobian(Q)
                 blocks.append(jb)
+            elif k == 0 and self.anchor_strain is not None:
+                phi = self.anchor_strain  # φ(Q_0) is replaced below: not evaluated
             else:
                 phi = self.metric.strain.values(Q)
             phis.append(phi.ravel())
@@ -224,13 +226,14 @@ class _Path:
         sK = np.sqrt(K)
         strain = self.metric.strain
         w_rows = self.metric.row_weights.reshape(-1, 3)  # (T, 3)
-        phis, blocks = [], []
-        for Q in frames:
+        # frame 0 is fixed: only its strain enters (and not even that with an anchor)
+        phis = [strain.values(frames[0]) if self.anchor_strain is None
+                else self.anchor_strain.reshape(-1, 3)]
+        blocks: list = [None]
+        for Q in frames[1:]:
             phi, jb = strain.values_and_jacobian(Q)
             phis.append(phi)
             blocks.append(w_rows[:, :, None] * jb)  # W B_k, (T, 3, 6)
-        if self.anchor_strain is not None:
-            phis[0] = self.anchor_strain.reshape(-1, 3)
         res_m = [sK * self.sqrt_m * (frames[k + 1] - frames[k]).ravel() for k in range(K)]
         res_p = [sK * w_rows * (phis[k + 1] - phis[k]) for k in range(K)]  # (T, 3) each
         r = np.concatenate([np.concatenate([a, b.ravel()]) for a, b in zip(res_m, res_p)])
@@ -274,13 +277,12 @@ class _Path:
 
     def frame_indices(self) -> list[np.ndarray]:
         """Column indices of each frame's free coordinates (frames with none left out)."""
-        out = []
-        for k in range(1, self.K + 1):
-            idx = self.col[k].ravel()
-            idx = idx[idx >= 0]
-            if idx.size:
-                out.append(idx)
-        return out
+        cols = [c.ravel() for c in self.col[1:]]
+        return [c[c >= 0] for c in cols if (c >= 0).any()]
+
+    def frame_points(self) -> list[FloatArray]:
+        """Reference positions of each frame's free vertices, as :meth:`frame_indices`."""
+        return [self.metric.reference[f] for f in self.free[1:] if f.any()]
 
     def admissible(self, frames: FloatArray) -> bool:
         """Every triangle of every frame positive, no boundary self-intersection."""
@@ -358,7 +360,8 @@ def discrete_geodesic(
     r, g, H = path.normal_equations(frames)
     E = float(r @ r)
     lam = 1e-3
-    blocks = FrameBlocks(path.frame_indices()) if factors is None else factors
+    blocks = (FrameBlocks(path.frame_indices(), path.frame_points()) if factors is None
+              else factors)
     if len(blocks.indices) != len(path.frame_indices()) or any(
             a.size != b.size for a, b in zip(blocks.indices, path.frame_indices())):
         raise ValueError("factors were made for other free coordinates")
@@ -439,10 +442,20 @@ class FrameBlocks:
     core (the results do not depend on it). Measured on the 225° twist of the 4.2k disc:
     block Jacobi needs 35 % fewer triangular solves than symmetric block Gauss–Seidel
     (which does two per block) and is 20 % faster.
+
+    ``indices`` are each frame's columns, its vertices' ``x, y`` in turn; with ``points``,
+    the positions of each frame's vertices (the reference mesh), the blocks are factorized
+    in :func:`.solvers.nested_dissection` order (computed once) instead of minimum degree:
+    about half the factorization time.
     """
 
-    def __init__(self, indices: list[np.ndarray]) -> None:
+    def __init__(self, indices: list[np.ndarray], points: list[FloatArray] | None = None):
+        if points is not None and [2 * len(p) for p in points] != [i.size for i in indices]:
+            raise ValueError("points must give one vertex per two columns of each frame")
         self.indices = indices
+        self.points = points
+        self.orderings: list | None = None
+        self.single = True  # factors in float32 (.solvers.factorize_spd) while CG converges
         self.factors: list = []
         self.stale = True
         large = len(indices) > 1 and min(i.size for i in indices) >= PARALLEL_FROM
@@ -451,19 +464,26 @@ class FrameBlocks:
 
     def factorize(self, A: sp.csr_matrix) -> None:
         if len(self.indices) == 1 and self.indices[0].size == A.shape[0]:
-            self.factors = [factorize_spd(A)]  # the frame's columns are all columns, in order
+            blocks = [A]  # the frame's columns are all columns, in order
         else:
             blocks = [A[idx][:, idx] for idx in self.indices]
-            self.factors = list(self._map(factorize_spd, blocks))
+        if self.points is not None and self.orderings is None:
+            self.orderings = [nested_dissection(p, B, 2) for p, B in zip(self.points, blocks)]
+        orderings = self.orderings or [None] * len(blocks)
+        self.factors = [*self._map(factorize_spd, blocks, orderings, [self.single] * len(blocks))]
         self.stale = False
 
     def solve(self, A: sp.csr_matrix, b: FloatArray, rtol: float) -> FloatArray:
         """PCG on ``A x = b`` to the relative residual ``rtol``, factorizing first when
-        there is no factorization or it went stale; judges staleness afterwards."""
+        there is no factorization or it went stale; judges staleness afterwards. A solve
+        that fails on float32 factors is redone, in double precision from then on."""
         if self.stale or not self.factors:
             self.factorize(A)
-        x, iterations, _ = pcg(A, b, self.preconditioner(), rtol,
-                               maxiter=max(200, b.size // 2_000))
+        x, iterations, residual = pcg(A, b, self.preconditioner(), rtol,
+                                      maxiter=max(200, b.size // 2_000))
+        if residual > rtol and self.single:
+            self.single, self.stale = False, True
+            return self.solve(A, b, rtol)
         self.stale = iterations > REFACTOR_AFTER_CG
         return x
 
