@@ -222,20 +222,36 @@ def test_frame_blocks_in_nested_dissection_order_solve_the_path_system(disc, rng
 def test_frame_blocks_redo_a_failed_single_precision_solve_in_double(monkeypatch):
     """Where CG does not converge on the float32 factors, the solve is redone (and the
     next ones made) on double-precision factors."""
-    import meshopt_toolkit.motion.path as path_module
+    import meshopt_toolkit.motion.frame_blocks as frame_blocks
     from meshopt_toolkit.solvers import factorize_spd
 
     def float32_is_useless(A, ordering=None, single=False):  # stands for a bad float32 factor
         return (lambda v: v.copy()) if single else factorize_spd(A, ordering)
 
-    monkeypatch.setattr(path_module, "factorize_spd", float32_is_useless)
+    monkeypatch.setattr(frame_blocks, "factorize_spd", float32_is_useless)
     n = 2000
     A = (sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(n, n)) + 1e-8 * sp.eye(n)).tocsr()
     b = np.random.default_rng(4).standard_normal(n)
-    blocks = path_module.FrameBlocks([np.arange(n)])
+    blocks = frame_blocks.FrameBlocks([np.arange(n)])
     x = blocks.solve(A, b, 1e-10)
     assert not blocks.single
     assert np.linalg.norm(A @ x - b) <= 1e-9 * np.linalg.norm(b)
+
+
+def test_frame_blocks_solve_heavily_damped_systems_without_factorizing():
+    """From ``JACOBI_FROM`` damping on, CG with the diagonal reaches rtol and nothing is
+    factorized; below, the factorizations are made."""
+    from meshopt_toolkit.motion.frame_blocks import JACOBI_FROM, FrameBlocks
+
+    n = 2000
+    H = (sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(n, n)) + 1e-6 * sp.eye(n)).tocsr()
+    b = np.random.default_rng(5).standard_normal(n)
+    for damping, factorized in ((JACOBI_FROM, False), (1e-3, True)):
+        A = (H + sp.diags(damping * H.diagonal())).tocsr()
+        blocks = FrameBlocks([np.arange(n)])
+        x = blocks.solve(A, b, 1e-6, damping=damping)
+        assert bool(blocks.factors) == factorized
+        assert np.linalg.norm(A @ x - b) <= 1e-6 * np.linalg.norm(b)
 
 
 def _straight_path(disc, rng, K=4):

@@ -1,0 +1,125 @@
+"""The preconditioner of the path systems: block Jacobi over the frames, with kept
+(float32, nested-dissection ordered) factorizations, and plain Jacobi for heavily damped
+Levenberg–Marquardt steps."""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+import scipy.sparse as sp
+
+from .._typing import FloatArray
+from ..cores import thread_budget
+from ..solvers import factorize_spd, nested_dissection, pcg
+
+_LOCK = threading.Lock()  # guards the frame pool
+
+
+REFACTOR_AFTER_CG = 12  # CG iterations after which the kept factorizations are renewed
+
+#: Levenberg–Marquardt damping λ (of ``A = H + λ diag H``) from which a system is first
+#: tried by CG with the diagonal of ``A`` (a matrix product, no triangular solve, per
+#: iteration): the preconditioned spectrum lies in ``[λ, c + λ] / (1 + λ)``, ``c`` the
+#: largest eigenvalue of ``diag(H)^-1 H`` (a few, on a mesh). Measured on move's quality
+#: steps (λ ≈ 0.05–2 in most iterations): 4–17 iterations at rtol 1e-2 where the kept
+#: factorizations take about 10 triangular solves; the continuation's λ stay below.
+JACOBI_FROM = 0.05
+JACOBI_MAXITER = 50  # beyond this the factorizations are used instead
+
+
+#: frames of at least this many unknowns are factorized and solved in parallel threads
+#: (SuperLU releases the GIL; below this the threads' overhead outweighs the work)
+PARALLEL_FROM = 20_000
+
+
+_POOL: list[ThreadPoolExecutor] = []  # one pool for the process, made on first use
+
+
+def _frame_pool() -> ThreadPoolExecutor | None:
+    """Threads for :class:`FrameBlocks`, one per core this process may use (None on one)."""
+    with _LOCK:
+        if not _POOL:
+            cores = thread_budget()
+            _POOL.append(ThreadPoolExecutor(cores) if cores > 1 else None)
+        return _POOL[0]
+
+
+class FrameBlocks:
+    """Block Jacobi over the frames, for CG on the path system: ``P = D̃``, the diagonal
+    blocks (one per frame, mesh-sized) of a recent matrix, factorized.
+
+    The factorizations are kept across Levenberg–Marquardt iterations (and across the
+    problems of a continuation) until a CG solve needs more than ``REFACTOR_AFTER_CG``
+    iterations (a count, not a time: the decisions and so the results must not depend on
+    the machine's load). The frames' blocks are independent: with several frames of at
+    least ``PARALLEL_FROM`` unknowns they are factorized and solved in threads, one per
+    core (the results do not depend on it). Measured on the 225° twist of the 4.2k disc:
+    block Jacobi needs 35 % fewer triangular solves than symmetric block Gauss–Seidel
+    (which does two per block) and is 20 % faster.
+
+    ``indices`` are each frame's columns, its vertices' ``x, y`` in turn; with ``points``,
+    the positions of each frame's vertices (the reference mesh), the blocks are factorized
+    in :func:`.solvers.nested_dissection` order (computed once) instead of minimum degree:
+    about half the factorization time.
+    """
+
+    def __init__(self, indices: list[np.ndarray], points: list[FloatArray] | None = None):
+        if points is not None and [2 * len(p) for p in points] != [i.size for i in indices]:
+            raise ValueError("points must give one vertex per two columns of each frame")
+        self.indices = indices
+        self.points = points
+        self.orderings: list | None = None
+        self.single = True  # factors in float32 (.solvers.factorize_spd) while CG converges
+        self.factors: list = []
+        self.stale = True
+        large = len(indices) > 1 and min(i.size for i in indices) >= PARALLEL_FROM
+        pool = _frame_pool() if large else None
+        self._map = pool.map if pool is not None else map
+
+    def factorize(self, A: sp.csr_matrix) -> None:
+        if len(self.indices) == 1 and self.indices[0].size == A.shape[0]:
+            blocks = [A]  # the frame's columns are all columns, in order
+        else:
+            blocks = [A[idx][:, idx] for idx in self.indices]
+        if self.points is not None and self.orderings is None:
+            self.orderings = [nested_dissection(p, B, 2) for p, B in zip(self.points, blocks)]
+        orderings = self.orderings or [None] * len(blocks)
+        self.factors = [*self._map(factorize_spd, blocks, orderings, [self.single] * len(blocks))]
+        self.stale = False
+
+    def solve(self, A: sp.csr_matrix, b: FloatArray, rtol: float, damping: float = 0.0
+              ) -> FloatArray:
+        """PCG on ``A x = b`` to the relative residual ``rtol``, factorizing first when
+        there is no factorization or it went stale; judges staleness afterwards. A solve
+        that fails on float32 factors is redone, in double precision from then on. With
+        ``damping`` (λ of ``A = H + λ diag H``) from ``JACOBI_FROM`` on, CG with the
+        diagonal of ``A`` is tried first (up to ``JACOBI_MAXITER`` iterations)."""
+        if damping >= JACOBI_FROM:
+            diagonal = A.diagonal()
+            x, _, residual = pcg(A, b, lambda r: r / diagonal, rtol, JACOBI_MAXITER)
+            if residual <= rtol:
+                return x
+        if self.stale or not self.factors:
+            self.factorize(A)
+        x, iterations, residual = pcg(A, b, self.preconditioner(), rtol,
+                                      maxiter=max(200, b.size // 2_000))
+        if residual > rtol and self.single:
+            self.single, self.stale = False, True
+            return self.solve(A, b, rtol)
+        self.stale = iterations > REFACTOR_AFTER_CG
+        return x
+
+    def preconditioner(self) -> Callable[[FloatArray], FloatArray]:
+        idx, solves, run = self.indices, self.factors, self._map
+
+        def apply(v: FloatArray) -> FloatArray:
+            out = np.empty_like(v)
+            parts = run(lambda k: solves[k](v[idx[k]]), range(len(idx)))
+            for i, part in zip(idx, parts):
+                out[i] = part
+            return out
+
+        return apply
