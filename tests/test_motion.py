@@ -238,22 +238,6 @@ def test_frame_blocks_redo_a_failed_single_precision_solve_in_double(monkeypatch
     assert np.linalg.norm(A @ x - b) <= 1e-9 * np.linalg.norm(b)
 
 
-def test_frame_blocks_solve_heavily_damped_systems_without_factorizing():
-    """From ``JACOBI_FROM`` damping on, CG with the diagonal reaches rtol and nothing is
-    factorized; below, the factorizations are made."""
-    from meshopt_toolkit.motion.frame_blocks import JACOBI_FROM, FrameBlocks
-
-    n = 2000
-    H = (sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(n, n)) + 1e-6 * sp.eye(n)).tocsr()
-    b = np.random.default_rng(5).standard_normal(n)
-    for damping, factorized in ((JACOBI_FROM, False), (1e-3, True)):
-        A = (H + sp.diags(damping * H.diagonal())).tocsr()
-        blocks = FrameBlocks([np.arange(n)])
-        x = blocks.solve(A, b, 1e-6, damping=damping)
-        assert bool(blocks.factors) == factorized
-        assert np.linalg.norm(A @ x - b) <= 1e-6 * np.linalg.norm(b)
-
-
 def _straight_path(disc, rng, K=4):
     """Frames on the straight line to a random admissible target, ends fixed."""
     P = disc.points

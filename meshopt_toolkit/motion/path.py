@@ -382,7 +382,7 @@ def discrete_geodesic(
         accepted = False
         for _ in range(30):
             A = H + sp.diags(lam * (d + 1e-12 * d.max()))
-            step = blocks.solve(A, -g, cg_rtol, damping=lam)
+            step = blocks.solve(A, -g, cg_rtol)
             trial = path.with_unknowns(x + step)
             if path.admissible(trial):
                 r_t, _ = path.evaluate(trial, jacobian=False)
