@@ -8,6 +8,8 @@ descent's (must be within 2e-4), the ratios to steepest descent (targets ≤ 1/4
 iterations and ≤ 1/2 of the time for complete-euclidean, elasticity-euclidean and
 complete-complete), then the elasticity-euclidean L-BFGS iteration counts and final min AR
 on the bundled discs up to ``--max-vertices`` (a good metric: nearly mesh-independent).
+The complete-* rows add ``lbfgs/B=G``: L-BFGS without the default preconditioner
+(``lbfgs_preconditioner="none"``, ``H_0 = γ G⁻¹``; :mod:`meshopt_toolkit.shape.preconditioners`).
 
 ``--defaults``: what ``meshopt optimize MESH`` does on every bundled disc (146 to 13,586
 vertices; issue 17's criterion: converged and min AR ≥ ½ its initial value) — the
@@ -79,8 +81,12 @@ def table(max_vertices: int) -> None:
           f"{'Δ vs sd':>9} {'iter/sd':>8} {'s/sd':>6} {'minAR':>6} {'rej.pairs':>9}")
     for label, (variant, kw) in rows.items():
         base = None
-        for method in ("steepest", "lbfgs", "cg"):
-            res = solve(mesh, variant, method, **kw)
+        methods = ["steepest", "lbfgs", "cg"]
+        if variant.startswith("complete"):  # L-BFGS with H0 = γ G⁻¹ (no preconditioner)
+            methods.insert(2, "lbfgs/B=G")
+        for method in methods:
+            extra = {"lbfgs_preconditioner": "none"} if method == "lbfgs/B=G" else {}
+            res = solve(mesh, variant, method.split("/")[0], **kw, **extra)
             base = base or res
             last = res.history[-1]
             di, dt = res.nit / base.nit, res.seconds / base.seconds

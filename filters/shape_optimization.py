@@ -7,6 +7,7 @@ from meshopt_toolkit.expressions import DEFAULT_RHS
 from meshopt_toolkit.optimize import (DEFAULT_METHOD, DEFAULT_RETRACTION, DEFAULT_VARIANT, METHODS,
                                       RETRACTIONS, VARIANTS)
 from meshopt_toolkit.pipeline.filter import Filter, register
+from meshopt_toolkit.shape.preconditioners import DEFAULT_PRECONDITIONER, PRECONDITIONERS
 from meshopt_toolkit.pipeline.params import (
     EnumParam,
     ExpressionParam,
@@ -43,6 +44,10 @@ class ShapeOptimization(Filter):
         EnumParam("retraction", DEFAULT_RETRACTION, "complete-complete only: second-order "
                   "(Q + s d + s²A/2, one Hessian product per iteration) or exp (the thesis' "
                   "exponential map)", label="Retraction", choices=RETRACTIONS),
+        EnumParam("lbfgs_preconditioner", DEFAULT_PRECONDITIONER, "lbfgs only: initial "
+                  "inverse Hessian B⁻¹ of the two-loop recursion; penalty: f2's Hessian, "
+                  "elasticity: K + δM, none: the metric, auto: penalty for complete-* variants",
+                  label="L-BFGS preconditioner", choices=PRECONDITIONERS),
         IntParam("memory", 10, "L-BFGS memory (curvature pairs kept)", label="L-BFGS memory",
                  min=1, max=1000),
         ExpressionParam("rhs", DEFAULT_RHS, "right-hand side r(x1, x2) of -Δy = r; numbers, "
@@ -60,7 +65,9 @@ class ShapeOptimization(Filter):
     )
 
     def apply(self, document, *, variant: str = DEFAULT_VARIANT, method: str = DEFAULT_METHOD,
-              retraction: str = DEFAULT_RETRACTION, memory: int = 10, rhs: str = DEFAULT_RHS,
+              retraction: str = DEFAULT_RETRACTION,
+              lbfgs_preconditioner: str = DEFAULT_PRECONDITIONER, memory: int = 10,
+              rhs: str = DEFAULT_RHS,
               penalty: str = "", metric_penalty: str = "", max_iterations: int = 1000,
               tolerance: float = 1e-6) -> dict:
         from meshopt_toolkit.fem.poisson import PoissonObjective
@@ -73,7 +80,7 @@ class ShapeOptimization(Filter):
         beta = number_list(penalty, 4, "penalty") or DEFAULT_PENALTY_BETA
         result = optimize(
             mesh, PoissonObjective(mesh, rhs=rhs), variant=variant, method=method,
-            retraction=retraction, memory=memory,
+            retraction=retraction, memory=memory, lbfgs_preconditioner=lbfgs_preconditioner,
             penalty_beta=beta, metric_beta=number_list(metric_penalty, 4, "metric_penalty"),
             max_iter=max_iterations, tol=tolerance or None, ftol=tolerance or None,
         )

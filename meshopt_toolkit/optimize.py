@@ -251,6 +251,7 @@ def optimize(
     retraction: str | None = None,
     exp_options: dict | None = None,
     callback: Callable[[IterationRecord, FloatArray], bool | None] | None = None,
+    lbfgs_preconditioner: str = "auto",
 ) -> OptimizeResult:
     """Minimize ``F(Q) = j(Q) + f2(Q; Q0)`` over admissible meshes by a Riemannian
     descent method: L-BFGS, nonlinear CG or steepest descent (thesis algorithm 2, §6.4.1).
@@ -294,6 +295,14 @@ def optimize(
         :class:`~meshopt_toolkit.riemannian.geodesics.GeodesicOptions`, or
         ``{"options": GeodesicOptions(...)}``), on top of :data:`EXP_DEFAULTS`.
     callback : called as ``callback(record, Q)`` after each iteration; returning True stops.
+    lbfgs_preconditioner : the L-BFGS initial inverse Hessian ``H_0 = γ B⁻¹``
+        (:mod:`meshopt_toolkit.shape.preconditioners`): ``"none"`` (``B`` = the metric,
+        the Riemannian two-loop with ``H_0 = γ id``), ``"penalty"`` (``B`` ≈ the Hessian
+        of the penalty f2, refactorized every 5 iterations), ``"elasticity"`` (``B`` =
+        the elasticity matrix), or ``"auto"`` (default): ``"penalty"`` for the complete-*
+        variants with a penalty (β1 > 0), else ``"none"``. Table 6.4 set 2: complete-
+        complete L-BFGS 56 → 20 iterations (steepest descent 233), 247 → 46 on the
+        2198-vertex disc.
 
     Returns
     -------
@@ -307,6 +316,7 @@ def optimize(
         that moves along straight lines, or a mesh whose size is outside
         :data:`SIZE_RANGE`.
     """
+    from .shape.preconditioners import make_preconditioner
     from .shape.problem import ShapeProblem
 
     if variant not in VARIANTS:
@@ -334,6 +344,8 @@ def optimize(
     metric = _make_metric(variant, mesh, metric_beta, dict(metric_options or {}))
     retract = _make_retraction(retraction, metric, exp_options, free) if curved else None
     problem = ShapeProblem(objective, penalty, metric, tri, mesh.boundary_edges, free)
+    h0 = make_preconditioner(lbfgs_preconditioner, metric_kind=VARIANT_PARTS[variant][0],
+                             method=method, mesh=mesh, penalty=penalty, free=free)
     if method != "steepest":
         from .shape.driver import run_descent
 
@@ -342,6 +354,7 @@ def optimize(
             max_iter=max_iter,
             gtol=gtol, ftol=ftol, memory=memory, c1=sigma, c2=c2,
             segment_fraction=segment_fraction, min_step=min_step, callback=callback,
+            h0=h0,
         )
 
     def penalty_value(Q):

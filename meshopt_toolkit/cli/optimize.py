@@ -28,8 +28,8 @@ HELP = "shape optimization: minimize ∫y (P1 Poisson) + f2 over admissible mesh
 DEFAULT_MESH = "disc_146.msh"
 #: options generated from the filter's parameters (one schema: cli/_params.py)
 OPTIONS = {"variant": "--variant", "method": "--method", "retraction": "--retraction",
-           "memory": "--memory", "rhs": "--rhs", "max_iterations": "--max-iter",
-           "tolerance": "--tol"}
+           "lbfgs_preconditioner": "--lbfgs-preconditioner", "memory": "--memory",
+           "rhs": "--rhs", "max_iterations": "--max-iter", "tolerance": "--tol"}
 OUTPUT_NAMES = ("history.csv", "history.json", "summary.json", "mesh.png", "history.png")
 
 logger = logging.getLogger(__name__)
@@ -139,7 +139,8 @@ def run(args: argparse.Namespace) -> int:
                 retraction=args.retraction, penalty_beta=penalty, metric_beta=args.metric_penalty, fixed=fixed,
                 max_iter=args.max_iterations, tol=args.tolerance or None,
                 ftol=args.tolerance or None,
-                gtol=args.gtol if args.gtol > 0 else None, memory=args.memory, callback=callback,
+                gtol=args.gtol if args.gtol > 0 else None, memory=args.memory,
+                lbfgs_preconditioner=args.lbfgs_preconditioner, callback=callback,
             )
         summary = result.summary()
         summary.update(input=str(input_path), output=str(outdir / mesh_name),

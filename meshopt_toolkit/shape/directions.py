@@ -18,6 +18,8 @@ condition gives ``s·ŷ = t (φ'(t) − φ'(0)) ≥ (1 − c2) t |φ'(0)| > 0``:
 valid curvature pair and ``H_k`` stays positive definite. With the exponential map the
 identity is not the differentiated retraction; pairs with ``s·ŷ ≤ ε |s·P_k|`` are
 rejected (skipped, counted) so that ``H_k`` stays positive definite (cautious update).
+``direction(..., h0=B⁻¹)`` replaces ``G_{Q_k}⁻¹`` in ``H_0`` by another SPD operator
+(:mod:`.preconditioners`), a preconditioned L-BFGS with the metric kept everywhere else.
 """
 
 from __future__ import annotations
@@ -61,9 +63,14 @@ class LBFGSMemory:
         self.pairs.append((s, yhat, 1.0 / sy))
         return True
 
-    def direction(self, P: FloatArray, riesz: Riesz) -> FloatArray:
-        """``d = −H_k P`` by the two-loop recursion with ``H_0 = γ G⁻¹`` (steepest
-        descent ``−G⁻¹ P`` while the memory is empty)."""
+    def direction(self, P: FloatArray, riesz: Riesz, h0: Riesz | None = None) -> FloatArray:
+        """``d = −H_k P`` by the two-loop recursion with ``H_0 = γ G⁻¹`` (``−G⁻¹ P`` while
+        the memory is empty), or ``H_0 = γ B⁻¹`` with ``h0 = B⁻¹`` an SPD preconditioner
+        (:mod:`.preconditioners`; ``γ = s·ŷ / ŷ·B⁻¹ŷ``, ``−B⁻¹P`` while empty): the
+        Euclidean two-loop on covectors is valid with any SPD ``H_0``, and every ``H_k``
+        is SPD since every stored pair has ``s·ŷ > 0``, so ``d`` is a descent direction."""
+        if h0 is not None:
+            riesz = h0
         if not self.pairs:
             return -riesz(P)
         q = np.array(P, dtype=float)

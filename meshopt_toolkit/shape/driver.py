@@ -51,6 +51,7 @@ def run_descent(
     segment_fraction: float,
     min_step: float,
     callback,
+    h0=None,
 ):
     """Run L-BFGS (``method="lbfgs"``) or HS+ CG (``"cg"``); returns an OptimizeResult."""
     c2 = DEFAULT_C2[method] if c2 is None else float(c2)
@@ -96,7 +97,8 @@ def run_descent(
         n += 1
         restarted = False
         if lbfgs is not None:
-            d = lbfgs.direction(P, lambda X: problem.riesz(Q, X))
+            d = lbfgs.direction(P, lambda X: problem.riesz(Q, X),
+                                None if h0 is None else (lambda X: h0(Q, X)))
         elif d_prev is None:
             d = -grad
         else:
@@ -115,8 +117,8 @@ def run_descent(
             )
         timer.add("gradient", t0)
         dnorm = float(problem.metric.norm(Q, d))
-        if lbfgs is not None and lbfgs.pairs and not restarted:
-            t_init = 1.0
+        if lbfgs is not None and (lbfgs.pairs or h0 is not None) and not restarted:
+            t_init = 1.0  # a quasi-Newton step (H_0 = B⁻¹ scales the first one too)
         elif t_prev is not None and slope_prev is not None:
             t_init = t_prev * slope_prev / slope  # (6.22)
             if t_init * dnorm < 1e-4:
