@@ -301,7 +301,7 @@ def optimize(
         of the penalty f2, refactorized every 5 iterations), ``"elasticity"`` (``B`` =
         the elasticity matrix), or ``"auto"`` (default): ``"penalty"`` for the complete-*
         variants with a penalty (β1 > 0), else ``"none"``. Table 6.4 set 2: complete-
-        complete L-BFGS 56 → 20 iterations (steepest descent 233), 247 → 46 on the
+        complete L-BFGS 56 → 21 iterations (steepest descent 233), 247 → 50 on the
         2198-vertex disc.
 
     Returns
