@@ -107,7 +107,7 @@ DEFAULT_RETRACTION = "second-order"
 #: line-search mode (:data:`meshopt_toolkit.riemannian.geodesics.LINE_SEARCH_OPTIONS`;
 #: Bogacki–Shampine 3(2) at rtol 5e-2 with energy projection, positions only). Every trial
 #: point is still a point of an (approximate) geodesic, admissible and checked exactly; pass
-#: ``exp_options={"method": "auto"}`` for the 1e-6-accurate exponential map.
+#: ``exp_options={"method": "auto"}`` (with ``retraction="exp"``) for the 1e-6-accurate map.
 EXP_DEFAULTS = {"method": "line-search"}
 
 
@@ -188,19 +188,17 @@ def _retraction_options(exp_options: dict | None):
     return GeodesicOptions.of(GeodesicOptions.of(EXP_DEFAULTS) if base is None else base, **user)
 
 
-def _retraction_kind(variant: str, retraction: str | None, exp_options: dict | None) -> str | None:
+def _retraction_kind(variant: str, retraction: str, exp_options: dict | None) -> str | None:
     """The retraction asked for, checked against the variant (None: the straight line;
     the default retraction names no request, so it passes with every variant)."""
-    if not VARIANT_PARTS[variant][1]:
-        if retraction not in (None, DEFAULT_RETRACTION) or exp_options is not None:
-            raise OptimizationError(f"{variant} moves along straight lines; a retraction and "
-                                    "exp_options apply to complete-complete only")
-        return None
-    if retraction is None:
-        return "exp" if exp_options is not None else DEFAULT_RETRACTION
     if retraction not in RETRACTIONS:
         raise OptimizationError(f"unknown retraction {retraction!r}; choose one of "
                                 f"{', '.join(RETRACTIONS)}")
+    if not VARIANT_PARTS[variant][1]:
+        if retraction != DEFAULT_RETRACTION or exp_options is not None:
+            raise OptimizationError(f"{variant} moves along straight lines; a retraction and "
+                                    "exp_options apply to complete-complete only")
+        return None
     if retraction != "exp" and exp_options is not None:
         raise OptimizationError("exp_options apply to retraction='exp' only")
     return retraction
@@ -248,7 +246,7 @@ def optimize(
     segment_fraction: float = 0.5,
     min_step: float = 1e-6,
     metric_options: dict | None = None,
-    retraction: str | None = None,
+    retraction: str = DEFAULT_RETRACTION,
     exp_options: dict | None = None,
     callback: Callable[[IterationRecord, FloatArray], bool | None] | None = None,
     lbfgs_preconditioner: str = "auto",
@@ -290,7 +288,7 @@ def optimize(
     min_step : a run fails (``step_too_small``) when a trial step drops below this.
     metric_options : extra keyword arguments of the metric (e.g. elasticity ``E``, ``nu``).
     retraction : complete-complete only: ``"second-order"`` (default) or ``"exp"`` (the
-        exponential map; implied by ``exp_options``), see :data:`RETRACTIONS`.
+        exponential map), see :data:`RETRACTIONS`.
     exp_options : settings of ``retraction="exp"`` (fields of
         :class:`~meshopt_toolkit.riemannian.geodesics.GeodesicOptions`, or
         ``{"options": GeodesicOptions(...)}``), on top of :data:`EXP_DEFAULTS`.

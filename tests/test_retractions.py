@@ -115,6 +115,11 @@ def test_retraction_options_are_checked():
         optimize(mesh, obj, variant="elasticity-euclidean", exp_options={"method": "auto"})
     with pytest.raises(OptimizationError, match="unknown retraction"):
         optimize(mesh, obj, variant="complete-complete", retraction="cayley")
-    with pytest.raises(OptimizationError, match="retraction='exp' only"):
-        optimize(mesh, obj, variant="complete-complete", retraction="second-order",
-                 exp_options={"method": "auto"})
+    for retraction in ("second-order", "exp"):  # exp_options go with "exp" only
+        kw = dict(variant="complete-complete", retraction=retraction,
+                  exp_options={"method": "auto"}, max_iter=1)
+        if retraction == "exp":
+            assert optimize(mesh, obj, **kw).nit == 1
+        else:
+            with pytest.raises(OptimizationError, match="retraction='exp' only"):
+                optimize(mesh, obj, **kw)
