@@ -97,6 +97,43 @@ def factorize_spd(A: sp.spmatrix, ordering: IntArray | None = None, single: bool
     return solve
 
 
+def refined_spd_solve(A: sp.spmatrix, ordering: IntArray, rtol: float, maxiter: int = 50
+                      ) -> tuple[Callable[[FloatArray], FloatArray], Callable[[FloatArray], FloatArray]]:
+    """A solve of an SPD system to the relative residual ``rtol`` from a float32
+    factorization: :func:`pcg` preconditioned by ``factorize_spd(A, ordering, single=True)``
+    (a few iterations: the float32 factor is ``A``'s own up to rounding).
+
+    A third less factor memory than in double precision and about 30 % less time
+    (the elasticity metric's matrix at 429k triangles, nested dissection: 1.38 against
+    2.0 GB peak, 4.4 against 6.2 s). Where CG does not converge within ``maxiter`` (the
+    float32 factor too far off), the matrix is factorized in double precision once and
+    that factor preconditions from then on.
+
+    Returns
+    -------
+    solve : ``b ↦ x`` with ``‖b − Ax‖ ≤ rtol ‖b‖``
+    precondition : the factor's own (approximate) solve, for preconditioning nearby
+        matrices
+    """
+    csr = sp.csr_matrix(A)
+    factor = {"solve": factorize_spd(A, ordering, single=True), "single": True}
+
+    def solve(b: FloatArray) -> FloatArray:
+        try:
+            x, _, residual = pcg(csr, b, factor["solve"], rtol, maxiter)
+        except FloatingPointError:
+            residual = np.inf
+        if residual <= rtol:
+            return x
+        if factor["single"]:
+            factor.update(solve=factorize_spd(A, ordering), single=False)
+            return solve(b)
+        raise MeshoptError(f"CG preconditioned by a double-precision factorization did not "
+                           f"reach the relative residual {rtol:.1e} ({residual:.1e})")
+
+    return solve, lambda b: factor["solve"](b)
+
+
 _ORDERINGS: dict = {}  # the last few nested-dissection orderings, by their inputs
 
 

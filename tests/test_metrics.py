@@ -252,7 +252,10 @@ def test_elasticity_factorizes_once_per_q(mesh, rng):
 
 def test_elasticity_refactorizes_when_the_kept_factorization_stops_paying(mesh, rng):
     """A far-away Q (CG does not converge within REFACTOR_AFTER_CG iterations on the kept
-    factorization) gets its own factorization; the result is exact either way."""
+    factorization) gets its own factorization; the result solves the system to the
+    metric's rtol either way (checked against the residual and SciPy's own solve)."""
+    from scipy.sparse.linalg import spsolve
+
     metric = ElasticityMetric(mesh, solver="direct")
     Q = mesh.points.copy()
     P = rng.standard_normal(Q.shape)
@@ -260,8 +263,10 @@ def test_elasticity_refactorizes_when_the_kept_factorization_stops_paying(mesh, 
     far = Q * [3.0, 0.2]  # an admissible affine image, far from Q
     G = metric.riesz(far, P)
     assert metric.n_factorizations == 2
-    exact = ElasticityMetric(mesh, solver="direct").riesz(far, P)
-    np.testing.assert_allclose(G, exact, rtol=0, atol=1e-12 * abs(exact).max())
+    A = metric.matrix(far)
+    assert np.linalg.norm(P.ravel() - A @ G.ravel()) <= metric.rtol * np.linalg.norm(P)
+    exact = spsolve(A.tocsc(), P.ravel()).reshape(P.shape)
+    np.testing.assert_allclose(G, exact, rtol=0, atol=1e-8 * abs(exact).max())
 
 
 @needs_pyamg

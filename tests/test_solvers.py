@@ -130,3 +130,28 @@ def test_factorize_spd_in_single_precision():
     b2 = np.array([1.0, -1.0])
     assert np.allclose(factorize_spd(near, single=True)(b2), np.linalg.solve(near.toarray(), b2),
                        rtol=1e-6)
+
+
+def test_refined_spd_solve_reaches_rtol_and_falls_back_to_double():
+    """The float32 factor preconditions CG to ``rtol``; where it is too far off to get
+    there within ``maxiter``, the double-precision factor takes over (and stays)."""
+    from meshopt_toolkit.solvers import nested_dissection, refined_spd_solve
+
+    rng = np.random.default_rng(4)
+    points, A = _grid(20)
+    b = rng.standard_normal(A.shape[0])
+    solve, precondition = refined_spd_solve(A, nested_dissection(points, A), rtol=1e-12)
+    x = solve(b)
+    assert np.linalg.norm(b - A @ x) <= 1e-12 * np.linalg.norm(b)
+    assert np.allclose(x, spsolve(A.tocsc(), b), rtol=1e-9, atol=1e-9)
+    assert np.abs(precondition(b) - x).max() <= 1e-5 * np.abs(x).max()  # float32 accuracy
+
+    # eigenvalues 2 and 1e-6: float32 rounding of the off-diagonal is 6 % of the small one
+    near = sp.csr_matrix(np.array([[1.0, 1 - 1e-6], [1 - 1e-6, 1.0]]))
+    b2 = np.array([1.0, -0.5])
+    _, _, single_residual = pcg(near, b2, factorize_spd(near, single=True), 1e-9, 1)
+    assert single_residual > 1e-9  # one float32-preconditioned step is not enough ...
+    solve2, precondition2 = refined_spd_solve(near, np.arange(2), rtol=1e-9, maxiter=1)
+    x2 = solve2(b2)  # ... so the double factor did it
+    assert np.linalg.norm(b2 - near @ x2) <= 1e-9 * np.linalg.norm(b2)
+    assert np.allclose(precondition2(b2), np.linalg.solve(near.toarray(), b2), rtol=1e-8)

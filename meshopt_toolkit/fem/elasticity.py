@@ -25,7 +25,8 @@ import scipy.sparse as sp
 from .._typing import FloatArray, IntArray
 from ..errors import NotAdmissibleError
 from ..kernels.triangles import areas_from_edges, edge_vectors
-from ..solvers import SOLVERS, amg_pcg_solve, choose_method, factorize_spd, import_pyamg
+from ..solvers import (SOLVERS, amg_pcg_solve, choose_method, import_pyamg, nested_dissection,
+                       refined_spd_solve)
 
 __all__ = [
     "lame_parameters",
@@ -36,6 +37,7 @@ __all__ = [
     "rigid_modes",
     "SPDSolve",
     "factorize",
+    "solver_method",
     "SOLVERS",
 ]
 
@@ -274,11 +276,15 @@ class SPDSolve:
     method : "direct" or "amg"
     solve : callable ``(2N,) -> (2N,)``
     matrix : the sparse matrix that was factorized
+    precondition : callable ``(2N,) -> (2N,)``, optional
+        An approximate ``A⁻¹`` that is cheaper than ``solve`` (the direct method's float32
+        factor), to precondition CG on nearby matrices; ``None``: use ``solve``.
     """
 
     method: str
     solve: Callable[[FloatArray], FloatArray]
     matrix: sp.spmatrix
+    precondition: Callable[[FloatArray], FloatArray] | None = None
 
 
 def _factorize_amg(
@@ -293,30 +299,46 @@ def _factorize_amg(
     return amg_pcg_solve(A, ml, rtol, maxiter)
 
 
+def solver_method(method: str, n_dofs: int) -> str:
+    """The elasticity matrix's "auto" rule: ``"direct"`` below ``AUTO_AMG_MIN_DOFS``
+    dofs, ``"amg"`` above when pyamg is importable (:func:`.solvers.choose_method`)."""
+    return choose_method(method, n_dofs, AUTO_AMG_MIN_DOFS)
+
+
 def factorize(
     A: sp.spmatrix,
     points: FloatArray,
     method: str = "auto",
     rtol: float = 1e-10,
     maxiter: int = 500,
+    ordering: IntArray | None = None,
 ) -> SPDSolve:
     """Prepare a reusable solver for the SPD matrix ``A = K + δM``.
 
     Parameters
     ----------
     A : (2N, 2N) sparse SPD matrix (BSR with 2×2 blocks preferred for AMG)
-    points : (N, 2) node positions (rigid modes for the AMG near-null space)
-    method : "direct" (SuperLU, symmetric mode, MMD(AᵀA) ordering), "amg" (pyamg smoothed
-        aggregation preconditioned CG, relative residual ``rtol``) or "auto" (direct below
-        ``AUTO_AMG_MIN_DOFS`` dofs, AMG above when pyamg is importable)
-    rtol, maxiter : AMG-PCG stopping rule
+    points : (N, 2) node positions (rigid modes for the AMG near-null space, the
+        geometric nested-dissection ordering of the direct method)
+    method : "direct" (SuperLU in float32, symmetric mode, nested-dissection ordering,
+        as the preconditioner of CG to ``rtol``: :func:`.solvers.refined_spd_solve`),
+        "amg" (pyamg smoothed aggregation preconditioned CG to ``rtol``) or "auto"
+        (direct below ``AUTO_AMG_MIN_DOFS`` dofs, AMG above when pyamg is importable)
+    rtol, maxiter : relative residual of the solve; AMG-PCG's iteration cap
+    ordering : (2N,) int array, optional
+        The direct method's fill-reducing ordering (new → old); default
+        ``nested_dissection(points, A, block=2)``. A moving mesh keeps a good ordering,
+        so callers that refactorize along a path may compute it once.
 
     Returns
     -------
     SPDSolve
     """
-    method = choose_method(method, A.shape[0], AUTO_AMG_MIN_DOFS)
+    method = solver_method(method, A.shape[0])
     if method == "direct":
-        return SPDSolve("direct", factorize_spd(A), A)
+        if ordering is None:
+            ordering = nested_dissection(points, A, block=2)
+        solve, precondition = refined_spd_solve(A, ordering, rtol)
+        return SPDSolve("direct", solve, A, precondition)
     bsr = A if A.format == "bsr" else sp.bsr_matrix(A, blocksize=(2, 2))
     return SPDSolve("amg", _factorize_amg(bsr, points, rtol, maxiter), bsr)

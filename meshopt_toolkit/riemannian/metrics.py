@@ -27,8 +27,9 @@ import scipy.sparse as sp
 
 from .._linalg import dot
 from .._typing import FloatArray
-from ..fem.elasticity import BlockPattern, SPDSolve, assemble, factorize, lame_parameters
-from ..solvers import SOLVERS, pcg
+from ..fem.elasticity import (BlockPattern, SPDSolve, assemble, factorize, lame_parameters,
+                             solver_method)
+from ..solvers import SOLVERS, nested_dissection, pcg
 from ..errors import InvalidMeshError, MeshoptError
 
 __all__ = [
@@ -223,6 +224,7 @@ class ElasticityMetric:
         self._matrix_cache = _LastQCache()
         self._solver_cache = _LastQCache()
         self._kept: dict = {}  # the last factorization, by free mask
+        self._orderings: dict = {}  # the direct solver's ordering, by free mask
 
     # -- assembly and factorization -------------------------------------------------------
 
@@ -271,7 +273,12 @@ class ElasticityMetric:
         kept = self._kept.get(key)
 
         def refactorize() -> SPDSolve:
-            fresh = factorize(A, points, self.solver, rtol=self.rtol)
+            method = solver_method(self.solver, A.shape[0])
+            if method == "direct" and key not in self._orderings:
+                # the first positions' ordering serves the whole path
+                self._orderings[key] = nested_dissection(points, A, block=2)
+            fresh = factorize(A, points, method, rtol=self.rtol,
+                              ordering=self._orderings.get(key))
             self.n_factorizations += 1
             logger.debug("elasticity metric: %s factorization #%d", fresh.method,
                          self.n_factorizations)
@@ -288,7 +295,7 @@ class ElasticityMetric:
             if current is not None and current.method != "kept":
                 return current.solve(b)  # refactorized at this Q meanwhile
             try:
-                x, _, residual = pcg(csr, b, kept.solve, self.rtol,
+                x, _, residual = pcg(csr, b, kept.precondition or kept.solve, self.rtol,
                                      maxiter=self.REFACTOR_AFTER_CG)
             except FloatingPointError:  # the kept factor is too far off to precondition
                 residual = np.inf
