@@ -176,35 +176,69 @@ def nested_dissection(points: FloatArray, graph: sp.spmatrix, block: int = 1, le
         cached = _ORDERINGS.get(key)
     if cached is not None:
         return cached
-    side = np.zeros(points.shape[0], np.int8)  # scratch: 2 marks the current second half
-    parts: list[IntArray] = []
-
-    def dissect(nodes: IntArray) -> None:
-        if nodes.size <= leaf:
-            parts.append(nodes)
-            return
-        P = points[nodes]
-        axis = int(np.argmax(P.max(axis=0) - P.min(axis=0)))
-        ranked = nodes[np.argsort(P[:, axis], kind="stable")]
-        first, second = ranked[: nodes.size // 2], ranked[nodes.size // 2:]
-        side[second] = 2
-        rows = adjacency[first]
-        touches = np.zeros(first.size, bool)
-        touches[np.repeat(np.arange(first.size), np.diff(rows.indptr))[
-            side[rows.indices] == 2]] = True
-        side[second] = 0
-        dissect(np.sort(first[~touches]))
-        dissect(np.sort(second))
-        parts.append(first[touches])
-
-    dissect(np.arange(points.shape[0]))
-    vertices = np.concatenate(parts)
+    vertices = _dissection_order(points, adjacency, leaf)
     order = (block * vertices[:, None] + np.arange(block)).ravel()
     with _ORDERINGS_LOCK:
         if len(_ORDERINGS) >= 4:
             _ORDERINGS.pop(next(iter(_ORDERINGS)))
         _ORDERINGS[key] = order
     return order
+
+
+def _dissection_order(points: FloatArray, adjacency: sp.csr_matrix, leaf: int) -> IntArray:
+    """The vertex order of :func:`nested_dissection`, one level of the recursion at a time
+    over all parts at once (numpy over the vertices and edges, no Python loop over parts).
+
+    Recursively, a part is split at the median of its longer extent (ties by index), the
+    first half's vertices adjacent to the second half form the separator, and the order
+    is: the first half without the separator, the second half (both ordered the same
+    way), the separator (by the coordinate). Here each vertex carries the digits of its
+    path down the recursion (0 first half, 1 second half, 2 separator) as a sort key, kept
+    dense after every level; a leaf (≤ ``leaf`` vertices) is ordered by index.
+    """
+    n = points.shape[0]
+    coo = adjacency.tocoo()
+    u, v = coo.row[coo.row != coo.col], coo.col[coo.row != coo.col]
+    key = np.zeros(n, np.int64)
+    tiebreak = np.arange(n)  # leaves: by index; separators: by their rank in the split
+    part = np.zeros(n, np.int64)  # the part of each vertex still being split, else -1
+    while True:
+        active = np.flatnonzero(part >= 0)
+        if active.size == 0:
+            break
+        p = part[active]
+        counts = np.bincount(p)
+        splits = counts[p] > leaf
+        part[active[~splits]] = -1  # leaves: done
+        key *= 3
+        active, p = active[splits], p[splits]
+        if active.size == 0:
+            break
+        counts[counts <= leaf] = 0  # the parts split at this level only
+        m = counts.size
+        extent = np.empty((m, 2))
+        for axis in (0, 1):
+            lo, hi = np.full(m, np.inf), np.full(m, -np.inf)
+            np.minimum.at(lo, p, points[active, axis])
+            np.maximum.at(hi, p, points[active, axis])
+            extent[:, axis] = hi - lo
+        axis = np.argmax(extent, axis=1)[p]
+        ranked = np.lexsort((points[active, axis], p))  # by part, then coordinate; stable
+        starts = np.concatenate([[0], np.cumsum(counts)])
+        rank = np.empty(active.size, np.int64)
+        rank[ranked] = np.arange(active.size) - starts[p[ranked]]
+        second = np.zeros(n, bool)
+        second[active] = rank >= counts[p] // 2
+        same = (part[u] == part[v]) & (part[u] >= 0) & ~second[u] & second[v]
+        separator = np.zeros(n, bool)
+        separator[u[same]] = True
+        digit = np.where(separator[active], 2, second[active].astype(np.int64))
+        key[active] += digit
+        tiebreak[active[digit == 2]] = rank[digit == 2]
+        part[active] = np.where(digit == 2, -1, 2 * p + digit)
+        if key.max() > 2**60:  # keep the keys dense enough not to overflow (>38 levels)
+            key = np.unique(key, return_inverse=True)[1].astype(np.int64)
+    return np.lexsort((tiebreak, key))
 
 
 def pcg(A, b: FloatArray, precondition: Callable[[FloatArray], FloatArray], rtol: float,

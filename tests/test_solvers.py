@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 import scipy.sparse as sp
 from scipy.sparse.linalg import spsolve
 
@@ -97,6 +99,49 @@ def test_nested_dissection_is_a_kept_permutation_with_less_fill():
     assert nd.L.nnz < 0.5 * natural.L.nnz
     pairs = nested_dissection(points, sp.kron(A, np.ones((2, 2))), block=2)
     assert np.array_equal(pairs, np.stack([2 * order, 2 * order + 1], axis=1).ravel())
+
+
+def _recursive_dissection(points, adjacency, leaf):
+    """The definition of nested_dissection's order, written as the plain recursion."""
+    side = np.zeros(len(points), np.int8)
+    parts = []
+
+    def dissect(nodes):
+        if nodes.size <= leaf:
+            parts.append(nodes)
+            return
+        P = points[nodes]
+        axis = int(np.argmax(P.max(axis=0) - P.min(axis=0)))
+        ranked = nodes[np.argsort(P[:, axis], kind="stable")]
+        first, second = ranked[: nodes.size // 2], ranked[nodes.size // 2:]
+        side[second] = 2
+        touches = np.array([(side[adjacency[i].indices] == 2).any() for i in first], bool)
+        side[second] = 0
+        dissect(np.sort(first[~touches]))
+        dissect(np.sort(second))
+        parts.append(first[touches])
+
+    dissect(np.arange(len(points)))
+    return np.concatenate(parts)
+
+
+@settings(max_examples=25, deadline=None)
+@given(n=st.integers(3, 400), leaf=st.integers(1, 20), seed=st.integers(0, 2**16))
+def test_nested_dissection_is_the_recursion(n, leaf, seed):
+    """The level-at-a-time ordering equals the recursion on random point clouds (with
+    ties in the coordinates) and their Delaunay graphs."""
+    from scipy.spatial import Delaunay
+
+    from meshopt_toolkit.solvers import nested_dissection
+
+    rng = np.random.default_rng(seed)
+    points = np.round(rng.random((n, 2)) * rng.choice([4, 1000]), 0) + rng.random((n, 2)) * 1e-3
+    tri = Delaunay(points).simplices
+    rows, cols = np.repeat(tri, 3, axis=1).ravel(), np.tile(tri, (1, 3)).ravel()
+    A = sp.csr_matrix((np.ones(rows.size), (rows, cols)), shape=(n, n))
+    points = np.round(points)  # ties in the split coordinate
+    assert np.array_equal(nested_dissection(points, A, leaf=leaf),
+                          _recursive_dissection(points, A, leaf))
 
 
 def test_factorize_spd_with_an_ordering_matches_the_default():
