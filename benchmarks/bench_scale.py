@@ -8,16 +8,21 @@ parameter set 2 (``bench_optimize.run``: no early stop, the time per iteration),
 one ``exp_map`` of the smooth velocity of ``bench_geodesics`` part 2, one penalty pass
 (value and gradient) and one Riesz map of the complete metric (its ∇f cached). Printed per
 size: seconds per iteration per variant, the ratios the issue sets targets for
-(complete-complete / complete-euclidean ≤ 1.5, elasticity-euclidean / complete-euclidean
-≤ 2, Riesz map / penalty pass ≤ 2), exp_map seconds per triangle (its growth
-from one size to the next ≤ 1.3), the exp_map's penalty evaluations, and the peak RSS
-(1.7M triangles, all variants: under 8 GB).
+(complete-complete / complete-euclidean ≤ 1.5; elasticity-euclidean / complete-euclidean
+≤ 2, over all iterations and, "later", over those after the first, which holds the
+elasticity metric's first factorization; Riesz map / penalty pass ≤ 2), exp_map seconds
+per triangle (its growth from one size to the next ≤ 1.3), the exp_map's penalty
+evaluations, and the peak RSS (1.7M triangles, all variants: under 8 GB).
 
 ``--plot PNG`` draws seconds per iteration against N on log–log axes, one line per
 variant.
 
+``--rows JSONL`` keeps the measured sizes (one JSON object per line): sizes found there
+are not measured again, so the 1.7M size (about half an hour on 2 cores) is measured once
+and the table and the plot are drawn from all sizes.
+
 Usage: ``python benchmarks/bench_scale.py [--max-triangles 110000] [--iterations 3]
-[--plot examples/results/scale.png]``
+[--rows examples/results/scale_rows.jsonl] [--plot examples/results/scale.png]``
 """
 
 from __future__ import annotations
@@ -49,10 +54,16 @@ def measure(refinements: int, iterations: int) -> dict:
     mesh = mt.load(mt.data_path("disc_13586.msh")).as_planar()
     for _ in range(refinements):
         mesh = mesh.refine()
-    out = {"triangles": mesh.n_triangles, "vertices": mesh.n_vertices, "per_iteration": {}}
+    out = {"triangles": mesh.n_triangles, "vertices": mesh.n_vertices, "per_iteration": {},
+           "after_first": {}}
     for variant in VARIANTS:
-        seconds, _ = run(mesh, variant, iterations)
+        seconds, res = run(mesh, variant, iterations)
         out["per_iteration"][variant] = seconds
+        # the iterations after the first, which holds the one-time setup (the elasticity
+        # metric's first factorization); later refactorizations stay in
+        later = [sum(r.seconds.values()) for r in res.history if r.iteration >= 2]
+        out["after_first"][variant] = float(np.mean(later)) if later else float("nan")
+        _progress(f"{mesh.n_triangles} triangles, {variant}: {seconds:.2f} s per iteration")
     pen = QualityPenalty(mesh, beta=(10, 1, 0, 0.001 * mesh.n_vertices))
     Q = mesh.points
     V = 0.3 * np.stack([np.sin(np.pi * Q[:, 1]), np.cos(np.pi * Q[:, 0])], axis=1)
@@ -67,9 +78,34 @@ def measure(refinements: int, iterations: int) -> dict:
     t0 = time.perf_counter()
     res = geodesic(CompleteMetric(pen), Q, V, 1.0)
     out["exp_map"] = time.perf_counter() - t0
+    _progress(f"{mesh.n_triangles} triangles, exp_map: {out['exp_map']:.1f} s")
     out["exp_evaluations"] = int(res.n_evaluations)
     out["peak_rss_gb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20
     return out
+
+
+def _progress(line: str) -> None:
+    """One line on stderr per finished part, with the peak memory so far (long sizes)."""
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20
+    print(f"  {line} (peak RSS {peak:.2f} GB)", file=sys.stderr, flush=True)
+
+
+def _later_ratio(row: dict) -> float:
+    """elasticity-euclidean / complete-euclidean over the iterations after the first."""
+    later = row.get("after_first", {})
+    return later.get("elasticity-euclidean", np.nan) / later.get("complete-euclidean", np.nan)
+
+
+def _measure_in_subprocess(refinements: int, iterations: int) -> dict | None:
+    proc = subprocess.run([sys.executable, __file__, "--one", str(refinements),
+                           "--iterations", str(iterations)],
+                          stdout=subprocess.PIPE, stderr=None, text=True,
+                          cwd=Path(__file__).parent)
+    if proc.returncode != 0:
+        return None
+    row = json.loads(proc.stdout.strip().splitlines()[-1])
+    row["iterations"] = iterations
+    return row
 
 
 def main() -> None:
@@ -78,25 +114,35 @@ def main() -> None:
                     help="largest size (the issue's 1.7M: 1800000; hours on 2 cores)")
     ap.add_argument("--iterations", type=int, default=3)
     ap.add_argument("--plot", metavar="PNG")
+    ap.add_argument("--rows", metavar="JSONL",
+                    help="sizes already in this file are read from it instead of measured; "
+                         "every size measured is appended to it (a long size, e.g. 1.7M, "
+                         "can then be measured once and the table and plot redrawn)")
     ap.add_argument("--one", type=int, help=argparse.SUPPRESS)  # internal: one size
     args = ap.parse_args()
     if args.one is not None:
         print(json.dumps(measure(args.one, args.iterations)))
         return
+    kept = {}
+    if args.rows and Path(args.rows).exists():
+        for line in Path(args.rows).read_text().splitlines():
+            if line.strip():
+                row = json.loads(line)
+                kept[row["triangles"]] = row
     rows = []
     print(f"{'triangles':>10}" + "".join(f"{v:>22}" for v in VARIANTS)
-          + f"{'cc/ce':>7}{'ee/ce':>7}{'riesz/f':>8}{'exp s':>8}{'exp µs/T':>10}{'growth':>8}"
+          + f"{'cc/ce':>7}{'ee/ce':>7}{'later':>7}{'riesz/f':>8}{'exp s':>8}{'exp µs/T':>10}{'growth':>8}"
           f"{'evals':>7}{'RSS GB':>8}")
     for refinements, triangles in zip(REFINEMENTS, (26_794, 107_176, 428_704, 1_714_816)):
         if triangles > args.max_triangles:
             break
-        proc = subprocess.run([sys.executable, __file__, "--one", str(refinements),
-                               "--iterations", str(args.iterations)],
-                              capture_output=True, text=True, cwd=Path(__file__).parent)
-        if proc.returncode != 0:
-            print(f"{triangles:>10}  failed: {proc.stderr.strip().splitlines()[-1:]}")
+        row = kept.get(triangles) or _measure_in_subprocess(refinements, args.iterations)
+        if row is None:
+            print(f"{triangles:>10}  failed (its error is above)")
             break
-        row = json.loads(proc.stdout.strip().splitlines()[-1])
+        if args.rows and triangles not in kept:
+            with open(args.rows, "a", encoding="utf-8") as f:
+                f.write(json.dumps(row) + "\n")
         per = row["per_iteration"]
         exp_per_t = 1e6 * row["exp_map"] / row["triangles"]
         growth = f"{exp_per_t / rows[-1][1]:8.2f}" if rows else f"{'':>8}"
@@ -104,6 +150,7 @@ def main() -> None:
         print(f"{row['triangles']:>10}" + "".join(f"{per[v]:22.3f}" for v in VARIANTS)
               + f"{per['complete-complete'] / per['complete-euclidean']:7.2f}"
               f"{per['elasticity-euclidean'] / per['complete-euclidean']:7.2f}"
+              f"{_later_ratio(row):7.2f}"
               f"{row['riesz'] / row['penalty_pass']:8.2f}"
               f"{row['exp_map']:8.2f}{exp_per_t:10.2f}{growth}{row['exp_evaluations']:7d}"
               f"{row['peak_rss_gb']:8.2f}", flush=True)
