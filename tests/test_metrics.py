@@ -269,6 +269,26 @@ def test_elasticity_refactorizes_when_the_kept_factorization_stops_paying(mesh, 
     np.testing.assert_allclose(G, exact, rtol=0, atol=1e-8 * abs(exact).max())
 
 
+def test_elasticity_orders_once_per_free_set(mesh, rng, monkeypatch):
+    """The direct method's nested-dissection ordering is computed at the first
+    factorization of a free set and reused by later ones (a moving mesh keeps it good)."""
+    from meshopt_toolkit.riemannian import metrics as metrics_module
+
+    calls = []
+    real = metrics_module.nested_dissection
+    monkeypatch.setattr(metrics_module, "nested_dissection",
+                        lambda *a, **k: calls.append(1) or real(*a, **k))
+    metric = ElasticityMetric(mesh, solver="direct")
+    Q = mesh.points.copy()
+    P = rng.standard_normal(Q.shape)
+    metric.riesz(Q, P)
+    far = Q * [3.0, 0.2]
+    G = metric.riesz(far, P)  # refactorized (see the test above), same ordering
+    assert metric.n_factorizations == 2 and len(calls) == 1
+    A = metric.matrix(far)
+    assert np.linalg.norm(P.ravel() - A @ G.ravel()) <= metric.rtol * np.linalg.norm(P)
+
+
 @needs_pyamg
 def test_elasticity_amg_agrees_with_direct(rng):
     mesh = grid_mesh(20, jitter=0.4, seed=1)
