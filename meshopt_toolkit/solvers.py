@@ -97,8 +97,11 @@ def factorize_spd(A: sp.spmatrix, ordering: IntArray | None = None, single: bool
     return solve
 
 
+Solve = Callable[[FloatArray], FloatArray]
+
+
 def refined_spd_solve(A: sp.spmatrix, ordering: IntArray, rtol: float, maxiter: int = 50
-                      ) -> tuple[Callable[[FloatArray], FloatArray], Callable[[FloatArray], FloatArray]]:
+                      ) -> tuple[Solve, Solve]:
     """A solve of an SPD system to the relative residual ``rtol`` from a float32
     factorization: :func:`pcg` preconditioned by ``factorize_spd(A, ordering, single=True)``
     (a few iterations: the float32 factor is ``A``'s own up to rounding).
