@@ -289,6 +289,28 @@ def test_elasticity_orders_once_per_free_set(mesh, rng, monkeypatch):
     assert np.linalg.norm(P.ravel() - A @ G.ravel()) <= metric.rtol * np.linalg.norm(P)
 
 
+def test_elasticity_direct_solves_in_float32_from_a_size(mesh, rng, monkeypatch):
+    """Below SINGLE_PRECISION_MIN_DOFS the direct method's factor is double precision and
+    exact; from it the factor is float32 and CG refines the solve to the metric's rtol."""
+    from scipy.sparse.linalg import spsolve
+
+    Q = mesh.points
+    P = rng.standard_normal(Q.shape)
+    A = ElasticityMetric(mesh).matrix(Q)
+    exact = spsolve(A.tocsc(), P.ravel())
+    small = ElasticityMetric(mesh, solver="direct")._solver(Q, None)
+    assert small.precondition is small.solve
+    np.testing.assert_allclose(small.solve(P.ravel()), exact, rtol=0,
+                               atol=1e-12 * abs(exact).max())
+    monkeypatch.setattr(elasticity, "SINGLE_PRECISION_MIN_DOFS", 10)
+    metric = ElasticityMetric(mesh, solver="direct")
+    large = metric._solver(Q, None)
+    rough = large.precondition(P.ravel()) - exact
+    assert 1e-12 < abs(rough).max() / abs(exact).max() < 1e-4  # a float32 factor
+    G = metric.riesz(Q, P)
+    assert np.linalg.norm(P.ravel() - A @ G.ravel()) <= metric.rtol * np.linalg.norm(P)
+
+
 @needs_pyamg
 def test_elasticity_amg_agrees_with_direct(rng):
     mesh = grid_mesh(20, jitter=0.4, seed=1)
