@@ -269,6 +269,21 @@ def test_elasticity_refactorizes_when_the_kept_factorization_stops_paying(mesh, 
     np.testing.assert_allclose(G, exact, rtol=0, atol=1e-8 * abs(exact).max())
 
 
+def test_elasticity_assembly_buffer_keeps_every_matrix(mesh, rng):
+    """The metric assembles into one kept element-block buffer: matrices made at earlier
+    positions are not changed by later assemblies, and each equals a fresh assembly."""
+    metric = ElasticityMetric(mesh)
+    Q1 = mesh.points
+    Q2 = Q1 + 0.01 * rng.standard_normal(Q1.shape) * mesh.diameter / np.sqrt(len(Q1))
+    A1 = metric.matrix(Q1)
+    before = A1.copy()
+    A2 = metric.matrix(Q2)
+    for A, Q in ((A1, Q1), (A2, Q2)):
+        fresh = elasticity.assemble(Q, mesh.triangles, metric.E, metric.nu, metric.delta)
+        assert abs(A - fresh.tocsr()).max() == 0.0
+    assert abs(A1 - before).max() == 0.0
+
+
 def test_elasticity_orders_once_per_free_set(mesh, rng, monkeypatch):
     """The direct method's nested-dissection ordering is computed at the first
     factorization of a free set and reused by later ones (a moving mesh keeps it good)."""

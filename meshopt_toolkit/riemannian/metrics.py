@@ -225,6 +225,7 @@ class ElasticityMetric:
         self._solver_cache = _LastQCache()
         self._kept: dict = {}  # the last factorization, by free mask
         self._orderings: dict = {}  # the direct solver's ordering, by free mask
+        self._element_blocks: FloatArray | None = None  # assembly buffer (T, 3, 3, 2, 2)
 
     # -- assembly and factorization -------------------------------------------------------
 
@@ -239,7 +240,10 @@ class ElasticityMetric:
     def _bsr(self, Q: FloatArray) -> sp.bsr_matrix:
         A = self._matrix_cache.get(Q)
         if A is None:
-            A = assemble(Q, self.triangles, self.E, self.nu, self.delta, pattern=self.pattern)
+            if self._element_blocks is None:  # kept: refilled at every new Q
+                self._element_blocks = np.empty((len(self.triangles), 3, 3, 2, 2))
+            A = assemble(Q, self.triangles, self.E, self.nu, self.delta, pattern=self.pattern,
+                         out=self._element_blocks)
             self.n_assemblies += 1
             self._matrix_cache.put(Q, A)
         return A
