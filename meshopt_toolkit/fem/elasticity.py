@@ -143,7 +143,7 @@ def element_blocks(
     # out[t, a, b, c, d] = A g_a,c g_b,d, then combined in place (few temporaries)
     np.einsum("tac,tbd->tabcd", root_area_g, root_area_g, out=out)
     xx, xy, yx, yy = out[..., 0, 0], out[..., 0, 1], out[..., 1, 0], out[..., 1, 1]
-    shared = xx + yy  # μ g_a·g_b + the P1 mass, on both diagonal components
+    shared = xx + yy  # A μ g_a·g_b plus the P1 mass, on both diagonal components
     shared *= mu
     mass = (delta / 12.0) * areas
     shared += mass[:, None, None]
@@ -296,8 +296,9 @@ class SPDSolve:
     solve : callable ``(2N,) -> (2N,)``
     matrix : the sparse matrix that was factorized
     precondition : callable ``(2N,) -> (2N,)``, optional
-        An approximate ``A⁻¹`` that is cheaper than ``solve`` (the direct method's float32
-        factor), to precondition CG on nearby matrices; ``None``: use ``solve``.
+        The direct method's factor itself (float32 from ``SINGLE_PRECISION_MIN_DOFS``
+        dofs, where ``solve`` refines it by CG), to precondition CG on nearby matrices;
+        ``None``: use ``solve``.
     """
 
     method: str
