@@ -321,7 +321,6 @@ def optimize(
         raise OptimizationError(f"unknown variant {variant!r}; choose one of {', '.join(VARIANTS)}")
     if method not in METHODS:
         raise OptimizationError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
-    curved = VARIANT_PARTS[variant][1]
     retraction = _retraction_kind(variant, retraction, exp_options)
     mesh = require_admissible(mesh, "shape optimization")
     _check_size(mesh.points)
@@ -340,7 +339,8 @@ def optimize(
 
         penalty = QualityPenalty(mesh, beta=tuple(penalty_beta))
     metric = _make_metric(variant, mesh, metric_beta, dict(metric_options or {}))
-    retract = _make_retraction(retraction, metric, exp_options, free) if curved else None
+    retract = (None if retraction is None
+               else _make_retraction(retraction, metric, exp_options, free))
     problem = ShapeProblem(objective, penalty, metric, tri, mesh.boundary_edges, free)
     h0 = make_preconditioner(lbfgs_preconditioner, metric_kind=VARIANT_PARTS[variant][0],
                              method=method, mesh=mesh, penalty=penalty, free=free)

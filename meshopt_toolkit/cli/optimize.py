@@ -136,7 +136,8 @@ def run(args: argparse.Namespace) -> int:
         with bar:
             result = optimize(
                 mesh, objective, variant=args.variant, method=args.method,
-                retraction=args.retraction, penalty_beta=penalty, metric_beta=args.metric_penalty, fixed=fixed,
+                retraction=args.retraction, penalty_beta=penalty,
+                metric_beta=args.metric_penalty, fixed=fixed,
                 max_iter=args.max_iterations, tol=args.tolerance or None,
                 ftol=args.tolerance or None,
                 gtol=args.gtol if args.gtol > 0 else None, memory=args.memory,

@@ -125,8 +125,8 @@ def run_descent(
                 t_init = 1.0 / dnorm
         else:
             t_init = 1.0 / dnorm
-        ls = _line_search(problem, Q, d, F, slope, t_init, retraction=retraction, c1=c1, c2=c2, segment_fraction=segment_fraction, min_step=min_step,
-                          timer=timer)
+        ls = _line_search(problem, Q, d, F, slope, t_init, retraction=retraction, c1=c1, c2=c2,
+                          segment_fraction=segment_fraction, min_step=min_step, timer=timer)
         if not ls.success and not (d_prev is None and lbfgs is not None and not lbfgs.pairs):
             # the quasi-Newton / CG direction failed: retry along −grad F before giving up
             if lbfgs is not None:
