@@ -38,6 +38,7 @@ __all__ = [
     "SPDSolve",
     "factorize",
     "solver_method",
+    "kept_ordering",
     "SOLVERS",
 ]
 
@@ -323,6 +324,18 @@ def solver_method(method: str, n_dofs: int) -> str:
     """The elasticity matrix's "auto" rule: ``"direct"`` below ``AUTO_AMG_MIN_DOFS``
     dofs, ``"amg"`` above when pyamg is importable (:func:`.solvers.choose_method`)."""
     return choose_method(method, n_dofs, AUTO_AMG_MIN_DOFS)
+
+
+def kept_ordering(orderings: dict, key, A: sp.spmatrix, points: FloatArray,
+                  method: str) -> IntArray | None:
+    """The direct method's nested-dissection ordering of ``A``, computed at the first call
+    for ``key`` and kept in ``orderings`` (a caller that refactorizes one pattern along a
+    path: the first positions' ordering stays good as the mesh moves); None for AMG."""
+    if method != "direct":
+        return None
+    if key not in orderings:
+        orderings[key] = nested_dissection(points, A, block=2)
+    return orderings[key]
 
 
 def factorize(

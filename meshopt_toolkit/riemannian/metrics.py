@@ -27,9 +27,9 @@ import scipy.sparse as sp
 
 from .._linalg import dot
 from .._typing import FloatArray
-from ..fem.elasticity import (BlockPattern, SPDSolve, assemble, factorize, lame_parameters,
-                             solver_method)
-from ..solvers import SOLVERS, nested_dissection, pcg
+from ..fem.elasticity import (BlockPattern, SPDSolve, assemble, factorize, kept_ordering,
+                             lame_parameters, solver_method)
+from ..solvers import SOLVERS, pcg
 from ..errors import InvalidMeshError, MeshoptError
 
 __all__ = [
@@ -278,11 +278,8 @@ class ElasticityMetric:
 
         def refactorize() -> SPDSolve:
             method = solver_method(self.solver, A.shape[0])
-            if method == "direct" and key not in self._orderings:
-                # the first positions' ordering serves the whole path
-                self._orderings[key] = nested_dissection(points, A, block=2)
             fresh = factorize(A, points, method, rtol=self.rtol,
-                              ordering=self._orderings.get(key))
+                              ordering=kept_ordering(self._orderings, key, A, points, method))
             self.n_factorizations += 1
             logger.debug("elasticity metric: %s factorization #%d", fresh.method,
                          self.n_factorizations)

@@ -80,6 +80,7 @@ class PenaltyHessian:
         self._cols = np.tile(dofs, (1, 6)).ravel()
         self._dof = np.ones(2 * self.n_vertices, bool) if free is None else np.repeat(free, 2)
         self._solve = None
+        self._orderings: dict = {}  # the direct factorization's ordering, computed once
         self._last: FloatArray | None = None
         self._iterates = 0
         self.n_factorizations = 0
@@ -104,11 +105,13 @@ class PenaltyHessian:
             if self._iterates % self.every == 0:
                 import scipy.sparse as sp
 
-                from ..fem.elasticity import factorize
+                from ..fem.elasticity import factorize, kept_ordering, solver_method
 
                 pts = Q if self.free is None else Q[self.free]
                 B = sp.bsr_matrix(self.matrix(Q), blocksize=(2, 2))
-                self._solve = factorize(B, pts, "auto").solve
+                method = solver_method("auto", B.shape[0])
+                ordering = kept_ordering(self._orderings, None, B, pts, method)
+                self._solve = factorize(B, pts, method, ordering=ordering).solve
                 self.n_factorizations += 1
             self._last = np.array(Q, dtype=float)
             self._iterates += 1
