@@ -24,6 +24,8 @@ from .errors import MeshoptError
 logger = logging.getLogger(__name__)
 
 SOLVERS = ("auto", "direct", "amg")
+#: a linear solve or preconditioner ``b ↦ x``
+Solve = Callable[[FloatArray], FloatArray]
 _ORDERINGS_LOCK = threading.Lock()  # nested_dissection may be called from threads
 
 
@@ -55,7 +57,7 @@ def choose_method(method: str, n_unknowns: int, amg_from: int) -> str:
 
 
 def factorize_spd(A: sp.spmatrix, ordering: IntArray | None = None, single: bool = False
-                  ) -> Callable[[FloatArray], FloatArray]:
+                  ) -> Solve:
     """SuperLU factorization of an SPD matrix, returned as its ``solve``.
 
     Symmetric mode, no pivoting (an SPD matrix needs none) and, without ``ordering``,
@@ -95,9 +97,6 @@ def factorize_spd(A: sp.spmatrix, ordering: IntArray | None = None, single: bool
         return x
 
     return solve
-
-
-Solve = Callable[[FloatArray], FloatArray]
 
 
 def refined_spd_solve(A: sp.spmatrix, ordering: IntArray, rtol: float, maxiter: int = 50
@@ -244,7 +243,7 @@ def _dissection_order(points: FloatArray, adjacency: sp.csr_matrix, leaf: int) -
     return np.lexsort((tiebreak, key))
 
 
-def pcg(A, b: FloatArray, precondition: Callable[[FloatArray], FloatArray], rtol: float,
+def pcg(A, b: FloatArray, precondition: Solve, rtol: float,
         maxiter: int) -> tuple[FloatArray, int, float]:
     """Preconditioned conjugate gradients from ``x = 0`` to ``‖b − Ax‖ ≤ rtol ‖b‖``.
 
@@ -333,7 +332,7 @@ def _v_cycle(ml, lvl: int, x: FloatArray, b: FloatArray) -> None:
     level.postsmoother(A, x, b)
 
 
-def amg_pcg_solve(A, ml, rtol: float, maxiter: int = 500) -> Callable[[FloatArray], FloatArray]:
+def amg_pcg_solve(A, ml, rtol: float, maxiter: int = 500) -> Solve:
     """``b ↦ x`` with ``‖b − Ax‖ ≤ rtol ‖b‖``: :func:`pcg` preconditioned by one V-cycle of
     the pyamg hierarchy ``ml`` (built once for ``A``, reused for every right-hand side).
 
