@@ -25,7 +25,7 @@ from meshopt_toolkit.motion.strain import (
     shape_quality_bound,
     stretch_ratios,
 )
-from meshopt_toolkit.diagnostics import check_gradient
+from meshopt_toolkit.diagnostics import check_gradient, check_hvp
 
 FAST = settings(max_examples=15, deadline=None)
 
@@ -84,6 +84,32 @@ def test_distortion_jacobian_taylor(disc, rng, at_reference):
 
     result = check_gradient(f, grad, Q, eps0=1e-3, rng=rng)
     assert abs(result.order - 2) < 0.2, result
+
+
+@pytest.mark.parametrize("at_reference", [True, False])
+def test_distortion_second_order_taylor(disc, rng, at_reference):
+    """``second_order(Q, ρ)`` is the Hessian of ``Σ ρ·φ``: second-order Taylor test."""
+    P, T = disc.points, disc.triangles
+    dist = TriangleDistortion(P, T)
+    Q = P.copy() if at_reference else _random_admissible(disc, rng, 0.3)
+    weights = rng.standard_normal((len(T), 3))
+    cols = (2 * T[:, :, None] + np.arange(2)).reshape(-1, 6)
+
+    def f(X):
+        return float(np.sum(weights * dist.values(X)))
+
+    def grad(X):
+        _, blocks = dist.values_and_jacobian(X)
+        return (dist.jacobian_matrix(blocks).T @ weights.ravel()).reshape(X.shape)
+
+    def hvp(X, V):
+        local = np.matmul(dist.second_order(X, weights), V.ravel()[cols][:, :, None])[:, :, 0]
+        return np.bincount(cols.ravel(), local.ravel(), minlength=V.size).reshape(V.shape)
+
+    result = check_hvp(f, grad, hvp, Q, eps0=1e-3, rng=rng)
+    assert abs(result.order - 3) < 0.2, result
+    blocks = dist.second_order(Q, weights)
+    assert np.abs(blocks - blocks.transpose(0, 2, 1)).max() <= 1e-12 * np.abs(blocks).max()
 
 
 @FAST
@@ -186,11 +212,48 @@ def test_normal_equations_match_the_sparse_jacobian(disc, rng, K, anchored, unev
     anchor = metric.strain.values(P) + 0.1 if anchored else None
     path = _Path(metric, frames, free, None, anchor_strain=anchor)
     r, J = path.evaluate(frames, jacobian=True)
-    r2, g, H = path.normal_equations(frames)
+    r2, g, H, scaling = path.normal_equations(frames)
     assert np.array_equal(r, r2)
     gJ, HJ = J.T @ r, (J.T @ J).toarray()
     assert np.abs(g - gJ).max() <= 1e-12 * np.abs(gJ).max()
     assert np.abs(H.toarray() - HJ).max() <= 1e-12 * np.abs(HJ).max()
+    assert np.abs(scaling - np.diag(HJ)).max() <= 1e-12 * np.abs(HJ).max()
+    # Newton's matrix (Taylor-tested below): the same gradient and scaling, symmetric
+    r3, g3, H3, scaling3 = path.normal_equations(frames, newton=True)
+    assert np.array_equal(r3, r) and np.array_equal(g3, g) and np.array_equal(scaling3, scaling)
+    assert abs(H3 - H3.T).max() <= 1e-12 * np.abs(HJ).max()
+
+
+@pytest.mark.parametrize("K, anchored", [(4, False), (1, True)])
+def test_newton_matrix_is_the_hessian_of_the_path_energy(disc, rng, K, anchored):
+    """Second-order Taylor test: ``E(x + εv) − E − ε∇E·v − ½ε² vᵀ(2H)v = O(ε³)`` with H
+    the Newton matrix (``∇E = 2g``), for a path and for an anchored single frame."""
+    P = disc.points
+    target = _random_admissible(disc, rng, 0.3)
+    frames = np.array([(1 - s) * P + s * target for s in np.linspace(0, 1, K + 1)])
+    free = np.ones((K + 1, disc.n_vertices), bool)
+    free[0] = False
+    free[:, np.unique(disc.boundary_edges)[:5]] = False
+    metric = GraphMetric(P, disc.triangles, 1.3,
+                         triangle_weights=1 + rng.random(disc.n_triangles))
+    anchor = metric.strain.values(P) + 0.1 if anchored else None
+    path = _Path(metric, frames, free, None, anchor_strain=anchor)
+
+    def E(x):
+        r, _ = path.evaluate(path.with_unknowns(x), jacobian=False)
+        return float(r @ r)
+
+    def grad(x):
+        return 2 * path.normal_equations(path.with_unknowns(x))[1]
+
+    def hvp(x, v):
+        return 2 * (path.normal_equations(path.with_unknowns(x), newton=True)[2] @ v)
+
+    result = check_hvp(E, grad, hvp, path.unknowns(frames), eps0=1e-3, rng=rng)
+    assert abs(result.order - 3) < 0.2, result
+    gauss_newton = check_hvp(E, grad, lambda x, v: 2 * (path.normal_equations(
+        path.with_unknowns(x))[2] @ v), path.unknowns(frames), eps0=1e-3, rng=rng)
+    assert gauss_newton.order < 2.5  # the test can tell the Gauss–Newton matrix apart
 
 
 def test_frame_blocks_in_nested_dissection_order_solve_the_path_system(disc, rng):
@@ -208,7 +271,7 @@ def test_frame_blocks_in_nested_dissection_order_solve_the_path_system(disc, rng
     free[:, np.unique(disc.boundary_edges)] = False
     free[2, :4] = False  # frames of different sizes
     path = _Path(GraphMetric(P, disc.triangles), frames, free, None)
-    _, g, H = path.normal_equations(frames)
+    _, g, H, _ = path.normal_equations(frames)
     exact = spsolve(H.tocsc(), g)
     for points in (None, path.frame_points()):
         blocks = FrameBlocks(path.frame_indices(), points)

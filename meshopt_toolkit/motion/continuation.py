@@ -53,7 +53,7 @@ def extend(metric: GraphMetric, Q: FloatArray, handles: IntArray,
     out[handles] = new_positions
     if free[1].any():
         pair = np.stack([Q, Q])
-        _, _, Hff = _Path(metric, pair, free, None).normal_equations(pair)
+        _, _, Hff, _ = _Path(metric, pair, free, None).normal_equations(pair)
         rhs = -metric.apply(Q, delta)[free[1]].ravel()
         step = factorize_spd(Hff)(rhs) if factors is None else factors.solve(Hff, rhs, 1e-8)
         out[free[1]] += step.reshape(-1, 2)
@@ -133,7 +133,7 @@ def continuation_path(
             res = discrete_geodesic(metric, np.stack([Q, trial]), free,
                                     boundary_edges=boundary_edges, anchor_strain=anchor,
                                     max_iter=relax_iter, gtol=1e-6, rtol=RELAX_RTOL,
-                                    factors=factors, cg_rtol=RELAX_CG_RTOL)
+                                    factors=factors, cg_rtol=RELAX_CG_RTOL, newton=True)
             nit += res.nit
             Q = res.frames[1]
             s_now = s_try

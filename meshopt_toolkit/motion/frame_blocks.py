@@ -84,13 +84,29 @@ class FrameBlocks:
         there is no factorization or it went stale; judges staleness afterwards. A solve
         that fails on float32 factors is redone, in double precision from then on.
 
+        Raises FloatingPointError where ``A`` is not positive definite (a Newton matrix
+        may not be): conjugate gradients meet non-positive curvature on fresh factors, or
+        the factorization is singular. On kept factors of an earlier matrix the solve is
+        first redone on fresh ones (the earlier matrix may have been the indefinite one).
+
         (Plain Jacobi for heavily damped Levenberg–Marquardt systems was tried: 42.6k /
         106k annulus 27× → 18× / 27× → 19–24× elasticity solves, but min AR 0.2240 →
         0.2208 / 0.2348 → 0.2230; not taken.)"""
-        if self.stale or not self.factors:
-            self.factorize(A)
-        x, iterations, residual = pcg(A, b, self.preconditioner(), rtol,
-                                      maxiter=max(200, b.size // 2_000))
+        fresh = self.stale or not self.factors
+        if fresh:
+            try:
+                self.factorize(A)
+            except RuntimeError as exc:  # SuperLU: exactly singular
+                self.stale = True
+                raise FloatingPointError(str(exc)) from exc
+        try:
+            x, iterations, residual = pcg(A, b, self.preconditioner(), rtol,
+                                          maxiter=max(200, b.size // 2_000))
+        except FloatingPointError:
+            self.stale = True
+            if fresh:
+                raise
+            return self.solve(A, b, rtol)
         if residual > rtol and self.single:
             self.single, self.stale = False, True
             return self.solve(A, b, rtol)

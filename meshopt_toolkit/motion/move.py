@@ -24,6 +24,7 @@ from ..errors import InvalidMeshError
 from ..kernels.triangles import aspect_ratios, inverse_shape_quality
 from ..mesh import PlanarMesh, boundary_self_intersections, require_admissible
 from .continuation import NoAdmissiblePathError, continuation_path
+from .frame_blocks import FrameBlocks
 from .path import GraphMetric, discrete_geodesic
 from .similarity import HandlePath, Similarity, fit_similarity, handle_groups
 from .strain import TriangleDistortion
@@ -114,8 +115,16 @@ def _finish(metric: GraphMetric, Q: FloatArray, handles: IntArray, boundary_edge
             relax_iter: int, rounds: int) -> tuple[FloatArray, dict]:
     """The final quality step with the handles fixed (see :func:`move`): proximal
     least-squares rounds on the distortion from equilateral triangles of the source's
-    areas, reweighted by ``max(1, |F_t|/rms|F|)`` (an ℓ⁴ fit of ``1/ψ² − 1``); the mesh with
-    the best minimum aspect ratio is kept (the unfinished one included)."""
+    areas, each round's triangle weights those of the last times ``max(1, |F_t|/rms|F|)^½``
+    (``|F_t|² = 1/ψ_t² − 1``): the triangles that stay the worst weigh more and more, a
+    fit that moves from least squares towards the worst triangle. The mesh with the best
+    minimum aspect ratio is kept (the unfinished one included).
+
+    Measured on the move benchmarks' twelve cases (2.7k–4.2k triangles), against fresh
+    weights ``max(1, |F_t|/rms|F|)`` in three rounds (an ℓ⁴ fit, whose third round undid
+    the second's gain on the worst triangles): min AR higher on all twelve (90° annulus
+    turn 0.224 → 0.313, 180° 0.029 → 0.031, cylinder 0.01 from the wall 0.011 → 0.018),
+    mean Λ within 4 % on ten (the wall case 1.45 → 1.88), in fewer Newton iterations."""
     tri = metric.triangles
     free = np.ones((2, len(Q)), bool)
     free[0] = False
@@ -123,12 +132,14 @@ def _finish(metric: GraphMetric, Q: FloatArray, handles: IntArray, boundary_edge
     absolute = TriangleDistortion.equilateral(metric.reference, tri)
     best, best_ar, kept, nit = Q, aspect_ratios(Q, tri).min(), 0, 0
     weights = None
+    # one preconditioner for the rounds (their matrices differ by the weights only)
+    factors = FrameBlocks([np.arange(2 * int(free[1].sum()))], [metric.reference[free[1]]])
     for k in range(1, rounds + 1):
         m = GraphMetric(metric.reference, tri, metric.weight, triangle_weights=weights)
         m.strain = absolute
         res = discrete_geodesic(m, np.stack([Q, Q]), free, boundary_edges=boundary_edges,
                                 anchor_strain=np.zeros((len(tri), 3)), max_iter=relax_iter,
-                                gtol=1e-6)  # the default CG rtol: see RELAX_CG_RTOL
+                                gtol=1e-6, factors=factors, newton=True)  # CG: RELAX_CG_RTOL
         nit += res.nit
         Q = res.frames[1]
         ar = aspect_ratios(Q, tri).min()
@@ -136,7 +147,8 @@ def _finish(metric: GraphMetric, Q: FloatArray, handles: IntArray, boundary_edge
             best, best_ar, kept = Q, ar, k
         phi = absolute.values(Q)
         size = np.hypot(phi[:, 1], phi[:, 2])
-        weights = np.maximum(1.0, size / np.sqrt(np.mean(size**2)))
+        pressed = np.sqrt(np.maximum(1.0, size / np.sqrt(np.mean(size**2))))
+        weights = pressed if weights is None else weights * pressed
     return best, {"iterations": nit, "kept": kept}
 
 
@@ -154,7 +166,7 @@ def move(
     steps: int = 8,
     weight: float = 1.0,
     relax_iter: int = 15,
-    quality_rounds: int = 3,
+    quality_rounds: int = 6,
     finish_frames: bool = True,
     max_splits: int = 12,
     progress: Callable[[float], None] | None = None,
@@ -180,8 +192,9 @@ def move(
         Levenberg–Marquardt iterations of each relaxation.
     quality_rounds : int
         Rounds of the final quality step (handles fixed): least squares of the distortion
-        from equilateral triangles, reweighted towards the worst triangles (an ℓ⁴ fit of
-        ``1/ψ² − 1``); the round with the best minimum aspect ratio is kept.
+        from equilateral triangles, each round weighting the triangles that stay the worst
+        more (towards a fit of the worst triangle); the round with the best minimum aspect
+        ratio is kept.
     finish_frames : bool
         With ``frames``: give every intermediate frame the same quality step (handles
         fixed where they are at that time). The continuation's own frames are admissible

@@ -214,12 +214,19 @@ class _Path:
                           shape=(r.size, self.n_unknowns))
         return r, J
 
-    def normal_equations(self, frames: FloatArray) -> tuple[FloatArray, FloatArray, sp.csr_matrix]:
-        """Residual ``r``, gradient ``Jᵀr`` and Gauss–Newton matrix ``JᵀJ`` in the unknowns,
-        assembled from the per-triangle 6×6 products ``B_kᵀ W² B_l`` of the frames' Jacobian
-        blocks (no sparse ``J``, no sparse product): with ``D_k`` the embedding's Jacobian at
-        frame ``k``, segment ``k`` contributes ``K·D_kᵀD_k``, ``K·D_{k+1}ᵀD_{k+1}`` and
-        ``−K·D_kᵀD_{k+1}`` (and its transpose). Agrees with :meth:`evaluate` (tested)."""
+    def normal_equations(self, frames: FloatArray, newton: bool = False
+                         ) -> tuple[FloatArray, FloatArray, sp.csr_matrix, FloatArray]:
+        """Residual ``r``, gradient ``Jᵀr``, the matrix of the step and the diagonal of
+        ``JᵀJ`` (Levenberg–Marquardt's scaling), in the unknowns.
+
+        ``JᵀJ`` (Gauss–Newton) is assembled from the per-triangle 6×6 products
+        ``B_kᵀ W² B_l`` of the frames' Jacobian blocks (no sparse ``J``, no sparse
+        product): with ``D_k`` the embedding's Jacobian at frame ``k``, segment ``k``
+        contributes ``K·D_kᵀD_k``, ``K·D_{k+1}ᵀD_{k+1}`` and ``−K·D_kᵀD_{k+1}`` (and its
+        transpose); agrees with :meth:`evaluate` (tested). With ``newton`` the matrix is
+        the Hessian of ``½E``, ``JᵀJ + Σ_i r_i ∇²r_i``: the residual curvature of each
+        free frame, :meth:`.TriangleDistortion.second_order` weighted by the strain part of
+        its gradient (Taylor-tested). It may be indefinite."""
         K, N = self.K, self.N
         sK = np.sqrt(K)
         strain = self.metric.strain
@@ -237,23 +244,31 @@ class _Path:
         r = np.concatenate([np.concatenate([a, b.ravel()]) for a, b in zip(res_m, res_p)])
         tri_cols = (2 * strain.triangles[:, :, None] + np.arange(2)).reshape(-1, 6)  # (T, 6)
         g = np.zeros(self.n_unknowns)
-        for k in range(1, K + 1):
-            cols = self.col[k].ravel()
-            gm = (res_m[k - 1] - (res_m[k] if k < K else 0.0)) * sK * self.sqrt_m
-            gp = res_p[k - 1] - (res_p[k] if k < K else 0.0)
-            gp = sK * np.matmul(gp[:, None, :], blocks[k])[:, 0]
-            full = gm + np.bincount(tri_cols.ravel(), gp.ravel(), minlength=2 * N)
-            keep = cols >= 0
-            g[cols[keep]] += full[keep]
+        scaling = np.zeros(self.n_unknowns)
         mass2 = np.repeat(self.metric.mass, 2)
         pattern = self._assembly_pattern(tri_cols)
-        diagonal = [pattern.mesh.values((2.0 if k < K else 1.0) * K
-                                        * _block_products(blocks[k], blocks[k]),
-                                        (2.0 if k < K else 1.0) * K * mass2)
-                    for k in range(1, K + 1)]  # segments k − 1 and k (one for the last)
+        diagonal = []
+        six = np.arange(6)
+        for k in range(1, K + 1):
+            cols = self.col[k].ravel()
+            keep = cols >= 0
+            gm = (res_m[k - 1] - (res_m[k] if k < K else 0.0)) * sK * self.sqrt_m
+            strain_part = res_p[k - 1] - (res_p[k] if k < K else 0.0)  # (T, 3)
+            gp = sK * np.matmul(strain_part[:, None, :], blocks[k])[:, 0]
+            full = gm + np.bincount(tri_cols.ravel(), gp.ravel(), minlength=2 * N)
+            g[cols[keep]] += full[keep]
+            # segments k − 1 and k (one for the last)
+            segments = (2.0 if k < K else 1.0) * K
+            products = segments * _block_products(blocks[k], blocks[k])
+            own = segments * mass2 + np.bincount(tri_cols.ravel(), products[:, six, six].ravel(),
+                                                 minlength=2 * N)
+            scaling[cols[keep]] = own[keep]
+            if newton:
+                strain.second_order(frames[k], sK * w_rows * strain_part, out=products)
+            diagonal.append(pattern.mesh.values(products, segments * mass2))
         coupling = [pattern.mesh.values(-K * _block_products(blocks[k], blocks[k + 1]),
                                         -K * mass2) for k in range(1, K)]
-        return r, g, pattern.matrix(diagonal, coupling)
+        return r, g, pattern.matrix(diagonal, coupling), scaling
 
     def _assembly_pattern(self, tri_cols: IntArray) -> PathPattern:
         """The matrix structure (:mod:`.assembly`): it depends only on the triangles and on
@@ -309,6 +324,7 @@ def discrete_geodesic(
     callback: Callable[[int, float, float], None] | None = None,
     factors: FrameBlocks | None = None,
     cg_rtol: float = 1e-2,
+    newton: bool = False,
 ) -> PathResult:
     """Minimize the discrete path energy over the free coordinates by Levenberg–Marquardt.
 
@@ -341,6 +357,17 @@ def discrete_geodesic(
         1e-6, 1e-3 and 1e-2 take the same 14 iterations to the same frames (1e-3: 13 %
         less time than 1e-6; 1e-2: 1862 triangular solves instead of 2058); relaxations
         use 0.1.
+    newton : bool
+        Steps from the Hessian of the energy (True) or from its Gauss–Newton part ``JᵀJ``
+        (False). Where the residual is not small (a frame pulled towards strains it cannot
+        reach: move's relaxations and quality step), Gauss–Newton converges only
+        linearly and Newton's steps take about half the iterations (move's twelve
+        benchmark cases: 30–117 instead of 62–134 with the quality step's rounds run to
+        convergence). On the morph's paths it saves none (225° twist, 4.2k / 27k
+        triangles: 14 / 17 iterations either way; 180° annulus pair 17 → 23). The Hessian
+        may be indefinite: a step on which conjugate gradients meet non-positive curvature
+        is rejected like one that raises the energy (the damping ``λ·diag(JᵀJ)`` grows
+        until the matrix is positive definite).
 
     Returns
     -------
@@ -355,7 +382,7 @@ def discrete_geodesic(
     if path.n_unknowns == 0:
         r, _ = path.evaluate(frames, jacobian=False)
         return PathResult(frames, float(r @ r), 0.0, 0, "converged")
-    r, g, H = path.normal_equations(frames)
+    r, g, H, d = path.normal_equations(frames, newton)
     E = float(r @ r)
     lam = 1e-3
     blocks = (FrameBlocks(path.frame_indices(), path.frame_points()) if factors is None
@@ -377,12 +404,15 @@ def discrete_geodesic(
             status = "converged"
             it -= 1
             break
-        d = H.diagonal()
         x = path.unknowns(frames)
         accepted = False
         for _ in range(30):
             A = H + sp.diags(lam * (d + 1e-12 * d.max()))
-            step = blocks.solve(A, -g, cg_rtol)
+            try:
+                step = blocks.solve(A, -g, cg_rtol)
+            except FloatingPointError:  # A is not positive definite (Newton): damp more
+                lam *= 4.0
+                continue
             trial = path.with_unknowns(x + step)
             if path.admissible(trial):
                 r_t, _ = path.evaluate(trial, jacobian=False)
@@ -400,7 +430,7 @@ def discrete_geodesic(
             status = "stalled"
             break
         path.frames = frames
-        r, g, H = path.normal_equations(frames)
+        r, g, H, d = path.normal_equations(frames, newton)
         E = float(r @ r)
     gnorm = 2.0 * float(np.linalg.norm(g))
     if status == "max_iter" and gnorm <= gtol * max(1.0, np.sqrt(E)):

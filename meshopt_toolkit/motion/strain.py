@@ -161,6 +161,61 @@ class TriangleDistortion:
         d_ab[bad] = 0.0
         return phi, np.matmul(d_ab, self._ab_blocks)
 
+    def second_order(self, Q: FloatArray, rho: FloatArray, out: FloatArray | None = None
+                     ) -> FloatArray:
+        """``Σ_c ρ_tc ∇²φ_tc`` per triangle, (T, 6, 6) in the coordinates of
+        :meth:`values_and_jacobian` (added to ``out`` when given): the residual-curvature
+        part of a Hessian ``JᵀJ + Σ r_i ∇²r_i`` (Newton's term that Gauss–Newton leaves out).
+
+        In ``x = (Re α, Im α, Re β, Im β)``: ``φ_0 = s·log d`` and ``φ_1 + iφ_2 = s·N/d``
+        with ``d = |α|² − |β|²``, ``N = 2βᾱ`` (``= 2μ/(1 − |μ|²)·d``), ``s = 1/√2``, so with
+        ``n = ρ_1 Re N + ρ_2 Im N`` and ``∇N_ρ = ρ_1∇Re N + ρ_2∇Im N``
+
+            Σ_c ρ_c ∇²φ_c = (s/d)·[(ρ_0 − n/d)∇²d + ρ_1∇²Re N + ρ_2∇²Im N]
+                            + (s/d²)·[(2n/d − ρ_0)∇d∇dᵀ − ∇N_ρ∇dᵀ − ∇d∇N_ρᵀ]
+
+        (``∇²d = 2·diag(1, 1, −1, −1)``; ``∇²Re N``, ``∇²Im N`` constant). ``x`` is linear in
+        the vertices, ``α = Σ_j a_j z_j``, ``β = Σ_j b_j z_j``: the first bracket maps to the
+        2×2 blocks ``R(Z_jk)`` of the complex products ``Z_jk`` (``R(c)`` the real matrix of
+        ``w ↦ cw``), the gradients to ``∇_{z_j} d = 2 conj(ᾱa_j − β̄b_j)`` and
+        ``∇_{z_j} Re(ρ̄N) = 2 conj(ρ̄ᾱb_j + ρβ̄a_j)`` (``ρ = ρ_1 + iρ_2``).
+
+        Parameters
+        ----------
+        Q : (N, 2) float array
+            Current positions (every triangle non-inverted).
+        rho : (T, 3) float array
+            Weights of the components.
+        out : (T, 6, 6) float array, optional
+        """
+        al, be = self.alpha_beta(Q)
+        a, b = self._a, self._b
+        d = np.abs(al) ** 2 - np.abs(be) ** 2
+        rho_c = rho[:, 1] + 1j * rho[:, 2]
+        n = 2 * (np.conj(rho_c) * be * np.conj(al)).real
+        s_d = SQRT_HALF / d
+        c0 = (rho[:, 0] - n / d)[:, None]
+        # first bracket: Z = 2(s/d)[ā ⊗ (c0 a + ρ̄ b) + b̄ ⊗ (ρ a − c0 b)]
+        left = np.conj(a)[:, :, None] * (c0 * a + np.conj(rho_c)[:, None] * b)[:, None, :]
+        left += np.conj(b)[:, :, None] * (rho_c[:, None] * a - c0 * b)[:, None, :]
+        left *= (2 * s_d)[:, None, None]
+        if out is None:
+            out = np.zeros((len(d), 6, 6))
+        blocks = out.reshape(-1, 3, 2, 3, 2)
+        blocks[:, :, 0, :, 0] += left.real
+        blocks[:, :, 0, :, 1] -= left.imag
+        blocks[:, :, 1, :, 0] += left.imag
+        blocks[:, :, 1, :, 1] += left.real
+        # second bracket, rank two: gradients as (x_j, y_j) = (Re, −Im) of 2·(…)_j
+        u = _real_pairs(2 * (np.conj(al)[:, None] * a - np.conj(be)[:, None] * b))
+        v = _real_pairs(2 * ((np.conj(rho_c) * np.conj(al))[:, None] * b
+                             + (rho_c * np.conj(be))[:, None] * a))
+        scale = (s_d / d)[:, None]
+        first = scale * ((2 * n / d - rho[:, 0])[:, None] * u - v)
+        out += first[:, :, None] * u[:, None, :]
+        out -= (scale * u)[:, :, None] * v[:, None, :]
+        return out
+
     @property
     def _ab_blocks(self) -> FloatArray:
         """(T, 4, 6): ∂(Re α, Im α, Re β, Im β)/∂(x0, y0, x1, y1, x2, y2), constant."""
@@ -183,6 +238,15 @@ class TriangleDistortion:
         cols = np.broadcast_to(cols, (T, 3, 6))
         return sp.csr_matrix((blocks.ravel(), (rows.ravel(), cols.ravel())),
                              shape=(3 * T, 2 * self.n_vertices))
+
+
+def _real_pairs(w: np.ndarray) -> FloatArray:
+    """(T, 3) complex ``w_j`` → (T, 6) ``(Re w_0, −Im w_0, Re w_1, …)``: the real gradient
+    in ``(x_j, y_j)`` of ``Re Σ_j w_j z_j``."""
+    out = np.empty(w.shape[:-1] + (2 * w.shape[-1],))
+    out[..., 0::2] = w.real
+    out[..., 1::2] = -w.imag
+    return out
 
 
 def _linear_block(out: FloatArray, c: np.ndarray) -> None:
