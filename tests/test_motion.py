@@ -16,6 +16,7 @@ from hypothesis import strategies as st
 
 from meshopt_toolkit.errors import InvalidMeshError
 from meshopt_toolkit.kernels.triangles import aspect_ratios, inverse_shape_quality
+from meshopt_toolkit.motion.assembly import upper_to_blocks
 from meshopt_toolkit.motion.move import move
 from meshopt_toolkit.motion.morph import distortion_morph
 from meshopt_toolkit.motion.path import GraphMetric, _Path, discrete_geodesic
@@ -103,13 +104,29 @@ def test_distortion_second_order_taylor(disc, rng, at_reference):
         return (dist.jacobian_matrix(blocks).T @ weights.ravel()).reshape(X.shape)
 
     def hvp(X, V):
-        local = np.matmul(dist.second_order(X, weights), V.ravel()[cols][:, :, None])[:, :, 0]
+        blocks = upper_to_blocks(dist.second_order(X, weights))
+        local = np.matmul(blocks, V.ravel()[cols][:, :, None])[:, :, 0]
         return np.bincount(cols.ravel(), local.ravel(), minlength=V.size).reshape(V.shape)
 
     result = check_hvp(f, grad, hvp, Q, eps0=1e-3, rng=rng)
     assert abs(result.order - 3) < 0.2, result
-    blocks = dist.second_order(Q, weights)
-    assert np.abs(blocks - blocks.transpose(0, 2, 1)).max() <= 1e-12 * np.abs(blocks).max()
+
+
+def test_symmetric_assembly_is_the_full_one(disc, rng):
+    """Symmetric blocks assembled from their 21 upper entries (one bincount and the
+    transpose) equal the full blocks' assembly."""
+    from meshopt_toolkit.motion.assembly import MeshPattern, symmetric_products
+
+    cols = (2 * disc.triangles[:, :, None] + np.arange(2)).reshape(-1, 6)
+    pattern = MeshPattern(cols, 2 * disc.n_vertices)
+    a = rng.standard_normal((6, 3, disc.n_triangles))
+    full = np.einsum("ict,jct->tij", a, a)
+    upper = symmetric_products(a)
+    assert np.abs(upper_to_blocks(upper) - full).max() <= 1e-14 * np.abs(full).max()
+    diagonal = rng.random(2 * disc.n_vertices)
+    expected = pattern.values(full, diagonal)
+    assert np.abs(pattern.symmetric_values(upper, diagonal) - expected).max() \
+        <= 1e-13 * np.abs(expected).max()
 
 
 @FAST

@@ -15,6 +15,31 @@ import scipy.sparse as sp
 
 from .._typing import FloatArray, IntArray
 
+#: The 21 entries ``i ≤ j`` of a symmetric 6×6 block, row by row: symmetric per-triangle
+#: blocks are kept as ``(21, T)`` arrays of these entries ("upper", one row per entry, so
+#: that every operation on them is over all triangles at once).
+UPPER_ROWS, UPPER_COLS = np.triu_indices(6)
+#: the rows of an upper array that hold a block's diagonal
+UPPER_DIAGONAL = np.flatnonzero(UPPER_ROWS == UPPER_COLS)
+
+
+def symmetric_products(a: FloatArray) -> FloatArray:
+    """``Σ_c a_ci a_cj`` per triangle as an upper array (21, T), from ``a`` (6, C, T)."""
+    out = np.empty((len(UPPER_ROWS), a.shape[2]))
+    for row, (i, j) in enumerate(zip(UPPER_ROWS, UPPER_COLS)):
+        np.multiply(a[i, 0], a[j, 0], out=out[row])
+        for c in range(1, a.shape[1]):
+            out[row] += a[i, c] * a[j, c]
+    return out
+
+
+def upper_to_blocks(upper: FloatArray) -> FloatArray:
+    """An upper array (21, T) as the full symmetric blocks (T, 6, 6)."""
+    blocks = np.empty((upper.shape[1], 6, 6))
+    blocks[:, UPPER_ROWS, UPPER_COLS] = upper.T
+    blocks[:, UPPER_COLS, UPPER_ROWS] = upper.T
+    return blocks
+
 
 class MeshPattern:
     """The CSR pattern of a symmetric ``2N × 2N`` matrix with one dense 6×6 block per
@@ -42,11 +67,25 @@ class MeshPattern:
         self.nnz = keys.size
         self.n_coords = n_coords
         self.transposed = np.searchsorted(keys, self.cols * n_coords + self.rows)
+        by_triangle = self.slot_of_entry[:36 * T].reshape(T, 6, 6)
+        self.upper_slots = np.ascontiguousarray(by_triangle[:, UPPER_ROWS, UPPER_COLS].T).ravel()
+        self.diagonal_slots = self.slot_of_entry[36 * T:]
 
     def values(self, products: FloatArray, diagonal: FloatArray) -> FloatArray:
         """Slot values of ``Σ_t`` the 6×6 ``products`` (T, 6, 6) plus ``diag(diagonal)``."""
         weights = np.concatenate([products.ravel(), diagonal])
         return np.bincount(self.slot_of_entry, weights, minlength=self.nnz)
+
+    def symmetric_values(self, upper: FloatArray, diagonal: FloatArray) -> FloatArray:
+        """Slot values of ``Σ_t`` the symmetric blocks given by ``upper`` (21, T) plus
+        ``diag(diagonal)``: one ``bincount`` of the 21 entries (the blocks' diagonal
+        halved, in place in ``upper``) and the sum with its transpose. At 106k triangles
+        about half the time of :meth:`values` on the full blocks with their products."""
+        upper[UPPER_DIAGONAL] *= 0.5
+        out = np.bincount(self.upper_slots, upper.ravel(), minlength=self.nnz)
+        out += out[self.transposed]
+        out[self.diagonal_slots] += diagonal
+        return out
 
 
 class PathPattern:

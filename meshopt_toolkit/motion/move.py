@@ -111,6 +111,13 @@ def _check_handles(mesh: PlanarMesh, handles, targets) -> tuple[IntArray, FloatA
     return hs.astype(np.int64), ts
 
 
+# A quality round stops when its gradient fell by this factor: Newton's steps are then in
+# their fast phase, and the rounds' weights change the problem anyway (measured on the
+# twelve benchmark cases: the same min AR to 3 digits as running each round to 1e-6, in
+# 4 instead of 6–7 iterations per round).
+QUALITY_RTOL = 1e-3
+
+
 def _finish(metric: GraphMetric, Q: FloatArray, handles: IntArray, boundary_edges: IntArray,
             relax_iter: int, rounds: int) -> tuple[FloatArray, dict]:
     """The final quality step with the handles fixed (see :func:`move`): proximal
@@ -139,7 +146,8 @@ def _finish(metric: GraphMetric, Q: FloatArray, handles: IntArray, boundary_edge
         m.strain = absolute
         res = discrete_geodesic(m, np.stack([Q, Q]), free, boundary_edges=boundary_edges,
                                 anchor_strain=np.zeros((len(tri), 3)), max_iter=relax_iter,
-                                gtol=1e-6, factors=factors, newton=True)  # CG: RELAX_CG_RTOL
+                                gtol=1e-6, rtol=QUALITY_RTOL, factors=factors,
+                                newton=True)  # CG: RELAX_CG_RTOL
         nit += res.nit
         Q = res.frames[1]
         ar = aspect_ratios(Q, tri).min()

@@ -26,7 +26,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .._typing import FloatArray, IntArray
-from .assembly import MeshPattern, PathPattern
+from .assembly import UPPER_DIAGONAL, MeshPattern, PathPattern, symmetric_products
 from .frame_blocks import FrameBlocks
 from .strain import TriangleDistortion
 
@@ -248,7 +248,6 @@ class _Path:
         mass2 = np.repeat(self.metric.mass, 2)
         pattern = self._assembly_pattern(tri_cols)
         diagonal = []
-        six = np.arange(6)
         for k in range(1, K + 1):
             cols = self.col[k].ravel()
             keep = cols >= 0
@@ -259,13 +258,14 @@ class _Path:
             g[cols[keep]] += full[keep]
             # segments k − 1 and k (one for the last)
             segments = (2.0 if k < K else 1.0) * K
-            products = segments * _block_products(blocks[k], blocks[k])
-            own = segments * mass2 + np.bincount(tri_cols.ravel(), products[:, six, six].ravel(),
+            upper = symmetric_products(np.ascontiguousarray(blocks[k].transpose(2, 1, 0)))
+            upper *= segments
+            own = segments * mass2 + np.bincount(tri_cols.T.ravel(), upper[UPPER_DIAGONAL].ravel(),
                                                  minlength=2 * N)
             scaling[cols[keep]] = own[keep]
             if newton:
-                strain.second_order(frames[k], sK * w_rows * strain_part, out=products)
-            diagonal.append(pattern.mesh.values(products, segments * mass2))
+                strain.second_order(frames[k], sK * w_rows * strain_part, out=upper)
+            diagonal.append(pattern.mesh.symmetric_values(upper, segments * mass2))
         coupling = [pattern.mesh.values(-K * _block_products(blocks[k], blocks[k + 1]),
                                         -K * mass2) for k in range(1, K)]
         return r, g, pattern.matrix(diagonal, coupling), scaling

@@ -29,6 +29,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .._typing import FloatArray, IntArray
+from .assembly import UPPER_COLS, UPPER_ROWS
 
 SQRT_HALF = np.sqrt(0.5)
 
@@ -163,9 +164,10 @@ class TriangleDistortion:
 
     def second_order(self, Q: FloatArray, rho: FloatArray, out: FloatArray | None = None
                      ) -> FloatArray:
-        """``Σ_c ρ_tc ∇²φ_tc`` per triangle, (T, 6, 6) in the coordinates of
-        :meth:`values_and_jacobian` (added to ``out`` when given): the residual-curvature
-        part of a Hessian ``JᵀJ + Σ r_i ∇²r_i`` (Newton's term that Gauss–Newton leaves out).
+        """``Σ_c ρ_tc ∇²φ_tc`` per triangle in the coordinates of :meth:`values_and_jacobian`,
+        as an upper array (21, T) (:mod:`.assembly`; added to ``out`` when given): the
+        residual-curvature part of a Hessian ``JᵀJ + Σ r_i ∇²r_i`` (Newton's term that
+        Gauss–Newton leaves out).
 
         In ``x = (Re α, Im α, Re β, Im β)``: ``φ_0 = s·log d`` and ``φ_1 + iφ_2 = s·N/d``
         with ``d = |α|² − |β|²``, ``N = 2βᾱ`` (``= 2μ/(1 − |μ|²)·d``), ``s = 1/√2``, so with
@@ -176,9 +178,10 @@ class TriangleDistortion:
 
         (``∇²d = 2·diag(1, 1, −1, −1)``; ``∇²Re N``, ``∇²Im N`` constant). ``x`` is linear in
         the vertices, ``α = Σ_j a_j z_j``, ``β = Σ_j b_j z_j``: the first bracket maps to the
-        2×2 blocks ``R(Z_jk)`` of the complex products ``Z_jk`` (``R(c)`` the real matrix of
-        ``w ↦ cw``), the gradients to ``∇_{z_j} d = 2 conj(ᾱa_j − β̄b_j)`` and
-        ``∇_{z_j} Re(ρ̄N) = 2 conj(ρ̄ᾱb_j + ρβ̄a_j)`` (``ρ = ρ_1 + iρ_2``).
+        2×2 blocks ``R(Z_jk)`` of the complex Hermitian ``Z = 2(s/d)[ā ⊗ (c a + ρ̄ b) +
+        b̄ ⊗ (ρ a − c b)]`` (``c = ρ_0 − n/d``, ``ρ = ρ_1 + iρ_2``, ``R(z)`` the real matrix
+        of ``w ↦ zw``), the gradients to ``∇_{z_j} d = 2 conj(ᾱa_j − β̄b_j)`` and
+        ``∇_{z_j} Re(ρ̄N) = 2 conj(ρ̄ᾱb_j + ρβ̄a_j)``.
 
         Parameters
         ----------
@@ -186,34 +189,34 @@ class TriangleDistortion:
             Current positions (every triangle non-inverted).
         rho : (T, 3) float array
             Weights of the components.
-        out : (T, 6, 6) float array, optional
+        out : (21, T) float array, optional
         """
         al, be = self.alpha_beta(Q)
-        a, b = self._a, self._b
+        a, b = self._a.T, self._b.T  # (3, T)
         d = np.abs(al) ** 2 - np.abs(be) ** 2
         rho_c = rho[:, 1] + 1j * rho[:, 2]
         n = 2 * (np.conj(rho_c) * be * np.conj(al)).real
         s_d = SQRT_HALF / d
-        c0 = (rho[:, 0] - n / d)[:, None]
-        # first bracket: Z = 2(s/d)[ā ⊗ (c0 a + ρ̄ b) + b̄ ⊗ (ρ a − c0 b)]
-        left = np.conj(a)[:, :, None] * (c0 * a + np.conj(rho_c)[:, None] * b)[:, None, :]
-        left += np.conj(b)[:, :, None] * (rho_c[:, None] * a - c0 * b)[:, None, :]
-        left *= (2 * s_d)[:, None, None]
+        c = rho[:, 0] - n / d
+        left_a = 2 * s_d * np.conj(a)  # Z_jk = left_a_j·x_k + left_b_j·y_k
+        left_b = 2 * s_d * np.conj(b)
+        x, y = c * a + np.conj(rho_c) * b, rho_c * a - c * b
+        # the rank-two bracket: gradients in (x_j, y_j) = (Re, −Im) of 2·(…)_j
+        u = _real_pairs(2 * (np.conj(al) * a - np.conj(be) * b))  # (6, T)
+        v = _real_pairs(2 * (np.conj(rho_c) * np.conj(al) * b + rho_c * np.conj(be) * a))
+        scale = s_d / d
+        f = scale * ((2 * n / d - rho[:, 0]) * u - v)
+        g = scale * u
         if out is None:
-            out = np.zeros((len(d), 6, 6))
-        blocks = out.reshape(-1, 3, 2, 3, 2)
-        blocks[:, :, 0, :, 0] += left.real
-        blocks[:, :, 0, :, 1] -= left.imag
-        blocks[:, :, 1, :, 0] += left.imag
-        blocks[:, :, 1, :, 1] += left.real
-        # second bracket, rank two: gradients as (x_j, y_j) = (Re, −Im) of 2·(…)_j
-        u = _real_pairs(2 * (np.conj(al)[:, None] * a - np.conj(be)[:, None] * b))
-        v = _real_pairs(2 * ((np.conj(rho_c) * np.conj(al))[:, None] * b
-                             + (rho_c * np.conj(be))[:, None] * a))
-        scale = (s_d / d)[:, None]
-        first = scale * ((2 * n / d - rho[:, 0])[:, None] * u - v)
-        out += first[:, :, None] * u[:, None, :]
-        out -= (scale * u)[:, :, None] * v[:, None, :]
+            out = np.zeros((len(UPPER_ROWS), len(d)))
+        zs = {}
+        for row, (i, j) in enumerate(zip(UPPER_ROWS, UPPER_COLS)):
+            z = zs.get((i // 2, j // 2))
+            if z is None:
+                z = zs[i // 2, j // 2] = left_a[i // 2] * x[j // 2] + left_b[i // 2] * y[j // 2]
+            p, q = i % 2, j % 2  # R(z) = [[Re z, −Im z], [Im z, Re z]]
+            entry = z.real if p == q else (z.imag if p else -z.imag)
+            out[row] += entry + f[i] * u[j] - g[i] * v[j]
         return out
 
     @property
@@ -241,11 +244,11 @@ class TriangleDistortion:
 
 
 def _real_pairs(w: np.ndarray) -> FloatArray:
-    """(T, 3) complex ``w_j`` → (T, 6) ``(Re w_0, −Im w_0, Re w_1, …)``: the real gradient
+    """(3, T) complex ``w_j`` → (6, T) ``(Re w_0, −Im w_0, Re w_1, …)``: the real gradient
     in ``(x_j, y_j)`` of ``Re Σ_j w_j z_j``."""
-    out = np.empty(w.shape[:-1] + (2 * w.shape[-1],))
-    out[..., 0::2] = w.real
-    out[..., 1::2] = -w.imag
+    out = np.empty((2 * w.shape[0],) + w.shape[1:])
+    out[0::2] = w.real
+    out[1::2] = -w.imag
     return out
 
 
