@@ -112,13 +112,33 @@ def test_distortion_second_order_taylor(disc, rng, at_reference):
     assert abs(result.order - 3) < 0.2, result
 
 
+def test_mesh_pattern_is_the_sorted_coordinate_pattern(disc):
+    """The pattern built from vertex pairs is the sorted set of the coordinate entries,
+    each triangle entry and diagonal entry lands on its own (row, col), and ``transposed``
+    maps every slot to the slot of (col, row)."""
+    from meshopt_toolkit.motion.assembly import MeshPattern
+
+    n = 2 * disc.n_vertices
+    cols = (2 * disc.triangles[:, :, None] + np.arange(2)).reshape(-1, 6)
+    rows6 = np.broadcast_to(cols[:, :, None], (len(cols), 6, 6)).ravel()
+    cols6 = np.broadcast_to(cols[:, None, :], (len(cols), 6, 6)).ravel()
+    keys = np.unique(np.concatenate([rows6 * n + cols6, np.arange(n) * (n + 1)]))
+    pattern = MeshPattern(disc.triangles, disc.n_vertices)
+    assert np.array_equal(pattern.rows * n + pattern.cols, keys)
+    slots = pattern.slot_of_entry
+    assert np.array_equal(pattern.rows[slots], np.concatenate([rows6, np.arange(n)]))
+    assert np.array_equal(pattern.cols[slots], np.concatenate([cols6, np.arange(n)]))
+    assert np.array_equal(pattern.rows[pattern.transposed], pattern.cols)
+    assert np.array_equal(pattern.cols[pattern.transposed], pattern.rows)
+
+
 def test_symmetric_assembly_is_the_full_one(disc, rng):
     """Symmetric blocks assembled from their 21 upper entries (one bincount and the
     transpose) equal the full blocks' assembly."""
     from meshopt_toolkit.motion.assembly import MeshPattern, symmetric_products
 
     cols = (2 * disc.triangles[:, :, None] + np.arange(2)).reshape(-1, 6)
-    pattern = MeshPattern(cols, 2 * disc.n_vertices)
+    pattern = MeshPattern(disc.triangles, disc.n_vertices)
     a = rng.standard_normal((6, 3, disc.n_triangles))
     full = np.einsum("ict,jct->tij", a, a)
     upper = symmetric_products(a)

@@ -43,7 +43,8 @@ def upper_to_blocks(upper: FloatArray) -> FloatArray:
 
 class MeshPattern:
     """The CSR pattern of a symmetric ``2N × 2N`` matrix with one dense 6×6 block per
-    triangle (its vertices' coordinates) and the diagonal.
+    triangle (its vertices' coordinates ``x_0, y_0, x_1, …``) and the diagonal, built from
+    the vertex pattern (a quarter of the entries to sort).
 
     Attributes
     ----------
@@ -55,21 +56,36 @@ class MeshPattern:
         The slot of ``(col, row)`` for each slot.
     """
 
-    def __init__(self, tri_cols: IntArray, n_coords: int) -> None:
-        T = tri_cols.shape[0]
-        rows = np.concatenate([np.broadcast_to(tri_cols[:, :, None], (T, 6, 6)).ravel(),
-                               np.arange(n_coords)])
-        cols = np.concatenate([np.broadcast_to(tri_cols[:, None, :], (T, 6, 6)).ravel(),
-                               np.arange(n_coords)])
-        keys, self.slot_of_entry = np.unique(rows * n_coords + cols, return_inverse=True)
-        self.slot_of_entry = self.slot_of_entry.ravel()
-        self.rows, self.cols = keys // n_coords, keys % n_coords
-        self.nnz = keys.size
-        self.n_coords = n_coords
-        self.transposed = np.searchsorted(keys, self.cols * n_coords + self.rows)
-        by_triangle = self.slot_of_entry[:36 * T].reshape(T, 6, 6)
+    def __init__(self, triangles: IntArray, n_vertices: int) -> None:
+        # the vertex pattern (9 pairs per triangle and the diagonal), then each vertex
+        # pair (a, b) as its four coordinate entries (2a + p, 2b + q): in CSR order, row
+        # 2a + p holds (2b, 2b + 1) for each neighbour b of a in turn, so the entry of
+        # the vertex pattern's e-th pair lands at 4·ptr[a] + 2p·deg(a) + 2(e − ptr[a]) + q
+        T, N = len(triangles), n_vertices
+        first = np.concatenate([np.repeat(triangles, 3, axis=1).ravel(), np.arange(N)])
+        second = np.concatenate([np.tile(triangles, (1, 3)).ravel(), np.arange(N)])
+        keys, pair_of_entry = np.unique(first * N + second, return_inverse=True)
+        a, b = keys // N, keys % N
+        ptr = np.searchsorted(a, np.arange(N + 1))
+        degree = np.diff(ptr)[a]
+        corner = (4 * ptr[a] + 2 * (np.arange(keys.size) - ptr[a]))[:, None, None]
+        p = np.arange(2)
+        slots = corner + 2 * p[None, :, None] * degree[:, None, None] + p[None, None, :]
+        self.nnz = 4 * keys.size
+        self.n_coords = 2 * N
+        self.rows = np.empty(self.nnz, np.int64)
+        self.cols = np.empty(self.nnz, np.int64)
+        self.rows[slots] = 2 * a[:, None, None] + p[None, :, None]
+        self.cols[slots] = 2 * b[:, None, None] + p[None, None, :]
+        mirror = np.searchsorted(keys, b * N + a)
+        self.transposed = np.empty(self.nnz, np.int64)
+        self.transposed[slots] = slots[mirror].transpose(0, 2, 1)
+        pairs = pair_of_entry.ravel()
+        by_triangle = slots[pairs[:9 * T]].reshape(T, 3, 3, 2, 2).transpose(0, 1, 3, 2, 4)
+        by_triangle = by_triangle.reshape(T, 6, 6)
+        self.diagonal_slots = slots[pairs[9 * T:]][:, p, p].ravel()
+        self.slot_of_entry = np.concatenate([by_triangle.ravel(), self.diagonal_slots])
         self.upper_slots = np.ascontiguousarray(by_triangle[:, UPPER_ROWS, UPPER_COLS].T).ravel()
-        self.diagonal_slots = self.slot_of_entry[36 * T:]
 
     def values(self, products: FloatArray, diagonal: FloatArray) -> FloatArray:
         """Slot values of ``Σ_t`` the 6×6 ``products`` (T, 6, 6) plus ``diag(diagonal)``."""

@@ -282,7 +282,7 @@ class _Path:
                 if pattern is None:
                     if len(_PATTERNS) >= 4:
                         _PATTERNS.pop(next(iter(_PATTERNS)))
-                    mesh = MeshPattern(tri_cols, 2 * self.N)
+                    mesh = MeshPattern(self.metric.triangles, self.N)
                     pattern = PathPattern(mesh, self.col.reshape(self.K + 1, -1))
                     _PATTERNS[structure] = pattern
             self._pattern = pattern

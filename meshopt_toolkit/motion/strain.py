@@ -192,7 +192,7 @@ class TriangleDistortion:
         out : (21, T) float array, optional
         """
         al, be = self.alpha_beta(Q)
-        a, b = self._a.T, self._b.T  # (3, T)
+        a, b = self._coefficients_by_corner  # (3, T)
         d = np.abs(al) ** 2 - np.abs(be) ** 2
         rho_c = rho[:, 1] + 1j * rho[:, 2]
         n = 2 * (np.conj(rho_c) * be * np.conj(al)).real
@@ -218,6 +218,16 @@ class TriangleDistortion:
             entry = z.real if p == q else (z.imag if p else -z.imag)
             out[row] += entry + f[i] * u[j] - g[i] * v[j]
         return out
+
+    @property
+    def _coefficients_by_corner(self) -> tuple[np.ndarray, np.ndarray]:
+        """``a, b`` as contiguous (3, T) arrays (each corner's coefficients of all
+        triangles together), kept."""
+        kept = getattr(self, "_by_corner", None)
+        if kept is None:
+            kept = self._by_corner = (np.ascontiguousarray(self._a.T),
+                                      np.ascontiguousarray(self._b.T))
+        return kept
 
     @property
     def _ab_blocks(self) -> FloatArray:
