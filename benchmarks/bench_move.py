@@ -131,9 +131,11 @@ def growth(size: float, max_triangles: int) -> None:
         if mesh.n_triangles > max_triangles:
             break
         handles, targets = rotate_inner_boundary(mesh, 90)
-        t0 = time.perf_counter()
-        elasticity_motion(mesh.points, mesh.triangles, handles, targets)
-        unit = time.perf_counter() - t0
+        unit = np.inf  # the fastest of three solves: a conservative cost unit on a busy machine
+        for _ in range(3):
+            t0 = time.perf_counter()
+            elasticity_motion(mesh.points, mesh.triangles, handles, targets)
+            unit = min(unit, time.perf_counter() - t0)
         t0 = time.perf_counter()
         res = mt.move(mesh, handles, targets)
         sec = time.perf_counter() - t0

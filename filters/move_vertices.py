@@ -29,7 +29,7 @@ class PrescribedMotion(Filter):
         StringParam("map", "", "new boundary positions 'X_EXPR; Y_EXPR' in x, y", label="Map"),
         StringParam("where", "", "with map: which boundary vertices move, e.g. 'x < 0.5'",
                     label="Where"),
-        IntParam("steps", 8, "continuation steps (split further when needed)", label="Steps",
+        IntParam("steps", 4, "continuation steps (split further when needed)", label="Steps",
                  min=1, max=MAX_STEPS),
         FloatParam("weight", 1.0, "w of the metric M + w² JᵀJ", label="Weight", min=0.0,
                    exclusive_min=True),

@@ -171,7 +171,7 @@ def move(
     targets,
     *,
     frames: int | None = None,
-    steps: int = 8,
+    steps: int = 4,
     weight: float = 1.0,
     relax_iter: int = 15,
     quality_rounds: int = 6,
@@ -193,7 +193,11 @@ def move(
     frames : int, optional
         Return the motion as this many meshes (≥ 2, first = input, last = result).
     steps : int
-        Continuation steps (each is split further where needed).
+        Continuation steps (each is split further where needed; with ``frames``, at least
+        ``frames − 1``). Measured on the twelve benchmark cases, 4 and 8 steps give the
+        same min AR on ten; on the two most strained (annulus hole turned 180°, cylinder
+        moved 1.5 along the channel) the result moves by up to 25 % either way with any
+        change of the path (steps, solver tolerances), at 2.7k and 11k triangles alike.
     weight : float
         ``w`` of the metric ``M + w² JᵀJ``; larger keeps triangle shapes more rigidly.
     relax_iter : int
