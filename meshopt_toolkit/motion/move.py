@@ -23,7 +23,7 @@ from ..cores import thread_budget
 from ..errors import InvalidMeshError
 from ..kernels.triangles import aspect_ratios, inverse_shape_quality
 from ..mesh import PlanarMesh, boundary_self_intersections, require_admissible
-from .continuation import NoAdmissiblePathError, continuation_path
+from .continuation import RELAX_CG_RTOL, NoAdmissiblePathError, continuation_path
 from .frame_blocks import FrameBlocks
 from .path import GraphMetric, discrete_geodesic
 from .similarity import HandlePath, Similarity, fit_similarity, handle_groups
@@ -147,7 +147,7 @@ def _finish(metric: GraphMetric, Q: FloatArray, handles: IntArray, boundary_edge
         res = discrete_geodesic(m, np.stack([Q, Q]), free, boundary_edges=boundary_edges,
                                 anchor_strain=np.zeros((len(tri), 3)), max_iter=relax_iter,
                                 gtol=1e-6, rtol=QUALITY_RTOL, factors=factors,
-                                newton=True)  # CG: RELAX_CG_RTOL
+                                cg_rtol=RELAX_CG_RTOL, newton=True)
         nit += res.nit
         Q = res.frames[1]
         ar = aspect_ratios(Q, tri).min()
