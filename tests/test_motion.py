@@ -137,7 +137,6 @@ def test_symmetric_assembly_is_the_full_one(disc, rng):
     transpose) equal the full blocks' assembly."""
     from meshopt_toolkit.motion.assembly import MeshPattern, symmetric_products
 
-    cols = (2 * disc.triangles[:, :, None] + np.arange(2)).reshape(-1, 6)
     pattern = MeshPattern(disc.triangles, disc.n_vertices)
     a = rng.standard_normal((6, 3, disc.n_triangles))
     full = np.einsum("ict,jct->tij", a, a)
