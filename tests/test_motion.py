@@ -318,6 +318,54 @@ def test_frame_blocks_in_nested_dissection_order_solve_the_path_system(disc, rng
         FrameBlocks(path.frame_indices(), path.frame_points()[1:] + [P[:1]])
 
 
+def test_frame_blocks_refuse_an_indefinite_matrix_and_refactorize_after(rng):
+    """An indefinite matrix (a Newton matrix may be one) raises FloatingPointError; the
+    next solve, of a positive definite matrix, factorizes afresh and succeeds."""
+    from meshopt_toolkit.motion.frame_blocks import FrameBlocks
+
+    n = 200
+    laplacian = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(n, n)).tocsr()
+    b = rng.standard_normal(n)
+    blocks = FrameBlocks([np.arange(n)])
+    with pytest.raises(FloatingPointError):
+        blocks.solve((laplacian - 0.5 * sp.eye(n)).tocsr(), b, 1e-8)
+    assert blocks.stale
+    spd = (laplacian + 0.1 * sp.eye(n)).tocsr()
+    x = blocks.solve(spd, b, 1e-10)
+    assert np.linalg.norm(spd @ x - b) <= 1e-9 * np.linalg.norm(b)
+
+
+def test_discrete_geodesic_damps_more_where_the_newton_matrix_is_indefinite(
+        disc, rng, monkeypatch):
+    """A step whose solve meets non-positive curvature is rejected and the damping grows:
+    the path still converges, to the same frames as without the failure."""
+    from meshopt_toolkit.motion.frame_blocks import FrameBlocks
+
+    P = disc.points
+    target = _random_admissible(disc, rng, 0.3)
+    free = np.ones((2, disc.n_vertices), bool)
+    free[0] = False
+    free[1, np.unique(disc.boundary_edges)] = False
+    metric = GraphMetric(P, disc.triangles)
+    frames = np.stack([P, P])
+    anchor = metric.strain.values(target)
+    reference = discrete_geodesic(metric, frames, free, anchor_strain=anchor, newton=True)
+    calls = []
+    solve = FrameBlocks.solve
+
+    def fail_once(self, A, b, rtol):
+        calls.append(len(calls))
+        if len(calls) == 1:
+            self.stale = True
+            raise FloatingPointError("conjugate gradients broke down (pᵀAp ≤ 0)")
+        return solve(self, A, b, rtol)
+
+    monkeypatch.setattr(FrameBlocks, "solve", fail_once)
+    result = discrete_geodesic(metric, frames, free, anchor_strain=anchor, newton=True)
+    assert len(calls) > 1 and result.converged and reference.converged
+    assert np.abs(result.frames - reference.frames).max() <= 1e-5 * np.abs(P).max()
+
+
 def test_frame_blocks_redo_a_failed_single_precision_solve_in_double(monkeypatch):
     """Where CG does not converge on the float32 factors, the solve is redone (and the
     next ones made) on double-precision factors."""
@@ -369,6 +417,20 @@ def test_discrete_geodesic_converges_and_lowers_energy(disc, rng):
     assert res.converged and res.energy <= float(r0 @ r0)
     assert res.gradient_norm <= 1e-7 * max(1, np.sqrt(res.energy))
     assert np.array_equal(res.frames[0], P) and np.array_equal(res.frames[-1], target)
+
+
+def test_discrete_geodesic_at_machine_precision_is_converged(disc, rng):
+    """With ``gtol = 0`` (unreachable) the path stops where no step can lower the energy
+    beyond its rounding, and says converged, not stalled."""
+    P = disc.points
+    target = _random_admissible(disc, rng, 0.3)
+    frames = np.array([(1 - s) * P + s * target for s in np.linspace(0, 1, 4)])
+    free = np.ones((4, disc.n_vertices), bool)
+    free[[0, -1]] = False
+    res = discrete_geodesic(GraphMetric(P, disc.triangles), frames, free, gtol=0.0,
+                            max_iter=200)
+    assert res.status == "converged" and res.nit < 200
+    assert res.gradient_norm <= 1e-6 * max(1.0, np.sqrt(res.energy))
 
 
 def test_discrete_geodesic_relative_stop(disc, rng):

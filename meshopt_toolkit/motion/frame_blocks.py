@@ -85,15 +85,14 @@ class FrameBlocks:
         that fails on float32 factors is redone, in double precision from then on.
 
         Raises FloatingPointError where ``A`` is not positive definite (a Newton matrix
-        may not be): conjugate gradients meet non-positive curvature on fresh factors, or
-        the factorization is singular. On kept factors of an earlier matrix the solve is
-        first redone on fresh ones (the earlier matrix may have been the indefinite one).
+        may not be): conjugate gradients meet non-positive curvature ``pᵀAp ≤ 0`` (which
+        only an indefinite ``A`` has), or its factorization is singular; the next solve
+        (of a more damped matrix) then factorizes afresh.
 
         (Plain Jacobi for heavily damped Levenberg–Marquardt systems was tried: 42.6k /
         106k annulus 27× → 18× / 27× → 19–24× elasticity solves, but min AR 0.2240 →
         0.2208 / 0.2348 → 0.2230; not taken.)"""
-        fresh = self.stale or not self.factors
-        if fresh:
+        if self.stale or not self.factors:
             try:
                 self.factorize(A)
             except RuntimeError as exc:  # SuperLU: exactly singular
@@ -104,9 +103,7 @@ class FrameBlocks:
                                           maxiter=max(200, b.size // 2_000))
         except FloatingPointError:
             self.stale = True
-            if fresh:
-                raise
-            return self.solve(A, b, rtol)
+            raise
         if residual > rtol and self.single:
             self.single, self.stale = False, True
             return self.solve(A, b, rtol)
