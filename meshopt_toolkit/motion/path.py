@@ -314,6 +314,13 @@ class _Path:
 #: relative size below which a change of the energy is rounding (its evaluation sums
 #: thousands of rounded terms)
 ENERGY_RESOLUTION = 100 * np.finfo(float).eps
+#: the damping's factor after a step whose decrease the model predicted well (ρ > 0.75).
+#: The paths have soft directions (a frame sliding along itself) that a damped step
+#: barely moves along; with the usual 1/3 the morph spent its last iterations waiting
+#: for λ to fall (4.2k twist: 14 iterations, 6 of them at |∇E| ≈ 1e-3 with ρ ≈ 1);
+#: with 1/10, 10 iterations to the same min AR in every frame, and move's relaxations
+#: and quality rounds 10–15 % fewer.
+LAMBDA_DECREASE = 0.1
 
 
 def discrete_geodesic(
@@ -433,7 +440,7 @@ def discrete_geodesic(
                 if np.isfinite(E_t) and E_t < E:
                     rho = (E - E_t) / max(predicted, 1e-300)
                     frames = trial
-                    lam = lam * (1 / 3 if rho > 0.75 else 1.0 if rho > 0.25 else 2.0)
+                    lam = lam * (LAMBDA_DECREASE if rho > 0.75 else 1.0 if rho > 0.25 else 2.0)
                     lam = max(lam, 1e-12)
                     accepted = True
                     break
