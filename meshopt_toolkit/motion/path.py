@@ -371,8 +371,8 @@ def discrete_geodesic(
         Relative residual of the conjugate-gradient solve of each step. An inexact step
         is fine (the ratio test judges it): measured on the 225° twist of the 4.2k disc,
         1e-6, 1e-3 and 1e-2 take the same 14 iterations to the same frames (1e-3: 13 %
-        less time than 1e-6; 1e-2: 1862 triangular solves instead of 2058); relaxations
-        use 0.1.
+        less time than 1e-6; 1e-2: 1862 triangular solves instead of 2058); move's
+        relaxations and quality rounds and the morph use 0.1 (see where they say so).
     newton : bool
         Steps from the Hessian of the energy (True) or from its Gauss–Newton part ``JᵀJ``
         (False). Where the residual is not small (a frame pulled towards strains it cannot
