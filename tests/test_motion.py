@@ -433,6 +433,25 @@ def test_discrete_geodesic_at_machine_precision_is_converged(disc, rng):
     assert res.gradient_norm <= 1e-6 * max(1.0, np.sqrt(res.energy))
 
 
+def test_discrete_geodesic_without_an_admissible_trial_is_stalled(disc, rng, monkeypatch):
+    """Where every trial step leaves M+ nothing is known about the energy: the path says
+    stalled, never converged."""
+    P = disc.points
+    target = _random_admissible(disc, rng, 0.3)
+    frames = np.array([(1 - s) * P + s * target for s in np.linspace(0, 1, 4)])
+    free = np.ones((4, disc.n_vertices), bool)
+    free[[0, -1]] = False
+    checks = []
+
+    def only_the_start(self, frames):  # the initial path passes, no trial does
+        checks.append(1)
+        return len(checks) == 1
+
+    monkeypatch.setattr(_Path, "admissible", only_the_start)
+    res = discrete_geodesic(GraphMetric(P, disc.triangles), frames, free)
+    assert res.status == "stalled" and len(checks) == 31
+
+
 def test_discrete_geodesic_relative_stop(disc, rng):
     """``rtol`` stops a relaxation once the gradient fell by that factor: converged, the
     gradient at most ``rtol`` times the first one, in fewer iterations than the full solve."""

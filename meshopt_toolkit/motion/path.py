@@ -243,6 +243,7 @@ class _Path:
         res_p = [sK * w_rows * (phis[k + 1] - phis[k]) for k in range(K)]  # (T, 3) each
         r = np.concatenate([np.concatenate([a, b.ravel()]) for a, b in zip(res_m, res_p)])
         tri_cols = (2 * strain.triangles[:, :, None] + np.arange(2)).reshape(-1, 6)  # (T, 6)
+        by_corner = tri_cols.T.ravel()  # the coordinates in the order of an upper row
         g = np.zeros(self.n_unknowns)
         scaling = np.zeros(self.n_unknowns)
         mass2 = np.repeat(self.metric.mass, 2)
@@ -260,7 +261,7 @@ class _Path:
             segments = (2.0 if k < K else 1.0) * K
             upper = symmetric_products(np.ascontiguousarray(blocks[k].transpose(2, 1, 0)))
             upper *= segments
-            own = segments * mass2 + np.bincount(tri_cols.T.ravel(), upper[UPPER_DIAGONAL].ravel(),
+            own = segments * mass2 + np.bincount(by_corner, upper[UPPER_DIAGONAL].ravel(),
                                                  minlength=2 * N)
             scaling[cols[keep]] = own[keep]
             if newton:
@@ -381,10 +382,9 @@ def discrete_geodesic(
         to a 100× smaller gradient, Newton 3; a quality round's gradient fell 30× in 15
         Gauss–Newton iterations, 1e5× in 7 Newton ones). On the morph's paths it saves
         none (225° twist, 4.2k / 27k triangles: 14 / 17 iterations either way; 180°
-        annulus pair 17 → 23). The Hessian
-        may be indefinite: a step on which conjugate gradients meet non-positive curvature
-        is rejected like one that raises the energy (the damping ``λ·diag(JᵀJ)`` grows
-        until the matrix is positive definite).
+        annulus pair 17 → 23). The Hessian may be indefinite: a step on which conjugate
+        gradients meet non-positive curvature is rejected like one that raises the energy
+        (the damping ``λ·diag(JᵀJ)`` grows until the matrix is positive definite).
 
     Returns
     -------
@@ -423,7 +423,9 @@ def discrete_geodesic(
             break
         x = path.unknowns(frames)
         accepted = False
-        resolvable = False  # whether an admissible trial's model decrease exceeds E's rounding
+        # whether an admissible trial's model decrease exceeded E's rounding (None: no
+        # admissible trial was evaluated)
+        resolvable: bool | None = None
         for _ in range(30):
             A = H + sp.diags(lam * (d + 1e-12 * d.max()))
             try:
@@ -435,8 +437,8 @@ def discrete_geodesic(
             if path.admissible(trial):
                 r_t, _ = path.evaluate(trial, jacobian=False)
                 E_t = float(r_t @ r_t)
-                predicted = -(2 * g @ step + step @ (H @ step))  # decrease of the GN model
-                resolvable |= predicted > ENERGY_RESOLUTION * E
+                predicted = -(2 * g @ step + step @ (H @ step))  # the quadratic model's
+                resolvable = bool(resolvable or predicted > ENERGY_RESOLUTION * E)
                 if np.isfinite(E_t) and E_t < E:
                     rho = (E - E_t) / max(predicted, 1e-300)
                     frames = trial
@@ -446,9 +448,10 @@ def discrete_geodesic(
                     break
             lam *= 4.0
         if not accepted:
-            # no step lowers E, and none promised more than E's floating-point resolution:
-            # the minimum to machine precision (a tight gtol cannot be met there)
-            status = "stalled" if resolvable else "converged"
+            # no step lowers E, and the admissible ones promised no more than E's
+            # floating-point resolution: the minimum to machine precision (a tight gtol
+            # cannot be met there)
+            status = "converged" if resolvable is False else "stalled"
             break
         path.frames = frames
         r, g, H, d = path.normal_equations(frames, newton)
