@@ -54,6 +54,10 @@ class MeshPattern:
         lands.
     transposed : (nnz,) int array
         The slot of ``(col, row)`` for each slot.
+    upper_slots : (21 T,) int array
+        The slots of an upper array's entries (:data:`UPPER_ROWS`, raveled row by row).
+    diagonal_slots : (2N,) int array
+        The slot of each diagonal entry.
     """
 
     def __init__(self, triangles: IntArray, n_vertices: int) -> None:
