@@ -71,3 +71,19 @@ def test_refuses_nothing_and_keeps_fixed_vertices():
     mesh = grid_mesh(3, jitter=0.1)
     P = arap_interpolation(mesh.points, mesh.points, mesh.triangles, [0.0, 0.5, 1.0])
     assert np.array_equal(P, np.broadcast_to(mesh.points, P.shape))
+
+
+def test_vertices_still_up_to_round_off_stay_put():
+    """A clamped boundary that went through a similarity equal to the identity up to
+    round-off (the morph's residual target) is still pinned: the same frames as with the
+    boundary exactly equal."""
+    disc = load(data_path("disc_541.msh")).as_planar()
+    Q1 = twisted(disc).points
+    noisy = Q1 * (1.0 + 2.0 ** -52)  # every coordinate one ulp-ish off, the boundary too
+    b = disc.boundary_vertices
+    assert not np.array_equal(noisy[b], disc.points[b])
+    times = np.linspace(0, 1, 5)
+    exact = arap_interpolation(disc.points, Q1, disc.triangles, times)
+    rounded = arap_interpolation(disc.points, noisy, disc.triangles, times)
+    np.testing.assert_allclose(rounded[1:-1], exact[1:-1], atol=1e-12)
+    assert np.array_equal(rounded[1:-1, b], exact[1:-1, b])
