@@ -13,13 +13,15 @@ and cost against one linear elasticity solve.
    Levenberg–Marquardt status.
 2. ``--growth``: the 225° twist of disc_2198 (4.2k triangles), disc_13586 (27k) and its
    refinement (107k) up to ``--max-triangles``: seconds, seconds per elasticity solve (same
-   mesh, same process), iterations, worst frame of ours, linear and ARAP.
+   mesh, same process), iterations (per level: the 107k pair is the refinement of the 27k
+   one, so it is morphed coarse-to-fine, the 27k level's iterations + the 107k level's;
+   ``--single-level`` turns that off), worst frame of ours, linear and ARAP.
 ``--more`` runs seven more pairs instead: each source with ``move``'s result for the
 motions of ``bench_move.py --more``.
 3. ``--figures DIR``: the README's strip and quality plot of the 90° annulus pair.
 
-Usage: ``python benchmarks/bench_morph.py [--growth] [--max-triangles 30000] [--with-scalar]
-[--more] [--figures DIR]``
+Usage: ``python benchmarks/bench_morph.py [--growth [--single-level]] [--max-triangles 30000]
+[--with-scalar] [--more] [--figures DIR]``
 """
 
 from __future__ import annotations
@@ -89,9 +91,9 @@ def table(with_scalar: bool, more: bool = False) -> None:
               f"start {res.initial_path})", flush=True)
 
 
-def growth(max_triangles: int) -> None:
+def growth(max_triangles: int, single_level: bool = False) -> None:
     print("\ngrowth: the 225° twist of the bundled discs and their refinements, 9 frames")
-    print(f"{'triangles':>10}{'seconds':>9}{'elast. s':>10}{'ratio':>8}{'its':>5}"
+    print(f"{'triangles':>10}{'seconds':>9}{'elast. s':>10}{'ratio':>8}{'its':>8}"
           f"{'ours':>9}{'linear':>12}{'ARAP':>12}")
     meshes = [mt.load(mt.data_path(n)).as_planar() for n in ("disc_2198.msh", "disc_13586.msh")]
     meshes.append(meshes[-1].refine())
@@ -104,9 +106,11 @@ def growth(max_triangles: int) -> None:
         unit, _ = best_of(lambda: elasticity_motion(src.points, src.triangles, b,
                                                     tgt.points[b]), 3)
         t0 = time.perf_counter()
-        res = mt.distortion_morph(src, tgt, frames=9)
+        res = mt.distortion_morph(src, tgt, frames=9,
+                                  **({"coarse_min_triangles": 10**9} if single_level else {}))
         sec = time.perf_counter() - t0
-        print(f"{src.n_triangles:>10}{sec:9.1f}{unit:10.3f}{sec / unit:8.0f}{res.nit:5d}"
+        its = "+".join(str(level["iterations"]) for level in res.details["levels"])
+        print(f"{src.n_triangles:>10}{sec:9.1f}{unit:10.3f}{sec / unit:8.0f}{its:>8}"
               f"{np.min(res.stats.min_aspect_ratio):9.4f}{_worst(res.linear)}{_worst(res.rigid)}",
               flush=True)
 
@@ -130,6 +134,8 @@ def main() -> None:
     ap.add_argument("--growth", action="store_true")
     ap.add_argument("--max-triangles", type=int, default=30_000,
                     help="largest growth mesh (the 107k-triangle twist: 110000, minutes)")
+    ap.add_argument("--single-level", action="store_true",
+                    help="--growth without the coarse-to-fine start of refined pairs")
     ap.add_argument("--figures", metavar="DIR", help="only write the README's morph pictures")
     ap.add_argument("--with-scalar", action="store_true",
                     help="also the complete metric of f2 (geodesic_morph; minutes)")
@@ -141,7 +147,7 @@ def main() -> None:
         return
     table(args.with_scalar, more=args.more)
     if args.growth:
-        growth(args.max_triangles)
+        growth(args.max_triangles, args.single_level)
 
 
 if __name__ == "__main__":
