@@ -303,18 +303,24 @@ def test_elasticity_orders_once_per_free_set(mesh, rng, monkeypatch):
 
 
 def test_elasticity_direct_solves_in_float32_from_a_size(mesh, rng, monkeypatch):
-    """Below SINGLE_PRECISION_MIN_DOFS the direct method's factor is double precision and
-    exact; from it the factor is float32 and CG refines the solve to the metric's rtol."""
+    """With CHOLMOD the direct method's factor is double precision and exact at every
+    size; without it, below SINGLE_PRECISION_MIN_DOFS, too, and from it the factor is
+    SuperLU's float32 and CG refines the solve to the metric's rtol."""
     from scipy.sparse.linalg import spsolve
 
     Q = mesh.points
     P = rng.standard_normal(Q.shape)
     A = ElasticityMetric(mesh).matrix(Q)
     exact = spsolve(A.tocsc(), P.ravel())
-    small = ElasticityMetric(mesh, solver="direct")._solver(Q, None)
-    assert small.precondition is small.solve
-    np.testing.assert_allclose(small.solve(P.ravel()), exact, rtol=0,
-                               atol=1e-12 * abs(exact).max())
+    monkeypatch.setattr(elasticity, "SINGLE_PRECISION_MIN_DOFS", 10)
+    for cholmod in (True, False):
+        monkeypatch.setattr(elasticity, "cholmod_available", lambda: cholmod)
+        if not cholmod:
+            monkeypatch.setattr(elasticity, "SINGLE_PRECISION_MIN_DOFS", 10**9)
+        exact_factor = ElasticityMetric(mesh, solver="direct")._solver(Q, None)
+        assert exact_factor.precondition is exact_factor.solve
+        np.testing.assert_allclose(exact_factor.solve(P.ravel()), exact, rtol=0,
+                                   atol=1e-12 * abs(exact).max())
     monkeypatch.setattr(elasticity, "SINGLE_PRECISION_MIN_DOFS", 10)
     metric = ElasticityMetric(mesh, solver="direct")
     large = metric._solver(Q, None)
@@ -334,17 +340,23 @@ def test_elasticity_amg_agrees_with_direct(rng):
 
 
 def test_elasticity_auto_solver_picks_by_size(mesh, monkeypatch):
-    metric = ElasticityMetric(mesh)
+    """AMG from AUTO_AMG_MIN_DOFS dofs with SuperLU, from CHOLMOD_AMG_MIN_DOFS with CHOLMOD."""
     Q = mesh.points
-    assert metric._solver(Q, None).method == "direct"
-    monkeypatch.setattr(elasticity, "AUTO_AMG_MIN_DOFS", 10)
-    assert ElasticityMetric(mesh)._solver(Q, None).method == ("amg" if HAVE_PYAMG else "direct")
+    assert ElasticityMetric(mesh)._solver(Q, None).method == "direct"
+    amg = "amg" if HAVE_PYAMG else "direct"
+    for cholmod, switch in ((False, "AUTO_AMG_MIN_DOFS"), (True, "CHOLMOD_AMG_MIN_DOFS")):
+        monkeypatch.setattr(elasticity, "cholmod_available", lambda: cholmod)
+        monkeypatch.setattr(elasticity, switch, 10)
+        assert ElasticityMetric(mesh)._solver(Q, None).method == amg
+        monkeypatch.undo()
+        assert ElasticityMetric(mesh)._solver(Q, None).method == "direct"
 
 
 def test_elasticity_without_pyamg(mesh, monkeypatch, rng):
     """pyamg is optional: "auto" falls back to SuperLU, "amg" says what to install."""
     monkeypatch.setitem(sys.modules, "pyamg", None)  # makes `import pyamg` fail
     monkeypatch.setattr(elasticity, "AUTO_AMG_MIN_DOFS", 10)
+    monkeypatch.setattr(elasticity, "CHOLMOD_AMG_MIN_DOFS", 10)
     P = rng.standard_normal(mesh.points.shape)
     metric = ElasticityMetric(mesh)
     G = metric.riesz(mesh.points, P)

@@ -376,13 +376,37 @@ def test_frame_blocks_redo_a_failed_single_precision_solve_in_double(monkeypatch
         return (lambda v: v.copy()) if single else factorize_spd(A, ordering)
 
     monkeypatch.setattr(frame_blocks, "factorize_spd", float32_is_useless)
+    monkeypatch.setattr(frame_blocks, "cholmod_available", lambda: False)  # SuperLU's case
     n = 2000
     A = (sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(n, n)) + 1e-8 * sp.eye(n)).tocsr()
     b = np.random.default_rng(4).standard_normal(n)
     blocks = frame_blocks.FrameBlocks([np.arange(n)])
+    assert blocks.single
     x = blocks.solve(A, b, 1e-10)
     assert not blocks.single
     assert np.linalg.norm(A @ x - b) <= 1e-9 * np.linalg.norm(b)
+
+
+def test_frame_blocks_factorize_in_double_precision_with_cholmod(monkeypatch):
+    """With CHOLMOD the blocks are its double-precision factors (never float32) and run
+    one frame after another; without it, SuperLU's float32 factors, in threads for large
+    frames."""
+    import meshopt_toolkit.motion.frame_blocks as frame_blocks
+
+    n = frame_blocks.PARALLEL_FROM
+    A = (sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(2 * n, 2 * n)) + 1e-2 * sp.eye(2 * n)
+         ).tocsr()
+    b = np.random.default_rng(5).standard_normal(2 * n)
+    frames = [np.arange(n), np.arange(n, 2 * n)]
+    blocks = frame_blocks.FrameBlocks(frames)
+    assert not blocks.single and blocks._map is map
+    exact = blocks.solve(A, b, 1e-12)
+    assert np.linalg.norm(A @ exact - b) <= 1e-12 * np.linalg.norm(b)
+    monkeypatch.setattr(frame_blocks, "cholmod_available", lambda: False)
+    superlu = frame_blocks.FrameBlocks(frames)
+    assert superlu.single and (superlu._map is map) == (frame_blocks._frame_pool() is None)
+    np.testing.assert_allclose(superlu.solve(A, b, 1e-12), exact, rtol=0,
+                               atol=1e-9 * np.abs(exact).max())
 
 
 def _straight_path(disc, rng, K=4):

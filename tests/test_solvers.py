@@ -32,6 +32,54 @@ def test_factorize_spd_matches_a_general_solve():
     assert np.allclose(factorize_spd(A)(b), spsolve(A.tocsc(), b), rtol=1e-12, atol=1e-12)
 
 
+def test_cholesky_spd_matches_superlu_and_a_general_solve():
+    """CHOLMOD's factor (default and nested-dissection order) solves one and several
+    right-hand sides to the accuracy of SuperLU's double-precision factor and of a
+    general sparse solve."""
+    from meshopt_toolkit.solvers import _superlu_spd, cholesky_spd, nested_dissection
+
+    rng = np.random.default_rng(5)
+    points, A = _grid(30)
+    B = rng.standard_normal((A.shape[0], 3))
+    reference = spsolve(A.tocsc(), B)
+    for ordering in (None, nested_dissection(points, A)):
+        solve = cholesky_spd(A, ordering)
+        np.testing.assert_allclose(solve(B), reference, rtol=0, atol=1e-11 * abs(reference).max())
+        x = solve(B[:, 0])
+        assert x.shape == (A.shape[0],)
+        np.testing.assert_allclose(x, _superlu_spd(A, ordering, False)(B[:, 0]), rtol=0,
+                                   atol=1e-11 * abs(x).max())
+
+
+def test_cholesky_spd_refuses_an_indefinite_matrix():
+    from meshopt_toolkit.solvers import cholesky_spd
+
+    indefinite = sp.csr_matrix(np.array([[1.0, 2.0], [2.0, 1.0]]))  # eigenvalues 3, −1
+    with pytest.raises(RuntimeError, match="not positive definite"):
+        cholesky_spd(indefinite)
+
+
+def test_factorize_spd_takes_cholmod_in_double_and_superlu_in_single(monkeypatch):
+    """Double precision goes to CHOLMOD where it is installed and to SuperLU where not
+    (the same solution); single precision always to SuperLU (float32 factors)."""
+    import meshopt_toolkit.solvers as solvers
+
+    rng = np.random.default_rng(6)
+    A = _laplacian(200)
+    b = rng.standard_normal(200)
+    calls = []
+    original = solvers.cholesky_spd
+    monkeypatch.setattr(solvers, "cholesky_spd", lambda *a: calls.append(1) or original(*a))
+    with_cholmod = factorize_spd(A)(b)
+    assert calls == [1]
+    factorize_spd(A, single=True)(b)
+    assert calls == [1]
+    monkeypatch.setattr(solvers, "cholmod_available", lambda: False)
+    without = factorize_spd(A)(b)
+    assert calls == [1]
+    np.testing.assert_allclose(without, with_cholmod, rtol=1e-12, atol=1e-12)
+
+
 def test_pcg_reaches_rtol_and_reports_an_unconverged_run():
     rng = np.random.default_rng(3)
     n = 400

@@ -25,8 +25,8 @@ import scipy.sparse as sp
 from .._typing import FloatArray, IntArray
 from ..errors import NotAdmissibleError
 from ..kernels.triangles import areas_from_edges, edge_vectors
-from ..solvers import (SOLVERS, amg_pcg_solve, choose_method, factorize_spd, import_pyamg,
-                       nested_dissection, refined_spd_solve)
+from ..solvers import (SOLVERS, amg_pcg_solve, cholmod_available, choose_method, factorize_spd,
+                       import_pyamg, nested_dissection, refined_spd_solve)
 
 __all__ = [
     "lame_parameters",
@@ -52,11 +52,20 @@ logger = logging.getLogger(__name__)
 #: (and needs far less memory). A second solve at the same ``Q`` costs ~2% of the
 #: factorization with SuperLU but a full PCG run with AMG.
 AUTO_AMG_MIN_DOFS = 2_000_000
-#: From this many dofs the direct method factorizes in float32 and refines by CG
+#: The same switch where the direct method is CHOLMOD's Cholesky: at 1.72M dofs (1.7M
+#: triangles) it took 21.3 s (4.2 s of them the ordering) and 0.47 s per further solve,
+#: AMG 11.1 s setup + 25.5 s per solve (``benchmarks/bench_solvers.py``, 2 cores).
+#: CHOLMOD's factorization grew like dofs^1.35 from 430k, so AMG's time would catch up
+#: only near 8M dofs; the limit is memory (3.4 GB peak at 1.72M dofs, about twice that at
+#: this size).
+CHOLMOD_AMG_MIN_DOFS = 4_000_000
+#: Without CHOLMOD (:func:`.solvers.cholmod_available`), from this many dofs the direct
+#: method factorizes by SuperLU in float32 and refines by CG
 #: (:func:`.solvers.refined_spd_solve`): a third less factor memory and ~30 % less time
 #: (429k triangles: 4.4 against 6.2 s). Below, a double-precision factor solves exactly
 #: in one triangular solve, as the thesis-sized problems want (at 27k dofs the time per
-#: optimization iteration is within 7 % either way).
+#: optimization iteration is within 7 % either way). CHOLMOD's double-precision factor
+#: is faster than either at every size and solves exactly.
 SINGLE_PRECISION_MIN_DOFS = 100_000
 
 
@@ -321,9 +330,11 @@ def _factorize_amg(
 
 
 def solver_method(method: str, n_dofs: int) -> str:
-    """The elasticity matrix's "auto" rule: ``"direct"`` below ``AUTO_AMG_MIN_DOFS``
-    dofs, ``"amg"`` above when pyamg is importable (:func:`.solvers.choose_method`)."""
-    return choose_method(method, n_dofs, AUTO_AMG_MIN_DOFS)
+    """The elasticity matrix's "auto" rule: ``"direct"`` below ``CHOLMOD_AMG_MIN_DOFS``
+    dofs with CHOLMOD (``AUTO_AMG_MIN_DOFS`` without), ``"amg"`` above when pyamg is
+    importable (:func:`.solvers.choose_method`)."""
+    amg_from = CHOLMOD_AMG_MIN_DOFS if cholmod_available() else AUTO_AMG_MIN_DOFS
+    return choose_method(method, n_dofs, amg_from)
 
 
 def kept_ordering(orderings: dict, key, A: sp.spmatrix, points: FloatArray,
@@ -353,9 +364,10 @@ def factorize(
     A : (2N, 2N) sparse SPD matrix (BSR with 2×2 blocks preferred for AMG)
     points : (N, 2) node positions (rigid modes for the AMG near-null space, the
         geometric nested-dissection ordering of the direct method)
-    method : "direct" (SuperLU, symmetric mode, nested-dissection ordering; from
-        ``SINGLE_PRECISION_MIN_DOFS`` dofs in float32 as the preconditioner of CG to
-        ``rtol``: :func:`.solvers.refined_spd_solve`), "amg" (pyamg smoothed
+    method : "direct" (nested-dissection ordering; CHOLMOD's Cholesky where installed,
+        else SuperLU in symmetric mode, from ``SINGLE_PRECISION_MIN_DOFS`` dofs in
+        float32 as the preconditioner of CG to ``rtol``:
+        :func:`.solvers.refined_spd_solve`), "amg" (pyamg smoothed
         aggregation preconditioned CG to ``rtol``) or "auto"
         (direct below ``AUTO_AMG_MIN_DOFS`` dofs, AMG above when pyamg is importable)
     rtol, maxiter : relative residual of the solve; AMG-PCG's iteration cap
@@ -372,7 +384,7 @@ def factorize(
     if method == "direct":
         if ordering is None:
             ordering = nested_dissection(points, A, block=2)
-        if A.shape[0] < SINGLE_PRECISION_MIN_DOFS:
+        if A.shape[0] < SINGLE_PRECISION_MIN_DOFS or cholmod_available():
             exact = factorize_spd(A, ordering)
             return SPDSolve("direct", exact, A, exact)
         solve, precondition = refined_spd_solve(A, ordering, rtol)

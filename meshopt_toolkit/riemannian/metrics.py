@@ -188,7 +188,8 @@ class ElasticityMetric:
     E : Young's modulus (> 0)
     nu : Poisson ratio in (-1, 0.5)
     delta : mass weight ``δ``; the thesis uses ``δ = 0.2 E``
-    solver : "auto" (direct below ``elasticity.AUTO_AMG_MIN_DOFS`` dofs, AMG-PCG above),
+    solver : "auto" (direct below ``elasticity.CHOLMOD_AMG_MIN_DOFS`` dofs with CHOLMOD,
+        ``elasticity.AUTO_AMG_MIN_DOFS`` without, AMG-PCG above),
         "direct" or "amg"
     rtol : relative residual of the AMG-preconditioned CG solve
 
