@@ -11,7 +11,8 @@ and the positions at time ``s`` are the least-squares fit of the P1 deformation 
 to ``J_t(s)`` (area-weighted), i.e. one Poisson problem per coordinate with the source's
 stiffness matrix (factorized once for all times). Vertices that do not move (equal in
 source and target up to round-off, ``STILL_TOLERANCE``, e.g. a clamped boundary) stay
-put; if none, the vertex closest to the centroid follows the straight line. Frame 0 is the source and frame 1 the target exactly.
+put; if none, the vertex closest to the centroid follows the straight line. Frame 0 is
+the source and frame 1 the target exactly.
 
 The angles ``θ_t`` are unwrapped across triangle neighbours (a tree of the dual graph,
 summed level by level), so a disc twisted by 225° is interpolated as a 225° twist and

@@ -45,9 +45,9 @@ class FrameBlocks:
     iterations (a count, not a time: the decisions and so the results must not depend on
     the machine's load). The frames' blocks are independent: with SuperLU and several
     frames of at least ``PARALLEL_FROM`` unknowns they are factorized and solved in
-    threads, one per core (the results do not depend on it). Measured on the 225° twist of the 4.2k disc:
-    block Jacobi needs 35 % fewer triangular solves than symmetric block Gauss–Seidel
-    (which does two per block) and is 20 % faster.
+    threads, one per core (the results do not depend on it). Measured on the 225° twist
+    of the 4.2k disc: block Jacobi needs 35 % fewer triangular solves than symmetric
+    block Gauss–Seidel (which does two per block) and is 20 % faster.
 
     ``indices`` are each frame's columns, its vertices' ``x, y`` in turn; with ``points``,
     the positions of each frame's vertices (the reference mesh), the blocks are factorized
