@@ -18,7 +18,7 @@ evaluations, and the peak RSS (1.7M triangles, all variants: under 8 GB).
 variant, and the exponential map's seconds against N.
 
 ``--rows JSONL`` keeps the measured sizes (one JSON object per line): sizes found there
-are not measured again, so the 1.7M size (about 13 minutes on 2 cores) is measured once
+are not measured again, so the 1.7M size (13–25 minutes on 2 cores) is measured once
 and the table and the plot are drawn from all sizes.
 
 Usage: ``python benchmarks/bench_scale.py [--max-triangles 110000] [--iterations 3]
@@ -111,7 +111,7 @@ def _measure_in_subprocess(refinements: int, iterations: int) -> dict | None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--max-triangles", type=int, default=110_000,
-                    help="largest size (the issue's 1.7M: 1800000, 13 more minutes)")
+                    help="largest size (the issue's 1.7M: 1800000, 13-25 more minutes)")
     ap.add_argument("--iterations", type=int, default=3)
     ap.add_argument("--plot", metavar="PNG")
     ap.add_argument("--rows", metavar="JSONL",
