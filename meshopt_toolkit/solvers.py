@@ -271,8 +271,8 @@ def _dissection_order(points: FloatArray, adjacency: sp.csr_matrix, leaf: int) -
     dense after every level; a leaf (≤ ``leaf`` vertices) is ordered by index.
     """
     n = points.shape[0]
-    coo = adjacency.tocoo()
-    u, v = coo.row[coo.row != coo.col], coo.col[coo.row != coo.col]
+    coo = sp.triu(adjacency, k=1).tocoo()  # each edge once (the pattern is symmetric)
+    u, v = coo.row.astype(np.int64), coo.col.astype(np.int64)
     key = np.zeros(n, np.int64)
     tiebreak = np.arange(n)  # leaves: by index; separators: by their rank in the split
     part = np.zeros(n, np.int64)  # the part of each vertex still being split, else -1
@@ -290,26 +290,34 @@ def _dissection_order(points: FloatArray, adjacency: sp.csr_matrix, leaf: int) -
             break
         counts[counts <= leaf] = 0  # the parts split at this level only
         m = counts.size
-        extent = np.empty((m, 2))
+        low, high = np.full((m, 2), np.inf), np.full((m, 2), -np.inf)
         for axis in (0, 1):
-            lo, hi = np.full(m, np.inf), np.full(m, -np.inf)
-            np.minimum.at(lo, p, points[active, axis])
-            np.maximum.at(hi, p, points[active, axis])
-            extent[:, axis] = hi - lo
-        axis = np.argmax(extent, axis=1)[p]
-        ranked = np.lexsort((points[active, axis], p))  # by part, then coordinate; stable
+            np.minimum.at(low[:, axis], p, points[active, axis])
+            np.maximum.at(high[:, axis], p, points[active, axis])
+        longer = np.argmax(high - low, axis=1)
+        lowest = low[np.arange(m), longer]
+        span = np.maximum(high[np.arange(m), longer] - lowest, np.finfo(float).tiny)
+        # by part, then the coordinate along the part's longer extent, then index: one
+        # stable sort of part + (coordinate's position in the part's extent) / 2 instead
+        # of a lexsort of two keys (35 % less time at 429k triangles); coordinates closer
+        # than ~1e-11 of their part's extent may then count as ties
+        coordinate = points[active, longer[p]]
+        ranked = np.argsort(p + 0.5 * (coordinate - lowest[p]) / span[p], kind="stable")
         starts = np.concatenate([[0], np.cumsum(counts)])
         rank = np.empty(active.size, np.int64)
         rank[ranked] = np.arange(active.size) - starts[p[ranked]]
         second = np.zeros(n, bool)
         second[active] = rank >= counts[p] // 2
-        same = (part[u] == part[v]) & (part[u] >= 0) & ~second[u] & second[v]
-        separator = np.zeros(n, bool)
-        separator[u[same]] = True
+        live = (part[u] == part[v]) & (part[u] >= 0)  # edges inside a part being split
+        separator = np.zeros(n, bool)  # the first half's ends of edges to the second
+        separator[u[live & ~second[u] & second[v]]] = True
+        separator[v[live & ~second[v] & second[u]]] = True
         digit = np.where(separator[active], 2, second[active].astype(np.int64))
         key[active] += digit
         tiebreak[active[digit == 2]] = rank[digit == 2]
         part[active] = np.where(digit == 2, -1, 2 * p + digit)
+        inside = live & (part[u] >= 0) & (part[u] == part[v])  # the edges still needed
+        u, v = u[inside], v[inside]
         if key.max() > 2**60:  # keep the keys dense enough not to overflow (>38 levels)
             key = np.unique(key, return_inverse=True)[1].astype(np.int64)
     return np.lexsort((tiebreak, key))
