@@ -90,14 +90,17 @@ def cholesky_spd(A: sp.spmatrix, ordering: IntArray | None = None) -> Solve:
     import cvxopt.cholmod as cholmod
 
     n = A.shape[0]
+    if n == 0:  # nothing to factorize (CHOLMOD refuses an empty matrix)
+        return lambda b: np.array(b, dtype=float)
     lower = sp.tril(A, format="coo")
-    matrix = cvxopt.spmatrix(lower.data.astype(float), lower.row.astype(np.int64),
-                             lower.col.astype(np.int64), (n, n))
+    # cvxopt's indices are Py_ssize_t (np.intp)
+    matrix = cvxopt.spmatrix(lower.data.astype(float), lower.row.astype(np.intp),
+                             lower.col.astype(np.intp), (n, n))
     try:
         if ordering is None:
             factor = cholmod.symbolic(matrix, uplo="L")
         else:
-            p = cvxopt.matrix(np.asarray(ordering, dtype=np.int64))
+            p = cvxopt.matrix(np.asarray(ordering, dtype=np.intp))
             factor = cholmod.symbolic(matrix, p=p, uplo="L")
         cholmod.numeric(matrix, factor)
     except ArithmeticError as exc:  # CHOLMOD: a non-positive pivot

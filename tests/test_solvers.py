@@ -51,12 +51,13 @@ def test_cholesky_spd_matches_superlu_and_a_general_solve():
                                    atol=1e-11 * abs(x).max())
 
 
-def test_cholesky_spd_refuses_an_indefinite_matrix():
+def test_cholesky_spd_refuses_an_indefinite_matrix_and_takes_an_empty_one():
     from meshopt_toolkit.solvers import cholesky_spd
 
     indefinite = sp.csr_matrix(np.array([[1.0, 2.0], [2.0, 1.0]]))  # eigenvalues 3, −1
     with pytest.raises(RuntimeError, match="not positive definite"):
         cholesky_spd(indefinite)
+    assert cholesky_spd(sp.csr_matrix((0, 0)))(np.zeros(0)).shape == (0,)
 
 
 def test_factorize_spd_takes_cholmod_in_double_and_superlu_in_single(monkeypatch):
