@@ -319,7 +319,7 @@ def _dissection_order(points: FloatArray, adjacency: sp.csr_matrix, leaf: int) -
         key[active] += digit
         tiebreak[active[digit == 2]] = rank[digit == 2]
         part[active] = np.where(digit == 2, -1, 2 * p + digit)
-        inside = live & (part[u] >= 0) & (part[u] == part[v])  # the edges still needed
+        inside = (part[u] >= 0) & (part[u] == part[v])  # the edges still needed
         u, v = u[inside], v[inside]
         if key.max() > 2**60:  # keep the keys dense enough not to overflow (>38 levels)
             key = np.unique(key, return_inverse=True)[1].astype(np.int64)

@@ -369,7 +369,8 @@ def factorize(
         float32 as the preconditioner of CG to ``rtol``:
         :func:`.solvers.refined_spd_solve`), "amg" (pyamg smoothed
         aggregation preconditioned CG to ``rtol``) or "auto"
-        (direct below ``AUTO_AMG_MIN_DOFS`` dofs, AMG above when pyamg is importable)
+        (:func:`solver_method`: direct below ``CHOLMOD_AMG_MIN_DOFS`` dofs with CHOLMOD,
+        ``AUTO_AMG_MIN_DOFS`` without, AMG above when pyamg is importable)
     rtol, maxiter : relative residual of the solve; AMG-PCG's iteration cap
     ordering : (2N,) int array, optional
         The direct method's fill-reducing ordering (new → old); default

@@ -225,16 +225,18 @@ def distortion_morph(
     tri = source.triangles
     P0, P1 = source.points, target.points
     be = source.boundary_edges
-    S = fit_similarity(P0[np.unique(be)], P1[np.unique(be)])  # the domain's motion
+    boundary = np.unique(be)
+    S = fit_similarity(P0[boundary], P1[boundary])  # the domain's motion
     R1 = S.inverse(P1)
     times = np.linspace(0.0, 1.0, int(frames))
     rigid_frames = arap_interpolation(P0, P1, tri, times)
     linear_frames = np.array([(1 - s) * P0 + s * P1 for s in times])
-    res, kind, levels = _residual_morph(P0, R1, tri, be, times, weight, max_iter, callback,
+    metric = GraphMetric(P0, tri, weight)
+    res, kind, levels = _residual_morph(metric, R1, be, times, max_iter, callback,
                                         coarse_min_triangles)
     out = np.array([S.at(float(s))(R) for s, R in zip(times, res.frames)])
     out[0], out[-1] = P0, P1
-    lengths = GraphMetric(P0, tri, weight).segment_lengths(res.frames)
+    lengths = metric.segment_lengths(res.frames)
     return DistortionMorph(
         points=out, times=times, stats=FrameStats.of(out, tri),
         linear=FrameStats.of(linear_frames, tri), rigid=FrameStats.of(rigid_frames, tri),
@@ -244,26 +246,27 @@ def distortion_morph(
         details={"levels": levels})
 
 
-def _residual_morph(P0: FloatArray, R1: FloatArray, tri: IntArray, be: IntArray,
-                    times: FloatArray, weight: float, max_iter: int, callback,
-                    coarse_min_triangles: int) -> tuple[PathResult, str, list[dict]]:
-    """The discrete geodesic from ``P0`` to the residual target ``R1``, its initial path's
-    kind and, per level (coarsest first), triangles, iterations, status and seconds.
+def _residual_morph(metric: GraphMetric, R1: FloatArray, be: IntArray, times: FloatArray,
+                    max_iter: int, callback, coarse_min_triangles: int
+                    ) -> tuple[PathResult, str, list[dict]]:
+    """The discrete geodesic of ``metric`` from its reference ``P0`` to the residual target
+    ``R1``, its initial path's kind and, per level (coarsest first), triangles, iterations,
+    status and seconds.
 
     When the pair is a uniform refinement of a pair with at least ``coarse_min_triangles``
     triangles whose ends are admissible, that pair's path (itself coarse-to-fine where it
     can be), refined, is the start (:mod:`.refinement`)."""
     from ..fem.interpolation import arap_interpolation
 
-    metric = GraphMetric(P0, tri, weight)
+    P0, tri = metric.reference, metric.triangles
     init, kind, levels = None, "", []
     coarse = unrefined(P0, tri) if len(tri) >= 4 * coarse_min_triangles else None
     if coarse is not None:
         n = coarse.n_vertices
         if _admissible_path(R1[None, :n], coarse.triangles, coarse.boundary_edges):
             coarse_res, coarse_kind, levels = _residual_morph(
-                coarse.points, R1[:n], coarse.triangles, coarse.boundary_edges, times, weight,
-                max_iter, None, coarse_min_triangles)
+                GraphMetric(coarse.points, coarse.triangles, metric.weight), R1[:n],
+                coarse.boundary_edges, times, max_iter, None, coarse_min_triangles)
             init = refine_frames(coarse_res.frames, coarse)
             init[0], init[-1] = P0, R1
             kind = f"coarse-to-fine ({coarse_kind})"
