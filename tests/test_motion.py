@@ -252,12 +252,40 @@ def test_normal_equations_match_the_sparse_jacobian(disc, rng, K, anchored, unev
     assert np.array_equal(r, r2)
     gJ, HJ = J.T @ r, (J.T @ J).toarray()
     assert np.abs(g - gJ).max() <= 1e-12 * np.abs(gJ).max()
-    assert np.abs(H.toarray() - HJ).max() <= 1e-12 * np.abs(HJ).max()
+    assert np.abs(H.tocsr().toarray() - HJ).max() <= 1e-12 * np.abs(HJ).max()
     assert np.abs(scaling - np.diag(HJ)).max() <= 1e-12 * np.abs(HJ).max()
     # Newton's matrix (Taylor-tested below): the same gradient and scaling, symmetric
     r3, g3, H3, scaling3 = path.normal_equations(frames, newton=True)
     assert np.array_equal(r3, r) and np.array_equal(g3, g) and np.array_equal(scaling3, scaling)
-    assert abs(H3 - H3.T).max() <= 1e-12 * np.abs(HJ).max()
+    assert abs(H3.tocsr() - H3.tocsr().T).max() <= 1e-12 * np.abs(HJ).max()
+
+
+def test_block_tridiagonal_products_match_the_assembled_matrix(disc, rng):
+    """The path matrix kept as frame blocks multiplies, damps and gives its diagonal
+    blocks as the assembled matrix does, with frames that fix different vertices and a
+    frame that fixes all (no coupling across it)."""
+    P, K = disc.points, 5
+    target = _random_admissible(disc, rng, 0.3)
+    frames = np.array([(1 - s) * P + s * target for s in np.linspace(0, 1, K + 1)])
+    free = np.ones((K + 1, disc.n_vertices), bool)
+    free[0] = False
+    free[3] = False  # no unknowns: frames 1–2 and 4–5 are two separate chains
+    free[2, rng.choice(disc.n_vertices, 9, replace=False)] = False
+    path = _Path(GraphMetric(P, disc.triangles), frames, free, None)
+    _, _, H, _ = path.normal_equations(frames)
+    dense = H.tocsr().toarray()
+    assert len(H.blocks) == 4 and sorted(H.upper) == [0, 2]
+    np.testing.assert_array_equal(dense, dense.T)
+    v = rng.standard_normal(path.n_unknowns)
+    shift = rng.random(path.n_unknowns)
+    scale = np.abs(dense).max() * np.abs(v).max()
+    assert np.abs(H @ v - dense @ v).max() <= 1e-13 * scale
+    damped = H.damped(shift).damped(shift)
+    assert np.abs(damped @ v - (dense @ v + 2 * shift * v)).max() <= 1e-13 * scale
+    for B, (start, stop) in zip(damped.diagonal_blocks(), H.ranges):
+        expected = dense[start:stop, start:stop] + np.diag(2 * shift[start:stop])
+        np.testing.assert_allclose(B.toarray(), expected, rtol=0, atol=1e-14 * scale)
+    assert H.shift is None  # damping made a new matrix
 
 
 @pytest.mark.parametrize("K, anchored", [(4, False), (1, True)])
@@ -308,7 +336,7 @@ def test_frame_blocks_in_nested_dissection_order_solve_the_path_system(disc, rng
     free[2, :4] = False  # frames of different sizes
     path = _Path(GraphMetric(P, disc.triangles), frames, free, None)
     _, g, H, _ = path.normal_equations(frames)
-    exact = spsolve(H.tocsc(), g)
+    exact = spsolve(H.tocsr().tocsc(), g)
     for points in (None, path.frame_points()):
         blocks = FrameBlocks(path.frame_indices(), points)
         x = blocks.solve(H, g, 1e-10)

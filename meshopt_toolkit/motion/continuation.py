@@ -56,7 +56,7 @@ def extend(metric: GraphMetric, Q: FloatArray, handles: IntArray,
         pair = np.stack([Q, Q])
         _, _, Hff, _ = _Path(metric, pair, free, None).normal_equations(pair)
         rhs = -metric.apply(Q, delta)[free[1]].ravel()
-        step = factorize_spd(Hff)(rhs) if factors is None else factors.solve(Hff, rhs, 1e-8)
+        step = factorize_spd(Hff.tocsr())(rhs) if factors is None else factors.solve(Hff, rhs, 1e-8)
         out[free[1]] += step.reshape(-1, 2)
     out[handles] = new_positions  # bitwise
     return out

@@ -13,6 +13,7 @@ import scipy.sparse as sp
 from .._typing import FloatArray
 from ..cores import thread_budget
 from ..solvers import cholmod_available, factorize_spd, nested_dissection, pcg
+from .assembly import BlockTridiagonal
 
 _LOCK = threading.Lock()  # guards the frame pool
 
@@ -77,8 +78,12 @@ class FrameBlocks:
         pool = _frame_pool() if large and self.single else None
         self._map = pool.map if pool is not None else map
 
-    def factorize(self, A: sp.csr_matrix) -> None:
-        if len(self.indices) == 1 and self.indices[0].size == A.shape[0]:
+    def factorize(self, A: sp.csr_matrix | BlockTridiagonal) -> None:
+        if isinstance(A, BlockTridiagonal):
+            blocks = A.diagonal_blocks()
+            if [B.shape[0] for B in blocks] != [i.size for i in self.indices]:
+                raise ValueError("the matrix's frames are not these factors' frames")
+        elif len(self.indices) == 1 and self.indices[0].size == A.shape[0]:
             blocks = [A]  # the frame's columns are all columns, in order
         else:
             blocks = [A[idx][:, idx] for idx in self.indices]
@@ -88,7 +93,7 @@ class FrameBlocks:
         self.factors = [*self._map(factorize_spd, blocks, orderings, [self.single] * len(blocks))]
         self.stale = False
 
-    def solve(self, A: sp.csr_matrix, b: FloatArray, rtol: float) -> FloatArray:
+    def solve(self, A: sp.csr_matrix | BlockTridiagonal, b: FloatArray, rtol: float) -> FloatArray:
         """PCG on ``A x = b`` to the relative residual ``rtol``, factorizing first when
         there is no factorization or it went stale; judges staleness afterwards. A solve
         that fails on float32 factors is redone, in double precision from then on.

@@ -26,7 +26,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .._typing import FloatArray, IntArray
-from .assembly import UPPER_DIAGONAL, MeshPattern, PathPattern, symmetric_products
+from .assembly import UPPER_DIAGONAL, BlockTridiagonal, MeshPattern, PathPattern, symmetric_products
 from .frame_blocks import FrameBlocks
 from .strain import TriangleDistortion
 
@@ -215,7 +215,7 @@ class _Path:
         return r, J
 
     def normal_equations(self, frames: FloatArray, newton: bool = False
-                         ) -> tuple[FloatArray, FloatArray, sp.csr_matrix, FloatArray]:
+                         ) -> tuple[FloatArray, FloatArray, BlockTridiagonal, FloatArray]:
         """Residual ``r``, gradient ``Jᵀr``, the matrix of the step and the diagonal of
         ``JᵀJ`` (Levenberg–Marquardt's scaling), in the unknowns.
 
@@ -438,7 +438,7 @@ def discrete_geodesic(
         at_floor = False
         judged = None  # the normal equations at a step judged by its gradient
         for _ in range(30):
-            A = H + sp.diags(lam * (d + 1e-12 * d.max()))
+            A = H.damped(lam * (d + 1e-12 * d.max()))
             try:
                 step = blocks.solve(A, -g, cg_rtol)
             except FloatingPointError:  # A is not positive definite (Newton): damp more
