@@ -13,6 +13,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .._typing import FloatArray, IntArray
+from .time_coupling import FrameEmbedding
 
 #: The 21 entries ``i ≤ j`` of a symmetric 6×6 block, row by row: symmetric per-triangle
 #: blocks are kept as ``(21, T)`` arrays of these entries ("upper", one row per entry, so
@@ -153,11 +154,11 @@ class PathPattern:
         index = np.int32 if mesh.nnz < 2**31 else np.int64
         return kept, indptr.astype(index), c_kept.astype(index)
 
-    def matrix(self, diagonal_blocks: list[FloatArray], coupling_blocks: list[FloatArray]
-               ) -> BlockTridiagonal:
+    def matrix(self, diagonal_blocks: list[FloatArray], coupling_blocks: list[FloatArray],
+               embedding: FrameEmbedding | None = None) -> BlockTridiagonal:
         """The matrix from slot values of its blocks: ``diagonal_blocks[k − 1]`` for frame
         ``k`` (k = 1 … K), ``coupling_blocks[k − 1]`` for frames ``(k, k + 1)``; the block
-        ``(k + 1, k)`` is its transpose."""
+        ``(k + 1, k)`` is its transpose. ``embedding`` is passed on."""
 
         def block(values: FloatArray, structure: tuple, n_cols: int) -> sp.csr_matrix:
             kept, indptr, indices = structure
@@ -172,7 +173,7 @@ class PathPattern:
             values = coupling_blocks[self.frames[i] - 1]
             upper[i] = block(values, forward, sizes[i + 1])
             lower[i] = block(values[self.mesh.transposed], backward, sizes[i])
-        return BlockTridiagonal(self.ranges, diagonal, upper, lower)
+        return BlockTridiagonal(self.ranges, diagonal, upper, lower, embedding=embedding)
 
 
 class BlockTridiagonal:
@@ -190,14 +191,19 @@ class BlockTridiagonal:
     upper, lower : dict ``i →`` sparse matrix
         The blocks ``(i, i + 1)`` and ``(i + 1, i)`` of adjacent frames.
     shift : (n,) float array, optional
+    embedding : FrameEmbedding, optional
+        The factors ``H = K 𝔻ᵀ(T ⊗ I)𝔻`` of a path's Gauss–Newton part, for the
+        time-coupled preconditioner (:mod:`.time_coupling`).
     """
 
     def __init__(self, ranges: list[tuple[int, int]], diagonal: list, upper: dict, lower: dict,
-                 shift: FloatArray | None = None) -> None:
+                 shift: FloatArray | None = None, embedding: FrameEmbedding | None = None
+                 ) -> None:
         self.ranges, self.blocks, self.upper, self.lower = ranges, diagonal, upper, lower
         n = ranges[-1][1] if ranges else 0
         self.shape = (n, n)
         self.shift = shift
+        self.embedding = embedding
 
     def __matmul__(self, x: FloatArray) -> FloatArray:
         out = np.empty(self.shape[0])
@@ -216,7 +222,8 @@ class BlockTridiagonal:
     def damped(self, shift: FloatArray) -> BlockTridiagonal:
         """This matrix plus ``diag(shift)`` (the blocks shared, not copied)."""
         total = shift if self.shift is None else self.shift + shift
-        return BlockTridiagonal(self.ranges, self.blocks, self.upper, self.lower, total)
+        return BlockTridiagonal(self.ranges, self.blocks, self.upper, self.lower, total,
+                                self.embedding)
 
     def diagonal_blocks(self) -> list[sp.csr_matrix]:
         """Each frame's diagonal block, with its part of the shift."""

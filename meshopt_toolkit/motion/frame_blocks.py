@@ -18,6 +18,11 @@ from .assembly import BlockTridiagonal
 _LOCK = threading.Lock()  # guards the frame pool
 
 REFACTOR_AFTER_CG = 12  # CG iterations after which the kept factorizations are renewed
+#: the same with the time-coupled preconditioner, which needs fresher factors: its frame
+#: solves stand for the pseudo-inverses of the current frames' Jacobians, twice per
+#: application (225° twist at 4.2k / 27k: with 12, single solves of 75 and 118 iterations
+#: on stale factors; with 4 at most 12, and 27k 14.0 → 11.4 s against block Jacobi)
+REFACTOR_AFTER_CG_COUPLED = 4
 
 
 #: frames of at least this many unknowns are factorized and solved in parallel threads
@@ -113,7 +118,7 @@ class FrameBlocks:
                 self.stale = True
                 raise FloatingPointError(str(exc)) from exc
         try:
-            x, iterations, residual = pcg(A, b, self.preconditioner(), rtol,
+            x, iterations, residual = pcg(A, b, self.preconditioner(A), rtol,
                                           maxiter=max(200, b.size // 2_000))
         except FloatingPointError:
             self.stale = True
@@ -121,10 +126,17 @@ class FrameBlocks:
         if residual > rtol and self.single:
             self.single, self.stale = False, True
             return self.solve(A, b, rtol)
-        self.stale = iterations > REFACTOR_AFTER_CG
+        coupled = getattr(A, "embedding", None) is not None and A.embedding.coupled
+        self.stale = iterations > (REFACTOR_AFTER_CG_COUPLED if coupled else REFACTOR_AFTER_CG)
         return x
 
-    def preconditioner(self) -> Callable[[FloatArray], FloatArray]:
+    def preconditioner(self, A: sp.csr_matrix | BlockTridiagonal | None = None
+                       ) -> Callable[[FloatArray], FloatArray]:
+        """``r ↦ P⁻¹ r``: the time-coupled preconditioner (:mod:`.time_coupling`) where
+        ``A`` is a path matrix with neighbouring frames, block Jacobi otherwise."""
+        embedding = getattr(A, "embedding", None)
+        if embedding is not None and embedding.coupled:
+            return embedding.preconditioner(A.ranges, self.factors)
         idx, solves, run = self.indices, self.factors, self._map
 
         def apply(v: FloatArray) -> FloatArray:

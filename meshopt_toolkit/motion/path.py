@@ -29,6 +29,7 @@ from .._typing import FloatArray, IntArray
 from .assembly import UPPER_DIAGONAL, BlockTridiagonal, MeshPattern, PathPattern, symmetric_products
 from .frame_blocks import FrameBlocks
 from .strain import TriangleDistortion
+from .time_coupling import FrameEmbedding
 
 logger = logging.getLogger(__name__)
 
@@ -269,7 +270,11 @@ class _Path:
             diagonal.append(pattern.mesh.symmetric_values(upper, segments * mass2))
         coupling = [pattern.mesh.values(-K * _block_products(blocks[k], blocks[k + 1]),
                                         -K * mass2) for k in range(1, K)]
-        return r, g, pattern.matrix(diagonal, coupling), scaling
+        embedding = FrameEmbedding(
+            self.sqrt_m, [blocks[k] for k in pattern.frames], tri_cols,
+            [np.flatnonzero(self.free_coords[k].ravel()) for k in pattern.frames],
+            [2 if k < K else 1 for k in pattern.frames], sorted(pattern.coupling), K)
+        return r, g, pattern.matrix(diagonal, coupling, embedding), scaling
 
     def _assembly_pattern(self, tri_cols: IntArray) -> PathPattern:
         """The matrix structure (:mod:`.assembly`): it depends only on the triangles and on
