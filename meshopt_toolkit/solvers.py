@@ -62,9 +62,9 @@ def cholmod_available() -> bool:
     return importlib.util.find_spec("cvxopt") is not None
 
 
-def cholesky_spd(A: sp.spmatrix, ordering: IntArray | None = None) -> Solve:
+class CholeskyFactor:
     """CHOLMOD's supernodal Cholesky factorization ``PAPᵀ = LLᵀ`` (double precision) of an
-    SPD matrix, returned as its ``solve`` (``(n,)`` or ``(n, k)`` right-hand sides).
+    SPD matrix; calling it solves (``(n,)`` or ``(n, k)`` right-hand sides).
 
     Supernodal: dense BLAS-3 kernels on the factor's column blocks, where SuperLU's
     symmetric mode computes an LU with twice the flops. Measured on the elasticity
@@ -73,6 +73,10 @@ def cholesky_spd(A: sp.spmatrix, ordering: IntArray | None = None) -> Solve:
     factorization 3.6 s + 0.70 s refined solve; 1.7M triangles / 1.7M dofs 3.0 + 10.3 +
     0.4 s against 27.4 + 5.4 s, 3.4 against 3.9 GB peak; residual 1e-12 without
     refinement (`benchmarks/bench_solvers.py`).
+
+    :meth:`refactorize` factorizes another matrix of the same pattern on the kept
+    analysis (symbolic factorization and the matrix's conversion): at 107k triangles and
+    7 frames, 2.5 of the morph's 10.6 s of factorizations were the analysis.
 
     Parameters
     ----------
@@ -86,32 +90,65 @@ def cholesky_spd(A: sp.spmatrix, ordering: IntArray | None = None) -> Solve:
     RuntimeError
         Where ``A`` is not positive definite (numerically).
     """
-    import cvxopt
-    import cvxopt.cholmod as cholmod
 
-    n = A.shape[0]
-    if n == 0:  # nothing to factorize (CHOLMOD refuses an empty matrix)
-        return lambda b: np.array(b, dtype=float)
-    lower = sp.tril(A, format="coo")
-    # cvxopt's indices are Py_ssize_t (np.intp)
-    matrix = cvxopt.spmatrix(lower.data.astype(float), lower.row.astype(np.intp),
-                             lower.col.astype(np.intp), (n, n))
-    try:
-        if ordering is None:
-            factor = cholmod.symbolic(matrix, uplo="L")
+    def __init__(self, A: sp.spmatrix, ordering: IntArray | None = None) -> None:
+        self.n = A.shape[0]
+        self.ordering = ordering
+        self._factor = None
+        self.refactorize(A)
+
+    def refactorize(self, A: sp.spmatrix) -> None:
+        """Factorize ``A`` (same size), on the kept analysis where its pattern is the
+        same. Raises RuntimeError where ``A`` is not positive definite."""
+        import cvxopt
+        import cvxopt.cholmod as cholmod
+
+        if A.shape != (self.n, self.n):
+            raise ValueError(f"expected a {self.n}×{self.n} matrix, got {A.shape}")
+        if self.n == 0:  # nothing to factorize (CHOLMOD refuses an empty matrix)
+            return
+        lower = sp.tril(A, format="csc")
+        lower.sort_indices()
+        same = (self._factor is not None and np.array_equal(lower.indptr, self._indptr)
+                and np.array_equal(lower.indices, self._indices))
+        if same:
+            self._matrix.V = cvxopt.matrix(lower.data.astype(float))
         else:
-            p = cvxopt.matrix(np.asarray(ordering, dtype=np.intp))
-            factor = cholmod.symbolic(matrix, p=p, uplo="L")
-        cholmod.numeric(matrix, factor)
-    except ArithmeticError as exc:  # CHOLMOD: a non-positive pivot
-        raise RuntimeError(f"CHOLMOD: the matrix is not positive definite ({exc})") from exc
+            self._indptr, self._indices = lower.indptr.copy(), lower.indices.copy()
+            columns = np.repeat(np.arange(self.n, dtype=np.intp), np.diff(lower.indptr))
+            # cvxopt's indices are Py_ssize_t (np.intp)
+            self._matrix = cvxopt.spmatrix(lower.data.astype(float),
+                                           lower.indices.astype(np.intp), columns,
+                                           (self.n, self.n))
+        try:
+            if not same:
+                if self.ordering is None:
+                    self._factor = cholmod.symbolic(self._matrix, uplo="L")
+                else:
+                    p = cvxopt.matrix(np.asarray(self.ordering, dtype=np.intp))
+                    self._factor = cholmod.symbolic(self._matrix, p=p, uplo="L")
+            cholmod.numeric(self._matrix, self._factor)
+        except ArithmeticError as exc:  # CHOLMOD: a non-positive pivot
+            self._factor = None  # analysed again next time
+            raise RuntimeError(f"CHOLMOD: the matrix is not positive definite ({exc})") from exc
 
-    def solve(b: FloatArray) -> FloatArray:
-        x = cvxopt.matrix(np.ascontiguousarray(b, dtype=float).reshape(n, -1))
-        cholmod.solve(factor, x)
+    def __call__(self, b: FloatArray) -> FloatArray:
+        import cvxopt
+        import cvxopt.cholmod as cholmod
+
+        if self.n == 0:
+            return np.array(b, dtype=float)
+        if self._factor is None:
+            raise RuntimeError("the last factorization failed")
+        x = cvxopt.matrix(np.ascontiguousarray(b, dtype=float).reshape(self.n, -1))
+        cholmod.solve(self._factor, x)
         return np.array(x).reshape(np.shape(b))
 
-    return solve
+
+def cholesky_spd(A: sp.spmatrix, ordering: IntArray | None = None) -> CholeskyFactor:
+    """CHOLMOD's Cholesky factorization of an SPD matrix (:class:`CholeskyFactor`), to
+    call as its ``solve``."""
+    return CholeskyFactor(A, ordering)
 
 
 def factorize_spd(A: sp.spmatrix, ordering: IntArray | None = None, single: bool = False

@@ -483,6 +483,10 @@ def test_frame_blocks_factorize_in_double_precision_with_cholmod(monkeypatch):
     assert not blocks.single and blocks._map is map
     exact = blocks.solve(A, b, 1e-12)
     assert np.linalg.norm(A @ exact - b) <= 1e-12 * np.linalg.norm(b)
+    kept = list(blocks.factors)
+    blocks.factorize((A + 0.5 * sp.eye(2 * n)).tocsr())  # refactorized on the analyses
+    assert all(a is b for a, b in zip(blocks.factors, kept))
+    assert np.linalg.norm(A @ blocks.solve(A, b, 1e-12) - b) <= 1e-12 * np.linalg.norm(b)
     monkeypatch.setattr(frame_blocks, "cholmod_available", lambda: False)
     superlu = frame_blocks.FrameBlocks(frames)
     assert superlu.single and (superlu._map is map) == (frame_blocks._frame_pool() is None)

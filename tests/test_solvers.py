@@ -51,6 +51,36 @@ def test_cholesky_spd_matches_superlu_and_a_general_solve():
                                    atol=1e-11 * abs(x).max())
 
 
+def test_cholesky_refactorization_reuses_the_analysis_and_recovers_from_failure(rng):
+    """A refactorization of the same pattern solves as a fresh factorization does; a
+    different pattern is analysed again; after an indefinite matrix (RuntimeError, and
+    the factor refuses to solve) the next SPD one factorizes."""
+    from meshopt_toolkit.solvers import CholeskyFactor
+
+    n = 30
+    laplacian = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(n, n))
+    grid = (sp.kron(laplacian, sp.eye(n)) + sp.kron(sp.eye(n), laplacian)).tocsr()
+    b = rng.standard_normal(n * n)
+    factor = CholeskyFactor(grid + 0.1 * sp.eye(n * n))
+    analysis = factor._factor
+    other = (grid + sp.diags(rng.random(n * n))).tocsr()
+    factor.refactorize(other)
+    assert factor._factor is analysis
+    np.testing.assert_allclose(factor(b), CholeskyFactor(other)(b), rtol=0, atol=1e-12)
+    assert np.linalg.norm(other @ factor(b) - b) <= 1e-12 * np.linalg.norm(b)
+    wider = (other + sp.diags(np.ones(n * n - 2), 2) + sp.diags(np.ones(n * n - 2), -2)
+             + 4 * sp.eye(n * n)).tocsr()
+    factor.refactorize(wider)
+    assert factor._factor is not analysis
+    assert np.linalg.norm(wider @ factor(b) - b) <= 1e-12 * np.linalg.norm(b)
+    with pytest.raises(RuntimeError, match="not positive definite"):
+        factor.refactorize(wider - 20 * sp.eye(n * n))
+    with pytest.raises(RuntimeError, match="failed"):
+        factor(b)
+    factor.refactorize(other)
+    assert np.linalg.norm(other @ factor(b) - b) <= 1e-12 * np.linalg.norm(b)
+
+
 def test_cholesky_spd_refuses_an_indefinite_matrix_and_takes_an_empty_one():
     from meshopt_toolkit.solvers import cholesky_spd
 

@@ -12,7 +12,8 @@ import scipy.sparse as sp
 
 from .._typing import FloatArray
 from ..cores import thread_budget
-from ..solvers import cholmod_available, factorize_spd, nested_dissection, pcg
+from ..solvers import (CholeskyFactor, cholmod_available, factorize_spd, nested_dissection,
+                       pcg)
 from .assembly import BlockTridiagonal
 
 _LOCK = threading.Lock()  # guards the frame pool
@@ -95,7 +96,13 @@ class FrameBlocks:
         if self.points is not None and self.orderings is None:
             self.orderings = [nested_dissection(p, B, 2) for p, B in zip(self.points, blocks)]
         orderings = self.orderings or [None] * len(blocks)
-        self.factors = [*self._map(factorize_spd, blocks, orderings, [self.single] * len(blocks))]
+        if len(self.factors) == len(blocks) and all(
+                isinstance(f, CholeskyFactor) for f in self.factors) and not self.single:
+            for factor, B in zip(self.factors, blocks):  # on the kept analyses
+                factor.refactorize(B)
+        else:
+            self.factors = [*self._map(factorize_spd, blocks, orderings,
+                                       [self.single] * len(blocks))]
         self.stale = False
 
     def solve(self, A: sp.csr_matrix | BlockTridiagonal, b: FloatArray, rtol: float) -> FloatArray:
