@@ -1,5 +1,6 @@
-"""The preconditioner of the path systems: block Jacobi over the frames, with kept
-(float32, nested-dissection ordered) factorizations."""
+"""The preconditioner of the path systems: the frames' kept (nested-dissection ordered)
+factorizations, applied as block Jacobi or, where frames are neighbours, as the
+time-coupled preconditioner (:mod:`.time_coupling`)."""
 
 from __future__ import annotations
 
@@ -44,17 +45,20 @@ def _frame_pool() -> ThreadPoolExecutor | None:
 
 
 class FrameBlocks:
-    """Block Jacobi over the frames, for CG on the path system: ``P = D̃``, the diagonal
-    blocks (one per frame, mesh-sized) of a recent matrix, factorized.
+    """The diagonal blocks (one per frame, mesh-sized) of a recent path matrix, factorized,
+    as the preconditioner of CG on the path system: block Jacobi ``P = D̃``, or the
+    time-coupled preconditioner (:mod:`.time_coupling`: two solves per frame, a few CG
+    iterations instead of ten per digit) for a path matrix whose frames are neighbours.
 
     The factorizations are kept across Levenberg–Marquardt iterations (and across the
     problems of a continuation) until a CG solve needs more than ``REFACTOR_AFTER_CG``
-    iterations (a count, not a time: the decisions and so the results must not depend on
-    the machine's load). The frames' blocks are independent: with SuperLU and several
-    frames of at least ``PARALLEL_FROM`` unknowns they are factorized and solved in
-    threads, one per core (the results do not depend on it). Measured on the 225° twist
-    of the 4.2k disc: block Jacobi needs 35 % fewer triangular solves than symmetric
-    block Gauss–Seidel (which does two per block) and is 20 % faster.
+    (time-coupled: ``REFACTOR_AFTER_CG_COUPLED``) iterations (a count, not a time: the
+    decisions and so the results must not depend on the machine's load); CHOLMOD's are
+    then refactorized on their kept analyses. The frames' blocks are independent: with
+    SuperLU and several frames of at least ``PARALLEL_FROM`` unknowns they are factorized
+    and solved in threads, one per core (the results do not depend on it). Measured on
+    the 225° twist of the 4.2k disc: block Jacobi needs 35 % fewer triangular solves than
+    symmetric block Gauss–Seidel (which does two per block) and is 20 % faster.
 
     ``indices`` are each frame's columns, its vertices' ``x, y`` in turn; with ``points``,
     the positions of each frame's vertices (the reference mesh), the blocks are factorized
