@@ -341,6 +341,32 @@ def test_time_coupled_preconditioner_is_symmetric_positive_definite(disc, rng):
     assert np.abs(x - exact).max() <= 1e-8 * np.abs(exact).max()
 
 
+def test_time_coupled_solve_on_stale_factors_goes_on_with_fresh_ones(disc, rng, monkeypatch):
+    """Factors of a far-away matrix (heavily damped) do not bring the time-coupled CG
+    to its tolerance within ``STALE_CG_LIMIT`` iterations: the solve goes on from its
+    iterate on fresh factors and still reaches the tolerance."""
+    import meshopt_toolkit.motion.frame_blocks as frame_blocks
+
+    frames, free, metric = _straight_path(disc, rng, K=6)
+    path = _Path(metric, frames, free, None)
+    _, g, H, d = path.normal_equations(frames)
+    blocks = frame_blocks.FrameBlocks(path.frame_indices())
+    blocks.factorize(H.damped(10.0 * d))  # kept factors of another matrix
+    iterations = []
+    pcg = frame_blocks.pcg
+
+    def counting(*args, **kwargs):
+        out = pcg(*args, **kwargs)
+        iterations.append((out[1], kwargs["maxiter"]))
+        return out
+
+    monkeypatch.setattr(frame_blocks, "pcg", counting)
+    x = blocks.solve(H, g, 1e-8)
+    assert iterations[0] == (frame_blocks.STALE_CG_LIMIT, frame_blocks.STALE_CG_LIMIT)
+    assert len(iterations) == 2 and iterations[1][1] > frame_blocks.STALE_CG_LIMIT
+    assert np.linalg.norm(H @ x - g) <= 1e-8 * np.linalg.norm(g)
+
+
 @pytest.mark.parametrize("K, anchored", [(4, False), (1, True)])
 def test_newton_matrix_is_the_hessian_of_the_path_energy(disc, rng, K, anchored):
     """Second-order Taylor test: ``E(x + εv) − E − ε∇E·v − ½ε² vᵀ(2H)v = O(ε³)`` with H

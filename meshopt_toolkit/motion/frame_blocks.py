@@ -25,6 +25,12 @@ REFACTOR_AFTER_CG = 12  # CG iterations after which the kept factorizations are 
 #: application (225° twist at 4.2k / 27k: with 12, single solves of 75 and 118 iterations
 #: on stale factors; with 4 at most 12, and 27k 14.0 → 11.4 s against block Jacobi)
 REFACTOR_AFTER_CG_COUPLED = 4
+#: and a solve on kept factors that needs more than this many iterations goes on from
+#: there on fresh ones (the 180° annulus pair: one such solve took 56 iterations where
+#: block Jacobi took 18; with the limit 108 → 86 CG iterations in all. A limit of 6 saved
+#: more there, 1.69 → 1.36 s, but cost the 107k twist's finest level 2.5 s: its Newton
+#: systems take up to 9 iterations on fresh factors)
+STALE_CG_LIMIT = 12
 
 
 #: frames of at least this many unknowns are factorized and solved in parallel threads
@@ -112,7 +118,9 @@ class FrameBlocks:
     def solve(self, A: sp.csr_matrix | BlockTridiagonal, b: FloatArray, rtol: float) -> FloatArray:
         """PCG on ``A x = b`` to the relative residual ``rtol``, factorizing first when
         there is no factorization or it went stale; judges staleness afterwards. A solve
-        that fails on float32 factors is redone, in double precision from then on.
+        that fails on float32 factors is redone, in double precision from then on; one
+        with the time-coupled preconditioner on kept factors that does not converge within
+        ``STALE_CG_LIMIT`` iterations goes on from its iterate on fresh factors.
 
         Raises FloatingPointError where ``A`` is not positive definite (a Newton matrix
         may not be): conjugate gradients meet non-positive curvature ``pᵀAp ≤ 0`` (which
@@ -122,22 +130,29 @@ class FrameBlocks:
         (Plain Jacobi for heavily damped Levenberg–Marquardt systems was tried: 42.6k /
         106k annulus 27× → 18× / 27× → 19–24× elasticity solves, but min AR 0.2240 →
         0.2208 / 0.2348 → 0.2230; not taken.)"""
-        if self.stale or not self.factors:
+        fresh = self.stale or not self.factors
+        if fresh:
             try:
                 self.factorize(A)
             except RuntimeError as exc:  # SuperLU: exactly singular
                 self.stale = True
                 raise FloatingPointError(str(exc)) from exc
+        coupled = getattr(A, "embedding", None) is not None and A.embedding.coupled
+        capped = coupled and not fresh
         try:
-            x, iterations, residual = pcg(A, b, self.preconditioner(A), rtol,
-                                          maxiter=max(200, b.size // 2_000))
+            x, iterations, residual = pcg(A, b, self.preconditioner(A), rtol, maxiter=(
+                STALE_CG_LIMIT if capped else max(200, b.size // 2_000)))
         except FloatingPointError:
             self.stale = True
             raise
+        if residual > rtol and capped:
+            # kept factors too old for the time-coupled preconditioner: the rest of the
+            # solve on fresh ones (from x, so that no iteration is lost)
+            self.stale = True
+            return x + self.solve(A, b - A @ x, rtol / residual)
         if residual > rtol and self.single:
             self.single, self.stale = False, True
             return self.solve(A, b, rtol)
-        coupled = getattr(A, "embedding", None) is not None and A.embedding.coupled
         self.stale = iterations > (REFACTOR_AFTER_CG_COUPLED if coupled else REFACTOR_AFTER_CG)
         return x
 
