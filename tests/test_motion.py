@@ -515,7 +515,7 @@ def test_frame_blocks_factorize_in_double_precision_with_cholmod(monkeypatch):
     assert np.linalg.norm(A @ blocks.solve(A, b, 1e-12) - b) <= 1e-12 * np.linalg.norm(b)
     monkeypatch.setattr(frame_blocks, "cholmod_available", lambda: False)
     superlu = frame_blocks.FrameBlocks(frames)
-    assert superlu.single and (superlu._map is map) == (frame_blocks._frame_pool() is None)
+    assert superlu.single and (superlu._map is map) == (frame_blocks.frame_pool() is None)
     np.testing.assert_allclose(superlu.solve(A, b, 1e-12), exact, rtol=0,
                                atol=1e-9 * np.abs(exact).max())
 

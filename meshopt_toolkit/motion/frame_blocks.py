@@ -41,8 +41,10 @@ PARALLEL_FROM = 20_000
 _POOL: list[ThreadPoolExecutor] = []  # one pool for the process, made on first use
 
 
-def _frame_pool() -> ThreadPoolExecutor | None:
-    """Threads for :class:`FrameBlocks`, one per core this process may use (None on one)."""
+def frame_pool() -> ThreadPoolExecutor | None:
+    """Threads for the frames (:class:`FrameBlocks`' SuperLU factors, the path's
+    assembly), one per core this process may use (None on one). Its tasks never submit
+    tasks to it (no deadlock)."""
     with _LOCK:
         if not _POOL:
             cores = thread_budget()
@@ -91,7 +93,7 @@ class FrameBlocks:
         self.factors: list = []
         self.stale = True
         large = len(indices) > 1 and min(i.size for i in indices) >= PARALLEL_FROM
-        pool = _frame_pool() if large and self.single else None
+        pool = frame_pool() if large and self.single else None
         self._map = pool.map if pool is not None else map
 
     def factorize(self, A: sp.csr_matrix | BlockTridiagonal) -> None:
