@@ -27,7 +27,7 @@ import scipy.sparse as sp
 
 from .._typing import FloatArray, IntArray
 from .assembly import UPPER_DIAGONAL, BlockTridiagonal, MeshPattern, PathPattern, symmetric_products
-from .frame_blocks import FrameBlocks, frame_pool
+from .frame_blocks import FrameBlocks, frame_map
 from .strain import TriangleDistortion
 from .time_coupling import FrameEmbedding
 
@@ -131,19 +131,6 @@ _PATTERNS: dict = {}  # the last few assembly patterns, by structure
 _LOCK = threading.Lock()  # guards _PATTERNS
 
 
-#: paths with at least this many triangles assemble their frames in threads (numpy's
-#: per-triangle kernels release the GIL: 107k triangles, 8 frames, 2 cores: the strain
-#: and its Jacobian 0.31–0.57 → 0.14 s, with the diagonal blocks 0.83–1.07 → 0.35–0.53 s)
-PARALLEL_ASSEMBLY_FROM = 5_000
-
-
-def _frame_map(n_triangles: int, n_frames: int) -> Callable:
-    """``map`` over frames: in the frame pool's threads for large paths (the results do
-    not depend on it: each frame's terms are computed alone and combined in order)."""
-    pool = frame_pool() if n_triangles >= PARALLEL_ASSEMBLY_FROM and n_frames > 1 else None
-    return map if pool is None else pool.map
-
-
 def _block_products(a: FloatArray, b: FloatArray) -> FloatArray:
     """``aᵀb`` per triangle: (T, 3, 6) × (T, 3, 6) → (T, 6, 6)."""
     return np.matmul(a.transpose(0, 2, 1), b)
@@ -192,7 +179,7 @@ class _Path:
                 phis.append(phi.ravel())
         else:  # φ(Q_0) is not evaluated where the anchor replaces it
             first = 0 if self.anchor_strain is None else 1
-            phis = [None] * first + [phi.ravel() for phi in _frame_map(
+            phis = [None] * first + [phi.ravel() for phi in frame_map(
                 len(self.metric.triangles), K)(self.metric.strain.values, frames[first:])]
         if self.anchor_strain is not None:
             phis[0] = self.anchor_strain
@@ -248,7 +235,7 @@ class _Path:
         # frame 0 is fixed: only its strain enters (and not even that with an anchor)
         phis = [strain.values(frames[0]) if self.anchor_strain is None
                 else self.anchor_strain.reshape(-1, 3)]
-        run = _frame_map(len(strain.triangles), K)
+        run = frame_map(len(strain.triangles), K)
         blocks: list = [None]
         for phi, jb in run(strain.values_and_jacobian, frames[1:]):
             phis.append(phi)
@@ -332,7 +319,7 @@ class _Path:
             return self.boundary_edges is None or not len(
                 boundary_self_intersections(Q, self.boundary_edges))
 
-        return all(_frame_map(len(self.metric.triangles), self.K)(admissible_frame, frames[1:]))
+        return all(frame_map(len(self.metric.triangles), self.K)(admissible_frame, frames[1:]))
 
 
 #: relative size below which a change of the energy is rounding (its evaluation sums
