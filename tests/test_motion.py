@@ -499,6 +499,7 @@ def test_frame_blocks_factorize_in_double_precision_with_cholmod(monkeypatch):
     one frame after another; without it, SuperLU's float32 factors, in threads for large
     frames."""
     import meshopt_toolkit.motion.frame_blocks as frame_blocks
+    import meshopt_toolkit.motion.frame_threads as frame_threads
 
     n = frame_blocks.PARALLEL_FROM
     A = (sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(2 * n, 2 * n)) + 1e-2 * sp.eye(2 * n)
@@ -515,7 +516,7 @@ def test_frame_blocks_factorize_in_double_precision_with_cholmod(monkeypatch):
     assert np.linalg.norm(A @ blocks.solve(A, b, 1e-12) - b) <= 1e-12 * np.linalg.norm(b)
     monkeypatch.setattr(frame_blocks, "cholmod_available", lambda: False)
     superlu = frame_blocks.FrameBlocks(frames)
-    assert superlu.single and (superlu._map is map) == (frame_blocks.frame_pool() is None)
+    assert superlu.single and (superlu._map is map) == (frame_threads.frame_pool() is None)
     np.testing.assert_allclose(superlu.solve(A, b, 1e-12), exact, rtol=0,
                                atol=1e-9 * np.abs(exact).max())
 

@@ -27,7 +27,8 @@ import scipy.sparse as sp
 
 from .._typing import FloatArray, IntArray
 from .assembly import UPPER_DIAGONAL, BlockTridiagonal, MeshPattern, PathPattern, symmetric_products
-from .frame_blocks import FrameBlocks, frame_map
+from .frame_blocks import FrameBlocks
+from .frame_threads import frame_map
 from .strain import TriangleDistortion
 from .time_coupling import FrameEmbedding
 

@@ -34,6 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._typing import FloatArray, IntArray
+from .frame_threads import frame_map
 
 
 @dataclass
@@ -98,17 +99,24 @@ class FrameEmbedding:
                        ) -> Callable[[FloatArray], FloatArray]:
         """``r ↦ P⁻¹ r`` from the solves ``A_i⁻¹`` of the diagonal blocks (module
         docstring)."""
+
         T_kk = np.asarray(self.segments, float)
         Tinv = self.time_inverse
 
+        frames = range(len(ranges))
+        # the solves one after another (CHOLMOD holds the GIL), the products in threads
+        run = frame_map(len(self.triangle_columns), len(ranges))
+
         def apply(r: FloatArray) -> FloatArray:
-            rows = [self._forward(i, T_kk[i] * self.K * solve(r[start:stop]))
-                    for i, (solve, (start, stop)) in enumerate(zip(frame_solves, ranges))]
+            z = [T_kk[i] * self.K * frame_solves[i](r[start:stop])
+                 for i, (start, stop) in zip(frames, ranges)]
+            rows = list(run(self._forward, frames, z))
             mass = np.tensordot(Tinv, np.array([m for m, _ in rows]), 1)
             strain = np.tensordot(Tinv, np.array([s for _, s in rows]), 1)
+            back = list(run(self._backward, frames, mass, strain))
             out = np.empty_like(r)
-            for i, (solve, (start, stop)) in enumerate(zip(frame_solves, ranges)):
-                out[start:stop] = T_kk[i] * solve(self._backward(i, mass[i], strain[i]))
+            for i, (start, stop) in zip(frames, ranges):
+                out[start:stop] = T_kk[i] * frame_solves[i](back[i])
             return out
 
         return apply
