@@ -33,6 +33,11 @@ def symmetric_products(a: FloatArray) -> FloatArray:
     return out
 
 
+def block_products(a: FloatArray, b: FloatArray) -> FloatArray:
+    """``aᵀb`` per triangle: (T, 3, 6) × (T, 3, 6) → (T, 6, 6)."""
+    return np.matmul(a.transpose(0, 2, 1), b)
+
+
 def upper_to_blocks(upper: FloatArray) -> FloatArray:
     """An upper array (21, T) as the full symmetric blocks (T, 6, 6)."""
     blocks = np.empty((upper.shape[1], 6, 6))
@@ -125,7 +130,6 @@ class PathPattern:
 
     def __init__(self, mesh: MeshPattern, col: IntArray) -> None:
         self.mesh = mesh
-        self.n = int(col.max(initial=-1)) + 1
         K = col.shape[0] - 1
         #: the frames (1 … K) with unknowns, and the range of columns of each
         self.frames = [k for k in range(1, K + 1) if (col[k] >= 0).any()]

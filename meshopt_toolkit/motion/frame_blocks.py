@@ -99,7 +99,8 @@ class FrameBlocks:
                                        [self.single] * len(blocks))]
         self.stale = False
 
-    def solve(self, A: sp.csr_matrix | BlockTridiagonal, b: FloatArray, rtol: float) -> FloatArray:
+    def solve(self, A: sp.csr_matrix | BlockTridiagonal, b: FloatArray, rtol: float
+              ) -> FloatArray:
         """PCG on ``A x = b`` to the relative residual ``rtol``, factorizing first when
         there is no factorization or it went stale; judges staleness afterwards. A solve
         that fails on float32 factors is redone, in double precision from then on; one

@@ -26,7 +26,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from .._typing import FloatArray, IntArray
-from .assembly import UPPER_DIAGONAL, BlockTridiagonal, MeshPattern, PathPattern, symmetric_products
+from .assembly import (UPPER_DIAGONAL, BlockTridiagonal, MeshPattern, PathPattern,
+                       block_products, symmetric_products)
 from .frame_blocks import FrameBlocks
 from .frame_threads import frame_map
 from .strain import TriangleDistortion
@@ -130,11 +131,6 @@ class PathResult:
 
 _PATTERNS: dict = {}  # the last few assembly patterns, by structure
 _LOCK = threading.Lock()  # guards _PATTERNS
-
-
-def _block_products(a: FloatArray, b: FloatArray) -> FloatArray:
-    """``aᵀb`` per triangle: (T, 3, 6) × (T, 3, 6) → (T, 6, 6)."""
-    return np.matmul(a.transpose(0, 2, 1), b)
 
 
 class _Path:
@@ -276,7 +272,7 @@ class _Path:
             scaling[cols[keep]] = own[keep]
             diagonal.append(values)
         coupling = list(run(lambda k: pattern.mesh.values(
-            -K * _block_products(blocks[k], blocks[k + 1]), -K * mass2), range(1, K)))
+            -K * block_products(blocks[k], blocks[k + 1]), -K * mass2), range(1, K)))
         embedding = FrameEmbedding(
             self.sqrt_m, [blocks[k] for k in pattern.frames], tri_cols,
             [np.flatnonzero(self.free_coords[k].ravel()) for k in pattern.frames],
@@ -403,9 +399,10 @@ def discrete_geodesic(
         Gauss–Newton iterations, 1e5× in 7 Newton ones). On the morph's paths from a cold
         start it saves none (225° twist, 4.2k / 27k triangles: 14 / 17 iterations either
         way; 180° annulus pair 17 → 23); from the refined frames of a coarser level it
-        does (107k: 7 iterations instead of 11, :data:`.morph.REFINED_CG_RTOL`). The Hessian may be indefinite: a step on which conjugate
-        gradients meet non-positive curvature is rejected like one that raises the energy
-        (the damping ``λ·diag(JᵀJ)`` grows until the matrix is positive definite).
+        does (107k: 7 iterations instead of 11, :data:`.morph.REFINED_CG_RTOL`). The
+        Hessian may be indefinite: a step on which conjugate gradients meet non-positive
+        curvature is rejected like one that raises the energy (the damping
+        ``λ·diag(JᵀJ)`` grows until the matrix is positive definite).
 
     Returns
     -------

@@ -99,10 +99,8 @@ class FrameEmbedding:
                        ) -> Callable[[FloatArray], FloatArray]:
         """``r ↦ P⁻¹ r`` from the solves ``A_i⁻¹`` of the diagonal blocks (module
         docstring)."""
-
         T_kk = np.asarray(self.segments, float)
         Tinv = self.time_inverse
-
         frames = range(len(ranges))
         # the solves one after another (CHOLMOD holds the GIL), the products in threads
         run = frame_map(len(self.triangle_columns), len(ranges))
