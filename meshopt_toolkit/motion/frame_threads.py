@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 
 from ..cores import thread_budget
 
@@ -36,3 +36,18 @@ def frame_map(n_triangles: int, n_frames: int) -> Callable:
     not depend on it: each frame's terms are computed alone and combined in order)."""
     pool = frame_pool() if n_triangles >= PARALLEL_ASSEMBLY_FROM and n_frames > 1 else None
     return map if pool is None else pool.map
+
+
+def frame_submit(n_triangles: int, n_frames: int) -> Callable[..., Future]:
+    """``submit(fn, *args)`` for one frame's work: to the frame pool under the rule of
+    :func:`frame_map`, else run at once (a completed future)."""
+    pool = frame_pool() if n_triangles >= PARALLEL_ASSEMBLY_FROM and n_frames > 1 else None
+    if pool is not None:
+        return pool.submit
+
+    def run_now(fn: Callable, *args) -> Future:
+        future: Future = Future()
+        future.set_result(fn(*args))
+        return future
+
+    return run_now

@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._typing import FloatArray, IntArray
-from .frame_threads import frame_map
+from .frame_threads import frame_submit
 
 
 @dataclass
@@ -103,19 +103,20 @@ class FrameEmbedding:
         T_kk = np.asarray(self.segments, float)
         Tinv = self.time_inverse
         frames = range(len(ranges))
-        # the solves one after another (CHOLMOD holds the GIL), the products in threads
-        run = frame_map(len(self.triangle_columns), len(ranges))
+        # the solves one after another (CHOLMOD holds the GIL), each frame's products in
+        # the frame pool as soon as its solve is done (numpy's kernels release the GIL)
+        submit = frame_submit(len(self.triangle_columns), len(ranges))
 
         def apply(r: FloatArray) -> FloatArray:
-            z = [T_kk[i] * self.K * frame_solves[i](r[start:stop])
-                 for i, (start, stop) in zip(frames, ranges)]
-            rows = list(run(self._forward, frames, z))
+            rows = [submit(self._forward, i, T_kk[i] * self.K * frame_solves[i](r[start:stop]))
+                    for i, (start, stop) in zip(frames, ranges)]
+            rows = [f.result() for f in rows]
             mass = np.tensordot(Tinv, np.array([m for m, _ in rows]), 1)
             strain = np.tensordot(Tinv, np.array([s for _, s in rows]), 1)
-            back = list(run(self._backward, frames, mass, strain))
+            back = [submit(self._backward, i, mass[i], strain[i]) for i in frames]
             out = np.empty_like(r)
             for i, (start, stop) in zip(frames, ranges):
-                out[start:stop] = T_kk[i] * frame_solves[i](back[i])
+                out[start:stop] = T_kk[i] * frame_solves[i](back[i].result())
             return out
 
         return apply
