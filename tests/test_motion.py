@@ -286,6 +286,14 @@ def test_block_tridiagonal_products_match_the_assembled_matrix(disc, rng):
         expected = dense[start:stop, start:stop] + np.diag(2 * shift[start:stop])
         np.testing.assert_allclose(B.toarray(), expected, rtol=0, atol=1e-14 * scale)
     assert H.shift is None  # damping made a new matrix
+    from concurrent.futures import ThreadPoolExecutor
+
+    from meshopt_toolkit.motion.assembly import BlockTridiagonal
+
+    with ThreadPoolExecutor(2) as pool:  # frames in threads: the same products, bitwise
+        threaded = BlockTridiagonal(H.ranges, H.blocks, H.upper, H.lower, shift,
+                                    frames_map=pool.map)
+        np.testing.assert_array_equal(threaded @ v, H.damped(shift) @ v)
 
 
 def test_time_coupled_preconditioner_is_exact_for_equal_frames(disc, rng):
