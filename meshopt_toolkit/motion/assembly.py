@@ -138,6 +138,10 @@ class PathPattern:
         #: the frames (1 … K) with unknowns, and the range of columns of each
         self.frames = [k for k in range(1, K + 1) if (col[k] >= 0).any()]
         self.ranges = [(int(col[k][col[k] >= 0][0]), int(col[k].max()) + 1) for k in self.frames]
+        #: each such frame's free coordinates (of 2N, in its unknowns' order) and the
+        #: path's segments at it (2, or 1 for the last frame)
+        self.columns = [np.flatnonzero(col[k] >= 0) for k in self.frames]
+        self.segments = [2 if k < K else 1 for k in self.frames]
         local = [np.where(col[k] >= 0, col[k] - start, -1)
                  for k, (start, _) in zip(self.frames, self.ranges)]
         self.diagonal = [self._restriction(a, a) for a in local]

@@ -14,6 +14,7 @@ from ..solvers import (CholeskyFactor, cholmod_available, factorize_spd, nested_
                        pcg)
 from .assembly import BlockTridiagonal
 from .frame_threads import frame_pool
+from .time_coupling import FrameEmbedding
 
 REFACTOR_AFTER_CG = 12  # CG iterations after which the kept factorizations are renewed
 #: the same with the time-coupled preconditioner, which needs fresher factors: its frame
@@ -32,6 +33,13 @@ STALE_CG_LIMIT = 12
 #: frames of at least this many unknowns are factorized and solved in parallel threads
 #: (SuperLU releases the GIL; below this the threads' overhead outweighs the work)
 PARALLEL_FROM = 20_000
+
+
+def _time_coupling(A) -> FrameEmbedding | None:
+    """The frames' embedding of a path matrix whose frames are neighbours (the
+    time-coupled preconditioner applies), else None."""
+    embedding = getattr(A, "embedding", None)
+    return embedding if embedding is not None and embedding.coupled else None
 
 
 class FrameBlocks:
@@ -122,7 +130,7 @@ class FrameBlocks:
             except RuntimeError as exc:  # SuperLU: exactly singular
                 self.stale = True
                 raise FloatingPointError(str(exc)) from exc
-        coupled = getattr(A, "embedding", None) is not None and A.embedding.coupled
+        coupled = _time_coupling(A) is not None
         capped = coupled and not fresh
         try:
             x, iterations, residual = pcg(A, b, self.preconditioner(A), rtol, maxiter=(
@@ -145,8 +153,8 @@ class FrameBlocks:
                        ) -> Callable[[FloatArray], FloatArray]:
         """``r ↦ P⁻¹ r``: the time-coupled preconditioner (:mod:`.time_coupling`) where
         ``A`` is a path matrix with neighbouring frames, block Jacobi otherwise."""
-        embedding = getattr(A, "embedding", None)
-        if embedding is not None and embedding.coupled:
+        embedding = _time_coupling(A)
+        if embedding is not None:
             return embedding.preconditioner(A.ranges, self.factors)
         idx, solves, run = self.indices, self.factors, self._map
 

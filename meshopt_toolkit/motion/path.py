@@ -273,10 +273,9 @@ class _Path:
             diagonal.append(values)
         coupling = list(run(lambda k: pattern.mesh.values(
             -K * block_products(blocks[k], blocks[k + 1]), -K * mass2), range(1, K)))
-        embedding = FrameEmbedding(
-            self.sqrt_m, [blocks[k] for k in pattern.frames], tri_cols,
-            [np.flatnonzero(self.free_coords[k].ravel()) for k in pattern.frames],
-            [2 if k < K else 1 for k in pattern.frames], sorted(pattern.coupling), K)
+        embedding = FrameEmbedding(self.sqrt_m, [blocks[k] for k in pattern.frames], tri_cols,
+                                   pattern.columns, pattern.segments, sorted(pattern.coupling),
+                                   K)
         return r, g, pattern.matrix(diagonal, coupling, embedding), scaling
 
     def _assembly_pattern(self, tri_cols: IntArray) -> PathPattern:
