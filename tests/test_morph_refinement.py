@@ -65,3 +65,18 @@ def test_coarse_to_fine_morph_reaches_the_same_geodesic():
     edges = fine.points[fine.edges]
     shortest = np.linalg.norm(edges[:, 1] - edges[:, 0], axis=1).min()
     assert np.abs(two.points - one.points).max() <= 1e-3 * shortest
+
+
+def test_morph_stops_at_its_gradient_tolerance():
+    """``gtol`` is the reported test, on every level of a coarse-to-fine morph."""
+    fine = mt.load(mt.data_path("disc_146.msh")).as_planar().refine()
+    target = twisted(fine)
+    loose = distortion_morph(fine, target, frames=5, coarse_min_triangles=100, gtol=1e-2)
+    tight = distortion_morph(fine, target, frames=5, coarse_min_triangles=100, gtol=1e-8)
+    assert len(loose.details["levels"]) == 2
+    for res in (loose, tight):
+        assert res.converged
+        assert all(level["status"] == "converged" for level in res.details["levels"])
+    assert loose.gradient_norm <= 1e-2 * np.sqrt(loose.energy)
+    assert tight.gradient_norm < loose.gradient_norm
+    assert tight.nit > loose.nit

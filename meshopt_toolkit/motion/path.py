@@ -353,6 +353,7 @@ def discrete_geodesic(
     factors: FrameBlocks | None = None,
     cg_rtol: float = 1e-2,
     newton: bool = False,
+    lambda_decrease: float = LAMBDA_DECREASE,
 ) -> PathResult:
     """Minimize the discrete path energy over the free coordinates by Levenberg–Marquardt.
 
@@ -402,6 +403,11 @@ def discrete_geodesic(
         Hessian may be indefinite: a step on which conjugate gradients meet non-positive
         curvature is rejected like one that raises the energy (the damping
         ``λ·diag(JᵀJ)`` grows until the matrix is positive definite).
+    lambda_decrease : float
+        The damping's factor after a step whose decrease the model predicted well
+        (``ρ > 0.75``; :data:`LAMBDA_DECREASE`). Newton steps from a start close to the
+        minimizer converge quadratically only once the damping is gone: there a
+        smaller factor gets there sooner (:data:`.morph.REFINED_LAMBDA_DECREASE`).
 
     Returns
     -------
@@ -471,7 +477,7 @@ def discrete_geodesic(
                 if np.isfinite(E_t) and E_t < E:
                     rho = (E - E_t) / max(predicted, 1e-300)
                     frames = trial
-                    lam = lam * (LAMBDA_DECREASE if rho > 0.75 else 1.0 if rho > 0.25 else 2.0)
+                    lam = lam * (lambda_decrease if rho > 0.75 else 1.0 if rho > 0.25 else 2.0)
                     lam = max(lam, 1e-12)
                     accepted = True
                     break
