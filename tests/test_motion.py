@@ -227,11 +227,12 @@ def test_path_energy_gradient_taylor(disc, rng):
 
 
 @pytest.mark.parametrize("K, anchored, uneven", [(4, False, False), (4, False, True),
-                                                 (1, True, False), (1, False, False)])
+                                                 (4, False, "split"), (1, True, False),
+                                                 (1, False, False)])
 def test_normal_equations_match_the_sparse_jacobian(disc, rng, K, anchored, uneven):
     """The Gauss–Newton system assembled from per-triangle blocks is ``Jᵀr`` and ``JᵀJ``
-    of the sparse Jacobian, with fixed vertices, weights and an anchor, and with frames
-    that fix different vertices (``uneven``)."""
+    of the sparse Jacobian, with fixed vertices, weights and an anchor, with frames that
+    fix different vertices (``uneven``) and with a fixed frame between two free ones."""
     P = disc.points
     target = _random_admissible(disc, rng, 0.3)
     frames = np.array([(1 - s) * P + s * target for s in np.linspace(0, 1, K + 1)])
@@ -240,9 +241,11 @@ def test_normal_equations_match_the_sparse_jacobian(disc, rng, K, anchored, unev
     if K > 1:
         free[-1] = False
     free[:, np.unique(disc.boundary_edges)[:5]] = False
-    if uneven:
+    if uneven is True:
         free[2, rng.choice(disc.n_vertices, 7, replace=False)] = False
         free[1, :3] = False
+    if uneven == "split":
+        free[2] = False
     metric = GraphMetric(P, disc.triangles, 1.3,
                          triangle_weights=1 + rng.random(disc.n_triangles))
     anchor = metric.strain.values(P) + 0.1 if anchored else None

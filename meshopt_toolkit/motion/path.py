@@ -232,18 +232,27 @@ class _Path:
         # frame 0 is fixed: only its strain enters (and not even that with an anchor)
         phis = [strain.values(frames[0]) if self.anchor_strain is None
                 else self.anchor_strain.reshape(-1, 3)]
+        tri_cols = (2 * strain.triangles[:, :, None] + np.arange(2)).reshape(-1, 6)  # (T, 6)
+        pattern = self._assembly_pattern(tri_cols)
+        moving = set(pattern.frames)
+
+        def strain_terms(k: int) -> tuple[FloatArray, FloatArray | None]:
+            """``φ`` of frame ``k`` and, where it has unknowns, its Jacobian blocks."""
+            if k in moving:
+                return strain.values_and_jacobian(frames[k])
+            return strain.values(frames[k]), None
+
         run = frame_map(len(strain.triangles), K)
-        blocks: list = [None]
-        for phi, jb in run(strain.values_and_jacobian, frames[1:]):
+        blocks: list = [None] * (K + 1)
+        for k, (phi, jb) in enumerate(run(strain_terms, range(1, K + 1)), start=1):
             phis.append(phi)
-            blocks.append(w_rows[:, :, None] * jb)  # W B_k, (T, 3, 6)
+            if jb is not None:
+                blocks[k] = w_rows[:, :, None] * jb  # W B_k, (T, 3, 6)
         res_m = [sK * self.sqrt_m * (frames[k + 1] - frames[k]).ravel() for k in range(K)]
         res_p = [sK * w_rows * (phis[k + 1] - phis[k]) for k in range(K)]  # (T, 3) each
         r = np.concatenate([np.concatenate([a, b.ravel()]) for a, b in zip(res_m, res_p)])
-        tri_cols = (2 * strain.triangles[:, :, None] + np.arange(2)).reshape(-1, 6)  # (T, 6)
         by_corner = tri_cols.T.ravel()  # the coordinates in the order of an upper row
         mass2 = np.repeat(self.metric.mass, 2)
-        pattern = self._assembly_pattern(tri_cols)
 
         def frame_terms(k: int) -> tuple[FloatArray, FloatArray, FloatArray]:
             """Frame ``k``'s gradient and ``JᵀJ`` diagonal (all its coordinates) and the
@@ -264,15 +273,18 @@ class _Path:
 
         g = np.zeros(self.n_unknowns)
         scaling = np.zeros(self.n_unknowns)
-        diagonal = []
-        for k, (full, own, values) in enumerate(run(frame_terms, range(1, K + 1)), start=1):
+        diagonal: list = [None] * K  # frame k's at k − 1
+        for k, (full, own, values) in zip(pattern.frames, run(frame_terms, pattern.frames)):
             cols = self.col[k].ravel()
             keep = cols >= 0
             g[cols[keep]] += full[keep]
             scaling[cols[keep]] = own[keep]
-            diagonal.append(values)
-        coupling = list(run(lambda k: pattern.mesh.values(
-            -K * block_products(blocks[k], blocks[k + 1]), -K * mass2), range(1, K)))
+            diagonal[k - 1] = values
+        coupling: list = [None] * (K - 1)  # frames k, k + 1 at k − 1
+        neighbours = [pattern.frames[i] for i in sorted(pattern.coupling)]
+        for k, values in zip(neighbours, run(lambda k: pattern.mesh.values(
+                -K * block_products(blocks[k], blocks[k + 1]), -K * mass2), neighbours)):
+            coupling[k - 1] = values
         embedding = FrameEmbedding(self.sqrt_m, [blocks[k] for k in pattern.frames], tri_cols,
                                    pattern.columns, pattern.segments, sorted(pattern.coupling),
                                    K)
