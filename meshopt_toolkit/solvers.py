@@ -17,6 +17,7 @@ from collections.abc import Callable
 import numpy as np
 import scipy.sparse as sp
 
+from ._cholmod import CholeskyFactor
 from ._linalg import dot
 from ._typing import FloatArray, IntArray
 from .errors import MeshoptError
@@ -60,89 +61,6 @@ def cholmod_available() -> bool:
     """Whether CHOLMOD (SuiteSparse's supernodal sparse Cholesky, as built into the
     ``cvxopt`` wheel) can be imported."""
     return importlib.util.find_spec("cvxopt") is not None
-
-
-class CholeskyFactor:
-    """CHOLMOD's supernodal Cholesky factorization ``PAPᵀ = LLᵀ`` (double precision) of an
-    SPD matrix; calling it solves (``(n,)`` or ``(n, k)`` right-hand sides).
-
-    Supernodal: dense BLAS-3 kernels on the factor's column blocks, where SuperLU's
-    symmetric mode computes an LU with twice the flops. Measured on the elasticity
-    metric's matrix (nested-dissection order, 2 cores): 429k triangles / 430k dofs
-    0.48 s analysis + 1.03 s factorization + 0.09 s solve against SuperLU's float32
-    factorization 3.6 s + 0.70 s refined solve; 1.7M triangles / 1.7M dofs 3.0 + 10.3 +
-    0.4 s against 27.4 + 5.4 s, 3.4 against 3.9 GB peak; residual 1e-12 without
-    refinement (`benchmarks/bench_solvers.py`).
-
-    :meth:`refactorize` factorizes another matrix of the same pattern on the kept
-    analysis (symbolic factorization and the matrix's conversion): at 107k triangles and
-    7 frames, 2.5 of the morph's 10.6 s of factorizations were the analysis.
-
-    Parameters
-    ----------
-    A : (n, n) sparse SPD matrix (only its lower triangle is read)
-    ordering : (n,) int array, optional
-        A fill-reducing permutation (new → old, :func:`nested_dissection`); default
-        CHOLMOD's own (approximate minimum degree).
-
-    Raises
-    ------
-    RuntimeError
-        Where ``A`` is not positive definite (numerically).
-    """
-
-    def __init__(self, A: sp.spmatrix, ordering: IntArray | None = None) -> None:
-        self.n = A.shape[0]
-        self.ordering = ordering
-        self._factor = None
-        self.refactorize(A)
-
-    def refactorize(self, A: sp.spmatrix) -> None:
-        """Factorize ``A`` (same size), on the kept analysis where its pattern is the
-        same. Raises RuntimeError where ``A`` is not positive definite."""
-        import cvxopt
-        import cvxopt.cholmod as cholmod
-
-        if A.shape != (self.n, self.n):
-            raise ValueError(f"expected a {self.n}×{self.n} matrix, got {A.shape}")
-        if self.n == 0:  # nothing to factorize (CHOLMOD refuses an empty matrix)
-            return
-        lower = sp.tril(A, format="csc")
-        lower.sort_indices()
-        same = (self._factor is not None and np.array_equal(lower.indptr, self._indptr)
-                and np.array_equal(lower.indices, self._indices))
-        if same:
-            self._matrix.V = cvxopt.matrix(lower.data.astype(float))
-        else:
-            self._indptr, self._indices = lower.indptr.copy(), lower.indices.copy()
-            columns = np.repeat(np.arange(self.n, dtype=np.intp), np.diff(lower.indptr))
-            # cvxopt's indices are Py_ssize_t (np.intp)
-            self._matrix = cvxopt.spmatrix(lower.data.astype(float),
-                                           lower.indices.astype(np.intp), columns,
-                                           (self.n, self.n))
-        try:
-            if not same:
-                if self.ordering is None:
-                    self._factor = cholmod.symbolic(self._matrix, uplo="L")
-                else:
-                    p = cvxopt.matrix(np.asarray(self.ordering, dtype=np.intp))
-                    self._factor = cholmod.symbolic(self._matrix, p=p, uplo="L")
-            cholmod.numeric(self._matrix, self._factor)
-        except ArithmeticError as exc:  # CHOLMOD: a non-positive pivot
-            self._factor = None  # analysed again next time
-            raise RuntimeError(f"CHOLMOD: the matrix is not positive definite ({exc})") from exc
-
-    def __call__(self, b: FloatArray) -> FloatArray:
-        import cvxopt
-        import cvxopt.cholmod as cholmod
-
-        if self.n == 0:
-            return np.array(b, dtype=float)
-        if self._factor is None:
-            raise RuntimeError("the last factorization failed")
-        x = cvxopt.matrix(np.ascontiguousarray(b, dtype=float).reshape(self.n, -1))
-        cholmod.solve(self._factor, x)
-        return np.array(x).reshape(np.shape(b))
 
 
 def cholesky_spd(A: sp.spmatrix, ordering: IntArray | None = None) -> CholeskyFactor:

@@ -19,7 +19,8 @@ from meshopt_toolkit.kernels.triangles import aspect_ratios, inverse_shape_quali
 from meshopt_toolkit.motion.assembly import upper_to_blocks
 from meshopt_toolkit.motion.move import move
 from meshopt_toolkit.motion.morph import distortion_morph
-from meshopt_toolkit.motion.path import GraphMetric, _Path, discrete_geodesic
+from meshopt_toolkit.motion.graph_metric import GraphMetric
+from meshopt_toolkit.motion.path import _Path, discrete_geodesic
 from meshopt_toolkit.motion.similarity import fit_similarity
 from meshopt_toolkit.motion.strain import (
     TriangleDistortion,
@@ -506,11 +507,14 @@ def test_frame_blocks_redo_a_failed_single_precision_solve_in_double(monkeypatch
 
 
 def test_frame_blocks_factorize_in_double_precision_with_cholmod(monkeypatch):
-    """With CHOLMOD the blocks are its double-precision factors (never float32) and run
-    one frame after another; without it, SuperLU's float32 factors, in threads for large
-    frames."""
+    """With CHOLMOD the blocks are its double-precision factors (never float32), in
+    threads for large frames where its calls release the GIL (:mod:`._cholmod`), else one
+    frame after another; without it, SuperLU's float32 factors, in threads."""
+    import meshopt_toolkit._cholmod as native
     import meshopt_toolkit.motion.frame_blocks as frame_blocks
     import meshopt_toolkit.motion.frame_threads as frame_threads
+
+    pool = frame_threads.frame_pool()
 
     n = frame_blocks.PARALLEL_FROM
     A = (sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(2 * n, 2 * n)) + 1e-2 * sp.eye(2 * n)
@@ -518,16 +522,22 @@ def test_frame_blocks_factorize_in_double_precision_with_cholmod(monkeypatch):
     b = np.random.default_rng(5).standard_normal(2 * n)
     frames = [np.arange(n), np.arange(n, 2 * n)]
     blocks = frame_blocks.FrameBlocks(frames)
-    assert not blocks.single and blocks._map is map
+    assert not blocks.single
+    assert blocks.threaded == (pool is not None and native.library() is not None)
+    assert (blocks._map is map) != blocks.threaded
     exact = blocks.solve(A, b, 1e-12)
     assert np.linalg.norm(A @ exact - b) <= 1e-12 * np.linalg.norm(b)
     kept = list(blocks.factors)
     blocks.factorize((A + 0.5 * sp.eye(2 * n)).tocsr())  # refactorized on the analyses
     assert all(a is b for a, b in zip(blocks.factors, kept))
     assert np.linalg.norm(A @ blocks.solve(A, b, 1e-12) - b) <= 1e-12 * np.linalg.norm(b)
+    monkeypatch.setattr(native, "library", lambda: None)  # CHOLMOD through cvxopt only
+    serial = frame_blocks.FrameBlocks(frames)
+    assert not serial.single and not serial.threaded and serial._map is map
+    np.testing.assert_array_equal(serial.solve(A, b, 1e-12), exact)
     monkeypatch.setattr(frame_blocks, "cholmod_available", lambda: False)
     superlu = frame_blocks.FrameBlocks(frames)
-    assert superlu.single and (superlu._map is map) == (frame_threads.frame_pool() is None)
+    assert superlu.single and (superlu._map is map) == (pool is None)
     np.testing.assert_allclose(superlu.solve(A, b, 1e-12), exact, rtol=0,
                                atol=1e-9 * np.abs(exact).max())
 

@@ -51,7 +51,21 @@ def test_cholesky_spd_matches_superlu_and_a_general_solve():
                                    atol=1e-11 * abs(x).max())
 
 
-def test_cholesky_refactorization_reuses_the_analysis_and_recovers_from_failure(rng):
+@pytest.fixture(params=["ctypes", "cvxopt"])
+def cholmod_route(request, monkeypatch):
+    """CHOLMOD called through :mod:`._cholmod` (GIL released) or through cvxopt's own
+    interface (where the former does not load)."""
+    import meshopt_toolkit._cholmod as native
+
+    if request.param == "ctypes" and native.library() is None:
+        pytest.skip("CHOLMOD does not load through ctypes here")
+    if request.param == "cvxopt":
+        monkeypatch.setattr(native, "library", lambda: None)
+    return request.param
+
+
+def test_cholesky_refactorization_reuses_the_analysis_and_recovers_from_failure(
+        rng, cholmod_route):
     """A refactorization of the same pattern solves as a fresh factorization does; a
     different pattern is analysed again; after an indefinite matrix (RuntimeError, and
     the factor refuses to solve) the next SPD one factorizes."""
@@ -81,7 +95,60 @@ def test_cholesky_refactorization_reuses_the_analysis_and_recovers_from_failure(
     assert np.linalg.norm(other @ factor(b) - b) <= 1e-12 * np.linalg.norm(b)
 
 
-def test_cholesky_spd_refuses_an_indefinite_matrix_and_takes_an_empty_one():
+def test_cholmod_through_ctypes_is_cvxopts_factor_bitwise(monkeypatch):
+    """The same library, the same options: the same solutions to the last bit for one
+    right-hand side, in minimum-degree and nested-dissection order (several are solved
+    together here, column by column by cvxopt: equal to rounding)."""
+    import meshopt_toolkit._cholmod as native
+    from meshopt_toolkit.solvers import CholeskyFactor, nested_dissection
+
+    if native.library() is None:
+        pytest.skip("CHOLMOD does not load through ctypes here")
+    rng = np.random.default_rng(3)
+    points, A = _grid(40)
+    A = (A + sp.diags(rng.random(A.shape[0]))).tocsr()
+    B = rng.standard_normal((A.shape[0], 3))
+    for ordering in (None, nested_dissection(points, A)):
+        factor = CholeskyFactor(A, ordering)
+        assert factor.releases_gil
+        with monkeypatch.context() as patch:
+            patch.setattr(native, "library", lambda: None)
+            reference = CholeskyFactor(A, ordering)
+        assert not reference.releases_gil
+        for j in range(B.shape[1]):
+            np.testing.assert_array_equal(factor(B[:, j]), reference(B[:, j]))
+        np.testing.assert_allclose(factor(B), reference(B), rtol=0,
+                                   atol=1e-13 * np.abs(reference(B)).max())
+        assert factor(B[:, 1]).shape == (A.shape[0],)
+
+
+def test_cholmod_factors_solve_in_threads_as_one_after_another():
+    """Several factors factorized and solved at once in threads (and one factor from two
+    threads: its lock) give what they give one at a time."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    import meshopt_toolkit._cholmod as native
+    from meshopt_toolkit.solvers import CholeskyFactor
+
+    if native.library() is None:
+        pytest.skip("CHOLMOD does not load through ctypes here")
+    rng = np.random.default_rng(4)
+    _, A = _grid(60)
+    matrices = [(A + sp.diags(rng.random(A.shape[0]))).tocsr() for _ in range(4)]
+    b = rng.standard_normal(A.shape[0])
+    serial = [CholeskyFactor(M)(b) for M in matrices]
+    with ThreadPoolExecutor(4) as pool:
+        factors = list(pool.map(CholeskyFactor, matrices))
+        for _ in range(3):
+            threaded = list(pool.map(lambda f: f(b), factors))
+            for x, y in zip(threaded, serial):
+                np.testing.assert_array_equal(x, y)
+        shared = list(pool.map(lambda _: factors[0](b), range(8)))
+    for x in shared:
+        np.testing.assert_array_equal(x, serial[0])
+
+
+def test_cholesky_spd_refuses_an_indefinite_matrix_and_takes_an_empty_one(cholmod_route):
     from meshopt_toolkit.solvers import cholesky_spd
 
     indefinite = sp.csr_matrix(np.array([[1.0, 2.0], [2.0, 1.0]]))  # eigenvalues 3, −1

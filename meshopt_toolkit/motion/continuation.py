@@ -15,7 +15,8 @@ import numpy as np
 from .._typing import FloatArray, IntArray
 from ..errors import MeshoptError
 from ..solvers import factorize_spd
-from .path import FrameBlocks, GraphMetric, _Path, discrete_geodesic
+from .graph_metric import GraphMetric
+from .path import FrameBlocks, _Path, discrete_geodesic
 
 logger = logging.getLogger(__name__)
 

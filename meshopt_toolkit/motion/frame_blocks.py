@@ -9,6 +9,7 @@ from collections.abc import Callable
 import numpy as np
 import scipy.sparse as sp
 
+from .. import _cholmod
 from .._typing import FloatArray
 from ..solvers import (CholeskyFactor, cholmod_available, factorize_spd, nested_dissection,
                        pcg)
@@ -31,7 +32,8 @@ STALE_CG_LIMIT = 12
 
 
 #: frames of at least this many unknowns are factorized and solved in parallel threads
-#: (SuperLU releases the GIL; below this the threads' overhead outweighs the work)
+#: (SuperLU and CHOLMOD through :mod:`.._cholmod` release the GIL; below this the
+#: threads' overhead outweighs the work)
 PARALLEL_FROM = 20_000
 
 
@@ -53,8 +55,8 @@ class FrameBlocks:
     (time-coupled: ``REFACTOR_AFTER_CG_COUPLED``) iterations (a count, not a time: the
     decisions and so the results must not depend on the machine's load); CHOLMOD's are
     then refactorized on their kept analyses. The frames' blocks are independent: with
-    SuperLU and several frames of at least ``PARALLEL_FROM`` unknowns they are factorized
-    and solved in threads, one per core (the results do not depend on it). Measured on
+    several frames of at least ``PARALLEL_FROM`` unknowns they are factorized and solved
+    in threads, one per core (``threaded``; the results do not depend on it). Measured on
     the 225° twist of the 4.2k disc: block Jacobi needs 35 % fewer triangular solves than
     symmetric block Gauss–Seidel (which does two per block) and is 20 % faster.
 
@@ -64,11 +66,13 @@ class FrameBlocks:
     about half the factorization time.
 
     Where CHOLMOD is installed (:func:`.solvers.cholmod_available`) the blocks are its
-    double-precision Cholesky factors, one frame after another (it holds the GIL):
-    measured on a 108k-unknown block, 0.16 s per factorization against 0.56 s for
-    SuperLU's float32 LU and 0.018 against 0.026 s per solve; the 225° twist at 107k
-    triangles (9 frames, 2 cores) 105 → 85 s although SuperLU's solves ran two frames at
-    a time. Without it, SuperLU in float32, in threads.
+    double-precision Cholesky factors: measured on a 108k-unknown block, 0.16 s per
+    factorization against 0.56 s for SuperLU's float32 LU and 0.018 against 0.026 s per
+    solve; the 225° twist at 107k triangles (9 frames, 2 cores) 105 → 85 s while its
+    factors were still called through ``cvxopt`` (which holds the GIL: one frame after
+    another) and SuperLU's solves ran two frames at a time. Through :mod:`.._cholmod` they
+    run in threads too (the 107k twist 29.5 → 24.1 s). Without CHOLMOD, SuperLU in
+    float32, in threads.
     """
 
     def __init__(self, indices: list[np.ndarray], points: list[FloatArray] | None = None):
@@ -83,8 +87,11 @@ class FrameBlocks:
         self.factors: list = []
         self.stale = True
         large = len(indices) > 1 and min(i.size for i in indices) >= PARALLEL_FROM
-        pool = frame_pool() if large and self.single else None
-        self._map = pool.map if pool is not None else map
+        #: whether the frames' factorizations and solves run in the frame pool's threads
+        #: (SuperLU, or CHOLMOD through :mod:`.._cholmod`: both release the GIL)
+        self.threaded = large and frame_pool() is not None and (
+            self.single or _cholmod.library() is not None)
+        self._map = frame_pool().map if self.threaded else map
 
     def factorize(self, A: sp.csr_matrix | BlockTridiagonal) -> None:
         if isinstance(A, BlockTridiagonal):
@@ -100,8 +107,7 @@ class FrameBlocks:
         orderings = self.orderings or [None] * len(blocks)
         if len(self.factors) == len(blocks) and all(
                 isinstance(f, CholeskyFactor) for f in self.factors) and not self.single:
-            for factor, B in zip(self.factors, blocks):  # on the kept analyses
-                factor.refactorize(B)
+            list(self._map(CholeskyFactor.refactorize, self.factors, blocks))  # kept analyses
         else:
             self.factors = [*self._map(factorize_spd, blocks, orderings,
                                        [self.single] * len(blocks))]

@@ -15,7 +15,7 @@ _POOL: list[ThreadPoolExecutor] = []  # one pool for the process, made on first 
 
 
 def frame_pool() -> ThreadPoolExecutor | None:
-    """Threads for the frames (:class:`.FrameBlocks`' SuperLU factors, the path's
+    """Threads for the frames (:class:`.FrameBlocks`' factors and solves, the path's
     assembly and products), one per core this process may use (None on one). Its tasks
     never submit tasks to it (no deadlock)."""
     with _LOCK:

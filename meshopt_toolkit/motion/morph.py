@@ -22,7 +22,8 @@ from ..errors import InvalidMeshError
 from ..kernels.triangles import aspect_ratios, inverse_shape_quality, signed_areas
 from ..mesh import PlanarMesh, boundary_self_intersections, require_admissible
 from .continuation import continuation_path
-from .path import GraphMetric, PathResult, discrete_geodesic
+from .graph_metric import GraphMetric
+from .path import PathResult, discrete_geodesic
 from .refinement import refine_frames, unrefined
 from .similarity import HandlePath, Similarity, fit_similarity, handle_groups
 

@@ -25,7 +25,8 @@ from ..kernels.triangles import aspect_ratios, inverse_shape_quality
 from ..mesh import PlanarMesh, boundary_self_intersections, require_admissible
 from .continuation import RELAX_CG_RTOL, NoAdmissiblePathError, continuation_path
 from .frame_blocks import FrameBlocks
-from .path import GraphMetric, discrete_geodesic
+from .graph_metric import GraphMetric
+from .path import discrete_geodesic
 from .similarity import HandlePath, Similarity, fit_similarity, handle_groups
 from .strain import TriangleDistortion
 

@@ -30,86 +30,10 @@ from .assembly import (UPPER_DIAGONAL, BlockTridiagonal, MeshPattern, PathPatter
                        block_products, symmetric_products)
 from .frame_blocks import FrameBlocks
 from .frame_threads import frame_map
-from .strain import TriangleDistortion
+from .graph_metric import GraphMetric
 from .time_coupling import FrameEmbedding
 
 logger = logging.getLogger(__name__)
-
-
-def lumped_mass(points: FloatArray, triangles: IntArray) -> FloatArray:
-    """Vertex weights ``m_i`` with ``Σ m_i |v_i|²`` = area-weighted mean of ``|v|²`` divided
-    by the mean squared distance from the centroid (a dimensionless, size- and
-    resolution-independent norm of a displacement field)."""
-    p = points[triangles]
-    area = 0.5 * np.abs((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1])
-                        - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0]))
-    m = np.bincount(triangles.ravel(), np.repeat(area / 3.0, 3), minlength=len(points))
-    m /= m.sum()
-    centroid = m @ points
-    spread = float(m @ np.sum((points - centroid) ** 2, axis=1))
-    return m / spread
-
-
-@dataclass
-class GraphMetric:
-    """``g = M + w² JᵀJ`` of the triangle distortion ``φ`` relative to ``reference``.
-
-    Parameters
-    ----------
-    reference : (N, 2) float array
-        The mesh at which ``φ = 0`` (and whose areas define ``M``).
-    triangles : (T, 3) int array
-    weight : float
-        ``w``; the bound ``|Δφ_t| ≤ ℓ/w`` (every triangle) and the balance between moving
-        vertices (``M``) and straining triangles (``JᵀJ``).
-    triangle_weights : (T,) float array, optional
-        Extra weights ``c_t ≥ 1`` of the triangles' rows (default 1): they only add to the
-        metric, so every bound of the unweighted metric still holds.
-    """
-
-    reference: FloatArray
-    triangles: IntArray
-    weight: float = 1.0
-    triangle_weights: FloatArray | None = None
-    strain: TriangleDistortion = field(init=False)
-    mass: FloatArray = field(init=False)
-
-    def __post_init__(self) -> None:
-        self.reference = np.asarray(self.reference, dtype=float)
-        self.strain = TriangleDistortion(self.reference, self.triangles)
-        self.mass = lumped_mass(self.reference, self.triangles)
-        if self.triangle_weights is not None:
-            c = np.asarray(self.triangle_weights, float)
-            if c.shape != (len(self.triangles),) or not (c >= 1).all():
-                raise ValueError("triangle_weights must be T values ≥ 1")
-            self.triangle_weights = c
-
-    @property
-    def row_weights(self) -> FloatArray:
-        """``w·c_t`` repeated over the 3 components of each triangle, (3T,)."""
-        c = np.ones(len(self.triangles)) if self.triangle_weights is None else self.triangle_weights
-        return self.weight * np.repeat(c, 3)
-
-    def embed(self, Q: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """``(m^½ ⊙ Q, w φ(Q))`` flattened; ``inf`` in the second part where inverted."""
-        return (np.sqrt(self.mass)[:, None] * Q).ravel(), self.row_weights * self.strain.values(Q).ravel()
-
-    def apply(self, Q: FloatArray, V: FloatArray) -> FloatArray:
-        """``g_Q V = (M + w² JᵀJ) V`` for a displacement ``V`` (N, 2), triangle by
-        triangle (no matrix)."""
-        _, jb = self.strain.values_and_jacobian(Q)
-        tri_cols = (2 * self.triangles[:, :, None] + np.arange(2)).reshape(-1, 6)
-        v = V.ravel()[tri_cols]  # (T, 6)
-        w2 = self.row_weights.reshape(-1, 3) ** 2
-        strain = np.matmul(jb, v[:, :, None])[:, :, 0] * w2  # W² J V per triangle (T, 3)
-        back = np.matmul(strain[:, None, :], jb)[:, 0]  # Jᵀ(...) per triangle (T, 6)
-        out = np.bincount(tri_cols.ravel(), back.ravel(), minlength=V.size)
-        return out.reshape(V.shape) + self.mass[:, None] * V
-
-    def segment_lengths(self, frames: FloatArray) -> FloatArray:
-        """``|X(Q_{k+1}) − X(Q_k)|`` for consecutive frames (K+1, N, 2) → (K,)."""
-        X = [np.concatenate(self.embed(Q)) for Q in frames]
-        return np.array([np.linalg.norm(b - a) for a, b in zip(X[:-1], X[1:])])
 
 
 @dataclass

@@ -99,24 +99,30 @@ class FrameEmbedding:
                        frame_solves: list[Callable[[FloatArray], FloatArray]]
                        ) -> Callable[[FloatArray], FloatArray]:
         """``r ↦ P⁻¹ r`` from the solves ``A_i⁻¹`` of the diagonal blocks (module
-        docstring)."""
+        docstring). Each frame's solve and products are one task in the frame pool:
+        numpy's kernels release the GIL, and so do the solves of :mod:`.._cholmod` and
+        SuperLU (CHOLMOD through ``cvxopt`` does not: its solves then take turns while
+        the other frames' products go on)."""
         T_kk = np.asarray(self.segments, float)
         Tinv = self.time_inverse
         frames = range(len(ranges))
-        # the solves one after another (CHOLMOD holds the GIL), each frame's products in
-        # the frame pool as soon as its solve is done (numpy's kernels release the GIL)
         submit = frame_submit(len(self.triangle_columns), len(ranges))
 
+        def forward(i: int, r_i: FloatArray) -> tuple[FloatArray, FloatArray]:
+            return self._forward(i, T_kk[i] * self.K * frame_solves[i](r_i))
+
+        def backward(i: int, mass: FloatArray, strain: FloatArray) -> FloatArray:
+            return T_kk[i] * frame_solves[i](self._backward(i, mass, strain))
+
         def apply(r: FloatArray) -> FloatArray:
-            rows = [submit(self._forward, i, T_kk[i] * self.K * frame_solves[i](r[start:stop]))
-                    for i, (start, stop) in zip(frames, ranges)]
+            rows = [submit(forward, i, r[start:stop]) for i, (start, stop) in zip(frames, ranges)]
             rows = [f.result() for f in rows]
             mass = np.tensordot(Tinv, np.array([m for m, _ in rows]), 1)
             strain = np.tensordot(Tinv, np.array([s for _, s in rows]), 1)
-            back = [submit(self._backward, i, mass[i], strain[i]) for i in frames]
+            parts = [submit(backward, i, mass[i], strain[i]) for i in frames]
             out = np.empty_like(r)
-            for i, (start, stop) in zip(frames, ranges):
-                out[start:stop] = T_kk[i] * frame_solves[i](back[i].result())
+            for (start, stop), part in zip(ranges, parts):
+                out[start:stop] = part.result()
             return out
 
         return apply
