@@ -274,8 +274,9 @@ def move(
         if report is not None:
             report(2.0)
         if len(inner):
-            # independent problems; SuperLU releases the GIL (a pool of its own: the
-            # frame pool of .path may be in use by the steps)
+            # independent problems; their factorizations and solves release the GIL
+            # (CHOLMOD through .._cholmod, or SuperLU; a pool of its own: the frame
+            # pool of .path may be in use by the steps)
             with ThreadPoolExecutor(min(len(inner), thread_budget())) as pool:
                 done = pool.map(lambda i: _finish(metric, residual[i], h, be, relax_iter,
                                                   quality_rounds), inner)
