@@ -148,7 +148,7 @@ class _NativeFactor:
             ctypes.byref(self._matrix),
             None if permutation is None else permutation.ctypes.data, None, 0, self._common))
         if not self._factor.value:
-            raise MemoryError("CHOLMOD's analysis failed (out of memory)")
+            raise RuntimeError("CHOLMOD's analysis failed (an invalid ordering, or out of memory)")
         self.refactorize(self._values)
 
     def refactorize(self, values: FloatArray) -> None:
@@ -205,9 +205,10 @@ class CholeskyFactor:
     analysis (symbolic factorization and the matrix's conversion): at 107k triangles and
     7 frames, 2.5 of the morph's 10.6 s of factorizations were the analysis.
 
-    The calls go through ``ctypes`` (the same library by ``ctypes``, the GIL
-    released: ``releases_gil``) where it loads, else through ``cvxopt.cholmod``: the same
-    factors, and the same solutions to the last bit for one right-hand side (tested).
+    The calls go to the library through ``ctypes``, the GIL released
+    (``releases_gil``), where :func:`library` loads it, else through ``cvxopt.cholmod``:
+    the same factors, and the same solutions to the last bit for one right-hand side
+    (tested).
 
     Parameters
     ----------
