@@ -144,12 +144,21 @@ class PathPattern:
         self.segments = [2 if k < K else 1 for k in self.frames]
         local = [np.where(col[k] >= 0, col[k] - start, -1)
                  for k, (start, _) in zip(self.frames, self.ranges)]
-        self.diagonal = [self._restriction(a, a) for a in local]
-        adjacent = [i for i in range(len(self.frames) - 1)
-                    if self.frames[i + 1] == self.frames[i] + 1]
+        made: dict = {}  # by their maps: frames often free the same coordinates
+
+        def restriction(rows: IntArray, cols: IntArray) -> tuple:
+            key = (rows.tobytes(), cols.tobytes())
+            if key not in made:
+                made[key] = self._restriction(rows, cols)
+            return made[key]
+
+        self.diagonal = [restriction(a, a) for a in local]
+        #: the indices ``i`` of ``frames`` whose frames ``i`` and ``i + 1`` are consecutive
+        self.adjacent = [i for i in range(len(self.frames) - 1)
+                         if self.frames[i + 1] == self.frames[i] + 1]
         #: per adjacent pair (i, i + 1) of ``frames``: its restrictions (i, i + 1), (i + 1, i)
-        self.coupling = {i: (self._restriction(local[i], local[i + 1]),
-                             self._restriction(local[i + 1], local[i])) for i in adjacent}
+        self.coupling = {i: (restriction(local[i], local[i + 1]),
+                             restriction(local[i + 1], local[i])) for i in self.adjacent}
 
     def _restriction(self, rows: IntArray, cols: IntArray) -> tuple:
         """``(kept, indptr, indices)``: the mesh slots whose row and column are free

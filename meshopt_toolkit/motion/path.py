@@ -205,13 +205,12 @@ class _Path:
             scaling[cols[keep]] = own[keep]
             diagonal[k - 1] = values
         coupling: list = [None] * (K - 1)  # frames k, k + 1 at k − 1
-        neighbours = [pattern.frames[i] for i in sorted(pattern.coupling)]
+        neighbours = [pattern.frames[i] for i in pattern.adjacent]
         for k, values in zip(neighbours, run(lambda k: pattern.mesh.values(
                 -K * block_products(blocks[k], blocks[k + 1]), -K * mass2), neighbours)):
             coupling[k - 1] = values
         embedding = FrameEmbedding(self.sqrt_m, [blocks[k] for k in pattern.frames], tri_cols,
-                                   pattern.columns, pattern.segments, sorted(pattern.coupling),
-                                   K)
+                                   pattern.columns, pattern.segments, pattern.adjacent, K)
         return r, g, pattern.matrix(diagonal, coupling, embedding), scaling
 
     def _assembly_pattern(self, tri_cols: IntArray) -> PathPattern:
