@@ -116,15 +116,16 @@ def library() -> ctypes.CDLL | None:
 
 
 class _NativeFactor:
-    """``PAPᵀ = LLᵀ`` of a sparse SPD matrix (its lower triangle, CSC, sorted) by CHOLMOD,
-    the GIL released; one factorization or solve at a time per factor (a lock), any
-    number of factors at once.
+    """``PAPᵀ = LLᵀ`` of a sparse SPD matrix (its lower triangle, CSC with sorted int64
+    indices, read in place) by CHOLMOD, the GIL released; one factorization or solve at a
+    time per factor (a lock), any number of factors at once.
 
     Raises RuntimeError (here and in :meth:`refactorize`) where the matrix is not
     positive definite.
     """
 
-    def __init__(self, lower: sp.csc_matrix, ordering: IntArray | None = None) -> None:
+    def __init__(self, indptr: IntArray, indices: IntArray, values: FloatArray,
+                 ordering: IntArray | None = None) -> None:
         lib = library()
         if lib is None:
             raise RuntimeError("CHOLMOD is not available through ctypes")
@@ -134,12 +135,12 @@ class _NativeFactor:
         lib.cholmod_l_start(self._common)
         ctypes.c_int.from_buffer(self._common, _SUPERNODAL).value = _SUPERNODAL_ALWAYS
         ctypes.c_int.from_buffer(self._common, _PRINT).value = 0
-        n = lower.shape[0]
+        n = len(indptr) - 1
         self.n = n
         # CHOLMOD reads these arrays in place: they live as long as the factor
-        self._indptr = np.ascontiguousarray(lower.indptr, dtype=np.int64)
-        self._indices = np.ascontiguousarray(lower.indices, dtype=np.int64)
-        self._values = np.array(lower.data, dtype=np.float64)
+        self._indptr = np.ascontiguousarray(indptr, dtype=np.int64)
+        self._indices = np.ascontiguousarray(indices, dtype=np.int64)
+        self._values = np.array(values, dtype=np.float64)
         self._matrix = _Sparse(n, n, self._values.size, self._indptr.ctypes.data,
                                self._indices.ctypes.data, None, self._values.ctypes.data,
                                None, -1, _LONG, _REAL, _DOUBLE, 1, 1)
@@ -243,15 +244,17 @@ class CholeskyFactor:
         lower.sort_indices()
         same = (self._factor is not None and np.array_equal(lower.indptr, self._indptr)
                 and np.array_equal(lower.indices, self._indices))
-        if not same:
-            self._indptr, self._indices = lower.indptr.copy(), lower.indices.copy()
+        if not same:  # int64: the native factor reads them in place (no second copy)
+            self._indptr = lower.indptr.astype(np.int64)
+            self._indices = lower.indices.astype(np.int64)
         if self.releases_gil:
             try:
                 if same:
                     self._factor.refactorize(lower.data)
                 else:
                     self._factor = None
-                    self._factor = _NativeFactor(lower, self.ordering)
+                    self._factor = _NativeFactor(self._indptr, self._indices, lower.data,
+                                                 self.ordering)
             except RuntimeError:
                 self._factor = None  # analysed again next time
                 raise

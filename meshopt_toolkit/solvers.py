@@ -78,9 +78,7 @@ def factorize_spd(A: sp.spmatrix, ordering: IntArray | None = None, single: bool
     SuperLU in symmetric mode, no pivoting (an SPD matrix needs none) and, without
     ``ordering``, minimum-degree ordering on ``A + Aᵀ``: about half the fill and time of
     SuperLU's general defaults. ``single`` keeps SuperLU because its float32 factors
-    halve the memory traffic and its factorizations and solves release the GIL (the
-    motion's frames are factorized and solved in threads, :mod:`.motion.frame_blocks`),
-    where CHOLMOD (in double precision only) holds it.
+    halve the memory traffic (CHOLMOD factorizes in double precision only).
 
     Parameters
     ----------

@@ -87,11 +87,11 @@ class FrameBlocks:
         self.factors: list = []
         self.stale = True
         large = len(indices) > 1 and min(i.size for i in indices) >= PARALLEL_FROM
+        pool = frame_pool() if large else None
         #: whether the frames' factorizations and solves run in the frame pool's threads
         #: (SuperLU, or CHOLMOD through :mod:`.._cholmod`: both release the GIL)
-        self.threaded = large and frame_pool() is not None and (
-            self.single or _cholmod.library() is not None)
-        self._map = frame_pool().map if self.threaded else map
+        self.threaded = pool is not None and (self.single or _cholmod.library() is not None)
+        self._map = pool.map if self.threaded else map
 
     def factorize(self, A: sp.csr_matrix | BlockTridiagonal) -> None:
         if isinstance(A, BlockTridiagonal):
