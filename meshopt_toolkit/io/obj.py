@@ -121,6 +121,8 @@ def _elements(rows: list[tuple[str, str, int]], path) -> list[tuple[str, np.ndar
         raise ReadError(f"{path}: an element index is not a number") from None
     if not np.isfinite(idx).all() or (idx != np.round(idx)).any():
         raise ReadError(f"{path}: element indices must be integers")
+    if (np.abs(idx) > 2.0**62).any():  # beyond any vertex count, and not castable to int64
+        raise ReadError(f"{path}: element index {idx[np.abs(idx) > 2.0**62][0]:.0f} out of range")
     idx = idx.astype(np.int64)
     if (idx == 0).any():
         raise ReadError(f"{path}: element index 0 (OBJ indices start at 1)")
