@@ -196,11 +196,12 @@ def test_twist_morph_is_admissible_and_reaches_the_target(disc, twist_morph):
 
 
 def test_stationary_stop_is_close_to_the_minimum(disc):
-    # the energy-stagnation stop ends within 1e-5 of the energy of a run to |∇E| ≤ 1e-9·√E
+    # the energy-stagnation stop ends within 1e-5 of the energy of a run to |∇E| ≤ 1e-7·√E
+    # (the energy is then converged to round-off; 1e-9 is below what round-off allows here)
     metric = CompleteMetric(QualityPenalty(disc, beta=DEFAULT_BETA, reference=disc))
     Q1 = twisted(disc).points
     stopped = discrete_geodesic(metric, disc.points, Q1, 8)
-    tight = discrete_geodesic(metric, disc.points, Q1, 8, energy_rtol=0)
+    tight = discrete_geodesic(metric, disc.points, Q1, 8, energy_rtol=0, tol=1e-7)
     assert stopped.status in ("converged", "stationary")
     assert tight.converged and tight.status == "converged"
     assert tight.energy <= stopped.energy * (1 + 1e-12)
