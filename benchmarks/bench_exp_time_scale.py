@@ -18,7 +18,7 @@ Set-up of ``bench_scale.py``: disc_13586 and its uniform refinements, f2 with β
 
 If the steps were limited by stability alone, the implicit method's step count would not
 grow with N; measured, it grows like DOP853's, and the ratios show why: the exact geodesic
-varies faster on finer meshes (its boundary triangles stretch more, see README
+varies faster on finer meshes (its boundary triangles stretch more, see docs/design-notes.md
 "Performance at scale").
 
 Usage: ``python benchmarks/bench_exp_time_scale.py [--max-triangles 110000] [--implicit]``

@@ -18,7 +18,7 @@ and cost against one linear elasticity solve.
    ``--single-level`` turns that off), worst frame of ours, linear and ARAP.
 ``--more`` runs seven more pairs instead: each source with ``move``'s result for the
 motions of ``bench_move.py --more``.
-3. ``--figures DIR``: the README's strip and quality plot of the 90° annulus pair.
+3. ``--figures DIR``: the strip and quality plot of docs/benchmarks.md of the 90° annulus pair.
 
 Usage: ``python benchmarks/bench_morph.py [--growth [--single-level]] [--max-triangles 30000]
 [--with-scalar] [--more] [--figures DIR]``
@@ -116,7 +116,7 @@ def growth(max_triangles: int, single_level: bool = False) -> None:
 
 
 def figures(outdir: str) -> None:
-    """The README's pictures: strip and per-frame quality of the 90° annulus pair."""
+    """The pictures of docs/benchmarks.md: strip and per-frame quality of the 90° annulus pair."""
     from pathlib import Path
 
     from meshopt_toolkit.plotting import save_morph_figures
@@ -136,7 +136,7 @@ def main() -> None:
                     help="largest growth mesh (the 107k-triangle twist: 110000, minutes)")
     ap.add_argument("--single-level", action="store_true",
                     help="--growth without the coarse-to-fine start of refined pairs")
-    ap.add_argument("--figures", metavar="DIR", help="only write the README's morph pictures")
+    ap.add_argument("--figures", metavar="DIR", help="only write the morph pictures of docs/benchmarks.md")
     ap.add_argument("--with-scalar", action="store_true",
                     help="also the complete metric of f2 (geodesic_morph; minutes)")
     ap.add_argument("--more", action="store_true",

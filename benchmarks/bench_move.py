@@ -18,7 +18,7 @@ star; annulus hole scaled or shifted; channel cylinder moved along or 0.01 from 
 up to ``--max-triangles``.
 
 ``--figure PNG`` draws the 90° annulus (source, harmonic, elasticity, TMOP, ours) instead;
-the README's picture is ``--figure examples/results/move_annulus_90.png``.
+the picture in docs/benchmarks.md is ``--figure examples/results/move_annulus_90.png``.
 
 Usage: ``python benchmarks/bench_move.py [--size 0.05] [--growth] [--max-triangles 110000]
 [--skip METHOD ...] [--more] [--figure PNG]``

@@ -8,9 +8,8 @@ factorized and solved one after another. Here each factor has its own ``cholmod_
 and the calls go through :mod:`ctypes` (which releases the GIL), to the same library that
 ``cvxopt`` loaded, with ``cvxopt``'s settings (supernodal, nothing printed): the same
 factors, and the same solutions to the last bit for one right-hand side (several are
-solved together here, where ``cvxopt`` solves them one by one). Measured on 7 frames'
-blocks of the 107k morph (108k unknowns each, 2 cores): refactorizations 1.42 → 0.86 s
-in two threads, 21 solves 0.48 → 0.37 s.
+solved together here, where ``cvxopt`` solves them one by one; the gain is in
+docs/design-notes.md, "Morph solver").
 
 The library is the one bundled with ``cvxopt`` (found next to it); its ``cholmod_common``
 is opaque here except for the two options set, whose offsets are checked against
@@ -195,12 +194,7 @@ class CholeskyFactor:
     SPD matrix; calling it solves (``(n,)`` or ``(n, k)`` right-hand sides).
 
     Supernodal: dense BLAS-3 kernels on the factor's column blocks, where SuperLU's
-    symmetric mode computes an LU with twice the flops. Measured on the elasticity
-    metric's matrix (nested-dissection order, 2 cores): 429k triangles / 430k dofs
-    0.48 s analysis + 1.03 s factorization + 0.09 s solve against SuperLU's float32
-    factorization 3.6 s + 0.70 s refined solve; 1.7M triangles / 1.7M dofs 3.0 + 10.3 +
-    0.4 s against 27.4 + 5.4 s, 3.4 against 3.9 GB peak; residual 1e-12 without
-    refinement (`benchmarks/bench_solvers.py`).
+    symmetric mode computes an LU with twice the flops (``benchmarks/bench_solvers.py``).
 
     :meth:`refactorize` factorizes another matrix of the same pattern on the kept
     analysis (symbolic factorization and the matrix's conversion): at 107k triangles and

@@ -37,3 +37,22 @@ def test_geodesics_thesis_5_5_example(tmp_path):
 def test_shape_optimization_thesis_6_quick_example(tmp_path):
     _run("shape_optimization_thesis_6.py", str(tmp_path), "--quick")
     assert "6.4" in (tmp_path / "tables.md").read_text(encoding="utf-8")
+
+
+def test_example_pipelines_run_and_agree(tmp_path):
+    # the README's pipeline examples: the same steps as JSON and as MeshLab .mlx
+    import meshio
+    import numpy as np
+
+    from meshopt_toolkit.cli import main
+
+    data = Path(__file__).resolve().parents[1] / "data" / "disc_541.msh"
+    written = []
+    for name in ("remesh_refine.json", "remesh_refine.mlx"):
+        out = tmp_path / name
+        assert main(["run", str(EXAMPLES / "pipelines" / name), str(data), "-o", str(out)]) == 0
+        written.append(meshio.read(out / "disc_541.msh"))
+    a, b = written
+    assert np.array_equal(a.points, b.points)
+    assert np.array_equal(a.cells_dict["triangle"], b.cells_dict["triangle"])
+    assert len(a.cells_dict["triangle"]) > 4 * 500  # remeshed, then each triangle split in 4

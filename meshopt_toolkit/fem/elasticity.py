@@ -44,28 +44,15 @@ __all__ = [
 
 logger = logging.getLogger(__name__)
 
-#: number of dofs from which ``"auto"`` switches from the direct solver to AMG-PCG.
-#: Measured with ``benchmarks/bench_metrics.py`` (factorization/setup + one solve, AMG to
-#: relative residual 1e-10) on a shared 2-core machine: direct is ~4× faster at 250k dofs;
-#: at 1M dofs (1M triangles) direct/AMG = 0.73 and 1.06 in two runs (~70–160 s each).
-#: SuperLU grows like dofs^1.5 against ~dofs^0.9 for AMG, so AMG wins from ~2M dofs on
-#: (and needs far less memory). A second solve at the same ``Q`` costs ~2% of the
-#: factorization with SuperLU but a full PCG run with AMG.
+#: Dofs from which ``"auto"`` switches from SuperLU to AMG-PCG (SuperLU grows like
+#: dofs^1.5, AMG like dofs^0.9; ``benchmarks/bench_metrics.py``).
 AUTO_AMG_MIN_DOFS = 2_000_000
-#: The same switch where the direct method is CHOLMOD's Cholesky: at 1.72M dofs (1.7M
-#: triangles) it took 21.3 s (4.2 s of them the ordering) and 0.47 s per further solve,
-#: AMG 11.1 s setup + 25.5 s per solve (``benchmarks/bench_solvers.py``, 2 cores).
-#: CHOLMOD's factorization grew like dofs^1.35 from 430k, so AMG's time would catch up
-#: only near 8M dofs; the limit is memory (3.4 GB peak at 1.72M dofs, about twice that at
-#: this size).
+#: The same switch where the direct method is CHOLMOD's Cholesky (which grows like
+#: dofs^1.35; the limit is its memory; ``benchmarks/bench_solvers.py``).
 CHOLMOD_AMG_MIN_DOFS = 4_000_000
-#: Without CHOLMOD (:func:`.solvers.cholmod_available`), from this many dofs the direct
-#: method factorizes by SuperLU in float32 and refines by CG
-#: (:func:`.solvers.refined_spd_solve`): a third less factor memory and ~30 % less time
-#: (429k triangles: 4.4 against 6.2 s). Below, a double-precision factor solves exactly
-#: in one triangular solve, as the thesis-sized problems want (at 27k dofs the time per
-#: optimization iteration is within 7 % either way). CHOLMOD's double-precision factor
-#: is faster than either at every size and solves exactly.
+#: Without CHOLMOD, from this many dofs SuperLU factorizes in float32 and CG refines
+#: (:func:`.solvers.refined_spd_solve`): less memory and time; below, a double-precision
+#: factor solves exactly in one triangular solve.
 SINGLE_PRECISION_MIN_DOFS = 100_000
 
 

@@ -124,11 +124,7 @@ class FrameBlocks:
         Raises FloatingPointError where ``A`` is not positive definite (a Newton matrix
         may not be): conjugate gradients meet non-positive curvature ``pᵀAp ≤ 0`` (which
         only an indefinite ``A`` has), or its factorization is singular; the next solve
-        (of a more damped matrix) then factorizes afresh.
-
-        (Plain Jacobi for heavily damped Levenberg–Marquardt systems was tried: 42.6k /
-        106k annulus 27× → 18× / 27× → 19–24× elasticity solves, but min AR 0.2240 →
-        0.2208 / 0.2348 → 0.2230; not taken.)"""
+        (of a more damped matrix) then factorizes afresh."""
         fresh = self.stale or not self.factors
         if fresh:
             try:

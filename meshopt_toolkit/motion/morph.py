@@ -163,44 +163,24 @@ def _admissible_path(frames: FloatArray, triangles: IntArray, boundary_edges: In
     return True
 
 
-#: CG residual of the path's Levenberg–Marquardt steps. Measured on the 225° twist: at
-#: 4.2k / 27k / 107k triangles 10 / 11 / 18 iterations to the same frames' min AR as with
-#: 1e-2 (10 / 10 / 17), 1.3 / 10.8 / 143 s instead of 1.6 / 13.7 / 163 s (at 107k, 384 CG
-#: iterations: the block-Jacobi CG is most of the time there).
+#: CG residual of the path's Levenberg–Marquardt steps: looser costs no frame quality and
+#: saves CG iterations (docs/design-notes.md, "Morph solver settings"; bench_morph.py --growth).
 PATH_CG_RTOL = 0.1
 
-#: The morph's convergence test, ``|∇E| ≤ GTOL · √E`` (:func:`.discrete_geodesic`): a
-#: relative gradient (resolution-independent: E and |∇E|² both grow like the triangles).
-#: Below it the frames do not change in any reported digit: on the 225° twist at 107k
-#: triangles, from |∇E|/√E = 7e-7 to the minimum to machine precision, min AR of every
-#: frame unchanged to 6 digits and no vertex moved by more than 6e-5 (the diameter is 2),
-#: along a direction that changed E by less than 1e-11 relative; the two iterations to
-#: 1e-7 took 10 of the level's 30 s. ``move`` stops its relaxations at the same value.
+#: The morph's convergence test ``|∇E| ≤ GTOL·√E`` (:func:`.discrete_geodesic`), relative so
+#: that it is resolution-independent; below it no reported digit of a frame changes.
 GTOL = 1e-6
 
-#: A level started from the coarser level's refined frames is close to its minimizer:
-#: its steps are Newton's (:func:`.discrete_geodesic`), with CG to this relative residual.
-#: Measured on the 225° twist at 107k triangles (from 27k): 7 iterations instead of 11
-#: (Gauss–Newton's convergence is linear, ~7× per iteration, on these non-small
-#: residuals), 48–51 s instead of 53–55 s for the level; from a cold start Newton saves
-#: none (4.2k / 27k: 9 / 10 iterations instead of 10 / 11, no faster).
+#: A level started from the coarser level's refined frames is close to its minimizer: its
+#: steps are Newton's (:func:`.discrete_geodesic`) with CG to this relative residual.
 REFINED_CG_RTOL = 1e-2
 
-#: The damping's decrease after a well-predicted step on such a level
-#: (:func:`.discrete_geodesic`'s ``lambda_decrease``): with Newton's model a step it
-#: predicted well is followed by a nearly undamped one, so that the convergence turns
-#: quadratic instead of following the damping's pace. Measured on the 225° twist at 107k
-#: triangles from the refined 27k path: |∇E|/√E 13 → 0.22 → 1.2e-4 → 7e-7 in 3
-#: iterations where the default 0.1 took 5 (13 → 0.20 → 5e-3 → 4e-4 → 1e-5 → 5e-8).
-#: (Not for ``move``'s Newton relaxations, which start far from their minimizer: its
-#: 180° annulus turn took 1.26 → 1.76 s with it.)
+#: The damping's decrease after a well-predicted step on such a level, so that Newton's
+#: convergence turns quadratic (not for ``move``, whose relaxations start far away).
 REFINED_LAMBDA_DECREASE = 0.01
 
 #: A pair that is a uniform refinement of a pair with at least this many triangles is
-#: morphed coarse-to-fine. Measured on the 225° twist (9 frames, 2 cores): the finest
-#: level takes about as many iterations either way (11 against 12–13) but cheaper ones
-#: (shorter CG solves): 68k triangles (from 17k) 61 → 52 s, 107k (from 27k) 118 → 94 s;
-#: 17k from 4.2k: 8.6 s either way.
+#: morphed coarse-to-fine (cheaper iterations on the finest level).
 COARSE_MIN_TRIANGLES = 5000
 
 
