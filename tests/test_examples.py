@@ -7,9 +7,12 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
 
+@pytest.mark.slow
 def test_morph_twist_example(tmp_path, capsys):
     module = runpy.run_path(str(EXAMPLES / "morph_twist.py"))
     module["main"](str(tmp_path))
@@ -27,6 +30,7 @@ def _run(script: str, *args: str) -> str:
     return done.stdout
 
 
+@pytest.mark.slow
 def test_geodesics_thesis_5_5_example(tmp_path):
     out = _run("geodesics_thesis_5_5.py", "--out", str(tmp_path))
     assert "squeeze:" in out and "disc alpha=1.00" in out
@@ -34,6 +38,7 @@ def test_geodesics_thesis_5_5_example(tmp_path):
         assert (tmp_path / name).stat().st_size > 0
 
 
+@pytest.mark.slow
 def test_shape_optimization_thesis_6_quick_example(tmp_path):
     _run("shape_optimization_thesis_6.py", str(tmp_path), "--quick")
     assert "6.4" in (tmp_path / "tables.md").read_text(encoding="utf-8")
