@@ -29,7 +29,7 @@ _EXPORTS = {
     "MeshReport": "mesh",
     "check_mesh": "mesh",
     "require_admissible": "mesh",
-    "quality_summary": "geometry",
+    "quality_summary": "kernels.triangles",
     # file I/O
     "load": "io",
     "save": "io",
@@ -38,16 +38,16 @@ _EXPORTS = {
     # penalties, metrics, diagnostics
     "HeightPenalty": "penalties",
     "QualityPenalty": "penalties",
-    "EuclideanMetric": "metrics",
-    "ElasticityMetric": "metrics",
-    "CompleteMetric": "metrics",
-    "check_gradient": "taylor",
-    "check_hvp": "taylor",
+    "EuclideanMetric": "riemannian.metrics",
+    "ElasticityMetric": "riemannian.metrics",
+    "CompleteMetric": "riemannian.metrics",
+    "check_gradient": "diagnostics",
+    "check_hvp": "diagnostics",
     # geodesics and deformation
-    "exp_map": "geodesics",
-    "geodesic": "geodesics",
-    "GeodesicResult": "geodesics",
-    "GeodesicOptions": "geodesics",
+    "exp_map": "riemannian.geodesics",
+    "geodesic": "riemannian.geodesics",
+    "GeodesicResult": "riemannian.geodesics",
+    "GeodesicOptions": "riemannian.geodesics",
     "deform": "deform",
     "DeformResult": "deform",
     # prescribed motion (the per-triangle distortion metric)
@@ -56,7 +56,7 @@ _EXPORTS = {
     "NoAdmissiblePathError": "motion.continuation",
     "TriangleDistortion": "motion.strain",
     # shape optimization
-    "PoissonObjective": "poisson",
+    "PoissonObjective": "fem.poisson",
     "parse_expression": "expressions",
     "optimize": "optimize",
     "OptimizeResult": "optimize",
