@@ -1,7 +1,7 @@
 """Benchmark: ``quality_summary`` and ``check_mesh`` on a 1,000,000-triangle mesh.
 
-Times :func:`meshopt_toolkit.geometry.quality_summary` against the cheapest possible
-pass over the same triangles, :func:`meshopt_toolkit.geometry.signed_areas`, side by side
+Times :func:`meshopt_toolkit.kernels.triangles.quality_summary` against the cheapest possible
+pass over the same triangles, :func:`meshopt_toolkit.kernels.triangles.signed_areas`, side by side
 in this process (interleaved repeats, medians), and prints the ratio (target ≤ 3×). Also
 times :func:`meshopt_toolkit.mesh.check_mesh` on a fresh mesh (topology not cached), which
 should take a few seconds at most.

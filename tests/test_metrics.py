@@ -484,7 +484,7 @@ def test_complete_exp_delegates_to_geodesics(mesh, monkeypatch):
 
 def test_complete_exp_with_real_geodesics(rng):
     """exp_Q(0) = Q, and for a tiny velocity the geodesic is Q + tV to first order."""
-    geodesics = pytest.importorskip("meshopt_toolkit.geodesics")
+    from meshopt_toolkit.riemannian import geodesics
     mesh = grid_mesh(3, jitter=0.2, seed=4)
     metric = CompleteMetric(_real_penalties(mesh)[0])
     Q = mesh.points
