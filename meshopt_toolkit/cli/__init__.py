@@ -129,10 +129,14 @@ def _files(args) -> str:
     return ", ".join(names[:3]) + (f" and {len(names) - 3} more" if len(names) > 3 else "")
 
 
+def _cut(name, limit: int = 200) -> str:
+    """A path (or a file descriptor) for a message, cut past ``limit`` characters."""
+    text = str(name)
+    return text if len(text) <= limit else f"{text[:limit]}… ({len(text)} chars)"
+
+
 def _message(exc: BaseException, args) -> str:
     """One line: ``error: <file>: <cause>``, or ``internal error: ...`` for a bug."""
-    from ..expressions import quoted
-
     output = getattr(args, "output", None)
     if isinstance(exc, MeshoptError):
         text = f"error: {exc}"
@@ -144,12 +148,12 @@ def _message(exc: BaseException, args) -> str:
                 "the mesh or the options may be degenerate")
     elif isinstance(exc, FileExistsError):
         name = exc.filename or output or _files(args)
-        text = f"error: {quoted(str(name))}: exists (use --force to overwrite)"
+        text = f"error: {_cut(name)}: exists (use --force to overwrite)"
     elif isinstance(exc, OSError) and exc.errno == errno.ENOSPC:
         name = exc.filename or output or _files(args)
-        text = f"error: {quoted(str(name))}: no space left on device (nothing was replaced)"
+        text = f"error: {_cut(name)}: no space left on device (nothing was replaced)"
     elif isinstance(exc, OSError) and exc.filename is not None:
-        text = f"error: {quoted(str(exc.filename))}: {exc.strerror or exc}"
+        text = f"error: {_cut(exc.filename)}: {exc.strerror or exc}"
     elif isinstance(exc, ValueError) and "null" in str(exc) and "byte" in str(exc):
         text = f"error: {_files(args)}: a path or expression contains a null byte"
     else:  # an unexpected bug: still one line unless --debug
