@@ -246,7 +246,8 @@ def test_existing_outputs_are_refused_before_reading(work, capsys, no_read):
             (["optimize", disc, "-o", str(work / "opt")], f"{work / 'opt' / 'summary.json'}: exists"),
             (["move", disc, "--map", "x; y", "--frames", "3", "-o", str(work / "mv")],
              f"{work / 'mv'}: directory is not empty"),
-            (["convert", disc, "-o", str(work / "taken.vtu")], f"{work / 'taken.vtu'}: exists"),
+            (["convert", disc, "-o", str(work / "taken.vtu")],
+             f"{work / 'taken.vtu'}: already exists"),
             (["convert", disc, "-o", str(work / "missing" / "o.vtu")], "does not exist")):
         assert main(argv) == 1, argv
         assert shown in one_line(capsys)

@@ -97,10 +97,13 @@ def float_list(n: int | None = None):
     """An argparse type for comma-separated floats, e.g. ``--beta 10,1,0,0.1``."""
 
     def parse(text: str) -> tuple[float, ...]:
+        from ..expressions import quoted
+
         try:
             values = tuple(float(x) for x in text.split(","))
         except ValueError:
-            raise argparse.ArgumentTypeError(f"expected comma-separated numbers, got {text!r}")
+            raise argparse.ArgumentTypeError(f"expected comma-separated numbers, "
+                                             f"got {quoted(text)}") from None
         if n is not None and len(values) != n:
             raise argparse.ArgumentTypeError(f"expected {n} comma-separated numbers, got {len(values)}")
         return values

@@ -207,7 +207,8 @@ def run(args) -> int:
     if simple and len(jobs) == 1 and not failures and jobs[0][1] == Path(args.output):
         from ._common import check_output_file
 
-        check_output_file(jobs[0][1], force=args.force)  # before reading the input
+        # before reading the input: the directory (convert_file refuses an existing file)
+        check_output_file(jobs[0][1], force=True)
         cells = convert_file(*jobs[0], options)  # a single file: errors go to main()
         print(_wrote(jobs[0][1], cells), flush=True)
         return 0

@@ -64,10 +64,11 @@ def run(args) -> int:
             ml = meshlab.resolve(args.name)
             if ml is None:
                 ours = registry.names()
+                from ..expressions import quoted
                 from ..pipeline.params import did_you_mean
 
                 hint = did_you_mean(args.name, ours) or meshlab.suggestions(args.name)
-                raise FilterError(f"unknown filter {args.name!r}{hint}")
+                raise FilterError(f"unknown filter {quoted(args.name)}{hint}")
             spec = _meshlab_spec(ml)
         print(strict_json.dumps(spec, indent=2) if args.json else _describe(spec))
         return 0

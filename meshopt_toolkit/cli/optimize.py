@@ -101,6 +101,7 @@ def _atomic_text(path: Path, text: str) -> None:
 def run(args: argparse.Namespace) -> int:
     from .. import io
     from ..datasets import data_path
+    from ..expressions import quoted
     from ..filters.shape_optimization import ShapeOptimization
     from ..optimize import DEFAULT_PENALTY_BETA, DEFAULT_RETRACTION, VARIANT_PARTS, optimize
     from ..fem.poisson import PoissonObjective
@@ -121,7 +122,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         objective = PoissonObjective(mesh, rhs=args.rhs)
     except ExpressionError as exc:
-        raise ExpressionError(f"--rhs {args.rhs!r}: {exc}") from None
+        raise ExpressionError(f"--rhs {quoted(args.rhs)}: {exc}") from None
     fixed = mesh.tagged_vertices(int(args.fixed) if args.fixed and args.fixed.isdigit() else args.fixed) \
         if args.fixed else None
     outdir = Path(args.output)

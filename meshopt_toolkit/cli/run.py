@@ -39,6 +39,7 @@ import sys
 from pathlib import Path
 
 from ..errors import MeshoptError
+from ..expressions import quoted
 from ._common import check_mesh_format, check_writable
 
 HELP = "run a pipeline (.json or MeshLab .mlx) over one mesh or a batch"
@@ -48,9 +49,9 @@ def _positive_int(text: str) -> int:
     try:
         value = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {quoted(text)}") from None
     if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {quoted(text)}")
     return value
 
 
@@ -210,10 +211,10 @@ def _jobs(text: str) -> int:
         value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected 0 (all cores) or a positive integer, "
-                                         f"got {text!r}") from None
+                                         f"got {quoted(text)}") from None
     if value < 0:
         raise argparse.ArgumentTypeError(f"expected 0 (all cores) or a positive integer, "
-                                         f"got {text!r}")
+                                         f"got {quoted(text)}")
     return cpu_count() if value == 0 else value
 
 
