@@ -212,7 +212,7 @@ def check_output_dir(out: Path, *, force: bool, names: Iterable[str] | None = No
     while not parent.exists() and parent != parent.parent:
         parent = parent.parent
     if not parent.is_dir():
-        raise WriteError(f"{out}: {parent} is not a directory")
+        raise WriteError(f"{out}: cannot write in {parent}: not a directory")
     check_writable(parent, out)
     return out
 
