@@ -19,8 +19,9 @@ class PrescribedMotion(Filter):
     replaced by the input file's stem; the boundary vertices it does not list stay unless
     ``free_boundary``) or ``map`` (``"X_EXPR; Y_EXPR"``: the new position of each boundary
     vertex, or with ``group`` of each node of that physical group, where ``where`` holds,
-    e.g. ``"x**2 + y**2 < 0.25"``; the other boundary vertices stay). The moved mesh replaces the current one. The motion is computed
-    at unit size (:mod:`meshopt_toolkit.scaling`) and scaled back, like ``meshopt move``.
+    e.g. ``"x**2 + y**2 < 0.25"``; the other boundary vertices stay). The moved mesh
+    replaces the current one. The motion is computed at unit size
+    (:mod:`meshopt_toolkit.scaling`) and scaled back, like ``meshopt move``.
     """
 
     name = "apply_prescribed_motion"

@@ -243,7 +243,8 @@ def test_existing_outputs_are_refused_before_reading(work, capsys, no_read):
     for argv, shown in (
             (["morph", disc, disc, "--frames", "3", "-o", str(work / "mo")],
              f"{work / 'mo' / 'frame_001.msh'}: exists"),
-            (["optimize", disc, "-o", str(work / "opt")], f"{work / 'opt' / 'summary.json'}: exists"),
+            (["optimize", disc, "-o", str(work / "opt")],
+             f"{work / 'opt' / 'summary.json'}: exists"),
             (["move", disc, "--map", "x; y", "--frames", "3", "-o", str(work / "mv")],
              f"{work / 'mv'}: directory is not empty"),
             (["convert", disc, "-o", str(work / "taken.vtu")],

@@ -3,10 +3,10 @@
 Handles are given by ``--targets FILE`` (CSV rows ``index,x,y`` or a ``.npy`` k × 3 array;
 the boundary vertices it does not list stay, unless ``--free-boundary``) or by
 ``--map "X_EXPR; Y_EXPR"`` (new positions of the boundary vertices, or with ``--group NAME``
-of a physical group's nodes, where ``--where`` holds; the other boundary vertices stay). Without ``--frames`` the moved mesh is written to
-``-o OUT``; with ``--frames K``, OUT is a directory with ``frame_000.<ext>`` … and
-``quality.csv``. ``--json`` prints a summary (inverted count, min aspect ratio, mean Λ,
-handle error, seconds). Existing outputs are never overwritten without ``--force``; they
+of a physical group's nodes, where ``--where`` holds; the other boundary vertices stay).
+Without ``--frames`` the moved mesh is written to ``-o OUT``; with ``--frames K``, OUT is a
+directory with ``frame_000.<ext>`` … and ``quality.csv``. ``--json`` prints a summary
+(inverted count, min aspect ratio, mean Λ, handle error, seconds). Existing outputs are never overwritten without ``--force``; they
 are checked before the motion is computed.
 
 The mesh moves at unit size (divided by the power of two nearest its size, see

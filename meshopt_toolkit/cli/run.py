@@ -49,7 +49,8 @@ def _positive_int(text: str) -> int:
     try:
         value = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {quoted(text)}") from None
+        raise argparse.ArgumentTypeError(
+            f"expected a positive integer, got {quoted(text)}") from None
     if value < 1:
         raise argparse.ArgumentTypeError(f"expected a positive integer, got {quoted(text)}")
     return value
