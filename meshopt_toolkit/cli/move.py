@@ -6,8 +6,8 @@ the boundary vertices it does not list stay, unless ``--free-boundary``) or by
 of a physical group's nodes, where ``--where`` holds; the other boundary vertices stay).
 Without ``--frames`` the moved mesh is written to ``-o OUT``; with ``--frames K``, OUT is a
 directory with ``frame_000.<ext>`` … and ``quality.csv``. ``--json`` prints a summary
-(inverted count, min aspect ratio, mean Λ, handle error, seconds). Existing outputs are never overwritten without ``--force``; they
-are checked before the motion is computed.
+(inverted count, min aspect ratio, mean Λ, handle error, seconds). Existing outputs are
+never overwritten without ``--force``; they are checked before the mesh is read.
 
 The mesh moves at unit size (divided by the power of two nearest its size, see
 :mod:`meshopt_toolkit.scaling`; ``--map`` and ``--targets`` stay in the file's units) and
