@@ -5,7 +5,8 @@ from __future__ import annotations
 from meshopt_toolkit.bounds import MAX_STEPS
 from meshopt_toolkit.errors import FilterError
 from meshopt_toolkit.pipeline.filter import Filter, register
-from meshopt_toolkit.pipeline.params import FloatParam, IntParam, PathParam, StringParam
+from meshopt_toolkit.pipeline.params import (BoolParam, FloatParam, IntParam, PathParam,
+                                              StringParam)
 
 
 @register
@@ -15,10 +16,12 @@ class PrescribedMotion(Filter):
     inverts (``mt.move``, ``meshopt move``).
 
     Give either ``targets`` (CSV rows ``index,x,y`` or a ``.npy`` k × 3 array; ``{stem}`` is
-    replaced by the input file's stem) or ``map`` (``"X_EXPR; Y_EXPR"``: the new position of
-    each boundary vertex where ``where`` holds, e.g. ``"x**2 + y**2 < 0.25"``; the other
-    boundary vertices stay). The moved mesh replaces the current one. The motion is computed
-    at unit size (:mod:`meshopt_toolkit.scaling`) and scaled back, like ``meshopt move``.
+    replaced by the input file's stem; the boundary vertices it does not list stay unless
+    ``free_boundary``) or ``map`` (``"X_EXPR; Y_EXPR"``: the new position of each boundary
+    vertex, or with ``group`` of each node of that physical group, where ``where`` holds,
+    e.g. ``"x**2 + y**2 < 0.25"``; the other boundary vertices stay). The moved mesh
+    replaces the current one. The motion is computed at unit size
+    (:mod:`meshopt_toolkit.scaling`) and scaled back, like ``meshopt move``.
     """
 
     name = "apply_prescribed_motion"
@@ -29,6 +32,10 @@ class PrescribedMotion(Filter):
         StringParam("map", "", "new boundary positions 'X_EXPR; Y_EXPR' in x, y", label="Map"),
         StringParam("where", "", "with map: which boundary vertices move, e.g. 'x < 0.5'",
                     label="Where"),
+        StringParam("group", "", "with map: move this physical group's nodes (name or number)",
+                    label="Group"),
+        BoolParam("free_boundary", False, "with targets: unlisted boundary vertices move freely",
+                  label="Free boundary"),
         IntParam("steps", 4, "continuation steps (split further when needed)", label="Steps",
                  min=1, max=MAX_STEPS),
         FloatParam("weight", 1.0, "w of the metric M + w² JᵀJ", label="Weight", min=0.0,
@@ -36,26 +43,31 @@ class PrescribedMotion(Filter):
     )
 
     def apply(self, document, *, targets: str = "", map: str = "", where: str = "",
-              steps: int = 8, weight: float = 1.0) -> dict:
+              group: str = "", free_boundary: bool = False, steps: int = 8,
+              weight: float = 1.0) -> dict:
         from meshopt_toolkit.mesh import require_admissible
         from meshopt_toolkit.motion.move import move
         from meshopt_toolkit.scaling import unit_scale
-        from meshopt_toolkit.motion.targets import read_target_table, targets_from_map
+        from meshopt_toolkit.motion.targets import handles_of
 
         entry = document.current_entry
         if not entry.mesh.is_planar:
             raise FilterError(f"{self.name} needs a planar mesh; {entry.name} is a 3D surface")
         if bool(targets) == bool(map):
             raise FilterError(f"{self.name}: give exactly one of targets and map")
-        if where and not map:
-            raise FilterError(f"{self.name}: where needs map")
+        for name, given in (("where", where), ("group", group)):
+            if given and not map:
+                raise FilterError(f"{self.name}: {name} needs map")
+        if free_boundary and not targets:
+            raise FilterError(f"{self.name}: free_boundary is for targets")
         mesh = entry.mesh.as_planar()
         scale = unit_scale(mesh)  # at unit size, the result scaled back
         unit = require_admissible(scale.mesh_down(mesh), self.name)
-        if targets:
-            handles, positions = read_target_table(targets.replace("{stem}", entry.name))
-        else:  # the expressions are in the mesh's units
-            handles, positions = targets_from_map(scale.mesh_up(unit), map, where or None)
+        # in the mesh's units (exactly back at unit size: powers of two)
+        handles, positions = handles_of(
+            scale.mesh_up(unit), targets=targets.replace("{stem}", entry.name) or None,
+            mapping=map or None, where=where or None, group=group or None,
+            free_boundary=free_boundary)
         result = move(unit, handles, scale.down(positions), steps=steps, weight=weight)
         entry.mesh = scale.mesh_up(result.mesh)
         return {**result.summary(), "unit_scale": scale.factor}

@@ -36,12 +36,15 @@ import numpy as np
 from ._typing import FloatArray
 from .errors import ExpressionError
 
-__all__ = ["MAX_DEPTH", "MAX_LENGTH", "Expression", "parse_expression"]
+__all__ = ["MAX_DEPTH", "MAX_LENGTH", "SHOWN_CHARS", "Expression", "parse_expression",
+           "quoted"]
 
 #: longest accepted expression text (characters)
 MAX_LENGTH = 1000
 #: deepest accepted syntax tree
 MAX_DEPTH = 64
+#: user text (expressions, paths) longer than this is cut where a message shows it
+SHOWN_CHARS = 80
 
 _VARIABLES = {"x": 0, "x1": 0, "y": 1, "x2": 1}
 _CONSTANTS = {"pi": np.pi, "e": np.e}
@@ -114,6 +117,15 @@ class _Bin:
 class _Call:
     func: str
     args: tuple
+
+
+def quoted(text: str, limit: int = SHOWN_CHARS) -> str:
+    """``repr(text)`` for a message; longer than ``limit`` characters, its first ``limit``
+    and the length: ``'x+x+x'… (100000 chars)``."""
+    text = str(text)
+    if len(text) <= limit:
+        return repr(text)
+    return f"{text[:limit]!r}… ({len(text)} chars)"
 
 
 def _err(msg: str, node: ast.AST | None = None) -> ExpressionError:
@@ -410,14 +422,14 @@ class Expression:
         try:
             yield
         except ArithmeticError as exc:
-            raise ExpressionError(f"{self.text!r} cannot be evaluated: {exc}") from None
+            raise ExpressionError(f"{quoted(self.text)} cannot be evaluated: {exc}") from None
 
     def _check(self, v: FloatArray, X: FloatArray, what: str) -> FloatArray:
         bad = ~np.isfinite(v)
         if bad.any():
             i = int(np.flatnonzero(bad.reshape(len(X), -1).any(axis=1))[0])
             raise ExpressionError(
-                f"{what} of {self.text!r} is not finite at (x, y) = "
+                f"{what} of {quoted(self.text)} is not finite at (x, y) = "
                 f"({X[i, 0]:.6g}, {X[i, 1]:.6g})"
             )
         return v

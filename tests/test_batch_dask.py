@@ -92,7 +92,7 @@ def test_a_dry_run_is_checked_here(batch, cluster, capsys):
                    "--dry-run", "--scheduler", cluster])
     err = capsys.readouterr().err
     assert status == 1 and "m0.vtu: already exists" in err
-    assert "1 done, 0 skipped, 1 failed in " in err
+    assert "dry run: 1 checked, 1 failed, nothing written in " in err
 
 
 def test_allow_read_needs_shared_inputs(batch, cluster, capsys):

@@ -230,7 +230,9 @@ def test_pipeline_steps_count_from_one_and_dry_run_needs_no_output(work, capsys)
     assert "step 2 (compute_shape_optimization)" in err and "finite" in err
     assert "internal error" not in err
     assert main(["run", str(_empty_pipeline(work)), str(work / "disc.msh"), "--dry-run"]) == 0
-    assert "1 done, 0 skipped, 0 failed in " in capsys.readouterr().err
+    captured = capsys.readouterr()
+    assert "dry run: 1 checked, 0 failed, nothing written in " in captured.err
+    assert "done" not in captured.err + captured.out
     assert main(["run", str(_empty_pipeline(work)), str(work / "disc.msh")]) == 1
     assert "-o/--output OUTDIR is required" in capsys.readouterr().err
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import pytest
 
@@ -94,9 +95,15 @@ def test_dry_run_writes_nothing(tmp_path, capsys, monkeypatch):
     (tmp_path / "bad.msh").write_text("garbage")
     assert main(["run", "p.json", "a.msh", "bad.msh", "-o", "out", "--dry-run"]) == 1
     err = capsys.readouterr().err
-    assert "bad.msh" in err and "1 done, 0 skipped, 1 failed in " in err
+    assert "bad.msh" in err and "dry run: 1 checked, 1 failed, nothing written in " in err
     assert not (tmp_path / "out").exists()
     assert main(["run", "p.json", "a.msh", "-o", "out", "--dry-run"]) == 0
+    cap = capsys.readouterr()
+    lines = cap.out.splitlines()  # the steps, then each input and its output
+    assert lines[0].startswith("dry run of p.json: 2 step(s): 1. meshing_uniform_refinement; "
+                               "2. apply_coord_laplacian_smoothing;")
+    assert lines[1] == f"checked a.msh -> would write {Path('out') / 'a.msh'}"
+    assert "done" not in cap.out + cap.err and not (tmp_path / "out").exists()
 
 
 @pytest.mark.parametrize(

@@ -97,10 +97,13 @@ def float_list(n: int | None = None):
     """An argparse type for comma-separated floats, e.g. ``--beta 10,1,0,0.1``."""
 
     def parse(text: str) -> tuple[float, ...]:
+        from ..expressions import quoted
+
         try:
             values = tuple(float(x) for x in text.split(","))
         except ValueError:
-            raise argparse.ArgumentTypeError(f"expected comma-separated numbers, got {text!r}")
+            raise argparse.ArgumentTypeError(f"expected comma-separated numbers, "
+                                             f"got {quoted(text)}") from None
         if n is not None and len(values) != n:
             raise argparse.ArgumentTypeError(f"expected {n} comma-separated numbers, got {len(values)}")
         return values
@@ -156,6 +159,64 @@ def check_output_file(out: Path, *, force: bool, inputs: Iterable[Path] = ()) ->
     return out
 
 
+def check_mesh_format(name: str | Path, option: str | None = None) -> str:
+    """The extension (``".msh"``) of the mesh file ``name``, if a format we write.
+
+    ``name`` is a path, or with ``option`` the value of that option (``--format vtk``,
+    ``--to .obj``: with or without the dot).
+
+    Raises
+    ------
+    WriteError
+        Unknown or missing extension; the message names the path or option and lists
+        the formats.
+    """
+    from ..io import supported_extensions
+
+    if option is None:
+        ext, shown = Path(name).suffix.lower(), str(name)
+    else:
+        ext = str(name).strip().lower()
+        ext, shown = (ext if ext.startswith(".") else "." + ext), f"{option} {name}"
+    known = supported_extensions("write")
+    if ext not in known:
+        raise WriteError(f"{shown}: unknown mesh format {ext if len(ext) > 1 else '(none)'!r}; "
+                         f"known: {', '.join(known)}")
+    return ext
+
+
+def check_output_dir(out: Path, *, force: bool, names: Iterable[str] | None = None) -> Path:
+    """The checks of :func:`prepare_output_dir` without creating anything (before the work).
+
+    ``out`` is a directory (or nothing yet, under a writable directory); without ``force``
+    it is empty, or (with ``names``) holds none of ``names``.
+    """
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise WriteError(f"{out}: exists and is not a directory (a directory is written)")
+    if out.is_dir():
+        if not force:
+            if names is None:
+                if any(out.iterdir()):
+                    raise WriteError(f"{out}: directory is not empty (use --force to overwrite)")
+            else:
+                clash = [n for n in names if (out / n).exists()]
+                if clash:
+                    raise WriteError(f"{out / clash[0]}: exists (use --force to overwrite)")
+        check_writable(out, out)
+        return out
+    if out.suffix.lower() in MESH_SUFFIXES:
+        raise WriteError(f"{out}: a directory is written here, not a mesh file "
+                         "(give a directory name)")
+    parent = out.absolute().parent
+    while not parent.exists() and parent != parent.parent:
+        parent = parent.parent
+    if not parent.is_dir():
+        raise WriteError(f"{out}: cannot write in {parent}: not a directory")
+    check_writable(parent, out)
+    return out
+
+
 def prepare_output_dir(out: Path, *, force: bool, names: Iterable[str] | None = None) -> Path:
     """Create the output directory ``out`` (with parents) and check it is writable.
 
@@ -188,13 +249,20 @@ def prepare_output_dir(out: Path, *, force: bool, names: Iterable[str] | None = 
     return out
 
 
-def check_output_target(out: Path, src: Path, frames: int | None, force: bool) -> None:
-    """Before any work: ``out`` may be written (a file), or with ``frames`` is (or will be)
-    a directory of frames."""
+def check_output_target(out: Path, src: Path, frames: int | None, force: bool,
+                        frame_format: str | None = None) -> None:
+    """Before any work: ``out`` may be written (a mesh file in a format we write), or with
+    ``frames`` is (or will be) a directory for frames in ``frame_format`` (default: the
+    format of ``src``)."""
     if frames is None:
+        check_mesh_format(out)
         check_output_file(out, force=force, inputs=[src])
-    elif out.exists() and not out.is_dir():
-        raise WriteError(f"{out}: exists and is not a directory (--frames writes a directory)")
+        return
+    if frame_format is None:
+        check_mesh_format(src)
+    else:
+        check_mesh_format(frame_format, "--format")
+    check_output_dir(out, force=force)
 
 
 def load_at_unit_size(src: Path, what: str):

@@ -205,6 +205,10 @@ def run(args) -> int:
     options = ConvertOptions.from_args(args)
     simple = not args.resume and not args.scheduler  # -j does not matter for one file
     if simple and len(jobs) == 1 and not failures and jobs[0][1] == Path(args.output):
+        from ._common import check_output_file
+
+        # before reading the input: the directory (convert_file refuses an existing file)
+        check_output_file(jobs[0][1], force=True)
         cells = convert_file(*jobs[0], options)  # a single file: errors go to main()
         print(_wrote(jobs[0][1], cells), flush=True)
         return 0

@@ -84,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
     ext = (args.format or src.suffix).lower()
     if not ext.startswith("."):
         ext = "." + ext
-    check_output_target(out, src, frames, args.force)
+    check_output_target(out, src, frames, args.force, frame_format=args.format)
     # work at unit size (exact powers of two), results scaled back
     scale, mesh = load_at_unit_size(src, "deform")
     V = scale.down(load_displacement(args.displacement, scale.mesh_up(mesh)))

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import json
+from .. import strict_json
 import sys
 
 from ..errors import FilterError
@@ -64,12 +64,13 @@ def run(args) -> int:
             ml = meshlab.resolve(args.name)
             if ml is None:
                 ours = registry.names()
+                from ..expressions import quoted
                 from ..pipeline.params import did_you_mean
 
                 hint = did_you_mean(args.name, ours) or meshlab.suggestions(args.name)
-                raise FilterError(f"unknown filter {args.name!r}{hint}")
+                raise FilterError(f"unknown filter {quoted(args.name)}{hint}")
             spec = _meshlab_spec(ml)
-        print(json.dumps(spec, indent=2) if args.json else _describe(spec))
+        print(strict_json.dumps(spec, indent=2) if args.json else _describe(spec))
         return 0
     specs = [cls.spec() for cls in registry]
     if args.all:
@@ -77,7 +78,7 @@ def run(args) -> int:
 
         specs += [_meshlab_spec(n) for n in meshlab.filter_names()]
     if args.json:
-        json.dump(specs, sys.stdout, indent=2)
+        strict_json.dump(specs, sys.stdout, indent=2)
         sys.stdout.write("\n")
         return 0
     width = max(len(s["name"]) for s in specs)

@@ -10,7 +10,7 @@ for a small clean mesh.
 
 from __future__ import annotations
 
-import json
+from .. import strict_json
 import math
 import sys
 from pathlib import Path
@@ -160,7 +160,7 @@ def run(args) -> int:
                 status = 1
                 continue
             if args.json:
-                print(json.dumps(info), flush=True)
+                print(strict_json.dumps(info), flush=True)
             else:
                 if not first:
                     print()

@@ -19,13 +19,14 @@ those of the unit-size problem (lengths, areas, energies), with the factor as
 from __future__ import annotations
 
 import argparse
-import json
+from .. import strict_json
 import sys
 from pathlib import Path
 
 from ..bounds import MAX_ITERATIONS
 from ..filters.generate_geodesic_morph import GenerateGeodesicMorph
-from ._common import add_output_flags, float_list, prepare_output_dir, write_text
+from ._common import (add_output_flags, check_mesh_format, check_output_dir, float_list,
+                      prepare_output_dir, write_text)
 from ._params import add_options, check_options
 from ._validate import check_int, check_numbers
 
@@ -63,6 +64,16 @@ def _check_numbers(args: argparse.Namespace) -> None:
     check_numbers("--beta", args.beta)
 
 
+def _check_outputs(args: argparse.Namespace) -> None:
+    """Before any work: the frame format is one we write and OUTDIR can take the files."""
+    ext = (check_mesh_format(args.format, "--format") if args.format
+           else check_mesh_format(args.source))
+    width = max(3, len(str(args.frames - 1)))
+    names = [f"frame_{k:0{width}d}{ext}" for k in range(args.frames)]
+    check_output_dir(Path(args.output), force=args.force,
+                     names=names + list(PLOTS) + ["summary.json"])
+
+
 def run(args: argparse.Namespace) -> int:
     from .. import io
     from ..morph import geodesic_morph
@@ -71,6 +82,7 @@ def run(args: argparse.Namespace) -> int:
     from ..scaling import unit_scale
 
     _check_numbers(args)
+    _check_outputs(args)
     src_path, tgt_path = Path(args.source), Path(args.target)
     source = io.load(src_path)
     target = io.load(tgt_path)
@@ -106,11 +118,11 @@ def run(args: argparse.Namespace) -> int:
                    unit_scale=scale.factor)
     if args.metric == "scalar":
         summary["beta"] = list(args.beta)
-    write_text(outdir / "summary.json", json.dumps(summary, indent=2) + "\n")
+    write_text(outdir / "summary.json", strict_json.dumps(summary, indent=2) + "\n")
     if not args.no_plots:
         save_morph_figures(result, outdir / "strip.png", outdir / "quality.png")
     if args.json:
-        json.dump(summary, sys.stdout)
+        strict_json.dump(summary, sys.stdout)
         sys.stdout.write("\n")
     else:
         lin = "inverts" if summary["linear_inverts"] else "does not invert"

@@ -1,12 +1,13 @@
 """``meshopt move``: move chosen vertices exactly, keep every triangle healthy.
 
-Handles are given by ``--targets FILE`` (CSV rows ``index,x,y`` or a ``.npy`` k × 3 array)
-or by ``--map "X_EXPR; Y_EXPR"`` (new positions of the boundary vertices where ``--where``
-holds; the other boundary vertices stay). Without ``--frames`` the moved mesh is written to
-``-o OUT``; with ``--frames K``, OUT is a directory with ``frame_000.<ext>`` … and
-``quality.csv``. ``--json`` prints a summary (inverted count, min aspect ratio, mean Λ,
-handle error, seconds). Existing outputs are never overwritten without ``--force``; they
-are checked before the motion is computed.
+Handles are given by ``--targets FILE`` (CSV rows ``index,x,y`` or a ``.npy`` k × 3 array;
+the boundary vertices it does not list stay, unless ``--free-boundary``) or by
+``--map "X_EXPR; Y_EXPR"`` (new positions of the boundary vertices, or with ``--group NAME``
+of a physical group's nodes, where ``--where`` holds; the other boundary vertices stay).
+Without ``--frames`` the moved mesh is written to ``-o OUT``; with ``--frames K``, OUT is a
+directory with ``frame_000.<ext>`` … and ``quality.csv``. ``--json`` prints a summary
+(inverted count, min aspect ratio, mean Λ, handle error, seconds). Existing outputs are
+never overwritten without ``--force``; they are checked before the mesh is read.
 
 The mesh moves at unit size (divided by the power of two nearest its size, see
 :mod:`meshopt_toolkit.scaling`; ``--map`` and ``--targets`` stay in the file's units) and
@@ -17,7 +18,7 @@ of the unit-size problem, with the factor as ``unit_scale``.
 from __future__ import annotations
 
 import argparse
-import json
+from .. import strict_json
 from pathlib import Path
 
 from ._common import (add_output_flags, check_output_target, load_at_unit_size,
@@ -39,6 +40,7 @@ def add_args(p: argparse.ArgumentParser) -> None:
         "  meshopt move annulus.msh -o turned.msh --where 'x**2 + y**2 < 0.25' \\\n"
         "      --map 'x*cos(pi/2) - y*sin(pi/2); x*sin(pi/2) + y*cos(pi/2)'\n"
         "  meshopt move mesh.msh --targets handles.csv --frames 9 -o motion/\n"
+        "  meshopt move part.msh -o moved.msh --group hole --map 'x + 0.1; y'\n"
         "Use 'meshopt deform' instead to follow an initial velocity (a geodesic) rather than\n"
         "to reach prescribed positions."
     )
@@ -52,6 +54,12 @@ def add_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--where", metavar="EXPR",
                    help="with --map: which boundary vertices move, e.g. 'x < 0.5' "
                         "(default: all; the others stay fixed)")
+    p.add_argument("--group", metavar="NAME",
+                   help="with --map: move the nodes of this physical group (name or number) "
+                        "instead of the boundary; the other boundary vertices stay fixed")
+    p.add_argument("--free-boundary", action="store_true",
+                   help="with --targets: the boundary vertices the file does not list move "
+                        "freely (default: they stay fixed)")
     add_options(p, PrescribedMotion, OPTIONS)
     add_output_flags(p, frames=MAX_FRAMES, frame_format="the input's")
 
@@ -59,27 +67,31 @@ def add_args(p: argparse.ArgumentParser) -> None:
 def _check_numbers(args: argparse.Namespace) -> None:
     check_int("--frames", args.frames, 2, MAX_FRAMES)
     check_options(args, PrescribedMotion, OPTIONS)
-    if args.where is not None and args.map is None:
-        raise OptionError("--where needs --map")
+    for option, given in (("--where", args.where), ("--group", args.group)):
+        if given is not None and args.map is None:
+            raise OptionError(f"{option} needs --map")
+    if args.free_boundary and args.targets is None:
+        raise OptionError("--free-boundary is for --targets (--map keeps the boundary "
+                          "vertices it does not move)")
 
 
 def run(args: argparse.Namespace) -> int:
     from ..io import save
     from ..motion.move import move
-    from ..motion.targets import read_target_table, targets_from_map
+    from ..motion.targets import handles_of
     from ..progress import ProgressBar
 
     _check_numbers(args)
     src = Path(args.mesh)
     out = Path(args.output)
     frames = args.frames
-    check_output_target(out, src, frames, args.force)
+    check_output_target(out, src, frames, args.force, frame_format=args.format)
     # work at unit size (exact powers of two), results scaled back
     scale, mesh = load_at_unit_size(src, "move")
-    if args.targets is not None:
-        handles, targets = read_target_table(args.targets)
-    else:  # the expressions are in the file's units
-        handles, targets = targets_from_map(scale.mesh_up(mesh), args.map, args.where)
+    # in the file's units (exactly back at unit size: powers of two)
+    handles, targets = handles_of(scale.mesh_up(mesh), targets=args.targets, mapping=args.map,
+                                  where=args.where, group=args.group,
+                                  free_boundary=args.free_boundary)
     if frames is not None:
         prepare_output_dir(out, force=args.force)
     with ProgressBar(1000, "move") as bar:
@@ -105,7 +117,7 @@ def run(args: argparse.Namespace) -> int:
         written = f"{out}/ ({frames} frames, quality.csv)"
     summary = {**result.summary(), "unit_scale": scale.factor}
     if args.json:
-        print(json.dumps({"output": str(out), **summary}, indent=2))
+        print(strict_json.dumps({"output": str(out), **summary}, indent=2))
     else:
         print(f"wrote {written}: {len(handles)} handles exact, inverted 0, min aspect ratio "
               f"{result.min_aspect_ratio[0]:.4f} -> {result.min_aspect_ratio[-1]:.4f}, "

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import argparse
 import csv
-import json
+from .. import strict_json
 import logging
 import os
 import sys
@@ -19,7 +19,7 @@ import tempfile
 from pathlib import Path
 
 from ..errors import ExpressionError, MeshoptError, WriteError
-from ._common import add_output_flags, exclusive_output_dir, float_list
+from ._common import add_output_flags, check_output_dir, exclusive_output_dir, float_list
 from ._params import add_options, check_options
 from ._validate import OptionError
 
@@ -101,6 +101,7 @@ def _atomic_text(path: Path, text: str) -> None:
 def run(args: argparse.Namespace) -> int:
     from .. import io
     from ..datasets import data_path
+    from ..expressions import quoted
     from ..filters.shape_optimization import ShapeOptimization
     from ..optimize import DEFAULT_PENALTY_BETA, DEFAULT_RETRACTION, VARIANT_PARTS, optimize
     from ..fem.poisson import PoissonObjective
@@ -114,12 +115,14 @@ def run(args: argparse.Namespace) -> int:
         raise OptionError(f"--retraction applies to complete-complete; --variant {args.variant} "
                           "moves along straight lines")
     input_path = Path(args.mesh) if args.mesh else data_path(DEFAULT_MESH)
+    check_output_dir(Path(args.output), force=args.force,  # before any work
+                     names=("optimized" + input_path.suffix.lower(),) + OUTPUT_NAMES)
     mesh = io.load(input_path).as_planar()
     penalty = args.penalty if args.penalty is not None else DEFAULT_PENALTY_BETA
     try:
         objective = PoissonObjective(mesh, rhs=args.rhs)
     except ExpressionError as exc:
-        raise ExpressionError(f"--rhs {args.rhs!r}: {exc}") from None
+        raise ExpressionError(f"--rhs {quoted(args.rhs)}: {exc}") from None
     fixed = mesh.tagged_vertices(int(args.fixed) if args.fixed and args.fixed.isdigit() else args.fixed) \
         if args.fixed else None
     outdir = Path(args.output)
@@ -150,13 +153,13 @@ def run(args: argparse.Namespace) -> int:
         try:
             io.save(result.mesh, outdir / mesh_name, overwrite=True)
             _write_history(outdir, result)
-            _atomic_text(outdir / "summary.json", json.dumps(summary, indent=2) + "\n")
+            _atomic_text(outdir / "summary.json", strict_json.dumps(summary, indent=2) + "\n")
             if not args.no_plots and _write_plots(outdir, mesh, result, args.rhs):
                 written += ["mesh.png", "history.png"]
         except OSError as exc:
             raise WriteError(f"{outdir}: cannot write the results ({exc.strerror or exc})") from None
     if args.json:
-        json.dump(summary, sys.stdout)
+        strict_json.dump(summary, sys.stdout)
         sys.stdout.write("\n")
     else:
         print(f"{result.status}: {result.message}")
@@ -179,7 +182,7 @@ def _write_history(outdir: Path, result) -> None:
         writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
-    _atomic_text(outdir / "history.json", json.dumps(rows, indent=1) + "\n")
+    _atomic_text(outdir / "history.json", strict_json.dumps(rows, indent=1) + "\n")
 
 
 def _write_plots(outdir: Path, mesh, result, rhs_text: str) -> bool:

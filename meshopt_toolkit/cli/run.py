@@ -18,7 +18,9 @@ The pipeline file is untrusted; the command line is the only authority:
   file (nothing written) unless ``--allow-inverted`` (then a warning on stderr).
 
 ``--dry-run`` runs no filter and writes nothing, but checks all of this from the inputs
-(``-o`` is optional then: without it existing outputs are not looked for).
+(``-o`` is optional then: without it existing outputs are not looked for). It prints the
+steps, then ``checked INPUT -> would write OUTPUT`` per input, and ends with
+``dry run: N checked, F failed, nothing written``.
 
 Batches (shared with ``meshopt convert``, see :mod:`meshopt_toolkit.pipeline.batch_run`):
 ``-j N`` runs files in N worker processes (0: all cores), each file isolated; ``--resume``
@@ -32,12 +34,13 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import json
+from .. import strict_json
 import sys
 from pathlib import Path
 
 from ..errors import MeshoptError
-from ._common import check_writable
+from ..expressions import quoted
+from ._common import check_mesh_format, check_writable
 
 HELP = "run a pipeline (.json or MeshLab .mlx) over one mesh or a batch"
 
@@ -46,9 +49,10 @@ def _positive_int(text: str) -> int:
     try:
         value = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+        raise argparse.ArgumentTypeError(
+            f"expected a positive integer, got {quoted(text)}") from None
     if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {quoted(text)}")
     return value
 
 
@@ -113,6 +117,7 @@ def run(args) -> int:
     pipeline = load_pipeline(args.pipeline)  # errors here are fatal (one line, exit 1)
     pipeline.validate()
     check_batch_args(args)
+    ext = None if not args.to else check_mesh_format(args.to, "--to")
     errors: list[str] = []
     inputs: list[Path] = []
     seen: set[Path] = set()
@@ -130,9 +135,6 @@ def run(args) -> int:
         if not Path(item).exists():
             raise MeshoptError(f"--allow-read {item}: no such file or directory")
     outdir = _outdir(args)
-    ext = None
-    if args.to:
-        ext = args.to.lower() if args.to.startswith(".") else "." + args.to.lower()
     stems: dict[str, Path] = {}
     for p in inputs:
         key = p.stem + (ext or p.suffix.lower())
@@ -147,16 +149,42 @@ def run(args) -> int:
     options = RunOptions(ext=ext, force=args.force, dry_run=args.dry_run,
                          inputs=[str(p) for p in inputs], allow_read=list(args.allow_read),
                          max_triangles=args.max_triangles, allow_inverted=args.allow_inverted)
+    if args.dry_run and not args.json:
+        print(_plan(args.pipeline, pipeline, len(inputs), outdir), flush=True)
+    line = None if args.json or not args.dry_run else _would_write(outdir)
     with BatchProgress(len(inputs), "run") as bar, batch_client(args) as client:
         result = execute(RunTask(pipeline, options),
                          (Job(i, p) for i, p in enumerate(inputs, start=1)), outdir,
                          workers=args.jobs, isolate=isolate, client=client,
                          send_inputs="path" if args.shared_inputs else "bytes",
                          resume=args.resume, force=args.force, dry_run=args.dry_run,
-                         on_record=reporter("run", args.json, bar), progress=bar)
+                         on_record=reporter("run", args.json, bar, line, args.dry_run),
+                         progress=bar)
     result.failed += len(errors)  # inputs that matched nothing
     print(f"meshopt run: {result.summary()}", file=sys.stderr)
     return 1 if errors or result.failed or not inputs else 0
+
+
+def _plan(source: str, pipeline, n_inputs: int, outdir: Path | None) -> str:
+    """What a dry run checks: the steps, the inputs, where outputs would go."""
+    steps = "; ".join(f"{i}. {s.name}" for i, s in enumerate(pipeline.steps, start=1))
+    where = ("outputs not looked for (no -o)" if outdir is None
+             else f"outputs into {outdir}/")
+    return (f"dry run of {source}: {len(pipeline.steps)} step(s): {steps or '(none)'}; "
+            f"{n_inputs} input(s), {where}; no filter runs, nothing is written")
+
+
+def _would_write(outdir: Path | None):
+    """A dry run's line for each input checked."""
+
+    def line(rec: dict) -> str:
+        if rec.get("outputs"):
+            return f"checked {rec['input']} -> would write {', '.join(rec['outputs'])}"
+        why = ("no -o: outputs not looked for" if outdir is None
+               else "the pipeline's save_mesh steps name its outputs")
+        return f"checked {rec['input']} ({why})"
+
+    return line
 
 
 # -- shared with ``meshopt convert`` -------------------------------------------------------
@@ -184,10 +212,10 @@ def _jobs(text: str) -> int:
         value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected 0 (all cores) or a positive integer, "
-                                         f"got {text!r}") from None
+                                         f"got {quoted(text)}") from None
     if value < 0:
         raise argparse.ArgumentTypeError(f"expected 0 (all cores) or a positive integer, "
-                                         f"got {text!r}")
+                                         f"got {quoted(text)}")
     return cpu_count() if value == 0 else value
 
 
@@ -222,9 +250,10 @@ def batch_client(args):
         client.close()
 
 
-def reporter(command: str, as_json: bool, bar, line_ok=None):
-    """The per-record callback: warnings and errors on stderr, JSON lines on stdout, and
-    ``line_ok(record)`` on stdout for each file done (``meshopt convert``'s "wrote ...")."""
+def reporter(command: str, as_json: bool, bar, line_ok=None, dry_run: bool = False):
+    """The per-record callback: warnings and errors on stderr, JSON lines on stdout (with
+    ``"dry_run": true`` in a dry run), and ``line_ok(record)`` on stdout for each file done
+    (``meshopt convert``'s "wrote ...", a dry run's "would write ...")."""
 
     def report(rec: dict) -> None:
         for warning in rec.get("warnings") or ():
@@ -235,6 +264,6 @@ def reporter(command: str, as_json: bool, bar, line_ok=None):
             bar.clear()
             print(line_ok(rec), flush=True)
         if as_json:
-            print(json.dumps(rec), flush=True)
+            print(strict_json.dumps({**rec, "dry_run": True} if dry_run else rec), flush=True)
 
     return report

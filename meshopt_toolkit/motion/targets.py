@@ -1,11 +1,15 @@
 """Handle targets from files or expressions, for ``meshopt move`` and the move filter.
 
 - a table: CSV rows ``index,x,y`` (a header line is allowed) or a ``.npy`` array (k, 3);
-- a map: ``"X_EXPR; Y_EXPR"``, the new position of each selected boundary vertex as two
-  expressions in its ``x, y`` (the whitelisted evaluator of :mod:`..expressions`), applied
-  where ``WHERE`` holds (default: every boundary vertex); the other boundary vertices are
-  handles that stay where they are. ``WHERE`` is one comparison or several joined by
-  ``and``/``or``, each side an expression: ``"x**2 + y**2 < 0.25"``.
+  :func:`fix_boundary` adds the boundary vertices the table does not list as handles that
+  stay where they are (``--free-boundary`` leaves them free instead);
+- a map: ``"X_EXPR; Y_EXPR"``, the new position of each selected vertex as two
+  expressions in its ``x, y`` (the whitelisted evaluator of :mod:`..expressions`). The
+  candidates are the boundary vertices, or the nodes of a physical group
+  (:func:`group_vertices`); the map applies where ``WHERE`` holds (default: every
+  candidate) and the other boundary vertices are handles that stay where they are.
+  ``WHERE`` is one comparison or several joined by ``and``/``or``, each side an
+  expression: ``"x**2 + y**2 < 0.25"``.
 """
 
 from __future__ import annotations
@@ -17,7 +21,7 @@ import numpy as np
 
 from .._typing import FloatArray, IntArray
 from ..errors import ExpressionError, InvalidMeshError, ReadError
-from ..expressions import parse_expression
+from ..expressions import parse_expression, quoted
 from ..mesh import PlanarMesh
 
 _COMPARE = {ast.Lt: np.less, ast.LtE: np.less_equal, ast.Gt: np.greater,
@@ -63,7 +67,7 @@ def _is_number(text: str) -> bool:
 def _naming(option: str, text: str, exc: ExpressionError) -> ExpressionError:
     """The error with the option and its text in front (once)."""
     message = str(exc)
-    prefix = f"{option} {text!r}"
+    prefix = f"{option} {quoted(text)}"
     return exc if message.startswith(prefix) else ExpressionError(f"{prefix}: {message}")
 
 
@@ -71,9 +75,9 @@ def _condition(text: str, X: FloatArray) -> np.ndarray:
     try:
         tree = ast.parse(text.strip(), mode="eval").body
     except SyntaxError as exc:
-        raise ExpressionError(f"--where {text!r}: {exc.msg}") from None
+        raise ExpressionError(f"--where {quoted(text)}: {exc.msg}") from None
     except (RecursionError, MemoryError, ValueError):
-        raise ExpressionError(f"--where {text!r}: too deeply nested") from None
+        raise ExpressionError(f"--where {quoted(text)}: too deeply nested") from None
 
     def evaluate(node) -> np.ndarray:
         if isinstance(node, ast.BoolOp):
@@ -88,12 +92,12 @@ def _condition(text: str, X: FloatArray) -> np.ndarray:
             out = np.ones(len(X), bool)
             for op, right_node in zip(node.ops, node.comparators):
                 if type(op) not in _COMPARE:
-                    raise ExpressionError(f"--where {text!r}: use <, <=, > or >=")
+                    raise ExpressionError(f"--where {quoted(text)}: use <, <=, > or >=")
                 right = parse_expression(ast.unparse(right_node))(X)
                 out &= _COMPARE[type(op)](left, right)
                 left = right
             return out
-        raise ExpressionError(f"--where {text!r}: expected a comparison such as 'x < 0.5'")
+        raise ExpressionError(f"--where {quoted(text)}: expected a comparison such as 'x < 0.5'")
 
     try:
         return evaluate(tree)
@@ -101,30 +105,136 @@ def _condition(text: str, X: FloatArray) -> np.ndarray:
         raise _naming("--where", text, exc) from None
 
 
-def targets_from_map(mesh: PlanarMesh, mapping: str, where: str | None = None
-                     ) -> tuple[IntArray, FloatArray]:
-    """Handles (every boundary vertex) and targets from ``"X_EXPR; Y_EXPR"``."""
+def fix_boundary(mesh: PlanarMesh, handles: IntArray, targets: FloatArray
+                 ) -> tuple[IntArray, FloatArray]:
+    """``handles``/``targets`` plus every boundary vertex they do not list, kept in place.
+
+    A target table moves the vertices it lists; the rest of the boundary stays where it is
+    unless the caller leaves it free (``--free-boundary``). A listed boundary vertex keeps
+    its listed target.
+    """
+    handles = np.asarray(handles, dtype=np.int64)
+    targets = np.asarray(targets, dtype=float)
+    boundary = np.unique(mesh.boundary_edges)
+    kept = np.setdiff1d(boundary, handles)
+    return (np.concatenate([handles, kept]),
+            np.concatenate([targets.reshape(-1, 2), mesh.points[kept]]))
+
+
+def group_vertices(mesh: PlanarMesh, group: str, option: str = "--group") -> IntArray:
+    """The vertices of the physical group ``group``: its name, or its number as digits.
+
+    Raises
+    ------
+    InvalidMeshError
+        The mesh has no such group (or no element carries it); the message lists the
+        groups it has.
+    """
+    text = str(group).strip()
+    key: int | str = int(text) if text.isdigit() else text
+    try:
+        return mesh.tagged_vertices(key)
+    except InvalidMeshError:
+        raise InvalidMeshError(f"{option} {quoted(text)}: {_source(mesh)}no such physical "
+                               f"group; {_groups(mesh)}") from None
+
+
+def _source(mesh: PlanarMesh) -> str:
+    source = getattr(mesh, "source", None)
+    return f"{source} has " if source else "the mesh has "
+
+
+def _groups(mesh: PlanarMesh) -> str:
+    """``"it has: hole (5), rim (6)"``: the named physical groups, then unnamed numbers."""
+    names = mesh.tag_names
+    used = set()
+    for tags in (mesh.line_tags, mesh.triangle_tags):
+        if tags is not None:
+            used.update(int(v) for v in np.unique(tags))
+    shown = [f"{name} ({tag})" for name, (tag, _dim) in sorted(names.items())]
+    unnamed = sorted(used - {tag for tag, _dim in names.values()})
+    shown += [str(tag) for tag in unnamed]
+    return f"it has: {', '.join(shown)}" if shown else "it has no physical groups"
+
+
+def targets_from_map(mesh: PlanarMesh, mapping: str, where: str | None = None, *,
+                     vertices: IntArray | None = None) -> tuple[IntArray, FloatArray]:
+    """Handles and targets from ``"X_EXPR; Y_EXPR"``.
+
+    Parameters
+    ----------
+    mesh : PlanarMesh
+        In the units the expressions are written in.
+    mapping : str
+        The new position of each selected vertex, ``"X_EXPR; Y_EXPR"`` in its ``x, y``.
+    where : str, optional
+        Which candidates move (default: all of them).
+    vertices : (k,) int array, optional
+        The candidates (default: the boundary vertices), e.g. a physical group's nodes
+        (:func:`group_vertices`).
+
+    Returns
+    -------
+    handles, targets
+        The candidates and every boundary vertex: the selected candidates at their mapped
+        positions, the others where they are.
+    """
     parts = [p for p in mapping.split(";")]
     if len(parts) != 2 or not all(p.strip() for p in parts):
-        raise ExpressionError(f"--map {mapping!r}: expected two expressions 'X_EXPR; Y_EXPR'")
+        raise ExpressionError(f"--map {quoted(mapping)}: expected two expressions 'X_EXPR; Y_EXPR'")
     try:
         fx, fy = (parse_expression(p.strip()) for p in parts)
     except ExpressionError as exc:
         raise _naming("--map", mapping, exc) from None
     except (ZeroDivisionError, OverflowError, ValueError) as exc:
-        raise ExpressionError(f"--map {mapping!r}: {exc}") from None
-    handles = np.unique(mesh.boundary_edges)
+        raise ExpressionError(f"--map {quoted(mapping)}: {exc}") from None
+    boundary = np.unique(mesh.boundary_edges)
+    candidates = boundary if vertices is None else np.unique(np.asarray(vertices, np.int64))
+    handles = np.union1d(boundary, candidates)
     X = mesh.points[handles]
-    selected = np.ones(len(handles), bool) if where is None else _condition(where, X)
+    selected = np.isin(handles, candidates)
+    if where is not None:
+        selected[selected] = _condition(where, X[selected])
+    what = "boundary vertex" if vertices is None else "vertex of the group"
     if not selected.any():
-        raise InvalidMeshError(f"--where {where!r} selects no boundary vertex")
+        raise InvalidMeshError(f"--where {quoted(where)} selects no {what}")
     targets = X.copy()
     with np.errstate(all="raise"):
         try:
             targets[selected, 0] = fx(X[selected])
             targets[selected, 1] = fy(X[selected])
         except (FloatingPointError, ZeroDivisionError, OverflowError) as exc:
-            raise ExpressionError(f"--map {mapping!r}: {exc}") from None
+            raise ExpressionError(f"--map {quoted(mapping)}: {exc}") from None
     if not np.isfinite(targets).all():
-        raise ExpressionError(f"--map {mapping!r}: not finite at some boundary vertex")
+        raise ExpressionError(f"--map {quoted(mapping)}: not finite at some {what}")
     return handles, targets
+
+
+def handles_of(mesh: PlanarMesh, *, targets: str | Path | None = None,
+               mapping: str | None = None, where: str | None = None,
+               group: str | None = None, free_boundary: bool = False
+               ) -> tuple[IntArray, FloatArray]:
+    """Handles and targets as ``meshopt move`` and the move filter choose them.
+
+    Parameters
+    ----------
+    mesh : PlanarMesh
+        In the units of the table and the expressions.
+    targets : path, optional
+        A table (:func:`read_target_table`); the boundary vertices it does not list stay
+        where they are (:func:`fix_boundary`) unless ``free_boundary``.
+    mapping, where : str, optional
+        Used when ``targets`` is None (:func:`targets_from_map`).
+    group : str, optional
+        With ``mapping``: the map moves this physical group's nodes (name or number)
+        instead of the boundary vertices (:func:`group_vertices`).
+    free_boundary : bool
+        With ``targets``: leave the unlisted boundary vertices free.
+    """
+    if targets is not None:
+        handles, positions = read_target_table(targets)
+        return (handles, positions) if free_boundary else fix_boundary(mesh, handles, positions)
+    if mapping is None:
+        raise ExpressionError("give a target table or a map 'X_EXPR; Y_EXPR'")
+    vertices = None if group is None else group_vertices(mesh, group)
+    return targets_from_map(mesh, mapping, where, vertices=vertices)

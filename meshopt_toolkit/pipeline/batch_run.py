@@ -58,6 +58,8 @@ class BatchResult:
     ----------
     done, skipped, failed : int
         Files processed (checked, in a dry run), skipped by ``resume``, failed.
+    dry_run : bool
+        Nothing was run or written: :meth:`summary` says so instead of "done".
     seconds : float
         Wall time.
     records : list of dict or None
@@ -69,13 +71,18 @@ class BatchResult:
     failed: int = 0
     seconds: float = 0.0
     records: list[dict] | None = field(default_factory=list)
+    dry_run: bool = False
 
     @property
     def ok(self) -> bool:
         return self.failed == 0
 
     def summary(self) -> str:
-        """``N done, K skipped, F failed in T s``."""
+        """``N done, K skipped, F failed in T s``; in a dry run ``dry run: N checked, F
+        failed, nothing written in T s``."""
+        if self.dry_run:
+            return (f"dry run: {self.done} checked, {self.failed} failed, nothing written "
+                    f"in {self.seconds:.1f} s")
         return format_summary(self.done, self.skipped, self.failed, self.seconds)
 
 
@@ -316,7 +323,7 @@ def execute(task, jobs: Iterable[Job], outdir, *, workers: int = 1, isolate: boo
         executor = ProcessPool(task, workers, single_thread=workers > 1)
     else:
         executor = InlineExecutor(task)
-    result = BatchResult(records=None if on_record is not None else [])
+    result = BatchResult(records=None if on_record is not None else [], dry_run=dry_run)
     window = 4 * executor.slots + 8
     pending: dict[int, _Pending] = {}
     ready: dict[int, dict] = {}

@@ -11,6 +11,7 @@ import json
 from pathlib import Path
 
 from ..errors import FilterError
+from .. import strict_json
 from ..io import atomic_path
 from .limits import MAX_PIPELINE_BYTES, check_json_text, read_bounded
 from .runner import Pipeline
@@ -55,7 +56,7 @@ def loads(text: str | bytes, source: str | None = None) -> Pipeline:
 
 
 def dumps(pipeline: Pipeline) -> str:
-    return json.dumps(pipeline.to_dict(), indent=2) + "\n"
+    return strict_json.dumps(pipeline.to_dict(), indent=2) + "\n"
 
 
 def read_json(path) -> Pipeline:
