@@ -133,7 +133,7 @@ def test_jacobian_and_second_order_taylor(mesh, rng, at_reference):
     first = check_gradient(f, grad, Q, eps0=1e-3, rng=rng)
     assert abs(first.order - 2) < 0.2, first
     second = check_hvp(f, grad, hvp, Q, eps0=1e-3, rng=rng)
-    assert abs(second.order - 3) < 0.2, second
+    assert second.order > 2.8, second  # a wrong Hessian gives 2; a tiny cubic term > 3
     H = dist.second_order(Q, rng.standard_normal((len(T), 7)))
     assert np.abs(H - np.swapaxes(H, 1, 2)).max() <= 1e-12 * np.abs(H).max()
 

@@ -64,7 +64,9 @@ class SurfaceDistortion:
         if self.reference.ndim != 2 or self.reference.shape[1] != 3 or self.triangles.shape[1:] != (3,):
             raise InvalidMeshError("a surface distortion needs (N, 3) points and (T, 3) triangles")
         rest = triangle_plane_coordinates(self.reference, self.triangles)
-        good = (rest[:, 1, 0] > 0) & (rest[:, 2, 1] > 0)
+        # twice the area against the squared edges: degenerate up to rounding is refused
+        scale = np.einsum("tij,tij->t", rest, rest)
+        good = rest[:, 1, 0] * rest[:, 2, 1] > 64 * np.finfo(float).eps * scale
         if not good.all():
             raise InvalidMeshError(f"reference triangle {int(np.flatnonzero(~good)[0])} is degenerate")
         self.gradients = barycentric_gradients(rest)  # (T, 3, 2)
