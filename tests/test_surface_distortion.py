@@ -209,7 +209,8 @@ def test_random_paths_keep_every_triangle_below_its_bound(seed, amplitude):
                         np.cumsum(np.linalg.norm(np.diff(phis, axis=0), axis=2), axis=0)])
     q0 = surface_inverse_shape_quality(P, T)
     for k, Q in enumerate(frames):
-        assert (surface_inverse_shape_quality(Q, T) <= surface_quality_bound(q0, S[k]) * (1 + 1e-12)).all()
+        bound = surface_quality_bound(q0, S[k])
+        assert (surface_inverse_shape_quality(Q, T) <= bound * (1 + 1e-12)).all()
     start = len(frames) // 3
     qs = surface_inverse_shape_quality(frames[start], T)
     for k in range(start, len(frames)):

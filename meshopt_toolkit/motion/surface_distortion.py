@@ -61,14 +61,16 @@ class SurfaceDistortion:
         self.reference = np.asarray(reference, dtype=float)
         self.triangles = np.asarray(triangles)
         self.n_vertices = self.reference.shape[0]
-        if self.reference.ndim != 2 or self.reference.shape[1] != 3 or self.triangles.shape[1:] != (3,):
+        if (self.reference.ndim != 2 or self.reference.shape[1] != 3
+                or self.triangles.shape[1:] != (3,)):
             raise InvalidMeshError("a surface distortion needs (N, 3) points and (T, 3) triangles")
         rest = triangle_plane_coordinates(self.reference, self.triangles)
         # twice the area against the squared edges: degenerate up to rounding is refused
         scale = np.einsum("tij,tij->t", rest, rest)
         good = rest[:, 1, 0] * rest[:, 2, 1] > 64 * np.finfo(float).eps * scale
         if not good.all():
-            raise InvalidMeshError(f"reference triangle {int(np.flatnonzero(~good)[0])} is degenerate")
+            bad = int(np.flatnonzero(~good)[0])
+            raise InvalidMeshError(f"reference triangle {bad} is degenerate")
         self.gradients = barycentric_gradients(rest)  # (T, 3, 2)
 
     def affine_maps(self, Q: FloatArray) -> FloatArray:
@@ -166,7 +168,8 @@ class SurfaceDistortion:
         G = self.gradients
         S_c = (2.0 * r[:, 0, None, None] * outer(G[:, :, 0], G[:, :, 0])
                + 2.0 * r[:, 1, None, None] * outer(G[:, :, 1], G[:, :, 1])
-               + r[:, 2, None, None] * (outer(G[:, :, 0], G[:, :, 1]) + outer(G[:, :, 1], G[:, :, 0])))
+               + r[:, 2, None, None] * (outer(G[:, :, 0], G[:, :, 1])
+                                        + outer(G[:, :, 1], G[:, :, 0])))
         out += np.einsum("tjk,ae->tjake", S_c, np.eye(3)).reshape(-1, 9, 9)
         out[bad] = 0.0
         return out

@@ -74,7 +74,8 @@ class TetDistortion:
         self.reference = np.asarray(reference, dtype=float)
         self.tets = np.asarray(tets)
         self.n_vertices = self.reference.shape[0]
-        if self.reference.ndim != 2 or self.reference.shape[1] != 3 or self.tets.shape[1:] != (4,):
+        if (self.reference.ndim != 2 or self.reference.shape[1] != 3
+                or self.tets.shape[1:] != (4,)):
             raise InvalidMeshError("a tet distortion needs (N, 3) points and (C, 4) tets")
         p = self.reference[self.tets]
         vol = np.linalg.det(np.swapaxes(p[:, 1:] - p[:, :1], 1, 2))
@@ -130,8 +131,10 @@ class TetDistortion:
         M1 = np.einsum("ib,taj->tabij", I, A)
         M2 = np.einsum("tia,tbj->tabij", K, Y)
         sym = lambda X: X + np.swapaxes(X, -1, -2)  # noqa: E731
-        dPhi = 0.5 * (m[:, None, None, None, None] * (sym(M1) - (2 / 3) * Kt[:, :, :, None, None] * C[:, None, None])
-                      + n[:, None, None, None, None] * (sym(M2) - (2 / 3) * Kt[:, :, :, None, None] * Y[:, None, None]))
+        mm, nn = m[:, None, None, None, None], n[:, None, None, None, None]
+        kt = (2 / 3) * Kt[:, :, :, None, None]
+        dPhi = 0.5 * (mm * (sym(M1) - kt * C[:, None, None])
+                      + nn * (sym(M2) - kt * Y[:, None, None]))
         d_A = np.empty((len(A), 7, 3, 3))
         d_A[:, 0] = Kt / SQRT3
         d_A[:, 1:] = 0.5 * np.moveaxis(sym_vec(dPhi), -1, 1)
@@ -188,7 +191,9 @@ class TetDistortion:
         dm, dn = -(2 / 3) * m[:, None] * delta, (2 / 3) * n[:, None] * delta
         d2m = c(m) * ((4 / 9) * dd + (2 / 3) * T)
         d2n = c(n) * ((4 / 9) * dd - (2 / 3) * T)
-        outer = lambda u, v: u[:, :, None] * v[:, None, :] + v[:, :, None] * u[:, None, :]  # noqa: E731
+        def outer(u, v):  # u vᵀ + v uᵀ per tet
+            return u[:, :, None] * v[:, None, :] + v[:, :, None] * u[:, None, :]
+
         mq = c(q) * d2m + outer(dm, dq) + c(m) * d2q
         np_ = c(p) * d2n + outer(dn, dp) + c(n) * d2p
         H = -c(rho[:, 0] / SQRT3) * T + 0.25 * (mq - np_)

@@ -52,7 +52,8 @@ class TetGraphMetric:
 
     def embed(self, Q: FloatArray) -> tuple[FloatArray, FloatArray]:
         """``(m^½ ⊙ Q, w φ(Q))`` flattened; ``inf`` in the second part where inverted."""
-        return (np.sqrt(self.mass)[:, None] * Q).ravel(), self.weight * self.strain.values(Q).ravel()
+        strain = self.weight * self.strain.values(Q).ravel()
+        return (np.sqrt(self.mass)[:, None] * Q).ravel(), strain
 
     def jacobian(self, Q: FloatArray) -> sp.csr_matrix:
         """The sparse ``J = ∂φ/∂Q`` (7C × 3N) at ``Q``."""
