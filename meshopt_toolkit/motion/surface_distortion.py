@@ -170,7 +170,9 @@ class SurfaceDistortion:
                + 2.0 * r[:, 1, None, None] * outer(G[:, :, 1], G[:, :, 1])
                + r[:, 2, None, None] * (outer(G[:, :, 0], G[:, :, 1])
                                         + outer(G[:, :, 1], G[:, :, 0])))
-        out += np.einsum("tjk,ae->tjake", S_c, np.eye(3)).reshape(-1, 9, 9)
+        blocks = out.reshape(-1, 3, 3, 3, 3)  # [j, a, k, e]: S_c ⊗ I₃
+        for a in range(3):
+            blocks[:, :, a, :, a] += S_c
         out[bad] = 0.0
         return out
 

@@ -104,12 +104,17 @@ class TetDistortion:
         return self._evaluate(Q, jacobian=True)
 
     def _parts(self, Q: FloatArray):
+        """``A``, ``K = A⁻¹`` (rows: cross products of ``A``'s columns over ``det A``),
+        ``log det A``, ``det(A)^{-2/3}`` and the inverted rows (``A = I`` there)."""
         A = self.affine_maps(Q)
-        det = np.linalg.det(A)
+        cof = np.stack([np.cross(A[:, :, 1], A[:, :, 2]), np.cross(A[:, :, 2], A[:, :, 0]),
+                        np.cross(A[:, :, 0], A[:, :, 1])], axis=1)
+        det = np.einsum("ti,ti->t", cof[:, 0], A[:, :, 0])
         bad = ~(det > 0) | ~np.isfinite(det)
         A = np.where(bad[:, None, None], np.eye(3), A)
-        K = np.linalg.inv(A)
-        ld = np.log(np.where(bad, 1.0, det))
+        det = np.where(bad, 1.0, det)
+        K = np.where(bad[:, None, None], np.eye(3), cof / det[:, None, None])
+        ld = np.log(det)
         m = np.exp(-2.0 * ld / 3.0)  # det(C)^{-1/3}
         return A, K, ld, m, bad
 
@@ -125,26 +130,24 @@ class TetDistortion:
         phi[bad] = np.inf
         if not jacobian:
             return phi, None
-        # ∂/∂A_ab: δ = K_ba; dĈ = m(E_ba A + AᵀE_ab − ⅔δC); dĈ⁻¹ = −n(K E_ab Y + Y E_ba Kᵀ − ⅔δY)
-        I = np.eye(3)
+        # direction H = e_c γ_jᵀ (vertex j, coordinate c): δ = tr(KH) = (γ_j K)_c,
+        # dĈ = m(HᵀA + AᵀH − ⅔δC), d(Ĉ⁻¹) = −n(KHC⁻¹ + C⁻¹HᵀKᵀ − ⅔δC⁻¹); entries (i, k) of vec
+        G = self.gradients  # (C, 4, 3)
+        delta = np.matmul(G, K)  # (C, 4, 3): [j, c]
+        Yg = np.matmul(G, Y)  # (C, 4, 3): C⁻¹γ_j
         Kt = np.swapaxes(K, 1, 2)
-        M1 = np.einsum("ib,taj->tabij", I, A)
-        M2 = np.einsum("tia,tbj->tabij", K, Y)
-        sym = lambda X: X + np.swapaxes(X, -1, -2)  # noqa: E731
-        mm, nn = m[:, None, None, None, None], n[:, None, None, None, None]
-        kt = (2 / 3) * Kt[:, :, :, None, None]
-        dPhi = 0.5 * (mm * (sym(M1) - kt * C[:, None, None])
-                      + nn * (sym(M2) - kt * Y[:, None, None]))
-        d_A = np.empty((len(A), 7, 3, 3))
-        d_A[:, 0] = Kt / SQRT3
-        d_A[:, 1:] = 0.5 * np.moveaxis(sym_vec(dPhi), -1, 1)
-        d_A[bad] = 0.0
-        return phi, self._to_vertices(d_A)
-
-    def _to_vertices(self, d_A: FloatArray) -> FloatArray:
-        """Chain ``∂/∂A`` (C, m, 3, 3) through ``∂A_ab/∂Q[j, d] = δ_ad γ_jb``: (C, m, 12)."""
-        out = np.einsum("tiab,tjb->tija", d_A, self.gradients)
-        return out.reshape(len(d_A), d_A.shape[1], 12)
+        i, k = SYM_I, SYM_J
+        third = (2.0 / 3.0) * delta[..., None]
+        dC = (G[:, :, None, i] * A[:, None, :, k] + G[:, :, None, k] * A[:, None, :, i]
+              - third * C[:, None, None, i, k])
+        dY = (Kt[:, None, :, i] * Yg[:, :, None, k] + Kt[:, None, :, k] * Yg[:, :, None, i]
+              - third * Y[:, None, None, i, k])
+        dPhi = (0.25 * SYM_W) * (m[:, None, None, None] * dC + n[:, None, None, None] * dY)
+        blocks = np.empty((len(A), 7, 12))
+        blocks[:, 0] = delta.reshape(-1, 12) / SQRT3
+        blocks[:, 1:] = np.swapaxes(dPhi.reshape(-1, 12, 6), 1, 2)
+        blocks[bad] = 0.0
+        return phi, blocks
 
     def second_order(self, Q: FloatArray, rho: FloatArray) -> FloatArray:
         """``Σ_i ρ_ci ∇²φ_ci`` per tet in the coordinates of :meth:`values_and_jacobian`:
@@ -179,18 +182,21 @@ class TetDistortion:
         q = np.einsum("tij,tij->t", R, np.matmul(np.swapaxes(A, 1, 2), A))
         p = np.einsum("tij,tij->t", R, Y)
         delta = Kt.reshape(-1, 9)  # δ_(ab) = K_ba
-        T = np.einsum("tae,tbc->tabce", Kt, K).reshape(-1, 9, 9)
+        # 4-index tensors [a, b, c, e] of the pair (A_ab, A_ce), by broadcasting
+        T = (Kt[:, :, None, None, :] * K[:, None, :, :, None]).reshape(-1, 9, 9)
         dd = delta[:, :, None] * delta[:, None, :]
         dq = 2.0 * (A @ R).reshape(-1, 9)
         dp = -2.0 * np.swapaxes(W, 1, 2).reshape(-1, 9)
-        I = np.eye(3)
-        d2q = 2.0 * np.einsum("ac,teb->tabce", I, R).reshape(-1, 9, 9)
-        d2p = 2.0 * (np.einsum("tbc,tea->tabce", K, W) + np.einsum("tea,tbc->tabce", K, W)
-                     + np.einsum("tca,tbe->tabce", Z, Y)).reshape(-1, 9, 9)
+        I = np.eye(3)[None, :, None, :, None]
+        d2q = 2.0 * (I * R[:, None, :, None, :]).reshape(-1, 9, 9)
+        d2p = 2.0 * (K[:, None, :, :, None] * np.swapaxes(W, 1, 2)[:, :, None, None, :]
+                     + Kt[:, :, None, None, :] * W[:, None, :, :, None]
+                     + Z[:, :, None, :, None] * Y[:, None, :, None, :]).reshape(-1, 9, 9)
         c = lambda x: x[:, None, None]  # noqa: E731
         dm, dn = -(2 / 3) * m[:, None] * delta, (2 / 3) * n[:, None] * delta
         d2m = c(m) * ((4 / 9) * dd + (2 / 3) * T)
         d2n = c(n) * ((4 / 9) * dd - (2 / 3) * T)
+
         def outer(u, v):  # u vᵀ + v uᵀ per tet
             return u[:, :, None] * v[:, None, :] + v[:, :, None] * u[:, None, :]
 
@@ -198,9 +204,12 @@ class TetDistortion:
         np_ = c(p) * d2n + outer(dn, dp) + c(n) * d2p
         H = -c(rho[:, 0] / SQRT3) * T + 0.25 * (mq - np_)
         H[bad] = 0.0
+        # Gᵀ H G: [j a, k c] = Σ_{b e} γ_jb H[a b c e] γ_ke, as two batched products
         G = self.gradients
-        out = np.einsum("tjb,tabeB,tkB->tjake", G, H.reshape(-1, 3, 3, 3, 3), G)
-        return out.reshape(-1, 12, 12)
+        X = np.matmul(H.reshape(-1, 27, 3), np.swapaxes(G, 1, 2))  # [a b c, k]
+        X = np.swapaxes(X.reshape(-1, 3, 3, 12), 1, 2).reshape(-1, 3, 36)  # [b, a c k]
+        out = np.matmul(G, X).reshape(-1, 4, 3, 3, 4)  # [j, a, c, k]
+        return np.ascontiguousarray(np.swapaxes(out, 3, 4)).reshape(-1, 12, 12)
 
     def columns(self) -> IntArray:
         """Global coordinate index ``3·vertex + d`` of each block column: (C, 12)."""
