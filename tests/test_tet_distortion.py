@@ -310,3 +310,23 @@ def test_condition_bound_is_attained_by_a_volume_keeping_stretch(u):
     kappa = np.linalg.cond(TetDistortion(P, T).affine_maps(Q))
     np.testing.assert_allclose(tet_condition_bound(1.0, np.linalg.norm(phi, axis=1)), kappa,
                                rtol=1e-10)
+
+
+@FAST
+@given(seed=st.integers(0, 2**16), amplitude=st.floats(0.0, 0.9))
+def test_distortion_from_regular_tets_bounds_absolute_quality(seed, amplitude):
+    """Against regular tets of the same volumes: φ_0 = 0 at the mesh itself, φ = 0 exactly
+    for regular tets, and η(Q) ≥ exp(−asinh(2|φ(Q)|)) for every tet."""
+    P, T = cube_tets(1, 0.3, seed)
+    rng = np.random.default_rng(seed)
+    Q = random_admissible(P, T, rng, amplitude) if amplitude else P
+    dist = TetDistortion.regular(Q, T)
+    assert np.array_equal(dist.reference, Q) and dist.n_vertices == len(Q)
+    phi = dist.values(Q)
+    assert np.abs(phi[:, 0]).max() < 1e-12
+    assert (tet_mean_ratios(Q, T) >= tet_quality_bound(1.0, np.linalg.norm(phi, axis=1))
+            * (1 - 1e-12)).all()
+    R = random_rotation(rng)
+    regular = (np.vstack([np.zeros(3), REGULAR_TET_EDGES.T]) @ R.T) * (1 + amplitude)
+    tet = np.array([[0, 1, 2, 3]])
+    assert np.abs(TetDistortion.regular(regular, tet).values(regular)).max() < 1e-12

@@ -30,7 +30,7 @@ import scipy.sparse as sp
 
 from .._typing import FloatArray, IntArray
 from ..errors import InvalidMeshError
-from ..kernels.cell_maps import affine_maps, barycentric_gradients
+from ..kernels.cell_maps import REGULAR_TET_EDGES, affine_maps, barycentric_gradients
 
 SQRT2 = np.sqrt(2.0)
 SQRT3 = np.sqrt(3.0)
@@ -83,6 +83,21 @@ class TetDistortion:
             bad = int(np.flatnonzero(~(vol > 0))[0])
             raise InvalidMeshError(f"reference tet {bad} is not positively oriented")
         self.gradients = barycentric_gradients(p)  # (C, 4, 3)
+
+    @classmethod
+    def regular(cls, points: FloatArray, tets: IntArray) -> TetDistortion:
+        """Distortion from regular tets of the same volumes as ``points``' ones: its shape
+        part measures absolute quality, ``η_c(Q) ≥ exp(−asinh(2|φ_c(Q)|))``
+        (:func:`tet_quality_bound` with ``η = 1`` at the reference)."""
+        points, tets = np.asarray(points, float), np.asarray(tets)
+        p = points[tets]
+        vol = np.abs(np.linalg.det(np.swapaxes(p[:, 1:] - p[:, :1], 1, 2))) / 6.0
+        side = np.cbrt(6.0 * np.sqrt(2.0) * vol)  # a regular tet of edge s has V = s³/(6√2)
+        unit = np.vstack([np.zeros(3), REGULAR_TET_EDGES.T])
+        soup = np.arange(4 * len(tets)).reshape(-1, 4)
+        out = cls((side[:, None, None] * unit).reshape(-1, 3), soup)
+        out.reference, out.tets, out.n_vertices = points, tets, len(points)
+        return out
 
     def affine_maps(self, Q: FloatArray) -> FloatArray:
         """Linear parts ``A`` (C, 3, 3) of the maps from the reference tets to ``Q``'s."""
