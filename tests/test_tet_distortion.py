@@ -330,3 +330,15 @@ def test_distortion_from_regular_tets_bounds_absolute_quality(seed, amplitude):
     regular = (np.vstack([np.zeros(3), REGULAR_TET_EDGES.T]) @ R.T) * (1 + amplitude)
     tet = np.array([[0, 1, 2, 3]])
     assert np.abs(TetDistortion.regular(regular, tet).values(regular)).max() < 1e-12
+
+
+@pytest.mark.parametrize("length, u", [(1e2, 2.0), (1e3, 3.0)])
+def test_mean_ratio_bound_is_attained_in_the_limit(length, u):
+    """A needle stretched along its axis by ``diag(e^{2u}, e^{-u}, e^{-u})``: η approaches
+    ``η₀ exp(−asinh(2|φ|))`` as the needle and the stretch grow (the constant 2 is sharp)."""
+    P = np.vstack([np.zeros(3), REGULAR_TET_EDGES.T]) @ np.diag([length, 1.0, 1.0])
+    Q = P @ np.diag([np.exp(2 * u), np.exp(-u), np.exp(-u)])
+    T = np.array([[0, 1, 2, 3]])
+    change = np.linalg.norm(TetDistortion(P, T).values(Q), axis=1)
+    ratio = tet_mean_ratios(Q, T) / tet_quality_bound(tet_mean_ratios(P, T), change)
+    assert 1.0 <= ratio[0] < 1.001
