@@ -342,3 +342,23 @@ def test_mean_ratio_bound_is_attained_in_the_limit(length, u):
     change = np.linalg.norm(TetDistortion(P, T).values(Q), axis=1)
     ratio = tet_mean_ratios(Q, T) / tet_quality_bound(tet_mean_ratios(P, T), change)
     assert 1.0 <= ratio[0] < 1.001
+
+
+@pytest.mark.parametrize("stretch, needle", [((1.0, 0.0, -1.0), 1.0), ((2.0, -1.0, -1.0), 1e3)])
+def test_path_bounds_are_attained_for_small_stretches(stretch, needle):
+    """``A(t) = exp(t·u·diag(stretch))`` from the reference, u small: the φ-length is the
+    Hencky strain to first order, so ``κ ≤ κ₀ e^{√2 L}`` (stretch (1, 0, −1)) and, on a
+    needle along the first axis, ``η ≥ η₀ e^{−2√(2/3) L}`` (stretch (2, −1, −1)) are
+    equalities up to O(u²)."""
+    u = 0.02
+    P = np.vstack([np.zeros(3), REGULAR_TET_EDGES.T]) @ np.diag([needle, 1.0, 1.0])
+    T = np.array([[0, 1, 2, 3]])
+    dist = TetDistortion(P, T)
+    frames = [P @ np.diag(np.exp(t * u * np.array(stretch))) for t in np.linspace(0, 1, 65)]
+    phis = np.array([dist.values(Q)[0] for Q in frames])
+    L = np.linalg.norm(np.diff(phis, axis=0), axis=1).sum()
+    kappa_bound = tet_path_condition_bound(tet_condition_numbers(P, T), L)
+    kappa_ratio = kappa_bound / tet_condition_numbers(frames[-1], T)
+    eta_ratio = tet_mean_ratios(frames[-1], T) / tet_path_quality_bound(tet_mean_ratios(P, T), L)
+    assert kappa_ratio[0] >= 1 and eta_ratio[0] >= 1
+    assert min(kappa_ratio[0], eta_ratio[0]) < 1 + 4 * u**2
