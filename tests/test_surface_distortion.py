@@ -216,3 +216,19 @@ def test_random_paths_keep_every_triangle_below_its_bound(seed, amplitude):
     for k in range(start, len(frames)):
         bound = surface_path_quality_bound(qs, (S[k] - S[start]) * (1 + 1e-3))
         assert (surface_inverse_shape_quality(frames[k], T) <= bound * (1 + 1e-12)).all()
+
+
+@pytest.mark.parametrize("u", [0.01, 0.03])
+def test_path_bound_is_attained_for_a_small_stretch_of_a_needle(u):
+    """A needle triangle along its axis, stretched by ``exp(t·u·diag(1, −1))`` in its
+    plane (the plane turned in R³): ``1/ψ ≤ 1/ψ₀ e^{√2 L}`` is an equality up to O(u²)."""
+    rest = np.array([[0.0, 0.0], [1e3, 0.0], [500.0, np.sqrt(3) / 2]])
+    R = random_rotation(np.random.default_rng(5))[:, :2]  # an isometry of the plane into R³
+    tri = np.array([[0, 1, 2]])
+    dist = SurfaceDistortion(rest @ R.T, tri)
+    frames = [(rest * np.exp(t * u * np.array([1.0, -1.0]))) @ R.T for t in np.linspace(0, 1, 65)]
+    phis = np.array([dist.values(Q)[0] for Q in frames])
+    L = np.linalg.norm(np.diff(phis, axis=0), axis=1).sum()
+    bound = surface_path_quality_bound(surface_inverse_shape_quality(frames[0], tri), L)
+    ratio = bound / surface_inverse_shape_quality(frames[-1], tri)
+    assert 1.0 <= ratio[0] < 1 + 4 * u**2
