@@ -1,0 +1,110 @@
+"""Per-cell affine maps of simplices in 3D and the quality measures bounded through them.
+
+A simplex with rest corners ``p_0 … p_k`` (in rest coordinates of dimension ``k``) and
+current corners ``x_0 … x_k`` (in R³) is the image of its rest simplex under an affine
+map whose linear part is ``A = Σ_j x_j ⊗ γ_j`` (3 × k), with ``γ_j`` the gradients of the
+rest barycentric coordinates (:func:`barycentric_gradients`). Tetrahedra use their rest
+positions as rest coordinates; surface triangles use coordinates in their own rest plane
+(:func:`triangle_plane_coordinates`), so ``AᵀA`` is the first fundamental form pulled back
+to the rest triangle.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._typing import FloatArray, IntArray
+
+SQRT3 = np.sqrt(3.0)
+
+#: edge matrix (columns x_j − x_0) of the regular tetrahedron with unit edges
+REGULAR_TET_EDGES = np.array([[1.0, 0.5, 0.5],
+                              [0.0, SQRT3 / 2, SQRT3 / 6],
+                              [0.0, 0.0, np.sqrt(2.0 / 3.0)]])
+
+
+def edge_matrices(points: FloatArray, cells: IntArray) -> FloatArray:
+    """``D[c] = [x_1 − x_0, …, x_k − x_0]`` as columns: (C, dim, k)."""
+    p = np.asarray(points, float)[cells]
+    return np.swapaxes(p[:, 1:] - p[:, :1], 1, 2)
+
+
+def triangle_plane_coordinates(points: FloatArray, triangles: IntArray) -> FloatArray:
+    """Corners of each triangle of a 3D surface in an orthonormal frame of its own plane:
+    (T, 3, 2), corner 0 at the origin, corner 1 on the positive first axis, corner 2 in
+    the upper half plane (counter-clockwise seen from the normal ``e₀₁ × e₀₂``)."""
+    p = np.asarray(points, float)[triangles]
+    e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+    l1 = np.linalg.norm(e1, axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = e1 / l1[:, None]
+    x2 = np.einsum("ti,ti->t", e2, u)
+    y2 = np.linalg.norm(e2 - x2[:, None] * u, axis=1)
+    out = np.zeros((len(triangles), 3, 2))
+    out[:, 1, 0] = l1
+    out[:, 2, 0] = x2
+    out[:, 2, 1] = y2
+    return out
+
+
+def barycentric_gradients(rest: FloatArray) -> FloatArray:
+    """Gradients ``γ_j`` of the barycentric coordinates of each rest simplex.
+
+    Parameters
+    ----------
+    rest : (C, k + 1, k) float array
+        Corners of each cell in rest coordinates (non-degenerate simplices).
+
+    Returns
+    -------
+    (C, k + 1, k) float array
+        ``γ[c, j]``; ``Σ_j γ_j = 0`` and ``Σ_j x_j ⊗ γ_j`` is the affine map's linear part.
+    """
+    rest = np.asarray(rest, float)
+    D = np.swapaxes(rest[:, 1:] - rest[:, :1], 1, 2)  # (C, k, k)
+    G = np.linalg.inv(D)  # rows: gradients of λ_1 … λ_k
+    out = np.empty_like(rest)
+    out[:, 1:] = G
+    out[:, 0] = -G.sum(axis=1)
+    return out
+
+
+def affine_maps(points: FloatArray, cells: IntArray, gradients: FloatArray) -> FloatArray:
+    """Linear parts ``A = Σ_j x_j ⊗ γ_j`` of the cells' affine maps: (C, dim, k)."""
+    return np.einsum("cja,cjb->cab", np.asarray(points, float)[cells], gradients)
+
+
+def tet_signed_volumes(points: FloatArray, tets: IntArray) -> FloatArray:
+    """Signed volumes ``det D / 6``, positive for positively oriented tets: (C,)."""
+    return np.linalg.det(edge_matrices(points, tets)) / 6.0
+
+
+def tet_mean_ratios(points: FloatArray, tets: IntArray) -> FloatArray:
+    """Mean ratio ``η = 12 (3V)^{2/3} / Σ ℓ²`` (six edges) in (0, 1], 1 iff regular;
+    negative for an inverted tet, 0 for a degenerate one. Returns (C,)."""
+    p = np.asarray(points, float)[tets]
+    i, j = np.triu_indices(4, 1)
+    sq = np.sum((p[:, i] - p[:, j]) ** 2, axis=(1, 2))
+    v = 3.0 * tet_signed_volumes(points, tets)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return 12.0 * np.sign(v) * np.abs(v) ** (2.0 / 3.0) / sq
+
+
+def tet_condition_numbers(points: FloatArray, tets: IntArray) -> FloatArray:
+    """Condition number ``κ₂(S) = σ_max/σ_min`` of the map ``S = D W⁻¹`` from the regular
+    tet (edge matrix ``W``) to each tet; 1 iff regular, ``inf`` when degenerate. (C,)."""
+    S = edge_matrices(points, tets) @ np.linalg.inv(REGULAR_TET_EDGES)
+    s = np.linalg.svd(S, compute_uv=False)
+    with np.errstate(divide="ignore"):
+        return s[:, 0] / s[:, -1]
+
+
+def surface_inverse_shape_quality(points: FloatArray, triangles: IntArray) -> FloatArray:
+    """``1/ψ = (E0² + E1² + E2²) / (4√3 A)`` (5.23) of triangles in R³ (``A`` the unsigned
+    area): ≥ 1, 1 iff equilateral, ``inf`` when degenerate. Returns (T,)."""
+    p = np.asarray(points, float)[triangles]
+    e = p[:, [1, 2, 0]] - p
+    sq = np.einsum("tlk,tlk->t", e, e)
+    area = 0.5 * np.linalg.norm(np.cross(e[:, 0], -e[:, 2]), axis=1)
+    with np.errstate(divide="ignore"):
+        return sq / (4.0 * SQRT3 * area)

@@ -1,0 +1,277 @@
+"""Per-tetrahedron distortion: the barrier vector of the graph metric of tet meshes.
+
+Each tet ``c`` of the current mesh is the image of its reference tet under an affine map
+with linear part ``A`` (3×3, :mod:`..kernels.cell_maps`); ``C = AᵀA`` is its Cauchy–Green
+tensor and ``Ĉ = C / det(C)^{1/3}`` the unimodular (shape) part. The distortion is
+
+    φ_c = ( log det A / √3,  vec(Φ) / 2 ),   Φ = (Ĉ − Ĉ⁻¹)/2 = sinh(log Ĉ),
+
+a vector in R⁷ (``vec`` the orthonormal coordinates of symmetric 3×3 matrices: the three
+diagonal entries, then √2 × the entries 01, 02, 12). It is the d = 3 case of the planar
+``TriangleDistortion`` (:mod:`.strain`, d = 2, where ``(Ĉ − Ĉ⁻¹)/2`` is the traceless part
+of ``Ĉ`` and ``vec(Φ)/2`` is ``2μ/(1 − |μ|²)/√2`` up to a fixed isometry).
+
+``φ`` depends on ``C`` only (rotations and translations of the current mesh do not move
+it); a uniform scaling by ``s`` adds ``√3 log s`` to the first component of every tet and
+nothing else (so a similarity can be factored out of a motion as in :mod:`.similarity`);
+``φ = 0`` at the reference; ``|φ| → ∞`` when a tet degenerates (``det A → 0`` or the
+shape part's extreme eigenvalue to 0 or ∞); ``+inf`` where inverted.
+
+Bounds (docs/theory-3d.md): ``|dφ| ≥ ½‖C^{-½} dC C^{-½}‖_F``, so along any path the map
+``B`` from a tet's start to its end has Hencky strain ``‖log σ(B)‖ ≤`` the tet's φ-length
+``≤ ℓ/w`` (:func:`tet_path_quality_bound`); from the reference, ``log κ(A) ≤
+asinh(√2 |φ|)`` and ``2 log σ₁(A) − ⅔ log det A ≤ asinh(2|φ|)`` (:func:`tet_quality_bound`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from .._typing import FloatArray, IntArray
+from ..errors import InvalidMeshError
+from ..kernels.cell_maps import REGULAR_TET_EDGES, affine_maps, barycentric_gradients
+
+SQRT2 = np.sqrt(2.0)
+SQRT3 = np.sqrt(3.0)
+#: the symmetric-matrix entries of vec and their weights (orthonormal coordinates)
+SYM_I = np.array([0, 1, 2, 0, 0, 1])
+SYM_J = np.array([0, 1, 2, 1, 2, 2])
+SYM_W = np.array([1.0, 1.0, 1.0, SQRT2, SQRT2, SQRT2])
+
+
+def sym_vec(S: FloatArray) -> FloatArray:
+    """Orthonormal coordinates (…, 6) of symmetric matrices (…, 3, 3)."""
+    return S[..., SYM_I, SYM_J] * SYM_W
+
+
+def sym_unvec(v: FloatArray) -> FloatArray:
+    """The symmetric matrices (…, 3, 3) of :func:`sym_vec` coordinates (…, 6)."""
+    out = np.zeros(v.shape[:-1] + (3, 3))
+    out[..., SYM_I, SYM_J] = v / SYM_W
+    out[..., SYM_J, SYM_I] = v / SYM_W
+    return out
+
+
+class TetDistortion:
+    """The per-tet distortion ``φ(Q)`` (shape ``(C, 7)``) relative to a reference.
+
+    Parameters
+    ----------
+    reference : (N, 3) float array
+        Node positions at which ``φ = 0`` (every tet positively oriented).
+    tets : (C, 4) int array
+
+    Raises
+    ------
+    InvalidMeshError
+        When a reference tet is not positively oriented.
+    """
+
+    n_components = 7
+
+    def __init__(self, reference: FloatArray, tets: IntArray) -> None:
+        self.reference = np.asarray(reference, dtype=float)
+        self.tets = np.asarray(tets)
+        self.n_vertices = self.reference.shape[0]
+        if (self.reference.ndim != 2 or self.reference.shape[1] != 3
+                or self.tets.shape[1:] != (4,)):
+            raise InvalidMeshError("a tet distortion needs (N, 3) points and (C, 4) tets")
+        p = self.reference[self.tets]
+        vol = np.linalg.det(np.swapaxes(p[:, 1:] - p[:, :1], 1, 2))
+        if not (vol > 0).all():
+            bad = int(np.flatnonzero(~(vol > 0))[0])
+            raise InvalidMeshError(f"reference tet {bad} is not positively oriented")
+        self.gradients = barycentric_gradients(p)  # (C, 4, 3)
+
+    @classmethod
+    def regular(cls, points: FloatArray, tets: IntArray) -> TetDistortion:
+        """Distortion from regular tets of the same volumes as ``points``' ones: its shape
+        part measures absolute quality, ``η_c(Q) ≥ exp(−asinh(2|φ_c(Q)|))``
+        (:func:`tet_quality_bound` with ``η = 1`` at the reference)."""
+        points, tets = np.asarray(points, float), np.asarray(tets)
+        p = points[tets]
+        vol = np.abs(np.linalg.det(np.swapaxes(p[:, 1:] - p[:, :1], 1, 2))) / 6.0
+        side = np.cbrt(6.0 * np.sqrt(2.0) * vol)  # a regular tet of edge s has V = s³/(6√2)
+        unit = np.vstack([np.zeros(3), REGULAR_TET_EDGES.T])
+        soup = np.arange(4 * len(tets)).reshape(-1, 4)
+        out = cls((side[:, None, None] * unit).reshape(-1, 3), soup)
+        out.reference, out.tets, out.n_vertices = points, tets, len(points)
+        return out
+
+    def affine_maps(self, Q: FloatArray) -> FloatArray:
+        """Linear parts ``A`` (C, 3, 3) of the maps from the reference tets to ``Q``'s."""
+        return affine_maps(Q, self.tets, self.gradients)
+
+    def determinants(self, Q: FloatArray) -> FloatArray:
+        """``det A`` = current / reference volume; > 0 iff not inverted."""
+        return np.linalg.det(self.affine_maps(Q))
+
+    def values(self, Q: FloatArray) -> FloatArray:
+        """``φ(Q)``, shape (C, 7); rows of an inverted or degenerate tet are ``+inf``."""
+        return self._evaluate(Q, jacobian=False)[0]
+
+    def values_and_jacobian(self, Q: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """``φ(Q)`` (C, 7) and the per-tet Jacobian blocks (C, 7, 12).
+
+        Block ``[c, i, 3j + d]`` is ``∂φ_ci / ∂Q[tets[c, j], d]`` (zero where inverted).
+        """
+        return self._evaluate(Q, jacobian=True)
+
+    def _parts(self, Q: FloatArray):
+        """``A``, ``K = A⁻¹`` (rows: cross products of ``A``'s columns over ``det A``),
+        ``log det A``, ``det(A)^{-2/3}`` and the inverted rows (``A = I`` there)."""
+        A = self.affine_maps(Q)
+        cof = np.stack([np.cross(A[:, :, 1], A[:, :, 2]), np.cross(A[:, :, 2], A[:, :, 0]),
+                        np.cross(A[:, :, 0], A[:, :, 1])], axis=1)
+        det = np.einsum("ti,ti->t", cof[:, 0], A[:, :, 0])
+        bad = ~(det > 0) | ~np.isfinite(det)
+        A = np.where(bad[:, None, None], np.eye(3), A)
+        det = np.where(bad, 1.0, det)
+        K = np.where(bad[:, None, None], np.eye(3), cof / det[:, None, None])
+        ld = np.log(det)
+        m = np.exp(-2.0 * ld / 3.0)  # det(C)^{-1/3}
+        return A, K, ld, m, bad
+
+    def _evaluate(self, Q: FloatArray, jacobian: bool):
+        A, K, ld, m, bad = self._parts(Q)
+        C = np.matmul(np.swapaxes(A, 1, 2), A)
+        Y = np.matmul(K, np.swapaxes(K, 1, 2))  # C⁻¹
+        n = 1.0 / m
+        Phi = 0.5 * (m[:, None, None] * C - n[:, None, None] * Y)
+        phi = np.empty((len(A), 7))
+        phi[:, 0] = ld / SQRT3
+        phi[:, 1:] = 0.5 * sym_vec(Phi)
+        phi[bad] = np.inf
+        if not jacobian:
+            return phi, None
+        # direction H = e_c γ_jᵀ (vertex j, coordinate c): δ = tr(KH) = (γ_j K)_c,
+        # dĈ = m(HᵀA + AᵀH − ⅔δC), d(Ĉ⁻¹) = −n(KHC⁻¹ + C⁻¹HᵀKᵀ − ⅔δC⁻¹); entries (i, k) of vec
+        G = self.gradients  # (C, 4, 3)
+        delta = np.matmul(G, K)  # (C, 4, 3): [j, c]
+        Yg = np.matmul(G, Y)  # (C, 4, 3): C⁻¹γ_j
+        Kt = np.swapaxes(K, 1, 2)
+        i, k = SYM_I, SYM_J
+        third = (2.0 / 3.0) * delta[..., None]
+        dC = (G[:, :, None, i] * A[:, None, :, k] + G[:, :, None, k] * A[:, None, :, i]
+              - third * C[:, None, None, i, k])
+        dY = (Kt[:, None, :, i] * Yg[:, :, None, k] + Kt[:, None, :, k] * Yg[:, :, None, i]
+              - third * Y[:, None, None, i, k])
+        dPhi = (0.25 * SYM_W) * (m[:, None, None, None] * dC + n[:, None, None, None] * dY)
+        blocks = np.empty((len(A), 7, 12))
+        blocks[:, 0] = delta.reshape(-1, 12) / SQRT3
+        blocks[:, 1:] = np.swapaxes(dPhi.reshape(-1, 12, 6), 1, 2)
+        blocks[bad] = 0.0
+        return phi, blocks
+
+    def second_order(self, Q: FloatArray, rho: FloatArray) -> FloatArray:
+        """``Σ_i ρ_ci ∇²φ_ci`` per tet in the coordinates of :meth:`values_and_jacobian`:
+        (C, 12, 12), symmetric; the residual-curvature part of a Hessian ``JᵀJ + Σ r ∇²r``.
+
+        With ``R`` the symmetric matrix of ``ρ_c[1:]`` (``⟨ρ[1:], vec Φ⟩ = ⟨R, Φ⟩``),
+        ``ρ·φ = (ρ_0/√3) log det A + ¼(m q − n p)`` where ``m = det^{-2/3}``, ``n = 1/m``,
+        ``q = ⟨R, AᵀA⟩``, ``p = ⟨R, A⁻¹A⁻ᵀ⟩``; in the entries of ``A`` (``P = ab``,
+        ``Q = ce``, ``K = A⁻¹``, ``δ_P = K_ba``, ``T_PQ = K_ea K_bc``, ``W = KKᵀRK``,
+        ``Z = KᵀRK``):
+
+            ∇²log det = −T,   ∇²q = 2 δ_ac R_eb,   ∇q = 2 AR,   ∇p_P = −2 W_ba,
+            ∇²p = 2 (K_bc W_ea + K_ea W_bc + Z_ca (KKᵀ)_be),
+            ∇m = −⅔ m δ,  ∇²m = m (4/9 δδᵀ + ⅔ T),  ∇n = ⅔ n δ,  ∇²n = n (4/9 δδᵀ − ⅔ T),
+
+        then ``∇²_Q = Gᵀ ∇²_A G`` (``A`` is linear in ``Q``).
+
+        Parameters
+        ----------
+        Q : (N, 3) float array
+            Current positions (every tet positively oriented).
+        rho : (C, 7) float array
+        """
+        A, K, _, m, bad = self._parts(Q)
+        n = 1.0 / m
+        rho = np.asarray(rho, float)
+        R = sym_unvec(rho[:, 1:])
+        Kt = np.swapaxes(K, 1, 2)
+        Y = np.matmul(K, Kt)
+        W = Y @ R @ K
+        Z = Kt @ R @ K
+        q = np.einsum("tij,tij->t", R, np.matmul(np.swapaxes(A, 1, 2), A))
+        p = np.einsum("tij,tij->t", R, Y)
+        delta = Kt.reshape(-1, 9)  # δ_(ab) = K_ba
+        # 4-index tensors [a, b, c, e] of the pair (A_ab, A_ce), by broadcasting
+        T = (Kt[:, :, None, None, :] * K[:, None, :, :, None]).reshape(-1, 9, 9)
+        dd = delta[:, :, None] * delta[:, None, :]
+        dq = 2.0 * (A @ R).reshape(-1, 9)
+        dp = -2.0 * np.swapaxes(W, 1, 2).reshape(-1, 9)
+        I = np.eye(3)[None, :, None, :, None]
+        d2q = 2.0 * (I * R[:, None, :, None, :]).reshape(-1, 9, 9)
+        d2p = 2.0 * (K[:, None, :, :, None] * np.swapaxes(W, 1, 2)[:, :, None, None, :]
+                     + Kt[:, :, None, None, :] * W[:, None, :, :, None]
+                     + Z[:, :, None, :, None] * Y[:, None, :, None, :]).reshape(-1, 9, 9)
+        c = lambda x: x[:, None, None]  # noqa: E731
+        dm, dn = -(2 / 3) * m[:, None] * delta, (2 / 3) * n[:, None] * delta
+        d2m = c(m) * ((4 / 9) * dd + (2 / 3) * T)
+        d2n = c(n) * ((4 / 9) * dd - (2 / 3) * T)
+
+        def outer(u, v):  # u vᵀ + v uᵀ per tet
+            return u[:, :, None] * v[:, None, :] + v[:, :, None] * u[:, None, :]
+
+        mq = c(q) * d2m + outer(dm, dq) + c(m) * d2q
+        np_ = c(p) * d2n + outer(dn, dp) + c(n) * d2p
+        H = -c(rho[:, 0] / SQRT3) * T + 0.25 * (mq - np_)
+        H[bad] = 0.0
+        # Gᵀ H G: [j a, k c] = Σ_{b e} γ_jb H[a b c e] γ_ke, as two batched products
+        G = self.gradients
+        X = np.matmul(H.reshape(-1, 27, 3), np.swapaxes(G, 1, 2))  # [a b c, k]
+        X = np.swapaxes(X.reshape(-1, 3, 3, 12), 1, 2).reshape(-1, 3, 36)  # [b, a c k]
+        out = np.matmul(G, X).reshape(-1, 4, 3, 3, 4)  # [j, a, c, k]
+        return np.ascontiguousarray(np.swapaxes(out, 3, 4)).reshape(-1, 12, 12)
+
+    def columns(self) -> IntArray:
+        """Global coordinate index ``3·vertex + d`` of each block column: (C, 12)."""
+        return (3 * self.tets[:, :, None] + np.arange(3)).reshape(-1, 12)
+
+    def jacobian_matrix(self, blocks: FloatArray) -> sp.csr_matrix:
+        """Assemble per-tet blocks (C, 7, 12) into the sparse ``J`` (7C × 3N), from COO
+        index arrays (duplicates summed)."""
+        n_cells = len(self.tets)
+        rows = np.broadcast_to(np.arange(7 * n_cells).reshape(n_cells, 7, 1), (n_cells, 7, 12))
+        cols = np.broadcast_to(self.columns()[:, None, :], (n_cells, 7, 12))
+        return sp.coo_matrix((blocks.ravel(), (rows.ravel(), cols.ravel())),
+                             shape=(7 * n_cells, 3 * self.n_vertices)).tocsr()
+
+
+def tet_quality_bound(mean_ratio_reference: FloatArray, change: FloatArray) -> FloatArray:
+    """Lower bound of the mean ratio ``η`` of each tet from its reference value and
+    ``δ ≥ |φ_c(Q) − φ_c(Q₀)|`` (``Q₀`` the reference, where ``φ = 0``):
+
+        η_c(Q) ≥ η_c(Q₀) · exp(−asinh(2δ)).
+
+    With ``δ = ℓ/w`` (ℓ the path length in ``M + w²JᵀJ``) it bounds every tet by the
+    length of the path, whatever the number of tets.
+    """
+    return np.asarray(mean_ratio_reference) * np.exp(-np.arcsinh(2.0 * np.asarray(change)))
+
+
+def tet_condition_bound(condition_reference: FloatArray, change: FloatArray) -> FloatArray:
+    """Upper bound of the condition number ``κ`` of each tet (the map from the regular
+    tet) from its reference value and ``δ ≥ |φ_c(Q) − φ_c(Q₀)|`` (``Q₀`` the reference):
+    ``κ_c(Q) ≤ κ_c(Q₀) · exp(asinh(√2 δ))``."""
+    return np.asarray(condition_reference) * np.exp(np.arcsinh(SQRT2 * np.asarray(change)))
+
+
+def tet_path_quality_bound(mean_ratio_start: FloatArray, length: FloatArray) -> FloatArray:
+    """Lower bound of the mean ratio at the end of any path that starts anywhere, from the
+    start's value and the tet's φ-length ``L`` along the path (``L ≤ ℓ/w``):
+    ``η(end) ≥ η(start) · exp(−2√(2/3) L)``."""
+    return np.asarray(mean_ratio_start) * np.exp(-2.0 * np.sqrt(2.0 / 3.0) * np.asarray(length))
+
+
+def tet_path_condition_bound(condition_start: FloatArray, length: FloatArray) -> FloatArray:
+    """Upper bound of ``κ`` at the end of any path from the start's value and the tet's
+    φ-length ``L`` along the path: ``κ(end) ≤ κ(start) · exp(√2 L)``."""
+    return np.asarray(condition_start) * np.exp(SQRT2 * np.asarray(length))
+
+
+def hencky_strains(A: FloatArray) -> FloatArray:
+    """``‖log σ(A)‖₂`` per map (…, 3, 3): the Hencky strain norm ``‖log √(AᵀA)‖_F``."""
+    return np.linalg.norm(np.log(np.linalg.svd(A, compute_uv=False)), axis=-1)
