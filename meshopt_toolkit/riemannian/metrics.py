@@ -31,7 +31,7 @@ with the motion built on it and implements the same protocol.
 from __future__ import annotations
 
 import logging
-from typing import Protocol
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 import scipy.sparse as sp
@@ -58,11 +58,15 @@ class MetricNotImplementedError(MeshoptError, NotImplementedError):
     """An optional metric method (e.g. ``exp``) is not available for this metric."""
 
 
+@runtime_checkable
 class Metric(Protocol):
     """The interface shared by all metrics (see the module docstring).
 
     ``is_flat`` declares the Euclidean metric (straight lines are its geodesics), so code
-    that needs geodesics asks the metric instead of comparing class names.
+    that needs geodesics asks the metric instead of comparing class names. ``exp`` is
+    optional: where a metric has none it raises :class:`MetricNotImplementedError` naming
+    its class and the method. The optional capabilities (``penalty``, ``path_model``) are
+    in the module docstring.
     """
 
     is_flat: bool
