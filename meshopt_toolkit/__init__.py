@@ -41,6 +41,7 @@ _EXPORTS = {
     "EuclideanMetric": "riemannian.metrics",
     "ElasticityMetric": "riemannian.metrics",
     "CompleteMetric": "riemannian.metrics",
+    "GraphMetric": "motion.graph_metric",
     "check_gradient": "diagnostics",
     "check_hvp": "diagnostics",
     # geodesics and deformation
@@ -48,6 +49,8 @@ _EXPORTS = {
     "geodesic": "riemannian.geodesics",
     "GeodesicResult": "riemannian.geodesics",
     "GeodesicOptions": "riemannian.geodesics",
+    "discrete_geodesic": "riemannian.discrete_geodesic",
+    "DiscreteGeodesic": "riemannian.geodesic_result",
     "deform": "deform",
     "DeformResult": "deform",
     # prescribed motion (the per-triangle distortion metric)

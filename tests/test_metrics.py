@@ -13,10 +13,12 @@ from conftest import grid_mesh
 
 from meshopt_toolkit.fem import elasticity
 from meshopt_toolkit.errors import InvalidMeshError, MeshoptError, NotAdmissibleError
+from meshopt_toolkit.motion.graph_metric import GraphMetric
 from meshopt_toolkit.riemannian.metrics import (
     CompleteMetric,
     ElasticityMetric,
     EuclideanMetric,
+    Metric,
     MetricNotImplementedError,
 )
 from meshopt_toolkit.penalties import HeightPenalty, QualityPenalty
@@ -69,13 +71,23 @@ def _metrics(mesh):
         "elasticity-amg": ElasticityMetric(mesh, solver="amg"),  # imports pyamg on first solve
         "elasticity-custom": ElasticityMetric(mesh, E=3.0, nu=0.25, delta=0.7, solver="direct"),
         "complete": CompleteMetric(InverseAreaPenalty(mesh)),
+        "distortion": _distortion_metric(mesh),
     }
+
+
+def _distortion_metric(mesh):
+    """The per-triangle distortion metric with a sheared reference (so ``φ ≠ 0`` at the
+    mesh), a weight and triangle weights."""
+    shear = np.array([[1.0, 0.3], [0.0, 0.8]])
+    weights = 1.0 + np.linspace(0.0, 1.0, mesh.n_triangles)
+    return GraphMetric(mesh.points @ shear.T, mesh.triangles, 1.7, triangle_weights=weights)
 
 
 METRIC_NAMES = [
     pytest.param(name, marks=needs_pyamg) if "amg" in name else name
     for name in (
-        "euclidean", "elasticity-direct", "elasticity-amg", "elasticity-custom", "complete"
+        "euclidean", "elasticity-direct", "elasticity-amg", "elasticity-custom", "complete",
+        "distortion",
     )
 ]
 
@@ -130,12 +142,20 @@ def test_restricted_riesz_with_fixed_vertices(name, mesh, rng):
     np.testing.assert_allclose(metric.riesz(Q, P, free=np.ones(len(Q), bool)), metric.riesz(Q, P))
 
 
+@pytest.mark.parametrize("name", METRIC_NAMES)
+def test_every_metric_implements_the_protocol(name, mesh):
+    metric = _metrics(mesh)[name]
+    assert isinstance(metric, Metric)
+    assert metric.is_flat == (name == "euclidean")
+
+
 def test_metrics_exported_from_package():
     import meshopt_toolkit as mt
 
     assert mt.EuclideanMetric is EuclideanMetric
     assert mt.ElasticityMetric is ElasticityMetric
     assert mt.CompleteMetric is CompleteMetric
+    assert mt.GraphMetric is GraphMetric
 
 
 # -- Euclidean ------------------------------------------------------------------------------
@@ -512,3 +532,46 @@ def test_block_pattern_assembly_equals_coo_sum(rng):
     ref = sp.coo_matrix((blocks.ravel(), (rows, cols)), shape=(2 * N, 2 * N)).toarray()
     np.testing.assert_allclose(A.toarray(), ref, atol=1e-13)
     assert pattern.n_blocks == N + 2 * len(mesh.edges)  # diagonal + both directions of edges
+
+
+# -- the per-triangle distortion metric ----------------------------------------------------
+
+
+def test_distortion_metric_is_the_pullback_of_its_embedding(mesh, rng):
+    """``g_Q(V, V) = |dX(Q)V|²`` for the embedding ``X(Q) = (m^½ ⊙ Q, w c φ(Q))``: central
+    differences of ``X`` (values only, no Jacobian) agree to O(h²)."""
+    metric = _distortion_metric(mesh)
+    Q = mesh.points
+    for _ in range(3):
+        V = rng.standard_normal(Q.shape)
+        errors = []
+        for h in (1e-3, 5e-4):
+            plus, minus = (np.concatenate(metric.embed(Q + s * h * V)) for s in (1, -1))
+            fd = float(np.sum(((plus - minus) / (2 * h)) ** 2))
+            errors.append(abs(fd - metric.inner(Q, V, V)) / metric.inner(Q, V, V))
+        assert errors[0] < 1e-3 and 3.5 < errors[0] / errors[1] < 4.5, errors  # O(h²)
+
+
+def test_distortion_metric_matrix_is_spd_and_its_inner_product(mesh, rng):
+    metric = _distortion_metric(mesh)
+    Q = mesh.points
+    A = metric.matrix(Q).toarray()
+    assert A.shape == (2 * mesh.n_vertices,) * 2
+    np.testing.assert_allclose(A, A.T, rtol=0, atol=1e-12 * np.abs(A).max())
+    assert np.linalg.eigvalsh(A).min() > 0
+    U, V = rng.standard_normal((2,) + Q.shape)
+    assert metric.inner(Q, U, V) == pytest.approx(U.ravel() @ A @ V.ravel(), rel=1e-12)
+    P = rng.standard_normal(Q.shape)
+    np.testing.assert_allclose(metric.riesz(Q, P).ravel(), np.linalg.solve(A, P.ravel()),
+                               rtol=1e-9, atol=1e-12 * np.abs(np.linalg.solve(A, P.ravel())).max())
+
+
+def test_distortion_metric_exp_and_inverted_meshes(mesh):
+    metric = _distortion_metric(mesh)
+    Q = mesh.points
+    with pytest.raises(MetricNotImplementedError, match="GraphMetric.exp"):
+        metric.exp(Q, Q)
+    flipped = Q.copy()
+    flipped[:, 0] *= -1.0  # every triangle inverted
+    with pytest.raises(NotAdmissibleError, match="inverted"):
+        metric.riesz(flipped, Q)

@@ -26,7 +26,7 @@ from meshopt_toolkit.morph import (
     twisted,
 )
 from meshopt_toolkit.riemannian._boundary_value import _Counter
-from meshopt_toolkit.riemannian.discrete_geodesic import _PathEnergy
+from meshopt_toolkit.riemannian.newton_cg import _PathEnergy
 from meshopt_toolkit.penalties import HeightPenalty, QualityPenalty
 from meshopt_toolkit.diagnostics import check_gradient, check_hvp
 
@@ -201,7 +201,8 @@ def test_stationary_stop_is_close_to_the_minimum(disc):
     metric = CompleteMetric(QualityPenalty(disc, beta=DEFAULT_BETA, reference=disc))
     Q1 = twisted(disc).points
     stopped = discrete_geodesic(metric, disc.points, Q1, 8)
-    tight = discrete_geodesic(metric, disc.points, Q1, 8, energy_rtol=0, tol=1e-7)
+    tight = discrete_geodesic(metric, disc.points, Q1, 8,
+                               options=dict(energy_rtol=0, tol=1e-7))
     assert stopped.status in ("converged", "stationary")
     assert tight.converged and tight.status == "converged"
     assert tight.energy <= stopped.energy * (1 + 1e-12)

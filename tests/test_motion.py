@@ -20,7 +20,7 @@ from meshopt_toolkit.motion.assembly import upper_to_blocks
 from meshopt_toolkit.motion.move import move
 from meshopt_toolkit.motion.morph import distortion_morph
 from meshopt_toolkit.motion.graph_metric import GraphMetric
-from meshopt_toolkit.motion.path import _Path, discrete_geodesic
+from meshopt_toolkit.motion.path import GraphPath
 from meshopt_toolkit.motion.similarity import fit_similarity
 from meshopt_toolkit.motion.strain import (
     TriangleDistortion,
@@ -28,6 +28,7 @@ from meshopt_toolkit.motion.strain import (
     stretch_ratios,
 )
 from meshopt_toolkit.diagnostics import check_gradient, check_hvp
+from meshopt_toolkit.riemannian.discrete_geodesic import discrete_geodesic
 
 FAST = settings(max_examples=15, deadline=None)
 
@@ -48,6 +49,13 @@ def _random_admissible(mesh, rng, amplitude):
     while not (mesh.with_points(Q + noise).signed_areas() > 0).all():
         noise /= 2
     return Q + noise
+
+
+def _geodesic(metric, frames, free, boundary_edges=None, anchor=None, **settings):
+    """The Levenberg–Marquardt discrete geodesic from the initial path ``frames``."""
+    return discrete_geodesic(metric, frames[0], frames[-1], len(frames) - 1, path=frames,
+                             free=free, boundary_edges=boundary_edges, anchor=anchor,
+                             options=settings)
 
 
 @pytest.fixture(scope="module")
@@ -212,7 +220,7 @@ def test_path_energy_gradient_taylor(disc, rng):
     free[0] = False
     free[3, :3] = False
     metric = GraphMetric(P, T, 1.7, triangle_weights=1 + rng.uniform(0, 1, len(T)))
-    path = _Path(metric, frames, free, None, anchor_strain=None)
+    path = GraphPath(metric, frames, free, None, anchor_strain=None)
     x0 = path.unknowns(frames)
 
     def E(x):
@@ -250,7 +258,7 @@ def test_normal_equations_match_the_sparse_jacobian(disc, rng, K, anchored, unev
     metric = GraphMetric(P, disc.triangles, 1.3,
                          triangle_weights=1 + rng.random(disc.n_triangles))
     anchor = metric.strain.values(P) + 0.1 if anchored else None
-    path = _Path(metric, frames, free, None, anchor_strain=anchor)
+    path = GraphPath(metric, frames, free, None, anchor_strain=anchor)
     r, J = path.evaluate(frames, jacobian=True)
     r2, g, H, scaling = path.normal_equations(frames)
     assert np.array_equal(r, r2)
@@ -275,7 +283,7 @@ def test_block_tridiagonal_products_match_the_assembled_matrix(disc, rng):
     free[0] = False
     free[3] = False  # no unknowns: frames 1–2 and 4–5 are two separate chains
     free[2, rng.choice(disc.n_vertices, 9, replace=False)] = False
-    path = _Path(GraphMetric(P, disc.triangles), frames, free, None)
+    path = GraphPath(GraphMetric(P, disc.triangles), frames, free, None)
     _, _, H, _ = path.normal_equations(frames)
     dense = H.tocsr().toarray()
     assert len(H.blocks) == 4 and sorted(H.upper) == [0, 2]
@@ -311,7 +319,7 @@ def test_time_coupled_preconditioner_is_exact_for_equal_frames(disc, rng):
     frames = np.array([P, *([Q] * K)])
     free = np.ones((K + 1, disc.n_vertices), bool)
     free[0] = False
-    path = _Path(GraphMetric(P, disc.triangles, 1.3), frames, free, None)
+    path = GraphPath(GraphMetric(P, disc.triangles, 1.3), frames, free, None)
     _, _, H, _ = path.normal_equations(frames)
     assert H.embedding.coupled and H.embedding.segments == [2, 2, 2, 1]
     blocks = FrameBlocks(path.frame_indices())
@@ -336,7 +344,7 @@ def test_time_coupled_preconditioner_is_symmetric_positive_definite(disc, rng):
     free[0] = free[3] = False
     free[:, np.unique(disc.boundary_edges)[:6]] = False
     free[2, rng.choice(disc.n_vertices, 9, replace=False)] = False
-    path = _Path(GraphMetric(P, disc.triangles), frames, free, None)
+    path = GraphPath(GraphMetric(P, disc.triangles), frames, free, None)
     _, g, H, d = path.normal_equations(frames)
     A = H.damped(1e-3 * d)
     assert A.embedding.neighbours == [0, 2, 3]  # frames (1, 2), (4, 5), (5, 6)
@@ -360,7 +368,7 @@ def test_time_coupled_solve_on_stale_factors_goes_on_with_fresh_ones(disc, rng, 
     import meshopt_toolkit.motion.frame_blocks as frame_blocks
 
     frames, free, metric = _straight_path(disc, rng, K=6)
-    path = _Path(metric, frames, free, None)
+    path = GraphPath(metric, frames, free, None)
     _, g, H, d = path.normal_equations(frames)
     blocks = frame_blocks.FrameBlocks(path.frame_indices())
     blocks.factorize(H.damped(10.0 * d))  # kept factors of another matrix
@@ -392,7 +400,7 @@ def test_newton_matrix_is_the_hessian_of_the_path_energy(disc, rng, K, anchored)
     metric = GraphMetric(P, disc.triangles, 1.3,
                          triangle_weights=1 + rng.random(disc.n_triangles))
     anchor = metric.strain.values(P) + 0.1 if anchored else None
-    path = _Path(metric, frames, free, None, anchor_strain=anchor)
+    path = GraphPath(metric, frames, free, None, anchor_strain=anchor)
 
     def E(x):
         r, _ = path.evaluate(path.with_unknowns(x), jacobian=False)
@@ -416,7 +424,7 @@ def test_frame_blocks_in_nested_dissection_order_solve_the_path_system(disc, rng
     same preconditioner as in minimum-degree order: PCG reaches the direct solution."""
     from scipy.sparse.linalg import spsolve
 
-    from meshopt_toolkit.motion.path import FrameBlocks
+    from meshopt_toolkit.motion.frame_blocks import FrameBlocks
 
     P, K = disc.points, 3
     target = _random_admissible(disc, rng, 0.3)
@@ -425,7 +433,7 @@ def test_frame_blocks_in_nested_dissection_order_solve_the_path_system(disc, rng
     free[0] = False
     free[:, np.unique(disc.boundary_edges)] = False
     free[2, :4] = False  # frames of different sizes
-    path = _Path(GraphMetric(P, disc.triangles), frames, free, None)
+    path = GraphPath(GraphMetric(P, disc.triangles), frames, free, None)
     _, g, H, _ = path.normal_equations(frames)
     exact = spsolve(H.tocsr().tocsc(), g)
     for points in (None, path.frame_points()):
@@ -468,7 +476,7 @@ def test_discrete_geodesic_damps_more_where_the_newton_matrix_is_indefinite(
     metric = GraphMetric(P, disc.triangles)
     frames = np.stack([P, P])
     anchor = metric.strain.values(target)
-    reference = discrete_geodesic(metric, frames, free, anchor_strain=anchor, newton=True)
+    reference = _geodesic(metric, frames, free, anchor=anchor, newton=True)
     calls = []
     solve = FrameBlocks.solve
 
@@ -480,9 +488,9 @@ def test_discrete_geodesic_damps_more_where_the_newton_matrix_is_indefinite(
         return solve(self, A, b, rtol)
 
     monkeypatch.setattr(FrameBlocks, "solve", fail_once)
-    result = discrete_geodesic(metric, frames, free, anchor_strain=anchor, newton=True)
+    result = _geodesic(metric, frames, free, anchor=anchor, newton=True)
     assert len(calls) > 1 and result.converged and reference.converged
-    assert np.abs(result.frames - reference.frames).max() <= 1e-5 * np.abs(P).max()
+    assert np.abs(result.points - reference.points).max() <= 1e-5 * np.abs(P).max()
 
 
 def test_frame_blocks_redo_a_failed_single_precision_solve_in_double(monkeypatch):
@@ -569,11 +577,11 @@ def test_metric_applied_triangle_by_triangle_is_the_matrix(disc, rng):
 def test_discrete_geodesic_converges_and_lowers_energy(disc, rng):
     frames, free, metric = _straight_path(disc, rng)
     P, target = frames[0], frames[-1]
-    r0, _ = _Path(metric, frames, free, None).evaluate(frames, jacobian=False)
-    res = discrete_geodesic(metric, frames, free, boundary_edges=disc.boundary_edges)
+    r0, _ = GraphPath(metric, frames, free, None).evaluate(frames, jacobian=False)
+    res = _geodesic(metric, frames, free, boundary_edges=disc.boundary_edges)
     assert res.converged and res.energy <= float(r0 @ r0)
     assert res.gradient_norm <= 1e-7 * max(1, np.sqrt(res.energy))
-    assert np.array_equal(res.frames[0], P) and np.array_equal(res.frames[-1], target)
+    assert np.array_equal(res.points[0], P) and np.array_equal(res.points[-1], target)
 
 
 def test_discrete_geodesic_at_machine_precision_is_converged(disc):
@@ -587,7 +595,7 @@ def test_discrete_geodesic_at_machine_precision_is_converged(disc):
     frames = np.array([(1 - s) * P + s * target for s in np.linspace(0, 1, 4)])
     free = np.ones((4, disc.n_vertices), bool)
     free[[0, -1]] = False
-    res = discrete_geodesic(GraphMetric(P, disc.triangles), frames, free, gtol=0.0,
+    res = _geodesic(GraphMetric(P, disc.triangles), frames, free, gtol=0.0,
                             max_iter=200)
     assert res.status == "converged" and res.nit < 200
     assert res.gradient_norm <= 1e-10 * max(1.0, np.sqrt(res.energy))
@@ -607,8 +615,8 @@ def test_discrete_geodesic_without_an_admissible_trial_is_stalled(disc, rng, mon
         checks.append(1)
         return len(checks) == 1
 
-    monkeypatch.setattr(_Path, "admissible", only_the_start)
-    res = discrete_geodesic(GraphMetric(P, disc.triangles), frames, free)
+    monkeypatch.setattr(GraphPath, "admissible", only_the_start)
+    res = _geodesic(GraphMetric(P, disc.triangles), frames, free)
     assert res.status == "stalled" and len(checks) == 31
 
 
@@ -616,8 +624,8 @@ def test_discrete_geodesic_relative_stop(disc, rng):
     """``rtol`` stops a relaxation once the gradient fell by that factor: converged, the
     gradient at most ``rtol`` times the first one, in fewer iterations than the full solve."""
     frames, free, metric = _straight_path(disc, rng)
-    full = discrete_geodesic(metric, frames, free)
-    quick = discrete_geodesic(metric, frames, free, rtol=1e-3)
+    full = _geodesic(metric, frames, free)
+    quick = _geodesic(metric, frames, free, rtol=1e-3)
     assert quick.converged and quick.nit < full.nit
     assert quick.gradient_norm <= 1e-3 * full.history[0][1]
 
@@ -626,7 +634,7 @@ def test_extension_through_kept_factors_matches_a_fresh_factorization(disc, rng)
     """A continuation reuses one factorization across its steps: the extension solved by
     PCG on a factorization made at another mesh is the one of a fresh factorization."""
     from meshopt_toolkit.motion.continuation import extend
-    from meshopt_toolkit.motion.path import FrameBlocks
+    from meshopt_toolkit.motion.frame_blocks import FrameBlocks
 
     P = disc.points
     metric = GraphMetric(P, disc.triangles)

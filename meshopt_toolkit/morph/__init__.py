@@ -91,6 +91,7 @@ from ..riemannian.geodesic_result import DiscreteGeodesic, LogMapResult
 from ..riemannian.geodesics import penalty_of
 from ..riemannian.initial_path import initial_path, linear_morph
 from ..riemannian.log_map import DEFAULT_TOL, SHOOTING_RTOL, log_map
+from ..riemannian.path_options import NewtonCGOptions
 from .results import MorphResult
 
 logger = logging.getLogger(__name__)
@@ -243,7 +244,8 @@ def geodesic_morph(
     if segments and int(segments) % (frames - 1):
         raise ValueError(f"segments ({segments}) must be a multiple of frames − 1 ({frames - 1})")
     K = m * (frames - 1)
-    dg = discrete_geodesic(metric, Q0, Q1, K, tol=discrete_tol, max_iter=max_iter,
+    dg = discrete_geodesic(metric, Q0, Q1, K, method="newton-cg",
+                           options=NewtonCGOptions(tol=discrete_tol, max_iter=max_iter),
                            callback=callback)
     if dg.status not in ("converged", "stationary"):
         logger.warning("geodesic_morph: the discrete geodesic did not converge in %d Newton "

@@ -7,8 +7,11 @@ Along any path, ``|φ_t(γ(s)) − φ_t(γ(0))| ≤ ℓ(s)/w`` for EVERY triangl
 the path so far), whatever the number of triangles; with ``φ_t`` → ∞ at every degenerate
 triangle the metric is complete. See :mod:`.strain` for the bound on the shape quality.
 
-Modules: :mod:`.strain` (φ and its Jacobian), :mod:`.similarity` (the global similarity
-factored out of every motion), :mod:`.path` (discrete geodesics: a sparse nonlinear least-
-squares problem), :mod:`.move` (prescribed motion of handle vertices), :mod:`.morph`
+Modules: :mod:`.strain` (φ and its Jacobian), :mod:`.graph_metric` (the metric, a
+:class:`~meshopt_toolkit.riemannian.metrics.Metric`), :mod:`.similarity` (the global
+similarity factored out of every motion), :mod:`.path` (the path energy as a sparse
+nonlinear least-squares problem, whose discrete geodesics
+:func:`~meshopt_toolkit.riemannian.discrete_geodesic.discrete_geodesic` computes by
+Levenberg–Marquardt), :mod:`.move` (prescribed motion of handle vertices), :mod:`.morph`
 (morphing between two meshes).
 """

@@ -14,9 +14,11 @@ import numpy as np
 
 from .._typing import FloatArray, IntArray
 from ..errors import MeshoptError
+from ..riemannian.discrete_geodesic import discrete_geodesic
+from ..riemannian.path_options import LevenbergMarquardtOptions
 from ..solvers import factorize_spd
+from .frame_blocks import FrameBlocks
 from .graph_metric import GraphMetric
-from .path import FrameBlocks, _Path, discrete_geodesic
 
 logger = logging.getLogger(__name__)
 
@@ -55,7 +57,7 @@ def extend(metric: GraphMetric, Q: FloatArray, handles: IntArray,
     out[handles] = new_positions
     if free[1].any():
         pair = np.stack([Q, Q])
-        _, _, Hff, _ = _Path(metric, pair, free, None).normal_equations(pair)
+        _, _, Hff, _ = metric.path_model(pair, free).normal_equations(pair)
         rhs = -metric.apply(Q, delta)[free[1]].ravel()
         step = factorize_spd(Hff.tocsr())(rhs) if factors is None else factors.solve(Hff, rhs, 1e-8)
         out[free[1]] += step.reshape(-1, 2)
@@ -132,12 +134,13 @@ def continuation_path(
                     f"(the step was halved {max_splits} times)")
             anchor = (metric.strain.values(Q) if strain_target is None
                       else strain_target(s_try))
-            res = discrete_geodesic(metric, np.stack([Q, trial]), free,
-                                    boundary_edges=boundary_edges, anchor_strain=anchor,
-                                    max_iter=relax_iter, gtol=1e-6, rtol=RELAX_RTOL,
-                                    factors=factors, cg_rtol=RELAX_CG_RTOL, newton=True)
+            res = discrete_geodesic(metric, Q, trial, 1, free=free,
+                                    boundary_edges=boundary_edges, anchor=anchor,
+                                    options=LevenbergMarquardtOptions(
+                                        gtol=1e-6, rtol=RELAX_RTOL, max_iter=relax_iter,
+                                        cg_rtol=RELAX_CG_RTOL, newton=True, factors=factors))
             nit += res.nit
-            Q = res.frames[1]
+            Q = res.points[1]
             s_now = s_try
             if progress is not None:
                 progress(s_now)

@@ -1,15 +1,24 @@
 """The per-triangle graph metric ``g = M + w² JᵀJ`` of the triangle distortion ``φ``
-(:mod:`.strain`) and the lumped vertex weights of ``M``: the metric whose discrete
-geodesics :mod:`.path` computes, and whose length bounds every triangle's change of
-distortion (``|Δφ_t| ≤ ℓ/w``)."""
+(:mod:`.strain`) and the lumped vertex weights of ``M``: the metric whose length bounds
+every triangle's change of distortion (``|Δφ_t| ≤ ℓ/w``). It implements the layer's
+:class:`~meshopt_toolkit.riemannian.metrics.Metric` protocol and provides its discrete path
+energy (:mod:`.path`) to :func:`~meshopt_toolkit.riemannian.discrete_geodesic.discrete_geodesic`
+(Levenberg–Marquardt)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import numpy as np
+import scipy.sparse as sp
 
+from .._linalg import dot
 from .._typing import FloatArray, IntArray
+from ..errors import NotAdmissibleError
+from ..riemannian.metrics import MetricNotImplementedError
+from ..solvers import factorize_spd
+from .path import GraphPath
 from .strain import TriangleDistortion
 
 
@@ -43,6 +52,9 @@ class GraphMetric:
         Extra weights ``c_t ≥ 1`` of the triangles' rows (default 1): they only add to the
         metric, so every bound of the unweighted metric still holds.
     """
+
+    #: not the Euclidean metric (the Metric protocol's flag)
+    is_flat: ClassVar[bool] = False
 
     reference: FloatArray
     triangles: IntArray
@@ -87,3 +99,64 @@ class GraphMetric:
         """``|X(Q_{k+1}) − X(Q_k)|`` for consecutive frames (K+1, N, 2) → (K,)."""
         X = [np.concatenate(self.embed(Q)) for Q in frames]
         return np.array([np.linalg.norm(b - a) for a, b in zip(X[:-1], X[1:])])
+
+    # -- the Metric protocol (riemannian.metrics) -------------------------------------------
+
+    def matrix(self, Q: FloatArray) -> sp.csr_matrix:
+        """``M + w² JᵀJ`` at ``Q`` (N, 2) as a (2N, 2N) CSR matrix, dof ``2i + c`` the
+        component ``c`` of vertex ``i``.
+
+        Raises
+        ------
+        NotAdmissibleError
+            A triangle of ``Q`` is inverted or degenerate (``φ`` is not defined there).
+        """
+        Q = np.asarray(Q, dtype=float)
+        bad = int(np.sum(~(self.strain.determinants(Q) > 0)))
+        if bad:
+            raise NotAdmissibleError(f"the distortion metric is not defined at a mesh with "
+                                     f"{bad} inverted or degenerate triangle(s)")
+        _, jb = self.strain.values_and_jacobian(Q)
+        J = self.strain.jacobian_matrix(jb)
+        JW = sp.diags(self.row_weights) @ J
+        return (sp.diags(np.repeat(self.mass, 2)) + JW.T @ JW).tocsr()
+
+    def inner(self, Q: FloatArray, U: FloatArray, V: FloatArray) -> float:
+        """``vec U · (M + w² JᵀJ)(Q) vec V``. ``Q, U, V`` : (N, 2)."""
+        return dot(np.asarray(U, dtype=float), self.apply(Q, np.asarray(V, dtype=float)))
+
+    def norm(self, Q: FloatArray, V: FloatArray) -> float:
+        """``sqrt(inner(Q, V, V))``."""
+        return float(np.sqrt(max(self.inner(Q, V, V), 0.0)))
+
+    def riesz(self, Q: FloatArray, P: FloatArray, free: np.ndarray | None = None) -> FloatArray:
+        """Gradient ``(M + w² JᵀJ)⁻¹ vec P`` of a derivative ``P`` (N, 2); returns (N, 2).
+        With an (N,) bool mask ``free`` the system is restricted to the free vertices'
+        dofs and the fixed rows of the result are 0 (one sparse factorization per call)."""
+        P = np.asarray(P, dtype=float)
+        A = self.matrix(Q)
+        if P.shape != (A.shape[0] // 2, 2):
+            raise ValueError(f"derivative has shape {P.shape}, expected {(A.shape[0] // 2, 2)}")
+        keep = np.ones(P.shape[0], bool) if free is None else np.asarray(free, dtype=bool)
+        if keep.shape != (P.shape[0],):
+            raise ValueError(f"free mask has shape {keep.shape}, expected ({P.shape[0]},)")
+        dof = np.repeat(keep, 2)
+        out = np.zeros_like(P)
+        if dof.any():
+            out[keep] = factorize_spd(A[dof][:, dof].tocsc())(P[keep].ravel()).reshape(-1, 2)
+        return out
+
+    def exp(self, Q: FloatArray, V: FloatArray, t: float = 1.0) -> FloatArray:
+        """Not available: this metric's geodesics are boundary-value problems."""
+        raise MetricNotImplementedError(
+            "GraphMetric.exp is not implemented: the distortion metric's geodesics are "
+            "computed between two meshes, use riemannian.discrete_geodesic(metric, Q0, Q1, K)")
+
+    # -- the discrete path energy (riemannian.levenberg_marquardt.PathModelMetric) ----------
+
+    def path_model(self, frames: FloatArray, free: np.ndarray,
+                   boundary_edges: IntArray | None = None,
+                   anchor: FloatArray | None = None) -> GraphPath:
+        """The path energy of ``frames`` (K+1, N, 2) in the coordinates ``free`` (K+1, N)
+        marks (:class:`.GraphPath`); ``anchor`` (T, 3) replaces ``φ(Q_0)``."""
+        return GraphPath(self, frames, free, boundary_edges, anchor)

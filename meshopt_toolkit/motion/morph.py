@@ -21,9 +21,11 @@ from .._typing import FloatArray, IntArray
 from ..errors import InvalidMeshError
 from ..kernels.triangles import aspect_ratios, inverse_shape_quality, signed_areas
 from ..mesh import PlanarMesh, boundary_self_intersections, require_admissible
+from ..riemannian.discrete_geodesic import discrete_geodesic
+from ..riemannian.geodesic_result import DiscreteGeodesic
+from ..riemannian.path_options import LevenbergMarquardtOptions
 from .continuation import continuation_path
 from .graph_metric import GraphMetric
-from .path import PathResult, discrete_geodesic
 from .refinement import refine_frames, unrefined
 from .similarity import HandlePath, Similarity, fit_similarity, handle_groups
 
@@ -246,9 +248,9 @@ def distortion_morph(
     metric = GraphMetric(P0, tri, weight)
     res, kind, levels = _residual_morph(metric, R1, be, times, max_iter, callback,
                                         coarse_min_triangles, gtol)
-    out = np.array([S.at(float(s))(R) for s, R in zip(times, res.frames)])
+    out = np.array([S.at(float(s))(R) for s, R in zip(times, res.points)])
     out[0], out[-1] = P0, P1
-    lengths = metric.segment_lengths(res.frames)
+    lengths = metric.segment_lengths(res.points)
     return DistortionMorph(
         points=out, times=times, stats=FrameStats.of(out, tri),
         linear=FrameStats.of(linear_frames, tri), rigid=FrameStats.of(rigid_frames, tri),
@@ -260,7 +262,7 @@ def distortion_morph(
 
 def _residual_morph(metric: GraphMetric, R1: FloatArray, be: IntArray, times: FloatArray,
                     max_iter: int, callback, coarse_min_triangles: int, gtol: float
-                    ) -> tuple[PathResult, str, list[dict]]:
+                    ) -> tuple[DiscreteGeodesic, str, list[dict]]:
     """The discrete geodesic of ``metric`` from its reference ``P0`` to the residual target
     ``R1``, its initial path's kind and, per level (coarsest first), triangles, iterations,
     status and seconds.
@@ -279,7 +281,7 @@ def _residual_morph(metric: GraphMetric, R1: FloatArray, be: IntArray, times: Fl
             coarse_res, coarse_kind, levels = _residual_morph(
                 GraphMetric(coarse.points, coarse.triangles, metric.weight), R1[:n],
                 coarse.boundary_edges, times, max_iter, None, coarse_min_triangles, gtol)
-            init = refine_frames(coarse_res.frames, coarse)
+            init = refine_frames(coarse_res.points, coarse)
             init[0], init[-1] = P0, R1
             kind = f"coarse-to-fine ({coarse_kind})"
     refined = init is not None  # from the coarser level's frames
@@ -302,8 +304,10 @@ def _residual_morph(metric: GraphMetric, R1: FloatArray, be: IntArray, times: Fl
     t0 = time.perf_counter()
     steps = (dict(newton=True, cg_rtol=REFINED_CG_RTOL, lambda_decrease=REFINED_LAMBDA_DECREASE)
              if refined else dict(cg_rtol=PATH_CG_RTOL))
-    res = discrete_geodesic(metric, init, free, boundary_edges=be, max_iter=max_iter,
-                            gtol=gtol, callback=callback, **steps)
+    res = discrete_geodesic(metric, init[0], init[-1], len(times) - 1, path=init, free=free,
+                            boundary_edges=be, callback=callback,
+                            options=LevenbergMarquardtOptions(max_iter=max_iter, gtol=gtol,
+                                                              **steps))
     levels.append({"triangles": int(len(tri)), "iterations": int(res.nit),
                    "status": res.status, "seconds": float(time.perf_counter() - t0)})
     return res, kind, levels

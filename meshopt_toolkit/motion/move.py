@@ -23,10 +23,11 @@ from ..cores import thread_budget
 from ..errors import InvalidMeshError
 from ..kernels.triangles import aspect_ratios, inverse_shape_quality
 from ..mesh import PlanarMesh, boundary_self_intersections, require_admissible
+from ..riemannian.discrete_geodesic import discrete_geodesic
+from ..riemannian.path_options import LevenbergMarquardtOptions
 from .continuation import RELAX_CG_RTOL, NoAdmissiblePathError, continuation_path
 from .frame_blocks import FrameBlocks
 from .graph_metric import GraphMetric
-from .path import discrete_geodesic
 from .similarity import HandlePath, Similarity, fit_similarity, handle_groups
 from .strain import TriangleDistortion
 
@@ -147,12 +148,13 @@ def _finish(metric: GraphMetric, Q: FloatArray, handles: IntArray, boundary_edge
     for k in range(1, rounds + 1):
         m = GraphMetric(metric.reference, tri, metric.weight, triangle_weights=weights)
         m.strain = absolute
-        res = discrete_geodesic(m, np.stack([Q, Q]), free, boundary_edges=boundary_edges,
-                                anchor_strain=np.zeros((len(tri), 3)), max_iter=relax_iter,
-                                gtol=1e-6, rtol=QUALITY_RTOL, factors=factors,
-                                cg_rtol=RELAX_CG_RTOL, newton=True)
+        res = discrete_geodesic(m, Q, Q, 1, free=free, boundary_edges=boundary_edges,
+                                anchor=np.zeros((len(tri), 3)),
+                                options=LevenbergMarquardtOptions(
+                                    gtol=1e-6, rtol=QUALITY_RTOL, max_iter=relax_iter,
+                                    cg_rtol=RELAX_CG_RTOL, newton=True, factors=factors))
         nit += res.nit
-        Q = res.frames[1]
+        Q = res.points[1]
         ar = aspect_ratios(Q, tri).min()
         if ar > best_ar:
             best, best_ar, kept = Q, ar, k

@@ -1,26 +1,25 @@
-"""Discrete geodesics of the per-triangle graph metric ``g = M + w² JᵀJ``.
+"""The discrete path energy of the per-triangle graph metric ``g = M + w² JᵀJ`` as a
+least-squares problem (:class:`GraphPath`, the metric's ``path_model``; minimized by
+:mod:`meshopt_toolkit.riemannian.levenberg_marquardt`).
 
 A path of ``K`` segments, frames ``Q_0 … Q_K``, has the discrete energy
 
     E = K · Σ_k ( |Q_{k+1} − Q_k|²_M + w² |φ(Q_{k+1}) − φ(Q_k)|² ),
 
 the energy of the polygon through the embedded points ``X(Q) = (m^½ ⊙ Q, w φ(Q))``: a sparse
-nonlinear least-squares problem in the free coordinates, solved by Levenberg–Marquardt
-(the Gauss–Newton normal matrix is block tridiagonal over frames, each block a sparse
-mesh-shaped matrix) with a feasibility test: a trial with an inverted triangle (``φ = ∞``)
-or a self-intersecting boundary is rejected like a trial that raises the energy.
+nonlinear least-squares problem in the free coordinates (the Gauss–Newton normal matrix is
+block tridiagonal over frames, each block a sparse mesh-shaped matrix, solved by CG
+preconditioned with :class:`.FrameBlocks`) with a feasibility test: a frame with an
+inverted triangle (``φ = ∞``) or a self-intersecting boundary is not admissible.
 
 The per-triangle bound holds for every discrete path, exactly (triangle inequality):
 ``|φ_t(Q_k) − φ_t(Q_0)| ≤ ℓ_k / w`` with ``ℓ_k = Σ_{j<k} |X(Q_{j+1}) − X(Q_j)|``.
 """
-
 from __future__ import annotations
 
 import hashlib
 import logging
 import threading
-from collections.abc import Callable
-from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
@@ -30,37 +29,19 @@ from .assembly import (UPPER_DIAGONAL, BlockTridiagonal, MeshPattern, PathPatter
                        block_products, symmetric_products)
 from .frame_blocks import FrameBlocks
 from .frame_threads import frame_map
-from .graph_metric import GraphMetric
 from .time_coupling import FrameEmbedding
 
 logger = logging.getLogger(__name__)
-
-
-@dataclass
-class PathResult:
-    """A discrete geodesic: ``frames`` (K+1, N, 2), its ``energy``, gradient norm,
-    iterations and ``status`` in {"converged", "stalled", "max_iter"}."""
-
-    frames: FloatArray
-    energy: float
-    gradient_norm: float
-    nit: int
-    status: str
-    history: list = field(default_factory=list)
-
-    @property
-    def converged(self) -> bool:
-        return self.status == "converged"
 
 
 _PATTERNS: dict = {}  # the last few assembly patterns, by structure
 _LOCK = threading.Lock()  # guards _PATTERNS
 
 
-class _Path:
+class GraphPath:
     """Residuals and Jacobian of the discrete path energy in the free coordinates."""
 
-    def __init__(self, metric: GraphMetric, frames: FloatArray, free: np.ndarray,
+    def __init__(self, metric, frames: FloatArray, free: np.ndarray,
                  boundary_edges: IntArray | None, anchor_strain: FloatArray | None = None) -> None:
         self.metric = metric
         self.anchor_strain = None if anchor_strain is None else np.ravel(anchor_strain)
@@ -240,6 +221,16 @@ class _Path:
         """Reference positions of each frame's free vertices, as :meth:`frame_indices`."""
         return [self.metric.reference[f] for f in self.free[1:] if f.any()]
 
+    def step_solver(self, kept: FrameBlocks | None = None) -> FrameBlocks:
+        """The frames' factorizations that precondition the step systems: ``kept`` (made
+        for the same free coordinates: a continuation's steps, move's quality rounds) or
+        new ones."""
+        blocks = FrameBlocks(self.frame_indices(), self.frame_points()) if kept is None else kept
+        if len(blocks.indices) != len(self.frame_indices()) or any(
+                a.size != b.size for a, b in zip(blocks.indices, self.frame_indices())):
+            raise ValueError("factors were made for other free coordinates")
+        return blocks
+
     def admissible(self, frames: FloatArray) -> bool:
         """Every triangle of every frame positive, no boundary self-intersection."""
         from ..mesh import boundary_self_intersections
@@ -251,187 +242,3 @@ class _Path:
                 boundary_self_intersections(Q, self.boundary_edges))
 
         return all(frame_map(len(self.metric.triangles), self.K)(admissible_frame, frames[1:]))
-
-
-#: relative size below which a change of the energy is rounding (its evaluation sums
-#: thousands of rounded terms)
-ENERGY_RESOLUTION = 100 * np.finfo(float).eps
-#: the damping's factor after a step whose decrease the model predicted well (ρ > 0.75).
-#: The paths have soft directions (a frame sliding along itself) that a damped step
-#: barely moves along; with the usual 1/3 the morph spent its last iterations waiting
-#: for λ to fall (4.2k twist: 14 iterations, 6 of them at |∇E| ≈ 1e-3 with ρ ≈ 1);
-#: with 1/10, 10 iterations to the same min AR in every frame, and move's relaxations
-#: and quality rounds 10–15 % fewer.
-LAMBDA_DECREASE = 0.1
-#: damping below which a step is the model's own (Gauss–Newton or Newton) step. Such a
-#: step that promises less than ``ENERGY_RESOLUTION · E`` cannot be judged by E (its
-#: change is rounding, ~1e-16·E, either sign): it is taken if it lowers |∇E| (one
-#: assembly at the trial, reused as the next iteration's), and where it does not, the
-#: path is converged to machine precision. Measured on the 225° twist of the 27k disc
-#: (|∇E| ≈ 1e-4 there, gtol·√E = 2.2e-5): the ratio test rejected such steps on E's
-#: rounding and raised λ fourfold each time, 20 CG solves in one iteration; a target
-#: changed by 2e-16 so took 14 iterations (26 s) instead of 11 (13 s).
-UNDAMPED = 1e-6
-
-
-def discrete_geodesic(
-    metric: GraphMetric,
-    frames: FloatArray,
-    free: np.ndarray,
-    *,
-    boundary_edges: IntArray | None = None,
-    anchor_strain: FloatArray | None = None,
-    gtol: float = 1e-7,
-    rtol: float = 0.0,
-    max_iter: int = 200,
-    callback: Callable[[int, float, float], None] | None = None,
-    factors: FrameBlocks | None = None,
-    cg_rtol: float = 1e-2,
-    newton: bool = False,
-    lambda_decrease: float = LAMBDA_DECREASE,
-) -> PathResult:
-    """Minimize the discrete path energy over the free coordinates by Levenberg–Marquardt.
-
-    Parameters
-    ----------
-    metric : GraphMetric
-    frames : (K+1, N, 2) float array
-        An admissible initial path (every triangle positive, boundaries simple).
-    free : (K+1, N) bool array
-        Which vertices of which frame move (frame 0 never does).
-    boundary_edges : (E, 2) int array, optional
-        Checked for self-intersection in every accepted frame.
-    anchor_strain : (T, 3) float array, optional
-        Used instead of ``φ(Q_0)`` in the first segment: with one segment, the frame that
-        stays close to ``Q_0`` while its strain approaches ``anchor_strain``.
-    gtol : float
-        Stop when ``|∇E| ≤ gtol · max(1, √E)``; also reported "converged" when no step
-        can lower ``E`` by more than its floating-point resolution (``ENERGY_RESOLUTION``
-        relative): the minimum to machine precision, which a tight ``gtol`` on a large
-        energy may not reach (measured: a morph whose ``E ≈ 1e4`` stopped at
-        ``|∇E| = 6e-5`` with model decreases of 3e-12).
-    rtol : float
-        Or when ``|∇E| ≤ rtol · |∇E₀|`` (the first gradient): enough for a relaxation
-        whose start is already close (the Gauss–Newton steps then converge fast).
-    max_iter : int
-    callback : callable ``(iteration, E, |∇E|)``, optional
-    factors : FrameBlocks, optional
-        The preconditioner's frame factorizations, shared with the caller: a sequence of
-        close problems with the same free coordinates (the frames of a continuation)
-        factorizes only when conjugate gradients slow down, not once per problem.
-    cg_rtol : float
-        Relative residual of the conjugate-gradient solve of each step. An inexact step
-        is fine (the ratio test judges it): measured on the 225° twist of the 4.2k disc,
-        1e-6, 1e-3 and 1e-2 take the same 14 iterations to the same frames (1e-3: 13 %
-        less time than 1e-6; 1e-2: 1862 triangular solves instead of 2058); move's
-        relaxations and quality rounds and the morph use 0.1 (see where they say so).
-    newton : bool
-        Steps from the Hessian of the energy (True) or from its Gauss–Newton part ``JᵀJ``
-        (False). Where the residual is not small (a frame pulled towards strains it cannot
-        reach: move's relaxations and quality step), Gauss–Newton converges only linearly
-        (measured on the 90° annulus turn, 42.6k triangles: a relaxation took 5 iterations
-        to a 100× smaller gradient, Newton 3; a quality round's gradient fell 30× in 15
-        Gauss–Newton iterations, 1e5× in 7 Newton ones). On the morph's paths from a cold
-        start it saves none (225° twist, 4.2k / 27k triangles: 14 / 17 iterations either
-        way; 180° annulus pair 17 → 23); from the refined frames of a coarser level it
-        does (107k: 7 iterations instead of 11, :data:`.morph.REFINED_CG_RTOL`). The
-        Hessian may be indefinite: a step on which conjugate gradients meet non-positive
-        curvature is rejected like one that raises the energy (the damping
-        ``λ·diag(JᵀJ)`` grows until the matrix is positive definite).
-    lambda_decrease : float
-        The damping's factor after a step whose decrease the model predicted well
-        (``ρ > 0.75``; :data:`LAMBDA_DECREASE`). Newton steps from a start close to the
-        minimizer converge quadratically only once the damping is gone: there a
-        smaller factor gets there sooner (:data:`.morph.REFINED_LAMBDA_DECREASE`).
-
-    Returns
-    -------
-    PathResult
-    """
-    frames = np.array(frames, dtype=float)
-    free = np.array(free, dtype=bool)
-    free[0] = False
-    path = _Path(metric, frames, free, boundary_edges, anchor_strain)
-    if not path.admissible(frames):
-        raise ValueError("the initial path is not admissible")
-    if path.n_unknowns == 0:
-        r, _ = path.evaluate(frames, jacobian=False)
-        return PathResult(frames, float(r @ r), 0.0, 0, "converged")
-    r, g, H, d = path.normal_equations(frames, newton)
-    E = float(r @ r)
-    lam = 1e-3
-    blocks = (FrameBlocks(path.frame_indices(), path.frame_points()) if factors is None
-              else factors)
-    if len(blocks.indices) != len(path.frame_indices()) or any(
-            a.size != b.size for a, b in zip(blocks.indices, path.frame_indices())):
-        raise ValueError("factors were made for other free coordinates")
-    status = "max_iter"
-    history = []
-    it = 0
-    for it in range(1, max_iter + 1):
-        gnorm = 2.0 * float(np.linalg.norm(g))
-        history.append((E, gnorm))
-        if callback is not None:
-            callback(it - 1, E, gnorm)
-        if it == 1:
-            g0 = gnorm
-        if gnorm <= max(gtol * max(1.0, np.sqrt(E)), rtol * g0):
-            status = "converged"
-            it -= 1
-            break
-        x = path.unknowns(frames)
-        accepted = False
-        # whether an admissible trial's model decrease exceeded E's rounding (None: no
-        # admissible trial was evaluated)
-        resolvable: bool | None = None
-        at_floor = False
-        judged = None  # the normal equations at a step judged by its gradient
-        for _ in range(30):
-            A = H.damped(lam * (d + 1e-12 * d.max()))
-            try:
-                step = blocks.solve(A, -g, cg_rtol)
-            except FloatingPointError:  # A is not positive definite (Newton): damp more
-                lam *= 4.0
-                continue
-            trial = path.with_unknowns(x + step)
-            if path.admissible(trial):
-                r_t, _ = path.evaluate(trial, jacobian=False)
-                E_t = float(r_t @ r_t)
-                predicted = -(2 * g @ step + step @ (H @ step))  # the quadratic model's
-                resolvable = bool(resolvable or predicted > ENERGY_RESOLUTION * E)
-                if lam <= UNDAMPED and predicted <= ENERGY_RESOLUTION * E:
-                    # E cannot judge the model's own step (its change is rounding): the
-                    # gradient, computed to full precision, does
-                    judged = path.normal_equations(trial, newton)
-                    if 2.0 * float(np.linalg.norm(judged[1])) < gnorm:
-                        frames = trial
-                        accepted = True
-                    else:
-                        at_floor = True
-                    break
-                if np.isfinite(E_t) and E_t < E:
-                    rho = (E - E_t) / max(predicted, 1e-300)
-                    frames = trial
-                    lam = lam * (lambda_decrease if rho > 0.75 else 1.0 if rho > 0.25 else 2.0)
-                    lam = max(lam, 1e-12)
-                    accepted = True
-                    break
-            lam *= 4.0
-        if at_floor:
-            # neither E nor its gradient can be lowered: the minimum to machine precision
-            status = "converged"
-            it -= 1
-            break
-        if not accepted:
-            # no step lowers E, and the admissible ones promised no more than E's
-            # floating-point resolution: the minimum to machine precision (a tight gtol
-            # cannot be met there)
-            status = "converged" if resolvable is False else "stalled"
-            break
-        path.frames = frames
-        r, g, H, d = path.normal_equations(frames, newton) if judged is None else judged
-        E = float(r @ r)
-    gnorm = 2.0 * float(np.linalg.norm(g))
-    if status == "max_iter" and gnorm <= gtol * max(1.0, np.sqrt(E)):
-        status = "converged"
-    return PathResult(frames, E, gnorm, it, status, history)

@@ -1,2 +1,3 @@
-"""The Riemannian layer: metrics on the space of node positions, the exponential map
-(geodesics) and retractions."""
+"""The Riemannian layer: metrics on the space of node positions (one ``Metric`` protocol),
+the exponential and log maps, retractions and the discrete geodesic (one entry, two
+methods); ARCHITECTURE.md lists where each lives."""

@@ -1,127 +1,41 @@
-"""The discrete geodesic: the K-segment path minimizing the path energy, Newton–CG with
-the exact Hessian-vector product and a Woodbury-inverted Gauss–Newton preconditioner."""
+"""The discrete geodesic: the K-segment path minimizing the discrete path energy of a
+metric, one entry for every metric. Two methods:
+
+- ``"newton-cg"`` (:mod:`.newton_cg`): the complete metric ``I + ∇f∇fᵀ`` of a penalty
+  (and straight lines for the Euclidean metric); Newton–CG with the exact Hessian-vector
+  product and a Woodbury-inverted Gauss–Newton preconditioner;
+- ``"levenberg-marquardt"`` (:mod:`.levenberg_marquardt`): metrics whose path energy is a
+  sparse least-squares problem, which they provide through ``path_model``
+  (:class:`.levenberg_marquardt.PathModelMetric`; the per-triangle distortion metric
+  ``motion.graph_metric.GraphMetric``).
+"""
 
 from __future__ import annotations
 
-import logging
-
 import numpy as np
 
-from .._linalg import dot as _dot
 from .._typing import FloatArray
-from ..errors import InvalidMeshError, NotAdmissibleError
-from ._boundary_value import _Counter, _as_points, _require_finite
+from ..errors import InvalidMeshError
+from ._boundary_value import _as_points
 from .geodesic_result import DiscreteGeodesic
-from .geodesics import penalty_of
-from .initial_path import initial_path
-
-logger = logging.getLogger(__name__)
-
-
-class _PathEnergy:
-    """Path energy ``E`` of K segments with fixed ends, its gradient and Hessian products.
-
-    The interior frames ``X`` have shape (K−1, N, 2).
-    """
-
-    def __init__(self, pen: _Counter, Q0: FloatArray, Q1: FloatArray, K: int,
-                 f0: float, f1: float) -> None:
-        self.pen, self.Q0, self.Q1, self.K = pen, Q0, Q1, K
-        self.f0, self.f1 = f0, f1
-        n = K - 1
-        lap = 2.0 * np.eye(n) - np.eye(n, k=1) - np.eye(n, k=-1)
-        self.Linv = np.linalg.inv(2.0 * K * lap)  # inverse of the scalar part 2K·L
-        self.X = None
-
-    def _frames(self, X: FloatArray) -> FloatArray:
-        return np.concatenate([self.Q0[None], X, self.Q1[None]])
-
-    def value(self, X: FloatArray) -> float:
-        fs = np.empty(self.K + 1)
-        fs[0], fs[-1] = self.f0, self.f1
-        for k, q in enumerate(X, start=1):
-            fs[k] = self.pen.value(q)
-            if not np.isfinite(fs[k]):
-                return float("inf")
-        d = np.diff(self._frames(X), axis=0)
-        return float(self.K * (_dot(d, d) + _dot(np.diff(fs), np.diff(fs))))
-
-    def evaluate(self, X: FloatArray) -> tuple[float, FloatArray]:
-        """``(E, ∇E)`` at X, storing f_k, ∇f_k for the Hessian products."""
-        K = self.K
-        fs = np.empty(K + 1)
-        fs[0], fs[-1] = self.f0, self.f1
-        gs = np.empty_like(X)
-        for k, q in enumerate(X):
-            fs[k + 1], gs[k] = self.pen.value_and_gradient(q)
-        d = np.diff(self._frames(X), axis=0)
-        df = np.diff(fs)
-        E = float(K * (_dot(d, d) + _dot(df, df)))
-        lap_f = df[:-1] - df[1:]  # 2f_k − f_{k−1} − f_{k+1}
-        G = 2.0 * K * (d[:-1] - d[1:]) + (2.0 * K * lap_f)[:, None, None] * gs
-        self.X, self.fs, self.gs, self.lap_f = X, fs, gs, lap_f
-        self.gram = np.einsum("iab,jab->ij", gs, gs)
-        self.S = np.linalg.cholesky(self.Linv * (1.0 + self.gram))
-        return E, G
-
-    def hvp(self, U: FloatArray, shift: float = 0.0) -> FloatArray:
-        """``(∇²E + shift·H_GN) · U`` at the last evaluated X, U of shape (K−1, N, 2)."""
-        K = self.K
-        Ue = np.concatenate([np.zeros_like(U[:1]), U, np.zeros_like(U[:1])])
-        s = np.zeros(K + 1)
-        s[1:-1] = np.einsum("iab,iab->i", self.gs, U)
-        out = 2.0 * K * (2.0 * U - Ue[:-2] - Ue[2:])
-        out += (2.0 * K * (2.0 * s[1:-1] - s[:-2] - s[2:]))[:, None, None] * self.gs
-        if shift:
-            out *= 1.0 + shift
-        for k in range(K - 1):
-            c = 2.0 * K * self.lap_f[k]
-            if c != 0.0:
-                out[k] += c * self.pen.hvp(self.X[k], U[k])
-        return out
-
-    def precondition(self, G: FloatArray) -> FloatArray:
-        """Exact ``H_GN⁻¹ G``, ``H_GN = 2K(L ⊗ I) + 2K Fᵀ L F`` (Woodbury, O(K² N))."""
-        y = np.einsum("ij,jab->iab", self.Linv, G)
-        z = np.einsum("iab,iab->i", self.gs, y)
-        w = np.linalg.solve(self.S.T, np.linalg.solve(self.S, z))
-        return y - np.einsum("ij,jab->iab", self.Linv, w[:, None, None] * self.gs)
+from .levenberg_marquardt import levenberg_marquardt
+from .metrics import MetricNotImplementedError
+from .newton_cg import newton_cg
+from .path_options import METHODS, options_for
 
 
-def _newton_cg_direction(G, hvp, prec, eta: float, max_cg: int) -> tuple[FloatArray, int, bool]:
-    """Preconditioned truncated CG for ``H d = −G``; stops at negative curvature.
-
-    Returns ``(d, CG iterations, negative curvature met)``.
-    """
-    x = np.zeros_like(G)
-    r = -G
-    z = prec(r)
-    p = z.copy()
-    rz = float(_dot(r, z))
-    r0 = np.sqrt(max(rz, 0.0))
-    for i in range(max_cg):
-        Hp = hvp(p)
-        pHp = float(_dot(p, Hp))
-        if pHp <= 0.0:
-            if i == 0:
-                return z, 1, True
-            # add the direction of negative curvature, oriented downhill, scaled like x
-            # (the line search picks the length)
-            nx, npn = np.sqrt(_dot(x, x)), np.sqrt(_dot(p, p))
-            if npn > 0 and nx > 0:
-                d = p if float(_dot(G, p)) <= 0 else -p
-                return x + (nx / npn) * d, i + 1, True
-            return x, i + 1, True
-        a = rz / pHp
-        x += a * p
-        r -= a * Hp
-        z = prec(r)
-        rz_new = float(_dot(r, z))
-        if np.sqrt(max(rz_new, 0.0)) <= eta * r0:
-            return x, i + 1, False
-        p = z + (rz_new / rz) * p
-        rz = rz_new
-    return x, max_cg, False
+def _method_of(metric, method: str) -> str:
+    """``method`` checked, "auto" resolved by what the metric provides."""
+    if method not in METHODS:
+        raise ValueError(f"unknown discrete-geodesic method {method!r}; choose one of {METHODS}")
+    has_model = callable(getattr(metric, "path_model", None))
+    if method == "auto":
+        return "levenberg-marquardt" if has_model else "newton-cg"
+    if method == "levenberg-marquardt" and not has_model:
+        raise MetricNotImplementedError(
+            f"{type(metric).__name__}.path_model is not implemented: the Levenberg–Marquardt "
+            "method needs the metric's least-squares path model; use method='newton-cg'")
+    return method
 
 
 def discrete_geodesic(
@@ -130,45 +44,57 @@ def discrete_geodesic(
     Q1: FloatArray,
     segments: int = 16,
     *,
+    method: str = "auto",
     path: FloatArray | None = None,
-    tol: float = 1e-9,
-    energy_rtol: float = 1e-7,
-    window: int = 20,
-    max_iter: int = 500,
-    max_cg: int = 200,
+    free: np.ndarray | None = None,
+    boundary_edges: np.ndarray | None = None,
+    anchor: FloatArray | None = None,
+    options=None,
     callback=None,
 ) -> DiscreteGeodesic:
-    """The ``segments``-segment discrete geodesic from ``Q0`` to ``Q1`` (path energy).
+    """The ``segments``-segment discrete geodesic of ``metric`` from ``Q0`` to ``Q1``.
 
-    Minimizes ``E = K Σ_k |Q_{k+1} − Q_k|² + (f(Q_{k+1}) − f(Q_k))²`` over the interior
-    frames by Newton–CG (see the module docstring); every accepted iterate has all frames
+    Minimizes the path energy ``E = K Σ_k |X(Q_{k+1}) − X(Q_k)|²`` of the frames (``X`` the
+    metric's embedding: ``(Q, f(Q))`` for a complete metric, ``(m^½ ⊙ Q, w φ(Q))`` for the
+    distortion metric) over the free coordinates; every accepted iterate has all frames
     admissible.
 
     Parameters
     ----------
-    metric : CompleteMetric or penalty (EuclideanMetric/None give straight lines)
+    metric : a :class:`~.metrics.Metric`: a complete metric or a penalty (Newton–CG),
+        ``EuclideanMetric``/None (straight lines), or a metric with ``path_model``
+        (Levenberg–Marquardt)
     Q0, Q1 : (N, 2) admissible end frames
     segments : K ≥ 1
-    path : (K+1, N, 2) admissible initial path (default :func:`initial_path`)
-    tol : stop when ``√(∇E·H_GN⁻¹∇E) ≤ tol·√E`` (status "converged")
-    energy_rtol, window : also stop when ``E`` fell by less than ``energy_rtol·E`` per
-        iteration on average over the last ``window`` iterations (status "stationary").
-        Near the minimizer the frames hold nearly degenerate triangles whose barrier
-        makes the quadratic model valid only in a tiny region: Newton then creeps (on the
-        twisted 541-vertex disc ``E`` changes by 1e-5 relative over the last 380 of 500
-        iterations), so the stagnation test saves most of the work at no visible cost
-        (0 disables it)
-    max_iter, max_cg : Newton iterations and CG iterations per Newton step
-    callback : called as ``callback(nit, E, gradient_norm)`` after every Newton iteration
+    method : "auto" (Levenberg–Marquardt where the metric has ``path_model``, else
+        Newton–CG), "newton-cg" or "levenberg-marquardt"
+    path : (K+1, N, 2) admissible initial path; its ends are set to ``Q0`` and ``Q1``
+        (default: :func:`.initial_path` for Newton–CG, the straight line for
+        Levenberg–Marquardt)
+    free : (K+1, N) bool, Levenberg–Marquardt only: which vertices of which frame move
+        (frame 0 never does; default every vertex of the interior frames). A free vertex
+        of the last frame starts at ``Q1``.
+    boundary_edges : (E, 2) int, Levenberg–Marquardt only: boundaries kept simple in
+        every accepted frame
+    anchor : Levenberg–Marquardt only: replaces the metric-specific part of ``X(Q0)`` in
+        the first segment (for the distortion metric a (T, 3) strain: with one segment,
+        the frame that stays close to ``Q0`` while its strain approaches ``anchor``)
+    options : the method's settings: :class:`.NewtonCGOptions` or
+        :class:`.LevenbergMarquardtOptions`, a mapping of their fields, or None (defaults)
+    callback : ``callback(nit, E, gradient_norm)`` at every iteration
 
     Returns
     -------
     DiscreteGeodesic
+        ``status``: "converged", "max_iter", and "stationary" or "line_search"
+        (Newton–CG), "stalled" (Levenberg–Marquardt).
 
     Raises
     ------
     NotAdmissibleError
-        An end frame or a frame of ``path`` is not admissible, or no path was found.
+        An end frame or a frame of ``path`` is not admissible.
+    MetricNotImplementedError
+        ``method="levenberg-marquardt"`` for a metric without ``path_model``.
     """
     Q0 = _as_points(Q0, "Q0")
     Q1 = _as_points(Q1, "Q1")
@@ -177,84 +103,26 @@ def discrete_geodesic(
         raise ValueError(f"segments must be >= 1, got {segments}")
     if Q0.shape != Q1.shape:
         raise InvalidMeshError(f"Q0 and Q1 have shapes {Q0.shape} and {Q1.shape}")
-    raw = penalty_of(metric)
-    if raw is None:
-        t = np.linspace(0.0, 1.0, K + 1)[:, None, None]
-        pts = (1.0 - t) * Q0 + t * Q1
-        d = np.diff(pts, axis=0)
-        return DiscreteGeodesic(pts, np.full(K + 1, np.nan), float(K * _dot(d, d)),
-                                float(np.linalg.norm(Q1 - Q0)))
-    pen = _Counter(raw)
-    f0 = _require_finite(pen, Q0, "the source")
-    f1 = _require_finite(pen, Q1, "the target")
+    method = _method_of(metric, method)
+    settings = options_for(method, options)
+    if method == "newton-cg":
+        if free is not None or boundary_edges is not None or anchor is not None:
+            raise ValueError("free, boundary_edges and anchor are settings of the "
+                             "Levenberg–Marquardt method")
+        return newton_cg(metric, Q0, Q1, K, path, settings, callback)
     if path is None:
-        path = initial_path(raw, Q0, Q1, K)
-    path = np.array(path, dtype=np.float64)
-    if path.shape != (K + 1,) + Q0.shape:
-        raise InvalidMeshError(f"path must have shape {(K + 1,) + Q0.shape}, got {path.shape}")
-    path[0], path[-1] = Q0, Q1
-    if K == 1:
-        fs = np.array([f0, f1])
-        return DiscreteGeodesic(path, fs, float(_dot(Q1 - Q0, Q1 - Q0) + (f1 - f0) ** 2),
-                                float(np.sqrt(_dot(Q1 - Q0, Q1 - Q0) + (f1 - f0) ** 2)),
-                                n_evaluations=pen.n)
-    pe = _PathEnergy(pen, Q0, Q1, K, f0, f1)
-    X = path[1:-1].copy()
-    if not np.isfinite(pe.value(X)):
-        raise NotAdmissibleError("the initial path has an inadmissible frame")
-    E, G = pe.evaluate(X)
-    gnorm = float(np.sqrt(max(_dot(G, pe.precondition(G)), 0.0)))
-    nit = 0
-    n_cg = 0
-    negative = False
-    converged = gnorm <= tol * np.sqrt(E)
-    status = "converged" if converged else "max_iter"
-    energies = [E]
-    while not converged and nit < max_iter:
-        nit += 1
-        eta = min(0.5, np.sqrt(gnorm / max(np.sqrt(E), 1e-300)))
-        D, n_cg, negative = _newton_cg_direction(G, pe.hvp, pe.precondition, eta, max_cg)
-        slope = float(_dot(G, D))
-        if slope >= 0:  # cannot happen with an SPD preconditioner; be safe
-            D = -pe.precondition(G)
-            slope = float(_dot(G, D))
-        t = 1.0
-        while True:
-            En = pe.value(X + t * D)
-            if En <= E + 1e-4 * t * slope:
-                break
-            t *= 0.5 if np.isfinite(En) else 0.25
-            if t < 1e-14:
-                break
-        if t < 1e-14:
-            logger.info("discrete geodesic: line search failed at iteration %d", nit)
-            status = "line_search"
-            break
-        X = X + t * D
-        E, G = pe.evaluate(X)
-        energies.append(E)
-        gnorm = float(np.sqrt(max(_dot(G, pe.precondition(G)), 0.0)))
-        converged = gnorm <= tol * np.sqrt(E)
-        logger.debug("discrete geodesic %d: E = %.12g, |g| = %.3g, step %.3g, %d CG%s",
-                     nit, E, gnorm, t, n_cg, " (negative curvature)" if negative else "")
-        if callback is not None:
-            callback(nit, E, gnorm)
-        if converged:
-            status = "converged"
-        elif (energy_rtol > 0 and nit >= window
-              and energies[-1 - window] - E <= energy_rtol * window * E):
-            status = "stationary"
-            break
-    pts = pe._frames(X)
-    fs = pe.fs
-    length = float(np.sum(np.sqrt(np.sum(np.diff(pts, axis=0) ** 2, axis=(1, 2))
-                                  + np.diff(fs) ** 2)))
-    return DiscreteGeodesic(pts, fs.copy(), E, length, nit, gnorm, bool(converged), pen.n,
-                            status)
-
-
-# ---------------------------------------------------------------------------------------
-# stage 3: shooting (the log map)
-# ---------------------------------------------------------------------------------------
-
-
+        t = np.linspace(0.0, 1.0, K + 1)[:, None, None]
+        path = (1.0 - t) * Q0 + t * Q1
+    frames = np.array(path, dtype=np.float64)
+    if frames.shape != (K + 1,) + Q0.shape:
+        raise InvalidMeshError(f"path must have shape {(K + 1,) + Q0.shape}, got {frames.shape}")
+    frames[0], frames[-1] = Q0, Q1
+    if free is None:
+        free = np.ones(frames.shape[:2], dtype=bool)
+        free[-1] = False
+    free = np.array(free, dtype=bool)
+    if free.shape != frames.shape[:2]:
+        raise InvalidMeshError(f"free must have shape {frames.shape[:2]}, got {free.shape}")
+    free[0] = False
+    model = metric.path_model(frames, free, boundary_edges, anchor)
+    return levenberg_marquardt(model, frames, settings, callback)

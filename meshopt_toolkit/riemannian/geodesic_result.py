@@ -151,21 +151,28 @@ def _assemble(fld, Q, V, f0, req, positive, out, method_used, monitor, rtol, ene
 
 @dataclass
 class DiscreteGeodesic:
-    """A minimizer of the discrete path energy.
+    """A minimizer of the discrete path energy (both methods of :func:`discrete_geodesic`).
 
     Attributes
     ----------
-    points : (K+1, N, 2) frames, ``points[0] = Q0`` and ``points[K] = Q1`` exactly
-    penalty : (K+1,) ``f`` at each frame
+    points : (K+1, N, 2) frames, ``points[0] = Q0`` exactly (and ``points[K] = Q1`` where
+        the last frame is fixed)
+    penalty : (K+1,) ``f`` at each frame (Newton–CG; NaN for Levenberg–Marquardt and
+        straight lines)
     energy : path energy ``E`` (``√E`` is the discrete length for an equally spaced path)
-    length : ``Σ_k |(Q_{k+1}, f_{k+1}) − (Q_k, f_k)|`` (length of the polygon in the graph)
-    nit : Newton iterations
-    gradient_norm : final ``√(∇E · H_GN⁻¹ ∇E)`` (0 for K = 1)
-    converged : whether ``gradient_norm ≤ tol·√E`` was reached
-    n_evaluations : penalty calls (values, gradients and Hessian-vector products)
-    status : why the Newton iteration stopped: "converged" (gradient test), "stationary"
-        (the energy stagnated, see :func:`discrete_geodesic`), "max_iter" or
-        "line_search" (no decrease found)
+    length : ``Σ_k |X(Q_{k+1}) − X(Q_k)|``, the length of the polygon through the embedded
+        frames (``X(Q) = (Q, f(Q))`` for a complete metric)
+    nit : iterations
+    gradient_norm : final ``√(∇E · H_GN⁻¹ ∇E)`` (Newton–CG; 0 for K = 1) or ``|∇E|``
+        (Levenberg–Marquardt)
+    converged : whether the method's gradient test was met (``status == "converged"``)
+    n_evaluations : penalty calls (values, gradients and Hessian-vector products;
+        Newton–CG)
+    status : why the iteration stopped: "converged" (gradient test, or the minimum to
+        machine precision), "max_iter", and for Newton–CG "stationary" (the energy
+        stagnated) or "line_search" (no decrease found), for Levenberg–Marquardt
+        "stalled" (no admissible step lowers the energy)
+    history : ``(E, |∇E|)`` at each Levenberg–Marquardt iteration
     """
 
     points: FloatArray
@@ -177,6 +184,7 @@ class DiscreteGeodesic:
     converged: bool = True
     n_evaluations: int = 0
     status: str = "converged"
+    history: list = field(default_factory=list)
 
     @property
     def segments(self) -> int:

@@ -11,16 +11,27 @@ Every metric has the same small interface, in the ``vec`` chart (tangent vectors
   mask) it is the Riesz map of the metric restricted to the tangent vectors that vanish
   on the fixed vertices: the result vanishes there and the identity holds for such ``V``;
 - ``exp(Q, V, t=1.0) -> (N, 2)``: the exponential map (or the retraction the thesis pairs
-  with the metric); optional, missing ones raise :class:`MetricNotImplementedError`.
+  with the metric); optional, missing ones raise :class:`MetricNotImplementedError`
+  naming the class and the method.
+
+Optional capabilities, declared by the metric and used by the layer's algorithms:
+
+- a ``penalty`` (the complete metric of ``f``) or ``is_flat``: the exponential map of
+  :mod:`.geodesics` and the Newton–CG discrete geodesic of :mod:`.newton_cg`;
+- ``path_model(frames, free, boundary_edges, anchor)``: the discrete path energy as a
+  least-squares problem (:class:`.levenberg_marquardt.PathModelMetric`), minimized by
+  Levenberg–Marquardt (:mod:`.levenberg_marquardt`).
 
 Metrics: :class:`EuclideanMetric` (5.2), :class:`ElasticityMetric` (6.24) and
-:class:`CompleteMetric` ``g = I + ∇f∇fᵀ`` (5.17, 5.34).
+:class:`CompleteMetric` ``g = I + ∇f∇fᵀ`` (5.17, 5.34) here; the per-triangle distortion
+metric ``M + w² JᵀJ`` (``motion.graph_metric.GraphMetric``, with ``path_model``) lives
+with the motion built on it and implements the same protocol.
 """
 
 from __future__ import annotations
 
 import logging
-from typing import Protocol
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 import scipy.sparse as sp
@@ -47,11 +58,15 @@ class MetricNotImplementedError(MeshoptError, NotImplementedError):
     """An optional metric method (e.g. ``exp``) is not available for this metric."""
 
 
+@runtime_checkable
 class Metric(Protocol):
     """The interface shared by all metrics (see the module docstring).
 
     ``is_flat`` declares the Euclidean metric (straight lines are its geodesics), so code
-    that needs geodesics asks the metric instead of comparing class names.
+    that needs geodesics asks the metric instead of comparing class names. ``exp`` is
+    optional: where a metric has none it raises :class:`MetricNotImplementedError` naming
+    its class and the method. The optional capabilities (``penalty``, ``path_model``) are
+    in the module docstring.
     """
 
     is_flat: bool

@@ -1,0 +1,176 @@
+"""The Levenberg–Marquardt method of the discrete geodesic, for metrics whose path energy
+is a sparse nonlinear least-squares problem ``E = |r|²`` in the free coordinates of the
+frames (the per-triangle distortion metric: :mod:`meshopt_toolkit.motion.path`).
+
+The metric provides the problem through :class:`PathModelMetric` (``path_model``): the
+residuals, the normal equations of a step (gradient, step matrix, Levenberg–Marquardt's
+scaling) and the admissibility of frames (:class:`LeastSquaresPath`), and the solver of
+the damped step systems (:class:`StepSolver`). A trial with an inadmissible frame is
+rejected like a trial that raises the energy.
+"""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+import numpy as np
+
+from .._typing import FloatArray
+from ..errors import NotAdmissibleError
+from .geodesic_result import DiscreteGeodesic
+from .path_options import ENERGY_RESOLUTION, UNDAMPED, LevenbergMarquardtOptions
+
+
+class StepMatrix(Protocol):
+    """The matrix of a step (``JᵀJ``, or the Hessian of ``½E``), never assembled."""
+
+    def damped(self, shift: FloatArray) -> StepMatrix:
+        """The matrix plus ``diag(shift)``."""
+
+    def __matmul__(self, x: FloatArray) -> FloatArray: ...
+
+
+class StepSolver(Protocol):
+    """Solves the damped step systems (kept across iterations, and across calls through
+    ``LevenbergMarquardtOptions.factors``)."""
+
+    def solve(self, A: StepMatrix, b: FloatArray, rtol: float) -> FloatArray:
+        """``A⁻¹ b`` to the relative residual ``rtol``; FloatingPointError where ``A`` is
+        not positive definite."""
+
+
+class LeastSquaresPath(Protocol):
+    """The discrete path energy of K segments as ``E = |r|²``: ``r`` is K equal blocks,
+    block ``k`` being ``√K (X(Q_{k+1}) − X(Q_k))`` for the metric's isometric embedding
+    ``X`` (so ``Σ_k |r_k| / √K`` is the polygon's length). The unknowns are the free
+    coordinates; ``frames`` (K+1, N, 2) holds the fixed ones."""
+
+    frames: FloatArray
+    n_unknowns: int
+
+    def unknowns(self, frames: FloatArray) -> FloatArray: ...
+
+    def with_unknowns(self, x: FloatArray) -> FloatArray: ...
+
+    def evaluate(self, frames: FloatArray, jacobian: bool):
+        """The residual vector (and, with ``jacobian``, its sparse Jacobian)."""
+
+    def normal_equations(self, frames: FloatArray, newton: bool = False
+                         ) -> tuple[FloatArray, FloatArray, StepMatrix, FloatArray]:
+        """``r``, the gradient ``Jᵀr`` (half ``∇E``), the step matrix (``JᵀJ``, or the
+        Hessian of ``½E`` with ``newton``) and the diagonal of ``JᵀJ``."""
+
+    def admissible(self, frames: FloatArray) -> bool: ...
+
+    def step_solver(self, kept: StepSolver | None = None) -> StepSolver:
+        """A solver for this path's step systems (``kept``, checked to fit, or a new one)."""
+
+
+class PathModelMetric(Protocol):
+    """A metric whose discrete geodesics Levenberg–Marquardt computes (optional capability
+    of :class:`~meshopt_toolkit.riemannian.metrics.Metric`)."""
+
+    def path_model(self, frames: FloatArray, free: np.ndarray, boundary_edges=None,
+                   anchor: FloatArray | None = None) -> LeastSquaresPath:
+        """The path energy of ``frames`` (K+1, N, 2) in the coordinates ``free`` (K+1, N)
+        marks (frame 0 never moves), with the boundaries ``boundary_edges`` kept simple;
+        ``anchor`` replaces the embedding's metric-specific part at ``Q_0``."""
+
+
+def _length(r: FloatArray, K: int) -> float:
+    """``Σ_k |X(Q_{k+1}) − X(Q_k)|`` from the residual (see :class:`LeastSquaresPath`)."""
+    return float(np.sum(np.linalg.norm(r.reshape(K, -1), axis=1)) / np.sqrt(K))
+
+
+def _result(frames: FloatArray, r: FloatArray, E: float, gnorm: float, it: int, status: str,
+            history: list) -> DiscreteGeodesic:
+    K = frames.shape[0] - 1
+    return DiscreteGeodesic(frames, np.full(K + 1, np.nan), E, _length(r, K), it, gnorm,
+                            status == "converged", 0, status, history)
+
+
+def levenberg_marquardt(path: LeastSquaresPath, frames: FloatArray,
+                        options: LevenbergMarquardtOptions, callback=None) -> DiscreteGeodesic:
+    """Minimize the path energy of ``path`` from ``frames`` over its unknowns; see
+    :func:`.discrete_geodesic.discrete_geodesic` and :class:`.LevenbergMarquardtOptions`."""
+    gtol, rtol, max_iter = options.gtol, options.rtol, options.max_iter
+    cg_rtol, newton, lambda_decrease = options.cg_rtol, options.newton, options.lambda_decrease
+    if not path.admissible(frames):
+        raise NotAdmissibleError("the initial path is not admissible")
+    if path.n_unknowns == 0:
+        r, _ = path.evaluate(frames, jacobian=False)
+        return _result(frames, r, float(r @ r), 0.0, 0, "converged", [])
+    r, g, H, d = path.normal_equations(frames, newton)
+    E = float(r @ r)
+    lam = 1e-3
+    blocks = path.step_solver(options.factors)
+    status = "max_iter"
+    history = []
+    it = 0
+    for it in range(1, max_iter + 1):
+        gnorm = 2.0 * float(np.linalg.norm(g))
+        history.append((E, gnorm))
+        if callback is not None:
+            callback(it - 1, E, gnorm)
+        if it == 1:
+            g0 = gnorm
+        if gnorm <= max(gtol * max(1.0, np.sqrt(E)), rtol * g0):
+            status = "converged"
+            it -= 1
+            break
+        x = path.unknowns(frames)
+        accepted = False
+        # whether an admissible trial's model decrease exceeded E's rounding (None: no
+        # admissible trial was evaluated)
+        resolvable: bool | None = None
+        at_floor = False
+        judged = None  # the normal equations at a step judged by its gradient
+        for _ in range(30):
+            A = H.damped(lam * (d + 1e-12 * d.max()))
+            try:
+                step = blocks.solve(A, -g, cg_rtol)
+            except FloatingPointError:  # A is not positive definite (Newton): damp more
+                lam *= 4.0
+                continue
+            trial = path.with_unknowns(x + step)
+            if path.admissible(trial):
+                r_t, _ = path.evaluate(trial, jacobian=False)
+                E_t = float(r_t @ r_t)
+                predicted = -(2 * g @ step + step @ (H @ step))  # the quadratic model's
+                resolvable = bool(resolvable or predicted > ENERGY_RESOLUTION * E)
+                if lam <= UNDAMPED and predicted <= ENERGY_RESOLUTION * E:
+                    # E cannot judge the model's own step (its change is rounding): the
+                    # gradient, computed to full precision, does
+                    judged = path.normal_equations(trial, newton)
+                    if 2.0 * float(np.linalg.norm(judged[1])) < gnorm:
+                        frames = trial
+                        accepted = True
+                    else:
+                        at_floor = True
+                    break
+                if np.isfinite(E_t) and E_t < E:
+                    rho = (E - E_t) / max(predicted, 1e-300)
+                    frames = trial
+                    lam = lam * (lambda_decrease if rho > 0.75 else 1.0 if rho > 0.25 else 2.0)
+                    lam = max(lam, 1e-12)
+                    accepted = True
+                    break
+            lam *= 4.0
+        if at_floor:
+            # neither E nor its gradient can be lowered: the minimum to machine precision
+            status = "converged"
+            it -= 1
+            break
+        if not accepted:
+            # no step lowers E, and the admissible ones promised no more than E's
+            # floating-point resolution: the minimum to machine precision (a tight gtol
+            # cannot be met there)
+            status = "converged" if resolvable is False else "stalled"
+            break
+        path.frames = frames
+        r, g, H, d = path.normal_equations(frames, newton) if judged is None else judged
+        E = float(r @ r)
+    gnorm = 2.0 * float(np.linalg.norm(g))
+    if status == "max_iter" and gnorm <= gtol * max(1.0, np.sqrt(E)):
+        status = "converged"
+    return _result(frames, r, E, gnorm, it, status, history)
