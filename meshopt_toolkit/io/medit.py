@@ -40,6 +40,10 @@ SKIPPED = ("Corners", "Normals", "NormalAtVertices", "SubDomainFromMesh", "Requi
            "TangentAtVertices", "Tangents", "Ridges", "Identifier", "Geometry")
 NAME_TAG = "# meshopt:PhysicalName"
 _SKIPPED_RE = re.compile(r"^[ \t]*(" + "|".join(SKIPPED) + r")\b", re.M)
+_COUNT_RE = re.compile(r"^[ \t]*(Vertices|" + "|".join(SECTIONS.values()) + r"|Hexaedra)[ \t]*\r?\n"
+                       r"[ \t]*([^\s]+)", re.M)
+_HEADER_RE = re.compile(r"^[ \t]*(MeshVersionFormatted|Dimension)[ \t]*\r?\n?[ \t]*([^\s]*)",
+                        re.M)
 
 
 def read_cells(path: Path) -> CellMesh:
@@ -51,6 +55,7 @@ def read_cells(path: Path) -> CellMesh:
     head = text.lstrip()[:64]
     if not head.startswith(("MeshVersionFormatted", "#")):
         raise ReadError(f"{path}: not a Medit file (no MeshVersionFormatted header)")
+    _prescan(text, path)
     try:
         with quiet():
             m = meshio_medit_read(str(path))
@@ -68,6 +73,20 @@ def read_cells(path: Path) -> CellMesh:
     cm.dropped = [f"Medit section {k!r}" for k in dict.fromkeys(_SKIPPED_RE.findall(text))]
     check_cells(cm)
     return cm
+
+
+def _prescan(text: str, path) -> None:
+    """Refuse a version, dimension or section count the file cannot hold, before meshio
+    allocates arrays of that size (a row takes at least two characters per value)."""
+    for key, value in _HEADER_RE.findall(text):
+        allowed = ("1", "2") if key == "MeshVersionFormatted" else ("2", "3")
+        if value not in allowed:
+            raise ReadError(f"{path}: unsupported Medit {key} {value!r} (expected "
+                            f"{' or '.join(allowed)})")
+    for key, value in _COUNT_RE.findall(text):
+        if not value.isdigit() or 4 * int(value) > len(text):
+            raise ReadError(f"{path}: Medit section {key} announces {value!r} entries; "
+                            "the file is too short or the count is not a number")
 
 
 def _names(text: str, path) -> dict:
