@@ -90,6 +90,7 @@ def surface_info(mesh) -> dict:
     return {
         "n_vertices": mesh.n_vertices,
         "n_triangles": mesh.n_triangles,
+        "planar": False,
         "n_edges": int(len(mesh.edges)),
         "n_boundary_edges": int(len(mesh.boundary_edges)),
         "closed": closed,
