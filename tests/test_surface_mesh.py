@@ -257,9 +257,35 @@ def test_info_on_icosphere_and_open_surface(tmp_path, capsys):
     assert "genus                 0" in out and "manifold              yes" in out
 
 
+def test_info_merges_a_triangle_soup(tmp_path, capsys):
+    s = sphere(2)
+    soup = CellMesh(s.points[s.triangles].reshape(-1, 3),
+                    [("triangle", np.arange(3 * s.n_triangles).reshape(-1, 3))])
+    save_cells(soup, tmp_path / "soup.ply")
+    assert main(["info", "--json", str(tmp_path / "soup.ply")]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert not info["closed"] and info["components"] == s.n_triangles
+    assert main(["info", "--json", "--merge-tolerance", "0", str(tmp_path / "soup.ply")]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["n_merged"] == 3 * s.n_triangles - s.n_vertices
+    assert info["closed"] and info["manifold"] and info["genus"] == [0]
+    assert info["n_vertices"] == s.n_vertices
+
+
 def test_info_planar_file_says_planar(tmp_path, capsys):
     flat = PlanarMesh([[0, 0], [1, 0], [0, 1], [1, 1]], [[0, 1, 2], [1, 3, 2]])
     save_cells(CellMesh.from_triangle_mesh(flat), tmp_path / "f.obj")
     assert main(["info", "--json", str(tmp_path / "f.obj")]) == 0
     info = json.loads(capsys.readouterr().out)
     assert info["cell_kind"] == "planar triangles" and info["planar"] and info["admissible"]
+
+
+def test_info_reads_a_format_with_a_triangle_reader_only(tmp_path, monkeypatch, capsys):
+    from meshopt_toolkit import io
+
+    flat = PlanarMesh([[0, 0], [1, 0], [0, 1]], [[0, 1, 2]])
+    monkeypatch.setitem(io.READERS, ".tri1", lambda path: flat)
+    (tmp_path / "a.tri1").write_text("anything")
+    assert main(["info", "--json", str(tmp_path / "a.tri1")]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["cell_kind"] == "planar triangles" and info["n_triangles"] == 1

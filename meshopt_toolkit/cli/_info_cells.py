@@ -36,6 +36,19 @@ def cell_kind(cm) -> str:
     return PLANAR if emb is not None else SURFACE
 
 
+def read_kind(path):
+    """``(cell kind, CellMesh)`` of a file; ``(PLANAR, None)`` for a format registered with
+    a triangle-mesh reader only (it is read by ``io.load``)."""
+    from pathlib import Path
+
+    from ..io import CELL_READERS, load_cells
+
+    if Path(path).suffix.lower() not in CELL_READERS:
+        return PLANAR, None
+    cells = load_cells(path)
+    return cell_kind(cells), cells
+
+
 def _float(x) -> float | None:
     x = float(x)
     return x if math.isfinite(x) else None

@@ -57,16 +57,15 @@ def mesh_info(path: str | Path, merge_tolerance: float | None = None) -> dict:
     ReadError
         The file cannot be read.
     """
-    from ..io import load_cells
+    from ..io import load
     from ..io.cells import triangle_mesh
     from ..mesh import check_mesh
-    from ._info_cells import PLANAR, cell_kind, cells_info
+    from ._info_cells import PLANAR, cells_info, read_kind
 
-    cells = load_cells(path)
-    kind = cell_kind(cells)
+    kind, cells = read_kind(path)
     if kind != PLANAR:  # tetrahedra, or triangles not on one plane
         return cells_info(cells, kind, path, merge_tolerance)
-    mesh = triangle_mesh(cells)
+    mesh = load(path) if cells is None else triangle_mesh(cells)
     n_merged = 0
     if merge_tolerance is not None:
         mesh, n_merged = merged(mesh, merge_tolerance)

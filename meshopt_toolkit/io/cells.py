@@ -271,6 +271,11 @@ class CellMesh:
                        tag_names=_tag_names(self), source=self.source)
 
     @classmethod
+    def from_surface_mesh(cls, mesh: "SurfaceMesh") -> "CellMesh":
+        """As :meth:`from_triangle_mesh`: blocks ``line`` (if any) then ``triangle``."""
+        return cls.from_triangle_mesh(mesh)  # type: ignore[arg-type]
+
+    @classmethod
     def from_tet_mesh(cls, mesh: "TetMesh") -> "CellMesh":
         """Blocks ``line``, ``triangle`` (where the mesh has them) then ``tetra``, physical
         tags as cell data where any element is tagged."""
