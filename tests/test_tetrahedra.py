@@ -92,6 +92,38 @@ def test_quality_invariant_under_similarity(seed, scale, shift):
     assert 0 < mean_ratios(pts, t)[0] <= 1 + 1e-12
 
 
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_mean_ratio_is_knupps_jacobian_form(seed):
+    # η = 3 det(S)^(2/3) / |S|_F² with S = J W⁻¹, W the edge matrix of the unit regular tet
+    pts = np.random.default_rng(seed).normal(size=(4, 3))
+    t = positive(pts)
+    q = pts[t[0]]
+    jac = np.column_stack([q[1] - q[0], q[2] - q[0], q[3] - q[0]])
+    w = np.array([[1, 0.5, 0.5], [0, np.sqrt(3) / 2, np.sqrt(3) / 6], [0, 0, np.sqrt(2 / 3)]])
+    s = jac @ np.linalg.inv(w)
+    eta = 3 * np.linalg.det(s) ** (2 / 3) / np.sum(s * s)
+    assert mean_ratios(pts, t)[0] == pytest.approx(eta, rel=1e-9, abs=1e-12)
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_dihedral_angles_satisfy_the_sine_law(seed):
+    # sin θ_ij = 3 V ℓ_ij / (2 A_k A_l): A_k, A_l the areas of the faces meeting at edge ij
+    pts = np.random.default_rng(seed).normal(size=(4, 3))
+    vol = abs(signed_volumes(pts, ONE)[0])
+    if vol < 1e-3:
+        return
+    def area(i, j, k):
+        return 0.5 * np.linalg.norm(np.cross(pts[j] - pts[i], pts[k] - pts[i]))
+
+    ang = dihedral_angles(pts, ONE)[0]
+    for e, (i, j) in enumerate([(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)]):
+        k, m = sorted({0, 1, 2, 3} - {i, j})
+        expect = 3 * vol * np.linalg.norm(pts[i] - pts[j]) / (2 * area(i, j, m) * area(i, j, k))
+        assert np.sin(ang[e]) == pytest.approx(expect, rel=1e-8)
+
+
 def test_dihedral_angles_sum_rule():
     # the 6 dihedral angles of a tet sum to between 2π and 3π
     r = np.random.default_rng(3)
@@ -286,6 +318,20 @@ def test_medit_refuses_what_it_cannot_hold(tmp_path, box_msh, capsys):
         save_cells(cm, tmp_path / "u.mesh")
     with pytest.raises(WriteError, match="text format"):
         save_cells(CellMesh(CORNER, [("tetra", ONE)]), tmp_path / "v.mesh", binary=True)
+
+
+def test_medit_keeps_2d_points_and_awkward_names(tmp_path):
+    cm = CellMesh(np.array([[0, 0], [1, 0], [0, 1.0]]) / 3, [("triangle", np.array([[0, 1, 2]]))],
+                  cell_data={"gmsh:physical": [np.array([4])]},
+                  field_data={'a "b" c': np.array([4, 2]), "Vertices": np.array([5, 1])})
+    save_cells(cm, tmp_path / "two.mesh")
+    back = load_cells(tmp_path / "two.mesh")
+    assert back.points.shape == (3, 2) and back.points.tobytes() == cm.points.tobytes()
+    assert {k: list(v) for k, v in back.field_data.items()} == {'a "b" c': [4, 2],
+                                                                 "Vertices": [5, 1]}
+    with pytest.raises(WriteError, match="field data"):
+        save_cells(CellMesh(cm.points, cm.cells, field_data={"a\nb": np.array([1, 2])}),
+                   tmp_path / "nl.mesh")
 
 
 def test_medit_reads_references_and_refuses_skipped_sections(tmp_path, capsys):

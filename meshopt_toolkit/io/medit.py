@@ -92,8 +92,8 @@ def _prescan(text: str, path) -> None:
 def _names(text: str, path) -> dict:
     """Physical names from the ``# meshopt:PhysicalName DIM TAG "NAME"`` comment lines."""
     out = {}
-    stop = text.find("Vertices")
-    for line in text[:stop if stop >= 0 else len(text)].splitlines():
+    stop = re.search(r"^[ \t]*Vertices[ \t]*\r?$", text, re.M)
+    for line in text[:stop.start() if stop else len(text)].splitlines():
         if line.startswith(NAME_TAG):
             try:
                 dim, tag, name = shlex.split(line[len(NAME_TAG):])
@@ -146,7 +146,8 @@ def write_cells(path: Path, cm: CellMesh, binary: bool | None = None) -> None:
              if k != REF or np.asarray(v).dtype.kind not in "iu" or np.asarray(v).ndim != 1]
     what += [f"cell data {k!r}" for k in cm.cell_data if k not in (PHYSICAL, REF, GEOMETRICAL)]
     what += [f"field data {k!r}" for k, v in cm.field_data.items()
-             if np.asarray(v).size != 2 or np.asarray(v).dtype.kind not in "iu"]
+             if np.asarray(v).size != 2 or np.asarray(v).dtype.kind not in "iu"
+             or "\n" in str(k) or "\r" in str(k)]
     refuse(path, "Medit", what)
     refs = _element_refs(cm, path)
     geom = cm.cell_data.get(GEOMETRICAL)
