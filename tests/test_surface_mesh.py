@@ -289,3 +289,40 @@ def test_info_reads_a_format_with_a_triangle_reader_only(tmp_path, monkeypatch, 
     assert main(["info", "--json", str(tmp_path / "a.tri1")]) == 0
     info = json.loads(capsys.readouterr().out)
     assert info["cell_kind"] == "planar triangles" and info["n_triangles"] == 1
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), keep=st.floats(0.3, 1.0), torus=st.booleans())
+def test_topology_agrees_with_meshlab_on_random_pieces(seed, keep, torus):
+    # pieces of a closed sphere or torus, vertices renumbered, some triangles flipped:
+    # MeshLab's topological measures are the reference
+    import pymeshlab
+
+    r = np.random.default_rng(seed)
+    t = trimesh.creation.torus(1.0, 0.4, 16, 8) if torus else trimesh.creation.icosphere(1)
+    perm = r.permutation(len(t.vertices))
+    inverse = np.argsort(perm)
+    pts = np.asarray(t.vertices)[perm]
+    tri = inverse[np.asarray(t.faces)][r.random(len(t.faces)) < keep]
+    if not len(tri):
+        return
+    flip = r.random(len(tri)) < 0.3
+    tri[flip] = tri[flip][:, ::-1]
+    m = SurfaceMesh(pts, tri)
+    ms = pymeshlab.MeshSet()
+    ms.add_mesh(pymeshlab.Mesh(pts, tri.astype(np.int32)))
+    top = ms.get_topological_measures()
+    assert len(m.boundary_edges) == top["boundary_edges"]
+    assert len(m.edges) == top["edges_number"]
+    assert len(m.non_manifold_vertices) == top["non_two_manifold_vertices"]
+    assert m.is_manifold == top["is_mesh_two_manifold"]
+    assert m.is_orientable  # a piece of an orientable surface, whatever its triangles' order
+    # consistently oriented iff no directed edge is used twice
+    directed = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
+    assert m.is_oriented == (len(np.unique(directed, axis=0)) == len(directed))
+    if m.is_manifold:
+        assert m.n_components == top["connected_components_number"]
+        assert m.n_boundary_loops == top["number_holes"]
+        assert sum(m.genera) == top["genus"]
+    fixed = m.consistently_oriented()
+    assert fixed.is_oriented and fixed.is_orientable
