@@ -171,6 +171,29 @@ def test_cube_boundary_is_outward_and_closed():
     assert m.signed_volumes.sum() == pytest.approx(1.0, rel=1e-14)
 
 
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_boundary_is_independent_of_numbering(seed):
+    # renumber vertices, shuffle tets and rotate each tet's vertices (an even permutation
+    # keeps the orientation): the same outward boundary faces, as oriented cycles
+    r = np.random.default_rng(seed)
+    pts, tets = cube(2)
+    perm = r.permutation(len(pts))
+    inverse = np.argsort(perm)
+    even = np.array([[0, 1, 2, 3], [1, 2, 0, 3], [0, 2, 3, 1], [3, 1, 0, 2]])
+    t2 = inverse[tets][r.permutation(len(tets))]
+    t2 = np.take_along_axis(t2, even[r.integers(0, 4, len(t2))], axis=1)
+    a, b = TetMesh(pts, tets), TetMesh(pts[perm], t2)
+    assert b.is_admissible
+
+    def cycles(faces, relabel):
+        f = relabel[faces]
+        k = np.argmin(f, axis=1)[:, None]
+        return {tuple(row) for row in np.take_along_axis(f, (k + np.arange(3)) % 3, axis=1)}
+
+    assert cycles(a.boundary_faces, np.arange(len(pts))) == cycles(b.boundary_faces, perm)
+
+
 def test_inverted_tets_are_named():
     pts, tets = cube(2)
     tets = tets.copy()
@@ -273,6 +296,8 @@ def test_gmsh_box_is_admissible_with_plausible_quality(box_msh):
     assert key(m.triangles) == key(m.boundary_faces)
     surf = m.boundary_surface()
     assert surf.n_components == 2 and surf.genera == [0, 0] and surf.is_oriented
+    # outward faces: the volume they enclose is the tets' volume
+    assert surf.enclosed_volume() == pytest.approx(q.total_volume, rel=1e-12)
 
 
 @pytest.mark.parametrize("binary", [True, False])
