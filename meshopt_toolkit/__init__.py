@@ -26,6 +26,8 @@ _EXPORTS = {
     # meshes
     "TriangleMesh": "mesh",
     "PlanarMesh": "mesh",
+    "SurfaceMesh": "mesh",
+    "TetMesh": "mesh",
     "MeshReport": "mesh",
     "check_mesh": "mesh",
     "require_admissible": "mesh",

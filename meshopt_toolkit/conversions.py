@@ -1,6 +1,10 @@
 """Conversions between :class:`~meshopt_toolkit.mesh.TriangleMesh` and meshio, trimesh and
 pymeshlab objects, keeping the vertex order and connectivity exactly.
 
+A :class:`~meshopt_toolkit.mesh.SurfaceMesh` goes to the same ``to_*`` functions (its
+points are ``(N, 3)``); :func:`surface_from_trimesh` and :func:`surface_from_pymeshlab`
+bring a surface back as a ``SurfaceMesh``, planar or not.
+
 trimesh and pymeshlab are imported only when their converter is called. A converted-back
 mesh is a :class:`~meshopt_toolkit.mesh.PlanarMesh` when its points are 2D or every z is
 exactly 0, else a :class:`~meshopt_toolkit.mesh.TriangleMesh`.
@@ -13,7 +17,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .mesh import PlanarMesh, TriangleMesh
+from .mesh import PlanarMesh, SurfaceMesh, TriangleMesh
 
 if TYPE_CHECKING:  # pragma: no cover
     import meshio
@@ -29,6 +33,8 @@ __all__ = [
     "from_trimesh",
     "to_pymeshlab",
     "from_pymeshlab",
+    "surface_from_trimesh",
+    "surface_from_pymeshlab",
 ]
 
 _PHYSICAL = "gmsh:physical"
@@ -135,3 +141,17 @@ def from_pymeshlab(m: "pymeshlab.Mesh", source: str | None = None) -> TriangleMe
         np.asarray(m.face_matrix(), dtype=np.int64),
         source=source,
     )
+
+
+# ----------------------------------------------------------------------------- surfaces
+def surface_from_trimesh(t: "trimesh.Trimesh", source: str | None = None) -> SurfaceMesh:
+    """The vertices and faces of a ``trimesh.Trimesh`` as a :class:`SurfaceMesh`, as they
+    are (build the ``Trimesh`` with ``process=False`` to keep a file's order)."""
+    return SurfaceMesh(np.asarray(t.vertices, dtype=np.float64),
+                       np.asarray(t.faces, dtype=np.int64), source=source)
+
+
+def surface_from_pymeshlab(m: "pymeshlab.Mesh", source: str | None = None) -> SurfaceMesh:
+    """The vertices and faces of a ``pymeshlab.Mesh`` as a :class:`SurfaceMesh`."""
+    return SurfaceMesh(np.asarray(m.vertex_matrix(), dtype=np.float64),
+                       np.asarray(m.face_matrix(), dtype=np.int64), source=source)

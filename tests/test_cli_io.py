@@ -46,8 +46,11 @@ def test_info_json_lines(files, capsys):
     assert grid["mean_shape_quality"] == q.mean_shape_quality
     assert grid["min_angle_deg"] == q.min_angle_deg and grid["min_area"] == q.min_area
     assert grid["problems"] == []
-    assert not surf["planar"] and surf["n_triangles"] == 2 and surf["min_aspect_ratio"] is None
-    assert not surf["admissible"] and surf["problems"]
+    # not on one plane: described as a surface in 3D
+    assert surf["cell_kind"] == "surface triangles" and not surf["planar"]
+    assert surf["n_triangles"] == 2 and 0 < surf["min_aspect_ratio"] < 1
+    assert not surf["closed"] and surf["boundary_loops"] == 1 and surf["genus"] == [0]
+    assert surf["manifold"] and surf["oriented"] and surf["problems"] == []
     assert cw["reoriented"] and cw["admissible"] and cw["min_area"] == 1.0
 
 

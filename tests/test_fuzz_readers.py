@@ -17,7 +17,7 @@ from meshopt_toolkit.errors import MeshoptError
 from meshopt_toolkit.io import CellMesh, load, load_cells, save_cells
 from meshopt_toolkit.cli.convert import ConvertOptions, convert_file
 
-EXTS = [".msh", ".obj", ".off", ".ply", ".vtk", ".vtu", ".stl"]
+EXTS = [".msh", ".obj", ".off", ".ply", ".vtk", ".vtu", ".stl", ".mesh"]
 LIMIT_S = 5.0
 
 
@@ -32,7 +32,7 @@ def valid_files(tmp_path_factory):
     d = tmp_path_factory.mktemp("valid")
     out = {}
     for ext in EXTS:
-        for binary in ((True, False) if ext not in (".obj", ".off") else (None,)):
+        for binary in ((True, False) if ext not in (".obj", ".off", ".mesh") else (None,)):
             for version in (("4.1", "2.2") if ext == ".msh" else ("4.1",)):
                 path = d / f"v{len(out)}{ext}"
                 save_cells(_sample(), path, binary=binary, msh_version=version)

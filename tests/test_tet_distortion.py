@@ -17,12 +17,8 @@ from hypothesis import strategies as st
 
 from meshopt_toolkit.diagnostics import check_gradient, check_hvp
 from meshopt_toolkit.errors import InvalidMeshError
-from meshopt_toolkit.kernels.cell_maps import (
-    REGULAR_TET_EDGES,
-    tet_condition_numbers,
-    tet_mean_ratios,
-    tet_signed_volumes,
-)
+from meshopt_toolkit.kernels.cell_maps import REGULAR_TET_EDGES, tet_condition_numbers
+from meshopt_toolkit.kernels.tetrahedra import mean_ratios, signed_volumes
 from meshopt_toolkit.motion.tet_distortion import (
     TetDistortion,
     hencky_strains,
@@ -53,7 +49,7 @@ def cube_tets(n: int = 2, jitter: float = 0.25, seed: int = 0):
                 path.append(idx[tuple(corner)])
             tets.append(path)
     tets = np.array(tets)
-    flip = tet_signed_volumes(pts, tets) < 0
+    flip = signed_volumes(pts, tets) < 0
     tets[flip] = tets[flip][:, [1, 0, 2, 3]]
     return pts, tets
 
@@ -63,7 +59,7 @@ def random_admissible(points, tets, rng, amplitude):
     A = np.eye(3) + amplitude * rng.uniform(-0.5, 0.5, (3, 3)) / 1.5
     Q = points @ A.T + rng.uniform(-1, 1, 3)
     noise = 0.1 * amplitude * rng.standard_normal(Q.shape) / len(points) ** (1 / 3)
-    while not (tet_signed_volumes(Q + noise, tets) > 0).all():
+    while not (signed_volumes(Q + noise, tets) > 0).all():
         noise /= 2
     return Q + noise
 
@@ -234,7 +230,7 @@ def test_mean_ratio_and_condition_number_closed_forms():
     R = np.linalg.qr(np.random.default_rng(3).standard_normal((3, 3)))[0]
     regular = np.vstack([np.zeros(3), REGULAR_TET_EDGES.T]) @ R.T * 2.5 + 1.0
     tet = np.array([[0, 1, 2, 3]]) if np.linalg.det(R) > 0 else np.array([[1, 0, 2, 3]])
-    np.testing.assert_allclose(tet_mean_ratios(regular, tet), 1.0, rtol=1e-12)
+    np.testing.assert_allclose(mean_ratios(regular, tet), 1.0, rtol=1e-12)
     np.testing.assert_allclose(tet_condition_numbers(regular, tet), 1.0, rtol=1e-12)
     pts = [[0, 0, 0], [3, 0, 0], [1, 2, 0], [1, 1, 5]]
     F = [[Fraction(c) for c in p] for p in pts]
@@ -243,7 +239,7 @@ def test_mean_ratio_and_condition_number_closed_forms():
     det6 = (e[0][0] * (e[1][1] * e[2][2] - e[1][2] * e[2][1]) - e[0][1] * (e[1][0] * e[2][2]
             - e[1][2] * e[2][0]) + e[0][2] * (e[1][0] * e[2][1] - e[1][1] * e[2][0]))
     exact_cube = Fraction(12) ** 3 * (det6 / 2) ** 2 / sq**3  # η³ = 12³ (3V)² / (Σℓ²)³
-    eta = tet_mean_ratios(np.array(pts, float), np.array([[0, 1, 2, 3]]))[0]
+    eta = mean_ratios(np.array(pts, float), np.array([[0, 1, 2, 3]]))[0]
     assert abs(eta**3 - float(exact_cube)) < 1e-14
 
 
@@ -256,8 +252,8 @@ def test_quality_bounds_from_the_reference_hold_for_every_tet(seed, amplitude):
     dist = TetDistortion(P, T)
     change = np.linalg.norm(dist.values(Q), axis=1)
     assert (hencky_strains(dist.affine_maps(Q)) <= change * (1 + 1e-12) + 1e-15).all()
-    eta0, kappa0 = tet_mean_ratios(P, T), tet_condition_numbers(P, T)
-    assert (tet_mean_ratios(Q, T) >= tet_quality_bound(eta0, change) * (1 - 1e-12)).all()
+    eta0, kappa0 = mean_ratios(P, T), tet_condition_numbers(P, T)
+    assert (mean_ratios(Q, T) >= tet_quality_bound(eta0, change) * (1 - 1e-12)).all()
     assert (tet_condition_numbers(Q, T) <= tet_condition_bound(kappa0, change) * (1 + 1e-12)).all()
 
 
@@ -274,26 +270,26 @@ def test_random_paths_keep_every_tet_above_its_bound(seed, amplitude, weight):
     nodes = [P] + [random_admissible(P, T, rng, amplitude) for _ in range(3)]
     steps = np.linspace(0, 1, 17)[1:]
     frames = [P] + [a + s * (b - a) for a, b in zip(nodes[:-1], nodes[1:]) for s in steps]
-    frames = [Q for Q in frames if (tet_signed_volumes(Q, T) > 0).all()]
+    frames = [Q for Q in frames if (signed_volumes(Q, T) > 0).all()]
     metric = TetGraphMetric(P, T, weight)
     phis = np.array([metric.strain.values(Q) for Q in frames])
     S = np.concatenate([np.zeros((1, len(T))),
                         np.cumsum(np.linalg.norm(np.diff(phis, axis=0), axis=2), axis=0)])
     ell = np.concatenate([[0.0], np.cumsum(metric.segment_lengths(np.array(frames)))])
     assert (S <= ell[:, None] / weight * (1 + 1e-12) + 1e-14).all()
-    eta0, kappa0 = tet_mean_ratios(P, T), tet_condition_numbers(P, T)
+    eta0, kappa0 = mean_ratios(P, T), tet_condition_numbers(P, T)
     for k, Q in enumerate(frames):
-        assert (tet_mean_ratios(Q, T) >= tet_quality_bound(eta0, S[k]) * (1 - 1e-12)).all()
+        assert (mean_ratios(Q, T) >= tet_quality_bound(eta0, S[k]) * (1 - 1e-12)).all()
         kappa = tet_condition_numbers(Q, T)
         assert (kappa <= tet_condition_bound(kappa0, S[k]) * (1 + 1e-12)).all()
     start = len(frames) // 3  # a start that is not the reference
     A_start = metric.strain.affine_maps(frames[start])
-    eta_s, kappa_s = tet_mean_ratios(frames[start], T), tet_condition_numbers(frames[start], T)
+    eta_s, kappa_s = mean_ratios(frames[start], T), tet_condition_numbers(frames[start], T)
     for k in range(start, len(frames)):
         L = S[k] - S[start]
         B = metric.strain.affine_maps(frames[k]) @ np.linalg.inv(A_start)
         assert (hencky_strains(B) <= L * (1 + 1e-3) + 1e-12).all()
-        eta = tet_mean_ratios(frames[k], T)
+        eta = mean_ratios(frames[k], T)
         assert (eta >= tet_path_quality_bound(eta_s, L * (1 + 1e-3))).all()
         assert (tet_condition_numbers(frames[k], T)
                 <= tet_path_condition_bound(kappa_s, L * (1 + 1e-3)) * (1 + 1e-12)).all()
@@ -324,7 +320,7 @@ def test_distortion_from_regular_tets_bounds_absolute_quality(seed, amplitude):
     assert np.array_equal(dist.reference, Q) and dist.n_vertices == len(Q)
     phi = dist.values(Q)
     assert np.abs(phi[:, 0]).max() < 1e-12
-    assert (tet_mean_ratios(Q, T) >= tet_quality_bound(1.0, np.linalg.norm(phi, axis=1))
+    assert (mean_ratios(Q, T) >= tet_quality_bound(1.0, np.linalg.norm(phi, axis=1))
             * (1 - 1e-12)).all()
     R = random_rotation(rng)
     regular = (np.vstack([np.zeros(3), REGULAR_TET_EDGES.T]) @ R.T) * (1 + amplitude)
@@ -340,7 +336,7 @@ def test_mean_ratio_bound_is_attained_in_the_limit(length, u):
     Q = P @ np.diag([np.exp(2 * u), np.exp(-u), np.exp(-u)])
     T = np.array([[0, 1, 2, 3]])
     change = np.linalg.norm(TetDistortion(P, T).values(Q), axis=1)
-    ratio = tet_mean_ratios(Q, T) / tet_quality_bound(tet_mean_ratios(P, T), change)
+    ratio = mean_ratios(Q, T) / tet_quality_bound(mean_ratios(P, T), change)
     assert 1.0 <= ratio[0] < 1.001
 
 
@@ -359,6 +355,6 @@ def test_path_bounds_are_attained_for_small_stretches(stretch, needle):
     L = np.linalg.norm(np.diff(phis, axis=0), axis=1).sum()
     kappa_bound = tet_path_condition_bound(tet_condition_numbers(P, T), L)
     kappa_ratio = kappa_bound / tet_condition_numbers(frames[-1], T)
-    eta_ratio = tet_mean_ratios(frames[-1], T) / tet_path_quality_bound(tet_mean_ratios(P, T), L)
+    eta_ratio = mean_ratios(frames[-1], T) / tet_path_quality_bound(mean_ratios(P, T), L)
     assert kappa_ratio[0] >= 1 and eta_ratio[0] >= 1
     assert min(kappa_ratio[0], eta_ratio[0]) < 1 + 4 * u**2

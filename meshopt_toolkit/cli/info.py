@@ -1,5 +1,9 @@
 """``meshopt info MESH... [--json]``: counts, planarity, admissibility, quality summary.
 
+Tetrahedral meshes and triangle surfaces not on one plane are described by
+:mod:`._info_cells` (cell kind, admissibility and mean ratios; closedness, manifold,
+orientation, genus and aspect ratios).
+
 Planar means all points on one plane (any plane: the mesh is checked and measured in the
 plane's coordinates). Each edge-connected component is oriented by propagation and the
 number of flipped triangles reported ("reoriented N triangles"); coincident vertices are
@@ -54,9 +58,14 @@ def mesh_info(path: str | Path, merge_tolerance: float | None = None) -> dict:
         The file cannot be read.
     """
     from ..io import load
+    from ..io.cells import triangle_mesh
     from ..mesh import check_mesh
+    from ._info_cells import PLANAR, cells_info, read_kind
 
-    mesh = load(path)
+    kind, cells = read_kind(path)
+    if kind != PLANAR:  # tetrahedra, or triangles not on one plane
+        return cells_info(cells, kind, path, merge_tolerance)
+    mesh = load(path) if cells is None else triangle_mesh(cells)
     n_merged = 0
     if merge_tolerance is not None:
         mesh, n_merged = merged(mesh, merge_tolerance)
@@ -77,6 +86,7 @@ def mesh_info(path: str | Path, merge_tolerance: float | None = None) -> dict:
             quality = report.mesh.quality()
     info = {
         "path": str(path),
+        "cell_kind": PLANAR,
         "n_vertices": mesh.n_vertices,
         "n_triangles": mesh.n_triangles,
         "n_boundary_vertices": int(len(mesh.boundary_vertices)),
@@ -142,6 +152,7 @@ def _text(info: dict) -> str:
 
 def run(args) -> int:
     from ._common import expand_inputs
+    from ._info_cells import PLANAR, cells_text
 
     status = 0
     first = True
@@ -164,6 +175,7 @@ def run(args) -> int:
             else:
                 if not first:
                     print()
-                print(_text(info), flush=True)
+                print(_text(info) if info.get("cell_kind") == PLANAR else cells_text(info),
+                      flush=True)
                 first = False
     return status

@@ -21,6 +21,7 @@ format     read                                        write (default)
 ``.vtk``   meshio                                      binary (legacy 5.1)
 ``.vtu``   meshio                                      binary, zlib
 ``.stl``   corners merged, sorted ("unordered")        binary float32
+``.mesh``  Medit ASCII (meshio), references as tags     text, 17 significant digits
 =========  ==========================================  ===================================
 """
 
@@ -33,7 +34,7 @@ from pathlib import Path
 
 from ..errors import MeshoptError, ReadError, WriteError
 from ..mesh import TriangleMesh
-from . import gmsh, obj, off, ply, stl, vtk
+from . import gmsh, medit, obj, off, ply, stl, vtk
 from ._atomic import atomic_path
 from ._files import MAX_FILE_BYTES, check_input_file
 from .cells import CellMesh, triangle_mesh, triangles_only
@@ -108,6 +109,7 @@ register_format(".ply", read_cells=ply.read_cells, write_cells=ply.write_cells)
 register_format(".vtk", read_cells=vtk.read_vtk_cells, write_cells=vtk.write_vtk_cells)
 register_format(".vtu", read_cells=vtk.read_vtu_cells, write_cells=vtk.write_vtu_cells)
 register_format(".stl", read_cells=stl.read_cells, write_cells=stl.write_cells)
+register_format(".mesh", read_cells=medit.read_cells, write_cells=medit.write_cells)
 
 
 def supported_extensions(kind: str = "read") -> list[str]:

@@ -25,7 +25,7 @@ from ..errors import InvalidMeshError, ReadError
 if TYPE_CHECKING:  # pragma: no cover
     import meshio
 
-    from ..mesh import TriangleMesh
+    from ..mesh import SurfaceMesh, TetMesh, TriangleMesh
 
 logger = logging.getLogger(__name__)
 
@@ -222,6 +222,105 @@ class CellMesh:
                                     or (pts.shape[1] == 3 and not np.any(pts[:, 2])))
         cls = PlanarMesh if planar else TriangleMesh
         return cls(pts, triangles, source=self.source, **tags)
+
+
+    # -- surfaces and tetrahedra -------------------------------------------------------
+    def to_surface_mesh(self, what: str = "this operation") -> "SurfaceMesh":
+        """The triangles, line elements and physical tags as a triangle surface in 3D.
+
+        What :meth:`to_triangle_mesh` keeps and refuses, with the file's points as they
+        are (``(N, 3)``; 2D points get z = 0), planar or not.
+        """
+        from ..mesh import SurfaceMesh
+
+        tm = self.to_triangle_mesh(what)
+        return SurfaceMesh(self.points, tm.triangles, triangle_tags=tm.triangle_tags,
+                           lines=tm.lines, line_tags=tm.line_tags, tag_names=tm.tag_names,
+                           source=self.source)
+
+    def to_tet_mesh(self, what: str = "this operation") -> "TetMesh":
+        """The tetrahedra, with the triangles, lines and physical tags beside them.
+
+        Vertex cells, point data and cell data other than the physical groups are left out
+        (logged), as :meth:`to_triangle_mesh` does.
+
+        Raises
+        ------
+        InvalidMeshError
+            Cells other than tetrahedra, triangles, lines and vertices (naming the types
+            and counts), no tetrahedron, or a readable-level check fails.
+        """
+        from ..mesh import TetMesh
+
+        where = f"{self.source}: " if self.source else ""
+        kinds = ("tetra", "triangle", "line", "vertex")
+        other = [t for t, c in self.cells if t not in kinds and len(c)]
+        if other:
+            raise InvalidMeshError(
+                f"{where}has {self.describe_cells(set(other))} cells; only tetrahedra are "
+                "supported (meshopt convert keeps other cell types)")
+        parts = {t: _concatenated(self, t) for t in kinds[:3]}
+        if parts["tetra"] is None:
+            found = self.describe_cells() or "none"
+            raise InvalidMeshError(f"{where}mesh has no tetrahedra (cells: {found})")
+        _log_unused(self, what)
+        (tets, tet_tags), (tri, tri_tags), (lines, line_tags) = (
+            parts[t] or (None, None) for t in kinds[:3])
+        return TetMesh(self.points, tets, tet_tags=tet_tags, triangles=tri,
+                       triangle_tags=tri_tags, lines=lines, line_tags=line_tags,
+                       tag_names=_tag_names(self), source=self.source)
+
+    @classmethod
+    def from_surface_mesh(cls, mesh: "SurfaceMesh") -> "CellMesh":
+        """As :meth:`from_triangle_mesh`: blocks ``line`` (if any) then ``triangle``."""
+        return cls.from_triangle_mesh(mesh)  # type: ignore[arg-type]
+
+    @classmethod
+    def from_tet_mesh(cls, mesh: "TetMesh") -> "CellMesh":
+        """Blocks ``line``, ``triangle`` (where the mesh has them) then ``tetra``, physical
+        tags as cell data where any element is tagged."""
+        blocks = [("line", mesh.lines, mesh.line_tags),
+                  ("triangle", mesh.triangles, mesh.triangle_tags),
+                  ("tetra", mesh.tets, mesh.tet_tags)]
+        blocks = [(t, c, tags) for t, c, tags in blocks if c is not None]
+        tagged = mesh.tet_tags is not None or any(np.any(tags) for _, _, tags in blocks)
+        cells = [(t, np.array(c)) for t, c, _ in blocks]
+        phys = [np.zeros(len(c), np.int64) if tags is None else np.array(tags)
+                for _, c, tags in blocks]
+        return cls(np.array(mesh.points), cells, cell_data={PHYSICAL: phys} if tagged else {},
+                   field_data={name: np.array([tag, dim]) for name, (tag, dim) in
+                               mesh.tag_names.items()},
+                   source=mesh.source)
+
+
+def _concatenated(cm: CellMesh, cell_type: str):
+    """``(cells, physical tags or None)`` of every block of ``cell_type``, or None."""
+    phys = cm.cell_data.get(PHYSICAL)
+    idx = [i for i, (t, c) in enumerate(cm.cells) if t == cell_type and len(c)]
+    if not idx:
+        return None
+    cells = np.concatenate([cm.cells[i][1] for i in idx])
+    if phys is None:
+        return cells, None
+    return cells, np.concatenate([np.asarray(phys[i]).reshape(-1) for i in idx]).astype(np.int64)
+
+
+def _tag_names(cm: CellMesh) -> dict:
+    names = {}
+    for name, value in cm.field_data.items():
+        v = np.asarray(value).reshape(-1)
+        if v.size == 2 and np.issubdtype(v.dtype, np.integer):
+            names[str(name)] = (int(v[0]), int(v[1]))
+    return names
+
+
+def _log_unused(cm: CellMesh, what: str) -> None:
+    ignored = [f"{n} vertex cells" for t, n in cm.cell_counts().items() if t == "vertex"]
+    ignored += [f"point data {k!r}" for k in cm.point_data]
+    ignored += [f"cell data {k!r}" for k in cm.cell_data if k not in GMSH_KEYS]
+    if ignored:
+        where = f"{cm.source}: " if cm.source else ""
+        logger.info("%snot used by %s: %s", where, what, ", ".join(ignored))
 
 
 def tagged_blocks(mesh: "TriangleMesh") -> tuple[list, list, bool]:

@@ -74,22 +74,6 @@ def affine_maps(points: FloatArray, cells: IntArray, gradients: FloatArray) -> F
     return np.einsum("cja,cjb->cab", np.asarray(points, float)[cells], gradients)
 
 
-def tet_signed_volumes(points: FloatArray, tets: IntArray) -> FloatArray:
-    """Signed volumes ``det D / 6``, positive for positively oriented tets: (C,)."""
-    return np.linalg.det(edge_matrices(points, tets)) / 6.0
-
-
-def tet_mean_ratios(points: FloatArray, tets: IntArray) -> FloatArray:
-    """Mean ratio ``η = 12 (3V)^{2/3} / Σ ℓ²`` (six edges) in (0, 1], 1 iff regular;
-    negative for an inverted tet, 0 for a degenerate one. Returns (C,)."""
-    p = np.asarray(points, float)[tets]
-    i, j = np.triu_indices(4, 1)
-    sq = np.sum((p[:, i] - p[:, j]) ** 2, axis=(1, 2))
-    v = 3.0 * tet_signed_volumes(points, tets)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return 12.0 * np.sign(v) * np.abs(v) ** (2.0 / 3.0) / sq
-
-
 def tet_condition_numbers(points: FloatArray, tets: IntArray) -> FloatArray:
     """Condition number ``κ₂(S) = σ_max/σ_min`` of the map ``S = D W⁻¹`` from the regular
     tet (edge matrix ``W``) to each tet; 1 iff regular, ``inf`` when degenerate. (C,)."""

@@ -10,7 +10,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .._typing import FloatArray, IntArray
-from ..kernels.cell_maps import tet_signed_volumes
+from ..kernels.tetrahedra import signed_volumes
 from .tet_distortion import TetDistortion
 
 
@@ -18,7 +18,7 @@ def tet_lumped_mass(points: FloatArray, tets: IntArray) -> FloatArray:
     """Vertex weights ``m_i`` with ``Σ m_i |v_i|²`` = volume-weighted mean of ``|v|²``
     divided by the mean squared distance from the centroid (dimensionless, size- and
     resolution-independent, as :func:`.graph_metric.lumped_mass` in the plane)."""
-    vol = np.abs(tet_signed_volumes(points, tets))
+    vol = np.abs(signed_volumes(points, tets))
     m = np.bincount(np.asarray(tets).ravel(), np.repeat(vol / 4.0, 4), minlength=len(points))
     m /= m.sum()
     centroid = m @ points

@@ -1,0 +1,174 @@
+"""``meshopt info`` for tetrahedral meshes and triangle surfaces in 3D.
+
+:func:`cell_kind` sorts a file's cells: any tetrahedron makes it ``"tetrahedra"``;
+triangles whose points are not on one plane are ``"surface triangles"``; the rest
+(``"planar triangles"``) takes the planar path of :mod:`.info`. The dicts here have the
+same ``path``/``problems`` keys as the planar one, and print the same way.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+PLANAR = "planar triangles"
+SURFACE = "surface triangles"
+TETS = "tetrahedra"
+
+
+def cell_kind(cm) -> str:
+    """``"tetrahedra"``, ``"surface triangles"`` or ``"planar triangles"`` for a cell mesh
+    (planar: 2D points, z ≡ 0, points on any one plane, or no triangle at all)."""
+    if any(t == "tetra" and len(c) for t, c in cm.cells):
+        return TETS
+    pts = cm.points
+    if pts.shape[1] == 2 or not np.any(pts[:, 2]):
+        return PLANAR
+    tris = [c for t, c in cm.cells if t == "triangle" and len(c)]
+    if not tris or any(t not in ("triangle", "line", "vertex") and len(c) for t, c in cm.cells):
+        return PLANAR  # the planar path says what is wrong
+    from ..orientation import plane_of
+
+    tri = np.concatenate(tris)
+    used = np.unique(tri)
+    emb, _ = plane_of(pts[used], tri if len(used) == len(pts) else None)
+    return PLANAR if emb is not None else SURFACE
+
+
+def read_kind(path):
+    """``(cell kind, CellMesh)`` of a file; ``(PLANAR, None)`` for a format registered with
+    a triangle-mesh reader only (it is read by ``io.load``)."""
+    from pathlib import Path
+
+    from ..io import CELL_READERS, load_cells
+
+    if Path(path).suffix.lower() not in CELL_READERS:
+        return PLANAR, None
+    cells = load_cells(path)
+    return cell_kind(cells), cells
+
+
+def _float(x) -> float | None:
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+def merged_cells(cm, tol: float):
+    """``(cells with vertices closer than tol merged, number merged)``."""
+    from ..errors import MeshoptError
+    from ..io.cells import CellMesh
+    from ..orientation import merge_vertices
+
+    if tol < 0 or tol != tol:
+        raise MeshoptError(f"--merge-tolerance {tol}: must be a number >= 0")
+    keep, cells, n = merge_vertices(cm.points, cm.cells, tol)
+    if not n:
+        return cm, 0
+    return CellMesh(cm.points[keep], cells, cell_data=cm.cell_data, field_data=cm.field_data,
+                    source=cm.source), n
+
+
+def tet_info(mesh) -> dict:
+    """Counts, admissibility and quality of a :class:`~meshopt_toolkit.mesh.TetMesh`."""
+    q = mesh.quality()
+    boundary = mesh.boundary_surface()
+    return {
+        "n_vertices": mesh.n_vertices,
+        "n_tets": mesh.n_tets,
+        "n_boundary_faces": int(len(mesh.boundary_faces)),
+        "n_boundary_vertices": int(len(mesh.boundary_vertices)),
+        "admissible": mesh.is_admissible,
+        "n_inverted": int(len(mesh.inverted)),
+        "inverted": mesh.inverted[:10].tolist(),
+        "min_mean_ratio": _float(q.min_mean_ratio),
+        "mean_mean_ratio": _float(q.mean_mean_ratio),
+        "min_dihedral_deg": _float(q.min_dihedral_deg),
+        "max_dihedral_deg": _float(q.max_dihedral_deg),
+        "min_volume": _float(q.min_volume),
+        "total_volume": _float(q.total_volume),
+        "boundary_closed": boundary.is_closed,
+        "boundary_manifold": boundary.is_manifold,
+        "boundary_components": boundary.n_components,
+        "n_tagged_triangles": 0 if mesh.triangles is None else int(len(mesh.triangles)),
+        "physical_names": {k: list(v) for k, v in mesh.tag_names.items()},
+        "problems": mesh.problems,
+    }
+
+
+def surface_info(mesh) -> dict:
+    """Counts, topology and quality of a :class:`~meshopt_toolkit.mesh.SurfaceMesh`."""
+    ar = mesh.aspect_ratios()
+    closed = mesh.is_closed
+    return {
+        "n_vertices": mesh.n_vertices,
+        "n_triangles": mesh.n_triangles,
+        "planar": False,
+        "n_edges": int(len(mesh.edges)),
+        "n_boundary_edges": int(len(mesh.boundary_edges)),
+        "closed": closed,
+        "boundary_loops": mesh.n_boundary_loops,
+        "components": mesh.n_components,
+        "euler_characteristic": [int(x) for x in mesh.euler_characteristics],
+        "genus": mesh.genera,
+        "manifold": mesh.is_manifold,
+        "orientable": mesh.is_orientable,
+        "oriented": mesh.is_oriented,
+        "n_degenerate": int(len(mesh.degenerate_triangles)),
+        "min_aspect_ratio": _float(ar.min()),
+        "mean_aspect_ratio": _float(ar.mean()),
+        "enclosed_volume": _float(mesh.enclosed_volume()) if closed and mesh.is_oriented
+        and mesh.is_manifold else None,
+        "n_tagged_lines": 0 if mesh.lines is None else int(len(mesh.lines)),
+        "physical_names": {k: list(v) for k, v in mesh.tag_names.items()},
+        "problems": mesh.problems,
+    }
+
+
+def cells_info(cm, kind: str, path, merge_tolerance: float | None = None) -> dict:
+    """The info dict of a tetrahedral mesh or a 3D surface read into ``cm``.
+
+    Raises
+    ------
+    ReadError
+        The cells do not make a valid mesh of that kind (message names the file).
+    """
+    from ..errors import InvalidMeshError, ReadError
+
+    n_merged = 0
+    if merge_tolerance is not None:
+        cm, n_merged = merged_cells(cm, merge_tolerance)
+    try:
+        mesh = cm.to_tet_mesh("meshopt info") if kind == TETS else \
+            cm.to_surface_mesh("meshopt info")
+    except InvalidMeshError as exc:
+        raise ReadError(str(exc)) from exc
+    info = {"path": str(path), "cell_kind": kind}
+    info.update(tet_info(mesh) if kind == TETS else surface_info(mesh))
+    if merge_tolerance is not None:
+        info["n_merged"] = n_merged
+    return info
+
+
+def _fmt(value) -> str:
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if value is None or (isinstance(value, (list, dict)) and not value):
+        return "-"
+    if isinstance(value, float):
+        return f"{value:.6g}"
+    if isinstance(value, dict):
+        return ", ".join(f"{k}={v[0]} (dim {v[1]})" for k, v in value.items())
+    if isinstance(value, list):
+        return ", ".join("-" if v is None else str(v) for v in value)
+    return str(value)
+
+
+def cells_text(info: dict) -> str:
+    """The info dict as indented ``key  value`` lines under the path."""
+    rows = [(k.replace("_", " "), _fmt(v)) for k, v in info.items()
+            if k not in ("path", "problems")]
+    width = max(len(k) for k, _ in rows)
+    lines = [info["path"]] + [f"  {k:<{width}}  {v}" for k, v in rows]
+    lines += [f"  problem: {p}" for p in info["problems"]]
+    return "\n".join(lines)
