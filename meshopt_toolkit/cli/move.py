@@ -20,8 +20,8 @@ import argparse
 import json
 from pathlib import Path
 
-from ._common import (add_output_flags, check_output_target, load_at_unit_size,
-                      prepare_output_dir, write_text)
+from ._common import (add_output_flags, check_output_target, load_workpiece,
+                      prepare_output_dir, save_moved, write_text)
 from ..bounds import MAX_FRAMES
 from ..filters.move_vertices import PrescribedMotion
 from ._params import add_options, check_options
@@ -64,7 +64,6 @@ def _check_numbers(args: argparse.Namespace) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..io import save
     from ..motion.move import move
     from ..motion.targets import read_target_table, targets_from_map
     from ..progress import ProgressBar
@@ -74,22 +73,23 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.output)
     frames = args.frames
     check_output_target(out, src, frames, args.force)
-    # work at unit size (exact powers of two), results scaled back
-    scale, mesh = load_at_unit_size(src, "move")
+    # the plane's coordinates at unit size; every block, tag and datum written back
+    wp = load_workpiece(src, "move")
+    mesh = wp.mesh
     if args.targets is not None:
         handles, targets = read_target_table(args.targets)
     else:  # the expressions are in the file's units
-        handles, targets = targets_from_map(scale.mesh_up(mesh), args.map, args.where)
+        handles, targets = targets_from_map(wp.user_mesh, args.map, args.where)
     if frames is not None:
         prepare_output_dir(out, force=args.force)
     with ProgressBar(1000, "move") as bar:
         def progress(s: float) -> None:
             bar.update(int(1000 * s) - bar.count)
 
-        result = move(mesh, handles, scale.down(targets), frames=frames, steps=args.steps,
+        result = move(mesh, handles, wp.to_unit(targets), frames=frames, steps=args.steps,
                       weight=args.weight, progress=progress)
     if frames is None:
-        save(scale.mesh_up(result.mesh), out, overwrite=args.force)
+        save_moved(wp, result.mesh, out, force=args.force)
         written = str(out)
     else:
         ext = (args.format or src.suffix).lower()
@@ -97,13 +97,13 @@ def run(args: argparse.Namespace) -> int:
         width = max(3, len(str(frames - 1)))
         for k, m in enumerate(result.frames):
             name = f"frame_{k:0{width}d}{ext}"
-            save(scale.mesh_up(m, what=name), out / name, overwrite=True)
+            save_moved(wp, m, out / name, what=name)
         rows = zip(result.min_aspect_ratio, result.mean_quality, result.strain_bound)
         write_text(out / "quality.csv", "frame,min_aspect_ratio,mean_quality,strain_bound\n"
                    + "".join(f"{k},{a:.10g},{q:.10g},{b:.10g}\n"
                              for k, (a, q, b) in enumerate(rows)))
         written = f"{out}/ ({frames} frames, quality.csv)"
-    summary = {**result.summary(), "unit_scale": scale.factor}
+    summary = {**result.summary(), "unit_scale": wp.scale.factor}
     if args.json:
         print(json.dumps({"output": str(out), **summary}, indent=2))
     else:
