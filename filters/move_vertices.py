@@ -37,25 +37,20 @@ class PrescribedMotion(Filter):
 
     def apply(self, document, *, targets: str = "", map: str = "", where: str = "",
               steps: int = 8, weight: float = 1.0) -> dict:
-        from meshopt_toolkit.mesh import require_admissible
         from meshopt_toolkit.motion.move import move
-        from meshopt_toolkit.scaling import unit_scale
         from meshopt_toolkit.motion.targets import read_target_table, targets_from_map
 
         entry = document.current_entry
-        if not entry.mesh.is_planar:
-            raise FilterError(f"{self.name} needs a planar mesh; {entry.name} is a 3D surface")
         if bool(targets) == bool(map):
             raise FilterError(f"{self.name}: give exactly one of targets and map")
         if where and not map:
             raise FilterError(f"{self.name}: where needs map")
-        mesh = entry.mesh.as_planar()
-        scale = unit_scale(mesh)  # at unit size, the result scaled back
-        unit = require_admissible(scale.mesh_down(mesh), self.name)
+        # the plane's coordinates at unit size; the file's blocks, tags and data kept
+        wp = entry.workpiece(self.name).admissible(self.name)
         if targets:
             handles, positions = read_target_table(targets.replace("{stem}", entry.name))
         else:  # the expressions are in the mesh's units
-            handles, positions = targets_from_map(scale.mesh_up(unit), map, where or None)
-        result = move(unit, handles, scale.down(positions), steps=steps, weight=weight)
-        entry.mesh = scale.mesh_up(result.mesh)
-        return {**result.summary(), "unit_scale": scale.factor}
+            handles, positions = targets_from_map(wp.user_mesh, map, where or None)
+        result = move(wp.mesh, handles, wp.to_unit(positions), steps=steps, weight=weight)
+        entry.set_workpiece(wp.moved(result.mesh.points))
+        return {**result.summary(), "unit_scale": wp.scale.factor}

@@ -107,6 +107,24 @@ class Workpiece:
         s = unit_scale(self.plane, plane)
         return replace(self, scale=s), Workpiece(cells, plane, self.frame, s)
 
+    def with_file_points(self, points) -> "Workpiece":
+        """The workpiece with its file's vertices at ``points`` (the same vertices, moved
+        in file coordinates, e.g. by a MeshLab step): plane coordinates derived, bit for
+        bit where a vertex did not move.
+
+        Raises
+        ------
+        InvalidMeshError
+            A vertex left the plane.
+        """
+        p = _pad(np.asarray(points, dtype=np.float64), self.cells.points.shape[1])
+        plane = self.plane_coordinates(p)
+        return Workpiece(replace(self.cells, points=p), plane, self.frame, self.scale)
+
+    def at_file_scale(self) -> "Workpiece":
+        """This workpiece with :attr:`mesh` at the file's scale."""
+        return self if self.scale.is_identity else replace(self, scale=UnitScale(0))
+
     def rescaled(self) -> "Workpiece":
         """This workpiece at the unit scale of its current points."""
         s = unit_scale(self.plane)
