@@ -322,3 +322,48 @@ def test_planar_mesh_refine_splits_lines_in_place_and_keeps_non_edges():
     assert r.lines[2].tolist() == [0, 3]  # not an edge: kept as it is
     mid = r.lines[0, 1]
     assert r.lines[1].tolist() == [mid, 1] and r.points[mid].tolist() == [0.5, 0.0]
+
+
+@pytest.mark.parametrize("name", NAMES)
+@pytest.mark.parametrize("metric", ["distortion", "scalar"])
+def test_identity_morph_is_bit_for_bit(files, tmp_path, name, metric):
+    src = load_cells(files / name)
+    outdir = tmp_path / "m"
+    assert main(["morph", str(files / name), str(files / name), "-o", str(outdir),
+                 "--frames", "3", "--no-plots", "--metric", metric]) == 0
+    for k in range(3):
+        _assert_same_extras(src, load_cells(outdir / f"frame_{k:03d}{name[name.index('.'):]}"))
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_pipeline_motion_filters_keep_everything(files, tmp_path, name):
+    from meshopt_toolkit.pipeline import Document
+    from meshopt_toolkit.pipeline.document import load_entry, save_entry
+    from meshopt_toolkit.pipeline.filter import registry
+
+    src = load_cells(files / name)
+    doc = Document()
+    doc.add(load_entry(files / name))
+    registry.get("apply_prescribed_motion")()(doc, map="x; y")
+    np.save(tmp_path / "zero.npy", np.zeros((len(src.points), 2)))
+    registry.get("apply_quality_preserving_deformation")()(
+        doc, displacement=str(tmp_path / "zero.npy"))
+    out = tmp_path / f"out{name[name.index('.'):]}"
+    save_entry(doc.current_entry, out)
+    _assert_same_extras(src, load_cells(out))  # both identities: bit for bit
+    registry.get("apply_prescribed_motion")()(doc, map="x + 0.05*y; y", where="x > 0.5")
+    registry.get("compute_shape_optimization")()(doc, max_iterations=2)
+    save_entry(doc.current_entry, out)
+    moved = load_cells(out)
+    _assert_same_extras(src, moved, points=False)
+    assert not np.array_equal(moved.points, src.points)
+    if name == "tilted.vtu":
+        assert _off_plane(moved.points) <= 1e-12
+
+
+def test_unit_scaling_never_scales_z():
+    from meshopt_toolkit.scaling import UnitScale
+
+    mesh = TriangleMesh([[0, 0, 2.0], [8, 0, 2.0], [0, 8, 2.0]], [[0, 1, 2]])
+    with pytest.raises(InvalidMeshError, match="plane's coordinates"):
+        UnitScale(3).mesh_down(mesh)
