@@ -135,9 +135,12 @@ class Workpiece:
     def mesh(self) -> PlanarMesh:
         """The triangles, lines and physical tags at unit size, in plane coordinates."""
         cm = self.cells
-        data = {PHYSICAL: cm.cell_data[PHYSICAL]} if PHYSICAL in cm.cell_data else {}
-        flat = CellMesh(self.scale.down(self.plane), cm.cells, cell_data=data,
-                        field_data=cm.field_data, source=cm.source)
+        # the vertex cells and data stay in ``cells`` (the working mesh has no place for them)
+        keep = [i for i, (t, _) in enumerate(cm.cells) if t != "vertex"]
+        phys = cm.cell_data.get(PHYSICAL)
+        data = {} if phys is None else {PHYSICAL: [phys[i] for i in keep]}
+        flat = CellMesh(self.scale.down(self.plane), [cm.cells[i] for i in keep],
+                        cell_data=data, field_data=cm.field_data, source=cm.source)
         mesh = flat.to_triangle_mesh()
         assert isinstance(mesh, PlanarMesh)  # 2D points
         return mesh
@@ -184,8 +187,7 @@ class Workpiece:
         Computed cell data goes to the triangle blocks; other blocks get NaN (float) or
         zeros. A name the file already holds is replaced (the operation changed it).
         """
-        cm = self.cells
-        return cells_with_attributes(cm, cell_data or {}, point_data or {})
+        return cells_with_attributes(self.cells, cell_data or {}, point_data or {})
 
     def _to_file(self, plane: np.ndarray) -> np.ndarray:
         pts = self.cells.points
@@ -209,7 +211,8 @@ class Workpiece:
         p = np.asarray(points, dtype=np.float64)
         own = self.cells.points
         if p.ndim != 2 or len(p) != len(own):
-            raise InvalidMeshError(f"{source}: {len(p)} points, the mesh has {len(own)}")
+            raise InvalidMeshError(f"{source}: {len(p)} vertices, the mesh has {len(own)} "
+                                   "(the same vertices are needed)")
         if p.shape[1] != own.shape[1]:
             p = _pad(p, own.shape[1])
         same = (p == own).all(axis=1)

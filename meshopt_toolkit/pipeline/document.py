@@ -28,7 +28,7 @@ elements of the mesh are kept too.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -170,8 +170,15 @@ def entry_cells(entry: MeshEntry) -> tuple[CellMesh, tuple[str, ...]]:
     from ..io.cells import CellMesh
     from ..io.workpiece import cells_with_attributes
 
-    wp = entry.workpiece(unit_size=False, required=False)
-    cells = wp.cells if wp is not None else CellMesh.from_triangle_mesh(entry.mesh)
+    wp = entry.source_workpiece
+    if wp is not None and np.array_equal(wp.mesh.triangles, entry.mesh.triangles):
+        # the file's cells at the mesh's points (wherever a MeshLab step put them)
+        pts = np.asarray(entry.mesh.points)
+        if pts.shape[1] < wp.cells.points.shape[1]:
+            pts = np.column_stack([pts, np.zeros(len(pts))])
+        cells = replace(wp.cells, points=pts)
+    else:
+        cells = CellMesh.from_triangle_mesh(entry.mesh)
     fa, va = entry.face_attributes, entry.vertex_attributes
     return cells_with_attributes(cells, fa, va), tuple(fa) + tuple(va)
 
