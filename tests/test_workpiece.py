@@ -367,3 +367,27 @@ def test_unit_scaling_never_scales_z():
     mesh = TriangleMesh([[0, 0, 2.0], [8, 0, 2.0], [0, 8, 2.0]], [[0, 1, 2]])
     with pytest.raises(InvalidMeshError, match="plane's coordinates"):
         UnitScale(3).mesh_down(mesh)
+
+
+@pytest.mark.parametrize("name", ["plate_z2.vtu", "tilted.vtu"])
+def test_a_meshlab_step_that_keeps_the_faces_keeps_the_extras_and_the_plane(files, tmp_path,
+                                                                         name):
+    from meshopt_toolkit.pipeline import Document
+    from meshopt_toolkit.pipeline.document import load_entry, save_entry
+    from meshopt_toolkit.pipeline.runner import Pipeline
+
+    pytest.importorskip("pymeshlab")
+    src = load_cells(files / name)
+    doc = Document()
+    doc.add(load_entry(files / name))
+    Pipeline.from_dict({"filters": [
+        {"name": "apply_coord_laplacian_smoothing", "params": {"stepsmoothnum": 1}},
+        {"name": "meshing_uniform_refinement"}]}).run(doc)
+    save_entry(doc.current_entry, tmp_path / "out.vtu")
+    out = load_cells(tmp_path / "out.vtu")
+    assert [t for t, _ in out.cells] == [t for t, _ in src.cells]
+    assert set(src.cell_data) <= set(out.cell_data) and "temperature" in out.point_data
+    if name == "tilted.vtu":
+        assert _off_plane(out.points) <= 1e-12
+    else:
+        assert np.all(out.points[:, 2] == 2.0)

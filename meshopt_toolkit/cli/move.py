@@ -8,9 +8,9 @@ holds; the other boundary vertices stay). Without ``--frames`` the moved mesh is
 handle error, seconds). Existing outputs are never overwritten without ``--force``; they
 are checked before the motion is computed.
 
-The mesh moves at unit size (divided by the power of two nearest its size, see
-:mod:`meshopt_toolkit.scaling`; ``--map`` and ``--targets`` stay in the file's units) and
-is scaled back, so coordinates near 1e300 or 1e-300 work; the summary's numbers are those
+The mesh moves in its plane (x, y for z = const), at unit size (divided by the power of
+two nearest its size, see :mod:`meshopt_toolkit.io.workpiece`; ``--map`` and ``--targets``
+stay in the file's units and the plane's coordinates) and is scaled back, so coordinates near 1e300 or 1e-300 work; the summary's numbers are those
 of the unit-size problem, with the factor as ``unit_scale``.
 """
 

@@ -178,6 +178,9 @@ def entry_cells(entry: MeshEntry) -> tuple[CellMesh, tuple[str, ...]]:
             pts = np.column_stack([pts, np.zeros(len(pts))])
         cells = replace(wp.cells, points=pts)
     else:
+        if wp is not None:
+            logger.warning("%s: the faces changed since the file was read: its blocks, "
+                           "groups and data are not kept", entry.name)
         cells = CellMesh.from_triangle_mesh(entry.mesh)
     fa, va = entry.face_attributes, entry.vertex_attributes
     return cells_with_attributes(cells, fa, va), tuple(fa) + tuple(va)
@@ -343,7 +346,7 @@ class Document:
             mesh = from_pymeshlab(m)
             if old is not None and np.array_equal(mesh.triangles, old.mesh.triangles):
                 kwargs = old.mesh._tag_kwargs()
-                cls = PlanarMesh if mesh.is_planar else TriangleMesh
+                cls = PlanarMesh if mesh.in_xy_plane else TriangleMesh
                 mesh = cls(mesh.points, mesh.triangles, **kwargs)
             mesh = _as_best(mesh)
             entry = MeshEntry(mesh, name=m.label() or (old.name if old else f"mesh{pos}"))
