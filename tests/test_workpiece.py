@@ -105,6 +105,15 @@ def test_constant_z_and_2d_points_are_worked_on_as_x_y_bit_for_bit(files):
         Workpiece.from_cells(flat).mesh.points).cells.points, flat.points)
 
 
+def test_subnormal_coordinates_come_back_bit_for_bit():
+    # scaling by a power of two loses bits of subnormal numbers: unmoved vertices are
+    # recognised at unit size and keep their file coordinates
+    pts = np.array([[2.225e-313, 3.0, 1.0], [3.0, 0.0, 1.0], [0.0, -3.0, 1.0]])
+    wp = Workpiece.from_cells(CellMesh(pts, [("triangle", np.array([[0, 1, 2]]))]))
+    assert wp.scale.exponent == 2 and wp.mesh.points[0, 0] * 4 != pts[0, 0]  # bits lost
+    assert np.array_equal(wp.moved(wp.mesh.points).cells.points, pts)
+
+
 def test_a_moved_vertex_of_a_constant_z_plate_keeps_its_z(files):
     cm = load_cells(files / "plate_z2.vtu")
     wp = Workpiece.from_cells(cm)

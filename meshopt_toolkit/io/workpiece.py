@@ -170,10 +170,12 @@ class Workpiece:
         if q.shape != self.plane.shape:
             raise InvalidMeshError(f"new points have shape {q.shape}, the mesh has "
                                    f"{self.plane.shape}")
-        plane = self.scale.up(q, what=what)
-        moved = ~(plane == self.plane).all(axis=1)
+        # compared at unit size: scaling is exact except for subnormal numbers
+        moved = ~(q == self.scale.down(self.plane)).all(axis=1)
+        plane = np.array(self.plane, copy=True)
         pts = np.array(self.cells.points, dtype=np.float64, copy=True)
         if moved.any():
+            plane[moved] = self.scale.up(q[moved], what=what)
             pts[moved] = self._to_file(plane[moved])
         new = replace(self, cells=replace(self.cells, points=pts), plane=plane)
         new.__dict__["mesh"] = self.mesh.with_points(q)
