@@ -64,20 +64,19 @@ class GenerateGeodesicMorph(Filter):
         from meshopt_toolkit.kernels.triangles import aspect_ratios
         from meshopt_toolkit.morph import geodesic_morph
         from meshopt_toolkit.motion.morph import distortion_morph
-        from meshopt_toolkit.scaling import unit_scale
+        from meshopt_toolkit.pipeline.document import MeshEntry
 
         n = len(document)
         for idx, what in ((source, "source"), (target, "target")):
             if not -n <= idx < n:
                 raise FilterError(f"{self.name}: the document has {n} meshes, no {what} mesh {idx}")
-        src = document.entries[source].mesh
-        tgt = document.entries[target].mesh
-        for mesh, what in ((src, "source"), (tgt, "target")):
-            if not mesh.is_planar:
-                raise FilterError(f"{self.name}: the {what} mesh is not planar")
+        src = document.entries[source].workpiece(f"{self.name}: the source")
+        tgt = document.entries[target].workpiece(f"{self.name}: the target")
         try:
-            scale = unit_scale(src, tgt)  # at unit size, the frames scaled back
-            base, end = scale.mesh_down(src.as_planar()), scale.mesh_down(tgt.as_planar())
+            # the source's plane at unit size (one power of two for both); the frames
+            # carry the source's blocks, tags and data
+            src, tgt = src.with_target(tgt.cells)
+            base, end = src.mesh, tgt.mesh
             if metric == "distortion":
                 result = distortion_morph(base, end, frames=frames, weight=weight)
             else:
@@ -85,12 +84,14 @@ class GenerateGeodesicMorph(Filter):
                                         beta=(beta1, beta2, beta3, beta4), normalize=normalize,
                                         method=method)
             width = max(3, len(str(frames - 1)))
-            meshes = [(f"morph_{k:0{width}d}", scale.mesh_up(m, what=f"frame {k}"),
+            meshes = [(f"morph_{k:0{width}d}", src.moved(m.points, what=f"frame {k}"),
                        aspect_ratios(m.points, m.triangles))
                       for k, m in enumerate(result.meshes(like=base))]
         except MeshoptError as exc:
             raise FilterError(f"{self.name}: {exc}") from None
-        for name, mesh, quality in meshes:
-            entry = document.add(mesh, name=name)
+        for name, wp, quality in meshes:
+            entry = MeshEntry(wp.file_mesh(), name=name)
+            entry.set_workpiece(wp)
+            document.add(entry)
             entry.set_face_attribute("quality", quality)
-        return {**result.summary(), "unit_scale": scale.factor}
+        return {**result.summary(), "unit_scale": src.scale.factor}

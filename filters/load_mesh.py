@@ -50,9 +50,9 @@ class LoadMesh(Filter):
         return stats_of(load(p))
 
     def apply(self, document, *, path: str) -> dict:
-        from meshopt_toolkit.io import load
+        from meshopt_toolkit.pipeline.document import load_entry
 
         p = self._path(document, path)
-        mesh = load(p)
-        document.add(mesh, name=p.stem)
+        entry = document.add(load_entry(p))  # with every block, tag and datum of the file
+        mesh = entry.mesh
         return {"loaded": str(p), "n_vertices": mesh.n_vertices, "n_triangles": mesh.n_triangles}

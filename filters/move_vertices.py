@@ -45,14 +45,10 @@ class PrescribedMotion(Filter):
     def apply(self, document, *, targets: str = "", map: str = "", where: str = "",
               group: str = "", free_boundary: bool = False, steps: int = 8,
               weight: float = 1.0) -> dict:
-        from meshopt_toolkit.mesh import require_admissible
         from meshopt_toolkit.motion.move import move
-        from meshopt_toolkit.scaling import unit_scale
         from meshopt_toolkit.motion.targets import handles_of
 
         entry = document.current_entry
-        if not entry.mesh.is_planar:
-            raise FilterError(f"{self.name} needs a planar mesh; {entry.name} is a 3D surface")
         if bool(targets) == bool(map):
             raise FilterError(f"{self.name}: give exactly one of targets and map")
         for name, given in (("where", where), ("group", group)):
@@ -60,14 +56,13 @@ class PrescribedMotion(Filter):
                 raise FilterError(f"{self.name}: {name} needs map")
         if free_boundary and not targets:
             raise FilterError(f"{self.name}: free_boundary is for targets")
-        mesh = entry.mesh.as_planar()
-        scale = unit_scale(mesh)  # at unit size, the result scaled back
-        unit = require_admissible(scale.mesh_down(mesh), self.name)
-        # in the mesh's units (exactly back at unit size: powers of two)
+        # the plane's coordinates at unit size; the file's blocks, tags and data kept
+        wp = entry.workpiece(self.name).admissible(self.name)
+        # handles and targets in the mesh's units
         handles, positions = handles_of(
-            scale.mesh_up(unit), targets=targets.replace("{stem}", entry.name) or None,
+            wp.user_mesh, targets=targets.replace("{stem}", entry.name) or None,
             mapping=map or None, where=where or None, group=group or None,
             free_boundary=free_boundary)
-        result = move(unit, handles, scale.down(positions), steps=steps, weight=weight)
-        entry.mesh = scale.mesh_up(result.mesh)
-        return {**result.summary(), "unit_scale": scale.factor}
+        result = move(wp.mesh, handles, wp.to_unit(positions), steps=steps, weight=weight)
+        entry.set_workpiece(wp.moved(result.mesh.points))
+        return {**result.summary(), "unit_scale": wp.scale.factor}

@@ -39,25 +39,23 @@ class QualityPreservingDeformation(Filter):
     def apply(self, document, *, displacement: str = "", time: float = 1.0, alpha: str = "",
               beta: str = "") -> dict:
         from meshopt_toolkit.deform import deform, load_displacement
-        from meshopt_toolkit.mesh import require_admissible
-        from meshopt_toolkit.scaling import unit_scale
 
         entry = document.current_entry
-        if not entry.mesh.is_planar:
-            raise FilterError(f"{self.name} needs a planar mesh; {entry.name} is a 3D surface")
         if not displacement:
             raise FilterError(f"{self.name}: the displacement parameter is required")
         a, b = number_list(alpha, 3, "alpha"), number_list(beta, 4, "beta")
         if a is not None and b is not None:
             raise FilterError(f"{self.name}: give alpha or beta, not both")
-        scale = unit_scale(entry.mesh)  # at unit size, the result scaled back
-        mesh = require_admissible(scale.mesh_down(entry.mesh.as_planar()), self.name)
-        V = load_displacement(displacement.replace("{stem}", entry.name), scale.mesh_up(mesh))
-        result = deform(mesh, scale.down(V), t=time, alpha=a, beta=b)
-        entry.mesh = scale.mesh_up(result.mesh)
+        # the plane's coordinates at unit size; the file's blocks, tags and data kept
+        wp = entry.workpiece(self.name).admissible(self.name)
+        mesh = wp.mesh
+        V = load_displacement(displacement.replace("{stem}", entry.name), wp.user_mesh,
+                              wp.plane_coordinates)
+        result = deform(mesh, wp.to_unit(V), t=time, alpha=a, beta=b)
+        entry.set_workpiece(wp.moved(result.mesh.points))
         moved = float(np.abs(result.mesh.points - mesh.points).max())
         return {"time": float(time), "min_aspect_ratio": float(np.min(result.aspect_ratio)),
-                "max_displacement": float(scale.up(moved)),
+                "max_displacement": float(wp.from_unit(moved)),
                 "penalty_start": float(result.geodesic.penalty[0]),
                 "penalty_end": float(result.geodesic.penalty[-1]),
-                "unit_scale": scale.factor}
+                "unit_scale": wp.scale.factor}

@@ -19,7 +19,9 @@ def binary_of(encoding: str) -> bool | None:
 
 @register
 class SaveMesh(Filter):
-    """Write the current mesh with ``meshopt_toolkit.io.save``.
+    """Write the current mesh with every block, tag and datum of its file, and its vertex
+    and face attributes as point and cell data (what the format cannot hold is left out
+    with a warning naming it; :func:`meshopt_toolkit.pipeline.document.save_entry`).
 
     The path is a template (``{stem}``, ``{name}``, ``{ext}``, ``{index}``, ... see
     :mod:`meshopt_toolkit.pipeline.paths`) relative to the document's output folder
@@ -62,12 +64,13 @@ class SaveMesh(Filter):
 
     def apply(self, document, *, path: str, encoding: str = ENCODINGS[0],
               msh_version: str = MSH_VERSIONS[0], overwrite: bool = False) -> dict:
-        from meshopt_toolkit.io import save
+        from meshopt_toolkit.pipeline.document import save_entry
 
         p = self._path(document, path)
         if document.dry_run:
             return {"would_write": str(p)}
-        save(document.mesh, p, overwrite=document.overwrite, binary=binary_of(encoding),
-             msh_version=msh_version)  # atomic
+        # atomic; every block, tag and datum of the input, the attributes as data
+        save_entry(document.current_entry, p, overwrite=document.overwrite,
+                   binary=binary_of(encoding), msh_version=msh_version)
         document.written.append(str(p))
         return {"written": str(p)}

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from meshopt_toolkit.errors import FilterError
 from meshopt_toolkit.expressions import DEFAULT_RHS
 from meshopt_toolkit.optimize import (DEFAULT_METHOD, DEFAULT_RETRACTION, DEFAULT_VARIANT, METHODS,
                                       RETRACTIONS, VARIANTS)
@@ -74,9 +73,9 @@ class ShapeOptimization(Filter):
         from meshopt_toolkit.optimize import DEFAULT_PENALTY_BETA, optimize
 
         entry = document.current_entry
-        if not entry.mesh.is_planar:
-            raise FilterError(f"{self.name} needs a planar mesh; {entry.name} is a 3D surface")
-        mesh = entry.mesh.as_planar()
+        # the plane's coordinates at the file's scale (r is given in them)
+        wp = entry.workpiece(self.name, unit_size=False)
+        mesh = wp.mesh
         beta = number_list(penalty, 4, "penalty") or DEFAULT_PENALTY_BETA
         result = optimize(
             mesh, PoissonObjective(mesh, rhs=rhs), variant=variant, method=method,
@@ -84,5 +83,5 @@ class ShapeOptimization(Filter):
             penalty_beta=beta, metric_beta=number_list(metric_penalty, 4, "metric_penalty"),
             max_iter=max_iterations, tol=tolerance or None, ftol=tolerance or None,
         )
-        entry.mesh = result.mesh
+        entry.set_workpiece(wp.moved(result.mesh.points))
         return result.summary()

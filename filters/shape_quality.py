@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from meshopt_toolkit.errors import FilterError
 from meshopt_toolkit.kernels.triangles import aspect_ratios, inverse_shape_quality, quality_summary
 from meshopt_toolkit.pipeline.filter import Filter, register
 from meshopt_toolkit.pipeline.params import EnumParam
@@ -34,11 +33,8 @@ class ShapeQualityPerFace(Filter):
 
     def apply(self, document, *, metric: str = METRICS[0]) -> dict:
         entry = document.current_entry
-        mesh = entry.mesh
-        if not mesh.is_planar:
-            raise FilterError(f"{self.name} needs a planar mesh (z = 0); "
-                              f"{entry.name} is a 3D surface")
-        pts = mesh.points[:, :2]
+        mesh = entry.workpiece(self.name, unit_size=False).mesh  # in its plane's coordinates
+        pts = mesh.points
         tri = mesh.triangles
         values = inverse_shape_quality(pts, tri) if metric == METRICS[0] else aspect_ratios(pts, tri)
         entry.set_face_attribute("quality", values.astype(np.float64))

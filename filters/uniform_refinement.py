@@ -8,7 +8,7 @@ from meshopt_toolkit.pipeline.filter import Filter, register
 from meshopt_toolkit.pipeline.params import IntParam
 
 
-def _refine_attributes(entry, old_mesh, new_mesh) -> None:
+def _refine_attributes(entry, old_mesh) -> None:
     """Carry attributes across one refinement.
 
     Face attributes are inherited by the 4 children (``PlanarMesh.refine`` puts the
@@ -25,7 +25,6 @@ def _refine_attributes(entry, old_mesh, new_mesh) -> None:
             mid = 0.5 * (a[e[:, 0]] + a[e[:, 1]])
         va[name] = np.concatenate([a, mid.astype(a.dtype)])
     fa = {name: np.repeat(np.asarray(a), 4, axis=0) for name, a in entry.face_attributes.items()}
-    entry.mesh = new_mesh
     entry.vertex_attributes = va
     entry.face_attributes = fa
 
@@ -34,8 +33,12 @@ def _refine_attributes(entry, old_mesh, new_mesh) -> None:
 class UniformRefinement(Filter):
     """Uniform refinement ``PlanarMesh.refine`` repeated ``iterations`` times.
 
-    Planar meshes keep their vertices (new ones appended), tags and line elements; the
-    shape quality of every child equals its parent's. A 3D surface is routed to pymeshlab's
+    Planar meshes (on any plane) keep their vertices (new ones appended) and everything
+    their file holds: line elements are split with their edges (both halves keep the
+    tags), cell data is copied to the children, float point data interpolated at the new
+    midpoints (other point data is dropped with a warning), vertex cells and physical
+    names kept (:meth:`meshopt_toolkit.io.workpiece.Workpiece.refined`). The shape
+    quality of every child equals its parent's. A 3D surface is routed to pymeshlab's
     midpoint subdivision (``meshing_surface_subdivision_midpoint`` with threshold 0), where
     MeshLab decides the order of the new vertices and attributes are dropped.
     """
@@ -56,12 +59,12 @@ class UniformRefinement(Filter):
     def apply(self, document, *, iterations: int = 1) -> dict:
         entry = document.current_entry
         before = entry.mesh.n_triangles
-        if entry.mesh.is_planar:
-            mesh = entry.mesh.as_planar()
+        wp = entry.workpiece(self.name, unit_size=False, required=False)
+        if wp is not None:
             for _ in range(iterations):
-                new = mesh.refine()
-                _refine_attributes(entry, mesh, new)
-                mesh = new
+                _refine_attributes(entry, wp.mesh)
+                wp = wp.refined()
+            entry.set_workpiece(wp)
         else:
             self._surface(document, iterations)
         return {"n_triangles_before": int(before), "n_triangles": int(document.mesh.n_triangles),

@@ -154,11 +154,13 @@ def deform(
     )
 
 
-def load_displacement(spec, mesh: PlanarMesh) -> FloatArray:
+def load_displacement(spec, mesh: PlanarMesh, plane=None) -> FloatArray:
     """Read an initial velocity for ``mesh`` from a file.
 
     ``spec`` is a ``.npy`` or ``.csv`` (N, 2) array (an (N, 3) array with z = 0 is
     accepted), or a mesh file with the same connectivity (V = its points − ``mesh``'s).
+    ``plane(points, source)``, when given, maps that file's points into ``mesh``'s plane
+    coordinates (:meth:`~meshopt_toolkit.io.workpiece.Workpiece.plane_coordinates`).
 
     Raises
     ------
@@ -191,9 +193,12 @@ def load_displacement(spec, mesh: PlanarMesh) -> FloatArray:
                 f"({other.n_vertices} vs {mesh.n_vertices} vertices, "
                 f"{other.n_triangles} vs {mesh.n_triangles} triangles)"
             )
-        if not other.is_planar:
-            raise InvalidMeshError(f"{spec}: the displacement mesh is not planar")
-        arr = np.asarray(other.points)[:, :2] - mesh.points
+        if plane is not None:
+            arr = plane(other.points, str(spec)) - mesh.points
+        elif not other.in_xy_plane:
+            raise InvalidMeshError(f"{spec}: the displacement mesh is not in the plane z = 0")
+        else:
+            arr = np.asarray(other.points)[:, :2] - mesh.points
     arr = np.asarray(arr, dtype=float)
     if arr.ndim == 2 and arr.shape[1] == 3 and not np.any(arr[:, 2]):
         arr = arr[:, :2]

@@ -22,16 +22,21 @@ import numpy as np
 from ._typing import FloatArray, IntArray
 
 __all__ = [
+    "PLANE_RTOL",
     "PlaneEmbedding",
     "coincident_vertices",
     "component_labels",
     "merge_vertices",
     "orient_components",
+    "plane_embedding",
     "plane_of",
 ]
 
-#: relative distance (to the bounding-box diagonal) within which points count as coplanar
-PLANE_TOLERANCE = 1e-10
+#: THE planarity tolerance of the package: points are on a plane when each is within this
+#: fraction of their bounding-box diagonal from it (meshes, workpieces, MeshLab checks)
+PLANE_RTOL = 1e-10
+#: the former name of :data:`PLANE_RTOL`
+PLANE_TOLERANCE = PLANE_RTOL
 
 
 def component_labels(n: int, a: IntArray, b: IntArray) -> IntArray:
@@ -164,7 +169,7 @@ class PlaneEmbedding:
 
 
 def plane_of(points: FloatArray, triangles: IntArray | None = None,
-             tol: float = PLANE_TOLERANCE) -> tuple[PlaneEmbedding | None, float]:
+             tol: float = PLANE_RTOL) -> tuple[PlaneEmbedding | None, float]:
     """The plane of 3D ``points`` if they all lie on one, else None.
 
     A plane ``x_i = c`` is exact (its frame is a permutation of the axes and the 2D
@@ -211,6 +216,35 @@ def plane_of(points: FloatArray, triangles: IntArray | None = None,
     e1 /= np.linalg.norm(e1)
     e2 = np.cross(normal, e1)
     return PlaneEmbedding(centre, np.stack([e1, e2])), dist
+
+
+def plane_embedding(points: FloatArray, triangles: IntArray,
+                    source: str | None = None) -> PlaneEmbedding:
+    """The plane of a triangle mesh's points (:func:`plane_of` of the vertices used by
+    ``triangles``, oriented by them; unused vertices must be on it too).
+
+    Raises
+    ------
+    InvalidMeshError
+        The points are not on one plane within :data:`PLANE_RTOL` (naming ``source``).
+    """
+    from .errors import InvalidMeshError
+
+    p = np.asarray(points, np.float64)
+    used = np.unique(triangles)
+    every = len(used) == len(p)
+    emb, dist = plane_of(p[used], triangles if every else None)
+    where = f"{source}: " if source else ""
+    if emb is None:
+        raise InvalidMeshError(
+            f"{where}not planar: the points are not on one plane (a point is {dist:.3g} × "
+            f"the diameter away from the best-fitting plane; tolerance {PLANE_RTOL:g})")
+    if not every:  # unused vertices must be on the plane too
+        off = np.abs((p - emb.origin) @ np.cross(*emb.basis))
+        if off.max() > PLANE_RTOL * (np.ptp(p, axis=0).max() or 1.0):
+            raise InvalidMeshError(f"{where}not planar: an unused vertex is off the plane "
+                                   "of the triangles")
+    return emb
 
 
 def coincident_vertices(points: FloatArray, used: IntArray | None = None) -> IntArray:

@@ -3,9 +3,10 @@
 Coordinates near ``1e300`` overflow in areas and quality measures, coordinates near
 ``1e-300`` underflow (every area is 0), and penalties that are not scale invariant (f1,
 the β4 distance term of f2) behave differently in millimetres and in metres. The commands
-that move meshes (``deform``, ``morph``, ``move``, ``optimize``) therefore work on the mesh
+and filters that move meshes (``deform``, ``morph``, ``move``) therefore work on the mesh
 divided by a power of two ``2**k`` close to its size, and multiply the result by ``2**k``
-again (only the meshes: plots show shapes, and the numbers of a summary are those of the
+again (through :class:`meshopt_toolkit.io.workpiece.Workpiece`, which applies it to the
+coordinates of the mesh's plane: z, or the plane's offset, is never scaled) (only the meshes: plots show shapes, and the numbers of a summary are those of the
 unit-size problem, with the factor given beside them). Multiplying by a power of two is
 exact in floating point (apart from subnormal numbers), so a mesh of unit size is not
 changed at all, handles set bitwise stay bitwise, and the results are *scale covariant*:
@@ -85,12 +86,27 @@ class UnitScale:
         return out
 
     def mesh_down(self, mesh):
-        """The mesh (TriangleMesh or PlanarMesh) at unit size, same connectivity and tags."""
-        return _with_points(mesh, self.down(mesh.points))
+        """The planar mesh at unit size, same connectivity and tags.
+
+        Raises
+        ------
+        InvalidMeshError
+            3D points off z = 0 (a plane is scaled in its own coordinates, see
+            :mod:`meshopt_toolkit.io.workpiece`; z is never scaled).
+        """
+        return _with_points(mesh, self.down(_planar_points(mesh)))
 
     def mesh_up(self, mesh, what: str = "the result"):
-        """The unit-size mesh back at the user's scale."""
-        return _with_points(mesh, self.up(mesh.points, what=what))
+        """The unit-size planar mesh back at the user's scale."""
+        return _with_points(mesh, self.up(_planar_points(mesh), what=what))
+
+
+def _planar_points(mesh):
+    pts = np.asarray(mesh.points)
+    if pts.shape[1] == 3 and np.any(pts[:, 2]):
+        raise InvalidMeshError("unit scaling takes planar coordinates; a mesh off z = 0 is "
+                               "scaled in its plane's coordinates (io.workpiece.Workpiece)")
+    return pts
 
 
 def _with_points(mesh, points):

@@ -227,7 +227,7 @@ def test_unknown_output_formats_are_refused_before_reading(work, capsys, no_read
     for argv, shown in cases:
         assert main(argv) == 1, argv
         line = one_line(capsys)
-        assert shown in line and "known: .msh" in line or "directory" in line, line
+        assert shown in line and "known: " in line and ".msh," in line or "directory" in line, line
     assert sorted(p.name for p in work.iterdir()) == ["disc.msh", "p.json", "v.npy"]
 
 

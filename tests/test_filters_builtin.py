@@ -107,7 +107,8 @@ def _psi_ref(mesh):
 
 
 def test_shape_quality_refuses_3d_surface():
-    mesh = TriangleMesh([[0, 0, 0], [1, 0, 0], [0, 1, 1]], [[0, 1, 2]])
+    # one triangle is always on a plane (it is measured in it): a bent pair is not
+    mesh = TriangleMesh([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 1]], [[0, 1, 2], [1, 3, 2]])
     with pytest.raises(FilterError, match="planar"):
         registry.get("compute_scalar_by_shape_quality_per_face")()(Document([mesh]))
 

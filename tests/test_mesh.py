@@ -96,9 +96,12 @@ def test_planar_mesh_rejects_nonzero_z_and_accepts_zero_z():
     m = PlanarMesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]])
     assert m.points.shape == (3, 2)
     t = TriangleMesh([[0, 0, 0], [1, 0, 0], [0, 1, 0.5]], [[0, 1, 2]])
-    assert not t.is_planar
+    assert t.is_planar and not t.in_xy_plane  # one plane, not z = 0: its own coordinates
+    assert np.allclose(t.as_planar().embedding.to_3d(t.as_planar().points), t.points)
+    bent = TriangleMesh([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0.5]], [[0, 1, 2], [1, 3, 2]])
+    assert not bent.is_planar
     with pytest.raises(InvalidMeshError, match="not planar"):
-        t.as_planar()
+        bent.as_planar()
     assert TriangleMesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]]).as_planar().dim == 2
 
 

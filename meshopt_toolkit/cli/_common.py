@@ -265,16 +265,24 @@ def check_output_target(out: Path, src: Path, frames: int | None, force: bool,
     check_output_dir(out, force=force)
 
 
-def load_at_unit_size(src: Path, what: str):
-    """``(scale, mesh)``: the file's mesh scaled by an exact power of two to unit size and
-    checked admissible for ``what``; ``scale.mesh_up``/``scale.up`` bring results back."""
-    from ..io import load
-    from ..mesh import require_admissible
-    from ..scaling import unit_scale
+def load_workpiece(src: Path, what: str, *, unit_size: bool = True):
+    """The file's :class:`~meshopt_toolkit.io.workpiece.Workpiece` (every block, tag and
+    datum kept; the plane's coordinates at unit size), its mesh checked admissible for
+    ``what``. ``unit_size=False`` keeps the file's scale."""
+    from ..io import load_cells
+    from ..io.workpiece import Workpiece
 
-    raw = load(src)
-    scale = unit_scale(raw)
-    return scale, require_admissible(scale.mesh_down(raw), what)
+    return Workpiece.from_cells(load_cells(src), unit_size=unit_size).admissible(what)
+
+
+def save_moved(wp, mesh, path: Path, *, force: bool = True, what: str = "the result",
+               cell_data: dict | None = None) -> None:
+    """Write the workpiece ``wp`` with the working mesh's vertices where ``mesh`` (unit
+    size) has them: every block, tag and datum of the input, ``cell_data`` added."""
+    from ..io.workpiece import save_workpiece
+
+    cells = wp.moved(mesh.points, what=what).to_cells(cell_data=cell_data)
+    save_workpiece(cells, path, overwrite=force, computed=tuple(cell_data or ()))
 
 
 @contextlib.contextmanager

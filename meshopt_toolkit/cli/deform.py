@@ -22,8 +22,8 @@ import logging
 from pathlib import Path
 
 from ..bounds import MAX_FRAMES
-from ._common import (add_output_flags, check_output_target, float_list, load_at_unit_size,
-                      prepare_output_dir, write_text)
+from ._common import (add_output_flags, check_output_target, float_list, load_workpiece,
+                      prepare_output_dir, save_moved, write_text)
 from ..filters.quality_preserving_deformation import QualityPreservingDeformation
 from ._params import add_options, check_options
 from ._validate import check_int, check_number, check_numbers
@@ -74,7 +74,6 @@ def _check_numbers(args: argparse.Namespace) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..deform import deform, load_displacement
-    from ..io import save
     from ..progress import ProgressBar
 
     _check_numbers(args)
@@ -85,9 +84,10 @@ def run(args: argparse.Namespace) -> int:
     if not ext.startswith("."):
         ext = "." + ext
     check_output_target(out, src, frames, args.force, frame_format=args.format)
-    # work at unit size (exact powers of two), results scaled back
-    scale, mesh = load_at_unit_size(src, "deform")
-    V = scale.down(load_displacement(args.displacement, scale.mesh_up(mesh)))
+    # the plane's coordinates at unit size; every block, tag and datum written back
+    wp = load_workpiece(src, "deform")
+    mesh = wp.mesh
+    V = wp.to_unit(load_displacement(args.displacement, wp.user_mesh, wp.plane_coordinates))
     if frames is not None:
         prepare_output_dir(out, force=args.force)
 
@@ -101,7 +101,7 @@ def run(args: argparse.Namespace) -> int:
             atol=None if args.rtol is None else args.rtol, progress=progress,
         )
     if frames is None:
-        save(scale.mesh_up(res.mesh), out, overwrite=args.force)
+        save_moved(wp, res.mesh, out, force=args.force)
         print(f"{out}: t = {args.time:g}, mesh aspect ratio {res.aspect_ratio[0]:.4f} -> "
               f"{res.aspect_ratio[-1]:.4f}")
         return 0
@@ -109,7 +109,7 @@ def run(args: argparse.Namespace) -> int:
     width = max(3, len(str(frames - 1)))
     for k, m in enumerate(res.meshes()):
         name = f"frame_{k:0{width}d}{ext}"
-        save(scale.mesh_up(m, what=name), out / name, overwrite=True)
+        save_moved(wp, m, out / name, what=name)
     g = res.geodesic
     write_text(out / "quality.csv", "t,min_aspect_ratio,penalty,energy\n" + "".join(
         f"{t:.10g},{ar:.10g},{f:.10g},{e:.10g}\n"

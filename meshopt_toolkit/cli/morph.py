@@ -26,7 +26,7 @@ from pathlib import Path
 from ..bounds import MAX_ITERATIONS
 from ..filters.generate_geodesic_morph import GenerateGeodesicMorph
 from ._common import (add_output_flags, check_mesh_format, check_output_dir, float_list,
-                      prepare_output_dir, write_text)
+                      prepare_output_dir, save_moved, write_text)
 from ._params import add_options, check_options
 from ._validate import check_int, check_numbers
 
@@ -76,19 +76,18 @@ def _check_outputs(args: argparse.Namespace) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from .. import io
+    from ..io.workpiece import Workpiece
     from ..morph import geodesic_morph
     from ..plotting import save_morph_figures
     from ..progress import ProgressBar
-    from ..scaling import unit_scale
 
     _check_numbers(args)
     _check_outputs(args)
     src_path, tgt_path = Path(args.source), Path(args.target)
-    source = io.load(src_path)
-    target = io.load(tgt_path)
-    # work at unit size (one exact power of two for both ends), results scaled back
-    scale = unit_scale(source, target)
-    source, target = scale.mesh_down(source), scale.mesh_down(target)
+    # the source's plane at unit size (one power of two for both ends); the frames are
+    # written with every block, tag and datum of the source
+    wp, twp = Workpiece.from_cells(io.load_cells(src_path)).with_target(io.load_cells(tgt_path))
+    source, target = wp.mesh, twp.mesh
     ext = (args.format or src_path.suffix.lstrip(".") or "msh").lower().lstrip(".")
     outdir = Path(args.output)
     width = max(3, len(str(args.frames - 1)))
@@ -99,7 +98,7 @@ def run(args: argparse.Namespace) -> int:
 
         max_iter = args.max_iter or 200
         with ProgressBar(max_iter, "morph") as bar:
-            result = distortion_morph(source.as_planar(), target.as_planar(), frames=args.frames,
+            result = distortion_morph(source, target, frames=args.frames,
                                       weight=args.weight, max_iter=max_iter,
                                       callback=lambda nit, E, g: bar.update(status=f"E={E:.8g}"))
     else:
@@ -110,12 +109,11 @@ def run(args: argparse.Namespace) -> int:
                                     normalize=not args.no_normalize,
                                     method=args.method, max_iter=max_iter,
                                     callback=lambda nit, E, g: bar.update(status=f"E={E:.8g}"))
-    base = source.as_planar()
-    for name, mesh in zip(names, result.meshes(like=base)):
-        io.save(scale.mesh_up(mesh, what=name), outdir / name, overwrite=True)
+    for name, mesh in zip(names, result.meshes(like=source)):
+        save_moved(wp, mesh, outdir / name, what=name)
     summary = result.summary()
     summary.update(source=str(src_path), target=str(tgt_path), files=names,
-                   unit_scale=scale.factor)
+                   unit_scale=wp.scale.factor)
     if args.metric == "scalar":
         summary["beta"] = list(args.beta)
     write_text(outdir / "summary.json", strict_json.dumps(summary, indent=2) + "\n")

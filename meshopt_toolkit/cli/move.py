@@ -9,10 +9,11 @@ directory with ``frame_000.<ext>`` … and ``quality.csv``. ``--json`` prints a 
 (inverted count, min aspect ratio, mean Λ, handle error, seconds). Existing outputs are
 never overwritten without ``--force``; they are checked before the mesh is read.
 
-The mesh moves at unit size (divided by the power of two nearest its size, see
-:mod:`meshopt_toolkit.scaling`; ``--map`` and ``--targets`` stay in the file's units) and
-is scaled back, so coordinates near 1e300 or 1e-300 work; the summary's numbers are those
-of the unit-size problem, with the factor as ``unit_scale``.
+The mesh moves in its plane (x, y for z = const), at unit size (divided by the power of
+two nearest its size, see :mod:`meshopt_toolkit.io.workpiece`; ``--map`` and ``--targets``
+stay in the file's units and the plane's coordinates) and is scaled back, so coordinates
+near 1e300 or 1e-300 work; the summary's numbers are those of the unit-size problem,
+with the factor as ``unit_scale``.
 """
 
 from __future__ import annotations
@@ -21,8 +22,8 @@ import argparse
 from .. import strict_json
 from pathlib import Path
 
-from ._common import (add_output_flags, check_output_target, load_at_unit_size,
-                      prepare_output_dir, write_text)
+from ._common import (add_output_flags, check_output_target, load_workpiece,
+                      prepare_output_dir, save_moved, write_text)
 from ..bounds import MAX_FRAMES
 from ..filters.move_vertices import PrescribedMotion
 from ._params import add_options, check_options
@@ -76,7 +77,6 @@ def _check_numbers(args: argparse.Namespace) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..io import save
     from ..motion.move import move
     from ..motion.targets import handles_of
     from ..progress import ProgressBar
@@ -86,10 +86,11 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.output)
     frames = args.frames
     check_output_target(out, src, frames, args.force, frame_format=args.format)
-    # work at unit size (exact powers of two), results scaled back
-    scale, mesh = load_at_unit_size(src, "move")
-    # in the file's units (exactly back at unit size: powers of two)
-    handles, targets = handles_of(scale.mesh_up(mesh), targets=args.targets, mapping=args.map,
+    # the plane's coordinates at unit size; every block, tag and datum written back
+    wp = load_workpiece(src, "move")
+    mesh = wp.mesh
+    # handles and targets in the file's units
+    handles, targets = handles_of(wp.user_mesh, targets=args.targets, mapping=args.map,
                                   where=args.where, group=args.group,
                                   free_boundary=args.free_boundary)
     if frames is not None:
@@ -98,10 +99,10 @@ def run(args: argparse.Namespace) -> int:
         def progress(s: float) -> None:
             bar.update(int(1000 * s) - bar.count)
 
-        result = move(mesh, handles, scale.down(targets), frames=frames, steps=args.steps,
+        result = move(mesh, handles, wp.to_unit(targets), frames=frames, steps=args.steps,
                       weight=args.weight, progress=progress)
     if frames is None:
-        save(scale.mesh_up(result.mesh), out, overwrite=args.force)
+        save_moved(wp, result.mesh, out, force=args.force)
         written = str(out)
     else:
         ext = (args.format or src.suffix).lower()
@@ -109,13 +110,13 @@ def run(args: argparse.Namespace) -> int:
         width = max(3, len(str(frames - 1)))
         for k, m in enumerate(result.frames):
             name = f"frame_{k:0{width}d}{ext}"
-            save(scale.mesh_up(m, what=name), out / name, overwrite=True)
+            save_moved(wp, m, out / name, what=name)
         rows = zip(result.min_aspect_ratio, result.mean_quality, result.strain_bound)
         write_text(out / "quality.csv", "frame,min_aspect_ratio,mean_quality,strain_bound\n"
                    + "".join(f"{k},{a:.10g},{q:.10g},{b:.10g}\n"
                              for k, (a, q, b) in enumerate(rows)))
         written = f"{out}/ ({frames} frames, quality.csv)"
-    summary = {**result.summary(), "unit_scale": scale.factor}
+    summary = {**result.summary(), "unit_scale": wp.scale.factor}
     if args.json:
         print(strict_json.dumps({"output": str(out), **summary}, indent=2))
     else:

@@ -19,7 +19,8 @@ import tempfile
 from pathlib import Path
 
 from ..errors import ExpressionError, MeshoptError, WriteError
-from ._common import add_output_flags, check_output_dir, exclusive_output_dir, float_list
+from ._common import (add_output_flags, check_output_dir, exclusive_output_dir, float_list,
+                      load_workpiece, save_moved)
 from ._params import add_options, check_options
 from ._validate import OptionError
 
@@ -99,7 +100,6 @@ def _atomic_text(path: Path, text: str) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from .. import io
     from ..datasets import data_path
     from ..expressions import quoted
     from ..filters.shape_optimization import ShapeOptimization
@@ -117,7 +117,10 @@ def run(args: argparse.Namespace) -> int:
     input_path = Path(args.mesh) if args.mesh else data_path(DEFAULT_MESH)
     check_output_dir(Path(args.output), force=args.force,  # before any work
                      names=("optimized" + input_path.suffix.lower(),) + OUTPUT_NAMES)
-    mesh = io.load(input_path).as_planar()
+    # the plane's coordinates at the file's scale (r is given in them); every block, tag
+    # and datum written back
+    wp = load_workpiece(input_path, "optimize", unit_size=False)
+    mesh = wp.mesh
     penalty = args.penalty if args.penalty is not None else DEFAULT_PENALTY_BETA
     try:
         objective = PoissonObjective(mesh, rhs=args.rhs)
@@ -151,7 +154,7 @@ def run(args: argparse.Namespace) -> int:
                        penalty_beta=list(penalty), rhs=args.rhs)
         written = [mesh_name, "history.csv", "history.json", "summary.json"]
         try:
-            io.save(result.mesh, outdir / mesh_name, overwrite=True)
+            save_moved(wp, result.mesh, outdir / mesh_name)
             _write_history(outdir, result)
             _atomic_text(outdir / "summary.json", strict_json.dumps(summary, indent=2) + "\n")
             if not args.no_plots and _write_plots(outdir, mesh, result, args.rhs):

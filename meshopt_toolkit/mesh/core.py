@@ -19,6 +19,7 @@ from .._lazy import lazy_module
 from .._typing import FloatArray, IntArray
 from ..errors import InvalidMeshError
 from ..kernels.triangles import quality_summary, signed_areas
+from ..orientation import plane_embedding
 from .topology import _clean_manifold, _corner_table, _edge_index, _frozen, _sorted_half_edges
 
 sp = lazy_module("scipy.sparse")  # imported on first use: info/convert need no scipy
@@ -174,15 +175,55 @@ class TriangleMesh:
         }
 
     @property
-    def is_planar(self) -> bool:
-        """True if the points are 2D, or 3D with every z exactly 0."""
+    def in_xy_plane(self) -> bool:
+        """True if the points are 2D, or 3D with every z exactly 0 (z drops losslessly)."""
         return self.dim == 2 or not np.any(self._points[:, 2])
 
+    @property
+    def is_planar(self) -> bool:
+        """True if the points lie on one plane, any plane, within
+        :data:`~meshopt_toolkit.orientation.PLANE_RTOL` (2D points always)."""
+        if self.in_xy_plane:
+            return True
+        try:
+            self._plane_view  # noqa: B018
+        except InvalidMeshError:
+            return False
+        return True
+
     def as_planar(self) -> PlanarMesh:
-        """This mesh as a :class:`PlanarMesh` (drops z = 0); raises if not planar."""
+        """This mesh as a :class:`PlanarMesh`.
+
+        z is dropped when every z is 0; a mesh on another plane is given in the
+        coordinates of an orthonormal frame of its plane, with that frame as ``embedding``
+        (a :class:`~meshopt_toolkit.orientation.PlaneEmbedding`; :func:`meshopt_toolkit.io.save`
+        writes the points back into the plane).
+
+        Raises
+        ------
+        InvalidMeshError
+            The points are not on one plane.
+        """
         if isinstance(self, PlanarMesh):
             return self
-        return PlanarMesh(self._points, self._triangles, **self._tag_kwargs())
+        if self.in_xy_plane:
+            return PlanarMesh(self._points, self._triangles, **self._tag_kwargs())
+        return self._plane_view
+
+    @cached_property
+    def _plane_view(self) -> PlanarMesh:
+        emb = plane_embedding(self._points, self._triangles, self._source)
+        pm = PlanarMesh(emb.to_2d(self._points), self._triangles, **self._tag_kwargs())
+        pm.__dict__["embedding"] = emb
+        return pm
+
+    def edge_ids(self, pairs) -> IntArray:
+        """Index into :attr:`edges` of each vertex pair ``(K, 2)`` (either order); -1 where
+        the pair is not an edge of the mesh."""
+        key = np.sort(np.asarray(pairs, dtype=np.int64).reshape(-1, 2), axis=1)
+        if not len(key):
+            return np.zeros(0, np.int64)
+        return _edge_index(self.edges, key)
 
     def __repr__(self) -> str:
         name = type(self).__name__
@@ -349,8 +390,9 @@ class PlanarMesh(TriangleMesh):
                 src = kwargs.get("source")
                 where = f"{src}: " if src else ""
                 raise InvalidMeshError(
-                    f"{where}not planar: vertex {nz[0]} has z = {float(pts[nz[0], 2])!r} (z must be 0)"
-                )
+                    f"{where}not planar: vertex {nz[0]} has z = {float(pts[nz[0], 2])!r} "
+                    "(PlanarMesh takes 2D points or z = 0; TriangleMesh.as_planar takes any "
+                    "plane)")
             pts = pts[:, :2]
         super().__init__(pts, triangles, **kwargs)
 
@@ -412,24 +454,18 @@ class PlanarMesh(TriangleMesh):
         ttags = None if self._triangle_tags is None else np.repeat(self._triangle_tags, 4)
         lines = ltags = None
         if self._lines is not None:
-            key = np.sort(self._lines, axis=1)
-            idx = _edge_index(edges, key)
-            if np.any(idx < 0):
-                # line elements that are not mesh edges: keep them unsplit
-                keep = idx < 0
-                m = n + idx[~keep]
-                l0, l1 = self._lines[~keep, 0], self._lines[~keep, 1]
-                lines = np.vstack(
-                    [np.stack([l0, m], 1), np.stack([m, l1], 1), self._lines[keep]]
-                )
-                lt = self._line_tags
-                ltags = np.concatenate([lt[~keep], lt[~keep], lt[keep]])
-            else:
-                m = n + idx
-                lines = np.stack(
-                    [np.stack([self._lines[:, 0], m], 1), np.stack([m, self._lines[:, 1]], 1)], 1
-                ).reshape(-1, 2)
-                ltags = np.repeat(self._line_tags, 2)
+            # each line element that is a mesh edge becomes its two halves, in place; one
+            # that is not (rare) is kept unsplit
+            idx = _edge_index(edges, np.sort(self._lines, axis=1))
+            split = idx >= 0
+            counts = np.where(split, 2, 1)
+            m = np.where(split, n + idx, self._lines[:, 1])
+            halves = np.stack([np.stack([self._lines[:, 0], m], 1),
+                               np.stack([m, self._lines[:, 1]], 1)], 1)
+            first = np.repeat(np.arange(len(counts)), counts)
+            second = np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
+            lines = halves[first, second]
+            ltags = np.repeat(self._line_tags, counts)
         return PlanarMesh(
             pts,
             tri,

@@ -8,8 +8,8 @@ import logging
 
 import numpy as np
 
-from ..orientation import (PLANE_TOLERANCE, coincident_vertices, n_components,
-                           orient_components, plane_of)
+from ..errors import InvalidMeshError
+from ..orientation import coincident_vertices, n_components, orient_components
 from .core import PlanarMesh, TriangleMesh
 from .topology import _fans_per_vertex
 
@@ -23,21 +23,12 @@ def planar_view(mesh: TriangleMesh) -> tuple[PlanarMesh | None, str]:
     in the plane's coordinates with ``embedding`` (a :class:`PlaneEmbedding`) set, which
     :func:`meshopt_toolkit.io.save` uses to write the points back in 3D.
     """
-    if mesh.is_planar:
+    try:
         return mesh.as_planar(), ""
-    used = np.unique(mesh.triangles)
-    emb, dist = plane_of(mesh.points[used], mesh.triangles if len(used) == mesh.n_vertices
-                         else None)
-    if emb is None:
-        return None, (f"not planar: the points are not on one plane (a point is "
-                      f"{dist:.3g} × the diameter away from the best-fitting plane)")
-    if len(used) != mesh.n_vertices:  # unused vertices must be on the plane too
-        off = np.abs((mesh.points - emb.origin) @ np.cross(*emb.basis))
-        if off.max() > PLANE_TOLERANCE * (np.ptp(mesh.points, axis=0).max() or 1.0):
-            return None, "not planar: an unused vertex is off the plane of the triangles"
-    pm = PlanarMesh(emb.to_2d(mesh.points), mesh.triangles, **mesh._tag_kwargs())
-    pm.__dict__["embedding"] = emb
-    return pm, ""
+    except InvalidMeshError as exc:
+        why = str(exc)
+        return None, why[len(f"{mesh.source}: "):] if mesh.source and why.startswith(
+            f"{mesh.source}: ") else why
 
 
 def with_embedding_of(new: PlanarMesh, old: PlanarMesh) -> PlanarMesh:

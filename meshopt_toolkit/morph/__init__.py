@@ -269,6 +269,8 @@ def geodesic_morph(
             logger.info("geodesic_morph: shooting did not converge (%s); using the discrete "
                         "geodesic", log.message)
     pts[0] = Q0
+    if np.array_equal(Q0, Q1):  # the geodesic from a mesh to itself stays, bit for bit
+        pts[:] = Q0
     pen = penalty_of(metric)
     ar, area = _frame_stats(pts, src.triangles)
     adm = np.array([bool(a > 0) and np.isfinite(pen.value(p)) for a, p in zip(area, pts)])

@@ -250,6 +250,8 @@ def distortion_morph(
                                         coarse_min_triangles, gtol)
     out = np.array([S.at(float(s))(R) for s, R in zip(times, res.points)])
     out[0], out[-1] = P0, P1
+    if np.array_equal(P0, P1):  # the geodesic from a mesh to itself stays, bit for bit
+        out[:] = P0
     lengths = metric.segment_lengths(res.points)
     return DistortionMorph(
         points=out, times=times, stats=FrameStats.of(out, tri),

@@ -244,7 +244,8 @@ def move(
         boundary = np.unique(be)
         if np.isin(boundary, h).all() and len(boundary_self_intersections(final_guess, be)):
             raise InvalidMeshError("the targets make the boundary cross itself")
-        S = fit_similarity(P[h], tg)
+        # handles that stay exactly: no similarity at all (the identity stays bit for bit)
+        S = Similarity(0j, 0j, 0.0, 0.0) if np.array_equal(P[h], tg) else fit_similarity(P[h], tg)
         residual_targets = S.inverse(tg)
         path = HandlePath(P[h], residual_targets, handle_groups(h, be, mesh.n_vertices))
     else:

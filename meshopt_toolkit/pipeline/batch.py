@@ -102,7 +102,7 @@ def run_file(pipeline: Pipeline | dict, src, outdir, *, ext: str | None = None,
         ``{"input", "status": "ok"|"failed", "outputs", "results", "warnings", "error",
         "seconds"}``.
     """
-    from ..io import load, save
+    from .document import load_entry, save_entry
 
     if options is None:
         options = RunOptions(ext=ext, force=force, dry_run=dry_run)
@@ -116,7 +116,7 @@ def run_file(pipeline: Pipeline | dict, src, outdir, *, ext: str | None = None,
             pipeline = Pipeline.from_dict(pipeline, source)
         pipeline.validate()
         doc = _document(src, outdir, options, index)
-        doc.add(load(src), name=src.stem)
+        doc.add(load_entry(src))  # with every block, tag and datum of the file
         own_save = any(s.name == "save_mesh" for s in pipeline.steps)
         dst = None if own_save or outdir is None else output_path(src, outdir, options.ext)
         if options.dry_run:
@@ -129,7 +129,7 @@ def run_file(pipeline: Pipeline | dict, src, outdir, *, ext: str | None = None,
             record["results"] = doc.results
             record["outputs"] = list(doc.written)
             if dst is not None:
-                save(doc.mesh, dst, overwrite=options.force)
+                save_entry(doc.current_entry, dst, overwrite=options.force)
                 record["outputs"].append(str(dst))
     except MeshoptError as exc:
         record.update(status="failed", error=str(exc))

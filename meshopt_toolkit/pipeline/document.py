@@ -28,8 +28,9 @@ elements of the mesh are kept too.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
-from typing import Any
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -37,9 +38,13 @@ from ..errors import FilterError
 from ..mesh import PlanarMesh, TriangleMesh
 from .limits import DEFAULT_MAX_TRIANGLES
 
+if TYPE_CHECKING:  # pragma: no cover
+    from ..io.cells import CellMesh
+    from ..io.workpiece import Workpiece
+
 logger = logging.getLogger(__name__)
 
-__all__ = ["MeshEntry", "Document"]
+__all__ = ["MeshEntry", "Document", "load_entry", "save_entry"]
 
 _SPECIAL = ("quality", "color", "selected")
 
@@ -58,12 +63,49 @@ class MeshEntry:
         ``(N,)`` or ``(N, k)`` arrays.
     face_attributes : dict of str to ndarray
         ``(T,)`` or ``(T, k)`` arrays.
+    source_workpiece : Workpiece or None
+        What the mesh's file holds beyond the triangles (every block, tag and datum, the
+        plane): set by :func:`load_entry` and the planar filters, used by
+        :meth:`workpiece` and :func:`save_entry` while the mesh keeps its triangles.
     """
 
     mesh: TriangleMesh
     name: str = "mesh"
     vertex_attributes: dict[str, np.ndarray] = field(default_factory=dict)
     face_attributes: dict[str, np.ndarray] = field(default_factory=dict)
+    source_workpiece: Workpiece | None = None
+
+    def workpiece(self, what: str = "this filter", *, unit_size: bool = True,
+                  required: bool = True) -> Workpiece | None:
+        """The mesh as a :class:`~meshopt_toolkit.io.workpiece.Workpiece` (its plane's
+        coordinates, at unit size unless ``unit_size`` is false), with the extras of its
+        file while the mesh keeps their triangles.
+
+        Raises
+        ------
+        FilterError
+            The mesh is not on one plane (None instead when not ``required``).
+        """
+        from ..errors import InvalidMeshError
+        from ..io.workpiece import Workpiece
+
+        wp = self.source_workpiece
+        try:
+            if wp is not None and np.array_equal(wp.mesh.triangles, self.mesh.triangles):
+                if not _same_points(wp.cells.points, self.mesh.points):
+                    wp = wp.with_file_points(self.mesh.points)  # moved by a MeshLab step
+            else:
+                wp = Workpiece.from_mesh(self.mesh, unit_size=unit_size)
+        except InvalidMeshError as exc:
+            if not required:
+                return None
+            raise FilterError(f"{what} needs a planar mesh; {self.name}: {exc}") from None
+        return wp.rescaled() if unit_size else wp.at_file_scale()
+
+    def set_workpiece(self, wp: Workpiece) -> None:
+        """Make ``wp`` this entry's mesh (in file coordinates) and its extras."""
+        self.mesh = wp.file_mesh()
+        self.source_workpiece = wp
 
     def set_vertex_attribute(self, name: str, values) -> None:
         a = np.asarray(values)
@@ -90,7 +132,68 @@ class MeshEntry:
 
 
 def _as_best(mesh: TriangleMesh) -> TriangleMesh:
-    return mesh.as_planar() if mesh.is_planar and not isinstance(mesh, PlanarMesh) else mesh
+    """A PlanarMesh where z drops exactly; other planes stay in file coordinates (the
+    planar filters see them through :meth:`MeshEntry.workpiece`)."""
+    return mesh.as_planar() if mesh.in_xy_plane and not isinstance(mesh, PlanarMesh) else mesh
+
+
+def _same_points(a: np.ndarray, b: np.ndarray) -> bool:
+    if a.shape[1] != b.shape[1]:
+        a, b = (a, b) if a.shape[1] == 3 else (b, a)
+        return a.shape[0] == b.shape[0] and not np.any(a[:, 2]) and np.array_equal(a[:, :2], b)
+    return np.array_equal(a, b)
+
+
+def load_entry(path) -> MeshEntry:
+    """A mesh file as a document entry: its triangle mesh, and everything else it holds
+    (blocks, tags, data) kept for :func:`save_entry` where the mesh is planar.
+
+    Raises
+    ------
+    ReadError
+        As :func:`meshopt_toolkit.io.load`.
+    """
+    from ..io import load_cells
+    from ..io.cells import triangle_mesh
+    from ..io.workpiece import Workpiece
+
+    cells = load_cells(path)
+    entry = MeshEntry(_as_best(triangle_mesh(cells)), name=Path(path).stem)
+    if entry.mesh.is_planar:
+        entry.set_workpiece(Workpiece.from_cells(cells, unit_size=False))
+    return entry
+
+
+def entry_cells(entry: MeshEntry) -> tuple[CellMesh, tuple[str, ...]]:
+    """The cells :func:`save_entry` writes, and the names of the data computed in the
+    pipeline (the entry's vertex and face attributes)."""
+    from ..io.cells import CellMesh
+    from ..io.workpiece import cells_with_attributes
+
+    wp = entry.source_workpiece
+    if wp is not None and np.array_equal(wp.mesh.triangles, entry.mesh.triangles):
+        # the file's cells at the mesh's points (wherever a MeshLab step put them)
+        pts = np.asarray(entry.mesh.points)
+        if pts.shape[1] < wp.cells.points.shape[1]:
+            pts = np.column_stack([pts, np.zeros(len(pts))])
+        cells = replace(wp.cells, points=pts)
+    else:
+        if wp is not None:
+            logger.warning("%s: the faces changed since the file was read: its blocks, "
+                           "groups and data are not kept", entry.name)
+        cells = CellMesh.from_triangle_mesh(entry.mesh)
+    fa, va = entry.face_attributes, entry.vertex_attributes
+    return cells_with_attributes(cells, fa, va), tuple(fa) + tuple(va)
+
+
+def save_entry(entry: MeshEntry, path, **kwargs) -> Path:
+    """Write an entry with every block, tag and datum of its file, and its attributes as
+    cell and point data (what the format cannot hold is left out with a warning);
+    ``kwargs`` are those of :func:`meshopt_toolkit.io.save_cells`."""
+    from ..io.workpiece import save_workpiece
+
+    cells, computed = entry_cells(entry)
+    return save_workpiece(cells, path, computed=computed, **kwargs)
 
 
 class Document:
@@ -243,10 +346,16 @@ class Document:
             mesh = from_pymeshlab(m)
             if old is not None and np.array_equal(mesh.triangles, old.mesh.triangles):
                 kwargs = old.mesh._tag_kwargs()
-                cls = PlanarMesh if mesh.is_planar else TriangleMesh
+                cls = PlanarMesh if mesh.in_xy_plane else TriangleMesh
                 mesh = cls(mesh.points, mesh.triangles, **kwargs)
             mesh = _as_best(mesh)
             entry = MeshEntry(mesh, name=m.label() or (old.name if old else f"mesh{pos}"))
+            if old is not None and old.source_workpiece is not None:
+                if np.array_equal(mesh.triangles, old.mesh.triangles):
+                    entry.source_workpiece = old.source_workpiece  # the faces are kept
+                else:
+                    logger.warning("%s: a MeshLab step changed the faces: the blocks, "
+                                   "groups and data of its file are not kept", entry.name)
             nv, nf = mesh.n_vertices, mesh.n_triangles
             if m.has_vertex_scalar():
                 entry.vertex_attributes["quality"] = np.array(m.vertex_scalar_array())

@@ -11,10 +11,9 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["admissible_normal", "count_inverted"]
+from ..orientation import PLANE_RTOL
 
-#: points within this fraction of the bounding-box diagonal of the plane count as on it
-PLANE_RTOL = 1e-9
+__all__ = ["admissible_normal", "count_inverted"]
 
 
 def _normals(points, triangles) -> tuple[np.ndarray, np.ndarray]:
