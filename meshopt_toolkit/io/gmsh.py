@@ -25,6 +25,7 @@ import numpy as np
 
 from ..errors import ReadError, WriteError
 from ._common import format_rows, quiet
+from ._files import UNCAPPED, open_input
 from .cells import (GEOMETRICAL, NODES_PER_CELL, PHYSICAL, CellMesh, cell_dimension, check_cells,
                     triangle_mesh)
 
@@ -54,20 +55,20 @@ def read(path: Path) -> TriangleMesh:
 def read_cells(path: Path) -> CellMesh:
     """Read everything of a gmsh file: every element block, physical and geometrical
     tags, physical names, and node/element data (through meshio)."""
-    with open(path, "rb") as fh:
+    with open_input(path, UNCAPPED) as fh:
         head = fh.read(64).lstrip()
     if not (head.startswith(b"$MeshFormat") or head.startswith(b"$Comments")):
         raise ReadError(f"{path}: not a gmsh file (no $MeshFormat header)")
     if head.startswith(b"$MeshFormat\n4.1 1 8\n"):
-        with open(path, "rb") as fh:
+        with open_input(path, UNCAPPED) as fh:
             parsed = _read_binary41(fh)
         if parsed is not None:
             return _build(path, *parsed)
-    from meshio.gmsh import read as meshio_gmsh_read
+    from meshio.gmsh.main import read_buffer
 
     try:
-        with _quiet():
-            m = meshio_gmsh_read(path)
+        with _quiet(), open_input(path, UNCAPPED) as fh:
+            m = read_buffer(fh)
     except (Exception, SystemExit) as exc:  # meshio may sys.exit on failure
         detail = str(exc) or type(exc).__name__
         if isinstance(exc, (ValueError, EOFError, IndexError)) or "buffer" in detail:

@@ -21,6 +21,7 @@ import numpy as np
 from ..errors import ReadError
 from ._common import (cells_other_than, data_names, decode_text, format_rows, pad3, refuse,
                       require_text_mode)
+from ._files import UNCAPPED, read_input
 from .cells import CellMesh, check_cells
 
 _SLASH = re.compile(r"/\S*")
@@ -29,7 +30,7 @@ _ELEMENTS = ("f", "l", "p")
 
 def read_cells(path: Path) -> CellMesh:
     """Read vertices and every face, line and point element of an OBJ file, in order."""
-    text = decode_text(Path(path).read_bytes(), path)
+    text = decode_text(read_input(path, UNCAPPED), path)
     lines = text.splitlines()
     vrows: list[str] = []
     erows: list[tuple[str, str, int]] = []  # (kind, indices, vertices defined before)

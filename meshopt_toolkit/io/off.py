@@ -16,6 +16,7 @@ import numpy as np
 from ..errors import ReadError
 from ._common import (cells_other_than, data_names, decode_text, format_rows, pad3, refuse,
                       require_text_mode)
+from ._files import UNCAPPED, read_input
 from .cells import CellMesh, face_blocks, check_cells
 
 _COMMENT = re.compile(r"#.*")
@@ -23,7 +24,7 @@ _COMMENT = re.compile(r"#.*")
 
 def read_cells(path: Path) -> CellMesh:
     """Read an OFF file (``OFF``/``COFF``/``NOFF`` headers with 3D vertices)."""
-    text = decode_text(Path(path).read_bytes(), path)
+    text = decode_text(read_input(path, UNCAPPED), path)
     lines = [s for s in (_COMMENT.sub("", s).strip() for s in text.splitlines()) if s]
     if not lines or not re.fullmatch(r"[CN]*OFF", lines[0].split()[0]):
         raise ReadError(f"{path}: not an OFF file (first line must be 'OFF')")

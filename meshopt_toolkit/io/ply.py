@@ -20,6 +20,7 @@ import numpy as np
 
 from ..errors import ReadError, WriteError
 from ._common import cells_other_than, pad3, parse_rows, refuse
+from ._files import UNCAPPED, read_input
 from .cells import CellMesh, check_cells, face_blocks
 
 _TYPES = {
@@ -186,7 +187,7 @@ def _ascii_elements(data: bytes, offset: int, elements: list, path) -> dict:
 
 def read_cells(path: Path) -> CellMesh:
     """Read vertices, faces of any size and scalar vertex/face properties, in file order."""
-    data = Path(path).read_bytes()
+    data = read_input(path, UNCAPPED)
     fmt, elements, offset = _parse_header(data, path)
     names = [e[0] for e in elements]
     if "vertex" not in names or "face" not in names:

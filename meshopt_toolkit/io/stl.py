@@ -13,6 +13,7 @@ import numpy as np
 
 from ..errors import ReadError
 from ._common import cells_other_than, data_names, pad3, refuse
+from ._files import UNCAPPED, read_input
 from .cells import CellMesh, check_cells
 
 _RECORD = np.dtype([("normal", "<f4", (3,)), ("v", "<f4", (3, 3)), ("attr", "<u2")])
@@ -21,7 +22,7 @@ _VERTEX = re.compile(rb"vertex\s+(\S+)\s+(\S+)\s+(\S+)")
 
 def read_cells(path: Path) -> CellMesh:
     """Read an STL file as points and one triangle block (equal corners merged)."""
-    data = Path(path).read_bytes()
+    data = read_input(path, UNCAPPED)
     if len(data) >= 84:
         n = int(np.frombuffer(data, "<u4", 1, 80)[0])
         binary = len(data) == 84 + 50 * n

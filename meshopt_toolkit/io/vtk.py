@@ -19,6 +19,7 @@ import numpy as np
 
 from ..errors import ReadError, WriteError
 from ._common import format_rows, pad3, quiet
+from ._files import UNCAPPED, open_input
 from .cells import CellMesh, check_cells
 
 logger = logging.getLogger(__name__)
@@ -39,19 +40,23 @@ def _read(path: Path, reader, kind: str) -> CellMesh:
 
 def read_vtk_cells(path: Path) -> CellMesh:
     """Everything of a legacy VTK file (unstructured grid or polydata)."""
-    import meshio.vtk
-
-    with open(path, "rb") as fh:
+    with open_input(path, UNCAPPED) as fh:
         if not fh.read(64).lstrip().startswith(b"# vtk DataFile"):
             raise ReadError(f"{path}: not a legacy VTK file (no '# vtk DataFile' header)")
-    return _read(path, meshio.vtk.read, "VTK")
+    from meshio.vtk._main import read_buffer
+
+    def read(p):
+        with open_input(p, UNCAPPED) as fh:
+            return read_buffer(fh)
+
+    return _read(path, read, "VTK")
 
 
 def read_vtu_cells(path: Path) -> CellMesh:
     """Everything of a VTK XML unstructured grid."""
     import meshio.vtu
 
-    with open(path, "rb") as fh:
+    with open_input(path, UNCAPPED) as fh:
         head = fh.read(256).lstrip()
     if not (head.startswith(b"<?xml") or head.startswith(b"<VTKFile")):
         raise ReadError(f"{path}: not a VTU file (no XML header)")

@@ -56,6 +56,9 @@ class RunTask:
         self.options = state["options"]
         self.pipeline = Pipeline.from_dict(state["data"], state["source"])
 
+    #: size cap of an input (None: the default of mesh files)
+    max_bytes = None
+
     @property
     def own_save(self) -> bool:
         return any(s.name == "save_mesh" for s in self.pipeline.steps)
@@ -106,6 +109,11 @@ class ConvertTask:
                                                                list, tuple))}
         self.args = argparse.Namespace(**plain)
         self.ext = ext
+
+    @property
+    def max_bytes(self) -> int | None:
+        """Size cap of an input (``--max-file-size``; None: the default)."""
+        return getattr(self.args, "max_file_size", None)
 
     def config(self) -> dict:
         opts = {k: v for k, v in vars(self.args).items() if k not in self.RUN_CONTROL}
