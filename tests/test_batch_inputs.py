@@ -112,3 +112,10 @@ def test_open_input_refuses_a_file_swapped_after_its_stat(tmp_path, monkeypatch)
     monkeypatch.setattr(_files, "_stat_regular", lambda p, m: real(b, m))
     with pytest.raises(ReadError, match="changed while being opened"):
         _files.open_input(a)
+
+
+def test_a_pipeline_file_that_is_a_fifo_is_refused(special):
+    os.mkfifo("pipe.json")
+    run = _meshopt("run", "pipe.json", "good.msh", "-o", "out")
+    assert (run.returncode, run.stderr) == (
+        1, "meshopt run: error: pipe.json: is a FIFO (named pipe), not a regular file\n")
