@@ -25,6 +25,7 @@ import numpy as np
 
 from ..errors import ReadError, WriteError
 from ._common import format_rows, quiet
+from ._loss import Part, cells_other_than, refuse
 from ._files import UNCAPPED, open_input
 from .cells import (GEOMETRICAL, NODES_PER_CELL, PHYSICAL, CellMesh, cell_dimension, check_cells,
                     triangle_mesh)
@@ -253,17 +254,20 @@ def _groups(cm: CellMesh, path):
     return out
 
 
-def _refuse_data(cm: CellMesh, path) -> None:
-    """What our gmsh writer cannot hold: point data, other cell data, other field data."""
-    what = [f"point data {k!r}" for k in cm.point_data]
-    what += [f"cell data {k!r}" for k in cm.cell_data if k not in (PHYSICAL, GEOMETRICAL)]
+def unsupported(cm: CellMesh) -> list[Part]:
+    """What our gmsh writer cannot hold: cell types without a gmsh element (polygon),
+    point data, cell data other than the physical groups, field data other than
+    ``name: (tag, dim)``."""
+    from meshio.gmsh.common import _meshio_to_gmsh_type
+
+    parts = cells_other_than(cm, _meshio_to_gmsh_type)
+    parts += [("point", k) for k in cm.point_data]
+    parts += [("cell", k) for k in cm.cell_data if k not in (PHYSICAL, GEOMETRICAL)]
     for name, value in cm.field_data.items():
         v = np.asarray(value).reshape(-1)
         if v.size != 2 or not np.issubdtype(v.dtype, np.integer):
-            what.append(f"field data {name!r}")
-    if what:
-        raise WriteError(f"{path}: the .msh writer keeps only physical groups, not "
-                         f"{', '.join(what)} (use .vtu)")
+            parts.append(("field", name))
+    return parts
 
 
 def _physical_names(cm: CellMesh) -> bytes:
@@ -300,7 +304,7 @@ def write_cells(path: Path, cm: CellMesh, binary: bool | None = None,
     version = str(version)
     if version not in VERSIONS:
         raise WriteError(f"{path}: unsupported gmsh version {version!r}; use one of {VERSIONS}")
-    _refuse_data(cm, path)
+    refuse(path, "gmsh", cm, unsupported(cm))
     groups = _groups(cm, path)
     binary = True if binary is None else bool(binary)
     if version == "4.1":

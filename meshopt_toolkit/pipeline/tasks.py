@@ -90,7 +90,7 @@ class ConvertTask:
     func : callable
         A module-level function (picklable by reference); it writes ``dst`` and raises
         :class:`~meshopt_toolkit.errors.MeshoptError` for a bad file. A dict it returns
-        becomes the record's ``results``.
+        becomes the record's ``results`` (its ``"warnings"`` list the record's warnings).
     args : argparse.Namespace
         Passed to ``func``; only its plain values are kept.
     ext : str
@@ -135,6 +135,8 @@ class ConvertTask:
             info = self.func(src, dst, self.args)
             record["outputs"] = [str(dst)]
             if isinstance(info, dict):
+                info = dict(info)
+                record["warnings"] = list(info.pop("warnings", ()))
                 record["results"] = [info]
         except MeshoptError as exc:
             record.update(status="failed", error=str(exc))
