@@ -206,7 +206,7 @@ def _cast(a: np.ndarray, code: str, path, element: str, prop: str) -> np.ndarray
     else:
         ok = ~np.isfinite(a) | (np.abs(a) <= np.finfo(dt).max)
     if not ok.all():
-        bad = a[~ok][0]
+        bad = float(a[~ok][0])
         raise ReadError(f"{path}: {element} property {prop!r}: value {bad!r} does not fit "
                         f"its type {_NAMES[code]}")
     return a.astype(dt)

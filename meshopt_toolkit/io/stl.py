@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 
-from ..errors import ReadError
+from ..errors import ReadError, WriteError
 from ._common import pad3
 from ._loss import Part, cells_other_than, data_parts, refuse
 from ._files import UNCAPPED, read_input
@@ -73,11 +73,18 @@ def write_cells(path: Path, cm: CellMesh, binary: bool | None = None) -> None:
     binary = True if binary is None else bool(binary)
     tris = np.concatenate([c for _, c in cm.cells]) if cm.cells else np.zeros((0, 3), np.int64)
     corners = pad3(cm.points)[tris]  # (T, 3, 3)
-    normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    # the normal's direction from corners scaled to at most 1 (no overflow for huge ones)
+    scale = np.abs(corners).max(axis=(1, 2), initial=0.0)[:, None, None]
+    unit = np.divide(corners, scale, out=np.zeros_like(corners), where=scale > 0)
+    normal = np.cross(unit[:, 1] - unit[:, 0], unit[:, 2] - unit[:, 0])
     length = np.linalg.norm(normal, axis=1, keepdims=True)
     normal = np.divide(normal, length, out=np.zeros_like(normal), where=length > 0)
     with open(path, "wb") as fh:
         if binary:
+            big = np.abs(corners) > np.finfo(np.float32).max
+            if big.any():
+                raise WriteError(f"{path}: binary STL holds float32 coordinates; "
+                                 f"{float(corners[big][0])!r} is out of range (write ASCII)")
             rec = np.zeros(len(corners), _RECORD)
             rec["normal"] = normal
             rec["v"] = corners
