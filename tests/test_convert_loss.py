@@ -264,3 +264,29 @@ def test_binary_stl_refuses_coordinates_beyond_float32(tmp_path):
                                              r"out of range \(write ASCII\)"):
             save_cells(cm, tmp_path / "m.stl")
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("options", [["--msh-version", "2.2", "--ascii"],
+                                     ["--msh-version", "2.2"], ["--ascii"], []])
+def test_obj_normals_kept_by_msh_as_node_data(tmp_path, capsys, options):
+    src, pts, uv, nrm = _normals_obj(tmp_path)
+    out = tmp_path / "n.msh"
+    assert main(["convert", str(src), "-o", str(out), *options]) == 1  # (N, 2) uv: no view
+    assert "texture_coordinates point data" in capsys.readouterr().err
+    assert main(["convert", str(src), "-o", str(out), "--allow-loss", *options]) == 0
+    assert capsys.readouterr().err == (f"meshopt convert: warning: {src}: dropped: "
+                                       "texture_coordinates point data\n")
+    back = load_cells(out)
+    assert back.point_data[NORMALS].tobytes() == nrm.tobytes()
+    assert back.points.tobytes() == pts.tobytes()
+    gmsh = pytest.importorskip("gmsh")  # gmsh itself reads the view
+    gmsh.initialize()
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.open(str(out))
+        [tag] = gmsh.view.getTags()
+        kind, nodes, data, _, comps = gmsh.view.getModelData(tag, 0)
+        assert (kind, comps) == ("NodeData", 3)
+        np.testing.assert_array_equal(np.asarray(data)[np.argsort(nodes)], nrm)
+    finally:
+        gmsh.finalize()

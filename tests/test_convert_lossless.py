@@ -117,7 +117,8 @@ def test_what_a_format_cannot_hold_is_refused(tmp_path, ext, what):
 
 
 def test_msh_refuses_point_data(tmp_path):
-    with pytest.raises(WriteError, match=r"gmsh files cannot hold u, v, id point data; q, mat "
+    # u and v are float views ($NodeData); the int32 id is not
+    with pytest.raises(WriteError, match=r"gmsh files cannot hold id point data; q, mat "
                                          r"cell data; 1 polygon cells \(use \.vtu\)"):
         save_cells(with_data(), tmp_path / "x.msh")
 

@@ -12,7 +12,7 @@ Writing is our own, vectorized, so that physical tags of triangles and boundary 
 always written (meshio 5.3.5 under numpy 2 writes ASCII files with cell data it cannot
 read back, and its 4.1 writer drops physical tags without ``gmsh:dim_tags``). Element
 blocks follow runs of equal tags, so the order of triangles and lines in the file is the
-order in the mesh.
+order in the mesh. Float point data is written as ``$NodeData`` (:mod:`.gmsh_data`).
 """
 
 from __future__ import annotations
@@ -26,6 +26,7 @@ import numpy as np
 from ..errors import ReadError, WriteError
 from ._common import format_rows, quiet
 from ._loss import Part, cells_other_than, refuse
+from .gmsh_data import holds, write_node_data
 from ._files import UNCAPPED, open_input
 from .cells import (GEOMETRICAL, NODES_PER_CELL, PHYSICAL, CellMesh, cell_dimension, check_cells,
                     triangle_mesh)
@@ -256,12 +257,12 @@ def _groups(cm: CellMesh, path):
 
 def unsupported(cm: CellMesh) -> list[Part]:
     """What our gmsh writer cannot hold: cell types without a gmsh element (polygon),
-    point data, cell data other than the physical groups, field data other than
-    ``name: (tag, dim)``."""
+    point data other than float views (:func:`.gmsh_data.holds`), cell data other than
+    the physical groups, field data other than ``name: (tag, dim)``."""
     from meshio.gmsh.common import _meshio_to_gmsh_type
 
     parts = cells_other_than(cm, _meshio_to_gmsh_type)
-    parts += [("point", k) for k in cm.point_data]
+    parts += [("point", k) for k, v in cm.point_data.items() if not holds(k, v, cm.n_points)]
     parts += [("cell", k) for k in cm.cell_data if k not in (PHYSICAL, GEOMETRICAL)]
     for name, value in cm.field_data.items():
         v = np.asarray(value).reshape(-1)
@@ -297,8 +298,7 @@ def write_cells(path: Path, cm: CellMesh, binary: bool | None = None,
     Raises
     ------
     WriteError
-        A cell type gmsh has no element for (polygon), point or cell data other than the
-        physical groups, or (4.1) elements of one geometrical entity with different
+        What :func:`unsupported` lists, or (4.1) elements of one geometrical entity with different
         physical tags (gmsh 2.2 can hold them).
     """
     version = str(version)
@@ -314,6 +314,7 @@ def write_cells(path: Path, cm: CellMesh, binary: bool | None = None,
             _write22(fh, cm, groups, binary)
         else:
             _write41(fh, cm, ents, blocks, binary)
+        write_node_data(fh, cm.point_data, binary)
 
 
 def _header(fh, version: str, binary: bool) -> None:
