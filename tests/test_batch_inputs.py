@@ -119,3 +119,15 @@ def test_a_pipeline_file_that_is_a_fifo_is_refused(special):
     run = _meshopt("run", "pipe.json", "good.msh", "-o", "out")
     assert (run.returncode, run.stderr) == (
         1, "meshopt run: error: pipe.json: is a FIFO (named pipe), not a regular file\n")
+
+
+def test_special_files_in_an_input_directory_are_named_not_skipped(special):
+    os.mkdir("in")
+    os.rename("good.msh", "in/good.msh")
+    os.mkfifo("in/pipe.msh")
+    run = _meshopt("run", "p.json", "in", "-o", "out", "--json")
+    recs = [json.loads(line) for line in run.stdout.splitlines()]
+    assert run.returncode == 1
+    assert [(r["input"], r["status"]) for r in recs] == [("in/good.msh", "ok"),
+                                                         ("in/pipe.msh", "failed")]
+    assert recs[1]["error"] == "in/pipe.msh: is a FIFO (named pipe), not a regular file"
