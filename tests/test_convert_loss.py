@@ -290,3 +290,27 @@ def test_obj_normals_kept_by_msh_as_node_data(tmp_path, capsys, options):
         np.testing.assert_array_equal(np.asarray(data)[np.argsort(nodes)], nrm)
     finally:
         gmsh.finalize()
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.data())
+def test_without_leaves_out_exactly_the_parts_and_stays_consistent(data):
+    from test_convert_lossless import mixed
+
+    from meshopt_toolkit.io._loss import data_parts, describe, without
+    from meshopt_toolkit.io.cells import check_cells
+
+    cm = mixed()
+    every = [("cells", t) for t in cm.cell_counts()] + data_parts(cm)
+    parts = data.draw(st.lists(st.sampled_from(every), unique=True))
+    out = without(cm, parts)
+    check_cells(out)  # cell data lists still match the remaining blocks
+    gone = {name for kind, name in parts if kind == "cells"}
+    assert [t for t, _ in out.cells] == [t for t, _ in cm.cells if t not in gone]
+    for kind, table in (("cell", out.cell_data), ("field", out.field_data)):
+        dropped = {name for k, name in parts if k == kind}
+        assert set(table) == set(getattr(cm, f"{kind}_data")) - dropped
+    for key, blocks in out.cell_data.items():  # the kept blocks' values, untouched
+        kept = [b for (t, _), b in zip(cm.cells, cm.cell_data[key]) if t not in gone]
+        assert all(np.array_equal(a, b) for a, b in zip(blocks, kept))
+    assert out.dropped == ([describe(cm, parts)] if parts else [])

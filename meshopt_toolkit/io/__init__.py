@@ -6,7 +6,8 @@
 triangle meshes. ``load_cells(path)`` and ``save_cells(cells, path)`` (:data:`CELL_READERS`
 / :data:`CELL_WRITERS`) move everything a file holds, as a :class:`~.cells.CellMesh`:
 every cell type, point, cell and field data; a writer refuses what its format cannot
-hold. Every failure is a :class:`~meshopt_toolkit.errors.ReadError` or
+hold (:func:`fit_cells` leaves that out instead, for ``convert --allow-loss``). Every
+failure is a :class:`~meshopt_toolkit.errors.ReadError` or
 :class:`~meshopt_toolkit.errors.WriteError` naming the file; only regular files are read
 (a FIFO or a device is refused before it is opened), up to :data:`MAX_FILE_BYTES`; writes
 are atomic (temporary file in the same directory, then rename).
@@ -20,7 +21,7 @@ format     read                                        write (default)
 ``.ply``   own reader, ASCII/binary                    binary doubles
 ``.vtk``   meshio                                      binary (legacy 5.1)
 ``.vtu``   meshio                                      binary, zlib
-``.stl``   corners merged, sorted ("unordered")        binary float32
+``.stl``   corners merged, sorted ("unordered")        binary float32 (ASCII: exact)
 =========  ==========================================  ===================================
 """
 

@@ -65,7 +65,9 @@ def read_cells(path: Path) -> CellMesh:
     pts, dropped = _vertices(vrows, path)
     cells, corners = _elements(erows, path)
     point_data = {}
-    for key, name in (("vt", TEXCOORDS), ("vn", NORMALS)):
+    v = corners["v"]
+    in_range = not v.size or (int(v.min()) >= 0 and int(v.max()) < len(pts))
+    for key, name in (("vt", TEXCOORDS), ("vn", NORMALS)) if in_range else ():
         rows = _attribute_rows(attr_rows[key], key, path)
         values, why = _per_vertex(rows, corners[key], corners["v"], corners["f"], len(pts),
                                   _LABELS[key], path)
