@@ -279,17 +279,15 @@ def test_obj_normals_kept_by_msh_as_node_data(tmp_path, capsys, options):
     back = load_cells(out)
     assert back.point_data[NORMALS].tobytes() == nrm.tobytes()
     assert back.points.tobytes() == pts.tobytes()
-    gmsh = pytest.importorskip("gmsh")  # gmsh itself reads the view
-    gmsh.initialize()
-    try:
-        gmsh.option.setNumber("General.Terminal", 0)
+    pytest.importorskip("gmsh")  # gmsh itself reads the view
+    from meshopt_toolkit.gmsh_session import gmsh_session
+
+    with gmsh_session() as gmsh:
         gmsh.open(str(out))
         [tag] = gmsh.view.getTags()
         kind, nodes, data, _, comps = gmsh.view.getModelData(tag, 0)
-        assert (kind, comps) == ("NodeData", 3)
-        np.testing.assert_array_equal(np.asarray(data)[np.argsort(nodes)], nrm)
-    finally:
-        gmsh.finalize()
+    assert (kind, comps) == ("NodeData", 3)
+    np.testing.assert_array_equal(np.asarray(data)[np.argsort(nodes)], nrm)
 
 
 @settings(max_examples=40, deadline=None)
