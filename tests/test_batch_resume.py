@@ -119,6 +119,8 @@ def test_a_staging_folder_the_journal_did_not_make_is_refused_not_removed(batch,
     assert err.strip() == (f"meshopt run: error: {out / STAGING_NAME}: exists but was not "
                            "made by a batch in this directory (not removed); move it away")
     assert (out / STAGING_NAME / "mine.txt").read_text() == "the user's"
+    with Journal(out):  # the refused batch let go of its journal's lock
+        pass
 
 
 def test_a_staging_folder_of_an_older_journal_is_adopted(batch, capsys):

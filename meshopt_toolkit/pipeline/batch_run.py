@@ -148,7 +148,12 @@ class _Batch:
             raise MeshoptError(f"{self.outdir}: cannot create the output directory: "
                                f"{exc.strerror or exc}") from None
         self.journal = Journal(self.outdir)  # locked: no other batch writes here now
-        self.staging = self.journal.reset_staging()  # only what the journal recorded
+        try:
+            self.staging = self.journal.reset_staging()  # only what the journal recorded
+        except MeshoptError:
+            self.journal.close()  # the lock goes with the refusal
+            self.journal = None
+            raise
 
     def close(self) -> None:
         if self.journal is not None:
