@@ -20,6 +20,7 @@ unless ``--allow-loss``. Writing puts the two point data back as ``vt``/``vn`` l
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -31,6 +32,8 @@ from ._loss import Part, cells_other_than, data_parts, refuse
 from .cells import NORMALS, TEXCOORDS, CellMesh, check_cells
 
 _ELEMENTS = ("f", "l", "p")
+#: one face corner "v", "v/vt", "v//vn" or "v/vt/vn" per line of the joined tokens
+_CORNER = re.compile(r"^([^/\n]*)(?:/([^/\n]*))?(?:/([^/\n]*))?$", re.M)
 #: statements that only restate the default (smoothing off)
 _NO_OPS = {("s", "off"), ("s", "0")}
 _LABELS = {"vt": "texture coordinates 'vt'", "vn": "normals 'vn'"}
@@ -196,9 +199,7 @@ def _elements(rows: list[tuple[str, str, tuple[int, int, int]]], path):
     empty = np.zeros(0, np.int64)
     if not rows:
         return [], {"v": empty, "vt": empty, "vn": empty, "f": np.zeros(0, bool)}
-    kinds, sizes = [], []
-    fields: list[list[str]] = [[], [], []]  # v, vt, vn token per corner ("" when absent)
-    before: list[tuple[int, int, int]] = []
+    kinds, sizes, flat, lengths, before = [], [], [], [], []
     for n, (key, rest, n_before) in enumerate(rows):
         tokens = rest.split()
         if key == "f" and len(tokens) < 3:
@@ -206,33 +207,38 @@ def _elements(rows: list[tuple[str, str, tuple[int, int, int]]], path):
         if key == "l" and len(tokens) != 2:
             raise ReadError(f"{path}: line element 'l {rest.strip()}' has {len(tokens)} vertices; "
                             "only 2-vertex lines are supported")
-        for t in tokens:
-            parts = t.split("/")
-            if len(parts) > 3:
-                raise ReadError(f"{path}: bad element token {t!r} in '{key} {rest.strip()}'")
-            parts += [""] * (3 - len(parts))
-            for j in range(3):
-                fields[j].append(parts[j])
-        before.extend([n_before] * len(tokens))
+        flat.extend(tokens)
+        lengths.append(len(tokens))
+        before.append(n_before)
         if key == "p":
             kinds.extend(["p"] * len(tokens))
             sizes.extend([1] * len(tokens))
         else:
             kinds.append(key)
             sizes.append(len(tokens))
-    counts = np.asarray(before, np.int64)
+    counts = np.repeat(np.asarray(before, np.int64).reshape(-1, 3), lengths, axis=0)
+    # "v", "v/t", "v//n", "v/t/n": three token lists ("" when absent), in one regex pass
+    fields: list = [flat, None, None]
+    joined = "\n".join(flat)
+    if "/" in joined:
+        found = _CORNER.findall(joined)
+        if len(found) != len(flat):
+            bad = next(t for t in flat if t.count("/") > 2)
+            raise ReadError(f"{path}: bad element token {bad!r} (at most v/vt/vn)")
+        fields = [[f[j] for f in found] for j in range(3)]  # (zip(*found) is slow)
+    if "" in fields[0]:
+        raise ReadError(f"{path}: an element corner has no vertex index")
     corners = {}
     for j, (name, what) in enumerate((("v", "element index"), ("vt", "texture index"),
                                       ("vn", "normal index"))):
-        tokens = np.asarray(fields[j], dtype=object)
-        have = tokens != ""
-        if j == 0 and not have.all():
-            raise ReadError(f"{path}: an element corner has no vertex index")
-        out = np.full(len(tokens), -1, np.int64)
-        if have.any():
-            found = _indices(tokens[have].tolist(), counts[have, j], path, what)
-            # a relative index before the first one: out of range, never "none given"
-            out[have] = np.where(found < 0, np.iinfo(np.int64).max, found)
+        out = np.full(len(flat), -1, np.int64)
+        if fields[j] is not None:
+            tokens = np.array(fields[j]) if j else fields[j]
+            have = tokens != "" if j else np.ones(len(tokens), bool)
+            if have.any():
+                found = _indices(tokens[have] if j else tokens, counts[have, j], path, what)
+                # a relative index before the first one: out of range, never "none given"
+                out[have] = np.where(found < 0, np.iinfo(np.int64).max, found)
         corners[name] = out
     idx = corners["v"]
     sizes_arr = np.asarray(sizes, np.int64)
