@@ -81,15 +81,70 @@ def test_a_changed_or_missing_output_is_redone(batch, capsys):
 
 
 def test_leftovers_of_a_killed_run_are_removed(batch, capsys):
+    """A killed run's temporaries (recorded in the journal before they were made) are
+    removed; files that merely look like temporaries are the user's and survive."""
     out = Path("out")
-    (out / STAGING_NAME / "7").mkdir(parents=True)
-    (out / STAGING_NAME / "7" / "m0.msh").write_text("partial")
-    (out / ".m1.msh.ab_cd123.part").write_text("partial")
-    (out / "notes.part").write_text("the user's")  # not named like our temporary files
+    out.mkdir()
+    with Journal(out) as journal:  # what a run does before it makes them, then killed
+        journal.will_create(STAGING_NAME)
+        (out / STAGING_NAME / "7").mkdir(parents=True)
+        (out / STAGING_NAME / "7" / "m0.msh").write_text("partial")
+        journal.will_create(".m1.msh.ab_cd1234.part")
+        (out / ".m1.msh.ab_cd1234.part").write_text("partial")
+    (out / "notes.part").write_text("the user's")
+    (out / ".thesis.2024_v01.part").write_text("the user's")  # named like a temporary
+    (out / "sub").mkdir()
+    (out / "sub" / ".notes.ABCDEFGH.part").write_text("the user's")
     status, recs, err = _run(capsys, "--resume")
     assert status == 0 and [r["status"] for r in recs] == ["ok"] * 3
     names = sorted(p.name for p in out.iterdir())
-    assert names == [JOURNAL_NAME, "m0.msh", "m1.msh", "m2.msh", "notes.part"]
+    assert names == [".meshopt-journal.db", ".thesis.2024_v01.part", "m0.msh", "m1.msh",
+                     "m2.msh", "notes.part", "sub"]
+    assert (out / "sub" / ".notes.ABCDEFGH.part").read_text() == "the user's"
+    assert (out / ".thesis.2024_v01.part").read_text() == "the user's"
+    with Journal(out) as journal:
+        assert journal.temporaries() == []
+    # a second resume skips everything and still touches none of the user's files
+    status, recs, _ = _run(capsys, "--resume")
+    assert status == 0 and [r["status"] for r in recs] == ["skipped"] * 3
+    assert sorted(p.name for p in out.iterdir()) == names
+
+
+def test_a_staging_folder_the_journal_did_not_make_is_refused_not_removed(batch, capsys):
+    out = Path("out")
+    (out / STAGING_NAME).mkdir(parents=True)
+    (out / STAGING_NAME / "mine.txt").write_text("the user's")
+    status, recs, err = _run(capsys, "--resume")
+    assert status == 1 and recs == []
+    assert err.strip() == (f"meshopt run: error: {out / STAGING_NAME}: exists but was not "
+                           "made by a batch in this directory (not removed); move it away")
+    assert (out / STAGING_NAME / "mine.txt").read_text() == "the user's"
+    with Journal(out):  # the refused batch let go of its journal's lock
+        pass
+
+
+def test_a_staging_folder_of_an_older_journal_is_adopted(batch, capsys):
+    """A journal from before temporaries were recorded: its staging folder is its own."""
+    out = Path("out")
+    out.mkdir()
+    with Journal(out):
+        pass
+    db = sqlite3.connect(out / JOURNAL_NAME)
+    db.execute("DROP TABLE temporaries")
+    db.commit()
+    db.close()
+    (out / STAGING_NAME / "3").mkdir(parents=True)
+    status, recs, _ = _run(capsys, "--resume")
+    assert status == 0 and [r["status"] for r in recs] == ["ok"] * 3
+    assert not (out / STAGING_NAME).exists()
+
+
+def test_temporaries_outside_the_output_directory_are_refused(tmp_path):
+    with Journal(tmp_path) as journal:
+        for bad in ("../x.part", str(tmp_path / "x.part")):
+            with pytest.raises(MeshoptError, match="outside the output directory"):
+                journal.will_create(bad)
+        assert journal.temporaries() == []
 
 
 def test_output_moved_but_not_journaled_is_taken_over(batch, capsys):

@@ -201,21 +201,21 @@ def test_loading_the_builtin_filters_imports_no_scipy():
     assert out.stdout.strip().splitlines()[-1] == "False"
 
 
-def test_stale_part_file_of_a_killed_run_is_removed(tmp_path):
+def test_files_named_like_temporaries_are_never_removed(tmp_path):
+    """A save never deletes a file for its name: ``.NAME.PID.RANDOM.part`` of a dead
+    process may be the user's."""
     import subprocess
     import sys
 
-    from meshopt_toolkit.io._atomic import clean_stale_parts
-
     dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
                           capture_output=True, text=True, check=True).stdout.strip()
-    stale = tmp_path / f".m.msh.{dead}.abc123.part"
-    live = tmp_path / ".n.msh.1.abc123.part"  # pid 1 is alive: someone else's, kept
-    stale.write_text("half")
-    live.write_text("busy")
+    lookalikes = [tmp_path / f".m.msh.{dead}.abc123.part", tmp_path / ".thesis.2024_v01.part"]
+    for p in lookalikes:
+        p.write_text("the user's")
     io.save(TriangleMesh([[0, 0], [1, 0], [0, 1]], [[0, 1, 2]]), tmp_path / "other.obj")
-    assert not stale.exists() and live.exists()
-    assert clean_stale_parts(tmp_path) == []
+    assert all(p.read_text() == "the user's" for p in lookalikes)
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
+        [p.name for p in lookalikes] + ["other.obj"])
 
 
 def test_directory_input_names_skipped_subfolders_or_recurses(files, tmp_path, caplog):

@@ -81,8 +81,9 @@ def expand_inputs(items: list[str], recursive: bool = False) -> list[Path]:
 
 
 def _directory_meshes(p: Path, recursive: bool) -> list[Path]:
+    # a FIFO or device named like a mesh is listed, so that it fails with one line
     files = sorted(q for q in (p.rglob("*") if recursive else p.iterdir())
-                   if q.suffix.lower() in MESH_SUFFIXES and q.is_file()
+                   if q.suffix.lower() in MESH_SUFFIXES and not q.is_dir()
                    and not any(part.startswith(".") for part in q.relative_to(p).parts))
     if not recursive:
         subs = sorted(q.name for q in p.iterdir() if q.is_dir() and not q.name.startswith("."))

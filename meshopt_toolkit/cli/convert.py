@@ -7,10 +7,12 @@ otherwise skipped sub-folders are named in a warning.
 
 Conversion is lossless or refused: every cell block (triangles, quads, polygons, lines,
 vertices, ...), point, cell and field data is written, physical groups travel as
-``gmsh:physical``/``gmsh:geometrical`` cell data; a target format that cannot hold a part
-refuses the file with one line naming it, and so does an input with content the reader
-cannot represent (e.g. OBJ texture coordinates). Each success prints
-``wrote OUT (N vertices, M cells)``.
+``gmsh:physical``/``gmsh:geometrical`` cell data, OBJ/PLY normals and texture coordinates
+as point data; a target format that cannot hold a part refuses the file with one line
+naming it, and so does an input with content the reader cannot represent (e.g. OBJ
+groups). ``--allow-loss`` writes what the target can hold instead and names the rest in
+one line (``meshopt convert: warning: IN: dropped: gmsh:physical cell data; 6 line
+cells``). Each success prints ``wrote OUT (N vertices, M cells)``.
 
 Existing outputs, the input included, are never overwritten without ``--force``; each
 write is atomic. A bad file in a batch is reported and skipped; the exit status is then 1.
@@ -53,6 +55,9 @@ def add_args(parser) -> None:
         mode.add_argument(f"--{encoding}", dest="binary", action="store_const",
                           const=binary_of(encoding), default=binary_of("default"), help=help_text)
     add_options(parser, SaveMesh, OPTIONS)
+    parser.add_argument("--allow-loss", action="store_true",
+                        help="write what the output format can hold and name what is "
+                             "dropped (physical groups, line cells, data, ...)")
     parser.add_argument("-r", "--recursive", action="store_true",
                         help="include the sub-folders of input directories")
     parser.add_argument("--max-file-size", type=_size, default=None, metavar="SIZE",
@@ -79,28 +84,33 @@ class ConvertOptions:
     binary: bool | None = None
     msh_version: str = "4.1"
     max_bytes: int | None = None
+    allow_loss: bool = False
 
     @classmethod
     def from_args(cls, args) -> "ConvertOptions":
         return cls(force=bool(getattr(args, "force", False)),
+                   allow_loss=bool(getattr(args, "allow_loss", False)),
                    binary=getattr(args, "binary", None),
                    msh_version=getattr(args, "msh_version", "4.1"),
                    max_bytes=getattr(args, "max_file_size", None))
 
 
 def convert_file(src: str | Path, dst: str | Path, options: ConvertOptions):
-    """Convert one file losslessly (or refuse) and return the written
-    :class:`~meshopt_toolkit.io.CellMesh`.
+    """Convert one file losslessly (or refuse; with ``allow_loss``, what the output format
+    can hold) and return the written :class:`~meshopt_toolkit.io.CellMesh`, whose
+    ``dropped`` names what was left out (empty for a lossless conversion).
 
     Raises
     ------
     ReadError
-        Unreadable input, or content the reader cannot represent (``dropped``).
+        Unreadable input, or content the reader cannot represent (``dropped``) without
+        ``allow_loss``.
     WriteError
-        Existing output without ``force``, or a part the output format cannot hold.
+        Existing output without ``force``, or a part the output format cannot hold
+        without ``allow_loss``.
     """
     from ..errors import WriteError
-    from ..io import load_cells, save_cells
+    from ..io import fit_cells, load_cells, save_cells
 
     src, dst = Path(src), Path(dst)
     if not options.force and dst.exists():
@@ -108,22 +118,34 @@ def convert_file(src: str | Path, dst: str | Path, options: ConvertOptions):
         raise WriteError(f"{dst}: {'is the input file' if same else 'already exists'} "
                          "(use --force to overwrite)")
     cells = load_cells(src, max_bytes=options.max_bytes)
-    if cells.dropped:
-        raise ReadError(f"{src}: cannot convert without loss: {', '.join(cells.dropped)} "
-                        "would not be kept")
-    save_cells(cells, dst, overwrite=options.force, binary=options.binary,
-               msh_version=options.msh_version)
-    return cells
+    hint = "; --allow-loss writes the rest and names what it drops"
+    if cells.dropped and not options.allow_loss:
+        raise ReadError(f"{src}: cannot convert without loss: {'; '.join(cells.dropped)} "
+                        f"would not be kept{hint}")
+    fitted, lost = fit_cells(cells, dst)
+    try:
+        save_cells(fitted if options.allow_loss else cells, dst, overwrite=options.force,
+                   binary=options.binary, msh_version=options.msh_version)
+    except WriteError as exc:
+        raise WriteError(f"{exc}{hint}" if lost and not options.allow_loss else str(exc)) \
+            from None
+    return fitted
 
 
 def _wrote(dst: Path, cells) -> str:
     return f"wrote {dst} ({cells.n_points} vertices, {cells.n_cells} cells)"
 
 
+def _dropped(cells) -> list[str]:
+    """The one warning of a lossy conversion (``["dropped: ..."]``), or none."""
+    return [f"dropped: {'; '.join(cells.dropped)}"] if cells.dropped else []
+
+
 def _convert_in_batch(src: Path, dst: Path, args) -> dict:
     """:func:`convert_file` as a batch task calls it (a worker process or a Dask worker)."""
     cells = convert_file(src, dst, ConvertOptions.from_args(args))
-    return {"n_points": int(cells.n_points), "n_cells": int(cells.n_cells)}
+    return {"n_points": int(cells.n_points), "n_cells": int(cells.n_cells),
+            "warnings": _dropped(cells)}
 
 
 def _usage(msg: str) -> int:
@@ -211,6 +233,8 @@ def run(args) -> int:
         check_output_file(jobs[0][1], force=True)
         cells = convert_file(*jobs[0], options)  # a single file: errors go to main()
         print(_wrote(jobs[0][1], cells), flush=True)
+        for warning in _dropped(cells):
+            print(f"meshopt convert: warning: {jobs[0][0]}: {warning}", file=sys.stderr)
         return 0
     outdir = Path(args.output) if jobs[0][1] != Path(args.output) else jobs[0][1].parent
 

@@ -6,7 +6,8 @@
 triangle meshes. ``load_cells(path)`` and ``save_cells(cells, path)`` (:data:`CELL_READERS`
 / :data:`CELL_WRITERS`) move everything a file holds, as a :class:`~.cells.CellMesh`:
 every cell type, point, cell and field data; a writer refuses what its format cannot
-hold. Every failure is a :class:`~meshopt_toolkit.errors.ReadError` or
+hold (:func:`fit_cells` leaves that out instead, for ``convert --allow-loss``). Every
+failure is a :class:`~meshopt_toolkit.errors.ReadError` or
 :class:`~meshopt_toolkit.errors.WriteError` naming the file; only regular files are read
 (a FIFO or a device is refused before it is opened), up to :data:`MAX_FILE_BYTES`; writes
 are atomic (temporary file in the same directory, then rename).
@@ -20,7 +21,7 @@ format     read                                        write (default)
 ``.ply``   own reader, ASCII/binary                    binary doubles
 ``.vtk``   meshio                                      binary (legacy 5.1)
 ``.vtu``   meshio                                      binary, zlib
-``.stl``   corners merged, sorted ("unordered")        binary float32
+``.stl``   corners merged, sorted ("unordered")        binary float32 (ASCII: exact)
 ``.mesh``  Medit ASCII (meshio), references as tags     text, 17 significant digits
 =========  ==========================================  ===================================
 """
@@ -43,7 +44,7 @@ logger = logging.getLogger(__name__)
 
 __all__ = ["load", "save", "load_cells", "save_cells", "CellMesh", "READERS", "WRITERS",
            "CELL_READERS", "CELL_WRITERS", "MAX_FILE_BYTES", "atomic_path",
-           "register_format", "supported_extensions"]
+           "register_format", "supported_extensions", "fit_cells"]
 
 Reader = Callable[[Path], TriangleMesh]
 Writer = Callable[..., None]
@@ -56,6 +57,8 @@ WRITERS: dict[str, Writer] = {}
 CELL_READERS: dict[str, Callable[[Path], CellMesh]] = {}
 #: extension → writer(path, cells, binary) -> None; refuses what the format cannot hold
 CELL_WRITERS: dict[str, Writer] = {}
+#: extension → unsupported(cells) -> the parts a cell writer refuses (see :mod:`._loss`)
+UNSUPPORTED: dict[str, Callable[[CellMesh], list]] = {}
 
 
 def _triangle_reader(read_cells: Callable[[Path], CellMesh]) -> Reader:
@@ -72,7 +75,8 @@ def _triangle_writer(write_cells: Writer) -> Writer:
 
 def register_format(extension: str, *, read: Reader | None = None, write: Writer | None = None,
                     read_cells: Callable[[Path], CellMesh] | None = None,
-                    write_cells: Writer | None = None) -> None:
+                    write_cells: Writer | None = None,
+                    unsupported: Callable[[CellMesh], list] | None = None) -> None:
     """Register the reader/writer functions of a file format by its extension (as meshio's
     ``register_format``): ``load``/``save`` use ``read``/``write`` (triangle meshes),
     ``load_cells``/``save_cells`` and ``meshopt convert`` the lossless ``read_cells`` /
@@ -89,6 +93,9 @@ def register_format(extension: str, *, read: Reader | None = None, write: Writer
         from ``read_cells`` (the triangle mesh of what it reads; other cells refused) and
         ``write_cells`` (the mesh's points and triangles). Left out with no cell
         counterpart: that direction is not supported for the format.
+    unsupported : callable, optional
+        ``unsupported(cells)`` → the parts ``write_cells`` refuses (:mod:`._loss`), so that
+        :func:`fit_cells` can leave them out.
     """
     ext = extension.lower() if extension.startswith(".") else "." + extension.lower()
     if read is None and read_cells is not None:
@@ -96,20 +103,39 @@ def register_format(extension: str, *, read: Reader | None = None, write: Writer
     if write is None and write_cells is not None:
         write = _triangle_writer(write_cells)
     for table, function in ((READERS, read), (WRITERS, write), (CELL_READERS, read_cells),
-                            (CELL_WRITERS, write_cells)):
+                            (CELL_WRITERS, write_cells), (UNSUPPORTED, unsupported)):
         if function is not None:
             table[ext] = function
 
 
 register_format(".msh", read=gmsh.read, write=gmsh.write, read_cells=gmsh.read_cells,
-                write_cells=gmsh.write_cells)
-register_format(".obj", read_cells=obj.read_cells, write_cells=obj.write_cells)
-register_format(".off", read_cells=off.read_cells, write_cells=off.write_cells)
-register_format(".ply", read_cells=ply.read_cells, write_cells=ply.write_cells)
-register_format(".vtk", read_cells=vtk.read_vtk_cells, write_cells=vtk.write_vtk_cells)
-register_format(".vtu", read_cells=vtk.read_vtu_cells, write_cells=vtk.write_vtu_cells)
-register_format(".stl", read_cells=stl.read_cells, write_cells=stl.write_cells)
-register_format(".mesh", read_cells=medit.read_cells, write_cells=medit.write_cells)
+                write_cells=gmsh.write_cells, unsupported=gmsh.unsupported)
+register_format(".obj", read_cells=obj.read_cells, write_cells=obj.write_cells,
+                unsupported=obj.unsupported)
+register_format(".off", read_cells=off.read_cells, write_cells=off.write_cells,
+                unsupported=off.unsupported)
+register_format(".ply", read_cells=ply.read_cells, write_cells=ply.write_cells,
+                unsupported=ply.unsupported)
+register_format(".vtk", read_cells=vtk.read_vtk_cells, write_cells=vtk.write_vtk_cells,
+                unsupported=vtk.unsupported_vtk)
+register_format(".vtu", read_cells=vtk.read_vtu_cells, write_cells=vtk.write_vtu_cells,
+                unsupported=vtk.unsupported_vtu)
+register_format(".stl", read_cells=stl.read_cells, write_cells=stl.write_cells,
+                unsupported=stl.unsupported)
+register_format(".mesh", read_cells=medit.read_cells, write_cells=medit.write_cells,
+                unsupported=medit.unsupported)
+
+
+def fit_cells(cells: CellMesh, path: str | os.PathLike) -> tuple[CellMesh, str]:
+    """``(what the format of path can hold, a description of the rest)``.
+
+    The description is empty when nothing is left out (``meshopt convert --allow-loss``
+    writes the first and names the second: ``"gmsh:physical cell data; 6 line cells"``).
+    """
+    from ._loss import describe, without
+
+    parts = UNSUPPORTED.get(Path(path).suffix.lower(), lambda cm: [])(cells)
+    return without(cells, parts), describe(cells, parts)
 
 
 def supported_extensions(kind: str = "read") -> list[str]:

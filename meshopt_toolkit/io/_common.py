@@ -26,33 +26,6 @@ def quiet() -> Iterator[None]:
         logger.debug("meshio: %s", buf.getvalue().strip())
 
 
-def refuse(path, fmt: str, what: list[str], hint: str = "use .vtu") -> None:
-    """Raise :class:`WriteError` ``PATH: FMT files cannot hold WHAT (HINT)`` if ``what``."""
-    if what:
-        raise WriteError(f"{path}: {fmt} files cannot hold {', '.join(what)} ({hint})")
-
-
-def data_names(cm, point: bool = True, cell: bool = True, fields: bool = True) -> list[str]:
-    """``["point data 'u'", "cell data 'gmsh:physical'", ...]`` of a cell mesh."""
-    out = []
-    if point:
-        out += [f"point data {k!r}" for k in cm.point_data]
-    if cell:
-        out += [f"cell data {k!r}" for k in cm.cell_data]
-    if fields:
-        out += [f"field data {k!r}" for k in cm.field_data]
-    return out
-
-
-def cells_other_than(cm, allowed) -> list[str]:
-    """``["18 quad cells", ...]`` for the blocks whose type is not in ``allowed``."""
-    counts = {}
-    for t, c in cm.cells:
-        if t not in allowed and len(c):
-            counts[t] = counts.get(t, 0) + len(c)
-    return [f"{n} {t} cells" for t, n in counts.items()]
-
-
 def pad3(points: np.ndarray) -> np.ndarray:
     """``(N, 3)`` float64 points (z = 0 added to 2D points)."""
     p = np.asarray(points, dtype=np.float64)
@@ -93,17 +66,18 @@ def points3d(mesh: TriangleMesh) -> np.ndarray:
     return out
 
 
-def format_rows(values: np.ndarray, fmt: str, prefix: str = "") -> str:
+def format_rows(values: np.ndarray, fmt: str, prefix: str = "", group: int = 1) -> str:
     """Format an ``(n, k)`` array as text lines ``prefix v1 ... vk`` in one C-level pass.
 
-    ``fmt`` is a ``%`` format for one value: ``"%r"`` gives the shortest repr that reads
-    back bit-exactly for floats (at most 17 significant digits), ``"%d"`` for ints.
+    ``fmt`` is a ``%`` format for ``group`` consecutive values (``"%d/%d"`` with
+    ``group=2``): ``"%r"`` gives the shortest repr that reads back bit-exactly for floats
+    (at most 17 significant digits), ``"%d"`` for ints.
     """
     values = np.asarray(values)
     if values.size == 0:
         return ""
     n, k = values.shape
-    row = prefix + " ".join([fmt] * k) + "\n"
+    row = prefix + " ".join([fmt] * (k // group)) + "\n"
     return (row * n) % tuple(values.ravel().tolist())
 
 

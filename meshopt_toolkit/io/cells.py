@@ -32,6 +32,10 @@ logger = logging.getLogger(__name__)
 PHYSICAL = "gmsh:physical"
 GEOMETRICAL = "gmsh:geometrical"
 GMSH_KEYS = (PHYSICAL, GEOMETRICAL)
+#: point data names of per-vertex normals (N, 3) and texture coordinates (N, 2): OBJ
+#: ``vn``/``vt``, PLY ``nx ny nz``/``texture_u texture_v``
+NORMALS = "normals"
+TEXCOORDS = "texture_coordinates"
 
 #: vertices per cell of the common fixed-size cell types (meshio names)
 NODES_PER_CELL = {
@@ -72,8 +76,9 @@ class CellMesh:
     source : str, optional
         The file it was read from (named in messages).
     dropped : list of str
-        What the reader saw but could not represent (e.g. OBJ texture coordinates): a
-        lossless conversion refuses a mesh whose ``dropped`` is not empty.
+        What the reader saw but could not represent (e.g. OBJ groups, texture coordinates
+        that are not per vertex): ``meshopt convert`` refuses a mesh whose ``dropped`` is
+        not empty unless ``--allow-loss``.
     """
 
     points: np.ndarray

@@ -12,7 +12,7 @@ Writing is our own, vectorized, so that physical tags of triangles and boundary 
 always written (meshio 5.3.5 under numpy 2 writes ASCII files with cell data it cannot
 read back, and its 4.1 writer drops physical tags without ``gmsh:dim_tags``). Element
 blocks follow runs of equal tags, so the order of triangles and lines in the file is the
-order in the mesh.
+order in the mesh. Float point data is written as ``$NodeData`` (:mod:`.gmsh_data`).
 """
 
 from __future__ import annotations
@@ -25,6 +25,9 @@ import numpy as np
 
 from ..errors import ReadError, WriteError
 from ._common import format_rows, quiet
+from ._loss import Part, cells_other_than, refuse
+from .gmsh_data import holds, write_node_data
+from ._files import UNCAPPED, open_input
 from .cells import (GEOMETRICAL, NODES_PER_CELL, PHYSICAL, CellMesh, cell_dimension, check_cells,
                     triangle_mesh)
 
@@ -54,20 +57,20 @@ def read(path: Path) -> TriangleMesh:
 def read_cells(path: Path) -> CellMesh:
     """Read everything of a gmsh file: every element block, physical and geometrical
     tags, physical names, and node/element data (through meshio)."""
-    with open(path, "rb") as fh:
+    with open_input(path, UNCAPPED) as fh:
         head = fh.read(64).lstrip()
     if not (head.startswith(b"$MeshFormat") or head.startswith(b"$Comments")):
         raise ReadError(f"{path}: not a gmsh file (no $MeshFormat header)")
     if head.startswith(b"$MeshFormat\n4.1 1 8\n"):
-        with open(path, "rb") as fh:
+        with open_input(path, UNCAPPED) as fh:
             parsed = _read_binary41(fh)
         if parsed is not None:
             return _build(path, *parsed)
-    from meshio.gmsh import read as meshio_gmsh_read
+    from meshio.gmsh.main import read_buffer
 
     try:
-        with _quiet():
-            m = meshio_gmsh_read(path)
+        with _quiet(), open_input(path, UNCAPPED) as fh:
+            m = read_buffer(fh)
     except (Exception, SystemExit) as exc:  # meshio may sys.exit on failure
         detail = str(exc) or type(exc).__name__
         if isinstance(exc, (ValueError, EOFError, IndexError)) or "buffer" in detail:
@@ -252,17 +255,20 @@ def _groups(cm: CellMesh, path):
     return out
 
 
-def _refuse_data(cm: CellMesh, path) -> None:
-    """What our gmsh writer cannot hold: point data, other cell data, other field data."""
-    what = [f"point data {k!r}" for k in cm.point_data]
-    what += [f"cell data {k!r}" for k in cm.cell_data if k not in (PHYSICAL, GEOMETRICAL)]
+def unsupported(cm: CellMesh) -> list[Part]:
+    """What our gmsh writer cannot hold: cell types without a gmsh element (polygon),
+    point data other than float views (:func:`.gmsh_data.holds`), cell data other than
+    the physical groups, field data other than ``name: (tag, dim)``."""
+    from meshio.gmsh.common import _meshio_to_gmsh_type
+
+    parts = cells_other_than(cm, _meshio_to_gmsh_type)
+    parts += [("point", k) for k, v in cm.point_data.items() if not holds(k, v, cm.n_points)]
+    parts += [("cell", k) for k in cm.cell_data if k not in (PHYSICAL, GEOMETRICAL)]
     for name, value in cm.field_data.items():
         v = np.asarray(value).reshape(-1)
         if v.size != 2 or not np.issubdtype(v.dtype, np.integer):
-            what.append(f"field data {name!r}")
-    if what:
-        raise WriteError(f"{path}: the .msh writer keeps only physical groups, not "
-                         f"{', '.join(what)} (use .vtu)")
+            parts.append(("field", name))
+    return parts
 
 
 def _physical_names(cm: CellMesh) -> bytes:
@@ -292,14 +298,13 @@ def write_cells(path: Path, cm: CellMesh, binary: bool | None = None,
     Raises
     ------
     WriteError
-        A cell type gmsh has no element for (polygon), point or cell data other than the
-        physical groups, or (4.1) elements of one geometrical entity with different
+        What :func:`unsupported` lists, or (4.1) elements of one geometrical entity with different
         physical tags (gmsh 2.2 can hold them).
     """
     version = str(version)
     if version not in VERSIONS:
         raise WriteError(f"{path}: unsupported gmsh version {version!r}; use one of {VERSIONS}")
-    _refuse_data(cm, path)
+    refuse(path, "gmsh", cm, unsupported(cm))
     groups = _groups(cm, path)
     binary = True if binary is None else bool(binary)
     if version == "4.1":
@@ -309,6 +314,7 @@ def write_cells(path: Path, cm: CellMesh, binary: bool | None = None,
             _write22(fh, cm, groups, binary)
         else:
             _write41(fh, cm, ents, blocks, binary)
+        write_node_data(fh, cm.point_data, binary)
 
 
 def _header(fh, version: str, binary: bool) -> None:

@@ -26,7 +26,9 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ReadError, WriteError
-from ._common import cells_other_than, decode_text, quiet, refuse, require_text_mode
+from ._common import decode_text, quiet, require_text_mode
+from ._files import UNCAPPED, open_input, read_input
+from ._loss import Part, cells_other_than, refuse
 from .cells import GEOMETRICAL, PHYSICAL, CellMesh, cell_dimension, check_cells
 
 REF = "medit:ref"
@@ -49,16 +51,20 @@ _HEADER_RE = re.compile(r"^[ \t]*(MeshVersionFormatted|Dimension)[ \t]*\r?\n?[ \
 def read_cells(path: Path) -> CellMesh:
     """Everything of an ASCII Medit file: points, element sections, references (as
     physical tags), the physical names of our comment lines."""
-    from meshio.medit import read as meshio_medit_read
+    import io as _io
 
-    text = decode_text(Path(path).read_bytes(), path)
+    from meshio.medit._medit import read_ascii_buffer
+
+    text = decode_text(read_input(path, UNCAPPED), path)
     head = text.lstrip()[:64]
     if not head.startswith(("MeshVersionFormatted", "#")):
         raise ReadError(f"{path}: not a Medit file (no MeshVersionFormatted header)")
     _prescan(text, path)
     try:
         with quiet():
-            m = meshio_medit_read(str(path))
+            # meshio reads numbers with np.fromfile: a real file, opened as every input is
+            with open_input(path, UNCAPPED) as raw, _io.TextIOWrapper(raw, "utf-8") as fh:
+                m = read_ascii_buffer(fh)
         cm = CellMesh.from_meshio(m, source=str(path))
     except (Exception, SystemExit) as exc:  # meshio raises its own ReadError or worse
         detail = str(exc) or "malformed or truncated"
@@ -130,6 +136,26 @@ def _element_refs(cm: CellMesh, path) -> list[np.ndarray]:
     return [np.asarray(r).reshape(-1).astype(np.int64) for r in cm.cell_data[keys[0]]]
 
 
+def unsupported(cm: CellMesh) -> list[Part]:
+    """What a Medit file cannot hold: cell types without a section, point data other than
+    integer ``medit:ref``, cell data other than the references (``gmsh:geometrical`` only
+    where the gmsh writers regenerate it from them), field data other than physical names."""
+    parts = cells_other_than(cm, tuple(SECTIONS))
+    parts += [("point", k) for k, v in cm.point_data.items()
+              if k != REF or np.asarray(v).dtype.kind not in "iu" or np.asarray(v).ndim != 1]
+    parts += [("cell", k) for k in cm.cell_data if k not in (PHYSICAL, REF, GEOMETRICAL)]
+    parts += [("field", k) for k, v in cm.field_data.items()
+              if np.asarray(v).size != 2 or np.asarray(v).dtype.kind not in "iu"
+              or "\n" in str(k) or "\r" in str(k)]
+    geom = cm.cell_data.get(GEOMETRICAL)
+    if geom is not None and not parts:
+        refs = _element_refs(cm, cm.source or "mesh")
+        if not any(all(np.array_equal(np.asarray(g).reshape(-1), r) for g, r in zip(geom, regen))
+                   for regen in regenerated_entities(cm, refs)):
+            parts.append(("cell", GEOMETRICAL))
+    return parts
+
+
 def write_cells(path: Path, cm: CellMesh, binary: bool | None = None) -> None:
     """Write points, element sections, references and physical names as ASCII Medit.
 
@@ -141,21 +167,8 @@ def write_cells(path: Path, cm: CellMesh, binary: bool | None = None) -> None:
         where the gmsh writers regenerate it), field data other than physical names.
     """
     require_text_mode(binary, path, "Medit")
-    what = cells_other_than(cm, tuple(SECTIONS))
-    what += [f"point data {k!r}" for k, v in cm.point_data.items()
-             if k != REF or np.asarray(v).dtype.kind not in "iu" or np.asarray(v).ndim != 1]
-    what += [f"cell data {k!r}" for k in cm.cell_data if k not in (PHYSICAL, REF, GEOMETRICAL)]
-    what += [f"field data {k!r}" for k, v in cm.field_data.items()
-             if np.asarray(v).size != 2 or np.asarray(v).dtype.kind not in "iu"
-             or "\n" in str(k) or "\r" in str(k)]
-    refuse(path, "Medit", what)
+    refuse(path, "Medit", cm, unsupported(cm))
     refs = _element_refs(cm, path)
-    geom = cm.cell_data.get(GEOMETRICAL)
-    if geom is not None and not any(
-            all(np.array_equal(np.asarray(g).reshape(-1), r) for g, r in zip(geom, regen))
-            for regen in regenerated_entities(cm, refs)):
-        refuse(path, "Medit", ["cell data 'gmsh:geometrical' (gmsh entity numbers that "
-                               "are not those of the physical groups)"])
     pts = np.asarray(cm.points, np.float64)
     n, d = pts.shape
     out = [f"MeshVersionFormatted 2\nDimension {d}\n"]

@@ -3,11 +3,16 @@ little-endian (bit-exact) or ASCII with ``repr`` coordinates.
 
 Reading needs a ``vertex`` element with ``x``, ``y`` (and usually ``z``) and a ``face``
 element with a ``vertex_indices``/``vertex_index`` list. Faces of any size are kept (runs
-of one size are one cell block); other scalar vertex properties (colours, normals,
-quality) become point data and other scalar face properties cell data, with their PLY
-type, so that they are written back. List properties other than the face's vertices and
-other elements are listed in :attr:`~.cells.CellMesh.dropped`. Binary faces are read
-vectorized when every face has the same number of vertices, else row by row.
+of one size are one cell block); other scalar vertex properties (colours, quality) become
+point data and other scalar face properties cell data, with their PLY type, so that they
+are written back. Float ``nx ny nz`` become the point data :data:`~.cells.NORMALS` and
+``texture_u texture_v`` (or ``s t``, ``u v``, as trimesh reads them) the point data
+:data:`~.cells.TEXCOORDS`; they are written as ``nx ny nz`` and ``texture_u texture_v``
+(the names MeshLab reads). ASCII values must fit their declared type (a ``uchar`` of 300
+or a face index beyond int64 is refused, never wrapped). List properties other than the
+face's vertices and other elements are listed in :attr:`~.cells.CellMesh.dropped`.
+Binary faces are read vectorized when every face has the same number of vertices, else
+row by row.
 """
 
 from __future__ import annotations
@@ -19,8 +24,10 @@ import numpy as np
 
 
 from ..errors import ReadError, WriteError
-from ._common import cells_other_than, pad3, parse_rows, refuse
-from .cells import CellMesh, check_cells, face_blocks
+from ._common import pad3, parse_rows
+from ._files import UNCAPPED, read_input
+from ._loss import Part, cells_other_than, refuse
+from .cells import NORMALS, TEXCOORDS, CellMesh, check_cells, face_blocks
 
 _TYPES = {
     "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1",
@@ -29,6 +36,9 @@ _TYPES = {
     "float": "f4", "float32": "f4", "double": "f8", "float64": "f8",
 }
 _FACE_LISTS = ("vertex_indices", "vertex_index")
+_NORMAL_AXES = ("nx", "ny", "nz")
+#: texture coordinate property pairs read (trimesh's list); the first is written (MeshLab's)
+_TEX_NAMES = (("texture_u", "texture_v"), ("s", "t"), ("u", "v"))
 #: numpy dtype (kind + size) → PLY type name, for writing
 _NAMES = {"i1": "char", "u1": "uchar", "i2": "short", "u2": "ushort", "i4": "int",
           "u4": "uint", "f4": "float", "f8": "double"}
@@ -160,7 +170,8 @@ def _ascii_elements(data: bytes, offset: int, elements: list, path) -> dict:
         if not has_list:
             rows = parse_rows(block, path, name, len(props)) if count else \
                 np.zeros((0, len(props)))
-            out[name] = {p[0]: rows[:, c].astype(np.dtype(p[1])) for c, p in enumerate(props)}
+            out[name] = {p[0]: _cast(rows[:, c], p[1], path, name, p[0])
+                         for c, p in enumerate(props)}
             continue
         cols: dict[str, list] = {p[0]: [] for p in props}
         try:
@@ -179,14 +190,31 @@ def _ascii_elements(data: bytes, offset: int, elements: list, path) -> dict:
                         c += 1 + k
         except (ValueError, IndexError) as exc:
             raise ReadError(f"{path}: bad {name!r} row in PLY file ({exc})") from None
-        out[name] = {p[0]: (np.array(cols[p[0]]).astype(np.dtype(p[1])) if len(p) == 2
-                            else cols[p[0]]) for p in props}
+        out[name] = {p[0]: (_cast(np.array(cols[p[0]], np.float64), p[1], path, name, p[0])
+                            if len(p) == 2 else cols[p[0]]) for p in props}
     return out
+
+
+def _cast(a: np.ndarray, code: str, path, element: str, prop: str) -> np.ndarray:
+    """ASCII values (parsed as float64) as the declared type, refusing what does not fit
+    (never wrapped, truncated or overflowed to infinity)."""
+    dt = np.dtype(code)
+    a = np.asarray(a, np.float64)
+    if dt.kind in "iu":
+        info = np.iinfo(dt)
+        ok = np.isfinite(a) & (a == np.round(a)) & (a >= info.min) & (a <= info.max)
+    else:
+        ok = ~np.isfinite(a) | (np.abs(a) <= np.finfo(dt).max)
+    if not ok.all():
+        bad = float(a[~ok][0])
+        raise ReadError(f"{path}: {element} property {prop!r}: value {bad!r} does not fit "
+                        f"its type {_NAMES[code]}")
+    return a.astype(dt)
 
 
 def read_cells(path: Path) -> CellMesh:
     """Read vertices, faces of any size and scalar vertex/face properties, in file order."""
-    data = Path(path).read_bytes()
+    data = read_input(path, UNCAPPED)
     fmt, elements, offset = _parse_header(data, path)
     names = [e[0] for e in elements]
     if "vertex" not in names or "face" not in names:
@@ -222,6 +250,9 @@ def read_cells(path: Path) -> CellMesh:
     if flat.size and (not np.isfinite(flat.astype(np.float64)).all()
                       or (flat.astype(np.float64) != np.round(flat.astype(np.float64))).any()):
         raise ReadError(f"{path}: PLY face indices must be integers")
+    if flat.size and (np.abs(flat.astype(np.float64)) > 2.0**62).any():
+        big = flat.astype(np.float64)[np.abs(flat.astype(np.float64)) > 2.0**62][0]
+        raise ReadError(f"{path}: PLY face index {big:.0f} out of range")
     if len(sizes) and sizes.min() < 3:
         bad = int(np.argmin(sizes))
         raise ReadError(f"{path}: face {bad} has {sizes[bad]} vertices (at least 3 needed)")
@@ -235,6 +266,7 @@ def read_cells(path: Path) -> CellMesh:
             point_data[p[0]] = np.asarray(v[p[0]])
         else:
             dropped.append(f"vertex list property {p[0]!r}")
+    _combine(point_data)
     cell_data = {}
     bounds = np.cumsum([0] + [len(c) for _, c in cells])
     for p in fspec:
@@ -250,6 +282,53 @@ def read_cells(path: Path) -> CellMesh:
                   dropped=dropped)
     check_cells(cm)
     return cm
+
+
+def _combine(point_data: dict) -> None:
+    """Float ``nx ny nz`` → :data:`NORMALS`, a texture pair → :data:`TEXCOORDS` (in place)."""
+    def floats(names):
+        return all(n in point_data and point_data[n].dtype.kind == "f" for n in names)
+
+    if floats(_NORMAL_AXES) and NORMALS not in point_data:
+        point_data[NORMALS] = np.column_stack([point_data.pop(n) for n in _NORMAL_AXES])
+    for pair in _TEX_NAMES:
+        if floats(pair) and TEXCOORDS not in point_data:
+            point_data[TEXCOORDS] = np.column_stack([point_data.pop(n) for n in pair])
+            break
+
+
+def _columns(name: str, a) -> list[tuple[str, np.ndarray]]:
+    """The PLY properties of one point datum: normals and texture coordinates split."""
+    a = np.asarray(a)
+    if name == NORMALS and a.ndim == 2 and a.shape[1] == 3 and a.dtype.kind == "f":
+        return [(n, a[:, j]) for j, n in enumerate(_NORMAL_AXES)]
+    if name == TEXCOORDS and a.ndim == 2 and a.shape[1] == 2 and a.dtype.kind == "f":
+        return [(n, a[:, j]) for j, n in enumerate(_TEX_NAMES[0])]
+    return [(name, a)]
+
+
+def _holds(name: str, a) -> bool:
+    try:
+        _ply_type(name, a, "")
+    except WriteError:
+        return False
+    return True
+
+
+def unsupported(cm: CellMesh) -> list[Part]:
+    """What PLY cannot hold: cells other than faces, field data, and data that is not
+    one number per point or cell (normals (N, 3) and texture coordinates (N, 2) aside)."""
+    parts = cells_other_than(cm, ("triangle", "quad", "polygon"))
+    taken = {n for k, v in cm.point_data.items() for n, _ in _columns(k, v) if n != k}
+    for k, v in cm.point_data.items():
+        cols = _columns(k, v)
+        if (len(cols) == 1 and k in taken) or not all(_holds(n, c) for n, c in cols):
+            parts.append(("point", k))
+    for k, v in cm.cell_data.items():
+        col = np.concatenate([np.asarray(x) for x in v]) if v else np.zeros(0)
+        if not _holds(k, col):
+            parts.append(("cell", k))
+    return parts + [("field", k) for k in cm.field_data]
 
 
 def _ply_type(name: str, a: np.ndarray, path) -> tuple[str, np.ndarray]:
@@ -277,14 +356,13 @@ def write_cells(path: Path, cm: CellMesh, binary: bool | None = None) -> None:
     Raises
     ------
     WriteError
-        Line, vertex or volume cells, field data, or data that is not one number per
-        point or cell.
+        What :func:`unsupported` lists.
     """
-    refuse(path, "PLY", cells_other_than(cm, ("triangle", "quad", "polygon"))
-           + [f"field data {k!r}" for k in cm.field_data])
+    refuse(path, "PLY", cm, unsupported(cm))
     binary = True if binary is None else bool(binary)
     pts = pad3(cm.points)
-    pdata = [(k, *_ply_type(k, v, path)) for k, v in cm.point_data.items()]
+    pdata = [(n, *_ply_type(n, c, path)) for k, v in cm.point_data.items()
+             for n, c in _columns(k, v)]
     cdata = [(k, *_ply_type(k, np.concatenate([np.asarray(x) for x in v]) if v else
                             np.zeros(0), path)) for k, v in cm.cell_data.items()]
     nf = cm.n_cells

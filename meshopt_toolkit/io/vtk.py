@@ -19,6 +19,8 @@ import numpy as np
 
 from ..errors import ReadError, WriteError
 from ._common import format_rows, pad3, quiet
+from ._loss import Part, numeric, refuse
+from ._files import UNCAPPED, open_input
 from .cells import CellMesh, check_cells
 
 logger = logging.getLogger(__name__)
@@ -39,33 +41,46 @@ def _read(path: Path, reader, kind: str) -> CellMesh:
 
 def read_vtk_cells(path: Path) -> CellMesh:
     """Everything of a legacy VTK file (unstructured grid or polydata)."""
-    import meshio.vtk
-
-    with open(path, "rb") as fh:
+    with open_input(path, UNCAPPED) as fh:
         if not fh.read(64).lstrip().startswith(b"# vtk DataFile"):
             raise ReadError(f"{path}: not a legacy VTK file (no '# vtk DataFile' header)")
-    return _read(path, meshio.vtk.read, "VTK")
+    from meshio.vtk._main import read_buffer
+
+    def read(p):
+        with open_input(p, UNCAPPED) as fh:
+            return read_buffer(fh)
+
+    return _read(path, read, "VTK")
 
 
 def read_vtu_cells(path: Path) -> CellMesh:
     """Everything of a VTK XML unstructured grid."""
     import meshio.vtu
 
-    with open(path, "rb") as fh:
+    with open_input(path, UNCAPPED) as fh:
         head = fh.read(256).lstrip()
     if not (head.startswith(b"<?xml") or head.startswith(b"<VTKFile")):
         raise ReadError(f"{path}: not a VTU file (no XML header)")
     return _read(path, meshio.vtu.read, "VTU")
 
 
-def _check_data(cm: CellMesh, path) -> None:
+def unsupported_vtu(cm: CellMesh) -> list[Part]:
+    """What VTU cannot hold: data that is not numeric (or not one row per point)."""
     n = cm.n_points
-    for k, v in cm.point_data.items():
-        if np.asarray(v).dtype.kind not in "biuf" or len(v) != n:
-            raise WriteError(f"{path}: point data {k!r} is not numeric with one row per point")
-    for k, v in cm.cell_data.items():
-        if any(np.asarray(a).dtype.kind not in "biuf" for a in v):
-            raise WriteError(f"{path}: cell data {k!r} is not numeric")
+    parts: list[Part] = [("point", k) for k, v in cm.point_data.items()
+                         if not numeric(v) or len(v) != n]
+    return parts + [("cell", k) for k, v in cm.cell_data.items()
+                    if not all(numeric(a) for a in v)]
+
+
+def unsupported_vtk(cm: CellMesh) -> list[Part]:
+    """What legacy VTK output cannot hold: as VTU, and field data (meshio cannot write
+    it)."""
+    return unsupported_vtu(cm) + [("field", k) for k in cm.field_data]
+
+
+def _check_data(cm: CellMesh, path, fmt: str = "VTU") -> None:
+    refuse(path, fmt, cm, unsupported_vtu(cm) if fmt == "VTU" else unsupported_vtk(cm))
 
 
 def write_vtk_cells(path: Path, cm: CellMesh, binary: bool | None = None) -> None:
@@ -78,10 +93,7 @@ def write_vtk_cells(path: Path, cm: CellMesh, binary: bool | None = None) -> Non
     """
     import meshio.vtk
 
-    if cm.field_data:
-        raise WriteError(f"{path}: legacy VTK files cannot hold field data "
-                         f"({', '.join(map(repr, cm.field_data))}; use .vtu)")
-    _check_data(cm, path)
+    _check_data(cm, path, "legacy VTK")
     with quiet():
         meshio.vtk.write(str(path), cm.to_meshio(), binary=binary is None or bool(binary))
 

@@ -16,8 +16,10 @@ How a batch runs
   with ``force``) and records it in the journal (:mod:`.journal`). A killed run leaves no
   partial output: at worst a scratch folder, removed by the next run.
 - ``resume=True`` skips files the journal knows as done with the same input content and
-  configuration and with all their outputs intact (``"status": "skipped"``), and removes
-  stray ``.part`` files of a killed run.
+  configuration and with all their outputs intact (``"status": "skipped"``). Temporaries
+  are removed only by the exact names the journal recorded before making them.
+- Inputs are opened by :func:`~meshopt_toolkit.io._files.open_input`: a FIFO, a device or
+  a socket (symlinks resolved) fails that file with one line, and is never read.
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ from typing import Any, Callable
 from ..errors import MeshoptError, WriteError
 from .batch import RunOptions
 from .batch_progress import BatchProgress, count_outcome, format_summary
-from .journal import Journal, config_sha256, file_sha256, remove_stray_parts, reset_staging
+from .journal import Journal, config_sha256, file_sha256
 from .runner import Pipeline
 from .tasks import RunTask, failed_record
 from .workers import RESTART_KEY, InlineExecutor, ProcessPool, WorkerCrash, cpu_count
@@ -153,14 +155,19 @@ class _Batch:
             raise MeshoptError(f"{self.outdir}: cannot create the output directory: "
                                f"{exc.strerror or exc}") from None
         self.journal = Journal(self.outdir)  # locked: no other batch writes here now
-        self.staging = reset_staging(self.outdir)
-        if self.resume:
-            remove_stray_parts(self.outdir)
+        try:
+            self.staging = self.journal.reset_staging()  # only what the journal recorded
+        except MeshoptError:
+            self.journal.close()  # the lock goes with the refusal
+            self.journal = None
+            raise
 
     def close(self) -> None:
-        if self.staging is not None:
-            shutil.rmtree(self.staging, ignore_errors=True)
         if self.journal is not None:
+            try:
+                self.journal.remove_temporaries()  # the staging folder
+            except (OSError, MeshoptError):
+                pass  # recorded: the next run removes it
             self.journal.close()
 
     def prepare(self, job: Job) -> tuple[_Pending, Any] | dict:
@@ -170,8 +177,10 @@ class _Batch:
         if self.journal is None:  # a dry run: nothing written, nothing journaled
             out = None if self.outdir is None else str(self.outdir)
             return pending, (str(src), job.index, job.name, out)
-        try:
-            pending.input_sha = file_sha256(src)
+        try:  # a FIFO or a device is refused here, before it is read
+            pending.input_sha = file_sha256(src, max_bytes=getattr(self.task, "max_bytes", None))
+        except MeshoptError as exc:
+            return failed_record(src, str(exc))
         except OSError as exc:
             return failed_record(src, f"{src}: cannot read: {exc.strerror or exc}")
         pending.key = Journal.key(src, pending.input_sha, self.config_sha, job.name)
@@ -360,6 +369,8 @@ def execute(task, jobs: Iterable[Job], outdir, *, workers: int = 1, isolate: boo
                     try:
                         executor.submit(seq, prepared[1])
                         pending[seq] = prepared[0]
+                    except MeshoptError as exc:  # bytes mode: refused by open_input
+                        ready[seq] = failed_record(job.src, str(exc))
                     except OSError as exc:  # bytes mode: the client could not read it
                         ready[seq] = failed_record(job.src, f"{job.src}: cannot read: "
                                                             f"{exc.strerror or exc}")

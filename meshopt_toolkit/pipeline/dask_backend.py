@@ -149,6 +149,7 @@ class DaskExecutor:
         self.send = send
         # a computed (not scattered) value: if the workers holding it die, Dask recomputes it
         self._task = client.submit(_identity, task, pure=False)
+        self._max_bytes = getattr(task, "max_bytes", None)
         threads = sum(client.nthreads().values()) or 1
         self._slots = slots or 2 * threads
         self._wait = distributed.wait
@@ -167,10 +168,13 @@ class DaskExecutor:
         return self._slots - len(self._ids)
 
     def submit(self, ident, payload) -> None:
-        """Send one input (read here in bytes mode: an unreadable file raises OSError)."""
+        """Send one input (read here in bytes mode: an unreadable file raises OSError,
+        one that is not a regular file :class:`~meshopt_toolkit.errors.ReadError`)."""
+        from ..io._files import read_input
+
         src, index, name, _ = payload
         if self.send == "bytes":
-            data = Path(src).read_bytes()
+            data = read_input(src, self._max_bytes)  # a FIFO or a device: ReadError
             if len(data) > _SCATTER_ABOVE:
                 [data] = self.client.scatter([data], hash=False)
             where = str(src)

@@ -21,6 +21,13 @@ nothing committed is lost; after a power cut the last commits may be, but the jo
 stays consistent and a skip is always checked against the outputs' hashes, so it is never
 wrong (at worst an output is redone and needs ``--force`` to be replaced). The journal is
 opened with an exclusive lock: two batches cannot share an output directory at once.
+
+Temporaries: the batch's scratch folder ``OUTDIR/.meshopt-staging`` (and anything else it
+may make and remove again) is recorded by its exact name in the journal *before* it is
+created (:meth:`Journal.will_create`), and a later run removes exactly the recorded names
+(:meth:`Journal.remove_temporaries`). Nothing is removed for looking like a temporary: a
+user's ``.thesis.2024_v01.part`` or a ``.meshopt-staging`` folder the journal did not make
+is never deleted (the latter is refused with one line).
 """
 
 from __future__ import annotations
@@ -28,29 +35,34 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import re
 import shutil
 import sqlite3
+import stat
 from pathlib import Path
 
 from ..errors import MeshoptError
+from ..io._files import UNCAPPED, open_input
 
-__all__ = ["Journal", "JOURNAL_NAME", "STAGING_NAME", "file_sha256", "config_sha256",
-           "remove_stray_parts"]
+__all__ = ["Journal", "JOURNAL_NAME", "STAGING_NAME", "file_sha256", "config_sha256"]
 
 #: the journal's file name inside the output directory
 JOURNAL_NAME = ".meshopt-journal.db"
 #: per-file scratch folders inside the output directory (removed at the start and the end)
 STAGING_NAME = ".meshopt-staging"
 _FORMAT = "1"
-# the temporary files of io._atomic.atomic_path: mkstemp(prefix=".NAME.", suffix=".part")
-_PART = re.compile(r"^\..+\.[A-Za-z0-9_]{8}\.part$")
 
 
-def file_sha256(path, chunk: int = 1 << 20) -> str:
-    """Hex SHA-256 of a file's content (read in chunks: memory stays small)."""
+def file_sha256(path, chunk: int = 1 << 20, max_bytes: int | None = UNCAPPED) -> str:
+    """Hex SHA-256 of a regular file's content (read in chunks: memory stays small).
+
+    Raises
+    ------
+    ReadError
+        Not a regular file (a FIFO, a device, a socket: refused before it is read), or
+        larger than ``max_bytes`` (None: the default cap of mesh files).
+    """
     h = hashlib.sha256()
-    with open(path, "rb") as f:
+    with open_input(path, max_bytes) as f:
         while block := f.read(chunk):
             h.update(block)
     return h.hexdigest()
@@ -60,26 +72,6 @@ def config_sha256(config: dict) -> str:
     """Hex SHA-256 of a JSON-able configuration (keys sorted)."""
     text = json.dumps(config, sort_keys=True, separators=(",", ":"), default=str)
     return hashlib.sha256(text.encode()).hexdigest()
-
-
-def remove_stray_parts(outdir) -> list[Path]:
-    """Remove the temporary ``.NAME.XXXXXXXX.part`` files a killed run left in ``outdir``.
-
-    Only files named like those of :func:`meshopt_toolkit.io._atomic.atomic_path` are
-    removed, in ``outdir`` and its subfolders. Returns the removed paths.
-    """
-    removed = []
-    for root, dirs, files in os.walk(outdir):
-        dirs[:] = [d for d in dirs if d != STAGING_NAME]
-        for name in files:
-            if _PART.match(name):
-                path = Path(root) / name
-                try:
-                    path.unlink()
-                    removed.append(path)
-                except FileNotFoundError:
-                    pass
-    return removed
 
 
 class Journal:
@@ -108,11 +100,21 @@ class Journal:
             self._db.execute("PRAGMA journal_mode=WAL")
             self._db.execute("PRAGMA synchronous=NORMAL")
             with self._transaction():
+                had_done = self._db.execute(
+                    "SELECT 1 FROM sqlite_master WHERE name='done'").fetchone() is not None
                 self._db.execute("CREATE TABLE IF NOT EXISTS meta (k TEXT PRIMARY KEY, v TEXT)")
                 self._db.execute("CREATE TABLE IF NOT EXISTS done (key TEXT PRIMARY KEY, "
                                  "input TEXT, input_sha TEXT, config_sha TEXT, outputs TEXT)")
                 self._db.execute("CREATE TABLE IF NOT EXISTS published (key TEXT, path TEXT, "
                                  "PRIMARY KEY (key, path))")
+                # a journal written before temporaries were recorded made its staging
+                # folder without recording it: that one folder is adopted
+                older = had_done and self._db.execute(
+                    "SELECT 1 FROM sqlite_master WHERE name='temporaries'").fetchone() is None
+                self._db.execute("CREATE TABLE IF NOT EXISTS temporaries (path TEXT PRIMARY KEY)")
+                if older and (self.outdir / STAGING_NAME).is_dir():
+                    self._db.execute("INSERT OR IGNORE INTO temporaries VALUES (?)",
+                                     (STAGING_NAME,))
                 row = self._db.execute("SELECT v FROM meta WHERE k='format'").fetchone()
                 if row is None:
                     self._db.execute("INSERT INTO meta VALUES ('format', ?)", (_FORMAT,))
@@ -163,7 +165,7 @@ class Journal:
             try:
                 if path.stat().st_size != item["size"] or file_sha256(path) != item["sha256"]:
                     return None
-            except OSError:
+            except (OSError, MeshoptError):  # gone, or no longer a regular file
                 return None
         return outputs
 
@@ -191,6 +193,64 @@ class Journal:
                              (key, str(src), input_sha, config_sha, json.dumps(outputs)))
             self._db.execute("DELETE FROM published WHERE key=?", (key,))
 
+    # -- temporaries -------------------------------------------------------------------
+    def will_create(self, rel: str) -> Path:
+        """Record (durably) that ``OUTDIR/rel`` is about to be created as a temporary.
+
+        Returns the absolute path; :meth:`remove_temporaries` removes exactly it later.
+        """
+        rel = os.path.normpath(rel)
+        if os.path.isabs(rel) or rel.split(os.sep)[0] == "..":
+            raise MeshoptError(f"{rel}: a temporary outside the output directory")  # a bug
+        with self._transaction():
+            self._db.execute("INSERT OR IGNORE INTO temporaries VALUES (?)", (rel,))
+        return self.outdir / rel
+
+    def temporaries(self) -> list[str]:
+        """The recorded temporaries (relative paths), in name order."""
+        return [r[0] for r in self._db.execute("SELECT path FROM temporaries ORDER BY path")]
+
+    def remove_temporaries(self) -> list[Path]:
+        """Remove every recorded temporary that exists (a folder with its content; a
+        symlink itself, never its target) and forget it; return the removed paths."""
+        removed = []
+        for rel in self.temporaries():
+            path = self.outdir / rel
+            try:
+                mode = os.lstat(path).st_mode
+            except FileNotFoundError:
+                mode = None
+            except OSError as exc:
+                raise MeshoptError(f"{path}: cannot remove the batch's temporary: "
+                                   f"{exc.strerror or exc}") from None
+            if mode is not None:
+                if stat.S_ISDIR(mode):
+                    shutil.rmtree(path)
+                else:
+                    path.unlink()
+                removed.append(path)
+            with self._transaction():
+                self._db.execute("DELETE FROM temporaries WHERE path=?", (rel,))
+        return removed
+
+    def reset_staging(self) -> Path:
+        """A fresh, empty ``OUTDIR/.meshopt-staging``: the recorded temporaries of an
+        earlier run (killed or not) removed, the folder recorded, then made.
+
+        Raises
+        ------
+        MeshoptError
+            ``.meshopt-staging`` exists but the journal did not make it (someone else's).
+        """
+        self.remove_temporaries()
+        staging = self.outdir / STAGING_NAME
+        if os.path.lexists(staging):
+            raise MeshoptError(f"{staging}: exists but was not made by a batch in this "
+                               "directory (not removed); move it away")
+        self.will_create(STAGING_NAME)
+        staging.mkdir()
+        return staging
+
     def close(self) -> None:
         """Release the lock (the WAL is checkpointed into the database file)."""
         try:
@@ -204,10 +264,3 @@ class Journal:
     def __exit__(self, *exc) -> None:
         self.close()
 
-
-def reset_staging(outdir) -> Path:
-    """Remove and recreate ``OUTDIR/.meshopt-staging`` (leftovers of a killed run)."""
-    staging = Path(outdir) / STAGING_NAME
-    shutil.rmtree(staging, ignore_errors=True)
-    staging.mkdir()
-    return staging

@@ -89,11 +89,12 @@ def read_bounded(path, limit: int = MAX_PIPELINE_BYTES) -> bytes:
         Missing, not a regular file, larger than ``limit``, or unreadable; the message
         names the file.
     """
-    from ..io._files import check_input_file
+    from ..io._files import open_input
 
     p = Path(path)
     try:
-        check_input_file(p, limit)
+        with open_input(p, limit) as fh:  # regular files only: a FIFO is never opened
+            data = fh.read(limit + 1)
     except ReadError as exc:  # the same checks as for meshes, named as a pipeline's
         message = str(exc).removeprefix(f"{p}: ")
         if message == "no such file":
@@ -101,9 +102,6 @@ def read_bounded(path, limit: int = MAX_PIPELINE_BYTES) -> bytes:
         elif "larger than the limit" in message:
             message = f"pipeline file larger than {limit} bytes; refused"
         raise FilterError(f"{p}: {message}") from None
-    try:
-        with open(p, "rb") as fh:
-            data = fh.read(limit + 1)
     except OSError as exc:
         raise FilterError(f"{p}: cannot read the pipeline file: {exc.strerror or exc}") from None
     if len(data) > limit:  # grew since stat

@@ -56,6 +56,9 @@ class RunTask:
         self.options = state["options"]
         self.pipeline = Pipeline.from_dict(state["data"], state["source"])
 
+    #: size cap of an input (None: the default of mesh files)
+    max_bytes = None
+
     @property
     def own_save(self) -> bool:
         return any(s.name == "save_mesh" for s in self.pipeline.steps)
@@ -87,7 +90,7 @@ class ConvertTask:
     func : callable
         A module-level function (picklable by reference); it writes ``dst`` and raises
         :class:`~meshopt_toolkit.errors.MeshoptError` for a bad file. A dict it returns
-        becomes the record's ``results``.
+        becomes the record's ``results`` (its ``"warnings"`` list the record's warnings).
     args : argparse.Namespace
         Passed to ``func``; only its plain values are kept.
     ext : str
@@ -106,6 +109,11 @@ class ConvertTask:
                                                                list, tuple))}
         self.args = argparse.Namespace(**plain)
         self.ext = ext
+
+    @property
+    def max_bytes(self) -> int | None:
+        """Size cap of an input (``--max-file-size``; None: the default)."""
+        return getattr(self.args, "max_file_size", None)
 
     def config(self) -> dict:
         opts = {k: v for k, v in vars(self.args).items() if k not in self.RUN_CONTROL}
@@ -127,6 +135,8 @@ class ConvertTask:
             info = self.func(src, dst, self.args)
             record["outputs"] = [str(dst)]
             if isinstance(info, dict):
+                info = dict(info)
+                record["warnings"] = list(info.pop("warnings", ()))
                 record["results"] = [info]
         except MeshoptError as exc:
             record.update(status="failed", error=str(exc))
