@@ -1,4 +1,4 @@
-"""Why the exponential map's step count grows with refinement (issue 16): the geodesic's
+"""Why the exponential map's step count grows with refinement: the geodesic's
 own time scale, measured, and an A-stable implicit method on the same geodesic.
 
 Set-up of ``bench_scale.py``: disc_13586 and its uniform refinements, f2 with β = (10, 1,

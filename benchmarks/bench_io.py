@@ -3,7 +3,7 @@
 Side by side in one process, baseline and ours interleaved, median of ``--repeat`` runs:
 
 * read only: ``meshio.gmsh.read(msh)``  vs  ``load(msh)`` (reader + mesh validation);
-* info (issue #2): meshio's own read + write of the same .msh file (gmsh 4.1 binary)  vs
+* info: meshio's own read + write of the same .msh file (gmsh 4.1 binary)  vs
   :func:`meshopt_toolkit.cli.info.mesh_info` (``load`` + ``check_mesh`` +
   ``quality_summary``: exactly what ``meshopt info`` does per file);
 * round trip:  meshio read .msh → write .vtu → read .vtu → write .msh  vs  the same with

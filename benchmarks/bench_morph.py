@@ -1,4 +1,4 @@
-"""Benchmark of the morph (issue #15): frame quality against the ends and the alternatives,
+"""Benchmark of the morph: frame quality against the ends and the alternatives,
 and cost against one linear elasticity solve.
 
 1. Pairs (source, target of the same connectivity): an annulus (r 0.3–1) and its copy with
@@ -7,7 +7,7 @@ and cost against one linear elasticity solve.
    result for the cylinder pushed down 0.2; the 146-vertex disc and a copy turned 90° and
    scaled 1.5 (a similarity: every frame must be a similar copy). Columns: the worse end's
    min aspect ratio, the worst frame of ours (``distortion_morph``, 9 frames) and its ratio
-   to the worse end (the issue asks ≥ 0.9), the worst frame of linear and of
+   to the worse end (≥ 0.9 wanted), the worst frame of linear and of
    as-rigid-as-possible interpolation (with inverted triangles), optionally the worst frame
    of the complete metric of f2 (``--with-scalar``: ``geodesic_morph``, slow), time and
    Levenberg–Marquardt status.

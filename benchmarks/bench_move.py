@@ -1,4 +1,4 @@
-"""Benchmark of ``move`` (issue #14) against what users would otherwise use.
+"""Benchmark of ``move`` against what users would otherwise use.
 
 Cases (all boundary vertices are handles; only their end positions are prescribed):
   annulus r 0.3–1 whose inner circle turns by 45°, 90°, 180°; a channel [0,3]×[0,1] whose
@@ -81,7 +81,7 @@ def measure(fn, mesh, handles, targets):
 
 
 def more_cases(size: float):
-    """Motions beyond the issue's five (``--more``): what a user would try next."""
+    """Motions beyond the five main cases (``--more``): what a user would try next."""
     import meshopt_toolkit as mt
 
     disc = mt.load(mt.data_path("disc_2198.msh")).as_planar()

@@ -1,4 +1,4 @@
-"""Cost against size (issue 16): seconds per optimization iteration of each variant, the
+"""Cost against size: seconds per optimization iteration of each variant, the
 exponential map, and peak memory, on disc_13586 and its uniform refinements
 (27k, 107k, 429k, 1.7M triangles, up to ``--max-triangles``).
 
@@ -7,7 +7,7 @@ variants run side by side, a few steepest-descent iterations each with table 6.4
 parameter set 2 (``bench_optimize.run``: no early stop, the time per iteration), then
 one ``exp_map`` of the smooth velocity of ``bench_geodesics`` part 2, one penalty pass
 (value and gradient) and one Riesz map of the complete metric (its ∇f cached). Printed per
-size: seconds per iteration per variant, the ratios the issue sets targets for
+size: seconds per iteration per variant, their ratios
 (complete-complete / complete-euclidean ≤ 1.5; elasticity-euclidean / complete-euclidean
 ≤ 2, over all iterations and, "later", over those after the first, which holds the
 elasticity metric's first factorization; Riesz map / penalty pass ≤ 2), exp_map seconds
@@ -111,7 +111,7 @@ def _measure_in_subprocess(refinements: int, iterations: int) -> dict | None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--max-triangles", type=int, default=110_000,
-                    help="largest size (the issue's 1.7M: 1800000, 13-25 more minutes)")
+                    help="largest size (1.7M: 1800000, 13-25 more minutes)")
     ap.add_argument("--iterations", type=int, default=3)
     ap.add_argument("--plot", metavar="PNG")
     ap.add_argument("--rows", metavar="JSONL",

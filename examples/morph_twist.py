@@ -1,4 +1,4 @@
-"""Geodesic morph of a disc whose interior is twisted by 225° (issue #7).
+"""Geodesic morph of a disc whose interior is twisted by 225°.
 
 Linear vertex interpolation (MeshLab's "Vertex Linear Morphing") of this pair inverts
 triangles; the geodesic morph of the complete metric of f2 keeps every frame admissible.

@@ -96,7 +96,7 @@ def log_twist(mesh: PlanarMesh, degrees: float, inner: float = 0.3, outer: float
 
 def twisted(mesh: PlanarMesh, degrees: float = 225.0, power: float = 2.0,
             centre=(0.0, 0.0)) -> PlanarMesh:
-    """The mesh with its interior twisted about ``centre``, boundary fixed (issue #7's test).
+    """The mesh with its interior twisted about ``centre``, boundary fixed.
 
     Each vertex at distance r from the centre turns by ``θ(r) = degrees·(1 − r)^power``
     (r ≥ 1 does not turn); boundary vertices stay put. On a unit disc this makes a target

@@ -1,5 +1,5 @@
 """Consistent orientation, planes in 3D, coincident vertices: what meshes from FEM codes
-need before the planar-manifold checks (issue 12). Functions of point and index arrays;
+need before the planar-manifold checks. Functions of point and index arrays;
 what :func:`~meshopt_toolkit.mesh.check_mesh` does with them is in :mod:`.mesh.diagnosis`.
 
 * :func:`orient_components`: orient each connected component (triangles sharing an edge)

@@ -169,7 +169,7 @@ def test_console_script(files):
 
 
 def test_info_and_convert_import_no_heavy_package(tmp_path):
-    """Issue 12: `meshopt info`/`convert` on a small file load neither scipy nor pymeshlab,
+    """`meshopt info`/`convert` on a small file load neither scipy nor pymeshlab,
     gmsh or matplotlib (the parser builds only the chosen subcommand)."""
     import subprocess
     import sys

@@ -1,4 +1,4 @@
-"""Lossless or refusing conversion (issue 12, item 2): CellMesh readers/writers, convert."""
+"""Lossless or refusing conversion: CellMesh readers/writers, convert."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Fuzz of the pipeline loader (issue 12): random bytes and mutated valid pipelines, JSON
+"""Fuzz of the pipeline loader: random bytes and mutated valid pipelines, JSON
 and MeshLab .mlx, raise only MeshoptError (one line for the CLI), never hang, and a bad
 expression in a filter parameter is refused when the pipeline is checked."""
 

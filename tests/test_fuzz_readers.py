@@ -1,4 +1,4 @@
-"""Fuzzing the readers (issue 12): random bytes and mutated valid files of each format
+"""Fuzzing the readers: random bytes and mutated valid files of each format
 never give a traceback (only MeshoptError subclasses), never hang (5 s), and a failed
 conversion leaves no output and no partial file."""
 

@@ -323,7 +323,7 @@ def test_hermite_interpolant_is_exact_for_quintics(rng):
 def test_options_object_equals_keyword_settings_and_names_unknown_ones():
     """``geodesic(options=GeodesicOptions(...))`` = the same settings as keywords (and as a
     mapping); keywords override the object; an unknown setting is a TypeError naming it;
-    the signature stays short (issue 13: no 18-argument functions)."""
+    the signature stays short (no 18-argument functions)."""
     import inspect
 
     from meshopt_toolkit.riemannian.geodesics import GeodesicOptions
@@ -391,7 +391,7 @@ def test_dop853_continuous_extension_has_order_seven():
 
 
 def test_energy_at_interpolated_outputs_holds_at_the_default_tolerance():
-    """Issue 16's target: the energy (V, V)_g at output times inside steps (dense output)
+    """The energy (V, V)_g at output times inside steps (dense output)
     stays within 1e-4 of e(0) at the default tolerance on the 5-second squeeze with the
     boundary-pair term (h_μ) on; the quintic Hermite velocities gave 1.9e-3."""
     mesh = square5()

@@ -1,4 +1,4 @@
-"""gmsh must not change the signal handlers of the process that uses it (issue 12: a piped
+"""gmsh must not change the signal handlers of the process that uses it (a piped
 test run was killed by SIGPIPE after a test had initialized gmsh)."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The layout of ARCHITECTURE.md (issue 13): layers import only downwards at any depth
+"""The layout of ARCHITECTURE.md: layers import only downwards at any depth
 (lazy imports included), the concept packages are small, and no module only re-exports."""
 
 from __future__ import annotations

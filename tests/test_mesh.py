@@ -146,7 +146,7 @@ def test_edge_in_three_triangles():
 def test_inconsistent_orientation():
     tri = [list(t) for t in SQ_TRI]
     tri[2] = tri[2][::-1]
-    r = check_mesh(TriangleMesh(SQ_PTS, tri))  # oriented by propagation (issue 12)
+    r = check_mesh(TriangleMesh(SQ_PTS, tri))  # oriented by propagation
     assert r.manifold and r.admissible and r.reoriented and r.n_reoriented == 1
     assert r.mesh.triangles.tolist() == SQ_TRI
 

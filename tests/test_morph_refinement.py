@@ -1,4 +1,4 @@
-"""Coarse-to-fine morphs of pairs made by uniform refinement (issue 15's scale)."""
+"""Coarse-to-fine morphs of pairs made by uniform refinement."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The per-triangle distortion metric, its discrete geodesics, move and morph (issues 14, 15).
+"""The per-triangle distortion metric, its discrete geodesics, move and morph.
 
 Guarantees are checked as invariants on random inputs: Taylor remainders of every
 derivative, the closed forms of φ (singular values), its invariances, the per-triangle
@@ -787,7 +787,7 @@ def test_move_reports_targets_without_admissible_interior(annulus):
 
 # ------------------------------------------------------------------ morph
 def test_morph_frames_stay_as_healthy_as_the_ends(annulus):
-    """Issue 15's pair: every frame's min aspect ratio ≥ 0.9 × the worse end's, and never
+    """Every frame's min aspect ratio ≥ 0.9 × the worse end's, and never
     below linear or as-rigid-as-possible interpolation where those stay valid."""
     from meshopt_toolkit.generate import log_twist
 

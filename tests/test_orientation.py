@@ -1,4 +1,4 @@
-"""Orientation by propagation, planes in 3D, coincident vertices (issue 12, item 3)."""
+"""Orientation by propagation, planes in 3D, coincident vertices."""
 
 from __future__ import annotations
 

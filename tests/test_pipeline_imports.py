@@ -1,4 +1,4 @@
-"""The pipeline package has no import cycle (issue 13): runner ↛ json_format / mlx."""
+"""The pipeline package has no import cycle: runner ↛ json_format / mlx."""
 
 from __future__ import annotations
 

@@ -92,7 +92,7 @@ def test_exponential_retraction_returns_the_requested_order(setting):
 def test_complete_complete_reaches_the_exponential_maps_optimum(method):
     """The thesis' problem (table 6.4 set 2) on a small disc: the second-order retraction
     (the default) and the exponential map end at the same objective within 2e-4 (the
-    tolerance of issue 17's table), every iterate admissible."""
+    tolerance of the thesis-table comparison), every iterate admissible."""
     import meshopt_toolkit as mt
 
     mesh = mt.load(mt.data_path("disc_146.msh")).as_planar()

@@ -51,7 +51,7 @@ it lowers it. Newton–Krylov stalls near 1e-2 from the discrete geodesic's velo
 residual of that start is 1.4e-2 for K = 32 and 64: the frames do not resolve the
 thin-triangle stretch); an exact forward-mode Jacobian of the discretized map and
 multiple shooting (K = 8) from the same start stall as well, at 4e-3 and 5e-3 after ~500
-s (prototypes measured during issue #7). Hence :func:`geodesic_morph` uses the discrete
+s. Hence :func:`geodesic_morph` uses the discrete
 geodesic by default (``method="discrete"``: every frame admissible, end frames exact)
 and shooting on request (``"shooting"``, ``"auto"``).
 
@@ -185,7 +185,7 @@ def geodesic_morph(
     max_exp: int = 400,
     callback=None,
 ) -> MorphResult:
-    """``frames`` meshes along the geodesic from ``source`` to ``target`` (issue #7).
+    """``frames`` meshes along the geodesic from ``source`` to ``target``.
 
     Parameters
     ----------

@@ -15,7 +15,7 @@ admissible (or was not reached):
   to ``O(t³)`` and has zero covariant acceleration at ``t = 0``). It costs one gradient
   and one Hessian-vector product of ``f`` per ``(Q, V)``, shared by every ``t``, against
   tens of penalty evaluations per geodesic whose step count grows with the stiffness of
-  the smallest triangles (issue 16). Admissibility is not built in as it is for the
+  the smallest triangles. Admissibility is not built in as it is for the
   geodesic: every point is checked exactly (signed areas, simple boundary) and refused
   when it fails, as the line search refuses a point where ``f = +∞``.
 """
