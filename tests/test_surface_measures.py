@@ -168,3 +168,67 @@ def test_libigl_arap_spokes_is_a_stationary_point_of_the_raw_energy():
         d[free] = rng.normal(size=(len(free), 3))
         assert abs(slope(U, d)) < 1e-3 * abs(slope(start, d))
     assert sm.arap_energy(V, U, F, clamp=False) < sm.arap_energy(V, start, F, clamp=False)
+
+
+# --- the benchmark's cases and its libigl rows -------------------------------------------
+
+bench = pytest.importorskip("bench_surface")
+
+
+@pytest.mark.parametrize("name", ["knight", "bunny", "bar"])
+def test_case_paths_start_at_rest_and_move_handle_groups_rigidly(name):
+    case = bench.CASES[name]()
+    np.testing.assert_allclose(case.path(0.0), case.V[case.handles], atol=1e-14)
+    assert len(case.groups) == len(case.handles) == len(np.unique(case.handles))
+    for t in (0.37, 1.0):
+        P = case.path(t)
+        for g in np.unique(case.groups):
+            i = np.flatnonzero(case.groups == g)[:40]
+            R = case.V[case.handles[i]]
+            d0 = np.linalg.norm(R[:, None] - R, axis=2)
+            d1 = np.linalg.norm(P[i][:, None] - P[i], axis=2)
+            np.testing.assert_allclose(d1, d0, atol=1e-12)
+
+
+def test_bar_end_cap_turns_half_way_round():
+    case = bench.bar()
+    end = case.V[case.handles, 0] > 5.9
+    P = case.path(1.0)[end]
+    Q = case.V[case.handles[end]]
+    np.testing.assert_allclose(P, np.column_stack([Q[:, 0], 1 - Q[:, 1], 1 - Q[:, 2]]),
+                               atol=1e-12)
+    # the k-th of 10 steps turns the cap by k·18° (angle interpolated, not positions)
+    mid = case.path(0.5)[end] - [6.0, 0.5, 0.5]
+    r = np.linalg.norm(mid[:, 1:], axis=1)
+    r0 = np.linalg.norm(Q[:, 1:] - 0.5, axis=1)
+    np.testing.assert_allclose(r, r0, atol=1e-12)
+
+
+def test_bar_is_a_closed_consistently_oriented_box():
+    V, F = bench.box_surface([6.0, 1.0, 1.0], 0.1)
+    assert len(F) == 5200
+    n = sm.normals(V, F)
+    assert np.sum(n * (V[F].mean(1) - [3.0, 0.5, 0.5])) > 0  # outward on the whole
+    signed_volume = np.einsum("ij,ij->i", V[F[:, 0]], np.cross(V[F[:, 1]], V[F[:, 2]])).sum() / 6
+    assert signed_volume == pytest.approx(6.0, rel=1e-12)
+
+
+def test_committed_meshes_load_with_their_sizes():
+    assert bench.read_mesh(bench.DATA / "armadillo.ply.xz")[1].shape == (86482, 3)
+    V, F = bench.read_mesh(bench.DATA / "bunny.off")
+    assert V.shape == (3485, 3) and F.shape == (6966, 3)
+    S = bench.read_dmat(bench.DATA / "decimated-knight-selection.dmat")
+    assert S.shape == (502,) and set(S) == {-1, 0, 1, 2}
+
+
+def test_script_prints_every_method_row_and_ours_or_its_absence(capsys):
+    pytest.importorskip("igl")
+    assert bench.main(["--cases", "knight", "--methods", "ours,harmonic,ARAP"]) == 0
+    out = capsys.readouterr().out
+    rows = {ln.split()[0]: ln.split()[1:] for ln in out.splitlines()[3:]
+            if ln.strip() and " / " not in ln}
+    assert "ours" in rows
+    for m in ("harmonic", "ARAP"):
+        quality, folds, err = float(rows[m][0]), int(rows[m][1]), float(rows[m][2])
+        assert 0 < quality <= 1 and folds == 0 and err < 1e-12
+    assert bench.main(["--cases", "nope"]) == 2
