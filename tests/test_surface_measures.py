@@ -232,3 +232,13 @@ def test_script_prints_every_method_row_and_ours_or_its_absence(capsys):
         quality, folds, err = float(rows[m][0]), int(rows[m][1]), float(rows[m][2])
         assert 0 < quality <= 1 and folds == 0 and err < 1e-12
     assert bench.main(["--cases", "nope"]) == 2
+
+
+def test_figures_write_one_png_per_case(tmp_path, capsys):
+    pytest.importorskip("igl")
+    pytest.importorskip("matplotlib")
+    out = tmp_path / "figs"
+    assert bench.main(["--cases", "knight", "--methods", "biharmonic,ARAP",
+                       "--figures", str(out)]) == 0
+    png = out / "surface_knight.png"
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000
