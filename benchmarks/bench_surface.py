@@ -6,8 +6,8 @@ Cases (data/surfaces/README.md names the sources and terms of the meshes):
   handle motion at ``anim_t = 1``);
 * bunny: the Stanford bunny, one ear turned 90° about a lateral axis at its base, the
   bottom of the body fixed;
-* armadillo: the Stanford armadillo (86k triangles), the hand on the +x side raised by turning it
-  90° about a lateral axis through the shoulder, the feet fixed;
+* armadillo: the Stanford armadillo (86k triangles), the hand on the +x side raised by
+  turning it 90° about a lateral axis through the shoulder, the feet fixed;
 * bar: a generated 6×1×1 box surface (5.2k triangles), one end cap turned 180° about the
   long axis, the other fixed.
 
@@ -141,8 +141,8 @@ def bunny() -> Case:
 
 
 def armadillo() -> Case:
-    """The hand on the +x side (arm x > 0.15, y > 0; hand z > 0.25) raised: turned −90° about the lateral (x) axis
-    through the shoulder; the feet fixed."""
+    """The hand on the +x side (arm: x > 0.15, y > 0; hand: z > 0.25) raised, turned −90°
+    about the lateral (x) axis through the shoulder; the feet fixed."""
     V, F = read_mesh(DATA / "armadillo.ply.xz")
     labels = components(V, F, (V[:, 0] > 0.15) & (V[:, 1] > 0.0))
     ids, counts = np.unique(labels[labels >= 0], return_counts=True)
