@@ -113,8 +113,9 @@ def test_bundled_mesh_is_reachable(name):
 
 def test_bundled_files_are_package_data():
     patterns = PYPROJECT["tool"]["setuptools"]["package-data"]["meshopt_toolkit.data"]
-    files = sorted(p.name for p in (ROOT / "data").glob("*") if p.name != "__init__.py")
-    files = [f for f in files if f != "__pycache__"]
+    # plain files only: sub-folders (data/surfaces) are repository data, not shipped
+    files = sorted(p.name for p in (ROOT / "data").glob("*")
+                   if p.is_file() and p.name != "__init__.py")
     assert files, "no bundled data files"
     for f in files:
         assert any(fnmatch.fnmatch(f, pat) for pat in patterns), f"{f} not in package-data"

@@ -1,0 +1,375 @@
+"""Handle deformation of triangle surfaces in 3D: ours side by side with libigl.
+
+Cases (data/surfaces/README.md names the sources and terms of the meshes):
+
+* knight: libigl tutorial 405 (decimated knight, its handle selection, the tutorial's own
+  handle motion at ``anim_t = 1``);
+* bunny: the Stanford bunny, one ear turned 90° about a lateral axis at its base, the
+  bottom of the body fixed;
+* armadillo: the Stanford armadillo (86k triangles), the hand on the +x side raised by
+  turning it 90° about a lateral axis through the shoulder, the feet fixed;
+* bar: a generated 6×1×1 box surface (5.2k triangles), one end cap turned 180° about the
+  long axis, the other fixed.
+
+Methods: libigl harmonic (k = 1) and biharmonic (k = 2) extensions of the handle
+displacements; libigl ARAP single shot (100 iterations from the biharmonic result) and in
+10 increments along the handles' path (50 iterations each, ``--step-iterations``, from the
+previous result; the handles' rotations are interpolated in angle, the knight's handles
+follow the tutorial's own animation path); ours
+(``meshopt_toolkit.motion.surface_move.move_surface``) when it exists.
+
+Printed per case and method: worst relative quality (aspect ratio 2r/R over its rest value,
+triangles not wholly handles), folds, max handle error, seconds and the ARAP energy
+(``_surface_measures.py``). ``--figures DIR`` writes one PNG per case.
+
+Run ``python benchmarks/bench_surface.py [--cases knight,bar] [--figures DIR]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import lzma
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _surface_measures import (arap_energy, fold_count, normals,  # noqa: E402
+                               relative_quality, worst_relative_quality)
+
+DATA = Path(__file__).resolve().parent.parent / "data" / "surfaces"
+STEPS = 10
+
+
+@dataclass
+class Case:
+    """A rest surface, its handle vertices and their path: ``path(t)`` gives the handle
+    positions at fraction t ∈ [0, 1] of the motion (t = 1 is the target)."""
+
+    name: str
+    V: np.ndarray
+    F: np.ndarray
+    handles: np.ndarray
+    path: Callable[[float], np.ndarray]
+    groups: np.ndarray  # a label per handle vertex (for the figure)
+
+
+def rotation(axis, angle: float) -> np.ndarray:
+    """Rotation matrix about the unit ``axis`` by ``angle`` (Rodrigues)."""
+    a = np.asarray(axis, float) / np.linalg.norm(axis)
+    K = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+    return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
+
+
+def turning(points, pivot, axis, angle):
+    """Path of ``points`` turned about ``axis`` through ``pivot``, the angle interpolated."""
+    return lambda t: (points - pivot) @ rotation(axis, t * angle).T + pivot
+
+
+def read_mesh(path: Path):
+    """Vertices and triangles of a mesh file, vertex order kept (``.xz`` decompressed)."""
+    import trimesh
+
+    if path.suffix == ".xz":
+        with lzma.open(path) as f:
+            m = trimesh.load(f, file_type=Path(path.stem).suffix[1:], process=False)
+    else:
+        m = trimesh.load(path, process=False)
+    return np.asarray(m.vertices, float), np.asarray(m.faces, np.int64)
+
+
+def read_dmat(path: Path) -> np.ndarray:
+    """A one-column ASCII DMAT file (libigl) as an int array."""
+    values = path.read_text().split()
+    cols, rows = int(values[0]), int(values[1])
+    return np.array(values[2:2 + cols * rows], float).astype(int)
+
+
+def components(V, F, mask):
+    """Connected components of the vertices in ``mask`` through triangles wholly inside it:
+    a label per vertex (−1 outside the mask)."""
+    Fm = F[mask[F].all(axis=1)]
+    A = sp.coo_matrix((np.ones(Fm.size), (Fm.ravel(), Fm[:, [1, 2, 0]].ravel())),
+                      shape=(len(V), len(V)))
+    labels = connected_components(A, directed=False)[1]
+    return np.where(mask, labels, -1)
+
+
+def knight() -> Case:
+    """libigl tutorial 405 at anim_t = 1, its handle path for anim_t ∈ [0, 1]."""
+    V, F = read_mesh(DATA / "decimated-knight.off")
+    S = read_dmat(DATA / "decimated-knight-selection.dmat")
+    b = np.flatnonzero(S >= 0)
+    mid = 0.5 * (V.max(0) + V.min(0))
+    r0, r1 = 0.25 * mid[0], 0.15 * mid[1]
+
+    def path(t):
+        bc = V[b].copy()
+        s = S[b]
+        ang = np.pi * t
+        bc[s == 0, 0] += r0 * np.sin(ang)
+        bc[s == 0, 1] -= r0 + r0 * np.cos(np.pi + ang)
+        bc[s == 1, 1] += r1 + r1 * np.cos(np.pi + 0.3 * ang)
+        bc[s == 1, 2] -= r1 * np.sin(0.3 * ang)
+        bc[s == 2, 2] += r1 + r1 * np.cos(np.pi + 0.7 * ang)
+        bc[s == 2, 0] += r1 * np.sin(0.7 * ang)
+        return bc
+
+    return Case("knight", V, F, b, path, S[b])
+
+
+def bunny() -> Case:
+    """The ear nearer the tail (x > −0.05): its tip (y > 0.165) turned 90° backwards about
+    a lateral (z) axis through the ear's base (0.14 < y < 0.15); the bottom fixed."""
+    V, F = read_mesh(DATA / "bunny.off")
+    labels = components(V, F, (V[:, 0] > -0.05) & (V[:, 1] > 0.14))
+    ids, counts = np.unique(labels[labels >= 0], return_counts=True)
+    ear = labels == ids[np.argmax(counts)]
+    tip = np.flatnonzero(ear & (V[:, 1] > 0.165))
+    pivot = V[ear & (V[:, 1] < 0.15)].mean(0)
+    bottom = np.flatnonzero(V[:, 1] < V[:, 1].min() + 0.02 * np.ptp(V[:, 1]))
+    b = np.concatenate([tip, bottom])
+    moved = turning(V[tip], pivot, [0, 0, 1], -np.pi / 2)
+    return Case("bunny", V, F, b, lambda t: np.concatenate([moved(t), V[bottom]]),
+                np.r_[np.ones(len(tip)), np.zeros(len(bottom))])
+
+
+def armadillo() -> Case:
+    """The hand on the +x side (arm: x > 0.15, y > 0; hand: z > 0.25) raised, turned −90°
+    about the lateral (x) axis through the shoulder; the feet fixed."""
+    V, F = read_mesh(DATA / "armadillo.ply.xz")
+    labels = components(V, F, (V[:, 0] > 0.15) & (V[:, 1] > 0.0))
+    ids, counts = np.unique(labels[labels >= 0], return_counts=True)
+    arm = labels == ids[np.argmax(counts)]
+    hand = np.flatnonzero(arm & (V[:, 2] > 0.25))
+    pivot = V[arm & (V[:, 0] < 0.18)].mean(0)
+    feet = np.flatnonzero(V[:, 1] < V[:, 1].min() + 0.06)
+    b = np.concatenate([hand, feet])
+    moved = turning(V[hand], pivot, [1, 0, 0], -np.pi / 2)
+    return Case("armadillo", V, F, b, lambda t: np.concatenate([moved(t), V[feet]]),
+                np.r_[np.ones(len(hand)), np.zeros(len(feet))])
+
+
+def box_surface(size, spacing):
+    """Triangulated surface of the box [0, a]×[0, b]×[0, c]: each face a grid of squares
+    of side ≈ ``spacing`` cut into two triangles, duplicate vertices merged, normals out."""
+    import trimesh
+
+    parts = []
+    size = np.asarray(size, float)
+    for axis in range(3):
+        u, v = [k for k in range(3) if k != axis]
+        nu, nv = (np.round(size[[u, v]] / spacing).astype(int))
+        s, r = np.meshgrid(np.linspace(0, size[u], nu + 1), np.linspace(0, size[v], nv + 1),
+                           indexing="ij")
+        idx = np.arange((nu + 1) * (nv + 1)).reshape(nu + 1, nv + 1)
+        a, b_ = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel()
+        c, d = idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+        tri = np.concatenate([np.stack([a, b_, c], 1), np.stack([a, c, d], 1)])
+        for side in (0.0, size[axis]):
+            P = np.zeros((s.size, 3))
+            P[:, u], P[:, v], P[:, axis] = s.ravel(), r.ravel(), side
+            parts.append(trimesh.Trimesh(P, tri, process=False))
+    m = trimesh.util.concatenate(parts)
+    m.merge_vertices()
+    trimesh.repair.fix_normals(m)
+    return np.asarray(m.vertices, float), np.asarray(m.faces, np.int64)
+
+
+def bar() -> Case:
+    """A 6×1×1 box, the cap x = 6 turned 180° about the long axis, the cap x = 0 fixed."""
+    V, F = box_surface([6.0, 1.0, 1.0], 0.1)
+    fixed = np.flatnonzero(V[:, 0] < 1e-9)
+    end = np.flatnonzero(V[:, 0] > 6.0 - 1e-9)
+    moved = turning(V[end], np.array([6.0, 0.5, 0.5]), [1, 0, 0], np.pi)
+    b = np.concatenate([end, fixed])
+    return Case("bar", V, F, b, lambda t: np.concatenate([moved(t), V[fixed]]),
+                np.r_[np.ones(len(end)), np.zeros(len(fixed))])
+
+
+CASES = {"knight": knight, "bunny": bunny, "armadillo": armadillo, "bar": bar}
+
+
+def harmonic(case: Case, k: int, t: float = 1.0) -> np.ndarray:
+    """libigl's k-harmonic extension of the handle displacements."""
+    import igl
+
+    bc = case.path(t) - case.V[case.handles]
+    return case.V + igl.harmonic(case.V, case.F, case.handles.astype(np.int64), bc, k)
+
+
+def _arap_data(case: Case, iterations: int):
+    import igl
+
+    data = igl.ARAPData()
+    data.max_iter = iterations
+    igl.arap_precomputation(case.V, case.F, 3, case.handles.astype(np.int32), data)
+    return data
+
+
+def arap_single(case: Case) -> np.ndarray:
+    """libigl ARAP, 100 iterations from the biharmonic extension."""
+    import igl
+
+    data = _arap_data(case, 100)
+    return np.asarray(igl.arap_solve(case.path(1.0), data, harmonic(case, 2)))
+
+
+STEP_ITERATIONS = [50]  # ARAP iterations per increment (--step-iterations)
+
+
+def arap_incremental(case: Case, steps: int = STEPS) -> np.ndarray:
+    """libigl ARAP in ``steps`` increments along the handles' path, ``STEP_ITERATIONS``
+    iterations each (libigl runs exactly that many), each started from the previous result."""
+    import igl
+
+    data = _arap_data(case, STEP_ITERATIONS[0])
+    U = case.V.copy()
+    for k in range(1, steps + 1):
+        U = np.asarray(igl.arap_solve(case.path(k / steps), data, U))
+    return U
+
+
+def ours(case: Case) -> np.ndarray:
+    """``meshopt_toolkit.motion.surface_move.move_surface`` (ImportError when absent)."""
+    from meshopt_toolkit.motion.surface_move import move_surface
+
+    return np.asarray(move_surface(case.V, case.F, case.handles, case.path(1.0)).points)
+
+
+METHODS = {
+    "ours": ours,
+    "harmonic": lambda c: harmonic(c, 1),
+    "biharmonic": lambda c: harmonic(c, 2),
+    "ARAP": arap_single,
+    f"ARAP {STEPS} steps": arap_incremental,
+}
+
+
+def measure(case: Case, U: np.ndarray, seconds: float) -> dict:
+    """The printed measures of one result."""
+    return {
+        "quality": worst_relative_quality(case.V, U, case.F, case.handles),
+        "folds": fold_count(case.V, U, case.F, case.handles),
+        "handle error": float(np.abs(U[case.handles] - case.path(1.0)).max()),
+        "seconds": seconds,
+        "ARAP energy": arap_energy(case.V, U, case.F),
+    }
+
+
+def figure(case: Case, results: dict, path: Path) -> None:
+    """Rest (handles coloured by group), then each result coloured by relative quality."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+    shown = [m for m in ("ours", "ARAP", f"ARAP {STEPS} steps", "biharmonic") if m in results]
+    fig = plt.figure(figsize=(4.2 * (1 + len(shown)), 4.6))
+    cmap = plt.get_cmap("viridis")
+    grey = np.array([0.8, 0.8, 0.8, 1.0])
+    colours = plt.get_cmap("tab10")
+    is_handle = np.zeros(len(case.V), bool)
+    is_handle[case.handles] = True
+    group = np.zeros(len(case.V))
+    group[case.handles] = case.groups
+    rest_face = np.where(is_handle[case.F].all(1)[:, None],
+                         colours(group[case.F[:, 0]].astype(int) % 10), grey)
+    up = np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0.0]])  # y-up data shown z-up
+    panels = [("rest, handles", case.V @ up.T, rest_face)]
+    for m in shown:
+        U = results[m]
+        rq = np.clip(relative_quality(case.V, U, case.F), 0, 1)
+        panels.append((m, U @ up.T, cmap(rq)))
+    lo = np.min([P.min(0) for _, P, _ in panels], axis=0)
+    hi = np.max([P.max(0) for _, P, _ in panels], axis=0)
+    light = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
+    for i, (title, P, fc) in enumerate(panels):
+        n = normals(P, case.F)
+        n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+        fc = np.array(fc, float)
+        fc[:, :3] *= (0.45 + 0.55 * np.abs(n @ light))[:, None]  # two-sided diffuse shading
+        ax = fig.add_subplot(1, len(panels), i + 1, projection="3d")
+        ax.add_collection3d(Poly3DCollection(P[case.F], facecolors=fc, edgecolors="none"))
+        ax.set_xlim(lo[0], hi[0]), ax.set_ylim(lo[1], hi[1]), ax.set_zlim(lo[2], hi[2])
+        ax.set_box_aspect(hi - lo)
+        ax.view_init(elev=15, azim=-60)
+        ax.set_title(title)
+        ax.set_axis_off()
+    fig.colorbar(plt.cm.ScalarMappable(cmap=cmap), ax=fig.axes, shrink=0.6,
+                 label="aspect ratio / rest aspect ratio")
+    fig.suptitle(f"{case.name}: {len(case.F)} triangles")
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def run_case(case: Case, methods) -> dict:
+    """Run the methods on a case, print one row each; return the results that ran."""
+    print(f"\n{case.name}: {len(case.V)} vertices, {len(case.F)} triangles, "
+          f"{len(case.handles)} handle vertices")
+    print(f"  {'method':<14} {'worst rel. q':>12} {'folds':>6} {'handle err':>11} "
+          f"{'seconds':>8} {'ARAP energy':>12}")
+    results, rows = {}, {}
+    for name in methods:
+        try:
+            t0 = time.perf_counter()
+            U = METHODS[name](case)
+            seconds = time.perf_counter() - t0
+        except ImportError as err:
+            print(f"  {name:<14} not available ({err})")
+            continue
+        results[name] = U
+        r = rows[name] = measure(case, U, seconds)
+        print(f"  {name:<14} {r['quality']:>12.3f} {r['folds']:>6d} {r['handle error']:>11.1e} "
+              f"{r['seconds']:>8.2f} {r['ARAP energy']:>12.4g}", flush=True)
+    arap = [rows[m] for m in ("ARAP", f"ARAP {STEPS} steps") if m in rows]
+    if "ours" in rows and arap:
+        o = rows["ours"]
+        best_q = max(r["quality"] for r in arap)
+        best_e = min(r["ARAP energy"] for r in arap)
+        print(f"  ours / best libigl ARAP: quality {o['quality'] / best_q:.2f}×, "
+              f"ARAP energy {o['ARAP energy'] / best_e:.2f}× (want ≤ 1.5×)")
+        if f"ARAP {STEPS} steps" in rows:
+            ratio = o["seconds"] / rows[f"ARAP {STEPS} steps"]["seconds"]
+            print(f"  ours / ARAP {STEPS} steps: time {ratio:.2f}× (want ≤ 5×)")
+    return results
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--cases", default=",".join(CASES), help="comma-separated: " + ", ".join(CASES))
+    ap.add_argument("--methods", default=",".join(METHODS),
+                    help="comma-separated: " + ", ".join(METHODS))
+    ap.add_argument("--figures", type=Path, help="write one PNG per case into this folder")
+    ap.add_argument("--step-iterations", type=int, default=STEP_ITERATIONS[0],
+                    help="ARAP iterations per increment (default %(default)s; libigl's own "
+                         "default is 10)")
+    args = ap.parse_args(argv)
+    STEP_ITERATIONS[0] = args.step_iterations
+    names = [c for c in args.cases.split(",") if c]
+    methods = [m for m in args.methods.split(",") if m]
+    unknown = [c for c in names if c not in CASES] + [m for m in methods if m not in METHODS]
+    if unknown:
+        print(f"bench_surface: unknown case or method {unknown[0]!r}", file=sys.stderr)
+        return 2
+    if args.figures:
+        args.figures.mkdir(parents=True, exist_ok=True)
+    for name in names:
+        case = CASES[name]()
+        results = run_case(case, methods)
+        if args.figures:
+            out = args.figures / f"surface_{name}.png"
+            figure(case, results, out)
+            print(f"  figure: {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
