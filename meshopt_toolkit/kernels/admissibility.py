@@ -16,10 +16,12 @@ from collections import OrderedDict
 import numpy as np
 
 from .._typing import FloatArray, IntArray
-from .boundary import boundary_loops, boundary_self_intersections, loop_nesting
+from .boundary import (boundary_loops, boundary_self_intersections, loop_nesting,
+                       loop_orientations)
 from .predicates import dot_sign_xy, exactly_scaled, orient2d_xy, triangle_orientations
 
-__all__ = ["BoundaryCheck", "area_message", "area_problem", "area_signs", "loop_message"]
+__all__ = ["BoundaryCheck", "area_message", "area_problem", "area_signs", "loop_message",
+           "target_loop_problem"]
 
 
 def area_problem(Q: FloatArray, tri_t: IntArray) -> str | None:
@@ -206,6 +208,44 @@ def loop_message(Q: FloatArray, boundary_edges: IntArray, loops: IntArray | None
         f"a hole (inside {d} other loop{'s' if d > 1 else ''})" if d % 2 else
         f"an island (inside {d} other loops)")
     more = f" ({bad.size} loops break the rule)" if bad.size > 1 else ""
-    return (f"boundary loop {i} (through vertex {v} at ({Q[v, 0]:.6g}, {Q[v, 1]:.6g})) is "
-            f"{where} but runs {runs[int(sign[i])]} (it must run {runs[int(want[i])]}): the "
-            f"mesh covers part of the plane twice, no embedding{more}")
+    return (f"boundary loop {i} (through vertex {v}) is {where} but runs "
+            f"{runs[int(sign[i])]} (it must run {runs[int(want[i])]}): the mesh covers part "
+            f"of the plane twice, no embedding{more}")
+
+
+def target_loop_problem(P0: FloatArray, P1: FloatArray, boundary_edges: IntArray,
+                        handles: IntArray) -> str | None:
+    """Why no motion from ``P0`` can end at ``P1`` on the loops that are all ``handles``.
+
+    A motion through admissible meshes keeps every boundary loop a simple polygon (the
+    loops stay disjoint) and so keeps its orientation (a continuous ±1). For the loops
+    whose vertices are all handles, ``P1`` fixes them: they must neither fold, touch nor
+    cross (themselves or each other) and each must keep its orientation at ``P0``
+    (mirroring a hole reverses it). A message naming the first loop that fails, or None.
+    """
+    be = np.asarray(boundary_edges)
+    if not len(be):
+        return None
+    loops = boundary_loops(be)
+    fixed = np.zeros(max(len(P0), int(be.max()) + 1), bool)
+    fixed[np.asarray(handles)] = True
+    free_edges = np.bincount(loops, weights=~fixed[be[:, 0]], minlength=int(loops.max()) + 1)
+    full = np.flatnonzero(free_edges == 0)
+    if not full.size:
+        return None
+    sub = np.isin(loops, full)
+    edges = be[sub]
+    check = BoundaryCheck(edges, np.unique(edges))
+    if message := check.test(P1, nesting=False):
+        return f"make the boundary fold or cross itself: {message}"
+    labels = np.searchsorted(full, loops[sub])
+    before, vertex = loop_orientations(P0, edges, labels)
+    after, _ = loop_orientations(P1, edges, labels)
+    bad = np.flatnonzero(before != after)
+    if not bad.size:
+        return None
+    i = int(bad[0])
+    runs = {1: "counter-clockwise", -1: "clockwise"}
+    return (f"reverse boundary loop {int(full[i])} (through vertex {int(vertex[i])}): it runs "
+            f"{runs[int(before[i])]} and would run {runs[int(after[i])]}, which no motion "
+            "without folds reaches (the result would cover part of the plane twice)")

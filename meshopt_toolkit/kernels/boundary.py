@@ -12,7 +12,7 @@ import numpy as np
 from .._typing import FloatArray, IntArray
 from .predicates import exactly_scaled, orient2d, orient2d_xy, segments_intersect
 
-__all__ = ["boundary_loops", "boundary_self_intersections", "loop_nesting"]
+__all__ = ["boundary_loops", "boundary_self_intersections", "loop_nesting", "loop_orientations"]
 
 #: at most this many boundary edges are intersected pairwise in numpy (no scipy import)
 _NUMPY_PAIRS = 600
@@ -84,6 +84,33 @@ def boundary_loops(boundary_edges: IntArray) -> IntArray:
     return loops.astype(np.int64)
 
 
+def loop_orientations(points: FloatArray, boundary_edges: IntArray,
+                      loops: IntArray | None = None) -> tuple[np.ndarray, IntArray]:
+    """``(sign, vertex)``: each loop's exact orientation (+1 counter-clockwise, −1
+    clockwise, judged at its lexicographically smallest vertex ``vertex``; valid for loops
+    that are simple polygons, see :func:`loop_nesting`)."""
+    be = np.asarray(boundary_edges)
+    if loops is None:
+        loops = boundary_loops(be)
+    L = int(loops.max()) + 1 if len(loops) else 0
+    used, local = np.unique(be, return_inverse=True)
+    P, _ = exactly_scaled(points[used])
+    local = local.reshape(be.shape)
+    sign, vertex = _orientations(P, local[:, 0], local[:, 1], loops, L)
+    return sign, used[vertex]
+
+
+def _orientations(P, u, v, loops, L):
+    # judged vertex: the lexicographically smallest start vertex of each loop
+    order = np.lexsort((P[u, 1], P[u, 0], loops))
+    first = order[np.searchsorted(loops[order], np.arange(L))]
+    # the edge that ends where each edge starts (its predecessor in the loop)
+    by_end = np.argsort(v, kind="stable")
+    prev = by_end[np.searchsorted(v[by_end], u)]
+    vertex = u[first]
+    return orient2d(P[u[prev[first]]], P[vertex], P[v[first]]), vertex
+
+
 def loop_nesting(points: FloatArray, boundary_edges: IntArray, loops: IntArray | None = None
                  ) -> tuple[IntArray, np.ndarray, IntArray, IntArray]:
     """Orientation and nesting depth of each boundary loop (exact; the loops must be
@@ -120,14 +147,7 @@ def loop_nesting(points: FloatArray, boundary_edges: IntArray, loops: IntArray |
     P, _ = exactly_scaled(points[used])
     local = local.reshape(be.shape)
     u, v = local[:, 0], local[:, 1]
-    # judged vertex: the lexicographically smallest start vertex of each loop
-    order = np.lexsort((P[u, 1], P[u, 0], loops))
-    first = order[np.searchsorted(loops[order], np.arange(L))]
-    # the edge that ends where each edge starts (its predecessor in the loop)
-    by_end = np.argsort(v, kind="stable")
-    prev = by_end[np.searchsorted(v[by_end], u)]
-    vertex = u[first]
-    sign = orient2d(P[u[prev[first]]], P[vertex], P[v[first]])
+    sign, vertex = _orientations(P, u, v, loops, L)
     judged = used[vertex]
     # bounding boxes; candidate pairs (inner k, outer m): box of k inside box of m
     lo = np.full((L, 2), np.inf)
