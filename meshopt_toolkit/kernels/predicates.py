@@ -35,17 +35,38 @@ _TINY = 2.0 ** -1000
 
 
 def _sign_products(p1, q1, p2, q2, p3, q3, p4, q4, minus: bool):
-    """Float filter of ``(p1 - q1)(p2 - q2) ∓ (p3 - q3)(p4 - q4)``: ``(value, uncertain)``."""
+    """Float filter of ``(p1 − q1)(p2 − q2) ∓ (p3 − q3)(p4 − q4)``: ``(value, sign,
+    uncertain)``; ``sign`` (int8) is exact where ``uncertain`` is False.
+
+    Besides the error bound, a term with a zero factor is exactly 0 (a float difference is
+    0 only for equal inputs), and then the sign is that of the other term's factors (exact
+    even where that product under- or overflows): axis-parallel degeneracies, common in
+    structured meshes and rectangles, need no exact fallback.
+    """
     with np.errstate(all="ignore"):
-        t1 = (p1 - q1) * (p2 - q2)
-        t2 = (p3 - q3) * (p4 - q4)
-        det = t1 - t2 if minus else t1 + t2
-        bound = np.abs(t1)
-        bound += np.abs(t2)
-        bound *= ERRBOUND
-        bound += _TINY
-        uncertain = ~(np.abs(det) > bound)  # NaN (overflow) is uncertain too
-    return det, uncertain
+        d1 = np.subtract(p1, q1)
+        d2 = np.subtract(p2, q2)
+        d3 = np.subtract(p3, q3)
+        d4 = np.subtract(p4, q4)
+        t1 = d1 * d2
+        t2 = d3 * d4
+        det = np.subtract(t1, t2) if minus else np.add(t1, t2)
+        np.abs(t1, out=t1)
+        np.abs(t2, out=t2)
+        t1 += t2
+        t1 *= ERRBOUND
+        t1 += _TINY
+        np.abs(det, out=t2)
+        uncertain = ~(t2 > t1)  # NaN (overflow) is uncertain too
+        sign = np.greater(det, 0).view(np.int8) - np.less(det, 0).view(np.int8)
+        if uncertain.any():
+            k = np.flatnonzero(uncertain)
+            s1 = np.sign(d1[k]) * np.sign(d2[k])
+            s2 = np.sign(d3[k]) * np.sign(d4[k])
+            known = (s1 == 0) | (s2 == 0)
+            sign[k[known]] = np.sign(s1[known] - s2[known] if minus else s1[known] + s2[known])
+            uncertain[k[known]] = False
+    return det, sign, uncertain
 
 
 def _exact_signs(coords: list[FloatArray], minus: bool) -> np.ndarray:
@@ -80,8 +101,7 @@ def orient2d_xy(ax, ay, bx, by, cx, cy) -> np.ndarray:
     The sign of ``(bx − ax)(cy − ay) − (by − ay)(cx − ax)`` for the exact input values."""
     args = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (ax, ay, bx, by, cx, cy)))
     ax, ay, bx, by, cx, cy = args
-    det, uncertain = _sign_products(bx, ax, cy, ay, by, ay, cx, ax, minus=True)
-    sign = np.sign(np.nan_to_num(det)).astype(np.int8)
+    _, sign, uncertain = _sign_products(bx, ax, cy, ay, by, ay, cx, ax, minus=True)
     if uncertain.any():
         sign[uncertain] = _exact_signs(
             [v[uncertain] for v in (bx, ax, cy, ay, by, ay, cx, ax)], minus=True)
@@ -98,8 +118,7 @@ def dot_sign_xy(ax, ay, bx, by, cx, cy) -> np.ndarray:
     """Exact sign of ``(a − b)·(c − b)`` (the angle at ``b`` is acute: +1, right: 0)."""
     args = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (ax, ay, bx, by, cx, cy)))
     ax, ay, bx, by, cx, cy = args
-    det, uncertain = _sign_products(ax, bx, cx, bx, ay, by, cy, by, minus=False)
-    sign = np.sign(np.nan_to_num(det)).astype(np.int8)
+    _, sign, uncertain = _sign_products(ax, bx, cx, bx, ay, by, cy, by, minus=False)
     if uncertain.any():
         sign[uncertain] = _exact_signs(
             [v[uncertain] for v in (ax, bx, cx, bx, ay, by, cy, by)], minus=False)
@@ -152,8 +171,8 @@ def triangle_orientations(qx: FloatArray, qy: FloatArray, tri_t: IntArray
     """
     x = np.take(qx, tri_t)
     y = np.take(qy, tri_t)
-    det, uncertain = _sign_products(x[1], x[0], y[2], y[0], y[1], y[0], x[2], x[0], minus=True)
-    sign = np.sign(np.nan_to_num(det)).astype(np.int8)
+    det, sign, uncertain = _sign_products(x[1], x[0], y[2], y[0], y[1], y[0], x[2], x[0],
+                                          minus=True)
     if uncertain.any():
         k = np.flatnonzero(uncertain)
         sign[k] = _exact_signs([x[1, k], x[0, k], y[2, k], y[0, k],
