@@ -99,13 +99,18 @@ def orient2d_xy(ax, ay, bx, by, cx, cy) -> np.ndarray:
     clockwise, 0 collinear; ``int8`` array of the broadcast shape of the coordinates.
 
     The sign of ``(bx − ax)(cy − ay) − (by − ay)(cx − ax)`` for the exact input values."""
-    args = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (ax, ay, bx, by, cx, cy)))
-    ax, ay, bx, by, cx, cy = args
+    shape, (ax, ay, bx, by, cx, cy) = _flat(ax, ay, bx, by, cx, cy)
     _, sign, uncertain = _sign_products(bx, ax, cy, ay, by, ay, cx, ax, minus=True)
     if uncertain.any():
         sign[uncertain] = _exact_signs(
             [v[uncertain] for v in (bx, ax, cy, ay, by, ay, cx, ax)], minus=True)
-    return sign
+    return sign.reshape(shape)
+
+
+def _flat(*values):
+    """The broadcast shape and the values as 1-D float arrays of that size."""
+    arrays = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in values))
+    return arrays[0].shape, [a.ravel() for a in arrays]
 
 
 def orient2d(a: FloatArray, b: FloatArray, c: FloatArray) -> np.ndarray:
@@ -116,13 +121,12 @@ def orient2d(a: FloatArray, b: FloatArray, c: FloatArray) -> np.ndarray:
 
 def dot_sign_xy(ax, ay, bx, by, cx, cy) -> np.ndarray:
     """Exact sign of ``(a − b)·(c − b)`` (the angle at ``b`` is acute: +1, right: 0)."""
-    args = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (ax, ay, bx, by, cx, cy)))
-    ax, ay, bx, by, cx, cy = args
+    shape, (ax, ay, bx, by, cx, cy) = _flat(ax, ay, bx, by, cx, cy)
     _, sign, uncertain = _sign_products(ax, bx, cx, bx, ay, by, cy, by, minus=False)
     if uncertain.any():
         sign[uncertain] = _exact_signs(
             [v[uncertain] for v in (ax, bx, cx, bx, ay, by, cy, by)], minus=False)
-    return sign
+    return sign.reshape(shape)
 
 
 def segments_intersect(a: FloatArray, b: FloatArray, c: FloatArray, d: FloatArray
