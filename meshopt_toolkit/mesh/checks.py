@@ -39,7 +39,9 @@ class MeshReport:
     manifold : bool
         Every planar-manifold condition of SPEC §1 holds (planarity included).
     admissible : bool
-        ``manifold`` and every signed area > 0 and no boundary self-intersection.
+        ``manifold``, every signed area > 0, no boundary self-intersection and boundary
+        loops nested as the boundary of an embedded region (no point covered twice); all
+        judged exactly and at any scale (:mod:`meshopt_toolkit.kernels.admissibility`).
     reoriented : bool
         Some triangles were flipped (each component is oriented by propagation across its
         edges, then counter-clockwise); :attr:`mesh` is the oriented version.
@@ -181,7 +183,8 @@ def require_admissible(mesh: TriangleMesh, what: str = "this operation") -> Plan
     InvalidMeshError
         Not planar or not a planar manifold.
     NotAdmissibleError
-        Planar manifold but with an inverted/zero-area triangle or boundary crossing.
+        Planar manifold but with an inverted/zero-area triangle, a boundary crossing, or
+        a boundary loop of the wrong orientation for its nesting (a double cover).
     """
     report = check_mesh(mesh)
     where = f"{mesh.source}: " if mesh.source else ""
