@@ -322,3 +322,24 @@ def test_scaled_meshes_are_admissible(tmp_path, capsys, factor):
     info = json.loads(cap.out)
     assert info["admissible"] is True and info["n_inverted"] == 0 and cap.err == ""
     assert info["min_aspect_ratio"] == pytest.approx(m.quality().min_aspect_ratio)
+
+
+@pytest.mark.parametrize("batch", [1 << 21, 64])
+def test_loop_nesting_of_many_holes_with_islands(monkeypatch, batch):
+    import meshopt_toolkit.kernels.boundary as boundary_module
+
+    monkeypatch.setattr(boundary_module, "_BATCH", batch)
+    polys, depth_want = [np.array([[0.0, 0], [40, 0], [40, 40], [0, 40]])], [0]
+    for i in range(12):
+        for j in range(12):
+            c = np.array([i * 3 + 2, j * 3 + 2.0])
+            polys.append(c + np.array([[-1.0, -1], [-1, 1], [1, 1], [1, -1]]))  # cw hole
+            polys.append(c + 0.5 * np.array([[-1.0, -1], [1, -1], [1, 1], [-1, 1]]))  # island
+            depth_want += [1, 2]
+    pts, edges = _polygon_edges(polys)
+    loops, sign, depth, _ = loop_nesting(pts, edges)
+    assert depth.tolist() == depth_want
+    assert (sign == np.where(np.array(depth_want) % 2, -1, 1)).all()
+    assert loop_message(pts, edges) is None
+    polys[77] = polys[77][::-1]  # one island reversed
+    assert loop_message(*_polygon_edges(polys)).startswith("boundary loop 77 ")

@@ -16,6 +16,8 @@ __all__ = ["boundary_loops", "boundary_self_intersections", "loop_nesting", "loo
 
 #: at most this many boundary edges are intersected pairwise in numpy (no scipy import)
 _NUMPY_PAIRS = 600
+#: loop nesting works on at most about this many (point, edge) pairs at a time
+_BATCH = 1 << 21
 
 
 def boundary_self_intersections(points: FloatArray, boundary_edges: IntArray) -> IntArray:
@@ -157,11 +159,33 @@ def loop_nesting(points: FloatArray, boundary_edges: IntArray, loops: IntArray |
     depth = np.zeros(L, np.int64)
     if L < 2:
         return loops, sign, depth, judged
-    k, m = np.nonzero((lo[:, None] >= lo[None]).all(-1) & (hi[:, None] <= hi[None]).all(-1))
+    rows = max(1, _BATCH // L)  # the (L, L) box test in row blocks
+    ks, ms = [], []
+    for r in range(0, L, rows):
+        inner = lo[r:r + rows, 0, None] >= lo[None, :, 0]
+        inner &= lo[r:r + rows, 1, None] >= lo[None, :, 1]
+        inner &= hi[r:r + rows, 0, None] <= hi[None, :, 0]
+        inner &= hi[r:r + rows, 1, None] <= hi[None, :, 1]
+        kk, mm = np.nonzero(inner)
+        ks.append(kk + r)
+        ms.append(mm)
+    k, m = np.concatenate(ks), np.concatenate(ms)
     keep = k != m
     k, m = k[keep], m[keep]
-    if not len(k):
-        return loops, sign, depth, judged
+    # every edge of loop m against the judged vertex of loop k, in batches of pairs
+    edge_order = np.argsort(loops, kind="stable")
+    start = np.searchsorted(loops[edge_order], np.arange(L + 1))
+    counts = start[m + 1] - start[m]
+    cum = np.cumsum(counts)
+    cuts = np.searchsorted(cum, np.arange(_BATCH, int(cum[-1]) if len(cum) else 0, _BATCH))
+    splits = np.unique(np.concatenate([[0], cuts, [len(k)]]))
+    inside = np.zeros(len(k), bool)
+    for s0, s1 in zip(splits[:-1], splits[1:]):
+        sel = slice(int(s0), int(s1))
+        inside[sel] = _winds(P, u, v, vertex[k[sel]], m[sel], counts[sel], start,
+                             edge_order)
+    depth = np.bincount(k[inside], minlength=L).astype(np.int64)
+    return loops, sign, depth, judged
     # every edge of loop m against the judged vertex of loop k
     edge_order = np.argsort(loops, kind="stable")
     start = np.searchsorted(loops[edge_order], np.arange(L + 1))
@@ -181,3 +205,21 @@ def loop_nesting(points: FloatArray, boundary_edges: IntArray, loops: IntArray |
     inside = np.bincount(pair, weights=wind, minlength=len(k)) != 0
     depth = np.bincount(k[inside], minlength=L).astype(np.int64)
     return loops, sign, depth, judged
+
+
+def _winds(P, u, v, points, m, counts, start, edge_order) -> np.ndarray:
+    """Is each point ``P[points[i]]`` inside loop ``m[i]`` (non-zero exact winding number,
+    half-open crossings of the horizontal line through it)?"""
+    pair = np.repeat(np.arange(len(m)), counts)
+    offs = np.arange(len(pair)) - np.repeat(np.cumsum(counts) - counts, counts)
+    edge = edge_order[np.repeat(start[m], counts) + offs]
+    p = P[points[pair]]
+    a, b = P[u[edge]], P[v[edge]]
+    up = (a[:, 1] <= p[:, 1]) & (b[:, 1] > p[:, 1])
+    down = (b[:, 1] <= p[:, 1]) & (a[:, 1] > p[:, 1])
+    cross = np.flatnonzero(up | down)
+    side = orient2d_xy(a[cross, 0], a[cross, 1], b[cross, 0], b[cross, 1],
+                       p[cross, 0], p[cross, 1])
+    wind = np.zeros(len(pair), np.int64)
+    wind[cross] = (up[cross] & (side > 0)).astype(np.int64) - (down[cross] & (side < 0))
+    return np.bincount(pair, weights=wind, minlength=len(m)) != 0
