@@ -16,8 +16,7 @@ from collections import OrderedDict
 import numpy as np
 
 from .._typing import FloatArray, IntArray
-from .boundary import (boundary_loops, boundary_self_intersections, loop_nesting,
-                       loop_orientations)
+from .boundary import BoundaryLoops, boundary_self_intersections, loop_orientations
 from .predicates import dot_sign_xy, exactly_scaled, orient2d_xy, triangle_orientations
 
 __all__ = ["BoundaryCheck", "area_message", "area_problem", "area_signs", "loop_message",
@@ -104,7 +103,7 @@ class BoundaryCheck:
         ok = be[nxt, 0] == be[:, 1] if len(be) else np.zeros(0, bool)
         self._fold = (be[ok, 0], be[ok, 1], be[nxt[ok], 1])
         self._simple_boundaries: OrderedDict[bytes, None] = OrderedDict()
-        self._loops: IntArray | None = None
+        self._loops: BoundaryLoops | None = None
 
     def problem(self, Q: FloatArray, test=None) -> str | None:
         """A message naming boundary edges that fold onto, touch or cross each other, or a
@@ -153,12 +152,12 @@ class BoundaryCheck:
         if not nesting:
             return None
         if self._loops is None:
-            self._loops = boundary_loops(self._boundary_edges)
+            self._loops = BoundaryLoops(self._boundary_edges)
         return loop_message(Q, self._boundary_edges, self._loops)
 
 
-def loop_message(Q: FloatArray, boundary_edges: IntArray, loops: IntArray | None = None
-                 ) -> str | None:
+def loop_message(Q: FloatArray, boundary_edges: IntArray,
+                 loops: BoundaryLoops | IntArray | None = None) -> str | None:
     """A message naming the first boundary loop whose orientation breaks the nesting rule,
     or None: a simple boundary bounds an embedded mesh iff every loop runs
     counter-clockwise at even nesting depth and clockwise at odd depth.
@@ -167,7 +166,8 @@ def loop_message(Q: FloatArray, boundary_edges: IntArray, loops: IntArray | None
     ----------
     Q : (N, 2) positions (finite; the boundary simple, the signed areas > 0)
     boundary_edges : (E, 2) directed boundary edges (interior on the left)
-    loops : (E,) loop labels (:func:`~.boundary.boundary_loops`; computed when None)
+    loops : the prepared :class:`~.boundary.BoundaryLoops`, or their ``(E,)`` labels
+        (:func:`~.boundary.boundary_loops`); computed when None
 
     Notes
     -----
@@ -191,11 +191,11 @@ def loop_message(Q: FloatArray, boundary_edges: IntArray, loops: IntArray | None
     areas equals the sum of the loops' signed areas for any mesh: comparing those totals
     decides nothing; the enclosed area is ``Σ_L (−1)^depth(L) |area(L)|``.)
     """
-    if loops is None:
-        loops = boundary_loops(boundary_edges)
-    if not len(loops):
+    if not isinstance(loops, BoundaryLoops):
+        loops = BoundaryLoops(boundary_edges, loops)
+    if not loops.n_loops:
         return None
-    loops, sign, depth, vertex = loop_nesting(Q, boundary_edges, loops)
+    sign, depth, vertex = loops.nesting(Q)
     want = np.where(depth % 2 == 0, 1, -1)
     bad = np.flatnonzero(sign != want)
     if not bad.size:
@@ -226,7 +226,7 @@ def target_loop_problem(P0: FloatArray, P1: FloatArray, boundary_edges: IntArray
     be = np.asarray(boundary_edges)
     if not len(be):
         return None
-    loops = boundary_loops(be)
+    loops = BoundaryLoops(be).loops
     fixed = np.zeros(max(len(P0), int(be.max()) + 1), bool)
     fixed[np.asarray(handles)] = True
     free_edges = np.bincount(loops, weights=~fixed[be[:, 0]], minlength=int(loops.max()) + 1)

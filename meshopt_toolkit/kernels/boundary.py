@@ -12,7 +12,8 @@ import numpy as np
 from .._typing import FloatArray, IntArray
 from .predicates import exactly_scaled, orient2d, orient2d_xy, segments_intersect
 
-__all__ = ["boundary_loops", "boundary_self_intersections", "loop_nesting", "loop_orientations"]
+__all__ = ["BoundaryLoops", "boundary_loops", "boundary_self_intersections", "loop_nesting",
+           "loop_orientations"]
 
 #: at most this many boundary edges are intersected pairwise in numpy (no scipy import)
 _NUMPY_PAIRS = 600
@@ -86,31 +87,124 @@ def boundary_loops(boundary_edges: IntArray) -> IntArray:
     return loops.astype(np.int64)
 
 
+class BoundaryLoops:
+    """The loops of a directed boundary, prepared once for judging many positions.
+
+    Parameters
+    ----------
+    boundary_edges : (E, 2) directed edges (interior on the left)
+    loops : (E,) loop labels of :func:`boundary_loops` (computed when None)
+
+    Attributes
+    ----------
+    loops : (E,) the labels; ``n_loops`` their number.
+    """
+
+    def __init__(self, boundary_edges: IntArray, loops: IntArray | None = None) -> None:
+        be = np.asarray(boundary_edges)
+        self.loops = boundary_loops(be) if loops is None else np.asarray(loops)
+        self.n_loops = int(self.loops.max()) + 1 if len(self.loops) else 0
+        # the boundary vertices only, numbered 0 … V−1; edges sorted by loop
+        self.used, local = np.unique(be, return_inverse=True)
+        local = local.reshape(be.shape)
+        self.order = np.argsort(self.loops, kind="stable")
+        self.start = np.searchsorted(self.loops[self.order], np.arange(self.n_loops + 1))
+        self.u, self.v = local[self.order, 0], local[self.order, 1]  # in loop order
+        self.loop_of = self.loops[self.order]
+        # the edge (in loop order) that ends where each edge starts
+        by_end = np.argsort(self.v, kind="stable")
+        self.prev = by_end[np.searchsorted(self.v[by_end], self.u)]
+
+    def _points(self, points: FloatArray) -> FloatArray:
+        return exactly_scaled(np.asarray(points, dtype=float)[self.used])[0]
+
+    def _orientations(self, P: FloatArray) -> tuple[np.ndarray, IntArray]:
+        # judged vertex: the lexicographically smallest start vertex of each loop
+        x, y = P[self.u, 0], P[self.u, 1]
+        heads = self.start[:-1]
+        xmin = np.minimum.reduceat(x, heads)
+        at_min = x == xmin[self.loop_of]
+        ymin = np.minimum.reduceat(np.where(at_min, y, np.inf), heads)
+        hit = np.flatnonzero(at_min & (y == ymin[self.loop_of]))
+        lp = self.loop_of[hit]
+        first = hit[np.concatenate([[True], lp[1:] != lp[:-1]])]
+        vertex = self.u[first]
+        sign = orient2d(P[self.u[self.prev[first]]], P[vertex], P[self.v[first]])
+        return sign, vertex
+
+    def orientations(self, points: FloatArray) -> tuple[np.ndarray, IntArray]:
+        """``(sign, vertex)``: each loop's exact orientation (+1 counter-clockwise, −1
+        clockwise) judged at its lexicographically smallest vertex ``vertex`` (valid for
+        loops that are simple polygons, see :meth:`nesting`)."""
+        if not self.n_loops:
+            return np.zeros(0, np.int8), np.zeros(0, np.int64)
+        sign, vertex = self._orientations(self._points(points))
+        return sign, self.used[vertex]
+
+    def nesting(self, points: FloatArray) -> tuple[np.ndarray, IntArray, IntArray]:
+        """``(sign, depth, vertex)``: :meth:`orientations` and how many other loops
+        enclose each loop (exact; the loops must be pairwise disjoint simple polygons,
+        i.e. the boundary simple). See :func:`loop_nesting`."""
+        L = self.n_loops
+        if not L:
+            return np.zeros(0, np.int8), np.zeros(0, np.int64), np.zeros(0, np.int64)
+        P = self._points(points)
+        sign, vertex = self._orientations(P)
+        depth = np.zeros(L, np.int64)
+        if L < 2:
+            return sign, depth, self.used[vertex]
+        # bounding boxes; candidate pairs (inner k, outer m): box of k inside box of m
+        heads = self.start[:-1]
+        x, y = P[self.u, 0], P[self.u, 1]
+        lo = np.stack([np.minimum.reduceat(x, heads), np.minimum.reduceat(y, heads)], 1)
+        hi = np.stack([np.maximum.reduceat(x, heads), np.maximum.reduceat(y, heads)], 1)
+        rows = max(1, _BATCH // L)  # the (L, L) box test in row blocks
+        ks, ms = [], []
+        for r in range(0, L, rows):
+            inner = lo[r:r + rows, 0, None] >= lo[None, :, 0]
+            inner &= lo[r:r + rows, 1, None] >= lo[None, :, 1]
+            inner &= hi[r:r + rows, 0, None] <= hi[None, :, 0]
+            inner &= hi[r:r + rows, 1, None] <= hi[None, :, 1]
+            kk, mm = np.nonzero(inner)
+            ks.append(kk + r)
+            ms.append(mm)
+        k, m = np.concatenate(ks), np.concatenate(ms)
+        keep = k != m
+        k, m = k[keep], m[keep]
+        # every edge of loop m against the judged vertex of loop k, in batches of pairs
+        counts = self.start[m + 1] - self.start[m]
+        cum = np.cumsum(counts)
+        cuts = np.searchsorted(cum, np.arange(_BATCH, int(cum[-1]) if len(cum) else 0, _BATCH))
+        splits = np.unique(np.concatenate([[0], cuts, [len(k)]]))
+        inside = np.zeros(len(k), bool)
+        for s0, s1 in zip(splits[:-1], splits[1:]):
+            sel = slice(int(s0), int(s1))
+            inside[sel] = self._winds(P, vertex[k[sel]], m[sel], counts[sel])
+        depth = np.bincount(k[inside], minlength=L).astype(np.int64)
+        return sign, depth, self.used[vertex]
+
+    def _winds(self, P, points, m, counts) -> np.ndarray:
+        """Is each point ``P[points[i]]`` inside loop ``m[i]`` (non-zero exact winding
+        number, half-open crossings of the horizontal line through it)?"""
+        pair = np.repeat(np.arange(len(m)), counts)
+        offs = np.arange(len(pair)) - np.repeat(np.cumsum(counts) - counts, counts)
+        edge = np.repeat(self.start[m], counts) + offs
+        p = P[points[pair]]
+        a, b = P[self.u[edge]], P[self.v[edge]]
+        up = (a[:, 1] <= p[:, 1]) & (b[:, 1] > p[:, 1])
+        down = (b[:, 1] <= p[:, 1]) & (a[:, 1] > p[:, 1])
+        cross = np.flatnonzero(up | down)
+        side = orient2d_xy(a[cross, 0], a[cross, 1], b[cross, 0], b[cross, 1],
+                           p[cross, 0], p[cross, 1])
+        wind = np.zeros(len(pair), np.int64)
+        wind[cross] = (up[cross] & (side > 0)).astype(np.int64) - (down[cross] & (side < 0))
+        return np.bincount(pair, weights=wind, minlength=len(m)) != 0
+
+
 def loop_orientations(points: FloatArray, boundary_edges: IntArray,
                       loops: IntArray | None = None) -> tuple[np.ndarray, IntArray]:
-    """``(sign, vertex)``: each loop's exact orientation (+1 counter-clockwise, −1
-    clockwise, judged at its lexicographically smallest vertex ``vertex``; valid for loops
-    that are simple polygons, see :func:`loop_nesting`)."""
-    be = np.asarray(boundary_edges)
-    if loops is None:
-        loops = boundary_loops(be)
-    L = int(loops.max()) + 1 if len(loops) else 0
-    used, local = np.unique(be, return_inverse=True)
-    P, _ = exactly_scaled(points[used])
-    local = local.reshape(be.shape)
-    sign, vertex = _orientations(P, local[:, 0], local[:, 1], loops, L)
-    return sign, used[vertex]
-
-
-def _orientations(P, u, v, loops, L):
-    # judged vertex: the lexicographically smallest start vertex of each loop
-    order = np.lexsort((P[u, 1], P[u, 0], loops))
-    first = order[np.searchsorted(loops[order], np.arange(L))]
-    # the edge that ends where each edge starts (its predecessor in the loop)
-    by_end = np.argsort(v, kind="stable")
-    prev = by_end[np.searchsorted(v[by_end], u)]
-    vertex = u[first]
-    return orient2d(P[u[prev[first]]], P[vertex], P[v[first]]), vertex
+    """:meth:`BoundaryLoops.orientations` of the loops of ``boundary_edges``."""
+    return BoundaryLoops(boundary_edges, loops).orientations(points)
 
 
 def loop_nesting(points: FloatArray, boundary_edges: IntArray, loops: IntArray | None = None
@@ -135,91 +229,11 @@ def loop_nesting(points: FloatArray, boundary_edges: IntArray, loops: IntArray |
     -----
     A simple polygon's orientation is the exact orientation at its lexicographically
     smallest vertex: both neighbours are lexicographically larger, so a straight turn there
-    would put them on one ray from it, i.e. the two edges would overlap. Disjoint loops are nested or apart, so a loop
-    is inside another iff its judged vertex is; that is a winding number with half-open
-    crossings of the horizontal line (comparisons of floats and exact orientations),
-    computed only for pairs whose bounding boxes nest.
+    would put them on one ray from it, i.e. the two edges would overlap. Disjoint loops are
+    nested or apart, so a loop is inside another iff its judged vertex is; that is a
+    winding number with half-open crossings of the horizontal line (comparisons of floats
+    and exact orientations), computed only for pairs whose bounding boxes nest.
     """
-    be = np.asarray(boundary_edges)
-    if loops is None:
-        loops = boundary_loops(be)
-    L = int(loops.max()) + 1 if len(loops) else 0
-    # the boundary vertices only, numbered 0 … V−1 (they are what is judged)
-    used, local = np.unique(be, return_inverse=True)
-    P, _ = exactly_scaled(points[used])
-    local = local.reshape(be.shape)
-    u, v = local[:, 0], local[:, 1]
-    sign, vertex = _orientations(P, u, v, loops, L)
-    judged = used[vertex]
-    # bounding boxes; candidate pairs (inner k, outer m): box of k inside box of m
-    lo = np.full((L, 2), np.inf)
-    hi = np.full((L, 2), -np.inf)
-    np.minimum.at(lo, loops, P[u])
-    np.maximum.at(hi, loops, P[u])
-    depth = np.zeros(L, np.int64)
-    if L < 2:
-        return loops, sign, depth, judged
-    rows = max(1, _BATCH // L)  # the (L, L) box test in row blocks
-    ks, ms = [], []
-    for r in range(0, L, rows):
-        inner = lo[r:r + rows, 0, None] >= lo[None, :, 0]
-        inner &= lo[r:r + rows, 1, None] >= lo[None, :, 1]
-        inner &= hi[r:r + rows, 0, None] <= hi[None, :, 0]
-        inner &= hi[r:r + rows, 1, None] <= hi[None, :, 1]
-        kk, mm = np.nonzero(inner)
-        ks.append(kk + r)
-        ms.append(mm)
-    k, m = np.concatenate(ks), np.concatenate(ms)
-    keep = k != m
-    k, m = k[keep], m[keep]
-    # every edge of loop m against the judged vertex of loop k, in batches of pairs
-    edge_order = np.argsort(loops, kind="stable")
-    start = np.searchsorted(loops[edge_order], np.arange(L + 1))
-    counts = start[m + 1] - start[m]
-    cum = np.cumsum(counts)
-    cuts = np.searchsorted(cum, np.arange(_BATCH, int(cum[-1]) if len(cum) else 0, _BATCH))
-    splits = np.unique(np.concatenate([[0], cuts, [len(k)]]))
-    inside = np.zeros(len(k), bool)
-    for s0, s1 in zip(splits[:-1], splits[1:]):
-        sel = slice(int(s0), int(s1))
-        inside[sel] = _winds(P, u, v, vertex[k[sel]], m[sel], counts[sel], start,
-                             edge_order)
-    depth = np.bincount(k[inside], minlength=L).astype(np.int64)
-    return loops, sign, depth, judged
-    # every edge of loop m against the judged vertex of loop k
-    edge_order = np.argsort(loops, kind="stable")
-    start = np.searchsorted(loops[edge_order], np.arange(L + 1))
-    counts = start[m + 1] - start[m]
-    pair = np.repeat(np.arange(len(k)), counts)
-    offs = np.arange(len(pair)) - np.repeat(np.cumsum(counts) - counts, counts)
-    edge = edge_order[np.repeat(start[m], counts) + offs]
-    p = P[vertex[k[pair]]]
-    a, b = P[u[edge]], P[v[edge]]
-    up = (a[:, 1] <= p[:, 1]) & (b[:, 1] > p[:, 1])
-    down = (b[:, 1] <= p[:, 1]) & (a[:, 1] > p[:, 1])
-    cross = np.flatnonzero(up | down)
-    side = orient2d_xy(a[cross, 0], a[cross, 1], b[cross, 0], b[cross, 1],
-                       p[cross, 0], p[cross, 1])
-    wind = np.zeros(len(pair), np.int64)
-    wind[cross] = np.where(up[cross] & (side > 0), 1, 0) - np.where(down[cross] & (side < 0), 1, 0)
-    inside = np.bincount(pair, weights=wind, minlength=len(k)) != 0
-    depth = np.bincount(k[inside], minlength=L).astype(np.int64)
-    return loops, sign, depth, judged
-
-
-def _winds(P, u, v, points, m, counts, start, edge_order) -> np.ndarray:
-    """Is each point ``P[points[i]]`` inside loop ``m[i]`` (non-zero exact winding number,
-    half-open crossings of the horizontal line through it)?"""
-    pair = np.repeat(np.arange(len(m)), counts)
-    offs = np.arange(len(pair)) - np.repeat(np.cumsum(counts) - counts, counts)
-    edge = edge_order[np.repeat(start[m], counts) + offs]
-    p = P[points[pair]]
-    a, b = P[u[edge]], P[v[edge]]
-    up = (a[:, 1] <= p[:, 1]) & (b[:, 1] > p[:, 1])
-    down = (b[:, 1] <= p[:, 1]) & (a[:, 1] > p[:, 1])
-    cross = np.flatnonzero(up | down)
-    side = orient2d_xy(a[cross, 0], a[cross, 1], b[cross, 0], b[cross, 1],
-                       p[cross, 0], p[cross, 1])
-    wind = np.zeros(len(pair), np.int64)
-    wind[cross] = (up[cross] & (side > 0)).astype(np.int64) - (down[cross] & (side < 0))
-    return np.bincount(pair, weights=wind, minlength=len(m)) != 0
+    bl = BoundaryLoops(boundary_edges, loops)
+    sign, depth, vertex = bl.nesting(points)
+    return bl.loops, sign, depth, vertex
