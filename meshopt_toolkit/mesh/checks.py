@@ -124,9 +124,10 @@ def check_mesh(mesh: TriangleMesh, *, positive_areas: bool = False) -> MeshRepor
     """Run every check of SPEC §1 and report (never raises for a readable mesh).
 
     A planar-manifold mesh whose triangles are all clockwise is re-oriented to CCW; the
-    report says so and carries the re-oriented mesh. ``positive_areas=True`` is the
-    caller's promise that every signed area of ``mesh`` is > 0 (e.g. from a quality
-    summary), which skips that pass.
+    report says so and carries the re-oriented mesh. ``positive_areas=True`` says the
+    caller's rounded areas are all > 0 (e.g. from a quality summary): no re-orientation
+    is considered; the exact signs are judged anyway (a rounded area may have the wrong
+    sign).
 
     A clean mesh is recognised by :func:`_clean_manifold`; only a mesh with a problem pays
     for the edge list and the description of the problem (:func:`_manifold_problems`).
