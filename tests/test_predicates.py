@@ -220,3 +220,16 @@ def test_exactly_scaled_is_exact(v):
 def test_non_finite_coordinates_are_refused():
     with pytest.raises(ValueError):
         orient2d(np.array([0.0, np.nan]), np.array([1.0, 0.0]), np.array([2.0, 0.0]))
+
+
+def test_boundary_near_overflow_that_cannot_be_scaled():
+    # ±8e307 with a subnormal coordinate: no exact power-of-two scaling exists, the
+    # differences overflow; the exact fallback decides
+    big, tiny = 8e307, 5e-324
+    square = np.array([[-big, -big], [tiny, -big], [big, -big], [big, big], [-big, big]])
+    edges = np.stack([np.arange(5), np.roll(np.arange(5), -1)], 1)
+    assert exactly_scaled(square)[1] == 0
+    assert len(boundary_self_intersections(square, edges)) == 0
+    bowtie = square[[0, 1, 2, 4, 3]]  # the last two swapped: two edges cross
+    assert boundary_self_intersections(bowtie, edges).tolist() == [[2, 4]]
+    assert ref_segments(*bowtie[[2, 3]], *bowtie[[4, 0]])

@@ -35,14 +35,15 @@ def boundary_self_intersections(points: FloatArray, boundary_edges: IntArray) ->
     ab, _ = exactly_scaled(np.concatenate([points[boundary_edges[:, 0]],
                                            points[boundary_edges[:, 1]]]))
     a, b = ab[:E], ab[E:]
-    mid = 0.5 * (a + b)
+    mid = 0.5 * a + 0.5 * b  # no overflow where the points could not be scaled
     with np.errstate(over="ignore"):
         reach = float(np.linalg.norm(b - a, axis=1).max())
     # relative rounding of the lengths, absolute rounding of the midpoints
     reach = reach * (1 + 1e-9) + 8 * np.finfo(float).eps * float(np.abs(ab).max())
     if len(boundary_edges) <= _NUMPY_PAIRS:  # the same pairs as the k-d tree, no scipy
         pairs = np.stack(np.triu_indices(len(boundary_edges), 1), axis=1)
-        gap = np.linalg.norm(mid[pairs[:, 0]] - mid[pairs[:, 1]], axis=1)
+        with np.errstate(over="ignore"):
+            gap = np.linalg.norm(mid[pairs[:, 0]] - mid[pairs[:, 1]], axis=1)
         pairs = pairs[gap <= reach]
     else:
         from scipy.spatial import cKDTree
