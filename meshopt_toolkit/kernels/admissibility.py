@@ -34,16 +34,17 @@ def area_problem(Q: FloatArray, tri_t: IntArray) -> str | None:
     return area_message(*area_signs(Q, tri_t), tri_t)
 
 
-def area_signs(Q: FloatArray, tri_t: IntArray) -> tuple[FloatArray, np.ndarray, int]:
+def area_signs(Q: FloatArray, tri_t: IntArray) -> tuple[FloatArray, np.ndarray | None, int]:
     """``(area, sign, k)``: the signed areas ``(T,)`` of ``Q / 2**k`` in floating point,
-    their exact signs (int8) and ``k``: ``Q`` is scaled by the power of two that puts it
-    near unit size where that is exact (so neither the areas nor the filter overflow or
-    underflow at 1e±300); the areas at ``Q``'s scale are ``area * 4**k``.
+    their exact signs (int8; None when all are positive) and ``k``: ``Q`` at an extreme
+    size is scaled by the power of two that puts it near unit size where that is exact
+    (so neither the areas nor the filter overflow or underflow at 1e±300); the areas at
+    ``Q``'s scale are ``area * 4**k``.
 
     ``Q`` must be finite.
     """
-    S, k = exactly_scaled(Q)
-    det, sign = triangle_orientations(S[:, 0], S[:, 1], tri_t)
+    S, k = exactly_scaled(Q, extreme_only=True)
+    det, sign = triangle_orientations(S[:, 0], S[:, 1], tri_t, lazy=True)
     det *= 0.5
     return det, sign, k
 
@@ -53,11 +54,11 @@ def area_message(area: FloatArray, sign: np.ndarray | None, exponent: int,
     """A message naming the first non-positive triangle (and how many there are), or None.
 
     ``area`` are signed areas ``(T,)`` in units of ``4**exponent``, ``sign`` their exact
-    signs (:func:`area_signs`; the float signs of ``area`` if None), ``tri_t`` the
-    triangles as a ``(3, T)`` array.
+    signs (:func:`area_signs`; None: all positive), ``tri_t`` the triangles as a
+    ``(3, T)`` array.
     """
     if sign is None:
-        sign = np.where(area > 0, 1, np.where(area < 0, -1, 0))
+        return None
     bad = np.flatnonzero(sign <= 0)
     if not bad.size:
         return None
@@ -102,6 +103,8 @@ class BoundaryCheck:
         nxt = order[pos] if len(be) else pos
         ok = be[nxt, 0] == be[:, 1] if len(be) else np.zeros(0, bool)
         self._fold = (be[ok, 0], be[ok, 1], be[nxt[ok], 1])
+        # their positions among the sorted boundary vertices
+        self._fold_at = [np.searchsorted(boundary_vertices, x) for x in self._fold]
         self._simple_boundaries: OrderedDict[bytes, None] = OrderedDict()
         self._loops: BoundaryLoops | None = None
 
@@ -129,9 +132,8 @@ class BoundaryCheck:
         nesting rule (which presumes positive triangles)."""
         a, b, c = self._fold
         if len(a):
-            S, _ = exactly_scaled(Q[self._boundary_vertices])
-            # positions of a, b, c among the sorted boundary vertices
-            ia, ib, ic = (np.searchsorted(self._boundary_vertices, x) for x in (a, b, c))
+            S, _ = exactly_scaled(Q[self._boundary_vertices], extreme_only=True)
+            ia, ib, ic = self._fold_at
             args = (S[ia, 0], S[ia, 1], S[ib, 0], S[ib, 1], S[ic, 0], S[ic, 1])
             straight = np.flatnonzero(orient2d_xy(*args) == 0)
             folded = straight[dot_sign_xy(*(x[straight] for x in args)) > 0]

@@ -33,7 +33,7 @@ def boundary_self_intersections(points: FloatArray, boundary_edges: IntArray) ->
         return np.zeros((0, 2), np.int64)
     E = len(boundary_edges)
     ab, _ = exactly_scaled(np.concatenate([points[boundary_edges[:, 0]],
-                                           points[boundary_edges[:, 1]]]))
+                                           points[boundary_edges[:, 1]]]), extreme_only=True)
     a, b = ab[:E], ab[E:]
     mid = 0.5 * a + 0.5 * b  # no overflow where the points could not be scaled
     with np.errstate(over="ignore"):
@@ -117,7 +117,7 @@ class BoundaryLoops:
         self.prev = by_end[np.searchsorted(self.v[by_end], self.u)]
 
     def _points(self, points: FloatArray) -> FloatArray:
-        return exactly_scaled(np.asarray(points, dtype=float)[self.used])[0]
+        return exactly_scaled(np.asarray(points, dtype=float)[self.used], extreme_only=True)[0]
 
     def _orientations(self, P: FloatArray) -> tuple[np.ndarray, IntArray]:
         # judged vertex: the lexicographically smallest start vertex of each loop

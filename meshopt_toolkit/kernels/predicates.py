@@ -34,9 +34,11 @@ ERRBOUND = (3.0 + 16.0 * _EPS) * _EPS
 _TINY = 2.0 ** -1000
 
 
-def _sign_products(p1, q1, p2, q2, p3, q3, p4, q4, minus: bool):
+def _sign_products(p1, q1, p2, q2, p3, q3, p4, q4, minus: bool, positive: bool = False):
     """Float filter of ``(p1 − q1)(p2 − q2) ∓ (p3 − q3)(p4 − q4)``: ``(value, sign,
-    uncertain)``; ``sign`` (int8) is exact where ``uncertain`` is False.
+    uncertain)``; ``sign`` (int8) is exact where ``uncertain`` is False. With
+    ``positive``, ``(value, None, None)`` when every value is certainly positive (the
+    common case of an admissible mesh, in fewer passes).
 
     Besides the error bound, a term with a zero factor is exactly 0 (a float difference is
     0 only for equal inputs), and then the sign is that of the other term's factors (exact
@@ -56,6 +58,8 @@ def _sign_products(p1, q1, p2, q2, p3, q3, p4, q4, minus: bool):
         t1 += t2
         t1 *= ERRBOUND
         t1 += _TINY
+        if positive and (det > t1).all():
+            return det, None, None
         np.abs(det, out=t2)
         uncertain = ~(t2 > t1)  # NaN (overflow) is uncertain too
         sign = np.greater(det, 0).view(np.int8) - np.less(det, 0).view(np.int8)
@@ -157,26 +161,30 @@ def segments_intersect(a: FloatArray, b: FloatArray, c: FloatArray, d: FloatArra
     return hit
 
 
-def triangle_orientations(qx: FloatArray, qy: FloatArray, tri_t: IntArray
-                          ) -> tuple[FloatArray, np.ndarray]:
+def triangle_orientations(qx: FloatArray, qy: FloatArray, tri_t: IntArray,
+                          lazy: bool = False) -> tuple[FloatArray, np.ndarray | None]:
     """Twice the signed areas (floating point) and their exact signs.
 
     Parameters
     ----------
     qx, qy : (N,) coordinates (finite)
     tri_t : (3, T) triangles
+    lazy : bool
+        Return ``sign=None`` when every triangle is certainly positive.
 
     Returns
     -------
     det : (T,) float array
         ``(q1 − q0) × (q2 − q0)`` rounded (may be ±inf/NaN at extreme magnitudes).
-    sign : (T,) int8 array
+    sign : (T,) int8 array, or None
         Its exact sign; the float value's sign wherever the filter certifies it.
     """
     x = np.take(qx, tri_t)
     y = np.take(qy, tri_t)
     det, sign, uncertain = _sign_products(x[1], x[0], y[2], y[0], y[1], y[0], x[2], x[0],
-                                          minus=True)
+                                          minus=True, positive=lazy)
+    if sign is None:
+        return det, None
     if uncertain.any():
         k = np.flatnonzero(uncertain)
         sign[k] = _exact_signs([x[1, k], x[0, k], y[2, k], y[0, k],
@@ -184,10 +192,12 @@ def triangle_orientations(qx: FloatArray, qy: FloatArray, tri_t: IntArray
     return det, sign
 
 
-def exactly_scaled(points: FloatArray) -> tuple[FloatArray, int]:
+def exactly_scaled(points: FloatArray, extreme_only: bool = False) -> tuple[FloatArray, int]:
     """``(S, k)`` with ``points == S * 2**k`` exactly: ``S`` has its largest ``|coordinate|``
     in ``[0.5, 1)`` where that scaling is exact (no coordinate becomes subnormal); else
-    ``(points, 0)``.
+    ``(points, 0)``. With ``extreme_only``, points whose largest ``|coordinate|`` is in
+    ``[2**-256, 2**256)`` are returned as they are (the filter neither overflows nor
+    underflows there either).
 
     Signs of the predicates are unchanged; near unit size the filter neither overflows
     nor underflows, so the exact fallback stays rare at 1e±300 too.
@@ -200,7 +210,7 @@ def exactly_scaled(points: FloatArray) -> tuple[FloatArray, int]:
     if not np.isfinite(big) or big == 0.0:
         return P, 0
     k = int(np.frexp(big)[1])
-    if k == 0:
+    if k == 0 or (extreme_only and -255 <= k <= 256):
         return P, 0
     with np.errstate(all="ignore"):
         S = np.ldexp(P, -k)

@@ -152,7 +152,7 @@ def check_mesh(mesh: TriangleMesh, *, positive_areas: bool = False) -> MeshRepor
     if (not positive_areas and area is not None and area.sum() < 0
             and corners is not None):
         pm = with_embedding_of(pm.flipped(), pm)
-        area, sign = -area, -sign
+        area, sign = -area, (None if sign is None else -sign)
         reoriented = True
         n_flipped = pm.n_triangles
         if corners is not None:
