@@ -204,7 +204,17 @@ def test_triangle_orientations_match_fractions(tris):
     P = np.concatenate(tris)
     tri_t = np.arange(len(P)).reshape(-1, 3).T
     det, sign = triangle_orientations(P[:, 0], P[:, 1], tri_t)
-    assert sign.tolist() == [ref_orient(*t) for t in tris]
+    want = [ref_orient(*t) for t in tris]
+    assert sign.tolist() == want
+    # the lazy form: None only when every triangle is positive
+    _, lazy = triangle_orientations(P[:, 0], P[:, 1], tri_t, lazy=True)
+    assert (lazy is None and set(want) == {1}) or lazy.tolist() == want
+    # counter-clockwise copies: all positive, certified by the filter or exactly
+    ccw = np.where(np.array(want)[None] < 0, tri_t[[0, 2, 1]], tri_t)
+    keep = np.array(want) != 0
+    if keep.any():
+        s = triangle_orientations(P[:, 0], P[:, 1], ccw[:, keep], lazy=True)[1]
+        assert s is None or (s == 1).all()
 
 
 @settings(max_examples=200, deadline=None)
