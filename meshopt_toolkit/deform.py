@@ -22,7 +22,8 @@ from pathlib import Path
 import numpy as np
 
 from ._typing import FloatArray
-from .errors import InvalidMeshError, ReadError
+from .errors import IntegrationError, InvalidMeshError, ReadError
+from .kernels.admissibility import BoundaryCheck, area_problem
 from .riemannian.geodesics import GeodesicResult, geodesic
 from .kernels.triangles import aspect_ratios
 from .mesh import PlanarMesh, TriangleMesh, require_admissible
@@ -147,6 +148,11 @@ def deform(
     # frames are few: land on each (exact velocities and energies in the result)
     res = geodesic(met, m.points, V, float(t), times=times, method=method, rtol=rtol,
                    atol=atol, on_violation=on_violation, dense=False, progress=progress)
+    if pen is not None:  # the complete metric promises admissible frames: judged exactly
+        check = BoundaryCheck(m.boundary_edges, m.boundary_vertices)
+        for k, p in enumerate(res.points):
+            if problem := area_problem(p, m._triangle_columns) or check.test(p):
+                raise IntegrationError(f"deform: frame {k} is not admissible: {problem}")
     ar = np.array([float(aspect_ratios(p, m.triangles).min()) for p in res.points])
     return DeformResult(
         mesh=m.with_points(res.points[-1]), times=times, points=res.points,

@@ -57,6 +57,8 @@ def mesh_info(path: str | Path, merge_tolerance: float | None = None) -> dict:
     ReadError
         The file cannot be read.
     """
+    import numpy as np
+
     from ..io import load
     from ..io.cells import triangle_mesh
     from ..mesh import check_mesh
@@ -72,18 +74,21 @@ def mesh_info(path: str | Path, merge_tolerance: float | None = None) -> dict:
     keys = ["min_aspect_ratio", "mean_shape_quality", "min_angle_deg", "max_angle_deg",
             "min_area", "total_area", "n_inverted"]
     quality = None
+    # the checks are exact and scale-free; the quality is measured at unit size (an
+    # exact power of two: no overflow or underflow at 1e±300) and its areas scaled back
+    scale = _unit_scale(mesh)
     if mesh.is_planar:
         # the summary's smallest signed area tells the check whether it may skip its own
         # area pass (all areas > 0: nothing to re-orient, nothing inverted)
         pm = mesh.as_planar()
-        quality = pm.quality()
+        quality = scale.mesh_down(pm).quality()
         report = check_mesh(pm, positive_areas=quality.min_area > 0)
         if report.reoriented:
-            quality = report.mesh.quality()
+            quality = scale.mesh_down(report.mesh).quality()
     else:
         report = check_mesh(mesh)
         if report.planar:
-            quality = report.mesh.quality()
+            quality = scale.mesh_down(report.mesh).quality()
     info = {
         "path": str(path),
         "cell_kind": PLANAR,
@@ -104,10 +109,23 @@ def mesh_info(path: str | Path, merge_tolerance: float | None = None) -> dict:
         info["n_merged"] = n_merged
     if quality is not None:
         q = quality.as_dict()
+        with np.errstate(over="ignore", under="ignore"):  # beyond the float range: inf / 0
+            for k in ("min_area", "total_area"):
+                q[k] = float(np.ldexp(q[k], 2 * scale.exponent))
         info.update({k: _clean(q[k]) for k in keys})
     else:
         info.update({k: None for k in keys})
     return info
+
+
+def _unit_scale(mesh):
+    """The mesh's :class:`~meshopt_toolkit.scaling.UnitScale` (identity if a coordinate is
+    not finite: the checks report that)."""
+    import numpy as np
+
+    from ..scaling import UnitScale, unit_scale
+
+    return unit_scale(mesh) if np.isfinite(mesh.points).all() else UnitScale(0)
 
 
 def merged(mesh, tol: float):

@@ -15,7 +15,7 @@ import numpy as np
 
 from .._lazy import lazy_module
 from ..errors import InvalidMeshError, NotAdmissibleError
-from ..kernels.admissibility import BoundaryCheck, area_message
+from ..kernels.admissibility import BoundaryCheck, area_message, area_signs
 from .core import PlanarMesh, TriangleMesh
 from .diagnosis import diagnose, planar_view, with_embedding_of
 from .topology import _boundary_edges_of, _fans_per_vertex, _frozen
@@ -39,7 +39,9 @@ class MeshReport:
     manifold : bool
         Every planar-manifold condition of SPEC §1 holds (planarity included).
     admissible : bool
-        ``manifold`` and every signed area > 0 and no boundary self-intersection.
+        ``manifold``, every signed area > 0, no boundary self-intersection and boundary
+        loops nested as the boundary of an embedded region (no point covered twice); all
+        judged exactly and at any scale (:mod:`meshopt_toolkit.kernels.admissibility`).
     reoriented : bool
         Some triangles were flipped (each component is oriented by propagation across its
         edges, then counter-clockwise); :attr:`mesh` is the oriented version.
@@ -122,9 +124,10 @@ def check_mesh(mesh: TriangleMesh, *, positive_areas: bool = False) -> MeshRepor
     """Run every check of SPEC §1 and report (never raises for a readable mesh).
 
     A planar-manifold mesh whose triangles are all clockwise is re-oriented to CCW; the
-    report says so and carries the re-oriented mesh. ``positive_areas=True`` is the
-    caller's promise that every signed area of ``mesh`` is > 0 (e.g. from a quality
-    summary), which skips that pass.
+    report says so and carries the re-oriented mesh. ``positive_areas=True`` says the
+    caller's rounded areas are all > 0 (e.g. from a quality summary): no re-orientation
+    is considered; the exact signs are judged anyway (a rounded area may have the wrong
+    sign).
 
     A clean mesh is recognised by :func:`_clean_manifold`; only a mesh with a problem pays
     for the edge list and the description of the problem (:func:`_manifold_problems`).
@@ -142,10 +145,14 @@ def check_mesh(mesh: TriangleMesh, *, positive_areas: bool = False) -> MeshRepor
     if corners is not None and "boundary_edges" not in pm.__dict__:
         pm.__dict__["boundary_edges"] = _frozen(_boundary_edges_of(pm.triangles, corners))
     reoriented = False
-    area = None if positive_areas else pm.signed_areas()
-    if area is not None and area.sum() < 0 and corners is not None:
+    # exact signs, judged at unit scale (scale-free: no overflow or underflow at 1e±300)
+    finite = bool(np.isfinite(pm.points).all())
+    area, sign, exponent = (area_signs(pm.points, pm._triangle_columns) if finite
+                            else (None, None, 0))
+    if (not positive_areas and area is not None and area.sum() < 0
+            and corners is not None):
         pm = with_embedding_of(pm.flipped(), pm)
-        area = -area
+        area, sign = -area, (None if sign is None else -sign)
         reoriented = True
         n_flipped = pm.n_triangles
         if corners is not None:
@@ -155,10 +162,17 @@ def check_mesh(mesh: TriangleMesh, *, positive_areas: bool = False) -> MeshRepor
         logger.info("%s: re-oriented from clockwise to counter-clockwise", pm.source or "mesh")
     problems = list(soft)
     reoriented = reoriented or n_flipped > 0
-    if area is not None and (message := area_message(area, pm.triangles.T)):
-        problems.append(message)
-    if message := BoundaryCheck(pm.boundary_edges, pm.boundary_vertices).test(pm.points):
-        problems.append(message)
+    if not finite:
+        v = int(np.flatnonzero(~np.isfinite(pm.points).all(axis=1))[0])
+        problems.append(f"vertex {v} has a non-finite coordinate")
+    else:
+        # the loops' nesting rule presumes positive triangles: judged only then
+        message = area_message(area, sign, exponent, pm._triangle_columns)
+        if message:
+            problems.append(message)
+        check = BoundaryCheck(pm.boundary_edges, pm.boundary_vertices)
+        if message := check.test(pm.points, nesting=message is None):
+            problems.append(message)
     return MeshReport(True, True, not problems, reoriented, problems, pm, n_flipped)
 
 
@@ -170,7 +184,8 @@ def require_admissible(mesh: TriangleMesh, what: str = "this operation") -> Plan
     InvalidMeshError
         Not planar or not a planar manifold.
     NotAdmissibleError
-        Planar manifold but with an inverted/zero-area triangle or boundary crossing.
+        Planar manifold but with an inverted/zero-area triangle, a boundary crossing, or
+        a boundary loop of the wrong orientation for its nesting (a double cover).
     """
     report = check_mesh(mesh)
     where = f"{mesh.source}: " if mesh.source else ""

@@ -19,8 +19,9 @@ import numpy as np
 
 from .._typing import FloatArray, IntArray
 from ..errors import InvalidMeshError
+from ..kernels.admissibility import BoundaryCheck, area_problem
 from ..kernels.triangles import aspect_ratios, inverse_shape_quality, signed_areas
-from ..mesh import PlanarMesh, boundary_self_intersections, require_admissible
+from ..mesh import PlanarMesh, require_admissible
 from ..riemannian.discrete_geodesic import discrete_geodesic
 from ..riemannian.geodesic_result import DiscreteGeodesic
 from ..riemannian.path_options import LevenbergMarquardtOptions
@@ -132,7 +133,9 @@ class DistortionMorph:
         return {
             "metric": "distortion",
             "frames": int(len(self.points)),
-            "admissible": bool((self.stats.inverted == 0).all()),
+            "admissible": bool((self.stats.inverted == 0).all()) and _admissible_path(
+                self.points, self.triangles, PlanarMesh(self.points[0], self.triangles)
+                .boundary_edges),
             "min_aspect_ratio": float(np.min(self.stats.min_aspect_ratio)),
             "worse_end_min_aspect_ratio": worst_end,
             "target_error": 0.0,
@@ -157,12 +160,11 @@ class DistortionMorph:
 
 
 def _admissible_path(frames: FloatArray, triangles: IntArray, boundary_edges: IntArray) -> bool:
-    for Q in frames:
-        if not (signed_areas(Q, triangles) > 0).all():
-            return False
-        if len(boundary_self_intersections(Q, boundary_edges)):
-            return False
-    return True
+    """Every frame admissible: the exact test of ``kernels.admissibility`` (areas, a
+    simple boundary, loops nested as the boundary of an embedded region)."""
+    tri_t = np.ascontiguousarray(np.asarray(triangles).T)
+    check = BoundaryCheck(boundary_edges, np.unique(boundary_edges))
+    return all(area_problem(Q, tri_t) is None and check.test(Q) is None for Q in frames)
 
 
 #: CG residual of the path's Levenberg–Marquardt steps: looser costs no frame quality and

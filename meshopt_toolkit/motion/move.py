@@ -21,8 +21,9 @@ import numpy as np
 from .._typing import FloatArray, IntArray
 from ..cores import thread_budget
 from ..errors import InvalidMeshError
+from ..kernels.admissibility import BoundaryCheck, area_problem, target_loop_problem
 from ..kernels.triangles import aspect_ratios, inverse_shape_quality
-from ..mesh import PlanarMesh, boundary_self_intersections, require_admissible
+from ..mesh import PlanarMesh, require_admissible
 from ..riemannian.discrete_geodesic import discrete_geodesic
 from ..riemannian.path_options import LevenbergMarquardtOptions
 from .continuation import RELAX_CG_RTOL, NoAdmissiblePathError, continuation_path
@@ -241,9 +242,9 @@ def move(
     if tg is not None:
         final_guess = P.copy()
         final_guess[h] = tg
-        boundary = np.unique(be)
-        if np.isin(boundary, h).all() and len(boundary_self_intersections(final_guess, be)):
-            raise InvalidMeshError("the targets make the boundary cross itself")
+        # loops that are all handles: fixed by the targets, checked before any work
+        if problem := target_loop_problem(P, final_guess, be, h):
+            raise InvalidMeshError(f"the targets {problem}")
         # handles that stay exactly: no similarity at all (the identity stays bit for bit)
         S = Similarity(0j, 0j, 0.0, 0.0) if np.array_equal(P[h], tg) else fit_similarity(P[h], tg)
         residual_targets = S.inverse(tg)
@@ -298,8 +299,10 @@ def move(
     bound = np.concatenate([[0.0], np.cumsum(lengths)]) / weight
     q = np.array([_frame_quality(moved[i], tri) for i in pick])
     inverted = int(np.sum(metric.strain.determinants(moved[-1]) <= 0))
-    if inverted or len(boundary_self_intersections(moved[-1], be)):
-        raise NoAdmissiblePathError("the result is not admissible (a bug: please report)")
+    problem = (area_problem(moved[-1], mesh._triangle_columns)
+               or BoundaryCheck(be, mesh.boundary_vertices).test(moved[-1]))
+    if inverted or problem:
+        raise NoAdmissiblePathError(f"the result is not admissible: {problem or 'inverted'}")
     out = [mesh.with_points(moved[i]) for i in pick] if frames is not None else []
     result_mesh = mesh.with_points(moved[-1])
     return MoveResult(

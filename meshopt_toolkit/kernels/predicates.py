@@ -1,0 +1,219 @@
+"""Exact geometric predicates on float64 coordinates, vectorized.
+
+Every sign here is the sign of the exact real number the float inputs stand for (each
+float is a dyadic rational), so admissibility never depends on rounding:
+
+- a floating-point **filter** evaluates ``t1 - t2`` (orientation) or ``t1 + t2`` (dot
+  product) of two products of coordinate differences and trusts its sign where
+  ``|det| > (3 + 16ε)ε (|t1| + |t2|) + 2⁻¹⁰⁰⁰`` (Shewchuk's static bound ``ccwerrboundA``,
+  ε = 2⁻⁵³, plus an absolute term that covers underflow of the products to subnormal
+  numbers; overflow gives a non-finite value, which is never trusted);
+- the **uncertain** entries (near-degenerate configurations: usually none, a few per
+  straight boundary piece) are evaluated exactly with Python integers: each float is
+  ``M·2^e`` with an integer ``M`` (``numpy.frexp``), so every coordinate of an entry is an
+  integer multiple of the entry's smallest ``2^e``.
+
+Inputs must be finite. Signs are invariant under scaling by a power of two, so
+:func:`exactly_scaled` puts points near unit size first when that is exact (it keeps the
+filtered path from overflowing or underflowing at 1e±300).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._typing import FloatArray, IntArray
+
+__all__ = ["ERRBOUND", "exactly_scaled", "orient2d", "orient2d_xy", "dot_sign_xy",
+           "segments_intersect", "triangle_orientations"]
+
+_EPS = 2.0 ** -53
+#: Shewchuk's ccwerrboundA: |fl(det) - det| <= ERRBOUND (|t1| + |t2|) without underflow
+ERRBOUND = (3.0 + 16.0 * _EPS) * _EPS
+#: absolute slack covering products that underflowed (each error <= 2^-1075)
+_TINY = 2.0 ** -1000
+
+
+def _sign_products(p1, q1, p2, q2, p3, q3, p4, q4, minus: bool, positive: bool = False):
+    """Float filter of ``(p1 − q1)(p2 − q2) ∓ (p3 − q3)(p4 − q4)``: ``(value, sign,
+    uncertain)``; ``sign`` (int8) is exact where ``uncertain`` is False. With
+    ``positive``, ``(value, None, None)`` when every value is certainly positive (the
+    common case of an admissible mesh, in fewer passes).
+
+    Besides the error bound, a term with a zero factor is exactly 0 (a float difference is
+    0 only for equal inputs), and then the sign is that of the other term's factors (exact
+    even where that product under- or overflows): axis-parallel degeneracies, common in
+    structured meshes and rectangles, need no exact fallback.
+    """
+    with np.errstate(all="ignore"):
+        d1 = np.subtract(p1, q1)
+        d2 = np.subtract(p2, q2)
+        d3 = np.subtract(p3, q3)
+        d4 = np.subtract(p4, q4)
+        t1 = d1 * d2
+        t2 = d3 * d4
+        det = np.subtract(t1, t2) if minus else np.add(t1, t2)
+        np.abs(t1, out=t1)
+        np.abs(t2, out=t2)
+        t1 += t2
+        t1 *= ERRBOUND
+        t1 += _TINY
+        if positive and (det > t1).all():
+            return det, None, None
+        np.abs(det, out=t2)
+        uncertain = ~(t2 > t1)  # NaN (overflow) is uncertain too
+        sign = np.greater(det, 0).view(np.int8) - np.less(det, 0).view(np.int8)
+        if uncertain.any():
+            k = np.flatnonzero(uncertain)
+            s1 = np.sign(d1[k]) * np.sign(d2[k])
+            s2 = np.sign(d3[k]) * np.sign(d4[k])
+            known = (s1 == 0) | (s2 == 0)
+            sign[k[known]] = np.sign(s1[known] - s2[known] if minus else s1[known] + s2[known])
+            uncertain[k[known]] = False
+    return det, sign, uncertain
+
+
+def _exact_signs(coords: list[FloatArray], minus: bool) -> np.ndarray:
+    """Exact sign of ``(c0 - c1)(c2 - c3) ∓ (c4 - c5)(c6 - c7)`` per entry (Python integers).
+
+    ``coords``: eight 1-D float arrays of the same length (finite)."""
+    X = np.stack([np.asarray(c, dtype=float) for c in coords])  # (8, K)
+    if X.shape[1] == 0:
+        return np.zeros(0, np.int8)
+    if not np.isfinite(X).all():
+        raise ValueError("exact predicates need finite coordinates")
+    m, e = np.frexp(X)
+    M = np.ldexp(m, 53).astype(np.int64)  # exact: X = M * 2**(e - 53)
+    e = e.astype(np.int64) - 53
+    e0 = np.where(M != 0, e, np.iinfo(np.int64).max).min(axis=0)
+    e0 = np.where(e0 == np.iinfo(np.int64).max, 0, e0)
+    shift = np.where(M != 0, e - e0, 0)  # >= 0: every coordinate is an integer * 2**e0
+    out = []
+    for mk, sk in zip(M.T.tolist(), shift.T.tolist()):
+        a = [v << s for v, s in zip(mk, sk)]
+        t1 = (a[0] - a[1]) * (a[2] - a[3])
+        t2 = (a[4] - a[5]) * (a[6] - a[7])
+        d = t1 - t2 if minus else t1 + t2
+        out.append((d > 0) - (d < 0))
+    return np.array(out, dtype=np.int8)
+
+
+def orient2d_xy(ax, ay, bx, by, cx, cy) -> np.ndarray:
+    """Exact orientation sign of triangles ``(a, b, c)``: +1 counter-clockwise, −1
+    clockwise, 0 collinear; ``int8`` array of the broadcast shape of the coordinates.
+
+    The sign of ``(bx − ax)(cy − ay) − (by − ay)(cx − ax)`` for the exact input values."""
+    shape, (ax, ay, bx, by, cx, cy) = _flat(ax, ay, bx, by, cx, cy)
+    _, sign, uncertain = _sign_products(bx, ax, cy, ay, by, ay, cx, ax, minus=True)
+    if uncertain.any():
+        sign[uncertain] = _exact_signs(
+            [v[uncertain] for v in (bx, ax, cy, ay, by, ay, cx, ax)], minus=True)
+    return sign.reshape(shape)
+
+
+def _flat(*values):
+    """The broadcast shape and the values as 1-D float arrays of that size."""
+    arrays = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in values))
+    return arrays[0].shape, [a.ravel() for a in arrays]
+
+
+def orient2d(a: FloatArray, b: FloatArray, c: FloatArray) -> np.ndarray:
+    """:func:`orient2d_xy` of point arrays ``a, b, c`` of shape ``(..., 2)``."""
+    a, b, c = (np.asarray(p, dtype=float) for p in (a, b, c))
+    return orient2d_xy(a[..., 0], a[..., 1], b[..., 0], b[..., 1], c[..., 0], c[..., 1])
+
+
+def dot_sign_xy(ax, ay, bx, by, cx, cy) -> np.ndarray:
+    """Exact sign of ``(a − b)·(c − b)`` (the angle at ``b`` is acute: +1, right: 0)."""
+    shape, (ax, ay, bx, by, cx, cy) = _flat(ax, ay, bx, by, cx, cy)
+    _, sign, uncertain = _sign_products(ax, bx, cx, bx, ay, by, cy, by, minus=False)
+    if uncertain.any():
+        sign[uncertain] = _exact_signs(
+            [v[uncertain] for v in (ax, bx, cx, bx, ay, by, cy, by)], minus=False)
+    return sign.reshape(shape)
+
+
+def segments_intersect(a: FloatArray, b: FloatArray, c: FloatArray, d: FloatArray
+                       ) -> np.ndarray:
+    """Do the closed segments ``[a, b]`` and ``[c, d]`` meet (touching included)? Exact.
+
+    ``a, b, c, d`` are ``(K, 2)``; returns ``(K,)`` bool. The segments meet iff each one's
+    endpoints are not strictly on one side of the other's line; when all four orientations
+    are 0 the segments are collinear and meet iff their projections on an axis the line
+    is not perpendicular to overlap (comparisons of floats are exact).
+    """
+    a, b, c, d = (np.asarray(p, dtype=float).reshape(-1, 2) for p in (a, b, c, d))
+    d1 = orient2d(a, b, c)
+    d2 = orient2d(a, b, d)
+    d3 = orient2d(c, d, a)
+    d4 = orient2d(c, d, b)
+    hit = (d1 * d2 <= 0) & (d3 * d4 <= 0)
+    col = hit & (d1 == 0) & (d2 == 0) & (d3 == 0) & (d4 == 0)
+    if col.any():
+        k = np.flatnonzero(col)
+        # the x axis unless every x is equal (then the common line is vertical)
+        P = np.stack([a[k], b[k], c[k], d[k]])  # (4, k, 2)
+        vertical = (P[:, :, 0] == P[0, :, 0]).all(axis=0)
+        s = P[:, np.arange(len(k)), vertical.astype(np.int64)]  # (4, k)
+        lo1, hi1 = np.minimum(s[0], s[1]), np.maximum(s[0], s[1])
+        lo2, hi2 = np.minimum(s[2], s[3]), np.maximum(s[2], s[3])
+        hit[k] = (lo1 <= hi2) & (lo2 <= hi1)
+    return hit
+
+
+def triangle_orientations(qx: FloatArray, qy: FloatArray, tri_t: IntArray,
+                          lazy: bool = False) -> tuple[FloatArray, np.ndarray | None]:
+    """Twice the signed areas (floating point) and their exact signs.
+
+    Parameters
+    ----------
+    qx, qy : (N,) coordinates (finite)
+    tri_t : (3, T) triangles
+    lazy : bool
+        Return ``sign=None`` when every triangle is certainly positive.
+
+    Returns
+    -------
+    det : (T,) float array
+        ``(q1 − q0) × (q2 − q0)`` rounded (may be ±inf/NaN at extreme magnitudes).
+    sign : (T,) int8 array, or None
+        Its exact sign; the float value's sign wherever the filter certifies it.
+    """
+    x = np.take(qx, tri_t)
+    y = np.take(qy, tri_t)
+    det, sign, uncertain = _sign_products(x[1], x[0], y[2], y[0], y[1], y[0], x[2], x[0],
+                                          minus=True, positive=lazy)
+    if sign is None:
+        return det, None
+    if uncertain.any():
+        k = np.flatnonzero(uncertain)
+        sign[k] = _exact_signs([x[1, k], x[0, k], y[2, k], y[0, k],
+                                y[1, k], y[0, k], x[2, k], x[0, k]], minus=True)
+    return det, sign
+
+
+def exactly_scaled(points: FloatArray, extreme_only: bool = False) -> tuple[FloatArray, int]:
+    """``(S, k)`` with ``points == S * 2**k`` exactly: ``S`` has its largest ``|coordinate|``
+    in ``[0.5, 1)`` where that scaling is exact (no coordinate becomes subnormal); else
+    ``(points, 0)``. With ``extreme_only``, points whose largest ``|coordinate|`` is in
+    ``[2**-256, 2**256)`` are returned as they are (the filter neither overflows nor
+    underflows there either).
+
+    Signs of the predicates are unchanged; near unit size the filter neither overflows
+    nor underflows, so the exact fallback stays rare at 1e±300 too.
+    """
+    P = np.asarray(points, dtype=float)
+    if P.size == 0:
+        return P, 0
+    with np.errstate(invalid="ignore"):
+        big = float(np.max(np.abs(P)))
+    if not np.isfinite(big) or big == 0.0:
+        return P, 0
+    k = int(np.frexp(big)[1])
+    if k == 0 or (extreme_only and -255 <= k <= 256):
+        return P, 0
+    with np.errstate(all="ignore"):
+        S = np.ldexp(P, -k)
+        if k < 0 or np.array_equal(np.ldexp(S, k), P):  # scaling up is always exact
+            return S, k
+    return P, 0
