@@ -348,3 +348,13 @@ def test_loop_nesting_of_many_holes_with_islands(monkeypatch, batch):
     assert loop_message(pts, edges) is None
     polys[77] = polys[77][::-1]  # one island reversed
     assert loop_message(*_polygon_edges(polys)).startswith("boundary loop 77 ")
+
+
+def test_a_refused_motion_into_frames_leaves_no_directory(tmp_path, capsys):
+    src = tmp_path / "plate.msh"
+    save(plate(), src)
+    out = tmp_path / "frames"
+    assert main(["move", str(src), "-o", str(out), "--frames", "3", "--where", HOLE,
+                 "--map", "6-x; y"]) == 1
+    assert "reverse boundary loop" in capsys.readouterr().err
+    assert not out.exists()

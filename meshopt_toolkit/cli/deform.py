@@ -88,9 +88,6 @@ def run(args: argparse.Namespace) -> int:
     wp = load_workpiece(src, "deform")
     mesh = wp.mesh
     V = wp.to_unit(load_displacement(args.displacement, wp.user_mesh, wp.plane_coordinates))
-    if frames is not None:
-        prepare_output_dir(out, force=args.force)
-
     with ProgressBar(1000, "deform") as bar:
         def progress(fraction: float) -> None:
             bar.update(int(1000 * fraction) - bar.count)
@@ -106,6 +103,7 @@ def run(args: argparse.Namespace) -> int:
               f"{res.aspect_ratio[-1]:.4f}")
         return 0
 
+    prepare_output_dir(out, force=args.force)  # only now: a failed deformation leaves nothing
     width = max(3, len(str(frames - 1)))
     for k, m in enumerate(res.meshes()):
         name = f"frame_{k:0{width}d}{ext}"

@@ -93,8 +93,6 @@ def run(args: argparse.Namespace) -> int:
     handles, targets = handles_of(wp.user_mesh, targets=args.targets, mapping=args.map,
                                   where=args.where, group=args.group,
                                   free_boundary=args.free_boundary)
-    if frames is not None:
-        prepare_output_dir(out, force=args.force)
     with ProgressBar(1000, "move") as bar:
         def progress(s: float) -> None:
             bar.update(int(1000 * s) - bar.count)
@@ -104,7 +102,8 @@ def run(args: argparse.Namespace) -> int:
     if frames is None:
         save_moved(wp, result.mesh, out, force=args.force)
         written = str(out)
-    else:
+    else:  # created only now: a refused motion leaves nothing behind
+        prepare_output_dir(out, force=args.force)
         ext = (args.format or src.suffix).lower()
         ext = ext if ext.startswith(".") else "." + ext
         width = max(3, len(str(frames - 1)))
