@@ -62,15 +62,19 @@ class ShapeProblem:
     triangles : (T, 3) connectivity
     boundary_edges : (E, 2) directed boundary edges (for the boundary self-contact test)
     free : (N,) bool mask of the free vertices, or None (all free)
+    constraint : :class:`~.area.AreaConstraint` or None: gradients and directions are
+        projected onto its tangent space
     """
 
-    def __init__(self, objective, penalty, metric, triangles, boundary_edges, free=None) -> None:
+    def __init__(self, objective, penalty, metric, triangles, boundary_edges, free=None,
+                 constraint=None) -> None:
         self.objective = objective
         self.penalty = penalty
         self.metric = metric
         self.triangles = np.asarray(triangles)
         self.boundary_edges = np.asarray(boundary_edges)
         self.free = free
+        self.constraint = constraint
         self.n_rejected = 0  # trial configurations outside M+
 
     def admissible(self, Q: FloatArray) -> bool:
@@ -108,8 +112,13 @@ class ShapeProblem:
         return P
 
     def riesz(self, Q: FloatArray, P: FloatArray) -> FloatArray:
-        """The metric's Riesz map ``g_Q⁻¹ P`` restricted to the free vertices."""
-        return self.metric.riesz(Q, P, free=self.free)
+        """The metric's Riesz map ``g_Q⁻¹ P`` restricted to the free vertices (and
+        projected onto the constraint's tangent space)."""
+        return self.project(Q, self.metric.riesz(Q, P, free=self.free))
+
+    def project(self, Q: FloatArray, V: FloatArray) -> FloatArray:
+        """``V`` projected onto the constraint's tangent space (``V`` without one)."""
+        return V if self.constraint is None else self.constraint.project(Q, V)
 
     @staticmethod
     def pair(P: FloatArray, V: FloatArray) -> float:
