@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import logging
 import math
+import time
 from collections.abc import Callable, Sequence
 from typing import Protocol, runtime_checkable
 
@@ -160,8 +161,13 @@ def thesis_penalty_beta(parameter_set: int, n_vertices: int) -> tuple[float, flo
 #: costs N times more than squeezing the boundary layer of triangles, and the optimum
 #: does exactly that. Measured (complete-euclidean, L-BFGS, default rhs), min AR
 #: initial → final: disc_2198 0.682 → 0.340 (set 2) vs 0.768 (this); elasticity-euclidean
-#: on disc_13586 0.687 → 0.776 (this), j = −0.0936 as on the coarser discs.
-DEFAULT_PENALTY_BETA = (0.1, 0.01, 0.0, 0.146)
+#: on disc_13586 0.687 → 0.776 (this), j = −0.0936 as on the coarser discs. β3 = 0.01 is
+#: the contact barrier (:func:`~meshopt_toolkit.shape.setup.contact_options`): it is zero
+#: unless a boundary vertex comes within ⅔ of the shortest boundary edge of a boundary
+#: edge it does not belong to, so it never acts on the discs, and it keeps holes and
+#: re-entrant notches of users' domains from closing (without it, straight-line trials
+#: cross an unmeshed hole or notch with every area positive and are all rejected).
+DEFAULT_PENALTY_BETA = (0.1, 0.01, 0.01, 0.146)
 
 
 def max_travel_step(Q: FloatArray, triangles: np.ndarray, d: FloatArray) -> float:
@@ -275,7 +281,7 @@ def optimize(
     """
     from .shape.preconditioners import make_preconditioner
     from .shape.problem import ShapeProblem
-    from .shape.spec import ScaledObjective
+    from .shape.spec import GUARD_FACTOR, GUARD_TRIES, QUALITY_GUARD, QualityGuard, ScaledObjective
     from .shape.steepest import run_steepest
 
     if variant not in VARIANTS:
@@ -316,27 +322,38 @@ def optimize(
         constraint = AreaConstraint(mesh.boundary_edges, shoelace_area(mesh.points,
                                     mesh.boundary_edges), lambda Q, P: metric.riesz(Q, P, free=free))
     weight = spec.weight(lambda: _elasticity_gradient_norm(mesh, objective, free, constraint))
-    j_objective = objective
-    if weight != 1.0:
-        objective = ScaledObjective(objective, weight)
-    problem = ShapeProblem(objective, penalty, metric, tri, mesh.boundary_edges, free, constraint)
-    h0 = make_preconditioner(lbfgs_preconditioner, metric_kind=VARIANT_PARTS[variant][0],
-                             method=method, mesh=mesh, penalty=penalty, free=free)
-    if method != "steepest":
-        from .shape.driver import run_descent
+    guard = QualityGuard(mesh, callback) if spec.scale == "auto" else None
+    start = time.perf_counter()
+    for attempt in range(1 + (GUARD_TRIES if guard else 0)):
+        weighed = objective if weight == 1.0 else ScaledObjective(objective, weight)
+        problem = ShapeProblem(weighed, penalty, metric, tri, mesh.boundary_edges, free,
+                               constraint)
+        h0 = make_preconditioner(lbfgs_preconditioner, metric_kind=VARIANT_PARTS[variant][0],
+                                 method=method, mesh=mesh, penalty=penalty, free=free)
+        last = guard is None or attempt == GUARD_TRIES
+        cb = callback if last else guard.callback
+        if method != "steepest":
+            from .shape.driver import run_descent
 
-        return _unweighed(run_descent(
-            mesh, problem, method=method, variant=variant, retraction=retract,
-            max_iter=max_iter,
-            gtol=gtol, ftol=ftol, memory=memory, c1=sigma, c2=c2,
-            segment_fraction=segment_fraction, min_step=min_step, callback=callback,
-            h0=h0,
-        ), j_objective, weight)
-
-    return _unweighed(run_steepest(
-        mesh, problem, variant=variant, retract=retract, max_iter=max_iter, tol=tol,
-        gtol=gtol, sigma=sigma, tau=tau, min_step=min_step, callback=callback,
-    ), j_objective, weight)
+            result = run_descent(
+                mesh, problem, method=method, variant=variant, retraction=retract,
+                max_iter=max_iter,
+                gtol=gtol, ftol=ftol, memory=memory, c1=sigma, c2=c2,
+                segment_fraction=segment_fraction, min_step=min_step, callback=cb,
+                h0=h0,
+            )
+        else:
+            result = run_steepest(
+                mesh, problem, variant=variant, retract=retract, max_iter=max_iter, tol=tol,
+                gtol=gtol, sigma=sigma, tau=tau, min_step=min_step, callback=cb,
+            )
+        if last or not guard.tripped:
+            break
+        logger.info("the worst triangle fell below %g of its initial aspect ratio at weight "
+                    "%.3g: restarting with %.3g", QUALITY_GUARD, weight, weight / GUARD_FACTOR)
+        weight /= GUARD_FACTOR
+    result.seconds = time.perf_counter() - start
+    return _unweighed(result, objective, weight)
 
 
 def _unweighed(result: OptimizeResult, objective, weight: float) -> OptimizeResult:

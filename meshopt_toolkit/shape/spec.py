@@ -18,8 +18,9 @@ import numpy as np
 from .._typing import FloatArray
 from ..errors import MeshoptError, OptimizationError
 
-__all__ = ["AUTO_GRADIENT_NORM", "OBJECTIVES", "ProblemSpec", "ScaledObjective", "parse_assignment",
-           "parse_objective"]
+__all__ = ["AUTO_GRADIENT_NORM", "GUARD_FACTOR", "GUARD_TRIES", "OBJECTIVES", "QUALITY_GUARD",
+           "ProblemSpec", "QualityGuard", "ScaledObjective", "parse_assignment", "parse_objective",
+           "parse_scale", "spec_from_options"]
 
 #: objectives: ``integral`` (∫y) and ``tracking: EXPR`` (½∫(y − y_d)², y_d = EXPR)
 OBJECTIVES = ("integral", "tracking: EXPR")
@@ -30,6 +31,14 @@ OBJECTIVES = ("integral", "tracking: EXPR")
 #: --users``: plates with holes, L-shapes, airfoils in boxes, channels with obstacles keep
 #: their worst triangle ≥ ½ its initial aspect ratio)
 AUTO_GRADIENT_NORM = 0.05
+
+#: ``scale="auto"`` also guards the worst triangle: a run whose minimum aspect ratio falls
+#: below ``QUALITY_GUARD`` times its initial value is restarted from the initial mesh with
+#: the weight divided by ``GUARD_FACTOR``, at most ``GUARD_TRIES`` times (the last run is
+#: not guarded)
+QUALITY_GUARD = 0.5
+GUARD_FACTOR = 4.0
+GUARD_TRIES = 4
 
 
 def parse_objective(text: str) -> str | None:
@@ -55,6 +64,42 @@ def parse_assignment(text: str, option: str) -> tuple[str, float]:
     return group.strip(), v
 
 
+def _items(value) -> list[str]:
+    """A comma-separated string or a sequence of them, as a flat list of stripped items."""
+    if value is None:
+        return []
+    parts = [value] if isinstance(value, str) else list(value)
+    return [x.strip() for p in parts for x in str(p).split(",") if x.strip()]
+
+
+def parse_scale(text) -> float | str:
+    """``"auto"`` or a positive number."""
+    if isinstance(text, str) and text.strip() == "auto":
+        return "auto"
+    try:
+        v = float(text)
+    except (TypeError, ValueError):
+        v = math.nan
+    if not (math.isfinite(v) and v > 0):
+        raise OptimizationError(f"objective scale must be 'auto' or a positive number, not {text!r}")
+    return v
+
+
+def spec_from_options(*, fixed=(), move=(), dirichlet=(), neumann=(), keep_area=False,
+                      objective="integral", rhs="default", scale="auto") -> ProblemSpec:
+    """A :class:`ProblemSpec` from option strings: groups and ``GROUP=VALUE`` items
+    comma-separated (or repeated), ``scale`` ``"auto"`` or a number."""
+    from ..fem.boundary_data import group_key
+
+    return ProblemSpec(
+        fixed=tuple(group_key(g) for g in _items(fixed)),
+        move=tuple(group_key(g) for g in _items(move)),
+        dirichlet=dict(parse_assignment(a, "--dirichlet") for a in _items(dirichlet)),
+        neumann=dict(parse_assignment(a, "--neumann") for a in _items(neumann)),
+        keep_area=bool(keep_area), objective=objective or "integral", rhs=rhs,
+        scale=parse_scale(scale))
+
+
 class ScaledObjective:
     """``w · j``: an objective weighed for the penalty (``value``, ``derivative``)."""
 
@@ -66,6 +111,24 @@ class ScaledObjective:
 
     def derivative(self, Q: FloatArray) -> FloatArray:
         return self.weight * np.asarray(self.objective.derivative(Q), dtype=float)
+
+
+class QualityGuard:
+    """A callback that stops a run once its worst triangle falls below
+    :data:`QUALITY_GUARD` times the initial one (``tripped``), else asks ``callback``."""
+
+    def __init__(self, mesh, callback=None) -> None:
+        from ..kernels.triangles import quality_summary
+
+        self.floor = QUALITY_GUARD * quality_summary(mesh.points, mesh.triangles).min_aspect_ratio
+        self.user = callback
+        self.tripped = False
+
+    def callback(self, record, Q) -> bool | None:
+        self.tripped = record.min_aspect_ratio < self.floor
+        if self.tripped:
+            return True
+        return None if self.user is None else self.user(record, Q)
 
 
 @dataclass(frozen=True)
