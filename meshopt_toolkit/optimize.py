@@ -41,7 +41,7 @@ import numpy as np
 
 from ._typing import FloatArray
 from .errors import OptimizationError
-from .kernels.triangles import heights
+from .kernels.triangles import aspect_ratios, heights
 from .mesh import PlanarMesh, require_admissible
 from .shape.spec import ProblemSpec
 from .shape.result import PHASES, IterationRecord, OptimizeResult
@@ -281,7 +281,7 @@ def optimize(
     """
     from .shape.preconditioners import make_preconditioner
     from .shape.problem import ShapeProblem
-    from .shape.spec import GUARD_FACTOR, GUARD_TRIES, QUALITY_GUARD, QualityGuard, ScaledObjective
+    from .shape.spec import GUARD_FACTOR, GUARD_TRIES, QUALITY_GUARD, ScaledObjective
     from .shape.steepest import run_steepest
 
     if variant not in VARIANTS:
@@ -322,16 +322,15 @@ def optimize(
         constraint = AreaConstraint(mesh.boundary_edges, shoelace_area(mesh.points,
                                     mesh.boundary_edges), lambda Q, P: metric.riesz(Q, P, free=free))
     weight = spec.weight(lambda: _elasticity_gradient_norm(mesh, objective, free, constraint))
-    guard = QualityGuard(mesh, callback) if spec.scale == "auto" else None
+    auto = spec.scale == "auto"
+    floor = QUALITY_GUARD * aspect_ratios(mesh.points, tri).min() if auto else None
     start = time.perf_counter()
-    for attempt in range(1 + (GUARD_TRIES if guard else 0)):
+    for attempt in range(1 + (GUARD_TRIES if auto else 0)):
         weighed = objective if weight == 1.0 else ScaledObjective(objective, weight)
         problem = ShapeProblem(weighed, penalty, metric, tri, mesh.boundary_edges, free,
-                               constraint)
+                               constraint, quality_floor=floor)
         h0 = make_preconditioner(lbfgs_preconditioner, metric_kind=VARIANT_PARTS[variant][0],
                                  method=method, mesh=mesh, penalty=penalty, free=free)
-        last = guard is None or attempt == GUARD_TRIES
-        cb = callback if last else guard.callback
         if method != "steepest":
             from .shape.driver import run_descent
 
@@ -339,18 +338,18 @@ def optimize(
                 mesh, problem, method=method, variant=variant, retraction=retract,
                 max_iter=max_iter,
                 gtol=gtol, ftol=ftol, memory=memory, c1=sigma, c2=c2,
-                segment_fraction=segment_fraction, min_step=min_step, callback=cb,
+                segment_fraction=segment_fraction, min_step=min_step, callback=callback,
                 h0=h0,
             )
         else:
             result = run_steepest(
                 mesh, problem, variant=variant, retract=retract, max_iter=max_iter, tol=tol,
-                gtol=gtol, sigma=sigma, tau=tau, min_step=min_step, callback=cb,
+                gtol=gtol, sigma=sigma, tau=tau, min_step=min_step, callback=callback,
             )
-        if last or not guard.tripped:
+        if not auto or result.status != "step_too_small":
             break
-        logger.info("the worst triangle fell below %g of its initial aspect ratio at weight "
-                    "%.3g: restarting with %.3g", QUALITY_GUARD, weight, weight / GUARD_FACTOR)
+        logger.info("no step at weight %.3g (%s): restarting with %.3g", weight, result.message,
+                    weight / GUARD_FACTOR)
         weight /= GUARD_FACTOR
     result.seconds = time.perf_counter() - start
     return _unweighed(result, objective, weight)

@@ -13,6 +13,8 @@ case                domain                                               boundar
 ``airfoil``         NACA 0012 in a 4 × 2 box                             box, airfoil
 ``channel``         3 × 1 channel with a disc and a square obstacle      inlet, outlet,
                                                                          walls, disc, square
+``rectangle``       ``[0, 2] × [0, 1]``                                    left, right, bottom,
+                                                                         top
 ==================  ===================================================  =================
 """
 
@@ -25,7 +27,7 @@ import numpy as np
 
 from ..gmsh_session import gmsh_session
 
-CASES = ("plate", "lshape", "airfoil", "channel")
+CASES = ("plate", "lshape", "airfoil", "channel", "rectangle")
 
 
 def _naca0012(n: int = 40) -> np.ndarray:
@@ -92,6 +94,11 @@ def _build(gmsh, case: str, size: float) -> dict[str, list[int]]:
             return "disc" if x < 1.3 else "square"
 
         return _group_curves(gmsh, name)
+    if case == "rectangle":
+        occ.addRectangle(0, 0, 0, 2, 1)
+        occ.synchronize()
+        return _group_curves(gmsh, lambda x, y: "left" if x < 0.5 else "right" if x > 1.5
+                             else "bottom" if y < 0.5 else "top")
     raise ValueError(f"unknown case {case!r}; choose one of {', '.join(CASES)}")
 
 
