@@ -41,12 +41,26 @@ import numpy as np
 
 from ._typing import FloatArray
 from .errors import OptimizationError
-from .kernels.triangles import aspect_ratios, heights
+from .kernels.triangles import aspect_ratios
 from .mesh import PlanarMesh, require_admissible
 from .shape.spec import ProblemSpec
 from .shape.result import PHASES, IterationRecord, OptimizeResult
-from .shape.setup import (_check_size, _make_metric, _make_retraction,  # noqa: F401
-                          _retraction_kind, _retraction_options, contact_options)
+from .shape.setup import (  # noqa: F401  (the variants' table and set-up, re-exported)
+    DEFAULT_RETRACTION,
+    EXP_DEFAULTS,
+    RETRACTIONS,
+    SIZE_RANGE,
+    VARIANT_PARTS,
+    VARIANTS,
+    _check_size,
+    _make_metric,
+    _make_retraction,
+    _retraction_kind,
+    _retraction_options,
+    contact_options,
+    default_metric_beta,
+)
+from .shape.steepest import max_travel_step, run_steepest
 
 __all__ = [
     "DEFAULT_METHOD",
@@ -73,16 +87,6 @@ __all__ = [
 
 logger = logging.getLogger(__name__)
 
-#: variant -> (gradient metric, retraction along a curve of the complete metric?), the
-#: table above (False: the straight line ``Q + s d``)
-VARIANT_PARTS: dict[str, tuple[str, bool]] = {
-    "euclidean-euclidean": ("euclidean", False),
-    "elasticity-euclidean": ("elasticity", False),
-    "complete-euclidean": ("complete", False),
-    "complete-complete": ("complete", True),
-}
-VARIANTS = tuple(VARIANT_PARTS)
-
 #: the default variant: the elasticity metric extends the boundary's motion into the
 #: interior, so its L-BFGS iteration count hardly grows with the mesh (thesis set 2 with
 #: β4 fixed: 75 / 110 / 152 / 163 iterations on the 146 / 541 / 2198 / 13,586-vertex
@@ -95,23 +99,6 @@ DEFAULT_VARIANT = "elasticity-euclidean"
 METHODS = ("lbfgs", "cg", "steepest")
 DEFAULT_METHOD = "lbfgs"
 
-#: meshes whose bounding box diagonal lies outside this range are refused: the penalty
-#: and the metrics are not scale-invariant (β2/Σ A and the β4 term scale like L⁻² and L²),
-#: so the problem changes with the unit of length; on disc_146 (diagonal 2.8) scaled to a
-#: diagonal of 3e-3 the complete metric's Riesz map already cancels to a non-descent
-#: direction, and a diagonal of 100 with the default rhs ends with min AR ~1e-12
-SIZE_RANGE = (1e-2, 1e2)
-
-#: complete-complete's retractions: second order (the default) or the exponential map
-RETRACTIONS = ("second-order", "exp")
-DEFAULT_RETRACTION = "second-order"
-
-#: default ``exp_options`` of ``retraction="exp"``: the geodesic's
-#: line-search mode (:data:`meshopt_toolkit.riemannian.geodesics.LINE_SEARCH_OPTIONS`;
-#: Bogacki–Shampine 3(2) at rtol 5e-2 with energy projection, positions only). Every trial
-#: point is still a point of an (approximate) geodesic, admissible and checked exactly; pass
-#: ``exp_options={"method": "auto"}`` (with ``retraction="exp"``) for the 1e-6-accurate map.
-EXP_DEFAULTS = {"method": "line-search"}
 
 
 @runtime_checkable
@@ -132,11 +119,6 @@ class Objective(Protocol):
     def value(self, Q: FloatArray) -> float: ...
 
     def derivative(self, Q: FloatArray) -> FloatArray: ...
-
-
-def default_metric_beta(n_vertices: int) -> tuple[float, float, float, float]:
-    """β^metric of thesis §6.4.3, (10, 1, 0, 1.46) for 146 vertices, i.e. β4 = 0.01·N."""
-    return (10.0, 1.0, 0.0, 0.01 * n_vertices)
 
 
 #: β^penalty parameter sets of thesis table 6.3, with β4 given per vertex (β4/N_V)
@@ -168,20 +150,6 @@ def thesis_penalty_beta(parameter_set: int, n_vertices: int) -> tuple[float, flo
 #: re-entrant notches of users' domains from closing (without it, straight-line trials
 #: cross an unmeshed hole or notch with every area positive and are all rejected).
 DEFAULT_PENALTY_BETA = (0.1, 0.01, 0.01, 0.146)
-
-
-def max_travel_step(Q: FloatArray, triangles: np.ndarray, d: FloatArray) -> float:
-    """Largest step allowed by the node-travel safeguard (6.23).
-
-    A trial step ``s`` is refused when ``s |d_i| ≥ ½ h_l`` for a vertex ``i`` at local
-    position ``l`` of any triangle, ``h_l`` that triangle's height from ``i``. Returns
-    ``min ½ h_l / |d_i|`` (inf when ``d`` vanishes).
-    """
-    h = heights(Q, triangles)  # (T, 3), height from local vertex l onto the opposite edge
-    speed = np.linalg.norm(d, axis=1)[triangles]  # (T, 3)
-    with np.errstate(divide="ignore"):
-        limit = np.where(speed > 0, 0.5 * h / speed, np.inf)
-    return float(limit.min())
 
 
 def optimize(
@@ -282,7 +250,6 @@ def optimize(
     from .shape.preconditioners import make_preconditioner
     from .shape.problem import ShapeProblem
     from .shape.spec import GUARD_FACTOR, GUARD_TRIES, QUALITY_GUARD, ScaledObjective
-    from .shape.steepest import run_steepest
 
     if variant not in VARIANTS:
         raise OptimizationError(f"unknown variant {variant!r}; choose one of {', '.join(VARIANTS)}")

@@ -10,19 +10,32 @@ import time
 import numpy as np
 
 from .._linalg import dot as _dot
+from .._typing import FloatArray
 from ..errors import OptimizationError
-from ..kernels.triangles import quality_summary, signed_areas
+from ..kernels.triangles import heights, quality_summary, signed_areas
 from .result import IterationRecord, OptimizeResult, PhaseTimer
 
 logger = logging.getLogger("meshopt_toolkit.optimize")
+
+
+def max_travel_step(Q: FloatArray, triangles: np.ndarray, d: FloatArray) -> float:
+    """Largest step allowed by the node-travel safeguard (6.23).
+
+    A trial step ``s`` is refused when ``s |d_i| ≥ ½ h_l`` for a vertex ``i`` at local
+    position ``l`` of any triangle, ``h_l`` that triangle's height from ``i``. Returns
+    ``min ½ h_l / |d_i|`` (inf when ``d`` vanishes).
+    """
+    h = heights(Q, triangles)  # (T, 3), height from local vertex l onto the opposite edge
+    speed = np.linalg.norm(d, axis=1)[triangles]  # (T, 3)
+    with np.errstate(divide="ignore"):
+        limit = np.where(speed > 0, 0.5 * h / speed, np.inf)
+    return float(limit.min())
 
 
 def run_steepest(mesh, problem, *, variant, retract, max_iter, tol, gtol, sigma, tau,
                  min_step, callback) -> OptimizeResult:
     """Steepest descent along ``−grad F`` with (6.22)'s first step and Armijo backtracking
     by ``tau`` (the travel guard (6.23) on straight lines); returns an OptimizeResult."""
-    from ..optimize import max_travel_step
-
     objective, penalty, metric = problem.objective, problem.penalty, problem.metric
     free, tri = problem.free, problem.triangles
 
