@@ -8,6 +8,8 @@ import json
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from meshopt_toolkit.cli import main
 from meshopt_toolkit.diagnostics import check_gradient
@@ -236,3 +238,26 @@ def test_contact_barrier_is_zero_on_a_healthy_boundary(case, meshes, rng):
     without = QualityPenalty(mesh, beta=DEFAULT_PENALTY_BETA[:2] + (0.0,) + DEFAULT_PENALTY_BETA[3:])
     assert with_barrier.value(Q) == pytest.approx(without.value(Q), rel=1e-14)
     np.testing.assert_allclose(with_barrier.gradient(Q), without.gradient(Q), rtol=0, atol=1e-14)
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2**31), amplitude=st.floats(1e-4, 3e-2))
+def test_area_restoration_and_projection_on_random_perturbations(seed, amplitude):
+    """On random nearby configurations of a polygon with a hole, restoring along a random
+    free direction reaches the area to round-off and moves only the free vertices."""
+    rng = np.random.default_rng(seed)
+    outer = np.array([[0, 0], [3, 0], [3, 2], [0, 2]], float)
+    t = np.linspace(0, 2 * np.pi, 7)[:-1]
+    hole = np.column_stack([1.5 + 0.5 * np.cos(t), 1 + 0.5 * np.sin(t)])
+    Q0 = np.vstack([outer, hole])
+    edges = np.array([[0, 1], [1, 2], [2, 3], [3, 0]] + [[4 + (k + 1) % 6, 4 + k] for k in range(6)])
+    A0 = shoelace_area(Q0, edges)
+    assert A0 == pytest.approx(6 - 0.75 * np.sqrt(3) * 0.25 * 2, rel=1e-12)  # hexagonal hole
+    free = np.arange(len(Q0)) >= 4
+    c = AreaConstraint(edges, A0, lambda Q, P: np.where(free[:, None], P, 0.0))
+    X = Q0 + amplitude * rng.standard_normal(Q0.shape) * free[:, None]
+    R = c.restore(X, c.normal(Q0)[1])
+    assert R is not None and abs(shoelace_area(R, edges) - A0) <= 1e-12 * A0
+    assert np.array_equal(R[~free], Q0[~free])
+    V = c.project(Q0, rng.standard_normal(Q0.shape) * free[:, None])
+    assert abs(np.sum(shoelace_gradient(Q0, edges) * V)) <= 1e-12 * max(np.abs(V).max(), 1.0)
