@@ -261,3 +261,17 @@ def test_area_restoration_and_projection_on_random_perturbations(seed, amplitude
     assert np.array_equal(R[~free], Q0[~free])
     V = c.project(Q0, rng.standard_normal(Q0.shape) * free[:, None])
     assert abs(np.sum(shoelace_gradient(Q0, edges) * V)) <= 1e-12 * max(np.abs(V).max(), 1.0)
+
+
+@pytest.mark.parametrize("variant", ["complete-euclidean", "complete-complete"])
+@pytest.mark.parametrize("method", ["lbfgs", "cg"])
+def test_area_is_kept_along_every_retraction_and_method(variant, method, meshes):
+    mesh = meshes["plate"]
+    res = optimize(mesh, None, problem=ProblemSpec(fixed=("outer",), keep_area=True, scale="auto"),
+                   variant=variant, method=method, penalty_beta=DEFAULT_PENALTY_BETA, max_iter=4,
+                   ftol=None, gtol=None)
+    assert res.nit == 4 and res.j < res.history[0].j
+    A0 = shoelace_area(mesh.points, mesh.boundary_edges)
+    assert abs(shoelace_area(res.x, mesh.boundary_edges) - A0) <= 1e-10 * A0
+    outer = mesh.tagged_vertices("outer")
+    assert np.array_equal(res.x[outer], mesh.points[outer])
