@@ -195,7 +195,10 @@ def optimize(
         The user's problem by physical group: fixed and moving boundary parts (added to
         ``fixed``), boundary conditions and objective (when ``objective`` is None), the
         area kept exactly (``keep_area``, lbfgs and cg), the weight of j (``scale``;
-        ``F = w j + f2``, the result's ``j`` is unweighed).
+        ``F = w j + f2``, the result's ``j`` is unweighed). ``scale="auto"`` weighs j to
+        the mesh, rejects trial steps whose worst triangle falls below half its initial
+        aspect ratio and restarts a run that finds no step with a smaller weight
+        (:data:`~meshopt_toolkit.shape.spec.AUTO_GRADIENT_NORM`, ``QUALITY_GUARD``).
     variant : one of :data:`VARIANTS`
     method : one of :data:`METHODS`: ``"lbfgs"`` (Riemannian L-BFGS with the metric as
         inner product and a Wolfe line search), ``"cg"`` (Hestenes–Stiefel+), or
