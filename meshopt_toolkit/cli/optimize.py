@@ -80,9 +80,9 @@ def add_args(p: argparse.ArgumentParser) -> None:
                    help="'integral' (∫y, the default) or 'tracking: EXPR' (½∫(y − EXPR)²)")
     p.add_argument("--objective-scale", metavar="auto|W",
                    help="weight W of F = W·j + f2; auto (the default with a MESH) scales j to "
-                        "the mesh and restarts with a smaller W if the worst triangle falls "
-                        "below half its initial aspect ratio (default without MESH: 1, the "
-                        "thesis' problem)")
+                        "the mesh, refuses steps that take the worst triangle below half its "
+                        "initial aspect ratio and restarts with a smaller W if a run finds no "
+                        "step (default without MESH: 1, the thesis' problem)")
     p.add_argument("--gtol", type=float, default=1e-5,
                    help="stop when the Riemannian gradient norm falls to GTOL times its first "
                         "value; 0 = off (default: %(default)s)")
