@@ -25,7 +25,15 @@ complete-complete uses the default retraction (second order, ``optimize.RETRACTI
 mode, ``optimize.EXP_DEFAULTS``, and the 1e-6-accurate map, ``exp_options={"method":
 "auto"}``), ``--exact`` a per-iteration row with the accurate map, for comparison.
 
+``--users``: ``meshopt optimize MESH``'s defaults on users' kinds of gmsh meshes
+(:mod:`meshopt_toolkit.shape.cases`: plates with holes, L-shapes, airfoils in boxes,
+channels with obstacles, 0.3k to 20k vertices, up to ``--max-vertices``) and a plate
+whose outer boundary is fixed and whose area is kept: iterations, seconds, the objective
+weight, the worst triangle (min aspect ratio) and j before and after, as a Markdown table
+(docs/shape-optimization.md). Done when every run converges and keeps AR ≥ ½ AR0.
+
 Usage: python benchmarks/bench_optimize.py [--table] [--max-vertices 2200]
+       python benchmarks/bench_optimize.py --users [--max-vertices 21000]
        python benchmarks/bench_optimize.py --defaults [--max-vertices 14000]
        python benchmarks/bench_optimize.py --per-iteration [--iterations 10] [--repeats 3]
        [--max-vertices 14000] [--exact]
@@ -130,6 +138,56 @@ def defaults(max_vertices: int) -> None:
                   flush=True)
 
 
+#: (label, case, element size, size near the holes/obstacles/airfoil, problem options)
+USER_CASES = (
+    ("plate with two holes", "plate", 0.2, None, {}),
+    ("L-shape", "lshape", 0.1, None, {}),
+    ("airfoil in a box", "airfoil", 0.15, 0.05, {}),
+    ("channel with two obstacles", "channel", 0.08, None, {}),
+    ("plate, outer fixed, area kept", "plate", 0.2, None, {"fixed": "outer", "keep_area": True}),
+    ("L-shape, boundary fixed", "lshape", 0.1, None, {"fixed": "outer,reentrant"}),
+    ("channel, obstacles move, area kept", "channel", 0.08, None,
+     {"move": "disc,square", "keep_area": True}),
+    ("plate with two holes", "plate", 0.06, None, {}),
+    ("L-shape", "lshape", 0.03, None, {}),
+    ("airfoil in a box", "airfoil", 0.06, 0.015, {}),
+    ("channel with two obstacles", "channel", 0.025, None, {}),
+    ("plate with two holes", "plate", 0.025, None, {}),
+)
+
+
+def users(max_vertices: int) -> None:
+    import tempfile
+    from pathlib import Path
+
+    from meshopt_toolkit.kernels.triangles import signed_areas
+    from meshopt_toolkit.shape.cases import user_mesh
+    from meshopt_toolkit.shape.spec import spec_from_options
+
+    print(f"meshopt optimize MESH's defaults ({DEFAULT_VARIANT}, {DEFAULT_METHOD}, "
+          f"β = {DEFAULT_PENALTY_BETA}, default rhs, objective scale auto)\n")
+    print("| mesh | vertices | triangles | status | iterations | seconds | weight w "
+          "| worst AR before → after (ratio) | j before → after | area change |")
+    print("| --- | ---: | ---: | --- | ---: | ---: | ---: | --- | --- | ---: |")
+    with tempfile.TemporaryDirectory() as tmp:
+        for label, case, size, near, options in USER_CASES:
+            path = user_mesh(case, Path(tmp) / f"{case}-{size}.msh", size, refine_near=near)
+            mesh = mt.load(path).as_planar()
+            if mesh.n_vertices > max_vertices:
+                continue
+            spec = spec_from_options(**options)
+            res = optimize(mesh, None, problem=spec, penalty_beta=DEFAULT_PENALTY_BETA)
+            h0, h1 = res.history[0], res.history[-1]
+            ratio = h1.min_aspect_ratio / h0.min_aspect_ratio
+            dA = abs(signed_areas(res.x, mesh.triangles).sum()
+                     - signed_areas(mesh.points, mesh.triangles).sum())
+            flag = "" if res.success and ratio >= 0.5 and h1.j < h0.j else " **MISSED**"
+            print(f"| {label}{flag} | {mesh.n_vertices} | {mesh.n_triangles} | {res.status} "
+                  f"| {res.nit} | {res.seconds:.1f} | {res.objective_weight:.2g} "
+                  f"| {h0.min_aspect_ratio:.3f} → {h1.min_aspect_ratio:.3f} ({ratio:.2f}) "
+                  f"| {h0.j:.4g} → {h1.j:.4g} | {dA:.1e} |", flush=True)
+
+
 def _discs(max_vertices: int) -> list[str]:
     names = sorted((n for n in datasets.available() if n.startswith("disc_")),
                    key=lambda s: int(s[5:-4]))
@@ -142,6 +200,8 @@ def main(argv=None):
     p.add_argument("--defaults", action="store_true",
                    help="meshopt optimize's defaults on every bundled disc")
     p.add_argument("--per-iteration", action="store_true", help="time per iteration per variant")
+    p.add_argument("--users", action="store_true",
+                   help="the defaults on users' kinds of gmsh meshes (Markdown table)")
     p.add_argument("--iterations", type=int, default=10)
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--max-vertices", type=int, default=None,
@@ -149,6 +209,9 @@ def main(argv=None):
     p.add_argument("--exact", action="store_true",
                    help="also time complete-complete with the exact (1e-6) exponential map")
     args = p.parse_args(argv)
+    if args.users:
+        users(args.max_vertices or 21000)
+        return
     if args.defaults:
         defaults(args.max_vertices or 14000)
         return

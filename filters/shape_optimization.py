@@ -8,11 +8,13 @@ from meshopt_toolkit.optimize import (DEFAULT_METHOD, DEFAULT_RETRACTION, DEFAUL
 from meshopt_toolkit.pipeline.filter import Filter, register
 from meshopt_toolkit.shape.preconditioners import DEFAULT_PRECONDITIONER, PRECONDITIONERS
 from meshopt_toolkit.pipeline.params import (
+    BoolParam,
     EnumParam,
     ExpressionParam,
     FloatParam,
     IntParam,
     NumberListParam,
+    StringParam,
     number_list,
 )
 
@@ -21,11 +23,14 @@ from meshopt_toolkit.pipeline.params import (
 class ShapeOptimization(Filter):
     """PDE-constrained shape optimization of the current planar mesh (thesis ch. 6).
 
-    Minimizes ``j(Q) + f2(Q; Q0)`` with ``j = ∫ y``, ``−Δy = r``, ``y = 0`` on the boundary
-    (P1, centroid quadrature), by Riemannian L-BFGS (default), nonlinear CG or the thesis'
+    Minimizes ``w j(Q) + f2(Q; Q0)`` with ``j = ∫ y`` (or ``½∫(y − y_d)²``), ``−Δy = r``,
+    ``y = 0`` on the boundary unless Dirichlet/Neumann data per physical group say otherwise
+    (P1, centroid quadrature), optionally with some groups fixed, only some moving and the
+    area kept exactly (:class:`meshopt_toolkit.shape.spec.ProblemSpec`); ``w`` is scaled to
+    the mesh by default. By Riemannian L-BFGS (default), nonlinear CG or the thesis'
     steepest descent (:func:`meshopt_toolkit.optimize.optimize`). ``r`` is parsed by the safe expression
     evaluator (never ``eval``). β4 is unscaled (f2 divides it by 2N). Empty β strings mean
-    the defaults: β^penalty = (0.1, 0.01, 0, 0.146), thesis parameter set 2 at 146 vertices
+    the defaults: β^penalty = (0.1, 0.01, 0.01, 0.146), thesis parameter set 2 at 146 vertices
     with β4 fixed on every mesh (:data:`meshopt_toolkit.optimize.DEFAULT_PENALTY_BETA`),
     β^metric = (10, 1, 0, 0.01·N). The optimized mesh replaces the current one; the summary
     holds status, iterations, j, j + f2, Λ and AR.
@@ -52,7 +57,7 @@ class ShapeOptimization(Filter):
         ExpressionParam("rhs", DEFAULT_RHS, "right-hand side r(x1, x2) of -Δy = r; numbers, "
                         "+ - * / **, x/y/x1/x2, pi, e, sin, cos, tan, exp, log, sqrt, abs, min, max",
                     label="Right-hand side"),
-        NumberListParam("penalty", "", "beta^penalty b1,b2,b3,b4 (b4 unscaled); empty = 0.1,0.01,0,0.146",
+        NumberListParam("penalty", "", "beta^penalty b1,b2,b3,b4 (b4 unscaled); empty = 0.1,0.01,0.01,0.146",
                     label="Penalty beta", count=4),
         NumberListParam("metric_penalty", "", "beta^metric b1,b2,b3,b4; empty = 10,1,0,0.01*N",
                     label="Metric beta", count=4),
@@ -61,6 +66,20 @@ class ShapeOptimization(Filter):
         FloatParam("tolerance", 1e-6, "stopping tolerance of (6.26) (relative for lbfgs/cg); "
                    "0 = off",
                    label="Tolerance", min=0.0),
+        StringParam("fixed", "", "physical groups (names or numbers, comma-separated) whose "
+                    "vertices stay", label="Fixed groups"),
+        StringParam("move", "", "only these boundary groups move (comma-separated); empty = "
+                    "the whole boundary", label="Moving groups"),
+        StringParam("dirichlet", "", "GROUP=VALUE,...: y = VALUE on the group (y = 0 on the "
+                    "rest of the boundary)", label="Dirichlet data"),
+        StringParam("neumann", "", "GROUP=VALUE,...: dy/dn = VALUE on the group",
+                    label="Neumann data"),
+        BoolParam("keep_area", False, "keep the domain's area exactly (lbfgs, cg)",
+                  label="Keep area"),
+        StringParam("objective", "integral", "integral (the integral of y) or "
+                    "'tracking: EXPR' (half the integral of (y - EXPR)^2)", label="Objective"),
+        StringParam("objective_scale", "auto", "weight w of F = w j + f2: a number, or auto "
+                    "(scaled to the mesh, guarding the worst triangle)", label="Objective scale"),
     )
 
     def apply(self, document, *, variant: str = DEFAULT_VARIANT, method: str = DEFAULT_METHOD,
@@ -68,17 +87,22 @@ class ShapeOptimization(Filter):
               lbfgs_preconditioner: str = DEFAULT_PRECONDITIONER, memory: int = 10,
               rhs: str = DEFAULT_RHS,
               penalty: str = "", metric_penalty: str = "", max_iterations: int = 1000,
-              tolerance: float = 1e-6) -> dict:
-        from meshopt_toolkit.fem.poisson import PoissonObjective
+              tolerance: float = 1e-6, fixed: str = "", move: str = "", dirichlet: str = "",
+              neumann: str = "", keep_area: bool = False, objective: str = "integral",
+              objective_scale: str = "auto") -> dict:
         from meshopt_toolkit.optimize import DEFAULT_PENALTY_BETA, optimize
+        from meshopt_toolkit.shape.spec import spec_from_options
 
         entry = document.current_entry
         # the plane's coordinates at the file's scale (r is given in them)
         wp = entry.workpiece(self.name, unit_size=False)
         mesh = wp.mesh
         beta = number_list(penalty, 4, "penalty") or DEFAULT_PENALTY_BETA
+        spec = spec_from_options(fixed=fixed, move=move, dirichlet=dirichlet, neumann=neumann,
+                                 keep_area=keep_area, objective=objective, rhs=rhs,
+                                 scale=objective_scale)
         result = optimize(
-            mesh, PoissonObjective(mesh, rhs=rhs), variant=variant, method=method,
+            mesh, None, problem=spec, variant=variant, method=method,
             retraction=retraction, memory=memory, lbfgs_preconditioner=lbfgs_preconditioner,
             penalty_beta=beta, metric_beta=number_list(metric_penalty, 4, "metric_penalty"),
             max_iter=max_iterations, tol=tolerance or None, ftol=tolerance or None,

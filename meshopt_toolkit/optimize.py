@@ -39,12 +39,28 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from ._linalg import dot as _dot
 from ._typing import FloatArray
 from .errors import OptimizationError
-from .kernels.triangles import heights, quality_summary, signed_areas
+from .kernels.triangles import aspect_ratios
 from .mesh import PlanarMesh, require_admissible
-from .shape.result import PHASES, IterationRecord, OptimizeResult, PhaseTimer
+from .shape.spec import ProblemSpec
+from .shape.result import PHASES, IterationRecord, OptimizeResult
+from .shape.setup import (  # noqa: F401  (the variants' table and set-up, re-exported)
+    DEFAULT_RETRACTION,
+    EXP_DEFAULTS,
+    RETRACTIONS,
+    SIZE_RANGE,
+    VARIANT_PARTS,
+    VARIANTS,
+    _check_size,
+    _make_metric,
+    _make_retraction,
+    _retraction_kind,
+    _retraction_options,
+    contact_options,
+    default_metric_beta,
+)
+from .shape.steepest import max_travel_step, run_steepest
 
 __all__ = [
     "DEFAULT_METHOD",
@@ -62,6 +78,7 @@ __all__ = [
     "IterationRecord",
     "Objective",
     "OptimizeResult",
+    "ProblemSpec",
     "default_metric_beta",
     "max_travel_step",
     "optimize",
@@ -69,16 +86,6 @@ __all__ = [
 ]
 
 logger = logging.getLogger(__name__)
-
-#: variant -> (gradient metric, retraction along a curve of the complete metric?), the
-#: table above (False: the straight line ``Q + s d``)
-VARIANT_PARTS: dict[str, tuple[str, bool]] = {
-    "euclidean-euclidean": ("euclidean", False),
-    "elasticity-euclidean": ("elasticity", False),
-    "complete-euclidean": ("complete", False),
-    "complete-complete": ("complete", True),
-}
-VARIANTS = tuple(VARIANT_PARTS)
 
 #: the default variant: the elasticity metric extends the boundary's motion into the
 #: interior, so its L-BFGS iteration count hardly grows with the mesh (thesis set 2 with
@@ -92,23 +99,6 @@ DEFAULT_VARIANT = "elasticity-euclidean"
 METHODS = ("lbfgs", "cg", "steepest")
 DEFAULT_METHOD = "lbfgs"
 
-#: meshes whose bounding box diagonal lies outside this range are refused: the penalty
-#: and the metrics are not scale-invariant (β2/Σ A and the β4 term scale like L⁻² and L²),
-#: so the problem changes with the unit of length; on disc_146 (diagonal 2.8) scaled to a
-#: diagonal of 3e-3 the complete metric's Riesz map already cancels to a non-descent
-#: direction, and a diagonal of 100 with the default rhs ends with min AR ~1e-12
-SIZE_RANGE = (1e-2, 1e2)
-
-#: complete-complete's retractions: second order (the default) or the exponential map
-RETRACTIONS = ("second-order", "exp")
-DEFAULT_RETRACTION = "second-order"
-
-#: default ``exp_options`` of ``retraction="exp"``: the geodesic's
-#: line-search mode (:data:`meshopt_toolkit.riemannian.geodesics.LINE_SEARCH_OPTIONS`;
-#: Bogacki–Shampine 3(2) at rtol 5e-2 with energy projection, positions only). Every trial
-#: point is still a point of an (approximate) geodesic, admissible and checked exactly; pass
-#: ``exp_options={"method": "auto"}`` (with ``retraction="exp"``) for the 1e-6-accurate map.
-EXP_DEFAULTS = {"method": "line-search"}
 
 
 @runtime_checkable
@@ -129,11 +119,6 @@ class Objective(Protocol):
     def value(self, Q: FloatArray) -> float: ...
 
     def derivative(self, Q: FloatArray) -> FloatArray: ...
-
-
-def default_metric_beta(n_vertices: int) -> tuple[float, float, float, float]:
-    """β^metric of thesis §6.4.3, (10, 1, 0, 1.46) for 146 vertices, i.e. β4 = 0.01·N."""
-    return (10.0, 1.0, 0.0, 0.01 * n_vertices)
 
 
 #: β^penalty parameter sets of thesis table 6.3, with β4 given per vertex (β4/N_V)
@@ -158,78 +143,20 @@ def thesis_penalty_beta(parameter_set: int, n_vertices: int) -> tuple[float, flo
 #: costs N times more than squeezing the boundary layer of triangles, and the optimum
 #: does exactly that. Measured (complete-euclidean, L-BFGS, default rhs), min AR
 #: initial → final: disc_2198 0.682 → 0.340 (set 2) vs 0.768 (this); elasticity-euclidean
-#: on disc_13586 0.687 → 0.776 (this), j = −0.0936 as on the coarser discs.
-DEFAULT_PENALTY_BETA = (0.1, 0.01, 0.0, 0.146)
-
-
-def max_travel_step(Q: FloatArray, triangles: np.ndarray, d: FloatArray) -> float:
-    """Largest step allowed by the node-travel safeguard (6.23).
-
-    A trial step ``s`` is refused when ``s |d_i| ≥ ½ h_l`` for a vertex ``i`` at local
-    position ``l`` of any triangle, ``h_l`` that triangle's height from ``i``. Returns
-    ``min ½ h_l / |d_i|`` (inf when ``d`` vanishes).
-    """
-    h = heights(Q, triangles)  # (T, 3), height from local vertex l onto the opposite edge
-    speed = np.linalg.norm(d, axis=1)[triangles]  # (T, 3)
-    with np.errstate(divide="ignore"):
-        limit = np.where(speed > 0, 0.5 * h / speed, np.inf)
-    return float(limit.min())
-
-
-def _retraction_options(exp_options: dict | None):
-    """The complete-complete retraction's
-    :class:`~meshopt_toolkit.riemannian.geodesics.GeodesicOptions`: ``exp_options`` on top
-    of :data:`EXP_DEFAULTS`; an ``"options"`` entry (a ``GeodesicOptions``) replaces the
-    defaults, the other entries override its fields."""
-    from .riemannian.geodesic_options import GeodesicOptions
-
-    user = dict(exp_options or {})
-    base = user.pop("options", None)
-    return GeodesicOptions.of(GeodesicOptions.of(EXP_DEFAULTS) if base is None else base, **user)
-
-
-def _retraction_kind(variant: str, retraction: str, exp_options: dict | None) -> str | None:
-    """The retraction asked for, checked against the variant (None: the straight line;
-    the default retraction names no request, so it passes with every variant)."""
-    if retraction not in RETRACTIONS:
-        raise OptimizationError(f"unknown retraction {retraction!r}; choose one of "
-                                f"{', '.join(RETRACTIONS)}")
-    if not VARIANT_PARTS[variant][1]:
-        if retraction != DEFAULT_RETRACTION or exp_options is not None:
-            raise OptimizationError(f"{variant} moves along straight lines; a retraction and "
-                                    "exp_options apply to complete-complete only")
-        return None
-    if retraction != "exp" and exp_options is not None:
-        raise OptimizationError("exp_options apply to retraction='exp' only")
-    return retraction
-
-
-def _make_retraction(kind: str, metric, exp_options: dict | None, free):
-    from .riemannian.retractions import ExponentialRetraction, SecondOrderRetraction
-
-    if kind == "exp":
-        return ExponentialRetraction(metric, _retraction_options(exp_options), free)
-    return SecondOrderRetraction(metric, free)
-
-
-def _make_metric(variant: str, mesh: PlanarMesh, metric_beta, metric_options: dict):
-    from .riemannian.metrics import CompleteMetric, ElasticityMetric, EuclideanMetric
-
-    kind = VARIANT_PARTS[variant][0]
-    if kind == "euclidean":
-        return EuclideanMetric()
-    if kind == "elasticity":
-        return ElasticityMetric(mesh, **metric_options)
-    from .penalties import QualityPenalty
-
-    beta = default_metric_beta(mesh.n_vertices) if metric_beta is None else tuple(metric_beta)
-    return CompleteMetric(QualityPenalty(mesh, beta=beta, **metric_options))
+#: on disc_13586 0.687 → 0.776 (this), j = −0.0936 as on the coarser discs. β3 = 0.01 is
+#: the contact barrier (:func:`~meshopt_toolkit.shape.setup.contact_options`): it is zero
+#: unless a boundary vertex comes within ⅔ of the shortest boundary edge of a boundary
+#: edge it does not belong to, so it never acts on the discs, and it keeps holes and
+#: re-entrant notches of users' domains from closing (without it, straight-line trials
+#: cross an unmeshed hole or notch with every area positive and are all rejected).
+DEFAULT_PENALTY_BETA = (0.1, 0.01, 0.01, 0.146)
 
 
 def optimize(
     mesh: PlanarMesh,
-    objective: Objective,
+    objective: Objective | None = None,
     *,
+    problem: ProblemSpec | None = None,
     variant: str = DEFAULT_VARIANT,
     method: str = DEFAULT_METHOD,
     penalty_beta: Sequence[float] | None = None,
@@ -262,7 +189,16 @@ def optimize(
     ----------
     mesh : PlanarMesh
         Initial mesh; also the reference Q_ref of the penalty. Must be admissible.
-    objective : object with ``value(Q)`` and ``derivative(Q)`` (shape (N, 2))
+    objective : object with ``value(Q)`` and ``derivative(Q)`` (shape (N, 2)); None:
+        ``problem``'s Poisson objective (:meth:`ProblemSpec.make_objective`).
+    problem : :class:`~meshopt_toolkit.shape.spec.ProblemSpec`, optional
+        The user's problem by physical group: fixed and moving boundary parts (added to
+        ``fixed``), boundary conditions and objective (when ``objective`` is None), the
+        area kept exactly (``keep_area``, lbfgs and cg), the weight of j (``scale``;
+        ``F = w j + f2``, the result's ``j`` is unweighed). ``scale="auto"`` weighs j to
+        the mesh, rejects trial steps whose worst triangle falls below half its initial
+        aspect ratio and restarts a run that finds no step with a smaller weight
+        (:data:`~meshopt_toolkit.shape.spec.AUTO_GRADIENT_NORM`, ``QUALITY_GUARD``).
     variant : one of :data:`VARIANTS`
     method : one of :data:`METHODS`: ``"lbfgs"`` (Riemannian L-BFGS with the metric as
         inner product and a Wolfe line search), ``"cg"`` (Hestenes–Stiefel+), or
@@ -316,6 +252,7 @@ def optimize(
     """
     from .shape.preconditioners import make_preconditioner
     from .shape.problem import ShapeProblem
+    from .shape.spec import GUARD_FACTOR, GUARD_TRIES, QUALITY_GUARD, ScaledObjective
 
     if variant not in VARIANTS:
         raise OptimizationError(f"unknown variant {variant!r}; choose one of {', '.join(VARIANTS)}")
@@ -326,165 +263,93 @@ def optimize(
     _check_size(mesh.points)
     tri = mesh.triangles
     N = mesh.n_vertices
+    spec = ProblemSpec() if problem is None else problem
+    if objective is None:
+        objective = spec.make_objective(mesh)
     free = None
-    if fixed is not None:
-        fixed = np.asarray(fixed)
-        free = np.ones(N, bool)
-        free[fixed] = False
+    stay = spec.fixed_mask(mesh)
+    if fixed is not None or stay is not None:
+        free = np.ones(N, bool) if stay is None else ~stay
+        if fixed is not None:
+            free[np.asarray(fixed)] = False
         if not free.any():
             raise OptimizationError("every vertex is fixed: nothing to optimize")
+    if spec.keep_area and method == "steepest":
+        raise OptimizationError("keep_area needs method 'lbfgs' or 'cg'")
     penalty = None
     if penalty_beta is not None and any(b != 0 for b in penalty_beta):
         from .penalties import QualityPenalty
 
-        penalty = QualityPenalty(mesh, beta=tuple(penalty_beta))
+        contact = contact_options(mesh) if penalty_beta[2] > 0 else {}
+        penalty = QualityPenalty(mesh, beta=tuple(penalty_beta), **contact)
     metric = _make_metric(variant, mesh, metric_beta, dict(metric_options or {}))
     retract = (None if retraction is None
                else _make_retraction(retraction, metric, exp_options, free))
-    problem = ShapeProblem(objective, penalty, metric, tri, mesh.boundary_edges, free)
-    h0 = make_preconditioner(lbfgs_preconditioner, metric_kind=VARIANT_PARTS[variant][0],
-                             method=method, mesh=mesh, penalty=penalty, free=free)
-    if method != "steepest":
-        from .shape.driver import run_descent
+    constraint = None
+    if spec.keep_area:
+        from .shape.area import AreaConstraint, shoelace_area
 
-        return run_descent(
-            mesh, problem, method=method, variant=variant, retraction=retract,
-            max_iter=max_iter,
-            gtol=gtol, ftol=ftol, memory=memory, c1=sigma, c2=c2,
-            segment_fraction=segment_fraction, min_step=min_step, callback=callback,
-            h0=h0,
-        )
-
-    def penalty_value(Q):
-        return 0.0 if penalty is None else float(penalty.value(Q))
-
+        constraint = AreaConstraint(mesh.boundary_edges, shoelace_area(mesh.points,
+                                    mesh.boundary_edges), lambda Q, P: metric.riesz(Q, P, free=free))
+    weight = spec.weight(lambda: _elasticity_gradient_norm(mesh, objective, free, constraint))
+    auto = spec.scale == "auto"
+    floor = QUALITY_GUARD * aspect_ratios(mesh.points, tri).min() if auto else None
     start = time.perf_counter()
-    Q = np.array(mesh.points, dtype=float)
-    timer = PhaseTimer()
-    t0 = time.perf_counter()
-    J = float(objective.value(Q))
-    t0 = timer.add("state", t0)
-    fpen = penalty_value(Q)
-    F = J + fpen
-    q = quality_summary(Q, tri)
-    history = [
-        IterationRecord(0, J, fpen, F, q.mean_shape_quality, q.min_aspect_ratio, 0.0, 0, math.nan,
-                        dict(timer.seconds))
-    ]
-    s_prev = slope_prev = dnorm0 = None
-    status = "max_iterations"
-    message = f"reached the maximum of {max_iter} iterations without converging"
-    for n in range(1, max_iter + 1):
-        timer = PhaseTimer()
-        t0 = time.perf_counter()
-        dJ = objective.derivative(Q)
-        t0 = timer.add("derivative", t0)
-        P = dJ if penalty is None else dJ + penalty.gradient(Q)
-        t0 = timer.add("penalty_derivative", t0)
-        d = -metric.riesz(Q, P, free=free)  # restricted to the free vertices if any
-        slope = _dot(P, d)  # dF(Q)[d]
-        dnorm = float(metric.norm(Q, d))
-        t0 = timer.add("gradient", t0)
-        if dnorm0 is None:
-            dnorm0 = dnorm
-        if not slope < 0:
-            if slope == 0 or dnorm == 0:
-                status, message = "converged", "the gradient vanishes"
-                break
-            raise OptimizationError(
-                f"iteration {n}: the search direction is not a descent direction "
-                f"(dF[d] = {slope:.3e}); the derivative or the metric is wrong"
+    for attempt in range(1 + (GUARD_TRIES if auto else 0)):
+        weighed = objective if weight == 1.0 else ScaledObjective(objective, weight)
+        problem = ShapeProblem(weighed, penalty, metric, tri, mesh.boundary_edges, free,
+                               constraint, quality_floor=floor)
+        h0 = make_preconditioner(lbfgs_preconditioner, metric_kind=VARIANT_PARTS[variant][0],
+                                 method=method, mesh=mesh, penalty=penalty, free=free)
+        if method != "steepest":
+            from .shape.driver import run_descent
+
+            result = run_descent(
+                mesh, problem, method=method, variant=variant, retraction=retract,
+                max_iter=max_iter,
+                gtol=gtol, ftol=ftol, memory=memory, c1=sigma, c2=c2,
+                segment_fraction=segment_fraction, min_step=min_step, callback=callback,
+                h0=h0,
             )
-        if gtol is not None and dnorm <= gtol * dnorm0:
-            status = "converged"
-            message = f"‖grad F‖ fell to {dnorm / dnorm0:.2e} of its first value (gtol {gtol:g})"
+        else:
+            result = run_steepest(
+                mesh, problem, variant=variant, retract=retract, max_iter=max_iter, tol=tol,
+                gtol=gtol, sigma=sigma, tau=tau, min_step=min_step, callback=callback,
+            )
+        if not auto or result.status != "step_too_small":
             break
-        s = None if s_prev is None else s_prev * slope_prev / slope
-        if s is None or s * dnorm < 1e-4:
-            s = 1.0 / dnorm
-        trial_steps = s * tau ** np.arange(max(1, math.ceil(math.log(min_step / s) / math.log(tau)) + 1))
-        trial_steps = trial_steps[trial_steps >= min_step]
-        # complete-complete: one retraction call gives every trial (None = not admissible)
-        geo_points: list | None = None
-        if retract is not None and len(trial_steps):
-            t_r = time.perf_counter()
-            # rescaling lemma: R_Q(s_k d) = R_Q((s_k / s) · s d) for the exponential map;
-            # the second-order retraction has the same property
-            geo_points = retract(Q, s * d, trial_steps / s)[0]
-            timer.add("retraction", t_r)
-        s_max = np.inf if retract is not None else max_travel_step(Q, tri, d)
-        accepted = None
-        backtracks = rejected = 0
-        t_b = time.perf_counter()
-        state_in_backtracking = 0.0
-        for k, s_k in enumerate(trial_steps):
-            if s_k >= s_max:
-                backtracks += 1
-                continue
-            Qt = geo_points[k] if retract is not None else Q + s_k * d
-            if Qt is None or np.any(signed_areas(Qt, tri) <= 0):
-                backtracks += 1
-                rejected += 1
-                continue
-            t_s = time.perf_counter()
-            Ft, Jt = problem.values(Qt)  # +inf outside M+ (e.g. a boundary touching itself)
-            state_in_backtracking += time.perf_counter() - t_s
-            if not np.isfinite(Ft):
-                backtracks += 1
-                rejected += 1
-                continue
-            if Ft <= F + sigma * s_k * slope:
-                accepted = (s_k, Qt, Jt, Ft)
-                break
-            backtracks += 1
-        timer.seconds["backtracking"] += time.perf_counter() - t_b - state_in_backtracking
-        timer.seconds["state"] += state_in_backtracking
-        if accepted is None:
-            status = "step_too_small"
-            message = f"iteration {n}: no step ≥ {min_step:g} satisfies the Armijo condition"
-            break
-        s_k, Q, J, F = accepted
-        s_prev, slope_prev = s_k, slope
-        q = quality_summary(Q, tri)
-        record = IterationRecord(
-            n, J, F - J, F, q.mean_shape_quality, q.min_aspect_ratio, s_k, backtracks,
-            dnorm, dict(timer.seconds), relative_gradient_norm=dnorm / dnorm0,
-            rejected_trials=rejected,
-        )
-        history.append(record)
-        logger.debug("iter %d: F=%.6g j=%.6g Λ=%.4f step=%.3g", n, F, J, q.mean_shape_quality, s_k)
-        if callback is not None and callback(record, Q):
-            status, message = "stopped", f"stopped by the callback at iteration {n}"
-            break
-        if tol is not None and n >= 5:
-            past = np.array([h.objective for h in history[n - 5 : n]])
-            if np.max(past - F) < tol:
-                status = "converged"
-                message = f"F changed less than {tol:g} over the last 5 iterations (6.26)"
-                break
-    final = mesh.with_points(Q)
-    return OptimizeResult(
-        mesh=final,
-        x=Q,
-        fun=F,
-        j=J,
-        nit=len(history) - 1,
-        status=status,
-        success=status in ("converged", "stopped"),
-        message=message,
-        history=history,
-        seconds=time.perf_counter() - start,
-        variant=variant,
-    )
+        logger.info("no step at weight %.3g (%s): restarting with %.3g", weight, result.message,
+                    weight / GUARD_FACTOR)
+        weight /= GUARD_FACTOR
+    result.seconds = time.perf_counter() - start
+    return _unweighed(result, objective, weight)
 
 
-def _check_size(points: FloatArray) -> None:
-    """Refuse a mesh whose bounding-box diagonal is outside :data:`SIZE_RANGE`."""
-    size = float(np.linalg.norm(np.ptp(points, axis=0)))
-    lo, hi = SIZE_RANGE
-    if not lo <= size <= hi:
-        raise OptimizationError(
-            f"the mesh is {size:.3g} across (bounding-box diagonal); shape optimization "
-            f"needs a size between {lo:g} and {hi:g} because the penalty and the metrics "
-            f"are not scale-invariant: rescale the mesh (e.g. to unit size) first"
-        )
+def _unweighed(result: OptimizeResult, objective, weight: float) -> OptimizeResult:
+    """``j`` of the result and its history without the weight ``w`` of ``F = w j + f2``
+    (``objective`` and ``penalty`` stay those of the weighed problem)."""
+    if weight == 1.0:
+        return result
+    result.j = float(objective.value(result.x))
+    for r in result.history:
+        r.j = r.j / weight
+    result.objective_weight = weight
+    return result
+
+
+def _elasticity_gradient_norm(mesh: PlanarMesh, objective, free, constraint) -> float:
+    """``‖grad j‖`` at the initial mesh in the elasticity metric (the area's normal removed)."""
+    from .riemannian.metrics import ElasticityMetric
+
+    Q = mesh.points
+    P = np.asarray(objective.derivative(Q), dtype=float)
+    if free is not None:
+        P = np.where(free[:, None], P, 0.0)
+    metric = ElasticityMetric(mesh)
+    g = metric.riesz(Q, P, free=free)
+    if constraint is not None:
+        from .shape.area import AreaConstraint
+
+        g = AreaConstraint(constraint.edges, constraint.target,
+                           lambda X, V: metric.riesz(X, V, free=free)).project(Q, g)
+    return math.sqrt(max(float(np.sum(P * g)), 0.0))

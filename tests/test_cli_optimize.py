@@ -24,7 +24,8 @@ def test_default_run_writes_everything(tmp_path, capsys):
                 "min_aspect_ratio", "seconds"):
         assert key in summary
     assert summary["iterations"] == 3 and summary["n_vertices"] == 146
-    assert summary["penalty_beta"] == pytest.approx([0.1, 0.01, 0.0, 0.146])  # set 2 at 146 vertices, β4 fixed
+    # set 2 at 146 vertices, β4 fixed, and the contact barrier β3
+    assert summary["penalty_beta"] == pytest.approx([0.1, 0.01, 0.01, 0.146])
     for name in ("optimized.msh", "history.csv", "history.json", "summary.json", "mesh.png",
                  "history.png"):
         assert (out / name).stat().st_size > 0, name

@@ -117,6 +117,7 @@ def poisson_shape_derivative(
     p: FloatArray,
     r_values: FloatArray,
     r_gradients: FloatArray,
+    mass_values: FloatArray | None = None,
 ) -> FloatArray:
     """Exact derivative of ``j(Q) = mᵀy`` w.r.t. all node positions, (6.12).
 
@@ -139,6 +140,10 @@ def poisson_shape_derivative(
     y, p : (N,) state and adjoint
     r_values : (T,) ``r(ξ_K)``
     r_gradients : (T, 2) ``∇r(ξ_K)``
+    mass_values : (N,) ``z``, optional
+        Differentiate ``m(Q)ᵀz`` at fixed ``z`` instead of ``m(Q)ᵀy`` (the mass term of
+        another objective, e.g. ``z = ½(y − y_d)²`` for a tracking functional; its
+        remaining explicit terms are the caller's).
 
     Returns
     -------
@@ -150,7 +155,7 @@ def poisson_shape_derivative(
     ux, uy = (pk * ex).sum(axis=1), (pk * ey).sum(axis=1)
     wx, wy = (yk * ex).sum(axis=1), (yk * ey).sum(axis=1)
     uw = ux * wx + uy * wy
-    sy = yk.sum(axis=1)
+    sy = yk.sum(axis=1) if mass_values is None else np.asarray(mass_values)[triangles].sum(axis=1)
     sp_ = pk.sum(axis=1)
     y0, y1, y2 = yk[:, 0], yk[:, 1], yk[:, 2]
     p0, p1, p2 = pk[:, 0], pk[:, 1], pk[:, 2]

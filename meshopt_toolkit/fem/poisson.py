@@ -1,5 +1,10 @@
 """The PDE model objective ``j(Q) = ∫ y`` with its exact adjoint shape derivative (SPEC §6).
 
+Boundary data per physical group (:mod:`.boundary_data`: Dirichlet values, Neumann
+fluxes) and the tracking functional ``j(Q) = ½∫(y − y_d)²`` (lumped:
+``½ Σ_a m_a (y_a − y_d(q_a))²``) use the same state and adjoint solves; every derivative is
+that of the discrete functional.
+
 For node positions ``Q (N, 2)``: ``y`` is the P1 solution of ``−Δy = r`` with ``y = 0`` on
 the Dirichlet nodes (all boundary vertices by default), load by centroid quadrature, and
 ``j(Q) = mᵀy`` with ``m_a = Σ_{K∋a}|K|/3`` (thesis (6.2)). The derivative is that of the
@@ -14,13 +19,14 @@ optionally ``value_and_derivative``).
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from numbers import Real
 
 import numpy as np
 
 from . import p1 as fem
+from .boundary_data import BoundaryData, neumann_load, neumann_shape_derivative
 from .._typing import FloatArray, IntArray
 from ..errors import ExpressionError, InvalidMeshError, MeshoptError, NotAdmissibleError
 from ..expressions import DEFAULT_RHS, Expression, parse_expression
@@ -108,9 +114,11 @@ class PoissonObjective:
         differences with step ``h = cbrt(machine eps) · diameter(mesh)`` (error
         ``O(h²) ≈ 1e-11`` relative for smooth ``r`` — fine for optimization and Taylor
         tests, but supply the gradient when you have it).
-    dirichlet : None, index array, tag name/number or list of those
+    dirichlet : None, index array, tag name/number, list of those, or ``{group: value}``
         Nodes with ``y = 0``. Default: all boundary vertices. A name or tag selects the
-        vertices of the tagged line elements (:meth:`PlanarMesh.tagged_vertices`).
+        vertices of the tagged line elements (:meth:`PlanarMesh.tagged_vertices`). A
+        mapping sets ``y = value`` on each group's vertices and keeps ``y = 0`` on the
+        rest of the boundary (:class:`~.boundary_data.BoundaryData`).
     rhs_gradient : callable, optional
         ``∇r``: points ``(M, 2)`` to ``(M, 2)``.
     solver : ``"auto"``, ``"direct"`` or ``"amg"``
@@ -118,6 +126,12 @@ class PoissonObjective:
         :data:`~meshopt_toolkit.fem.AMG_THRESHOLD` free nodes and AMG-CG above.
     rtol : float
         Relative residual of the AMG iteration.
+    neumann : ``{group: value}``, optional
+        ``∂y/∂n = value`` on each group's edges (their vertices leave the default
+        ``y = 0`` set unless they also lie on another boundary part).
+    tracking : str, float or callable, optional
+        ``y_d``: minimize ``½∫(y − y_d)²`` (lumped mass) instead of ``∫y``; the same forms
+        as ``rhs``.
 
     Notes
     -----
@@ -144,6 +158,8 @@ class PoissonObjective:
         rhs_gradient: RhsFunction | None = None,
         solver: str = "auto",
         rtol: float = 1e-10,
+        neumann: Mapping | None = None,
+        tracking=None,
     ) -> None:
         if solver not in ("auto", "direct", "amg"):
             raise ValueError(f"unknown solver {solver!r}; use 'auto', 'direct' or 'amg'")
@@ -153,10 +169,20 @@ class PoissonObjective:
         self._tri_t = np.ascontiguousarray(self.triangles.T)
         self._boundary_check = BoundaryCheck(self.mesh.boundary_edges,
                                              self.mesh.boundary_vertices)
-        self.dirichlet: IntArray = self._resolve_dirichlet(dirichlet)
-        self.rhs_text, self._r, self._grad_r = _resolve_rhs(
-            rhs, rhs_gradient, max(self.mesh.diameter, np.finfo(float).tiny)
-        )
+        scale = max(self.mesh.diameter, np.finfo(float).tiny)
+        if isinstance(dirichlet, Mapping) or neumann:
+            if dirichlet is not None and not isinstance(dirichlet, Mapping):
+                raise MeshoptError("with Neumann data give Dirichlet data as {group: value}")
+            bc = BoundaryData.of(self.mesh, dirichlet, neumann)
+            self.dirichlet, self._lift = bc.dirichlet, bc.lift
+            self._n_edges, self._n_values = bc.neumann_edges, bc.neumann_values
+        else:
+            self.dirichlet = self._resolve_dirichlet(dirichlet)
+            self._lift = self._n_edges = self._n_values = None
+        self.rhs_text, self._r, self._grad_r = _resolve_rhs(rhs, rhs_gradient, scale)
+        self.tracking_text = None
+        if tracking is not None:
+            self.tracking_text, self._yd, self._grad_yd = _resolve_rhs(tracking, None, scale)
         self.solver = solver
         self.rtol = float(rtol)
         self._cache: _State | None = None
@@ -240,12 +266,36 @@ class PoissonObjective:
         xi = fem.centroids(Q, tri)
         r = self._eval_r(xi)
         m = fem.nodal_mass_weights(Q, tri)
-        y = solver.solve(fem.lumped_load(Q, tri, r))
-        self._cache = _State(Q.copy(), solver, xi, r, m, y, float(m @ y))
+        b = fem.lumped_load(Q, tri, r)
+        if self._n_edges is not None and len(self._n_edges):
+            b = b + neumann_load(Q, self._n_edges, self._n_values, self.n_vertices)
+        if self._lift is not None and self._lift.any():
+            y = solver.solve(b - K @ self._lift) + self._lift  # y = g_D on Dirichlet nodes
+        else:
+            y = solver.solve(b)
+        if self.tracking_text is None:
+            value = float(m @ y)
+        else:
+            misfit = y - self._yd_at(Q)
+            value = 0.5 * float(m @ (misfit * misfit))
+        self._cache = _State(Q.copy(), solver, xi, r, m, y, value)
         return self._cache
 
+    def _yd_at(self, Q: FloatArray) -> FloatArray:
+        """``y_d`` at the nodes ``(N,)``."""
+        yd = np.asarray(self._yd(Q), dtype=float)
+        if yd.shape != (len(Q),) or not np.isfinite(yd).all():
+            raise ExpressionError("the tracking target is not finite (or not one value per node)")
+        return yd
+
+    def _adjoint_load(self, s: _State) -> FloatArray:
+        """``∂j/∂y``: ``m`` for ``∫y``, ``m (y − y_d)`` for tracking."""
+        if self.tracking_text is None:
+            return s.m
+        return s.m * (s.y - self._yd_at(s.Q))
+
     def value(self, Q: FloatArray) -> float:
-        """``j(Q) = ∫ y = mᵀy``, (6.2)."""
+        """``j(Q) = ∫ y = mᵀy``, (6.2), or ``½ Σ m_a (y_a − y_d(q_a))²`` (tracking)."""
         return self._state(Q).value
 
     def state(self, Q: FloatArray) -> FloatArray:
@@ -253,20 +303,30 @@ class PoissonObjective:
         return self._state(Q).y.copy()
 
     def adjoint(self, Q: FloatArray) -> FloatArray:
-        """Nodal values ``(N,)`` of the adjoint ``p``: ``K p = −m``, 0 on Dirichlet nodes."""
+        """Nodal values ``(N,)`` of the adjoint ``p``: ``K p = −∂j/∂y`` (``−m`` for ``∫y``),
+        0 on Dirichlet nodes."""
         s = self._state(Q)
         if s.p is None:
-            s.p = s.solver.solve(-s.m)
+            s.p = s.solver.solve(-self._adjoint_load(s))
         return s.p.copy()
 
     def value_and_derivative(self, Q: FloatArray) -> tuple[float, FloatArray]:
         """``j(Q)`` and its exact derivative ``(N, 2)`` w.r.t. all nodes, (6.12)."""
         s = self._state(Q)
         if s.p is None:
-            s.p = s.solver.solve(-s.m)
+            s.p = s.solver.solve(-self._adjoint_load(s))
+        z = None
+        if self.tracking_text is not None:
+            misfit = s.y - self._yd_at(s.Q)
+            z = 0.5 * misfit * misfit
         g = fem.poisson_shape_derivative(
-            s.Q, self.triangles, s.y, s.p, s.r, self._eval_grad_r(s.xi)
+            s.Q, self.triangles, s.y, s.p, s.r, self._eval_grad_r(s.xi), mass_values=z
         )
+        if self._n_edges is not None and len(self._n_edges):
+            g -= neumann_shape_derivative(s.Q, self._n_edges, self._n_values, s.p)
+        if self.tracking_text is not None:
+            grad_yd = np.asarray(self._grad_yd(s.Q), dtype=float)
+            g -= (s.m * misfit)[:, None] * grad_yd
         return s.value, g
 
     def derivative(self, Q: FloatArray) -> FloatArray:

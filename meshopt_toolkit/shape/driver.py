@@ -104,6 +104,7 @@ def run_descent(
         else:
             beta = hestenes_stiefel_plus(grad, P - P_prev, d_prev)
             d = beta * d_prev - grad
+        d = problem.project(Q, d)
         slope = problem.pair(P, d)
         if not slope < -1e-12 * gnorm * gnorm and (lbfgs is not None and lbfgs.pairs or d_prev is not None):
             # not a (sufficient) descent direction: restart from steepest descent
@@ -183,7 +184,21 @@ def _line_search(problem, Q, d, F, slope, t_init, *, retraction, c1, c2, segment
                  min_step, timer):
     """Weak-Wolfe search along the variant's retraction (None: the straight line, capped
     by :func:`segment_limit`); payload ``(Q_t, j_t, P_t)``."""
-    if retraction is not None:
+    if problem.constraint is not None:  # the area kept: trial points restored onto it
+        curve = problem.constraint.curve(Q, retraction)
+        if retraction is None:
+            t0 = time.perf_counter()
+            t_max = segment_fraction * segment_limit(Q, problem.triangles, d)
+            timer.add("retraction", t0)
+        else:
+            t_max = math.inf
+
+        def point(t):
+            t0 = time.perf_counter()
+            points, velocities = curve(Q, d, [t])
+            timer.add("retraction", t0)
+            return points[0], velocities[0]
+    elif retraction is not None:
         def point(t):
             t0 = time.perf_counter()
             points, velocities = retraction(Q, d, [t])

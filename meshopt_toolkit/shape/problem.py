@@ -14,7 +14,7 @@ import numpy as np
 from .._linalg import dot
 from .._typing import FloatArray
 from ..errors import NotAdmissibleError
-from ..kernels.triangles import signed_areas
+from ..kernels.triangles import aspect_ratios, signed_areas
 from ..mesh import boundary_self_intersections
 
 
@@ -62,22 +62,34 @@ class ShapeProblem:
     triangles : (T, 3) connectivity
     boundary_edges : (E, 2) directed boundary edges (for the boundary self-contact test)
     free : (N,) bool mask of the free vertices, or None (all free)
+    constraint : :class:`~.area.AreaConstraint` or None: gradients and directions are
+        projected onto its tangent space
+    quality_floor : float or None
+        A configuration whose worst triangle has an aspect ratio below this is rejected
+        like one outside ``M+`` (the iterates keep every triangle at least this healthy).
     """
 
-    def __init__(self, objective, penalty, metric, triangles, boundary_edges, free=None) -> None:
+    def __init__(self, objective, penalty, metric, triangles, boundary_edges, free=None,
+                 constraint=None, quality_floor: float | None = None) -> None:
         self.objective = objective
         self.penalty = penalty
         self.metric = metric
         self.triangles = np.asarray(triangles)
         self.boundary_edges = np.asarray(boundary_edges)
         self.free = free
+        self.constraint = constraint
+        self.quality_floor = quality_floor
         self.n_rejected = 0  # trial configurations outside M+
 
     def admissible(self, Q: FloatArray) -> bool:
-        """All coordinates finite, every signed area > 0, the boundary simple."""
+        """All coordinates finite, every signed area > 0 (every aspect ratio ≥ the quality
+        floor), the boundary simple."""
         if not np.isfinite(Q).all():
             return False
         if not np.all(signed_areas(Q, self.triangles) > 0):
+            return False
+        if self.quality_floor is not None and \
+                aspect_ratios(Q, self.triangles).min() < self.quality_floor:
             return False
         return len(boundary_self_intersections(Q, self.boundary_edges)) == 0
 
@@ -108,8 +120,13 @@ class ShapeProblem:
         return P
 
     def riesz(self, Q: FloatArray, P: FloatArray) -> FloatArray:
-        """The metric's Riesz map ``g_Q⁻¹ P`` restricted to the free vertices."""
-        return self.metric.riesz(Q, P, free=self.free)
+        """The metric's Riesz map ``g_Q⁻¹ P`` restricted to the free vertices (and
+        projected onto the constraint's tangent space)."""
+        return self.project(Q, self.metric.riesz(Q, P, free=self.free))
+
+    def project(self, Q: FloatArray, V: FloatArray) -> FloatArray:
+        """``V`` projected onto the constraint's tangent space (``V`` without one)."""
+        return V if self.constraint is None else self.constraint.project(Q, V)
 
     @staticmethod
     def pair(P: FloatArray, V: FloatArray) -> float:

@@ -94,6 +94,9 @@ class OptimizeResult:
     variant: str
     method: str = "steepest"
     rejected_pairs: int = 0
+    #: ``w`` of ``F = w j + f2`` (:class:`~meshopt_toolkit.shape.spec.ProblemSpec` ``scale``);
+    #: ``j`` and the history's ``j`` are unweighed
+    objective_weight: float = 1.0
 
     def history_columns(self) -> dict[str, np.ndarray]:
         """The history as named columns (arrays), one entry per record."""
@@ -118,6 +121,7 @@ class OptimizeResult:
             "rejected_curvature_pairs": self.rejected_pairs,
             "rejected_trials": int(sum(r.rejected_trials for r in self.history)),
             "j": self.j,
+            "objective_weight": self.objective_weight,
             "penalty": last.penalty,
             "objective": self.fun,
             "mean_shape_quality": last.mean_shape_quality,

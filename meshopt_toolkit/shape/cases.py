@@ -1,0 +1,153 @@
+"""gmsh meshes of the domains users optimize, with named boundary groups.
+
+Each function writes a Gmsh 4.1 ``.msh`` file whose boundary curves carry named
+physical groups (and the surface the group ``"domain"``), as a user's gmsh script would,
+and returns its path: the tests and ``benchmarks/bench_optimize.py --users`` read them
+back through :func:`meshopt_toolkit.io.load` like any user file.
+
+==================  ===================================================  =================
+case                domain                                               boundary groups
+==================  ===================================================  =================
+``plate``           6 × 2 plate with two circular holes                  outer, hole1, hole2
+``lshape``          L-shape ``[0, 2]² \\ [1, 2]²``                          outer, reentrant
+``airfoil``         NACA 0012 in a 4 × 2 box                             box, airfoil
+``channel``         3 × 1 channel with a disc and a square obstacle      inlet, outlet,
+                                                                         walls, disc, square
+``rectangle``       ``[0, 2] × [0, 1]``                                    left, right, bottom,
+                                                                         top
+==================  ===================================================  =================
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ..gmsh_session import gmsh_session
+
+CASES = ("plate", "lshape", "airfoil", "channel", "rectangle")
+
+
+def _naca0012(n: int = 40) -> np.ndarray:
+    """Points of the closed NACA 0012 contour (chord 1), trailing edge first, ccw."""
+    x = 0.5 * (1 - np.cos(np.linspace(0, np.pi, n)))
+    t = 0.6 * (0.2969 * np.sqrt(x) - 0.1260 * x - 0.3516 * x**2 + 0.2843 * x**3 - 0.1036 * x**4)
+    upper = np.column_stack([x[::-1], t[::-1]])[:-1]  # trailing edge -> leading edge
+    lower = np.column_stack([x, -t])[:-1]  # leading edge -> trailing edge (excluded)
+    return np.vstack([upper, lower])
+
+
+def _group_curves(gmsh, tag_of) -> dict[str, list[int]]:
+    """Boundary curves grouped by ``tag_of(center of mass) -> name``."""
+    groups: dict[str, list[int]] = {}
+    for dim, c in gmsh.model.getEntities(1):
+        x, y, _ = gmsh.model.occ.getCenterOfMass(dim, c)
+        groups.setdefault(tag_of(x, y), []).append(c)
+    return groups
+
+
+def _build(gmsh, case: str, size: float) -> dict[str, list[int]]:
+    occ = gmsh.model.occ
+    if case == "plate":
+        r = occ.addRectangle(0, 0, 0, 6, 2)
+        h1 = occ.addDisk(1.8, 1.0, 0, 0.45, 0.45)
+        h2 = occ.addDisk(4.2, 1.0, 0, 0.45, 0.45)
+        occ.cut([(2, r)], [(2, h1), (2, h2)])
+        occ.synchronize()
+        return _group_curves(gmsh, lambda x, y: "hole1" if abs(x - 1.8) < 0.5 and abs(y - 1) < 0.5
+                             else "hole2" if abs(x - 4.2) < 0.5 and abs(y - 1) < 0.5 else "outer")
+    if case == "lshape":
+        a = occ.addRectangle(0, 0, 0, 2, 2)
+        b = occ.addRectangle(1, 1, 0, 1, 1)
+        occ.cut([(2, a)], [(2, b)])
+        occ.synchronize()
+        return _group_curves(gmsh, lambda x, y: "reentrant" if x >= 1 - 1e-9 and y >= 1 - 1e-9
+                             else "outer")
+    if case == "airfoil":
+        box = occ.addRectangle(-1.5, -1.0, 0, 4.0, 2.0)
+        pts = [occ.addPoint(px + 0.0, py, 0, size / 4) for px, py in _naca0012()]
+        spline = occ.addBSpline(pts + [pts[0]])
+        loop = occ.addCurveLoop([spline])
+        foil = occ.addPlaneSurface([loop])
+        occ.rotate([(2, foil)], 0.25, 0, 0, 0, 0, 1, -np.radians(4.0))
+        occ.cut([(2, box)], [(2, foil)])
+        occ.synchronize()
+        return _group_curves(gmsh, lambda x, y: "airfoil" if -0.2 < x < 1.2 and abs(y) < 0.3
+                             else "box")
+    if case == "channel":
+        ch = occ.addRectangle(0, 0, 0, 3, 1)
+        d = occ.addDisk(0.8, 0.5, 0, 0.15, 0.15)
+        s = occ.addRectangle(1.8, 0.35, 0, 0.3, 0.3)
+        occ.rotate([(2, s)], 1.95, 0.5, 0, 0, 0, 1, np.radians(30))
+        occ.cut([(2, ch)], [(2, d), (2, s)])
+        occ.synchronize()
+
+        def name(x, y):
+            if abs(x) < 1e-9:
+                return "inlet"
+            if abs(x - 3) < 1e-9:
+                return "outlet"
+            if abs(y) < 1e-9 or abs(y - 1) < 1e-9:
+                return "walls"
+            return "disc" if x < 1.3 else "square"
+
+        return _group_curves(gmsh, name)
+    if case == "rectangle":
+        occ.addRectangle(0, 0, 0, 2, 1)
+        occ.synchronize()
+        return _group_curves(gmsh, lambda x, y: "left" if x < 0.5 else "right" if x > 1.5
+                             else "bottom" if y < 0.5 else "top")
+    raise ValueError(f"unknown case {case!r}; choose one of {', '.join(CASES)}")
+
+
+def user_mesh(case: str, path: str | os.PathLike, size: float = 0.1, *,
+              refine_near: float | None = None) -> Path:
+    """Mesh ``case`` (one of :data:`CASES`) with element size ``size`` into ``path``.
+
+    Parameters
+    ----------
+    case : str
+    path : where the ``.msh`` (format 4.1) goes
+    size : target element size (the meshes span 2 to 6 units)
+    refine_near : element size on the holes / obstacles / airfoil / re-entrant corner
+        (default ``size``), graded to ``size`` within ``10 · size``
+
+    Returns
+    -------
+    Path
+    """
+    path = Path(path)
+    with gmsh_session() as gmsh:
+        gmsh.option.setNumber("General.NumThreads", 1)
+        gmsh.option.setNumber("Mesh.RandomSeed", 1)
+        gmsh.model.add(case)
+        groups = _build(gmsh, case, size)
+        gmsh.option.setNumber("Mesh.MeshSizeMax", size)
+        gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
+        if refine_near is not None:
+            inner = [c for n, cs in groups.items()
+                     if n in ("hole1", "hole2", "reentrant", "airfoil", "disc", "square")
+                     for c in cs]
+            f = gmsh.model.mesh.field
+            dist = f.add("Distance")
+            f.setNumbers(dist, "CurvesList", inner)
+            f.setNumber(dist, "Sampling", 100)
+            thr = f.add("Threshold")
+            f.setNumber(thr, "InField", dist)
+            f.setNumber(thr, "SizeMin", refine_near)
+            f.setNumber(thr, "SizeMax", size)
+            f.setNumber(thr, "DistMin", 0.0)
+            f.setNumber(thr, "DistMax", 10 * size)
+            f.setAsBackgroundMesh(thr)
+            gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
+        for name, curves in sorted(groups.items()):
+            gmsh.model.addPhysicalGroup(1, curves, name=name)
+        surfaces = [s for _, s in gmsh.model.getEntities(2)]
+        gmsh.model.addPhysicalGroup(2, surfaces, name="domain")
+        gmsh.model.mesh.generate(2)
+        gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        gmsh.write(str(path))
+    return path
