@@ -42,3 +42,14 @@ def test_the_diary_test_sees_a_diary(tmp_path):
     page.write_text("The issue's target was met.", encoding="utf-8")
     with pytest.raises(AssertionError):
         test_no_development_diary(page)
+
+
+def test_readme_library_example_runs_and_keeps_the_mesh_healthy(tmp_path, monkeypatch):
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    code = text.split("## Library")[1].split("```python")[1].split("```")[0]
+    monkeypatch.chdir(tmp_path)
+    namespace: dict = {}
+    exec(compile(code, "README.md", "exec"), namespace)  # our own text, not user input
+    assert (tmp_path / "turned.vtu").stat().st_size > 0
+    assert namespace["result"].summary()["inverted"] == 0
+    assert namespace["opt"].summary()["min_aspect_ratio"] > 0.5
