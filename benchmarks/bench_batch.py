@@ -28,7 +28,7 @@ import numpy as np
 
 import meshopt_toolkit as mt
 from meshopt_toolkit.datasets import data_path
-from meshopt_toolkit.pipeline.workers import cpu_count
+from meshopt_toolkit.batch.workers import cpu_count
 
 
 

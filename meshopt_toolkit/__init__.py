@@ -78,7 +78,7 @@ _EXPORTS = {
     "Pipeline": "pipeline",
     "load_pipeline": "pipeline",
     "save_pipeline": "pipeline",
-    "run_batch": "pipeline.batch_run",
+    "run_batch": "batch",
 }
 
 __all__ = sorted(_EXPORTS) + ["__version__"]

@@ -16,10 +16,10 @@ from conftest import grid_mesh, square5
 from meshopt_toolkit.cli import main
 from meshopt_toolkit.errors import MeshoptError
 from meshopt_toolkit.io import load, save
-from meshopt_toolkit.pipeline.batch_progress import BatchProgress
-from meshopt_toolkit.pipeline.batch_run import Job, execute
-from meshopt_toolkit.pipeline.tasks import ConvertTask
-from meshopt_toolkit.pipeline.workers import ProcessPool, WorkerCrash
+from meshopt_toolkit.batch.progress import BatchProgress
+from meshopt_toolkit.batch.run import Job, execute
+from meshopt_toolkit.batch.tasks import ConvertTask
+from meshopt_toolkit.batch.workers import ProcessPool, WorkerCrash
 
 PIPE = {"filters": [{"name": "meshing_uniform_refinement"},
                     {"name": "compute_shape_optimization",
@@ -146,7 +146,7 @@ def test_inputs_are_consumed_lazily_with_a_bounded_look_ahead(tmp_path):
 
 
 def test_jobs_option(meshes, capsys):
-    from meshopt_toolkit.pipeline.workers import cpu_count
+    from meshopt_toolkit.batch.workers import cpu_count
 
     with pytest.raises(SystemExit) as exc:
         main(["run", "p.json", "in", "-o", "o", "-j", "-1"])

@@ -104,18 +104,18 @@ def test_allow_read_needs_shared_inputs(batch, cluster, capsys):
 
 
 def test_unreachable_scheduler_is_one_line(batch, capsys, monkeypatch):
-    from meshopt_toolkit.pipeline import dask_backend
+    from meshopt_toolkit.batch import cluster as backend
 
     with socket.socket() as s:  # a port nobody listens on
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
-    monkeypatch.setattr(dask_backend, "CONNECT_TIMEOUT", 0.5)
+    monkeypatch.setattr(backend, "CONNECT_TIMEOUT", 0.5)
     assert main(["run", "p.json", "in", "-o", "o", "--scheduler", f"tcp://127.0.0.1:{port}"]) == 1
     err = capsys.readouterr().err
     assert err.startswith(f"meshopt run: error: cannot reach the Dask scheduler at "
                           f"tcp://127.0.0.1:{port}: ") and err.count("\n") == 1
     with pytest.raises(MeshoptError, match="cannot reach"):
-        dask_backend.connect("tcp://127.0.0.1:%d" % port, timeout=0.5)
+        backend.connect("tcp://127.0.0.1:%d" % port, timeout=0.5)
 
 
 def test_a_crash_on_the_cluster_fails_only_its_file(tmp_path, cluster):
@@ -123,8 +123,8 @@ def test_a_crash_on_the_cluster_fails_only_its_file(tmp_path, cluster):
     import argparse
 
     from test_batch import copy_or_fail
-    from meshopt_toolkit.pipeline.batch_run import Job, execute
-    from meshopt_toolkit.pipeline.tasks import ConvertTask
+    from meshopt_toolkit.batch.run import Job, execute
+    from meshopt_toolkit.batch.tasks import ConvertTask
 
     names = ["a.txt", "b_abort.txt", "c.txt", "d_oom.txt", "e.txt", "f.txt"]
     for n in names:

@@ -16,7 +16,7 @@ from conftest import grid_mesh
 from meshopt_toolkit.cli import main
 from meshopt_toolkit.errors import MeshoptError
 from meshopt_toolkit.io import save
-from meshopt_toolkit.pipeline.journal import (
+from meshopt_toolkit.batch.journal import (
     JOURNAL_NAME,
     STAGING_NAME,
     Journal,
@@ -151,8 +151,8 @@ def test_output_moved_but_not_journaled_is_taken_over(batch, capsys):
     """Killed between moving an output into place and journaling it done: the rerun may
     replace that output (the journal knows it as its own), and nothing else."""
     from meshopt_toolkit.pipeline import Pipeline
-    from meshopt_toolkit.pipeline.batch import RunOptions
-    from meshopt_toolkit.pipeline.tasks import RunTask
+    from meshopt_toolkit.batch.file_job import RunOptions
+    from meshopt_toolkit.batch.tasks import RunTask
 
     Path("out").mkdir()
     task = RunTask(Pipeline.from_dict(PIPE), RunOptions())
@@ -226,8 +226,8 @@ def test_one_input_under_two_output_names_is_two_jobs(tmp_path):
     import argparse
 
     from test_batch import copy_or_fail
-    from meshopt_toolkit.pipeline.batch_run import Job, execute
-    from meshopt_toolkit.pipeline.tasks import ConvertTask
+    from meshopt_toolkit.batch.run import Job, execute
+    from meshopt_toolkit.batch.tasks import ConvertTask
 
     (tmp_path / "a.txt").write_text("a")
     task = ConvertTask(copy_or_fail, argparse.Namespace())

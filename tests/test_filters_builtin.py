@@ -12,7 +12,7 @@ from meshopt_toolkit.errors import FilterError, MeshoptError
 from meshopt_toolkit.io import load, save
 from meshopt_toolkit.mesh import TriangleMesh
 from meshopt_toolkit.pipeline import Document, Pipeline, load_pipeline, registry, save_pipeline
-from meshopt_toolkit.pipeline.batch import run_file
+from meshopt_toolkit.batch.file_job import run_file
 
 pymeshlab = pytest.importorskip("pymeshlab")
 

@@ -17,7 +17,7 @@ LAYERS = {
     "mesh": ["mesh", "orientation", "generate", "gmsh_session"],
     "numerics": ["penalties", "fem", "ode", "riemannian", "expressions"],
 }
-HIGHER = ["deform", "morph", "motion", "optimize", "shape", "io", "pipeline", "cli",
+HIGHER = ["deform", "morph", "motion", "optimize", "shape", "io", "pipeline", "batch", "cli",
           "filters", "plotting", "conversions", "datasets"]
 
 #: no module of the package is longer than this (one job per module)

@@ -210,9 +210,9 @@ def _plan(args) -> tuple[list[tuple[Path, Path]], list[str]] | int:
 
 
 def run(args) -> int:
-    from ..pipeline.batch_progress import BatchProgress
-    from ..pipeline.batch_run import Job, execute
-    from ..pipeline.tasks import ConvertTask
+    from ..batch.progress import BatchProgress
+    from ..batch.run import Job, execute
+    from ..batch.tasks import ConvertTask
     from .run import batch_client, check_batch_args, reporter
 
     check_batch_args(args)

@@ -22,7 +22,7 @@ The pipeline file is untrusted; the command line is the only authority:
 steps, then ``checked INPUT -> would write OUTPUT`` per input, and ends with
 ``dry run: N checked, F failed, nothing written``.
 
-Batches (shared with ``meshopt convert``, see :mod:`meshopt_toolkit.pipeline.batch_run`):
+Batches (shared with ``meshopt convert``, see :mod:`meshopt_toolkit.batch.run`):
 ``-j N`` runs files in N worker processes (0: all cores), each file isolated; ``--resume``
 skips files a journal in OUTDIR knows as done with the same input and pipeline;
 ``--scheduler ADDRESS`` runs on a Dask cluster (inputs sent as bytes, or read from the
@@ -108,10 +108,10 @@ def _outdir(args) -> Path | None:
 
 def run(args) -> int:
     from ..pipeline import load_pipeline
-    from ..pipeline.batch import RunOptions
-    from ..pipeline.batch_progress import BatchProgress
-    from ..pipeline.batch_run import Job, execute
-    from ..pipeline.tasks import RunTask
+    from ..batch.file_job import RunOptions
+    from ..batch.progress import BatchProgress
+    from ..batch.run import Job, execute
+    from ..batch.tasks import RunTask
     from ._common import expand_inputs
 
     pipeline = load_pipeline(args.pipeline)  # errors here are fatal (one line, exit 1)
@@ -206,7 +206,7 @@ def add_batch_args(parser) -> None:
 
 
 def _jobs(text: str) -> int:
-    from ..pipeline.workers import cpu_count
+    from ..batch.workers import cpu_count
 
     try:
         value = int(text)
@@ -241,7 +241,7 @@ def batch_client(args):
     if not args.scheduler:
         yield None
         return
-    from ..pipeline.dask_backend import connect
+    from ..batch.cluster import connect
 
     client = connect(args.scheduler)
     try:

@@ -4,7 +4,7 @@ The temporary file is hidden and named ``.NAME.PID.RANDOM.part``; it is removed 
 write fails. A process killed with SIGKILL cannot remove its own: such a file is left
 (nothing is deleted for its name alone: it could be the user's). A batch writes into its
 journaled scratch folder instead, which the next run removes
-(:mod:`meshopt_toolkit.pipeline.journal`).
+(:mod:`meshopt_toolkit.batch.journal`).
 """
 
 from __future__ import annotations

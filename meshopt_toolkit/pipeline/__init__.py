@@ -7,12 +7,15 @@
   convertible to and from ``pymeshlab.MeshSet``.
 - :class:`Pipeline`: steps mixing meshopt filters and MeshLab filters (routed to
   pymeshlab), read and written as JSON or MeshLab .mlx.
+
+Running a pipeline over many files is :mod:`meshopt_toolkit.batch`.
 """
 
 from __future__ import annotations
 
 from .document import Document, MeshEntry
 from .filter import ENTRY_POINT_GROUP, Filter, FilterRegistry, PluginWarning, register, registry
+from .formats import load_pipeline, save_pipeline
 from .params import (
     BoolParam,
     EnumParam,
@@ -24,7 +27,6 @@ from .params import (
     PathParam,
     StringParam,
 )
-from .files import load_pipeline, save_pipeline
 from .runner import Pipeline, Step, make_step
 
 __all__ = [

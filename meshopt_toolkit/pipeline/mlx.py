@@ -1,4 +1,5 @@
-"""MeshLab filter scripts (.mlx), read with a hardened XML parser and written complete.
+"""MeshLab filter scripts (.mlx) as text, read with a hardened XML parser and written
+complete (files of either format: :mod:`.formats`).
 
 Reading uses :mod:`defusedxml` (``<!DOCTYPE FilterScript>`` is allowed, but any entity
 declaration or external reference is refused before expansion), with a size limit, so a
@@ -22,17 +23,15 @@ from __future__ import annotations
 
 import re
 import xml.etree.ElementTree as ET
-from pathlib import Path
 
 from ..errors import FilterError
-from ..io import atomic_path
 from .filter import registry
-from .length import meshlab_float
-from .limits import MAX_PIPELINE_BYTES, check_name, check_step_count, read_bounded
+from .meshlab_values import meshlab_float
+from .limits import MAX_PIPELINE_BYTES, check_name, check_step_count
 from .params import did_you_mean, param_from_mlx
 from .runner import MESHOPT, Pipeline, Step, make_step
 
-__all__ = ["read_mlx", "write_mlx", "loads", "dumps", "MAX_BYTES"]
+__all__ = ["loads", "dumps", "MAX_BYTES"]
 
 #: scripts larger than this are refused before parsing
 MAX_BYTES = MAX_PIPELINE_BYTES
@@ -128,12 +127,6 @@ def _step_from_mlx(label: str, params: list[dict[str, str]]) -> Step:
         check_name(pname, "parameter")
         values[pname.lower()] = param_from_mlx(attrs)
     return make_step(label, values, label=label, mlx_params=params)
-
-
-def read_mlx(path) -> Pipeline:
-    """Read a .mlx file (a regular file, bounded; see :func:`loads`)."""
-    p = Path(path)
-    return loads(read_bounded(p, MAX_BYTES), str(p))
 
 
 def dumps(pipeline: Pipeline, diameter: float | None = None) -> str:
@@ -280,14 +273,3 @@ def _meshlab_param(filter_name: str, key: str, value) -> dict[str, str]:
     else:
         attrs.update(type="RichString", value=str(value))
     return attrs
-
-
-def write_mlx(pipeline: Pipeline, path, *, overwrite: bool = False,
-              diameter: float | None = None) -> None:
-    """Write a .mlx file atomically (see :func:`dumps`)."""
-    _write_text(path, dumps(pipeline, diameter), overwrite=overwrite)
-
-
-def _write_text(path, text: str, *, overwrite: bool) -> None:
-    with atomic_path(path, overwrite=overwrite) as tmp:
-        tmp.write_text(text, encoding="utf-8")

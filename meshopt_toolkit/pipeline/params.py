@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from typing import Any, ClassVar
 
 from ..errors import FilterError
-from .length import Length, meshlab_float
+from .meshlab_values import Length, meshlab_float
 
 __all__ = [
     "BoolParam",

@@ -1,7 +1,7 @@
 """Executors for a batch: in this process, or in worker processes with per-file isolation.
 
 An executor runs a *task* (a picklable callable, see :mod:`.tasks`) on payloads. The
-driver (:mod:`.batch_run`) gives each payload an id with :meth:`submit` while
+driver (:mod:`.run`) gives each payload an id with :meth:`submit` while
 :attr:`free` is positive and collects ``(id, result)`` pairs with :meth:`wait`.
 
 :class:`ProcessPool` starts N worker processes (``spawn``: no state inherited from the

@@ -8,7 +8,7 @@ How a batch runs
 - Inputs are consumed lazily and at most a window of them (a few per worker) is in flight
   or waiting to be reported: memory stays flat in the number of files, whether 10 or
   100,000. Records are reported in input order.
-- Executors (:mod:`.workers`, :mod:`.dask_backend`): this process (``jobs=1``), N worker
+- Executors (:mod:`.workers`, :mod:`.cluster`): this process (``jobs=1``), N worker
   processes (``jobs=N``; a crash, a native abort or a ``MemoryError`` fails that file
   only), or a Dask cluster (``client=``).
 - Tasks write into a scratch folder ``OUTDIR/.meshopt-staging/<n>``; this process moves
@@ -33,10 +33,10 @@ from pathlib import Path
 from typing import Any, Callable
 
 from ..errors import MeshoptError, WriteError
-from .batch import RunOptions
-from .batch_progress import BatchProgress, count_outcome, format_summary
+from ..pipeline.runner import Pipeline
+from .file_job import RunOptions
 from .journal import Journal, config_sha256, file_sha256
-from .runner import Pipeline
+from .progress import BatchProgress, count_outcome, format_summary
 from .tasks import RunTask, failed_record
 from .workers import RESTART_KEY, InlineExecutor, ProcessPool, WorkerCrash, cpu_count
 
@@ -303,7 +303,7 @@ def execute(task, jobs: Iterable[Job], outdir, *, workers: int = 1, isolate: boo
         Run on this Dask cluster instead (``workers`` is then ignored); a dry run, which
         runs no filter, is checked here all the same.
     send_inputs : {"bytes", "path"}
-        How a Dask cluster gets the inputs (see :mod:`.dask_backend`).
+        How a Dask cluster gets the inputs (see :mod:`.cluster`).
     resume, force, dry_run : bool
     on_record : callable, optional
         Called with each record in input order (then :attr:`BatchResult.records` is None).
@@ -319,7 +319,7 @@ def execute(task, jobs: Iterable[Job], outdir, *, workers: int = 1, isolate: boo
     batch = _Batch(task, outdir, force=force, resume=resume, dry_run=dry_run,
                    remote=client is not None)
     if client is not None:
-        from .dask_backend import DaskExecutor
+        from .cluster import DaskExecutor
 
         if isinstance(task, RunTask):
             if send_inputs == "bytes" and task.options.allow_read:
@@ -451,7 +451,7 @@ def run_batch(pipeline: Pipeline | dict | str | os.PathLike, inputs, outdir, *, 
     >>> res.summary()                                                   # doctest: +SKIP
     '118 done, 0 skipped, 2 failed in 41.3 s'
     """
-    from .files import load_pipeline
+    from ..pipeline.formats import load_pipeline
 
     if isinstance(pipeline, (str, os.PathLike)):
         pipeline = load_pipeline(pipeline)
@@ -473,7 +473,7 @@ def run_batch(pipeline: Pipeline | dict | str | os.PathLike, inputs, outdir, *, 
     jobs_iter = (Job(i, Path(p)) for i, p in enumerate(inputs, start=1))
     own_client = None
     if isinstance(client, str):
-        from .dask_backend import connect
+        from .cluster import connect
 
         client = own_client = connect(client)
     bar = BatchProgress(total, "run") if progress else None

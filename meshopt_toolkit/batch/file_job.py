@@ -2,8 +2,8 @@
 
 :func:`run_file` runs one input (load → pipeline → save) and returns a JSON-able record;
 errors become ``status="failed"`` records instead of exceptions. Running it over many
-files — in worker processes, on a Dask cluster, resumable — is :mod:`.batch_run`
-(:func:`~.batch_run.run_batch`).
+files — in worker processes, on a Dask cluster, resumable — is :mod:`.run`
+(:func:`~.run.run_batch`).
 """
 
 from __future__ import annotations
@@ -14,9 +14,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import MeshoptError
-from .document import Document
-from .limits import DEFAULT_MAX_TRIANGLES
-from .runner import Pipeline
+from ..pipeline.document import Document
+from ..pipeline.limits import DEFAULT_MAX_TRIANGLES
+from ..pipeline.runner import Pipeline
 from .workers import RESTART_KEY
 
 logger = logging.getLogger(__name__)
@@ -102,7 +102,7 @@ def run_file(pipeline: Pipeline | dict, src, outdir, *, ext: str | None = None,
         ``{"input", "status": "ok"|"failed", "outputs", "results", "warnings", "error",
         "seconds"}``.
     """
-    from .document import load_entry, save_entry
+    from ..pipeline.document import load_entry, save_entry
 
     if options is None:
         options = RunOptions(ext=ext, force=force, dry_run=dry_run)

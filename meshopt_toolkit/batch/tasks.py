@@ -19,8 +19,8 @@ from pathlib import Path
 from typing import Callable
 
 from ..errors import MeshoptError
-from .batch import RunOptions, output_path, run_file
-from .runner import Pipeline
+from ..pipeline.runner import Pipeline
+from .file_job import RunOptions, output_path, run_file
 from .workers import RESTART_KEY
 
 logger = logging.getLogger(__name__)
@@ -35,7 +35,7 @@ def failed_record(src, error: str, seconds: float = 0.0) -> dict:
 
 
 class RunTask:
-    """Run a pipeline on one file (:func:`~.batch.run_file`).
+    """Run a pipeline on one file (:func:`~.file_job.run_file`).
 
     Parameters
     ----------
