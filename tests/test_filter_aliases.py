@@ -233,3 +233,21 @@ def test_registry_refuses_an_alias_taken_by_another_filter():
     reg.register(A)
     with pytest.raises(FilterError, match="'meshing_a' already used by 'meshing_a'"):
         reg.register(B)
+
+
+def test_docs_table_lists_every_filter_and_its_former_name():
+    import re
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "pipelines.md").read_text()
+    section = text.split("## Filter names and parameters")[1].split("\n## ")[0]
+    rows = [r for r in section.splitlines() if r.startswith("| `")]
+    named = {}
+    for row in rows:
+        cells = [c.strip() for c in row.strip("|").split("|")]
+        for name in re.findall(r"`([a-z_]+)`", cells[0]):
+            named[name] = re.findall(r"`([a-z_]+)`", cells[-1])
+    filters = {n: f for n, f in named.items() if n in CURRENT}
+    assert set(filters) == CURRENT
+    for name, former in filters.items():
+        assert tuple(former) == registry.get(name).aliases, name
