@@ -47,6 +47,19 @@ def test_former_name_finds_the_renamed_filter(old, new):
     assert old in registry.get(new).aliases
 
 
+@pytest.mark.parametrize("label, name", [
+    ("Prescribed Motion (meshopt)", "apply_coord_prescribed_motion"),
+    ("Quality Preserving Deformation (meshopt)", "apply_coord_quality_preserving_deformation"),
+    ("Shape Optimization (meshopt)", "apply_coord_shape_optimization"),
+    ("Per Face Shape Quality (meshopt)", "compute_scalar_by_shape_quality_per_face"),
+    ("Geodesic Morph (meshopt)", "generate_geodesic_morph"),
+    ("Uniform Refinement (meshopt)", "meshing_uniform_refinement"),
+])
+def test_meshlab_labels_of_saved_scripts_are_unchanged(label, name):
+    # .mlx scripts name filters by label: the labels stayed as they were
+    assert registry.get(name).label == label
+
+
 def test_every_builtin_module_is_named_as_its_filter():
     import importlib
     import pkgutil
