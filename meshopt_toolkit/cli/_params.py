@@ -6,12 +6,13 @@ its one-line range error (the same words as :mod:`._validate`'s). A subcommand n
 parameters it exposes and the option spelling of each::
 
     OPTIONS = {"steps": "--steps", "weight": "--weight"}
-    OPTIONS = {"max_iterations": ("--max-iterations", "--max-iter")}  # former spellings after
-
-An option is spelled as its parameter (``max_iterations`` → ``--max-iterations``); a former
-spelling stays accepted after it, so that saved command lines keep working.
     add_options(parser, PrescribedMotion, OPTIONS)      # in add_args
     check_options(args, PrescribedMotion, OPTIONS)      # before any work
+
+An option is spelled as its parameter (``max_iterations`` → ``--max-iterations``); former
+spellings follow it in a tuple and stay accepted, so that saved command lines keep working::
+
+    OPTIONS = {"max_iterations": ("--max-iterations", "--max-iter")}
 """
 
 from __future__ import annotations
