@@ -1,7 +1,7 @@
 """Benchmark: a batch of small shape-optimization jobs with 1, 2 and 4 worker processes.
 
 120 inputs (the 146-vertex disc, interior nodes jittered differently in each file), one
-``compute_shape_optimization`` step each (complete-euclidean, 30 iterations: about 0.08 s
+``apply_coord_shape_optimization`` step each (complete-euclidean, 30 iterations: about 0.08 s
 a file), run with :func:`meshopt_toolkit.run_batch` exactly as ``meshopt run -j N`` runs
 them: ``jobs=1`` in this process, ``jobs=N`` in N worker processes (their start-up
 included). Every output is checked to be byte-identical to the ``jobs=1`` run.
@@ -86,7 +86,7 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3,
                     help="best of this many interleaved runs of each count")
     args = ap.parse_args()
-    pipeline = {"filters": [{"name": "compute_shape_optimization",
+    pipeline = {"filters": [{"name": "apply_coord_shape_optimization",
                              "params": {"variant": "complete-euclidean", "rhs": "1",
                                         "penalty": "0.1,0.01,0,0.5",
                                         "max_iterations": args.iterations, "tolerance": 0}}]}

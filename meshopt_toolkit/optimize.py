@@ -135,7 +135,7 @@ def thesis_penalty_beta(parameter_set: int, n_vertices: int) -> tuple[float, flo
     return (b1, b2, b3, b4_per_vertex * n_vertices)
 
 
-#: the default β^penalty of ``meshopt optimize`` and ``compute_shape_optimization``: thesis
+#: the default β^penalty of ``meshopt optimize`` and ``apply_coord_shape_optimization``: thesis
 #: parameter set 2 at the thesis' mesh size (146 vertices: β4 = 0.001·146), with β4 kept
 #: fixed on other meshes. f2's anchor term (β4/2N)‖Q − Q_ref‖² is then a mean over the
 #: vertices (a discrete L² norm of the displacement) and means the same on every

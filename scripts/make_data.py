@@ -2,7 +2,7 @@
 
 Run from the repository root::
 
-    python scripts/make_data.py            # writes data/*.msh and verifies each file
+    python scripts/make_data.py            # writes meshopt_toolkit/data/*.msh and verifies each file
     python scripts/make_data.py --check    # only re-reads and verifies the files
 
 Every file has two physical groups: the triangles are tagged ``"domain"`` (tag 1, dim 2)
@@ -62,7 +62,7 @@ sys.path.insert(0, str(ROOT))
 from meshopt_toolkit.kernels.triangles import signed_areas
 from meshopt_toolkit.mesh import PlanarMesh, check_mesh
 
-DATA = ROOT / "data"
+DATA = ROOT / "meshopt_toolkit" / "data"
 DOMAIN_TAG, BOUNDARY_TAG = 1, 2
 
 #: (boundary nodes, interior size h, expected vertices, expected triangles)
@@ -293,7 +293,7 @@ def build() -> dict[str, tuple[np.ndarray, np.ndarray]]:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--check", action="store_true", help="only verify the existing files")
-    parser.add_argument("--out", type=Path, default=DATA, help="output folder (default data/)")
+    parser.add_argument("--out", type=Path, default=DATA, help="output folder (default meshopt_toolkit/data/)")
     args = parser.parse_args(argv)
     _init_gmsh()
     try:

@@ -22,7 +22,7 @@ from meshopt_toolkit.batch.tasks import ConvertTask
 from meshopt_toolkit.batch.workers import ProcessPool, WorkerCrash
 
 PIPE = {"filters": [{"name": "meshing_uniform_refinement"},
-                    {"name": "compute_shape_optimization",
+                    {"name": "apply_coord_shape_optimization",
                      "params": {"variant": "complete-euclidean", "rhs": "1",
                                 "penalty": "0.1,0.01,0,0.5", "max_iterations": 2,
                                 "tolerance": 0}}]}

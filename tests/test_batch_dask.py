@@ -16,7 +16,7 @@ from meshopt_toolkit.io import save
 distributed = pytest.importorskip("distributed")
 
 PIPE = {"filters": [{"name": "meshing_uniform_refinement"},
-                    {"name": "compute_shape_optimization",
+                    {"name": "apply_coord_shape_optimization",
                      "params": {"variant": "complete-euclidean", "rhs": "1",
                                 "penalty": "0.1,0.01,0,0.5", "max_iterations": 2,
                                 "tolerance": 0}}]}

@@ -76,13 +76,13 @@ BAD_OPTIONS = [
     ("deform", ["--frames", "1000000"], "--frames must be between 2 and 1000, got 1000000"),
     ("deform", ["--frames", "1"], "--frames must be between 2 and 1000, got 1"),
     ("deform", ["--alpha", "1,nan,1"], "--alpha must be finite numbers >= 0, got 1,nan,1"),
-    ("deform", ["--beta", "1,1,-1,1"], "--beta must be finite numbers >= 0, got 1,1,-1,1"),
+    ("deform", ["--beta", "1,1,-1,1"], "--penalty must be finite numbers >= 0, got 1,1,-1,1"),
     ("morph", ["--frames", "1001"], "--frames must be between 2 and 1000, got 1001"),
-    ("morph", ["--max-iter", "0"], "--max-iter must be between 1 and 100000, got 0"),
+    ("morph", ["--max-iter", "0"], "--max-iterations must be between 1 and 100000, got 0"),
     ("morph", ["--weight", "nan"], "--weight must be a finite number > 0, got nan"),
     ("morph", ["--weight", "0"], "--weight must be a finite number > 0, got 0"),
     ("morph", ["--metric", "scalar", "--beta", "1,1,inf,1"],
-     "--beta must be finite numbers >= 0, got 1,1,inf,1"),
+     "--penalty must be finite numbers >= 0, got 1,1,inf,1"),
     ("move", ["--frames", "1000000"], "--frames must be between 2 and 1000, got 1000000"),
     ("move", ["--steps", "0"], "--steps must be between 1 and 1000, got 0"),
     ("move", ["--weight=-inf"], "--weight must be a finite number > 0, got -inf"),
@@ -110,7 +110,7 @@ def test_frames_bound_is_the_filters():
     from meshopt_toolkit.pipeline.filter import registry
 
     frames = {p.name: p for p in registry.get("generate_geodesic_morph").parameters}["frames"]
-    steps = {p.name: p for p in registry.get("apply_prescribed_motion").parameters}["steps"]
+    steps = {p.name: p for p in registry.get("apply_coord_prescribed_motion").parameters}["steps"]
     assert frames.max == MAX_FRAMES == 1000 and steps.max == MAX_STEPS
 
 
@@ -224,10 +224,10 @@ def test_pipeline_steps_count_from_one_and_dry_run_needs_no_output(work, capsys)
     bad = work / "bad.json"
     bad.write_text(json.dumps({"filters": [
         {"name": "compute_scalar_by_shape_quality_per_face", "params": {}},
-        {"name": "compute_shape_optimization", "params": {"penalty": "1,1,1e999,1"}}]}))
+        {"name": "apply_coord_shape_optimization", "params": {"penalty": "1,1,1e999,1"}}]}))
     assert main(["run", str(bad), str(work / "disc.msh"), "--dry-run"]) == 1
     err = capsys.readouterr().err
-    assert "step 2 (compute_shape_optimization)" in err and "finite" in err
+    assert "step 2 (apply_coord_shape_optimization)" in err and "finite" in err
     assert "internal error" not in err
     assert main(["run", str(_empty_pipeline(work)), str(work / "disc.msh"), "--dry-run"]) == 0
     captured = capsys.readouterr()

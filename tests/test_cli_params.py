@@ -17,9 +17,9 @@ from meshopt_toolkit.cli._params import add_options, check_options
 from meshopt_toolkit.cli._validate import OptionError
 from meshopt_toolkit.deform import deform
 from meshopt_toolkit.filters.generate_geodesic_morph import GenerateGeodesicMorph
-from meshopt_toolkit.filters.quality_preserving_deformation import QualityPreservingDeformation
-from meshopt_toolkit.filters.move_vertices import PrescribedMotion
-from meshopt_toolkit.filters.shape_optimization import ShapeOptimization
+from meshopt_toolkit.filters.apply_coord_quality_preserving_deformation import QualityPreservingDeformation
+from meshopt_toolkit.filters.apply_coord_prescribed_motion import PrescribedMotion
+from meshopt_toolkit.filters.apply_coord_shape_optimization import ShapeOptimization
 from meshopt_toolkit.motion.morph import distortion_morph
 from meshopt_toolkit.motion.move import move
 from meshopt_toolkit.optimize import optimize

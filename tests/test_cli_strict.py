@@ -121,7 +121,7 @@ def test_move_and_run_json_are_strict(work, capsys, monkeypatch):
     assert strict_loads(capsys.readouterr().out)["probe"] == [None, None]
     pipe = work / "p.json"
     pipe.write_text(json.dumps({"filters": [
-        {"name": "apply_prescribed_motion", "params": {"map": "x; y"}}]}))
+        {"name": "apply_coord_prescribed_motion", "params": {"map": "x; y"}}]}))
     assert main(["run", str(pipe), str(work / "disc.msh"), "-o", str(work / "r"), "--json"]) == 0
     for line in capsys.readouterr().out.splitlines():
         assert strict_loads(line)["results"][0]["probe"] == [None, None]

@@ -51,7 +51,7 @@ def test_example_pipelines_run_and_agree(tmp_path):
 
     from meshopt_toolkit.cli import main
 
-    data = Path(__file__).resolve().parents[1] / "data" / "disc_541.msh"
+    data = Path(__file__).resolve().parents[1] / "meshopt_toolkit" / "data" / "disc_541.msh"
     written = []
     for name in ("remesh_refine.json", "remesh_refine.mlx"):
         out = tmp_path / name

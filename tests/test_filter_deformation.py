@@ -1,4 +1,4 @@
-"""The apply_quality_preserving_deformation filter through Python, JSON and .mlx."""
+"""The apply_coord_quality_preserving_deformation filter through Python, JSON and .mlx."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ from meshopt_toolkit.kernels.triangles import signed_areas
 from meshopt_toolkit.io import load
 from meshopt_toolkit.pipeline import Document, Pipeline, load_pipeline, registry, save_pipeline
 
-NAME = "apply_quality_preserving_deformation"
+NAME = "apply_coord_quality_preserving_deformation"
 
 
 @pytest.fixture(scope="module")

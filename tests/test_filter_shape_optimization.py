@@ -1,4 +1,4 @@
-"""The compute_shape_optimization filter through Python, JSON and .mlx."""
+"""The apply_coord_shape_optimization filter through Python, JSON and .mlx."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ from meshopt_toolkit.optimize import ProblemSpec, optimize
 from meshopt_toolkit.pipeline import Document, Pipeline, load_pipeline, registry, save_pipeline
 from meshopt_toolkit.fem.poisson import PoissonObjective
 
-STEP = {"name": "compute_shape_optimization",
+STEP = {"name": "apply_coord_shape_optimization",
         "params": {"variant": "complete-euclidean", "rhs": "1", "penalty": "0.1,0.01,0,0.5",
                    "max_iterations": 4, "tolerance": 0}}
 
@@ -59,7 +59,7 @@ def test_filter_equals_library_call(kind, disc, tmp_path):
 
 
 def test_filter_refuses_unsafe_rhs_and_bad_beta(disc):
-    f = registry.get("compute_shape_optimization")()
+    f = registry.get("apply_coord_shape_optimization")()
     with pytest.raises(FilterError, match="rhs.*only calls of named functions"):
         f(Document([disc]), rhs="__import__('os').system('true')", max_iterations=1)
     with pytest.raises(FilterError, match="expected 4"):

@@ -16,7 +16,7 @@ from meshopt_toolkit.pipeline import Pipeline, load_pipeline, save_pipeline
 
 VALID = {"filters": [
     {"name": "meshing_uniform_refinement", "params": {"iterations": 1}},
-    {"name": "compute_shape_optimization", "params": {"max_iterations": 2, "rhs": "x**2 + y"}},
+    {"name": "apply_coord_shape_optimization", "params": {"max_iterations": 2, "rhs": "x**2 + y"}},
     {"name": "compute_scalar_by_shape_quality_per_face", "params": {}},
 ]}
 
@@ -71,6 +71,6 @@ def test_mutated_pipelines_raise_only_meshopt_errors(tmp_path, valid_texts, suff
 
 @pytest.mark.parametrize("rhs", ["1/0", "log(-1)", "x + q", "x +"])
 def test_bad_rhs_is_refused_when_the_pipeline_is_checked(rhs):
-    bad = {"filters": [{"name": "compute_shape_optimization", "params": {"rhs": rhs}}]}
+    bad = {"filters": [{"name": "apply_coord_shape_optimization", "params": {"rhs": rhs}}]}
     with pytest.raises(FilterError, match="rhs"):
         Pipeline.from_dict(bad).validate()

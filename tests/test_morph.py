@@ -343,7 +343,7 @@ def test_cli_morph_max_iter_and_callback(tmp_path, capsys, disc):
     assert summary["admissible"] and not summary["converged"]
     assert main(["morph", str(tmp_path / "a.msh"), str(tmp_path / "b.msh"), "-o",
                  str(tmp_path / "o2"), "--max-iter", "0"]) == 1
-    assert "--max-iter" in capsys.readouterr().err
+    assert "--max-iterations" in capsys.readouterr().err
     seen = []
     geodesic_morph(disc, twisted(disc), frames=3, max_iter=3,
                    callback=lambda nit, E, g: seen.append((nit, E, g)))
@@ -385,7 +385,7 @@ def test_filter_through_json_and_mlx_pipelines(kind, tmp_path):
     mesh = grid_mesh(4, jitter=0.3)
     save(mesh.with_points(bend(mesh)), tmp_path / "b.msh")
     steps = [{"name": "load_mesh", "params": {"path": str(tmp_path / "b.msh")}},
-             {"name": "generate_geodesic_morph", "params": {"frames": 3, "beta4": 0.5}}]
+             {"name": "generate_geodesic_morph", "params": {"frames": 3, "penalty": "1,1,0,0.5"}}]
     path = tmp_path / f"morph.{kind}"
     if kind == "json":
         path.write_text(json.dumps({"filters": steps}))

@@ -820,7 +820,7 @@ def test_move_filter_and_cli_agree(annulus, tmp_path):
     assert main(["move", str(src), "-o", str(tmp_path / "cli.msh"), "--map", mapping,
                  "--where", where]) == 0
     pipe = Pipeline.from_dict({"filters": [
-        {"name": "apply_prescribed_motion", "params": {"map": mapping, "where": where}}]})
+        {"name": "apply_coord_prescribed_motion", "params": {"map": mapping, "where": where}}]})
     from meshopt_toolkit.pipeline import Document
 
     doc = Document()

@@ -33,7 +33,7 @@ def _run_filter(mesh, name: str, **params):
 
     doc = Document()
     doc.add(mesh, name=name)
-    Pipeline.from_dict({"filters": [{"name": "apply_prescribed_motion",
+    Pipeline.from_dict({"filters": [{"name": "apply_coord_prescribed_motion",
                                      "params": params}]}).run(doc)
     return doc.current_entry.mesh
 

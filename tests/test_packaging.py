@@ -1,10 +1,8 @@
-"""Packaging guards: setuptools package lists, the bare ``filters`` name, bundled data."""
+"""Packaging guards: setuptools finds every package under meshopt_toolkit/, bundled data."""
 
 from __future__ import annotations
 
 import fnmatch
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -33,64 +31,40 @@ def _subpackages(folder: Path, prefix: str) -> set[str]:
     return names
 
 
-def test_package_dir_maps_the_top_level_folders():
-    pd = SETUPTOOLS["package-dir"]
-    assert pd["meshopt_toolkit"] == "meshopt_toolkit"
-    assert pd["meshopt_toolkit.filters"] == "filters"
-    assert pd["meshopt_toolkit.data"] == "data"
+def _found_packages() -> set[str]:
+    """What setuptools installs: ``find_packages`` with pyproject's include and exclude."""
+    from setuptools import find_packages
+
+    find = SETUPTOOLS["packages"]["find"]
+    return set(find_packages(where=str(ROOT / find.get("where", ["."])[0]),
+                             include=find.get("include", ["*"]),
+                             exclude=find.get("exclude", ())))
 
 
-def test_every_filters_folder_is_listed():
-    found = _subpackages(ROOT / "filters", "meshopt_toolkit.filters")
-    assert "meshopt_toolkit.filters" in found
-    missing = found - set(SETUPTOOLS["packages"])
-    assert not missing, f"add to [tool.setuptools] packages in pyproject.toml: {sorted(missing)}"
+def test_packages_are_found_inside_the_package_folder():
+    # one folder, no remapping: what is imported in the repository is what is installed
+    assert "package-dir" not in SETUPTOOLS
+    assert SETUPTOOLS["packages"]["find"]["include"] == ["meshopt_toolkit*"]
+    assert not (ROOT / "filters").exists(), "the filters live in meshopt_toolkit/filters"
 
 
-def test_every_library_subpackage_is_listed():
+def test_every_library_subpackage_is_installed():
     found = _subpackages(ROOT / "meshopt_toolkit", "meshopt_toolkit")
-    missing = found - set(SETUPTOOLS["packages"])
-    assert not missing, f"add to [tool.setuptools] packages in pyproject.toml: {sorted(missing)}"
+    assert {"meshopt_toolkit", "meshopt_toolkit.filters", "meshopt_toolkit.data"} <= found
+    assert _found_packages() == found
 
 
-def test_listed_packages_exist():
-    pd = SETUPTOOLS["package-dir"]
-    for name in SETUPTOOLS["packages"]:
-        # resolve through the longest package-dir prefix
-        base = max((k for k in pd if name == k or name.startswith(k + ".")), key=len)
-        folder = (
-            ROOT / pd[base] / Path(*name[len(base) :].strip(".").split(".") if name != base else ())
-        )
-        assert (folder / "__init__.py").is_file(), f"{name} -> {folder} has no __init__.py"
-
-
-def test_bare_filters_import_is_refused():
-    code = (
-        "import sys\n"
-        f"sys.path.insert(0, {str(ROOT)!r})\n"
-        "try:\n"
-        "    import filters\n"
-        "except ImportError as e:\n"
-        "    print('refused:', e)\n"
-        "    raise SystemExit(0)\n"
-        "raise SystemExit('import filters succeeded')\n"
-    )
-    out = subprocess.run(
-        [sys.executable, "-c", code],
-        check=False,
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
-    assert out.returncode == 0, out.stderr or out.stdout
-    assert "meshopt_toolkit.filters" in out.stdout
+def test_every_folder_with_modules_is_a_package():
+    # a folder of .py files without __init__.py would be left out of the wheel silently
+    for py in (ROOT / "meshopt_toolkit").rglob("*.py"):
+        assert (py.parent / "__init__.py").is_file(), f"{py.parent} has no __init__.py"
 
 
 def test_filters_importable_under_the_package_name():
     import meshopt_toolkit.filters as f
 
     assert f.__name__ == "meshopt_toolkit.filters"
+    assert Path(f.__file__).parent == ROOT / "meshopt_toolkit" / "filters"
 
 
 EXPECTED_MESHES = [
@@ -113,8 +87,8 @@ def test_bundled_mesh_is_reachable(name):
 
 def test_bundled_files_are_package_data():
     patterns = PYPROJECT["tool"]["setuptools"]["package-data"]["meshopt_toolkit.data"]
-    # plain files only: sub-folders (data/surfaces) are repository data, not shipped
-    files = sorted(p.name for p in (ROOT / "data").glob("*")
+    # plain files only (the repository folder data/surfaces is not shipped)
+    files = sorted(p.name for p in (ROOT / "meshopt_toolkit" / "data").glob("*")
                    if p.is_file() and p.name != "__init__.py")
     assert files, "no bundled data files"
     for f in files:

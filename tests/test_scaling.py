@@ -104,12 +104,12 @@ def test_filters_work_at_any_scale(tmp_path, factor):
     V[DISC.boundary_vertices, 0] = -0.4 * DISC.points[DISC.boundary_vertices, 0] * factor
     np.save(tmp_path / "v.npy", V)
     doc = Document([mesh])
-    registry.get("apply_prescribed_motion")()(doc, map="1.1*x; 1.1*y")
+    registry.get("apply_coord_prescribed_motion")()(doc, map="1.1*x; 1.1*y")
     moved = doc.mesh.as_planar()
     b = DISC.boundary_vertices
     assert np.array_equal(moved.points[b], mesh.points[b] * 1.1)
     doc = Document([mesh])
-    summary = registry.get("apply_quality_preserving_deformation")()(
+    summary = registry.get("apply_coord_quality_preserving_deformation")()(
         doc, displacement=str(tmp_path / "v.npy"))
     assert summary["min_aspect_ratio"] > 0.3 and np.isfinite(doc.mesh.points).all()
     doc = Document([mesh, mesh.with_points(mesh.points * 1.2)])

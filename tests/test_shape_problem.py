@@ -218,7 +218,7 @@ def test_cli_bad_problem_options_are_one_line(extra, message, paths, tmp_path, c
 def test_filter_parameters_pose_the_same_problem(meshes):
     mesh = meshes["plate"]
     doc = Document([mesh])
-    registry.get("compute_shape_optimization")()(doc, fixed="outer", keep_area=True,
+    registry.get("apply_coord_shape_optimization")()(doc, fixed="outer", keep_area=True,
                                                  dirichlet="hole1=1", max_iterations=5)
     expected = optimize(mesh, None, problem=ProblemSpec(fixed=("outer",), keep_area=True,
                                                         dirichlet={"hole1": 1.0}, scale="auto"),

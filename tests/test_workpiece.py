@@ -353,15 +353,15 @@ def test_pipeline_motion_filters_keep_everything(files, tmp_path, name):
     src = load_cells(files / name)
     doc = Document()
     doc.add(load_entry(files / name))
-    registry.get("apply_prescribed_motion")()(doc, map="x; y")
+    registry.get("apply_coord_prescribed_motion")()(doc, map="x; y")
     np.save(tmp_path / "zero.npy", np.zeros((len(src.points), 2)))
-    registry.get("apply_quality_preserving_deformation")()(
+    registry.get("apply_coord_quality_preserving_deformation")()(
         doc, displacement=str(tmp_path / "zero.npy"))
     out = tmp_path / f"out{name[name.index('.'):]}"
     save_entry(doc.current_entry, out)
     _assert_same_extras(src, load_cells(out))  # both identities: bit for bit
-    registry.get("apply_prescribed_motion")()(doc, map="x + 0.05*y; y", where="x > 0.5")
-    registry.get("compute_shape_optimization")()(doc, max_iterations=2)
+    registry.get("apply_coord_prescribed_motion")()(doc, map="x + 0.05*y; y", where="x > 0.5")
+    registry.get("apply_coord_shape_optimization")()(doc, max_iterations=2)
     save_entry(doc.current_entry, out)
     moved = load_cells(out)
     _assert_same_extras(src, moved, points=False)

@@ -8,12 +8,17 @@ parameters it exposes and the option spelling of each::
     OPTIONS = {"steps": "--steps", "weight": "--weight"}
     add_options(parser, PrescribedMotion, OPTIONS)      # in add_args
     check_options(args, PrescribedMotion, OPTIONS)      # before any work
+
+An option is spelled as its parameter (``max_iterations`` → ``--max-iterations``); former
+spellings follow it in a tuple and stay accepted, so that saved command lines keep working::
+
+    OPTIONS = {"max_iterations": ("--max-iterations", "--max-iter")}
 """
 
 from __future__ import annotations
 
 import argparse
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 from ..pipeline.params import BoolParam, EnumParam, FloatParam, IntParam, Param
 from ._validate import check_int, check_number
@@ -33,9 +38,17 @@ def _help(param: Param) -> str:
     return f"{param.help} ({'; '.join(parts)})"
 
 
-def add_options(parser: argparse.ArgumentParser, filter_cls, options: Mapping[str, str]) -> None:
-    """Add one option per named parameter of ``filter_cls`` (``{param_name: "--option"}``);
-    the value lands in ``args.<param_name>``."""
+Options = Mapping[str, "str | Sequence[str]"]
+
+
+def _spellings(option: "str | Sequence[str]") -> tuple[str, ...]:
+    return (option,) if isinstance(option, str) else tuple(option)
+
+
+def add_options(parser: argparse.ArgumentParser, filter_cls, options: Options) -> None:
+    """Add one option per named parameter of ``filter_cls`` (``{param_name: "--option"}``,
+    or a tuple: the option, then its former spellings); the value lands in
+    ``args.<param_name>``."""
     for name, option in options.items():
         param = filter_cls.param(name)
         kwargs = {"dest": name, "default": param.default, "help": _help(param)}
@@ -47,14 +60,15 @@ def add_options(parser: argparse.ArgumentParser, filter_cls, options: Mapping[st
             kwargs["type"] = float
         elif isinstance(param, EnumParam):
             kwargs["choices"] = param.choices
-        parser.add_argument(option, **kwargs)
+        parser.add_argument(*_spellings(option), **kwargs)
 
 
-def check_options(args: argparse.Namespace, filter_cls, options: Mapping[str, str]) -> None:
+def check_options(args: argparse.Namespace, filter_cls, options: Options) -> None:
     """The parameters' ranges on the parsed values, as one-line
     :class:`~._validate.OptionError` messages naming the option."""
     for name, option in options.items():
         param, value = filter_cls.param(name), getattr(args, name)
+        option = _spellings(option)[0]
         if isinstance(param, IntParam) and param.min is not None and param.max is not None:
             check_int(option, value, param.min + 1 if param.exclusive_min else param.min,
                       param.max)

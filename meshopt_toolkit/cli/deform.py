@@ -24,7 +24,7 @@ from pathlib import Path
 from ..bounds import MAX_FRAMES
 from ._common import (add_output_flags, check_output_target, float_list, load_workpiece,
                       prepare_output_dir, save_moved, write_text)
-from ..filters.quality_preserving_deformation import QualityPreservingDeformation
+from ..filters.apply_coord_quality_preserving_deformation import QualityPreservingDeformation
 from ._params import add_options, check_options
 from ._validate import check_int, check_number, check_numbers
 
@@ -54,7 +54,8 @@ def add_args(p: argparse.ArgumentParser) -> None:
     group = p.add_mutually_exclusive_group()
     group.add_argument("--alpha", type=float_list(3), metavar="a1,a2,a3",
                        help="f1 parameters (default: 1,0,1)")
-    group.add_argument("--beta", type=float_list(4), metavar="b1,b2,b3,b4",
+    group.add_argument("--penalty", "--beta", dest="beta", type=float_list(4),
+                       metavar="b1,b2,b3,b4",
                        help="use f2 with these parameters instead (β4 unscaled)")
     p.add_argument("--euclidean", action="store_true",
                    help="follow the Euclidean geodesic Q + tV instead (for comparison)")
@@ -68,7 +69,7 @@ def _check_numbers(args: argparse.Namespace) -> None:
     check_options(args, QualityPreservingDeformation, OPTIONS)
     check_int("--frames", args.frames, 2, MAX_FRAMES)
     check_numbers("--alpha", args.alpha)
-    check_numbers("--beta", args.beta)
+    check_numbers("--penalty", args.beta)
     check_number("--rtol", args.rtol, low=MIN_RTOL, high=MAX_RTOL)
 
 

@@ -36,6 +36,8 @@ def _meshlab_spec(name: str) -> dict:
 def _describe(spec: dict) -> str:
     lines = [spec["name"] + (f"  [{spec['label']}]" if spec.get("label") else ""),
              f"  {spec['description']}", f"  origin: {spec['origin']}"]
+    if spec.get("aliases"):
+        lines.append(f"  also: {', '.join(spec['aliases'])} (former names, still accepted)")
     if spec.get("unsafe"):
         lines.append("  refused: aborts the process without a GPU/display")
     if not spec["parameters"]:
@@ -45,7 +47,9 @@ def _describe(spec: dict) -> str:
         if p.get("min") is not None or p.get("max") is not None:
             rng = f" in [{p.get('min', '')}, {p.get('max', '')}]"
         choices = f" one of {p['choices']}" if p.get("choices") else ""
-        lines.append(f"  {p['name']} : {p['type']} = {p['default']!r}{rng}{choices}")
+        former = [k for k, v in spec.get("former_parameters", {}).items() if v == p["name"]]
+        also = f" (also: {', '.join(former)})" if former else ""
+        lines.append(f"  {p['name']} : {p['type']} = {p['default']!r}{rng}{choices}{also}")
         if p.get("help"):
             lines.append(f"      {p['help']}")
     return "\n".join(lines)

@@ -45,14 +45,14 @@ def add_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("target", help="target mesh (last frame), same vertices and triangles")
     p.add_argument("-o", "--output", required=True, help="output directory")
     add_options(p, GenerateGeodesicMorph, OPTIONS)
-    p.add_argument("--beta", type=float_list(4), metavar="b1,b2,b3,b4",
-                   default=DEFAULT_BETA,
+    p.add_argument("--penalty", "--beta", dest="beta", type=float_list(4),
+                   metavar="b1,b2,b3,b4", default=DEFAULT_BETA,
                    help="--metric scalar: f2 coefficients of the complete metric, β4 unscaled "
                         f"(default: {','.join(f'{b:g}' for b in DEFAULT_BETA)})")
     p.add_argument("--no-normalize", action="store_true",
                    help="use the plain complete metric of f2 instead of that of √N·f2 "
                         "(which keeps the balance between motion and quality on fine meshes)")
-    p.add_argument("--max-iter", type=int, default=None,
+    p.add_argument("--max-iterations", "--max-iter", dest="max_iter", type=int, default=None,
                    help="iterations of the discrete geodesic (default: 200 Levenberg–Marquardt "
                         "for the distortion metric, 500 Newton for the scalar one)")
     add_output_flags(p, plots=True, frame_format="the source's")
@@ -60,8 +60,8 @@ def add_args(p: argparse.ArgumentParser) -> None:
 
 def _check_numbers(args: argparse.Namespace) -> None:
     check_options(args, GenerateGeodesicMorph, OPTIONS)
-    check_int("--max-iter", args.max_iter, 1, MAX_ITERATIONS)
-    check_numbers("--beta", args.beta)
+    check_int("--max-iterations", args.max_iter, 1, MAX_ITERATIONS)
+    check_numbers("--penalty", args.beta)
 
 
 def _check_outputs(args: argparse.Namespace) -> None:

@@ -25,7 +25,7 @@ from pathlib import Path
 from ._common import (add_output_flags, check_output_target, load_workpiece,
                       prepare_output_dir, save_moved, write_text)
 from ..bounds import MAX_FRAMES
-from ..filters.move_vertices import PrescribedMotion
+from ..filters.apply_coord_prescribed_motion import PrescribedMotion
 from ._params import add_options, check_options
 from ._validate import OptionError, check_int
 

@@ -30,14 +30,15 @@ DEFAULT_MESH = "disc_146.msh"
 #: options generated from the filter's parameters (one schema: cli/_params.py)
 OPTIONS = {"variant": "--variant", "method": "--method", "retraction": "--retraction",
            "lbfgs_preconditioner": "--lbfgs-preconditioner", "memory": "--memory",
-           "rhs": "--rhs", "max_iterations": "--max-iter", "tolerance": "--tol"}
+           "rhs": "--rhs", "max_iterations": ("--max-iterations", "--max-iter"),
+           "tolerance": ("--tolerance", "--tol")}
 OUTPUT_NAMES = ("history.csv", "history.json", "summary.json", "mesh.png", "history.png")
 
 logger = logging.getLogger(__name__)
 
 
 def add_args(p: argparse.ArgumentParser) -> None:
-    from ..filters.shape_optimization import ShapeOptimization
+    from ..filters.apply_coord_shape_optimization import ShapeOptimization
 
     p.formatter_class = argparse.RawDescriptionHelpFormatter
     p.epilog = (
@@ -125,7 +126,7 @@ def _atomic_text(path: Path, text: str) -> None:
 def run(args: argparse.Namespace) -> int:
     from ..datasets import data_path
     from ..expressions import quoted
-    from ..filters.shape_optimization import ShapeOptimization
+    from ..filters.apply_coord_shape_optimization import ShapeOptimization
     from ..optimize import DEFAULT_PENALTY_BETA, DEFAULT_RETRACTION, VARIANT_PARTS, optimize
     from ..progress import ProgressBar
     from ..shape.spec import spec_from_options

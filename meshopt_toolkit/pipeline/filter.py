@@ -10,14 +10,21 @@ A filter is a small class::
         label = "Twice (meshopt)"              # MeshLab-style label, <filter name="..."> in .mlx
         description = "Refine twice."          # one line
         parameters = (IntParam("times", 2, "how often", min=1),)
+        aliases = ("refine_twice",)             # old names, still accepted (optional)
+        renamed_parameters = {"n": "times"}    # old parameter names (optional)
 
         def apply(self, document, *, times):
             ...
 
-Built-ins live in ``meshopt_toolkit.filters`` (one module each) and are imported when
+Built-ins live in ``meshopt_toolkit.filters`` (one module each, named as the filter) and are imported when
 the registry is first used. Third-party filters are found through the entry-point group
 ``meshopt_toolkit.filters`` (each entry point names a :class:`Filter` subclass), loaded
 lazily; a plugin that fails to load gives a :class:`PluginWarning`, not a crash.
+
+Pipelines saved with a filter's old name or label, or its old parameter names, keep
+running: :meth:`FilterRegistry.find` accepts ``aliases`` and :meth:`Filter.validate_params`
+renames old parameters (:meth:`Filter.upgrade_params`); a pipeline written back uses the
+current names.
 """
 
 from __future__ import annotations
@@ -59,6 +66,13 @@ class Filter:
     label: ClassVar[str] = ""
     description: ClassVar[str] = ""
     parameters: ClassVar[tuple[Param, ...]] = ()
+    #: former names and labels of the filter, still found by the registry
+    aliases: ClassVar[tuple[str, ...]] = ()
+    #: former parameter name -> current name (same type), accepted in saved pipelines
+    renamed_parameters: ClassVar[dict[str, str]] = {}
+    #: other former parameter name -> the current one it became (changed shape, e.g. four
+    #: floats that became one list), converted by an overridden :meth:`upgrade_params`
+    former_parameters: ClassVar[dict[str, str]] = {}
     #: where the filter comes from: "builtin" or the plugin's distribution name
     origin: ClassVar[str] = "builtin"
 
@@ -96,8 +110,28 @@ class Filter:
         )
 
     @classmethod
+    def upgrade_params(cls, params: dict[str, Any]) -> dict[str, Any]:
+        """``params`` with former parameter names replaced by the current ones
+        (:attr:`renamed_parameters`); a filter whose parameters changed shape overrides it.
+
+        Raises
+        ------
+        FilterError
+            A parameter given under both its former and its current name.
+        """
+        out = dict(params)
+        for old, new in cls.renamed_parameters.items():
+            if old in out:
+                if new in out:
+                    raise FilterError(f"filter {cls.name!r}: give {new!r} or its former name "
+                                      f"{old!r}, not both")
+                out[new] = out.pop(old)
+        return out
+
+    @classmethod
     def validate_params(cls, params: dict[str, Any] | None) -> dict[str, Any]:
-        """All parameters with defaults filled in, each validated and converted.
+        """All parameters with defaults filled in, each validated and converted;
+        former parameter names are accepted (:meth:`upgrade_params`).
 
         Raises
         ------
@@ -105,7 +139,7 @@ class Filter:
             Unknown parameter (with a "did you mean"), wrong type, out of range or unknown
             enum label.
         """
-        params = dict(params or {})
+        params = cls.upgrade_params(dict(params or {}))
         out = {}
         for key in params:
             cls.param(key)  # raises for unknown names
@@ -121,6 +155,8 @@ class Filter:
             "label": cls.label,
             "description": cls.description,
             "origin": cls.origin,
+            "aliases": list(cls.aliases),
+            "former_parameters": {**cls.renamed_parameters, **cls.former_parameters},
             "parameters": [p.spec() for p in cls.parameters],
         }
 
@@ -139,6 +175,10 @@ def _check_filter_class(obj: Any, where: str) -> type[Filter]:
     names = [p.name for p in obj.parameters]
     if len(set(names)) != len(names):
         raise FilterError(f"{where}: filter {obj.name!r} has duplicate parameter names")
+    former = {**obj.renamed_parameters, **obj.former_parameters}
+    if set(former) & set(names) or not set(former.values()) <= set(names):
+        raise FilterError(f"{where}: filter {obj.name!r}: former parameter names must map "
+                          "to current parameters")
     return obj
 
 
@@ -162,9 +202,14 @@ class FilterRegistry:
         old = self._filters.get(cls.name)
         if old is not None and old is not cls:
             raise FilterError(f"filter name {cls.name!r} already registered by {old.__module__}")
+        mine = {k.lower() for k in (cls.name, cls.label, *cls.aliases)}
         for other in self._filters.values():
             if other is not cls and other.label.lower() == cls.label.lower():
                 raise FilterError(f"filter label {cls.label!r} already used by {other.name!r}")
+            theirs = {k.lower() for k in (other.name, other.label, *other.aliases)}
+            if other is not cls and mine & theirs:
+                raise FilterError(f"filter {cls.name!r}: name or alias "
+                                  f"{sorted(mine & theirs)[0]!r} already used by {other.name!r}")
         self._filters[cls.name] = cls
         return cls
 
@@ -211,7 +256,8 @@ class FilterRegistry:
 
     # -- lookup ---------------------------------------------------------------------
     def find(self, name_or_label: str) -> type[Filter] | None:
-        """The filter with this name or (case-insensitive) label, or None."""
+        """The filter with this name, (case-insensitive) label or alias (a former name
+        or label), or None."""
         for full in (False, True):
             self._ensure(full)
             cls = self._filters.get(name_or_label)
@@ -219,7 +265,7 @@ class FilterRegistry:
                 return cls
             key = name_or_label.strip().lower()
             for c in self._filters.values():
-                if c.label.lower() == key:
+                if c.label.lower() == key or key in (a.lower() for a in c.aliases):
                     return c
         return None
 

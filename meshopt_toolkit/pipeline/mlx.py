@@ -114,6 +114,10 @@ def _step_from_mlx(label: str, params: list[dict[str, str]]) -> Step:
             pname = attrs.get("name", "")
             check_name(pname, "parameter")
             match = next((n for n in names if n == pname or n.lower() == pname.lower()), None)
+            if match is None and pname in (*cls.renamed_parameters, *cls.former_parameters):
+                # a former name (a script saved before the rename): upgraded on validation
+                values[pname] = param_from_mlx(attrs)
+                continue
             if match is None:
                 raise FilterError(f"filter {cls.name!r} has no parameter {pname!r}"
                                   f"{did_you_mean(pname, names)}")

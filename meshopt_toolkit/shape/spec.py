@@ -2,7 +2,7 @@
 the objective, the area constraint and the objective's weight.
 
 :class:`ProblemSpec` is what ``meshopt optimize``'s options, the
-``compute_shape_optimization`` filter's parameters and library callers fill in; physical
+``apply_coord_shape_optimization`` filter's parameters and library callers fill in; physical
 groups are gmsh physical groups of line elements, by name or number
 (:func:`~meshopt_toolkit.fem.boundary_data.group_key`).
 """

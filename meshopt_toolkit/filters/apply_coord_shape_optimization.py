@@ -1,4 +1,4 @@
-"""Filter ``compute_shape_optimization``: minimize ∫y + f2 over admissible meshes."""
+"""Filter ``apply_coord_shape_optimization``: minimize ∫y + f2 over admissible meshes."""
 
 from __future__ import annotations
 
@@ -36,8 +36,10 @@ class ShapeOptimization(Filter):
     holds status, iterations, j, j + f2, Λ and AR.
     """
 
-    name = "compute_shape_optimization"
+    name = "apply_coord_shape_optimization"
     label = "Shape Optimization (meshopt)"
+    #: the former name, still accepted in saved pipelines
+    aliases = ("compute_shape_optimization",)
     description = "Minimize the integral of the Poisson state plus a mesh-quality penalty, keeping the mesh admissible."
     parameters = (
         EnumParam("variant", DEFAULT_VARIANT, "gradient metric and retraction",

@@ -1,4 +1,4 @@
-"""Filter ``apply_prescribed_motion``: move handle vertices exactly, keep every triangle healthy."""
+"""Filter ``apply_coord_prescribed_motion``: move handle vertices exactly, keep every triangle healthy."""
 
 from __future__ import annotations
 
@@ -24,8 +24,10 @@ class PrescribedMotion(Filter):
     (:mod:`meshopt_toolkit.scaling`) and scaled back, like ``meshopt move``.
     """
 
-    name = "apply_prescribed_motion"
+    name = "apply_coord_prescribed_motion"
     label = "Prescribed Motion (meshopt)"
+    #: the former name, still accepted in saved pipelines
+    aliases = ("apply_prescribed_motion",)
     description = "Move handle vertices exactly to targets; the rest follows without inverting."
     parameters = (
         PathParam("targets", "", "CSV 'index,x,y' or .npy (k, 3) handle targets", label="Targets"),

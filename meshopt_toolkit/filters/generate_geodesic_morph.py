@@ -5,10 +5,15 @@ from __future__ import annotations
 from meshopt_toolkit.bounds import MAX_FRAMES
 from meshopt_toolkit.errors import FilterError, MeshoptError
 from meshopt_toolkit.pipeline.filter import Filter, register
-from meshopt_toolkit.pipeline.params import BoolParam, EnumParam, FloatParam, IntParam
+from meshopt_toolkit.pipeline.params import (BoolParam, EnumParam, FloatParam, IntParam,
+                                             NumberListParam, number_list)
 
 METHODS = ("discrete", "shooting", "auto")
 METRICS = ("distortion", "scalar")
+#: f2's coefficients when ``penalty`` is empty (:data:`meshopt_toolkit.morph.DEFAULT_BETA`)
+DEFAULT_PENALTY = (1.0, 1.0, 0.0, 1.0)
+#: the four floats that ``penalty`` replaced, still accepted in saved pipelines
+FORMER_BETAS = ("beta1", "beta2", "beta3", "beta4")
 
 
 @register
@@ -16,7 +21,7 @@ class GenerateGeodesicMorph(Filter):
     """Morph along a geodesic: frames as healthy as their ends (``metric="distortion"``,
     the per-triangle metric ``M + w² JᵀJ`` of :func:`meshopt_toolkit.distortion_morph`, as
     ``meshopt morph``), or only non-inverted (``metric="scalar"``: the complete metric of f2,
-    :func:`meshopt_toolkit.morph.geodesic_morph`; the ``beta*``, ``normalize`` and ``method``
+    :func:`meshopt_toolkit.morph.geodesic_morph`; the ``penalty``, ``normalize`` and ``method``
     parameters apply to it alone).
 
     The source is document mesh ``source`` (default 0, the first), the target mesh
@@ -46,26 +51,43 @@ class GenerateGeodesicMorph(Filter):
                   label="Metric", choices=METRICS),
         FloatParam("weight", 1.0, "with the distortion metric: w of M + w² JᵀJ",
                    label="Weight", min=0.0, exclusive_min=True),
-        FloatParam("beta1", 1.0, "f2 weight of the mean shape quality", label="beta1", min=0.0),
-        FloatParam("beta2", 1.0, "f2 weight of the inverse total area", label="beta2", min=0.0),
-        FloatParam("beta3", 0.0, "f2 weight of the boundary-pair term (costly)", label="beta3",
-                   min=0.0),
-        FloatParam("beta4", 1.0, "f2 weight of the distance to the source (unscaled)",
-                   label="beta4", min=0.0),
+        NumberListParam("penalty", "", "with the scalar metric: f2's b1,b2,b3,b4 (mean shape "
+                        "quality, inverse area, boundary pairs (costly), distance to the "
+                        "source, unscaled); empty = 1,1,0,1", label="Penalty", count=4),
         BoolParam("normalize", True, "metric of √N·f2 (motion counted per vertex) instead "
                   "of f2", label="Normalize"),
         EnumParam("method", METHODS[0], "discrete geodesic, shooting geodesic, or shooting "
                   "with a fallback", label="Method", choices=METHODS),
     )
 
+    former_parameters = dict.fromkeys(FORMER_BETAS, "penalty")
+
+    @classmethod
+    def upgrade_params(cls, params: dict) -> dict:
+        """The former ``beta1`` … ``beta4`` (four floats) as one ``penalty`` list."""
+        out = super().upgrade_params(params)
+        given = [b for b in FORMER_BETAS if b in out]
+        if given:
+            if "penalty" in out:
+                raise FilterError(f"filter {cls.name!r}: give 'penalty' or its former "
+                                  f"{', '.join(given)}, not both")
+            values = [out.pop(b, d) for b, d in zip(FORMER_BETAS, DEFAULT_PENALTY)]
+            for b, v in zip(FORMER_BETAS, values):
+                if isinstance(v, bool) or not isinstance(v, (int, float)):
+                    raise FilterError(f"filter {cls.name!r}, parameter {b!r}: expected a "
+                                      f"number, got {v!r}")
+            out["penalty"] = ",".join(repr(float(v)) for v in values)
+        return out
+
     def apply(self, document, *, source: int = 0, target: int = -1, frames: int = 9,
-              metric: str = METRICS[0], weight: float = 1.0, beta1: float = 1.0, beta2: float = 1.0, beta3: float = 0.0, beta4: float = 1.0,
+              metric: str = METRICS[0], weight: float = 1.0, penalty: str = "",
               normalize: bool = True, method: str = METHODS[0]) -> dict:
         from meshopt_toolkit.kernels.triangles import aspect_ratios
         from meshopt_toolkit.morph import geodesic_morph
         from meshopt_toolkit.motion.morph import distortion_morph
         from meshopt_toolkit.pipeline.document import MeshEntry
 
+        beta1, beta2, beta3, beta4 = number_list(penalty, 4, "penalty") or DEFAULT_PENALTY
         n = len(document)
         for idx, what in ((source, "source"), (target, "target")):
             if not -n <= idx < n:
