@@ -107,7 +107,7 @@ def main() -> None:
                                    on_record=lambda rec: None)
                 best[w] = min(best[w], time.perf_counter() - t0)
                 cpu[w] = min(cpu[w], _cpu_seconds() - c0)
-                assert res.failed == 0, res.summary()
+                assert res.failed == 0, res.report()
         reference = tmp / f"out{counts[0]}"
         for w in counts[1:]:
             for p in inputs:

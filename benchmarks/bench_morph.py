@@ -6,10 +6,10 @@ and cost against one linear elasticity solve.
    180° turn; the 146- and 2198-vertex discs and their 225° twist; the channel and ``move``'s
    result for the cylinder pushed down 0.2; the 146-vertex disc and a copy turned 90° and
    scaled 1.5 (a similarity: every frame must be a similar copy). Columns: the worse end's
-   min aspect ratio, the worst frame of ours (``distortion_morph``, 9 frames) and its ratio
+   min aspect ratio, the worst frame of ours (``mt.morph``, 9 frames) and its ratio
    to the worse end (≥ 0.9 wanted), the worst frame of linear and of
    as-rigid-as-possible interpolation (with inverted triangles), optionally the worst frame
-   of the complete metric of f2 (``--with-scalar``: ``geodesic_morph``, slow), time and
+   of the complete metric of f2 (``--with-scalar``: ``metric="complete"``, slow), time and
    Levenberg–Marquardt status.
 2. ``--growth``: the 225° twist of disc_2198 (4.2k triangles), disc_13586 (27k) and its
    refinement (107k) up to ``--max-triangles``: seconds, seconds per elasticity solve (same
@@ -37,6 +37,7 @@ import meshopt_toolkit as mt
 from meshopt_toolkit.generate import (annulus, channel_with_cylinder, log_twist,
                                       rotate_inner_boundary, shift_hole)
 from meshopt_toolkit.kernels.triangles import aspect_ratios
+from meshopt_toolkit.motion.morph import distortion_morph
 from meshopt_toolkit.generate import twisted
 
 
@@ -79,12 +80,12 @@ def table(with_scalar: bool, more: bool = False) -> None:
         tri = src.triangles
         end = min(_min_ar(src.points, tri), _min_ar(tgt.points, tri))
         t0 = time.perf_counter()
-        res = mt.distortion_morph(src, tgt, frames=9)
+        res = mt.morph(src, tgt, frames=9)
         sec = time.perf_counter() - t0
         ours = float(np.min(res.stats.min_aspect_ratio))
         scalar = ""
         if with_scalar:
-            old = mt.geodesic_morph(src, tgt, frames=9)
+            old = mt.morph(src, tgt, frames=9, metric="complete")
             scalar = f"{min(_min_ar(p, tri) for p in old.discrete.points):11.1e}"
         print(f"{name:<31}{len(tri):>6}{end:10.4f}{ours:9.4f}{ours / end:6.2f}{_worst(res.linear)}"
               f"{_worst(res.rigid)}{scalar:>11}{sec:7.1f}  {res.status} ({res.nit} its, "
@@ -106,8 +107,8 @@ def growth(max_triangles: int, single_level: bool = False) -> None:
         unit, _ = best_of(lambda: elasticity_motion(src.points, src.triangles, b,
                                                     tgt.points[b]), 3)
         t0 = time.perf_counter()
-        res = mt.distortion_morph(src, tgt, frames=9,
-                                  **({"coarse_min_triangles": 10**9} if single_level else {}))
+        res = distortion_morph(src, tgt, frames=9,
+                               **({"coarse_min_triangles": 10**9} if single_level else {}))
         sec = time.perf_counter() - t0
         its = "+".join(str(level["iterations"]) for level in res.details["levels"])
         print(f"{src.n_triangles:>10}{sec:9.1f}{unit:10.3f}{sec / unit:8.0f}{its:>8}"
@@ -122,7 +123,7 @@ def figures(outdir: str) -> None:
     from meshopt_toolkit.plotting import save_morph_figures
 
     ring = annulus(0.05)
-    res = mt.distortion_morph(ring, log_twist(ring, 90), frames=9)
+    res = mt.morph(ring, log_twist(ring, 90), frames=9)
     out = Path(outdir)
     for path in save_morph_figures(res, out / "morph_annulus_90_strip.png",
                                    out / "morph_annulus_90_quality.png", max_panels=5):
@@ -138,7 +139,7 @@ def main() -> None:
                     help="--growth without the coarse-to-fine start of refined pairs")
     ap.add_argument("--figures", metavar="DIR", help="only write the morph pictures of docs/benchmarks.md")
     ap.add_argument("--with-scalar", action="store_true",
-                    help="also the complete metric of f2 (geodesic_morph; minutes)")
+                    help="also the complete metric of f2 (metric='complete'; minutes)")
     ap.add_argument("--more", action="store_true",
                     help="the seven motions of bench_move.py --more as pairs instead")
     args = ap.parse_args()

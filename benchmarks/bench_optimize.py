@@ -66,15 +66,16 @@ def run(mesh, variant, iterations, exp_options=None):
     res = optimize(mesh, PoissonObjective(mesh), variant=variant, method="steepest",
                    penalty_beta=thesis_penalty_beta(2, mesh.n_vertices),
                    metric_beta=default_metric_beta(mesh.n_vertices),
-                   max_iter=iterations, tol=None, **retraction)
+                   max_iter=iterations, options=dict(tol=None, **retraction))
     return res.seconds / max(res.nit, 1), res
 
 
-def solve(mesh, variant, method, **kw):
-    """A run of table 6.4 set 2 with the default stopping rules."""
+def solve(mesh, variant, method, **options):
+    """A run of table 6.4 set 2 with the default stopping rules (``options``: fields of
+    :class:`~meshopt_toolkit.shape.options.OptimizeOptions`)."""
     return optimize(mesh, PoissonObjective(mesh), variant=variant, method=method,
                     penalty_beta=thesis_penalty_beta(2, mesh.n_vertices),
-                    metric_beta=default_metric_beta(mesh.n_vertices), **kw)
+                    metric_beta=default_metric_beta(mesh.n_vertices), options=options)
 
 
 def table(max_vertices: int) -> None:

@@ -13,7 +13,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from meshopt_toolkit import data_path, geodesic_morph, load, save
+from meshopt_toolkit import data_path, load, morph, save
 from meshopt_toolkit.generate import twisted
 from meshopt_toolkit.plotting import save_morph_figures
 
@@ -22,8 +22,8 @@ def main(outdir: str = "morph-twist") -> None:
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)
     disc = load(data_path("disc_146.msh")).as_planar()
-    result = geodesic_morph(disc, twisted(disc), frames=9)
-    for k, mesh in enumerate(result.meshes(like=disc)):
+    result = morph(disc, twisted(disc), frames=9, metric="complete")
+    for k, mesh in enumerate(result.frames):
         save(mesh, out / f"frame_{k:03d}.msh", overwrite=True)
     save_morph_figures(result, out / "strip.png", out / "quality.png")
     s = result.summary()

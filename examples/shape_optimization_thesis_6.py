@@ -102,7 +102,7 @@ def section_6_1(out: Path, quick: bool) -> str:
         start = mesh.with_points(Q0)
         res = optimize(start, PoissonObjective(start, rhs="1"), variant="complete-euclidean",
                        penalty_beta=beta, fixed=start.boundary_vertices,
-                       max_iter=200 if quick else 1000, tol=1e-10)
+                       max_iter=200 if quick else 1000, options=dict(tol=1e-10))
         q5 = res.x[centre]
         dist = 1 - np.max(np.abs(q5))
         rows.append([label, res.status, res.nit, res.j, float(dist)])
@@ -128,7 +128,7 @@ def _run(mesh, variant, penalty, metric_beta, max_iter, tol):
     # second-order retraction that is the library's default
     exp = {"retraction": "exp"} if variant == "complete-complete" else {}
     return optimize(mesh, obj, variant=variant, penalty_beta=penalty, metric_beta=metric_beta,
-                    max_iter=max_iter, tol=tol, method="steepest", **exp)
+                    max_iter=max_iter, options=dict(tol=tol, **exp), method="steepest")
 
 
 def _plot_meshes(results: dict, path: Path, title: str) -> None:

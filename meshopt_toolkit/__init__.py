@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import importlib
 import importlib.util
+import sys
+import types
 
 __version__ = "0.1.0"
 
@@ -65,12 +67,16 @@ _EXPORTS = {
     "parse_expression": "expressions",
     "optimize": "optimize",
     "OptimizeResult": "optimize",
-    # morphing
-    "log_map": "morph",
-    "geodesic_morph": "morph",
-    "MorphResult": "morph",
-    "distortion_morph": "motion.morph",
+    "OptimizeOptions": "optimize",
+    # morphing (one call; the metric is an option)
+    "morph": "operations",
+    "log_map": "riemannian.log_map",
+    "MorphResult": "motion.scalar_morph_result",
     "DistortionMorph": "motion.morph",
+    # the result protocol and the bad-argument error of the operations
+    "Result": "results",
+    "PathIteration": "results",
+    "OptionError": "errors",
     # filters and pipelines
     "Filter": "pipeline",
     "register": "pipeline.filter",
@@ -97,3 +103,18 @@ def __getattr__(name: str):
 
 def __dir__():
     return __all__
+
+
+class _Package(types.ModuleType):
+    """The package object: importing a submodule whose name is also an exported call
+    (``meshopt_toolkit.deform``, ``meshopt_toolkit.optimize``) binds the call, never the
+    module, so ``mt.deform`` is the function whatever was imported first."""
+
+    def __setattr__(self, name: str, value) -> None:
+        if (isinstance(value, types.ModuleType) and _EXPORTS.get(name) == name
+                and value.__name__ == f"{__name__}.{name}" and hasattr(value, name)):
+            value = getattr(value, name)
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package

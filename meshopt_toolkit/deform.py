@@ -16,14 +16,17 @@ meshes far from unit size, f2 (``beta=``) or scaled α are the better choice.
 
 from __future__ import annotations
 
+import dataclasses
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ._typing import FloatArray
-from .errors import IntegrationError, InvalidMeshError, ReadError
+from .errors import IntegrationError, InvalidMeshError, OptionError, ReadError
 from .kernels.admissibility import BoundaryCheck, area_problem
+from .riemannian.geodesic_options import GeodesicOptions
 from .riemannian.geodesics import GeodesicResult, geodesic
 from .kernels.triangles import aspect_ratios
 from .mesh import PlanarMesh, TriangleMesh, require_admissible
@@ -46,6 +49,7 @@ class DeformResult:
     aspect_ratio : (K,) mesh aspect ratio ``min 2r/R`` (5.49) per frame
     penalty : the penalty f defining the metric (None for ``metric="euclidean"``)
     geodesic : the underlying :class:`~meshopt_toolkit.riemannian.geodesics.GeodesicResult`
+    seconds : wall time
     """
 
     mesh: PlanarMesh
@@ -54,10 +58,39 @@ class DeformResult:
     aspect_ratio: FloatArray
     penalty: object
     geodesic: GeodesicResult
+    seconds: float = 0.0
 
     def meshes(self) -> list[PlanarMesh]:
         """One :class:`PlanarMesh` per frame (same connectivity and tags)."""
         return [self.mesh.with_points(p) for p in self.points]
+
+    @property
+    def frames(self) -> list[PlanarMesh]:
+        """The frames as meshes (first = input, last = :attr:`mesh`)."""
+        return self.meshes()
+
+    @property
+    def status(self) -> str:
+        """``"done"``, or ``"warnings"`` when the integration reported a violated invariant."""
+        return "warnings" if self.geodesic.warnings else "done"
+
+    def summary(self) -> dict:
+        """JSON-ready summary: times, aspect ratio per frame, the integration's counts."""
+        g = self.geodesic
+        return {
+            "status": self.status,
+            "frames": int(len(self.points)),
+            "times": [float(t) for t in self.times],
+            "min_aspect_ratio": float(np.min(self.aspect_ratio)),
+            "aspect_ratio": [float(a) for a in self.aspect_ratio],
+            "metric": "euclidean" if self.penalty is None else "complete",
+            "method": g.method,
+            "steps": int(g.n_steps),
+            "evaluations": int(g.n_evaluations),
+            "max_energy_drift": float(g.max_energy_drift),
+            "warnings": list(g.warnings),
+            "seconds": float(self.seconds),
+        }
 
 
 def _penalty(mesh: PlanarMesh, penalty, alpha, beta):
@@ -65,7 +98,7 @@ def _penalty(mesh: PlanarMesh, penalty, alpha, beta):
 
     given = sum(x is not None for x in (penalty, alpha, beta))
     if given > 1:
-        raise InvalidMeshError("give at most one of penalty, alpha and beta")
+        raise OptionError("give at most one of penalty, alpha and beta")
     if penalty is not None:
         return penalty
     try:
@@ -86,10 +119,7 @@ def deform(
     alpha=None,
     beta=None,
     metric: str = "complete",
-    method: str = "auto",
-    rtol: float | None = None,
-    atol: float | None = None,
-    on_violation: str = "warn",
+    options: GeodesicOptions | None = None,
     progress=None,
 ) -> DeformResult:
     """Deform ``mesh`` along the geodesic with initial velocity ``displacement``.
@@ -108,8 +138,11 @@ def deform(
         default f1 with ``α = (1, 0, 1)`` (thesis §5.5), ``Qref`` = the input mesh
     metric : "complete" (default) or "euclidean" (straight lines ``Q + tV``, for
         comparison; may invert triangles, which ``aspect_ratio`` then shows as ≤ 0)
-    method, rtol, atol, on_violation, progress : see
-        :func:`~meshopt_toolkit.riemannian.geodesics.geodesic` (``progress(fraction)`` per step)
+    options : :class:`~meshopt_toolkit.riemannian.geodesic_options.GeodesicOptions`
+        (method, ``rtol``, ``atol``, ``on_violation``, …) of the integration; frames are
+        always step ends (``dense=False``)
+    progress : callable ``fraction -> None``, optional
+        Called per integration step with the fraction of ``[0, t]`` done.
 
     Returns
     -------
@@ -120,10 +153,17 @@ def deform(
     NotAdmissibleError
         The input mesh is not admissible.
     InvalidMeshError
-        The displacement does not have shape (N, 2) or is not finite, or bad options.
+        The displacement does not have shape (N, 2) or is not finite.
+    OptionError
+        ``frames < 2``, an unknown ``metric``, or more than one of penalty/alpha/beta.
     IntegrationError
         The geodesic cannot be integrated (never an inverted mesh).
     """
+    start = time.perf_counter()
+    if frames is not None and int(frames) < 2:
+        raise OptionError(f"frames must be at least 2, got {frames}")
+    if metric not in ("complete", "euclidean"):
+        raise OptionError(f"metric must be 'complete' or 'euclidean', got {metric!r}")
     m = require_admissible(mesh, "deform")
     V = np.asarray(displacement, dtype=float)
     if V.shape != m.points.shape:
@@ -135,19 +175,11 @@ def deform(
     if frames is None:
         times = np.array([0.0, float(t)])
     else:
-        if int(frames) < 2:
-            raise InvalidMeshError(f"frames must be at least 2, got {frames}")
         times = np.linspace(0.0, float(t), int(frames))
-    if metric == "euclidean":
-        pen = None
-        met = None
-    elif metric == "complete":
-        pen = met = _penalty(m, penalty, alpha, beta)
-    else:
-        raise InvalidMeshError(f"metric must be 'complete' or 'euclidean', got {metric!r}")
+    pen = met = None if metric == "euclidean" else _penalty(m, penalty, alpha, beta)
     # frames are few: land on each (exact velocities and energies in the result)
-    res = geodesic(met, m.points, V, float(t), times=times, method=method, rtol=rtol,
-                   atol=atol, on_violation=on_violation, dense=False, progress=progress)
+    opts = dataclasses.replace(options or GeodesicOptions(), dense=False)
+    res = geodesic(met, m.points, V, float(t), times=times, options=opts, progress=progress)
     if pen is not None:  # the complete metric promises admissible frames: judged exactly
         check = BoundaryCheck(m.boundary_edges, m.boundary_vertices)
         for k, p in enumerate(res.points):
@@ -156,7 +188,7 @@ def deform(
     ar = np.array([float(aspect_ratios(p, m.triangles).min()) for p in res.points])
     return DeformResult(
         mesh=m.with_points(res.points[-1]), times=times, points=res.points,
-        aspect_ratio=ar, penalty=pen, geodesic=res,
+        aspect_ratio=ar, penalty=pen, geodesic=res, seconds=time.perf_counter() - start,
     )
 
 

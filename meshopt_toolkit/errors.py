@@ -44,3 +44,8 @@ class IntegrationError(MeshoptError):
 
 class OptimizationError(MeshoptError):
     """An optimization run cannot proceed (e.g. no descent direction)."""
+
+
+class OptionError(MeshoptError, ValueError):
+    """An operation's argument or option is invalid (a number out of range, an unknown
+    method, metric or variant); raised before any work."""

@@ -31,18 +31,20 @@ complete metric uses a second f2 with ``β^metric``.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Protocol, runtime_checkable
 
 import numpy as np
 
 from ._typing import FloatArray
-from .errors import OptimizationError
+from .errors import OptimizationError, OptionError
 from .kernels.triangles import aspect_ratios
 from .mesh import PlanarMesh, require_admissible
+from .shape.options import OptimizeOptions
 from .shape.spec import ProblemSpec
 from .shape.result import PHASES, IterationRecord, OptimizeResult
 from .shape.setup import (  # noqa: F401  (the variants' table and set-up, re-exported)
@@ -77,6 +79,7 @@ __all__ = [
     "VARIANT_PARTS",
     "IterationRecord",
     "Objective",
+    "OptimizeOptions",
     "OptimizeResult",
     "ProblemSpec",
     "default_metric_beta",
@@ -163,20 +166,9 @@ def optimize(
     metric_beta: Sequence[float] | None = None,
     fixed: np.ndarray | None = None,
     max_iter: int = 1000,
-    tol: float | None = 1e-6,
-    gtol: float | None = 1e-5,
-    ftol: float | None = 1e-6,
-    memory: int = 10,
-    sigma: float = 1e-4,
-    tau: float = 0.5,
-    c2: float | None = None,
-    segment_fraction: float = 0.5,
-    min_step: float = 1e-6,
-    metric_options: dict | None = None,
-    retraction: str = DEFAULT_RETRACTION,
-    exp_options: dict | None = None,
-    callback: Callable[[IterationRecord, FloatArray], bool | None] | None = None,
-    lbfgs_preconditioner: str = "auto",
+    options: OptimizeOptions | Mapping | None = None,
+    callback: Callable[[IterationRecord], bool | None] | None = None,
+    progress: Callable[[float], None] | None = None,
 ) -> OptimizeResult:
     """Minimize ``F(Q) = j(Q) + f2(Q; Q0)`` over admissible meshes by a Riemannian
     descent method: L-BFGS, nonlinear CG or steepest descent (thesis algorithm 2, §6.4.1).
@@ -208,35 +200,15 @@ def optimize(
     metric_beta : β^metric of the complete metric (default :func:`default_metric_beta`).
     fixed : vertex indices (or boolean mask) that do not move.
     max_iter : maximum number of iterations.
-    tol : steepest descent only: tolerance of the stopping rule (6.26)
-        ``max_{m=1..5} F_{n−m} − F_n < tol``; None disables it (fixed iteration count, as
-        for the unpenalized runs).
-    gtol : stop when the Riemannian gradient norm ``‖grad F‖_g`` falls to ``gtol`` times
-        its first value (every method); None disables it.
-    ftol : lbfgs/cg only: stop when ``max_{m=1..5} F_{n−m} − F_n ≤ ftol · max(|F_n|, 1)``
-        (the relative version of (6.26)); None disables it.
-    memory : number of L-BFGS curvature pairs kept.
-    sigma, tau : Armijo parameters (6.21) (``sigma`` is ``c1`` of the Wolfe search) and
-        the backtracking factor of steepest descent.
-    c2 : Wolfe curvature constant (default 0.9 for lbfgs, 0.1 for cg).
-    segment_fraction : lbfgs/cg with the straight-line retraction: trial steps go at most
-        this fraction of the way to the first degenerate triangle along ``Q + t d``.
-    min_step : a run fails (``step_too_small``) when a trial step drops below this.
-    metric_options : extra keyword arguments of the metric (e.g. elasticity ``E``, ``nu``).
-    retraction : complete-complete only: ``"second-order"`` (default) or ``"exp"`` (the
-        exponential map), see :data:`RETRACTIONS`.
-    exp_options : settings of ``retraction="exp"`` (fields of
-        :class:`~meshopt_toolkit.riemannian.geodesics.GeodesicOptions`, or
-        ``{"options": GeodesicOptions(...)}``), on top of :data:`EXP_DEFAULTS`.
-    callback : called as ``callback(record, Q)`` after each iteration; returning True stops.
-    lbfgs_preconditioner : the L-BFGS initial inverse Hessian ``H_0 = γ B⁻¹``
-        (:mod:`meshopt_toolkit.shape.preconditioners`): ``"none"`` (``B`` = the metric,
-        the Riemannian two-loop with ``H_0 = γ id``), ``"penalty"`` (``B`` ≈ the Hessian
-        of the penalty f2, refactorized every 5 iterations), ``"elasticity"`` (``B`` =
-        the elasticity matrix), or ``"auto"`` (default): ``"penalty"`` for the complete-*
-        variants with a penalty (β1 > 0), else ``"none"``. Table 6.4 set 2: complete-
-        complete L-BFGS 56 → 21 iterations (steepest descent 233), 247 → 50 on the
-        2198-vertex disc.
+    options : :class:`~meshopt_toolkit.shape.options.OptimizeOptions` (or a mapping of
+        its fields): stopping rules (``tol``, ``gtol``, ``ftol``), line search (``sigma``,
+        ``tau``, ``c2``, ``segment_fraction``, ``min_step``), L-BFGS ``memory`` and
+        ``lbfgs_preconditioner``, ``metric_options``, ``retraction`` and ``exp_options``.
+    callback : called as ``callback(record)`` after each iteration with its
+        :class:`IterationRecord` (``record.points``: the iterate's positions); returning
+        True stops (status ``"stopped"``).
+    progress : called as ``progress(fraction)`` after each iteration, the fraction of
+        ``max_iter`` done (an upper bound: most runs stop earlier).
 
     Returns
     -------
@@ -244,21 +216,27 @@ def optimize(
 
     Raises
     ------
+    OptionError
+        An unknown variant, method, retraction or option, an option out of range, a
+        retraction or ``exp_options`` given to a variant that moves along straight lines,
+        ``max_iter < 0``.
     OptimizationError
-        A direction that is not a descent direction (a wrong derivative), an unknown
-        variant, method or retraction, a retraction or ``exp_options`` given to a variant
-        that moves along straight lines, or a mesh whose size is outside
-        :data:`SIZE_RANGE`.
+        A direction that is not a descent direction (a wrong derivative), every vertex
+        fixed, or a mesh whose size is outside :data:`SIZE_RANGE`.
     """
     from .shape.preconditioners import make_preconditioner
     from .shape.problem import ShapeProblem
     from .shape.spec import GUARD_FACTOR, GUARD_TRIES, QUALITY_GUARD, ScaledObjective
 
     if variant not in VARIANTS:
-        raise OptimizationError(f"unknown variant {variant!r}; choose one of {', '.join(VARIANTS)}")
+        raise OptionError(f"unknown variant {variant!r}; choose one of {', '.join(VARIANTS)}")
     if method not in METHODS:
-        raise OptimizationError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
-    retraction = _retraction_kind(variant, retraction, exp_options)
+        raise OptionError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
+    if int(max_iter) < 0:
+        raise OptionError(f"max_iter must be at least 0, got {max_iter}")
+    o = OptimizeOptions.of(options)
+    exp_options = o.exp_options
+    retraction = _retraction_kind(variant, o.retraction, exp_options)
     mesh = require_admissible(mesh, "shape optimization")
     _check_size(mesh.points)
     tri = mesh.triangles
@@ -275,14 +253,14 @@ def optimize(
         if not free.any():
             raise OptimizationError("every vertex is fixed: nothing to optimize")
     if spec.keep_area and method == "steepest":
-        raise OptimizationError("keep_area needs method 'lbfgs' or 'cg'")
+        raise OptionError("keep_area needs method 'lbfgs' or 'cg'")
     penalty = None
     if penalty_beta is not None and any(b != 0 for b in penalty_beta):
         from .penalties import QualityPenalty
 
         contact = contact_options(mesh) if penalty_beta[2] > 0 else {}
         penalty = QualityPenalty(mesh, beta=tuple(penalty_beta), **contact)
-    metric = _make_metric(variant, mesh, metric_beta, dict(metric_options or {}))
+    metric = _make_metric(variant, mesh, metric_beta, dict(o.metric_options or {}))
     retract = (None if retraction is None
                else _make_retraction(retraction, metric, exp_options, free))
     constraint = None
@@ -295,11 +273,12 @@ def optimize(
     auto = spec.scale == "auto"
     floor = QUALITY_GUARD * aspect_ratios(mesh.points, tri).min() if auto else None
     start = time.perf_counter()
+    step = _iteration_hook(callback, progress, max_iter)
     for attempt in range(1 + (GUARD_TRIES if auto else 0)):
         weighed = objective if weight == 1.0 else ScaledObjective(objective, weight)
         problem = ShapeProblem(weighed, penalty, metric, tri, mesh.boundary_edges, free,
                                constraint, quality_floor=floor)
-        h0 = make_preconditioner(lbfgs_preconditioner, metric_kind=VARIANT_PARTS[variant][0],
+        h0 = make_preconditioner(o.lbfgs_preconditioner, metric_kind=VARIANT_PARTS[variant][0],
                                  method=method, mesh=mesh, penalty=penalty, free=free)
         if method != "steepest":
             from .shape.driver import run_descent
@@ -307,14 +286,14 @@ def optimize(
             result = run_descent(
                 mesh, problem, method=method, variant=variant, retraction=retract,
                 max_iter=max_iter,
-                gtol=gtol, ftol=ftol, memory=memory, c1=sigma, c2=c2,
-                segment_fraction=segment_fraction, min_step=min_step, callback=callback,
+                gtol=o.gtol, ftol=o.ftol, memory=o.memory, c1=o.sigma, c2=o.c2,
+                segment_fraction=o.segment_fraction, min_step=o.min_step, callback=step,
                 h0=h0,
             )
         else:
             result = run_steepest(
-                mesh, problem, variant=variant, retract=retract, max_iter=max_iter, tol=tol,
-                gtol=gtol, sigma=sigma, tau=tau, min_step=min_step, callback=callback,
+                mesh, problem, variant=variant, retract=retract, max_iter=max_iter, tol=o.tol,
+                gtol=o.gtol, sigma=o.sigma, tau=o.tau, min_step=o.min_step, callback=step,
             )
         if not auto or result.status != "step_too_small":
             break
@@ -322,7 +301,22 @@ def optimize(
                     weight / GUARD_FACTOR)
         weight /= GUARD_FACTOR
     result.seconds = time.perf_counter() - start
+    result.initial = mesh
     return _unweighed(result, objective, weight)
+
+
+def _iteration_hook(callback, progress, max_iter: int):
+    """The drivers' ``(record, Q)`` hook that calls ``progress(fraction)`` and
+    ``callback(record)`` with the iterate's positions in ``record.points``."""
+    if callback is None and progress is None:
+        return None
+
+    def hook(record: IterationRecord, Q: FloatArray) -> bool:
+        if progress is not None:
+            progress(min(1.0, record.iteration / max(int(max_iter), 1)))
+        return callback is not None and bool(callback(dataclasses.replace(record, points=Q)))
+
+    return hook
 
 
 def _unweighed(result: OptimizeResult, objective, weight: float) -> OptimizeResult:

@@ -229,7 +229,7 @@ def test_run_batch_api(meshes, tmp_path):
     again = mt.run_batch(tmp_path / "p.json", meshes, tmp_path / "api", to="vtu", resume=True,
                          on_record=lambda r: None)
     assert again.records is None and (again.done, again.skipped) == (0, 5)
-    assert again.summary().startswith("0 done, 5 skipped, 0 failed in ")
+    assert again.report().startswith("0 done, 5 skipped, 0 failed in ")
     with pytest.raises(MeshoptError, match="jobs=-2"):
         mt.run_batch(PIPE, meshes, tmp_path / "x", jobs=-2)
 

@@ -20,7 +20,7 @@ from meshopt_toolkit.filters.generate_geodesic_morph import GenerateGeodesicMorp
 from meshopt_toolkit.filters.apply_coord_quality_preserving_deformation import QualityPreservingDeformation
 from meshopt_toolkit.filters.apply_coord_prescribed_motion import PrescribedMotion
 from meshopt_toolkit.filters.apply_coord_shape_optimization import ShapeOptimization
-from meshopt_toolkit.motion.morph import distortion_morph
+from meshopt_toolkit.operations import morph
 from meshopt_toolkit.motion.move import move
 from meshopt_toolkit.optimize import optimize
 from meshopt_toolkit.pipeline.filter import Filter
@@ -68,7 +68,7 @@ def test_generated_options_take_type_default_choices_and_range_from_the_paramete
 
 @pytest.mark.parametrize("cli, filter_cls, library, renamed", [
     (cli_move, PrescribedMotion, move, {}),
-    (cli_morph, GenerateGeodesicMorph, distortion_morph, {}),
+    (cli_morph, GenerateGeodesicMorph, morph, {}),
     (cli_deform, QualityPreservingDeformation, deform, {"time": "t"}),
     (cli_optimize, ShapeOptimization, optimize, {"max_iterations": "max_iter", "tolerance": "tol"}),
 ])

@@ -12,12 +12,13 @@ from test_architecture import PACKAGE, ROOT, find_cycle, module_level_imports
 # the layers, lowest first: a module may import its own layer and the layers below
 LAYERS = {
     "foundations": ["_typing", "_linalg", "_lazy", "errors", "bounds", "progress", "scaling",
-                    "diagnostics", "_cholmod", "solvers", "strict_json"],
+                    "diagnostics", "_cholmod", "solvers", "strict_json", "results"],
     "kernels": ["kernels"],
     "mesh": ["mesh", "orientation", "generate", "gmsh_session"],
     "numerics": ["penalties", "fem", "ode", "riemannian", "expressions"],
 }
-HIGHER = ["deform", "morph", "motion", "optimize", "shape", "io", "pipeline", "batch", "cli",
+HIGHER = ["deform", "operations", "motion", "optimize", "shape", "io", "pipeline", "batch",
+          "cli",
           "filters", "plotting", "conversions", "datasets"]
 
 #: no module of the package is longer than this (one job per module)

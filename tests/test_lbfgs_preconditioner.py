@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import meshopt_toolkit as mt
-from meshopt_toolkit.errors import OptimizationError
+from meshopt_toolkit.errors import OptimizationError, OptionError
 from meshopt_toolkit.fem.poisson import PoissonObjective
 from meshopt_toolkit.optimize import default_metric_beta, optimize, thesis_penalty_beta
 from meshopt_toolkit.penalties import QualityPenalty
@@ -29,10 +29,11 @@ def disc():
     return mt.load(mt.data_path("disc_146.msh")).as_planar()
 
 
-def _set2(mesh, variant, method, **kw):
+def _set2(mesh, variant, method, max_iter=1000, **options):
     return optimize(mesh, PoissonObjective(mesh), variant=variant, method=method,
                     penalty_beta=thesis_penalty_beta(2, mesh.n_vertices),
-                    metric_beta=default_metric_beta(mesh.n_vertices), **kw)
+                    metric_beta=default_metric_beta(mesh.n_vertices), max_iter=max_iter,
+                    options=options)
 
 
 def test_quality_hessian_blocks_assemble_the_penalty_hessian():
@@ -157,12 +158,13 @@ def test_elasticity_preconditioner_and_auto_on_other_variants(disc):
 
 def test_preconditioner_option_is_checked(disc):
     obj = PoissonObjective(disc)
-    with pytest.raises(OptimizationError, match="unknown lbfgs_preconditioner"):
-        optimize(disc, obj, lbfgs_preconditioner="newton")
-    with pytest.raises(OptimizationError, match="method='lbfgs' only"):
-        optimize(disc, obj, method="cg", lbfgs_preconditioner="penalty")
-    with pytest.raises(OptimizationError, match="needs a penalty"):
-        optimize(disc, obj, variant="complete-euclidean", lbfgs_preconditioner="penalty")
+    with pytest.raises(OptionError, match="unknown lbfgs_preconditioner"):
+        optimize(disc, obj, options=dict(lbfgs_preconditioner="newton"))
+    with pytest.raises(OptionError, match="method='lbfgs' only"):
+        optimize(disc, obj, method="cg", options=dict(lbfgs_preconditioner="penalty"))
+    with pytest.raises(OptionError, match="needs a penalty"):
+        optimize(disc, obj, variant="complete-euclidean",
+                 options=dict(lbfgs_preconditioner="penalty"))
     # auto with cg, steepest or without a penalty quietly means "none"
     optimize(disc, obj, variant="complete-euclidean", method="cg", max_iter=1)
     optimize(disc, obj, variant="complete-euclidean", max_iter=1)

@@ -9,13 +9,14 @@ import pytest
 from conftest import grid_mesh
 
 from meshopt_toolkit.datasets import data_path
-from meshopt_toolkit.errors import IntegrationError, InvalidMeshError, NotAdmissibleError
+from meshopt_toolkit.errors import (IntegrationError, InvalidMeshError, NotAdmissibleError,
+                                    OptionError)
 from meshopt_toolkit.riemannian.geodesics import exp_map, geodesic
 from meshopt_toolkit.kernels.triangles import aspect_ratios, signed_areas
 from meshopt_toolkit.fem.interpolation import arap_interpolation
 from meshopt_toolkit.mesh import PlanarMesh, check_mesh
 from meshopt_toolkit.riemannian.metrics import CompleteMetric
-from meshopt_toolkit.morph import (
+from meshopt_toolkit.motion.scalar_morph import (
     DEFAULT_BETA,
     SHOOTING_RTOL,
     discrete_geodesic,
@@ -259,7 +260,7 @@ def test_errors_are_clear(square):
     mirror = square.with_points(square.points * [-1.0, 1.0])  # every triangle clockwise
     with pytest.raises(InvalidMeshError):
         geodesic_morph(square, mirror)
-    with pytest.raises(ValueError, match="frames"):
+    with pytest.raises(OptionError, match="frames"):
         geodesic_morph(square, square, frames=1)
 
 
@@ -385,7 +386,8 @@ def test_filter_through_json_and_mlx_pipelines(kind, tmp_path):
     mesh = grid_mesh(4, jitter=0.3)
     save(mesh.with_points(bend(mesh)), tmp_path / "b.msh")
     steps = [{"name": "load_mesh", "params": {"path": str(tmp_path / "b.msh")}},
-             {"name": "generate_geodesic_morph", "params": {"frames": 3, "penalty": "1,1,0,0.5"}}]
+             {"name": "generate_geodesic_morph",
+              "params": {"frames": 3, "metric": "scalar", "penalty": "1,1,0,0.5"}}]
     path = tmp_path / f"morph.{kind}"
     if kind == "json":
         path.write_text(json.dumps({"filters": steps}))

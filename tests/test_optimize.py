@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from conftest import grid_mesh, square5
 
-from meshopt_toolkit.errors import NotAdmissibleError, OptimizationError
+from meshopt_toolkit.errors import NotAdmissibleError, OptimizationError, OptionError
 from meshopt_toolkit.kernels.triangles import signed_areas
 from meshopt_toolkit.optimize import (
     METHODS,
@@ -40,8 +40,8 @@ class PullObjective:
 
 
 def _record_iterates(store):
-    def callback(record, Q):
-        store.append(Q.copy())
+    def callback(record):
+        store.append(record.points.copy())
 
     return callback
 
@@ -56,7 +56,8 @@ def test_every_variant_decreases_monotonically_through_admissible_meshes(variant
     iterates = []
     res = optimize(
         mesh, objective, variant=variant, method=method, penalty_beta=(0.01, 0.01, 0, 0.01),
-        max_iter=12, tol=None, ftol=None, gtol=None, callback=_record_iterates(iterates),
+        max_iter=12, options=dict(tol=None, ftol=None, gtol=None),
+        callback=_record_iterates(iterates),
     )
     F = np.array([h.objective for h in res.history])
     assert res.nit == len(iterates) >= 3
@@ -74,7 +75,7 @@ def test_fixed_vertices_do_not_move(variant, method):
     mesh = grid_mesh(4, jitter=0.2, seed=1)
     target = mesh.points + 0.05
     res = optimize(mesh, PullObjective(mesh, target), variant=variant, method=method,
-                   fixed=mesh.boundary_vertices, max_iter=5, tol=None)
+                   fixed=mesh.boundary_vertices, max_iter=5, options=dict(tol=None))
     np.testing.assert_array_equal(res.x[mesh.boundary_vertices], mesh.points[mesh.boundary_vertices])
     assert not np.allclose(res.x, mesh.points)
 
@@ -85,7 +86,7 @@ def test_stopping_rule_6_26_converges_on_a_problem_with_a_minimizer():
     target[4] += 0.02  # a small, admissible pull: a strict interior minimizer exists
     res = optimize(mesh, PullObjective(mesh, target), variant="euclidean-euclidean",
                    method="steepest", penalty_beta=(0.01, 0.01, 0, 0.01),
-                   fixed=mesh.boundary_vertices, max_iter=500, tol=1e-10, gtol=None)
+                   fixed=mesh.boundary_vertices, max_iter=500, options=dict(tol=1e-10, gtol=None))
     assert res.status == "converged" and res.success
     assert 6 <= res.nit < 500
     F = [h.objective for h in res.history]
@@ -130,7 +131,7 @@ def test_refuses_inverted_mesh_and_unknown_variant():
     Q[4] = [3.0, 0.0]
     with pytest.raises(NotAdmissibleError):
         optimize(mesh.with_points(Q), PullObjective(mesh, Q))
-    with pytest.raises(OptimizationError, match="variant"):
+    with pytest.raises(OptionError, match="variant"):
         optimize(mesh, PullObjective(mesh, Q), variant="newton")
 
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from conftest import grid_mesh
 
-from meshopt_toolkit.errors import OptimizationError
+from meshopt_toolkit.errors import OptimizationError, OptionError
 from meshopt_toolkit.fem.poisson import PoissonObjective
 from meshopt_toolkit.kernels.triangles import signed_areas
 from meshopt_toolkit.optimize import default_metric_beta, optimize, thesis_penalty_beta
@@ -100,7 +100,7 @@ def test_complete_complete_reaches_the_exponential_maps_optimum(method):
               penalty_beta=thesis_penalty_beta(2, mesh.n_vertices),
               metric_beta=default_metric_beta(mesh.n_vertices))
     second = optimize(mesh, PoissonObjective(mesh), **kw)
-    exp = optimize(mesh, PoissonObjective(mesh), retraction="exp", **kw)
+    exp = optimize(mesh, PoissonObjective(mesh), options=dict(retraction="exp"), **kw)
     assert second.success and exp.success
     assert abs(second.fun - exp.fun) <= 2e-4
     assert signed_areas(second.x, mesh.triangles).min() > 0
@@ -109,17 +109,18 @@ def test_complete_complete_reaches_the_exponential_maps_optimum(method):
 def test_retraction_options_are_checked():
     mesh = grid_mesh(3)
     obj = PoissonObjective(mesh)
-    with pytest.raises(OptimizationError, match="straight lines"):
-        optimize(mesh, obj, variant="complete-euclidean", retraction="exp")
-    with pytest.raises(OptimizationError, match="straight lines"):
-        optimize(mesh, obj, variant="elasticity-euclidean", exp_options={"method": "auto"})
-    with pytest.raises(OptimizationError, match="unknown retraction"):
-        optimize(mesh, obj, variant="complete-complete", retraction="cayley")
+    with pytest.raises(OptionError, match="straight lines"):
+        optimize(mesh, obj, variant="complete-euclidean", options=dict(retraction="exp"))
+    with pytest.raises(OptionError, match="straight lines"):
+        optimize(mesh, obj, variant="elasticity-euclidean",
+                 options=dict(exp_options={"method": "auto"}))
+    with pytest.raises(OptionError, match="unknown retraction"):
+        optimize(mesh, obj, variant="complete-complete", options=dict(retraction="cayley"))
     for retraction in ("second-order", "exp"):  # exp_options go with "exp" only
-        kw = dict(variant="complete-complete", retraction=retraction,
-                  exp_options={"method": "auto"}, max_iter=1)
+        kw = dict(variant="complete-complete", max_iter=1,
+                  options=dict(retraction=retraction, exp_options={"method": "auto"}))
         if retraction == "exp":
             assert optimize(mesh, obj, **kw).nit == 1
         else:
-            with pytest.raises(OptimizationError, match="retraction='exp' only"):
+            with pytest.raises(OptionError, match="retraction='exp' only"):
                 optimize(mesh, obj, **kw)

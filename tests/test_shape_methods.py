@@ -13,7 +13,7 @@ from conftest import grid_mesh, square5
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from meshopt_toolkit.errors import OptimizationError
+from meshopt_toolkit.errors import OptimizationError, OptionError
 from meshopt_toolkit.kernels.triangles import signed_areas
 from meshopt_toolkit.mesh import boundary_self_intersections
 from meshopt_toolkit.optimize import METHODS, VARIANTS, optimize
@@ -151,8 +151,9 @@ def test_lbfgs_with_exact_line_searches_terminates_on_a_quadratic_in_n_plus_1_it
     the same whatever the scaling γ of H0)."""
     mesh = grid_mesh(3, jitter=0.1, seed=seed)  # 4 interior vertices: n = 8 unknowns
     obj, c, n = _quadratic(mesh, seed)
-    res = optimize(mesh, obj, variant="euclidean-euclidean", method="lbfgs", memory=n,
-                   c2=1e-4, sigma=1e-5, gtol=1e-9, ftol=None, max_iter=50, fixed=mesh.boundary_vertices)
+    res = optimize(mesh, obj, variant="euclidean-euclidean", method="lbfgs", max_iter=50,
+                   options=dict(memory=n, c2=1e-4, sigma=1e-5, gtol=1e-9, ftol=None),
+                   fixed=mesh.boundary_vertices)
     assert res.status == "converged" and res.success
     assert res.nit <= n + 1
     interior = obj.interior
@@ -164,12 +165,12 @@ def test_lbfgs_with_exact_line_searches_terminates_on_a_quadratic_in_n_plus_1_it
 def test_methods_reach_the_reference_minimizer_of_a_quadratic(method, variant):
     mesh = grid_mesh(4, jitter=0.1, seed=5)
     obj, c, n = _quadratic(mesh, 5, cond=50.0, shift=0.02)
-    res = optimize(mesh, obj, variant=variant, method=method, gtol=1e-8, ftol=None,
-                   max_iter=400, fixed=mesh.boundary_vertices)
+    res = optimize(mesh, obj, variant=variant, method=method, max_iter=400,
+                   options=dict(gtol=1e-8, ftol=None), fixed=mesh.boundary_vertices)
     assert res.status == "converged"
     np.testing.assert_allclose(res.x[obj.interior].ravel(), c, atol=1e-6)
-    steepest = optimize(mesh, obj, variant=variant, method="steepest", tol=None, gtol=1e-8,
-                        max_iter=res.nit, fixed=mesh.boundary_vertices)
+    steepest = optimize(mesh, obj, variant=variant, method="steepest", max_iter=res.nit,
+                        options=dict(tol=None, gtol=1e-8), fixed=mesh.boundary_vertices)
     assert steepest.fun > res.fun  # same iteration budget: steepest descent is behind
     if method == "lbfgs":
         assert all(h.wolfe for h in res.history[1:])
@@ -196,7 +197,7 @@ def test_annulus_trials_across_the_boundary_are_rejected_not_fatal(method, annul
     iterates = []
     res = optimize(mesh, PoissonObjective(mesh), variant="euclidean-euclidean", method=method,
                    penalty_beta=thesis_penalty_beta(2, mesh.n_vertices), max_iter=100,
-                   callback=lambda rec, Q: iterates.append(Q.copy()))
+                   callback=lambda rec: iterates.append(rec.points.copy()))
     # β3 = 0: nothing in F keeps the inner boundary off the outer one, the infimum lies on
     # the edge of M+; the run may end there (step_too_small) but never raises
     assert res.status in ("converged", "step_too_small", "max_iterations")
@@ -213,7 +214,8 @@ def test_lbfgs_history_records_method_steps_and_curvature_pairs(variant):
 
     mesh = grid_mesh(4, jitter=0.2, seed=3)
     res = optimize(mesh, PullObjective(mesh, mesh.points + 0.05), variant=variant, method="lbfgs",
-                   penalty_beta=(0.01, 0.01, 0, 0.01), max_iter=6, ftol=None, gtol=None)
+                   penalty_beta=(0.01, 0.01, 0, 0.01), max_iter=6,
+                   options=dict(ftol=None, gtol=None))
     rows = [h.as_row() for h in res.history]
     assert {"method", "step", "wolfe", "pair_rejected", "rejected_trials",
             "relative_gradient_norm"} <= set(rows[0])
@@ -246,5 +248,5 @@ def test_unknown_method_is_refused():
     from test_optimize import PullObjective
 
     mesh = grid_mesh(3)
-    with pytest.raises(OptimizationError, match="method"):
+    with pytest.raises(OptionError, match="method"):
         optimize(mesh, PullObjective(mesh, mesh.points), method="newton")

@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 from meshopt_toolkit.cli import main
 from meshopt_toolkit.diagnostics import check_gradient
-from meshopt_toolkit.errors import InvalidMeshError, MeshoptError, OptimizationError
+from meshopt_toolkit.errors import InvalidMeshError, MeshoptError, OptimizationError, OptionError
 from meshopt_toolkit.fem.poisson import PoissonObjective
 from meshopt_toolkit.io import load
 from meshopt_toolkit.kernels.triangles import aspect_ratios, signed_areas
@@ -155,7 +155,7 @@ def test_holes_move_with_the_outer_boundary_fixed_and_the_area_kept(meshes):
 
 
 def test_keep_area_needs_a_quasi_newton_method(meshes):
-    with pytest.raises(OptimizationError, match="keep_area"):
+    with pytest.raises(OptionError, match="keep_area"):
         optimize(meshes["plate"], None, problem=ProblemSpec(keep_area=True), method="steepest",
                  penalty_beta=DEFAULT_PENALTY_BETA)
 
@@ -269,7 +269,7 @@ def test_area_is_kept_along_every_retraction_and_method(variant, method, meshes)
     mesh = meshes["plate"]
     res = optimize(mesh, None, problem=ProblemSpec(fixed=("outer",), keep_area=True, scale="auto"),
                    variant=variant, method=method, penalty_beta=DEFAULT_PENALTY_BETA, max_iter=4,
-                   ftol=None, gtol=None)
+                   options=dict(ftol=None, gtol=None))
     assert res.nit == 4 and res.j < res.history[0].j
     A0 = shoelace_area(mesh.points, mesh.boundary_edges)
     assert abs(shoelace_area(res.x, mesh.boundary_edges) - A0) <= 1e-10 * A0

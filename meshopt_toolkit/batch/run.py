@@ -61,7 +61,7 @@ class BatchResult:
     done, skipped, failed : int
         Files processed (checked, in a dry run), skipped by ``resume``, failed.
     dry_run : bool
-        Nothing was run or written: :meth:`summary` says so instead of "done".
+        Nothing was run or written: :meth:`report` says so instead of "done".
     seconds : float
         Wall time.
     records : list of dict or None
@@ -79,7 +79,16 @@ class BatchResult:
     def ok(self) -> bool:
         return self.failed == 0
 
-    def summary(self) -> str:
+    @property
+    def status(self) -> str:
+        return "ok" if self.ok else "failed"
+
+    def summary(self) -> dict:
+        """The counts, ``dry_run``, ``seconds`` and ``status`` as a JSON-ready dict."""
+        return {"done": self.done, "skipped": self.skipped, "failed": self.failed,
+                "dry_run": self.dry_run, "seconds": float(self.seconds), "status": self.status}
+
+    def report(self) -> str:
         """``N done, K skipped, F failed in T s``; in a dry run ``dry run: N checked, F
         failed, nothing written in T s``."""
         if self.dry_run:
@@ -448,7 +457,7 @@ def run_batch(pipeline: Pipeline | dict | str | os.PathLike, inputs, outdir, *, 
     >>> from dask.distributed import Client                             # doctest: +SKIP
     >>> res = mt.run_batch("smooth.json", sorted(Path("runs").rglob("*.msh")), "out",
     ...                    client=Client("tcp://10.0.0.5:8786"), resume=True)  # doctest: +SKIP
-    >>> res.summary()                                                   # doctest: +SKIP
+    >>> res.report()                                                    # doctest: +SKIP
     '118 done, 0 skipped, 2 failed in 41.3 s'
     """
     from ..pipeline.formats import load_pipeline

@@ -11,13 +11,9 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 
-from ..errors import MeshoptError
+from ..errors import OptionError
 
 __all__ = ["OptionError", "check_int", "check_number", "check_numbers"]
-
-
-class OptionError(MeshoptError, ValueError):
-    """A command-line option has a value outside its range."""
 
 
 def _bound(low, high, low_open: bool, high_open: bool) -> str:

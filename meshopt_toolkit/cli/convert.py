@@ -251,5 +251,5 @@ def run(args) -> int:
                          resume=args.resume, force=args.force,
                          on_record=reporter("convert", False, bar, wrote), progress=bar)
     result.failed += len(failures)  # inputs that matched nothing
-    print(f"meshopt convert: {result.summary()}", file=sys.stderr)
+    print(f"meshopt convert: {result.report()}", file=sys.stderr)
     return 1 if result.failed else 0

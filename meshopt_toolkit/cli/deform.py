@@ -75,6 +75,7 @@ def _check_numbers(args: argparse.Namespace) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..deform import deform, load_displacement
+    from ..riemannian.geodesic_options import GeodesicOptions
     from ..progress import ProgressBar
 
     _check_numbers(args)
@@ -95,8 +96,8 @@ def run(args: argparse.Namespace) -> int:
 
         res = deform(
             mesh, V, t=args.time, frames=frames, alpha=args.alpha, beta=args.beta,
-            metric="euclidean" if args.euclidean else "complete", rtol=args.rtol,
-            atol=None if args.rtol is None else args.rtol, progress=progress,
+            metric="euclidean" if args.euclidean else "complete",
+            options=GeodesicOptions(rtol=args.rtol, atol=args.rtol), progress=progress,
         )
     if frames is None:
         save_moved(wp, res.mesh, out, force=args.force)

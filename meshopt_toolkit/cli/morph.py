@@ -39,14 +39,14 @@ PLOTS = ("strip.png", "quality.png")
 
 
 def add_args(p: argparse.ArgumentParser) -> None:
-    from ..morph import DEFAULT_BETA
+    from ..motion.scalar_morph import DEFAULT_BETA
 
     p.add_argument("source", help="source mesh (frame 0)")
     p.add_argument("target", help="target mesh (last frame), same vertices and triangles")
     p.add_argument("-o", "--output", required=True, help="output directory")
     add_options(p, GenerateGeodesicMorph, OPTIONS)
     p.add_argument("--penalty", "--beta", dest="beta", type=float_list(4),
-                   metavar="b1,b2,b3,b4", default=DEFAULT_BETA,
+                   metavar="b1,b2,b3,b4", default=None,
                    help="--metric scalar: f2 coefficients of the complete metric, β4 unscaled "
                         f"(default: {','.join(f'{b:g}' for b in DEFAULT_BETA)})")
     p.add_argument("--no-normalize", action="store_true",
@@ -77,7 +77,8 @@ def _check_outputs(args: argparse.Namespace) -> None:
 def run(args: argparse.Namespace) -> int:
     from .. import io
     from ..io.workpiece import Workpiece
-    from ..morph import geodesic_morph
+    from ..motion.scalar_morph import DEFAULT_BETA
+    from ..operations import DEFAULT_MAX_ITER, METRIC_ALIASES, morph
     from ..plotting import save_morph_figures
     from ..progress import ProgressBar
 
@@ -93,29 +94,19 @@ def run(args: argparse.Namespace) -> int:
     width = max(3, len(str(args.frames - 1)))
     names = [f"frame_{k:0{width}d}.{ext}" for k in range(args.frames)]
     prepare_output_dir(outdir, force=args.force, names=names + list(PLOTS) + ["summary.json"])
-    if args.metric == "distortion":
-        from ..motion.morph import distortion_morph
-
-        max_iter = args.max_iter or 200
-        with ProgressBar(max_iter, "morph") as bar:
-            result = distortion_morph(source, target, frames=args.frames,
-                                      weight=args.weight, max_iter=max_iter,
-                                      callback=lambda nit, E, g: bar.update(status=f"E={E:.8g}"))
-    else:
-        # the Newton iteration usually stops well before --max-iter (energy stationary)
-        max_iter = args.max_iter or 500
-        with ProgressBar(max_iter, "morph") as bar:
-            result = geodesic_morph(source, target, frames=args.frames, beta=args.beta,
-                                    normalize=not args.no_normalize,
-                                    method=args.method, max_iter=max_iter,
-                                    callback=lambda nit, E, g: bar.update(status=f"E={E:.8g}"))
-    for name, mesh in zip(names, result.meshes(like=source)):
+    max_iter = args.max_iter or DEFAULT_MAX_ITER[METRIC_ALIASES.get(args.metric, args.metric)]
+    with ProgressBar(max_iter, "morph") as bar:
+        result = morph(source, target, args.frames, metric=args.metric, weight=args.weight,
+                       beta=args.beta, normalize=not args.no_normalize, method=args.method,
+                       max_iter=max_iter,
+                       callback=lambda it: bar.update(status=f"E={it.energy:.8g}"))
+    for name, mesh in zip(names, result.frames):
         save_moved(wp, mesh, outdir / name, what=name)
     summary = result.summary()
     summary.update(source=str(src_path), target=str(tgt_path), files=names,
                    unit_scale=wp.scale.factor)
     if args.metric == "scalar":
-        summary["beta"] = list(args.beta)
+        summary["beta"] = list(args.beta or DEFAULT_BETA)
     write_text(outdir / "summary.json", strict_json.dumps(summary, indent=2) + "\n")
     if not args.no_plots:
         save_morph_figures(result, outdir / "strip.png", outdir / "quality.png")

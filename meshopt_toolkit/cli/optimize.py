@@ -127,7 +127,8 @@ def run(args: argparse.Namespace) -> int:
     from ..datasets import data_path
     from ..expressions import quoted
     from ..filters.apply_coord_shape_optimization import ShapeOptimization
-    from ..optimize import DEFAULT_PENALTY_BETA, DEFAULT_RETRACTION, VARIANT_PARTS, optimize
+    from ..optimize import (DEFAULT_PENALTY_BETA, DEFAULT_RETRACTION, VARIANT_PARTS,
+                            OptimizeOptions, optimize)
     from ..progress import ProgressBar
     from ..shape.spec import spec_from_options
 
@@ -165,18 +166,18 @@ def run(args: argparse.Namespace) -> int:
 
         bar = ProgressBar(args.max_iterations, "optimize")
 
-        def callback(record, Q):
+        def callback(record):
             bar.update(status=f"j={record.j:.5f} Λ={record.mean_shape_quality:.4f}")
 
         with bar:
             result = optimize(
                 mesh, objective, variant=args.variant, method=args.method,
-                retraction=args.retraction, penalty_beta=penalty,
-                metric_beta=args.metric_penalty, problem=spec,
-                max_iter=args.max_iterations, tol=args.tolerance or None,
-                ftol=args.tolerance or None,
-                gtol=args.gtol if args.gtol > 0 else None, memory=args.memory,
-                lbfgs_preconditioner=args.lbfgs_preconditioner, callback=callback,
+                penalty_beta=penalty, metric_beta=args.metric_penalty, problem=spec,
+                max_iter=args.max_iterations, callback=callback,
+                options=OptimizeOptions(
+                    retraction=args.retraction, tol=args.tolerance or None,
+                    ftol=args.tolerance or None, gtol=args.gtol if args.gtol > 0 else None,
+                    memory=args.memory, lbfgs_preconditioner=args.lbfgs_preconditioner),
             )
         summary = result.summary()
         summary.update(input=str(input_path), output=str(outdir / mesh_name),

@@ -161,7 +161,7 @@ def run(args) -> int:
                          on_record=reporter("run", args.json, bar, line, args.dry_run),
                          progress=bar)
     result.failed += len(errors)  # inputs that matched nothing
-    print(f"meshopt run: {result.summary()}", file=sys.stderr)
+    print(f"meshopt run: {result.report()}", file=sys.stderr)
     return 1 if errors or result.failed or not inputs else 0
 
 

@@ -92,7 +92,7 @@ class ShapeOptimization(Filter):
               tolerance: float = 1e-6, fixed: str = "", move: str = "", dirichlet: str = "",
               neumann: str = "", keep_area: bool = False, objective: str = "integral",
               objective_scale: str = "auto") -> dict:
-        from meshopt_toolkit.optimize import DEFAULT_PENALTY_BETA, optimize
+        from meshopt_toolkit.optimize import DEFAULT_PENALTY_BETA, OptimizeOptions, optimize
         from meshopt_toolkit.shape.spec import spec_from_options
 
         entry = document.current_entry
@@ -105,9 +105,11 @@ class ShapeOptimization(Filter):
                                  scale=objective_scale)
         result = optimize(
             mesh, None, problem=spec, variant=variant, method=method,
-            retraction=retraction, memory=memory, lbfgs_preconditioner=lbfgs_preconditioner,
             penalty_beta=beta, metric_beta=number_list(metric_penalty, 4, "metric_penalty"),
-            max_iter=max_iterations, tol=tolerance or None, ftol=tolerance or None,
+            max_iter=max_iterations,
+            options=OptimizeOptions(retraction=retraction, memory=memory,
+                                    lbfgs_preconditioner=lbfgs_preconditioner,
+                                    tol=tolerance or None, ftol=tolerance or None),
         )
         entry.set_workpiece(wp.moved(result.mesh.points))
         return result.summary()

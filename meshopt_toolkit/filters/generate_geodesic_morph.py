@@ -10,7 +10,7 @@ from meshopt_toolkit.pipeline.params import (BoolParam, EnumParam, FloatParam, I
 
 METHODS = ("discrete", "shooting", "auto")
 METRICS = ("distortion", "scalar")
-#: f2's coefficients when ``penalty`` is empty (:data:`meshopt_toolkit.morph.DEFAULT_BETA`)
+#: f2's coefficients when ``penalty`` is empty (:data:`meshopt_toolkit.motion.scalar_morph.DEFAULT_BETA`)
 DEFAULT_PENALTY = (1.0, 1.0, 0.0, 1.0)
 #: the four floats that ``penalty`` replaced, still accepted in saved pipelines
 FORMER_BETAS = ("beta1", "beta2", "beta3", "beta4")
@@ -19,10 +19,10 @@ FORMER_BETAS = ("beta1", "beta2", "beta3", "beta4")
 @register
 class GenerateGeodesicMorph(Filter):
     """Morph along a geodesic: frames as healthy as their ends (``metric="distortion"``,
-    the per-triangle metric ``M + w² JᵀJ`` of :func:`meshopt_toolkit.distortion_morph`, as
+    the per-triangle metric ``M + w² JᵀJ`` of :func:`meshopt_toolkit.morph`, as
     ``meshopt morph``), or only non-inverted (``metric="scalar"``: the complete metric of f2,
-    :func:`meshopt_toolkit.morph.geodesic_morph`; the ``penalty``, ``normalize`` and ``method``
-    parameters apply to it alone).
+    :func:`meshopt_toolkit.morph` with ``metric="complete"``; the ``penalty``, ``normalize``
+    and ``method`` parameters apply to it alone and are refused with the distortion metric).
 
     The source is document mesh ``source`` (default 0, the first), the target mesh
     ``target`` (default −1, the current one); both must be planar, admissible and share
@@ -83,8 +83,8 @@ class GenerateGeodesicMorph(Filter):
               metric: str = METRICS[0], weight: float = 1.0, penalty: str = "",
               normalize: bool = True, method: str = METHODS[0]) -> dict:
         from meshopt_toolkit.kernels.triangles import aspect_ratios
-        from meshopt_toolkit.morph import geodesic_morph
-        from meshopt_toolkit.motion.morph import distortion_morph
+        from meshopt_toolkit.motion.scalar_morph import DEFAULT_BETA
+        from meshopt_toolkit.operations import morph
         from meshopt_toolkit.pipeline.document import MeshEntry
 
         beta1, beta2, beta3, beta4 = number_list(penalty, 4, "penalty") or DEFAULT_PENALTY
@@ -99,16 +99,14 @@ class GenerateGeodesicMorph(Filter):
             # carry the source's blocks, tags and data
             src, tgt = src.with_target(tgt.cells)
             base, end = src.mesh, tgt.mesh
-            if metric == "distortion":
-                result = distortion_morph(base, end, frames=frames, weight=weight)
-            else:
-                result = geodesic_morph(base, end, frames=frames,
-                                        beta=(beta1, beta2, beta3, beta4), normalize=normalize,
-                                        method=method)
+            beta = (beta1, beta2, beta3, beta4)
+            result = morph(base, end, frames, metric=metric, weight=weight,
+                           beta=None if beta == DEFAULT_BETA else beta, normalize=normalize,
+                           method=method)
             width = max(3, len(str(frames - 1)))
             meshes = [(f"morph_{k:0{width}d}", src.moved(m.points, what=f"frame {k}"),
                        aspect_ratios(m.points, m.triangles))
-                      for k, m in enumerate(result.meshes(like=base))]
+                      for k, m in enumerate(result.frames)]
         except MeshoptError as exc:
             raise FilterError(f"{self.name}: {exc}") from None
         for name, wp, quality in meshes:

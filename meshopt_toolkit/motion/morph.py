@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._typing import FloatArray, IntArray
-from ..errors import InvalidMeshError
+from ..errors import InvalidMeshError, OptionError
 from ..kernels.admissibility import BoundaryCheck, area_problem
 from ..kernels.triangles import aspect_ratios, inverse_shape_quality, signed_areas
 from ..mesh import PlanarMesh, require_admissible
@@ -101,6 +101,18 @@ class DistortionMorph:
     triangles: IntArray | None = None
     method: str = "discrete"
     metric_name: str = "distortion metric"
+    #: the source mesh: the frames carry its tags
+    source: PlanarMesh | None = None
+
+    @property
+    def frames(self) -> list[PlanarMesh]:
+        """The frames as meshes with the source's tags (first = source, last = target)."""
+        return self.meshes(like=self.source)
+
+    @property
+    def mesh(self) -> PlanarMesh:
+        """The last frame (the target's points, the source's tags)."""
+        return self.frames[-1]
 
     @property
     def converged(self) -> bool:
@@ -212,8 +224,8 @@ def distortion_morph(
         ``w`` in ``g = M + w² JᵀJ``.
     max_iter : int
         Levenberg–Marquardt iterations of the discrete geodesic.
-    callback : callable ``(iteration, E, |∇E|)``, optional
-        Called at every iteration of the finest level.
+    callback : callable ``(iteration, E, |∇E|) -> bool | None``, optional
+        Called at every iteration of the finest level; returning True stops it.
     coarse_min_triangles : int
         A pair made by :meth:`~meshopt_toolkit.mesh.PlanarMesh.refine` from a pair with at
         least this many triangles (and admissible ends) is morphed coarse-to-fine: the
@@ -231,13 +243,15 @@ def distortion_morph(
     from ..fem.interpolation import arap_interpolation
 
     t_start = time.perf_counter()
+    if int(frames) < 2:
+        raise OptionError(f"frames must be at least 2, got {frames}")
+    if not weight > 0:
+        raise OptionError(f"weight must be > 0, got {weight}")
     source = require_admissible(source, "morph (source)")
     target = require_admissible(target, "morph (target)")
     if source.n_vertices != target.n_vertices or not np.array_equal(source.triangles,
                                                                     target.triangles):
         raise InvalidMeshError("source and target must have the same vertices and triangles")
-    if int(frames) < 2:
-        raise InvalidMeshError("frames must be at least 2")
     tri = source.triangles
     P0, P1 = source.points, target.points
     be = source.boundary_edges
@@ -261,7 +275,7 @@ def distortion_morph(
         status=res.status, gradient_norm=res.gradient_norm, energy=res.energy, nit=res.nit,
         strain_bound=np.concatenate([[0.0], np.cumsum(lengths)]) / weight, similarity=S,
         initial_path=kind, seconds=time.perf_counter() - t_start, triangles=tri,
-        details={"levels": levels})
+        details={"levels": levels}, source=source)
 
 
 def _residual_morph(metric: GraphMetric, R1: FloatArray, be: IntArray, times: FloatArray,

@@ -20,7 +20,7 @@ import numpy as np
 
 from .._typing import FloatArray, IntArray
 from ..cores import thread_budget
-from ..errors import InvalidMeshError
+from ..errors import InvalidMeshError, OptionError
 from ..kernels.admissibility import BoundaryCheck, area_problem, target_loop_problem
 from ..kernels.triangles import aspect_ratios, inverse_shape_quality
 from ..mesh import PlanarMesh, require_admissible
@@ -44,7 +44,8 @@ class MoveResult:
     mesh : PlanarMesh
         The moved mesh (same connectivity and tags), handles exactly at their targets.
     frames : list of PlanarMesh
-        The motion (first = input, last = ``mesh``) when ``frames`` was asked for.
+        The motion (first = input, last = ``mesh``): ``frames`` meshes when asked for,
+        else the input and ``mesh``.
     min_aspect_ratio, mean_quality : (F,) float arrays
         Per frame: ``min 2r/R`` (5.49) and ``Λ`` (6.25).
     handle_error : float
@@ -67,8 +68,14 @@ class MoveResult:
     inverted: int = 0
     details: dict = field(default_factory=dict)
 
+    @property
+    def status(self) -> str:
+        """``"done"``: a returned motion always reached its targets (else it raises)."""
+        return "done"
+
     def summary(self) -> dict:
         return {
+            "status": self.status,
             "inverted": int(self.inverted),
             "min_aspect_ratio": float(self.min_aspect_ratio[-1]),
             "mean_quality": float(self.mean_quality[-1]),
@@ -218,7 +225,8 @@ def move(
         fixed where they are at that time). The continuation's own frames are admissible
         but squeezed towards the end (90° annulus turn, 9 frames: min AR 0.19 at 45°,
         0.075 at 79° before the step); False returns them as they are, for speed.
-    progress : callable ``s -> None``, optional
+    progress : callable ``fraction -> None``, optional
+        Called with the fraction of the work done, in [0, 1].
 
     Returns
     -------
@@ -226,18 +234,28 @@ def move(
 
     Raises
     ------
+    OptionError
+        ``frames < 2``, ``steps < 1``, ``weight <= 0`` or another option out of range.
     InvalidMeshError
         Bad handles or targets, or targets that make the boundary cross itself.
     NoAdmissiblePathError
         No admissible interior found after a bounded effort.
     """
     t_start = time.perf_counter()
+    if frames is not None and int(frames) < 2:
+        raise OptionError(f"frames must be at least 2 (the input and the result), got {frames}")
+    for name, value in (("steps", steps), ("relax_iter", relax_iter),
+                        ("quality_rounds", quality_rounds)):
+        if int(value) < 1:
+            raise OptionError(f"{name} must be at least 1, got {value}")
+    if int(max_splits) < 0:
+        raise OptionError(f"max_splits must be at least 0, got {max_splits}")
+    if not weight > 0:
+        raise OptionError(f"weight must be > 0, got {weight}")
     mesh = require_admissible(mesh, "move")
     P = mesh.points
     tri = mesh.triangles
     h, tg = _check_handles(mesh, handles, targets)
-    if frames is not None and int(frames) < 2:
-        raise InvalidMeshError("frames must be at least 2 (the input and the result)")
     be = mesh.boundary_edges
     if tg is not None:
         final_guess = P.copy()
@@ -303,8 +321,9 @@ def move(
                or BoundaryCheck(be, mesh.boundary_vertices).test(moved[-1]))
     if inverted or problem:
         raise NoAdmissiblePathError(f"the result is not admissible: {problem or 'inverted'}")
-    out = [mesh.with_points(moved[i]) for i in pick] if frames is not None else []
     result_mesh = mesh.with_points(moved[-1])
+    out = ([mesh.with_points(moved[i]) for i in pick] if frames is not None
+           else [mesh, result_mesh])
     return MoveResult(
         mesh=result_mesh, frames=out, min_aspect_ratio=q[:, 0], mean_quality=q[:, 1],
         handle_error=float(np.abs(moved[-1][h] - tg).max()),

@@ -81,7 +81,8 @@ def discrete_geodesic(
         the frame that stays close to ``Q0`` while its strain approaches ``anchor``)
     options : the method's settings: :class:`.NewtonCGOptions` or
         :class:`.LevenbergMarquardtOptions`, a mapping of their fields, or None (defaults)
-    callback : ``callback(nit, E, gradient_norm)`` at every iteration
+    callback : ``callback(nit, E, gradient_norm)`` at every iteration; returning True stops
+        the iteration (status "stopped")
 
     Returns
     -------

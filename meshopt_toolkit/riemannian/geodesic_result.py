@@ -171,7 +171,8 @@ class DiscreteGeodesic:
     status : why the iteration stopped: "converged" (gradient test, or the minimum to
         machine precision), "max_iter", and for Newton–CG "stationary" (the energy
         stagnated) or "line_search" (no decrease found), for Levenberg–Marquardt
-        "stalled" (no admissible step lowers the energy)
+        "stalled" (no admissible step lowers the energy); "stopped" when the callback
+        returned True
     history : ``(E, |∇E|)`` at each Levenberg–Marquardt iteration
     """
 

@@ -110,8 +110,10 @@ def levenberg_marquardt(path: LeastSquaresPath, frames: FloatArray,
     for it in range(1, max_iter + 1):
         gnorm = 2.0 * float(np.linalg.norm(g))
         history.append((E, gnorm))
-        if callback is not None:
-            callback(it - 1, E, gnorm)
+        if callback is not None and callback(it - 1, E, gnorm):
+            status = "stopped"  # the callback returned True
+            it -= 1
+            break
         if it == 1:
             g0 = gnorm
         if gnorm <= max(gtol * max(1.0, np.sqrt(E)), rtol * g0):

@@ -193,8 +193,9 @@ def newton_cg(metric, Q0: FloatArray, Q1: FloatArray, K: int, path: FloatArray |
         converged = gnorm <= tol * np.sqrt(E)
         logger.debug("discrete geodesic %d: E = %.12g, |g| = %.3g, step %.3g, %d CG%s",
                      nit, E, gnorm, t, n_cg, " (negative curvature)" if negative else "")
-        if callback is not None:
-            callback(nit, E, gnorm)
+        if callback is not None and callback(nit, E, gnorm) and not converged:
+            status = "stopped"  # the callback returned True
+            break
         if converged:
             status = "converged"
         elif (energy_rtol > 0 and nit >= window

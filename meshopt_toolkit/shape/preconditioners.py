@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._typing import FloatArray
-from ..errors import OptimizationError
+from ..errors import OptimizationError, OptionError
 
 #: values of ``optimize(lbfgs_preconditioner=...)``; "auto": "penalty" for the complete-*
 #: variants when the objective's penalty has β1 > 0, else "none" (``B = G_Q``)
@@ -136,8 +136,8 @@ class ElasticityInverse:
 def make_preconditioner(kind: str, *, metric_kind: str, method: str, mesh, penalty, free):
     """The ``H_0`` operator ``(Q, P) ↦ B⁻¹P`` asked for, or None (``B = G_Q``)."""
     if kind not in PRECONDITIONERS:
-        raise OptimizationError(f"unknown lbfgs_preconditioner {kind!r}; choose one of "
-                                f"{', '.join(PRECONDITIONERS)}")
+        raise OptionError(f"unknown lbfgs_preconditioner {kind!r}; choose one of "
+                          f"{', '.join(PRECONDITIONERS)}")
     has_penalty = penalty is not None and penalty.beta[0] > 0
     if kind == "auto":
         kind = "penalty" if method == "lbfgs" and metric_kind == "complete" and has_penalty \
@@ -145,9 +145,9 @@ def make_preconditioner(kind: str, *, metric_kind: str, method: str, mesh, penal
     if kind == "none":
         return None
     if method != "lbfgs":
-        raise OptimizationError(f"lbfgs_preconditioner={kind!r} applies to method='lbfgs' only")
+        raise OptionError(f"lbfgs_preconditioner={kind!r} applies to method='lbfgs' only")
     if kind == "penalty":
         if not has_penalty:
-            raise OptimizationError("lbfgs_preconditioner='penalty' needs a penalty with β1 > 0")
+            raise OptionError("lbfgs_preconditioner='penalty' needs a penalty with β1 > 0")
         return PenaltyHessian(mesh, penalty, free)
     return ElasticityInverse(mesh, free)

@@ -44,10 +44,12 @@ class IterationRecord:
     pair_rejected: bool = False
     #: line-search trials outside M+ (f = +∞), rejected
     rejected_trials: int = 0
+    #: the iterate's positions, in the record a callback gets (None in the history)
+    points: FloatArray | None = field(default=None, repr=False, compare=False)
 
     def as_row(self) -> dict:
         """Flat dict (phase times as ``time_<phase>`` columns) for CSV/JSON."""
-        row = {k: v for k, v in asdict(self).items() if k != "seconds"}
+        row = {k: v for k, v in asdict(self).items() if k not in ("seconds", "points")}
         for phase in PHASES:
             row[f"time_{phase}"] = float(self.seconds.get(phase, 0.0))
         return row
@@ -97,6 +99,13 @@ class OptimizeResult:
     #: ``w`` of ``F = w j + f2`` (:class:`~meshopt_toolkit.shape.spec.ProblemSpec` ``scale``);
     #: ``j`` and the history's ``j`` are unweighed
     objective_weight: float = 1.0
+    #: the initial mesh
+    initial: PlanarMesh | None = None
+
+    @property
+    def frames(self) -> list[PlanarMesh]:
+        """The initial and the final mesh (an optimization keeps no other iterate)."""
+        return [self.mesh] if self.initial is None else [self.initial, self.mesh]
 
     def history_columns(self) -> dict[str, np.ndarray]:
         """The history as named columns (arrays), one entry per record."""

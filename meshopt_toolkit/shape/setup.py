@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._typing import FloatArray
-from ..errors import OptimizationError
+from ..errors import OptimizationError, OptionError
 from ..mesh import PlanarMesh
 
 #: the contact barrier (β3 of f2): ``μ`` and the cut-off in units of the shortest boundary
@@ -76,15 +76,15 @@ def _retraction_kind(variant: str, retraction: str, exp_options: dict | None) ->
     """The retraction asked for, checked against the variant (None: the straight line;
     the default retraction names no request, so it passes with every variant)."""
     if retraction not in RETRACTIONS:
-        raise OptimizationError(f"unknown retraction {retraction!r}; choose one of "
-                                f"{', '.join(RETRACTIONS)}")
+        raise OptionError(f"unknown retraction {retraction!r}; choose one of "
+                          f"{', '.join(RETRACTIONS)}")
     if not VARIANT_PARTS[variant][1]:
         if retraction != DEFAULT_RETRACTION or exp_options is not None:
-            raise OptimizationError(f"{variant} moves along straight lines; a retraction and "
-                                    "exp_options apply to complete-complete only")
+            raise OptionError(f"{variant} moves along straight lines; a retraction and "
+                              "exp_options apply to complete-complete only")
         return None
     if retraction != "exp" and exp_options is not None:
-        raise OptimizationError("exp_options apply to retraction='exp' only")
+        raise OptionError("exp_options apply to retraction='exp' only")
     return retraction
 
 

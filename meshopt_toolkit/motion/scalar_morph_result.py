@@ -69,10 +69,29 @@ class MorphResult:
     rigid_min_area: FloatArray | None = None
     between_frames_min_area: FloatArray | None = None
     metric_scale: float | None = None
+    #: the source mesh: the frames carry its tags
+    source: PlanarMesh | None = None
 
     @property
     def n_frames(self) -> int:
         return len(self.points)
+
+    @property
+    def frames(self) -> list:
+        """The frames as meshes with the source's tags (first = source, last = target)."""
+        return self.meshes(like=self.source)
+
+    @property
+    def mesh(self):
+        """The last frame (the target's points, the source's tags)."""
+        return self.frames[-1]
+
+    @property
+    def status(self) -> str:
+        """The discrete geodesic's status, or ``"converged"`` for converged shooting."""
+        if self.method == "shooting" or self.discrete is None:
+            return "converged"
+        return self.discrete.status
 
     def meshes(self, like=None) -> list:
         """The frames as PlanarMesh objects (tags of ``like`` kept when given)."""
@@ -107,6 +126,7 @@ class MorphResult:
             "discrete_iterations": None if self.discrete is None else int(self.discrete.nit),
             "discrete_converged": None if self.discrete is None else bool(self.discrete.converged),
             "discrete_status": None if self.discrete is None else self.discrete.status,
+            "status": self.status,
             "seconds": float(self.seconds),
         }
 

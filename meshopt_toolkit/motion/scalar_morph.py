@@ -1,9 +1,10 @@
 """Geodesic morphs: the log map of a complete metric and inversion-free interpolation.
 
-This package is the operation (:func:`geodesic_morph`, :func:`morph_metric`); the manifold
-computations it is built on live in :mod:`meshopt_toolkit.riemannian` next to the
-exponential map: :mod:`~.riemannian.initial_path`, :mod:`~.riemannian.discrete_geodesic`
-and :mod:`~.riemannian.log_map` (re-exported here).
+This module is the scalar-metric morph (:func:`geodesic_morph`, :func:`morph_metric`;
+``mt.morph(..., metric="complete")``); the manifold computations it is built on live in
+:mod:`meshopt_toolkit.riemannian` next to the exponential map:
+:mod:`~.riemannian.initial_path`, :mod:`~.riemannian.discrete_geodesic` and
+:mod:`~.riemannian.log_map` (re-exported here).
 
 With a complete metric ``g = I + ∇f ∇fᵀ`` (5.17, 5.34) the manifold ``M+(Δ; Qref)`` is
 complete, so two admissible meshes of the same connectivity in the same component are
@@ -83,7 +84,7 @@ import time
 import numpy as np
 
 from .._typing import FloatArray
-from ..errors import InvalidMeshError
+from ..errors import InvalidMeshError, OptionError
 from ..generate import twisted  # the 225° twist target lives in generate; kept importable
 from ..kernels.triangles import aspect_ratios, min_signed_areas_on_segment, signed_areas
 from ..riemannian.discrete_geodesic import discrete_geodesic
@@ -92,7 +93,7 @@ from ..riemannian.geodesics import penalty_of
 from ..riemannian.initial_path import initial_path, linear_morph
 from ..riemannian.log_map import DEFAULT_TOL, SHOOTING_RTOL, log_map
 from ..riemannian.path_options import NewtonCGOptions
-from .results import MorphResult
+from .scalar_morph_result import MorphResult
 
 logger = logging.getLogger(__name__)
 
@@ -209,7 +210,8 @@ def geodesic_morph(
     discrete_tol : Newton tolerance of the discrete geodesic
     max_iter : Newton iterations of the discrete geodesic
     max_exp : exponential-map budget of the shooting
-    callback : passed to :func:`discrete_geodesic` (``callback(nit, E, gradient_norm)``)
+    callback : passed to :func:`discrete_geodesic` (``callback(nit, E, gradient_norm)``;
+        returning True stops it)
 
     Returns
     -------
@@ -229,10 +231,10 @@ def geodesic_morph(
 
     start = time.perf_counter()
     if method not in ("auto", "discrete", "shooting"):
-        raise ValueError(f"method must be 'auto', 'discrete' or 'shooting', got {method!r}")
+        raise OptionError(f"method must be 'auto', 'discrete' or 'shooting', got {method!r}")
     frames = int(frames)
     if frames < 2:
-        raise ValueError(f"frames must be at least 2, got {frames}")
+        raise OptionError(f"frames must be at least 2, got {frames}")
     src, tgt = _check_pair(source, target)
     Q0, Q1 = src.points, tgt.points
     if metric is None:
@@ -242,7 +244,8 @@ def geodesic_morph(
         scale = None
     m = int(segments) // (frames - 1) if segments else max(1, -(-16 // (frames - 1)))
     if segments and int(segments) % (frames - 1):
-        raise ValueError(f"segments ({segments}) must be a multiple of frames − 1 ({frames - 1})")
+        raise OptionError(f"segments ({segments}) must be a multiple of frames − 1 "
+                          f"({frames - 1})")
     K = m * (frames - 1)
     dg = discrete_geodesic(metric, Q0, Q1, K, method="newton-cg",
                            options=NewtonCGOptions(tol=discrete_tol, max_iter=max_iter),
@@ -283,4 +286,4 @@ def geodesic_morph(
     lmin = float(min_signed_areas_on_segment(Q0, Q1, src.triangles).min())
     return MorphResult(pts, times, src.triangles, used, target_error, ar, area, adm, lar, larea,
                        lmin, float(length), log, dg, time.perf_counter() - start,
-                       rar, rarea, between, scale)
+                       rar, rarea, between, scale, source=src)

@@ -1,0 +1,136 @@
+"""``mt.morph``: the morph between two meshes, one call whatever the metric.
+
+The metric is chosen in one place, :data:`MORPH_METRICS`: ``"distortion"`` (the
+per-triangle distortion metric ``M + w² JᵀJ``, :func:`~.motion.morph.distortion_morph`:
+frames as healthy as their ends) or ``"complete"`` (the complete metric of ``√N·f2``,
+:func:`~.motion.scalar_morph.geodesic_morph`: frames only non-inverted). The command
+line's ``--metric scalar`` is the complete metric (:data:`METRIC_ALIASES`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from .errors import OptionError
+from .results import PathIteration
+
+__all__ = ["METRIC_ALIASES", "MORPH_METRICS", "morph"]
+
+#: other names of the morph metrics
+METRIC_ALIASES = {"scalar": "complete"}
+
+#: default iterations of each metric's discrete geodesic (Levenberg–Marquardt for the
+#: distortion metric, Newton–CG for the complete one, which usually stops earlier:
+#: stationary energy)
+DEFAULT_MAX_ITER = {"distortion": 200, "complete": 500}
+
+
+@dataclass(frozen=True)
+class _Settings:
+    weight: float
+    beta: tuple | None
+    normalize: bool
+    method: str
+    max_iter: int
+    callback: Callable | None
+
+
+def _distortion(source, target, frames: int, o: _Settings):
+    from .motion.morph import distortion_morph
+
+    if o.beta is not None or not o.normalize or o.method != "discrete":
+        raise OptionError("beta, normalize and method apply to metric='complete' only")
+    return distortion_morph(source, target, frames, weight=o.weight, max_iter=o.max_iter,
+                            callback=o.callback)
+
+
+def _complete(source, target, frames: int, o: _Settings):
+    from .motion.scalar_morph import DEFAULT_BETA, geodesic_morph
+
+    if o.weight != 1.0:
+        raise OptionError("weight applies to metric='distortion' only")
+    return geodesic_morph(source, target, frames,
+                          beta=DEFAULT_BETA if o.beta is None else tuple(o.beta),
+                          normalize=o.normalize, method=o.method, max_iter=o.max_iter,
+                          callback=o.callback)
+
+
+#: the morph of each metric
+MORPH_METRICS = {"distortion": _distortion, "complete": _complete}
+
+
+def morph(
+    source,
+    target,
+    frames: int = 9,
+    *,
+    metric: str = "distortion",
+    weight: float = 1.0,
+    beta=None,
+    normalize: bool = True,
+    method: str = "discrete",
+    max_iter: int | None = None,
+    callback: Callable[[PathIteration], bool | None] | None = None,
+    progress: Callable[[float], None] | None = None,
+):
+    """Morph ``source`` into ``target`` (same vertices and triangles) along a geodesic.
+
+    Parameters
+    ----------
+    source, target : PlanarMesh
+        Admissible meshes with the same connectivity.
+    frames : int
+        Number of frames (≥ 2), both ends included.
+    metric : ``"distortion"`` (default) or ``"complete"`` (alias ``"scalar"``)
+    weight : float
+        Distortion metric: ``w`` of ``M + w² JᵀJ``.
+    beta : (β1, β2, β3, β4), optional
+        Complete metric: the f2 coefficients (default
+        :data:`~.motion.scalar_morph.DEFAULT_BETA`).
+    normalize : bool
+        Complete metric: the metric of ``√N·f2`` (default) or of f2.
+    method : str
+        Complete metric: ``"discrete"``, ``"shooting"`` or ``"auto"``.
+    max_iter : int, optional
+        Iterations of the discrete geodesic (default :data:`DEFAULT_MAX_ITER`).
+    callback : callable ``PathIteration -> bool | None``, optional
+        Called once per iteration; returning True stops the iteration (status
+        ``"stopped"``; the frames are admissible, not yet a minimizer).
+    progress : callable ``fraction -> None``, optional
+        Iterations done over ``max_iter`` (an upper bound: most morphs stop earlier).
+
+    Returns
+    -------
+    DistortionMorph or MorphResult
+        Both with ``mesh``, ``frames`` (meshes with the source's tags), ``summary()``,
+        ``seconds`` and ``status`` (:class:`~meshopt_toolkit.results.Result`).
+
+    Raises
+    ------
+    OptionError
+        ``frames < 2``, an unknown metric or method, an option of the other metric.
+    InvalidMeshError, NotAdmissibleError
+        Different connectivity, a non-admissible end.
+    """
+    name = METRIC_ALIASES.get(metric, metric)
+    run = MORPH_METRICS.get(name)
+    if run is None:
+        raise OptionError(f"unknown morph metric {metric!r}; choose one of "
+                          f"{', '.join(MORPH_METRICS)}")
+    if int(frames) < 2:
+        raise OptionError(f"frames must be at least 2, got {frames}")
+    n_iter = DEFAULT_MAX_ITER[name] if max_iter is None else int(max_iter)
+    if n_iter < 1:
+        raise OptionError(f"max_iter must be at least 1, got {max_iter}")
+
+    def step(nit: int, energy: float, gradient_norm: float) -> bool:
+        if progress is not None:
+            progress(min(1.0, nit / n_iter))
+        if callback is not None:
+            return bool(callback(PathIteration(int(nit), float(energy), float(gradient_norm))))
+        return False
+
+    hook = step if callback is not None or progress is not None else None
+    return run(source, target, int(frames),
+               _Settings(float(weight), beta, bool(normalize), method, n_iter, hook))
