@@ -249,6 +249,7 @@ def _problem(seed=0):
 
 def test_energy_gradient_and_newton_matrix_taylor():
     problem, Q, centre, anchor, weights = _problem()
+    problem.newton_threshold, problem.project = 0.0, False  # the exact Hessian
     free = problem.pattern.free
 
     def lift(x):
@@ -270,6 +271,19 @@ def test_energy_gradient_and_newton_matrix_taylor():
     x0 = Q.reshape(-1)[free]
     assert check_gradient(f, grad, x0, rng=0, eps0=1e-3).passed
     assert check_hvp(f, grad, hvp, x0, rng=0, eps0=1e-3).passed
+
+
+def test_projected_newton_matrix_is_positive_definite_and_below_nothing():
+    problem, Q, centre, anchor, weights = _problem(2)
+    problem.newton_threshold = 0.0
+    projected = problem.normal_equations(Q, centre, anchor, weights, True)[2]
+    problem.project = False
+    exact = problem.normal_equations(Q, centre, anchor, weights, True)[2]
+    sym = lambda L: (L + sp.tril(L, -1).T).toarray()  # noqa: E731
+    lam = np.linalg.eigvalsh(sym(projected))
+    assert lam.min() > 0
+    # the projection only removes negative curvature: exact − projected ⪯ 0
+    assert np.linalg.eigvalsh(sym(exact) - sym(projected)).max() < 1e-9 * lam.max()
 
 
 def test_minimize_decreases_energy_keeps_fixed_bitwise():

@@ -6,8 +6,9 @@ It minimizes
     E(Q) = ½ Σ_i m_i |Q_i − P_i|² + ½ w² Σ_c ω_c |φ_c(Q) − a_c|²
 
 over the free vertices (``P`` the proximal centre, ``a`` the anchor distortion, ``ω`` the
-tet weights) by Gauss–Newton (optionally Newton, falling back to Gauss–Newton where the
-Hessian is not positive definite) with a backtracking line search that accepts only steps
+tet weights) by Newton (the residual curvature taken on the tets far from their anchor;
+Gauss–Newton where that matrix is not positive definite; optionally each tet's block
+projected onto the positive semidefinite cone instead) with a backtracking line search that accepts only steps
 that lower ``E``: ``E`` is ``+inf`` where a tet is inverted, so every accepted iterate
 has every tet positively oriented. The sparse normal matrix is the lower triangle of
 ``M + w² Σ_c ω_c J_cᵀJ_c`` on a pattern built once (:class:`FreePattern`), factorized by
@@ -16,6 +17,7 @@ CHOLMOD on a kept analysis.
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import numpy as np
@@ -83,6 +85,20 @@ class Factor:
         return self._chol
 
 
+def _restricted(strain: TetDistortion, cells: IntArray) -> TetDistortion:
+    """The same distortion on a subset of the tets (shares the reference)."""
+    out = copy.copy(strain)
+    out.tets, out.gradients = strain.tets[cells], strain.gradients[cells]
+    return out
+
+
+def _psd(blocks: FloatArray) -> FloatArray:
+    """Each symmetric block with its negative eigenvalues set to zero (projected Newton:
+    the assembled matrix stays positive definite)."""
+    lam, V = np.linalg.eigh(blocks)
+    return np.matmul(V * np.maximum(lam, 0.0)[:, None, :], np.swapaxes(V, 1, 2))
+
+
 @dataclass
 class Problem:
     """The least-squares problem: distortion, metric weight, lumped masses, free
@@ -93,6 +109,14 @@ class Problem:
     mass: FloatArray  # (N,)
     pattern: FreePattern
     factor: Factor
+    #: Newton's curvature term is taken on the tets whose weighted residual exceeds this
+    #: times its root mean square (0: all)
+    newton_threshold: float = 1.0
+    #: project each tet's Newton block onto the PSD cone (False: the exact Hessian, and
+    #: Gauss–Newton where it is not positive definite). Measured on the 90° sphere turn
+    #: (23k tets): projected, 64 iterations and 23 s of CPU; not, 50 and 16 s; the same
+    #: worst mean ratio (0.253)
+    project: bool = False
 
     @classmethod
     def build(cls, strain: TetDistortion, weight: float, mass: FloatArray,
@@ -113,8 +137,10 @@ class Problem:
 
     def normal_equations(self, Q: FloatArray, centre: FloatArray, anchor: FloatArray,
                          cell_weights: FloatArray, newton: bool):
-        """Gradient over the free coordinates and the lower triangle of the (Gauss–)Newton
-        matrix (Newton adds ``w² Σ ω_c (φ_c − a_c)·∇²φ_c``)."""
+        """Gradient over the free coordinates and the lower triangles of the Gauss–Newton
+        matrix and (with ``newton``) of the projected Newton matrix: ``w² ω_c (J_cᵀJ_c +
+        (φ_c − a_c)·∇²φ_c)`` projected onto the PSD cone per tet, where the residual is
+        large (see ``newton_threshold``)."""
         phi, jb = self.strain.values_and_jacobian(Q)
         res = (phi - anchor) * (self.weight**2 * cell_weights)[:, None]
         cols = self.strain.columns()
@@ -127,7 +153,14 @@ class Problem:
         gn = self.pattern.matrix(blocks, diag)
         full = None
         if newton:
-            full = self.pattern.matrix(blocks + self.strain.second_order(Q, res), diag)
+            # the residual curvature of the tets far from their anchor only: the others'
+            # is small against their JᵀJ, and it is the costly part of an iteration
+            size = np.linalg.norm(res, axis=1)
+            cells = np.flatnonzero(size > self.newton_threshold * np.sqrt(np.mean(size**2)))
+            blocks[cells] += _restricted(self.strain, cells).second_order(Q, res[cells])
+            if self.project:
+                blocks[cells] = _psd(blocks[cells])
+            full = self.pattern.matrix(blocks, diag)
         return g[self.pattern.free], gn, full
 
     def solve_step(self, lower: sp.csc_matrix, rhs: FloatArray) -> FloatArray:

@@ -35,7 +35,7 @@ __all__ = ["TetMoveResult", "move_tets"]
 # admissible and near the minimizing movement; the finish does the rest).
 STEP_RTOL = 1e-2
 # A quality round stops when its gradient fell by this factor (its weights change next).
-QUALITY_RTOL = 1e-3
+QUALITY_RTOL = 1e-2
 
 
 @dataclass
