@@ -1,4 +1,4 @@
-"""Damped least squares of the tet distortion with fixed vertices: the one solver of the
+"""Least squares of the tet distortion with fixed vertices: the one solver of the
 tet motion (:mod:`.tet_move`), for its continuation steps and its quality rounds.
 
 It minimizes
@@ -8,11 +8,11 @@ It minimizes
 over the free vertices (``P`` the proximal centre, ``a`` the anchor distortion, ``ω`` the
 tet weights) by Newton (the residual curvature taken on the tets far from their anchor;
 Gauss–Newton where that matrix is not positive definite; optionally each tet's block
-projected onto the positive semidefinite cone instead) with a backtracking line search that accepts only steps
-that lower ``E``: ``E`` is ``+inf`` where a tet is inverted, so every accepted iterate
-has every tet positively oriented. The sparse normal matrix is the lower triangle of
-``M + w² Σ_c ω_c J_cᵀJ_c`` on a pattern built once (:class:`FreePattern`), factorized by
-CHOLMOD on a kept analysis.
+projected onto the positive semidefinite cone instead) with a backtracking line search
+that accepts only steps that lower ``E``: ``E`` is ``+inf`` where a tet is inverted, so
+every accepted iterate has every tet positively oriented. The sparse matrices are lower
+triangles on a pattern built once (:class:`FreePattern`), factorized by CHOLMOD on a kept
+analysis.
 """
 
 from __future__ import annotations
@@ -132,8 +132,8 @@ class Problem:
         if not np.isfinite(phi).all():
             return np.inf
         d = np.sum((phi - anchor) ** 2, axis=1)
-        return 0.5 * float(self.mass @ np.sum((Q - centre) ** 2, axis=1)) + 0.5 * self.weight**2 * float(
-            cell_weights @ d)
+        move = float(self.mass @ np.sum((Q - centre) ** 2, axis=1))
+        return 0.5 * move + 0.5 * self.weight**2 * float(cell_weights @ d)
 
     def normal_equations(self, Q: FloatArray, centre: FloatArray, anchor: FloatArray,
                          cell_weights: FloatArray, newton: bool):

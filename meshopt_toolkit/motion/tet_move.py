@@ -53,8 +53,8 @@ class TetMoveResult:
     similarity : Similarity3
         The similarity factored out of the motion.
     strain_bound : float
-        ``ℓ/w + √3 |log s|``: a bound on every tet's ``Σ_k |φ_c(Q_{k+1}) − φ_c(Q_k)|`` along
-        the frames returned (``ℓ`` their chord length in the metric, ``s`` the scale).
+        ``ℓ/w + √3 |log s|``: a bound on every tet's ``Σ_k |φ_c(Q_{k+1}) − φ_c(Q_k)|``
+        along the frames returned (``ℓ`` their chord length in the metric, ``s`` the scale).
     seconds : float
     """
 
@@ -216,7 +216,8 @@ def move_tets(points: FloatArray, tets: IntArray, handles, targets, *, steps: in
     ratios = np.array([tet_mean_ratios(moved[i], T).min() for i in pick])
     inverted = int(np.sum(~(tet_signed_volumes(moved[-1], T) > 0)))
     if inverted:
-        raise NoAdmissiblePathError(f"{inverted} tets inverted in the result (a bug: please report)")
+        raise NoAdmissiblePathError(
+            f"{inverted} tets inverted in the result (a bug: please report)")
     return TetMoveResult(
         points=moved[-1], frames=[moved[i] for i in pick] if frames is not None else [],
         min_mean_ratio=ratios, similarity=S,
