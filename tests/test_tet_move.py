@@ -286,6 +286,19 @@ def test_projected_newton_matrix_is_positive_definite_and_below_nothing():
     assert np.linalg.eigvalsh(sym(exact) - sym(projected)).max() < 1e-9 * lam.max()
 
 
+def test_steps_by_conjugate_gradients_on_a_kept_factor_reach_their_tolerance():
+    problem, Q, centre, anchor, weights = _problem(4)
+    _, gn, _ = problem.normal_equations(centre, centre, anchor, weights, False)
+    problem.factor(gn)  # kept: the factor of another matrix
+    _, gn2, _ = problem.normal_equations(Q, centre, anchor, 2 * weights, False)
+    A = (gn2 + sp.tril(gn2, -1).T).toarray()
+    b = np.random.default_rng(0).standard_normal(len(A))
+    x = problem.solve_step(gn2, b)
+    assert np.linalg.norm(A @ x - b) <= problem.cg_rtol * np.linalg.norm(b)
+    problem.cg_rtol = 0.0  # a factorization of this matrix
+    assert np.allclose(A @ problem.solve_step(gn2, b), b, atol=1e-9 * np.abs(b).max())
+
+
 def test_minimize_decreases_energy_keeps_fixed_bitwise():
     problem, Q, centre, anchor, weights = _problem(3)
     E0 = problem.energy(Q, centre, anchor, weights)

@@ -15,7 +15,7 @@ with the handles fixed then fits the distortion from regular tets, pressing on t
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -125,7 +125,7 @@ def _finish(strain_source: FloatArray, tets: IntArray, problem: Problem, Q: Floa
     times ``max(1, |φ_shape|/rms)^½`` (the tets that stay the worst weigh more and more);
     the iterate with the best minimum mean ratio is kept (the unfinished one included)."""
     absolute = TetDistortion.regular(strain_source, tets)
-    quality = Problem(absolute, problem.weight, problem.mass, problem.pattern, problem.factor)
+    quality = replace(problem, strain=absolute)  # the same pattern, factor and settings
     best, best_q = Q, float(tet_mean_ratios(Q, tets).min())
     kept, nit, weights = 0, 0, np.ones(len(tets))
     zero = np.zeros((len(tets), 7))
