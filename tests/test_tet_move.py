@@ -320,3 +320,11 @@ def test_bad_inputs_raise():
         move_tets(P, T, np.array([0, 0]), np.array([[0.0, 0, 0], [1.0, 0, 0]]))
     with pytest.raises(InvalidMeshError, match="out of range"):
         move_tets(P, T, np.array([len(P)]), np.zeros((1, 3)))
+
+
+def test_every_vertex_a_handle():
+    P, T = cube_tets(1)
+    targets = P.copy()
+    targets[0] += 0.1
+    res = move_tets(P, T, np.arange(len(P)), targets)
+    assert np.array_equal(res.points, targets) and res.inverted == 0
