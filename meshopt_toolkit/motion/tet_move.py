@@ -192,7 +192,8 @@ def move_tets(points: FloatArray, tets: IntArray, handles, targets, *, steps: in
     pick = np.round(np.linspace(0, n_steps, int(frames or 2))).astype(int)
     strain = TetDistortion(P, T)
     mass = tet_lumped_mass(P, T)
-    details: dict = {"continuation_splits": 0, "step_iterations": 0}
+    details: dict = {"continuation_splits": 0, "step_iterations": 0, "finish_iterations": 0,
+                     "finish_rounds_kept": 0}
     scale = np.ptp(P, axis=0).max()
     if np.allclose(residual_targets, P[h], rtol=0.0, atol=1e-12 * scale):
         residual = [P.copy() for _ in times]  # the handles move by a similarity: so does all
