@@ -13,5 +13,7 @@ similarity factored out of every motion), :mod:`.path` (the path energy as a spa
 nonlinear least-squares problem, whose discrete geodesics
 :func:`~meshopt_toolkit.riemannian.discrete_geodesic.discrete_geodesic` computes by
 Levenberg–Marquardt), :mod:`.move` (prescribed motion of handle vertices), :mod:`.morph`
-(morphing between two meshes).
+(morphing between two meshes). Tet meshes: :mod:`.tet_distortion` (φ ∈ R⁷ per tet),
+:mod:`.tet_metric`, :mod:`.similarity_3d`, :mod:`.tet_least_squares` and :mod:`.tet_move`
+(prescribed motion, ``move_tets``).
 """

@@ -1,0 +1,256 @@
+"""Prescribed motion of tetrahedral meshes: handles exactly at their targets, every tet
+positively oriented in every frame.
+
+``move_tets`` factors the motion into the similarity that best fits the handles (followed
+exactly, free of shape strain: :mod:`.similarity_3d`) and a residual motion of the handles
+(each connected piece of boundary turns and scales with its own best similarity), built
+in steps as a minimizing movement of the graph metric ``M + w² JᵀJ`` of the tet
+distortion (:mod:`.tet_distortion`): each step moves the handles a little, extends the
+motion to the other vertices by the linearized metric (a step that inverts a tet is
+halved) and minimizes ``½|Q − Q_prev|²_M + ½w²|φ(Q) − φ(Q_prev)|²`` with the handles
+fixed (:mod:`.tet_least_squares`, every accepted iterate admissible). A quality finish
+with the handles fixed then fits the distortion from regular tets, pressing on the worst.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from .._typing import FloatArray, IntArray
+from ..errors import InvalidMeshError
+from ..kernels.tetrahedra import mean_ratios as tet_mean_ratios
+from ..kernels.tetrahedra import signed_volumes as tet_signed_volumes
+from .continuation import NoAdmissiblePathError
+from .similarity_3d import (HandlePath3, Similarity3, fit_similarity_3d, handle_groups_3d,
+                            tet_boundary_faces)
+from .tet_distortion import SQRT3, TetDistortion
+from .tet_least_squares import Problem, extend, minimize
+from .tet_metric import tet_lumped_mass
+
+__all__ = ["TetMoveResult", "move_tets"]
+
+# A step's relaxation stops when its gradient fell by this factor (the frames need only be
+# admissible and near the minimizing movement; the finish does the rest).
+STEP_RTOL = 1e-2
+# A quality round stops when its gradient fell by this factor (its weights change next).
+QUALITY_RTOL = 1e-2
+
+
+@dataclass
+class TetMoveResult:
+    """Result of :func:`move_tets`.
+
+    Attributes
+    ----------
+    points : (N, 3) float array
+        The moved vertices, handles bitwise at their targets.
+    frames : list of (N, 3) float arrays
+        The motion (first = input, last = ``points``) when ``frames`` was asked for.
+    min_mean_ratio : (F,) float array
+        ``min η`` per returned frame (first and last at least).
+    similarity : Similarity3
+        The similarity factored out of the motion.
+    strain_bound : float
+        ``ℓ/w + √3 |log s|``: a bound on every tet's ``Σ_k |φ_c(Q_{k+1}) − φ_c(Q_k)|``
+        along the frames returned (``ℓ`` their chord length in the metric, ``s`` the scale).
+    seconds : float
+    """
+
+    points: FloatArray
+    frames: list[FloatArray]
+    min_mean_ratio: FloatArray
+    similarity: Similarity3
+    strain_bound: float
+    seconds: float
+    inverted: int = 0
+    handle_error: float = 0.0
+    details: dict = field(default_factory=dict)
+
+    def summary(self) -> dict:
+        return {
+            "inverted": int(self.inverted),
+            "min_mean_ratio": float(self.min_mean_ratio[-1]),
+            "frames_min_mean_ratio": [float(v) for v in self.min_mean_ratio],
+            "handle_error": float(self.handle_error),
+            "strain_bound": float(self.strain_bound),
+            "seconds": float(self.seconds),
+            "similarity": {"angle_degrees": float(np.degrees(self.similarity.angle)),
+                           "axis": (self.similarity.rotvec / (self.similarity.angle or 1.0)
+                                    ).tolist(),
+                           "scale": float(np.exp(self.similarity.log_scale)),
+                           "shift": self.similarity.shift.tolist()},
+            **self.details,
+        }
+
+
+def _check(points, tets, handles, targets) -> tuple[FloatArray, IntArray, IntArray, FloatArray]:
+    P = np.asarray(points, dtype=float)
+    T = np.asarray(tets)
+    if P.ndim != 2 or P.shape[1] != 3 or T.ndim != 2 or T.shape[1] != 4 or len(T) == 0:
+        raise InvalidMeshError("a tet motion needs (N, 3) points and non-empty (C, 4) tets")
+    if not np.issubdtype(T.dtype, np.integer) or T.min() < 0 or T.max() >= len(P):
+        raise InvalidMeshError("tets must hold vertex indices of the points")
+    if not np.isfinite(P).all():
+        raise InvalidMeshError("the points are not all finite")
+    vol = tet_signed_volumes(P, T)
+    if not (vol > 0).all():
+        raise InvalidMeshError(f"{int(np.sum(~(vol > 0)))} tets are not positively oriented "
+                               f"(first: tet {int(np.flatnonzero(~(vol > 0))[0])})")
+    h = np.asarray(handles)
+    if h.ndim != 1 or h.size == 0 or not np.issubdtype(h.dtype, np.integer):
+        raise InvalidMeshError("handles must be a non-empty 1-D array of vertex indices")
+    if h.min() < 0 or h.max() >= len(P):
+        raise InvalidMeshError(f"a handle index is out of range (the mesh has {len(P)} vertices)")
+    t = np.asarray(targets, dtype=float)
+    if t.shape != (h.size, 3):
+        raise InvalidMeshError(f"targets must have shape ({h.size}, 3), got {t.shape}")
+    if not np.isfinite(t).all():
+        raise InvalidMeshError("the targets are not all finite")
+    h, first = np.unique(h, return_index=True)
+    if len(first) < len(t):
+        order = np.argsort(np.asarray(handles), kind="stable")
+        hs, ts = np.asarray(handles)[order], t[order]
+        same = hs[1:] == hs[:-1]
+        if (same & np.any(ts[1:] != ts[:-1], axis=1)).any():
+            raise InvalidMeshError("a vertex is a handle twice with different targets")
+    return P, T.astype(np.int64), h.astype(np.int64), t[first]
+
+
+def _finish(strain_source: FloatArray, tets: IntArray, problem: Problem, Q: FloatArray,
+            rounds: int, max_iter: int, newton: bool) -> tuple[FloatArray, dict]:
+    """Quality rounds with the handles fixed: proximal least squares of the distortion
+    from regular tets of the source's volumes, each round's tet weights those of the last
+    times ``max(1, |φ_shape|/rms)^½`` (the tets that stay the worst weigh more and more);
+    the iterate with the best minimum mean ratio is kept (the unfinished one included)."""
+    absolute = TetDistortion.regular(strain_source, tets)
+    quality = replace(problem, strain=absolute)  # the same pattern, factor and settings
+    best, best_q = Q, float(tet_mean_ratios(Q, tets).min())
+    kept, nit, weights = 0, 0, np.ones(len(tets))
+    zero = np.zeros((len(tets), 7))
+    for k in range(1, rounds + 1):
+        res = minimize(quality, Q, Q, zero, weights, rtol=QUALITY_RTOL, max_iter=max_iter,
+                       newton=newton)
+        nit += res.iterations
+        Q = res.points
+        q = float(tet_mean_ratios(Q, tets).min())
+        if q > best_q:
+            best, best_q, kept = Q, q, k
+        size = np.linalg.norm(absolute.values(Q)[:, 1:], axis=1)
+        weights = weights * np.sqrt(np.maximum(1.0, size / np.sqrt(np.mean(size**2))))
+    return best, {"finish_iterations": nit, "finish_rounds_kept": kept}
+
+
+def move_tets(points: FloatArray, tets: IntArray, handles, targets, *, steps: int = 4,
+              frames: int | None = None, weight: float = 1.0, relax_iter: int = 15,
+              quality_rounds: int = 4, max_splits: int = 12, newton: bool = True
+              ) -> TetMoveResult:
+    """Move the ``handles`` vertices of a tet mesh exactly to ``targets``; place the
+    other vertices to keep every tet positively oriented and as good as the motion allows.
+
+    Parameters
+    ----------
+    points : (N, 3) float array
+    tets : (C, 4) int array
+        Every tet positively oriented.
+    handles : (k,) int array
+        Vertex indices (typically the boundary); duplicates must agree.
+    targets : (k, 3) float array
+    steps : int
+        Continuation steps (each halved further where the extension inverts a tet).
+    frames : int, optional
+        Return the motion as this many frames (≥ 2; at least ``frames − 1`` steps).
+    weight : float
+        ``w`` of the metric ``M + w² JᵀJ``.
+    relax_iter : int
+        Iterations of each step's minimization and of each quality round.
+    quality_rounds : int
+        Rounds of the quality finish (0: none).
+    newton : bool
+        Newton steps (falling back to Gauss–Newton where not positive definite).
+
+    Returns
+    -------
+    TetMoveResult
+
+    Raises
+    ------
+    InvalidMeshError
+        Bad points, tets, handles or targets.
+    NoAdmissiblePathError
+        No admissible step found after ``max_splits`` halvings.
+    """
+    t_start = time.perf_counter()
+    P, T, h, tg = _check(points, tets, handles, targets)
+    if frames is not None and int(frames) < 2:
+        raise InvalidMeshError("frames must be at least 2 (the input and the result)")
+    S = fit_similarity_3d(P[h], tg)
+    residual_targets = S.inverse(tg)
+    n_steps = max(int(steps), (frames or 2) - 1)
+    times = np.linspace(0.0, 1.0, n_steps + 1)
+    pick = np.round(np.linspace(0, n_steps, int(frames or 2))).astype(int)
+    strain = TetDistortion(P, T)
+    mass = tet_lumped_mass(P, T)
+    details: dict = {"continuation_splits": 0, "step_iterations": 0, "finish_iterations": 0,
+                     "finish_rounds_kept": 0}
+    scale = np.ptp(P, axis=0).max()
+    if np.allclose(residual_targets, P[h], rtol=0.0, atol=1e-12 * scale):
+        residual = [P.copy() for _ in times]  # the handles move by a similarity: so does all
+        length = 0.0
+    else:
+        path = HandlePath3(P[h], residual_targets, handle_groups_3d(h, tet_boundary_faces(T),
+                                                                  len(P)))
+        problem = Problem.build(strain, weight, mass, h)
+        residual, cont = _continuation(problem, P, h, path, times, relax_iter, max_splits,
+                                       newton)
+        details.update(cont)
+        if quality_rounds > 0:
+            residual[-1], fin = _finish(P, T, problem, residual[-1], quality_rounds,
+                                        relax_iter, newton)
+            details.update(fin)
+        emb = [np.concatenate([(np.sqrt(mass)[:, None] * residual[i]).ravel(),
+                               weight * strain.values(residual[i]).ravel()]) for i in pick]
+        length = float(sum(np.linalg.norm(b - a) for a, b in zip(emb[:-1], emb[1:])))
+    moved = [S.at(float(s))(R) if not S.is_identity else R.copy() for s, R in zip(times, residual)]
+    moved[-1][h] = tg  # bitwise at the targets
+    ratios = np.array([tet_mean_ratios(moved[i], T).min() for i in pick])
+    inverted = int(np.sum(~(tet_signed_volumes(moved[-1], T) > 0)))
+    if inverted:
+        raise NoAdmissiblePathError(
+            f"{inverted} tets inverted in the result (a bug: please report)")
+    return TetMoveResult(
+        points=moved[-1], frames=[moved[i] for i in pick] if frames is not None else [],
+        min_mean_ratio=ratios, similarity=S,
+        strain_bound=length / weight + SQRT3 * abs(S.log_scale),
+        seconds=time.perf_counter() - t_start, inverted=inverted,
+        handle_error=float(np.abs(moved[-1][h] - tg).max()), details=details)
+
+
+def _continuation(problem: Problem, P: FloatArray, h: IntArray, path: HandlePath3,
+                  times: FloatArray, relax_iter: int, max_splits: int, newton: bool
+                  ) -> tuple[list[FloatArray], dict]:
+    """Frames at ``times`` of the minimizing movement (see :func:`move_tets`)."""
+    Q = P.copy()
+    s_now, frames, nit, splits = 0.0, [P.copy()], 0, 0
+    for s_goal in times[1:]:
+        while s_now < s_goal:
+            ds = s_goal - s_now
+            for _ in range(max_splits + 1):
+                s_try = s_goal if ds == s_goal - s_now else s_now + ds
+                trial = extend(problem, Q, h, path(s_try))
+                if (problem.strain.determinants(trial) > 0).all():
+                    break
+                ds *= 0.5
+                splits += 1
+            else:
+                raise NoAdmissiblePathError(
+                    f"no admissible position of the mesh for the handles at s = {s_now + ds:.4g}"
+                    f" (the step was halved {max_splits} times)")
+            res = minimize(problem, trial, Q, problem.strain.values(Q), rtol=STEP_RTOL,
+                           max_iter=relax_iter, newton=newton)
+            nit += res.iterations
+            Q, s_now = res.points, s_try
+        frames.append(Q.copy())
+    return frames, {"continuation_splits": splits, "step_iterations": nit}
