@@ -53,3 +53,10 @@ def test_readme_library_example_runs_and_keeps_the_mesh_healthy(tmp_path, monkey
     assert (tmp_path / "turned.vtu").stat().st_size > 0
     assert namespace["result"].summary()["inverted"] == 0
     assert namespace["opt"].summary()["min_aspect_ratio"] > 0.5
+
+
+def test_architecture_names_every_module():
+    text = (ROOT / "ARCHITECTURE.md").read_text(encoding="utf-8")
+    missing = [str(p.relative_to(ROOT)) for p in sorted((ROOT / "meshopt_toolkit").rglob("*.py"))
+               if p.name != "__init__.py" and p.name not in text]
+    assert not missing
