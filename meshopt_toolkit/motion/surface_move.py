@@ -142,6 +142,7 @@ class _Problem:
                                     self.free_index, int(free_coord.sum()))
         self.phi_ref = None
         self.previous = None
+        self.factor = None
 
     def parts(self, Q):
         phi = self.membrane.values(Q)
@@ -177,12 +178,21 @@ class _Problem:
         g += np.repeat(self.mass, 3) * displacement.ravel()
         return g[self.free]
 
-    def solve(self, Jm, Jb, damping: float, rhs) -> FloatArray:
+    def normal_matrix(self, Jm, Jb) -> sp.csr_matrix:
+        """``JᵀJ + M`` at the free coordinates."""
         products = [np.einsum("tia,tib->tab", Jm, Jm), Jb[:, :, None] * Jb[:, None, :]]
-        A = self.pattern.matrix(products, np.repeat(self.mass, 3)[self.free])
-        diag = A.diagonal()
-        A = A + sp.diags(damping * diag + 1e-12 * diag.max())
-        return factorize_spd(A.tocsc())(rhs)
+        return self.pattern.matrix(products, np.repeat(self.mass, 3)[self.free])
+
+    def solve(self, A: sp.csr_matrix, damping: float, rhs) -> FloatArray:
+        """``(A + damping·diag A) x = rhs`` by CHOLMOD, on the analysis kept across calls."""
+        D = A.copy()
+        diag = D.data[self.pattern.diagonal]
+        D.data[self.pattern.diagonal] += damping * diag + 1e-12 * diag.max()
+        if not hasattr(self.factor, "refactorize"):  # first call, or SuperLU
+            self.factor = factorize_spd(D)
+        else:
+            self.factor.refactorize(D)
+        return self.factor(rhs)
 
 
 def _step(problem: _Problem, Q0, H1, handles, max_iterations: int, rtol: float):
@@ -198,7 +208,7 @@ def _step(problem: _Problem, Q0, H1, handles, max_iterations: int, rtol: float):
     rb_lin = rb + np.einsum("ej,ej->e", Jb, dflat[cols_b])
     g = problem.gradient(rm_lin, Jm, rb_lin, Jb, np.zeros_like(Q0))
     Q = Q0 + d
-    Q.ravel()[problem.free] += problem.solve(Jm, Jb, 0.0, -g)
+    Q.ravel()[problem.free] += problem.solve(problem.normal_matrix(Jm, Jb), 0.0, -g)
     Q[handles] = H1
     parts = problem.parts(Q)
     if not problem.admissible(Q, parts[0]):
@@ -208,11 +218,12 @@ def _step(problem: _Problem, Q0, H1, handles, max_iterations: int, rtol: float):
     for _ in range(max_iterations):
         rm, Jm, rb, Jb = problem.linearization(Q)
         g = problem.gradient(rm, Jm, rb, Jb, Q - problem.previous)
+        A = problem.normal_matrix(Jm, Jb)
         accepted = False
         while damping < 1e8:
             iterations += 1
             trial = Q.copy()
-            trial.ravel()[problem.free] -= problem.solve(Jm, Jb, damping, g)
+            trial.ravel()[problem.free] -= problem.solve(A, damping, g)
             parts = problem.parts(trial)
             if np.all(np.isfinite(parts[0][problem.free_triangles])):
                 E_trial = problem.energy(trial, parts)
