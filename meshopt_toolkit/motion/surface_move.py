@@ -94,30 +94,32 @@ class SurfaceMoveResult:
 
 
 class _FreePattern:
-    """The normal matrix restricted to the free coordinates as a fixed CSR pattern:
-    per-block products (B, k, k) over block columns (B, k) are summed into it by one
-    ``bincount`` per assembly."""
+    """The lower triangle of the normal matrix at the free coordinates as a fixed CSR
+    pattern: per-block products over the column pairs ``a ≤ b`` of block columns (B, k)
+    are summed into it by one ``bincount`` per assembly (CHOLMOD reads the lower
+    triangle only)."""
 
     def __init__(self, block_columns: list, free_index: IntArray, n_free: int) -> None:
         self.n = n_free
-        keys, self.parts = [], []
+        keys, self.parts, self.pairs = [], [], []
         for C in block_columns:
-            k = C.shape[1]
-            r = free_index[np.repeat(C, k, axis=1)].ravel()
-            c = free_index[np.tile(C, (1, k))].ravel()
-            keep = (r >= 0) & (c >= 0)
-            keys.append(r[keep] * n_free + c[keep])
+            a, b = np.triu_indices(C.shape[1])
+            r, c = free_index[C[:, a]].ravel(), free_index[C[:, b]].ravel()
+            keep = np.flatnonzero((r >= 0) & (c >= 0))
+            r, c = r[keep], c[keep]
+            keys.append(np.maximum(r, c) * n_free + np.minimum(r, c))
             self.parts.append(keep)
+            self.pairs.append((a, b))
         unique, inverse = np.unique(np.concatenate(keys), return_inverse=True)
         self.inverse = inverse
         rows, self.indices = np.divmod(unique, n_free)
         self.indptr = np.searchsorted(rows, np.arange(n_free + 1))
-        diag_key = np.arange(n_free) * (n_free + 1)
-        self.diagonal = np.searchsorted(unique, diag_key)
+        self.diagonal = np.searchsorted(unique, np.arange(n_free) * (n_free + 1))
 
     def matrix(self, products: list, diagonal: FloatArray) -> sp.csr_matrix:
-        values = np.concatenate([P.reshape(len(P), -1).ravel()[keep]
-                                 for P, keep in zip(products, self.parts)])
+        """The lower triangle from per-block pair products (B, len(pairs)) and the
+        diagonal added."""
+        values = np.concatenate([P.ravel()[keep] for P, keep in zip(products, self.parts)])
         data = np.bincount(self.inverse, values, minlength=len(self.indices))
         data[self.diagonal] += diagonal
         return sp.csr_matrix((data, self.indices, self.indptr), shape=(self.n, self.n))
@@ -179,8 +181,9 @@ class _Problem:
         return g[self.free]
 
     def normal_matrix(self, Jm, Jb) -> sp.csr_matrix:
-        """``JᵀJ + M`` at the free coordinates."""
-        products = [np.einsum("tia,tib->tab", Jm, Jm), Jb[:, :, None] * Jb[:, None, :]]
+        """The lower triangle of ``JᵀJ + M`` at the free coordinates."""
+        (am, bm), (ab, bb) = self.pattern.pairs
+        products = [np.einsum("tip,tip->tp", Jm[:, :, am], Jm[:, :, bm]), Jb[:, ab] * Jb[:, bb]]
         return self.pattern.matrix(products, np.repeat(self.mass, 3)[self.free])
 
     def solve(self, A: sp.csr_matrix, damping: float, rhs) -> FloatArray:
@@ -214,28 +217,26 @@ def _step(problem: _Problem, Q0, H1, handles, max_iterations: int, rtol: float):
     if not problem.admissible(Q, parts[0]):
         return None
     E = problem.energy(Q, parts)
-    damping, iterations = 1e-4, 0
+    iterations = 0
     for _ in range(max_iterations):
         rm, Jm, rb, Jb = problem.linearization(Q)
         g = problem.gradient(rm, Jm, rb, Jb, Q - problem.previous)
-        A = problem.normal_matrix(Jm, Jb)
-        accepted = False
-        while damping < 1e8:
-            iterations += 1
+        step = problem.solve(problem.normal_matrix(Jm, Jb), 1e-6, g)
+        iterations += 1
+        # backtracking: the first fraction of the Gauss–Newton step that lowers the
+        # energy and keeps every triangle proper and unfolded
+        for alpha in 0.5 ** np.arange(12):
             trial = Q.copy()
-            trial.ravel()[problem.free] -= problem.solve(A, damping, g)
+            trial.ravel()[problem.free] -= alpha * step
             parts = problem.parts(trial)
             if np.all(np.isfinite(parts[0][problem.free_triangles])):
                 E_trial = problem.energy(trial, parts)
                 if E_trial < E and problem.admissible(trial, parts[0]):
-                    accepted = True
                     break
-            damping *= 10.0
-        if not accepted:
+        else:
             break
         decrease = E - E_trial
         Q, E = trial, E_trial
-        damping = max(damping / 10.0, 1e-8)
         if decrease <= rtol * E:
             break
     return Q, iterations
