@@ -145,10 +145,12 @@ class _Problem:
         self.phi_ref = None
         self.previous = None
         self.factor = None
+        #: ``w √c_t``: the membrane rows' weights (``c_t ≥ 1``, :func:`move_surface`)
+        self.row_weights = np.full(len(F), float(weight))
 
     def parts(self, Q):
         phi = self.membrane.values(Q)
-        rm = self.weight * (phi - self.phi_ref)
+        rm = self.row_weights[:, None] * (phi - self.phi_ref)
         rb = np.sqrt(self.bending) * self.shell.residuals(Q)
         return phi, rm, rb
 
@@ -165,8 +167,8 @@ class _Problem:
     def linearization(self, Q):
         """Residuals and Jacobian blocks: membrane (T, 3), (T, 3, 9); bending (E,), (E, 12)."""
         phi, Jm = self.membrane.values_and_jacobian(Q)
-        Jm *= self.weight
-        rm = self.weight * (phi - self.phi_ref)
+        Jm *= self.row_weights[:, None, None]
+        rm = self.row_weights[:, None] * (phi - self.phi_ref)
         rb = np.sqrt(self.bending) * self.shell.residuals(Q)
         Jb = np.sqrt(self.bending) * self.shell.jacobian_blocks(Q)
         return rm, Jm, rb, Jb
@@ -195,7 +197,7 @@ class _Problem:
             self.factor = factorize_spd(D)
         else:
             self.factor.refactorize(D)
-        return self.factor(rhs)
+        return None if rhs is None else self.factor(rhs)
 
 
 def _step(problem: _Problem, Q0, H1, handles, max_iterations: int, rtol: float):
@@ -217,14 +219,16 @@ def _step(problem: _Problem, Q0, H1, handles, max_iterations: int, rtol: float):
     if not problem.admissible(Q, parts[0]):
         return None
     E = problem.energy(Q, parts)
-    iterations = 0
+    iterations, stale = 0, False
     for _ in range(max_iterations):
         rm, Jm, rb, Jb = problem.linearization(Q)
         g = problem.gradient(rm, Jm, rb, Jb, Q - problem.previous)
-        step = problem.solve(problem.normal_matrix(Jm, Jb), 1e-6, g)
+        if stale:  # otherwise the factor of the increment's start serves (chord steps)
+            problem.solve(problem.normal_matrix(Jm, Jb), 1e-6, None)
+        step = problem.factor(g)
         iterations += 1
-        # backtracking: the first fraction of the Gauss–Newton step that lowers the
-        # energy and keeps every triangle proper and unfolded
+        # backtracking: the first fraction of the step that lowers the energy and keeps
+        # every triangle proper and unfolded
         for alpha in 0.5 ** np.arange(12):
             trial = Q.copy()
             trial.ravel()[problem.free] -= alpha * step
@@ -234,17 +238,22 @@ def _step(problem: _Problem, Q0, H1, handles, max_iterations: int, rtol: float):
                 if E_trial < E and problem.admissible(trial, parts[0]):
                     break
         else:
-            break
+            if stale:
+                break
+            stale = True
+            continue
         decrease = E - E_trial
         Q, E = trial, E_trial
         if decrease <= rtol * E:
             break
+        stale = alpha < 1.0
     return Q, iterations
 
 
 def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatArray, *,
-                 steps: int = 10, weight: float = 1.0, bending: float = 0.05,
-                 anchor: str = "rest", max_iterations: int = 8, rtol: float = 1e-4,
+                 steps: int = 10, weight: float = 1.0, bending: float = 0.1,
+                 anchor: str = "rest", emphasis: float = 1.0, max_iterations: int = 4,
+                 rtol: float = 1e-3,
                  max_halvings: int = 8) -> SurfaceMoveResult:
     """Move a triangle surface: ``handles`` exactly to ``targets``, the rest placed so
     that each triangle's shape changes as little as the motion allows (module docstring).
@@ -266,7 +275,11 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
         ``b``, the weight of the dihedral bending energy (0: membrane only).
     anchor : {"rest", "previous"}
         ``φ̄`` of each increment: 0 (elastic) or the previous frame's φ.
-    max_iterations, rtol : Levenberg–Marquardt steps per increment; stop when an accepted
+    emphasis : float
+        ``p``: each increment weighs triangle t's membrane rows by ``c_t = max(1,
+        |φ_t|/rms|φ|)^p`` at its start (0: all alike). Weights ≥ 1 only add to the
+        metric: the bounds hold as stated.
+    max_iterations, rtol : Gauss–Newton–Marquardt steps per increment; stop when an accepted
         step lowers the energy by less than ``rtol`` times the energy.
     max_halvings : how often one increment may be halved.
 
@@ -314,6 +327,11 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
             shift = 0.0
         H1 = path(t1) if whole is None or t1 >= 1.0 else whole.at(t1)(V[handles])
         problem.previous = start
+        if emphasis > 0:  # the worst-distorted triangles weigh more (c_t ≥ 1)
+            size = np.linalg.norm(problem.membrane.values(start), axis=1)
+            rms = float(np.sqrt(np.mean(size[problem.free_triangles] ** 2)))
+            if rms > 0:
+                problem.row_weights = weight * np.maximum(1.0, size / rms) ** (0.5 * emphasis)
         problem.phi_ref = np.zeros_like(phi) if anchor == "rest" else problem.membrane.values(start)
         problem.phi_ref[:, 0] += shift if anchor == "rest" else 0.0
         out = _step(problem, start, H1, handles, max_iterations, rtol)
