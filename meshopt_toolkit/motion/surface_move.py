@@ -6,17 +6,19 @@ The handles travel along :class:`.surface_paths.HandlePath` (each connected grou
 similarity followed in angle, the remainder linearly) in ``steps`` increments, an
 increment halved where it cannot be taken. Each increment is a minimizing movement:
 
-    min_Q  ½|Q − Q_prev|²_M + ½ w² Σ_t |φ_t(Q) − φ̄_t|² + ½ b Σ_e c_e (θ_e(Q) − θ̄_e)²
+    min_Q  ½|Q − Q_prev|²_M + ½ w² Σ_t c_t |φ_t(Q) − φ̄_t|² + ½ b Σ_e c_e (θ_e(Q) − θ̄_e)²
 
 over the free vertices (handles fixed at the increment's end), with ``φ`` the membrane
 distortion of :class:`.surface_distortion.SurfaceDistortion`, ``φ̄ = 0`` (elastic, the
 default: each increment relaxes towards the rest shapes) or ``φ̄ = φ(Q_prev)``
 (``anchor="previous"``: the planar minimizing movement), the dihedral bending of
 :class:`.bending.ShellBending`, and ``M`` the lumped vertex areas (dimensionless,
-:func:`lumped_mass`). Levenberg–Marquardt on the stacked residuals: a linearized
-predictor carries the handles' displacement into the free vertices, then Gauss–Newton
-steps on the normal equations (CHOLMOD), each iterate accepted only where the energy
-decreases, every triangle keeps ``det C > 0`` and none folds (:class:`.surface_paths.FoldTest`).
+:func:`lumped_mass`), ``c_t = max(1, |φ_t|/rms|φ|)^p ≥ 1`` at the increment's start (the
+triangles distorted most weigh more; ``p = emphasis``). Gauss–Newton on the stacked
+residuals: a linearized predictor carries the handles' displacement into the free
+vertices, then steps on the normal equations (CHOLMOD; the increment's first factor is
+kept while full steps are taken), each iterate accepted only where the energy decreases,
+every triangle keeps ``det C > 0`` and none folds (:class:`.surface_paths.FoldTest`).
 
 Where one similarity moves all handles, the whole surface follows it exactly (φ moves by
 ``√2 log s`` in its first component, bending not at all), so a rigid motion of the
@@ -110,10 +112,15 @@ class _FreePattern:
             keys.append(np.maximum(r, c) * n_free + np.minimum(r, c))
             self.parts.append(keep)
             self.pairs.append((a, b))
-        unique, inverse = np.unique(np.concatenate(keys), return_inverse=True)
-        self.inverse = inverse
-        rows, self.indices = np.divmod(unique, n_free)
-        self.indptr = np.searchsorted(rows, np.arange(n_free + 1))
+        keys = np.concatenate(keys)
+        rows, cols = np.divmod(keys, n_free)
+        # the pattern by scipy's duplicate summation, each entry's place by bisection
+        pattern = sp.coo_matrix((np.ones(len(keys)), (rows, cols)), shape=(n_free, n_free)).tocsr()
+        pattern.sum_duplicates()
+        pattern.sort_indices()
+        self.indptr, self.indices = pattern.indptr, pattern.indices
+        unique = np.repeat(np.arange(n_free), np.diff(self.indptr)) * n_free + self.indices
+        self.inverse = np.searchsorted(unique, keys)
         self.diagonal = np.searchsorted(unique, np.arange(n_free) * (n_free + 1))
 
     def matrix(self, products: list, diagonal: FloatArray) -> sp.csr_matrix:
