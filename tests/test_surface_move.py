@@ -187,3 +187,15 @@ def test_phi_lengths_within_path_length_over_w_and_quality_bound(seed, angle, we
     bound = surface_quality_bound(inv_rest, np.linalg.norm(end_phi, axis=1))
     assert np.all(inv_end <= bound * (1 + 1e-10))
     assert r.folds == 0 and np.array_equal(r.points[handles], targets)
+
+
+@pytest.mark.slow
+def test_bunny_ear_against_libigl_arap():
+    pytest.importorskip("igl")
+    case = bench.bunny()
+    r = move_surface(case.V, case.F, case.handles, case.path(1.0))
+    ours, arap = bench.measure(case, r.points, r.seconds), bench.measure(
+        case, bench.arap_incremental(case), 0.0)
+    assert ours["folds"] == 0 and ours["handle error"] == 0.0
+    assert ours["quality"] >= max(arap["quality"], 0.1)
+    assert ours["ARAP energy"] <= 1.5 * arap["ARAP energy"]
