@@ -87,31 +87,36 @@ class SurfaceMoveResult:
     iterations: int
     seconds: float
     steps: int = field(default=0)
+    factorizations: int = field(default=0)
 
     def summary(self) -> dict:
-        """Worst relative quality, folds, handle error, seconds, steps (and iterations)."""
+        """Worst relative quality, folds, handle error, seconds, steps (and the
+        Gauss–Newton iterations and factorizations)."""
         return {"worst relative quality": self.worst_quality, "folds": self.folds,
                 "handle error": self.handle_error, "seconds": self.seconds,
-                "steps": self.steps, "iterations": self.iterations}
+                "steps": self.steps, "iterations": self.iterations,
+                "factorizations": self.factorizations}
 
 
 class _FreePattern:
     """The lower triangle of the normal matrix at the free coordinates as a fixed CSR
-    pattern: per-block products over the column pairs ``a ≤ b`` of block columns (B, k)
-    are summed into it by one ``bincount`` per assembly (CHOLMOD reads the lower
+    pattern: the entries ``a ≤ b`` of per-block products (B, k, k) over block columns
+    (B, k) are summed into it by one ``bincount`` per assembly (CHOLMOD reads the lower
     triangle only)."""
 
     def __init__(self, block_columns: list, free_index: IntArray, n_free: int) -> None:
         self.n = n_free
-        keys, self.parts, self.pairs = [], [], []
+        keys, self.take = [], []
         for C in block_columns:
-            a, b = np.triu_indices(C.shape[1])
+            k = C.shape[1]
+            a, b = np.triu_indices(k)
             r, c = free_index[C[:, a]].ravel(), free_index[C[:, b]].ravel()
             keep = np.flatnonzero((r >= 0) & (c >= 0))
             r, c = r[keep], c[keep]
             keys.append(np.maximum(r, c) * n_free + np.minimum(r, c))
-            self.parts.append(keep)
-            self.pairs.append((a, b))
+            # place of each kept entry in the blocks' full k×k products, flattened
+            block, pair = np.divmod(keep, len(a))
+            self.take.append(block * k * k + (a * k + b)[pair])
         keys = np.concatenate(keys)
         rows, cols = np.divmod(keys, n_free)
         # the pattern by scipy's duplicate summation, each entry's place by bisection
@@ -124,9 +129,9 @@ class _FreePattern:
         self.diagonal = np.searchsorted(unique, np.arange(n_free) * (n_free + 1))
 
     def matrix(self, products: list, diagonal: FloatArray) -> sp.csr_matrix:
-        """The lower triangle from per-block pair products (B, len(pairs)) and the
-        diagonal added."""
-        values = np.concatenate([P.ravel()[keep] for P, keep in zip(products, self.parts)])
+        """The lower triangle from the blocks' full products (B, k, k) and the diagonal
+        added."""
+        values = np.concatenate([P.ravel()[take] for P, take in zip(products, self.take)])
         data = np.bincount(self.inverse, values, minlength=len(self.indices))
         data[self.diagonal] += diagonal
         return sp.csr_matrix((data, self.indices, self.indptr), shape=(self.n, self.n))
@@ -152,6 +157,7 @@ class _Problem:
         self.phi_ref = None
         self.previous = None
         self.factor = None
+        self.factorizations = 0
         #: ``w √c_t``: the membrane rows' weights (``c_t ≥ 1``, :func:`move_surface`)
         self.row_weights = np.full(len(F), float(weight))
 
@@ -191,8 +197,7 @@ class _Problem:
 
     def normal_matrix(self, Jm, Jb) -> sp.csr_matrix:
         """The lower triangle of ``JᵀJ + M`` at the free coordinates."""
-        (am, bm), (ab, bb) = self.pattern.pairs
-        products = [np.einsum("tip,tip->tp", Jm[:, :, am], Jm[:, :, bm]), Jb[:, ab] * Jb[:, bb]]
+        products = [np.matmul(np.swapaxes(Jm, 1, 2), Jm), Jb[:, :, None] * Jb[:, None, :]]
         return self.pattern.matrix(products, np.repeat(self.mass, 3)[self.free])
 
     def solve(self, A: sp.csr_matrix, damping: float, rhs) -> FloatArray:
@@ -200,6 +205,7 @@ class _Problem:
         D = A.copy()
         diag = D.data[self.pattern.diagonal]
         D.data[self.pattern.diagonal] += damping * diag + 1e-12 * diag.max()
+        self.factorizations += 1
         if not hasattr(self.factor, "refactorize"):  # first call, or SuperLU
             self.factor = factorize_spd(D)
         else:
@@ -219,14 +225,20 @@ def _step(problem: _Problem, Q0, H1, handles, max_iterations: int, rtol: float):
     rm_lin = rm + np.einsum("tij,tj->ti", Jm, dflat[cols_m])
     rb_lin = rb + np.einsum("ej,ej->e", Jb, dflat[cols_b])
     g = problem.gradient(rm_lin, Jm, rb_lin, Jb, np.zeros_like(Q0))
-    Q = Q0 + d
-    Q.ravel()[problem.free] += problem.solve(problem.normal_matrix(Jm, Jb), 0.0, -g)
-    Q[handles] = H1
-    parts = problem.parts(Q)
-    if not problem.admissible(Q, parts[0]):
+    # the predictor on the last increment's factor where one is kept, else a fresh one
+    for fresh in ((False, True) if hasattr(problem.factor, "refactorize") else (True,)):
+        if fresh:
+            problem.solve(problem.normal_matrix(Jm, Jb), 1e-6, None)
+        Q = Q0 + d
+        Q.ravel()[problem.free] -= problem.factor(g)
+        Q[handles] = H1
+        parts = problem.parts(Q)
+        if problem.admissible(Q, parts[0]):
+            break
+    else:
         return None
     E = problem.energy(Q, parts)
-    iterations, stale = 0, False
+    iterations, stale = 0, not fresh
     for _ in range(max_iterations):
         rm, Jm, rb, Jb = problem.linearization(Q)
         g = problem.gradient(rm, Jm, rb, Jb, Q - problem.previous)
@@ -369,4 +381,5 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
         weight=weight, worst_quality=float(rq.min()) if rq.size else 1.0,
         folds=int(np.sum(problem.folds.mask(Q) & free)),
         handle_error=float(np.abs(Q[handles] - targets).max()) if len(handles) else 0.0,
-        iterations=iterations, seconds=time.perf_counter() - t_start, steps=len(frames) - 1)
+        iterations=iterations, seconds=time.perf_counter() - t_start, steps=len(frames) - 1,
+        factorizations=problem.factorizations)
