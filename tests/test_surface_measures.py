@@ -219,6 +219,7 @@ def test_committed_meshes_load_with_their_sizes():
     assert V.shape == (3485, 3) and F.shape == (6966, 3)
 
 
+@pytest.mark.slow
 def test_script_prints_every_method_row_and_ours_or_its_absence(capsys):
     pytest.importorskip("igl")
     assert bench.main(["--cases", "bar", "--methods", "ours,harmonic,biharmonic"]) == 0

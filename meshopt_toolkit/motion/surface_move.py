@@ -1,0 +1,385 @@
+"""Handle deformation of triangle surfaces in R³: ``move_surface`` places the handles
+exactly at their targets and every other vertex so that the triangles keep their shapes
+as well as the motion allows, with no degenerate and no folded triangle.
+
+The handles travel along :class:`.surface_paths.HandlePath` (each connected group's
+similarity followed in angle, the remainder linearly) in ``steps`` increments, an
+increment halved where it cannot be taken. Each increment is a minimizing movement:
+
+    min_Q  ½|Q − Q_prev|²_M + ½ w² Σ_t c_t |φ_t(Q) − φ̄_t|² + ½ b Σ_e c_e (θ_e(Q) − θ̄_e)²
+
+over the free vertices (handles fixed at the increment's end), with ``φ`` the membrane
+distortion of :class:`.surface_distortion.SurfaceDistortion`, ``φ̄ = 0`` (elastic, the
+default: each increment relaxes towards the rest shapes) or ``φ̄ = φ(Q_prev)``
+(``anchor="previous"``: the planar minimizing movement), the dihedral bending of
+:class:`.bending.ShellBending`, and ``M`` the lumped vertex areas (dimensionless,
+:func:`lumped_mass`), ``c_t = max(1, |φ_t|/rms|φ|)^p ≥ 1`` at the increment's start (the
+triangles distorted most weigh more; ``p = emphasis``). Gauss–Newton on the stacked
+residuals: a linearized predictor carries the handles' displacement into the free
+vertices, then steps on the normal equations (CHOLMOD; the increment's first factor is
+kept while full steps are taken), each iterate accepted only where the energy decreases,
+every triangle keeps ``det C > 0`` and none folds (:class:`.surface_paths.FoldTest`).
+
+Where one similarity moves all handles, the whole surface follows it exactly (φ moves by
+``√2 log s`` in its first component, bending not at all), so a rigid motion of the
+handles is a rigid motion of the surface.
+
+The bound: along the frames ``Q_0, …, Q_K``, the polygon's length in the embedding
+``Q ↦ (M^½ Q, w φ(Q))``, ``ℓ = Σ_k (|ΔQ_k|²_M + w²|Δφ_k|²)^½``, bounds every triangle's
+summed change of distortion, ``Σ_k |Δφ_t| ≤ ℓ/w`` (``SurfaceMoveResult.phi_lengths``,
+``.length``); from the rest, ``1/ψ_t ≤ 1/ψ_t(rest) · e^{asinh(√2|φ_t|)}``
+(:func:`.surface_distortion.surface_quality_bound`).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from .._typing import FloatArray, IntArray
+from ..errors import InvalidMeshError, NotAdmissibleError
+from ..kernels.surface import aspect_ratios
+from ..solvers import factorize_spd
+from .bending import ShellBending
+from .surface_distortion import SurfaceDistortion
+from .surface_paths import FoldTest, HandlePath, global_similarity, handle_groups
+
+SQRT2 = np.sqrt(2.0)
+
+
+def lumped_mass(points: FloatArray, triangles: IntArray) -> FloatArray:
+    """Vertex weights: a third of the adjacent triangles' areas over the total, divided by
+    the area-weighted mean squared distance from the centroid (dimensionless, independent
+    of size and resolution)."""
+    P = points[triangles]
+    area = 0.5 * np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1)
+    m = np.bincount(triangles.ravel(), np.repeat(area / 3.0, 3), minlength=len(points))
+    m /= m.sum()
+    centroid = m @ points
+    return m / float(m @ np.sum((points - centroid) ** 2, axis=1))
+
+
+@dataclass
+class SurfaceMoveResult:
+    """What :func:`move_surface` returns.
+
+    Attributes
+    ----------
+    points : (N, 3) final positions (handles bitwise at their targets)
+    frames : list of (N, 3) arrays, the accepted increments' ends (the rest first)
+    times : the handle-path fraction of each frame
+    phi_lengths : (T,) each triangle's ``Σ_k |Δφ_t|`` along the frames
+    length : the frames' polygon length ``ℓ`` (module docstring); ``phi_lengths ≤ ℓ/w``
+    """
+
+    points: FloatArray
+    frames: list
+    times: list
+    phi_lengths: FloatArray
+    length: float
+    weight: float
+    worst_quality: float
+    folds: int
+    handle_error: float
+    iterations: int
+    seconds: float
+    steps: int = field(default=0)
+    factorizations: int = field(default=0)
+
+    def summary(self) -> dict:
+        """Worst relative quality, folds, handle error, seconds, steps (and the
+        Gauss–Newton iterations and factorizations)."""
+        return {"worst relative quality": self.worst_quality, "folds": self.folds,
+                "handle error": self.handle_error, "seconds": self.seconds,
+                "steps": self.steps, "iterations": self.iterations,
+                "factorizations": self.factorizations}
+
+
+class _FreePattern:
+    """The lower triangle of the normal matrix at the free coordinates as a fixed CSR
+    pattern: the entries ``a ≤ b`` of per-block products (B, k, k) over block columns
+    (B, k) are summed into it by one ``bincount`` per assembly (CHOLMOD reads the lower
+    triangle only)."""
+
+    def __init__(self, block_columns: list, free_index: IntArray, n_free: int) -> None:
+        self.n = n_free
+        keys, self.take = [], []
+        for C in block_columns:
+            k = C.shape[1]
+            a, b = np.triu_indices(k)
+            r, c = free_index[C[:, a]].ravel(), free_index[C[:, b]].ravel()
+            keep = np.flatnonzero((r >= 0) & (c >= 0))
+            r, c = r[keep], c[keep]
+            keys.append(np.maximum(r, c) * n_free + np.minimum(r, c))
+            # place of each kept entry in the blocks' full k×k products, flattened
+            block, pair = np.divmod(keep, len(a))
+            self.take.append(block * k * k + (a * k + b)[pair])
+        keys = np.concatenate(keys)
+        rows, cols = np.divmod(keys, n_free)
+        # the pattern by scipy's duplicate summation, each entry's place by bisection
+        pattern = sp.coo_matrix((np.ones(len(keys)), (rows, cols)), shape=(n_free, n_free)).tocsr()
+        pattern.sum_duplicates()
+        pattern.sort_indices()
+        self.indptr, self.indices = pattern.indptr, pattern.indices
+        unique = np.repeat(np.arange(n_free), np.diff(self.indptr)) * n_free + self.indices
+        self.inverse = np.searchsorted(unique, keys)
+        self.diagonal = np.searchsorted(unique, np.arange(n_free) * (n_free + 1))
+
+    def matrix(self, products: list, diagonal: FloatArray) -> sp.csr_matrix:
+        """The lower triangle from the blocks' full products (B, k, k) and the diagonal
+        added."""
+        values = np.concatenate([P.ravel()[take] for P, take in zip(products, self.take)])
+        data = np.bincount(self.inverse, values, minlength=len(self.indices))
+        data[self.diagonal] += diagonal
+        return sp.csr_matrix((data, self.indices, self.indptr), shape=(self.n, self.n))
+
+
+class _Problem:
+    """One increment's energy, residual Jacobian blocks and admissibility."""
+
+    def __init__(self, V, F, handles, weight, bending, mass):
+        self.membrane = SurfaceDistortion(V, F)
+        self.shell = ShellBending(V, F)
+        self.weight, self.bending, self.mass = weight, bending, mass
+        self.folds = FoldTest(V, F)
+        is_handle = np.zeros(len(V), bool)
+        is_handle[handles] = True
+        self.free_triangles = ~is_handle[F].all(axis=1)
+        free_coord = np.repeat(~is_handle, 3)
+        self.free_index = np.full(3 * len(V), -1)
+        self.free_index[free_coord] = np.arange(int(free_coord.sum()))
+        self.free = free_coord
+        self.pattern = _FreePattern([self.membrane.columns(), self.shell.columns()],
+                                    self.free_index, int(free_coord.sum()))
+        self.phi_ref = None
+        self.previous = None
+        self.factor = None
+        self.factorizations = 0
+        #: ``w √c_t``: the membrane rows' weights (``c_t ≥ 1``, :func:`move_surface`)
+        self.row_weights = np.full(len(F), float(weight))
+
+    def parts(self, Q):
+        phi = self.membrane.values(Q)
+        rm = self.row_weights[:, None] * (phi - self.phi_ref)
+        rb = np.sqrt(self.bending) * self.shell.residuals(Q)
+        return phi, rm, rb
+
+    def energy(self, Q, parts=None) -> float:
+        phi, rm, rb = self.parts(Q) if parts is None else parts
+        d = Q - self.previous
+        return 0.5 * float(self.mass @ np.sum(d * d, axis=1) + np.sum(rm * rm) + rb @ rb)
+
+    def admissible(self, Q, phi) -> bool:
+        if not np.all(np.isfinite(phi[self.free_triangles])):
+            return False
+        return not np.any(self.folds.mask(Q) & self.free_triangles)
+
+    def linearization(self, Q):
+        """Residuals and Jacobian blocks: membrane (T, 3), (T, 3, 9); bending (E,), (E, 12)."""
+        phi, Jm = self.membrane.values_and_jacobian(Q)
+        Jm *= self.row_weights[:, None, None]
+        rm = self.row_weights[:, None] * (phi - self.phi_ref)
+        rb = np.sqrt(self.bending) * self.shell.residuals(Q)
+        Jb = np.sqrt(self.bending) * self.shell.jacobian_blocks(Q)
+        return rm, Jm, rb, Jb
+
+    def gradient(self, rm, Jm, rb, Jb, displacement) -> FloatArray:
+        """``Jᵀ r + M d`` at the free coordinates (d: ``Q − Q_prev``, (N, 3))."""
+        n = self.free.size
+        g = np.bincount(self.membrane.columns().ravel(),
+                        np.einsum("tij,ti->tj", Jm, rm).ravel(), n)
+        g += np.bincount(self.shell.columns().ravel(), (Jb * rb[:, None]).ravel(), n)
+        g += np.repeat(self.mass, 3) * displacement.ravel()
+        return g[self.free]
+
+    def normal_matrix(self, Jm, Jb) -> sp.csr_matrix:
+        """The lower triangle of ``JᵀJ + M`` at the free coordinates."""
+        products = [np.matmul(np.swapaxes(Jm, 1, 2), Jm), Jb[:, :, None] * Jb[:, None, :]]
+        return self.pattern.matrix(products, np.repeat(self.mass, 3)[self.free])
+
+    def solve(self, A: sp.csr_matrix, damping: float, rhs) -> FloatArray:
+        """``(A + damping·diag A) x = rhs`` by CHOLMOD, on the analysis kept across calls."""
+        D = A.copy()
+        diag = D.data[self.pattern.diagonal]
+        D.data[self.pattern.diagonal] += damping * diag + 1e-12 * diag.max()
+        self.factorizations += 1
+        if not hasattr(self.factor, "refactorize"):  # first call, or SuperLU
+            self.factor = factorize_spd(D)
+        else:
+            self.factor.refactorize(D)
+        return None if rhs is None else self.factor(rhs)
+
+
+def _step(problem: _Problem, Q0, H1, handles, max_iterations: int, rtol: float):
+    """One increment from the admissible ``Q0`` to handles at ``H1``: the converged
+    positions and the iterations, or None where no admissible predictor exists."""
+    d = np.zeros_like(Q0)
+    d[handles] = H1 - Q0[handles]
+    rm, Jm, rb, Jb = problem.linearization(Q0)
+    # the residuals' change of the handles' displacement, to first order
+    cols_m, cols_b = problem.membrane.columns(), problem.shell.columns()
+    dflat = d.ravel()
+    rm_lin = rm + np.einsum("tij,tj->ti", Jm, dflat[cols_m])
+    rb_lin = rb + np.einsum("ej,ej->e", Jb, dflat[cols_b])
+    g = problem.gradient(rm_lin, Jm, rb_lin, Jb, np.zeros_like(Q0))
+    # the predictor on the last increment's factor where one is kept, else a fresh one
+    for fresh in ((False, True) if hasattr(problem.factor, "refactorize") else (True,)):
+        if fresh:
+            problem.solve(problem.normal_matrix(Jm, Jb), 1e-6, None)
+        Q = Q0 + d
+        Q.ravel()[problem.free] -= problem.factor(g)
+        Q[handles] = H1
+        parts = problem.parts(Q)
+        if problem.admissible(Q, parts[0]):
+            break
+    else:
+        return None
+    E = problem.energy(Q, parts)
+    iterations, stale = 0, not fresh
+    for _ in range(max_iterations):
+        rm, Jm, rb, Jb = problem.linearization(Q)
+        g = problem.gradient(rm, Jm, rb, Jb, Q - problem.previous)
+        if stale:  # otherwise the factor of the increment's start serves (chord steps)
+            problem.solve(problem.normal_matrix(Jm, Jb), 1e-6, None)
+        step = problem.factor(g)
+        iterations += 1
+        # backtracking: the first fraction of the step that lowers the energy and keeps
+        # every triangle proper and unfolded
+        for alpha in 0.5 ** np.arange(12):
+            trial = Q.copy()
+            trial.ravel()[problem.free] -= alpha * step
+            parts = problem.parts(trial)
+            if np.all(np.isfinite(parts[0][problem.free_triangles])):
+                E_trial = problem.energy(trial, parts)
+                if E_trial < E and problem.admissible(trial, parts[0]):
+                    break
+        else:
+            if stale:
+                break
+            stale = True
+            continue
+        decrease = E - E_trial
+        Q, E = trial, E_trial
+        if decrease <= rtol * E:
+            break
+        stale = alpha < 1.0
+    return Q, iterations
+
+
+def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatArray, *,
+                 steps: int = 10, weight: float = 1.0, bending: float = 0.1,
+                 anchor: str = "rest", emphasis: float = 1.0, max_iterations: int = 4,
+                 rtol: float = 1e-3,
+                 max_halvings: int = 8) -> SurfaceMoveResult:
+    """Move a triangle surface: ``handles`` exactly to ``targets``, the rest placed so
+    that each triangle's shape changes as little as the motion allows (module docstring).
+
+    Parameters
+    ----------
+    V : (N, 3) float array
+        Rest positions (no degenerate triangle).
+    F : (T, 3) int array
+        Triangles, consistently oriented where bending is wanted.
+    handles : (H,) int array
+        Distinct vertex indices.
+    targets : (H, 3) float array
+    steps : int
+        Increments along the handles' path (each halved where it cannot be taken).
+    weight : float
+        ``w``, the weight of the membrane distortion against ``M``.
+    bending : float
+        ``b``, the weight of the dihedral bending energy (0: membrane only).
+    anchor : {"rest", "previous"}
+        ``φ̄`` of each increment: 0 (elastic) or the previous frame's φ.
+    emphasis : float
+        ``p``: each increment weighs triangle t's membrane rows by ``c_t = max(1,
+        |φ_t|/rms|φ|)^p`` at its start (0: all alike). Weights ≥ 1 only add to the
+        metric: the bounds hold as stated.
+    max_iterations, rtol : Gauss–Newton–Marquardt steps per increment; stop when an accepted
+        step lowers the energy by less than ``rtol`` times the energy.
+    max_halvings : how often one increment may be halved.
+
+    Raises
+    ------
+    InvalidMeshError
+        Bad shapes, repeated or out-of-range handles, a degenerate rest triangle.
+    NotAdmissibleError
+        Where an increment cannot be taken without a fold or a degenerate triangle.
+    """
+    t_start = time.perf_counter()
+    V = np.asarray(V, float)
+    F = np.asarray(F, np.int64)
+    handles = np.asarray(handles, np.int64).ravel()
+    targets = np.asarray(targets, float)
+    if V.ndim != 2 or V.shape[1] != 3 or F.ndim != 2 or F.shape[1] != 3:
+        raise InvalidMeshError("move_surface needs (N, 3) points and (T, 3) triangles")
+    if targets.shape != (len(handles), 3):
+        raise InvalidMeshError(f"{len(handles)} handles but targets of shape {targets.shape}")
+    if len(handles) and (handles.min() < 0 or handles.max() >= len(V)
+                         or len(np.unique(handles)) != len(handles)):
+        raise InvalidMeshError("handles must be distinct vertex indices")
+    if anchor not in ("rest", "previous"):
+        raise InvalidMeshError(f"anchor must be 'rest' or 'previous', not {anchor!r}")
+    if F.size and (F.min() < 0 or F.max() >= len(V)):
+        raise InvalidMeshError("a triangle refers to a vertex that does not exist")
+    diameter = float(np.linalg.norm(V.max(0) - V.min(0)))
+    whole = global_similarity(V[handles], targets, diameter) if len(handles) else None
+    path = HandlePath(V[handles], targets, handle_groups(F, handles, len(V)))
+    problem = _Problem(V, F, handles, weight, bending, lumped_mass(V, F))
+    Q, t, iterations = V.copy(), 0.0, 0
+    frames, times = [V.copy()], [0.0]
+    phi = problem.membrane.values(V)
+    phi_lengths = np.zeros(len(F))
+    length = 0.0
+    dt, halvings = 1.0 / max(int(steps), 1), 0
+    while t < 1.0:
+        t1 = min(1.0, t + dt) if 1.0 - (t + dt) > 1e-12 else 1.0
+        start = Q
+        if whole is not None:  # the whole surface follows the handles' similarity
+            a, b = whole.at(t), whole.at(t1)
+            start = b((Q - a.image) @ a.rotation / a.scale + a.centre)
+            shift = SQRT2 * np.log(b.scale)
+        else:
+            shift = 0.0
+        H1 = path(t1) if whole is None or t1 >= 1.0 else whole.at(t1)(V[handles])
+        problem.previous = start
+        if emphasis > 0:  # the worst-distorted triangles weigh more (c_t ≥ 1)
+            size = np.linalg.norm(problem.membrane.values(start), axis=1)
+            rms = float(np.sqrt(np.mean(size[problem.free_triangles] ** 2)))
+            if rms > 0:
+                problem.row_weights = weight * np.maximum(1.0, size / rms) ** (0.5 * emphasis)
+        problem.phi_ref = np.zeros_like(phi) if anchor == "rest" else problem.membrane.values(start)
+        problem.phi_ref[:, 0] += shift if anchor == "rest" else 0.0
+        out = _step(problem, start, H1, handles, max_iterations, rtol)
+        if out is None:
+            halvings += 1
+            if halvings > max_halvings:
+                raise NotAdmissibleError(
+                    f"no fold-free increment of the handles' path from t = {t:.4g}")
+            dt /= 2.0
+            continue
+        Q, n_it = out
+        iterations += n_it
+        new_phi = problem.membrane.values(Q)
+        dphi = np.linalg.norm(new_phi - phi, axis=1)
+        dQ = Q - frames[-1]
+        length += float(np.sqrt(problem.mass @ np.sum(dQ * dQ, axis=1)
+                                + weight**2 * np.sum(dphi**2)))
+        phi_lengths += dphi
+        phi, t = new_phi, t1
+        frames.append(Q.copy())
+        times.append(t)
+    Q[handles] = targets
+    rest_q = aspect_ratios(V, F)
+    free = problem.free_triangles
+    rq = aspect_ratios(Q, F)[free] / rest_q[free]
+    return SurfaceMoveResult(
+        points=Q, frames=frames, times=times, phi_lengths=phi_lengths, length=length,
+        weight=weight, worst_quality=float(rq.min()) if rq.size else 1.0,
+        folds=int(np.sum(problem.folds.mask(Q) & free)),
+        handle_error=float(np.abs(Q[handles] - targets).max()) if len(handles) else 0.0,
+        iterations=iterations, seconds=time.perf_counter() - t_start, steps=len(frames) - 1,
+        factorizations=problem.factorizations)

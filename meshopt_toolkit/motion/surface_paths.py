@@ -1,0 +1,166 @@
+"""Handle paths for moving triangle surfaces in R³: the similarity part of each group of
+handles (Umeyama's fit) followed along its own path — the rotation interpolated in angle,
+the scale geometrically, the centroid linearly — and the rest of the motion linearly; the
+fold test of a surface against its rest shape.
+
+A group is a connected piece of the handles (through mesh edges between handles). Where
+one similarity maps all handles onto their targets (to rounding), the whole surface can
+follow it exactly (:func:`global_similarity`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial.transform import Rotation
+
+from .._typing import FloatArray, IntArray
+
+
+@dataclass(frozen=True)
+class Similarity3:
+    """``x ↦ s R (x − c) + d``; its path ``t ↦ s^t R^t (x − c) + c + t (d − c)``."""
+
+    scale: float
+    rotation: FloatArray  # (3, 3), det +1
+    centre: FloatArray  # (3,)
+    image: FloatArray  # (3,)
+
+    def __call__(self, x: FloatArray) -> FloatArray:
+        return self.scale * (np.asarray(x) - self.centre) @ self.rotation.T + self.image
+
+    def at(self, t: float) -> "Similarity3":
+        """The similarity at fraction ``t`` of the path from the identity (t = 1: itself)."""
+        if t == 1.0:
+            return self
+        rotvec = Rotation.from_matrix(self.rotation).as_rotvec()
+        R = Rotation.from_rotvec(t * rotvec).as_matrix()
+        return Similarity3(self.scale**t, R, self.centre,
+                           self.centre + t * (self.image - self.centre))
+
+
+def fit_similarity(source: FloatArray, target: FloatArray, scaling: bool = True
+                   ) -> Similarity3:
+    """Least-squares similarity (rotation with det +1, optional uniform scale) mapping
+    ``source`` onto ``target`` (Umeyama 1991)."""
+    a, b = np.asarray(source, float), np.asarray(target, float)
+    ca, cb = a.mean(axis=0), b.mean(axis=0)
+    x, y = a - ca, b - cb
+    U, sigma, Vt = np.linalg.svd(y.T @ x)
+    d = np.ones(3)
+    d[2] = 1.0 if np.linalg.det(U @ Vt) >= 0 else -1.0
+    R = (U * d) @ Vt
+    var = float(np.sum(x * x))
+    s = float(sigma @ d) / var if scaling and var > 0 else 1.0
+    if not s > 0:
+        s = 1.0
+    return Similarity3(s, R, ca, cb)
+
+
+def handle_groups(triangles: IntArray, handles: IntArray, n_vertices: int) -> IntArray:
+    """A label per handle (0, 1, …): its connected piece through mesh edges between
+    handles."""
+    F = np.asarray(triangles)
+    is_handle = np.zeros(n_vertices, bool)
+    is_handle[handles] = True
+    E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    E = E[is_handle[E].all(axis=1)]
+    local = np.full(n_vertices, -1)
+    local[handles] = np.arange(len(handles))
+    n = len(handles)
+    A = sp.coo_matrix((np.ones(len(E)), (local[E[:, 0]], local[E[:, 1]])), shape=(n, n))
+    return connected_components(A, directed=False)[1]
+
+
+class HandlePath:
+    """Positions of the handles at fraction ``t`` of their motion from ``start`` to
+    ``targets``: per group its similarity path plus ``t`` times what the similarity leaves
+    (so exactly ``targets`` at t = 1)."""
+
+    def __init__(self, start: FloatArray, targets: FloatArray, groups: IntArray,
+                 scaling: bool = True) -> None:
+        self.start = np.asarray(start, float)
+        self.targets = np.asarray(targets, float)
+        self.groups = np.asarray(groups)
+        self.similarities = []
+        self.rest = np.empty_like(self.start)
+        for g in range(int(self.groups.max()) + 1 if len(self.groups) else 0):
+            m = self.groups == g
+            # a single vertex or a collinear piece has no rotation of its own
+            if _rank(self.start[m]) < 2:
+                S = Similarity3(1.0, np.eye(3), self.start[m].mean(0), self.targets[m].mean(0))
+            else:
+                S = fit_similarity(self.start[m], self.targets[m], scaling)
+            self.similarities.append(S)
+            self.rest[m] = self.targets[m] - S(self.start[m])
+
+    def __call__(self, t: float) -> FloatArray:
+        if t >= 1.0:
+            return self.targets.copy()
+        out = np.empty_like(self.start)
+        for g, S in enumerate(self.similarities):
+            m = self.groups == g
+            out[m] = S.at(t)(self.start[m]) + t * self.rest[m]
+        return out
+
+
+def _rank(points: FloatArray) -> int:
+    if len(points) < 2:
+        return 0
+    x = points - points.mean(axis=0)
+    s = np.linalg.svd(x, compute_uv=False)
+    return int(np.sum(s > 1e-9 * max(s[0], 1e-300)))
+
+
+def global_similarity(start: FloatArray, targets: FloatArray, diameter: float,
+                      rtol: float = 1e-10) -> Similarity3 | None:
+    """The similarity mapping every handle onto its target within ``rtol·diameter``, or
+    None (none does, or the handles span less than a plane)."""
+    if _rank(start) < 2:
+        return None
+    S = fit_similarity(start, targets)
+    if np.abs(S(start) - targets).max() <= rtol * diameter:
+        return S
+    return None
+
+
+def best_rotations(S: FloatArray) -> FloatArray:
+    """Rotations R (det +1) maximizing tr(R S) for covariances ``S = Σ e eᵀ'`` (T, 3, 3)."""
+    U, _, Vt = np.linalg.svd(S)
+    V, Ut = np.swapaxes(Vt, 1, 2), np.swapaxes(U, 1, 2)
+    D = np.ones(S.shape[:-1])
+    sign = np.sign(np.linalg.det(V @ Ut))
+    D[:, -1] = np.where(sign == 0, 1.0, sign)
+    return V @ (D[:, :, None] * Ut)
+
+
+class FoldTest:
+    """Triangle t folds when its normal turns against its rest normal carried by the best
+    rotation of its neighbourhood, ``n_t' · (R_t n_t) < 0``; ``R_t`` the Kabsch rotation of
+    the rest edge vectors of the one-ring fans of t's corners onto their new ones."""
+
+    def __init__(self, rest: FloatArray, triangles: IntArray) -> None:
+        self.rest = np.asarray(rest, float)
+        self.triangles = np.asarray(triangles)
+        F = self.triangles
+        E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+        self.edges = np.unique(np.sort(E, axis=1), axis=0)
+        self.rest_edges = self.rest[self.edges[:, 1]] - self.rest[self.edges[:, 0]]
+        P = self.rest[F]
+        self.rest_normals = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
+
+    def mask(self, Q: FloatArray) -> np.ndarray:
+        """Folded triangles of ``Q`` (T,) bool."""
+        e1 = Q[self.edges[:, 1]] - Q[self.edges[:, 0]]
+        outer = (self.rest_edges[:, :, None] * e1[:, None, :]).reshape(-1, 9)
+        n = len(Q)
+        Sv = np.stack([np.bincount(self.edges[:, 0], outer[:, c], n)
+                       + np.bincount(self.edges[:, 1], outer[:, c], n) for c in range(9)], 1)
+        R = best_rotations(Sv[self.triangles].sum(axis=1).reshape(-1, 3, 3))
+        carried = np.einsum("tij,tj->ti", R, self.rest_normals)
+        P = Q[self.triangles]
+        normals = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
+        return np.einsum("ti,ti->t", normals, carried) < 0

@@ -1,0 +1,201 @@
+"""move_surface: handles exact, rigid motions followed exactly, the twisted bar against
+libigl ARAP, the bending energy's derivatives and the stated bounds."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from meshopt_toolkit.diagnostics import check_gradient
+from meshopt_toolkit.errors import InvalidMeshError
+from meshopt_toolkit.kernels.cell_maps import surface_inverse_shape_quality
+from meshopt_toolkit.motion.bending import ShellBending, dihedral_angles, edge_diamonds
+from meshopt_toolkit.motion.surface_distortion import SurfaceDistortion, surface_quality_bound
+from meshopt_toolkit.motion.surface_move import move_surface
+from meshopt_toolkit.motion.surface_paths import FoldTest, HandlePath, handle_groups
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "benchmarks"))
+import _surface_measures as sm  # noqa: E402
+import bench_surface as bench  # noqa: E402
+
+
+def random_rotation(rng) -> np.ndarray:
+    Q, R = np.linalg.qr(rng.normal(size=(3, 3)))
+    Q *= np.sign(np.diag(R))
+    if np.linalg.det(Q) < 0:
+        Q[:, 0] *= -1
+    return Q
+
+
+def sphere(subdivisions=2):
+    trimesh = pytest.importorskip("trimesh")
+    m = trimesh.creation.icosphere(subdivisions=subdivisions)
+    return np.asarray(m.vertices, float), np.asarray(m.faces, np.int64)
+
+
+def coarse_bar(angle_deg: float, spacing: float = 0.25) -> bench.Case:
+    """bench_surface's bar (6×1×1, one cap turned about the long axis), coarser."""
+    V, F = bench.box_surface([6.0, 1.0, 1.0], spacing)
+    fixed = np.flatnonzero(V[:, 0] < 1e-9)
+    end = np.flatnonzero(V[:, 0] > 6.0 - 1e-9)
+    moved = bench.turning(V[end], np.array([6.0, 0.5, 0.5]), [1, 0, 0], np.deg2rad(angle_deg))
+    b = np.concatenate([end, fixed])
+    return bench.Case("bar", V, F, b, lambda t: np.concatenate([moved(t), V[fixed]]),
+                      np.r_[np.ones(len(end)), np.zeros(len(fixed))])
+
+
+@pytest.fixture(scope="module")
+def bar90():
+    case = coarse_bar(90.0)
+    return case, move_surface(case.V, case.F, case.handles, case.path(1.0), steps=4)
+
+
+def test_handles_land_bitwise_and_nothing_folds(bar90):
+    case, r = bar90
+    assert np.array_equal(r.points[case.handles], case.path(1.0))
+    assert r.handle_error == 0.0
+    assert sm.fold_count(case.V, r.points, case.F, case.handles) == 0 == r.folds
+    s = r.summary()
+    assert s["worst relative quality"] == pytest.approx(
+        sm.worst_relative_quality(case.V, r.points, case.F, case.handles), rel=1e-12)
+    assert s["steps"] == 4 and s["seconds"] > 0
+
+
+def test_rigid_motion_of_all_handles_is_followed_exactly():
+    V, F = sphere(2)
+    rng = np.random.default_rng(3)
+    R, b = random_rotation(rng), rng.normal(size=3)
+    handles = np.flatnonzero(V[:, 2] > 0.6)  # a cap, so the free part has to follow
+    r = move_surface(V, F, handles, V[handles] @ R.T + b, steps=3)
+    assert np.abs(r.points - (V @ R.T + b)).max() < 1e-12
+    assert r.worst_quality == pytest.approx(1.0, abs=1e-12)
+
+
+def test_separate_handle_groups_moved_by_one_similarity_keep_the_shape():
+    V, F = sphere(2)
+    handles = np.flatnonzero(np.abs(V[:, 2]) > 0.8)  # two caps: two groups
+    assert len(np.unique(handle_groups(F, handles, len(V)))) == 2
+    R = bench.rotation([1, 2, 0.5], 1.0)
+    r = move_surface(V, F, handles, 1.5 * V[handles] @ R.T, steps=2)
+    assert np.abs(r.points - 1.5 * V @ R.T).max() < 1e-12
+
+
+def test_bar_twisted_180_beats_libigl_arap_single_shot():
+    case = coarse_bar(180.0)
+    r = move_surface(case.V, case.F, case.handles, case.path(1.0))
+    q = sm.worst_relative_quality(case.V, r.points, case.F, case.handles)
+    assert sm.fold_count(case.V, r.points, case.F, case.handles) == 0
+    try:
+        import igl  # noqa: F401
+    except ImportError:
+        assert q > 0.5  # libigl ARAP single shot gets 0.27 with a fold on this bar
+        return
+    arap = bench.arap_single(case)
+    arap10 = bench.arap_incremental(case)
+    assert q > sm.worst_relative_quality(case.V, arap, case.F, case.handles)
+    assert q >= sm.worst_relative_quality(case.V, arap10, case.F, case.handles)
+    assert sm.arap_energy(case.V, r.points, case.F) <= 1.5 * sm.arap_energy(case.V, arap10, case.F)
+
+
+def test_bending_gradient_and_jacobian_taylor():
+    V, F = sphere(2)
+    rng = np.random.default_rng(0)
+    Q = V + 0.05 * rng.normal(size=V.shape)
+    shell = ShellBending(V, F)
+    assert check_gradient(shell.energy, shell.gradient, Q).passed
+    c = rng.normal(size=len(shell.diamonds))  # the Jacobian through a random combination
+    assert check_gradient(lambda X: float(c @ shell.residuals(X)),
+                          lambda X: (shell.jacobian_matrix(X).T @ c).reshape(-1, 3), Q).passed
+
+
+@pytest.mark.parametrize("alpha", [0.3, 1.0, np.pi / 2, 2.5])
+def test_dihedral_angle_of_a_hinge_is_pi_minus_its_opening(alpha):
+    # two unit right triangles on the edge (0,0,0)–(1,0,0), opening α between them
+    V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, np.cos(alpha), np.sin(alpha)]], float)
+    F = np.array([[0, 1, 2], [1, 0, 3]])
+    D = edge_diamonds(F)
+    assert D.tolist() == [[0, 1, 2, 3]]
+    assert abs(dihedral_angles(V, D)[0]) == pytest.approx(np.pi - alpha, abs=1e-14)
+
+
+def test_diamonds_cover_interior_edges_only():
+    V, F = sphere(1)
+    assert len(edge_diamonds(F)) == 3 * len(F) // 2
+    open_F = F[V[F].mean(axis=1)[:, 2] < 0.5]  # a sphere with a hole
+    E = np.concatenate([open_F[:, [0, 1]], open_F[:, [1, 2]], open_F[:, [2, 0]]])
+    _, counts = np.unique(np.sort(E, axis=1), axis=0, return_counts=True)
+    assert len(edge_diamonds(open_F)) == int(np.sum(counts == 2))
+
+
+def test_fold_test_agrees_with_the_benchmark_measure():
+    V, F = sphere(2)
+    rng = np.random.default_rng(5)
+    fold = FoldTest(V, F)
+    for scale in (0.02, 0.1, 0.3):
+        Q = V @ random_rotation(rng).T + scale * rng.normal(size=V.shape)
+        assert np.array_equal(fold.mask(Q), sm.fold_mask(V, Q, F))
+
+
+def test_handle_path_interpolates_the_rotation_angle():
+    V, F = sphere(2)
+    handles = np.flatnonzero(V[:, 2] > 0.6)
+    R = bench.rotation([0, 0, 1], 2.0)
+    path = HandlePath(V[handles], V[handles] @ R.T, np.zeros(len(handles), int))
+    assert np.array_equal(path(1.0), V[handles] @ R.T)
+    assert np.allclose(path(0.0), V[handles], atol=1e-14)
+    assert np.allclose(path(0.5), V[handles] @ bench.rotation([0, 0, 1], 1.0).T, atol=1e-12)
+
+
+def test_bad_input_raises():
+    V, F = sphere(1)
+    with pytest.raises(InvalidMeshError):
+        move_surface(V, F, [0, 0], V[[0, 0]])
+    with pytest.raises(InvalidMeshError):
+        move_surface(V, F, [0, 1], V[[0]])
+    with pytest.raises(InvalidMeshError):
+        move_surface(V, F, [0], V[[0]], anchor="nope")
+
+
+@settings(max_examples=8, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), angle=st.floats(0.2, 1.2),
+       weight=st.floats(0.3, 3.0), anchor=st.sampled_from(["rest", "previous"]))
+def test_phi_lengths_within_path_length_over_w_and_quality_bound(seed, angle, weight, anchor):
+    V, F = sphere(1)
+    rng = np.random.default_rng(seed)
+    axis = rng.normal(size=3)
+    top = np.flatnonzero(V[:, 2] > 0.5)
+    bottom = np.flatnonzero(V[:, 2] < -0.5)
+    handles = np.concatenate([top, bottom])
+    targets = np.concatenate([V[top] @ bench.rotation(axis, angle).T, V[bottom]])
+    r = move_surface(V, F, handles, targets, steps=3, weight=weight, anchor=anchor)
+    # the stated bound: every triangle's summed φ-change is at most ℓ/w
+    assert np.all(r.phi_lengths <= r.length / weight * (1 + 1e-12))
+    frames = np.array(r.frames)
+    phi = [SurfaceDistortion(V, F).values(X) for X in frames]
+    summed = np.sum(np.linalg.norm(np.diff(phi, axis=0), axis=2), axis=0)
+    assert np.allclose(summed, r.phi_lengths, rtol=1e-12, atol=1e-14)
+    # from the rest: 1/ψ ≤ 1/ψ(rest)·exp(asinh(√2|φ|)) in every triangle
+    inv_rest = surface_inverse_shape_quality(V, F)
+    inv_end = surface_inverse_shape_quality(r.points, F)
+    end_phi = SurfaceDistortion(V, F).values(r.points)
+    bound = surface_quality_bound(inv_rest, np.linalg.norm(end_phi, axis=1))
+    assert np.all(inv_end <= bound * (1 + 1e-10))
+    assert r.folds == 0 and np.array_equal(r.points[handles], targets)
+
+
+@pytest.mark.slow
+def test_bunny_ear_against_libigl_arap():
+    pytest.importorskip("igl")
+    case = bench.bunny()
+    r = move_surface(case.V, case.F, case.handles, case.path(1.0))
+    ours, arap = bench.measure(case, r.points, r.seconds), bench.measure(
+        case, bench.arap_incremental(case), 0.0)
+    assert ours["folds"] == 0 and ours["handle error"] == 0.0
+    assert ours["quality"] >= max(arap["quality"], 0.1)
+    assert ours["ARAP energy"] <= 1.5 * arap["ARAP energy"]
