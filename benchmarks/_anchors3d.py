@@ -41,19 +41,27 @@ def elasticity_blocks(points, tets, lam: float, mu: float, weights=None) -> np.n
     the 12×12 stiffness of tet ``c`` in node-major ordering, scaled by ``weights`` (C,)."""
     g, vol = tet_gradients(points, tets)
     w = np.abs(vol) if weights is None else np.abs(vol) * weights
-    gg = np.einsum("cak,cbk->cab", g, g)
-    K = lam * np.einsum("cai,cbj->caibj", g, g) + mu * np.einsum("caj,cbi->caibj", g, g)
-    K += mu * np.einsum("cab,ij->caibj", gg, np.eye(3))
-    return w[:, None, None, None, None] * K
+    # strain–displacement matrices in Voigt order (xx, yy, zz, yz, xz, xy): K = w BᵀDB
+    B = np.zeros((len(tets), 6, 4, 3))
+    for i in range(3):
+        B[:, i, :, i] = g[:, :, i]
+    for row, (i, j) in zip((3, 4, 5), ((1, 2), (0, 2), (0, 1))):
+        B[:, row, :, i] = g[:, :, j]
+        B[:, row, :, j] = g[:, :, i]
+    B = B.reshape(-1, 6, 12)
+    D = np.diag([2 * mu] * 3 + [mu] * 3)
+    D[:3, :3] += lam
+    K = np.matmul(np.swapaxes(B, 1, 2) * w[:, None, None], D @ B).reshape(-1, 4, 3, 4, 3)
+    return K
 
 
 def assemble_blocks(tets, blocks: np.ndarray, n_vertices: int) -> sp.csr_matrix:
     """Sum the element matrices into the global (3N, 3N) matrix, dof ``3 v + i``."""
-    dof = (3 * tets[:, :, None] + np.arange(3)).reshape(len(tets), 12)
+    dof = (3 * tets[:, :, None] + np.arange(3)).reshape(len(tets), 12).astype(np.int32)
     rows = np.repeat(dof, 12, axis=1).ravel()
     cols = np.tile(dof, (1, 12)).ravel()
-    return sp.csr_matrix((blocks.reshape(len(tets), -1).ravel(), (rows, cols)),
-                         shape=(3 * n_vertices, 3 * n_vertices))
+    n = 3 * n_vertices
+    return sp.coo_matrix((blocks.reshape(-1), (rows, cols)), shape=(n, n)).tocsr()
 
 
 def lame(E: float = 1.0, nu: float = NU) -> tuple[float, float]:
@@ -121,3 +129,61 @@ def arap_motion(points, tets, handles, path, iterations: int = 50) -> np.ndarray
                             np.asarray(handles, np.int32), data)
     start = harmonic_motion(points, tets, handles, path)
     return np.asarray(igl.arap_solve(np.asarray(path(1.0), float), data, start))
+
+
+def tmop_motion(points, tets, handles, path, iterations: int = 200) -> np.ndarray:
+    """mfem's TMOP from the 10-step elasticity result: shape metric 303
+    (``|T|²/(3 det(T)^{2/3}) − 1``, the 3D mean-ratio metric), Newton with MINRES, the
+    handles fixed. TMOP's Newton only accepts steps that keep every Jacobian positive, so
+    it needs a valid start; PyMFEM's worst-case untangler takes only the 2D base metrics
+    4, 14 and 66, so a tangled start raises ``RuntimeError``."""
+    import mfem.ser as mfem
+    from mfem._ser import tmop, tmop_tools
+
+    start = incremental_elasticity_motion(points, tets, handles, path)
+    inverted = int((tet_signed_volumes(start, tets) <= 0).sum())
+    if inverted:
+        raise RuntimeError(f"start has {inverted} inverted tets")
+    n = len(points)
+    mesh = mfem.Mesh(3, n, len(tets), 0, 3)
+    for p in points:
+        mesh.AddVertex([float(c) for c in p])
+    for t in tets:
+        mesh.AddTet([int(i) for i in t])
+    mesh.FinalizeTetMesh(1, 1, True)
+    fec = mfem.H1_FECollection(1, 3)
+    fes = mfem.FiniteElementSpace(mesh, fec, 3, mfem.Ordering.byNODES)
+    mesh.SetNodalFESpace(fes)
+    x0 = mfem.GridFunction(fes)
+    x0.Assign(np.ascontiguousarray(points.T).ravel())
+    x = mfem.GridFunction(fes)
+    x.Assign(np.ascontiguousarray(start.T).ravel())
+    mesh.NewNodes(x, False)
+    handles = np.asarray(handles)
+    essential = mfem.intArray(list(map(int, np.concatenate([handles, handles + n,
+                                                            handles + 2 * n]))))
+    ir = mfem.IntegrationRules(0, mfem.Quadrature1D.GaussLobatto)
+    metric = tmop.TMOP_Metric_303()
+    target = tmop.TargetConstructor(tmop.TargetConstructor.IDEAL_SHAPE_EQUAL_SIZE)
+    target.SetNodes(x0)
+    integ = tmop.TMOP_Integrator(metric, target)
+    integ.SetIntegrationRules(ir, 8)
+    form = mfem.NonlinearForm(fes)
+    form.AddDomainIntegrator(integ)
+    form.SetEssentialVDofs(essential)
+    solver = tmop_tools.TMOPNewtonSolver(ir.Get(mfem.Geometry.TETRAHEDRON, 8), 0)
+    minres = mfem.MINRESSolver()
+    minres.SetMaxIter(100)
+    minres.SetRelTol(1e-8)
+    solver.SetPreconditioner(minres)
+    solver.SetOperator(form)
+    solver.SetMaxIter(iterations)
+    solver.SetRelTol(1e-10)
+    solver.SetAbsTol(0.0)
+    solver.SetPrintLevel(-1)
+    tv = x.GetTrueVector()
+    solver.Mult(mfem.Vector(0), tv)
+    x.SetFromTrueVector()
+    out = np.asarray(x.GetDataArray()).reshape(3, n).T.copy()
+    del solver, minres, form, integ, target, metric  # in this order: mfem holds pointers
+    return out

@@ -172,3 +172,38 @@ def test_careful_motion_turns_a_cube_face_without_inverting():
     free = ~np.isin(t, b).all(axis=1)
     harmonic = tet_mean_ratios(harmonic_motion(p, t, b, path), t)
     assert eta[free].min() > harmonic[free].min() + 0.01
+
+
+def test_arap_reproduces_rigid_motions():
+    """The whole boundary turned 120° and shifted: ARAP's energy is zero on the rigid map
+    (to libigl's polar-decomposition accuracy, ~1e-8 here)."""
+    pytest.importorskip("igl")
+    from _anchors3d import arap_motion
+
+    p, t, b = jittered_cube(2, seed=4)
+    a = np.radians(120.0)
+    R = np.array([[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]])
+    x = arap_motion(p, t, b, lambda s: p[b] @ R.T + [0.5, 0, 0])
+    assert np.abs(x - (p @ R.T + [0.5, 0, 0])).max() < 1e-6
+
+
+def test_tmop_improves_the_mean_shape_of_a_valid_start():
+    """TMOP's metric 303 is 1/η − 1 against the regular tet: from a valid start it lowers
+    its integral, keeps the handles and inverts nothing."""
+    pytest.importorskip("mfem")
+    from _anchors3d import tmop_motion
+
+    p, t, b = jittered_cube(2, jitter=0.3, seed=9)
+    top = p[b, 2] > 1 - 1e-9
+
+    def path(s):
+        out = p[b].copy()
+        out[top, 0] += 0.15 * s
+        return out
+
+    start = incremental_elasticity_motion(p, t, b, path)
+    x = tmop_motion(p, t, b, path)
+    vol = np.abs(tet_signed_volumes(p, t))
+    assert np.abs(x[b] - path(1.0)).max() < 1e-12
+    assert tet_mean_ratios(x, t).min() > 0
+    assert (vol / tet_mean_ratios(x, t)).sum() < (vol / tet_mean_ratios(start, t)).sum()
