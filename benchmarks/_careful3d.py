@@ -10,6 +10,8 @@ refuses every trial with an inverted tet. Slow (minutes at 25k tets) but never i
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 from _anchors3d import dirichlet_solve, laplacian
 
@@ -111,7 +113,8 @@ def lbfgs(energy, x, free, iterations: int, memory: int = 10, tol: float = 1e-9)
 
 
 def careful_motion(points, tets, handles, path, steps: int = 20, sharpness: float = 1.0,
-                   iterations: int = 60, final_iterations: int = 600) -> np.ndarray:
+                   iterations: int = 60, final_iterations: int = 600,
+                   max_seconds: float = np.inf) -> np.ndarray:
     """Continuation along ``path`` (see the module docstring): ``steps`` nominal steps,
     ``iterations`` L-BFGS iterations per step and ``final_iterations`` at the end; the
     energy's ``sharpness`` ``s`` weighs the worst tets (``s → ∞``: the worst one alone).
@@ -119,8 +122,10 @@ def careful_motion(points, tets, handles, path, steps: int = 20, sharpness: floa
     Raises
     ------
     RuntimeError
-        Where the continuation cannot advance without inverting a tet.
+        Where the continuation cannot advance without inverting a tet, or has not reached
+        the end of the path after ``max_seconds``.
     """
+    start = time.perf_counter()
     n = len(points)
     free = np.ones(n, bool)
     free[handles] = False
@@ -129,6 +134,8 @@ def careful_motion(points, tets, handles, path, steps: int = 20, sharpness: floa
     x, t, dt = np.array(points, float), 0.0, 1.0 / steps
     velocity = np.zeros_like(x)  # the free nodes' motion per unit t in the last step
     while t < 1.0:
+        if time.perf_counter() - start > max_seconds:
+            raise RuntimeError(f"not done in {max_seconds:.0f} s (at t = {t:.3f})")
         t1 = min(1.0, t + dt)
         moved = dirichlet_solve(L, handles, path(t1) - x[handles])
         kept = np.where(free[:, None], 0.0, moved)

@@ -40,6 +40,9 @@ except ImportError:
     move_tets = None
 
 
+CAREFUL_SECONDS = 1200.0  # the careful optimizer's time limit per case
+
+
 def ours(points, tets, handles, path):
     return np.asarray(move_tets(points, tets, handles, path(1.0)).points)
 
@@ -51,7 +54,7 @@ METHODS = {
     "elasticity 1/V ×10": incremental_elasticity_motion,
     "ARAP (libigl)": arap_motion,
     "TMOP (mfem)": tmop_motion,
-    "careful optimizer": careful_motion,
+    "careful optimizer": lambda *a: careful_motion(*a, max_seconds=CAREFUL_SECONDS),
 }
 
 
