@@ -178,8 +178,12 @@ def box_surface(size, spacing):
             parts.append(trimesh.Trimesh(P, tri, process=False))
     m = trimesh.util.concatenate(parts)
     m.merge_vertices()
-    trimesh.repair.fix_normals(m)
-    return np.asarray(m.vertices, float), np.asarray(m.faces, np.int64)
+    V, F = np.asarray(m.vertices, float), np.asarray(m.faces, np.int64)
+    # a convex box: a face is outward when its normal points away from the centre
+    n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    inward = np.einsum("ij,ij->i", n, V[F].mean(axis=1) - size / 2) < 0
+    F[inward] = F[inward, ::-1]
+    return V, F
 
 
 def bar() -> Case:
