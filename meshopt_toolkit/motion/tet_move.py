@@ -271,14 +271,15 @@ class TetMeshMoveResult:
         The motion (first = input, last = ``mesh``): ``frames`` meshes when asked for,
         else the input and ``mesh``.
     motion : TetMoveResult
-        The solver's result (points, per-frame ``min η``, similarity, strain bound).
+        The solver's result (per-frame ``min η``, similarity, strain bound; its points
+        are those of the vertices in some tet, in order).
     """
 
     mesh: TetMesh
     frames: list[TetMesh]
     motion: TetMoveResult
 
-    points = property(lambda self: self.motion.points, doc="The moved points ``(N, 3)``.")
+    points = property(lambda self: self.mesh.points, doc="The moved points ``(N, 3)``.")
     seconds = property(lambda self: self.motion.seconds, doc="Wall time.")
     strain_bound = property(lambda self: self.motion.strain_bound, doc="See TetMoveResult.")
     min_mean_ratio = property(lambda self: self.motion.min_mean_ratio,
@@ -310,13 +311,33 @@ def move_tet_mesh(mesh: TetMesh, handles, targets, *, frames: int | None = None,
     mesh.require_admissible()
     if progress is not None:
         progress(0.0)
-    res = move_tets(mesh.points, mesh.tets, handles, targets, steps=steps, frames=frames,
-                    weight=weight, relax_iter=relax_iter, quality_rounds=quality_rounds,
-                    max_splits=max_splits)
-    moved = mesh.with_points(res.points)
-    out = ([mesh.with_points(F) for F in res.frames] if frames is not None else [mesh, moved])
-    if frames is not None:
-        out[-1] = moved
+    P = mesh.points
+    h = np.asarray(handles)
+    tg = np.asarray(targets, dtype=float)
+    if h.ndim != 1 or h.size == 0 or not np.issubdtype(h.dtype, np.integer):
+        raise InvalidMeshError("handles must be a non-empty 1-D array of vertex indices")
+    if h.min() < 0 or h.max() >= len(P):
+        raise InvalidMeshError(f"a handle index is out of range (the mesh has {len(P)} vertices)")
+    if tg.shape != (h.size, 3):
+        raise InvalidMeshError(f"targets must have shape ({h.size}, 3), got {tg.shape}")
+    # vertices in no tet (a file may hold some) are left out of the solve and stay put
+    used = np.unique(mesh.tets)
+    local = np.full(len(P), -1, np.int64)
+    local[used] = np.arange(len(used))
+    keep = local[h] >= 0
+    res = move_tets(P[used], local[mesh.tets], local[h[keep]], tg[keep], steps=steps,
+                    frames=frames, weight=weight, relax_iter=relax_iter,
+                    quality_rounds=quality_rounds, max_splits=max_splits)
+
+    def full(Q: FloatArray) -> FloatArray:
+        out = np.array(P)
+        out[used] = Q
+        out[h[~keep]] = tg[~keep]
+        return out
+
+    moved = mesh.with_points(full(res.points))
+    out = ([mesh.with_points(full(F)) for F in res.frames[:-1]] + [moved]
+           if frames is not None else [mesh, moved])
     if progress is not None:
         progress(1.0)
     return TetMeshMoveResult(mesh=moved, frames=out, motion=res)
