@@ -264,3 +264,18 @@ def test_cli_planar_map_in_z_is_one_line(tmp_path, capsys):
     assert main(["move", str(src), "-o", str(tmp_path / "o.msh"),
                  "--map", "x; y + z"]) == 1
     assert "z is not defined for a planar mesh" in _one_line(capsys)
+
+
+def test_cli_free_boundary_lets_the_unlisted_walls_follow(box_file, tmp_path):
+    src = load_cells(box_file)
+    hole = src.to_tet_mesh().tagged_vertices("hole")
+    table = tmp_path / "shift.csv"
+    shifted = src.points[hole] + [0.1, 0.0, 0.0]
+    table.write_text("".join(f"{i},{a!r},{b!r},{c!r}\n"
+                             for i, (a, b, c) in zip(hole, shifted.tolist())))
+    out = tmp_path / "free.msh"
+    assert main(["move", str(box_file), "-o", str(out), "--targets", str(table),
+                 "--free-boundary"]) == 0
+    # the handles translate: so does the whole mesh (the similarity factored out)
+    np.testing.assert_allclose(load_cells(out).points, src.points + [0.1, 0.0, 0.0],
+                               atol=1e-12)
