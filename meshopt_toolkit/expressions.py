@@ -285,8 +285,9 @@ def parse_expression(text: str) -> Expression:
 
 
 # Values are float scalars (constant subtrees) or (M,) arrays; gradients are 0.0 (zero),
-# (1, d) unit rows, (M, 1) or (M, d) arrays (d = 2 or 3, the points' dimension). Broadcasting combines them, so constants and
-# integer powers stay scalar operations; the public methods broadcast the results.
+# (1, d) unit rows, (M, 1) or (M, d) arrays (d = 2 or 3, the points' dimension).
+# Broadcasting combines them, so constants and integer powers stay scalar operations;
+# the public methods broadcast the results.
 
 
 def _col(v):
@@ -414,8 +415,9 @@ class Expression:
 
     Calling it on ``X (M, 2)`` or ``X (M, 3)`` returns ``(M,)`` values; :meth:`gradient`
     returns the exact ``(M, 2)`` or ``(M, 3)`` gradient. An expression in ``z`` at planar
-    points ``(M, 2)`` is an :class:`ExpressionError`. Non-finite results (``log`` of a negative number, division
-    by zero, overflow) raise :class:`ExpressionError` naming the first offending point.
+    points ``(M, 2)`` is an :class:`ExpressionError`. Non-finite results (``log`` of a
+    negative number, division by zero, overflow) raise :class:`ExpressionError` naming the
+    first offending point.
     """
 
     def __init__(self, text: str, tree) -> None:

@@ -237,10 +237,10 @@ def move(
     relax_iter : int
         Levenberg–Marquardt iterations of each relaxation.
     quality_rounds : int, optional
-        Default 6 (4 for a TetMesh). Rounds of the final quality step (handles fixed): least squares of the distortion
-        from equilateral triangles, each round weighting the triangles that stay the worst
-        more (towards a fit of the worst triangle); the round with the best minimum aspect
-        ratio is kept.
+        Default 6 (4 for a TetMesh). Rounds of the final quality step (handles fixed):
+        least squares of the distortion from equilateral triangles, each round weighting the
+        triangles that stay the worst more (towards a fit of the worst triangle); the round
+        with the best minimum aspect ratio is kept.
     finish_frames : bool
         With ``frames``: give every intermediate frame the same quality step (handles
         fixed where they are at that time). The continuation's own frames are admissible

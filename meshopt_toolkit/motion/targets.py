@@ -1,8 +1,9 @@
 """Handle targets from files or expressions, for ``meshopt move`` and the move filter.
 
 - a table: CSV rows ``index,x,y`` (a header line is allowed) or a ``.npy`` array (k, 3);
-  for a tetrahedral mesh rows ``index,x,y,z`` or (k, 4); :func:`fix_boundary` adds the boundary vertices the table does not list as handles that
-  stay where they are (``--free-boundary`` leaves them free instead);
+  for a tetrahedral mesh rows ``index,x,y,z`` or (k, 4); :func:`fix_boundary` adds the
+  boundary vertices the table does not list as handles that stay where they are
+  (``--free-boundary`` leaves them free instead);
 - a map: ``"X_EXPR; Y_EXPR"``, the new position of each selected vertex as two
   expressions in its ``x, y`` (the whitelisted evaluator of :mod:`..expressions`); for a
   tetrahedral mesh ``"X_EXPR; Y_EXPR; Z_EXPR"`` in ``x, y, z``. The
@@ -242,8 +243,9 @@ def handles_of(mesh: PlanarMesh | TetMesh, *, targets: str | Path | None = None,
     mesh : PlanarMesh or TetMesh
         In the units of the table and the expressions.
     targets : path, optional
-        A table (:func:`read_target_table`, rows ``index,x,y,z`` for a TetMesh); the boundary vertices it does not list stay
-        where they are (:func:`fix_boundary`) unless ``free_boundary``.
+        A table (:func:`read_target_table`, rows ``index,x,y,z`` for a TetMesh); the
+        boundary vertices it does not list stay where they are (:func:`fix_boundary`)
+        unless ``free_boundary``.
     mapping, where : str, optional
         Used when ``targets`` is None (:func:`targets_from_map`).
     group : str, optional
