@@ -1,8 +1,9 @@
-"""A safe evaluator for user expressions in ``x, y`` with exact gradients.
+"""A safe evaluator for user expressions in ``x, y`` (and ``z``) with exact gradients.
 
 ``parse_expression("2.5*(x1 + 0.4 - x2**2)**2 + x1**2 + x2**2 - 1")`` returns an
 :class:`Expression` ``r`` with ``r(X) -> (M,)`` and ``r.gradient(X) -> (M, 2)`` for points
-``X`` of shape ``(M, 2)``. The gradient is exact: forward-mode differentiation over the
+``X`` of shape ``(M, 2)`` (or ``(M, 3)`` for ``x, y, z``, with ``(M, 3)`` gradients).
+The gradient is exact: forward-mode differentiation over the
 syntax tree, no finite differences.
 
 Grammar (Python's own syntax and precedence, parsed by :func:`ast.parse` in ``"eval"``
@@ -10,7 +11,8 @@ mode, then checked against an explicit whitelist of node types; the text is neve
 to ``eval``, ``exec`` or ``compile``):
 
 - numbers (``2``, ``0.5``, ``1e-3``); constants ``pi``, ``e``;
-- variables ``x``, ``y``, ``x1``, ``x2`` (``x = x1``, ``y = x2``);
+- variables ``x``, ``y``, ``z``, ``x1``, ``x2``, ``x3`` (``x = x1``, ``y = x2``,
+  ``z = x3``; ``z`` is refused at planar points ``(M, 2)``);
 - ``+ - * / **`` and unary ``+ -`` (``**`` is right-associative and binds tighter than
   unary minus: ``-2**2 == -4``), parentheses;
 - functions ``sin cos tan exp log sqrt abs`` (one argument), ``min max`` (two).
@@ -46,7 +48,7 @@ MAX_DEPTH = 64
 #: user text (expressions, paths) longer than this is cut where a message shows it
 SHOWN_CHARS = 80
 
-_VARIABLES = {"x": 0, "x1": 0, "y": 1, "x2": 1}
+_VARIABLES = {"x": 0, "x1": 0, "y": 1, "x2": 1, "z": 2, "x3": 2}
 _CONSTANTS = {"pi": np.pi, "e": np.e}
 _UNARY = ("sin", "cos", "tan", "exp", "log", "sqrt", "abs")
 _BINARY = ("min", "max")
@@ -97,7 +99,7 @@ class _Num:
 
 @dataclass(frozen=True)
 class _Var:
-    index: int  # 0 = x, 1 = y
+    index: int  # 0 = x, 1 = y, 2 = z
 
 
 @dataclass(frozen=True)
@@ -237,7 +239,7 @@ def _convert_node(node: ast.AST, text: str):
 
 
 def parse_expression(text: str) -> Expression:
-    """Parse and check an expression in ``x, y`` (see the module docstring for the grammar).
+    """Parse and check an expression in ``x, y, z`` (see the module docstring for the grammar).
 
     Parameters
     ----------
@@ -283,8 +285,9 @@ def parse_expression(text: str) -> Expression:
 
 
 # Values are float scalars (constant subtrees) or (M,) arrays; gradients are 0.0 (zero),
-# (1, 2) unit rows, (M, 1) or (M, 2) arrays. Broadcasting combines them, so constants and
-# integer powers stay scalar operations; the public methods broadcast the results.
+# (1, d) unit rows, (M, 1) or (M, d) arrays (d = 2 or 3, the points' dimension).
+# Broadcasting combines them, so constants and integer powers stay scalar operations;
+# the public methods broadcast the results.
 
 
 def _col(v):
@@ -334,7 +337,6 @@ def _is_constant(node) -> bool:
     return all(_is_constant(a) for a in node.args)
 
 
-_UNIT = (np.array([[1.0, 0.0]]), np.array([[0.0, 1.0]]))
 
 
 def _forward(node, X: FloatArray):
@@ -342,7 +344,9 @@ def _forward(node, X: FloatArray):
     if isinstance(node, _Num):
         return node.value, 0.0
     if isinstance(node, _Var):
-        return X[:, node.index], _UNIT[node.index]
+        unit = np.zeros((1, X.shape[1]))
+        unit[0, node.index] = 1.0
+        return X[:, node.index], unit
     if isinstance(node, _Unary):
         v, g = _forward(node.arg, X)
         return (-v, -g) if node.op == "-" else (v, g)
@@ -392,25 +396,36 @@ def _forward(node, X: FloatArray):
     return v, _col(d) * da
 
 
-def _as_points(X) -> FloatArray:
-    X = np.asarray(X, dtype=float)
-    if X.ndim != 2 or X.shape[1] != 2:
-        raise ExpressionError(f"expressions are evaluated at points of shape (M, 2), got {X.shape}")
-    return X
+def _max_index(node) -> int:
+    """The largest variable index in ``node`` (-1: none)."""
+    if isinstance(node, _Num):
+        return -1
+    if isinstance(node, _Var):
+        return node.index
+    if isinstance(node, _Unary):
+        return _max_index(node.arg)
+    if isinstance(node, _Bin):
+        return max(_max_index(node.left), _max_index(node.right))
+    return max(_max_index(a) for a in node.args)
 
 
 class Expression:
-    """A checked expression ``r(x, y)``; create it with :func:`parse_expression`.
+    """A checked expression ``r(x, y)`` or ``r(x, y, z)``; create it with
+    :func:`parse_expression`.
 
-    Calling it on ``X (M, 2)`` returns ``(M,)`` values; :meth:`gradient` returns the
-    exact ``(M, 2)`` gradient. Non-finite results (``log`` of a negative number, division
-    by zero, overflow) raise :class:`ExpressionError` naming the first offending point.
+    Calling it on ``X (M, 2)`` or ``X (M, 3)`` returns ``(M,)`` values; :meth:`gradient`
+    returns the exact ``(M, 2)`` or ``(M, 3)`` gradient. An expression in ``z`` at planar
+    points ``(M, 2)`` is an :class:`ExpressionError`. Non-finite results (``log`` of a
+    negative number, division by zero, overflow) raise :class:`ExpressionError` naming the
+    first offending point.
     """
 
     def __init__(self, text: str, tree) -> None:
         self.text = text
         self._tree = tree
         self.is_constant = _is_constant(tree)
+        #: True when the expression uses ``z`` (it needs points ``(M, 3)``)
+        self.uses_z = _max_index(tree) >= 2
 
     def __repr__(self) -> str:
         return f"Expression({self.text!r})"
@@ -424,32 +439,43 @@ class Expression:
         except ArithmeticError as exc:
             raise ExpressionError(f"{quoted(self.text)} cannot be evaluated: {exc}") from None
 
+    def _points(self, X) -> FloatArray:
+        """``X`` as ``(M, 2)`` or ``(M, 3)`` floats, refused when ``z`` is used on 2D."""
+        X = np.asarray(X, dtype=float)
+        if X.ndim != 2 or X.shape[1] not in (2, 3):
+            raise ExpressionError("expressions are evaluated at points of shape (M, 2) or "
+                                  f"(M, 3), got {X.shape}")
+        if self.uses_z and X.shape[1] == 2:
+            raise ExpressionError(f"{quoted(self.text)}: z is not defined for a planar mesh")
+        return X
+
     def _check(self, v: FloatArray, X: FloatArray, what: str) -> FloatArray:
         bad = ~np.isfinite(v)
         if bad.any():
             i = int(np.flatnonzero(bad.reshape(len(X), -1).any(axis=1))[0])
+            names = "x, y" if X.shape[1] == 2 else "x, y, z"
             raise ExpressionError(
-                f"{what} of {quoted(self.text)} is not finite at (x, y) = "
-                f"({X[i, 0]:.6g}, {X[i, 1]:.6g})"
+                f"{what} of {quoted(self.text)} is not finite at ({names}) = "
+                f"({', '.join(f'{c:.6g}' for c in X[i])})"
             )
         return v
 
     def __call__(self, X) -> FloatArray:
-        """Values ``(M,)`` at points ``X (M, 2)``."""
-        X = _as_points(X)
+        """Values ``(M,)`` at points ``X (M, 2)`` or ``(M, 3)``."""
+        X = self._points(X)
         with np.errstate(all="ignore"), self._arithmetic():
             v = np.array(np.broadcast_to(_value(self._tree, X), (len(X),)), dtype=float)
         return self._check(v, X, "value")
 
     def value_and_gradient(self, X) -> tuple[FloatArray, FloatArray]:
-        """Values ``(M,)`` and exact gradients ``(M, 2)`` in one pass."""
-        X = _as_points(X)
+        """Values ``(M,)`` and exact gradients ``(M, d)`` in one pass (``d = X.shape[1]``)."""
+        X = self._points(X)
         with np.errstate(all="ignore"), self._arithmetic():
             v, g = _forward(self._tree, X)
             v = np.array(np.broadcast_to(v, (len(X),)), dtype=float)
-            g = np.array(np.broadcast_to(g, (len(X), 2)), dtype=float)
+            g = np.array(np.broadcast_to(g, X.shape), dtype=float)
         return self._check(v, X, "value"), self._check(g, X, "gradient")
 
     def gradient(self, X) -> FloatArray:
-        """Exact gradients ``(M, 2)`` at points ``X (M, 2)``."""
+        """Exact gradients ``(M, d)`` at points ``X (M, d)``, ``d`` = 2 or 3."""
         return self.value_and_gradient(X)[1]

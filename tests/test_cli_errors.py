@@ -57,6 +57,7 @@ def _commands(w: Path) -> dict:
     (["optimize", "{disc}", "--rhs", "x + exp(1000)", "-o", "{out}"], "'exp(1000)' is not finite"),
     (["move", "{disc}", "--map", "x*(1/0); y", "-o", "{out}.msh"], "'1/0' is not finite"),
     (["move", "{disc}", "--map", "x/0; y", "-o", "{out}.msh"], "value of 'x/0' is not finite"),
+    (["optimize", "{disc}", "--rhs", "x + z", "-o", "{out}"], "z is not defined for a planar mesh"),
 ])
 def test_expression_errors_are_one_line_naming_the_expression(work, capsys, argv, shown):
     argv = [a.format(disc=work / "disc.msh", out=work / "out") for a in argv]

@@ -195,3 +195,40 @@ def test_fuzz_only_expression_errors_or_finite_values(text):
         return
     assert np.isfinite(v).all() and np.isfinite(g).all()
     np.testing.assert_array_equal(expr(X), v)
+
+
+# (text, value(x, y, z), gradient(x, y, z)) written out by hand with numpy
+BATTERY_3D = [
+    ("z", lambda x, y, z: z, lambda x, y, z: (0 * x, 0 * x, 1 + 0 * x)),
+    ("x3*x - y", lambda x, y, z: z * x - y, lambda x, y, z: (z, -1 + 0 * x, x)),
+    ("sin(x*z) + y**2", lambda x, y, z: np.sin(x * z) + y**2,
+     lambda x, y, z: (z * np.cos(x * z), 2 * y, x * np.cos(x * z))),
+    ("x + y", lambda x, y, z: x + y, lambda x, y, z: (1 + 0 * x, 1 + 0 * x, 0 * x)),
+]
+
+
+@pytest.mark.parametrize("text,f,g", BATTERY_3D)
+def test_values_and_exact_gradients_in_3d(text, f, g, rng):
+    X = rng.uniform(-1.0, 1.0, (40, 3))
+    r = parse_expression(text)
+    x, y, z = X.T
+    np.testing.assert_allclose(r(X), f(x, y, z), rtol=1e-14, atol=1e-14)
+    v, grad = r.value_and_gradient(X)
+    assert grad.shape == (40, 3)
+    np.testing.assert_allclose(grad, np.column_stack(g(x, y, z)), rtol=1e-13, atol=1e-14)
+    np.testing.assert_array_equal(v, r(X))
+
+
+def test_z_on_planar_points_is_an_expression_error():
+    r = parse_expression("x + z")
+    assert r.uses_z and not parse_expression("x*y").uses_z
+    for call in (r, r.gradient, r.value_and_gradient):
+        with pytest.raises(ExpressionError, match="z is not defined for a planar mesh"):
+            call(np.zeros((3, 2)))
+    # 2D expressions keep (M, 2) gradients
+    assert parse_expression("x*y").gradient(np.ones((4, 2))).shape == (4, 2)
+
+
+def test_nonfinite_value_in_3d_names_the_point():
+    with pytest.raises(ExpressionError, match=r"\(x, y, z\) = \(0, 1, 0\)"):
+        parse_expression("1/z")(np.array([[0.0, 1.0, 0.0]]))

@@ -69,7 +69,7 @@ def test_mutated_pipelines_raise_only_meshopt_errors(tmp_path, valid_texts, suff
     _load(path)
 
 
-@pytest.mark.parametrize("rhs", ["1/0", "log(-1)", "x + q", "x +"])
+@pytest.mark.parametrize("rhs", ["1/0", "log(-1)", "x + q", "x +", "x + z"])
 def test_bad_rhs_is_refused_when_the_pipeline_is_checked(rhs):
     bad = {"filters": [{"name": "apply_coord_shape_optimization", "params": {"rhs": rhs}}]}
     with pytest.raises(FilterError, match="rhs"):

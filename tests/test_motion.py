@@ -841,7 +841,8 @@ def test_move_cli_errors_are_one_line(annulus, tmp_path, capsys):
                             (["--map", "x; y +"], "--map 'x; y +': invalid syntax"),
                             (["--map", "x; q"], "--map 'x; q': unknown name 'q'"),
                             (["--map", "x; y", "--where", "x <"], "--where 'x <'"),
-                            (["--map", "x; y", "--where", "z < 1"], "--where 'z < 1': unknown"),
+                            (["--map", "x; y", "--where", "z < 1"],
+                             "--where 'z < 1': 'z': z is not defined for a planar mesh"),
                             (["--map", "x; y", "--frames", "1"], "--frames")):
         assert main(["move", str(src), "-o", str(tmp_path / "o.msh"), *extra]) == 1
         err = capsys.readouterr().err.strip().splitlines()

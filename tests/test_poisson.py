@@ -296,8 +296,10 @@ def test_errors():
         J.derivative(np.full_like(Q, np.nan))
     with pytest.raises(MeshoptError, match="shape"):
         J.value(Q[:-1])
-    with pytest.raises(ExpressionError, match="unknown name 'z'"):
+    with pytest.raises(ExpressionError, match="z is not defined for a planar mesh"):
         PoissonObjective(mesh, "z + 1")
+    with pytest.raises(ExpressionError, match="unknown name 'w'"):
+        PoissonObjective(mesh, "w + 1")
     with pytest.raises(ExpressionError, match="not finite"):
         PoissonObjective(mesh, "log(x - 0.5)").value(mesh.points)
     with pytest.raises(ExpressionError, match="shape"):

@@ -266,14 +266,16 @@ def check_output_target(out: Path, src: Path, frames: int | None, force: bool,
     check_output_dir(out, force=force)
 
 
-def load_workpiece(src: Path, what: str, *, unit_size: bool = True):
+def load_workpiece(src: Path, what: str, *, unit_size: bool = True, cells=None):
     """The file's :class:`~meshopt_toolkit.io.workpiece.Workpiece` (every block, tag and
     datum kept; the plane's coordinates at unit size), its mesh checked admissible for
-    ``what``. ``unit_size=False`` keeps the file's scale."""
+    ``what``. ``unit_size=False`` keeps the file's scale; ``cells``: the file's
+    :class:`~meshopt_toolkit.io.cells.CellMesh` when already read."""
     from ..io import load_cells
     from ..io.workpiece import Workpiece
 
-    return Workpiece.from_cells(load_cells(src), unit_size=unit_size).admissible(what)
+    cells = load_cells(src) if cells is None else cells
+    return Workpiece.from_cells(cells, unit_size=unit_size).admissible(what)
 
 
 def save_moved(wp, mesh, path: Path, *, force: bool = True, what: str = "the result",

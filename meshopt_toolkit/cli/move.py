@@ -14,6 +14,11 @@ two nearest its size, see :mod:`meshopt_toolkit.io.workpiece`; ``--map`` and ``-
 stay in the file's units and the plane's coordinates) and is scaled back, so coordinates
 near 1e300 or 1e-300 work; the summary's numbers are those of the unit-size problem,
 with the factor as ``unit_scale``.
+
+A file of tetrahedra moves in 3D (:mod:`._move_tets`): ``--targets`` rows
+``index,x,y,z`` (.npy k × 4), ``--map "X_EXPR; Y_EXPR; Z_EXPR"`` in ``x, y, z``, the
+candidates the boundary vertices or a physical group's nodes; the file is written back
+with only its points replaced.
 """
 
 from __future__ import annotations
@@ -42,16 +47,20 @@ def add_args(p: argparse.ArgumentParser) -> None:
         "      --map 'x*cos(pi/2) - y*sin(pi/2); x*sin(pi/2) + y*cos(pi/2)'\n"
         "  meshopt move mesh.msh --targets handles.csv --frames 9 -o motion/\n"
         "  meshopt move part.msh -o moved.msh --group hole --map 'x + 0.1; y'\n"
+        "  meshopt move box.msh -o turned.msh --where 'x**2 + y**2 + z**2 < 0.2' \\\n"
+        "      --map 'x*cos(pi/4) - y*sin(pi/4); x*sin(pi/4) + y*cos(pi/4); z'\n"
         "Use 'meshopt deform' instead to follow an initial velocity (a geodesic) rather than\n"
         "to reach prescribed positions."
     )
-    p.add_argument("mesh", help="input mesh (admissible, planar)")
+    p.add_argument("mesh", help="input mesh (admissible; planar triangles or tetrahedra)")
     p.add_argument("-o", "--output", required=True,
                    help="output mesh file, or a directory with --frames")
     src = p.add_mutually_exclusive_group(required=True)
-    src.add_argument("--targets", metavar="FILE", help="CSV 'index,x,y' rows or .npy (k, 3)")
+    src.add_argument("--targets", metavar="FILE", help="CSV 'index,x,y' rows or .npy (k, 3); "
+                     "'index,x,y,z' or (k, 4) for tetrahedra")
     src.add_argument("--map", metavar="'X_EXPR; Y_EXPR'",
-                     help="new positions of the selected boundary vertices, in x and y")
+                     help="new positions of the selected boundary vertices, in x and y "
+                          "('X_EXPR; Y_EXPR; Z_EXPR' in x, y, z for tetrahedra)")
     p.add_argument("--where", metavar="EXPR",
                    help="with --map: which boundary vertices move, e.g. 'x < 0.5' "
                         "(default: all; the others stay fixed)")
@@ -77,17 +86,23 @@ def _check_numbers(args: argparse.Namespace) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from ..io import load_cells
     from ..motion.move import move
     from ..motion.targets import handles_of
     from ..progress import ProgressBar
+    from ._info_cells import TETS, cell_kind
+    from ._move_tets import run_tets
 
     _check_numbers(args)
     src = Path(args.mesh)
     out = Path(args.output)
     frames = args.frames
     check_output_target(out, src, frames, args.force, frame_format=args.format)
+    cells = load_cells(src)
+    if cell_kind(cells) == TETS:  # handles in x, y, z; the file written back, new points
+        return run_tets(args, cells)
     # the plane's coordinates at unit size; every block, tag and datum written back
-    wp = load_workpiece(src, "move")
+    wp = load_workpiece(src, "move", cells=cells)
     mesh = wp.mesh
     # handles and targets in the file's units
     handles, targets = handles_of(wp.user_mesh, targets=args.targets, mapping=args.map,

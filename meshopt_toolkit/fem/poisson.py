@@ -60,6 +60,8 @@ def _resolve_rhs(rhs, rhs_gradient, scale: float) -> tuple[str, RhsFunction, Rhs
     """(description, r, ∇r) for the accepted forms of ``rhs``."""
     if isinstance(rhs, str):
         expr = parse_expression(DEFAULT_RHS if rhs == "default" else rhs)
+        if expr.uses_z:
+            raise ExpressionError(f"right-hand side {rhs!r}: z is not defined for a planar mesh")
         rhs = expr
     if isinstance(rhs, Real) and not isinstance(rhs, bool):
         c = float(rhs)

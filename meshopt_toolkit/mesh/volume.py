@@ -136,6 +136,29 @@ class TetMesh:
                        line_tags=self._line_tags, tag_names=self._tag_names,
                        source=self._source)
 
+    def tagged_vertices(self, tag: int | str) -> IntArray:
+        """Sorted vertices of the elements carrying a physical tag (a number: lines,
+        triangles and tets with it) or name (the elements of its dimension only).
+
+        Raises
+        ------
+        InvalidMeshError
+            No group of that name, or no element carries the tag.
+        """
+        dims = (1, 2, 3)
+        if isinstance(tag, str):
+            if tag not in self._tag_names:
+                raise InvalidMeshError(
+                    f"no physical group named {tag!r}; known: {sorted(self._tag_names)}")
+            tag, dim = self._tag_names[tag]
+            dims = (dim,)
+        parts = [cells[tags == tag].ravel() for d, cells, tags in (
+            (1, self._lines, self._line_tags), (2, self._triangles, self._triangle_tags),
+            (3, self._tets, self._tet_tags)) if d in dims and tags is not None]
+        if not sum(len(p) for p in parts):
+            raise InvalidMeshError(f"no element carries physical tag {tag}")
+        return np.unique(np.concatenate(parts))
+
     # -- topology (cached) ----------------------------------------------------------
     @cached_property
     def _face_data(self) -> tuple[IntArray, IntArray]:

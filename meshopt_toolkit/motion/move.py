@@ -23,7 +23,7 @@ from ..cores import thread_budget
 from ..errors import InvalidMeshError, OptionError
 from ..kernels.admissibility import BoundaryCheck, area_problem, target_loop_problem
 from ..kernels.triangles import aspect_ratios, inverse_shape_quality
-from ..mesh import PlanarMesh, require_admissible
+from ..mesh import PlanarMesh, TetMesh, require_admissible
 from ..riemannian.discrete_geodesic import discrete_geodesic
 from ..riemannian.path_options import LevenbergMarquardtOptions
 from .continuation import RELAX_CG_RTOL, NoAdmissiblePathError, continuation_path
@@ -31,6 +31,7 @@ from .frame_blocks import FrameBlocks
 from .graph_metric import GraphMetric
 from .similarity import HandlePath, Similarity, fit_similarity, handle_groups
 from .strain import TriangleDistortion
+from .tet_move import move_tet_mesh
 
 __all__ = ["MoveResult", "move", "NoAdmissiblePathError"]
 
@@ -178,6 +179,24 @@ def _frame_quality(points: FloatArray, triangles: IntArray) -> tuple[float, floa
         inverse_shape_quality(points, triangles).mean())
 
 
+def _check_options(frames, steps, relax_iter, quality_rounds, max_splits, weight) -> None:
+    """:class:`OptionError` for an option out of range (see :func:`move`)."""
+    if frames is not None and int(frames) < 2:
+        raise OptionError(f"frames must be at least 2 (the input and the result), got {frames}")
+    for name, value in (("steps", steps), ("relax_iter", relax_iter),
+                        ("quality_rounds", quality_rounds)):
+        if value is not None and int(value) < 1:
+            raise OptionError(f"{name} must be at least 1, got {value}")
+    if int(max_splits) < 0:
+        raise OptionError(f"max_splits must be at least 0, got {max_splits}")
+    if not weight > 0:
+        raise OptionError(f"weight must be > 0, got {weight}")
+
+
+#: the solver of each other kind of mesh (a PlanarMesh is moved by :func:`move` itself)
+_SOLVERS: dict[type, Callable] = {TetMesh: move_tet_mesh}
+
+
 def move(
     mesh: PlanarMesh,
     handles,
@@ -187,7 +206,7 @@ def move(
     steps: int = 4,
     weight: float = 1.0,
     relax_iter: int = 15,
-    quality_rounds: int = 6,
+    quality_rounds: int | None = None,
     finish_frames: bool = True,
     max_splits: int = 12,
     progress: Callable[[float], None] | None = None,
@@ -196,8 +215,10 @@ def move(
 
     Parameters
     ----------
-    mesh : PlanarMesh
-        An admissible mesh.
+    mesh : PlanarMesh or TetMesh
+        An admissible mesh. A :class:`~meshopt_toolkit.mesh.TetMesh` is moved by
+        :func:`~meshopt_toolkit.motion.tet_move.move_tet_mesh` (targets ``(k, 3)``, no
+        callable path, ``finish_frames`` unused), which returns a ``TetMeshMoveResult``.
     handles : (k,) int array
         Vertex indices (any vertices; typically the boundary). Duplicates must agree.
     targets : (k, 2) float array, or callable ``t -> (k, 2)``
@@ -215,11 +236,11 @@ def move(
         ``w`` of the metric ``M + w² JᵀJ``; larger keeps triangle shapes more rigidly.
     relax_iter : int
         Levenberg–Marquardt iterations of each relaxation.
-    quality_rounds : int
-        Rounds of the final quality step (handles fixed): least squares of the distortion
-        from equilateral triangles, each round weighting the triangles that stay the worst
-        more (towards a fit of the worst triangle); the round with the best minimum aspect
-        ratio is kept.
+    quality_rounds : int, optional
+        Default 6 (4 for a TetMesh). Rounds of the final quality step (handles fixed):
+        least squares of the distortion from equilateral triangles, each round weighting the
+        triangles that stay the worst more (towards a fit of the worst triangle); the round
+        with the best minimum aspect ratio is kept.
     finish_frames : bool
         With ``frames``: give every intermediate frame the same quality step (handles
         fixed where they are at that time). The continuation's own frames are admissible
@@ -242,16 +263,15 @@ def move(
         No admissible interior found after a bounded effort.
     """
     t_start = time.perf_counter()
-    if frames is not None and int(frames) < 2:
-        raise OptionError(f"frames must be at least 2 (the input and the result), got {frames}")
-    for name, value in (("steps", steps), ("relax_iter", relax_iter),
-                        ("quality_rounds", quality_rounds)):
-        if int(value) < 1:
-            raise OptionError(f"{name} must be at least 1, got {value}")
-    if int(max_splits) < 0:
-        raise OptionError(f"max_splits must be at least 0, got {max_splits}")
-    if not weight > 0:
-        raise OptionError(f"weight must be > 0, got {weight}")
+    solver = _SOLVERS.get(type(mesh))
+    if solver is not None:  # another kind of mesh: its own solver, the same options
+        _check_options(frames, steps, relax_iter, quality_rounds, max_splits, weight)
+        rounds = {} if quality_rounds is None else {"quality_rounds": quality_rounds}
+        return solver(mesh, handles, targets, frames=frames, steps=steps, weight=weight,
+                      relax_iter=relax_iter, max_splits=max_splits, progress=progress,
+                      **rounds)
+    quality_rounds = 6 if quality_rounds is None else quality_rounds
+    _check_options(frames, steps, relax_iter, quality_rounds, max_splits, weight)
     mesh = require_admissible(mesh, "move")
     P = mesh.points
     tri = mesh.triangles

@@ -1,10 +1,12 @@
 """Handle targets from files or expressions, for ``meshopt move`` and the move filter.
 
 - a table: CSV rows ``index,x,y`` (a header line is allowed) or a ``.npy`` array (k, 3);
-  :func:`fix_boundary` adds the boundary vertices the table does not list as handles that
-  stay where they are (``--free-boundary`` leaves them free instead);
+  for a tetrahedral mesh rows ``index,x,y,z`` or (k, 4); :func:`fix_boundary` adds the
+  boundary vertices the table does not list as handles that stay where they are
+  (``--free-boundary`` leaves them free instead);
 - a map: ``"X_EXPR; Y_EXPR"``, the new position of each selected vertex as two
-  expressions in its ``x, y`` (the whitelisted evaluator of :mod:`..expressions`). The
+  expressions in its ``x, y`` (the whitelisted evaluator of :mod:`..expressions`); for a
+  tetrahedral mesh ``"X_EXPR; Y_EXPR; Z_EXPR"`` in ``x, y, z``. The
   candidates are the boundary vertices, or the nodes of a physical group
   (:func:`group_vertices`); the map applies where ``WHERE`` holds (default: every
   candidate) and the other boundary vertices are handles that stay where they are.
@@ -22,15 +24,30 @@ import numpy as np
 from .._typing import FloatArray, IntArray
 from ..errors import ExpressionError, InvalidMeshError, ReadError
 from ..expressions import parse_expression, quoted
-from ..mesh import PlanarMesh
+from ..mesh import PlanarMesh, TetMesh
 
 _COMPARE = {ast.Lt: np.less, ast.LtE: np.less_equal, ast.Gt: np.greater,
             ast.GtE: np.greater_equal}
 MAX_TABLE_BYTES = 512 * 2**20
+_ROW = {2: "index,x,y", 3: "index,x,y,z"}
+_MAP = {2: "X_EXPR; Y_EXPR", 3: "X_EXPR; Y_EXPR; Z_EXPR"}
 
 
-def read_target_table(path: str | Path) -> tuple[IntArray, FloatArray]:
-    """Handles and targets from a CSV (``index,x,y``) or ``.npy`` (k, 3) file."""
+def _dim(mesh) -> int:
+    """2 for a planar mesh, 3 for a tetrahedral one (its points' columns)."""
+    return int(mesh.points.shape[1])
+
+
+def _boundary(mesh) -> IntArray:
+    """The boundary vertices: of the boundary edges (planar) or faces (tetrahedral)."""
+    if _dim(mesh) == 2:
+        return np.unique(mesh.boundary_edges)
+    return np.asarray(mesh.boundary_vertices)
+
+
+def read_target_table(path: str | Path, dim: int = 2) -> tuple[IntArray, FloatArray]:
+    """Handles and targets from a CSV (``index,x,y``) or ``.npy`` (k, 3) file; with
+    ``dim=3`` rows ``index,x,y,z`` or (k, 4)."""
     path = Path(path)
     if not path.is_file():
         raise ReadError(f"{path}: not a regular file")
@@ -48,8 +65,9 @@ def read_target_table(path: str | Path) -> tuple[IntArray, FloatArray]:
     except (ValueError, OSError) as exc:
         raise ReadError(f"{path}: cannot read targets: {exc}") from None
     table = np.asarray(table, dtype=float)
-    if table.ndim != 2 or table.shape[1] != 3 or len(table) == 0:
-        raise ReadError(f"{path}: expected rows 'index,x,y' (k × 3), got shape {table.shape}")
+    if table.ndim != 2 or table.shape[1] != dim + 1 or len(table) == 0:
+        raise ReadError(f"{path}: expected rows '{_ROW[dim]}' (k × {dim + 1}), got shape "
+                        f"{table.shape}")
     index = table[:, 0]
     if not np.all(np.isfinite(index)) or np.any(index != np.round(index)):
         raise ReadError(f"{path}: the first column must hold vertex indices (integers)")
@@ -105,7 +123,7 @@ def _condition(text: str, X: FloatArray) -> np.ndarray:
         raise _naming("--where", text, exc) from None
 
 
-def fix_boundary(mesh: PlanarMesh, handles: IntArray, targets: FloatArray
+def fix_boundary(mesh: PlanarMesh | TetMesh, handles: IntArray, targets: FloatArray
                  ) -> tuple[IntArray, FloatArray]:
     """``handles``/``targets`` plus every boundary vertex they do not list, kept in place.
 
@@ -115,13 +133,12 @@ def fix_boundary(mesh: PlanarMesh, handles: IntArray, targets: FloatArray
     """
     handles = np.asarray(handles, dtype=np.int64)
     targets = np.asarray(targets, dtype=float)
-    boundary = np.unique(mesh.boundary_edges)
-    kept = np.setdiff1d(boundary, handles)
+    kept = np.setdiff1d(_boundary(mesh), handles)
     return (np.concatenate([handles, kept]),
-            np.concatenate([targets.reshape(-1, 2), mesh.points[kept]]))
+            np.concatenate([targets.reshape(-1, _dim(mesh)), mesh.points[kept]]))
 
 
-def group_vertices(mesh: PlanarMesh, group: str, option: str = "--group") -> IntArray:
+def group_vertices(mesh: PlanarMesh | TetMesh, group: str, option: str = "--group") -> IntArray:
     """The vertices of the physical group ``group``: its name, or its number as digits.
 
     Raises
@@ -139,16 +156,16 @@ def group_vertices(mesh: PlanarMesh, group: str, option: str = "--group") -> Int
                                f"group; {_groups(mesh)}") from None
 
 
-def _source(mesh: PlanarMesh) -> str:
+def _source(mesh: PlanarMesh | TetMesh) -> str:
     source = getattr(mesh, "source", None)
     return f"{source} has " if source else "the mesh has "
 
 
-def _groups(mesh: PlanarMesh) -> str:
+def _groups(mesh: PlanarMesh | TetMesh) -> str:
     """``"it has: hole (5), rim (6)"``: the named physical groups, then unnamed numbers."""
     names = mesh.tag_names
     used = set()
-    for tags in (mesh.line_tags, mesh.triangle_tags):
+    for tags in (mesh.line_tags, mesh.triangle_tags, getattr(mesh, "tet_tags", None)):
         if tags is not None:
             used.update(int(v) for v in np.unique(tags))
     shown = [f"{name} ({tag})" for name, (tag, _dim) in sorted(names.items())]
@@ -157,16 +174,17 @@ def _groups(mesh: PlanarMesh) -> str:
     return f"it has: {', '.join(shown)}" if shown else "it has no physical groups"
 
 
-def targets_from_map(mesh: PlanarMesh, mapping: str, where: str | None = None, *,
+def targets_from_map(mesh: PlanarMesh | TetMesh, mapping: str, where: str | None = None, *,
                      vertices: IntArray | None = None) -> tuple[IntArray, FloatArray]:
     """Handles and targets from ``"X_EXPR; Y_EXPR"``.
 
     Parameters
     ----------
-    mesh : PlanarMesh
+    mesh : PlanarMesh or TetMesh
         In the units the expressions are written in.
     mapping : str
-        The new position of each selected vertex, ``"X_EXPR; Y_EXPR"`` in its ``x, y``.
+        The new position of each selected vertex, ``"X_EXPR; Y_EXPR"`` in its ``x, y``
+        (a TetMesh: ``"X_EXPR; Y_EXPR; Z_EXPR"`` in ``x, y, z``).
     where : str, optional
         Which candidates move (default: all of them).
     vertices : (k,) int array, optional
@@ -179,16 +197,20 @@ def targets_from_map(mesh: PlanarMesh, mapping: str, where: str | None = None, *
         The candidates and every boundary vertex: the selected candidates at their mapped
         positions, the others where they are.
     """
+    dim = _dim(mesh)
     parts = [p for p in mapping.split(";")]
-    if len(parts) != 2 or not all(p.strip() for p in parts):
-        raise ExpressionError(f"--map {quoted(mapping)}: expected two expressions 'X_EXPR; Y_EXPR'")
+    if len(parts) != dim or not all(p.strip() for p in parts):
+        raise ExpressionError(f"--map {quoted(mapping)}: expected {('two', 'three')[dim - 2]} "
+                              f"expressions '{_MAP[dim]}'")
     try:
-        fx, fy = (parse_expression(p.strip()) for p in parts)
+        fs = [parse_expression(p.strip()) for p in parts]
     except ExpressionError as exc:
         raise _naming("--map", mapping, exc) from None
     except (ZeroDivisionError, OverflowError, ValueError) as exc:
         raise ExpressionError(f"--map {quoted(mapping)}: {exc}") from None
-    boundary = np.unique(mesh.boundary_edges)
+    if dim == 2 and any(f.uses_z for f in fs):
+        raise ExpressionError(f"--map {quoted(mapping)}: z is not defined for a planar mesh")
+    boundary = _boundary(mesh)
     candidates = boundary if vertices is None else np.unique(np.asarray(vertices, np.int64))
     handles = np.union1d(boundary, candidates)
     X = mesh.points[handles]
@@ -201,8 +223,8 @@ def targets_from_map(mesh: PlanarMesh, mapping: str, where: str | None = None, *
     targets = X.copy()
     with np.errstate(all="raise"):
         try:
-            targets[selected, 0] = fx(X[selected])
-            targets[selected, 1] = fy(X[selected])
+            for k, f in enumerate(fs):
+                targets[selected, k] = f(X[selected])
         except (FloatingPointError, ZeroDivisionError, OverflowError) as exc:
             raise ExpressionError(f"--map {quoted(mapping)}: {exc}") from None
     if not np.isfinite(targets).all():
@@ -210,7 +232,7 @@ def targets_from_map(mesh: PlanarMesh, mapping: str, where: str | None = None, *
     return handles, targets
 
 
-def handles_of(mesh: PlanarMesh, *, targets: str | Path | None = None,
+def handles_of(mesh: PlanarMesh | TetMesh, *, targets: str | Path | None = None,
                mapping: str | None = None, where: str | None = None,
                group: str | None = None, free_boundary: bool = False
                ) -> tuple[IntArray, FloatArray]:
@@ -218,11 +240,12 @@ def handles_of(mesh: PlanarMesh, *, targets: str | Path | None = None,
 
     Parameters
     ----------
-    mesh : PlanarMesh
+    mesh : PlanarMesh or TetMesh
         In the units of the table and the expressions.
     targets : path, optional
-        A table (:func:`read_target_table`); the boundary vertices it does not list stay
-        where they are (:func:`fix_boundary`) unless ``free_boundary``.
+        A table (:func:`read_target_table`, rows ``index,x,y,z`` for a TetMesh); the
+        boundary vertices it does not list stay where they are (:func:`fix_boundary`)
+        unless ``free_boundary``.
     mapping, where : str, optional
         Used when ``targets`` is None (:func:`targets_from_map`).
     group : str, optional
@@ -232,9 +255,9 @@ def handles_of(mesh: PlanarMesh, *, targets: str | Path | None = None,
         With ``targets``: leave the unlisted boundary vertices free.
     """
     if targets is not None:
-        handles, positions = read_target_table(targets)
+        handles, positions = read_target_table(targets, _dim(mesh))
         return (handles, positions) if free_boundary else fix_boundary(mesh, handles, positions)
     if mapping is None:
-        raise ExpressionError("give a target table or a map 'X_EXPR; Y_EXPR'")
+        raise ExpressionError(f"give a target table or a map '{_MAP[_dim(mesh)]}'")
     vertices = None if group is None else group_vertices(mesh, group)
     return targets_from_map(mesh, mapping, where, vertices=vertices)

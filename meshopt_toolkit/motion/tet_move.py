@@ -15,6 +15,7 @@ with the handles fixed then fits the distortion from regular tets, pressing on t
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -23,6 +24,7 @@ from .._typing import FloatArray, IntArray
 from ..errors import InvalidMeshError
 from ..kernels.tetrahedra import mean_ratios as tet_mean_ratios
 from ..kernels.tetrahedra import signed_volumes as tet_signed_volumes
+from ..mesh import TetMesh
 from .continuation import NoAdmissiblePathError
 from .similarity_3d import (HandlePath3, Similarity3, fit_similarity_3d, handle_groups_3d,
                             tet_boundary_faces)
@@ -30,7 +32,7 @@ from .tet_distortion import SQRT3, TetDistortion
 from .tet_least_squares import Problem, extend, minimize
 from .tet_metric import tet_lumped_mass
 
-__all__ = ["TetMoveResult", "move_tets"]
+__all__ = ["TetMeshMoveResult", "TetMoveResult", "move_tet_mesh", "move_tets"]
 
 # A step's relaxation stops when its gradient fell by this factor (the frames need only be
 # admissible and near the minimizing movement; the finish does the rest).
@@ -254,3 +256,88 @@ def _continuation(problem: Problem, P: FloatArray, h: IntArray, path: HandlePath
             Q, s_now = res.points, s_try
         frames.append(Q.copy())
     return frames, {"continuation_splits": splits, "step_iterations": nit}
+
+
+@dataclass
+class TetMeshMoveResult:
+    """What :func:`meshopt_toolkit.move` returns for a :class:`~meshopt_toolkit.mesh.TetMesh`
+    (the :class:`~meshopt_toolkit.results.Result` protocol).
+
+    Attributes
+    ----------
+    mesh : TetMesh
+        The moved mesh (same tets, tags and names), handles bitwise at their targets.
+    frames : list of TetMesh
+        The motion (first = input, last = ``mesh``): ``frames`` meshes when asked for,
+        else the input and ``mesh``.
+    motion : TetMoveResult
+        The solver's result (per-frame ``min η``, similarity, strain bound; its points
+        are those of the vertices in some tet, in order).
+    """
+
+    mesh: TetMesh
+    frames: list[TetMesh]
+    motion: TetMoveResult
+
+    points = property(lambda self: self.mesh.points, doc="The moved points ``(N, 3)``.")
+    seconds = property(lambda self: self.motion.seconds, doc="Wall time.")
+    strain_bound = property(lambda self: self.motion.strain_bound, doc="See TetMoveResult.")
+    min_mean_ratio = property(lambda self: self.motion.min_mean_ratio,
+                              doc="``min η`` per returned frame.")
+
+    @property
+    def status(self) -> str:
+        """``"done"``: a returned motion always reached its targets (else it raises)."""
+        return "done"
+
+    def summary(self) -> dict:
+        return {"status": self.status, **self.motion.summary()}
+
+
+def move_tet_mesh(mesh: TetMesh, handles, targets, *, frames: int | None = None,
+                  steps: int = 4, weight: float = 1.0, relax_iter: int = 15,
+                  quality_rounds: int = 4, max_splits: int = 12,
+                  progress: Callable[[float], None] | None = None) -> TetMeshMoveResult:
+    """:func:`move_tets` on a :class:`TetMesh`: the moved mesh and frames keep its tets,
+    tags and names (``mt.move`` calls this for a TetMesh).
+
+    Raises
+    ------
+    NotAdmissibleError
+        The mesh has inverted or flat tets (their count).
+    InvalidMeshError, NoAdmissiblePathError
+        As :func:`move_tets`.
+    """
+    mesh.require_admissible()
+    if progress is not None:
+        progress(0.0)
+    P = mesh.points
+    h = np.asarray(handles)
+    tg = np.asarray(targets, dtype=float)
+    if h.ndim != 1 or h.size == 0 or not np.issubdtype(h.dtype, np.integer):
+        raise InvalidMeshError("handles must be a non-empty 1-D array of vertex indices")
+    if h.min() < 0 or h.max() >= len(P):
+        raise InvalidMeshError(f"a handle index is out of range (the mesh has {len(P)} vertices)")
+    if tg.shape != (h.size, 3):
+        raise InvalidMeshError(f"targets must have shape ({h.size}, 3), got {tg.shape}")
+    # vertices in no tet (a file may hold some) are left out of the solve and stay put
+    used = np.unique(mesh.tets)
+    local = np.full(len(P), -1, np.int64)
+    local[used] = np.arange(len(used))
+    keep = local[h] >= 0
+    res = move_tets(P[used], local[mesh.tets], local[h[keep]], tg[keep], steps=steps,
+                    frames=frames, weight=weight, relax_iter=relax_iter,
+                    quality_rounds=quality_rounds, max_splits=max_splits)
+
+    def full(Q: FloatArray) -> FloatArray:
+        out = np.array(P)
+        out[used] = Q
+        out[h[~keep]] = tg[~keep]
+        return out
+
+    moved = mesh.with_points(full(res.points))
+    out = ([mesh.with_points(full(F)) for F in res.frames[:-1]] + [moved]
+           if frames is not None else [mesh, moved])
+    if progress is not None:
+        progress(1.0)
+    return TetMeshMoveResult(mesh=moved, frames=out, motion=res)

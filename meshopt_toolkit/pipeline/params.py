@@ -336,7 +336,8 @@ class ExpressionParam(StringParam):
 
         value = super().validate(value, filter_name)
         try:
-            parse_expression(value)
+            if parse_expression(value).uses_z:  # the filters' meshes are planar
+                raise ExpressionError("z is not defined for a planar mesh")
         except ExpressionError as exc:
             message = str(exc) if repr(value) in str(exc) else f"{value!r}: {exc}"
             raise self._error(filter_name, message) from None
