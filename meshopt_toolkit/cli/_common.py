@@ -197,13 +197,7 @@ def check_output_dir(out: Path, *, force: bool, names: Iterable[str] | None = No
         raise WriteError(f"{out}: exists and is not a directory (a directory is written)")
     if out.is_dir():
         if not force:
-            if names is None:
-                if any(out.iterdir()):
-                    raise WriteError(f"{out}: directory is not empty (use --force to overwrite)")
-            else:
-                clash = [n for n in names if (out / n).exists()]
-                if clash:
-                    raise WriteError(f"{out / clash[0]}: exists (use --force to overwrite)")
+            _refuse_outputs_in(out, names)
         check_writable(out, out)
         return out
     if out.suffix.lower() in MESH_SUFFIXES:
@@ -216,6 +210,17 @@ def check_output_dir(out: Path, *, force: bool, names: Iterable[str] | None = No
         raise WriteError(f"{out}: cannot write in {parent}: not a directory")
     check_writable(parent, out)
     return out
+
+
+def _refuse_outputs_in(out: Path, names: Iterable[str] | None) -> None:
+    """An existing directory must be empty, or (with ``names``) hold none of ``names``."""
+    if names is None:
+        if any(out.iterdir()):
+            raise WriteError(f"{out}: directory is not empty (use --force to overwrite)")
+        return
+    clash = [n for n in names if (out / n).exists()]
+    if clash:
+        raise WriteError(f"{out / clash[0]}: exists (use --force to overwrite)")
 
 
 def prepare_output_dir(out: Path, *, force: bool, names: Iterable[str] | None = None) -> Path:
@@ -234,13 +239,7 @@ def prepare_output_dir(out: Path, *, force: bool, names: Iterable[str] | None = 
     if out.exists() and not out.is_dir():
         raise WriteError(f"{out}: exists and is not a directory (a directory is written)")
     if out.is_dir() and not force:
-        if names is None:
-            if any(out.iterdir()):
-                raise WriteError(f"{out}: directory is not empty (use --force to overwrite)")
-        else:
-            clash = [n for n in names if (out / n).exists()]
-            if clash:
-                raise WriteError(f"{out / clash[0]}: exists (use --force to overwrite)")
+        _refuse_outputs_in(out, names)
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
