@@ -56,7 +56,8 @@ def add_args(p: argparse.ArgumentParser) -> None:
         "Use 'meshopt deform' instead to follow an initial velocity (a geodesic) rather than\n"
         "to reach prescribed positions."
     )
-    p.add_argument("mesh", help="input mesh (admissible; planar triangles or tetrahedra)")
+    p.add_argument("mesh", help="input mesh (admissible; planar triangles, tetrahedra or a "
+                   "triangle surface in 3D)")
     p.add_argument("-o", "--output", required=True,
                    help="output mesh file, or a directory with --frames")
     src = p.add_mutually_exclusive_group(required=True)
@@ -64,7 +65,8 @@ def add_args(p: argparse.ArgumentParser) -> None:
                      "'index,x,y,z' or (k, 4) for tetrahedra")
     src.add_argument("--map", metavar="'X_EXPR; Y_EXPR'",
                      help="new positions of the selected boundary vertices, in x and y "
-                          "('X_EXPR; Y_EXPR; Z_EXPR' in x, y, z for tetrahedra)")
+                          "('X_EXPR; Y_EXPR; Z_EXPR' in x, y, z for tetrahedra; for a "
+                          "3D surface any of its vertices)")
     p.add_argument("--where", metavar="EXPR",
                    help="with --map: which boundary vertices move, e.g. 'x < 0.5' "
                         "(default: all; the others stay fixed)")
