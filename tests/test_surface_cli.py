@@ -192,3 +192,28 @@ def test_cli_where_selecting_nothing_is_one_line(bar_file, tmp_path, capsys):
                  "--where", "x > 7"]) != 0
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "selects no vertex" in err[0] and not out.exists()
+
+
+def test_mt_move_keeps_a_pymeshlab_mesh_a_pymeshlab_mesh(bar):
+    import meshopt_toolkit as mt
+
+    pymeshlab = pytest.importorskip("pymeshlab")
+    m = pymeshlab.Mesh(vertex_matrix=np.array(bar.points),
+                       face_matrix=np.array(bar.triangles, dtype=np.int32))
+    h, t = handles_of(bar, mapping=TWIST, where=ENDS)
+    res = mt.move(m, h, t)
+    assert isinstance(res.mesh, pymeshlab.Mesh) and res.frames[0] is m
+    np.testing.assert_array_equal(res.mesh.face_matrix(), bar.triangles)
+    np.testing.assert_array_equal(res.mesh.vertex_matrix()[h], t)
+    np.testing.assert_array_equal(res.mesh.vertex_matrix(), mt.move(bar, h, t).mesh.points)
+
+
+def test_a_rigid_motion_of_the_handles_moves_the_whole_surface_rigidly(bar):
+    import meshopt_toolkit as mt
+
+    c, s = np.cos(0.7), np.sin(0.7)
+    R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    h = _ends(bar.points)
+    shift = np.array([0.3, -1.0, 2.0])
+    res = mt.move(bar, h, bar.points[h] @ R.T + shift)
+    np.testing.assert_allclose(res.mesh.points, bar.points @ R.T + shift, rtol=0, atol=1e-9)

@@ -199,9 +199,10 @@ _SOLVERS: dict[type, Callable] = {TetMesh: move_tet_mesh, SurfaceMesh: move_surf
 
 
 def _solver(mesh) -> Callable | None:
-    """The solver of ``mesh``'s type; a ``trimesh.Trimesh`` is moved as a surface."""
+    """The solver of ``mesh``'s type; a ``trimesh.Trimesh`` or ``pymeshlab.Mesh`` is moved
+    as a surface."""
     solver = _SOLVERS.get(type(mesh))
-    if solver is None and type(mesh).__module__.startswith("trimesh"):
+    if solver is None and type(mesh).__module__.split(".")[0] in ("trimesh", "pymeshlab"):
         return move_surface_mesh
     return solver
 
@@ -228,7 +229,8 @@ def move(
         An admissible mesh. A :class:`~meshopt_toolkit.mesh.TetMesh` is moved by
         :func:`~meshopt_toolkit.motion.tet_move.move_tet_mesh` (targets ``(k, 3)``, no
         callable path, ``finish_frames`` unused), which returns a ``TetMeshMoveResult``.
-        A :class:`~meshopt_toolkit.mesh.SurfaceMesh` or a ``trimesh.Trimesh`` is moved by
+        A :class:`~meshopt_toolkit.mesh.SurfaceMesh`, ``trimesh.Trimesh`` or
+        ``pymeshlab.Mesh`` is moved by
         :func:`~meshopt_toolkit.motion.surface_mesh_move.move_surface_mesh` (targets
         ``(k, 3)``; no boundary is kept unless its vertices are handles), which returns a
         ``SurfaceMeshMoveResult`` whose meshes are of the type given.

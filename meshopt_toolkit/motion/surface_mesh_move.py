@@ -1,5 +1,5 @@
 """``mt.move`` on triangle surfaces in 3D: :func:`move_surface` on a :class:`SurfaceMesh`
-(or a ``trimesh.Trimesh``), the moved mesh keeping its triangles, tags and names.
+(or a ``trimesh.Trimesh``, a ``pymeshlab.Mesh``), the moved mesh keeping its triangles, tags and names.
 
 A surface has no boundary to keep when it is closed: the handles are exactly the vertices
 given, every other vertex is free.
@@ -35,7 +35,7 @@ class SurfaceMeshMoveResult:
 
     Attributes
     ----------
-    mesh : SurfaceMesh or trimesh.Trimesh
+    mesh : SurfaceMesh, trimesh.Trimesh or pymeshlab.Mesh
         The moved surface, of the type given (same triangles and tags), handles bitwise at
         their targets.
     frames : list of the same type
@@ -72,13 +72,24 @@ def _distinct(h: np.ndarray, tg: FloatArray) -> tuple[np.ndarray, FloatArray]:
     return hs[keep], ts[keep]
 
 
+def _kind(mesh) -> str:
+    """``"surface"``, ``"trimesh"`` or ``"pymeshlab"`` (:class:`InvalidMeshError` else)."""
+    if isinstance(mesh, SurfaceMesh):
+        return "surface"
+    for package in ("trimesh", "pymeshlab"):
+        if type(mesh).__module__.split(".")[0] == package:
+            return package
+    raise InvalidMeshError(f"cannot move a {type(mesh).__name__} as a surface")
+
+
 def move_surface_mesh(mesh, handles, targets, *, frames: int | None = None, steps: int = 4,
                       weight: float = 1.0, relax_iter: int = 15, max_splits: int = 8,
                       quality_rounds: int | None = None,
                       progress: Callable[[float], None] | None = None
                       ) -> SurfaceMeshMoveResult:
-    """:func:`move_surface` on a :class:`SurfaceMesh` or a ``trimesh.Trimesh`` (what
-    ``mt.move`` calls for one); the result's meshes are of the type given.
+    """:func:`move_surface` on a :class:`SurfaceMesh`, a ``trimesh.Trimesh`` or a
+    ``pymeshlab.Mesh`` (what ``mt.move`` calls for one); the result's meshes are of the
+    type given (vertices and faces only for a ``pymeshlab.Mesh``).
 
     ``steps`` and ``weight`` are those of :func:`move_surface`, ``max_splits`` its
     ``max_halvings``; ``relax_iter`` and ``quality_rounds`` (options of the planar and tet
@@ -93,11 +104,15 @@ def move_surface_mesh(mesh, handles, targets, *, frames: int | None = None, step
         No fold-free increment of the handles' path.
     """
     del relax_iter, quality_rounds  # options of the other solvers
-    as_trimesh = not isinstance(mesh, SurfaceMesh)
-    if as_trimesh:
+    kind = _kind(mesh)
+    if kind == "trimesh":
         from ..conversions import surface_from_trimesh
 
         surface = surface_from_trimesh(mesh)
+    elif kind == "pymeshlab":
+        from ..conversions import surface_from_pymeshlab
+
+        surface = surface_from_pymeshlab(mesh)
     else:
         surface = mesh
     if progress is not None:
@@ -128,11 +143,16 @@ def move_surface_mesh(mesh, handles, targets, *, frames: int | None = None, step
         return out
 
     def typed(points: FloatArray):
-        if as_trimesh:
+        if kind == "trimesh":
             import trimesh
 
             return trimesh.Trimesh(vertices=points, faces=np.array(surface.triangles),
                                    process=False)
+        if kind == "pymeshlab":
+            import pymeshlab
+
+            return pymeshlab.Mesh(vertex_matrix=points, face_matrix=np.ascontiguousarray(
+                surface.triangles, dtype=np.int32))
         return surface_with_points(surface, points)
 
     moved = typed(full(res.points))
