@@ -217,3 +217,20 @@ def test_a_rigid_motion_of_the_handles_moves_the_whole_surface_rigidly(bar):
     shift = np.array([0.3, -1.0, 2.0])
     res = mt.move(bar, h, bar.points[h] @ R.T + shift)
     np.testing.assert_allclose(res.mesh.points, bar.points @ R.T + shift, rtol=0, atol=1e-9)
+
+
+def test_cli_group_of_a_surface(bar_file, tmp_path, capsys):
+    a = load_cells(bar_file)
+    tri = np.concatenate([c for _, c in a.cells])
+    right = np.unique(tri[np.concatenate(a.cell_data["gmsh:physical"]) == 2])
+    end = right[a.points[right, 0] > 5.99]
+    out = tmp_path / "lifted.msh"
+    assert main(["move", str(bar_file), "-o", str(out), "--group", "right",
+                 "--where", "x > 5.99", "--map", "x; y; z + 0.25", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["handles"] == len(end) == 25
+    b = load_cells(out)
+    np.testing.assert_array_equal(b.points[end], a.points[end] + [0.0, 0.0, 0.25])
+    assert main(["move", str(bar_file), "-o", str(tmp_path / "x.msh"), "--group", "inlet",
+                 "--map", "x; y; z"]) != 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "it has: left (1), right (2)" in err[0]
