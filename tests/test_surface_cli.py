@@ -234,3 +234,20 @@ def test_cli_group_of_a_surface(bar_file, tmp_path, capsys):
                  "--map", "x; y; z"]) != 0
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "it has: left (1), right (2)" in err[0]
+
+
+def test_cli_frames_of_a_surface(bar_file, tmp_path):
+    out = tmp_path / "motion"
+    assert main(["move", str(bar_file), "-o", str(out), "--map", TWIST, "--where", ENDS,
+                 "--frames", "3"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == [
+        "frame_000.msh", "frame_001.msh", "frame_002.msh", "frames.csv"]
+    rows = (out / "frames.csv").read_text().splitlines()
+    assert rows[0] == "frame,path_fraction"
+    assert [float(r.split(",")[1]) for r in rows[1:]] == [0.0, 0.5, 1.0]
+    a = load_cells(bar_file)
+    np.testing.assert_array_equal(load_cells(out / "frame_000.msh").points, a.points)
+    h, t = handles_of(a.to_surface_mesh(), mapping=TWIST, where=ENDS)
+    last = load_cells(out / "frame_002.msh")
+    np.testing.assert_array_equal(last.points[h], t)
+    _same_but_points(a, last)
