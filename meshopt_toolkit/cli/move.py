@@ -19,6 +19,10 @@ A file of tetrahedra moves in 3D (:mod:`._move_tets`): ``--targets`` rows
 ``index,x,y,z`` (.npy k × 4), ``--map "X_EXPR; Y_EXPR; Z_EXPR"`` in ``x, y, z``, the
 candidates the boundary vertices or a physical group's nodes; the file is written back
 with only its points replaced.
+
+A triangle surface in 3D (:mod:`._move_surfaces`) takes the same forms, but a map's
+candidates are all its vertices (a closed surface has no boundary); the selected ones move,
+an open surface's boundary stays, every other vertex is free.
 """
 
 from __future__ import annotations
@@ -52,7 +56,8 @@ def add_args(p: argparse.ArgumentParser) -> None:
         "Use 'meshopt deform' instead to follow an initial velocity (a geodesic) rather than\n"
         "to reach prescribed positions."
     )
-    p.add_argument("mesh", help="input mesh (admissible; planar triangles or tetrahedra)")
+    p.add_argument("mesh", help="input mesh (admissible; planar triangles, tetrahedra or a "
+                   "triangle surface in 3D)")
     p.add_argument("-o", "--output", required=True,
                    help="output mesh file, or a directory with --frames")
     src = p.add_mutually_exclusive_group(required=True)
@@ -60,7 +65,8 @@ def add_args(p: argparse.ArgumentParser) -> None:
                      "'index,x,y,z' or (k, 4) for tetrahedra")
     src.add_argument("--map", metavar="'X_EXPR; Y_EXPR'",
                      help="new positions of the selected boundary vertices, in x and y "
-                          "('X_EXPR; Y_EXPR; Z_EXPR' in x, y, z for tetrahedra)")
+                          "('X_EXPR; Y_EXPR; Z_EXPR' in x, y, z for tetrahedra; for a "
+                          "3D surface any of its vertices)")
     p.add_argument("--where", metavar="EXPR",
                    help="with --map: which boundary vertices move, e.g. 'x < 0.5' "
                         "(default: all; the others stay fixed)")
@@ -90,7 +96,8 @@ def run(args: argparse.Namespace) -> int:
     from ..motion.move import move
     from ..motion.targets import handles_of
     from ..progress import ProgressBar
-    from ._info_cells import TETS, cell_kind
+    from ._info_cells import SURFACE, TETS, cell_kind
+    from ._move_surfaces import run_surfaces
     from ._move_tets import run_tets
 
     _check_numbers(args)
@@ -101,6 +108,8 @@ def run(args: argparse.Namespace) -> int:
     cells = load_cells(src)
     if cell_kind(cells) == TETS:  # handles in x, y, z; the file written back, new points
         return run_tets(args, cells)
+    if cell_kind(cells) == SURFACE:  # a triangle surface in 3D: the same, all vertices free
+        return run_surfaces(args, cells)
     # the plane's coordinates at unit size; every block, tag and datum written back
     wp = load_workpiece(src, "move", cells=cells)
     mesh = wp.mesh

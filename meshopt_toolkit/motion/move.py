@@ -23,7 +23,7 @@ from ..cores import thread_budget
 from ..errors import InvalidMeshError, OptionError
 from ..kernels.admissibility import BoundaryCheck, area_problem, target_loop_problem
 from ..kernels.triangles import aspect_ratios, inverse_shape_quality
-from ..mesh import PlanarMesh, TetMesh, require_admissible
+from ..mesh import PlanarMesh, SurfaceMesh, TetMesh, require_admissible
 from ..riemannian.discrete_geodesic import discrete_geodesic
 from ..riemannian.path_options import LevenbergMarquardtOptions
 from .continuation import RELAX_CG_RTOL, NoAdmissiblePathError, continuation_path
@@ -31,6 +31,7 @@ from .frame_blocks import FrameBlocks
 from .graph_metric import GraphMetric
 from .similarity import HandlePath, Similarity, fit_similarity, handle_groups
 from .strain import TriangleDistortion
+from .surface_mesh_move import move_surface_mesh
 from .tet_move import move_tet_mesh
 
 __all__ = ["MoveResult", "move", "NoAdmissiblePathError"]
@@ -194,7 +195,16 @@ def _check_options(frames, steps, relax_iter, quality_rounds, max_splits, weight
 
 
 #: the solver of each other kind of mesh (a PlanarMesh is moved by :func:`move` itself)
-_SOLVERS: dict[type, Callable] = {TetMesh: move_tet_mesh}
+_SOLVERS: dict[type, Callable] = {TetMesh: move_tet_mesh, SurfaceMesh: move_surface_mesh}
+
+
+def _solver(mesh) -> Callable | None:
+    """The solver of ``mesh``'s type; a ``trimesh.Trimesh`` or ``pymeshlab.Mesh`` is moved
+    as a surface."""
+    solver = _SOLVERS.get(type(mesh))
+    if solver is None and type(mesh).__module__.split(".")[0] in ("trimesh", "pymeshlab"):
+        return move_surface_mesh
+    return solver
 
 
 def move(
@@ -219,6 +229,11 @@ def move(
         An admissible mesh. A :class:`~meshopt_toolkit.mesh.TetMesh` is moved by
         :func:`~meshopt_toolkit.motion.tet_move.move_tet_mesh` (targets ``(k, 3)``, no
         callable path, ``finish_frames`` unused), which returns a ``TetMeshMoveResult``.
+        A :class:`~meshopt_toolkit.mesh.SurfaceMesh`, ``trimesh.Trimesh`` or
+        ``pymeshlab.Mesh`` is moved by
+        :func:`~meshopt_toolkit.motion.surface_mesh_move.move_surface_mesh` (targets
+        ``(k, 3)``; no boundary is kept unless its vertices are handles), which returns a
+        ``SurfaceMeshMoveResult`` whose meshes are of the type given.
     handles : (k,) int array
         Vertex indices (any vertices; typically the boundary). Duplicates must agree.
     targets : (k, 2) float array, or callable ``t -> (k, 2)``
@@ -263,7 +278,7 @@ def move(
         No admissible interior found after a bounded effort.
     """
     t_start = time.perf_counter()
-    solver = _SOLVERS.get(type(mesh))
+    solver = _solver(mesh)
     if solver is not None:  # another kind of mesh: its own solver, the same options
         _check_options(frames, steps, relax_iter, quality_rounds, max_splits, weight)
         rounds = {} if quality_rounds is None else {"quality_rounds": quality_rounds}

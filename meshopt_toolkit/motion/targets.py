@@ -12,6 +12,12 @@
   candidate) and the other boundary vertices are handles that stay where they are.
   ``WHERE`` is one comparison or several joined by ``and``/``or``, each side an
   expression: ``"x**2 + y**2 < 0.25"``.
+
+A triangle surface in 3D (:class:`~meshopt_toolkit.mesh.SurfaceMesh`) takes the
+tetrahedral forms, but its map's candidates are ALL its vertices (a closed surface has no
+boundary to choose from): the selected ones are the handles at their mapped positions,
+together with the boundary vertices of an open surface, kept where they are; every other
+vertex is free.
 """
 
 from __future__ import annotations
@@ -24,7 +30,7 @@ import numpy as np
 from .._typing import FloatArray, IntArray
 from ..errors import ExpressionError, InvalidMeshError, ReadError
 from ..expressions import parse_expression, quoted
-from ..mesh import PlanarMesh, TetMesh
+from ..mesh import PlanarMesh, SurfaceMesh, TetMesh
 
 _COMPARE = {ast.Lt: np.less, ast.LtE: np.less_equal, ast.Gt: np.greater,
             ast.GtE: np.greater_equal}
@@ -39,8 +45,9 @@ def _dim(mesh) -> int:
 
 
 def _boundary(mesh) -> IntArray:
-    """The boundary vertices: of the boundary edges (planar) or faces (tetrahedral)."""
-    if _dim(mesh) == 2:
+    """The boundary vertices: of the boundary edges (planar, surface) or faces (tetrahedral);
+    none for a closed surface."""
+    if _dim(mesh) == 2 or isinstance(mesh, SurfaceMesh):
         return np.unique(mesh.boundary_edges)
     return np.asarray(mesh.boundary_vertices)
 
@@ -150,10 +157,27 @@ def group_vertices(mesh: PlanarMesh | TetMesh, group: str, option: str = "--grou
     text = str(group).strip()
     key: int | str = int(text) if text.isdigit() else text
     try:
+        if isinstance(mesh, SurfaceMesh):
+            return _surface_tagged(mesh, key)
         return mesh.tagged_vertices(key)
     except InvalidMeshError:
         raise InvalidMeshError(f"{option} {quoted(text)}: {_source(mesh)}no such physical "
                                f"group; {_groups(mesh)}") from None
+
+
+def _surface_tagged(mesh: SurfaceMesh, tag: int | str) -> IntArray:
+    """The vertices of a surface's line elements or triangles carrying a physical tag or
+    name (as ``PlanarMesh.tagged_vertices``)."""
+    if isinstance(tag, str):
+        if tag not in mesh.tag_names:
+            raise InvalidMeshError(f"no physical group named {tag!r}")
+        tag = mesh.tag_names[tag][0]
+    parts = [np.asarray(e)[np.asarray(t) == tag].ravel()
+             for e, t in ((mesh.lines, mesh.line_tags), (mesh.triangles, mesh.triangle_tags))
+             if t is not None]
+    if not sum(len(p) for p in parts):
+        raise InvalidMeshError(f"no element carries physical tag {tag}")
+    return np.unique(np.concatenate(parts))
 
 
 def _source(mesh: PlanarMesh | TetMesh) -> str:
@@ -211,15 +235,23 @@ def targets_from_map(mesh: PlanarMesh | TetMesh, mapping: str, where: str | None
     if dim == 2 and any(f.uses_z for f in fs):
         raise ExpressionError(f"--map {quoted(mapping)}: z is not defined for a planar mesh")
     boundary = _boundary(mesh)
-    candidates = boundary if vertices is None else np.unique(np.asarray(vertices, np.int64))
+    surface = isinstance(mesh, SurfaceMesh)
+    if vertices is not None:
+        candidates = np.unique(np.asarray(vertices, np.int64))
+    else:  # a surface's: every vertex (a closed one has no boundary)
+        candidates = np.arange(mesh.n_vertices) if surface else boundary
     handles = np.union1d(boundary, candidates)
     X = mesh.points[handles]
     selected = np.isin(handles, candidates)
     if where is not None:
         selected[selected] = _condition(where, X[selected])
-    what = "boundary vertex" if vertices is None else "vertex of the group"
+    what = ("vertex of the group" if vertices is not None
+            else "vertex" if surface else "boundary vertex")
     if not selected.any():
         raise InvalidMeshError(f"--where {quoted(where)} selects no {what}")
+    if surface:  # the unselected candidates off the boundary are free
+        keep = selected | np.isin(handles, boundary)
+        handles, X, selected = handles[keep], X[keep], selected[keep]
     targets = X.copy()
     with np.errstate(all="raise"):
         try:

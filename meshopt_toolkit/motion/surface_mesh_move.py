@@ -1,0 +1,167 @@
+"""``mt.move`` on triangle surfaces in 3D: :func:`move_surface` on a :class:`SurfaceMesh`
+(or a ``trimesh.Trimesh``, a ``pymeshlab.Mesh``), the moved mesh keeping its triangles, tags and names.
+
+A surface has no boundary to keep when it is closed: the handles are exactly the vertices
+given, every other vertex is free.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .._typing import FloatArray
+from ..errors import InvalidMeshError
+from ..mesh import SurfaceMesh
+from .surface_move import SurfaceMoveResult, move_surface
+
+__all__ = ["SurfaceMeshMoveResult", "move_surface_mesh", "surface_with_points"]
+
+
+def surface_with_points(mesh: SurfaceMesh, points: FloatArray) -> SurfaceMesh:
+    """``mesh`` with its points replaced (the same triangles, lines, tags and names)."""
+    return SurfaceMesh(points, mesh.triangles, triangle_tags=mesh.triangle_tags,
+                       lines=mesh.lines, line_tags=mesh.line_tags, tag_names=mesh.tag_names,
+                       source=mesh.source)
+
+
+@dataclass
+class SurfaceMeshMoveResult:
+    """What :func:`meshopt_toolkit.move` returns for a surface (the
+    :class:`~meshopt_toolkit.results.Result` protocol).
+
+    Attributes
+    ----------
+    mesh : SurfaceMesh, trimesh.Trimesh or pymeshlab.Mesh
+        The moved surface, of the type given (same triangles and tags), handles bitwise at
+        their targets.
+    frames : list of the same type
+        The motion (first = input, last = ``mesh``): ``frames`` meshes when asked for,
+        else the input and ``mesh``.
+    motion : SurfaceMoveResult
+        The solver's result (worst relative quality, folds, bound; its points are those
+        of the vertices in some triangle, in order).
+    """
+
+    mesh: Any
+    frames: list
+    motion: SurfaceMoveResult
+
+    seconds = property(lambda self: self.motion.seconds, doc="Wall time.")
+
+    @property
+    def status(self) -> str:
+        """``"done"``: a returned motion always reached its targets (else it raises)."""
+        return "done"
+
+    def summary(self) -> dict:
+        return {"status": self.status, **self.motion.summary()}
+
+
+def _distinct(h: np.ndarray, tg: FloatArray) -> tuple[np.ndarray, FloatArray]:
+    """Each handle once; :class:`InvalidMeshError` where a repeated one's targets differ."""
+    order = np.argsort(h, kind="stable")
+    hs, ts = h[order], tg[order]
+    same = hs[1:] == hs[:-1]
+    if (same & np.any(ts[1:] != ts[:-1], axis=1)).any():
+        raise InvalidMeshError("a vertex is a handle twice with different targets")
+    keep = np.concatenate([[True], ~same])
+    return hs[keep], ts[keep]
+
+
+def _kind(mesh) -> str:
+    """``"surface"``, ``"trimesh"`` or ``"pymeshlab"`` (:class:`InvalidMeshError` else)."""
+    if isinstance(mesh, SurfaceMesh):
+        return "surface"
+    for package in ("trimesh", "pymeshlab"):
+        if type(mesh).__module__.split(".")[0] == package:
+            return package
+    raise InvalidMeshError(f"cannot move a {type(mesh).__name__} as a surface")
+
+
+def move_surface_mesh(mesh, handles, targets, *, frames: int | None = None, steps: int = 4,
+                      weight: float = 1.0, relax_iter: int = 15, max_splits: int = 8,
+                      quality_rounds: int | None = None,
+                      progress: Callable[[float], None] | None = None
+                      ) -> SurfaceMeshMoveResult:
+    """:func:`move_surface` on a :class:`SurfaceMesh`, a ``trimesh.Trimesh`` or a
+    ``pymeshlab.Mesh`` (what ``mt.move`` calls for one); the result's meshes are of the
+    type given (vertices and faces only for a ``pymeshlab.Mesh``).
+
+    ``steps`` and ``weight`` are those of :func:`move_surface`, ``max_splits`` its
+    ``max_halvings``; ``relax_iter`` and ``quality_rounds`` (options of the planar and tet
+    solvers) are not used. With ``frames = K`` at least ``K − 1`` increments are taken and
+    the K frames are those whose path fractions are nearest to ``0, 1/(K−1), …, 1``.
+
+    Raises
+    ------
+    InvalidMeshError
+        Bad handles or targets, a degenerate triangle.
+    NotAdmissibleError
+        No fold-free increment of the handles' path.
+    """
+    del relax_iter, quality_rounds  # options of the other solvers
+    kind = _kind(mesh)
+    if kind == "trimesh":
+        from ..conversions import surface_from_trimesh
+
+        surface = surface_from_trimesh(mesh)
+    elif kind == "pymeshlab":
+        from ..conversions import surface_from_pymeshlab
+
+        surface = surface_from_pymeshlab(mesh)
+    else:
+        surface = mesh
+    if progress is not None:
+        progress(0.0)
+    P = np.asarray(surface.points, dtype=float)
+    h = np.asarray(handles)
+    tg = np.asarray(targets, dtype=float)
+    if h.ndim != 1 or h.size == 0 or not np.issubdtype(h.dtype, np.integer):
+        raise InvalidMeshError("handles must be a non-empty 1-D array of vertex indices")
+    if h.min() < 0 or h.max() >= len(P):
+        raise InvalidMeshError(f"a handle index is out of range (the mesh has {len(P)} vertices)")
+    if tg.shape != (h.size, 3):
+        raise InvalidMeshError(f"targets must have shape ({h.size}, 3), got {tg.shape}")
+    h, tg = _distinct(h.astype(np.int64), tg)
+    # vertices in no triangle are left out of the solve (no mass) and stay put
+    used = np.unique(surface.triangles)
+    local = np.full(len(P), -1, np.int64)
+    local[used] = np.arange(len(used))
+    keep = local[h] >= 0
+    n_steps = max(int(steps), (frames or 2) - 1)
+    res = move_surface(P[used], local[surface.triangles], local[h[keep]], tg[keep],
+                       steps=n_steps, weight=weight, max_halvings=max_splits)
+
+    def full(Q: FloatArray) -> FloatArray:
+        out = np.array(P)
+        out[used] = Q
+        out[h[~keep]] = tg[~keep]
+        return out
+
+    def typed(points: FloatArray):
+        if kind == "trimesh":
+            import trimesh
+
+            return trimesh.Trimesh(vertices=points, faces=np.array(surface.triangles),
+                                   process=False)
+        if kind == "pymeshlab":
+            import pymeshlab
+
+            return pymeshlab.Mesh(vertex_matrix=points, face_matrix=np.ascontiguousarray(
+                surface.triangles, dtype=np.int32))
+        return surface_with_points(surface, points)
+
+    moved = typed(full(res.points))
+    if frames is not None:
+        times = np.asarray(res.times)
+        pick = [int(np.argmin(np.abs(times - s))) for s in np.linspace(0, 1, int(frames))]
+        out = [typed(full(res.frames[i])) for i in pick[:-1]] + [moved]
+    else:
+        out = [mesh, moved]
+    if progress is not None:
+        progress(1.0)
+    return SurfaceMeshMoveResult(mesh=moved, frames=out, motion=res)
