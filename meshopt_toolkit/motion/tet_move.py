@@ -237,15 +237,15 @@ def _predictions(problem: Problem, Q: FloatArray, h: IntArray, target: FloatArra
     """Starts for a step that puts the handles at ``target``, best first: the extension of
     the handles' increment by the linearized metric, the last step's motion of the free
     vertices continued (``velocity``: their displacement per unit of ``s`` times the
-    step), the free vertices kept."""
-    yield extend(problem, Q, h, target)
+    step), the free vertices kept; each with its name."""
+    yield "extension", extend(problem, Q, h, target)
     if velocity is not None:
         moved = Q + velocity
         moved[h] = target
-        yield moved
+        yield "velocity", moved
     kept = Q.copy()
     kept[h] = target
-    yield kept
+    yield "kept", kept
 
 
 def _continuation(problem: Problem, P: FloatArray, h: IntArray, path: HandlePath3,
@@ -255,10 +255,10 @@ def _continuation(problem: Problem, P: FloatArray, h: IntArray, path: HandlePath
     Q = P.copy()
     s_now, frames, nit, splits = 0.0, [P.copy()], 0, 0
     rate = None  # the last step's motion per unit of s
-    used = [0, 0, 0]  # steps started by each prediction
+    used = {"extension": 0, "velocity": 0, "kept": 0}  # steps started by each prediction
     # each step's distortion is measured from the rest shape: anchored at the last frame
     # instead, nothing pulls a sheared tet back and the worst flattens step after step
-    # (the box's ball turned 180°: min η 0.1 at s = 0.6, 0.0003 at s = 0.99, then stuck)
+    # (a box's ball turned 180°, 5k tets: min η 0.1 at s = 0.6, 0.0003 at s = 0.99, stuck)
     rest = np.zeros((len(problem.strain.tets), 7))
     for s_goal in times[1:]:
         while s_now < s_goal:
@@ -267,10 +267,10 @@ def _continuation(problem: Problem, P: FloatArray, h: IntArray, path: HandlePath
             for _ in range(max_splits + 1):
                 s_try = s_goal if ds == s_goal - s_now else s_now + ds
                 velocity = None if rate is None else rate * (s_try - s_now)
-                for k, start in enumerate(_predictions(problem, Q, h, path(s_try), velocity)):
+                for name, start in _predictions(problem, Q, h, path(s_try), velocity):
                     if (problem.strain.determinants(start) > 0).all():
                         trial = start
-                        used[k] += 1
+                        used[name] += 1
                         break
                 if trial is not None:
                     break
@@ -287,8 +287,7 @@ def _continuation(problem: Problem, P: FloatArray, h: IntArray, path: HandlePath
             Q, s_now = res.points, s_try
         frames.append(Q.copy())
     return frames, {"continuation_splits": splits, "step_iterations": nit,
-                    "predictions_used": {"extension": used[0], "velocity": used[1],
-                                         "kept": used[2]}}
+                    "predictions_used": used}
 
 
 @dataclass
