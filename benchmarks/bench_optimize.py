@@ -12,7 +12,7 @@ The complete-* rows add ``lbfgs/B=G``: L-BFGS without the default preconditioner
 (``lbfgs_preconditioner="none"``, ``H_0 = γ G⁻¹``; :mod:`meshopt_toolkit.shape.preconditioners`).
 
 ``--defaults``: what ``meshopt optimize MESH`` does on every bundled disc (146 to 13,586
-vertices; issue 17's criterion: converged and min AR ≥ ½ its initial value) — the
+vertices; the criterion: converged and min AR ≥ ½ its initial value) — the
 default variant, method and penalty — beside the two choices they replace: thesis set 2
 with β4 = 0.001·N, and variant complete-euclidean.
 

@@ -20,7 +20,7 @@ complete-complete        complete (5.34)     a retraction of the complete metric
 complete-complete's retraction (:mod:`meshopt_toolkit.riemannian.retractions`) is by
 default the second-order one, ``Q + s d + ½ s² A(Q, d)`` with the geodesic acceleration
 ``A`` (5.35): one Hessian-vector product per iteration instead of a geodesic integration
-whose step count grows with the mesh (issue 16). ``retraction="exp"`` is the thesis'
+whose step count grows with the mesh. ``retraction="exp"`` is the thesis'
 exponential map (6.19) with the rescaling lemma, integrated as ``exp_options`` say.
 
 The objective is any object with ``value(Q) -> float`` and ``derivative(Q) -> (N, 2)``

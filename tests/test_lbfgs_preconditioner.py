@@ -1,4 +1,4 @@
-"""Preconditioned L-BFGS (meshopt_toolkit.shape.preconditioners, issue 17): the penalty
+"""Preconditioned L-BFGS (meshopt_toolkit.shape.preconditioners): the penalty
 Hessian blocks against the penalty's own Hessian-vector product, the two-loop recursion
 with an SPD ``H_0 = γ B⁻¹`` (descent directions; Newton in one step when ``B`` is the
 exact Hessian of a quadratic), and the same minimizer as steepest descent on the thesis'

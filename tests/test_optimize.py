@@ -174,7 +174,7 @@ def test_default_penalty_means_the_same_on_every_resolution():
 
 
 def test_default_method_and_penalty_keep_half_the_quality_on_a_fine_disc(tmp_path, capsys):
-    """Issue 17's criterion on the bundled 2198-vertex disc with the CLI's defaults:
+    """The defaults' criterion on the bundled 2198-vertex disc with the CLI's defaults:
     converged, ``"success": true``, min aspect ratio ≥ ½ its initial value (thesis set 2
     with β4 = 0.001·N ends at 0.340 of 0.682, < ½)."""
     import json

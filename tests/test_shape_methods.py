@@ -1,6 +1,6 @@
 """Riemannian L-BFGS and CG (meshopt_toolkit.shape): closed-form checks of the line search,
 the curvature pairs and the segment guard, L-BFGS on quadratics against the exact
-minimizer, and admissibility of every iterate (including the annulus of issue 12, where a
+minimizer, and admissibility of every iterate (including an annulus where a
 trial step used to be fatal)."""
 
 from __future__ import annotations
@@ -187,7 +187,7 @@ def annulus_mesh():
 
 @pytest.mark.parametrize("method", METHODS)
 def test_annulus_trials_across_the_boundary_are_rejected_not_fatal(method, annulus_mesh):
-    """Issue 12: on an annulus with β3 = 0 a trial step crossed the boundary (areas still
+    """On an annulus with β3 = 0 a trial step crossed the boundary (areas still
     positive) and the run stopped with 'boundary self-intersects'."""
     from meshopt_toolkit.optimize import thesis_penalty_beta
     from meshopt_toolkit.fem.poisson import PoissonObjective

@@ -1,4 +1,4 @@
-"""What :func:`~.checks.check_mesh` does with a mesh that is not clean (issue 12): view a
+"""What :func:`~.checks.check_mesh` does with a mesh that is not clean: view a
 3D mesh on any plane as planar, orient each component, and sort the remaining problems
 into real non-manifold ones and those that only keep it from being admissible."""
 

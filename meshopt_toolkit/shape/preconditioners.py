@@ -1,4 +1,4 @@
-"""Initial inverse Hessians ``H_0`` of the L-BFGS two-loop recursion (issue 17).
+"""Initial inverse Hessians ``H_0`` of the L-BFGS two-loop recursion.
 
 The two-loop recursion of :class:`~.directions.LBFGSMemory` runs on covectors (the
 derivatives ``P``, pairs ``(s, ŷ = ΔP)``) and applies ``H_0 = γ B⁻¹`` to the innermost
