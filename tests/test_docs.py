@@ -60,3 +60,14 @@ def test_architecture_names_every_module():
     missing = [str(p.relative_to(ROOT)) for p in sorted((ROOT / "meshopt_toolkit").rglob("*.py"))
                if p.name != "__init__.py" and p.name not in text]
     assert not missing
+
+
+def test_no_issue_numbers_in_code():
+    # comments and docstrings say what and why; tracker references belong to the tracker
+    pattern = re.compile(r"\bissues? #?\d", re.IGNORECASE)
+    found = [f"{p.relative_to(ROOT)}:{i}"
+             for folder in ("meshopt_toolkit", "tests", "benchmarks", "examples", "scripts")
+             for p in sorted((ROOT / folder).rglob("*.py"))
+             for i, line in enumerate(p.read_text(encoding="utf-8").splitlines(), 1)
+             if pattern.search(line)]
+    assert not found
