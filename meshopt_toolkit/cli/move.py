@@ -15,12 +15,12 @@ stay in the file's units and the plane's coordinates) and is scaled back, so coo
 near 1e300 or 1e-300 work; the summary's numbers are those of the unit-size problem,
 with the factor as ``unit_scale``.
 
-A file of tetrahedra moves in 3D (:mod:`._move_tets`): ``--targets`` rows
+A file of tetrahedra moves in 3D (:mod:`._move_space`): ``--targets`` rows
 ``index,x,y,z`` (.npy k × 4), ``--map "X_EXPR; Y_EXPR; Z_EXPR"`` in ``x, y, z``, the
 candidates the boundary vertices or a physical group's nodes; the file is written back
 with only its points replaced.
 
-A triangle surface in 3D (:mod:`._move_surfaces`) takes the same forms, but a map's
+A triangle surface in 3D (:mod:`._move_space` too) takes the same forms, but a map's
 candidates are all its vertices (a closed surface has no boundary); the selected ones move,
 an open surface's boundary stays, every other vertex is free.
 """
@@ -97,8 +97,7 @@ def run(args: argparse.Namespace) -> int:
     from ..motion.targets import handles_of
     from ..progress import ProgressBar
     from ._info_cells import SURFACE, TETS, cell_kind
-    from ._move_surfaces import run_surfaces
-    from ._move_tets import run_tets
+    from ._move_space import run_in_space
 
     _check_numbers(args)
     src = Path(args.mesh)
@@ -106,10 +105,9 @@ def run(args: argparse.Namespace) -> int:
     frames = args.frames
     check_output_target(out, src, frames, args.force, frame_format=args.format)
     cells = load_cells(src)
-    if cell_kind(cells) == TETS:  # handles in x, y, z; the file written back, new points
-        return run_tets(args, cells)
-    if cell_kind(cells) == SURFACE:  # a triangle surface in 3D: the same, all vertices free
-        return run_surfaces(args, cells)
+    kind = cell_kind(cells)
+    if kind in (TETS, SURFACE):  # handles in x, y, z; the file written back, new points
+        return run_in_space(args, cells, kind)
     # the plane's coordinates at unit size; every block, tag and datum written back
     wp = load_workpiece(src, "move", cells=cells)
     mesh = wp.mesh

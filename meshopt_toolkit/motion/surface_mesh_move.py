@@ -16,6 +16,7 @@ import numpy as np
 from .._typing import FloatArray
 from ..errors import InvalidMeshError
 from ..mesh import SurfaceMesh
+from .handles3d import SolvedVertices, check_handles, distinct_handles
 from .surface_move import SurfaceMoveResult, move_surface
 
 __all__ = ["SurfaceMeshMoveResult", "move_surface_mesh", "surface_with_points"]
@@ -59,17 +60,6 @@ class SurfaceMeshMoveResult:
 
     def summary(self) -> dict:
         return {"status": self.status, **self.motion.summary()}
-
-
-def _distinct(h: np.ndarray, tg: FloatArray) -> tuple[np.ndarray, FloatArray]:
-    """Each handle once; :class:`InvalidMeshError` where a repeated one's targets differ."""
-    order = np.argsort(h, kind="stable")
-    hs, ts = h[order], tg[order]
-    same = hs[1:] == hs[:-1]
-    if (same & np.any(ts[1:] != ts[:-1], axis=1)).any():
-        raise InvalidMeshError("a vertex is a handle twice with different targets")
-    keep = np.concatenate([[True], ~same])
-    return hs[keep], ts[keep]
 
 
 def _kind(mesh) -> str:
@@ -117,30 +107,12 @@ def move_surface_mesh(mesh, handles, targets, *, frames: int | None = None, step
         surface = mesh
     if progress is not None:
         progress(0.0)
-    P = np.asarray(surface.points, dtype=float)
-    h = np.asarray(handles)
-    tg = np.asarray(targets, dtype=float)
-    if h.ndim != 1 or h.size == 0 or not np.issubdtype(h.dtype, np.integer):
-        raise InvalidMeshError("handles must be a non-empty 1-D array of vertex indices")
-    if h.min() < 0 or h.max() >= len(P):
-        raise InvalidMeshError(f"a handle index is out of range (the mesh has {len(P)} vertices)")
-    if tg.shape != (h.size, 3):
-        raise InvalidMeshError(f"targets must have shape ({h.size}, 3), got {tg.shape}")
-    h, tg = _distinct(h.astype(np.int64), tg)
+    h, tg = distinct_handles(*check_handles(handles, targets, len(surface.points)))
     # vertices in no triangle are left out of the solve (no mass) and stay put
-    used = np.unique(surface.triangles)
-    local = np.full(len(P), -1, np.int64)
-    local[used] = np.arange(len(used))
-    keep = local[h] >= 0
+    solved = SolvedVertices(surface.points, surface.triangles, h, tg)
     n_steps = max(int(steps), (frames or 2) - 1)
-    res = move_surface(P[used], local[surface.triangles], local[h[keep]], tg[keep],
+    res = move_surface(solved.points, solved.cells, solved.handles, solved.targets,
                        steps=n_steps, weight=weight, max_halvings=max_splits)
-
-    def full(Q: FloatArray) -> FloatArray:
-        out = np.array(P)
-        out[used] = Q
-        out[h[~keep]] = tg[~keep]
-        return out
 
     def typed(points: FloatArray):
         if kind == "trimesh":
@@ -155,11 +127,11 @@ def move_surface_mesh(mesh, handles, targets, *, frames: int | None = None, step
                 surface.triangles, dtype=np.int32))
         return surface_with_points(surface, points)
 
-    moved = typed(full(res.points))
+    moved = typed(solved.full(res.points))
     if frames is not None:
         times = np.asarray(res.times)
         pick = [int(np.argmin(np.abs(times - s))) for s in np.linspace(0, 1, int(frames))]
-        out = [typed(full(res.frames[i])) for i in pick[:-1]] + [moved]
+        out = [typed(solved.full(res.frames[i])) for i in pick[:-1]] + [moved]
     else:
         out = [mesh, moved]
     if progress is not None:

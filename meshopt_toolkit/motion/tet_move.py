@@ -28,6 +28,7 @@ from ..kernels.tetrahedra import mean_ratios as tet_mean_ratios
 from ..kernels.tetrahedra import signed_volumes as tet_signed_volumes
 from ..mesh import TetMesh
 from .continuation import NoAdmissiblePathError
+from .handles3d import SolvedVertices, check_handles, distinct_handles
 from .similarity_3d import (HandlePath3, Similarity3, fit_similarity_3d, handle_groups_3d,
                             tet_boundary_faces)
 from .tet_distortion import SQRT3, TetDistortion
@@ -103,24 +104,11 @@ def _check(points, tets, handles, targets) -> tuple[FloatArray, IntArray, IntArr
     if not (vol > 0).all():
         raise InvalidMeshError(f"{int(np.sum(~(vol > 0)))} tets are not positively oriented "
                                f"(first: tet {int(np.flatnonzero(~(vol > 0))[0])})")
-    h = np.asarray(handles)
-    if h.ndim != 1 or h.size == 0 or not np.issubdtype(h.dtype, np.integer):
-        raise InvalidMeshError("handles must be a non-empty 1-D array of vertex indices")
-    if h.min() < 0 or h.max() >= len(P):
-        raise InvalidMeshError(f"a handle index is out of range (the mesh has {len(P)} vertices)")
-    t = np.asarray(targets, dtype=float)
-    if t.shape != (h.size, 3):
-        raise InvalidMeshError(f"targets must have shape ({h.size}, 3), got {t.shape}")
+    h, t = check_handles(handles, targets, len(P))
     if not np.isfinite(t).all():
         raise InvalidMeshError("the targets are not all finite")
-    h, first = np.unique(h, return_index=True)
-    if len(first) < len(t):
-        order = np.argsort(np.asarray(handles), kind="stable")
-        hs, ts = np.asarray(handles)[order], t[order]
-        same = hs[1:] == hs[:-1]
-        if (same & np.any(ts[1:] != ts[:-1], axis=1)).any():
-            raise InvalidMeshError("a vertex is a handle twice with different targets")
-    return P, T.astype(np.int64), h.astype(np.int64), t[first]
+    h, t = distinct_handles(h, t)
+    return P, T.astype(np.int64), h, t
 
 
 def _finish(strain_source: FloatArray, tets: IntArray, problem: Problem, Q: FloatArray,
@@ -343,32 +331,15 @@ def move_tet_mesh(mesh: TetMesh, handles, targets, *, frames: int | None = None,
     mesh.require_admissible()
     if progress is not None:
         progress(0.0)
-    P = mesh.points
-    h = np.asarray(handles)
-    tg = np.asarray(targets, dtype=float)
-    if h.ndim != 1 or h.size == 0 or not np.issubdtype(h.dtype, np.integer):
-        raise InvalidMeshError("handles must be a non-empty 1-D array of vertex indices")
-    if h.min() < 0 or h.max() >= len(P):
-        raise InvalidMeshError(f"a handle index is out of range (the mesh has {len(P)} vertices)")
-    if tg.shape != (h.size, 3):
-        raise InvalidMeshError(f"targets must have shape ({h.size}, 3), got {tg.shape}")
+    h, tg = check_handles(handles, targets, mesh.n_vertices)
     # vertices in no tet (a file may hold some) are left out of the solve and stay put
-    used = np.unique(mesh.tets)
-    local = np.full(len(P), -1, np.int64)
-    local[used] = np.arange(len(used))
-    keep = local[h] >= 0
-    res = move_tets(P[used], local[mesh.tets], local[h[keep]], tg[keep], steps=steps,
+    solved = SolvedVertices(mesh.points, mesh.tets, h, tg)
+    res = move_tets(solved.points, solved.cells, solved.handles, solved.targets, steps=steps,
                     frames=frames, weight=weight, relax_iter=relax_iter,
                     quality_rounds=quality_rounds, max_splits=max_splits)
 
-    def full(Q: FloatArray) -> FloatArray:
-        out = np.array(P)
-        out[used] = Q
-        out[h[~keep]] = tg[~keep]
-        return out
-
-    moved = mesh.with_points(full(res.points))
-    out = ([mesh.with_points(full(F)) for F in res.frames[:-1]] + [moved]
+    moved = mesh.with_points(solved.full(res.points))
+    out = ([mesh.with_points(solved.full(F)) for F in res.frames[:-1]] + [moved]
            if frames is not None else [mesh, moved])
     if progress is not None:
         progress(1.0)
