@@ -160,6 +160,15 @@ def check_output_file(out: Path, *, force: bool, inputs: Iterable[Path] = ()) ->
     return out
 
 
+def frame_names(frames: int, fmt: str | None, src: str | Path) -> list[str]:
+    """``frame_000.EXT`` … for ``frames`` frames, EXT the ``--format`` given (with or without
+    the dot) or else the input's."""
+    ext = (fmt or Path(src).suffix).strip().lower()
+    ext = ext if ext.startswith(".") else "." + ext
+    width = max(3, len(str(frames - 1)))
+    return [f"frame_{k:0{width}d}{ext}" for k in range(frames)]
+
+
 def check_mesh_format(name: str | Path, option: str | None = None) -> str:
     """The extension (``".msh"``) of the mesh file ``name``, if a format we write.
 

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import strict_json
-from ._common import prepare_output_dir, write_text
+from ._common import frame_names, prepare_output_dir, write_text
 from ._info_cells import SURFACE, TETS
 
 
@@ -76,11 +76,8 @@ def run_in_space(args: argparse.Namespace, cells, kind: str) -> int:
         shown = str(out)
     else:  # created only now: a refused motion leaves nothing behind
         prepare_output_dir(out, force=args.force)
-        ext = (args.format or src.suffix).lower()
-        ext = ext if ext.startswith(".") else "." + ext
-        width = max(3, len(str(frames - 1)))
-        for k, m in enumerate(result.frames):
-            save_cells(written(m), out / f"frame_{k:0{width}d}{ext}")
+        for name, m in zip(frame_names(frames, args.format, src), result.frames):
+            save_cells(written(m), out / name)
         name, text = table(result, frames)
         write_text(out / name, text)
         shown = f"{out}/ ({frames} frames, {name})"

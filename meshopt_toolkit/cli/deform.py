@@ -22,8 +22,8 @@ import logging
 from pathlib import Path
 
 from ..bounds import MAX_FRAMES
-from ._common import (add_output_flags, check_output_target, float_list, load_workpiece,
-                      prepare_output_dir, save_moved, write_text)
+from ._common import (add_output_flags, check_output_target, float_list, frame_names,
+                      load_workpiece, prepare_output_dir, save_moved, write_text)
 from ..filters.apply_coord_quality_preserving_deformation import QualityPreservingDeformation
 from ._params import add_options, check_options
 from ._validate import check_int, check_number, check_numbers
@@ -82,9 +82,6 @@ def run(args: argparse.Namespace) -> int:
     src = Path(args.mesh)
     out = Path(args.output)
     frames = args.frames
-    ext = (args.format or src.suffix).lower()
-    if not ext.startswith("."):
-        ext = "." + ext
     check_output_target(out, src, frames, args.force, frame_format=args.format)
     # the plane's coordinates at unit size; every block, tag and datum written back
     wp = load_workpiece(src, "deform")
@@ -106,9 +103,7 @@ def run(args: argparse.Namespace) -> int:
         return 0
 
     prepare_output_dir(out, force=args.force)  # only now: a failed deformation leaves nothing
-    width = max(3, len(str(frames - 1)))
-    for k, m in enumerate(res.meshes()):
-        name = f"frame_{k:0{width}d}{ext}"
+    for name, m in zip(frame_names(frames, args.format, src), res.meshes()):
         save_moved(wp, m, out / name, what=name)
     g = res.geodesic
     write_text(out / "quality.csv", "t,min_aspect_ratio,penalty,energy\n" + "".join(

@@ -26,7 +26,7 @@ from pathlib import Path
 from ..bounds import MAX_ITERATIONS
 from ..filters.generate_geodesic_morph import GenerateGeodesicMorph
 from ._common import (add_output_flags, check_mesh_format, check_output_dir, float_list,
-                      prepare_output_dir, save_moved, write_text)
+                      frame_names, prepare_output_dir, save_moved, write_text)
 from ._params import add_options, check_options
 from ._validate import check_int, check_numbers
 
@@ -66,10 +66,11 @@ def _check_numbers(args: argparse.Namespace) -> None:
 
 def _check_outputs(args: argparse.Namespace) -> None:
     """Before any work: the frame format is one we write and OUTDIR can take the files."""
-    ext = (check_mesh_format(args.format, "--format") if args.format
-           else check_mesh_format(args.source))
-    width = max(3, len(str(args.frames - 1)))
-    names = [f"frame_{k:0{width}d}{ext}" for k in range(args.frames)]
+    if args.format:
+        check_mesh_format(args.format, "--format")
+    else:
+        check_mesh_format(args.source)
+    names = frame_names(args.frames, args.format, args.source)
     check_output_dir(Path(args.output), force=args.force,
                      names=names + list(PLOTS) + ["summary.json"])
 
@@ -89,10 +90,8 @@ def run(args: argparse.Namespace) -> int:
     # written with every block, tag and datum of the source
     wp, twp = Workpiece.from_cells(io.load_cells(src_path)).with_target(io.load_cells(tgt_path))
     source, target = wp.mesh, twp.mesh
-    ext = (args.format or src_path.suffix.lstrip(".") or "msh").lower().lstrip(".")
     outdir = Path(args.output)
-    width = max(3, len(str(args.frames - 1)))
-    names = [f"frame_{k:0{width}d}.{ext}" for k in range(args.frames)]
+    names = frame_names(args.frames, args.format, src_path)
     prepare_output_dir(outdir, force=args.force, names=names + list(PLOTS) + ["summary.json"])
     max_iter = args.max_iter or DEFAULT_MAX_ITER[METRIC_ALIASES.get(args.metric, args.metric)]
     with ProgressBar(max_iter, "morph") as bar:

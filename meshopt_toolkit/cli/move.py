@@ -31,7 +31,7 @@ import argparse
 from .. import strict_json
 from pathlib import Path
 
-from ._common import (add_output_flags, check_output_target, load_workpiece,
+from ._common import (add_output_flags, check_output_target, frame_names, load_workpiece,
                       prepare_output_dir, save_moved, write_text)
 from ..bounds import MAX_FRAMES
 from ..filters.apply_coord_prescribed_motion import PrescribedMotion
@@ -126,11 +126,7 @@ def run(args: argparse.Namespace) -> int:
         written = str(out)
     else:  # created only now: a refused motion leaves nothing behind
         prepare_output_dir(out, force=args.force)
-        ext = (args.format or src.suffix).lower()
-        ext = ext if ext.startswith(".") else "." + ext
-        width = max(3, len(str(frames - 1)))
-        for k, m in enumerate(result.frames):
-            name = f"frame_{k:0{width}d}{ext}"
+        for name, m in zip(frame_names(frames, args.format, src), result.frames):
             save_moved(wp, m, out / name, what=name)
         rows = zip(result.min_aspect_ratio, result.mean_quality, result.strain_bound)
         write_text(out / "quality.csv", "frame,min_aspect_ratio,mean_quality,strain_bound\n"
