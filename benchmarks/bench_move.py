@@ -163,7 +163,7 @@ def figure(path: str, size: float) -> None:
         label = f"{inv} inverted" if inv else f"min AR {ar:.3f}"
         ax.set_title(f"{name}\n{label}, {sec:.1f} s", fontsize=10)
     fig.subplots_adjust(left=0.01, right=0.99, bottom=0.02, top=0.86, wspace=0.05)
-    print(f"wrote {_save(fig, path)}")
+    print(f"wrote {_save(fig, path, tight=False)}")
 
 
 def main() -> None:

@@ -172,7 +172,6 @@ def main() -> None:
         for ax in (left, right):
             ax.set_xlabel("triangles")
             ax.legend(fontsize=7)
-        fig.tight_layout()
         _save(fig, args.plot)
         print(f"wrote {args.plot}")
 

@@ -93,8 +93,25 @@ def _observed_order(eps, rem, scale, expected):
     return float(np.median(slopes)), usable
 
 
-def _sweep(eps0: float, n: int) -> np.ndarray:
-    return eps0 * 2.0 ** -np.arange(n)
+def _slope_along(gradient, x, direction, rng) -> tuple[np.ndarray, np.ndarray, float]:
+    """``(x, v, ∇f(x)·v)``: x as floats, the direction ``v`` (:func:`_as_direction`)."""
+    x = np.asarray(x, dtype=float)
+    v = _as_direction(x, direction, rng)
+    return x, v, float(np.vdot(gradient(x), v))
+
+
+def _taylor_test(f, x, v, slope: float, curvature: float | None, eps0: float,
+                 n: int) -> TaylorResult:
+    """The Taylor test along ``v`` of the first-order model (``curvature`` None: expect
+    order 2) or the second-order one (expect order 3), on ``n`` steps halving ``eps0``."""
+    eps = eps0 * 2.0 ** -np.arange(n)
+    rem = taylor_remainders(f, x, v, slope, curvature, eps)
+    scale = abs(float(f(x))) + abs(slope) * eps0
+    if curvature is not None:
+        scale += abs(curvature) * eps0**2
+    expected = 2 if curvature is None else 3
+    order, usable = _observed_order(eps, rem, scale, expected)
+    return TaylorResult(eps, rem, order, expected, usable)
 
 
 def check_gradient(
@@ -123,14 +140,8 @@ def check_gradient(
     -------
     TaylorResult with ``expected = 2``.
     """
-    x = np.asarray(x, dtype=float)
-    v = _as_direction(x, direction, rng)
-    slope = float(np.vdot(gradient(x), v))
-    eps = _sweep(eps0, n)
-    rem = taylor_remainders(f, x, v, slope, None, eps)
-    scale = abs(float(f(x))) + abs(slope) * eps0
-    order, usable = _observed_order(eps, rem, scale, 2)
-    return TaylorResult(eps, rem, order, 2, usable)
+    x, v, slope = _slope_along(gradient, x, direction, rng)
+    return _taylor_test(f, x, v, slope, None, eps0, n)
 
 
 def check_hvp(
@@ -152,12 +163,5 @@ def check_hvp(
     -------
     TaylorResult with ``expected = 3``.
     """
-    x = np.asarray(x, dtype=float)
-    v = _as_direction(x, direction, rng)
-    slope = float(np.vdot(gradient(x), v))
-    curvature = float(np.vdot(v, hvp(x, v)))
-    eps = _sweep(eps0, n)
-    rem = taylor_remainders(f, x, v, slope, curvature, eps)
-    scale = abs(float(f(x))) + abs(slope) * eps0 + abs(curvature) * eps0**2
-    order, usable = _observed_order(eps, rem, scale, 3)
-    return TaylorResult(eps, rem, order, 3, usable)
+    x, v, slope = _slope_along(gradient, x, direction, rng)
+    return _taylor_test(f, x, v, slope, float(np.vdot(v, hvp(x, v))), eps0, n)

@@ -45,10 +45,13 @@ def _figure(width: float, height: float, dpi: int):
     return fig
 
 
-def _save(fig, path) -> Path:
-    """Write the PNG atomically (temporary file, then rename)."""
+def _save(fig, path, tight: bool = True) -> Path:
+    """Tighten the layout (``tight=False``: a layout set by hand is kept) and write the PNG
+    atomically (temporary file, then rename)."""
     from .io import atomic_path
 
+    if tight:
+        fig.tight_layout()
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(path) as tmp:
@@ -57,11 +60,26 @@ def _save(fig, path) -> Path:
 
 
 def _save_titled(fig, ax, title: str | None, path) -> Path:
-    """Set the axes' title (if any), tighten the layout and :func:`_save`."""
+    """Set the axes' title (if any) and :func:`_save`."""
     if title:
         ax.set_title(title)
-    fig.tight_layout()
     return _save(fig, path)
+
+
+def _one_axes(width: float, height: float, dpi: int):
+    """A new :func:`_figure` with one axes filling it: ``(fig, ax)``."""
+    fig = _figure(width, height, dpi)
+    return fig, fig.add_subplot(1, 1, 1)
+
+
+def _panels(n: int, ncols: int, panel_size: float, title_room: float, dpi: int):
+    """A new :func:`_figure` of ``n`` square panels of ``panel_size`` inches in rows of
+    ``ncols`` (fewer when ``n`` is smaller), ``title_room`` inches higher for a title:
+    ``(fig, the panels' axes)``."""
+    ncols = min(n, ncols)
+    nrows = -(-n // ncols)
+    fig = _figure(panel_size * ncols, panel_size * nrows + title_room, dpi)
+    return fig, [fig.add_subplot(nrows, ncols, k + 1) for k in range(n)]
 
 
 def draw_mesh(
@@ -127,8 +145,7 @@ def save_mesh_png(
     dpi: int = 120,
 ) -> Path:
     """One mesh (optionally with a velocity field) as a PNG."""
-    fig = _figure(size, size, dpi)
-    ax = fig.add_subplot(1, 1, 1)
+    fig, ax = _one_axes(size, size, dpi)
     draw_mesh(ax, points, triangles, velocity=velocity)
     frames = np.asarray(points, float)[None]
     if velocity is not None:
@@ -156,13 +173,9 @@ def save_snapshot_strip(
     shrinking are visible.
     """
     frames = np.asarray(frames, dtype=float)
-    K = len(frames)
-    ncols = min(K, ncols or 6)
-    nrows = -(-K // ncols)
-    fig = _figure(panel_size * ncols, panel_size * nrows + (0.3 if titles else 0), dpi)
+    fig, axes = _panels(len(frames), ncols or 6, panel_size, 0.3 if titles else 0, dpi)
     xl, yl = _limits(frames)
-    for k in range(K):
-        ax = fig.add_subplot(nrows, ncols, k + 1)
+    for k, ax in enumerate(axes):
         draw_mesh(ax, frames[k], triangles, linewidth=0.5)
         if share_axes:
             ax.set_xlim(*xl)
@@ -171,7 +184,6 @@ def save_snapshot_strip(
         ax.set_yticks([])
         if titles is not None:
             ax.set_title(titles[k], fontsize=8)
-    fig.tight_layout()
     return _save(fig, path)
 
 
@@ -198,8 +210,7 @@ def save_overlay(
     dpi: int = 120,
 ) -> Path:
     """All snapshots of a path in one axes: initial red, final blue, between grey."""
-    fig = _figure(size, size, dpi)
-    ax = fig.add_subplot(1, 1, 1)
+    fig, ax = _one_axes(size, size, dpi)
     _overlay(ax, np.asarray(frames, float), triangles)
     return _save_titled(fig, ax, title, path)
 
@@ -215,18 +226,13 @@ def save_overlay_grid(
     dpi: int = 100,
 ) -> Path:
     """A grid of overlays, one per ``(frames (K, N, 2), title)`` panel (thesis fig. 5.21)."""
-    n = len(panels)
-    ncols = min(ncols, n)
-    nrows = -(-n // ncols)
-    fig = _figure(panel_size * ncols, panel_size * nrows + (0.4 if suptitle else 0), dpi)
-    for k, (frames, title) in enumerate(panels):
-        ax = fig.add_subplot(nrows, ncols, k + 1)
+    fig, axes = _panels(len(panels), ncols, panel_size, 0.4 if suptitle else 0, dpi)
+    for ax, (frames, title) in zip(axes, panels):
         _overlay(ax, np.asarray(frames, float), triangles)
         ax.set_title(title, fontsize=9)
         ax.tick_params(labelsize=7)
     if suptitle:
         fig.suptitle(suptitle)
-    fig.tight_layout()
     return _save(fig, path)
 
 
@@ -247,8 +253,7 @@ def save_quality_plot(
     pairs when the series have different times). ``yscale="symlog"`` shows values over
     several decades of either sign (linear below the smallest nonzero |value|).
     """
-    fig = _figure(*size, dpi)
-    ax = fig.add_subplot(1, 1, 1)
+    fig, ax = _one_axes(*size, dpi)
     for label, vals in series.items():
         if isinstance(vals, tuple):
             t, y = vals
@@ -304,12 +309,10 @@ def save_optimization_plots(
         ax.set_xlim(*xl)
         ax.set_ylim(*yl)
         ax.set_title(title)
-    fig.tight_layout()
     first = _save(fig, mesh_path)
 
     it = np.asarray(history["iteration"])
-    fig = _figure(7.0, 4.2, dpi)
-    ax = fig.add_subplot(1, 1, 1)
+    fig, ax = _one_axes(7.0, 4.2, dpi)
     ax.plot(it, history["j"], color="tab:blue", label="j = ∫y")
     if not np.allclose(history["objective"], history["j"]):
         ax.plot(it, history["objective"], color="tab:blue", linestyle="--", label="j + f2")
@@ -321,7 +324,6 @@ def save_optimization_plots(
     ax2.set_ylabel("Λ (6.25), 1 is best", color="tab:red")
     lines = ax.get_lines() + ax2.get_lines()
     ax.legend(lines, [ln.get_label() for ln in lines], loc="upper right")
-    fig.tight_layout()
     return first, _save(fig, history_path)
 
 

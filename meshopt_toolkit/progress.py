@@ -53,6 +53,11 @@ class ProgressBar:
         self.stream.write(line[:120].ljust(120))
         self.stream.flush()
 
+    def to_fraction(self, fraction: float) -> None:
+        """Advance to ``fraction`` (in [0, 1]) of ``total`` and redraw: a ``progress``
+        callback of the operations that report the part of their work done."""
+        self.update(int(self.total * fraction) - self.count)
+
     def close(self) -> None:
         """Finish the line."""
         if self.enabled:

@@ -44,3 +44,18 @@ def square() -> PlanarMesh:
 @pytest.fixture
 def grid() -> PlanarMesh:
     return grid_mesh(4, jitter=0.3)
+
+
+@pytest.fixture(scope="module")
+def disc():
+    """A jittered 6 × 6 grid of the unit square (tests of the motion package)."""
+    return grid_mesh(6, jitter=0.3)
+
+
+@pytest.fixture(scope="module")
+def annulus():
+    """gmsh's annulus of element size 0.1 (tests of move and morph)."""
+    pytest.importorskip("gmsh")
+    from meshopt_toolkit.generate import annulus as make
+
+    return make(0.1)

@@ -296,6 +296,23 @@ def save_moved(wp, mesh, path: Path, *, force: bool = True, what: str = "the res
     save_workpiece(cells, path, overwrite=force, computed=tuple(cell_data or ()))
 
 
+def checked_paths(args: argparse.Namespace) -> tuple[Path, Path]:
+    """``(input, output)`` of a command that writes a mesh or ``--frames`` (``args.mesh``,
+    ``args.output``), the output checked before any work (:func:`check_output_target`)."""
+    src, out = Path(args.mesh), Path(args.output)
+    check_output_target(out, src, args.frames, args.force, frame_format=args.format)
+    return src, out
+
+
+def save_moved_frames(wp, meshes, out: Path, names: list[str], *, force: bool) -> None:
+    """Create the directory ``out`` (only once the work is done: a refused or failed run
+    leaves nothing behind) and write there, under ``names`` (:func:`frame_names`), the
+    workpiece ``wp`` moved to each of ``meshes`` (:func:`save_moved`)."""
+    prepare_output_dir(out, force=force)
+    for name, m in zip(names, meshes):
+        save_moved(wp, m, out / name, what=name)
+
+
 @contextlib.contextmanager
 def writing(path: Path) -> Iterator[None]:
     """Turn an ``OSError`` while writing ``path`` into one WriteError line naming it."""

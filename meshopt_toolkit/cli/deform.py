@@ -19,11 +19,10 @@ from __future__ import annotations
 
 import argparse
 import logging
-from pathlib import Path
 
 from ..bounds import MAX_FRAMES
-from ._common import (add_output_flags, check_output_target, float_list, frame_names,
-                      load_workpiece, prepare_output_dir, save_moved, write_text)
+from ._common import (add_output_flags, checked_paths, float_list, frame_names,
+                      load_workpiece, save_moved, save_moved_frames, write_text)
 from ..filters.apply_coord_quality_preserving_deformation import QualityPreservingDeformation
 from ._params import add_options, check_options
 from ._validate import check_int, check_number, check_numbers
@@ -79,22 +78,17 @@ def run(args: argparse.Namespace) -> int:
     from ..progress import ProgressBar
 
     _check_numbers(args)
-    src = Path(args.mesh)
-    out = Path(args.output)
+    src, out = checked_paths(args)
     frames = args.frames
-    check_output_target(out, src, frames, args.force, frame_format=args.format)
     # the plane's coordinates at unit size; every block, tag and datum written back
     wp = load_workpiece(src, "deform")
     mesh = wp.mesh
     V = wp.to_unit(load_displacement(args.displacement, wp.user_mesh, wp.plane_coordinates))
     with ProgressBar(1000, "deform") as bar:
-        def progress(fraction: float) -> None:
-            bar.update(int(1000 * fraction) - bar.count)
-
         res = deform(
             mesh, V, t=args.time, frames=frames, alpha=args.alpha, beta=args.beta,
             metric="euclidean" if args.euclidean else "complete",
-            options=GeodesicOptions(rtol=args.rtol, atol=args.rtol), progress=progress,
+            options=GeodesicOptions(rtol=args.rtol, atol=args.rtol), progress=bar.to_fraction,
         )
     if frames is None:
         save_moved(wp, res.mesh, out, force=args.force)
@@ -102,9 +96,8 @@ def run(args: argparse.Namespace) -> int:
               f"{res.aspect_ratio[-1]:.4f}")
         return 0
 
-    prepare_output_dir(out, force=args.force)  # only now: a failed deformation leaves nothing
-    for name, m in zip(frame_names(frames, args.format, src), res.meshes()):
-        save_moved(wp, m, out / name, what=name)
+    save_moved_frames(wp, res.meshes(), out, frame_names(frames, args.format, src),
+                      force=args.force)
     g = res.geodesic
     write_text(out / "quality.csv", "t,min_aspect_ratio,penalty,energy\n" + "".join(
         f"{t:.10g},{ar:.10g},{f:.10g},{e:.10g}\n"

@@ -15,7 +15,6 @@ for a small clean mesh.
 from __future__ import annotations
 
 from .. import strict_json
-import math
 import sys
 from pathlib import Path
 
@@ -33,13 +32,6 @@ def add_args(parser) -> None:
                         help="merge vertices closer than TOL (0: equal positions) first")
     parser.add_argument("-r", "--recursive", action="store_true",
                         help="include the sub-folders of directories")
-
-
-def _clean(value):
-    """JSON has no NaN/inf: non-finite floats become null."""
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
 
 
 def mesh_info(path: str | Path, merge_tolerance: float | None = None) -> dict:
@@ -112,7 +104,7 @@ def mesh_info(path: str | Path, merge_tolerance: float | None = None) -> dict:
         with np.errstate(over="ignore", under="ignore"):  # beyond the float range: inf / 0
             for k in ("min_area", "total_area"):
                 q[k] = float(np.ldexp(q[k], 2 * scale.exponent))
-        info.update({k: _clean(q[k]) for k in keys})
+        info.update(strict_json.strict({k: q[k] for k in keys}))  # JSON: NaN/inf as null
     else:
         info.update({k: None for k in keys})
     return info

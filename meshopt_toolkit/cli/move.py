@@ -29,10 +29,9 @@ from __future__ import annotations
 
 import argparse
 from .. import strict_json
-from pathlib import Path
 
-from ._common import (add_output_flags, check_output_target, frame_names, load_workpiece,
-                      prepare_output_dir, save_moved, write_text)
+from ._common import (add_output_flags, checked_paths, frame_names, load_workpiece,
+                      save_moved, save_moved_frames, write_text)
 from ..bounds import MAX_FRAMES
 from ..filters.apply_coord_prescribed_motion import PrescribedMotion
 from ._params import add_options, check_options
@@ -100,10 +99,8 @@ def run(args: argparse.Namespace) -> int:
     from ._move_space import run_in_space
 
     _check_numbers(args)
-    src = Path(args.mesh)
-    out = Path(args.output)
+    src, out = checked_paths(args)
     frames = args.frames
-    check_output_target(out, src, frames, args.force, frame_format=args.format)
     cells = load_cells(src)
     kind = cell_kind(cells)
     if kind in (TETS, SURFACE):  # handles in x, y, z; the file written back, new points
@@ -116,18 +113,14 @@ def run(args: argparse.Namespace) -> int:
                                   where=args.where, group=args.group,
                                   free_boundary=args.free_boundary)
     with ProgressBar(1000, "move") as bar:
-        def progress(s: float) -> None:
-            bar.update(int(1000 * s) - bar.count)
-
         result = move(mesh, handles, wp.to_unit(targets), frames=frames, steps=args.steps,
-                      weight=args.weight, progress=progress)
+                      weight=args.weight, progress=bar.to_fraction)
     if frames is None:
         save_moved(wp, result.mesh, out, force=args.force)
         written = str(out)
-    else:  # created only now: a refused motion leaves nothing behind
-        prepare_output_dir(out, force=args.force)
-        for name, m in zip(frame_names(frames, args.format, src), result.frames):
-            save_moved(wp, m, out / name, what=name)
+    else:
+        save_moved_frames(wp, result.frames, out, frame_names(frames, args.format, src),
+                          force=args.force)
         rows = zip(result.min_aspect_ratio, result.mean_quality, result.strain_bound)
         write_text(out / "quality.csv", "frame,min_aspect_ratio,mean_quality,strain_bound\n"
                    + "".join(f"{k},{a:.10g},{q:.10g},{b:.10g}\n"

@@ -110,20 +110,15 @@ def register_format(extension: str, *, read: Reader | None = None, write: Writer
 
 register_format(".msh", read=gmsh.read, write=gmsh.write, read_cells=gmsh.read_cells,
                 write_cells=gmsh.write_cells, unsupported=gmsh.unsupported)
-register_format(".obj", read_cells=obj.read_cells, write_cells=obj.write_cells,
-                unsupported=obj.unsupported)
-register_format(".off", read_cells=off.read_cells, write_cells=off.write_cells,
-                unsupported=off.unsupported)
-register_format(".ply", read_cells=ply.read_cells, write_cells=ply.write_cells,
-                unsupported=ply.unsupported)
 register_format(".vtk", read_cells=vtk.read_vtk_cells, write_cells=vtk.write_vtk_cells,
                 unsupported=vtk.unsupported_vtk)
 register_format(".vtu", read_cells=vtk.read_vtu_cells, write_cells=vtk.write_vtu_cells,
                 unsupported=vtk.unsupported_vtu)
-register_format(".stl", read_cells=stl.read_cells, write_cells=stl.write_cells,
-                unsupported=stl.unsupported)
-register_format(".mesh", read_cells=medit.read_cells, write_cells=medit.write_cells,
-                unsupported=medit.unsupported)
+# one format per module, its functions named read_cells, write_cells and unsupported
+for _ext, _module in ((".obj", obj), (".off", off), (".ply", ply), (".stl", stl),
+                      (".mesh", medit)):
+    register_format(_ext, read_cells=_module.read_cells, write_cells=_module.write_cells,
+                    unsupported=_module.unsupported)
 
 
 def fit_cells(cells: CellMesh, path: str | os.PathLike) -> tuple[CellMesh, str]:
@@ -174,11 +169,7 @@ def load(path: str | os.PathLike, *, max_bytes: int | None = None) -> TriangleMe
 def load_cells(path: str | os.PathLike, *, max_bytes: int | None = None) -> CellMesh:
     """Read everything a mesh file holds (every cell block, point, cell and field data).
 
-    Parameters
-    ----------
-    path : str or PathLike
-    max_bytes : int, optional
-        Refuse larger files (default :data:`MAX_FILE_BYTES`).
+    Parameters are those of :func:`load`.
 
     Returns
     -------
@@ -194,13 +185,22 @@ def load_cells(path: str | os.PathLike, *, max_bytes: int | None = None) -> Cell
     return _read(path, CELL_READERS, max_bytes)
 
 
-def _read(path, table: dict, max_bytes: int | None):
+def _format_of(path, table: dict, kind: str) -> tuple[Path, str, Callable]:
+    """``(path, its extension in lower case, the function of table for it)``; a
+    :class:`ReadError` (``kind`` "read") or :class:`WriteError` (``kind`` "write") naming
+    the known extensions when table has none."""
     path = Path(path)
     ext = path.suffix.lower()
-    reader = table.get(ext)
-    if reader is None:
-        raise ReadError(f"{path}: unknown mesh format {ext or '(no extension)'!r}; "
-                        f"known: {', '.join(supported_extensions())}")
+    function = table.get(ext)
+    if function is None:
+        error = ReadError if kind == "read" else WriteError
+        raise error(f"{path}: unknown mesh format {ext or '(no extension)'!r}; "
+                    f"known: {', '.join(supported_extensions(kind))}")
+    return path, ext, function
+
+
+def _read(path, table: dict, max_bytes: int | None):
+    path, ext, reader = _format_of(path, table, "read")
     check_input_file(path, max_bytes)
     try:
         return reader(path)
@@ -250,12 +250,7 @@ def save(
         Unknown extension, existing file with ``overwrite=False``, missing directory, or
         an I/O failure; nothing (not even a partial file) is left at ``path`` then.
     """
-    path = Path(path)
-    ext = path.suffix.lower()
-    writer = WRITERS.get(ext)
-    if writer is None:
-        raise WriteError(f"{path}: unknown mesh format {ext or '(no extension)'!r}; "
-                         f"known: {', '.join(supported_extensions('write'))}")
+    path, ext, writer = _format_of(path, WRITERS, "write")
     if not isinstance(mesh, TriangleMesh):
         raise WriteError(f"{path}: expected a TriangleMesh, got {type(mesh).__name__}")
     if ext != ".msh" and (mesh.lines is not None or mesh.triangle_tags is not None):
@@ -281,12 +276,7 @@ def save_cells(
         As :func:`save`, and when the format cannot hold a part of ``cells`` (a cell
         type, point, cell or field data): the message names it; nothing is written.
     """
-    path = Path(path)
-    ext = path.suffix.lower()
-    writer = CELL_WRITERS.get(ext)
-    if writer is None:
-        raise WriteError(f"{path}: unknown mesh format {ext or '(no extension)'!r}; "
-                         f"known: {', '.join(supported_extensions('write'))}")
+    path, ext, writer = _format_of(path, CELL_WRITERS, "write")
     return _write(writer, cells, path, ext, overwrite, binary, msh_version)
 
 

@@ -81,6 +81,15 @@ def format_rows(values: np.ndarray, fmt: str, prefix: str = "", group: int = 1) 
     return (row * n) % tuple(values.ravel().tolist())
 
 
+def float_array(tokens, message: str) -> np.ndarray:
+    """``tokens`` (number strings, or rows of them) as a float64 array; a
+    :class:`ReadError` with ``message`` where one is not a number."""
+    try:
+        return np.array(tokens, dtype=np.float64)
+    except ValueError:
+        raise ReadError(message) from None
+
+
 def parse_rows(lines: list[str], source, what: str, min_cols: int, dtype=np.float64) -> np.ndarray:
     """Parse whitespace-separated numbers, one row per line, into an ``(n, k)`` array.
 

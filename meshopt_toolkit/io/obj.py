@@ -26,10 +26,10 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ReadError
-from ._common import decode_text, format_rows, pad3, require_text_mode
+from ._common import decode_text, float_array, format_rows, pad3, require_text_mode
 from ._files import UNCAPPED, read_input
 from ._loss import Part, cells_other_than, data_parts, refuse
-from .cells import NORMALS, TEXCOORDS, CellMesh, check_cells
+from .cells import NORMALS, TEXCOORDS, CellMesh, check_cells, face_blocks
 
 _ELEMENTS = ("f", "l", "p")
 #: one face corner "v", "v/vt", "v//vn" or "v/vt/vn" per line of the joined tokens
@@ -99,10 +99,7 @@ def _attribute_rows(rows: list[str], key: str, path) -> np.ndarray:
     k = int(lengths.max())
     if (lengths != k).any():
         split = [s + ["0"] * (k - len(s)) for s in split]
-    try:
-        arr = np.array(split, dtype=np.float64)
-    except ValueError:
-        raise ReadError(f"{path}: a '{key}' value is not a number") from None
+    arr = float_array(split, f"{path}: a '{key}' value is not a number")
     if not np.isfinite(arr).all():
         raise ReadError(f"{path}: a '{key}' value is not finite")
     return arr
@@ -160,10 +157,7 @@ def _vertices(rows: list[str], path) -> tuple[np.ndarray, list[str]]:
                         f"have {k}")
     if (lengths != k).any():  # x y z with and without w
         split = [s + ["1"] * (k - len(s)) for s in split]
-    try:
-        arr = np.array(split, dtype=np.float64)
-    except ValueError:
-        raise ReadError(f"{path}: a vertex coordinate is not a number") from None
+    arr = float_array(split, f"{path}: a vertex coordinate is not a number")
     dropped = []
     if k == 4 and (arr[:, 3] != 1).any():
         dropped.append("vertex weights w")
@@ -176,10 +170,7 @@ def _vertices(rows: list[str], path) -> tuple[np.ndarray, list[str]]:
 
 def _indices(tokens: list[str], before: np.ndarray, path, what: str) -> np.ndarray:
     """1-based (or negative, relative to ``before``) OBJ indices → 0-based int64."""
-    try:
-        idx = np.array(tokens, dtype=np.float64)
-    except ValueError:
-        raise ReadError(f"{path}: {what} is not a number") from None
+    idx = float_array(tokens, f"{path}: {what} is not a number")
     if not np.isfinite(idx).all() or (idx != np.round(idx)).any():
         raise ReadError(f"{path}: {what}s must be integers")
     if (np.abs(idx) > 2.0**62).any():  # beyond any count, and not castable to int64
@@ -199,7 +190,7 @@ def _elements(rows: list[tuple[str, str, tuple[int, int, int]]], path):
     empty = np.zeros(0, np.int64)
     if not rows:
         return [], {"v": empty, "vt": empty, "vn": empty, "f": np.zeros(0, bool)}
-    kinds, sizes, flat, lengths, before = [], [], [], [], []
+    sizes, flat, lengths, before = [], [], [], []
     for n, (key, rest, n_before) in enumerate(rows):
         tokens = rest.split()
         if key == "f" and len(tokens) < 3:
@@ -211,10 +202,8 @@ def _elements(rows: list[tuple[str, str, tuple[int, int, int]]], path):
         lengths.append(len(tokens))
         before.append(n_before)
         if key == "p":
-            kinds.extend(["p"] * len(tokens))
             sizes.extend([1] * len(tokens))
         else:
-            kinds.append(key)
             sizes.append(len(tokens))
     counts = np.repeat(np.asarray(before, np.int64).reshape(-1, 3), lengths, axis=0)
     # "v", "v/t", "v//n", "v/t/n": three token lists ("" when absent), in one regex pass
@@ -240,21 +229,10 @@ def _elements(rows: list[tuple[str, str, tuple[int, int, int]]], path):
                 # a relative index before the first one: out of range, never "none given"
                 out[have] = np.where(found < 0, np.iinfo(np.int64).max, found)
         corners[name] = out
-    idx = corners["v"]
+    # a face has 3 corners or more, a line 2, a point 1: the size tells the kind
     sizes_arr = np.asarray(sizes, np.int64)
-    code = sizes_arr * 4 + np.array([{"f": 0, "l": 1, "p": 2}[k] for k in kinds])
-    corners["f"] = np.repeat(code % 4 == 0, sizes_arr)
-    cut = np.flatnonzero(np.diff(code)) + 1
-    starts = np.concatenate([[0], cut]).tolist()
-    stops = np.concatenate([cut, [len(code)]]).tolist()
-    offsets = np.concatenate([[0], np.cumsum(sizes_arr)])
-    cells = []
-    for a, b in zip(starts, stops):
-        k = int(sizes_arr[a])
-        name = {"l": "line", "p": "vertex"}.get(kinds[a]) or \
-            {3: "triangle", 4: "quad"}.get(k, "polygon")
-        cells.append((name, idx[offsets[a]:offsets[b]].reshape(b - a, k)))
-    return cells, corners
+    corners["f"] = np.repeat(sizes_arr >= 3, sizes_arr)
+    return face_blocks(corners["v"], sizes_arr), corners
 
 
 def unsupported(cm: CellMesh) -> list[Part]:

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ReadError
-from ._common import decode_text, format_rows, pad3, require_text_mode
+from ._common import decode_text, float_array, format_rows, pad3, require_text_mode
 from ._files import UNCAPPED, read_input
 from ._loss import Part, cells_other_than, data_parts, refuse
 from .cells import CellMesh, face_blocks, check_cells
@@ -52,10 +52,8 @@ def read_cells(path: Path) -> CellMesh:
                         f"{rest[bad]!r}")
     if (vlen > 3).any():
         dropped.append("vertex colours")
-    try:
-        pts = np.array([v[:3] for v in vsplit], dtype=np.float64).reshape(nv, 3)
-    except ValueError:
-        raise ReadError(f"{path}: a vertex value is not a number") from None
+    pts = float_array([v[:3] for v in vsplit],
+                      f"{path}: a vertex value is not a number").reshape(nv, 3)
     fsplit = [s.split() for s in rest[nv:nv + nf]]
     sizes = _integers([f[0] for f in fsplit], path, "face size")
     flen = np.fromiter(map(len, fsplit), np.int64, count=nf)

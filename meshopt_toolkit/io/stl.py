@@ -14,7 +14,7 @@ import numpy as np
 
 
 from ..errors import ReadError, WriteError
-from ._common import pad3
+from ._common import float_array, pad3
 from ._loss import Part, cells_other_than, data_parts, refuse
 from ._files import UNCAPPED, read_input
 from .cells import CellMesh, check_cells
@@ -41,10 +41,7 @@ def read_cells(path: Path) -> CellMesh:
         found = _VERTEX.findall(data)
         if not found or len(found) % 3:
             raise ReadError(f"{path}: ASCII STL with {len(found)} vertices (not a multiple of 3)")
-        try:
-            corners = np.array(found, dtype=np.float64)
-        except ValueError:
-            raise ReadError(f"{path}: ASCII STL has a coordinate that is not a number") from None
+        corners = float_array(found, f"{path}: ASCII STL has a coordinate that is not a number")
     if not np.isfinite(corners).all():
         raise ReadError(f"{path}: STL has a non-finite coordinate")
     pts, inverse = np.unique(corners, axis=0, return_inverse=True)

@@ -98,17 +98,25 @@ def _exact_signs(coords: list[FloatArray], minus: bool) -> np.ndarray:
     return np.array(out, dtype=np.int8)
 
 
+def _signs(coords: list[FloatArray], minus: bool, positive: bool = False):
+    """``(value, exact sign)`` of ``(c0 − c1)(c2 − c3) ∓ (c4 − c5)(c6 − c7)`` per entry of
+    the eight 1-D arrays ``coords``: the float filter (:func:`_sign_products`), exact
+    integers (:func:`_exact_signs`) where it cannot tell. With ``positive``,
+    ``(value, None)`` when every value is certainly positive."""
+    det, sign, uncertain = _sign_products(*coords, minus=minus, positive=positive)
+    if sign is not None and uncertain.any():
+        k = np.flatnonzero(uncertain)
+        sign[k] = _exact_signs([c[k] for c in coords], minus=minus)
+    return det, sign
+
+
 def orient2d_xy(ax, ay, bx, by, cx, cy) -> np.ndarray:
     """Exact orientation sign of triangles ``(a, b, c)``: +1 counter-clockwise, −1
     clockwise, 0 collinear; ``int8`` array of the broadcast shape of the coordinates.
 
     The sign of ``(bx − ax)(cy − ay) − (by − ay)(cx − ax)`` for the exact input values."""
     shape, (ax, ay, bx, by, cx, cy) = _flat(ax, ay, bx, by, cx, cy)
-    _, sign, uncertain = _sign_products(bx, ax, cy, ay, by, ay, cx, ax, minus=True)
-    if uncertain.any():
-        sign[uncertain] = _exact_signs(
-            [v[uncertain] for v in (bx, ax, cy, ay, by, ay, cx, ax)], minus=True)
-    return sign.reshape(shape)
+    return _signs([bx, ax, cy, ay, by, ay, cx, ax], minus=True)[1].reshape(shape)
 
 
 def _flat(*values):
@@ -126,11 +134,7 @@ def orient2d(a: FloatArray, b: FloatArray, c: FloatArray) -> np.ndarray:
 def dot_sign_xy(ax, ay, bx, by, cx, cy) -> np.ndarray:
     """Exact sign of ``(a − b)·(c − b)`` (the angle at ``b`` is acute: +1, right: 0)."""
     shape, (ax, ay, bx, by, cx, cy) = _flat(ax, ay, bx, by, cx, cy)
-    _, sign, uncertain = _sign_products(ax, bx, cx, bx, ay, by, cy, by, minus=False)
-    if uncertain.any():
-        sign[uncertain] = _exact_signs(
-            [v[uncertain] for v in (ax, bx, cx, bx, ay, by, cy, by)], minus=False)
-    return sign.reshape(shape)
+    return _signs([ax, bx, cx, bx, ay, by, cy, by], minus=False)[1].reshape(shape)
 
 
 def segments_intersect(a: FloatArray, b: FloatArray, c: FloatArray, d: FloatArray
@@ -181,15 +185,7 @@ def triangle_orientations(qx: FloatArray, qy: FloatArray, tri_t: IntArray,
     """
     x = np.take(qx, tri_t)
     y = np.take(qy, tri_t)
-    det, sign, uncertain = _sign_products(x[1], x[0], y[2], y[0], y[1], y[0], x[2], x[0],
-                                          minus=True, positive=lazy)
-    if sign is None:
-        return det, None
-    if uncertain.any():
-        k = np.flatnonzero(uncertain)
-        sign[k] = _exact_signs([x[1, k], x[0, k], y[2, k], y[0, k],
-                                y[1, k], y[0, k], x[2, k], x[0, k]], minus=True)
-    return det, sign
+    return _signs([x[1], x[0], y[2], y[0], y[1], y[0], x[2], x[0]], minus=True, positive=lazy)
 
 
 def exactly_scaled(points: FloatArray, extreme_only: bool = False) -> tuple[FloatArray, int]:

@@ -72,7 +72,8 @@ def fit_similarity(source: FloatArray, target: FloatArray,
 
 def handle_groups(handles: IntArray, boundary_edges: IntArray, n_vertices: int) -> list[IntArray]:
     """Positions (into ``handles``) of the handles grouped by connected boundary pieces:
-    handles joined by boundary edges whose both ends are handles form one group."""
+    handles joined by boundary edges (vertex pairs ``(E, 2)``) whose both ends are handles
+    form one group."""
     is_handle = np.full(n_vertices, -1)
     is_handle[handles] = np.arange(len(handles))
     e = boundary_edges
@@ -91,12 +92,15 @@ class HandlePath:
     straight-line remainder that takes it exactly to the targets at ``s = 1``.
     """
 
+    #: the similarity that fits a group best, ``fit(start, targets)``
+    fit = staticmethod(fit_similarity)
+
     def __init__(self, start: FloatArray, targets: FloatArray, groups: list[IntArray]) -> None:
         self.start = np.asarray(start, float)
         self.targets = np.asarray(targets, float)
         self.pieces = []
         for g in groups:
-            S = fit_similarity(self.start[g], self.targets[g]) if len(g) >= 3 else None
+            S = self.fit(self.start[g], self.targets[g]) if len(g) >= 3 else None
             rest = self.targets[g] - (S(self.start[g]) if S is not None else self.start[g])
             self.pieces.append((g, S, rest))
 

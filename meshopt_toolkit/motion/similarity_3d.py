@@ -12,11 +12,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
 from scipy.spatial.transform import Rotation
 
 from .._typing import FloatArray, IntArray
+from .similarity import HandlePath, handle_groups
 
 
 @dataclass(frozen=True)
@@ -88,37 +87,16 @@ def tet_boundary_faces(tets: IntArray) -> IntArray:
 
 def handle_groups_3d(handles: IntArray, faces: IntArray, n_vertices: int) -> list[IntArray]:
     """Positions (into ``handles``) of the handles grouped by connected boundary pieces:
-    handles joined by edges of boundary faces whose ends are both handles form one group."""
-    where = np.full(n_vertices, -1)
-    where[handles] = np.arange(len(handles))
-    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
-    both = (where[e[:, 0]] >= 0) & (where[e[:, 1]] >= 0)
-    i, j = where[e[both, 0]], where[e[both, 1]]
-    graph = sp.coo_matrix((np.ones(len(i)), (i, j)), shape=(len(handles), len(handles)))
-    n, labels = connected_components(graph, directed=False)
-    return [np.flatnonzero(labels == c) for c in range(n)]
+    handles joined by edges of boundary faces whose ends are both handles form one group
+    (:func:`.similarity.handle_groups` of the faces' edges)."""
+    edges = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    return handle_groups(handles, edges, n_vertices)
 
 
-class HandlePath3:
-    """Default path of the handles: each group (a connected piece of boundary) follows
-    the similarity that fits it best (a turning hole turns instead of collapsing through
-    its centre), plus the straight-line remainder to its targets; bitwise the targets at
-    ``s = 1``."""
+class HandlePath3(HandlePath):
+    """Default path of the handles in space (:class:`.similarity.HandlePath`): each group
+    (a connected piece of boundary) follows the :class:`Similarity3` that fits it best (a
+    turning hole turns instead of collapsing through its centre), plus the straight-line
+    remainder to its targets; bitwise the targets at ``s = 1``."""
 
-    def __init__(self, start: FloatArray, targets: FloatArray, groups: list[IntArray]) -> None:
-        self.start = np.asarray(start, float)
-        self.targets = np.asarray(targets, float)
-        self.pieces = []
-        for g in groups:
-            S = fit_similarity_3d(self.start[g], self.targets[g]) if len(g) >= 3 else None
-            rest = self.targets[g] - (S(self.start[g]) if S is not None else self.start[g])
-            self.pieces.append((g, S, rest))
-
-    def __call__(self, s: float) -> FloatArray:
-        if s >= 1.0:
-            return self.targets.copy()
-        out = np.empty_like(self.start)
-        for g, S, rest in self.pieces:
-            base = S.at(s)(self.start[g]) if S is not None else self.start[g]
-            out[g] = base + s * rest
-        return out
+    fit = staticmethod(fit_similarity_3d)
