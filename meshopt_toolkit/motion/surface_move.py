@@ -31,7 +31,8 @@ handles is a rigid motion of the surface.
 The bound: along the frames ``Q_0, …, Q_K``, the polygon's length in the embedding
 ``Q ↦ (M^½ Q, w φ(Q))``, ``ℓ = Σ_k (|ΔQ_k|²_M + w²|Δφ_k|²)^½``, bounds every triangle's
 summed change of distortion, ``Σ_k |Δφ_t| ≤ ℓ/w`` (``SurfaceMoveResult.phi_lengths``,
-``.length``; a property of the frames, whatever weights chose them); from the rest, ``1/ψ_t ≤ 1/ψ_t(rest) · e^{asinh(√2|φ_t|)}``
+``.length``; a property of the frames, whatever weights chose them); from the rest,
+``1/ψ_t ≤ 1/ψ_t(rest) · e^{asinh(√2|φ_t|)}``
 (:func:`.surface_distortion.surface_quality_bound`).
 """
 
