@@ -175,9 +175,10 @@ def test_libigl_arap_spokes_is_a_stationary_point_of_the_raw_energy():
 bench = pytest.importorskip("bench_surface")
 
 
-@pytest.mark.parametrize("name", ["bunny", "bar"])
+@pytest.mark.parametrize("name", ["bunny", "bar", "spot-head", "spot-leg", "bob-head",
+                                  "blub-tail", "bar-bent", "plate-bent"])
 def test_case_paths_start_at_rest_and_move_handle_groups_rigidly(name):
-    case = bench.CASES[name]()
+    case = {**bench.CASES, **bench.UNSEEN}[name]()
     np.testing.assert_allclose(case.path(0.0), case.V[case.handles], atol=1e-14)
     assert len(case.groups) == len(case.handles) == len(np.unique(case.handles))
     for t in (0.37, 1.0):
@@ -217,6 +218,51 @@ def test_committed_meshes_load_with_their_sizes():
     assert bench.read_mesh(bench.DATA / "armadillo.ply.xz")[1].shape == (86482, 3)
     V, F = bench.read_mesh(bench.DATA / "bunny.off")
     assert V.shape == (3485, 3) and F.shape == (6966, 3)
+
+
+@pytest.mark.parametrize("name, n_vertices, n_triangles, genus", [
+    ("spot", 2930, 5856, 0), ("bob", 5344, 10688, 1), ("blub", 7106, 14208, 0)])
+def test_unseen_meshes_are_closed_oriented_manifolds(name, n_vertices, n_triangles, genus):
+    from meshopt_toolkit.mesh.surface import SurfaceMesh
+
+    V, F = bench.read_mesh(bench.DATA / f"{name}.obj")
+    assert V.shape == (n_vertices, 3) and F.shape == (n_triangles, 3)
+    assert SurfaceMesh(V, F).problems == []
+    # every edge in exactly two triangles, once each way (closed, consistently oriented)
+    half = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    assert len(np.unique(half, axis=0)) == len(half)
+    assert set(map(tuple, half)) == set(map(tuple, half[:, ::-1]))
+    n_edges = len(half) // 2
+    assert n_vertices - n_edges + n_triangles == 2 - 2 * genus
+    assert sm.aspect_ratios(V, F).min() > 0.01
+
+
+def test_unseen_cases_turn_about_their_boundary_and_keep_the_fixed_region():
+    case = bench.spot_head()
+    moving = case.groups == 1
+    pivot = bench.boundary_pivot(case.V, case.F, np.isin(np.arange(len(case.V)),
+                                                         case.handles[moving]))
+    P = case.path(1.0)
+    np.testing.assert_array_equal(P[~moving], case.V[case.handles[~moving]])
+    R = bench.rotation([0, 1, 0], np.pi / 3)
+    np.testing.assert_allclose(P[moving], (case.V[case.handles[moving]] - pivot) @ R.T + pivot,
+                               atol=1e-14)
+    # the bends end where a quarter circle of the bar's (the strip's) length ends
+    bar = bench.bar_bent()
+    r = 6.0 / (np.pi / 2)
+    centre = bar.path(1.0)[bar.groups == 1].mean(0)
+    np.testing.assert_allclose(centre, [r, 0.5 + r, 0.5], atol=1e-12)
+    strip = bench.plate_bent()
+    end = strip.path(1.0)[(strip.groups == 1) & (strip.V[strip.handles, 0] == 4.0)]
+    r = 4.0 / (np.pi / 2)
+    np.testing.assert_allclose(end[:, [0, 2]], np.tile([r, r], (len(end), 1)), atol=1e-12)
+
+
+@pytest.mark.slow
+def test_an_unseen_case_meets_the_done_when_against_libigl(capsys):
+    pytest.importorskip("igl")
+    assert bench.main(["--cases", "spot-leg"]) == 0
+    assert "— pass" in capsys.readouterr().out
 
 
 @pytest.mark.slow

@@ -17,7 +17,7 @@ from meshopt_toolkit.kernels.cell_maps import surface_inverse_shape_quality
 from meshopt_toolkit.motion.bending import ShellBending, dihedral_angles, edge_diamonds
 from meshopt_toolkit.motion.surface_distortion import SurfaceDistortion, surface_quality_bound
 from meshopt_toolkit.motion.surface_move import move_surface
-from meshopt_toolkit.motion.surface_paths import FoldTest, HandlePath, handle_groups
+from meshopt_toolkit.motion.surface_paths import FoldTest, HandlePath, best_rotations, handle_groups
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "benchmarks"))
@@ -199,3 +199,76 @@ def test_bunny_ear_against_libigl_arap():
     assert ours["folds"] == 0 and ours["handle error"] == 0.0
     assert ours["quality"] >= max(arap["quality"], 0.1)
     assert ours["ARAP energy"] <= 1.5 * arap["ARAP energy"]
+
+
+def _rotation_checks(S, R):
+    """R is a rotation (det +1) attaining the Kabsch maximum of tr(R S), the SVD's."""
+    ref = sm.best_rotations(S)
+    np.testing.assert_allclose(R @ np.swapaxes(R, 1, 2), np.broadcast_to(np.eye(3), R.shape),
+                               atol=1e-12)
+    np.testing.assert_allclose(np.linalg.det(R), 1.0, atol=1e-12)
+    scale = np.linalg.norm(S.reshape(len(S), 9), axis=1)
+    gap = np.einsum("tij,tji->t", ref, S) - np.einsum("tij,tji->t", R, S)
+    assert np.all(np.abs(gap) <= 1e-12 * np.maximum(scale, 1e-300))
+    return ref
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), kind=st.sampled_from(
+    ["general", "reflection", "rotation", "rank2", "rank1", "zero", "close"]))
+def test_best_rotations_by_eigh_agree_with_the_svd(seed, kind):
+    rng = np.random.default_rng(seed)
+    n = 200
+    S = rng.normal(size=(n, 3, 3)) * 10.0 ** rng.uniform(-6, 6, size=(n, 1, 1))
+    if kind == "reflection":  # det S < 0: the smallest singular direction is flipped
+        S[:, :, 0] *= np.where(np.linalg.det(S) > 0, -1.0, 1.0)[:, None]
+    elif kind == "rotation":  # S a rotation times a positive diagonal: R its transpose
+        S = np.array([random_rotation(rng) @ np.diag(rng.uniform(0.5, 2, 3)) for _ in range(n)])
+    elif kind == "rank2":  # coplanar rest edges (a flat fan)
+        S[:, 2, :] = 0.0
+    elif kind == "rank1":
+        S = rng.normal(size=(n, 3, 1)) * rng.normal(size=(n, 1, 3))
+    elif kind == "zero":
+        S[::2] = 0.0
+    elif kind == "close":  # two nearly equal singular values
+        U = np.array([random_rotation(rng) for _ in range(n)])
+        W = np.array([random_rotation(rng) for _ in range(n)])
+        S = U @ np.diag([2.0, 1.0 + 1e-9, 1.0])[None] @ W
+    R = best_rotations(S)
+    ref = _rotation_checks(S, R)
+    if kind in ("general", "reflection", "rotation", "rank2"):  # unique optimum: equal
+        np.testing.assert_allclose(R, ref, atol=1e-9)
+
+
+def test_normal_matrix_is_the_lower_triangle_of_jtj_plus_m_at_the_free_coordinates():
+    # against scipy's own sparse product of the stacked Jacobian (an independent assembly)
+    import scipy.sparse as sp
+
+    from meshopt_toolkit.motion import surface_move as smv
+
+    V, F = sphere(2)
+    handles = np.flatnonzero(V[:, 2] > 0.5)
+    problem = smv._Problem(V, F, handles, 1.3, 0.2, smv.lumped_mass(V, F))
+    problem.phi_ref = np.zeros((len(F), 3))
+    Q = V + 0.05 * np.random.default_rng(1).normal(size=V.shape)
+    rm, Jm, rb, Jb = problem.linearization(Q)
+    got = problem.normal_matrix(Jm, Jb)
+    rows = np.repeat(np.arange(len(Jb)), 12)
+    Jb_mat = sp.coo_matrix((Jb.ravel(), (rows, problem.shell.columns().ravel())),
+                           shape=(len(Jb), 3 * len(V)))
+    J = sp.vstack([problem.membrane.jacobian_matrix(Jm), Jb_mat]).tocsc()
+    full = (J.T @ J + sp.diags(np.repeat(problem.mass, 3))).tocsr()
+    ref = sp.tril(full[problem.free][:, problem.free]).toarray()
+    np.testing.assert_allclose(got.toarray(), ref, rtol=0, atol=1e-13 * np.abs(ref).max())
+    assert np.all(np.diff(got.indptr) > 0) and got.has_sorted_indices
+
+
+@pytest.mark.parametrize("shape", [(7, 3, 9), (11, 12)])
+def test_upper_products_are_the_upper_triangles_of_jtj(shape):
+    from meshopt_toolkit.motion.surface_move import upper_products
+
+    J = np.random.default_rng(2).normal(size=shape)
+    J3 = J[:, None, :] if J.ndim == 2 else J
+    full = np.einsum("bik,bil->bkl", J3, J3)
+    a, b = np.triu_indices(shape[-1])
+    np.testing.assert_allclose(upper_products(J), full[:, a, b], rtol=1e-14, atol=1e-14)

@@ -6,19 +6,23 @@ The handles travel along :class:`.surface_paths.HandlePath` (each connected grou
 similarity followed in angle, the remainder linearly) in ``steps`` increments, an
 increment halved where it cannot be taken. Each increment is a minimizing movement:
 
-    min_Q  ½|Q − Q_prev|²_M + ½ w² Σ_t c_t |φ_t(Q) − φ̄_t|² + ½ b Σ_e c_e (θ_e(Q) − θ̄_e)²
+    min_Q  ½|Q − Q_prev|²_M + ½ w² Σ_t a_t c_t |φ_t(Q) − φ̄_t|² + ½ b Σ_e c_e (θ_e(Q) − θ̄_e)²
 
 over the free vertices (handles fixed at the increment's end), with ``φ`` the membrane
 distortion of :class:`.surface_distortion.SurfaceDistortion`, ``φ̄ = 0`` (elastic, the
 default: each increment relaxes towards the rest shapes) or ``φ̄ = φ(Q_prev)``
 (``anchor="previous"``: the planar minimizing movement), the dihedral bending of
 :class:`.bending.ShellBending`, and ``M`` the lumped vertex areas (dimensionless,
-:func:`lumped_mass`), ``c_t = max(1, |φ_t|/rms|φ|)^p ≥ 1`` at the increment's start (the
-triangles distorted most weigh more; ``p = emphasis``). Gauss–Newton on the stacked
-residuals: a linearized predictor carries the handles' displacement into the free
-vertices, then steps on the normal equations (CHOLMOD; the increment's first factor is
-kept while full steps are taken), each iterate accepted only where the energy decreases,
-every triangle keeps ``det C > 0`` and none folds (:class:`.surface_paths.FoldTest`).
+:func:`lumped_mass`), ``a_t`` the rest triangle's area over the mean (the membrane energy
+a sum over the surface, not over the triangles: a mesh's density does not decide where a
+deformation goes; ``area_weights=False``: ``a_t = 1``), ``c_t = max(1, |φ_t|/rms|φ|)^p ≥ 1``
+at the increment's start (the triangles distorted most weigh more; ``p = emphasis``).
+Gauss–Newton on the stacked residuals: a linearized predictor carries the handles'
+displacement into the free vertices, then steps on the normal equations (CHOLMOD; the
+increment's first factor is kept while full steps are taken), each iterate accepted only
+where the energy decreases, every triangle keeps ``det C > 0`` and none folds
+(:class:`.surface_paths.FoldTest`). The last increment, whose end is the result, is
+iterated further (``final_iterations``, ``final_rtol``).
 
 Where one similarity moves all handles, the whole surface follows it exactly (φ moves by
 ``√2 log s`` in its first component, bending not at all), so a rigid motion of the
@@ -27,7 +31,8 @@ handles is a rigid motion of the surface.
 The bound: along the frames ``Q_0, …, Q_K``, the polygon's length in the embedding
 ``Q ↦ (M^½ Q, w φ(Q))``, ``ℓ = Σ_k (|ΔQ_k|²_M + w²|Δφ_k|²)^½``, bounds every triangle's
 summed change of distortion, ``Σ_k |Δφ_t| ≤ ℓ/w`` (``SurfaceMoveResult.phi_lengths``,
-``.length``); from the rest, ``1/ψ_t ≤ 1/ψ_t(rest) · e^{asinh(√2|φ_t|)}``
+``.length``; a property of the frames, whatever weights chose them); from the rest,
+``1/ψ_t ≤ 1/ψ_t(rest) · e^{asinh(√2|φ_t|)}``
 (:func:`.surface_distortion.surface_quality_bound`).
 """
 
@@ -98,39 +103,51 @@ class SurfaceMoveResult:
                 "factorizations": self.factorizations}
 
 
+def upper_products(J: FloatArray) -> FloatArray:
+    """The upper triangles of ``JᵀJ`` per block: (B, k(k+1)/2) from rows (B, m, k) (or
+    (B, k), one row), in ``np.triu_indices(k)`` order (row-major), without the full k×k."""
+    J = J[:, None, :] if J.ndim == 2 else J
+    k = J.shape[2]
+    out = np.empty((len(J), k * (k + 1) // 2))
+    at = 0
+    for a in range(k):  # row a of the upper triangle: entries (a, a…k−1)
+        out[:, at:at + k - a] = np.einsum("bi,bic->bc", J[:, :, a], J[:, :, a:])
+        at += k - a
+    return out
+
+
 class _FreePattern:
     """The lower triangle of the normal matrix at the free coordinates as a fixed CSR
-    pattern: the entries ``a ≤ b`` of per-block products (B, k, k) over block columns
-    (B, k) are summed into it by one ``bincount`` per assembly (CHOLMOD reads the lower
-    triangle only)."""
+    pattern: the upper-triangle entries of per-block products (:func:`upper_products`,
+    (B, k(k+1)/2)) over block columns (B, k) are summed into it by one ``bincount`` per
+    assembly (CHOLMOD reads the lower triangle only). The pattern and each entry's place
+    in it are found once, by one sort of the entries' keys."""
 
     def __init__(self, block_columns: list, free_index: IntArray, n_free: int) -> None:
         self.n = n_free
         keys, self.take = [], []
         for C in block_columns:
-            k = C.shape[1]
-            a, b = np.triu_indices(k)
+            a, b = np.triu_indices(C.shape[1])
             r, c = free_index[C[:, a]].ravel(), free_index[C[:, b]].ravel()
             keep = np.flatnonzero((r >= 0) & (c >= 0))
             r, c = r[keep], c[keep]
             keys.append(np.maximum(r, c) * n_free + np.minimum(r, c))
-            # place of each kept entry in the blocks' full k×k products, flattened
-            block, pair = np.divmod(keep, len(a))
-            self.take.append(block * k * k + (a * k + b)[pair])
+            self.take.append(keep)  # place of each kept entry in the flattened products
         keys = np.concatenate(keys)
-        rows, cols = np.divmod(keys, n_free)
-        # the pattern by scipy's duplicate summation, each entry's place by bisection
-        pattern = sp.coo_matrix((np.ones(len(keys)), (rows, cols)), shape=(n_free, n_free)).tocsr()
-        pattern.sum_duplicates()
-        pattern.sort_indices()
-        self.indptr, self.indices = pattern.indptr, pattern.indices
-        unique = np.repeat(np.arange(n_free), np.diff(self.indptr)) * n_free + self.indices
-        self.inverse = np.searchsorted(unique, keys)
+        order = np.argsort(keys)
+        sorted_keys = keys[order]
+        first = np.ones(len(keys), bool)
+        first[1:] = sorted_keys[1:] != sorted_keys[:-1]
+        unique = sorted_keys[first]
+        self.inverse = np.empty(len(keys), np.int64)
+        self.inverse[order] = np.cumsum(first) - 1
+        rows, self.indices = np.divmod(unique, n_free)
+        self.indptr = np.searchsorted(rows, np.arange(n_free + 1))
         self.diagonal = np.searchsorted(unique, np.arange(n_free) * (n_free + 1))
 
     def matrix(self, products: list, diagonal: FloatArray) -> sp.csr_matrix:
-        """The lower triangle from the blocks' full products (B, k, k) and the diagonal
-        added."""
+        """The lower triangle from the blocks' upper products (B, k(k+1)/2) and the
+        diagonal added."""
         values = np.concatenate([P.ravel()[take] for P, take in zip(products, self.take)])
         data = np.bincount(self.inverse, values, minlength=len(self.indices))
         data[self.diagonal] += diagonal
@@ -197,8 +214,8 @@ class _Problem:
 
     def normal_matrix(self, Jm, Jb) -> sp.csr_matrix:
         """The lower triangle of ``JᵀJ + M`` at the free coordinates."""
-        products = [np.matmul(np.swapaxes(Jm, 1, 2), Jm), Jb[:, :, None] * Jb[:, None, :]]
-        return self.pattern.matrix(products, np.repeat(self.mass, 3)[self.free])
+        return self.pattern.matrix([upper_products(Jm), upper_products(Jb)],
+                                   np.repeat(self.mass, 3)[self.free])
 
     def solve(self, A: sp.csr_matrix, damping: float, rhs) -> FloatArray:
         """``(A + damping·diag A) x = rhs`` by CHOLMOD, on the analysis kept across calls."""
@@ -270,10 +287,10 @@ def _step(problem: _Problem, Q0, H1, handles, max_iterations: int, rtol: float):
 
 
 def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatArray, *,
-                 steps: int = 10, weight: float = 1.0, bending: float = 0.1,
-                 anchor: str = "rest", emphasis: float = 1.0, max_iterations: int = 4,
-                 rtol: float = 1e-3,
-                 max_halvings: int = 8) -> SurfaceMoveResult:
+                 steps: int = 10, weight: float = 1.0, bending: float = 0.3,
+                 anchor: str = "rest", emphasis: float = 1.0, area_weights: bool = True,
+                 max_iterations: int = 4, rtol: float = 1e-3, final_iterations: int = 30,
+                 final_rtol: float = 1e-6, max_halvings: int = 8) -> SurfaceMoveResult:
     """Move a triangle surface: ``handles`` exactly to ``targets``, the rest placed so
     that each triangle's shape changes as little as the motion allows (module docstring).
 
@@ -296,10 +313,12 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
         ``φ̄`` of each increment: 0 (elastic) or the previous frame's φ.
     emphasis : float
         ``p``: each increment weighs triangle t's membrane rows by ``c_t = max(1,
-        |φ_t|/rms|φ|)^p`` at its start (0: all alike). Weights ≥ 1 only add to the
-        metric: the bounds hold as stated.
+        |φ_t|/rms|φ|)^p`` at its start (0: all alike).
+    area_weights : bool
+        Weigh triangle t's membrane rows by its rest area over the mean, ``a_t``.
     max_iterations, rtol : Gauss–Newton–Marquardt steps per increment; stop when an accepted
         step lowers the energy by less than ``rtol`` times the energy.
+    final_iterations, final_rtol : the same for the last increment (the result).
     max_halvings : how often one increment may be halved.
 
     Raises
@@ -329,6 +348,12 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
     whole = global_similarity(V[handles], targets, diameter) if len(handles) else None
     path = HandlePath(V[handles], targets, handle_groups(F, handles, len(V)))
     problem = _Problem(V, F, handles, weight, bending, lumped_mass(V, F))
+    area_w = np.ones(len(F))  # √a_t
+    if area_weights and len(F):
+        P = V[F]
+        area = np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1)
+        area_w = np.sqrt(area / area.mean())
+    problem.row_weights = weight * area_w
     Q, t, iterations = V.copy(), 0.0, 0
     frames, times = [V.copy()], [0.0]
     phi = problem.membrane.values(V)
@@ -350,10 +375,14 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
             size = np.linalg.norm(problem.membrane.values(start), axis=1)
             rms = float(np.sqrt(np.mean(size[problem.free_triangles] ** 2)))
             if rms > 0:
-                problem.row_weights = weight * np.maximum(1.0, size / rms) ** (0.5 * emphasis)
+                problem.row_weights = (weight * area_w
+                                       * np.maximum(1.0, size / rms) ** (0.5 * emphasis))
         problem.phi_ref = np.zeros_like(phi) if anchor == "rest" else problem.membrane.values(start)
         problem.phi_ref[:, 0] += shift if anchor == "rest" else 0.0
-        out = _step(problem, start, H1, handles, max_iterations, rtol)
+        last = t1 >= 1.0  # the end state is the result: converged further
+        out = _step(problem, start, H1, handles,
+                    max(max_iterations, final_iterations) if last else max_iterations,
+                    final_rtol if last else rtol)
         if out is None:
             halvings += 1
             if halvings > max_halvings:

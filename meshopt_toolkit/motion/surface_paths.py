@@ -128,13 +128,39 @@ def global_similarity(start: FloatArray, targets: FloatArray, diameter: float,
 
 
 def best_rotations(S: FloatArray) -> FloatArray:
-    """Rotations R (det +1) maximizing tr(R S) for covariances ``S = Σ e eᵀ'`` (T, 3, 3)."""
-    U, _, Vt = np.linalg.svd(S)
-    V, Ut = np.swapaxes(Vt, 1, 2), np.swapaxes(U, 1, 2)
-    D = np.ones(S.shape[:-1])
-    sign = np.sign(np.linalg.det(V @ Ut))
-    D[:, -1] = np.where(sign == 0, 1.0, sign)
-    return V @ (D[:, :, None] * Ut)
+    """Rotations R (det +1) maximizing tr(R S) for covariances ``S = Σ e eᵀ'`` (T, 3, 3).
+
+    With ``S = U Σ Vᵀ`` (σ_a ≥ σ_b ≥ σ_c) the optimum maps ``u_a ↦ v_a``, ``u_b ↦ v_b`` and,
+    being a rotation, ``u_a × u_b ↦ v_a × v_b`` (Kabsch's ``V diag(1, 1, ±1) Uᵀ`` without the
+    determinant). ``v_a, v_b`` are the top eigenvectors of the symmetric ``SᵀS`` (one
+    batched ``eigh``, faster than the SVD), ``u_a, u_b`` the normalized ``S v_a`` and ``S v_b``
+    (Gram–Schmidt), so ``σ_c`` may vanish (coplanar rest edges). Where ``σ_b = 0`` the
+    optimum is not unique and ``u_b`` is completed to any unit vector normal to ``u_a``.
+    """
+    _, W = np.linalg.eigh(np.swapaxes(S, 1, 2) @ S)  # ascending eigenvalues
+    va, vb = W[:, :, 2], W[:, :, 1]
+    ua = _unit(np.einsum("tij,tj->ti", S, va), np.eye(3)[0])
+    ub = np.einsum("tij,tj->ti", S, vb)
+    ub -= np.einsum("ti,ti->t", ua, ub)[:, None] * ua
+    # where S has rank ≤ 1: any unit vector normal to u_a (the axis of u_a's least component)
+    fallback = np.cross(ua, np.eye(3)[np.argmin(np.abs(ua), axis=1)])
+    ub = _unit(ub, fallback, scale=np.linalg.norm(S.reshape(len(S), 9), axis=1))
+    return (va[:, :, None] * ua[:, None, :] + vb[:, :, None] * ub[:, None, :]
+            + np.cross(va, vb)[:, :, None] * np.cross(ua, ub)[:, None, :])
+
+
+def _unit(x: FloatArray, fallback: FloatArray, scale: FloatArray | None = None) -> FloatArray:
+    """Rows of ``x`` normalized; those of norm ≤ 1e-12·scale (or 0) replaced by ``fallback``
+    (normalized)."""
+    n = np.linalg.norm(x, axis=1)
+    tiny = n <= (0.0 if scale is None else 1e-12 * scale)
+    if np.any(tiny):
+        fb = np.broadcast_to(fallback, x.shape)[tiny]
+        x = x.copy()
+        x[tiny] = fb
+        n = n.copy()
+        n[tiny] = np.linalg.norm(fb, axis=1)
+    return x / n[:, None]
 
 
 class FoldTest:
@@ -147,7 +173,10 @@ class FoldTest:
         self.triangles = np.asarray(triangles)
         F = self.triangles
         E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
-        self.edges = np.unique(np.sort(E, axis=1), axis=0)
+        E = np.sort(E, axis=1)
+        n = len(self.rest)
+        key = np.unique(E[:, 0] * n + E[:, 1])  # each edge once, as one integer key
+        self.edges = np.stack(np.divmod(key, n), axis=1)
         self.rest_edges = self.rest[self.edges[:, 1]] - self.rest[self.edges[:, 0]]
         P = self.rest[F]
         self.rest_normals = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
