@@ -78,8 +78,10 @@ def morph(
 
     Parameters
     ----------
-    source, target : PlanarMesh
-        Admissible meshes with the same connectivity.
+    source, target : PlanarMesh, or triangle surfaces in 3D
+        Admissible meshes with the same connectivity. Surfaces (``SurfaceMesh``,
+        ``trimesh.Trimesh``, ``pymeshlab.Mesh``) are morphed by
+        :func:`~.motion.surface_mesh_morph.morph_surface_mesh`, frames of the same type.
     frames : int
         Number of frames (≥ 2), both ends included.
     metric : ``"distortion"`` (default) or ``"complete"`` (alias ``"scalar"``)
@@ -113,6 +115,12 @@ def morph(
     InvalidMeshError, NotAdmissibleError
         Different connectivity, a non-admissible end.
     """
+    from .motion.surface_mesh_morph import is_surface, morph_call
+
+    if is_surface(source):  # triangle surfaces in 3D: motion/surface_morph.py
+        return morph_call(source, target, frames, metric=metric, weight=weight, beta=beta,
+                          normalize=normalize, method=method, max_iter=max_iter,
+                          callback=callback, progress=progress)
     name = METRIC_ALIASES.get(metric, metric)
     run = MORPH_METRICS.get(name)
     if run is None:
