@@ -76,7 +76,7 @@ class SurfaceMorph:
     times : (K + 1,) float array
     worst_quality, folds : per frame, the worst relative quality and the folds
         (:func:`frame_measures`)
-    linear_worst_quality, linear_folds : the same of linear interpolation
+    triangles : (T, 3) int array
     status : "converged", "max_iterations", "stalled", "stopped", "similarity" or "identical"
     initial_path : "arap", "linear", "similarity" or "identical"
     energy : the path energy ``E`` (module docstring) at the end
@@ -87,8 +87,7 @@ class SurfaceMorph:
     times: FloatArray
     worst_quality: FloatArray
     folds: IntArray
-    linear_worst_quality: FloatArray
-    linear_folds: IntArray
+    triangles: IntArray
     status: str
     initial_path: str
     energy: float = 0.0
@@ -100,6 +99,12 @@ class SurfaceMorph:
     weight: float = 1.0
     gradient_norm: float = field(default=0.0)
 
+    def linear_measures(self) -> tuple[FloatArray, IntArray]:
+        """:func:`frame_measures` of linear interpolation at the same times."""
+        V0, V1 = self.points[0], self.points[-1]
+        return frame_measures(V0, [(1.0 - t) * V0 + t * V1 for t in self.times],
+                              self.triangles)
+
     @property
     def converged(self) -> bool:
         return self.status in ("converged", "similarity", "identical")
@@ -107,14 +112,15 @@ class SurfaceMorph:
     def summary(self) -> dict:
         """Worst relative quality over the frames and per frame, folds, linear
         interpolation's, path energy and length, iterations, seconds."""
+        lin_worst, lin_folds = self.linear_measures()
         return {
             "status": self.status, "frames": int(len(self.points)),
             "worst relative quality": float(self.worst_quality.min()),
             "worst relative quality per frame": [float(v) for v in self.worst_quality],
             "folds": int(self.folds.sum()),
             "target worst relative quality": float(self.worst_quality[-1]),
-            "linear worst relative quality": float(self.linear_worst_quality.min()),
-            "linear folds": int(self.linear_folds.sum()),
+            "linear worst relative quality": float(lin_worst.min()),
+            "linear folds": int(lin_folds.sum()),
             "initial path": self.initial_path, "energy": self.energy,
             "initial energy": self.initial_energy, "length": self.length,
             "strain bound": self.length / self.weight, "iterations": self.iterations,
@@ -170,7 +176,7 @@ def _similar_frames(V0, V1, times, S) -> list:
 
 def morph_surface(source: FloatArray, target: FloatArray, triangles: IntArray,
                   frames: int = 9, *, weight: float = 1.0, bending: float = 0.1,
-                  max_iterations: int = 10, rtol: float = 1e-3,
+                  max_iterations: int = 10, rtol: float = 1e-2,
                   callback: Callable[[PathIteration], bool | None] | None = None
                   ) -> SurfaceMorph:
     """Frames from ``source`` to ``target`` (module docstring).
@@ -240,11 +246,8 @@ def morph_surface(source: FloatArray, target: FloatArray, triangles: IntArray,
         if 0 < k < K:
             points[k][used] = path[k]
     worst, folds = frame_measures(V0, points, F)
-    linear = [(1.0 - t) * V0 + t * V1 for t in times]
-    lin_worst, lin_folds = frame_measures(V0, linear, F)
     return SurfaceMorph(points=points, times=times, worst_quality=worst, folds=folds,
-                        linear_worst_quality=lin_worst, linear_folds=lin_folds,
-                        status=status, initial_path=initial, energy=energy,
+                        triangles=F, status=status, initial_path=initial, energy=energy,
                         initial_energy=E0, length=length, iterations=it,
                         factorizations=nf, seconds=time.perf_counter() - t_start,
                         weight=float(weight), gradient_norm=gnorm)
@@ -279,11 +282,15 @@ class _PathSystem:
         self.factors: list = [None] * m
         self.factorizations = 0
 
-    def update(self, D: list, damping: float) -> None:
-        """The frames' Jacobians ``D`` and the damping ``λ``: factorize the blocks."""
+    def update(self, D: list, damping: float, refactorize: bool) -> None:
+        """The frames' Jacobians ``D`` and the damping ``λ``; the blocks factorized again
+        where asked (else the kept factors of an earlier iterate precondition)."""
         self.D, self.damping = D, damping
+        self.diagonal = np.concatenate([2.0 * np.asarray(Dj.multiply(Dj).sum(axis=0)).ravel()
+                                        for Dj in D])
+        if not refactorize and self.factors[0] is not None:
+            return
         grams = [(Dj.T @ Dj).tocsc() for Dj in D]
-        self.diagonal = np.concatenate([2.0 * G.diagonal() for G in grams])
 
         def factorize(j):
             G = 2.0 * grams[j]
@@ -308,15 +315,16 @@ class _PathSystem:
         return np.concatenate(list(frame_map(self.D[0].shape[0], len(self.D))(
             lambda f, x: f(x), self.factors, V)))
 
-    def solve(self, b: FloatArray, rtol: float = 1e-2, max_iterations: int = 100
+    def solve(self, b: FloatArray, rtol: float = 5e-2, max_iterations: int = 100
               ) -> FloatArray:
         """Preconditioned conjugate gradients from 0 to ``|r| ≤ rtol |b|``."""
         x = np.zeros_like(b)
+        self.iterations = 0
         r = b.copy()
         z = self.precondition(r)
         p, rz = z.copy(), float(r @ z)
         target = rtol * float(np.linalg.norm(b))
-        for _ in range(max_iterations):
+        for self.iterations in range(1, max_iterations + 1):
             Ap = self.product(p)
             alpha = rz / float(p @ Ap)
             x += alpha * p
@@ -346,14 +354,17 @@ def _minimize(problem: _PathProblem, path: list, max_iterations: int, rtol: floa
     E_initial, n = E, path[0].size
     system = _PathSystem(K)
     damping, status, gnorm, it = 1e-4, "max_iterations", 0.0, 0
+    fresh = True  # factorize the preconditioner's blocks (again)
     for it in range(1, max_iterations + 1):
         D = [problem.jacobian(path[j]) for j in range(1, K)]
         g = np.concatenate([D[j - 1].T @ (r[j - 1] - r[j]) for j in range(1, K)])
         gnorm = float(np.linalg.norm(g))
         accepted = False
         for _ in range(4):  # raise the damping until a step is taken
-            system.update(D, damping)
+            system.update(D, damping, fresh)
             step = -system.solve(g)
+            # the kept factors serve while conjugate gradients converge quickly with them
+            fresh = system.iterations > 25
             for alpha in 0.5 ** np.arange(8):
                 trial = [path[0]] + [path[j] + alpha * step[(j - 1) * n:j * n].reshape(-1, 3)
                                      for j in range(1, K)] + [path[K]]
@@ -367,6 +378,7 @@ def _minimize(problem: _PathProblem, path: list, max_iterations: int, rtol: floa
             if accepted:
                 break
             damping *= 10.0
+            fresh = True
         if not accepted:
             status = "stalled"
             break
