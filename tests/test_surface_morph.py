@@ -11,6 +11,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import meshopt_toolkit as mt
 from meshopt_toolkit.cli import main
@@ -137,6 +139,30 @@ def test_similarity_pair_is_followed_exactly(scale):
         expected = scale**t * (V - c0) @ bench.rotation(axis, t * angle).T + (1 - t) * c0 + t * c1
         assert np.abs(X - expected).max() < 1e-9
     assert r.status == "similarity"
+
+
+@settings(max_examples=15, deadline=None)
+@given(st.floats(0.1, 3.0), st.floats(0.3, 3.0), st.lists(st.floats(-1, 1), min_size=3,
+                                                            max_size=3),
+       st.lists(st.floats(-5, 5), min_size=3, max_size=3))
+def test_random_similarities_are_followed_exactly(angle, scale, axis, shift):
+    axis = np.array(axis) + np.array([0.0, 0.0, 1e-3])
+    axis /= np.linalg.norm(axis)
+    V, F = tube(6, 4)
+    V1 = scale * V @ bench.rotation(axis, angle).T + np.array(shift)
+    r = morph_surface(V, V1, F, 4)
+    c0, c1 = V.mean(0), V1.mean(0)
+    for t, X in zip(r.times, r.points):
+        expected = scale**t * (V - c0) @ bench.rotation(axis, t * angle).T + (1 - t) * c0 + t * c1
+        assert np.abs(X - expected).max() < 1e-9 * max(1.0, scale)
+
+
+def test_callback_stops_with_admissible_frames():
+    V0, F, V1 = tube_pair()
+    seen = []
+    r = morph_surface(V0, V1, F, 5, callback=lambda it: seen.append(it) or True)
+    assert r.status == "stopped" and len(seen) == 1 and seen[0].iteration == 1
+    assert all(sm.fold_count(V0, X, F) == 0 for X in r.points)
 
 
 def test_trimesh_in_trimesh_frames_out():

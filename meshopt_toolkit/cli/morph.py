@@ -14,6 +14,11 @@ Both meshes are morphed at unit size (divided by one power of two nearest their 
 1e-300 work and the frames do not depend on the units; the numbers in ``summary.json`` are
 those of the unit-size problem (lengths, areas, energies), with the factor as
 ``unit_scale``.
+
+Two poses of a triangle surface in 3D (same triangles) are morphed by
+:mod:`meshopt_toolkit.motion.surface_morph` (membrane distortion and bending, every frame
+fold-free): the frames are the source's file with new points, with ``quality.csv`` (per
+frame the worst relative quality and the folds) and ``summary.json``.
 """
 
 from __future__ import annotations
