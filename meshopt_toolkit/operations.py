@@ -78,10 +78,8 @@ def morph(
 
     Parameters
     ----------
-    source, target : PlanarMesh, or triangle surfaces in 3D
-        Admissible meshes with the same connectivity. Surfaces (``SurfaceMesh``,
-        ``trimesh.Trimesh``, ``pymeshlab.Mesh``) are morphed by
-        :func:`~.motion.surface_mesh_morph.morph_surface_mesh`, frames of the same type.
+    source, target : PlanarMesh
+        Admissible meshes with the same connectivity.
     frames : int
         Number of frames (≥ 2), both ends included.
     metric : ``"distortion"`` (default) or ``"complete"`` (alias ``"scalar"``)

@@ -10,8 +10,9 @@ the discrete path energy
 
     E = ½ Σ_k |X(Q_{k+1}) − X(Q_k)|²      (angle differences wrapped into [−π, π))
 
-over the interior frames, by Levenberg–Marquardt on the block-tridiagonal normal
-equations (one sparse Cholesky factorization per iteration), started from the
+over the interior frames, by Levenberg–Marquardt (the block-tridiagonal normal equations
+solved by conjugate gradients, preconditioned by one kept Cholesky factor per frame,
+:class:`_PathSystem`), started from the
 as-rigid-as-possible interpolation (:mod:`.surface_interpolation`) or, where that folds,
 linear interpolation. Every accepted iterate has ``det C > 0`` in every triangle of every
 frame and no fold (:class:`.surface_paths.FoldTest` against the source) that the target
