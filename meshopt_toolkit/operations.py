@@ -113,6 +113,12 @@ def morph(
     InvalidMeshError, NotAdmissibleError
         Different connectivity, a non-admissible end.
     """
+    from .motion.surface_mesh_morph import is_surface, morph_call
+
+    if is_surface(source):  # triangle surfaces in 3D: motion/surface_morph.py
+        return morph_call(source, target, frames, metric=metric, weight=weight, beta=beta,
+                          normalize=normalize, method=method, max_iter=max_iter,
+                          callback=callback, progress=progress)
     name = METRIC_ALIASES.get(metric, metric)
     run = MORPH_METRICS.get(name)
     if run is None:

@@ -14,6 +14,11 @@ Both meshes are morphed at unit size (divided by one power of two nearest their 
 1e-300 work and the frames do not depend on the units; the numbers in ``summary.json`` are
 those of the unit-size problem (lengths, areas, energies), with the factor as
 ``unit_scale``.
+
+Two poses of a triangle surface in 3D (same triangles) are morphed by
+:mod:`meshopt_toolkit.motion.surface_morph` (membrane distortion and bending, every frame
+fold-free): the frames are the source's file with new points, with ``quality.csv`` (per
+frame the worst relative quality and the folds) and ``summary.json``.
 """
 
 from __future__ import annotations
@@ -82,13 +87,17 @@ def run(args: argparse.Namespace) -> int:
     from ..operations import DEFAULT_MAX_ITER, METRIC_ALIASES, morph
     from ..plotting import save_morph_figures
     from ..progress import ProgressBar
+    from ._info_cells import SURFACE, cell_kind
 
     _check_numbers(args)
     _check_outputs(args)
     src_path, tgt_path = Path(args.source), Path(args.target)
     # the source's plane at unit size (one power of two for both ends); the frames are
     # written with every block, tag and datum of the source
-    wp, twp = Workpiece.from_cells(io.load_cells(src_path)).with_target(io.load_cells(tgt_path))
+    src_cells = io.load_cells(src_path)
+    if cell_kind(src_cells) == SURFACE:  # poses of a triangle surface in 3D
+        return _run_surface(args, src_cells)
+    wp, twp = Workpiece.from_cells(src_cells).with_target(io.load_cells(tgt_path))
     source, target = wp.mesh, twp.mesh
     outdir = Path(args.output)
     names = frame_names(args.frames, args.format, src_path)
@@ -123,4 +132,50 @@ def run(args: argparse.Namespace) -> int:
               f"linear interpolation {lin}{state}")
         print(f"wrote {outdir}/ ({names[0]} … {names[-1]}, summary.json"
               + ("" if args.no_plots else ", " + ", ".join(PLOTS)) + ")")
+    return 0
+
+
+def _run_surface(args: argparse.Namespace, cells) -> int:
+    """Morph two poses of a triangle surface in 3D (:mod:`..motion.surface_morph`); the
+    frames are the source's file (every block, tag and datum) with new points, plus
+    ``quality.csv`` (per frame: worst relative quality, folds) and ``summary.json``."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    from .. import io
+    from ..operations import morph
+    from ..progress import ProgressBar
+
+    src_path, outdir = Path(args.source), Path(args.output)
+    source = cells.to_surface_mesh("morph")
+    target = io.load_cells(Path(args.target)).to_surface_mesh("morph")
+    names = frame_names(args.frames, args.format, src_path)
+    written = names + ["quality.csv", "summary.json"]
+    check_output_dir(outdir, force=args.force, names=written)
+    max_iter = args.max_iter or 10
+    with ProgressBar(max_iter, "morph") as bar:
+        result = morph(source, target, args.frames, metric=args.metric, weight=args.weight,
+                       beta=args.beta, normalize=not args.no_normalize, method=args.method,
+                       max_iter=max_iter,
+                       callback=lambda it: bar.update(status=f"E={it.energy:.8g}"))
+    prepare_output_dir(outdir, force=args.force, names=written)
+    for name, mesh in zip(names, result.frames):
+        io.save_cells(replace(cells, points=np.array(mesh.points, dtype=float)), outdir / name)
+    m = result.morph
+    write_text(outdir / "quality.csv", "frame,worst_relative_quality,folds\n" + "".join(
+        f"{k},{q:.10g},{f}\n" for k, (q, f) in enumerate(zip(m.worst_quality, m.folds))))
+    summary = result.summary()
+    summary.update(source=str(src_path), target=str(args.target), files=names)
+    write_text(outdir / "summary.json", strict_json.dumps(summary, indent=2) + "\n")
+    if args.json:
+        strict_json.dump(summary, sys.stdout)
+        sys.stdout.write("\n")
+    else:
+        print(f"{len(names)} frames (surface), folds {summary['folds']}, worst relative "
+              f"quality {summary['worst relative quality']:.4g} (target "
+              f"{summary['target worst relative quality']:.4g}; linear interpolation "
+              f"{summary['linear worst relative quality']:.4g}, "
+              f"{summary['linear folds']} folds), {result.status}")
+        print(f"wrote {outdir}/ ({names[0]} … {names[-1]}, quality.csv, summary.json)")
     return 0

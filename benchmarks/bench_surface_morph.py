@@ -1,0 +1,138 @@
+"""Morphing two poses of a triangle surface in 3D: linear interpolation, as-rigid-as-possible
+interpolation (Alexa, Cohen-Or & Levin 2000; ``_arap_interpolation.py``) and ours
+(``meshopt_toolkit.motion.surface_morph.morph_surface``) side by side in one process.
+
+Pairs: the rest surfaces and handle motions of ``bench_surface.py`` (data/surfaces/README.md
+names the meshes' sources and terms), the target pose made by libigl ARAP in 10 steps (not
+our solver) or by our ``move_surface``:
+
+* bar-ours / bar-libigl: the 6×1×1 box, one cap turned 180° about the long axis;
+* bunny-ours / bunny-libigl: the bunny's ear turned 90° backwards;
+* armadillo-libigl (not in the default list: libigl takes minutes): the hand raised 90°.
+
+"ours' start" is the library's as-rigid-as-possible interpolation with the pair's best
+rotation factored out (``motion/surface_interpolation.py``), the path ours starts from.
+
+Printed per pair and method: the worst relative quality over all frames (aspect ratio 2r/R
+over its value in the source, ``_surface_measures.py``), the folds summed over the frames
+(against the source), seconds; and the requirement 0.9 × the worse end. ``--docs`` writes
+the table into docs/benchmarks-surface.md (its last section).
+
+Run ``python benchmarks/bench_surface_morph.py [--pairs bar-ours,bunny-libigl] [--frames 9]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import bench_surface as bench  # noqa: E402
+from _arap_interpolation import arap_interpolation, linear_interpolation  # noqa: E402
+from _surface_measures import fold_count, worst_relative_quality  # noqa: E402
+
+DOCS = Path(__file__).resolve().parent.parent / "docs" / "benchmarks-surface.md"
+HEADING = "## Morphing two poses (`bench_surface_morph.py`)"
+
+
+def pose(case_name: str, maker: str) -> tuple:
+    """``(V0, F, V1)``: a case of bench_surface.py and its target pose made by ``maker``
+    ("libigl": ARAP in 10 steps, "ours": move_surface)."""
+    case = bench.CASES[case_name]()
+    if maker == "libigl":
+        V1 = bench.arap_incremental(case)
+    else:
+        from meshopt_toolkit.motion.surface_move import move_surface
+
+        V1 = move_surface(case.V, case.F, case.handles, case.path(1.0)).points
+    return case.V, case.F, np.asarray(V1, float)
+
+
+PAIRS = {"bar-ours": ("bar", "ours"), "bar-libigl": ("bar", "libigl"),
+         "bunny-ours": ("bunny", "ours"), "bunny-libigl": ("bunny", "libigl"),
+         "armadillo-libigl": ("armadillo", "libigl")}
+DEFAULT = "bar-ours,bar-libigl,bunny-ours,bunny-libigl"
+
+
+def ours(V0, V1, F, times):
+    from meshopt_toolkit.motion.surface_morph import morph_surface
+
+    return list(morph_surface(V0, V1, F, len(times)).points)
+
+
+def ours_start(V0, V1, F, times):
+    from meshopt_toolkit.motion.surface_interpolation import arap_interpolation as start
+
+    return start(V0, V1, F, times)
+
+
+METHODS = {"linear": lambda V0, V1, F, t: linear_interpolation(V0, V1, t),
+           "ARAP interpolation": arap_interpolation, "ours' start": ours_start,
+           "ours": ours}
+
+
+def run_pair(name: str, frames: int) -> list:
+    V0, F, V1 = pose(*PAIRS[name])
+    end = min(1.0, worst_relative_quality(V0, V1, F, []))
+    print(f"\n{name}: {len(V0)} vertices, {len(F)} triangles, {frames} frames; target's "
+          f"worst relative quality {end:.3f} (frames need ≥ {0.9 * end:.3f})")
+    print(f"  {'method':<20} {'worst rel. q':>12} {'folds':>6} {'seconds':>8}")
+    times = np.linspace(0.0, 1.0, frames)
+    rows = []
+    for method, run in METHODS.items():
+        t0 = time.perf_counter()
+        path = run(V0, V1, F, times)
+        seconds = time.perf_counter() - t0
+        q = min(worst_relative_quality(V0, X, F, []) for X in path)
+        folds = sum(fold_count(V0, X, F) for X in path)
+        rows.append((name, len(F), end, method, q, folds, seconds))
+        print(f"  {method:<20} {q:>12.3f} {folds:>6d} {seconds:>8.2f}", flush=True)
+    return rows
+
+
+def markdown(rows: list, frames: int) -> str:
+    lines = [HEADING, "",
+             f"Printed by `python benchmarks/bench_surface_morph.py --docs` ({frames} frames; "
+             "the shared 2-core machine's load varies: compare seconds within a pair). "
+             "Worst relative quality: the minimum over all frames and triangles of the aspect "
+             "ratio 2r/R over its value in the source; folds summed over the frames.", "",
+             "| pair | triangles | target's quality | method | worst rel. quality | folds "
+             "| seconds |", "| --- | --- | --- | --- | --- | --- | --- |"]
+    for name, T, end, method, q, folds, seconds in rows:
+        lines.append(f"| {name} | {T:,} | {end:.3f} | {method} | {q:.3f} | {folds} "
+                     f"| {seconds:.2f} |")
+    return "\n".join(lines) + "\n"
+
+
+def write_docs(text: str) -> None:
+    old = DOCS.read_text(encoding="utf-8")
+    head = old.split(HEADING)[0].rstrip("\n")
+    DOCS.write_text(head + "\n\n" + text, encoding="utf-8")
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--pairs", default=DEFAULT, help="comma-separated: " + ", ".join(PAIRS))
+    ap.add_argument("--frames", type=int, default=9)
+    ap.add_argument("--docs", action="store_true",
+                    help="write the table into docs/benchmarks-surface.md")
+    args = ap.parse_args(argv)
+    names = [p for p in args.pairs.split(",") if p]
+    unknown = [p for p in names if p not in PAIRS]
+    if unknown:
+        print(f"bench_surface_morph: unknown pair {unknown[0]!r}", file=sys.stderr)
+        return 2
+    rows = [row for name in names for row in run_pair(name, args.frames)]
+    text = markdown(rows, args.frames)
+    print("\n" + text)
+    if args.docs:
+        write_docs(text)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

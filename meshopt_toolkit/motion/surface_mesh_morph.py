@@ -1,0 +1,138 @@
+"""``mt.morph`` on triangle surfaces in 3D: :func:`.surface_morph.morph_surface` between
+two :class:`SurfaceMesh` (or ``trimesh.Trimesh``, ``pymeshlab.Mesh``) poses with the same
+triangles, the frames of the type given with the source's triangles, tags and names."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..errors import InvalidMeshError, OptionError
+from ..mesh import SurfaceMesh
+from ..results import PathIteration
+from .surface_mesh_move import surface_with_points
+from .surface_morph import SurfaceMorph, morph_surface
+
+__all__ = ["SurfaceMeshMorph", "is_surface", "morph_surface_mesh", "morph_call"]
+
+
+def _kind(mesh) -> str | None:
+    """``"surface"``, ``"trimesh"``, ``"pymeshlab"`` or None."""
+    if isinstance(mesh, SurfaceMesh):
+        return "surface"
+    package = type(mesh).__module__.split(".")[0]
+    return package if package in ("trimesh", "pymeshlab") else None
+
+
+def is_surface(mesh) -> bool:
+    """Whether ``mesh`` is a triangle surface :func:`morph_surface_mesh` takes."""
+    return _kind(mesh) is not None
+
+
+def _surface(mesh, kind: str) -> SurfaceMesh:
+    if kind == "trimesh":
+        from ..conversions import surface_from_trimesh
+
+        return surface_from_trimesh(mesh)
+    if kind == "pymeshlab":
+        from ..conversions import surface_from_pymeshlab
+
+        return surface_from_pymeshlab(mesh)
+    return mesh
+
+
+@dataclass
+class SurfaceMeshMorph:
+    """What :func:`meshopt_toolkit.morph` returns for surfaces (the
+    :class:`~meshopt_toolkit.results.Result` protocol).
+
+    Attributes
+    ----------
+    mesh : the target pose (the last frame), of the type given
+    frames : list of the same type, the source first and the target last
+    morph : SurfaceMorph, the solver's result (points, per-frame measures)
+    """
+
+    mesh: Any
+    frames: list
+    morph: SurfaceMorph
+
+    seconds = property(lambda self: self.morph.seconds, doc="Wall time.")
+    status = property(lambda self: self.morph.status,
+                      doc='"converged", "max_iterations", "stalled", "stopped", '
+                          '"similarity" or "identical".')
+    n_frames = property(lambda self: len(self.frames), doc="Number of frames.")
+
+    def summary(self) -> dict:
+        return self.morph.summary()
+
+
+def morph_surface_mesh(source, target, frames: int = 9, *, weight: float = 1.0,
+                       bending: float = 0.1, max_iterations: int = 10,
+                       callback: Callable[[PathIteration], bool | None] | None = None,
+                       progress: Callable[[float], None] | None = None) -> SurfaceMeshMorph:
+    """:func:`morph_surface` between two poses given as :class:`SurfaceMesh`,
+    ``trimesh.Trimesh`` or ``pymeshlab.Mesh`` (both of one type, the same triangles).
+
+    Raises
+    ------
+    InvalidMeshError
+        Meshes of different types, a different number of points or other triangles, a
+        degenerate triangle.
+    NotAdmissibleError
+        No fold-free start path.
+    """
+    kind = _kind(source)
+    if kind is None or _kind(target) != kind:
+        raise InvalidMeshError(f"cannot morph a {type(source).__name__} into a "
+                               f"{type(target).__name__} as surfaces")
+    s, t = _surface(source, kind), _surface(target, kind)
+    if len(s.points) != len(t.points) or not np.array_equal(s.triangles, t.triangles):
+        raise InvalidMeshError(
+            "source and target have different connectivity: "
+            + (f"{len(s.points)} points and {len(s.triangles)} triangles against "
+               f"{len(t.points)} and {len(t.triangles)}"
+               if (len(s.points), len(s.triangles)) != (len(t.points), len(t.triangles))
+               else "other triangles"))
+    if progress is not None:
+        progress(0.0)
+    hook = callback
+    if progress is not None:
+        def hook(record: PathIteration):
+            progress(min(1.0, record.iteration / max(int(max_iterations), 1)))
+            return callback(record) if callback is not None else None
+    res = morph_surface(s.points, t.points, s.triangles, frames, weight=weight,
+                        bending=bending, max_iterations=max_iterations, callback=hook)
+
+    def typed(points):
+        if kind == "trimesh":
+            import trimesh
+
+            return trimesh.Trimesh(vertices=points, faces=np.array(s.triangles), process=False)
+        if kind == "pymeshlab":
+            import pymeshlab
+
+            return pymeshlab.Mesh(vertex_matrix=points, face_matrix=np.ascontiguousarray(
+                s.triangles, dtype=np.int32))
+        return surface_with_points(s, points)
+
+    out = [typed(P) for P in res.points]
+    if progress is not None:
+        progress(1.0)
+    return SurfaceMeshMorph(mesh=out[-1], frames=out, morph=res)
+
+
+def morph_call(source, target, frames: int, *, metric: str, weight: float, beta, normalize,
+               method: str, max_iter, callback, progress) -> SurfaceMeshMorph:
+    """``mt.morph``'s options for surfaces: those of the planar metrics refused."""
+    if metric != "distortion" or beta is not None or not normalize or method != "discrete":
+        raise OptionError("surfaces in 3D are morphed with metric='distortion' only "
+                          "(no beta, normalize or method)")
+    if max_iter is not None and int(max_iter) < 1:
+        raise OptionError(f"max_iter must be at least 1, got {max_iter}")
+    return morph_surface_mesh(source, target, int(frames), weight=float(weight),
+                              max_iterations=10 if max_iter is None else int(max_iter),
+                              callback=callback, progress=progress)

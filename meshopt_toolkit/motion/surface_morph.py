@@ -1,0 +1,395 @@
+"""Morphing two poses of a triangle surface in R³ (same triangles): a discrete geodesic
+of the membrane distortion plus shell bending.
+
+A surface ``Q`` is embedded as ``X(Q) = (m^½ ⊙ Q, w φ(Q), √b √c_e θ_e(Q))``: the lumped
+vertex areas ``m`` of :func:`.surface_move.lumped_mass`, the membrane distortion ``φ``
+of :class:`.surface_distortion.SurfaceDistortion` (the planar φ through each triangle's
+first fundamental form) and the dihedral angles ``θ`` with the weights ``c_e = ℓ̄²/Ā`` of
+:class:`.bending.ShellBending`. The frames ``Q_0 = source, Q_1, …, Q_K = target`` minimize
+the discrete path energy
+
+    E = ½ Σ_k |X(Q_{k+1}) − X(Q_k)|²      (angle differences wrapped into [−π, π))
+
+over the interior frames, by Levenberg–Marquardt (the block-tridiagonal normal equations
+solved by conjugate gradients, preconditioned by one kept Cholesky factor per frame,
+:class:`_PathSystem`), started from the
+as-rigid-as-possible interpolation (:mod:`.surface_interpolation`) or, where that folds,
+linear interpolation. Every accepted iterate has ``det C > 0`` in every triangle of every
+frame and no fold (:class:`.surface_paths.FoldTest` against the source) that the target
+does not have. The mass term fixes the frames' rigid motions (a rotation of one frame
+costs ``|ΔQ|²_M``), so nothing is pinned.
+
+A pair related by a similarity (to ``1e-10`` of the diameter) is followed along that
+similarity exactly (rotation in angle, scale geometrically), an identical pair by copies;
+vertices in no triangle move linearly. Along the frames each triangle's summed change of
+distortion is at most ``ℓ/w`` (the polygon's length in the embedding), which bounds its
+quality (docs/theory-3d.md §5).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from .._typing import FloatArray, IntArray
+from ..errors import InvalidMeshError, NotAdmissibleError, OptionError
+from ..kernels.surface import aspect_ratios
+from ..results import PathIteration
+from ..solvers import factorize_spd
+from .frame_threads import frame_map
+from .bending import ShellBending, dihedral_angles, wrap
+from .surface_distortion import SurfaceDistortion
+from .surface_interpolation import arap_interpolation
+from .surface_move import lumped_mass
+from .surface_paths import FoldTest, global_similarity
+
+__all__ = ["SurfaceMorph", "morph_surface", "frame_measures"]
+
+
+def frame_measures(source: FloatArray, frames, triangles: IntArray,
+                   folds: FoldTest | None = None) -> tuple[FloatArray, IntArray]:
+    """Per frame the worst relative quality (aspect ratio 2r/R over its value in
+    ``source``) and the number of folded triangles (against ``source``)."""
+    F = np.asarray(triangles)
+    q0 = aspect_ratios(source, F)
+    folds = FoldTest(source, F) if folds is None else folds
+    worst, count = [], []
+    for Q in frames:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            rq = np.where(q0 > 0, aspect_ratios(Q, F) / q0, 0.0)
+        worst.append(float(rq.min()) if rq.size else 1.0)
+        count.append(int(folds.mask(Q).sum()))
+    return np.array(worst), np.array(count)
+
+
+@dataclass
+class SurfaceMorph:
+    """What :func:`morph_surface` returns.
+
+    Attributes
+    ----------
+    points : (K + 1, N, 3) float array
+        The frames; the first is the source and the last the target, bitwise.
+    times : (K + 1,) float array
+    worst_quality, folds : per frame, the worst relative quality and the folds
+        (:func:`frame_measures`)
+    triangles : (T, 3) int array
+    status : "converged", "max_iterations", "stalled", "stopped", "similarity" or "identical"
+    initial_path : "arap", "linear", "similarity" or "identical"
+    energy : the path energy ``E`` (module docstring) at the end
+    length : the frames' polygon length ``ℓ`` in the embedding
+    """
+
+    points: FloatArray
+    times: FloatArray
+    worst_quality: FloatArray
+    folds: IntArray
+    triangles: IntArray
+    status: str
+    initial_path: str
+    energy: float = 0.0
+    initial_energy: float = 0.0
+    length: float = 0.0
+    iterations: int = 0
+    factorizations: int = 0
+    seconds: float = 0.0
+    weight: float = 1.0
+    gradient_norm: float = field(default=0.0)
+
+    def linear_measures(self) -> tuple[FloatArray, IntArray]:
+        """:func:`frame_measures` of linear interpolation at the same times."""
+        V0, V1 = self.points[0], self.points[-1]
+        return frame_measures(V0, [(1.0 - t) * V0 + t * V1 for t in self.times],
+                              self.triangles)
+
+    @property
+    def converged(self) -> bool:
+        return self.status in ("converged", "similarity", "identical")
+
+    def summary(self) -> dict:
+        """Worst relative quality over the frames and per frame, folds, linear
+        interpolation's, path energy and length, iterations, seconds."""
+        lin_worst, lin_folds = self.linear_measures()
+        return {
+            "status": self.status, "frames": int(len(self.points)),
+            "worst relative quality": float(self.worst_quality.min()),
+            "worst relative quality per frame": [float(v) for v in self.worst_quality],
+            "folds": int(self.folds.sum()),
+            "target worst relative quality": float(self.worst_quality[-1]),
+            "linear worst relative quality": float(lin_worst.min()),
+            "linear folds": int(lin_folds.sum()),
+            "initial path": self.initial_path, "energy": self.energy,
+            "initial energy": self.initial_energy, "length": self.length,
+            "strain bound": self.length / self.weight, "iterations": self.iterations,
+            "factorizations": self.factorizations, "gradient norm": self.gradient_norm,
+            "seconds": self.seconds,
+        }
+
+
+class _PathProblem:
+    """The path energy of the interior frames, its Gauss–Newton pieces and admissibility."""
+
+    def __init__(self, V0: FloatArray, V1: FloatArray, F: IntArray, weight: float,
+                 bending: float) -> None:
+        self.membrane = SurfaceDistortion(V0, F)
+        self.shell = ShellBending(V0, F)
+        self.sqrt_c = np.sqrt(self.shell.weights) * np.sqrt(bending)
+        self.sqrt_m = np.sqrt(np.repeat(lumped_mass(V0, F), 3))
+        self.weight = float(weight)
+        self.folds = FoldTest(V0, F)
+        #: triangles folded at the target itself: not asked of the frames
+        self.allowed = self.folds.mask(V1)
+
+    def embed(self, Q: FloatArray):
+        """``(m^½ Q, w φ, θ)``; None where a triangle is degenerate."""
+        phi = self.membrane.values(Q)
+        if not np.all(np.isfinite(phi)):
+            return None
+        return (self.sqrt_m * Q.ravel(), self.weight * phi.ravel(),
+                dihedral_angles(Q, self.shell.diamonds))
+
+    def admissible(self, Q: FloatArray) -> bool:
+        return not np.any(self.folds.mask(Q) & ~self.allowed)
+
+    def segment(self, X0, X1) -> FloatArray:
+        """The residual of one segment, ``X(Q_{k+1}) − X(Q_k)``."""
+        return np.concatenate([X1[0] - X0[0], X1[1] - X0[1],
+                               self.sqrt_c * wrap(X1[2] - X0[2])])
+
+    def jacobian(self, Q: FloatArray) -> sp.csr_matrix:
+        """``∂X/∂Q`` (3N + 3T + E) × 3N."""
+        _, blocks = self.membrane.values_and_jacobian(Q)
+        Jb = self.shell.jacobian_matrix(Q)  # rows √c_e ∇θ_e
+        Jb = sp.diags(self.sqrt_c / np.sqrt(self.shell.weights)) @ Jb
+        return sp.vstack([sp.diags(self.sqrt_m), self.weight
+                          * self.membrane.jacobian_matrix(blocks), Jb]).tocsr()
+
+
+def _similar_frames(V0, V1, times, S) -> list:
+    out = [S.at(float(t))(V0) for t in times]
+    out[0], out[-1] = V0.copy(), V1.copy()
+    return out
+
+
+def morph_surface(source: FloatArray, target: FloatArray, triangles: IntArray,
+                  frames: int = 9, *, weight: float = 1.0, bending: float = 0.1,
+                  max_iterations: int = 10, rtol: float = 1e-2,
+                  callback: Callable[[PathIteration], bool | None] | None = None
+                  ) -> SurfaceMorph:
+    """Frames from ``source`` to ``target`` (module docstring).
+
+    Parameters
+    ----------
+    source, target : (N, 3) float arrays
+        The two poses (no degenerate triangle in either).
+    triangles : (T, 3) int array
+        The triangles of both, consistently oriented where bending is wanted.
+    frames : int
+        Number of frames (≥ 2), both ends included.
+    weight, bending : ``w`` and ``b`` of the embedding.
+    max_iterations, rtol : Levenberg–Marquardt iterations; stop when one lowers the energy
+        by less than ``rtol`` times the energy.
+    callback : called once per iteration with a :class:`PathIteration`; True stops.
+
+    Raises
+    ------
+    InvalidMeshError
+        Bad shapes, a degenerate triangle in either pose.
+    NotAdmissibleError
+        Neither interpolation is free of folds and degenerate triangles.
+    """
+    t_start = time.perf_counter()
+    V0, V1 = np.asarray(source, float), np.asarray(target, float)
+    F = np.asarray(triangles, np.int64)
+    if V0.ndim != 2 or V0.shape[1] != 3 or V1.shape != V0.shape:
+        raise InvalidMeshError(f"source and target need the same (N, 3) points, got "
+                               f"{V0.shape} and {V1.shape}")
+    if F.ndim != 2 or F.shape[1] != 3 or (F.size and (F.min() < 0 or F.max() >= len(V0))):
+        raise InvalidMeshError("triangles must be (T, 3) indices of existing points")
+    if int(frames) < 2:
+        raise OptionError(f"frames must be at least 2, got {frames}")
+    K = int(frames) - 1
+    times = np.linspace(0.0, 1.0, K + 1)
+    used = np.unique(F)
+    local = np.full(len(V0), -1)
+    local[used] = np.arange(len(used))
+    W0, W1, G = V0[used], V1[used], local[F]
+    problem = _PathProblem(W0, W1, G, weight, bending)  # raises on a degenerate source
+    if problem.embed(W1) is None:
+        raise InvalidMeshError("the target has a degenerate triangle")
+    diameter = float(np.linalg.norm(W0.max(0) - W0.min(0)))
+    S = global_similarity(W0, W1, diameter) if len(W0) > 2 else None
+    if np.array_equal(V0, V1):
+        path, status, it, nf, E0, gnorm = [W0.copy() for _ in times], "identical", 0, 0, 0.0, 0.0
+        initial = "identical"
+    elif S is not None:
+        path, status, it, nf, E0, gnorm = _similar_frames(W0, W1, times, S), "similarity", 0, \
+            0, 0.0, 0.0
+        initial = "similarity"
+    else:
+        path, initial = _initial_path(problem, W0, W1, G, times)
+        path, status, it, nf, E0, gnorm = _minimize(problem, path, max_iterations, rtol,
+                                                    callback)
+    X = [problem.embed(Q) for Q in path]
+    residuals = [problem.segment(X[k], X[k + 1]) for k in range(K)]
+    energy = 0.5 * float(sum(r @ r for r in residuals))
+    if status in ("identical", "similarity"):
+        E0 = energy
+    length = float(sum(np.linalg.norm(r) for r in residuals))
+    # the full point arrays: vertices in no triangle move linearly
+    points = np.empty((K + 1,) + V0.shape)
+    for k, t in enumerate(times):
+        points[k] = V0 if k == 0 else V1 if k == K else (1.0 - t) * V0 + t * V1
+        if 0 < k < K:
+            points[k][used] = path[k]
+    worst, folds = frame_measures(V0, points, F)
+    return SurfaceMorph(points=points, times=times, worst_quality=worst, folds=folds,
+                        triangles=F, status=status, initial_path=initial, energy=energy,
+                        initial_energy=E0, length=length, iterations=it,
+                        factorizations=nf, seconds=time.perf_counter() - t_start,
+                        weight=float(weight), gradient_norm=gnorm)
+
+
+def _initial_path(problem: _PathProblem, V0, V1, F, times) -> tuple[list, str]:
+    """The as-rigid-as-possible interpolation where every frame is admissible, else the
+    linear one where it is (:class:`NotAdmissibleError` else)."""
+    candidates = (("arap", lambda: arap_interpolation(V0, V1, F, times)),
+                  ("linear", lambda: [(1.0 - t) * V0 + t * V1 for t in times]))
+    for name, make in candidates:
+        path = make()
+        path[0], path[-1] = V0.copy(), V1.copy()
+        if all(problem.embed(Q) is not None and problem.admissible(Q) for Q in path[1:-1]):
+            return path, name
+    raise NotAdmissibleError("neither the as-rigid-as-possible nor the linear "
+                             "interpolation of the pair is free of folds and degenerate "
+                             "triangles")
+
+
+class _PathSystem:
+    """The damped Gauss–Newton matrix of the interior frames, ``H + λ diag H`` with
+    ``H = 𝔻ᵀ(T ⊗ I)𝔻``, ``𝔻 = diag(D_1, …, D_{K−1})`` the frames' embedding Jacobians and
+    ``T`` the path's Laplacian in time (2 on the diagonal, −1 beside), never assembled;
+    solved by conjugate gradients preconditioned by its diagonal blocks
+    ``(2 + 2λ diag) D_jᵀD_j``, one Cholesky factor per frame kept across iterations
+    (refactorized on its analysis)."""
+
+    def __init__(self, frames: int) -> None:
+        m = frames - 1
+        self.T = 2.0 * np.eye(m) - np.eye(m, k=1) - np.eye(m, k=-1)
+        self.factors: list = [None] * m
+        self.factorizations = 0
+
+    def update(self, D: list, damping: float, refactorize: bool) -> None:
+        """The frames' Jacobians ``D`` and the damping ``λ``; the blocks factorized again
+        where asked (else the kept factors of an earlier iterate precondition)."""
+        self.D, self.damping = D, damping
+        self.diagonal = np.concatenate([2.0 * np.asarray(Dj.multiply(Dj).sum(axis=0)).ravel()
+                                        for Dj in D])
+        if not refactorize and self.factors[0] is not None:
+            return
+        grams = [(Dj.T @ Dj).tocsc() for Dj in D]
+
+        def factorize(j):
+            G = 2.0 * grams[j]
+            G.setdiag(G.diagonal() * (1.0 + damping))
+            if hasattr(self.factors[j], "refactorize"):
+                self.factors[j].refactorize(G)
+            else:
+                self.factors[j] = factorize_spd(G)
+
+        list(frame_map(D[0].shape[0], len(D))(factorize, range(len(D))))
+        self.factorizations += len(D)
+
+    def product(self, v: FloatArray) -> FloatArray:
+        """``(H + damping·diag H) v``."""
+        V = v.reshape(len(self.D), -1)
+        U = self.T @ np.stack([Dj @ x for Dj, x in zip(self.D, V)])
+        Hv = np.concatenate([Dj.T @ u for Dj, u in zip(self.D, U)])
+        return Hv + self.damping * self.diagonal * v
+
+    def precondition(self, v: FloatArray) -> FloatArray:
+        V = v.reshape(len(self.D), -1)
+        return np.concatenate(list(frame_map(self.D[0].shape[0], len(self.D))(
+            lambda f, x: f(x), self.factors, V)))
+
+    def solve(self, b: FloatArray, rtol: float = 5e-2, max_iterations: int = 100
+              ) -> FloatArray:
+        """Preconditioned conjugate gradients from 0 to ``|r| ≤ rtol |b|``."""
+        x = np.zeros_like(b)
+        self.iterations = 0
+        r = b.copy()
+        z = self.precondition(r)
+        p, rz = z.copy(), float(r @ z)
+        target = rtol * float(np.linalg.norm(b))
+        for self.iterations in range(1, max_iterations + 1):
+            Ap = self.product(p)
+            alpha = rz / float(p @ Ap)
+            x += alpha * p
+            r -= alpha * Ap
+            if np.linalg.norm(r) <= target:
+                break
+            z = self.precondition(r)
+            rz, rz_old = float(r @ z), rz
+            p = z + (rz / rz_old) * p
+        return x
+
+
+def _minimize(problem: _PathProblem, path: list, max_iterations: int, rtol: float,
+              callback) -> tuple:
+    """Levenberg–Marquardt on the interior frames (module docstring): the frames, the
+    status, iterations, factorizations, the initial energy and the last gradient norm."""
+    K = len(path) - 1
+    if K < 2:
+        return path, "converged", 0, 0, 0.0, 0.0
+    X = [problem.embed(Q) for Q in path]
+
+    def energy_of(Xs):
+        r = [problem.segment(Xs[k], Xs[k + 1]) for k in range(K)]
+        return 0.5 * float(sum(v @ v for v in r)), r
+
+    E, r = energy_of(X)
+    E_initial, n = E, path[0].size
+    system = _PathSystem(K)
+    damping, status, gnorm, it = 1e-4, "max_iterations", 0.0, 0
+    fresh = True  # factorize the preconditioner's blocks (again)
+    for it in range(1, max_iterations + 1):
+        D = [problem.jacobian(path[j]) for j in range(1, K)]
+        g = np.concatenate([D[j - 1].T @ (r[j - 1] - r[j]) for j in range(1, K)])
+        gnorm = float(np.linalg.norm(g))
+        accepted = False
+        for _ in range(4):  # raise the damping until a step is taken
+            system.update(D, damping, fresh)
+            step = -system.solve(g)
+            # the kept factors serve while conjugate gradients converge quickly with them
+            fresh = system.iterations > 25
+            for alpha in 0.5 ** np.arange(8):
+                trial = [path[0]] + [path[j] + alpha * step[(j - 1) * n:j * n].reshape(-1, 3)
+                                     for j in range(1, K)] + [path[K]]
+                Xt = [X[0]] + [problem.embed(Q) for Q in trial[1:-1]] + [X[K]]
+                if any(x is None for x in Xt):
+                    continue
+                E_trial, r_trial = energy_of(Xt)
+                if E_trial < E and all(problem.admissible(Q) for Q in trial[1:-1]):
+                    accepted = True
+                    break
+            if accepted:
+                break
+            damping *= 10.0
+            fresh = True
+        if not accepted:
+            status = "stalled"
+            break
+        decrease = E - E_trial
+        path, X, E, r = trial, Xt, E_trial, r_trial
+        damping = max(damping / 3.0, 1e-8) if alpha == 1.0 else damping * 2.0
+        if callback is not None and callback(PathIteration(it, E, gnorm)):
+            status = "stopped"
+            break
+        if decrease <= rtol * E:
+            status = "converged"
+            break
+    return path, status, it, system.factorizations, E_initial, gnorm
