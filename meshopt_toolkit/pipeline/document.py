@@ -156,20 +156,26 @@ class MeshEntry:
 
     def set_face_attribute(self, name: str, values) -> None:
         a = np.asarray(values)
-        if a.shape[:1] != (self.mesh.n_triangles,):
-            raise FilterError(f"face attribute {name!r} needs {self.mesh.n_triangles} rows, got {a.shape}")
+        n = _n_cells(self.mesh)
+        if a.shape[:1] != (n,):
+            raise FilterError(f"face attribute {name!r} needs {n} rows, got {a.shape}")
         self.face_attributes[name] = a
 
     def replace_mesh(self, mesh: TriangleMesh, *, keep_vertex: bool | None = None,
                      keep_face: bool | None = None) -> None:
         """Swap in a new mesh; attributes are kept only where the sizes still match."""
         same_v = mesh.n_vertices == self.mesh.n_vertices
-        same_f = mesh.n_triangles == self.mesh.n_triangles
+        same_f = _n_cells(mesh) == _n_cells(self.mesh)
         if not (same_v if keep_vertex is None else keep_vertex):
             self.vertex_attributes = {}
         if not (same_f if keep_face is None else keep_face):
             self.face_attributes = {}
         self.mesh = mesh
+
+
+def _n_cells(mesh) -> int:
+    """Triangles of a triangle mesh, tetrahedra of a tet mesh."""
+    return mesh.n_tets if isinstance(mesh, TetMesh) else mesh.n_triangles
 
 
 def _as_best(mesh: TriangleMesh) -> TriangleMesh:
