@@ -207,7 +207,7 @@ def test_a_meshlab_step_on_tets_is_refused_in_one_line(box, tmp_path, dry_run):
     rec = run_file({"filters": [SMOOTH]}, box, tmp_path, options=RunOptions(dry_run=dry_run))
     assert rec["status"] == "failed" and rec["outputs"] == []
     assert rec["error"] == (f"step 1 ({SMOOTH['name']}): MeshLab filters work on "
-                            f"triangles; box has {load_cells(box).to_tet_mesh().n_tets} "
+                            f"triangles; box has {load_cells(box).to_tet_mesh().n_tets:,} "
                             "tetrahedra, which pymeshlab cannot hold")
     assert not (tmp_path / "box.msh").exists()
 
@@ -216,3 +216,13 @@ def test_face_quality_of_tets_is_refused(box, tmp_path):
     rec = run_file({"filters": [QUALITY]}, box, tmp_path)
     assert rec["status"] == "failed"
     assert "needs a planar mesh; box has" in rec["error"] and "tetrahedra" in rec["error"]
+
+
+@pytest.mark.parametrize("name", ["surface_move.json", "surface_move.mlx"])
+def test_the_documented_examples_run(bar, tmp_path, name):
+    example = Path(__file__).resolve().parent.parent / "examples" / "pipelines" / name
+    pipeline = formats.load_pipeline(example)
+    assert [s.name for s in pipeline.steps] == [SMOOTH["name"], MOVE["name"], QUALITY["name"]]
+    rec, b = _run(pipeline, bar, tmp_path / "out")
+    assert rec["status"] == "ok" and rec["warnings"] == [], rec
+    _check_surface_result(bar, b)

@@ -357,7 +357,7 @@ class Document:
         for e in self.entries:
             if isinstance(e.mesh, TetMesh):
                 raise FilterError(f"MeshLab filters work on triangles; {e.name} has "
-                                  f"{e.mesh.n_tets} tetrahedra, which pymeshlab cannot hold")
+                                  f"{e.mesh.n_tets:,} tetrahedra, which pymeshlab cannot hold")
 
     def to_meshset(self):
         """A ``pymeshlab.MeshSet`` with every mesh in order (same vertex/face order).
