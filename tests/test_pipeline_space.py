@@ -226,3 +226,22 @@ def test_the_documented_examples_run(bar, tmp_path, name):
     rec, b = _run(pipeline, bar, tmp_path / "out")
     assert rec["status"] == "ok" and rec["warnings"] == [], rec
     _check_surface_result(bar, b)
+
+
+def test_documents_made_in_python_take_tet_and_surface_meshes(box):
+    from meshopt_toolkit.mesh import SurfaceMesh
+    from meshopt_toolkit.pipeline.document import Document
+
+    tets = load_cells(box).to_tet_mesh()
+    hole = tets.tagged_vertices("hole")
+    doc = Document([tets])
+    Pipeline.from_dict({"filters": [{"name": "apply_coord_prescribed_motion",
+                                     "params": {"group": "hole", "map": "x; y; z + 0.05"}}]}
+                       ).run(doc)
+    np.testing.assert_array_equal(doc.mesh.points[hole], tets.points[hole] + [0, 0, 0.05])
+    assert signed_volumes(doc.mesh.points, doc.mesh.tets).min() > 0
+    V, F = bench.box_surface([2.0, 1.0, 1.0], 0.25)
+    doc = Document([SurfaceMesh(V, F)])
+    Pipeline.from_dict({"filters": [QUALITY]}).run(doc)
+    np.testing.assert_allclose(doc.current_entry.face_attributes["quality"],
+                               _aspect_ratios(V, F), rtol=1e-12)

@@ -40,7 +40,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..errors import FilterError
-from ..mesh import PlanarMesh, TetMesh, TriangleMesh
+from ..mesh import PlanarMesh, SurfaceMesh, TetMesh, TriangleMesh
 from .limits import DEFAULT_MAX_TRIANGLES
 from .meshset import add_custom, lost_extras, mesh_ids, read_custom
 
@@ -178,9 +178,14 @@ def _n_cells(mesh) -> int:
     return mesh.n_tets if isinstance(mesh, TetMesh) else mesh.n_triangles
 
 
-def _as_best(mesh: TriangleMesh) -> TriangleMesh:
+def _as_best(mesh):
     """A PlanarMesh where z drops exactly; other planes stay in file coordinates (the
-    planar filters see them through :meth:`MeshEntry.workpiece`)."""
+    planar filters see them through :meth:`MeshEntry.workpiece`); a SurfaceMesh as its
+    TriangleMesh, a TetMesh as it is."""
+    if isinstance(mesh, TetMesh):
+        return mesh
+    if isinstance(mesh, SurfaceMesh):
+        mesh = mesh.as_triangle_mesh()
     return mesh.as_planar() if mesh.in_xy_plane and not isinstance(mesh, PlanarMesh) else mesh
 
 
