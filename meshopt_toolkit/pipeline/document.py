@@ -101,7 +101,8 @@ class MeshEntry:
 
     def point_data(self) -> dict[str, np.ndarray]:
         """The vertex data of the mesh: its file's point data (while the file describes
-        the mesh) and the vertex attributes computed in the pipeline (these first)."""
+        the mesh) and the vertex attributes computed in the pipeline (these win where a
+        name is in both)."""
         wp = self.source_workpiece
         if self.keeps_source_cells:
             data = dict(self.source_cells.point_data)
