@@ -106,11 +106,13 @@ def _psi_ref(mesh):
     return 4 * SQ3 * area / (a * a + b * b + c * c)
 
 
-def test_shape_quality_refuses_3d_surface():
+def test_shape_quality_of_a_3d_surface_is_unsigned():
     # one triangle is always on a plane (it is measured in it): a bent pair is not
     mesh = TriangleMesh([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 1]], [[0, 1, 2], [1, 3, 2]])
-    with pytest.raises(FilterError, match="planar"):
-        registry.get("compute_scalar_by_shape_quality_per_face")()(Document([mesh]))
+    doc = Document([mesh])
+    registry.get("compute_scalar_by_shape_quality_per_face")()(doc)
+    np.testing.assert_allclose(doc.current_entry.face_attributes["quality"],
+                               1 / _psi_ref(mesh), rtol=1e-13)
 
 
 @pytest.mark.parametrize("kind", KINDS)

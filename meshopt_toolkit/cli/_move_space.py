@@ -1,7 +1,9 @@
 """``meshopt move`` for meshes in space — tetrahedra and triangle surfaces: handles in
 ``x, y, z``, the file written back with only its points replaced (every block, tag, name
 and datum kept). A surface map's candidates are all its vertices (an open surface's
-boundary stays); a tet map's are the boundary vertices or a physical group's nodes."""
+boundary stays); a tet map's are the boundary vertices, a physical group's nodes or the
+vertices a point datum selects (``--selection``, :func:`~..motion.handles3d.handles_in_space`,
+which the move filter shares)."""
 
 from __future__ import annotations
 
@@ -56,15 +58,16 @@ def run_in_space(args: argparse.Namespace, cells, kind: str) -> int:
     The output checks (:func:`~._common.check_output_target`) are done by the caller.
     """
     from ..io import save_cells
+    from ..motion.handles3d import handles_in_space
     from ..motion.move import move
-    from ..motion.targets import handles_of
 
     as_mesh, table, line = KINDS[kind]
     src, out, frames = Path(args.mesh), Path(args.output), args.frames
     mesh = as_mesh(cells)
-    handles, targets = handles_of(mesh, targets=args.targets, mapping=args.map,
-                                  where=args.where, group=args.group,
-                                  free_boundary=args.free_boundary)
+    handles, targets = handles_in_space(
+        mesh, targets=args.targets, mapping=args.map, where=args.where, group=args.group,
+        selection=args.selection, point_data=cells.point_data,
+        free_boundary=args.free_boundary, source=str(src))
     result = move(mesh, handles, targets, frames=frames, steps=args.steps, weight=args.weight)
 
     def written(m):

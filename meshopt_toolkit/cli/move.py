@@ -3,7 +3,8 @@
 Handles are given by ``--targets FILE`` (CSV rows ``index,x,y`` or a ``.npy`` k × 3 array;
 the boundary vertices it does not list stay, unless ``--free-boundary``) or by
 ``--map "X_EXPR; Y_EXPR"`` (new positions of the boundary vertices, or with ``--group NAME``
-of a physical group's nodes, where ``--where`` holds; the other boundary vertices stay).
+of a physical group's nodes, or with ``--selection NAME`` of the vertices where the point
+datum NAME is nonzero, where ``--where`` holds; the other boundary vertices stay).
 Without ``--frames`` the moved mesh is written to ``-o OUT``; with ``--frames K``, OUT is a
 directory with ``frame_000.<ext>`` … and ``quality.csv``. ``--json`` prints a summary
 (inverted count, min aspect ratio, mean Λ, handle error, seconds). Existing outputs are
@@ -72,6 +73,11 @@ def add_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--group", metavar="NAME",
                    help="with --map: move the nodes of this physical group (name or number) "
                         "instead of the boundary; the other boundary vertices stay fixed")
+    p.add_argument("--selection", metavar="NAME",
+                   help="with --map: move the vertices whose point datum NAME is nonzero "
+                        "(a .ply vertex property such as MeshLab's 'quality', or 'flags' "
+                        "with the selection bit; .msh/.vtu point data) instead of the "
+                        "boundary; the other boundary vertices stay fixed")
     p.add_argument("--free-boundary", action="store_true",
                    help="with --targets: the boundary vertices the file does not list move "
                         "freely (default: they stay fixed)")
@@ -82,18 +88,21 @@ def add_args(p: argparse.ArgumentParser) -> None:
 def _check_numbers(args: argparse.Namespace) -> None:
     check_int("--frames", args.frames, 2, MAX_FRAMES)
     check_options(args, PrescribedMotion, OPTIONS)
-    for option, given in (("--where", args.where), ("--group", args.group)):
+    for option, given in (("--where", args.where), ("--group", args.group),
+                          ("--selection", args.selection)):
         if given is not None and args.map is None:
             raise OptionError(f"{option} needs --map")
     if args.free_boundary and args.targets is None:
         raise OptionError("--free-boundary is for --targets (--map keeps the boundary "
                           "vertices it does not move)")
+    if args.group is not None and args.selection is not None:
+        raise OptionError("give one of --group and --selection")
 
 
 def run(args: argparse.Namespace) -> int:
     from ..io import load_cells
+    from ..motion.handles3d import handles_in_space
     from ..motion.move import move
-    from ..motion.targets import handles_of
     from ..progress import ProgressBar
     from ._info_cells import SURFACE, TETS, cell_kind
     from ._move_space import run_in_space
@@ -109,9 +118,10 @@ def run(args: argparse.Namespace) -> int:
     wp = load_workpiece(src, "move", cells=cells)
     mesh = wp.mesh
     # handles and targets in the file's units
-    handles, targets = handles_of(wp.user_mesh, targets=args.targets, mapping=args.map,
-                                  where=args.where, group=args.group,
-                                  free_boundary=args.free_boundary)
+    handles, targets = handles_in_space(
+        wp.user_mesh, targets=args.targets, mapping=args.map, where=args.where,
+        group=args.group, selection=args.selection, point_data=wp.cells.point_data,
+        free_boundary=args.free_boundary, source=str(src))
     with ProgressBar(1000, "move") as bar:
         result = move(mesh, handles, wp.to_unit(targets), frames=frames, steps=args.steps,
                       weight=args.weight, progress=bar.to_fraction)

@@ -1,27 +1,37 @@
-"""Filter ``apply_coord_prescribed_motion``: move handle vertices exactly, keep every triangle healthy."""
+"""Filter ``apply_coord_prescribed_motion``: move handle vertices exactly, keep every cell healthy."""
 
 from __future__ import annotations
 
 from meshopt_toolkit.bounds import MAX_STEPS
-from meshopt_toolkit.errors import FilterError
+from meshopt_toolkit.errors import FilterError, OptionError
 from meshopt_toolkit.pipeline.filter import Filter, register
 from meshopt_toolkit.pipeline.params import (BoolParam, FloatParam, IntParam, PathParam,
                                               StringParam)
 
+#: the messages of :func:`~meshopt_toolkit.motion.handles3d.handles_in_space` name parameters
+_OPTIONS = {"group": "group", "selection": "selection", "map": "map", "targets": "targets",
+            "where": "where"}
+
 
 @register
 class PrescribedMotion(Filter):
-    """Move chosen vertices of the current planar mesh exactly to their targets; the other
-    vertices follow along a path of the per-triangle distortion metric, so no triangle
-    inverts (``mt.move``, ``meshopt move``).
+    """Move chosen vertices of the current mesh exactly to their targets; the other
+    vertices follow along a path of the per-cell distortion metric, so no cell inverts
+    (``mt.move``, ``meshopt move``). The mesh is planar triangles, a triangle surface in
+    3D or a tet mesh.
 
-    Give either ``targets`` (CSV rows ``index,x,y`` or a ``.npy`` k × 3 array; ``{stem}`` is
-    replaced by the input file's stem; the boundary vertices it does not list stay unless
-    ``free_boundary``) or ``map`` (``"X_EXPR; Y_EXPR"``: the new position of each boundary
-    vertex, or with ``group`` of each node of that physical group, where ``where`` holds,
-    e.g. ``"x**2 + y**2 < 0.25"``; the other boundary vertices stay). The moved mesh
-    replaces the current one. The motion is computed at unit size
-    (:mod:`meshopt_toolkit.scaling`) and scaled back, like ``meshopt move``.
+    Give either ``targets`` (CSV rows ``index,x,y`` or a ``.npy`` k × 3 array; rows
+    ``index,x,y,z`` or k × 4 in 3D; ``{stem}`` is replaced by the input file's stem; the
+    boundary vertices it does not list stay unless ``free_boundary``) or ``map``
+    (``"X_EXPR; Y_EXPR"``, in 3D ``"X_EXPR; Y_EXPR; Z_EXPR"`` in ``x, y, z``: the new
+    position of each boundary vertex (a surface: each vertex), or with ``group`` of each
+    node of that physical group, or with ``selection`` of each vertex whose point datum
+    or vertex attribute of that name is nonzero (a ``.ply`` vertex property such as
+    MeshLab's ``quality``, or ``selected`` after a MeshLab selection step), where
+    ``where`` holds, e.g. ``"x**2 + y**2 < 0.25"``; the other boundary vertices stay).
+    The moved mesh replaces the current one with every block, group and datum of its
+    file. A planar motion is computed at unit size (:mod:`meshopt_toolkit.scaling`) and
+    scaled back, like ``meshopt move``; a motion in 3D in the file's coordinates.
     """
 
     name = "apply_coord_prescribed_motion"
@@ -30,12 +40,16 @@ class PrescribedMotion(Filter):
     aliases = ("apply_prescribed_motion",)
     description = "Move handle vertices exactly to targets; the rest follows without inverting."
     parameters = (
-        PathParam("targets", "", "CSV 'index,x,y' or .npy (k, 3) handle targets", label="Targets"),
-        StringParam("map", "", "new boundary positions 'X_EXPR; Y_EXPR' in x, y", label="Map"),
-        StringParam("where", "", "with map: which boundary vertices move, e.g. 'x < 0.5'",
+        PathParam("targets", "", "CSV 'index,x,y' ('index,x,y,z' in 3D) or .npy (k, 3|4) "
+                  "handle targets", label="Targets"),
+        StringParam("map", "", "new positions 'X_EXPR; Y_EXPR' in x, y "
+                    "('X_EXPR; Y_EXPR; Z_EXPR' in 3D)", label="Map"),
+        StringParam("where", "", "with map: which candidate vertices move, e.g. 'x < 0.5'",
                     label="Where"),
         StringParam("group", "", "with map: move this physical group's nodes (name or number)",
                     label="Group"),
+        StringParam("selection", "", "with map: move the vertices whose point datum or "
+                    "vertex attribute of this name is nonzero", label="Selection"),
         BoolParam("free_boundary", False, "with targets: unlisted boundary vertices move freely",
                   label="Free boundary"),
         IntParam("steps", 4, "continuation steps (split further when needed)", label="Steps",
@@ -45,26 +59,52 @@ class PrescribedMotion(Filter):
     )
 
     def apply(self, document, *, targets: str = "", map: str = "", where: str = "",
-              group: str = "", free_boundary: bool = False, steps: int = 8,
-              weight: float = 1.0) -> dict:
+              group: str = "", selection: str = "", free_boundary: bool = False,
+              steps: int = 8, weight: float = 1.0) -> dict:
+        from meshopt_toolkit.motion.handles3d import handles_in_space
         from meshopt_toolkit.motion.move import move
-        from meshopt_toolkit.motion.targets import handles_of
 
         entry = document.current_entry
-        if bool(targets) == bool(map):
-            raise FilterError(f"{self.name}: give exactly one of targets and map")
-        for name, given in (("where", where), ("group", group)):
-            if given and not map:
-                raise FilterError(f"{self.name}: {name} needs map")
         if free_boundary and not targets:
             raise FilterError(f"{self.name}: free_boundary is for targets")
-        # the plane's coordinates at unit size; the file's blocks, tags and data kept
-        wp = entry.workpiece(self.name).admissible(self.name)
-        # handles and targets in the mesh's units
-        handles, positions = handles_of(
-            wp.user_mesh, targets=targets.replace("{stem}", entry.name) or None,
-            mapping=map or None, where=where or None, group=group or None,
-            free_boundary=free_boundary)
+        given = {"targets": targets.replace("{stem}", entry.name) or None,
+                 "mapping": map or None, "where": where or None, "group": group or None,
+                 "selection": selection or None, "free_boundary": free_boundary,
+                 "point_data": entry.point_data(), "source": entry.name,
+                 "options": _OPTIONS}
+        try:
+            # the plane's coordinates at unit size (None: a mesh in space)
+            wp = entry.workpiece(self.name, required=False)
+            if wp is None:
+                return self._in_space(entry, given, steps, weight)
+            wp = wp.admissible(self.name)
+            # handles and targets in the mesh's units
+            handles, positions = handles_in_space(wp.user_mesh, **given)
+        except OptionError as exc:
+            raise FilterError(f"{self.name}: {exc}") from None
         result = move(wp.mesh, handles, wp.to_unit(positions), steps=steps, weight=weight)
         entry.set_workpiece(wp.moved(result.mesh.points))
         return {**result.summary(), "unit_scale": wp.scale.factor}
+
+    def _in_space(self, entry, given: dict, steps: int, weight: float) -> dict:
+        """Move a tet mesh or a triangle surface in 3D; its file's cells and data stay."""
+        import numpy as np
+
+        from meshopt_toolkit.mesh import SurfaceMesh, TetMesh, TriangleMesh
+        from meshopt_toolkit.motion.handles3d import handles_in_space
+        from meshopt_toolkit.motion.move import move
+
+        mesh = entry.mesh
+        if isinstance(mesh, TetMesh):
+            solid = mesh.require_admissible()
+        else:
+            solid = SurfaceMesh(mesh.points, mesh.triangles, **mesh._tag_kwargs())
+        handles, positions = handles_in_space(solid, **given)
+        result = move(solid, handles, positions, steps=steps, weight=weight)
+        points = np.array(result.mesh.points, dtype=float)
+        if isinstance(mesh, TetMesh):
+            moved = mesh.with_points(points)
+        else:
+            moved = TriangleMesh(points, mesh.triangles, **mesh._tag_kwargs())
+        entry.replace_mesh(moved)  # same vertices and cells: attributes, file data kept
+        return {**result.summary(), "handles": int(len(np.unique(handles)))}

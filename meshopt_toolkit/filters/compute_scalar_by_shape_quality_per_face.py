@@ -13,14 +13,17 @@ METRICS = ("inverse shape quality 1/psi", "aspect ratio 2r/R")
 
 @register
 class ShapeQualityPerFace(Filter):
-    """Per-face shape quality of a planar mesh, stored as MeshLab face quality.
+    """Per-face shape quality of a planar mesh or a triangle surface in 3D, stored as
+    MeshLab face quality.
 
     ``1/ψ = (E0² + E1² + E2²) / (4√3 A)`` (5.23), 1 for an equilateral triangle and large
     for a bad one (negative when inverted, infinite when degenerate); or the aspect ratio
     ``2r/R`` in (0, 1], 1 for equilateral (0 when degenerate). The values go into the
     face attribute ``quality`` (MeshLab's face quality, so a later MeshLab step such as
     "Select by Face Quality" sees them); the summary holds min/max/mean of the values and
-    the mesh quality summary (AR (5.49), Λ (6.25), angles, areas).
+    the mesh quality summary (AR (5.49), Λ (6.25), angles, areas) of a planar mesh. A
+    surface in 3D has no orientation of its own: its values are those of the unsigned
+    area. A tet mesh has no faces of its own and is refused.
     """
 
     name = "compute_scalar_by_shape_quality_per_face"
@@ -32,8 +35,14 @@ class ShapeQualityPerFace(Filter):
     )
 
     def apply(self, document, *, metric: str = METRICS[0]) -> dict:
+        from meshopt_toolkit.mesh import TetMesh
+
         entry = document.current_entry
-        mesh = entry.workpiece(self.name, unit_size=False).mesh  # in its plane's coordinates
+        required = isinstance(entry.mesh, TetMesh)  # refused with one line
+        wp = entry.workpiece(self.name, unit_size=False, required=required)
+        if wp is None:  # a surface in 3D
+            return _in_space(entry, metric)
+        mesh = wp.mesh  # in its plane's coordinates
         pts = mesh.points
         tri = mesh.triangles
         values = inverse_shape_quality(pts, tri) if metric == METRICS[0] else aspect_ratios(pts, tri)
@@ -46,3 +55,18 @@ class ShapeQualityPerFace(Filter):
             "mean": float(values.mean()),
             **quality_summary(pts, tri).as_dict(),
         }
+
+
+def _in_space(entry, metric: str) -> dict:
+    """The values of a triangle surface in 3D (unsigned area) into face quality."""
+    from meshopt_toolkit.kernels.cell_maps import surface_inverse_shape_quality
+    from meshopt_toolkit.kernels.surface import aspect_ratios as surface_aspect_ratios
+
+    pts, tri = entry.mesh.points, entry.mesh.triangles
+    values = (surface_inverse_shape_quality(pts, tri) if metric == METRICS[0]
+              else surface_aspect_ratios(pts, tri))
+    entry.set_face_attribute("quality", values.astype(np.float64))
+    finite = values[np.isfinite(values)]
+    return {"metric": metric,
+            "min": float(finite.min()) if finite.size else float("nan"),
+            "max": float(values.max()), "mean": float(values.mean())}

@@ -76,3 +76,104 @@ class SolvedVertices:
         out[self._used] = Q
         out[self._loose[0]] = self._loose[1]
         return out
+
+
+#: MeshLab's vertex flag bit of a selected vertex (VCG's ``SELECTED``): a ``.ply`` saved
+#: by pymeshlab with ``save_vertex_flag=True`` holds it in the integer property ``flags``
+MESHLAB_SELECTED_BIT = 32
+
+
+def selected_vertices(point_data: dict, name: str, *, option: str = "--selection",
+                      source: str | None = None) -> IntArray:
+    """The vertices whose point datum ``name`` is nonzero (any nonzero component of a
+    vector datum); for MeshLab's integer ``flags``, those with the selection bit
+    :data:`MESHLAB_SELECTED_BIT`.
+
+    Parameters
+    ----------
+    point_data : dict of str to (N,) or (N, k) array
+        A file's point data (a ``.ply``'s vertex properties, a ``.msh``'s or ``.vtu``'s
+        point data) or a pipeline's vertex attributes.
+    name : str
+        The datum.
+    option, source : str
+        For the messages: the option or parameter, the file.
+
+    Raises
+    ------
+    InvalidMeshError
+        No such datum (the message lists those there are), a non-numeric one, or no
+        vertex selected.
+    """
+    where = f"{source} has " if source else "the mesh has "
+    if name not in point_data:
+        names = ", ".join(sorted(map(str, point_data))) or "none"
+        raise InvalidMeshError(f"{option} {name!r}: {where}no such point data; point data: "
+                               f"{names}")
+    values = np.asarray(point_data[name])
+    if values.dtype.kind not in "biuf":
+        raise InvalidMeshError(f"{option} {name!r}: not numbers ({values.dtype})")
+    values = values.reshape(len(values), -1)
+    if name == "flags" and values.dtype.kind in "iu" and values.shape[1] == 1:
+        chosen = (values[:, 0] & MESHLAB_SELECTED_BIT) != 0
+    else:
+        chosen = np.any(values != 0, axis=1)
+    if not chosen.any():
+        raise InvalidMeshError(f"{option} {name!r}: no vertex is selected (all zero)")
+    return np.flatnonzero(chosen).astype(np.int64)
+
+
+def handles_in_space(mesh, *, targets=None, mapping: str | None = None,
+                     where: str | None = None, group: str | None = None,
+                     selection: str | None = None, point_data: dict | None = None,
+                     free_boundary: bool = False, source: str | None = None,
+                     options: dict | None = None) -> tuple[IntArray, FloatArray]:
+    """Handles and targets of a move, as ``meshopt move`` and the move filter choose them
+    (for a tet mesh, a surface in 3D or a planar mesh alike).
+
+    ``targets`` (a table, :func:`~.targets.read_target_table`) or ``mapping`` (with
+    ``where``) on the candidates: a physical group's nodes (``group``), the vertices
+    selected in the point datum ``selection`` (:func:`selected_vertices`), or by default
+    the boundary vertices (a surface: all its vertices); see
+    :func:`~.targets.targets_from_map` for which vertices stay.
+
+    Parameters
+    ----------
+    mesh : TetMesh, SurfaceMesh or PlanarMesh
+        In the units of the table and the expressions.
+    point_data : dict, optional
+        Where ``selection`` is looked up (the file's point data, the pipeline's vertex
+        attributes).
+    options : dict, optional
+        How the messages name ``group``/``selection``/``map``/``targets``
+        (default: the command line's ``--group`` …; a filter gives its parameter names).
+
+    Raises
+    ------
+    OptionError
+        Not exactly one of ``targets`` and ``mapping``; ``where``, ``group`` or
+        ``selection`` without ``mapping``; both ``group`` and ``selection``.
+    InvalidMeshError, ExpressionError, ReadError
+        As the functions named.
+    """
+    from ..errors import OptionError
+    from .targets import group_vertices, handles_of, targets_from_map
+
+    opt = {"group": "--group", "selection": "--selection", "map": "--map",
+           "targets": "--targets", "where": "--where", **(options or {})}
+    if (targets is None) == (mapping is None):
+        raise OptionError(f"give exactly one of {opt['targets']} and {opt['map']}")
+    for key, given in (("where", where), ("group", group), ("selection", selection)):
+        if given is not None and mapping is None:
+            raise OptionError(f"{opt[key]} needs {opt['map']}")
+    if group is not None and selection is not None:
+        raise OptionError(f"give one of {opt['group']} and {opt['selection']}")
+    if selection is None:
+        if group is not None:
+            vertices = group_vertices(mesh, group, opt["group"])
+            return targets_from_map(mesh, mapping, where, vertices=vertices)
+        return handles_of(mesh, targets=targets, mapping=mapping, where=where,
+                          free_boundary=free_boundary)
+    vertices = selected_vertices(point_data or {}, selection, option=opt["selection"],
+                                 source=source or getattr(mesh, "source", None))
+    return targets_from_map(mesh, mapping, where, vertices=vertices)

@@ -68,7 +68,13 @@ def stats_of_arrays(points, triangles) -> MeshStats:
 
 
 def stats_of(mesh) -> MeshStats:
-    """:class:`MeshStats` of a :class:`~meshopt_toolkit.mesh.TriangleMesh`."""
+    """:class:`MeshStats` of a :class:`~meshopt_toolkit.mesh.TriangleMesh`; of a
+    :class:`~meshopt_toolkit.mesh.TetMesh`, its tetrahedra counted as the budget's cells
+    and its boundary's area."""
+    tets = getattr(mesh, "tets", None)
+    if tets is not None:
+        return replace(stats_of_arrays(mesh.points, mesh.boundary_faces),
+                       n_triangles=int(len(tets)))
     return stats_of_arrays(mesh.points, mesh.triangles)
 
 

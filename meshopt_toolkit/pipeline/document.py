@@ -22,7 +22,12 @@ MeshLab steps (they share one MeshSet), but is not pushed back into a new MeshSe
 
 Vertex and face order survive the round trip (pymeshlab keeps them for filters that do
 not change topology). When a MeshLab step keeps the faces, physical tags and line
-elements of the mesh are kept too.
+elements of the mesh are kept too, and so is everything its file holds (blocks, groups,
+point and cell data: the entry's ``source_workpiece`` of a planar mesh, ``source_cells``
+of a surface in 3D or a tet mesh). When a MeshLab step changes the faces, what cannot
+follow is named in one warning of the run (:attr:`Document.warnings`), never dropped
+silently. A tet mesh (a :class:`~meshopt_toolkit.mesh.TetMesh` entry) cannot go to
+pymeshlab, which holds triangles only: a MeshLab step on it is refused.
 """
 
 from __future__ import annotations
@@ -35,8 +40,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..errors import FilterError
-from ..mesh import PlanarMesh, TriangleMesh
+from ..mesh import PlanarMesh, SurfaceMesh, TetMesh, TriangleMesh
 from .limits import DEFAULT_MAX_TRIANGLES
+from .meshset import add_custom, lost_extras, mesh_ids, read_custom
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..io.cells import CellMesh
@@ -55,8 +61,9 @@ class MeshEntry:
 
     Attributes
     ----------
-    mesh : TriangleMesh
-        The mesh (a :class:`PlanarMesh` when planar).
+    mesh : TriangleMesh or TetMesh
+        The mesh (a :class:`PlanarMesh` when planar; a tet mesh from a file with
+        tetrahedra).
     name : str
         A label (file stem or filter output name).
     vertex_attributes : dict of str to ndarray
@@ -67,13 +74,43 @@ class MeshEntry:
         What the mesh's file holds beyond the triangles (every block, tag and datum, the
         plane): set by :func:`load_entry` and the planar filters, used by
         :meth:`workpiece` and :func:`save_entry` while the mesh keeps its triangles.
+    source_cells : CellMesh or None
+        What the file of a mesh in space (a surface in 3D, a tet mesh) holds: every
+        block, tag and datum, written by :func:`save_entry` at the mesh's points while
+        the mesh keeps the file's triangles (tetrahedra) and vertices.
     """
 
-    mesh: TriangleMesh
+    mesh: TriangleMesh | TetMesh
     name: str = "mesh"
     vertex_attributes: dict[str, np.ndarray] = field(default_factory=dict)
     face_attributes: dict[str, np.ndarray] = field(default_factory=dict)
     source_workpiece: Workpiece | None = None
+    source_cells: CellMesh | None = None
+
+    @property
+    def keeps_source_cells(self) -> bool:
+        """Whether :attr:`source_cells` still describes the mesh (same vertex count, same
+        triangles or tetrahedra in the same order)."""
+        cells = self.source_cells
+        if cells is None or len(cells.points) != self.mesh.n_vertices:
+            return False
+        kind = "tetra" if isinstance(self.mesh, TetMesh) else "triangle"
+        mine = self.mesh.tets if kind == "tetra" else self.mesh.triangles
+        blocks = [c for t, c in cells.cells if t == kind]
+        return bool(blocks) and np.array_equal(np.concatenate(blocks), mine)
+
+    def point_data(self) -> dict[str, np.ndarray]:
+        """The vertex data of the mesh: its file's point data (while the file describes
+        the mesh) and the vertex attributes computed in the pipeline (these win where a
+        name is in both)."""
+        wp = self.source_workpiece
+        if self.keeps_source_cells:
+            data = dict(self.source_cells.point_data)
+        elif wp is not None and len(wp.cells.points) == self.mesh.n_vertices:
+            data = dict(wp.cells.point_data)
+        else:
+            data = {}
+        return {**data, **self.vertex_attributes}
 
     def workpiece(self, what: str = "this filter", *, unit_size: bool = True,
                   required: bool = True) -> Workpiece | None:
@@ -89,6 +126,11 @@ class MeshEntry:
         from ..errors import InvalidMeshError
         from ..io.workpiece import Workpiece
 
+        if isinstance(self.mesh, TetMesh):
+            if not required:
+                return None
+            raise FilterError(f"{what} needs a planar mesh; {self.name} has "
+                              f"{self.mesh.n_tets} tetrahedra")
         wp = self.source_workpiece
         try:
             if wp is not None and np.array_equal(wp.mesh.triangles, self.mesh.triangles):
@@ -115,15 +157,16 @@ class MeshEntry:
 
     def set_face_attribute(self, name: str, values) -> None:
         a = np.asarray(values)
-        if a.shape[:1] != (self.mesh.n_triangles,):
-            raise FilterError(f"face attribute {name!r} needs {self.mesh.n_triangles} rows, got {a.shape}")
+        n = _n_cells(self.mesh)
+        if a.shape[:1] != (n,):
+            raise FilterError(f"face attribute {name!r} needs {n} rows, got {a.shape}")
         self.face_attributes[name] = a
 
     def replace_mesh(self, mesh: TriangleMesh, *, keep_vertex: bool | None = None,
                      keep_face: bool | None = None) -> None:
         """Swap in a new mesh; attributes are kept only where the sizes still match."""
         same_v = mesh.n_vertices == self.mesh.n_vertices
-        same_f = mesh.n_triangles == self.mesh.n_triangles
+        same_f = _n_cells(mesh) == _n_cells(self.mesh)
         if not (same_v if keep_vertex is None else keep_vertex):
             self.vertex_attributes = {}
         if not (same_f if keep_face is None else keep_face):
@@ -131,9 +174,19 @@ class MeshEntry:
         self.mesh = mesh
 
 
-def _as_best(mesh: TriangleMesh) -> TriangleMesh:
+def _n_cells(mesh) -> int:
+    """Triangles of a triangle mesh, tetrahedra of a tet mesh."""
+    return mesh.n_tets if isinstance(mesh, TetMesh) else mesh.n_triangles
+
+
+def _as_best(mesh):
     """A PlanarMesh where z drops exactly; other planes stay in file coordinates (the
-    planar filters see them through :meth:`MeshEntry.workpiece`)."""
+    planar filters see them through :meth:`MeshEntry.workpiece`); a SurfaceMesh as its
+    TriangleMesh, a TetMesh as it is."""
+    if isinstance(mesh, TetMesh):
+        return mesh
+    if isinstance(mesh, SurfaceMesh):
+        mesh = mesh.as_triangle_mesh()
     return mesh.as_planar() if mesh.in_xy_plane and not isinstance(mesh, PlanarMesh) else mesh
 
 
@@ -153,14 +206,23 @@ def load_entry(path) -> MeshEntry:
     ReadError
         As :func:`meshopt_toolkit.io.load`.
     """
+    from ..errors import InvalidMeshError, ReadError
     from ..io import load_cells
     from ..io.cells import triangle_mesh
     from ..io.workpiece import Workpiece
 
     cells = load_cells(path)
-    entry = MeshEntry(_as_best(triangle_mesh(cells)), name=Path(path).stem)
+    name = Path(path).stem
+    if any(t == "tetra" and len(c) for t, c in cells.cells):
+        try:
+            return MeshEntry(cells.to_tet_mesh("a pipeline"), name=name, source_cells=cells)
+        except InvalidMeshError as exc:
+            raise ReadError(str(exc)) from exc
+    entry = MeshEntry(_as_best(triangle_mesh(cells)), name=name)
     if entry.mesh.is_planar:
         entry.set_workpiece(Workpiece.from_cells(cells, unit_size=False))
+    else:  # a surface in 3D: its file's blocks, tags and data kept beside it
+        entry.source_cells = cells
     return entry
 
 
@@ -171,14 +233,18 @@ def entry_cells(entry: MeshEntry) -> tuple[CellMesh, tuple[str, ...]]:
     from ..io.workpiece import cells_with_attributes
 
     wp = entry.source_workpiece
-    if wp is not None and np.array_equal(wp.mesh.triangles, entry.mesh.triangles):
+    if entry.keeps_source_cells:  # a mesh in space: the file's cells at its points
+        cells = replace(entry.source_cells, points=np.array(entry.mesh.points, dtype=float))
+    elif isinstance(entry.mesh, TetMesh):
+        cells = CellMesh.from_tet_mesh(entry.mesh)
+    elif wp is not None and np.array_equal(wp.mesh.triangles, entry.mesh.triangles):
         # the file's cells at the mesh's points (wherever a MeshLab step put them)
         pts = np.asarray(entry.mesh.points)
         if pts.shape[1] < wp.cells.points.shape[1]:
             pts = np.column_stack([pts, np.zeros(len(pts))])
         cells = replace(wp.cells, points=pts)
     else:
-        if wp is not None:
+        if wp is not None or entry.source_cells is not None:
             logger.warning("%s: the faces changed since the file was read: its blocks, "
                            "groups and data are not kept", entry.name)
         cells = CellMesh.from_triangle_mesh(entry.mesh)
@@ -291,6 +357,14 @@ class Document:
         return self.current_entry.mesh
 
     # -- pymeshlab ------------------------------------------------------------------
+    def require_triangles(self) -> None:
+        """Raise FilterError (one line) when a mesh of the document is a tet mesh, which
+        pymeshlab cannot hold."""
+        for e in self.entries:
+            if isinstance(e.mesh, TetMesh):
+                raise FilterError(f"MeshLab filters work on triangles; {e.name} has "
+                                  f"{e.mesh.n_tets:,} tetrahedra, which pymeshlab cannot hold")
+
     def to_meshset(self):
         """A ``pymeshlab.MeshSet`` with every mesh in order (same vertex/face order).
 
@@ -301,6 +375,7 @@ class Document:
 
         from ..conversions import to_pymeshlab
 
+        self.require_triangles()
         ms = pymeshlab.MeshSet()
         for e in self.entries:
             base = to_pymeshlab(e.mesh)
@@ -319,24 +394,26 @@ class Document:
             cm = ms.current_mesh()
             for name, arr in va.items():
                 if name not in _SPECIAL:
-                    _add_custom(cm, "vertex", name, arr)
+                    add_custom(cm, "vertex", name, arr)
             for name, arr in fa.items():
                 if name not in _SPECIAL:
-                    _add_custom(cm, "face", name, arr)
+                    add_custom(cm, "face", name, arr)
         if self.entries:
-            ids = _mesh_ids(ms)
+            ids = mesh_ids(ms)
             ms.set_current_mesh(ids[self.current])
         return ms
 
-    def update_from_meshset(self, ms) -> None:
+    def update_from_meshset(self, ms, step: str = "") -> None:
         """Take the meshes of ``ms`` (after MeshLab filters ran) into this document.
 
         Meshes are matched by position; geometry, quality, colors, selection and the custom
-        attributes this document knows are read back. Tags survive when faces are unchanged.
+        attributes this document knows are read back. Tags, and what the mesh's file holds,
+        survive when faces are unchanged; where they changed, what is lost is named in one
+        line of :attr:`warnings` (``step`` in front: the step that made the change).
         """
         from ..conversions import from_pymeshlab
 
-        ids = _mesh_ids(ms)
+        ids = mesh_ids(ms)
         new_entries = []
         for pos, mid in enumerate(ids):
             m = ms.mesh(mid)
@@ -350,12 +427,10 @@ class Document:
                 mesh = cls(mesh.points, mesh.triangles, **kwargs)
             mesh = _as_best(mesh)
             entry = MeshEntry(mesh, name=m.label() or (old.name if old else f"mesh{pos}"))
-            if old is not None and old.source_workpiece is not None:
-                if np.array_equal(mesh.triangles, old.mesh.triangles):
-                    entry.source_workpiece = old.source_workpiece  # the faces are kept
-                else:
-                    logger.warning("%s: a MeshLab step changed the faces: the blocks, "
-                                   "groups and data of its file are not kept", entry.name)
+            same = old is not None and np.array_equal(mesh.triangles, old.mesh.triangles)
+            if same:  # the faces are kept, and with them what the file holds
+                entry.source_workpiece = old.source_workpiece
+                entry.source_cells = old.source_cells if old.keeps_source_cells else None
             nv, nf = mesh.n_vertices, mesh.n_triangles
             if m.has_vertex_scalar():
                 entry.vertex_attributes["quality"] = np.array(m.vertex_scalar_array())
@@ -373,10 +448,17 @@ class Document:
             if old is not None:
                 for name, arr in old.vertex_attributes.items():
                     if name not in _SPECIAL and len(arr) == nv:
-                        entry.vertex_attributes[name] = _read_custom(m, "vertex", name, arr)
+                        entry.vertex_attributes[name] = read_custom(m, "vertex", name, arr)
                 for name, arr in old.face_attributes.items():
                     if name not in _SPECIAL and len(arr) == nf:
-                        entry.face_attributes[name] = _read_custom(m, "face", name, arr)
+                        entry.face_attributes[name] = read_custom(m, "face", name, arr)
+                lost = [] if same else lost_extras(old, entry)
+                if lost:
+                    line = (f"{step + ': ' if step else ''}{entry.name}: a MeshLab step "
+                            f"changed the faces ({old.mesh.n_triangles:,} -> {nf:,} "
+                            f"triangles); not kept: {', '.join(lost)}")
+                    self.warnings.append(line)
+                    logger.info("%s", line)
             new_entries.append(entry)
         self.entries = new_entries
         cur = ms.current_mesh_id()
@@ -388,33 +470,3 @@ class Document:
         doc = cls()
         doc.update_from_meshset(ms)
         return doc
-
-
-def _mesh_ids(ms) -> list[int]:
-    """Ids of the meshes in a MeshSet, in insertion order."""
-    ids, i = [], 0
-    n = ms.mesh_number()
-    while len(ids) < n and i < 100 * (n + 1):
-        if ms.mesh_id_exists(i):
-            ids.append(i)
-        i += 1
-    return ids
-
-
-def _add_custom(m, where: str, name: str, arr) -> None:
-    a = np.asarray(arr, np.float64)
-    if a.ndim == 1:
-        getattr(m, f"add_{where}_custom_scalar_attribute")(a, name)
-    elif a.ndim == 2 and a.shape[1] == 3:
-        getattr(m, f"add_{where}_custom_point_attribute")(a, name)
-    else:
-        logger.info("attribute %r of shape %s has no MeshLab equivalent; not passed on", name, a.shape)
-
-
-def _read_custom(m, where: str, name: str, old):
-    try:
-        if np.ndim(old) == 1:
-            return np.array(getattr(m, f"{where}_custom_scalar_attribute_array")(name))
-        return np.array(getattr(m, f"{where}_custom_point_attribute_matrix")(name))
-    except Exception:  # the MeshLab step dropped it
-        return np.asarray(old)

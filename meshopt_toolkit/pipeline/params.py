@@ -346,7 +346,8 @@ class ExpressionParam(StringParam):
 
 @dataclass(frozen=True)
 class PathParam(StringParam):
-    """A file path; ``save=True`` for output files (``RichSaveFile``)."""
+    """A file path; ``save=True`` for output files (``RichSaveFile``). A path whose
+    default is empty is optional: empty means not given (as a saved pipeline writes it)."""
 
     save: bool = False
     kind: ClassVar[str] = "path"
@@ -358,6 +359,8 @@ class PathParam(StringParam):
     def validate(self, value, filter_name="?") -> str:
         value = super().validate(str(value) if hasattr(value, "__fspath__") else value, filter_name)
         if not value.strip():
+            if self.default == "":
+                return ""
             raise self._error(filter_name, "expected a file path, got an empty string")
         return value
 

@@ -253,6 +253,7 @@ class Pipeline:
             with self._at(i, s):
                 rv = self._resolved(document, s, vals)
                 if s.kind == MESHLAB:
+                    document.require_triangles()
                     est = None if stats is None else estimate_meshlab(s.name, rv, stats)
                 else:
                     est = s.filter.plan(document, rv, stats)
@@ -290,7 +291,8 @@ class Pipeline:
                     res = self._run_meshlab(document, ms, i, s, rv)
                     nxt = self.steps[i + 1] if i + 1 < len(self.steps) else None
                     if nxt is None or nxt.kind != MESHLAB:
-                        document.update_from_meshset(ms)
+                        document.update_from_meshset(
+                            ms, step=f"{self._where()}step {i + 1} ({s.name})")
                         ms = None
                 else:
                     stats = stats_of(document.mesh) if document.entries else None
@@ -298,7 +300,8 @@ class Pipeline:
                     check_budget(s.filter.plan(document, rv, stats), document.max_triangles, basis)
                     res = s.filter().apply(document, **rv)
                     if document.entries:
-                        check_measured(document.mesh.n_triangles, document.max_triangles)
+                        check_measured(stats_of(document.mesh).n_triangles,
+                                       document.max_triangles)
             if res:
                 document.results.append({"step": i + 1, "filter": s.name, **res})
         return document
