@@ -157,9 +157,11 @@ def _check_pair(source, target) -> None:
         raise InvalidMeshError("a tet morph needs two tetrahedral meshes, got "
                                f"{type(source).__name__} and {type(target).__name__}")
     if source.n_vertices != target.n_vertices or not np.array_equal(source.tets, target.tets):
+        which = (f"{target.source}: not the same vertices and tetrahedra as {source.source}"
+                 if source.source and target.source else
+                 "source and target must have the same vertices and tetrahedra")
         raise InvalidMeshError(
-            f"source and target must have the same vertices and tetrahedra (source: "
-            f"{source.n_vertices} vertices, {source.n_tets} tets; target: "
+            f"{which} (source: {source.n_vertices} vertices, {source.n_tets} tets; target: "
             f"{target.n_vertices} vertices, {target.n_tets} tets"
             + (", the tets differ)" if source.n_tets == target.n_tets
                and source.n_vertices == target.n_vertices else ")"))
