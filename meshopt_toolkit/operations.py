@@ -124,8 +124,8 @@ def morph(
 
     Returns
     -------
-    DistortionMorph or MorphResult
-        Both with ``mesh``, ``frames`` (meshes with the source's tags), ``summary()``,
+    DistortionMorph, MorphResult or TetMorphResult
+        All with ``mesh``, ``frames`` (meshes with the source's tags), ``summary()``,
         ``seconds`` and ``status`` (:class:`~meshopt_toolkit.results.Result`).
 
     Raises
