@@ -53,14 +53,15 @@ class TetMeshPattern:
         #: the slot of (col, row) for each slot
         self.transposed = np.searchsorted(unique, (unique % n) * n + unique // n)
 
-    def matrix(self, blocks: FloatArray, diagonal: FloatArray,
-               transpose: bool = False) -> sp.csr_matrix:
-        """``Σ_c blocks[c]`` (C, 12, 12) ``+ diag(diagonal)`` (or its transpose)."""
-        values = np.bincount(self.slot_of_entry, np.concatenate([blocks.ravel(), diagonal]),
-                             minlength=self.nnz)
-        if transpose:
-            values = values[self.transposed]
-        return sp.csr_matrix((values, self.indices, self.indptr), shape=(self.n, self.n))
+    def values(self, blocks: FloatArray, diagonal: FloatArray) -> FloatArray:
+        """Slot values of ``Σ_c blocks[c]`` (C, 12, 12) ``+ diag(diagonal)``."""
+        return np.bincount(self.slot_of_entry, np.concatenate([blocks.ravel(), diagonal]),
+                           minlength=self.nnz)
+
+    def matrix(self, values: FloatArray, transpose: bool = False) -> sp.csr_matrix:
+        """The matrix of slot ``values`` (or its transpose)."""
+        data = values[self.transposed] if transpose else values
+        return sp.csr_matrix((data, self.indices, self.indptr), shape=(self.n, self.n))
 
 
 class TetPath:
@@ -71,7 +72,8 @@ class TetPath:
     ----------
     metric : TetGraphMetric
     frames : (K+1, N, 3) float array
-        Every vertex in some tet (the mass of the others is zero).
+        Every vertex in some tet (the mass of the others is zero). The ends are fixed:
+        the frames given later have the same ends.
     """
 
     def __init__(self, metric: TetGraphMetric, frames: FloatArray) -> None:
@@ -84,6 +86,8 @@ class TetPath:
         self.sqrt_m = np.repeat(np.sqrt(metric.mass), 3)
         self.columns = metric.strain.columns()  # (C, 12)
         self._pattern: TetMeshPattern | None = None
+        # the fixed ends' distortion, evaluated once
+        self._ends = (metric.strain.values(self.frames[0]), metric.strain.values(self.frames[-1]))
 
     # -- the unknowns -----------------------------------------------------------------
     def unknowns(self, frames: FloatArray) -> FloatArray:
@@ -114,7 +118,7 @@ class TetPath:
         (the plain reference :meth:`normal_equations` is tested against)."""
         strain = self.metric.strain
         if not jacobian:
-            phis = [strain.values(Q) for Q in frames]
+            phis = [self._ends[0], *(strain.values(Q) for Q in frames[1:-1]), self._ends[1]]
             return self._residuals(frames, phis)[2], None
         pairs = [strain.values_and_jacobian(Q) for Q in frames]
         r = self._residuals(frames, [p for p, _ in pairs])[2]
@@ -144,12 +148,12 @@ class TetPath:
         K, n, w = self.K, self.n_coords, self.metric.weight
         sK = np.sqrt(K)
         strain = self.metric.strain
-        phis, blocks = [strain.values(frames[0])], [None]
+        phis, blocks = [self._ends[0]], [None]
         for Q in frames[1:-1]:
             phi, jb = strain.values_and_jacobian(Q)
             phis.append(phi)
             blocks.append(w * jb)  # w B_k, (C, 7, 12)
-        phis.append(strain.values(frames[-1]))
+        phis.append(self._ends[1])
         res_m, res_p, r = self._residuals(frames, phis)
         cols = self.columns.ravel()
         mass = self.sqrt_m**2
@@ -168,12 +172,13 @@ class TetPath:
                 cols, np.diagonal(products, axis1=1, axis2=2).ravel(), minlength=n)
             if newton:  # Σ_i r_i ∇²r_i of the strain rows at frame k
                 products = products + strain.second_order(frames[k], sK * w * part)
-            diagonal.append(self.pattern.matrix(products, 2.0 * K * mass))
+            diagonal.append(self.pattern.matrix(self.pattern.values(products, 2.0 * K * mass)))
         upper, lower = {}, {}
         for i in range(K - 2):
             products = -K * np.matmul(np.swapaxes(blocks[i + 1], 1, 2), blocks[i + 2])
-            upper[i] = self.pattern.matrix(products, -K * mass)
-            lower[i] = self.pattern.matrix(products, -K * mass, transpose=True)
+            values = self.pattern.values(products, -K * mass)
+            upper[i] = self.pattern.matrix(values)
+            lower[i] = self.pattern.matrix(values, transpose=True)
         embedding = FrameEmbedding(self.sqrt_m, blocks[1:K], self.columns,
                                    [np.arange(n)] * (K - 1), [2] * (K - 1),
                                    list(range(K - 2)), K)
