@@ -70,15 +70,16 @@ def _check_numbers(args: argparse.Namespace) -> None:
     check_numbers("--penalty", args.beta)
 
 
-def _check_outputs(args: argparse.Namespace) -> None:
-    """Before any work: the frame format is one we write and OUTDIR can take the files."""
+def _check_outputs(args: argparse.Namespace, others=PLOTS) -> None:
+    """Before any work: the frame format is one we write and OUTDIR can take the files
+    (the frames, ``summary.json`` and ``others``)."""
     if args.format:
         check_mesh_format(args.format, "--format")
     else:
         check_mesh_format(args.source)
     names = frame_names(args.frames, args.format, args.source)
     check_output_dir(Path(args.output), force=args.force,
-                     names=names + list(PLOTS) + ["summary.json"])
+                     names=names + list(others) + ["summary.json"])
 
 
 def run(args: argparse.Namespace) -> int:
@@ -91,6 +92,7 @@ def run(args: argparse.Namespace) -> int:
     from ._info_cells import TETS, read_kind
 
     _check_numbers(args)
+    _check_outputs(args, others=())  # the outputs of every kind, before reading
     kind, cells = read_kind(args.source)
     if kind == TETS:
         return _run_tets(args, cells)
@@ -154,11 +156,9 @@ def _run_tets(args: argparse.Namespace, cells) -> int:
     if args.metric != "distortion" or args.beta is not None or args.no_normalize:
         raise OptionError("tetrahedral meshes are morphed with the distortion metric only "
                           "(--metric scalar, --penalty and --no-normalize do not apply)")
-    ext = check_mesh_format(args.format, "--format") if args.format else check_mesh_format(
-        src_path)
-    names = frame_names(args.frames, ext, src_path)
+    _check_outputs(args, others=["quality.csv"])
+    names = frame_names(args.frames, args.format, src_path)
     files = names + ["quality.csv", "summary.json"]
-    check_output_dir(outdir, force=args.force, names=files)
     target_cells = load_cells(tgt_path)
     if cell_kind(target_cells) != TETS:
         raise OptionError(f"{tgt_path}: has no tetrahedra, {src_path} has (a tetrahedral "
