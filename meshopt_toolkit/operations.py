@@ -60,6 +60,27 @@ def _complete(source, target, frames: int, o: _Settings):
 MORPH_METRICS = {"distortion": _distortion, "complete": _complete}
 
 
+def _tet_distortion(source, target, frames: int, o: _Settings):
+    from .motion.tet_morph import morph_tets
+
+    if o.beta is not None or not o.normalize or o.method != "discrete":
+        raise OptionError("beta, normalize and method apply to metric='complete' only")
+    return morph_tets(source, target, frames, weight=o.weight, max_iter=o.max_iter,
+                      callback=o.callback)
+
+
+def _in_space(source, name: str):
+    """The morph of a pair of tet meshes (distortion metric only), else None."""
+    from .mesh import TetMesh
+
+    if not isinstance(source, TetMesh):
+        return None
+    if name != "distortion":
+        raise OptionError(f"tetrahedral meshes are morphed with metric='distortion' only, "
+                          f"not {name!r}")
+    return _tet_distortion
+
+
 def morph(
     source,
     target,
@@ -78,8 +99,9 @@ def morph(
 
     Parameters
     ----------
-    source, target : PlanarMesh
-        Admissible meshes with the same connectivity.
+    source, target : PlanarMesh or TetMesh
+        Admissible meshes with the same connectivity (tets: the distortion metric,
+        :func:`~.motion.tet_morph.morph_tets`).
     frames : int
         Number of frames (≥ 2), both ends included.
     metric : ``"distortion"`` (default) or ``"complete"`` (alias ``"scalar"``)
@@ -102,8 +124,8 @@ def morph(
 
     Returns
     -------
-    DistortionMorph or MorphResult
-        Both with ``mesh``, ``frames`` (meshes with the source's tags), ``summary()``,
+    DistortionMorph, MorphResult or TetMorphResult
+        All with ``mesh``, ``frames`` (meshes with the source's tags), ``summary()``,
         ``seconds`` and ``status`` (:class:`~meshopt_toolkit.results.Result`).
 
     Raises
@@ -138,5 +160,6 @@ def morph(
         return False
 
     hook = step if callback is not None or progress is not None else None
+    run = _in_space(source, name) or run  # tetrahedra: motion/tet_morph.py
     return run(source, target, int(frames),
                _Settings(float(weight), beta, bool(normalize), method, n_iter, hook))

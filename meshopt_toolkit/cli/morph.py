@@ -9,16 +9,22 @@ strip of snapshots), ``quality.png`` (minimum aspect ratio per frame of the geod
 of linear interpolation, with the linear path's inverted frames marked) and
 ``summary.json``.
 
-Both meshes are morphed at unit size (divided by one power of two nearest their size, see
-:mod:`meshopt_toolkit.scaling`) and the frames scaled back, so coordinates near 1e300 or
-1e-300 work and the frames do not depend on the units; the numbers in ``summary.json`` are
-those of the unit-size problem (lengths, areas, energies), with the factor as
-``unit_scale``.
+Tetrahedral meshes (a file with any tetrahedron) are morphed with the tet distortion
+metric (:func:`meshopt_toolkit.motion.tet_morph.morph_tets`): every frame has every tet
+positively oriented; the frames are the source file with only its points replaced (every
+block, physical group, name and datum kept), with ``quality.csv`` and ``summary.json``
+beside them (no plots).
 
 Two poses of a triangle surface in 3D (same triangles) are morphed by
 :mod:`meshopt_toolkit.motion.surface_morph` (membrane distortion and bending, every frame
 fold-free): the frames are the source's file with new points, with ``quality.csv`` (per
 frame the worst relative quality and the folds) and ``summary.json``.
+
+Both planar meshes are morphed at unit size (divided by one power of two nearest their size, see
+:mod:`meshopt_toolkit.scaling`) and the frames scaled back, so coordinates near 1e300 or
+1e-300 work and the frames do not depend on the units; the numbers in ``summary.json`` are
+those of the unit-size problem (lengths, areas, energies), with the factor as
+``unit_scale``.
 """
 
 from __future__ import annotations
@@ -69,15 +75,16 @@ def _check_numbers(args: argparse.Namespace) -> None:
     check_numbers("--penalty", args.beta)
 
 
-def _check_outputs(args: argparse.Namespace) -> None:
-    """Before any work: the frame format is one we write and OUTDIR can take the files."""
+def _check_outputs(args: argparse.Namespace, others=PLOTS) -> None:
+    """Before any work: the frame format is one we write and OUTDIR can take the files
+    (the frames, ``summary.json`` and ``others``)."""
     if args.format:
         check_mesh_format(args.format, "--format")
     else:
         check_mesh_format(args.source)
     names = frame_names(args.frames, args.format, args.source)
     check_output_dir(Path(args.output), force=args.force,
-                     names=names + list(PLOTS) + ["summary.json"])
+                     names=names + list(others) + ["summary.json"])
 
 
 def run(args: argparse.Namespace) -> int:
@@ -87,17 +94,21 @@ def run(args: argparse.Namespace) -> int:
     from ..operations import DEFAULT_MAX_ITER, METRIC_ALIASES, morph
     from ..plotting import save_morph_figures
     from ..progress import ProgressBar
-    from ._info_cells import SURFACE, cell_kind
+    from ._info_cells import SURFACE, TETS, read_kind
 
     _check_numbers(args)
+    _check_outputs(args, others=())  # the outputs of every kind, before reading
+    kind, cells = read_kind(args.source)
+    if kind == TETS:
+        return _run_tets(args, cells)
+    if kind == SURFACE:  # poses of a triangle surface in 3D
+        return _run_surface(args, cells)
     _check_outputs(args)
     src_path, tgt_path = Path(args.source), Path(args.target)
     # the source's plane at unit size (one power of two for both ends); the frames are
     # written with every block, tag and datum of the source
-    src_cells = io.load_cells(src_path)
-    if cell_kind(src_cells) == SURFACE:  # poses of a triangle surface in 3D
-        return _run_surface(args, src_cells)
-    wp, twp = Workpiece.from_cells(src_cells).with_target(io.load_cells(tgt_path))
+    wp, twp = Workpiece.from_cells(cells if cells is not None else io.load_cells(
+        src_path)).with_target(io.load_cells(tgt_path))
     source, target = wp.mesh, twp.mesh
     outdir = Path(args.output)
     names = frame_names(args.frames, args.format, src_path)
@@ -132,6 +143,64 @@ def run(args: argparse.Namespace) -> int:
               f"linear interpolation {lin}{state}")
         print(f"wrote {outdir}/ ({names[0]} … {names[-1]}, summary.json"
               + ("" if args.no_plots else ", " + ", ".join(PLOTS)) + ")")
+    return 0
+
+
+def _run_tets(args: argparse.Namespace, cells) -> int:
+    """The morph of two tetrahedral files: the source's cells written with each frame's
+    points (every block, tag, name and datum kept), ``quality.csv`` and ``summary.json``."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    from ..errors import OptionError
+    from ..io import load_cells, save_cells
+    from ..operations import morph
+    from ..progress import ProgressBar
+    from ._info_cells import TETS, cell_kind
+
+    src_path, tgt_path, outdir = Path(args.source), Path(args.target), Path(args.output)
+    if args.metric != "distortion" or args.beta is not None or args.no_normalize:
+        raise OptionError("tetrahedral meshes are morphed with the distortion metric only "
+                          "(--metric scalar, --penalty and --no-normalize do not apply)")
+    _check_outputs(args, others=["quality.csv"])
+    names = frame_names(args.frames, args.format, src_path)
+    files = names + ["quality.csv", "summary.json"]
+    target_cells = load_cells(tgt_path)
+    if cell_kind(target_cells) != TETS:
+        raise OptionError(f"{tgt_path}: has no tetrahedra, {src_path} has (a tetrahedral "
+                          "source needs a tetrahedral target)")
+    source = cells.to_tet_mesh("morph").require_admissible()
+    target = target_cells.to_tet_mesh("morph").require_admissible()
+    max_iter = args.max_iter or 200
+    with ProgressBar(max_iter, "morph") as bar:
+        result = morph(source, target, args.frames, weight=args.weight, max_iter=max_iter,
+                       callback=lambda it: bar.update(status=f"E={it.energy:.8g}"))
+    prepare_output_dir(outdir, force=args.force, names=files)
+    for name, points in zip(names, result.points):
+        save_cells(replace(cells, points=np.array(points, dtype=float)), outdir / name)
+    stats, linear = result.stats, result.linear
+    write_text(outdir / "quality.csv",
+               "frame,min_mean_ratio,linear_min_mean_ratio,linear_inverted\n" + "".join(
+                   f"{k},{q:.10g},{lq:.10g},{li}\n" for k, (q, lq, li) in enumerate(zip(
+                       stats.min_mean_ratio, linear.min_mean_ratio, linear.inverted))))
+    summary = result.summary()
+    summary.update(source=str(src_path), target=str(tgt_path), files=names)
+    write_text(outdir / "summary.json", strict_json.dumps(summary, indent=2) + "\n")
+    if args.json:
+        strict_json.dump(summary, sys.stdout)
+        sys.stdout.write("\n")
+    else:
+        worst = int(linear.inverted.max())
+        lin = f"inverts up to {worst} tets" if worst else "does not invert"
+        state = "" if result.converged else (
+            f"; NOT converged ({result.status}: frames admissible, the path is not yet a "
+            "minimizer)")
+        print(f"{result.n_frames} frames (distortion metric, tetrahedra), all admissible: "
+              f"{summary['admissible']}, worst mean ratio {summary['min_mean_ratio']:.4g} "
+              f"(ends {stats.min_mean_ratio[0]:.4g}, {stats.min_mean_ratio[-1]:.4g}); "
+              f"linear interpolation {lin}{state}")
+        print(f"wrote {outdir}/ ({names[0]} … {names[-1]}, quality.csv, summary.json)")
     return 0
 
 
