@@ -17,7 +17,8 @@ from meshopt_toolkit.errors import OptimizationError, OptionError
 from meshopt_toolkit.kernels.triangles import signed_areas
 from meshopt_toolkit.mesh import boundary_self_intersections
 from meshopt_toolkit.optimize import METHODS, VARIANTS, optimize
-from meshopt_toolkit.shape import LBFGSMemory, segment_limit, wolfe_line_search
+from meshopt_toolkit.kernels.triangles import segment_limit
+from meshopt_toolkit.shape import LBFGSMemory, wolfe_line_search
 
 
 class QuadraticObjective:
@@ -151,9 +152,9 @@ def test_lbfgs_with_exact_line_searches_terminates_on_a_quadratic_in_n_plus_1_it
     the same whatever the scaling γ of H0)."""
     mesh = grid_mesh(3, jitter=0.1, seed=seed)  # 4 interior vertices: n = 8 unknowns
     obj, c, n = _quadratic(mesh, seed)
-    res = optimize(mesh, obj, variant="euclidean-euclidean", method="lbfgs", max_iter=50,
-                   options=dict(memory=n, c2=1e-4, sigma=1e-5, gtol=1e-9, ftol=None),
-                   fixed=mesh.boundary_vertices)
+    res = optimize(mesh, obj, variant="euclidean-euclidean", method="lbfgs", max_iterations=50,
+                   options=dict(memory=n, c2=1e-4, sigma=1e-5, gtol=1e-9, tolerance=None),
+                   fixed=mesh.boundary_vertices, penalty=None)
     assert res.status == "converged" and res.success
     assert res.nit <= n + 1
     interior = obj.interior
@@ -165,12 +166,12 @@ def test_lbfgs_with_exact_line_searches_terminates_on_a_quadratic_in_n_plus_1_it
 def test_methods_reach_the_reference_minimizer_of_a_quadratic(method, variant):
     mesh = grid_mesh(4, jitter=0.1, seed=5)
     obj, c, n = _quadratic(mesh, 5, cond=50.0, shift=0.02)
-    res = optimize(mesh, obj, variant=variant, method=method, max_iter=400,
-                   options=dict(gtol=1e-8, ftol=None), fixed=mesh.boundary_vertices)
+    res = optimize(mesh, obj, variant=variant, method=method, max_iterations=400,
+                   options=dict(gtol=1e-8, tolerance=None), fixed=mesh.boundary_vertices, penalty=None)
     assert res.status == "converged"
     np.testing.assert_allclose(res.x[obj.interior].ravel(), c, atol=1e-6)
-    steepest = optimize(mesh, obj, variant=variant, method="steepest", max_iter=res.nit,
-                        options=dict(tol=None, gtol=1e-8), fixed=mesh.boundary_vertices)
+    steepest = optimize(mesh, obj, variant=variant, method="steepest", max_iterations=res.nit,
+                        options=dict(tolerance=None, gtol=1e-8), fixed=mesh.boundary_vertices, penalty=None)
     assert steepest.fun > res.fun  # same iteration budget: steepest descent is behind
     if method == "lbfgs":
         assert all(h.wolfe for h in res.history[1:])
@@ -196,7 +197,7 @@ def test_annulus_trials_across_the_boundary_are_rejected_not_fatal(method, annul
     edges = mesh.boundary_edges
     iterates = []
     res = optimize(mesh, PoissonObjective(mesh), variant="euclidean-euclidean", method=method,
-                   penalty_beta=thesis_penalty_beta(2, mesh.n_vertices), max_iter=100,
+                   penalty=thesis_penalty_beta(2, mesh.n_vertices), max_iterations=100,
                    callback=lambda rec: iterates.append(rec.points.copy()))
     # β3 = 0: nothing in F keeps the inner boundary off the outer one, the infimum lies on
     # the edge of M+; the run may end there (step_too_small) but never raises
@@ -214,8 +215,8 @@ def test_lbfgs_history_records_method_steps_and_curvature_pairs(variant):
 
     mesh = grid_mesh(4, jitter=0.2, seed=3)
     res = optimize(mesh, PullObjective(mesh, mesh.points + 0.05), variant=variant, method="lbfgs",
-                   penalty_beta=(0.01, 0.01, 0, 0.01), max_iter=6,
-                   options=dict(ftol=None, gtol=None))
+                   penalty=(0.01, 0.01, 0, 0.01), max_iterations=6,
+                   options=dict(tolerance=None, gtol=None))
     rows = [h.as_row() for h in res.history]
     assert {"method", "step", "wolfe", "pair_rejected", "rejected_trials",
             "relative_gradient_norm"} <= set(rows[0])
@@ -229,7 +230,7 @@ def test_lbfgs_history_records_method_steps_and_curvature_pairs(variant):
 def test_reaching_max_iterations_is_not_success(method):
     mesh = grid_mesh(4, jitter=0.1, seed=5)
     obj, c, n = _quadratic(mesh, 5, cond=50.0, shift=0.02)
-    res = optimize(mesh, obj, method=method, variant="euclidean-euclidean", max_iter=2)
+    res = optimize(mesh, obj, method=method, variant="euclidean-euclidean", max_iterations=2, penalty=None)
     assert res.status == "max_iterations" and not res.success
     assert "without converging" in res.message
 
@@ -241,7 +242,7 @@ def test_meshes_far_from_unit_size_are_refused_naming_the_scale(scale):
     mesh = grid_mesh(3, jitter=0.1)
     big = mesh.with_points(mesh.points * scale)
     with pytest.raises(OptimizationError, match=r"across.*rescale"):
-        optimize(big, PoissonObjective(big), max_iter=3)
+        optimize(big, PoissonObjective(big), max_iterations=3, penalty=None)
 
 
 def test_unknown_method_is_refused():
@@ -249,4 +250,4 @@ def test_unknown_method_is_refused():
 
     mesh = grid_mesh(3)
     with pytest.raises(OptionError, match="method"):
-        optimize(mesh, PullObjective(mesh, mesh.points), method="newton")
+        optimize(mesh, PullObjective(mesh, mesh.points), method="newton", penalty=None)

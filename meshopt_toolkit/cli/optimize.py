@@ -172,11 +172,11 @@ def run(args: argparse.Namespace) -> int:
         with bar:
             result = optimize(
                 mesh, objective, variant=args.variant, method=args.method,
-                penalty_beta=penalty, metric_beta=args.metric_penalty, problem=spec,
-                max_iter=args.max_iterations, callback=callback,
+                penalty=penalty, metric_beta=args.metric_penalty, problem=spec,
+                max_iterations=args.max_iterations, callback=callback,
                 options=OptimizeOptions(
-                    retraction=args.retraction, tol=args.tolerance or None,
-                    ftol=args.tolerance or None, gtol=args.gtol if args.gtol > 0 else None,
+                    retraction=args.retraction, tolerance=args.tolerance or None,
+                    gtol=args.gtol if args.gtol > 0 else None,
                     memory=args.memory, lbfgs_preconditioner=args.lbfgs_preconditioner),
             )
         summary = result.summary()

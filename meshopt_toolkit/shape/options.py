@@ -21,13 +21,11 @@ class OptimizeOptions:
 
     Attributes
     ----------
-    tol : steepest descent only: tolerance of the stopping rule (6.26)
-        ``max_{m=1..5} F_{n−m} − F_n < tol``; None disables it (fixed iteration count, as
-        for the unpenalized runs).
+    tolerance : stop when ``max_{m=1..5} F_{n−m} − F_n ≤ tolerance · max(|F_n|, 1)``
+        (every method; the thesis' rule (6.26), made relative where ``|F_n| > 1``); None
+        disables it (a fixed iteration count, as for the unpenalized runs).
     gtol : stop when the Riemannian gradient norm ``‖grad F‖_g`` falls to ``gtol`` times
         its first value (every method); None disables it.
-    ftol : lbfgs/cg only: stop when ``max_{m=1..5} F_{n−m} − F_n ≤ ftol · max(|F_n|, 1)``
-        (the relative version of (6.26)); None disables it.
     memory : number of L-BFGS curvature pairs kept.
     sigma, tau : Armijo parameters (6.21) (``sigma`` is ``c1`` of the Wolfe search) and
         the backtracking factor of steepest descent.
@@ -52,9 +50,8 @@ class OptimizeOptions:
         2198-vertex disc.
     """
 
-    tol: float | None = 1e-6
+    tolerance: float | None = 1e-6
     gtol: float | None = 1e-5
-    ftol: float | None = 1e-6
     memory: int = 10
     sigma: float = 1e-4
     tau: float = 0.5
@@ -96,6 +93,6 @@ class OptimizeOptions:
             raise OptionError(f"tau must be in (0, 1), got {self.tau}")
         if not 0 < self.segment_fraction <= 1:
             raise OptionError(f"segment_fraction must be in (0, 1], got {self.segment_fraction}")
-        for name, value in (("tol", self.tol), ("gtol", self.gtol), ("ftol", self.ftol)):
+        for name, value in (("tolerance", self.tolerance), ("gtol", self.gtol)):
             if value is not None and not value >= 0:
                 raise OptionError(f"{name} must be >= 0 or None, got {value}")
