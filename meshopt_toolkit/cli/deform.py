@@ -54,7 +54,7 @@ def add_args(p: argparse.ArgumentParser) -> None:
     group = p.add_mutually_exclusive_group()
     group.add_argument("--alpha", type=float_list(3), metavar="a1,a2,a3",
                        help="f1 parameters (default: 1,0,1)")
-    group.add_argument("--penalty", "--beta", dest="beta", type=float_list(4),
+    group.add_argument("--penalty", "--beta", type=float_list(4),
                        metavar="b1,b2,b3,b4",
                        help="use f2 with these parameters instead (β4 unscaled)")
     p.add_argument("--euclidean", action="store_true",
@@ -69,7 +69,7 @@ def _check_numbers(args: argparse.Namespace) -> None:
     check_options(args, QualityPreservingDeformation, OPTIONS)
     check_int("--frames", args.frames, 2, MAX_FRAMES)
     check_numbers("--alpha", args.alpha)
-    check_numbers("--penalty", args.beta)
+    check_numbers("--penalty", args.penalty)
     check_number("--rtol", args.rtol, low=MIN_RTOL, high=MAX_RTOL)
 
 
@@ -92,7 +92,7 @@ def run(args: argparse.Namespace) -> int:
             bar.update(int(1000 * fraction) - bar.count)
 
         res = deform(
-            mesh, V, t=args.time, frames=frames, alpha=args.alpha, beta=args.beta,
+            mesh, V, time=args.time, frames=frames, alpha=args.alpha, penalty=args.penalty,
             metric="euclidean" if args.euclidean else "complete",
             options=GeodesicOptions(rtol=args.rtol, atol=args.rtol), progress=progress,
         )

@@ -4,10 +4,10 @@ rules, line search, L-BFGS memory and preconditioner, metric and retraction
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass
 
+from .._options import options_of
 from ..errors import OptionError
 from .setup import DEFAULT_RETRACTION
 
@@ -67,20 +67,7 @@ class OptimizeOptions:
     def of(cls, options: OptimizeOptions | Mapping | None = None, **changes) -> OptimizeOptions:
         """``options`` (an instance, a mapping of its fields, or None: the defaults) with
         ``changes`` applied; an unknown field raises :class:`OptionError`."""
-        if options is None:
-            options = cls()
-        elif isinstance(options, Mapping):
-            changes = {**options, **changes}
-            options = cls()
-        elif not isinstance(options, cls):
-            raise OptionError(f"options must be an OptimizeOptions or a mapping, got "
-                              f"{type(options).__name__}")
-        names = {f.name for f in dataclasses.fields(cls)}
-        unknown = sorted(set(changes) - names)
-        if unknown:
-            raise OptionError(f"unknown optimize option(s) {', '.join(unknown)}; choose from "
-                              f"{', '.join(sorted(names))}")
-        out = dataclasses.replace(options, **changes)
+        out = options_of(cls, options, changes, error=OptionError, what="optimize option(s)")
         out._check()
         return out
 
