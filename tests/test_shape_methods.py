@@ -251,3 +251,74 @@ def test_unknown_method_is_refused():
     mesh = grid_mesh(3)
     with pytest.raises(OptionError, match="method"):
         optimize(mesh, PullObjective(mesh, mesh.points), method="newton", penalty=None)
+
+
+def _armijo_reference(t0, tau, c1, min_step, f):
+    """The first trial ``t0·tau^k ≥ min_step`` with ``f(t) ≤ f(0) + c1 t f'(0)``, decided
+    in exact rational arithmetic on the same float trials (f a polynomial in Fractions)."""
+    from fractions import Fraction
+
+    steps = t0 * tau ** np.arange(200)
+    for t in steps[steps >= min_step]:
+        T = Fraction(float(t))
+        if f(T) <= f(Fraction(0)) + Fraction(c1) * T * Fraction(-2):
+            return float(t)
+    return 0.0
+
+
+@settings(max_examples=60, deadline=None)
+@given(t0=st.floats(0.01, 100.0), tau=st.floats(0.1, 0.9), c1=st.floats(0.01, 0.9))
+def test_armijo_backtracking_takes_the_first_trial_with_sufficient_decrease(t0, tau, c1):
+    """φ(t) = (t − 1)² − 1, φ'(0) = −2: the accepted step is the first of t0, τ t0, …
+    with sufficient decrease (exact check), and only trials up to it are evaluated."""
+    from meshopt_toolkit.shape import armijo_backtracking
+
+    seen = []
+
+    def phi(t):
+        seen.append(t)
+        return (t - 1.0) ** 2 - 1.0, t
+
+    res = armijo_backtracking(phi, 0.0, -2.0, t0, c1=c1, tau=tau, min_step=1e-6)
+    expected = _armijo_reference(t0, tau, c1, 1e-6, lambda T: (T - 1) ** 2 - 1)
+    assert res.step == expected and res.payload == expected
+    assert res.wolfe is False and res.slope is None
+    assert seen == (t0 * tau ** np.arange(len(seen))).tolist() and seen[-1] == expected
+    assert res.evaluations == len(seen)
+
+
+def test_armijo_backtracking_guard_rejections_and_failure():
+    from meshopt_toolkit.shape import armijo_backtracking
+
+    seen, prepared = [], []
+
+    def phi(t):  # +inf (outside the domain) above 0.3
+        seen.append(t)
+        return (math.inf if t > 0.3 else (t - 1.0) ** 2 - 1.0), None
+
+    res = armijo_backtracking(phi, 0.0, -2.0, 4.0, tau=0.5, t_max=1.0,
+                              prepare=prepared.append)
+    # 4, 2, 1 are refused by the guard unevaluated; 0.5 is outside; 0.25 is taken
+    assert seen == [0.5, 0.25] and res.step == 0.25
+    assert res.evaluations == 5 and res.rejected == 1
+    assert len(prepared) == 1 and prepared[0][:5].tolist() == [4.0, 2.0, 1.0, 0.5, 0.25]
+    assert prepared[0].min() >= 1e-6
+    uphill = armijo_backtracking(lambda t: (1.0, None), 0.0, -2.0, 1.0, min_step=0.1)
+    assert not uphill.success and uphill.step == 0.0 and uphill.evaluations == 4  # 1 … 0.125
+    with pytest.raises(ValueError, match="descent"):
+        armijo_backtracking(lambda t: (0.0, None), 0.0, 1.0, 1.0)
+
+
+@pytest.mark.parametrize("method, search", [("steepest", None), ("lbfgs", True), ("cg", True)])
+def test_one_driver_each_method_its_line_search(method, search):
+    """Every method runs through shape.driver.run_descent: steepest descent's records carry
+    no Wolfe flag (Armijo backtracking), L-BFGS's and CG's do."""
+    from test_optimize import PullObjective
+
+    mesh = grid_mesh(4, jitter=0.2, seed=3)
+    res = optimize(mesh, PullObjective(mesh, mesh.points + 0.05), method=method,
+                   variant="euclidean-euclidean", penalty=(0.01, 0.01, 0, 0.01),
+                   max_iterations=4, options=dict(tolerance=None, gtol=None))
+    assert res.method == method and res.nit == 4
+    flags = {r.wolfe is None for r in res.history[1:]}
+    assert flags == {search is None}
