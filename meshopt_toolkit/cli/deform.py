@@ -32,6 +32,10 @@ from ._validate import check_int, check_number, check_numbers
 MIN_RTOL, MAX_RTOL = 1e-14, 0.1
 
 HELP = "deform a mesh along a complete-metric geodesic, keeping it admissible"
+EPILOG = (
+    "Default penalty: f1 with alpha = 1,0,1 (thesis section 5.5), Qref = the input mesh.\n"
+    "Example: meshopt deform disc.msh --displacement v.npy --frames 9 -o out/"
+)
 #: options generated from the filter's parameters (one schema: cli/_params.py)
 OPTIONS = {"time": "--time"}
 
@@ -39,11 +43,6 @@ logger = logging.getLogger(__name__)
 
 
 def add_args(p: argparse.ArgumentParser) -> None:
-    p.formatter_class = argparse.RawDescriptionHelpFormatter
-    p.epilog = (
-        "Default penalty: f1 with alpha = 1,0,1 (thesis section 5.5), Qref = the input mesh.\n"
-        "Example: meshopt deform disc.msh --displacement v.npy --frames 9 -o out/"
-    )
     p.add_argument("mesh", help="input mesh (admissible, planar)")
     p.add_argument("-o", "--output", required=True,
                    help="output mesh file, or a directory with --frames")
