@@ -49,7 +49,8 @@ def _operations(mesh):
         "morph": lambda: mt.morph(mesh, _bent(mesh), frames=3),
         "morph complete": lambda: mt.morph(mesh, _bent(mesh), frames=3, metric="complete"),
         "deform": lambda: mt.deform(mesh, V, frames=3),
-        "optimize": lambda: mt.optimize(mesh, PoissonObjective(mesh), max_iterations=3, penalty=None),
+        "optimize": lambda: mt.optimize(mesh, PoissonObjective(mesh), max_iterations=3,
+                                        penalty=None),
     }
 
 
@@ -108,7 +109,7 @@ def _public_calls():
 
 def test_no_public_operation_takes_more_than_12_parameters():
     calls = _public_calls()
-    assert set(OPERATIONS) <= set(calls) and {"log_map", "run_batch", "OptimizeOptions"} <= set(calls)
+    assert set(OPERATIONS) | {"log_map", "run_batch", "OptimizeOptions"} <= set(calls)
     counts = {n: len(inspect.signature(c).parameters) for n, c in calls.items()}
     assert {n: c for n, c in counts.items() if c > MAX_PARAMETERS} == {}
 
@@ -151,9 +152,12 @@ def test_the_parameter_count_test_sees_a_long_signature():
     ("deform metric", lambda m: mt.deform(m, np.zeros_like(m.points), metric="elastic")),
     ("deform penalties", lambda m: mt.deform(m, np.zeros_like(m.points), alpha=(1, 0, 1),
                                              penalty=(1, 1, 0, 1))),
-    ("optimize variant", lambda m: mt.optimize(m, PoissonObjective(m), variant="newton", penalty=None)),
-    ("optimize method", lambda m: mt.optimize(m, PoissonObjective(m), method="newton", penalty=None)),
-    ("optimize max_iterations", lambda m: mt.optimize(m, PoissonObjective(m), max_iterations=-1, penalty=None)),
+    ("optimize variant", lambda m: mt.optimize(m, PoissonObjective(m), variant="newton",
+                                               penalty=None)),
+    ("optimize method", lambda m: mt.optimize(m, PoissonObjective(m), method="newton",
+                                              penalty=None)),
+    ("optimize max_iterations", lambda m: mt.optimize(m, PoissonObjective(m), max_iterations=-1,
+                                                      penalty=None)),
     ("optimize unknown option", lambda m: mt.optimize(m, PoissonObjective(m),
                                                       options={"step": 1.0}, penalty=None)),
     ("optimize tau", lambda m: mt.optimize(m, PoissonObjective(m), method="steepest",
@@ -169,8 +173,10 @@ def test_bad_arguments_raise_option_error(mesh, name, call):
 
 def test_optimize_options_object_and_mapping_agree(mesh):
     obj = PoissonObjective(mesh)
-    a = mt.optimize(mesh, obj, max_iterations=4, options=mt.OptimizeOptions(gtol=None, memory=3), penalty=None)
-    b = mt.optimize(mesh, obj, max_iterations=4, options={"gtol": None, "memory": 3}, penalty=None)
+    a = mt.optimize(mesh, obj, max_iterations=4, penalty=None,
+                    options=mt.OptimizeOptions(gtol=None, memory=3))
+    b = mt.optimize(mesh, obj, max_iterations=4, penalty=None,
+                    options={"gtol": None, "memory": 3})
     np.testing.assert_array_equal(a.x, b.x)
 
 
@@ -183,7 +189,8 @@ def test_callbacks_follow_one_convention(mesh):
         return record.iteration >= 2
 
     res = mt.optimize(mesh, PoissonObjective(mesh), max_iterations=50, callback=stop_at_two,
-                      progress=fractions.append, options={"gtol": None, "tolerance": None}, penalty=None)
+                      progress=fractions.append, options={"gtol": None, "tolerance": None},
+                      penalty=None)
     assert res.status == "stopped" and res.nit == 2
     assert [r.iteration for r in seen] == [1, 2]
     np.testing.assert_array_equal(seen[-1].points, res.x)

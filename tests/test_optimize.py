@@ -75,7 +75,8 @@ def test_fixed_vertices_do_not_move(variant, method):
     mesh = grid_mesh(4, jitter=0.2, seed=1)
     target = mesh.points + 0.05
     res = optimize(mesh, PullObjective(mesh, target), variant=variant, method=method,
-                   fixed=mesh.boundary_vertices, max_iterations=5, options=dict(tolerance=None), penalty=None)
+                   fixed=mesh.boundary_vertices, max_iterations=5, options=dict(tolerance=None),
+                   penalty=None)
     np.testing.assert_array_equal(res.x[mesh.boundary_vertices], mesh.points[mesh.boundary_vertices])
     assert not np.allclose(res.x, mesh.points)
 
@@ -86,7 +87,8 @@ def test_stopping_rule_6_26_converges_on_a_problem_with_a_minimizer():
     target[4] += 0.02  # a small, admissible pull: a strict interior minimizer exists
     res = optimize(mesh, PullObjective(mesh, target), variant="euclidean-euclidean",
                    method="steepest", penalty=(0.01, 0.01, 0, 0.01),
-                   fixed=mesh.boundary_vertices, max_iterations=500, options=dict(tolerance=1e-10, gtol=None))
+                   fixed=mesh.boundary_vertices, max_iterations=500,
+                   options=dict(tolerance=1e-10, gtol=None))
     assert res.status == "converged" and res.success
     assert 6 <= res.nit < 500
     F = [h.objective for h in res.history]

@@ -110,12 +110,14 @@ def test_retraction_options_are_checked():
     mesh = grid_mesh(3)
     obj = PoissonObjective(mesh)
     with pytest.raises(OptionError, match="straight lines"):
-        optimize(mesh, obj, variant="complete-euclidean", options=dict(retraction="exp"), penalty=None)
+        optimize(mesh, obj, variant="complete-euclidean", options=dict(retraction="exp"),
+                 penalty=None)
     with pytest.raises(OptionError, match="straight lines"):
         optimize(mesh, obj, variant="elasticity-euclidean",
                  options=dict(exp_options={"method": "auto"}), penalty=None)
     with pytest.raises(OptionError, match="unknown retraction"):
-        optimize(mesh, obj, variant="complete-complete", options=dict(retraction="cayley"), penalty=None)
+        optimize(mesh, obj, variant="complete-complete", options=dict(retraction="cayley"),
+                 penalty=None)
     for retraction in ("second-order", "exp"):  # exp_options go with "exp" only
         kw = dict(variant="complete-complete", max_iterations=1, penalty=None,
                   options=dict(retraction=retraction, exp_options={"method": "auto"}))

@@ -167,11 +167,13 @@ def test_methods_reach_the_reference_minimizer_of_a_quadratic(method, variant):
     mesh = grid_mesh(4, jitter=0.1, seed=5)
     obj, c, n = _quadratic(mesh, 5, cond=50.0, shift=0.02)
     res = optimize(mesh, obj, variant=variant, method=method, max_iterations=400,
-                   options=dict(gtol=1e-8, tolerance=None), fixed=mesh.boundary_vertices, penalty=None)
+                   options=dict(gtol=1e-8, tolerance=None), fixed=mesh.boundary_vertices,
+                   penalty=None)
     assert res.status == "converged"
     np.testing.assert_allclose(res.x[obj.interior].ravel(), c, atol=1e-6)
     steepest = optimize(mesh, obj, variant=variant, method="steepest", max_iterations=res.nit,
-                        options=dict(tolerance=None, gtol=1e-8), fixed=mesh.boundary_vertices, penalty=None)
+                        options=dict(tolerance=None, gtol=1e-8), fixed=mesh.boundary_vertices,
+                        penalty=None)
     assert steepest.fun > res.fun  # same iteration budget: steepest descent is behind
     if method == "lbfgs":
         assert all(h.wolfe for h in res.history[1:])
@@ -230,7 +232,8 @@ def test_lbfgs_history_records_method_steps_and_curvature_pairs(variant):
 def test_reaching_max_iterations_is_not_success(method):
     mesh = grid_mesh(4, jitter=0.1, seed=5)
     obj, c, n = _quadratic(mesh, 5, cond=50.0, shift=0.02)
-    res = optimize(mesh, obj, method=method, variant="euclidean-euclidean", max_iterations=2, penalty=None)
+    res = optimize(mesh, obj, method=method, variant="euclidean-euclidean", max_iterations=2,
+                   penalty=None)
     assert res.status == "max_iterations" and not res.success
     assert "without converging" in res.message
 
