@@ -103,7 +103,7 @@ def main() -> None:
             for w in counts:
                 outdir = tmp / f"out{w}"
                 t0, c0 = time.perf_counter(), _cpu_seconds()
-                res = mt.run_batch(pipeline, inputs, outdir, jobs=w, force=True,
+                res = mt.run_batch(pipeline, inputs, outdir, jobs=w, options={"force": True},
                                    on_record=lambda rec: None)
                 best[w] = min(best[w], time.perf_counter() - t0)
                 cpu[w] = min(cpu[w], _cpu_seconds() - c0)

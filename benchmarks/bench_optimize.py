@@ -64,9 +64,9 @@ def run(mesh, variant, iterations, exp_options=None):
     default metric β, no early stop; ``exp_options``: along the exponential map."""
     retraction = {} if exp_options is None else {"retraction": "exp", "exp_options": exp_options}
     res = optimize(mesh, PoissonObjective(mesh), variant=variant, method="steepest",
-                   penalty_beta=thesis_penalty_beta(2, mesh.n_vertices),
+                   penalty=thesis_penalty_beta(2, mesh.n_vertices),
                    metric_beta=default_metric_beta(mesh.n_vertices),
-                   max_iter=iterations, options=dict(tol=None, **retraction))
+                   max_iterations=iterations, options=dict(tolerance=None, **retraction))
     return res.seconds / max(res.nit, 1), res
 
 
@@ -74,7 +74,7 @@ def solve(mesh, variant, method, **options):
     """A run of table 6.4 set 2 with the default stopping rules (``options``: fields of
     :class:`~meshopt_toolkit.shape.options.OptimizeOptions`)."""
     return optimize(mesh, PoissonObjective(mesh), variant=variant, method=method,
-                    penalty_beta=thesis_penalty_beta(2, mesh.n_vertices),
+                    penalty=thesis_penalty_beta(2, mesh.n_vertices),
                     metric_beta=default_metric_beta(mesh.n_vertices), options=options)
 
 
@@ -132,7 +132,7 @@ def defaults(max_vertices: int) -> None:
         }
         for label, (variant, beta) in runs.items():
             res = optimize(mesh, PoissonObjective(mesh, rhs=DEFAULT_RHS), variant=variant,
-                           penalty_beta=beta)
+                           penalty=beta)
             ar0, ar = res.history[0].min_aspect_ratio, res.history[-1].min_aspect_ratio
             print(f"{mesh.n_vertices:>6} {label:<34} {res.status:<15} {res.nit:>5} "
                   f"{res.seconds:>8.2f} {res.j:>9.5f} {ar0:>6.3f} {ar:>7.4f} {ar / ar0:>7.2f}",
@@ -177,7 +177,7 @@ def users(max_vertices: int) -> None:
             if mesh.n_vertices > max_vertices:
                 continue
             spec = spec_from_options(**options)
-            res = optimize(mesh, None, problem=spec, penalty_beta=DEFAULT_PENALTY_BETA)
+            res = optimize(mesh, None, problem=spec, penalty=DEFAULT_PENALTY_BETA)
             h0, h1 = res.history[0], res.history[-1]
             ratio = h1.min_aspect_ratio / h0.min_aspect_ratio
             dA = abs(signed_areas(res.x, mesh.triangles).sum()

@@ -143,9 +143,9 @@ def disc(out: Path, log) -> None:
     runs = {}
     for a in (0.0, 0.05, 0.25, 0.5, 0.75, 1.0):
         if a == 0:
-            res = deform(mesh, V, t=2.0, frames=16, metric="euclidean")
+            res = deform(mesh, V, time=2.0, frames=16, metric="euclidean")
         else:
-            res = deform(mesh, V, t=2.0, frames=16, alpha=(a, 0.0, a))
+            res = deform(mesh, V, time=2.0, frames=16, alpha=(a, 0.0, a))
         series[f"α = {a:g}"] = res.aspect_ratio
         runs[a] = res
         log(f"disc alpha={a:4.2f}: aspect ratio {res.aspect_ratio[0]:.3f} -> min "

@@ -101,8 +101,8 @@ def section_6_1(out: Path, quick: bool) -> str:
         Q0[centre] = (0.3, 0.2)
         start = mesh.with_points(Q0)
         res = optimize(start, PoissonObjective(start, rhs="1"), variant="complete-euclidean",
-                       penalty_beta=beta, fixed=start.boundary_vertices,
-                       max_iter=200 if quick else 1000, options=dict(tol=1e-10))
+                       penalty=beta, fixed=start.boundary_vertices,
+                       max_iterations=200 if quick else 1000, options=dict(tolerance=1e-10))
         q5 = res.x[centre]
         dist = 1 - np.max(np.abs(q5))
         rows.append([label, res.status, res.nit, res.j, float(dist)])
@@ -127,8 +127,8 @@ def _run(mesh, variant, penalty, metric_beta, max_iter, tol):
     # complete-complete as in the thesis: along the exponential map (6.19), not the
     # second-order retraction that is the library's default
     exp = {"retraction": "exp"} if variant == "complete-complete" else {}
-    return optimize(mesh, obj, variant=variant, penalty_beta=penalty, metric_beta=metric_beta,
-                    max_iter=max_iter, options=dict(tol=tol, **exp), method="steepest")
+    return optimize(mesh, obj, variant=variant, penalty=penalty, metric_beta=metric_beta,
+                    max_iterations=max_iter, options=dict(tolerance=tol, **exp), method="steepest")
 
 
 def _plot_meshes(results: dict, path: Path, title: str) -> None:

@@ -71,6 +71,7 @@ _EXPORTS = {
     # morphing (one call; the metric is an option)
     "morph": "operations",
     "log_map": "riemannian.log_map",
+    "LogMapOptions": "riemannian.log_map",
     "MorphResult": "motion.scalar_morph_result",
     "DistortionMorph": "motion.morph",
     # the result protocol and the bad-argument error of the operations

@@ -11,13 +11,13 @@ Default penalty: f1 (:class:`~meshopt_toolkit.penalties.HeightPenalty`) with the
 term keeps triangles from thinning, the reference term makes the metric complete, and the
 boundary-pair term is off (remark 5.2.10, as in all §5.5 experiments; pass ``alpha`` with
 α2 > 0 to guard against boundary self-contact, at a cost). f1 is not scale invariant: for
-meshes far from unit size, f2 (``beta=``) or scaled α are the better choice.
+meshes far from unit size, f2 (``penalty=(β1, β2, β3, β4)``) or scaled α are the better choice.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import time
+from time import perf_counter
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -44,7 +44,7 @@ class DeformResult:
     Attributes
     ----------
     mesh : PlanarMesh at the final time
-    times : (K,) frame times (0 first, ``t`` last)
+    times : (K,) frame times (0 first, ``time`` last)
     points : (K, N, 2) positions per frame
     aspect_ratio : (K,) mesh aspect ratio ``min 2r/R`` (5.49) per frame
     penalty : the penalty f defining the metric (None for ``metric="euclidean"``)
@@ -93,31 +93,34 @@ class DeformResult:
         }
 
 
-def _penalty(mesh: PlanarMesh, penalty, alpha, beta):
+def _penalty(mesh: PlanarMesh, penalty, alpha):
     from .penalties import HeightPenalty, QualityPenalty
 
-    given = sum(x is not None for x in (penalty, alpha, beta))
-    if given > 1:
-        raise OptionError("give at most one of penalty, alpha and beta")
-    if penalty is not None:
+    if penalty is not None and alpha is not None:
+        raise OptionError("give at most one of penalty and alpha")
+    if penalty is not None and not _is_beta(penalty):
         return penalty
     try:
-        if beta is not None:
-            return QualityPenalty(mesh, beta=beta)
+        if penalty is not None:
+            return QualityPenalty(mesh, beta=tuple(float(b) for b in penalty))
         return HeightPenalty(mesh, alpha=DEFAULT_ALPHA if alpha is None else alpha)
     except ValueError as exc:
         raise InvalidMeshError(str(exc)) from None
 
 
+def _is_beta(penalty) -> bool:
+    """Whether ``penalty`` is f2's four numbers rather than a penalty object."""
+    return not hasattr(penalty, "value") and np.ndim(penalty) == 1
+
+
 def deform(
     mesh: TriangleMesh,
     displacement,
-    t: float = 1.0,
+    time: float = 1.0,
     frames: int | None = None,
     *,
     penalty=None,
     alpha=None,
-    beta=None,
     metric: str = "complete",
     options: GeodesicOptions | None = None,
     progress=None,
@@ -128,13 +131,13 @@ def deform(
     ----------
     mesh : PlanarMesh (admissible)
     displacement : (N, 2) array_like
-        Initial velocity ``V``; at ``t = 1`` a Euclidean path would have moved every
+        Initial velocity ``V``; at ``time = 1`` a Euclidean path would have moved every
         vertex by exactly this amount.
-    t : final time
-    frames : number K ≥ 2 of equally spaced frames on [0, t] (default: just 0 and t)
-    penalty : a penalty object (value/gradient/hvp/gradient_and_curvature), or
-    alpha : (α1, α2, α3) for f1 (5.16), or
-    beta : (β1, β2, β3, β4) for f2 (5.22, β4 unscaled);
+    time : final time ``T``
+    frames : number K ≥ 2 of equally spaced frames on [0, T] (default: just 0 and T)
+    penalty : (β1, β2, β3, β4) of f2 (5.22, β4 unscaled), or a penalty object
+        (value/gradient/hvp/gradient_and_curvature); or
+    alpha : (α1, α2, α3) for f1 (5.16);
         default f1 with ``α = (1, 0, 1)`` (thesis §5.5), ``Qref`` = the input mesh
     metric : "complete" (default) or "euclidean" (straight lines ``Q + tV``, for
         comparison; may invert triangles, which ``aspect_ratio`` then shows as ≤ 0)
@@ -142,7 +145,7 @@ def deform(
         (method, ``rtol``, ``atol``, ``on_violation``, …) of the integration; frames are
         always step ends (``dense=False``)
     progress : callable ``fraction -> None``, optional
-        Called per integration step with the fraction of ``[0, t]`` done.
+        Called per integration step with the fraction of ``[0, T]`` done.
 
     Returns
     -------
@@ -155,11 +158,11 @@ def deform(
     InvalidMeshError
         The displacement does not have shape (N, 2) or is not finite.
     OptionError
-        ``frames < 2``, an unknown ``metric``, or more than one of penalty/alpha/beta.
+        ``frames < 2``, an unknown ``metric``, or both penalty and alpha.
     IntegrationError
         The geodesic cannot be integrated (never an inverted mesh).
     """
-    start = time.perf_counter()
+    start = perf_counter()
     if frames is not None and int(frames) < 2:
         raise OptionError(f"frames must be at least 2, got {frames}")
     if metric not in ("complete", "euclidean"):
@@ -173,13 +176,13 @@ def deform(
     if not np.isfinite(V).all():
         raise InvalidMeshError("displacement has non-finite entries")
     if frames is None:
-        times = np.array([0.0, float(t)])
+        times = np.array([0.0, float(time)])
     else:
-        times = np.linspace(0.0, float(t), int(frames))
-    pen = met = None if metric == "euclidean" else _penalty(m, penalty, alpha, beta)
+        times = np.linspace(0.0, float(time), int(frames))
+    pen = met = None if metric == "euclidean" else _penalty(m, penalty, alpha)
     # frames are few: land on each (exact velocities and energies in the result)
     opts = dataclasses.replace(options or GeodesicOptions(), dense=False)
-    res = geodesic(met, m.points, V, float(t), times=times, options=opts, progress=progress)
+    res = geodesic(met, m.points, V, float(time), times=times, options=opts, progress=progress)
     if pen is not None:  # the complete metric promises admissible frames: judged exactly
         check = BoundaryCheck(m.boundary_edges, m.boundary_vertices)
         for k, p in enumerate(res.points):
@@ -188,7 +191,7 @@ def deform(
     ar = np.array([float(aspect_ratios(p, m.triangles).min()) for p in res.points])
     return DeformResult(
         mesh=m.with_points(res.points[-1]), times=times, points=res.points,
-        aspect_ratio=ar, penalty=pen, geodesic=res, seconds=time.perf_counter() - start,
+        aspect_ratio=ar, penalty=pen, geodesic=res, seconds=perf_counter() - start,
     )
 
 

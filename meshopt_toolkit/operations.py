@@ -91,7 +91,7 @@ def morph(
     beta=None,
     normalize: bool = True,
     method: str = "discrete",
-    max_iter: int | None = None,
+    max_iterations: int | None = None,
     callback: Callable[[PathIteration], bool | None] | None = None,
     progress: Callable[[float], None] | None = None,
 ):
@@ -114,13 +114,13 @@ def morph(
         Complete metric: the metric of ``√N·f2`` (default) or of f2.
     method : str
         Complete metric: ``"discrete"``, ``"shooting"`` or ``"auto"``.
-    max_iter : int, optional
+    max_iterations : int, optional
         Iterations of the discrete geodesic (default :data:`DEFAULT_MAX_ITER`).
     callback : callable ``PathIteration -> bool | None``, optional
         Called once per iteration; returning True stops the iteration (status
         ``"stopped"``; the frames are admissible, not yet a minimizer).
     progress : callable ``fraction -> None``, optional
-        Iterations done over ``max_iter`` (an upper bound: most morphs stop earlier).
+        Iterations done over ``max_iterations`` (an upper bound: most morphs stop earlier).
 
     Returns
     -------
@@ -148,9 +148,9 @@ def morph(
                           f"{', '.join(MORPH_METRICS)}")
     if int(frames) < 2:
         raise OptionError(f"frames must be at least 2, got {frames}")
-    n_iter = DEFAULT_MAX_ITER[name] if max_iter is None else int(max_iter)
+    n_iter = DEFAULT_MAX_ITER[name] if max_iterations is None else int(max_iterations)
     if n_iter < 1:
-        raise OptionError(f"max_iter must be at least 1, got {max_iter}")
+        raise OptionError(f"max_iterations must be at least 1, got {max_iterations}")
 
     def step(nit: int, energy: float, gradient_norm: float) -> bool:
         if progress is not None:

@@ -2,11 +2,11 @@
 
 Algorithm 2 of the thesis (§6.4.1, SPEC §7): at every iterate the derivative of
 ``F = j + f2`` is turned into a gradient by the Riesz map of a metric, and a line search
-along a retraction picks the step. ``method="steepest"`` is the thesis' steepest descent
-with Armijo backtracking (kept for its tables); ``"lbfgs"`` (Riemannian L-BFGS) and
-``"cg"`` (nonlinear CG, Hestenes–Stiefel+) use the same metric as inner product, the same
-retraction and a Wolfe line search (:mod:`meshopt_toolkit.shape`). Variants are
-named ``"<metric>-<retraction>"``:
+along a retraction picks the step. One iteration (:mod:`meshopt_toolkit.shape.driver`)
+runs every method: ``method="steepest"`` is the thesis' steepest descent with Armijo
+backtracking (kept for its tables); ``"lbfgs"`` (Riemannian L-BFGS) and ``"cg"``
+(nonlinear CG, Hestenes–Stiefel+) use the same metric as inner product, the same
+retraction and a Wolfe line search. Variants are named ``"<metric>-<retraction>"``:
 
 =======================  ==================  ==========================================
 variant                  gradient metric     retraction
@@ -62,7 +62,7 @@ from .shape.setup import (  # noqa: F401  (the variants' table and set-up, re-ex
     contact_options,
     default_metric_beta,
 )
-from .shape.steepest import max_travel_step, run_steepest
+from .shape.problem import max_travel_step
 
 __all__ = [
     "DEFAULT_METHOD",
@@ -162,10 +162,10 @@ def optimize(
     problem: ProblemSpec | None = None,
     variant: str = DEFAULT_VARIANT,
     method: str = DEFAULT_METHOD,
-    penalty_beta: Sequence[float] | None = None,
+    penalty: Sequence[float] | None = DEFAULT_PENALTY_BETA,
     metric_beta: Sequence[float] | None = None,
     fixed: np.ndarray | None = None,
-    max_iter: int = 1000,
+    max_iterations: int = 1000,
     options: OptimizeOptions | Mapping | None = None,
     callback: Callable[[IterationRecord], bool | None] | None = None,
     progress: Callable[[float], None] | None = None,
@@ -195,20 +195,21 @@ def optimize(
     method : one of :data:`METHODS`: ``"lbfgs"`` (Riemannian L-BFGS with the metric as
         inner product and a Wolfe line search), ``"cg"`` (Hestenes–Stiefel+), or
         ``"steepest"`` (the thesis' Armijo steepest descent).
-    penalty_beta : (β1, β2, β3, β4) of the penalty f2 added to j (β4 unscaled: f2
-        divides it by 2N); None or all zero = unpenalized.
+    penalty : (β1, β2, β3, β4) of the penalty f2 added to j (β4 unscaled: f2 divides it
+        by 2N); None or all zero = unpenalized. The default
+        :data:`DEFAULT_PENALTY_BETA` is that of ``meshopt optimize`` and the filter.
     metric_beta : β^metric of the complete metric (default :func:`default_metric_beta`).
     fixed : vertex indices (or boolean mask) that do not move.
-    max_iter : maximum number of iterations.
+    max_iterations : maximum number of iterations.
     options : :class:`~meshopt_toolkit.shape.options.OptimizeOptions` (or a mapping of
-        its fields): stopping rules (``tol``, ``gtol``, ``ftol``), line search (``sigma``,
+        its fields): stopping rules (``tolerance``, ``gtol``), line search (``sigma``,
         ``tau``, ``c2``, ``segment_fraction``, ``min_step``), L-BFGS ``memory`` and
         ``lbfgs_preconditioner``, ``metric_options``, ``retraction`` and ``exp_options``.
     callback : called as ``callback(record)`` after each iteration with its
         :class:`IterationRecord` (``record.points``: the iterate's positions); returning
         True stops (status ``"stopped"``).
     progress : called as ``progress(fraction)`` after each iteration, the fraction of
-        ``max_iter`` done (an upper bound: most runs stop earlier).
+        ``max_iterations`` done (an upper bound: most runs stop earlier).
 
     Returns
     -------
@@ -219,12 +220,13 @@ def optimize(
     OptionError
         An unknown variant, method, retraction or option, an option out of range, a
         retraction or ``exp_options`` given to a variant that moves along straight lines,
-        ``max_iter < 0``.
+        ``max_iterations < 0``.
     OptimizationError
         A direction that is not a descent direction (a wrong derivative), every vertex
         fixed, or a mesh whose size is outside :data:`SIZE_RANGE`.
     """
     from .shape.preconditioners import make_preconditioner
+    from .shape.driver import run_descent
     from .shape.problem import ShapeProblem
     from .shape.spec import GUARD_FACTOR, GUARD_TRIES, QUALITY_GUARD, ScaledObjective
 
@@ -232,8 +234,8 @@ def optimize(
         raise OptionError(f"unknown variant {variant!r}; choose one of {', '.join(VARIANTS)}")
     if method not in METHODS:
         raise OptionError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
-    if int(max_iter) < 0:
-        raise OptionError(f"max_iter must be at least 0, got {max_iter}")
+    if int(max_iterations) < 0:
+        raise OptionError(f"max_iterations must be at least 0, got {max_iterations}")
     o = OptimizeOptions.of(options)
     exp_options = o.exp_options
     retraction = _retraction_kind(variant, o.retraction, exp_options)
@@ -254,12 +256,12 @@ def optimize(
             raise OptimizationError("every vertex is fixed: nothing to optimize")
     if spec.keep_area and method == "steepest":
         raise OptionError("keep_area needs method 'lbfgs' or 'cg'")
-    penalty = None
-    if penalty_beta is not None and any(b != 0 for b in penalty_beta):
+    f2 = None
+    if penalty is not None and any(b != 0 for b in penalty):
         from .penalties import QualityPenalty
 
-        contact = contact_options(mesh) if penalty_beta[2] > 0 else {}
-        penalty = QualityPenalty(mesh, beta=tuple(penalty_beta), **contact)
+        contact = contact_options(mesh) if penalty[2] > 0 else {}
+        f2 = QualityPenalty(mesh, beta=tuple(penalty), **contact)
     metric = _make_metric(variant, mesh, metric_beta, dict(o.metric_options or {}))
     retract = (None if retraction is None
                else _make_retraction(retraction, metric, exp_options, free))
@@ -273,28 +275,15 @@ def optimize(
     auto = spec.scale == "auto"
     floor = QUALITY_GUARD * aspect_ratios(mesh.points, tri).min() if auto else None
     start = time.perf_counter()
-    step = _iteration_hook(callback, progress, max_iter)
+    step = _iteration_hook(callback, progress, max_iterations)
     for attempt in range(1 + (GUARD_TRIES if auto else 0)):
         weighed = objective if weight == 1.0 else ScaledObjective(objective, weight)
-        problem = ShapeProblem(weighed, penalty, metric, tri, mesh.boundary_edges, free,
+        problem = ShapeProblem(weighed, f2, metric, tri, mesh.boundary_edges, free,
                                constraint, quality_floor=floor)
         h0 = make_preconditioner(o.lbfgs_preconditioner, metric_kind=VARIANT_PARTS[variant][0],
-                                 method=method, mesh=mesh, penalty=penalty, free=free)
-        if method != "steepest":
-            from .shape.driver import run_descent
-
-            result = run_descent(
-                mesh, problem, method=method, variant=variant, retraction=retract,
-                max_iter=max_iter,
-                gtol=o.gtol, ftol=o.ftol, memory=o.memory, c1=o.sigma, c2=o.c2,
-                segment_fraction=o.segment_fraction, min_step=o.min_step, callback=step,
-                h0=h0,
-            )
-        else:
-            result = run_steepest(
-                mesh, problem, variant=variant, retract=retract, max_iter=max_iter, tol=o.tol,
-                gtol=o.gtol, sigma=o.sigma, tau=o.tau, min_step=o.min_step, callback=step,
-            )
+                                 method=method, mesh=mesh, penalty=f2, free=free)
+        result = run_descent(mesh, problem, method=method, variant=variant, retraction=retract,
+                             max_iterations=max_iterations, options=o, callback=step, h0=h0)
         if not auto or result.status != "step_too_small":
             break
         logger.info("no step at weight %.3g (%s): restarting with %.3g", weight, result.message,
@@ -305,7 +294,7 @@ def optimize(
     return _unweighed(result, objective, weight)
 
 
-def _iteration_hook(callback, progress, max_iter: int):
+def _iteration_hook(callback, progress, max_iterations: int):
     """The drivers' ``(record, Q)`` hook that calls ``progress(fraction)`` and
     ``callback(record)`` with the iterate's positions in ``record.points``."""
     if callback is None and progress is None:
@@ -313,7 +302,7 @@ def _iteration_hook(callback, progress, max_iter: int):
 
     def hook(record: IterationRecord, Q: FloatArray) -> bool:
         if progress is not None:
-            progress(min(1.0, record.iteration / max(int(max_iter), 1)))
+            progress(min(1.0, record.iteration / max(int(max_iterations), 1)))
         return callback is not None and bool(callback(dataclasses.replace(record, points=Q)))
 
     return hook

@@ -222,11 +222,13 @@ def test_progress_bar_counts_and_stays_out_of_pipes(meshes, capsys):
 
 
 def test_run_batch_api(meshes, tmp_path):
-    res = mt.run_batch(PIPE, (p for p in meshes), tmp_path / "api", jobs=2, to="vtu")
+    res = mt.run_batch(PIPE, (p for p in meshes), tmp_path / "api", jobs=2,
+                       options={"ext": "vtu"})
     assert (res.done, res.skipped, res.failed) == (5, 0, 0) and res.ok
     assert [r["outputs"] for r in res.records] == [[str(tmp_path / "api" / f"{p.stem}.vtu")]
                                                    for p in meshes]
-    again = mt.run_batch(tmp_path / "p.json", meshes, tmp_path / "api", to="vtu", resume=True,
+    again = mt.run_batch(tmp_path / "p.json", meshes, tmp_path / "api", options={"ext": ".vtu"},
+                         resume=True,
                          on_record=lambda r: None)
     assert again.records is None and (again.done, again.skipped) == (0, 5)
     assert again.report().startswith("0 done, 5 skipped, 0 failed in ")

@@ -264,8 +264,8 @@ def test_deform_progress_callback_reaches_the_end(work):
 
     mesh = load(work / "disc.msh").as_planar()
     seen = []
-    res = deform(mesh, np.load(work / "v.npy"), t=0.5, progress=seen.append)
+    res = deform(mesh, np.load(work / "v.npy"), time=0.5, progress=seen.append)
     assert len(seen) >= 2 and seen[-1] == 1.0
     assert np.all(np.diff(seen) > 0) and 0 < seen[0]
-    plain = deform(mesh, np.load(work / "v.npy"), t=0.5)
+    plain = deform(mesh, np.load(work / "v.npy"), time=0.5)
     assert np.array_equal(res.mesh.points, plain.mesh.points)

@@ -6,6 +6,7 @@ import json
 
 import numpy as np
 import pytest
+from conftest import grid_mesh
 
 from meshopt_toolkit.cli import main
 from meshopt_toolkit.io import load, save
@@ -158,3 +159,31 @@ def test_retraction_is_refused_where_it_has_no_effect(tmp_path, capsys):
     assert main(["optimize", "-o", str(out), "--variant", "complete-complete", "--retraction",
                  "exp", "--max-iter", "2", "--no-plots", "--json"]) == 1
     assert "not converged" in capsys.readouterr().err  # it ran (2 iterations)
+
+
+@pytest.mark.parametrize("method", ["lbfgs", "steepest"])
+def test_the_library_default_is_the_commands_default(tmp_path, capsys, method):
+    """``mt.optimize(mesh)`` with no penalty given and ``meshopt optimize`` with none give
+    the same iterates: the one default β^penalty (DEFAULT_PENALTY_BETA), stopping rules and
+    objective. Also on a mesh of the user's with the command's ``--objective-scale 1``."""
+    import meshopt_toolkit as mt
+    from meshopt_toolkit.optimize import DEFAULT_PENALTY_BETA
+
+    cases = {"disc": (mt.data_path("disc_146.msh"), [])}
+    grid = tmp_path / "grid.msh"
+    save(grid_mesh(5, jitter=0.15, seed=4), grid)
+    cases["grid"] = (grid, [str(grid), "--objective-scale", "1"])
+    for name, (path, args) in cases.items():
+        out = tmp_path / f"out-{name}"
+        main(["optimize", *args, "-o", str(out), "--method", method, "--max-iterations", "6",
+              "--no-plots", "--json"])
+        summary = json.loads(capsys.readouterr().out)
+        assert summary["penalty_beta"] == pytest.approx(DEFAULT_PENALTY_BETA)
+        res = mt.optimize(mt.load(path).as_planar(), method=method, max_iterations=6)
+        assert res.nit == summary["iterations"] and res.status == summary["status"]
+        assert res.fun == pytest.approx(summary["objective"], rel=1e-12)
+        written = load(out / f"optimized{path.suffix}").as_planar()
+        np.testing.assert_allclose(written.points, res.mesh.points, rtol=0, atol=1e-12)
+        unpenalized = mt.optimize(mt.load(path).as_planar(), method=method, max_iterations=6,
+                                  penalty=None)
+        assert unpenalized.fun != pytest.approx(res.fun, rel=1e-6)  # the default is not "none"

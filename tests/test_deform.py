@@ -33,9 +33,9 @@ def disc():
 
 def test_boundary_velocity_keeps_the_disc_admissible_where_euclid_inverts(disc):
     V = squeeze(disc)
-    euclid = deform(disc, V, t=2.0, frames=5, metric="euclidean")
+    euclid = deform(disc, V, time=2.0, frames=5, metric="euclidean")
     assert euclid.aspect_ratio[-1] < 0  # the boundary crosses the fixed interior
-    res = deform(disc, V, t=2.0, frames=5)
+    res = deform(disc, V, time=2.0, frames=5)
     assert res.penalty.alpha == DEFAULT_ALPHA
     assert np.all(res.aspect_ratio > 0.05)
     for p in res.points:
@@ -53,14 +53,14 @@ def test_boundary_velocity_keeps_the_disc_admissible_where_euclid_inverts(disc):
 
 def test_penalty_choices(disc):
     V = squeeze(disc)
-    f2 = deform(disc, V, beta=(10, 1, 0, 0.1 * disc.n_vertices))
+    f2 = deform(disc, V, penalty=(10, 1, 0, 0.1 * disc.n_vertices))
     assert isinstance(f2.penalty, QualityPenalty)
     pen = HeightPenalty(disc, alpha=(0.5, 0, 0.5))
     own = deform(disc, V, penalty=pen)
     assert own.penalty is pen
     assert own.times.tolist() == [0.0, 1.0]
     with pytest.raises(OptionError, match="at most one"):
-        deform(disc, V, alpha=(1, 0, 1), beta=(1, 1, 0, 1))
+        deform(disc, V, alpha=(1, 0, 1), penalty=(1, 1, 0, 1))
 
 
 def test_refusals():

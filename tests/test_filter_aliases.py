@@ -221,9 +221,9 @@ def test_former_morph_betas_are_checked(params, fragment):
     ("morph", ["a", "b", "-o", "o", "--max-iterations", "7"], "max_iter", 7),
     ("morph", ["a", "b", "-o", "o", "--beta", "1,2,0,3"], "beta", (1.0, 2.0, 0.0, 3.0)),
     ("morph", ["a", "b", "-o", "o", "--penalty", "1,2,0,3"], "beta", (1.0, 2.0, 0.0, 3.0)),
-    ("deform", ["m", "-o", "o", "--displacement", "v", "--beta", "1,2,0,3"], "beta",
+    ("deform", ["m", "-o", "o", "--displacement", "v", "--beta", "1,2,0,3"], "penalty",
      (1.0, 2.0, 0.0, 3.0)),
-    ("deform", ["m", "-o", "o", "--displacement", "v", "--penalty", "1,2,0,3"], "beta",
+    ("deform", ["m", "-o", "o", "--displacement", "v", "--penalty", "1,2,0,3"], "penalty",
      (1.0, 2.0, 0.0, 3.0)),
 ])
 def test_cli_former_spellings_set_the_same_option(command, words, dest, value):

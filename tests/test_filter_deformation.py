@@ -46,7 +46,7 @@ def test_filter_equals_library_and_never_inverts(kind, disc, tmp_path):
         else:
             save_pipeline(Pipeline.from_dict({"filters": [step]}), path)
         doc = load_pipeline(path).run(doc)
-    expected = deform(disc, V, t=1.0).mesh.points
+    expected = deform(disc, V, time=1.0).mesh.points
     np.testing.assert_allclose(doc.mesh.points, expected, rtol=0, atol=1e-12)
     assert signed_areas(doc.mesh.points, disc.triangles).min() > 0
 

@@ -28,16 +28,16 @@ def _expected(mesh, method="lbfgs"):
     # the filter weighs j to the mesh by default (objective_scale "auto")
     return optimize(mesh, None, problem=ProblemSpec(rhs="1", scale="auto"),
                     variant="complete-euclidean", method=method,
-                    penalty_beta=(0.1, 0.01, 0, 0.5), max_iter=4,
-                    options=dict(tol=None, ftol=None))
+                    penalty=(0.1, 0.01, 0, 0.5), max_iterations=4,
+                    options=dict(tolerance=None))
 
 
 def test_filter_with_scale_1_is_the_plain_library_call(disc):
     doc = Document([disc])
     registry.get(STEP["name"])()(doc, **STEP["params"], objective_scale="1")
     plain = optimize(disc, PoissonObjective(disc, rhs="1"), variant="complete-euclidean",
-                     penalty_beta=(0.1, 0.01, 0, 0.5), max_iter=4,
-                    options=dict(tol=None, ftol=None))
+                     penalty=(0.1, 0.01, 0, 0.5), max_iterations=4,
+                    options=dict(tolerance=None))
     np.testing.assert_allclose(doc.mesh.points, plain.x, rtol=0, atol=1e-12)
 
 

@@ -252,7 +252,7 @@ def test_rescaling_lemma(rng):
     one = geodesic(metric, mesh.points, V, 1.0, times=taus)
     for tau, p in zip(taus, one.points):
         assert np.abs(metric.exp(mesh.points, tau * V) - p).max() < 1e-6
-        assert np.abs(exp_map(metric, mesh.points, V, t=tau) - p).max() < 1e-6
+        assert np.abs(exp_map(metric, mesh.points, V, time=tau) - p).max() < 1e-6
 
 
 # -- API details ------------------------------------------------------------------------

@@ -15,7 +15,8 @@ from hypothesis import strategies as st
 import meshopt_toolkit as mt
 from meshopt_toolkit.errors import OptimizationError, OptionError
 from meshopt_toolkit.fem.poisson import PoissonObjective
-from meshopt_toolkit.optimize import default_metric_beta, optimize, thesis_penalty_beta
+from meshopt_toolkit.optimize import (OptimizeOptions, default_metric_beta, optimize,
+                                      thesis_penalty_beta)
 from meshopt_toolkit.penalties import QualityPenalty
 from meshopt_toolkit.riemannian.metrics import EuclideanMetric
 from meshopt_toolkit.shape import LBFGSMemory
@@ -29,10 +30,10 @@ def disc():
     return mt.load(mt.data_path("disc_146.msh")).as_planar()
 
 
-def _set2(mesh, variant, method, max_iter=1000, **options):
+def _set2(mesh, variant, method, max_iterations=1000, **options):
     return optimize(mesh, PoissonObjective(mesh), variant=variant, method=method,
-                    penalty_beta=thesis_penalty_beta(2, mesh.n_vertices),
-                    metric_beta=default_metric_beta(mesh.n_vertices), max_iter=max_iter,
+                    penalty=thesis_penalty_beta(2, mesh.n_vertices),
+                    metric_beta=default_metric_beta(mesh.n_vertices), max_iterations=max_iterations,
                     options=options)
 
 
@@ -114,9 +115,10 @@ def test_exact_inverse_hessian_as_h0_converges_in_one_iteration(seed):
     def h0(Q, P):
         return np.linalg.solve(A, P.ravel()).reshape(P.shape)
 
-    kw = dict(method="lbfgs", variant="euclidean-euclidean", retraction=None, max_iter=50,
-              gtol=1e-9, ftol=None, memory=5, c1=1e-4, c2=None, segment_fraction=1.0,
-              min_step=1e-10, callback=None)
+    options = OptimizeOptions(gtol=1e-9, tolerance=None, memory=5, sigma=1e-4, c2=None,
+                              segment_fraction=1.0, min_step=1e-10)
+    kw = dict(method="lbfgs", variant="euclidean-euclidean", retraction=None,
+              max_iterations=50, options=options, callback=None)
     res = run_descent(mesh, problem, h0=h0, **kw)
     assert res.status == "converged" and res.nit == 1
     np.testing.assert_allclose(res.x.ravel(), c, atol=1e-9)
@@ -148,8 +150,8 @@ def test_preconditioned_lbfgs_reaches_steepest_descents_minimizer(disc, variant)
 
 
 def test_elasticity_preconditioner_and_auto_on_other_variants(disc):
-    auto = _set2(disc, "elasticity-euclidean", "lbfgs", max_iter=8, gtol=None, ftol=None)
-    none = _set2(disc, "elasticity-euclidean", "lbfgs", max_iter=8, gtol=None, ftol=None,
+    auto = _set2(disc, "elasticity-euclidean", "lbfgs", max_iterations=8, gtol=None, tolerance=None)
+    none = _set2(disc, "elasticity-euclidean", "lbfgs", max_iterations=8, gtol=None, tolerance=None,
                  lbfgs_preconditioner="none")
     assert auto.fun == none.fun  # auto is "none" off the complete metric
     el = _set2(disc, "complete-euclidean", "lbfgs", lbfgs_preconditioner="elasticity")
@@ -159,12 +161,12 @@ def test_elasticity_preconditioner_and_auto_on_other_variants(disc):
 def test_preconditioner_option_is_checked(disc):
     obj = PoissonObjective(disc)
     with pytest.raises(OptionError, match="unknown lbfgs_preconditioner"):
-        optimize(disc, obj, options=dict(lbfgs_preconditioner="newton"))
+        optimize(disc, obj, options=dict(lbfgs_preconditioner="newton"), penalty=None)
     with pytest.raises(OptionError, match="method='lbfgs' only"):
-        optimize(disc, obj, method="cg", options=dict(lbfgs_preconditioner="penalty"))
+        optimize(disc, obj, method="cg", options=dict(lbfgs_preconditioner="penalty"), penalty=None)
     with pytest.raises(OptionError, match="needs a penalty"):
         optimize(disc, obj, variant="complete-euclidean",
-                 options=dict(lbfgs_preconditioner="penalty"))
+                 options=dict(lbfgs_preconditioner="penalty"), penalty=None)
     # auto with cg, steepest or without a penalty quietly means "none"
-    optimize(disc, obj, variant="complete-euclidean", method="cg", max_iter=1)
-    optimize(disc, obj, variant="complete-euclidean", max_iter=1)
+    optimize(disc, obj, variant="complete-euclidean", method="cg", max_iterations=1, penalty=None)
+    optimize(disc, obj, variant="complete-euclidean", max_iterations=1, penalty=None)

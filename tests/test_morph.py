@@ -432,3 +432,24 @@ def test_normalized_metric_keeps_a_half_turn_rigid(disc):
         return np.sqrt(np.mean(np.sum(P**2, axis=1)))
 
     assert rms(normalized.points[2]) > 1.5 * rms(plain.points[2])
+
+
+def test_log_map_options_object_and_mapping_agree(rng):
+    """``options`` as a LogMapOptions or a mapping of its fields gives the same shooting;
+    its tolerance and iteration cap are honoured; an unknown field is an OptionError."""
+    import meshopt_toolkit as mt
+    from meshopt_toolkit.errors import OptionError
+
+    mesh = grid_mesh(4, jitter=0.3)
+    metric = CompleteMetric(QualityPenalty(mesh, beta=(1, 1, 0, 1)))
+    Q0 = mesh.points
+    Q1 = exp_map(metric, Q0, 0.05 * rng.standard_normal(Q0.shape), rtol=SHOOTING_RTOL)
+    a = mt.log_map(metric, Q0, Q1, options=mt.LogMapOptions(tolerance=1e-6))
+    b = mt.log_map(metric, Q0, Q1, options={"tolerance": 1e-6})
+    assert a.tol == b.tol == 1e-6 and a.success and a.residual <= 1e-6
+    np.testing.assert_array_equal(a.velocity, b.velocity)
+    capped = mt.log_map(metric, Q0, Q1, options={"tolerance": 1e-14, "max_iterations": 1},
+                        raise_on_failure=False)
+    assert capped.iterations <= 1 and not capped.success
+    with pytest.raises(OptionError, match="max_iter.*choose from"):
+        mt.log_map(metric, Q0, Q1, options={"max_iter": 3})

@@ -49,7 +49,8 @@ def _operations(mesh):
         "morph": lambda: mt.morph(mesh, _bent(mesh), frames=3),
         "morph complete": lambda: mt.morph(mesh, _bent(mesh), frames=3, metric="complete"),
         "deform": lambda: mt.deform(mesh, V, frames=3),
-        "optimize": lambda: mt.optimize(mesh, PoissonObjective(mesh), max_iter=3),
+        "optimize": lambda: mt.optimize(mesh, PoissonObjective(mesh), max_iterations=3,
+                                        penalty=None),
     }
 
 
@@ -99,9 +100,32 @@ def test_batch_summary_is_a_dict_and_report_the_line():
 OPERATIONS = ("move", "morph", "deform", "optimize", "discrete_geodesic", "geodesic", "exp_map")
 
 
+def _public_calls():
+    """Every function of ``mt.__all__`` and every options class (``*Options``)."""
+    names = [n for n in mt.__all__ if not n.startswith("_")]
+    return {n: getattr(mt, n) for n in names
+            if inspect.isfunction(getattr(mt, n)) or n.endswith("Options")}
+
+
 def test_no_public_operation_takes_more_than_12_parameters():
-    counts = {n: len(inspect.signature(getattr(mt, n)).parameters) for n in OPERATIONS}
+    calls = _public_calls()
+    assert set(OPERATIONS) | {"log_map", "run_batch", "OptimizeOptions"} <= set(calls)
+    counts = {n: len(inspect.signature(c).parameters) for n, c in calls.items()}
     assert {n: c for n, c in counts.items() if c > MAX_PARAMETERS} == {}
+
+
+#: the filters' and the command line's names of the shared settings, and the short
+#: names the public calls no longer take
+VOCABULARY = {"max_iter": "max_iterations", "tol": "tolerance", "t": "time", "t_end": "time",
+              "penalty_beta": "penalty", "ftol": "tolerance"}
+
+
+def test_public_calls_speak_the_filters_vocabulary():
+    short = {n: sorted(set(inspect.signature(c).parameters) & set(VOCABULARY))
+             for n, c in _public_calls().items()}
+    assert {n: p for n, p in short.items() if p} == {}
+    assert "max_iterations" in inspect.signature(mt.optimize).parameters
+    assert "time" in inspect.signature(mt.deform).parameters
 
 
 def test_the_parameter_count_test_sees_a_long_signature():
@@ -120,23 +144,26 @@ def test_the_parameter_count_test_sees_a_long_signature():
                                       weight=-1.0)),
     ("morph frames", lambda m: mt.morph(m, m, frames=1)),
     ("morph metric", lambda m: mt.morph(m, m, metric="elastic")),
-    ("morph max_iter", lambda m: mt.morph(m, m, max_iter=0)),
+    ("morph max_iterations", lambda m: mt.morph(m, m, max_iterations=0)),
     ("morph beta with distortion", lambda m: mt.morph(m, m, beta=(1, 1, 0, 1))),
     ("morph weight with complete", lambda m: mt.morph(m, m, metric="complete", weight=2.0)),
     ("morph method", lambda m: mt.morph(m, m, metric="complete", method="newton")),
     ("deform frames", lambda m: mt.deform(m, np.zeros_like(m.points), frames=1)),
     ("deform metric", lambda m: mt.deform(m, np.zeros_like(m.points), metric="elastic")),
     ("deform penalties", lambda m: mt.deform(m, np.zeros_like(m.points), alpha=(1, 0, 1),
-                                             beta=(1, 1, 0, 1))),
-    ("optimize variant", lambda m: mt.optimize(m, PoissonObjective(m), variant="newton")),
-    ("optimize method", lambda m: mt.optimize(m, PoissonObjective(m), method="newton")),
-    ("optimize max_iter", lambda m: mt.optimize(m, PoissonObjective(m), max_iter=-1)),
+                                             penalty=(1, 1, 0, 1))),
+    ("optimize variant", lambda m: mt.optimize(m, PoissonObjective(m), variant="newton",
+                                               penalty=None)),
+    ("optimize method", lambda m: mt.optimize(m, PoissonObjective(m), method="newton",
+                                              penalty=None)),
+    ("optimize max_iterations", lambda m: mt.optimize(m, PoissonObjective(m), max_iterations=-1,
+                                                      penalty=None)),
     ("optimize unknown option", lambda m: mt.optimize(m, PoissonObjective(m),
-                                                      options={"step": 1.0})),
+                                                      options={"step": 1.0}, penalty=None)),
     ("optimize tau", lambda m: mt.optimize(m, PoissonObjective(m), method="steepest",
-                                           options={"tau": 2.0})),
+                                           options={"tau": 2.0}, penalty=None)),
     ("optimize retraction", lambda m: mt.optimize(m, PoissonObjective(m),
-                                                  options={"retraction": "cayley"})),
+                                                  options={"retraction": "cayley"}, penalty=None)),
 ])
 def test_bad_arguments_raise_option_error(mesh, name, call):
     with pytest.raises(OptionError) as info:
@@ -146,8 +173,10 @@ def test_bad_arguments_raise_option_error(mesh, name, call):
 
 def test_optimize_options_object_and_mapping_agree(mesh):
     obj = PoissonObjective(mesh)
-    a = mt.optimize(mesh, obj, max_iter=4, options=mt.OptimizeOptions(gtol=None, memory=3))
-    b = mt.optimize(mesh, obj, max_iter=4, options={"gtol": None, "memory": 3})
+    a = mt.optimize(mesh, obj, max_iterations=4, penalty=None,
+                    options=mt.OptimizeOptions(gtol=None, memory=3))
+    b = mt.optimize(mesh, obj, max_iterations=4, penalty=None,
+                    options={"gtol": None, "memory": 3})
     np.testing.assert_array_equal(a.x, b.x)
 
 
@@ -159,15 +188,16 @@ def test_callbacks_follow_one_convention(mesh):
         seen.append(record)
         return record.iteration >= 2
 
-    res = mt.optimize(mesh, PoissonObjective(mesh), max_iter=50, callback=stop_at_two,
-                      progress=fractions.append, options={"gtol": None, "ftol": None})
+    res = mt.optimize(mesh, PoissonObjective(mesh), max_iterations=50, callback=stop_at_two,
+                      progress=fractions.append, options={"gtol": None, "tolerance": None},
+                      penalty=None)
     assert res.status == "stopped" and res.nit == 2
     assert [r.iteration for r in seen] == [1, 2]
     np.testing.assert_array_equal(seen[-1].points, res.x)
     assert fractions == [1 / 50, 2 / 50]
 
     records, fractions = [], []
-    morph = mt.morph(mesh, _bent(mesh, 0.2), frames=3, max_iter=40,
+    morph = mt.morph(mesh, _bent(mesh, 0.2), frames=3, max_iterations=40,
                      callback=lambda r: records.append(r) or True, progress=fractions.append)
     assert morph.status == "stopped" and len(records) == 1
     assert isinstance(records[0], mt.PathIteration) and records[0].energy > 0

@@ -55,8 +55,8 @@ def test_every_variant_decreases_monotonically_through_admissible_meshes(variant
     objective = PullObjective(mesh, target)
     iterates = []
     res = optimize(
-        mesh, objective, variant=variant, method=method, penalty_beta=(0.01, 0.01, 0, 0.01),
-        max_iter=12, options=dict(tol=None, ftol=None, gtol=None),
+        mesh, objective, variant=variant, method=method, penalty=(0.01, 0.01, 0, 0.01),
+        max_iterations=12, options=dict(tolerance=None, gtol=None),
         callback=_record_iterates(iterates),
     )
     F = np.array([h.objective for h in res.history])
@@ -75,7 +75,8 @@ def test_fixed_vertices_do_not_move(variant, method):
     mesh = grid_mesh(4, jitter=0.2, seed=1)
     target = mesh.points + 0.05
     res = optimize(mesh, PullObjective(mesh, target), variant=variant, method=method,
-                   fixed=mesh.boundary_vertices, max_iter=5, options=dict(tol=None))
+                   fixed=mesh.boundary_vertices, max_iterations=5, options=dict(tolerance=None),
+                   penalty=None)
     np.testing.assert_array_equal(res.x[mesh.boundary_vertices], mesh.points[mesh.boundary_vertices])
     assert not np.allclose(res.x, mesh.points)
 
@@ -85,8 +86,9 @@ def test_stopping_rule_6_26_converges_on_a_problem_with_a_minimizer():
     target = mesh.points.copy()
     target[4] += 0.02  # a small, admissible pull: a strict interior minimizer exists
     res = optimize(mesh, PullObjective(mesh, target), variant="euclidean-euclidean",
-                   method="steepest", penalty_beta=(0.01, 0.01, 0, 0.01),
-                   fixed=mesh.boundary_vertices, max_iter=500, options=dict(tol=1e-10, gtol=None))
+                   method="steepest", penalty=(0.01, 0.01, 0, 0.01),
+                   fixed=mesh.boundary_vertices, max_iterations=500,
+                   options=dict(tolerance=1e-10, gtol=None))
     assert res.status == "converged" and res.success
     assert 6 <= res.nit < 500
     F = [h.objective for h in res.history]
@@ -110,7 +112,7 @@ def test_non_descent_direction_is_an_error(monkeypatch, method):
     monkeypatch.setattr(EuclideanMetric, "riesz", lambda self, Q, P, free=None: -P)  # broken
     with pytest.raises(OptimizationError, match="descent|not positive"):
         optimize(mesh, PullObjective(mesh, mesh.points + 0.1), variant="euclidean-euclidean",
-                 method=method, max_iter=3)
+                 method=method, max_iterations=3, penalty=None)
 
 
 def test_wrong_derivative_ends_in_step_too_small():
@@ -121,7 +123,7 @@ def test_wrong_derivative_ends_in_step_too_small():
             return -super().value(Q)
 
     res = optimize(mesh, Wrong(mesh, mesh.points + 0.1), variant="euclidean-euclidean",
-                   method="steepest", max_iter=3)
+                   method="steepest", max_iterations=3, penalty=None)
     assert res.status == "step_too_small" and not res.success and res.nit == 0
 
 
@@ -130,9 +132,9 @@ def test_refuses_inverted_mesh_and_unknown_variant():
     Q = mesh.points.copy()
     Q[4] = [3.0, 0.0]
     with pytest.raises(NotAdmissibleError):
-        optimize(mesh.with_points(Q), PullObjective(mesh, Q))
+        optimize(mesh.with_points(Q), PullObjective(mesh, Q), penalty=None)
     with pytest.raises(OptionError, match="variant"):
-        optimize(mesh, PullObjective(mesh, Q), variant="newton")
+        optimize(mesh, PullObjective(mesh, Q), variant="newton", penalty=None)
 
 
 def test_thesis_parameter_sets_scale_beta4_by_vertex_count():

@@ -97,7 +97,7 @@ def test_complete_complete_reaches_the_exponential_maps_optimum(method):
 
     mesh = mt.load(mt.data_path("disc_146.msh")).as_planar()
     kw = dict(variant="complete-complete", method=method,
-              penalty_beta=thesis_penalty_beta(2, mesh.n_vertices),
+              penalty=thesis_penalty_beta(2, mesh.n_vertices),
               metric_beta=default_metric_beta(mesh.n_vertices))
     second = optimize(mesh, PoissonObjective(mesh), **kw)
     exp = optimize(mesh, PoissonObjective(mesh), options=dict(retraction="exp"), **kw)
@@ -110,14 +110,16 @@ def test_retraction_options_are_checked():
     mesh = grid_mesh(3)
     obj = PoissonObjective(mesh)
     with pytest.raises(OptionError, match="straight lines"):
-        optimize(mesh, obj, variant="complete-euclidean", options=dict(retraction="exp"))
+        optimize(mesh, obj, variant="complete-euclidean", options=dict(retraction="exp"),
+                 penalty=None)
     with pytest.raises(OptionError, match="straight lines"):
         optimize(mesh, obj, variant="elasticity-euclidean",
-                 options=dict(exp_options={"method": "auto"}))
+                 options=dict(exp_options={"method": "auto"}), penalty=None)
     with pytest.raises(OptionError, match="unknown retraction"):
-        optimize(mesh, obj, variant="complete-complete", options=dict(retraction="cayley"))
+        optimize(mesh, obj, variant="complete-complete", options=dict(retraction="cayley"),
+                 penalty=None)
     for retraction in ("second-order", "exp"):  # exp_options go with "exp" only
-        kw = dict(variant="complete-complete", max_iter=1,
+        kw = dict(variant="complete-complete", max_iterations=1, penalty=None,
                   options=dict(retraction=retraction, exp_options={"method": "auto"}))
         if retraction == "exp":
             assert optimize(mesh, obj, **kw).nit == 1

@@ -17,7 +17,8 @@ from meshopt_toolkit.errors import OptimizationError, OptionError
 from meshopt_toolkit.kernels.triangles import signed_areas
 from meshopt_toolkit.mesh import boundary_self_intersections
 from meshopt_toolkit.optimize import METHODS, VARIANTS, optimize
-from meshopt_toolkit.shape import LBFGSMemory, segment_limit, wolfe_line_search
+from meshopt_toolkit.kernels.triangles import segment_limit
+from meshopt_toolkit.shape import LBFGSMemory, wolfe_line_search
 
 
 class QuadraticObjective:
@@ -151,9 +152,9 @@ def test_lbfgs_with_exact_line_searches_terminates_on_a_quadratic_in_n_plus_1_it
     the same whatever the scaling γ of H0)."""
     mesh = grid_mesh(3, jitter=0.1, seed=seed)  # 4 interior vertices: n = 8 unknowns
     obj, c, n = _quadratic(mesh, seed)
-    res = optimize(mesh, obj, variant="euclidean-euclidean", method="lbfgs", max_iter=50,
-                   options=dict(memory=n, c2=1e-4, sigma=1e-5, gtol=1e-9, ftol=None),
-                   fixed=mesh.boundary_vertices)
+    res = optimize(mesh, obj, variant="euclidean-euclidean", method="lbfgs", max_iterations=50,
+                   options=dict(memory=n, c2=1e-4, sigma=1e-5, gtol=1e-9, tolerance=None),
+                   fixed=mesh.boundary_vertices, penalty=None)
     assert res.status == "converged" and res.success
     assert res.nit <= n + 1
     interior = obj.interior
@@ -165,12 +166,14 @@ def test_lbfgs_with_exact_line_searches_terminates_on_a_quadratic_in_n_plus_1_it
 def test_methods_reach_the_reference_minimizer_of_a_quadratic(method, variant):
     mesh = grid_mesh(4, jitter=0.1, seed=5)
     obj, c, n = _quadratic(mesh, 5, cond=50.0, shift=0.02)
-    res = optimize(mesh, obj, variant=variant, method=method, max_iter=400,
-                   options=dict(gtol=1e-8, ftol=None), fixed=mesh.boundary_vertices)
+    res = optimize(mesh, obj, variant=variant, method=method, max_iterations=400,
+                   options=dict(gtol=1e-8, tolerance=None), fixed=mesh.boundary_vertices,
+                   penalty=None)
     assert res.status == "converged"
     np.testing.assert_allclose(res.x[obj.interior].ravel(), c, atol=1e-6)
-    steepest = optimize(mesh, obj, variant=variant, method="steepest", max_iter=res.nit,
-                        options=dict(tol=None, gtol=1e-8), fixed=mesh.boundary_vertices)
+    steepest = optimize(mesh, obj, variant=variant, method="steepest", max_iterations=res.nit,
+                        options=dict(tolerance=None, gtol=1e-8), fixed=mesh.boundary_vertices,
+                        penalty=None)
     assert steepest.fun > res.fun  # same iteration budget: steepest descent is behind
     if method == "lbfgs":
         assert all(h.wolfe for h in res.history[1:])
@@ -196,7 +199,7 @@ def test_annulus_trials_across_the_boundary_are_rejected_not_fatal(method, annul
     edges = mesh.boundary_edges
     iterates = []
     res = optimize(mesh, PoissonObjective(mesh), variant="euclidean-euclidean", method=method,
-                   penalty_beta=thesis_penalty_beta(2, mesh.n_vertices), max_iter=100,
+                   penalty=thesis_penalty_beta(2, mesh.n_vertices), max_iterations=100,
                    callback=lambda rec: iterates.append(rec.points.copy()))
     # β3 = 0: nothing in F keeps the inner boundary off the outer one, the infimum lies on
     # the edge of M+; the run may end there (step_too_small) but never raises
@@ -214,8 +217,8 @@ def test_lbfgs_history_records_method_steps_and_curvature_pairs(variant):
 
     mesh = grid_mesh(4, jitter=0.2, seed=3)
     res = optimize(mesh, PullObjective(mesh, mesh.points + 0.05), variant=variant, method="lbfgs",
-                   penalty_beta=(0.01, 0.01, 0, 0.01), max_iter=6,
-                   options=dict(ftol=None, gtol=None))
+                   penalty=(0.01, 0.01, 0, 0.01), max_iterations=6,
+                   options=dict(tolerance=None, gtol=None))
     rows = [h.as_row() for h in res.history]
     assert {"method", "step", "wolfe", "pair_rejected", "rejected_trials",
             "relative_gradient_norm"} <= set(rows[0])
@@ -229,7 +232,8 @@ def test_lbfgs_history_records_method_steps_and_curvature_pairs(variant):
 def test_reaching_max_iterations_is_not_success(method):
     mesh = grid_mesh(4, jitter=0.1, seed=5)
     obj, c, n = _quadratic(mesh, 5, cond=50.0, shift=0.02)
-    res = optimize(mesh, obj, method=method, variant="euclidean-euclidean", max_iter=2)
+    res = optimize(mesh, obj, method=method, variant="euclidean-euclidean", max_iterations=2,
+                   penalty=None)
     assert res.status == "max_iterations" and not res.success
     assert "without converging" in res.message
 
@@ -241,7 +245,7 @@ def test_meshes_far_from_unit_size_are_refused_naming_the_scale(scale):
     mesh = grid_mesh(3, jitter=0.1)
     big = mesh.with_points(mesh.points * scale)
     with pytest.raises(OptimizationError, match=r"across.*rescale"):
-        optimize(big, PoissonObjective(big), max_iter=3)
+        optimize(big, PoissonObjective(big), max_iterations=3, penalty=None)
 
 
 def test_unknown_method_is_refused():
@@ -249,4 +253,75 @@ def test_unknown_method_is_refused():
 
     mesh = grid_mesh(3)
     with pytest.raises(OptionError, match="method"):
-        optimize(mesh, PullObjective(mesh, mesh.points), method="newton")
+        optimize(mesh, PullObjective(mesh, mesh.points), method="newton", penalty=None)
+
+
+def _armijo_reference(t0, tau, c1, min_step, f):
+    """The first trial ``t0·tau^k ≥ min_step`` with ``f(t) ≤ f(0) + c1 t f'(0)``, decided
+    in exact rational arithmetic on the same float trials (f a polynomial in Fractions)."""
+    from fractions import Fraction
+
+    steps = t0 * tau ** np.arange(200)
+    for t in steps[steps >= min_step]:
+        T = Fraction(float(t))
+        if f(T) <= f(Fraction(0)) + Fraction(c1) * T * Fraction(-2):
+            return float(t)
+    return 0.0
+
+
+@settings(max_examples=60, deadline=None)
+@given(t0=st.floats(0.01, 100.0), tau=st.floats(0.1, 0.9), c1=st.floats(0.01, 0.9))
+def test_armijo_backtracking_takes_the_first_trial_with_sufficient_decrease(t0, tau, c1):
+    """φ(t) = (t − 1)² − 1, φ'(0) = −2: the accepted step is the first of t0, τ t0, …
+    with sufficient decrease (exact check), and only trials up to it are evaluated."""
+    from meshopt_toolkit.shape import armijo_backtracking
+
+    seen = []
+
+    def phi(t):
+        seen.append(t)
+        return (t - 1.0) ** 2 - 1.0, t
+
+    res = armijo_backtracking(phi, 0.0, -2.0, t0, c1=c1, tau=tau, min_step=1e-6)
+    expected = _armijo_reference(t0, tau, c1, 1e-6, lambda T: (T - 1) ** 2 - 1)
+    assert res.step == expected and res.payload == expected
+    assert res.wolfe is False and res.slope is None
+    assert seen == (t0 * tau ** np.arange(len(seen))).tolist() and seen[-1] == expected
+    assert res.evaluations == len(seen)
+
+
+def test_armijo_backtracking_guard_rejections_and_failure():
+    from meshopt_toolkit.shape import armijo_backtracking
+
+    seen, prepared = [], []
+
+    def phi(t):  # +inf (outside the domain) above 0.3
+        seen.append(t)
+        return (math.inf if t > 0.3 else (t - 1.0) ** 2 - 1.0), None
+
+    res = armijo_backtracking(phi, 0.0, -2.0, 4.0, tau=0.5, t_max=1.0,
+                              prepare=prepared.append)
+    # 4, 2, 1 are refused by the guard unevaluated; 0.5 is outside; 0.25 is taken
+    assert seen == [0.5, 0.25] and res.step == 0.25
+    assert res.evaluations == 5 and res.rejected == 1
+    assert len(prepared) == 1 and prepared[0][:5].tolist() == [4.0, 2.0, 1.0, 0.5, 0.25]
+    assert prepared[0].min() >= 1e-6
+    uphill = armijo_backtracking(lambda t: (1.0, None), 0.0, -2.0, 1.0, min_step=0.1)
+    assert not uphill.success and uphill.step == 0.0 and uphill.evaluations == 4  # 1 … 0.125
+    with pytest.raises(ValueError, match="descent"):
+        armijo_backtracking(lambda t: (0.0, None), 0.0, 1.0, 1.0)
+
+
+@pytest.mark.parametrize("method, search", [("steepest", None), ("lbfgs", True), ("cg", True)])
+def test_one_driver_each_method_its_line_search(method, search):
+    """Every method runs through shape.driver.run_descent: steepest descent's records carry
+    no Wolfe flag (Armijo backtracking), L-BFGS's and CG's do."""
+    from test_optimize import PullObjective
+
+    mesh = grid_mesh(4, jitter=0.2, seed=3)
+    res = optimize(mesh, PullObjective(mesh, mesh.points + 0.05), method=method,
+                   variant="euclidean-euclidean", penalty=(0.01, 0.01, 0, 0.01),
+                   max_iterations=4, options=dict(tolerance=None, gtol=None))
+    assert res.method == method and res.nit == 4
+    flags = {r.wolfe is None for r in res.history[1:]}
+    assert flags == {search is None}

@@ -136,7 +136,7 @@ def test_holes_move_with_the_outer_boundary_fixed_and_the_area_kept(meshes):
     mesh = meshes["plate"]
     res = optimize(mesh, None, problem=ProblemSpec(fixed=("outer",), keep_area=True,
                                                    scale="auto"),
-                   penalty_beta=DEFAULT_PENALTY_BETA)
+                   penalty=DEFAULT_PENALTY_BETA)
     assert res.success, res.message
     outer = mesh.tagged_vertices("outer")
     assert np.array_equal(res.x[outer], mesh.points[outer])  # bit for bit
@@ -157,7 +157,7 @@ def test_holes_move_with_the_outer_boundary_fixed_and_the_area_kept(meshes):
 def test_keep_area_needs_a_quasi_newton_method(meshes):
     with pytest.raises(OptionError, match="keep_area"):
         optimize(meshes["plate"], None, problem=ProblemSpec(keep_area=True), method="steepest",
-                 penalty_beta=DEFAULT_PENALTY_BETA)
+                 penalty=DEFAULT_PENALTY_BETA)
 
 
 @pytest.mark.parametrize("case", ["plate", "lshape", "channel"])
@@ -165,7 +165,7 @@ def test_default_run_converges_keeping_the_worst_triangle(case, meshes):
     """`meshopt optimize MESH`'s problem: the thesis rhs, j weighed to the mesh."""
     mesh = meshes[case]
     res = optimize(mesh, None, problem=ProblemSpec(scale="auto"),
-                   penalty_beta=DEFAULT_PENALTY_BETA)
+                   penalty=DEFAULT_PENALTY_BETA)
     assert res.success, res.message
     ar0 = aspect_ratios(mesh.points, mesh.triangles).min()
     assert aspect_ratios(res.x, mesh.triangles).min() >= 0.5 * ar0
@@ -176,7 +176,7 @@ def test_only_the_moving_group_moves_under_a_tracking_objective(meshes):
     mesh = meshes["channel"]
     spec = ProblemSpec(move=("disc",), dirichlet={"inlet": 1.0}, neumann={"outlet": 0.5},
                        objective="tracking: 1 - 0.3*x", rhs=0.0, scale="auto")
-    res = optimize(mesh, None, problem=spec, penalty_beta=DEFAULT_PENALTY_BETA)
+    res = optimize(mesh, None, problem=spec, penalty=DEFAULT_PENALTY_BETA)
     assert res.success, res.message
     assert res.j < res.history[0].j
     for group in ("inlet", "outlet", "walls", "square"):
@@ -222,7 +222,7 @@ def test_filter_parameters_pose_the_same_problem(meshes):
                                                  dirichlet="hole1=1", max_iterations=5)
     expected = optimize(mesh, None, problem=ProblemSpec(fixed=("outer",), keep_area=True,
                                                         dirichlet={"hole1": 1.0}, scale="auto"),
-                        penalty_beta=DEFAULT_PENALTY_BETA, max_iter=5)
+                        penalty=DEFAULT_PENALTY_BETA, max_iterations=5)
     np.testing.assert_allclose(doc.mesh.points, expected.x, rtol=0, atol=1e-12)
 
 
@@ -268,8 +268,8 @@ def test_area_restoration_and_projection_on_random_perturbations(seed, amplitude
 def test_area_is_kept_along_every_retraction_and_method(variant, method, meshes):
     mesh = meshes["plate"]
     res = optimize(mesh, None, problem=ProblemSpec(fixed=("outer",), keep_area=True, scale="auto"),
-                   variant=variant, method=method, penalty_beta=DEFAULT_PENALTY_BETA, max_iter=4,
-                   options=dict(ftol=None, gtol=None))
+                   variant=variant, method=method, penalty=DEFAULT_PENALTY_BETA, max_iterations=4,
+                   options=dict(tolerance=None, gtol=None))
     assert res.nit == 4 and res.j < res.history[0].j
     A0 = shoelace_area(mesh.points, mesh.boundary_edges)
     assert abs(shoelace_area(res.x, mesh.boundary_edges) - A0) <= 1e-10 * A0

@@ -24,15 +24,17 @@ How a batch runs
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import shutil
 import time
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
-from ..errors import MeshoptError, WriteError
+from .._options import options_of
+from ..errors import MeshoptError, OptionError, WriteError
 from ..pipeline.runner import Pipeline
 from .file_job import RunOptions
 from .journal import Journal, config_sha256, file_sha256
@@ -402,9 +404,8 @@ def execute(task, jobs: Iterable[Job], outdir, *, workers: int = 1, isolate: boo
 
 
 def run_batch(pipeline: Pipeline | dict | str | os.PathLike, inputs, outdir, *, jobs: int = 1,
-              client=None, resume: bool = False, force: bool = False, to: str | None = None,
-              shared_inputs: bool = False, dry_run: bool = False, isolate: bool | None = None,
-              options: RunOptions | None = None,
+              client=None, resume: bool = False, shared_inputs: bool = False,
+              isolate: bool | None = None, options: RunOptions | Mapping | None = None,
               on_record: Callable[[dict], None] | None = None,
               progress: bool = False) -> BatchResult:
     """Run a pipeline over many mesh files: in parallel, resumable, or on a Dask cluster.
@@ -428,19 +429,16 @@ def run_batch(pipeline: Pipeline | dict | str | os.PathLike, inputs, outdir, *, 
         A Dask client (or a scheduler address) to run on instead of local processes.
     resume : bool
         Skip files already done by an earlier run with the same pipeline and input.
-    force : bool
-        Replace existing outputs.
-    to : str, optional
-        Output format (``".vtu"``); default: the input's.
     shared_inputs : bool
         On a cluster, let workers read inputs from the same path instead of sending their
         bytes (default).
-    dry_run : bool
-        Check everything, run no filter, write nothing.
     isolate : bool, optional
         Force a worker process for ``jobs=1`` (True) or not (False).
-    options : RunOptions, optional
-        Further settings (size budget, ``allow_read``...).
+    options : :class:`~meshopt_toolkit.batch.file_job.RunOptions` or a mapping of its
+        fields, optional
+        How each file runs: ``ext`` (the output format, ``"vtu"`` or ``".vtu"``; default
+        the input's), ``force`` (replace existing outputs), ``dry_run`` (check
+        everything, run no filter, write nothing), the size budget, ``allow_read``...
     on_record : callable, optional
         Gets each file's record in input order; then records are not kept (flat memory).
     progress : bool
@@ -468,10 +466,10 @@ def run_batch(pipeline: Pipeline | dict | str | os.PathLike, inputs, outdir, *, 
         pipeline = Pipeline.from_dict(pipeline)
     pipeline.validate()
     workers = resolve_jobs(jobs)
-    opts = RunOptions(**vars(options)) if options is not None else RunOptions()
-    if to is not None:
-        opts.ext = to.lower() if to.startswith(".") else "." + to.lower()
-    opts.force, opts.dry_run = force, dry_run
+    opts = options_of(RunOptions, options, {}, error=OptionError, what="run option(s)")
+    ext = opts.ext and (opts.ext.lower() if opts.ext.startswith(".") else "." + opts.ext.lower())
+    opts = dataclasses.replace(opts, ext=ext)  # a copy: the caller's options stay as given
+    force, dry_run = opts.force, opts.dry_run
     if outdir is None and not dry_run:
         raise MeshoptError("run_batch: outdir is required (except with dry_run=True)")
     if isolate is None:

@@ -3,6 +3,7 @@
 Each subcommand lives in its own module of this package and defines
 
 - ``HELP``: a one-line description,
+- ``EPILOG`` (optional): text shown after the options, its line breaks kept,
 - ``add_args(parser)``: its arguments,
 - ``run(args) -> int``: the handler, returning the exit status.
 
@@ -71,7 +72,9 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     names = _subcommand_modules()
     for name in names:
         module = importlib.import_module(f".{name}", __name__)
-        p = sub.add_parser(name, help=module.HELP, description=module.HELP)
+        p = sub.add_parser(name, help=module.HELP, description=module.HELP,
+                           epilog=getattr(module, "EPILOG", None),
+                           formatter_class=argparse.RawDescriptionHelpFormatter)
         if command is not None and command in names and name != command:
             continue
         p.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,

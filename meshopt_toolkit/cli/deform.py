@@ -31,6 +31,10 @@ from ._validate import check_int, check_number, check_numbers
 MIN_RTOL, MAX_RTOL = 1e-14, 0.1
 
 HELP = "deform a mesh along a complete-metric geodesic, keeping it admissible"
+EPILOG = (
+    "Default penalty: f1 with alpha = 1,0,1 (thesis section 5.5), Qref = the input mesh.\n"
+    "Example: meshopt deform disc.msh --displacement v.npy --frames 9 -o out/"
+)
 #: options generated from the filter's parameters (one schema: cli/_params.py)
 OPTIONS = {"time": "--time"}
 
@@ -38,11 +42,6 @@ logger = logging.getLogger(__name__)
 
 
 def add_args(p: argparse.ArgumentParser) -> None:
-    p.formatter_class = argparse.RawDescriptionHelpFormatter
-    p.epilog = (
-        "Default penalty: f1 with alpha = 1,0,1 (thesis section 5.5), Qref = the input mesh.\n"
-        "Example: meshopt deform disc.msh --displacement v.npy --frames 9 -o out/"
-    )
     p.add_argument("mesh", help="input mesh (admissible, planar)")
     p.add_argument("-o", "--output", required=True,
                    help="output mesh file, or a directory with --frames")
@@ -53,7 +52,7 @@ def add_args(p: argparse.ArgumentParser) -> None:
     group = p.add_mutually_exclusive_group()
     group.add_argument("--alpha", type=float_list(3), metavar="a1,a2,a3",
                        help="f1 parameters (default: 1,0,1)")
-    group.add_argument("--penalty", "--beta", dest="beta", type=float_list(4),
+    group.add_argument("--penalty", "--beta", type=float_list(4),
                        metavar="b1,b2,b3,b4",
                        help="use f2 with these parameters instead (β4 unscaled)")
     p.add_argument("--euclidean", action="store_true",
@@ -68,7 +67,7 @@ def _check_numbers(args: argparse.Namespace) -> None:
     check_options(args, QualityPreservingDeformation, OPTIONS)
     check_int("--frames", args.frames, 2, MAX_FRAMES)
     check_numbers("--alpha", args.alpha)
-    check_numbers("--penalty", args.beta)
+    check_numbers("--penalty", args.penalty)
     check_number("--rtol", args.rtol, low=MIN_RTOL, high=MAX_RTOL)
 
 
@@ -86,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
     V = wp.to_unit(load_displacement(args.displacement, wp.user_mesh, wp.plane_coordinates))
     with ProgressBar(1000, "deform") as bar:
         res = deform(
-            mesh, V, t=args.time, frames=frames, alpha=args.alpha, beta=args.beta,
+            mesh, V, time=args.time, frames=frames, alpha=args.alpha, penalty=args.penalty,
             metric="euclidean" if args.euclidean else "complete",
             options=GeodesicOptions(rtol=args.rtol, atol=args.rtol), progress=bar.to_fraction,
         )

@@ -117,7 +117,7 @@ def run(args: argparse.Namespace) -> int:
     with ProgressBar(max_iter, "morph") as bar:
         result = morph(source, target, args.frames, metric=args.metric, weight=args.weight,
                        beta=args.beta, normalize=not args.no_normalize, method=args.method,
-                       max_iter=max_iter,
+                       max_iterations=max_iter,
                        callback=lambda it: bar.update(status=f"E={it.energy:.8g}"))
     for name, mesh in zip(names, result.frames):
         save_moved(wp, mesh, outdir / name, what=name)

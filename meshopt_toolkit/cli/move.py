@@ -39,23 +39,22 @@ from ._params import add_options, check_options
 from ._validate import OptionError, check_int
 
 HELP = "move chosen vertices exactly to targets; the rest follows, no triangle inverts"
+EPILOG = (
+    "Examples:\n"
+    "  meshopt move annulus.msh -o turned.msh --where 'x**2 + y**2 < 0.25' \\\n"
+    "      --map 'x*cos(pi/2) - y*sin(pi/2); x*sin(pi/2) + y*cos(pi/2)'\n"
+    "  meshopt move mesh.msh --targets handles.csv --frames 9 -o motion/\n"
+    "  meshopt move part.msh -o moved.msh --group hole --map 'x + 0.1; y'\n"
+    "  meshopt move box.msh -o turned.msh --where 'x**2 + y**2 + z**2 < 0.2' \\\n"
+    "      --map 'x*cos(pi/4) - y*sin(pi/4); x*sin(pi/4) + y*cos(pi/4); z'\n"
+    "Use 'meshopt deform' instead to follow an initial velocity (a geodesic) rather than\n"
+    "to reach prescribed positions."
+)
 #: options generated from the filter's parameters (one schema: cli/_params.py)
 OPTIONS = {"steps": "--steps", "weight": "--weight"}
 
 
 def add_args(p: argparse.ArgumentParser) -> None:
-    p.formatter_class = argparse.RawDescriptionHelpFormatter
-    p.epilog = (
-        "Examples:\n"
-        "  meshopt move annulus.msh -o turned.msh --where 'x**2 + y**2 < 0.25' \\\n"
-        "      --map 'x*cos(pi/2) - y*sin(pi/2); x*sin(pi/2) + y*cos(pi/2)'\n"
-        "  meshopt move mesh.msh --targets handles.csv --frames 9 -o motion/\n"
-        "  meshopt move part.msh -o moved.msh --group hole --map 'x + 0.1; y'\n"
-        "  meshopt move box.msh -o turned.msh --where 'x**2 + y**2 + z**2 < 0.2' \\\n"
-        "      --map 'x*cos(pi/4) - y*sin(pi/4); x*sin(pi/4) + y*cos(pi/4); z'\n"
-        "Use 'meshopt deform' instead to follow an initial velocity (a geodesic) rather than\n"
-        "to reach prescribed positions."
-    )
     p.add_argument("mesh", help="input mesh (admissible; planar triangles, tetrahedra or a "
                    "triangle surface in 3D)")
     p.add_argument("-o", "--output", required=True,

@@ -25,6 +25,19 @@ from ._params import add_options, check_options
 from ._validate import OptionError
 
 HELP = "shape optimization: minimize ∫y or a tracking functional (P1 Poisson) + f2 over admissible meshes"
+EPILOG = (
+    "β4 is given unscaled: f2 divides it by 2N (thesis table 6.3 lists β4/N_V).\n"
+    "Default (no MESH): bundled disc_146.msh, elasticity-euclidean, β^penalty =\n"
+    "(0.1, 0.01, 0.01, 0.146) = thesis parameter set 2 at 146 vertices, with β4 fixed on\n"
+    "every mesh (set 2 scales it with N, which squeezes fine meshes' boundary\n"
+    "triangles; --penalty 0.1,0.01,0,0.001·N gives set 2) and β3 a contact barrier that\n"
+    "acts only where a hole or notch is about to close, β^metric = (10, 1, 0, 0.01·N).\n"
+    "With a MESH, j is weighed to the mesh (--objective-scale auto). Physical groups\n"
+    "(--fixed, --move, --dirichlet, --neumann) are gmsh physical groups of boundary\n"
+    "lines, by name or number.\n"
+    "Exit status 1 when the run does not converge (max iterations, step too small);\n"
+    "its (admissible) last mesh is still written."
+)
 
 DEFAULT_MESH = "disc_146.msh"
 #: options generated from the filter's parameters (one schema: cli/_params.py)
@@ -32,6 +45,14 @@ OPTIONS = {"variant": "--variant", "method": "--method", "retraction": "--retrac
            "lbfgs_preconditioner": "--lbfgs-preconditioner", "memory": "--memory",
            "rhs": "--rhs", "max_iterations": ("--max-iterations", "--max-iter"),
            "tolerance": ("--tolerance", "--tol")}
+#: the options naming physical groups (repeatable): metavar and help
+GROUP_OPTIONS = {
+    "--fixed": ("GROUP", "keep the vertices of this physical group (name or number) fixed"),
+    "--move": ("GROUP", "only this boundary group moves, the rest of the boundary stays"),
+    "--dirichlet": ("GROUP=VALUE", "y = VALUE on the group (default y = 0 on the whole "
+                    "boundary, kept on the parts no option names)"),
+    "--neumann": ("GROUP=VALUE", "dy/dn = VALUE on the group"),
+}
 OUTPUT_NAMES = ("history.csv", "history.json", "summary.json", "mesh.png", "history.png")
 
 logger = logging.getLogger(__name__)
@@ -40,20 +61,6 @@ logger = logging.getLogger(__name__)
 def add_args(p: argparse.ArgumentParser) -> None:
     from ..filters.apply_coord_shape_optimization import ShapeOptimization
 
-    p.formatter_class = argparse.RawDescriptionHelpFormatter
-    p.epilog = (
-        "β4 is given unscaled: f2 divides it by 2N (thesis table 6.3 lists β4/N_V).\n"
-        "Default (no MESH): bundled disc_146.msh, elasticity-euclidean, β^penalty =\n"
-        "(0.1, 0.01, 0.01, 0.146) = thesis parameter set 2 at 146 vertices, with β4 fixed on\n"
-        "every mesh (set 2 scales it with N, which squeezes fine meshes' boundary\n"
-        "triangles; --penalty 0.1,0.01,0,0.001·N gives set 2) and β3 a contact barrier that\n"
-        "acts only where a hole or notch is about to close, β^metric = (10, 1, 0, 0.01·N).\n"
-        "With a MESH, j is weighed to the mesh (--objective-scale auto). Physical groups\n"
-        "(--fixed, --move, --dirichlet, --neumann) are gmsh physical groups of boundary\n"
-        "lines, by name or number.\n"
-        "Exit status 1 when the run does not converge (max iterations, step too small);\n"
-        "its (admissible) last mesh is still written."
-    )
     p.add_argument("mesh", nargs="?", help=f"input mesh (default: the bundled {DEFAULT_MESH})")
     p.add_argument("-o", "--output", default="meshopt-optimize",
                    help="output directory (default: %(default)s)")
@@ -65,17 +72,9 @@ def add_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--metric-penalty", type=float_list(4), metavar="b1,b2,b3,b4",
                    help="β^metric of the complete metric, complete-* variants only "
                         "(default: 10,1,0,0.01·N)")
-    p.add_argument("--fixed", metavar="GROUP", action="append", default=[],
-                   help="keep the vertices of this physical group (name or number) fixed "
-                        "(repeatable)")
-    p.add_argument("--move", metavar="GROUP", action="append", default=[],
-                   help="only this boundary group moves, the rest of the boundary stays "
-                        "(repeatable)")
-    p.add_argument("--dirichlet", metavar="GROUP=VALUE", action="append", default=[],
-                   help="y = VALUE on the group (repeatable; default y = 0 on the whole "
-                        "boundary, kept on the parts no option names)")
-    p.add_argument("--neumann", metavar="GROUP=VALUE", action="append", default=[],
-                   help="dy/dn = VALUE on the group (repeatable)")
+    for flag, (metavar, text) in GROUP_OPTIONS.items():
+        p.add_argument(flag, metavar=metavar, action="append", default=[],
+                       help=f"{text} (repeatable)")
     p.add_argument("--keep-area", action="store_true",
                    help="the domain's area is an exact constraint (lbfgs, cg)")
     p.add_argument("--objective", default="integral", metavar="OBJECTIVE",
@@ -172,11 +171,11 @@ def run(args: argparse.Namespace) -> int:
         with bar:
             result = optimize(
                 mesh, objective, variant=args.variant, method=args.method,
-                penalty_beta=penalty, metric_beta=args.metric_penalty, problem=spec,
-                max_iter=args.max_iterations, callback=callback,
+                penalty=penalty, metric_beta=args.metric_penalty, problem=spec,
+                max_iterations=args.max_iterations, callback=callback,
                 options=OptimizeOptions(
-                    retraction=args.retraction, tol=args.tolerance or None,
-                    ftol=args.tolerance or None, gtol=args.gtol if args.gtol > 0 else None,
+                    retraction=args.retraction, tolerance=args.tolerance or None,
+                    gtol=args.gtol if args.gtol > 0 else None,
                     memory=args.memory, lbfgs_preconditioner=args.lbfgs_preconditioner),
             )
         summary = result.summary()

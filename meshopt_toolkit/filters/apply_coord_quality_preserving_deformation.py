@@ -55,7 +55,7 @@ class QualityPreservingDeformation(Filter):
         mesh = wp.mesh
         V = load_displacement(displacement.replace("{stem}", entry.name), wp.user_mesh,
                               wp.plane_coordinates)
-        result = deform(mesh, wp.to_unit(V), t=time, alpha=a, beta=b)
+        result = deform(mesh, wp.to_unit(V), time=time, alpha=a, penalty=b)
         entry.set_workpiece(wp.moved(result.mesh.points))
         moved = float(np.abs(result.mesh.points - mesh.points).max())
         return {"time": float(time), "min_aspect_ratio": float(np.min(result.aspect_ratio)),

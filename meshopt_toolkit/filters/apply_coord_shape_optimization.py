@@ -105,11 +105,11 @@ class ShapeOptimization(Filter):
                                  scale=objective_scale)
         result = optimize(
             mesh, None, problem=spec, variant=variant, method=method,
-            penalty_beta=beta, metric_beta=number_list(metric_penalty, 4, "metric_penalty"),
-            max_iter=max_iterations,
+            penalty=beta, metric_beta=number_list(metric_penalty, 4, "metric_penalty"),
+            max_iterations=max_iterations,
             options=OptimizeOptions(retraction=retraction, memory=memory,
                                     lbfgs_preconditioner=lbfgs_preconditioner,
-                                    tol=tolerance or None, ftol=tolerance or None),
+                                    tolerance=tolerance or None),
         )
         entry.set_workpiece(wp.moved(result.mesh.points))
         return result.summary()

@@ -105,6 +105,40 @@ def min_signed_areas_on_segment(
     return np.where(inside, np.minimum(low, a + b * s + c * s * s), low)
 
 
+def segment_limit(points: FloatArray, triangles: IntArray, direction: FloatArray) -> float:
+    """First ``t > 0`` at which a signed area of ``points + t·direction`` vanishes (``inf``
+    if none): the largest step before a triangle inverts.
+
+    The doubled area of each triangle along the line is the quadratic ``c + b t + a t²``
+    (``c`` > 0 at an admissible configuration); every area stays positive on ``[0, t)``
+    for ``t`` below the returned value, so a straight-line step cannot pass through an
+    inverted configuration and come out on the other side.
+    """
+    q = points[triangles]  # (T, 3, 2)
+    w = direction[triangles]
+    e1, e2 = q[:, 1] - q[:, 0], q[:, 2] - q[:, 0]
+    w1, w2 = w[:, 1] - w[:, 0], w[:, 2] - w[:, 0]
+
+    def cross(u, v):
+        return u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]
+
+    c = cross(e1, e2)
+    b = cross(e1, w2) + cross(w1, e2)
+    a = cross(w1, w2)
+    with np.errstate(all="ignore"):
+        disc = b * b - 4.0 * a * c
+        sq = np.sqrt(np.maximum(disc, 0.0))
+        qq = -0.5 * (b + np.where(b >= 0, sq, -sq))  # the stable pair of roots qq/a, c/qq
+        r1 = np.where(a != 0, qq / a, np.inf)
+        r2 = np.where(qq != 0, c / qq, np.inf)
+        lin = np.where(b < 0, -c / b, np.inf)  # a == 0: linear area
+    r1 = np.where((r1 > 0) & np.isfinite(r1), r1, np.inf)
+    r2 = np.where((r2 > 0) & np.isfinite(r2), r2, np.inf)
+    roots = np.where(a == 0, lin, np.minimum(r1, r2))
+    roots = np.where((a != 0) & (disc < 0), np.inf, roots)
+    return float(roots.min()) if roots.size else np.inf
+
+
 def doubled_areas_of_frames(frames: FloatArray, tri_t: IntArray) -> FloatArray:
     """Twice the signed areas, ``2A = (q1 − q0) × (q2 − q0)``, of every triangle of many
     configurations at once: ``frames`` ``(m, N, 2)``, ``tri_t`` ``(3, T)``; returns

@@ -91,7 +91,7 @@ from ..riemannian.discrete_geodesic import discrete_geodesic
 from ..riemannian.geodesic_result import DiscreteGeodesic, LogMapResult
 from ..riemannian.geodesics import penalty_of
 from ..riemannian.initial_path import initial_path, linear_morph
-from ..riemannian.log_map import DEFAULT_TOL, SHOOTING_RTOL, log_map
+from ..riemannian.log_map import DEFAULT_TOL, SHOOTING_RTOL, LogMapOptions, log_map
 from ..riemannian.path_options import NewtonCGOptions
 from .scalar_morph_result import MorphResult
 
@@ -259,7 +259,8 @@ def geodesic_morph(
     times = np.linspace(0.0, 1.0, frames)
     used, target_error, length = "discrete", 0.0, dg.length
     if method in ("auto", "shooting"):
-        log = log_map(metric, Q0, Q1, tol=tol, discrete=dg, max_exp=max_exp,
+        log = log_map(metric, Q0, Q1, discrete=dg,
+                      options=LogMapOptions(tolerance=tol, max_exp=max_exp),
                       raise_on_failure=(method == "shooting"))
         if log.success:
             geo = geodesic(metric, Q0, log.velocity, 1.0, times=times, rtol=SHOOTING_RTOL,

@@ -4,10 +4,10 @@ object instead of a dozen keyword arguments (the methods are described in
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass
 
+from .._options import options_of
 from ..errors import IntegrationError
 
 #: the integration methods (see :mod:`.geodesics`)
@@ -43,7 +43,7 @@ class GeodesicOptions:
     h0 : first step of the adaptive methods (e.g. ``last_step`` of a previous, similar
         geodesic); default Hairer's tolerance-aware heuristic (one penalty call), for
         ``"line-search"`` ``LINE_SEARCH_FIRST_STEP`` of the interval.
-    steps : Störmer–Verlet steps on [0, t_end] (default 1024)
+    steps : Störmer–Verlet steps on [0, time] (default 1024)
     fixed_point_tol, fixed_point_iter : Störmer–Verlet fixed-point tolerance and cap
     """
 
@@ -81,18 +81,4 @@ class GeodesicOptions:
     def of(cls, options: GeodesicOptions | Mapping | None = None, **settings) -> GeodesicOptions:
         """``options`` (an instance, a mapping of fields, or None for the defaults) with
         ``settings`` (fields) on top; an unknown field is a TypeError naming it."""
-        if options is None:
-            base = cls()
-        elif isinstance(options, Mapping):
-            base = cls.of(None, **options)
-        elif isinstance(options, cls):
-            base = options
-        else:
-            raise TypeError(f"options must be a GeodesicOptions or a mapping of its fields, "
-                            f"got {type(options).__name__}")
-        known = {f.name for f in dataclasses.fields(cls)}
-        unknown = sorted(set(settings) - known)
-        if unknown:
-            raise TypeError(f"unknown geodesic setting(s) {', '.join(unknown)}; "
-                            f"known: {', '.join(sorted(known))}")
-        return dataclasses.replace(base, **settings) if settings else base
+        return options_of(cls, options, settings, error=TypeError, what="geodesic setting(s)")

@@ -200,7 +200,7 @@ def geodesic(
     metric,
     Q: FloatArray,
     V: FloatArray,
-    t_end: float = 1.0,
+    time: float = 1.0,
     *,
     times=None,
     options: GeodesicOptions | None = None,
@@ -216,10 +216,10 @@ def geodesic(
         A complete metric ``g = I + ∇f∇fᵀ`` (5.17, 5.34) or the penalty ``f`` itself.
     Q : (N, 2) admissible initial positions
     V : (N, 2) initial velocity (a tangent vector)
-    t_end : final time (may be negative: γ_V(−t) = γ_{−V}(t))
+    time : final time (may be negative: γ_V(−t) = γ_{−V}(t))
     times : (K,) array_like, optional
-        Output times between 0 and ``t_end`` (any order; returned in the given order).
-        Default ``[t_end]``. Include 0 to get the initial state as well.
+        Output times between 0 and ``time`` (any order; returned in the given order).
+        Default ``[time]``. Include 0 to get the initial state as well.
     options : GeodesicOptions, optional
         How to integrate: method, tolerances, invariant checks, dense output, first step,
         Störmer–Verlet settings (default ``GeodesicOptions()``).
@@ -232,7 +232,7 @@ def geodesic(
         ``V`` must vanish there, and fixed vertices do not move.
     progress : callable, optional
         Adaptive methods: ``progress(fraction)`` after each accepted step, the fraction
-        of ``[0, t_end]`` integrated (for a progress bar).
+        of ``[0, time]`` integrated (for a progress bar).
 
     Returns
     -------
@@ -256,15 +256,15 @@ def geodesic(
         raise IntegrationError(f"Q and V must both have shape (N, 2), got {Q.shape} and {V.shape}")
     if not np.isfinite(V).all():
         raise IntegrationError("the initial velocity has non-finite entries")
-    t_end = float(t_end)
-    req = np.atleast_1d(np.asarray([t_end] if times is None else times, dtype=float))
+    time = float(time)
+    req = np.atleast_1d(np.asarray([time] if times is None else times, dtype=float))
     if req.ndim != 1 or req.size == 0:
         raise IntegrationError("times must be a non-empty 1D sequence")
-    if t_end < 0:
-        if np.any(req > 0) or np.any(req < t_end):
-            raise IntegrationError(f"times must lie in [{t_end}, 0]")
+    if time < 0:
+        if np.any(req > 0) or np.any(req < time):
+            raise IntegrationError(f"times must lie in [{time}, 0]")
         try:
-            res = geodesic(metric, Q, -V, -t_end, times=-req, options=opts, free=free,
+            res = geodesic(metric, Q, -V, -time, times=-req, options=opts, free=free,
                            progress=progress)
         except IntegrationError as exc:
             part = getattr(exc, "partial", None)
@@ -275,8 +275,8 @@ def geodesic(
         res.times = req
         res.velocities = -res.velocities
         return res
-    if np.any(req < 0) or np.any(req > t_end * (1 + 1e-12)):
-        raise IntegrationError(f"times must lie in [0, {t_end}]")
+    if np.any(req < 0) or np.any(req > time * (1 + 1e-12)):
+        raise IntegrationError(f"times must lie in [0, {time}]")
     pen = penalty_of(metric)
     K = req.size
 
@@ -362,22 +362,22 @@ def exp_map(
     metric,
     Q: FloatArray,
     V: FloatArray,
-    t: float = 1.0,
+    time: float = 1.0,
     method: str | None = None,
     rtol: float | None = None,
     atol: float | None = None,
     **kwargs,
 ) -> FloatArray:
-    """Exponential map ``exp_Q(tV) = γ_{Q,V}(t)`` of ``metric``, shape (N, 2).
+    """Exponential map ``exp_Q(time·V) = γ_{Q,V}(time)`` of ``metric``, shape (N, 2).
 
-    For a Euclidean metric this is ``Q + tV`` (no integration, no admissibility check: the
+    For a Euclidean metric this is ``Q + time·V`` (no integration, no admissibility check: the
     caller guards Euclidean retractions). For a complete metric the geodesic (5.35) is
     integrated (see :func:`geodesic` for ``method``, tolerances and guards; extra keyword
     arguments are passed on), and the result is always admissible.
 
     Examples
     --------
-    >>> exp_map(None, [[0.0, 0.0]], [[1.0, 2.0]], t=0.5).tolist()
+    >>> exp_map(None, [[0.0, 0.0]], [[1.0, 2.0]], time=0.5).tolist()
     [[0.5, 1.0]]
     """
     Q = np.asarray(Q, dtype=float)
@@ -385,6 +385,6 @@ def exp_map(
     if penalty_of(metric) is None:
         if Q.shape != V.shape:
             raise IntegrationError(f"Q and V must have the same shape, got {Q.shape} and {V.shape}")
-        return Q + float(t) * V
+        return Q + float(time) * V
     given = {k: v for k, v in (("method", method), ("rtol", rtol), ("atol", atol)) if v is not None}
-    return geodesic(metric, Q, V, t, **given, **kwargs).points[-1]
+    return geodesic(metric, Q, V, time, **given, **kwargs).points[-1]

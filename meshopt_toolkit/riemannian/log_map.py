@@ -4,11 +4,14 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Mapping
+from dataclasses import dataclass
 
 import numpy as np
 
+from .._options import options_of
 from .._typing import FloatArray
-from ..errors import IntegrationError, InvalidMeshError, NotAdmissibleError
+from ..errors import IntegrationError, InvalidMeshError, NotAdmissibleError, OptionError
 from ._boundary_value import DEFAULT_TOL, SHOOTING_RTOL, _as_points, _diameter, _require_finite
 from .discrete_geodesic import discrete_geodesic
 from .geodesic_result import DiscreteGeodesic, LogMapResult
@@ -17,21 +20,48 @@ from .geodesics import penalty_of
 logger = logging.getLogger(__name__)
 
 
+@dataclass(frozen=True)
+class LogMapOptions:
+    """Settings of :func:`log_map`'s Newton–Krylov shooting; every field has a default.
+
+    Attributes
+    ----------
+    tolerance : max-norm tolerance on the residual (None: ``1e-8 ·`` diameter of ``Q0``)
+    max_iterations : Newton iterations
+    max_exp : budget of exponential maps (a Newton step needs 1 + #GMRES iterations)
+    krylov : GMRES iterations per Newton step
+    rtol : relative tolerance of the exponential maps of the residual
+        (:func:`~.geodesics.geodesic`); check a log with ``exp_map(metric, Q0, V, rtol=rtol)``
+    jacobian_rtol, jacobian_step : tolerance of the exponential maps of the directional
+        differences ``J v ≈ (exp(V + h v̂) − exp(V))/h·|v|`` and ``h = jacobian_step·|V|``
+        (integration noise ~1e-7/1e-3 and truncation ~1e-3: Newton converges linearly
+        with a rate of about 1e-3)
+    """
+
+    tolerance: float | None = None
+    max_iterations: int = 12
+    max_exp: int = 2000
+    krylov: int = 60
+    rtol: float = SHOOTING_RTOL
+    jacobian_rtol: float = 1e-7
+    jacobian_step: float = 1e-3
+
+    @classmethod
+    def of(cls, options: LogMapOptions | Mapping | None = None, **changes) -> LogMapOptions:
+        """``options`` (an instance, a mapping of its fields, or None: the defaults) with
+        ``changes`` applied; an unknown field raises :class:`OptionError`."""
+        return options_of(cls, options, changes, error=OptionError, what="log map option(s)")
+
+
 def log_map(
     metric,
     Q0: FloatArray,
     Q1: FloatArray,
     *,
-    tol: float | None = None,
     V0: FloatArray | None = None,
     segments: int = 16,
     discrete: DiscreteGeodesic | None = None,
-    max_iter: int = 12,
-    max_exp: int = 2000,
-    krylov: int = 60,
-    rtol: float = SHOOTING_RTOL,
-    jacobian_rtol: float = 1e-7,
-    jacobian_step: float = 1e-3,
+    options: LogMapOptions | Mapping | None = None,
     raise_on_failure: bool = True,
 ) -> LogMapResult:
     """The logarithm ``V = log_{Q0}(Q1)``: ``exp_map(metric, Q0, V, rtol=rtol) ≈ Q1``.
@@ -43,19 +73,12 @@ def log_map(
     ----------
     metric : CompleteMetric (or its penalty); EuclideanMetric/None give ``Q1 − Q0``
     Q0, Q1 : (N, 2) admissible meshes of the same connectivity (arrays or meshes)
-    tol : max-norm tolerance on the residual (default ``1e-8 ·`` diameter of ``Q0``)
     V0 : (N, 2) initial guess (skips the discrete geodesic)
     segments : segments of the discrete geodesic of the initial guess
     discrete : a precomputed discrete geodesic from Q0 to Q1 to start from
-    max_iter : Newton iterations
-    max_exp : budget of exponential maps (a Newton step needs 1 + #GMRES iterations)
-    krylov : GMRES iterations per Newton step
-    rtol : relative tolerance of the exponential maps of the residual
-        (:func:`~.geodesics.geodesic`); check a log with ``exp_map(metric, Q0, V, rtol=rtol)``
-    jacobian_rtol, jacobian_step : tolerance of the exponential maps of the directional
-        differences ``J v ≈ (exp(V + h v̂) − exp(V))/h·|v|`` and ``h = jacobian_step·|V|``
-        (integration noise ~1e-7/1e-3 and truncation ~1e-3: Newton converges linearly
-        with a rate of about 1e-3)
+    options : :class:`LogMapOptions` (or a mapping of its fields): the residual's
+        ``tolerance``, ``max_iterations``, the budgets and the exponential maps'
+        tolerances
     raise_on_failure : raise IntegrationError when the tolerance is not met (else return
         the result with ``success = False``)
 
@@ -71,18 +94,22 @@ def log_map(
     NotAdmissibleError
         ``Q0`` or ``Q1`` is not admissible, or no admissible path joins them.
     IntegrationError
-        The shooting did not reach ``tol`` (with ``raise_on_failure``).
+        The shooting did not reach the tolerance (with ``raise_on_failure``).
+    OptionError
+        An unknown option.
     """
     from scipy.sparse.linalg import LinearOperator, gmres
 
     from .geodesics import exp_map
 
+    o = LogMapOptions.of(options)
+    rtol, jacobian_rtol = o.rtol, o.jacobian_rtol
     start = time.perf_counter()
     Q0 = _as_points(Q0, "Q0")
     Q1 = _as_points(Q1, "Q1")
     if Q0.shape != Q1.shape:
         raise InvalidMeshError(f"Q0 and Q1 have shapes {Q0.shape} and {Q1.shape}")
-    tol = DEFAULT_TOL * _diameter(Q0) if tol is None else float(tol)
+    tol = DEFAULT_TOL * _diameter(Q0) if o.tolerance is None else float(o.tolerance)
     pen = penalty_of(metric)
     if pen is None:
         V = Q1 - Q0
@@ -121,14 +148,14 @@ def log_map(
     it = 0
     message = "converged" if res <= tol else ""
     while res > tol:
-        if it >= max_iter or n_exp >= max_exp:
+        if it >= o.max_iterations or n_exp >= o.max_exp:
             message = (f"not converged: residual {res:.3g} > tol {tol:.3g} after {it} Newton "
                        f"iterations ({n_exp} exponential maps)")
             break
         it += 1
         # directional differences at a looser tolerance (cheaper steps; J needs ~1e-3)
         vnorm = max(float(np.linalg.norm(V)), 1e-3 * _diameter(Q0))
-        h = jacobian_step * vnorm
+        h = o.jacobian_step * vnorm
         try:
             base = expo(V, jacobian_rtol)
         except (IntegrationError, NotAdmissibleError):
@@ -149,7 +176,7 @@ def log_map(
             return (sign * (E - base) * (nv / h)).ravel()
 
         A = LinearOperator((V.size, V.size), matvec=jv, dtype=np.float64)
-        k = min(krylov, V.size, max(1, max_exp - n_exp))
+        k = min(o.krylov, V.size, max(1, o.max_exp - n_exp))
         dV, _info = gmres(A, -R.ravel(), rtol=1e-3, atol=0.0,
                           restart=k, maxiter=1)
         dV = dV.reshape(V.shape)

@@ -1,4 +1,6 @@
-"""Search directions of the Riemannian quasi-Newton and conjugate-gradient methods.
+"""Search directions of the descent methods: steepest descent, Riemannian L-BFGS and
+nonlinear conjugate gradients, one direction rule each (:data:`DIRECTION_RULES`) for the
+one iteration of :mod:`.driver`.
 
 Notation: ``P = dF(Q)`` is the derivative (a covector, an (N, 2) array), ``G_Q`` the
 metric at ``Q`` and ``grad F = G_Q⁻¹ P`` its Riesz map (:meth:`ShapeProblem.riesz`).
@@ -102,3 +104,81 @@ def hestenes_stiefel_plus(grad: FloatArray, yhat: FloatArray, d_prev: FloatArray
     if not (np.isfinite(den) and den > 0):
         return 0.0
     return max(0.0, dot(grad, yhat) / den)
+
+
+class SteepestDescent:
+    """``d = −grad F``: the thesis' steepest descent (algorithm 2, §6.4.1).
+
+    The protocol of a direction rule: ``direction(Q, P, grad, riesz)``; ``has_history``
+    (a step was taken: a failed direction may be restarted or retried along ``−grad``);
+    ``unit_step`` (try ``t = 1`` first); ``restart()`` (forget the past);
+    ``remember(s, P_new, P, d)`` after an accepted step ``s`` along ``d`` (returns whether
+    its curvature pair was rejected); ``rejected`` (pairs rejected in all).
+    """
+
+    has_history = False
+    unit_step = False
+    rejected = 0
+
+    def direction(self, Q: FloatArray, P: FloatArray, grad: FloatArray, riesz) -> FloatArray:
+        return -grad
+
+    def restart(self) -> None:
+        pass
+
+    def remember(self, s: FloatArray, P_new: FloatArray, P: FloatArray, d: FloatArray) -> bool:
+        return False
+
+
+class ConjugateGradient(SteepestDescent):
+    """Nonlinear CG, ``d = β d_prev − grad F`` with Hestenes–Stiefel+ ``β``."""
+
+    def __init__(self) -> None:
+        self.d_prev: FloatArray | None = None
+        self.P_prev: FloatArray | None = None
+
+    @property
+    def has_history(self) -> bool:
+        return self.d_prev is not None
+
+    def direction(self, Q, P, grad, riesz):
+        if self.d_prev is None:
+            return -grad
+        return hestenes_stiefel_plus(grad, P - self.P_prev, self.d_prev) * self.d_prev - grad
+
+    def remember(self, s, P_new, P, d):
+        self.d_prev, self.P_prev = d, P
+        return False
+
+
+class LBFGS(SteepestDescent):
+    """Riemannian L-BFGS: ``d = −H_k P`` by :class:`LBFGSMemory`'s two-loop recursion,
+    ``H_0 = γ G⁻¹`` or ``γ B⁻¹`` with ``h0(Q, X) = B⁻¹X`` a preconditioner."""
+
+    def __init__(self, memory: int = 10, h0=None) -> None:
+        self.memory = LBFGSMemory(memory)
+        self.h0 = h0
+        self.has_history = False
+
+    @property
+    def unit_step(self) -> bool:
+        return bool(self.memory.pairs) or self.h0 is not None
+
+    @property
+    def rejected(self) -> int:
+        return self.memory.rejected
+
+    def direction(self, Q, P, grad, riesz):
+        h0 = None if self.h0 is None else (lambda X: self.h0(Q, X))
+        return self.memory.direction(P, lambda X: riesz(Q, X), h0)
+
+    def restart(self):
+        self.memory.clear()
+
+    def remember(self, s, P_new, P, d):
+        self.has_history = True
+        return not self.memory.update(s, P_new - P, dot(P, s))
+
+
+#: the direction rule of each method (``method="steepest" | "lbfgs" | "cg"``)
+DIRECTION_RULES = {"steepest": SteepestDescent, "lbfgs": LBFGS, "cg": ConjugateGradient}

@@ -1,4 +1,6 @@
-"""A Wolfe line search for functions that are ``+∞`` outside their domain.
+"""The line searches of the descent methods, for functions that are ``+∞`` outside their
+domain: a Wolfe search (:func:`wolfe_line_search`, L-BFGS and CG) and Armijo
+backtracking (:func:`armijo_backtracking`, the thesis' steepest descent).
 
 ``φ(t) = F(R_Q(t d))`` along a retraction ``R``; a trial whose configuration leaves ``M+``
 has ``φ(t) = +∞`` and is *rejected* (the bracket shrinks), never fatal. The search
@@ -26,6 +28,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 
 @dataclass
 class LineSearchResult:
@@ -37,7 +41,8 @@ class LineSearchResult:
     value : ``φ(step)``
     slope : ``φ'(step)`` (None when not computed)
     payload : what ``phi`` returned with the accepted value (e.g. the configuration)
-    evaluations : number of ``φ`` evaluations
+    evaluations : number of trial steps (``φ`` evaluations; for the Armijo search also
+        the trials at or beyond ``t_max``, refused without one)
     rejected : trials with ``φ = +∞`` (outside the domain)
     wolfe : True when both Wolfe conditions hold at ``step``
     """
@@ -136,3 +141,57 @@ def wolfe_line_search(
         return LineSearchResult(0.0, f0, None, None, evals, rejected, False)
     t, f, g, payload = best
     return LineSearchResult(t, f, g, payload, evals, rejected, False)
+
+
+def armijo_backtracking(
+    phi: Callable[[float], tuple[float, Any]],
+    f0: float,
+    g0: float,
+    t0: float,
+    *,
+    c1: float = 1e-4,
+    tau: float = 0.5,
+    min_step: float = 1e-6,
+    t_max: float = math.inf,
+    prepare: Callable[[np.ndarray], None] | None = None,
+) -> LineSearchResult:
+    """The first of the steps ``t0, tau·t0, tau²·t0, … ≥ min_step`` with sufficient decrease
+    ``φ(t) ≤ φ(0) + c1 t φ'(0)`` (the thesis' Armijo rule (6.21)).
+
+    Parameters
+    ----------
+    phi : ``t -> (φ(t), payload)``; ``φ(t) = +inf`` marks a trial outside the domain
+    f0, g0 : ``φ(0)`` and ``φ'(0)`` (must be < 0: a descent direction)
+    t0 : first trial step (> 0)
+    c1 : Armijo constant
+    tau : backtracking factor in (0, 1)
+    min_step : the smallest trial step
+    t_max : trials at or beyond it are refused unevaluated (steepest descent's travel
+        guard (6.23))
+    prepare : called once with every trial step before the first ``phi`` (e.g. one
+        retraction call that gives all trial points)
+
+    Returns
+    -------
+    LineSearchResult
+        ``wolfe`` is always False and ``slope`` None; ``step = 0`` when no trial passed.
+    """
+    if not g0 < 0:
+        raise ValueError(f"φ'(0) = {g0!r} is not negative: not a descent direction")
+    count = max(1, math.ceil(math.log(min_step / t0) / math.log(tau)) + 1)
+    steps = t0 * tau ** np.arange(count)
+    steps = steps[steps >= min_step]
+    if prepare is not None and len(steps):
+        prepare(steps)
+    trials = rejected = 0
+    for t in steps:
+        trials += 1
+        if t >= t_max:
+            continue
+        f, payload = phi(float(t))
+        if not math.isfinite(f):
+            rejected += 1
+            continue
+        if f <= f0 + c1 * t * g0:
+            return LineSearchResult(float(t), f, None, payload, trials, rejected, False)
+    return LineSearchResult(0.0, f0, None, None, trials, rejected, False)

@@ -4,10 +4,10 @@ rules, line search, L-BFGS memory and preconditioner, metric and retraction
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass
 
+from .._options import options_of
 from ..errors import OptionError
 from .setup import DEFAULT_RETRACTION
 
@@ -21,13 +21,11 @@ class OptimizeOptions:
 
     Attributes
     ----------
-    tol : steepest descent only: tolerance of the stopping rule (6.26)
-        ``max_{m=1..5} F_{n−m} − F_n < tol``; None disables it (fixed iteration count, as
-        for the unpenalized runs).
+    tolerance : stop when ``max_{m=1..5} F_{n−m} − F_n ≤ tolerance · max(|F_n|, 1)``
+        (every method; the thesis' rule (6.26), made relative where ``|F_n| > 1``); None
+        disables it (a fixed iteration count, as for the unpenalized runs).
     gtol : stop when the Riemannian gradient norm ``‖grad F‖_g`` falls to ``gtol`` times
         its first value (every method); None disables it.
-    ftol : lbfgs/cg only: stop when ``max_{m=1..5} F_{n−m} − F_n ≤ ftol · max(|F_n|, 1)``
-        (the relative version of (6.26)); None disables it.
     memory : number of L-BFGS curvature pairs kept.
     sigma, tau : Armijo parameters (6.21) (``sigma`` is ``c1`` of the Wolfe search) and
         the backtracking factor of steepest descent.
@@ -52,9 +50,8 @@ class OptimizeOptions:
         2198-vertex disc.
     """
 
-    tol: float | None = 1e-6
+    tolerance: float | None = 1e-6
     gtol: float | None = 1e-5
-    ftol: float | None = 1e-6
     memory: int = 10
     sigma: float = 1e-4
     tau: float = 0.5
@@ -70,20 +67,7 @@ class OptimizeOptions:
     def of(cls, options: OptimizeOptions | Mapping | None = None, **changes) -> OptimizeOptions:
         """``options`` (an instance, a mapping of its fields, or None: the defaults) with
         ``changes`` applied; an unknown field raises :class:`OptionError`."""
-        if options is None:
-            options = cls()
-        elif isinstance(options, Mapping):
-            changes = {**options, **changes}
-            options = cls()
-        elif not isinstance(options, cls):
-            raise OptionError(f"options must be an OptimizeOptions or a mapping, got "
-                              f"{type(options).__name__}")
-        names = {f.name for f in dataclasses.fields(cls)}
-        unknown = sorted(set(changes) - names)
-        if unknown:
-            raise OptionError(f"unknown optimize option(s) {', '.join(unknown)}; choose from "
-                              f"{', '.join(sorted(names))}")
-        out = dataclasses.replace(options, **changes)
+        out = options_of(cls, options, changes, error=OptionError, what="optimize option(s)")
         out._check()
         return out
 
@@ -96,6 +80,6 @@ class OptimizeOptions:
             raise OptionError(f"tau must be in (0, 1), got {self.tau}")
         if not 0 < self.segment_fraction <= 1:
             raise OptionError(f"segment_fraction must be in (0, 1], got {self.segment_fraction}")
-        for name, value in (("tol", self.tol), ("gtol", self.gtol), ("ftol", self.ftol)):
+        for name, value in (("tolerance", self.tolerance), ("gtol", self.gtol)):
             if value is not None and not value >= 0:
                 raise OptionError(f"{name} must be >= 0 or None, got {value}")

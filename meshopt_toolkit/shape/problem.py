@@ -1,54 +1,39 @@
-"""The penalized shape problem ``F = j + f2`` on ``M+`` as the quasi-Newton methods see it.
+"""The penalized shape problem ``F = j + f2`` on ``M+`` as the descent methods see it.
 
 :class:`ShapeProblem` bundles the objective, the penalty, the gradient metric, the fixed
 vertices and the admissibility test, and turns every way of leaving ``M+`` into
 ``F = +∞``: a trial configuration with a non-positive signed area, a boundary that touches
 itself, a non-finite value, or an objective that refuses it (``NotAdmissibleError``) is
-*rejected*, never fatal.
+*rejected*, never fatal. :func:`max_travel_step` is steepest descent's guard (6.23) on
+straight-line steps; the other methods cap theirs by
+:func:`~meshopt_toolkit.kernels.triangles.segment_limit`.
 """
 
 from __future__ import annotations
+
+import time
 
 import numpy as np
 
 from .._linalg import dot
 from .._typing import FloatArray
 from ..errors import NotAdmissibleError
-from ..kernels.triangles import aspect_ratios, signed_areas
+from ..kernels.triangles import aspect_ratios, heights, signed_areas
 from ..mesh import boundary_self_intersections
 
 
-def segment_limit(Q: FloatArray, triangles: np.ndarray, d: FloatArray) -> float:
-    """First ``t > 0`` at which a signed area of ``Q + t d`` vanishes (``inf`` if none).
+def max_travel_step(Q: FloatArray, triangles: np.ndarray, d: FloatArray) -> float:
+    """Largest step allowed by the node-travel safeguard (6.23) of steepest descent.
 
-    The doubled area of each triangle along the segment is the quadratic
-    ``c + b t + a t²`` (``c`` > 0 at an admissible ``Q``); every area stays positive on
-    ``[0, t)`` for ``t`` below the returned value, so the straight-line retraction cannot
-    pass through an inverted configuration and come out on the other side.
+    A trial step ``s`` is refused when ``s |d_i| ≥ ½ h_l`` for a vertex ``i`` at local
+    position ``l`` of any triangle, ``h_l`` that triangle's height from ``i``. Returns
+    ``min ½ h_l / |d_i|`` (inf when ``d`` vanishes).
     """
-    q = Q[triangles]  # (T, 3, 2)
-    w = d[triangles]
-    e1, e2 = q[:, 1] - q[:, 0], q[:, 2] - q[:, 0]
-    w1, w2 = w[:, 1] - w[:, 0], w[:, 2] - w[:, 0]
-
-    def cross(u, v):
-        return u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]
-
-    c = cross(e1, e2)
-    b = cross(e1, w2) + cross(w1, e2)
-    a = cross(w1, w2)
-    with np.errstate(all="ignore"):
-        disc = b * b - 4.0 * a * c
-        sq = np.sqrt(np.maximum(disc, 0.0))
-        qq = -0.5 * (b + np.where(b >= 0, sq, -sq))
-        r1 = np.where(a != 0, qq / a, np.inf)
-        r2 = np.where(qq != 0, c / qq, np.inf)
-        lin = np.where(b < 0, -c / b, np.inf)  # a == 0: linear area
-    r1 = np.where((r1 > 0) & np.isfinite(r1), r1, np.inf)
-    r2 = np.where((r2 > 0) & np.isfinite(r2), r2, np.inf)
-    roots = np.where(a == 0, lin, np.minimum(r1, r2))
-    roots = np.where((a != 0) & (disc < 0), np.inf, roots)
-    return float(roots.min()) if roots.size else np.inf
+    h = heights(Q, triangles)  # (T, 3), height from local vertex l onto the opposite edge
+    speed = np.linalg.norm(d, axis=1)[triangles]  # (T, 3)
+    with np.errstate(divide="ignore"):
+        limit = np.where(speed > 0, 0.5 * h / speed, np.inf)
+    return float(limit.min())
 
 
 class ShapeProblem:
@@ -110,11 +95,18 @@ class ShapeProblem:
             return np.inf, np.inf
         return F, J
 
-    def derivative(self, Q: FloatArray) -> FloatArray:
-        """``dF(Q)`` as an (N, 2) array, zero on the fixed vertices."""
+    def derivative(self, Q: FloatArray, timer=None) -> FloatArray:
+        """``dF(Q)`` as an (N, 2) array, zero on the fixed vertices; ``timer`` (a
+        :class:`~.result.PhaseTimer`) gets j's and f2's times as ``"derivative"`` and
+        ``"penalty_derivative"``."""
+        t0 = time.perf_counter()
         P = np.asarray(self.objective.derivative(Q), dtype=float)
+        if timer is not None:
+            t0 = timer.add("derivative", t0)
         if self.penalty is not None:
             P = P + self.penalty.gradient(Q)
+            if timer is not None:
+                timer.add("penalty_derivative", t0)
         if self.free is not None:
             P = np.where(self.free[:, None], P, 0.0)
         return P

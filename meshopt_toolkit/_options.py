@@ -1,0 +1,43 @@
+"""The one way an options dataclass is given: an instance, a mapping of its fields, or
+None (the defaults), with changes on top (:func:`options_of`)."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+
+__all__ = ["options_of"]
+
+
+def options_of(cls, options, changes: Mapping, *, error: type[Exception], what: str):
+    """``options`` as an instance of the dataclass ``cls``, with ``changes`` applied.
+
+    Parameters
+    ----------
+    cls : a dataclass whose every field has a default
+    options : an instance of ``cls``, a mapping of its fields, or None (the defaults)
+    changes : fields set on top of ``options``
+    error : the exception raised for a wrong type or an unknown field
+    what : the fields' name in its message (e.g. ``"optimize option(s)"``)
+
+    Raises
+    ------
+    error
+        ``options`` of another type, or a field ``cls`` does not have (named, with the
+        fields it has).
+    """
+    if options is None:
+        base = cls()
+    elif isinstance(options, Mapping):
+        changes = {**options, **changes}
+        base = cls()
+    elif isinstance(options, cls):
+        base = options
+    else:
+        raise error(f"options must be a {cls.__name__} or a mapping of its fields, got "
+                    f"{type(options).__name__}")
+    known = {f.name for f in dataclasses.fields(cls)}
+    unknown = sorted(set(changes) - known)
+    if unknown:
+        raise error(f"unknown {what} {', '.join(unknown)}; choose from {', '.join(sorted(known))}")
+    return dataclasses.replace(base, **changes) if changes else base
