@@ -139,7 +139,7 @@ def morph(
 
     if is_surface(source):  # triangle surfaces in 3D: motion/surface_morph.py
         return morph_call(source, target, frames, metric=metric, weight=weight, beta=beta,
-                          normalize=normalize, method=method, max_iter=max_iter,
+                          normalize=normalize, method=method, max_iter=max_iterations,
                           callback=callback, progress=progress)
     name = METRIC_ALIASES.get(metric, metric)
     run = MORPH_METRICS.get(name)

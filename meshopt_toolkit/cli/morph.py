@@ -174,7 +174,7 @@ def _run_tets(args: argparse.Namespace, cells) -> int:
     target = target_cells.to_tet_mesh("morph").require_admissible()
     max_iter = args.max_iter or 200
     with ProgressBar(max_iter, "morph") as bar:
-        result = morph(source, target, args.frames, weight=args.weight, max_iter=max_iter,
+        result = morph(source, target, args.frames, weight=args.weight, max_iterations=max_iter,
                        callback=lambda it: bar.update(status=f"E={it.energy:.8g}"))
     prepare_output_dir(outdir, force=args.force, names=files)
     for name, points in zip(names, result.points):
@@ -226,7 +226,7 @@ def _run_surface(args: argparse.Namespace, cells) -> int:
     with ProgressBar(max_iter, "morph") as bar:
         result = morph(source, target, args.frames, metric=args.metric, weight=args.weight,
                        beta=args.beta, normalize=not args.no_normalize, method=args.method,
-                       max_iter=max_iter,
+                       max_iterations=max_iter,
                        callback=lambda it: bar.update(status=f"E={it.energy:.8g}"))
     prepare_output_dir(outdir, force=args.force, names=written)
     for name, mesh in zip(names, result.frames):
