@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from .errors import OptionError
 from .results import PathIteration
 
-__all__ = ["METRIC_ALIASES", "MORPH_METRICS", "morph"]
+__all__ = ["IN_SPACE", "METRIC_ALIASES", "MORPH_METRICS", "morph"]
 
 #: other names of the morph metrics
 METRIC_ALIASES = {"scalar": "complete"}
@@ -36,11 +36,15 @@ class _Settings:
     callback: Callable | None
 
 
+def _distortion_only(o: _Settings) -> None:
+    if o.beta is not None or not o.normalize or o.method != "discrete":
+        raise OptionError("beta, normalize and method apply to metric='complete' only")
+
+
 def _distortion(source, target, frames: int, o: _Settings):
     from .motion.morph import distortion_morph
 
-    if o.beta is not None or not o.normalize or o.method != "discrete":
-        raise OptionError("beta, normalize and method apply to metric='complete' only")
+    _distortion_only(o)
     return distortion_morph(source, target, frames, weight=o.weight, max_iter=o.max_iter,
                             callback=o.callback)
 
@@ -60,25 +64,37 @@ def _complete(source, target, frames: int, o: _Settings):
 MORPH_METRICS = {"distortion": _distortion, "complete": _complete}
 
 
-def _tet_distortion(source, target, frames: int, o: _Settings):
+def _tets(source, target, frames: int, o: _Settings):
     from .motion.tet_morph import morph_tets
 
-    if o.beta is not None or not o.normalize or o.method != "discrete":
-        raise OptionError("beta, normalize and method apply to metric='complete' only")
+    _distortion_only(o)
     return morph_tets(source, target, frames, weight=o.weight, max_iter=o.max_iter,
                       callback=o.callback)
 
 
-def _in_space(source, name: str):
-    """The morph of a pair of tet meshes (distortion metric only), else None."""
-    from .mesh import TetMesh
+def _surfaces(source, target, frames: int, o: _Settings):
+    from .motion.surface_mesh_morph import morph_surface_mesh
 
-    if not isinstance(source, TetMesh):
-        return None
-    if name != "distortion":
-        raise OptionError(f"tetrahedral meshes are morphed with metric='distortion' only, "
-                          f"not {name!r}")
-    return _tet_distortion
+    _distortion_only(o)
+    hook = o.callback
+    return morph_surface_mesh(source, target, frames, weight=o.weight,
+                              max_iterations=o.max_iter, callback=None if hook is None else (
+                                  lambda r: hook(r.iteration, r.energy, r.gradient_norm)))
+
+
+#: meshes in space, each morphed with its own distortion metric (tets:
+#: :mod:`~.motion.tet_morph`, surfaces: :mod:`~.motion.surface_morph`), and its default
+#: iterations of the discrete geodesic
+IN_SPACE = {"tetrahedra": (_tets, 200), "surfaces": (_surfaces, 10)}
+
+
+def _kind_in_space(source) -> str | None:
+    from .mesh import TetMesh
+    from .motion.surface_mesh_morph import is_surface
+
+    if isinstance(source, TetMesh):
+        return "tetrahedra"
+    return "surfaces" if is_surface(source) else None
 
 
 def morph(
@@ -99,9 +115,10 @@ def morph(
 
     Parameters
     ----------
-    source, target : PlanarMesh or TetMesh
-        Admissible meshes with the same connectivity (tets: the distortion metric,
-        :func:`~.motion.tet_morph.morph_tets`).
+    source, target : PlanarMesh, TetMesh, or a surface in 3D (SurfaceMesh, trimesh.Trimesh,
+        pymeshlab.Mesh)
+        Admissible meshes with the same connectivity; tets and surfaces are morphed with
+        their distortion metric (:data:`IN_SPACE`), and surfaces come back as the type given.
     frames : int
         Number of frames (≥ 2), both ends included.
     metric : ``"distortion"`` (default) or ``"complete"`` (alias ``"scalar"``)
@@ -115,7 +132,8 @@ def morph(
     method : str
         Complete metric: ``"discrete"``, ``"shooting"`` or ``"auto"``.
     max_iterations : int, optional
-        Iterations of the discrete geodesic (default :data:`DEFAULT_MAX_ITER`).
+        Iterations of the discrete geodesic (default :data:`DEFAULT_MAX_ITER`, in space
+        :data:`IN_SPACE`).
     callback : callable ``PathIteration -> bool | None``, optional
         Called once per iteration; returning True stops the iteration (status
         ``"stopped"``; the frames are admissible, not yet a minimizer).
@@ -124,7 +142,7 @@ def morph(
 
     Returns
     -------
-    DistortionMorph, MorphResult or TetMorphResult
+    DistortionMorph, MorphResult, TetMorphResult or SurfaceMeshMorph
         All with ``mesh``, ``frames`` (meshes with the source's tags), ``summary()``,
         ``seconds`` and ``status`` (:class:`~meshopt_toolkit.results.Result`).
 
@@ -135,20 +153,22 @@ def morph(
     InvalidMeshError, NotAdmissibleError
         Different connectivity, a non-admissible end.
     """
-    from .motion.surface_mesh_morph import is_surface, morph_call
-
-    if is_surface(source):  # triangle surfaces in 3D: motion/surface_morph.py
-        return morph_call(source, target, frames, metric=metric, weight=weight, beta=beta,
-                          normalize=normalize, method=method, max_iter=max_iterations,
-                          callback=callback, progress=progress)
     name = METRIC_ALIASES.get(metric, metric)
     run = MORPH_METRICS.get(name)
     if run is None:
         raise OptionError(f"unknown morph metric {metric!r}; choose one of "
                           f"{', '.join(MORPH_METRICS)}")
+    space = _kind_in_space(source)
+    if space is not None:
+        if name != "distortion":
+            raise OptionError(f"{space} in 3D are morphed with metric='distortion' only, "
+                              f"not {metric!r}")
+        run, default_iterations = IN_SPACE[space]
+    else:
+        default_iterations = DEFAULT_MAX_ITER[name]
     if int(frames) < 2:
         raise OptionError(f"frames must be at least 2, got {frames}")
-    n_iter = DEFAULT_MAX_ITER[name] if max_iterations is None else int(max_iterations)
+    n_iter = default_iterations if max_iterations is None else int(max_iterations)
     if n_iter < 1:
         raise OptionError(f"max_iterations must be at least 1, got {max_iterations}")
 
@@ -160,6 +180,5 @@ def morph(
         return False
 
     hook = step if callback is not None or progress is not None else None
-    run = _in_space(source, name) or run  # tetrahedra: motion/tet_morph.py
     return run(source, target, int(frames),
                _Settings(float(weight), beta, bool(normalize), method, n_iter, hook))
