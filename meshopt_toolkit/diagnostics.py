@@ -114,16 +114,9 @@ def _taylor_test(f, x, v, slope: float, curvature: float | None, eps0: float,
     return TaylorResult(eps, rem, order, expected, usable)
 
 
-def check_gradient(
-    f: Callable[[np.ndarray], float],
-    gradient: Callable[[np.ndarray], np.ndarray],
-    x: np.ndarray,
-    direction: np.ndarray | None = None,
-    *,
-    eps0: float = 1e-2,
-    n: int = 10,
-    rng=None,
-) -> TaylorResult:
+def check_gradient(f: Callable[[np.ndarray], float], gradient: Callable[[np.ndarray], np.ndarray],
+                   x: np.ndarray, direction: np.ndarray | None = None, *, eps0: float = 1e-2,
+                   n: int = 10, rng=None) -> TaylorResult:
     """First-order Taylor test of ``gradient`` against ``f`` at ``x``: expect order 2.
 
     Parameters

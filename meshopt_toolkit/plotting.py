@@ -200,15 +200,8 @@ def _overlay(ax, frames: FloatArray, triangles: IntArray) -> None:
     ax.set_ylim(*yl)
 
 
-def save_overlay(
-    path,
-    frames: FloatArray,
-    triangles: IntArray,
-    *,
-    title: str | None = None,
-    size: float = 4.0,
-    dpi: int = 120,
-) -> Path:
+def save_overlay(path, frames: FloatArray, triangles: IntArray, *, title: str | None = None,
+                 size: float = 4.0, dpi: int = 120) -> Path:
     """All snapshots of a path in one axes: initial red, final blue, between grey."""
     fig, ax = _one_axes(size, size, dpi)
     _overlay(ax, np.asarray(frames, float), triangles)

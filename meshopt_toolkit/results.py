@@ -19,7 +19,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
-__all__ = ["PathIteration", "Result"]
+__all__ = ["PathFrames", "PathIteration", "Result"]
 
 
 @runtime_checkable
@@ -49,3 +49,16 @@ class PathIteration:
     iteration: int
     energy: float
     gradient_norm: float
+
+
+class PathFrames:
+    """What a morph's result derives from its ``points`` (one array per frame) and its
+    ``status``."""
+
+    @property
+    def converged(self) -> bool:
+        return self.status == "converged"
+
+    @property
+    def n_frames(self) -> int:
+        return len(self.points)

@@ -77,8 +77,7 @@ def p1_gradients(points: FloatArray, triangles: IntArray) -> tuple[FloatArray, F
 
     Parameters
     ----------
-    points : (N, 2) float array
-    triangles : (T, 3) int array
+    points, triangles : (N, 2) float and (T, 3) int arrays
 
     Returns
     -------
@@ -231,15 +230,9 @@ class BlockPattern:
         return sp.bsr_matrix((data, self.indices, self.indptr), shape=(n, n))
 
 
-def assemble(
-    points: FloatArray,
-    triangles: IntArray,
-    E: float = 1.0,
-    nu: float = 0.4,
-    delta: float = 0.2,
-    pattern: BlockPattern | None = None,
-    out: FloatArray | None = None,
-) -> sp.bsr_matrix:
+def assemble(points: FloatArray, triangles: IntArray, E: float = 1.0, nu: float = 0.4,
+             delta: float = 0.2, pattern: BlockPattern | None = None,
+             out: FloatArray | None = None) -> sp.bsr_matrix:
     """Assemble ``K + δM`` (thesis (6.24)) at node positions ``points``.
 
     Parameters

@@ -25,6 +25,7 @@ from ..mesh import PlanarMesh, require_admissible
 from ..riemannian.discrete_geodesic import discrete_geodesic
 from ..riemannian.geodesic_result import DiscreteGeodesic
 from ..riemannian.path_options import LevenbergMarquardtOptions
+from ..results import PathFrames
 from .continuation import continuation_path
 from .graph_metric import GraphMetric
 from .refinement import refine_frames, unrefined
@@ -59,7 +60,7 @@ class FrameStats:
 
 
 @dataclass
-class DistortionMorph:
+class DistortionMorph(PathFrames):
     """Result of :func:`distortion_morph`.
 
     Attributes
@@ -113,14 +114,6 @@ class DistortionMorph:
     def mesh(self) -> PlanarMesh:
         """The last frame (the target's points, the source's tags)."""
         return self.frames[-1]
-
-    @property
-    def converged(self) -> bool:
-        return self.status == "converged"
-
-    @property
-    def n_frames(self) -> int:
-        return len(self.points)
 
     @property
     def min_aspect_ratio(self) -> FloatArray:

@@ -26,6 +26,7 @@ from ..kernels.tetrahedra import mean_ratios, signed_volumes
 from ..mesh import TetMesh
 from ..riemannian.levenberg_marquardt import levenberg_marquardt
 from ..riemannian.path_options import LevenbergMarquardtOptions
+from ..results import PathFrames
 from .continuation import NoAdmissiblePathError
 from .similarity_3d import (HandlePath3, Similarity3, fit_similarity_3d, handle_groups_3d,
                             tet_boundary_faces)
@@ -65,7 +66,7 @@ class TetFrameStats:
 
 
 @dataclass
-class TetMorphResult:
+class TetMorphResult(PathFrames):
     """Result of :func:`morph_tets` (the :class:`~meshopt_toolkit.results.Result`
     protocol).
 
@@ -110,14 +111,6 @@ class TetMorphResult:
     def mesh(self) -> TetMesh:
         """The last frame: the target's points, the source's tags."""
         return self.source.with_points(self.points[-1])
-
-    @property
-    def converged(self) -> bool:
-        return self.status == "converged"
-
-    @property
-    def n_frames(self) -> int:
-        return len(self.points)
 
     @property
     def min_mean_ratio(self) -> FloatArray:
