@@ -14,7 +14,9 @@ over the interior frames, by Levenberg–Marquardt (the block-tridiagonal normal
 solved by conjugate gradients, preconditioned by one kept Cholesky factor per frame,
 :class:`_PathSystem`), started from the
 as-rigid-as-possible interpolation (:mod:`.surface_interpolation`) or, where that folds,
-linear interpolation. Every accepted iterate has ``det C > 0`` in every triangle of every
+linear interpolation, and stopped where the Gauss–Newton model of the next step predicts,
+or a step achieved, a decrease below ``rtol·E`` (a start stationary to that tolerance is
+returned unchanged). Every accepted iterate has ``det C > 0`` in every triangle of every
 frame and no fold (:class:`.surface_paths.FoldTest` against the source) that the target
 does not have. The mass term fixes the frames' rigid motions (a rotation of one frame
 costs ``|ΔQ|²_M``), so nothing is pinned.
