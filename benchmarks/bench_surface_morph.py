@@ -97,14 +97,17 @@ def run_pair(name: str, frames: int) -> list:
 def markdown(rows: list, frames: int) -> str:
     lines = [HEADING, "",
              f"Printed by `python benchmarks/bench_surface_morph.py --docs` ({frames} frames; "
-             "the shared 2-core machine's load varies: compare seconds within a pair). "
+             "the shared 2-core machine's load varies: compare seconds within a pair; run "
+             "with `OPENBLAS_NUM_THREADS=1`). "
              "Worst relative quality: the minimum over all frames and triangles of the aspect "
              "ratio 2r/R over its value in the source; folds summed over the frames.", "",
              "| pair | triangles | target's quality | method | worst rel. quality | folds "
-             "| seconds |", "| --- | --- | --- | --- | --- | --- | --- |"]
+             "| seconds | × ARAP interpolation |", "| --- | --- | --- | --- | --- | --- | --- "
+             "| --- |"]
+    arap = {r[0]: r[6] for r in rows if r[3] == "ARAP interpolation"}
     for name, T, end, method, q, folds, seconds in rows:
         lines.append(f"| {name} | {T:,} | {end:.3f} | {method} | {q:.3f} | {folds} "
-                     f"| {seconds:.2f} |")
+                     f"| {seconds:.2f} | {seconds / max(arap[name], 1e-9):.1f} |")
     return "\n".join(lines) + "\n"
 
 

@@ -21,7 +21,7 @@ from meshopt_toolkit.errors import InvalidMeshError
 from meshopt_toolkit.io import load_cells, save_cells
 from meshopt_toolkit.io.cells import CellMesh
 from meshopt_toolkit.mesh import SurfaceMesh
-from meshopt_toolkit.motion.surface_morph import _PathProblem, morph_surface
+from meshopt_toolkit.motion.surface_morph import RTOL, _minimize, _PathProblem, morph_surface
 from meshopt_toolkit.motion.surface_move import move_surface
 from meshopt_toolkit.results import Result
 
@@ -160,9 +160,40 @@ def test_random_similarities_are_followed_exactly(angle, scale, axis, shift):
 def test_callback_stops_with_admissible_frames():
     V0, F, V1 = tube_pair()
     seen = []
-    r = morph_surface(V0, V1, F, 5, callback=lambda it: seen.append(it) or True)
+    r = morph_surface(V0, V1, F, 5, rtol=1e-9,
+                      callback=lambda it: seen.append(it) or True)
     assert r.status == "stopped" and len(seen) == 1 and seen[0].iteration == 1
     assert all(sm.fold_count(V0, X, F) == 0 for X in r.points)
+
+
+def _path_energy(problem, path):
+    X = [problem.embed(Q) for Q in path]
+    return 0.5 * sum(float(r @ r) for r in (problem.segment(X[k], X[k + 1])
+                                            for k in range(len(path) - 1)))
+
+
+@pytest.mark.parametrize("pair", ["bar", "tube"])
+def test_stopping_tests_against_the_converged_path(pair):
+    """Stopped by ``rtol`` (the model's predicted or a step's actual decrease below rtol·E),
+    the energy is within a few rtol of the converged path's; a converged path handed back
+    in is stationary to tolerance: returned unchanged, no step taken; a path far from it
+    (linear interpolation) is not."""
+    V0, F, V1 = PAIRS[pair]()
+    K = 5
+    stop = morph_surface(V0, V1, F, K + 1)
+    full = morph_surface(V0, V1, F, K + 1, rtol=1e-7, max_iterations=60)
+    assert stop.status == "converged" and full.status == "converged"
+    assert full.energy <= stop.energy <= (1.0 + 2.0 * RTOL) * full.energy
+    problem = _PathProblem(V0, V1, F, 1.0, 0.1)
+    path = list(full.points)
+    out, status, steps, *_ = _minimize(problem, path, 10, 1e-2, None)
+    assert status == "converged" and steps == 0
+    assert all(np.array_equal(a, b) for a, b in zip(out, path))
+    linear = [(1 - t) * V0 + t * V1 for t in full.times]
+    if all(problem.admissible(Q) for Q in linear):
+        E_linear = _path_energy(problem, linear)
+        out, status, steps, *_ = _minimize(problem, linear, 10, 1e-2, None)
+        assert steps >= 1 and _path_energy(problem, out) < E_linear
 
 
 def test_trimesh_in_trimesh_frames_out():

@@ -14,7 +14,7 @@ from ..errors import InvalidMeshError, OptionError
 from ..mesh import SurfaceMesh
 from ..results import PathIteration
 from .surface_mesh_move import surface_with_points
-from .surface_morph import SurfaceMorph, morph_surface
+from .surface_morph import BENDING, WEIGHT, SurfaceMorph, morph_surface
 
 __all__ = ["SurfaceMeshMorph", "is_surface", "morph_surface_mesh", "morph_call"]
 
@@ -70,8 +70,8 @@ class SurfaceMeshMorph:
         return self.morph.summary()
 
 
-def morph_surface_mesh(source, target, frames: int = 9, *, weight: float = 1.0,
-                       bending: float = 0.1, max_iterations: int = 10,
+def morph_surface_mesh(source, target, frames: int = 9, *, weight: float = WEIGHT,
+                       bending: float = BENDING, max_iterations: int = 10,
                        callback: Callable[[PathIteration], bool | None] | None = None,
                        progress: Callable[[float], None] | None = None) -> SurfaceMeshMorph:
     """:func:`morph_surface` between two poses given as :class:`SurfaceMesh`,

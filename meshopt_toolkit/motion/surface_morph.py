@@ -14,7 +14,9 @@ over the interior frames, by Levenberg–Marquardt (the block-tridiagonal normal
 solved by conjugate gradients, preconditioned by one kept Cholesky factor per frame,
 :class:`_PathSystem`), started from the
 as-rigid-as-possible interpolation (:mod:`.surface_interpolation`) or, where that folds,
-linear interpolation. Every accepted iterate has ``det C > 0`` in every triangle of every
+linear interpolation, and stopped where the Gauss–Newton model of the next step predicts,
+or a step achieved, a decrease below ``rtol·E`` (a start stationary to that tolerance is
+returned unchanged). Every accepted iterate has ``det C > 0`` in every triangle of every
 frame and no fold (:class:`.surface_paths.FoldTest` against the source) that the target
 does not have. The mass term fixes the frames' rigid motions (a rotation of one frame
 costs ``|ΔQ|²_M``), so nothing is pinned.
@@ -48,6 +50,16 @@ from .surface_move import lumped_mass
 from .surface_paths import FoldTest, global_similarity
 
 __all__ = ["SurfaceMorph", "morph_surface", "frame_measures"]
+
+#: the embedding's default weights ``w`` (membrane) and ``b`` (bending), per triangle and
+#: per edge unweighted by area (``move_surface`` weighs its membrane rows by rest area and
+#: defaults to ``b = 0.3``: its increments and this path energy are separate definitions)
+WEIGHT, BENDING = 1.0, 0.1
+#: the default tolerance of the stopping tests (:func:`morph_surface`'s ``rtol``)
+RTOL = 5e-2
+#: conjugate-gradient iterations per Levenberg–Marquardt step at most, and the count above
+#: which the kept per-frame factors are refactorized at the next iterate
+CG_ITERATIONS, CG_REFACTORIZE = 30, 15
 
 
 def frame_measures(source: FloatArray, frames, triangles: IntArray,
@@ -176,8 +188,8 @@ def _similar_frames(V0, V1, times, S) -> list:
 
 
 def morph_surface(source: FloatArray, target: FloatArray, triangles: IntArray,
-                  frames: int = 9, *, weight: float = 1.0, bending: float = 0.1,
-                  max_iterations: int = 10, rtol: float = 1e-2,
+                  frames: int = 9, *, weight: float = WEIGHT, bending: float = BENDING,
+                  max_iterations: int = 10, rtol: float = RTOL,
                   callback: Callable[[PathIteration], bool | None] | None = None
                   ) -> SurfaceMorph:
     """Frames from ``source`` to ``target`` (module docstring).
@@ -191,8 +203,10 @@ def morph_surface(source: FloatArray, target: FloatArray, triangles: IntArray,
     frames : int
         Number of frames (≥ 2), both ends included.
     weight, bending : ``w`` and ``b`` of the embedding.
-    max_iterations, rtol : Levenberg–Marquardt iterations; stop when one lowers the energy
-        by less than ``rtol`` times the energy.
+    max_iterations, rtol : Levenberg–Marquardt iterations at most; stop (``"converged"``)
+        when the Gauss–Newton model predicts a decrease below ``rtol·E`` for the next step
+        (the start path included: then it is returned as it is, stationary to ``rtol``),
+        or when a step lowered the energy by less than ``rtol·E``.
     callback : called once per iteration with a :class:`PathIteration`; True stops.
 
     Raises
@@ -291,10 +305,9 @@ class _PathSystem:
                                         for Dj in D])
         if not refactorize and self.factors[0] is not None:
             return
-        grams = [(Dj.T @ Dj).tocsc() for Dj in D]
 
         def factorize(j):
-            G = 2.0 * grams[j]
+            G = 2.0 * (D[j].T @ D[j]).tocsc()
             G.setdiag(G.diagonal() * (1.0 + damping))
             if hasattr(self.factors[j], "refactorize"):
                 self.factors[j].refactorize(G)
@@ -304,12 +317,13 @@ class _PathSystem:
         list(frame_map(D[0].shape[0], len(D))(factorize, range(len(D))))
         self.factorizations += len(D)
 
-    def product(self, v: FloatArray) -> FloatArray:
-        """``(H + damping·diag H) v``."""
+    def product(self, v: FloatArray, damping: float | None = None) -> FloatArray:
+        """``(H + λ·diag H) v``, ``λ`` the system's damping unless given."""
         V = v.reshape(len(self.D), -1)
         U = self.T @ np.stack([Dj @ x for Dj, x in zip(self.D, V)])
         Hv = np.concatenate([Dj.T @ u for Dj, u in zip(self.D, U)])
-        return Hv + self.damping * self.diagonal * v
+        damping = self.damping if damping is None else damping
+        return Hv + damping * self.diagonal * v
 
     def precondition(self, v: FloatArray) -> FloatArray:
         V = v.reshape(len(self.D), -1)
@@ -354,18 +368,24 @@ def _minimize(problem: _PathProblem, path: list, max_iterations: int, rtol: floa
     E, r = energy_of(X)
     E_initial, n = E, path[0].size
     system = _PathSystem(K)
-    damping, status, gnorm, it = 1e-4, "max_iterations", 0.0, 0
+    damping, status, gnorm, steps = 1e-4, "max_iterations", 0.0, 0
     fresh = True  # factorize the preconditioner's blocks (again)
-    for it in range(1, max_iterations + 1):
+    for _ in range(max_iterations):
         D = [problem.jacobian(path[j]) for j in range(1, K)]
         g = np.concatenate([D[j - 1].T @ (r[j - 1] - r[j]) for j in range(1, K)])
         gnorm = float(np.linalg.norm(g))
-        accepted = False
-        for _ in range(4):  # raise the damping until a step is taken
+        accepted = stationary = False
+        for attempt in range(4):  # raise the damping until a step is taken
             system.update(D, damping, fresh)
-            step = -system.solve(g)
+            step = -system.solve(g, max_iterations=CG_ITERATIONS)
             # the kept factors serve while conjugate gradients converge quickly with them
-            fresh = system.iterations > 25
+            fresh = system.iterations > CG_REFACTORIZE
+            if attempt == 0 and damping <= 1e-3:
+                # the Gauss–Newton model's decrease along the step, −g·s − ½ sᵀHs
+                predicted = -float(g @ step) - 0.5 * float(step @ system.product(step, 0.0))
+                if predicted <= rtol * E:
+                    stationary = True
+                    break
             for alpha in 0.5 ** np.arange(8):
                 trial = [path[0]] + [path[j] + alpha * step[(j - 1) * n:j * n].reshape(-1, 3)
                                      for j in range(1, K)] + [path[K]]
@@ -380,16 +400,20 @@ def _minimize(problem: _PathProblem, path: list, max_iterations: int, rtol: floa
                 break
             damping *= 10.0
             fresh = True
+        if stationary:
+            status = "converged"
+            break
         if not accepted:
             status = "stalled"
             break
+        steps += 1
         decrease = E - E_trial
         path, X, E, r = trial, Xt, E_trial, r_trial
         damping = max(damping / 3.0, 1e-8) if alpha == 1.0 else damping * 2.0
-        if callback is not None and callback(PathIteration(it, E, gnorm)):
+        if callback is not None and callback(PathIteration(steps, E, gnorm)):
             status = "stopped"
             break
         if decrease <= rtol * E:
             status = "converged"
             break
-    return path, status, it, system.factorizations, E_initial, gnorm
+    return path, status, steps, system.factorizations, E_initial, gnorm
