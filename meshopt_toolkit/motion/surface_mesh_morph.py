@@ -10,13 +10,13 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InvalidMeshError, OptionError
+from ..errors import InvalidMeshError
 from ..mesh import SurfaceMesh
 from ..results import PathIteration
 from .surface_mesh_move import surface_with_points
 from .surface_morph import BENDING, WEIGHT, SurfaceMorph, morph_surface
 
-__all__ = ["SurfaceMeshMorph", "is_surface", "morph_surface_mesh", "morph_call"]
+__all__ = ["SurfaceMeshMorph", "is_surface", "morph_surface_mesh"]
 
 
 def _kind(mesh) -> str | None:
@@ -123,16 +123,3 @@ def morph_surface_mesh(source, target, frames: int = 9, *, weight: float = WEIGH
     if progress is not None:
         progress(1.0)
     return SurfaceMeshMorph(mesh=out[-1], frames=out, morph=res)
-
-
-def morph_call(source, target, frames: int, *, metric: str, weight: float, beta, normalize,
-               method: str, max_iter, callback, progress) -> SurfaceMeshMorph:
-    """``mt.morph``'s options for surfaces: those of the planar metrics refused."""
-    if metric != "distortion" or beta is not None or not normalize or method != "discrete":
-        raise OptionError("surfaces in 3D are morphed with metric='distortion' only "
-                          "(no beta, normalize or method)")
-    if max_iter is not None and int(max_iter) < 1:
-        raise OptionError(f"max_iter must be at least 1, got {max_iter}")
-    return morph_surface_mesh(source, target, int(frames), weight=float(weight),
-                              max_iterations=10 if max_iter is None else int(max_iter),
-                              callback=callback, progress=progress)
