@@ -26,6 +26,9 @@ sp = lazy_module("scipy.sparse")  # imported on first use: info/convert need no 
 
 __all__ = ["PlanarMesh", "TriangleMesh"]
 
+#: the keywords of a mesh that operations changing its points or triangles keep
+_KEPT = ("triangle_tags", "lines", "line_tags", "tag_names", "source")
+
 
 class TriangleMesh:
     """A readable triangle mesh: points ``(N, 2)`` or ``(N, 3)``, triangles ``(T, 3)``.
@@ -166,13 +169,8 @@ class TriangleMesh:
         return self._points.shape[1]
 
     def _tag_kwargs(self) -> dict:
-        return {
-            "triangle_tags": self._triangle_tags,
-            "lines": self._lines,
-            "line_tags": self._line_tags,
-            "tag_names": self._tag_names,
-            "source": self._source,
-        }
+        """What a mesh with other points or triangles keeps: the constructor's keywords."""
+        return {name: getattr(self, "_" + name) for name in _KEPT}
 
     @property
     def in_xy_plane(self) -> bool:
