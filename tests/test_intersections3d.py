@@ -186,8 +186,11 @@ def test_same_three_vertices_and_bad_input():
     assert self_intersections(V, [[0, 1, 2], [2, 1, 0]]).tolist() == [[0, 1]]
     from meshopt_toolkit.errors import InvalidMeshError
 
-    with pytest.raises(InvalidMeshError):
-        self_intersections(V, [[0, 1, 1]])
+    # a triangle on a repeated vertex is left out
+    assert self_intersections(V, [[0, 1, 1], [0, 1, 2], [0, 1, 1]]).shape == (0, 2)
+    W = np.vstack([V, [[0.2, 0.2, -1], [0.2, 0.2, 1]]])
+    assert self_intersections(W, [[0, 0, 1], [0, 1, 2], [3, 3, 4], [2, 3, 4]]).tolist() == \
+        [[1, 3]]
     with pytest.raises(InvalidMeshError):
         self_intersections(np.array([[np.nan, 0, 0], [0, 1, 0], [0, 0, 1]]), [[0, 1, 2]])
     assert self_intersections(V, np.zeros((0, 3), int)).shape == (0, 2)

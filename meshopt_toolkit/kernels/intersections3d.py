@@ -293,7 +293,8 @@ def self_intersections(V: FloatArray, F: IntArray) -> IntArray:
     ----------
     V : (N, 3) float array (finite)
     F : (T, 3) int array
-        Triangles, each on three distinct vertices.
+        Triangles; one that repeats a vertex is left out (a degenerate triangle, which a
+        mesh reports on its own).
 
     Returns
     -------
@@ -303,15 +304,15 @@ def self_intersections(V: FloatArray, F: IntArray) -> IntArray:
     Raises
     ------
     InvalidMeshError
-        A coordinate is not finite, or a triangle repeats a vertex.
+        A coordinate is not finite.
     """
     V = np.asarray(V, dtype=float).reshape(-1, 3)
     F = np.asarray(F, dtype=np.int64).reshape(-1, 3)
     if not np.isfinite(V).all():
         raise InvalidMeshError("self-intersections need finite coordinates")
-    if len(F) and ((F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2])).any():
-        raise InvalidMeshError("a triangle repeats a vertex")
+    proper = np.flatnonzero((F[:, 0] != F[:, 1]) & (F[:, 1] != F[:, 2]) & (F[:, 0] != F[:, 2]))
     S = exactly_scaled(V)[0]  # the signs are those of V; no under- or overflow
-    lo, hi = _boxes(S, F)
+    G = F[proper]
+    lo, hi = _boxes(S, G)
     pairs = candidate_pairs(lo, hi)
-    return pairs[intersecting_pairs(S, F, pairs)]
+    return proper[pairs[intersecting_pairs(S, G, pairs)]].reshape(-1, 2)
