@@ -264,6 +264,13 @@ def _chunk(V, Fa, Fb, fa, fb) -> np.ndarray:
     if len(k):
         hit[k] = _disjoint_meet(V[Fa[k]], V[Fb[k]], fa[k], fb[k])
     k = np.flatnonzero(shared == 1)
+    if len(k):  # apart when both opposite edges are strictly on one side of the other plane
+        A, B = V[Fa[k]], V[Fb[k]]
+        sa = sum(orient3d(B[:, 0], B[:, 1], B[:, 2], A[:, r]).astype(np.int64)
+                 for r in range(3))  # the shared vertex gives 0
+        sb = sum(orient3d(A[:, 0], A[:, 1], A[:, 2], B[:, r]).astype(np.int64)
+                 for r in range(3))
+        k = k[(np.abs(sa) != 2) | (np.abs(sb) != 2)]
     if len(k):  # rotate the shared vertex first: the opposite edges are 1–2
         A = _rotated(V[Fa[k]], np.argmax(same[k].any(axis=2), axis=1))
         B = _rotated(V[Fb[k]], np.argmax(same[k].any(axis=1), axis=1))
