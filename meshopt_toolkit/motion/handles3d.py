@@ -110,9 +110,10 @@ class SelfIntersectionGuard:
     def __init__(self, mesh, handles, targets) -> None:
         points, self.triangles = _points_and_triangles(mesh)
         self.what = "the boundary" if hasattr(mesh, "boundary_faces") else "the surface"
-        self.active = bool(np.isfinite(points).all()) and len(self.triangles) > 1
+        self.active = (bool(np.isfinite(points).all()) and len(self.triangles) > 1
+                       and getattr(mesh, "is_admissible", True))
         if not self.active:
-            return  # the solver names what is wrong
+            return  # the solver names what is wrong (inverted tets: a boundary of no use)
         if found := self._pairs(points, self.triangles):
             if self.what == "the surface":
                 self.active = False  # not ours to keep
