@@ -118,6 +118,19 @@ def test_orient3d_exactly_coplanar_grid(uv, k, u, w, shift):
     assert int(orient3d(*Q)) == ref_orient3d(*Q)
 
 
+tiny = st.floats(-1e-300, 1e-300, allow_nan=False, allow_infinity=False, width=64)
+mixed = st.one_of(tiny, finite, st.floats(-1e-150, 1e-150, width=64))
+
+
+@given(st.lists(st.tuples(*[st.tuples(mixed, mixed, mixed)] * 4), min_size=1, max_size=10))
+@settings(max_examples=200, deadline=None)
+def test_orient3d_matches_fractions_at_tiny_magnitudes(rows):
+    """Subnormal and tiny coordinates mixed with unit ones: products may underflow."""
+    P = np.array(rows, float)
+    got = orient3d(P[:, 0], P[:, 1], P[:, 2], P[:, 3])
+    assert got.tolist() == [ref_orient3d(*r) for r in rows]
+
+
 def test_orient3d_extremes_and_shapes():
     a, b, c, d = np.eye(4, 3)  # (1,0,0), (0,1,0), (0,0,1), (0,0,0)
     assert orient3d(d, a, b, c) == 1

@@ -91,7 +91,7 @@ def tet_info(mesh) -> dict:
         "boundary_closed": boundary.is_closed,
         "boundary_manifold": boundary.is_manifold,
         "boundary_components": boundary.n_components,
-        "boundary_self_intersecting": n_crossing,
+        "self_intersecting": n_crossing,  # pairs of boundary triangles
         "n_tagged_triangles": 0 if mesh.triangles is None else int(len(mesh.triangles)),
         "physical_names": {k: list(v) for k, v in mesh.tag_names.items()},
         "problems": list(mesh.problems) + crossing,
@@ -188,11 +188,10 @@ def cells_text(info: dict) -> str:
     """The info dict as indented ``key  value`` lines under the path."""
     rows = [(k.replace("_", " "), _fmt(v)) for k, v in info.items()
             if k not in ("path", "problems")]
-    for key in ("self_intersecting", "boundary_self_intersecting"):  # a count, or "no"
-        if key in info:
-            n, label = info[key], key.replace("_", " ")
-            rows = [(label.replace("self ", "self-"), f"{n} triangle pair{'s' * (n > 1)}"
-                     if n else "no") if k == label else (k, v) for k, v in rows]
+    if "self_intersecting" in info:  # a count of pairs of triangles, or "no"
+        n = info["self_intersecting"]
+        rows = [("self-intersecting", f"{n} triangle pair{'s' * (n > 1)}" if n else "no")
+                if k == "self intersecting" else (k, v) for k, v in rows]
     width = max(len(k) for k, _ in rows)
     lines = [info["path"]] + [f"  {k:<{width}}  {v}" for k, v in rows]
     lines += [f"  problem: {p}" for p in info["problems"]]

@@ -271,8 +271,8 @@ def orient3d(a: FloatArray, b: FloatArray, c: FloatArray, d: FloatArray) -> np.n
     Notes
     -----
     The determinant of the differences from ``d`` (of the opposite sign) is evaluated in floating point and its
-    sign trusted where ``|det| > (7 + 56ε)ε · permanent`` (Shewchuk's ``o3derrboundA``)
-    and every non-zero difference lies in ``[2⁻³³⁰, 2³³⁰]`` (no product under- or
+    sign trusted where ``|det| > (7 + 56ε)ε · permanent + 2⁻¹⁰⁰⁰`` (Shewchuk's
+    ``o3derrboundA``, plus an absolute term for a product that underflows) and every non-zero difference lies in ``[2⁻³³⁰, 2³³⁰]`` (no product under- or
     overflows); a permanent of 0 means every product has a zero factor (det is exactly 0).
     The remaining rows are evaluated exactly with Python integers.
     """
@@ -294,7 +294,9 @@ def orient3d(a: FloatArray, b: FloatArray, c: FloatArray, d: FloatArray) -> np.n
                 + np.abs(cdz) * (np.abs(p5) + np.abs(p6)))
         diffs = np.abs(np.concatenate([ad, bd, cd], axis=1))
         ranged = ((diffs == 0) | ((diffs >= _O3D_SMALL) & (diffs <= _O3D_LARGE))).all(axis=1)
-        certain = ranged & ((np.abs(det) > O3D_ERRBOUND * perm) | (perm == 0))
+        # + _TINY: a product with a cancelled difference may still underflow (error
+        # below 2^-1070 in all)
+        certain = ranged & ((np.abs(det) > O3D_ERRBOUND * perm + _TINY) | (perm == 0))
     # det [a − d; b − d; c − d] = −det [b − a; c − a; d − a]
     sign = np.where(certain, -np.sign(det), 0).astype(np.int8)
     if not certain.all():
