@@ -49,3 +49,8 @@ class OptimizationError(MeshoptError):
 class OptionError(MeshoptError, ValueError):
     """An operation's argument or option is invalid (a number out of range, an unknown
     method, metric or variant); raised before any work."""
+
+
+class SelfIntersectionError(NotAdmissibleError):
+    """A surface in space (or a tet mesh's boundary) intersects itself; the message
+    names how many pairs of triangles and one of them."""

@@ -73,6 +73,7 @@ def tet_info(mesh) -> dict:
     """Counts, admissibility and quality of a :class:`~meshopt_toolkit.mesh.TetMesh`."""
     q = mesh.quality()
     boundary = mesh.boundary_surface()
+    n_crossing, crossing = _self_intersections(mesh.points, mesh.boundary_faces, "boundary ")
     return {
         "n_vertices": mesh.n_vertices,
         "n_tets": mesh.n_tets,
@@ -90,16 +91,34 @@ def tet_info(mesh) -> dict:
         "boundary_closed": boundary.is_closed,
         "boundary_manifold": boundary.is_manifold,
         "boundary_components": boundary.n_components,
+        "self_intersecting": n_crossing,  # pairs of boundary triangles
         "n_tagged_triangles": 0 if mesh.triangles is None else int(len(mesh.triangles)),
         "physical_names": {k: list(v) for k, v in mesh.tag_names.items()},
-        "problems": mesh.problems,
+        "problems": list(mesh.problems) + crossing,
     }
+
+
+def _self_intersections(points, triangles, which: str = "") -> tuple[int, list[str]]:
+    """How many pairs of ``which`` triangles intersect (exactly), and the problem line
+    naming one pair (by triangle number, or by vertices for a tet mesh's boundary)."""
+    from ..kernels.intersections3d import self_intersections
+
+    pairs = self_intersections(points, triangles)
+    if not len(pairs):
+        return 0, []
+    i, j = ((int(t) for t in pairs[0]) if not which else
+            (tuple(int(v) for v in triangles[t]) for t in pairs[0]))
+    name = "on vertices " if which else "triangles "
+    many = f"{len(pairs)} pairs of {which}triangles intersect (e.g. " if len(pairs) > 1 \
+        else f"two {which}triangles intersect ("
+    return len(pairs), [f"{many}{name}{i} and {j})"]
 
 
 def surface_info(mesh) -> dict:
     """Counts, topology and quality of a :class:`~meshopt_toolkit.mesh.SurfaceMesh`."""
     ar = mesh.aspect_ratios()
     closed = mesh.is_closed
+    n_crossing, crossing = _self_intersections(mesh.points, mesh.triangles)
     return {
         "n_vertices": mesh.n_vertices,
         "n_triangles": mesh.n_triangles,
@@ -115,13 +134,14 @@ def surface_info(mesh) -> dict:
         "orientable": mesh.is_orientable,
         "oriented": mesh.is_oriented,
         "n_degenerate": int(len(mesh.degenerate_triangles)),
+        "self_intersecting": n_crossing,
         "min_aspect_ratio": _float(ar.min()),
         "mean_aspect_ratio": _float(ar.mean()),
         "enclosed_volume": _float(mesh.enclosed_volume()) if closed and mesh.is_oriented
-        and mesh.is_manifold else None,
+        and mesh.is_manifold and not n_crossing else None,
         "n_tagged_lines": 0 if mesh.lines is None else int(len(mesh.lines)),
         "physical_names": {k: list(v) for k, v in mesh.tag_names.items()},
-        "problems": mesh.problems,
+        "problems": list(mesh.problems) + crossing,
     }
 
 
@@ -168,6 +188,10 @@ def cells_text(info: dict) -> str:
     """The info dict as indented ``key  value`` lines under the path."""
     rows = [(k.replace("_", " "), _fmt(v)) for k, v in info.items()
             if k not in ("path", "problems")]
+    if "self_intersecting" in info:  # a count of pairs of triangles, or "no"
+        n = info["self_intersecting"]
+        rows = [("self-intersecting", f"{n} triangle pair{'s' * (n > 1)}" if n else "no")
+                if k == "self intersecting" else (k, v) for k, v in rows]
     width = max(len(k) for k, _ in rows)
     lines = [info["path"]] + [f"  {k:<{width}}  {v}" for k, v in rows]
     lines += [f"  problem: {p}" for p in info["problems"]]

@@ -25,7 +25,7 @@ import numpy as np
 from .._typing import FloatArray, IntArray
 
 __all__ = ["ERRBOUND", "exactly_scaled", "orient2d", "orient2d_xy", "dot_sign_xy",
-           "segments_intersect", "triangle_orientations"]
+           "segments_intersect", "triangle_orientations", "orient3d"]
 
 _EPS = 2.0 ** -53
 #: Shewchuk's ccwerrboundA: |fl(det) - det| <= ERRBOUND (|t1| + |t2|) without underflow
@@ -213,3 +213,89 @@ def exactly_scaled(points: FloatArray, extreme_only: bool = False) -> tuple[Floa
         if k < 0 or np.array_equal(np.ldexp(S, k), P):  # scaling up is always exact
             return S, k
     return P, 0
+
+
+# ---------------------------------------------------------------------------------------
+# orient3d: the sign of a 3x3 determinant of coordinate differences
+
+#: Shewchuk's o3derrboundA: |fl(det) − det| <= O3D_ERRBOUND * permanent (no under/overflow)
+O3D_ERRBOUND = (7.0 + 56.0 * _EPS) * _EPS
+#: differences in [2^-330, 2^330] (or 0): no product of three under- or overflows
+_O3D_SMALL, _O3D_LARGE = 2.0 ** -330, 2.0 ** 330
+
+
+def _exact_orient3d(D: FloatArray) -> np.ndarray:
+    """Exact sign of ``det [b − a; c − a; d − a]`` per row of ``D`` (K, 4, 3) (Python
+    integers on the exact binary values: every coordinate of a row is an integer multiple
+    of the row's smallest power of two)."""
+    if len(D) == 0:
+        return np.zeros(0, np.int8)
+    if not np.isfinite(D).all():
+        raise ValueError("exact predicates need finite coordinates")
+    X = D.reshape(len(D), 12)
+    m, e = np.frexp(X)
+    M = np.ldexp(m, 53).astype(np.int64)  # exact: X = M * 2**(e - 53)
+    e = e.astype(np.int64) - 53
+    big = np.iinfo(np.int64).max
+    e0 = np.where(M != 0, e, big).min(axis=1, keepdims=True)
+    e0 = np.where(e0 == big, 0, e0)
+    shift = np.where(M != 0, e - e0, 0)
+    out = np.empty(len(D), np.int8)
+    for k, (mk, sk) in enumerate(zip(M.tolist(), shift.tolist())):
+        ax, ay, az, bx, by, bz, cx, cy, cz, dx, dy, dz = (v << s for v, s in zip(mk, sk))
+        bx, by, bz = bx - ax, by - ay, bz - az
+        cx, cy, cz = cx - ax, cy - ay, cz - az
+        dx, dy, dz = dx - ax, dy - ay, dz - az
+        det = bx * (cy * dz - cz * dy) - by * (cx * dz - cz * dx) + bz * (cx * dy - cy * dx)
+        out[k] = (det > 0) - (det < 0)
+    return out
+
+
+def orient3d(a: FloatArray, b: FloatArray, c: FloatArray, d: FloatArray) -> np.ndarray:
+    """Exact orientation of the tetrahedra ``(a, b, c, d)``: the sign of
+    ``det [b − a; c − a; d − a]`` (six times the signed volume; +1 where ``d`` lies on the
+    side of the plane ``abc`` that ``(b − a) × (c − a)`` points to, 0 when coplanar).
+
+    Parameters
+    ----------
+    a, b, c, d : (..., 3) float arrays (broadcast together; finite)
+
+    Returns
+    -------
+    (...) int8 array
+
+    Notes
+    -----
+    The determinant of the differences from ``d`` (of the opposite sign) is evaluated in floating point and its
+    sign trusted where ``|det| > (7 + 56ε)ε · permanent + 2⁻¹⁰⁰⁰`` (Shewchuk's
+    ``o3derrboundA``, plus an absolute term for a product that underflows) and every non-zero difference lies in ``[2⁻³³⁰, 2³³⁰]`` (no product under- or
+    overflows); a permanent of 0 means every product has a zero factor (det is exactly 0).
+    The remaining rows are evaluated exactly with Python integers.
+    """
+    arrays = np.broadcast_arrays(*(np.asarray(p, dtype=float) for p in (a, b, c, d)))
+    shape = arrays[0].shape[:-1]
+    if arrays[0].shape[-1:] != (3,):
+        raise ValueError("orient3d needs points of shape (..., 3)")
+    A, B, C, Dp = (p.reshape(-1, 3) for p in arrays)
+    with np.errstate(all="ignore"):
+        ad, bd, cd = A - Dp, B - Dp, C - Dp
+        adx, ady, adz = ad.T
+        bdx, bdy, bdz = bd.T
+        cdx, cdy, cdz = cd.T
+        p1, p2 = bdx * cdy, bdy * cdx
+        p3, p4 = cdx * ady, cdy * adx
+        p5, p6 = adx * bdy, ady * bdx
+        det = adz * (p1 - p2) + bdz * (p3 - p4) + cdz * (p5 - p6)
+        perm = (np.abs(adz) * (np.abs(p1) + np.abs(p2)) + np.abs(bdz) * (np.abs(p3) + np.abs(p4))
+                + np.abs(cdz) * (np.abs(p5) + np.abs(p6)))
+        diffs = np.abs(np.concatenate([ad, bd, cd], axis=1))
+        ranged = ((diffs == 0) | ((diffs >= _O3D_SMALL) & (diffs <= _O3D_LARGE))).all(axis=1)
+        # + _TINY: a product with a cancelled difference may still underflow (error
+        # below 2^-1070 in all)
+        certain = ranged & ((np.abs(det) > O3D_ERRBOUND * perm + _TINY) | (perm == 0))
+    # det [a − d; b − d; c − d] = −det [b − a; c − a; d − a]
+    sign = np.where(certain, -np.sign(det), 0).astype(np.int8)
+    if not certain.all():
+        k = np.flatnonzero(~certain)
+        sign[k] = _exact_orient3d(np.stack([A[k], B[k], C[k], Dp[k]], axis=1))
+    return sign.reshape(shape)

@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 
 from .._typing import FloatArray, IntArray
-from ..errors import InvalidMeshError
+from ..errors import InvalidMeshError, SelfIntersectionError
+from ..kernels.intersections3d import self_intersections
 
 
 def check_handles(handles, targets, n_vertices: int) -> tuple[np.ndarray, FloatArray]:
@@ -177,3 +178,75 @@ def handles_in_space(mesh, *, targets=None, mapping: str | None = None,
     vertices = selected_vertices(point_data or {}, selection, option=opt["selection"],
                                  source=source or getattr(mesh, "source", None))
     return targets_from_map(mesh, mapping, where, vertices=vertices)
+
+
+def _points_and_triangles(mesh) -> tuple[FloatArray, IntArray | None]:
+    """The points of a mesh in space and the triangles that must not intersect: a tet
+    mesh's boundary faces, a surface's triangles (``SurfaceMesh``, ``trimesh.Trimesh``,
+    ``pymeshlab.Mesh``)."""
+    if hasattr(mesh, "boundary_faces"):  # TetMesh
+        return np.asarray(mesh.points, float), np.asarray(mesh.boundary_faces)
+    if hasattr(mesh, "vertex_matrix"):  # pymeshlab.Mesh
+        return np.asarray(mesh.vertex_matrix(), float), np.asarray(mesh.face_matrix())
+    if hasattr(mesh, "vertices"):  # trimesh.Trimesh
+        return np.asarray(mesh.vertices, float), np.asarray(mesh.faces)
+    return np.asarray(mesh.points, float), np.asarray(mesh.triangles)
+
+
+class SelfIntersectionGuard:
+    """The embedding checks of a motion in space: a tet mesh's boundary and a surface
+    must not pass through themselves (exact, :mod:`~..kernels.intersections3d`).
+
+    Made before the solve, it refuses a tet mesh whose boundary already intersects
+    itself, and targets that fix two intersecting triangles (every vertex of both a
+    handle); :meth:`check` refuses a motion with a frame that intersects itself. A surface
+    that intersects itself before the motion is not checked at all.
+
+    Raises
+    ------
+    SelfIntersectionError
+        One line: how many pairs, and one pair by its vertices.
+    """
+
+    def __init__(self, mesh, handles, targets) -> None:
+        points, self.triangles = _points_and_triangles(mesh)
+        self.what = "the boundary" if hasattr(mesh, "boundary_faces") else "the surface"
+        self.active = (bool(np.isfinite(points).all()) and len(self.triangles) > 1
+                       and getattr(mesh, "is_admissible", True))
+        if not self.active:
+            return  # the solver names what is wrong (inverted tets: a boundary of no use)
+        if found := self._pairs(points, self.triangles):
+            if self.what == "the surface":
+                self.active = False  # not ours to keep
+                return
+            raise SelfIntersectionError(f"{self.what} intersects itself: {found}")
+        h, tg = distinct_handles(*check_handles(handles, targets, len(points)))
+        if not np.isfinite(tg).all():
+            return
+        fixed = self.triangles[np.isin(self.triangles, h).all(axis=1)]
+        moved = np.array(points)
+        moved[h] = tg
+        if found := self._pairs(moved, fixed):
+            raise SelfIntersectionError(
+                f"the targets make {self.what} intersect itself: {found}")
+
+    @staticmethod
+    def _pairs(points: FloatArray, triangles: IntArray) -> str:
+        """``""`` or the intersecting pairs of ``triangles`` in words."""
+        pairs = self_intersections(points, triangles) if len(triangles) > 1 else []
+        if not len(pairs):
+            return ""
+        a, b = (tuple(int(v) for v in triangles[i]) for i in pairs[0])
+        return (f"{len(pairs)} pair{'s' if len(pairs) > 1 else ''} of triangles "
+                f"(e.g. on vertices {a} and {b})")
+
+    def check(self, frames) -> None:
+        """Refuse the motion if a frame after the first intersects itself."""
+        if not self.active:
+            return
+        for k, frame in enumerate(frames[1:], start=1):
+            points = _points_and_triangles(frame)[0]
+            if found := self._pairs(points, self.triangles):
+                where = "the result" if k == len(frames) - 1 else f"frame {k}"
+                raise SelfIntersectionError(
+                    f"the motion makes {self.what} intersect itself at {where}: {found}")

@@ -29,6 +29,7 @@ from ..riemannian.path_options import LevenbergMarquardtOptions
 from .continuation import RELAX_CG_RTOL, NoAdmissiblePathError, continuation_path
 from .frame_blocks import FrameBlocks
 from .graph_metric import GraphMetric
+from .handles3d import SelfIntersectionGuard
 from .similarity import HandlePath, Similarity, fit_similarity, handle_groups
 from .strain import TriangleDistortion
 from .surface_mesh_move import move_surface_mesh
@@ -274,6 +275,10 @@ def move(
         ``frames < 2``, ``steps < 1``, ``weight <= 0`` or another option out of range.
     InvalidMeshError
         Bad handles or targets, or targets that make the boundary cross itself.
+    SelfIntersectionError
+        In space: a tet mesh whose boundary intersects itself, targets that make it (or a
+        surface free of self-intersections) intersect itself, or a motion that does
+        (:class:`~meshopt_toolkit.motion.handles3d.SelfIntersectionGuard`).
     NoAdmissiblePathError
         No admissible interior found after a bounded effort.
     """
@@ -282,9 +287,12 @@ def move(
     if solver is not None:  # another kind of mesh: its own solver, the same options
         _check_options(frames, steps, relax_iter, quality_rounds, max_splits, weight)
         rounds = {} if quality_rounds is None else {"quality_rounds": quality_rounds}
-        return solver(mesh, handles, targets, frames=frames, steps=steps, weight=weight,
-                      relax_iter=relax_iter, max_splits=max_splits, progress=progress,
-                      **rounds)
+        guard = SelfIntersectionGuard(mesh, handles, targets)  # refuses crossing targets
+        result = solver(mesh, handles, targets, frames=frames, steps=steps, weight=weight,
+                        relax_iter=relax_iter, max_splits=max_splits, progress=progress,
+                        **rounds)
+        guard.check(result.frames)  # and a motion through itself
+        return result
     quality_rounds = 6 if quality_rounds is None else quality_rounds
     _check_options(frames, steps, relax_iter, quality_rounds, max_splits, weight)
     mesh = require_admissible(mesh, "move")
