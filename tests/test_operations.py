@@ -117,7 +117,7 @@ def test_no_public_operation_takes_more_than_12_parameters():
 #: the filters' and the command line's names of the shared settings, and the short
 #: names the public calls no longer take
 VOCABULARY = {"max_iter": "max_iterations", "tol": "tolerance", "t": "time", "t_end": "time",
-              "penalty_beta": "penalty", "ftol": "tolerance"}
+              "penalty_beta": "penalty", "ftol": "tolerance", "relax_iter": "relax_iterations"}
 
 
 def test_public_calls_speak_the_filters_vocabulary():

@@ -185,7 +185,7 @@ def _check_options(frames, steps, relax_iter, quality_rounds, max_splits, weight
     """:class:`OptionError` for an option out of range (see :func:`move`)."""
     if frames is not None and int(frames) < 2:
         raise OptionError(f"frames must be at least 2 (the input and the result), got {frames}")
-    for name, value in (("steps", steps), ("relax_iter", relax_iter),
+    for name, value in (("steps", steps), ("relax_iterations", relax_iter),
                         ("quality_rounds", quality_rounds)):
         if value is not None and int(value) < 1:
             raise OptionError(f"{name} must be at least 1, got {value}")
@@ -216,7 +216,7 @@ def move(
     frames: int | None = None,
     steps: int = 4,
     weight: float = 1.0,
-    relax_iter: int = 15,
+    relax_iterations: int = 15,
     quality_rounds: int | None = None,
     finish_frames: bool = True,
     max_splits: int = 12,
@@ -250,7 +250,7 @@ def move(
         change of the path (steps, solver tolerances), at 2.7k and 11k triangles alike.
     weight : float
         ``w`` of the metric ``M + w² JᵀJ``; larger keeps triangle shapes more rigidly.
-    relax_iter : int
+    relax_iterations : int
         Levenberg–Marquardt iterations of each relaxation.
     quality_rounds : int, optional
         Default 6 (4 for a TetMesh). Rounds of the final quality step (handles fixed):
@@ -283,6 +283,7 @@ def move(
         No admissible interior found after a bounded effort.
     """
     t_start = time.perf_counter()
+    relax_iter = relax_iterations
     solver = _solver(mesh)
     if solver is not None:  # another kind of mesh: its own solver, the same options
         _check_options(frames, steps, relax_iter, quality_rounds, max_splits, weight)
