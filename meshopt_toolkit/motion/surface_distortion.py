@@ -200,4 +200,5 @@ def surface_path_quality_bound(inverse_quality_start: FloatArray, length: FloatA
     """Upper bound of ``1/ψ_t`` at the end of any path from its value at the start and
     the triangle's φ-length ``L`` along the path (``L ≤ ℓ/w``):
     ``1/ψ(end) ≤ 1/ψ(start) · exp(√2 L)``."""
-    return np.asarray(inverse_quality_start) * np.exp(np.sqrt(2.0) * np.asarray(length))
+    with np.errstate(over="ignore"):  # a path too long for any bound: +inf, still true
+        return np.asarray(inverse_quality_start) * np.exp(np.sqrt(2.0) * np.asarray(length))
