@@ -53,6 +53,11 @@ def sym_unvec(v: FloatArray) -> FloatArray:
     return out
 
 
+def _mm(X: FloatArray, Y: FloatArray) -> FloatArray:
+    """Products of 3×3 matrices stored tets last, (3, 3, C)."""
+    return (X[:, :, None] * Y[None, :, :]).sum(axis=1)
+
+
 class TetDistortion:
     """The per-tet distortion ``φ(Q)`` (shape ``(C, 7)``) relative to a reference.
 
@@ -205,35 +210,36 @@ class TetDistortion:
         A, K, _, m, bad = self._parts(Q)
         n = 1.0 / m
         rho = np.asarray(rho, float)
-        R = sym_unvec(rho[:, 1:])
-        Kt = np.swapaxes(K, 1, 2)
-        Y = np.matmul(K, Kt)
-        W = Y @ R @ K
-        Z = Kt @ R @ K
-        q = np.einsum("tij,tij->t", R, np.matmul(np.swapaxes(A, 1, 2), A))
-        p = np.einsum("tij,tij->t", R, Y)
-        delta = Kt.reshape(-1, 9)  # δ_(ab) = K_ba
-        # 4-index tensors [a, b, c, e] of the pair (A_ab, A_ce), by broadcasting
-        T = (Kt[:, :, None, None, :] * K[:, None, :, :, None]).reshape(-1, 9, 9)
-        dd = delta[:, :, None] * delta[:, None, :]
-        dq = 2.0 * (A @ R).reshape(-1, 9)
-        dp = -2.0 * np.swapaxes(W, 1, 2).reshape(-1, 9)
-        I = np.eye(3)[None, :, None, :, None]
-        d2q = 2.0 * (I * R[:, None, :, None, :]).reshape(-1, 9, 9)
-        d2p = 2.0 * (K[:, None, :, :, None] * np.swapaxes(W, 1, 2)[:, :, None, None, :]
-                     + Kt[:, :, None, None, :] * W[:, None, :, :, None]
-                     + Z[:, :, None, :, None] * Y[:, None, :, None, :]).reshape(-1, 9, 9)
-        c = lambda x: x[:, None, None]  # noqa: E731
-        dm, dn = -(2 / 3) * m[:, None] * delta, (2 / 3) * n[:, None] * delta
-        d2m = c(m) * ((4 / 9) * dd + (2 / 3) * T)
-        d2n = c(n) * ((4 / 9) * dd - (2 / 3) * T)
-
-        def outer(u, v):  # u vᵀ + v uᵀ per tet
-            return u[:, :, None] * v[:, None, :] + v[:, :, None] * u[:, None, :]
-
-        mq = c(q) * d2m + outer(dm, dq) + c(m) * d2q
-        np_ = c(p) * d2n + outer(dn, dp) + c(n) * d2p
-        H = -c(rho[:, 0] / SQRT3) * T + 0.25 * (mq - np_)
+        # tets last (every numpy loop runs over the tets); collected, the terms are
+        # H = αT + βδδᵀ − (δuᵀ + uδᵀ)/6 + ½m δ_ac R_eb − ½n ∇²p/2 with α = −ρ₀/√3 +
+        # (mq + np)/6, β = (mq − np)/9, u = m∇q + n∇p
+        R = np.moveaxis(sym_unvec(rho[:, 1:]), 0, -1)
+        A, K = np.moveaxis(A, 0, -1), np.moveaxis(K, 0, -1)
+        Kt = np.swapaxes(K, 0, 1)
+        Y = _mm(K, Kt)
+        RK = _mm(R, K)
+        W = _mm(Y, RK)
+        Z = _mm(Kt, RK)
+        AR = _mm(A, R)
+        q = (AR * A).sum(axis=(0, 1))  # ⟨R, AᵀA⟩ = tr(AᵀAR)
+        p = (R * Y).sum(axis=(0, 1))
+        delta = Kt.reshape(9, -1)  # δ_(ab) = K_ba
+        u = 2.0 * m * AR.reshape(9, -1) - 2.0 * n * np.swapaxes(W, 0, 1).reshape(9, -1)
+        alpha = -rho[:, 0] / SQRT3 + (m * q + n * p) / 6.0
+        beta = (m * q - n * p) / 9.0
+        Wt = np.swapaxes(W, 0, 1)
+        # [a, b, c, e]: T = K_ea K_bc; ∇²p/2 = K_bc W_ea + K_ea W_bc + Z_ac Y_be
+        H = (alpha * Kt[:, None, None, :]) * K[None, :, :, None]
+        H -= (0.5 * n * K)[None, :, :, None] * Wt[:, None, None, :]
+        H -= Kt[:, None, None, :] * (0.5 * n * W)[None, :, :, None]
+        H -= (0.5 * n * Z)[:, None, :, None] * Y[None, :, None, :]
+        H = H.reshape(9, 9, -1)
+        H += delta[:, None] * (beta * delta - u / 6.0)[None]
+        H -= (u / 6.0)[:, None] * delta[None]
+        H4 = H.reshape(3, 3, 3, 3, -1)
+        for a_ in range(3):
+            H4[a_, :, a_] += 0.5 * m * R
+        H = np.ascontiguousarray(np.moveaxis(H, -1, 0))
         H[bad] = 0.0
         # Gᵀ H G: [j a, k c] = Σ_{b e} γ_jb H[a b c e] γ_ke, as two batched products
         G = self.gradients
