@@ -20,6 +20,7 @@ from meshopt_toolkit.motion.tet_distortion import TetDistortion
 from meshopt_toolkit.motion.tet_least_squares import FreePattern, Problem, minimize
 from meshopt_toolkit.motion.tet_metric import tet_lumped_mass
 from meshopt_toolkit.motion.tet_move import move_tets
+from meshopt_toolkit.motion.tet_polish import inverse_mean_ratios, polish_worst_tets
 from meshopt_toolkit.solvers import factorize_spd
 
 
@@ -346,3 +347,69 @@ def test_every_vertex_a_handle():
     targets[0] += 0.1
     res = move_tets(P, T, np.arange(len(P)), targets)
     assert np.array_equal(res.points, targets) and res.inverted == 0
+
+
+# --- the local polish of the worst tets (motion/tet_polish.py) ---------------------------
+
+
+@settings(max_examples=15, deadline=None)
+@given(st.integers(0, 10_000), st.floats(0.0, 0.9))
+def test_inverse_mean_ratios_are_one_over_the_kernel_mean_ratios(seed, jitter):
+    P, T = cube_tets(3, jitter, seed)
+    q, _ = inverse_mean_ratios(P, T)
+    np.testing.assert_allclose(q, 1.0 / tet_mean_ratios(P, T), rtol=1e-12)
+    flat = P.copy()
+    flat[T[0, 3]] = flat[T[0, 0]]  # a collapsed tet: q = inf, gradient zero
+    q, g = inverse_mean_ratios(flat, T)
+    assert np.isinf(q[0]) and not g[0].any()
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_inverse_mean_ratio_gradient_taylor(seed):
+    P, T = cube_tets(2, 0.5, seed)
+    w = np.random.default_rng(seed).uniform(0.5, 2.0, len(T))
+
+    def f(x):
+        return float(w @ inverse_mean_ratios(x, T)[0])
+
+    def grad(x):
+        g = w[:, None, None] * inverse_mean_ratios(x, T)[1]
+        return np.column_stack([np.bincount(T.ravel(), g[:, :, k].ravel(), len(x))
+                                for k in range(3)])
+
+    assert check_gradient(f, grad, P, eps0=1e-3, rng=seed).passed
+
+
+@settings(max_examples=10, deadline=None)
+@given(st.integers(0, 10_000))
+def test_polish_raises_the_worst_tet_and_keeps_the_fixed_vertices(seed):
+    rng = np.random.default_rng(seed)
+    P, T = cube_tets(4, 0.3, seed)
+    fixed = np.flatnonzero(((P <= 0) | (P >= 1)).any(1))
+    # pull one interior vertex most of the way towards a neighbour: a bad but valid tet
+    inner = np.setdiff1d(np.arange(len(P)), fixed)
+    v = rng.choice(inner)
+    nb = T[(T == v).any(1)].ravel()
+    u = rng.choice(nb[nb != v])
+    Q = P.copy()
+    for t in (0.9, 0.8, 0.7, 0.6, 0.5, 0.4, 0.3):
+        Q[v] = P[v] + t * (P[u] - P[v])
+        if (tet_signed_volumes(Q, T) > 0).all():
+            break
+    else:
+        Q = P.copy()
+    before = tet_mean_ratios(Q, T).min()
+    out, info = polish_worst_tets(Q, T, fixed, worst=5, rings=1, iterations=60)
+    after = tet_mean_ratios(out, T)
+    assert (after > 0).all()
+    assert after.min() >= before
+    assert np.array_equal(out[fixed], Q[fixed])
+    assert info["polish_min_mean_ratio"][0] == before
+    if before < 0.3:  # a clearly bad tet with free corners is improved
+        assert after.min() > before
+
+
+def test_polish_with_every_vertex_fixed_returns_the_input():
+    P, T = cube_tets(2, 0.3, 0)
+    out, info = polish_worst_tets(P, T, np.arange(len(P)))
+    assert out is P and info["polish_vertices"] == 0

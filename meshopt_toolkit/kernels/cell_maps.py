@@ -71,7 +71,8 @@ def barycentric_gradients(rest: FloatArray) -> FloatArray:
 
 def affine_maps(points: FloatArray, cells: IntArray, gradients: FloatArray) -> FloatArray:
     """Linear parts ``A = Σ_j x_j ⊗ γ_j`` of the cells' affine maps: (C, dim, k)."""
-    return np.einsum("cja,cjb->cab", np.asarray(points, float)[cells], gradients)
+    # a batched product (C, dim, k+1) @ (C, k+1, k): several times faster than einsum here
+    return np.matmul(np.swapaxes(np.asarray(points, float)[cells], 1, 2), gradients)
 
 
 def tet_condition_numbers(points: FloatArray, tets: IntArray) -> FloatArray:

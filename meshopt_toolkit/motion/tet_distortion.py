@@ -53,6 +53,11 @@ def sym_unvec(v: FloatArray) -> FloatArray:
     return out
 
 
+def _mm(X: FloatArray, Y: FloatArray) -> FloatArray:
+    """Products of 3×3 matrices stored tets last, (3, 3, C)."""
+    return (X[:, :, None] * Y[None, :, :]).sum(axis=1)
+
+
 class TetDistortion:
     """The per-tet distortion ``φ(Q)`` (shape ``(C, 7)``) relative to a reference.
 
@@ -145,24 +150,40 @@ class TetDistortion:
         phi[bad] = np.inf
         if not jacobian:
             return phi, None
-        # direction H = e_c γ_jᵀ (vertex j, coordinate c): δ = tr(KH) = (γ_j K)_c,
-        # dĈ = m(HᵀA + AᵀH − ⅔δC), d(Ĉ⁻¹) = −n(KHC⁻¹ + C⁻¹HᵀKᵀ − ⅔δC⁻¹); entries (i, k) of vec
-        G = self.gradients  # (C, 4, 3)
-        delta = np.matmul(G, K)  # (C, 4, 3): [j, c]
-        Yg = np.matmul(G, Y)  # (C, 4, 3): C⁻¹γ_j
-        Kt = np.swapaxes(K, 1, 2)
-        i, k = SYM_I, SYM_J
-        third = (2.0 / 3.0) * delta[..., None]
-        dC = (G[:, :, None, i] * A[:, None, :, k] + G[:, :, None, k] * A[:, None, :, i]
-              - third * C[:, None, None, i, k])
-        dY = (Kt[:, None, :, i] * Yg[:, :, None, k] + Kt[:, None, :, k] * Yg[:, :, None, i]
-              - third * Y[:, None, None, i, k])
-        dPhi = (0.25 * SYM_W) * (m[:, None, None, None] * dC + n[:, None, None, None] * dY)
-        blocks = np.empty((len(A), 7, 12))
-        blocks[:, 0] = delta.reshape(-1, 12) / SQRT3
-        blocks[:, 1:] = np.swapaxes(dPhi.reshape(-1, 12, 6), 1, 2)
-        blocks[bad] = 0.0
-        return phi, blocks
+        last = [np.ascontiguousarray(np.moveaxis(X, 0, -1)) for X in (A, K, C, Y)]
+        return phi, self._to_corners(self._map_derivative(*last, m, n, bad))
+
+    @staticmethod
+    def _map_derivative(A, K, C, Y, m, n, bad) -> FloatArray:
+        """``∂φ_ci/∂A_ab`` per tet, tets last: (7, 3, 3, C) from ``A``, ``K = A⁻¹``,
+        ``C = AᵀA``, ``Y = C⁻¹`` (3, 3, C). With ``δ = tr(K dA) = K_ba``,
+        ``dĈ = m(dAᵀA + AᵀdA − ⅔δC)`` and ``d(Ĉ⁻¹) = −n(K dA Y + Y dAᵀKᵀ − ⅔δY)``, so entry
+        ``(i, k)`` of ``4 dΦ/W_ik`` is ``m(δ_ib A_ak + A_ai δ_kb) + n(K_ia Y_bk + Y_ib K_ka)
+        − ⅔ K_ba (mC + nY)_ik``. (Tets last: every numpy loop runs over the tets.)"""
+        i, k, s = SYM_I, SYM_J, np.arange(6)
+        D = np.empty((7, 3, 3, A.shape[-1]))
+        Kt = np.swapaxes(K, 0, 1)
+        D[0] = Kt / SQRT3
+        S = D[1:]  # [s, a, b]
+        mA, nK = m * A, n * K
+        np.multiply(nK[i][:, :, None], np.swapaxes(Y[:, k], 0, 1)[:, None], out=S)
+        S += nK[k][:, :, None] * Y[i][:, None]
+        S -= (2.0 / 3.0) * Kt * (m * C[i, k] + n * Y[i, k])[:, None, None]
+        # (the indexed view is (6, 3, C): advanced indices split by a slice go first)
+        S[s, :, i] += np.swapaxes(mA[:, k], 0, 1)  # m δ_ib A_ak
+        S[s, :, k] += np.swapaxes(mA[:, i], 0, 1)  # m A_ai δ_kb
+        S *= (0.25 * SYM_W)[:, None, None, None]
+        D[..., bad] = 0.0
+        return D
+
+    def _to_corners(self, D: FloatArray) -> FloatArray:
+        """Blocks over the corners (C, r, 12), column ``3j + c``, from derivatives in
+        ``A`` (r, 3, 3, C): ``A = Σ_j x_j ⊗ γ_j`` gives ``∂/∂x_jc = Σ_b γ_jb ∂/∂A_cb``."""
+        G = np.moveaxis(self.gradients, 0, -1)  # (4, 3, C): [j, b]
+        out = D[:, None, :, 0] * G[None, :, None, 0]
+        out += D[:, None, :, 1] * G[None, :, None, 1]
+        out += D[:, None, :, 2] * G[None, :, None, 2]
+        return np.ascontiguousarray(np.moveaxis(out.reshape(len(D), 12, -1), -1, 0))
 
     def second_order(self, Q: FloatArray, rho: FloatArray) -> FloatArray:
         """``Σ_i ρ_ci ∇²φ_ci`` per tet in the coordinates of :meth:`values_and_jacobian`:
@@ -189,35 +210,36 @@ class TetDistortion:
         A, K, _, m, bad = self._parts(Q)
         n = 1.0 / m
         rho = np.asarray(rho, float)
-        R = sym_unvec(rho[:, 1:])
-        Kt = np.swapaxes(K, 1, 2)
-        Y = np.matmul(K, Kt)
-        W = Y @ R @ K
-        Z = Kt @ R @ K
-        q = np.einsum("tij,tij->t", R, np.matmul(np.swapaxes(A, 1, 2), A))
-        p = np.einsum("tij,tij->t", R, Y)
-        delta = Kt.reshape(-1, 9)  # δ_(ab) = K_ba
-        # 4-index tensors [a, b, c, e] of the pair (A_ab, A_ce), by broadcasting
-        T = (Kt[:, :, None, None, :] * K[:, None, :, :, None]).reshape(-1, 9, 9)
-        dd = delta[:, :, None] * delta[:, None, :]
-        dq = 2.0 * (A @ R).reshape(-1, 9)
-        dp = -2.0 * np.swapaxes(W, 1, 2).reshape(-1, 9)
-        I = np.eye(3)[None, :, None, :, None]
-        d2q = 2.0 * (I * R[:, None, :, None, :]).reshape(-1, 9, 9)
-        d2p = 2.0 * (K[:, None, :, :, None] * np.swapaxes(W, 1, 2)[:, :, None, None, :]
-                     + Kt[:, :, None, None, :] * W[:, None, :, :, None]
-                     + Z[:, :, None, :, None] * Y[:, None, :, None, :]).reshape(-1, 9, 9)
-        c = lambda x: x[:, None, None]  # noqa: E731
-        dm, dn = -(2 / 3) * m[:, None] * delta, (2 / 3) * n[:, None] * delta
-        d2m = c(m) * ((4 / 9) * dd + (2 / 3) * T)
-        d2n = c(n) * ((4 / 9) * dd - (2 / 3) * T)
-
-        def outer(u, v):  # u vᵀ + v uᵀ per tet
-            return u[:, :, None] * v[:, None, :] + v[:, :, None] * u[:, None, :]
-
-        mq = c(q) * d2m + outer(dm, dq) + c(m) * d2q
-        np_ = c(p) * d2n + outer(dn, dp) + c(n) * d2p
-        H = -c(rho[:, 0] / SQRT3) * T + 0.25 * (mq - np_)
+        # tets last (every numpy loop runs over the tets); collected, the terms are
+        # H = αT + βδδᵀ − (δuᵀ + uδᵀ)/6 + ½m δ_ac R_eb − ½n ∇²p/2 with α = −ρ₀/√3 +
+        # (mq + np)/6, β = (mq − np)/9, u = m∇q + n∇p
+        R = np.moveaxis(sym_unvec(rho[:, 1:]), 0, -1)
+        A, K = np.moveaxis(A, 0, -1), np.moveaxis(K, 0, -1)
+        Kt = np.swapaxes(K, 0, 1)
+        Y = _mm(K, Kt)
+        RK = _mm(R, K)
+        W = _mm(Y, RK)
+        Z = _mm(Kt, RK)
+        AR = _mm(A, R)
+        q = (AR * A).sum(axis=(0, 1))  # ⟨R, AᵀA⟩ = tr(AᵀAR)
+        p = (R * Y).sum(axis=(0, 1))
+        delta = Kt.reshape(9, -1)  # δ_(ab) = K_ba
+        u = 2.0 * m * AR.reshape(9, -1) - 2.0 * n * np.swapaxes(W, 0, 1).reshape(9, -1)
+        alpha = -rho[:, 0] / SQRT3 + (m * q + n * p) / 6.0
+        beta = (m * q - n * p) / 9.0
+        Wt = np.swapaxes(W, 0, 1)
+        # [a, b, c, e]: T = K_ea K_bc; ∇²p/2 = K_bc W_ea + K_ea W_bc + Z_ac Y_be
+        H = (alpha * Kt[:, None, None, :]) * K[None, :, :, None]
+        H -= (0.5 * n * K)[None, :, :, None] * Wt[:, None, None, :]
+        H -= Kt[:, None, None, :] * (0.5 * n * W)[None, :, :, None]
+        H -= (0.5 * n * Z)[:, None, :, None] * Y[None, :, None, :]
+        H = H.reshape(9, 9, -1)
+        H += delta[:, None] * (beta * delta - u / 6.0)[None]
+        H -= (u / 6.0)[:, None] * delta[None]
+        H4 = H.reshape(3, 3, 3, 3, -1)
+        for a_ in range(3):
+            H4[a_, :, a_] += 0.5 * m * R
+        H = np.ascontiguousarray(np.moveaxis(H, -1, 0))
         H[bad] = 0.0
         # Gᵀ H G: [j a, k c] = Σ_{b e} γ_jb H[a b c e] γ_ke, as two batched products
         G = self.gradients
@@ -228,7 +250,10 @@ class TetDistortion:
 
     def columns(self) -> IntArray:
         """Global coordinate index ``3·vertex + d`` of each block column: (C, 12)."""
-        return (3 * self.tets[:, :, None] + np.arange(3)).reshape(-1, 12)
+        if getattr(self, "_columns_of", None) is not self.tets:  # kept for these tets
+            self._columns = (3 * self.tets[:, :, None] + np.arange(3)).reshape(-1, 12)
+            self._columns_of = self.tets
+        return self._columns
 
     def jacobian_matrix(self, blocks: FloatArray) -> sp.csr_matrix:
         """Assemble per-tet blocks (C, 7, 12) into the sparse ``J`` (7C × 3N), from COO

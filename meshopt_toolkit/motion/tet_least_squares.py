@@ -155,7 +155,7 @@ class Problem:
         phi, jb = self.strain.values_and_jacobian(Q)
         res = (phi - anchor) * (self.weight**2 * cell_weights)[:, None]
         cols = self.strain.columns()
-        back = np.einsum("cij,ci->cj", jb, res)
+        back = np.matmul(res[:, None, :], jb)[:, 0]  # J_cᵀ r_c
         g = np.bincount(cols.ravel(), back.ravel(), minlength=Q.size)
         g += (self.mass[:, None] * (Q - centre)).ravel()
         blocks = np.matmul(np.swapaxes(jb, 1, 2) * (self.weight**2 * cell_weights)[:, None, None],
@@ -267,8 +267,8 @@ def extend(problem: Problem, Q: FloatArray, handles: IntArray,
     delta[handles] = positions - Q[handles]
     _, jb = problem.strain.values_and_jacobian(Q)
     cols = problem.strain.columns()
-    strain = np.einsum("cij,cj->ci", jb, delta.reshape(-1)[cols])
-    back = np.einsum("cij,ci->cj", jb, strain) * problem.weight**2
+    strain = np.matmul(jb, delta.reshape(-1)[cols][:, :, None])  # J_c δ_c
+    back = np.matmul(np.swapaxes(jb, 1, 2), strain)[:, :, 0] * problem.weight**2
     rhs = -np.bincount(cols.ravel(), back.ravel(), minlength=Q.size)[problem.pattern.free]
     blocks = np.matmul(np.swapaxes(jb, 1, 2), jb) * problem.weight**2
     lower = problem.pattern.matrix(blocks, np.repeat(problem.mass, 3)[problem.pattern.free])

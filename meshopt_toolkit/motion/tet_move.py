@@ -11,7 +11,8 @@ linearized metric, the last step's velocity continued, or their last positions (
 where all three invert a tet is halved), and minimizes ``½|Q − Q_prev|²_M + ½w²|φ(Q)|²``
 (the distortion from the rest shape) with the handles fixed (:mod:`.tet_least_squares`,
 every accepted iterate admissible). A quality finish
-with the handles fixed then fits the distortion from regular tets, pressing on the worst.
+with the handles fixed then fits the distortion from regular tets, pressing on the worst,
+and a local polish raises the worst tets' mean ratio (:mod:`.tet_polish`).
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ from .similarity_3d import (HandlePath3, Similarity3, fit_similarity_3d, handle_
 from .tet_distortion import SQRT3, TetDistortion
 from .tet_least_squares import Problem, extend, minimize
 from .tet_metric import tet_lumped_mass
+from .tet_polish import polish_worst_tets
 
 __all__ = ["TetMeshMoveResult", "TetMoveResult", "move_tet_mesh", "move_tets"]
 
@@ -137,8 +139,8 @@ def _finish(strain_source: FloatArray, tets: IntArray, problem: Problem, Q: Floa
 
 def move_tets(points: FloatArray, tets: IntArray, handles, targets, *, steps: int = 4,
               frames: int | None = None, weight: float = 1.0, relax_iter: int = 15,
-              quality_rounds: int = 4, max_splits: int = 12, newton: bool = True
-              ) -> TetMoveResult:
+              quality_rounds: int = 4, max_splits: int = 12, newton: bool = True,
+              polish: int = 300) -> TetMoveResult:
     """Move the ``handles`` vertices of a tet mesh exactly to ``targets``; place the
     other vertices to keep every tet positively oriented and as good as the motion allows.
 
@@ -162,6 +164,8 @@ def move_tets(points: FloatArray, tets: IntArray, handles, targets, *, steps: in
         Rounds of the quality finish (0: none).
     newton : bool
         Newton steps (falling back to Gauss–Newton where not positive definite).
+    polish : int
+        L-BFGS iterations of the local polish of the worst tets (0: none).
 
     Returns
     -------
@@ -202,6 +206,9 @@ def move_tets(points: FloatArray, tets: IntArray, handles, targets, *, steps: in
             residual[-1], fin = _finish(P, T, problem, residual[-1], quality_rounds,
                                         relax_iter, newton)
             details.update(fin)
+        if polish > 0:
+            residual[-1], pol = polish_worst_tets(residual[-1], T, h, iterations=polish)
+            details.update(pol)
         emb = [np.concatenate([(np.sqrt(mass)[:, None] * residual[i]).ravel(),
                                weight * strain.values(residual[i]).ravel()]) for i in pick]
         length = float(sum(np.linalg.norm(b - a) for a, b in zip(emb[:-1], emb[1:])))

@@ -1,0 +1,169 @@
+"""A local polish of the worst tets of a moved mesh: the last step of the tet motion
+(:mod:`.tet_move`).
+
+Around the ``worst`` tets of lowest mean ratio ``η`` (their vertices and ``rings`` rings
+of neighbours, the fixed vertices excluded), it minimizes the soft maximum of the inverse
+mean ratios ``q = 1/η = Σℓ² / (12 (3V)^{2/3})`` of the tets these vertices touch,
+
+    F = (1/s) log Σ_e exp(s q_e),
+
+by L-BFGS whose backtracking line search refuses every trial with an inverted tet (``F``
+is ``+inf`` there): every accepted iterate has every tet positively oriented, and the
+result is kept only where its worst mean ratio is higher.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._typing import FloatArray, IntArray
+from ..kernels.tetrahedra import mean_ratios
+
+_I, _J = np.triu_indices(4, 1)
+
+
+def inverse_mean_ratios(points: FloatArray, tets: IntArray) -> tuple[FloatArray, FloatArray]:
+    """``q = Σℓ² / (12 (3V)^{2/3}) = 1/η`` per tet (C,) and its gradient in the corners
+    (C, 4, 3); ``q = inf`` (gradient 0) where ``V ≤ 0``."""
+    p = np.asarray(points, float)[tets]
+    D = np.swapaxes(p[:, 1:] - p[:, :1], 1, 2)
+    cof = np.stack([np.cross(D[:, :, 1], D[:, :, 2]), np.cross(D[:, :, 2], D[:, :, 0]),
+                    np.cross(D[:, :, 0], D[:, :, 1])], axis=1)  # rows: ∂det/∂(x_1, x_2, x_3)
+    det = np.einsum("ci,ci->c", cof[:, 0], D[:, :, 0])
+    ok = det > 0
+    safe = np.where(ok, det, 1.0)
+    e = p[:, _I] - p[:, _J]
+    sq = np.einsum("cek,cek->c", e, e)
+    den = 12.0 * (safe / 2.0) ** (2.0 / 3.0)  # 12 (3V)^{2/3} with V = det/6
+    q = np.where(ok, sq / den, np.inf)
+    dsq = 2.0 * (4.0 * p - p.sum(axis=1, keepdims=True))  # ∂Σℓ²/∂x_a = 2(4x_a − Σ_b x_b)
+    ddet = np.empty_like(p)
+    ddet[:, 1:] = cof
+    ddet[:, 0] = -cof.sum(axis=1)
+    grad = dsq / den[:, None, None] - (2.0 / 3.0) * (np.where(ok, q, 0.0) / safe
+                                                     )[:, None, None] * ddet
+    grad[~ok] = 0.0
+    return q, grad
+
+
+@dataclass
+class _SoftMax:
+    """``F`` over ``tets`` with the vertices outside ``free`` fixed: value and gradient over
+    the free vertices (``inf`` and ``None`` where a tet is inverted)."""
+
+    tets: IntArray
+    n_vertices: int
+    free: IntArray
+    sharpness: float
+
+    def __call__(self, x: FloatArray):
+        q, g = inverse_mean_ratios(x, self.tets)
+        if not np.isfinite(q).all():
+            return np.inf, None
+        top = q.max()
+        w = np.exp(self.sharpness * (q - top))
+        total = w.sum()
+        gq = (w / total)[:, None, None] * g
+        flat = self.tets.ravel()
+        G = np.column_stack([np.bincount(flat, gq[:, :, k].ravel(), self.n_vertices)
+                             for k in range(3)])
+        return top + np.log(total) / self.sharpness, G[self.free].ravel()
+
+
+def _lbfgs(energy: _SoftMax, x: FloatArray, iterations: int, memory: int = 10) -> FloatArray:
+    """L-BFGS over ``x[energy.free]`` from an admissible ``x``; a trial with an inverted
+    tet (``F = inf``) or too little decrease halves the step."""
+    x, free = x.copy(), energy.free
+    F, G = energy(x)
+    S: list = []
+    Y: list = []
+    for _ in range(iterations):
+        d = -G
+        alphas = []
+        for s_, y_ in reversed(list(zip(S, Y))):
+            a = s_ @ d / (y_ @ s_)
+            alphas.append(a)
+            d = d - a * y_
+        d = d * ((S[-1] @ Y[-1]) / (Y[-1] @ Y[-1]) if S
+                 else 1e-3 / max(np.abs(d).max(), 1e-300))
+        for (s_, y_), a in zip(zip(S, Y), reversed(alphas)):
+            d = d + (a - (y_ @ d) / (y_ @ s_)) * s_
+        slope = G @ d
+        if slope >= 0:  # not a descent direction: start again from steepest descent
+            if not S:
+                break
+            S, Y = [], []
+            continue
+        step, trial = 1.0, x.copy()
+        while step > 1e-12:
+            trial[free] = x[free] + step * d.reshape(-1, 3)
+            F1, G1 = energy(trial)
+            if F1 <= F + 1e-4 * step * slope:
+                break
+            step *= 0.5
+        else:
+            break
+        s_, y_ = (trial[free] - x[free]).ravel(), G1 - G
+        x, F, G = trial, F1, G1
+        if s_ @ y_ > 1e-16:
+            S.append(s_)
+            Y.append(y_)
+            if len(S) > memory:
+                S.pop(0)
+                Y.pop(0)
+    return x
+
+
+def polish_worst_tets(points: FloatArray, tets: IntArray, fixed: IntArray, *,
+                      worst: int = 300, rings: int = 3, iterations: int = 300,
+                      sharpness: float = 1.0) -> tuple[FloatArray, dict]:
+    """Raise the worst mean ratio of a positively oriented tet mesh by moving the vertices
+    near its worst tets (the ``fixed`` vertices kept bitwise).
+
+    Parameters
+    ----------
+    points : (N, 3) float array
+    tets : (C, 4) int array
+        Every tet positively oriented.
+    fixed : (k,) int array
+        Vertices that do not move.
+    worst : int
+        How many of the lowest-``η`` tets seed the neighbourhood.
+    rings : int
+        Rings of neighbouring vertices added around them.
+    iterations : int
+        L-BFGS iterations.
+    sharpness : float
+        ``s`` of the soft maximum (``s → ∞``: the worst tet alone).
+
+    Returns
+    -------
+    points : (N, 3) float array
+        The polished points, or ``points`` itself where the polish did not raise min η.
+    info : dict
+        ``polish_vertices`` (how many moved freely), ``polish_min_mean_ratio`` (before,
+        after).
+    """
+    P = np.asarray(points, float)
+    T = np.asarray(tets)
+    eta = mean_ratios(P, T)
+    before = float(eta.min())
+    verts = np.unique(T[np.argsort(eta)[:worst]])
+    for _ in range(rings):
+        verts = np.unique(T[np.isin(T, verts).any(axis=1)])
+    movable = np.zeros(len(P), bool)
+    movable[verts] = True
+    movable[np.asarray(fixed, dtype=np.int64)] = False
+    free = np.flatnonzero(movable)
+    info = {"polish_vertices": int(len(free)), "polish_min_mean_ratio": [before, before]}
+    if len(free) == 0 or iterations <= 0:
+        return P, info
+    active = movable[T].any(axis=1)
+    out = _lbfgs(_SoftMax(T[active], len(P), free, float(sharpness)), P, iterations)
+    after = float(mean_ratios(out, T).min())
+    if not after > before:
+        return P, info
+    info["polish_min_mean_ratio"] = [before, after]
+    return out, info
