@@ -413,3 +413,25 @@ def test_polish_with_every_vertex_fixed_returns_the_input():
     P, T = cube_tets(2, 0.3, 0)
     out, info = polish_worst_tets(P, T, np.arange(len(P)))
     assert out is P and info["polish_vertices"] == 0
+
+
+def test_steps_that_shrink_towards_a_point_stop_with_an_error(monkeypatch):
+    """Every full step refused and every half step taken: the steps shrink towards a point
+    of the path; the motion stops with NoAdmissiblePathError instead of dividing by a
+    zero step."""
+    import itertools
+
+    from meshopt_toolkit.motion import tet_move
+    from meshopt_toolkit.motion.continuation import NoAdmissiblePathError
+
+    P, T = cube_tets(2, jitter=0.2)
+    h = np.unique(tet_boundary_faces(T))
+    targets = P[h] + np.array([0.05, 0.0, 0.0]) * P[h, 2:3]  # a small shear
+    calls, real = itertools.count(), tet_move._predictions
+
+    def every_other(*args):
+        return iter(()) if next(calls) % 2 == 0 else real(*args)
+
+    monkeypatch.setattr(tet_move, "_predictions", every_other)
+    with pytest.raises(NoAdmissiblePathError, match="shrink"):
+        move_tets(P, T, h, targets, steps=1)

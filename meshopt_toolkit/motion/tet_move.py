@@ -261,6 +261,10 @@ def _continuation(problem: Problem, P: FloatArray, h: IntArray, path: HandlePath
             trial = None
             for _ in range(max_splits + 1):
                 s_try = s_goal if ds == s_goal - s_now else s_now + ds
+                if s_try - s_now <= 1e-12 * max(1.0, s_goal):  # steps too short to go on
+                    raise NoAdmissiblePathError(
+                        f"no admissible position of the mesh for the handles beyond "
+                        f"s = {s_now:.6g} (the steps shrink towards it)")
                 velocity = None if rate is None else rate * (s_try - s_now)
                 for name, start in _predictions(problem, Q, h, path(s_try), velocity):
                     if (problem.strain.determinants(start) > 0).all():
