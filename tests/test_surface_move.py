@@ -272,3 +272,16 @@ def test_upper_products_are_the_upper_triangles_of_jtj(shape):
     full = np.einsum("bik,bil->bkl", J3, J3)
     a, b = np.triu_indices(shape[-1])
     np.testing.assert_allclose(upper_products(J), full[:, a, b], rtol=1e-14, atol=1e-14)
+
+
+def test_every_vertex_a_handle_is_moved_to_its_target():
+    """With no free vertex there is nothing to solve: each increment is the handles' path
+    and the result is the targets, bitwise (a rigid motion and a non-rigid one)."""
+    V, F = sphere(1)
+    rng = np.random.default_rng(3)
+    R = random_rotation(rng)
+    handles = np.arange(len(V))
+    for targets in (V @ R.T + [0.3, -0.1, 2.0], V * [1.0, 1.2, 0.9]):
+        res = move_surface(V, F, handles, targets, steps=3)
+        assert np.array_equal(res.points, targets)
+        assert res.iterations == 0

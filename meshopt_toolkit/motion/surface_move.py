@@ -235,6 +235,10 @@ def _step(problem: _Problem, Q0, H1, handles, max_iterations: int, rtol: float):
     positions and the iterations, or None where no admissible predictor exists."""
     d = np.zeros_like(Q0)
     d[handles] = H1 - Q0[handles]
+    if not problem.free.any():  # every vertex a handle: the step is the handles' path
+        Q = Q0 + d
+        Q[handles] = H1
+        return (Q, 0) if problem.admissible(Q, problem.parts(Q)[0]) else None
     rm, Jm, rb, Jb = problem.linearization(Q0)
     # the residuals' change of the handles' displacement, to first order
     cols_m, cols_b = problem.membrane.columns(), problem.shell.columns()
@@ -371,7 +375,7 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
             shift = 0.0
         H1 = path(t1) if whole is None or t1 >= 1.0 else whole.at(t1)(V[handles])
         problem.previous = start
-        if emphasis > 0:  # the worst-distorted triangles weigh more (c_t ≥ 1)
+        if emphasis > 0 and problem.free_triangles.any():  # the worst weigh more (c_t ≥ 1)
             size = np.linalg.norm(problem.membrane.values(start), axis=1)
             rms = float(np.sqrt(np.mean(size[problem.free_triangles] ** 2)))
             if rms > 0:
