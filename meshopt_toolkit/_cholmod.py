@@ -222,6 +222,7 @@ class CholeskyFactor:
         self.n = A.shape[0]
         self.ordering = ordering
         self._factor = None
+        self._failed = False
         #: whether factorizing and solving release the GIL (:mod:`._cholmod`): then
         #: several factors are worth factorizing and solving in threads
         self.releases_gil = library() is not None
@@ -242,16 +243,14 @@ class CholeskyFactor:
             self._indptr = lower.indptr.astype(np.int64)
             self._indices = lower.indices.astype(np.int64)
         if self.releases_gil:
-            try:
-                if same:
-                    self._factor.refactorize(lower.data)
-                else:
-                    self._factor = None
-                    self._factor = _NativeFactor(self._indptr, self._indices, lower.data,
-                                                 self.ordering)
-            except RuntimeError:
-                self._factor = None  # analysed again next time
-                raise
+            self._failed = True  # until the numeric factorization succeeds
+            if not same:
+                self._factor = None
+                self._factor = _NativeFactor(self._indptr, self._indices, lower.data,
+                                             self.ordering)
+            else:  # a failure keeps the analysis: the next values reuse it
+                self._factor.refactorize(lower.data)
+            self._failed = False
             return
         self._cvxopt_factorize(lower, same)
 
@@ -282,7 +281,7 @@ class CholeskyFactor:
     def __call__(self, b: FloatArray) -> FloatArray:
         if self.n == 0:
             return np.array(b, dtype=float)
-        if self._factor is None:
+        if self._factor is None or self._failed:
             raise RuntimeError("the last factorization failed")
         if self.releases_gil:
             return self._factor(b)

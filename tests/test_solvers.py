@@ -87,10 +87,15 @@ def test_cholesky_refactorization_reuses_the_analysis_and_recovers_from_failure(
     factor.refactorize(wider)
     assert factor._factor is not analysis
     assert np.linalg.norm(wider @ factor(b) - b) <= 1e-12 * np.linalg.norm(b)
+    kept = factor._factor
     with pytest.raises(RuntimeError, match="not positive definite"):
         factor.refactorize(wider - 20 * sp.eye(n * n))
     with pytest.raises(RuntimeError, match="failed"):
         factor(b)
+    if factor.releases_gil:  # the same pattern again: the kept analysis serves
+        factor.refactorize(wider)
+        assert factor._factor is kept
+        np.testing.assert_allclose(factor(b), CholeskyFactor(wider)(b), rtol=0, atol=1e-12)
     factor.refactorize(other)
     assert np.linalg.norm(other @ factor(b) - b) <= 1e-12 * np.linalg.norm(b)
 
