@@ -124,8 +124,7 @@ def polish_worst_tets(points: FloatArray, tets: IntArray, fixed: IntArray, *,
 
     Parameters
     ----------
-    points : (N, 3) float array
-    tets : (C, 4) int array
+    points, tets : (N, 3) float and (C, 4) int arrays
         Every tet positively oriented.
     fixed : (k,) int array
         Vertices that do not move.
