@@ -144,22 +144,9 @@ def box_msh(tmp_path_factory):
     """gmsh tets of [-1, 1]³ minus a ball of radius 0.4 (physical group ``hole``), with the
     point datum ``on_hole`` marking the hole's nodes (found by their distance)."""
     pytest.importorskip("gmsh")
-    from meshopt_toolkit.gmsh_session import gmsh_session
+    from gmsh_files import box_with_hole_msh
 
-    path = tmp_path_factory.mktemp("sel") / "box.msh"
-    with gmsh_session() as gmsh:
-        gmsh.model.add("box")
-        box = gmsh.model.occ.addBox(-1, -1, -1, 2, 2, 2)
-        ball = gmsh.model.occ.addSphere(0, 0, 0, 0.4)
-        vols, _ = gmsh.model.occ.cut([(3, box)], [(3, ball)])
-        gmsh.model.occ.synchronize()
-        hole = [t for d, t in gmsh.model.getBoundary(vols, oriented=False)
-                if max(map(abs, gmsh.model.getBoundingBox(d, t))) < 0.41]
-        gmsh.model.addPhysicalGroup(2, hole, name="hole")
-        gmsh.model.addPhysicalGroup(3, [t for _, t in vols], name="solid")
-        gmsh.option.setNumber("Mesh.MeshSizeMax", 0.5)
-        gmsh.model.mesh.generate(3)
-        gmsh.write(str(path))
+    path = box_with_hole_msh(tmp_path_factory.mktemp("sel") / "box.msh", radius=0.4, size=0.5)
     cm = load_cells(path)
     cm.point_data["on_hole"] = (np.linalg.norm(cm.points, axis=1) < 0.4 + 1e-9) * 1.0
     save_cells(cm, path)

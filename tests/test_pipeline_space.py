@@ -157,25 +157,12 @@ def test_meshopt_run_prints_the_loss_on_stderr(bar, tmp_path, capsys):
 # ------------------------------------------------------------------ tetrahedra
 @pytest.fixture(scope="module")
 def box(tmp_path_factory):
-    """gmsh tets of [-1, 1]³ minus a ball of radius 0.4 (groups ``hole``, ``solid``) with
+    """gmsh tets of [-1, 1]³ minus a ball of radius 0.4 (groups ``hole``, ``walls``, ``solid``) with
     the point datum ``temperature``."""
     pytest.importorskip("gmsh")
-    from meshopt_toolkit.gmsh_session import gmsh_session
+    from gmsh_files import box_with_hole_msh
 
-    path = tmp_path_factory.mktemp("tets") / "box.msh"
-    with gmsh_session() as gmsh:
-        gmsh.model.add("box")
-        cube = gmsh.model.occ.addBox(-1, -1, -1, 2, 2, 2)
-        ball = gmsh.model.occ.addSphere(0, 0, 0, 0.4)
-        vols, _ = gmsh.model.occ.cut([(3, cube)], [(3, ball)])
-        gmsh.model.occ.synchronize()
-        hole = [t for d, t in gmsh.model.getBoundary(vols, oriented=False)
-                if max(map(abs, gmsh.model.getBoundingBox(d, t))) < 0.41]
-        gmsh.model.addPhysicalGroup(2, hole, name="hole")
-        gmsh.model.addPhysicalGroup(3, [t for _, t in vols], name="solid")
-        gmsh.option.setNumber("Mesh.MeshSizeMax", 0.5)
-        gmsh.model.mesh.generate(3)
-        gmsh.write(str(path))
+    path = box_with_hole_msh(tmp_path_factory.mktemp("tets") / "box.msh", radius=0.4, size=0.5)
     cm = load_cells(path)
     cm.point_data["temperature"] = np.linalg.norm(cm.points, axis=1)
     save_cells(cm, path)
@@ -197,7 +184,7 @@ def test_a_tet_mesh_moves_in_a_pipeline_with_its_file_kept(box, tmp_path):
     for u, v in zip(a.cell_data["gmsh:physical"], b.cell_data["gmsh:physical"]):
         np.testing.assert_array_equal(u, v)
     np.testing.assert_array_equal(a.point_data["temperature"], b.point_data["temperature"])
-    assert set(b.field_data) == {"hole", "solid"}
+    assert set(b.field_data) == {"hole", "walls", "solid"}
     tets = np.concatenate([c for t, c in b.cells if t == "tetra"])
     assert signed_volumes(b.points, tets).min() > 0
 

@@ -30,26 +30,10 @@ WHERE = "x**2+y**2+z**2 < 0.2"
 def box_file(tmp_path_factory):
     """gmsh tets of [-1, 1]³ minus a ball (~1.2k tets), physical groups ``hole``, ``walls``
     (surfaces) and ``solid`` (volume), plus a point datum of our own."""
-    from meshopt_toolkit.gmsh_session import gmsh_session
+    from gmsh_files import box_with_hole_msh
 
-    path = tmp_path_factory.mktemp("tets") / "box.msh"
-    with gmsh_session() as gmsh:
-        gmsh.model.add("box_with_hole")
-        box = gmsh.model.occ.addBox(-1, -1, -1, 2, 2, 2)
-        ball = gmsh.model.occ.addSphere(0, 0, 0, RADIUS)
-        vols, _ = gmsh.model.occ.cut([(3, box)], [(3, ball)])
-        gmsh.model.occ.synchronize()
-        hole, walls = [], []
-        for dim, tag in gmsh.model.getBoundary(vols, oriented=False):
-            box_of = gmsh.model.getBoundingBox(dim, tag)
-            (hole if max(map(abs, box_of)) < RADIUS + 1e-6 else walls).append(tag)
-        gmsh.model.addPhysicalGroup(2, hole, name="hole")
-        gmsh.model.addPhysicalGroup(2, walls, name="walls")
-        gmsh.model.addPhysicalGroup(3, [t for _, t in vols], name="solid")
-        gmsh.option.setNumber("Mesh.MeshSizeMax", 0.35)
-        gmsh.option.setNumber("Mesh.MeshSizeMin", 0.35 / 3)
-        gmsh.model.mesh.generate(3)
-        gmsh.write(str(path))
+    path = box_with_hole_msh(tmp_path_factory.mktemp("tets") / "box.msh", radius=RADIUS,
+                             size=0.35, size_min=0.35 / 3)
     cm = load_cells(path)
     cm.point_data["temperature"] = np.linalg.norm(cm.points, axis=1)
     save_cells(cm, path)

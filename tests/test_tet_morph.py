@@ -261,28 +261,13 @@ def tet_files(tmp_path_factory):
     """A gmsh box-with-hole file with physical groups and a point datum of our own, and
     the file of its image with the ball turned 60°."""
     pytest.importorskip("gmsh")
-    from meshopt_toolkit.gmsh_session import gmsh_session
+    from gmsh_files import box_with_hole_msh
+
     from meshopt_toolkit.io import load_cells, save_cells
 
     d = tmp_path_factory.mktemp("tet_morph")
     src = d / "box.msh"
-    with gmsh_session() as gmsh:
-        gmsh.model.add("box_with_hole")
-        box = gmsh.model.occ.addBox(-1, -1, -1, 2, 2, 2)
-        ball = gmsh.model.occ.addSphere(0, 0, 0, 0.35)
-        vols, _ = gmsh.model.occ.cut([(3, box)], [(3, ball)])
-        gmsh.model.occ.synchronize()
-        hole, walls = [], []
-        for _, tag in gmsh.model.getBoundary(vols, oriented=False):
-            bb = gmsh.model.getBoundingBox(2, tag)
-            (hole if max(map(abs, bb)) < 0.35 + 1e-6 else walls).append(tag)
-        gmsh.model.addPhysicalGroup(2, hole, name="hole")
-        gmsh.model.addPhysicalGroup(2, walls, name="walls")
-        gmsh.model.addPhysicalGroup(3, [t for _, t in vols], name="solid")
-        gmsh.option.setNumber("Mesh.MeshSizeMax", 0.35)
-        gmsh.option.setNumber("Mesh.MeshSizeMin", 0.35 / 3)
-        gmsh.model.mesh.generate(3)
-        gmsh.write(str(src))
+    box_with_hole_msh(src, radius=0.35, size=0.35, size_min=0.35 / 3)
     cm = load_cells(src)
     cm.point_data["temperature"] = np.linalg.norm(cm.points, axis=1)
     save_cells(cm, src, overwrite=True)
