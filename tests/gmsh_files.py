@@ -31,3 +31,25 @@ def box_with_hole_msh(path: Path, *, radius: float, size: float,
         gmsh.model.mesh.generate(3)
         gmsh.write(str(path))
     return path
+
+
+def assert_same_but_points(a, b, *, point_data: set, groups: set) -> None:
+    """``b`` holds every block, tag, name and datum of ``a`` (points aside): the cell
+    blocks, every cell datum (``gmsh:physical`` among them), the point data ``point_data``
+    and the physical names ``groups``, each equal."""
+    import numpy as np
+
+    assert [t for t, _ in a.cells] == [t for t, _ in b.cells]
+    for (_, ca), (_, cb) in zip(a.cells, b.cells):
+        np.testing.assert_array_equal(ca, cb)
+    assert set(a.cell_data) == set(b.cell_data) and "gmsh:physical" in a.cell_data
+    for key in a.cell_data:
+        for u, v in zip(a.cell_data[key], b.cell_data[key]):
+            np.testing.assert_array_equal(u, v)
+    assert set(a.point_data) == set(b.point_data) == point_data
+    for key in point_data:
+        np.testing.assert_array_equal(a.point_data[key], b.point_data[key])
+    assert set(a.field_data) == set(b.field_data) == groups
+    for key in groups:
+        np.testing.assert_array_equal(a.field_data[key], b.field_data[key])
+    assert a.points.shape == b.points.shape

@@ -12,6 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from gmsh_files import assert_same_but_points
+
 from meshopt_toolkit.cli import main
 from meshopt_toolkit.io import load_cells, save_cells
 from meshopt_toolkit.io.cells import CellMesh
@@ -29,6 +31,9 @@ A = "pi/2*x/6"
 TWIST = (f"x; 0.5 + (y-0.5)*cos({A}) - (z-0.5)*sin({A}); "
          f"0.5 + (y-0.5)*sin({A}) + (z-0.5)*cos({A})")
 ENDS = "x < 0.01 or x > 5.99"
+
+#: the physical names of the CLI tests' file
+GROUPS = {"left", "right"}
 
 
 def twisted(X: np.ndarray) -> np.ndarray:
@@ -131,20 +136,6 @@ def bar_file(bar, tmp_path):
     return path
 
 
-def _same_but_points(a, b) -> None:
-    assert [t for t, _ in a.cells] == [t for t, _ in b.cells]
-    for (_, ca), (_, cb) in zip(a.cells, b.cells):
-        np.testing.assert_array_equal(ca, cb)
-    assert set(a.cell_data) == set(b.cell_data) and "gmsh:physical" in a.cell_data
-    for key in a.cell_data:
-        for u, v in zip(a.cell_data[key], b.cell_data[key]):
-            np.testing.assert_array_equal(u, v)
-    assert set(a.point_data) == set(b.point_data) == {"temperature"}
-    np.testing.assert_array_equal(a.point_data["temperature"], b.point_data["temperature"])
-    assert set(a.field_data) == set(b.field_data) == {"left", "right"}
-    assert a.points.shape == b.points.shape
-
-
 def test_cli_turns_an_end_cap_of_an_obj(bar, tmp_path, capsys):
     src = tmp_path / "bar.obj"
     trimesh.Trimesh(np.array(bar.points), np.array(bar.triangles), process=False).export(src)
@@ -162,7 +153,7 @@ def test_cli_keeps_every_block_and_datum_of_a_msh(bar_file, tmp_path):
     out = tmp_path / "turned.msh"
     assert main(["move", str(bar_file), "-o", str(out), "--map", TWIST, "--where", ENDS]) == 0
     a, b = load_cells(bar_file), load_cells(out)
-    _same_but_points(a, b)
+    assert_same_but_points(a, b, point_data={"temperature"}, groups=GROUPS)
     h, t = handles_of(a.to_surface_mesh(), mapping=TWIST, where=ENDS)
     np.testing.assert_array_equal(b.points[h], t)  # bitwise, as the file holds them
 
@@ -183,7 +174,7 @@ def test_cli_targets_index_x_y_z(bar_file, tmp_path, capsys):
     assert summary["handles"] == len(h) and summary["folds"] == 0
     b = load_cells(out)
     np.testing.assert_array_equal(b.points[h], t)
-    _same_but_points(a, b)
+    assert_same_but_points(a, b, point_data={"temperature"}, groups=GROUPS)
 
 
 def test_cli_where_selecting_nothing_is_one_line(bar_file, tmp_path, capsys):
@@ -250,4 +241,4 @@ def test_cli_frames_of_a_surface(bar_file, tmp_path):
     h, t = handles_of(a.to_surface_mesh(), mapping=TWIST, where=ENDS)
     last = load_cells(out / "frame_002.msh")
     np.testing.assert_array_equal(last.points[h], t)
-    _same_but_points(a, last)
+    assert_same_but_points(a, last, point_data={"temperature"}, groups=GROUPS)

@@ -13,6 +13,8 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 from test_tet_move import box_with_hole, cube_tets, sphere_turn
 
+from gmsh_files import assert_same_but_points
+
 from meshopt_toolkit.diagnostics import check_gradient, check_hvp
 from meshopt_toolkit.errors import InvalidMeshError, NotAdmissibleError, OptionError
 from meshopt_toolkit.kernels.tetrahedra import mean_ratios, signed_volumes
@@ -23,6 +25,9 @@ from meshopt_toolkit.motion.tet_morph import morph_tets
 from meshopt_toolkit.motion.tet_move import move_tets
 from meshopt_toolkit.motion.tet_path import TetPath
 from meshopt_toolkit.results import Result
+
+#: the physical names of the CLI tests' file
+GROUPS = {"hole", "walls", "solid"}
 
 
 def twisted_cube(n=4, degrees=60.0, jitter=0.2, seed=0):
@@ -288,19 +293,6 @@ def tet_files(tmp_path_factory):
     return src, tgt, cm, Q
 
 
-def _same_cells(a, b):
-    assert [t for t, _ in a.cells] == [t for t, _ in b.cells]
-    for (_, ca), (_, cb) in zip(a.cells, b.cells):
-        np.testing.assert_array_equal(ca, cb)
-    assert set(a.cell_data) == set(b.cell_data) and "gmsh:physical" in a.cell_data
-    for key in a.cell_data:
-        for u, v in zip(a.cell_data[key], b.cell_data[key]):
-            np.testing.assert_array_equal(u, v)
-    assert set(b.point_data) == {"temperature"}
-    np.testing.assert_array_equal(a.point_data["temperature"], b.point_data["temperature"])
-    assert set(b.field_data) == {"hole", "walls", "solid"}
-
-
 def test_cli_morph_of_tet_files_keeps_groups_and_data(tet_files, tmp_path, capsys):
     from meshopt_toolkit.cli import main
     from meshopt_toolkit.io import load_cells
@@ -314,7 +306,7 @@ def test_cli_morph_of_tet_files_keeps_groups_and_data(tet_files, tmp_path, capsy
     assert names == [f"frame_00{k}.msh" for k in range(5)] + ["quality.csv", "summary.json"]
     frames = [load_cells(out / f"frame_00{k}.msh") for k in range(5)]
     for F in frames:
-        _same_cells(cm, F)
+        assert_same_but_points(cm, F, point_data={"temperature"}, groups=GROUPS)
     assert np.array_equal(frames[0].points, cm.points)
     assert np.array_equal(frames[-1].points, Q)
     tets = np.concatenate([c for t, c in cm.cells if t == "tetra"])
