@@ -37,6 +37,33 @@ class TetDomain:
         return np.concatenate([self.outer, self.obstacle])
 
 
+def generate_tets(gmsh, size: float, surface_groups) -> tuple:
+    """Mesh the open gmsh session's model with edge length ``size`` throughout: the points
+    some tet uses, the tets (positively oriented) and, for each 2D physical group tag of
+    ``surface_groups``, the indices of its nodes among those points."""
+    gmsh.option.setNumber("Mesh.MeshSizeMin", size)
+    gmsh.option.setNumber("Mesh.MeshSizeMax", size)
+    gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
+    gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
+    gmsh.option.setNumber("Mesh.Optimize", 1)
+    gmsh.model.mesh.generate(3)
+    tags, coords, _ = gmsh.model.mesh.getNodes()
+    index = np.full(int(tags.max()) + 1, -1)
+    index[tags.astype(int)] = np.arange(len(tags))
+    points = coords.reshape(-1, 3)
+    _, conn = gmsh.model.mesh.getElementsByType(4)
+    tets = index[conn.astype(int)].reshape(-1, 4)
+    groups = [index[gmsh.model.mesh.getNodesForPhysicalGroup(2, tag)[0].astype(int)]
+              for tag in surface_groups]
+    used = np.unique(tets)  # drop nodes no tet uses (geometry points)
+    remap = np.full(len(points), -1)
+    remap[used] = np.arange(len(used))
+    points, tets = np.ascontiguousarray(points[used]), remap[tets]
+    flip = tet_signed_volumes(points, tets) < 0
+    tets[flip] = tets[flip][:, [0, 2, 1, 3]]
+    return points, tets, [np.unique(remap[g]) for g in groups]
+
+
 def _mesh(outer_box, center, radius, size: float, name: str) -> TetDomain:
     """Mesh the box ``outer_box = (x0, y0, z0, dx, dy, dz)`` minus the ball with gmsh
     (edge length ``size`` throughout); the obstacle's faces are those inside the ball's
@@ -61,30 +88,8 @@ def _mesh(outer_box, center, radius, size: float, name: str) -> TetDomain:
         gmsh.model.addPhysicalGroup(3, [t for _, t in volume], 1, name="domain")
         gmsh.model.addPhysicalGroup(2, [t for t in faces if not on_ball(t)], 2, name="outer")
         gmsh.model.addPhysicalGroup(2, [t for t in faces if on_ball(t)], 3, name="obstacle")
-        gmsh.option.setNumber("Mesh.MeshSizeMin", size)
-        gmsh.option.setNumber("Mesh.MeshSizeMax", size)
-        gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
-        gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
-        gmsh.option.setNumber("Mesh.Optimize", 1)
-        gmsh.model.mesh.generate(3)
-        tags, coords, _ = gmsh.model.mesh.getNodes()
-        index = np.full(int(tags.max()) + 1, -1)
-        index[tags.astype(int)] = np.arange(len(tags))
-        points = coords.reshape(-1, 3)
-        _, conn = gmsh.model.mesh.getElementsByType(4)
-        tets = index[conn.astype(int)].reshape(-1, 4)
-        groups = {}
-        for tag, key in ((2, "outer"), (3, "obstacle")):
-            node_tags, _ = gmsh.model.mesh.getNodesForPhysicalGroup(2, tag)
-            groups[key] = index[node_tags.astype(int)]
-    used = np.unique(tets)  # drop nodes no tet uses (geometry points)
-    remap = np.full(len(points), -1)
-    remap[used] = np.arange(len(used))
-    points, tets = np.ascontiguousarray(points[used]), remap[tets]
-    obstacle = np.unique(remap[groups["obstacle"]])
-    outer = np.setdiff1d(remap[groups["outer"]], obstacle)
-    flip = tet_signed_volumes(points, tets) < 0
-    tets[flip] = tets[flip][:, [0, 2, 1, 3]]
+        points, tets, (outer, obstacle) = generate_tets(gmsh, size, (2, 3))
+    outer = np.setdiff1d(outer, obstacle)
     return TetDomain(name, points, tets, outer, obstacle, center)
 
 

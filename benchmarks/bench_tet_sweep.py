@@ -29,11 +29,11 @@ from dataclasses import dataclass
 import numpy as np
 from _anchors3d import elasticity_motion
 from _careful3d import careful_motion
+from _meshes3d import generate_tets
 from scipy.spatial.transform import Rotation
 
 from meshopt_toolkit.gmsh_session import gmsh_session
 from meshopt_toolkit.kernels.tetrahedra import mean_ratios as tet_mean_ratios
-from meshopt_toolkit.kernels.tetrahedra import signed_volumes as tet_signed_volumes
 from meshopt_toolkit.motion.tet_move import move_tets
 
 
@@ -73,28 +73,9 @@ def mesh(outer_box, make_obstacles, size: float) -> Domain:
         gmsh.model.addPhysicalGroup(3, [t for _, t in volume], 1)
         for k in range(-1, len(solids)):
             gmsh.model.addPhysicalGroup(2, [t for t in faces if owner(t) == k], 10 + k + 1)
-        gmsh.option.setNumber("Mesh.MeshSizeMin", size)
-        gmsh.option.setNumber("Mesh.MeshSizeMax", size)
-        gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
-        gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
-        gmsh.option.setNumber("Mesh.Optimize", 1)
-        gmsh.model.mesh.generate(3)
-        tags, coords, _ = gmsh.model.mesh.getNodes()
-        index = np.full(int(tags.max()) + 1, -1)
-        index[tags.astype(int)] = np.arange(len(tags))
-        points = coords.reshape(-1, 3)
-        _, conn = gmsh.model.mesh.getElementsByType(4)
-        tets = index[conn.astype(int)].reshape(-1, 4)
-        groups = [index[gmsh.model.mesh.getNodesForPhysicalGroup(2, 10 + k + 1)[0].astype(int)]
-                  for k in range(-1, len(solids))]
-    used = np.unique(tets)
-    remap = np.full(len(points), -1)
-    remap[used] = np.arange(len(used))
-    points, tets = np.ascontiguousarray(points[used]), remap[tets]
-    obstacles = [np.unique(remap[g]) for g in groups[1:]]
-    outer = np.setdiff1d(remap[groups[0]], np.concatenate(obstacles))
-    flip = tet_signed_volumes(points, tets) < 0
-    tets[flip] = tets[flip][:, [0, 2, 1, 3]]
+        points, tets, (outer, *obstacles) = generate_tets(
+            gmsh, size, [10 + k + 1 for k in range(-1, len(solids))])
+    outer = np.setdiff1d(outer, np.concatenate(obstacles))
     return Domain(points, tets, outer, obstacles)
 
 
