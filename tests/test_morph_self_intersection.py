@@ -126,6 +126,10 @@ def test_surface_morph_through_a_sheet_is_refused():
     res = mt.morph(src, flap_through_sheet(0.4)[1], 5)
     for frame in res.frames:
         assert not len(self_intersections(frame.points, src.triangles))
+    # a surface end through itself is the user's: such a morph is not checked
+    inside = SurfaceMesh(flap_through_sheet(1.0)[1].points, src.triangles)
+    assert len(self_intersections(inside.points, src.triangles))
+    assert mt.morph(inside, tgt, 5).n_frames == 5
 
 
 def test_guard_of_a_morph_checks_arrays_and_can_leave_the_target():
