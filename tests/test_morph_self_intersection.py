@@ -22,7 +22,7 @@ from meshopt_toolkit.mesh import SurfaceMesh, TetMesh
 from meshopt_toolkit.motion.handles3d import SelfIntersectionGuard
 from meshopt_toolkit.motion.similarity_3d import tet_boundary_faces
 from meshopt_toolkit.motion.tet_metric import TetGraphMetric
-from meshopt_toolkit.motion.tet_morph import _initial_path
+from meshopt_toolkit.motion.tet_morph import _initial_path, morph_tets
 from meshopt_toolkit.motion.tet_path import TetPath
 
 CUBE_P, CUBE_T = cube_tets(1)  # the unit cube in six tets
@@ -92,6 +92,8 @@ def test_tet_morph_through_a_wall_is_refused():
     with pytest.raises(SelfIntersectionError,
                        match=r"the morph makes the boundary intersect itself at frame \d"):
         mt.morph(src, tgt, 9)
+    with pytest.raises(SelfIntersectionError):  # avoidance cannot help: the start crosses
+        morph_tets(src, tgt, 9, avoid_crossings=True)
     # the same motion short of the wall is fine, every frame clean
     near = TetMesh(cube_through_wall(0.4)[1].points, src.tets)
     res = mt.morph(src, near, 5)
@@ -177,11 +179,33 @@ def test_auto_start_skips_a_linear_path_through_itself():
     assert _initial_path(*args, "linear", 12, crosses)[1:] == ("linear", True)
 
 
+def test_avoidance_reaches_the_geodesic_on_request(monkeypatch):
+    import meshopt_toolkit.motion.tet_morph as tet_morph
+
+    seen = []
+
+    class Spy(TetPath):
+        def __init__(self, metric, frames, crosses=None):
+            seen.append(crosses)
+            super().__init__(metric, frames, crosses)
+
+    monkeypatch.setattr(tet_morph, "TetPath", Spy)
+    P, T = cube_tets(2, 0.2, 1)
+    Q = P * [1.0, 1.0, 1.3] + 0.05 * np.sin(3.0 * P[:, [1, 2, 0]])
+    res = morph_tets(TetMesh(P, T), TetMesh(Q, T), 4, avoid_crossings=True)
+    plain = morph_tets(TetMesh(P, T), TetMesh(Q, T), 4)
+    assert callable(seen[0]) and seen[1] is None
+    through = P.copy()
+    through[0] = [1.5, 1.5, 1.5]  # the corner (0, 0, 0) pulled out through the face x = 1
+    assert not seen[0](res.points[1]) and seen[0](through)
+    np.testing.assert_array_equal(res.points, plain.points)  # no trial crossed here
+
+
 # ------------------------------------------------------------------ random admissible morphs
 @settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(seed=st.integers(0, 2**31 - 1), angle=st.floats(0.0, 170.0),
-       noise=st.floats(0.0, 0.06), frames=st.integers(3, 6))
-def test_random_small_morphs_write_only_clean_frames(seed, angle, noise, frames):
+       noise=st.floats(0.0, 0.06), frames=st.integers(3, 6), avoid=st.booleans())
+def test_random_small_morphs_write_only_clean_frames(seed, angle, noise, frames, avoid):
     """A jittered 2×2×2 cube and its rigid image with the vertices perturbed: every
     frame returned has every tet positive and a boundary free of self-intersections."""
     P, T = cube_tets(2, 0.2, seed % 1000)
@@ -192,7 +216,8 @@ def test_random_small_morphs_write_only_clean_frames(seed, angle, noise, frames)
     if not (signed_volumes(Q, T) > 0).all():
         Q = R.apply(P)  # the perturbation inverted a tet: the rigid image
     src, tgt = TetMesh(P, T), TetMesh(Q, T)
-    res = mt.morph(src, tgt, frames, max_iterations=30)
+    res = (morph_tets(src, tgt, frames, max_iter=30, avoid_crossings=True) if avoid
+           else mt.morph(src, tgt, frames, max_iterations=30))
     for X in res.points:
         assert (signed_volumes(X, T) > 0).all()
         assert not len(self_intersections(X, src.boundary_faces))
