@@ -202,7 +202,7 @@ def morph_tets(source: TetMesh, target: TetMesh, frames: int = 9, *, weight: flo
     avoid_crossings : bool
         Refuse a geodesic trial whose frames' boundaries intersect, as an inverted one
         (where the start's do not): an exact check of every interior frame per trial,
-        about a quarter of an iteration's time at 23k tets. Without it a geodesic through
+        a fifth to a third of an iteration's time at 23k tets. Without it a geodesic through
         itself is refused at the end.
     callback : callable ``(iteration, E, |∇E|) -> bool | None``, optional
         Called at every iteration; returning True stops it (status "stopped", the frames
