@@ -170,13 +170,14 @@ def test_auto_start_skips_a_linear_path_through_itself():
     times = np.linspace(0.0, 1.0, 5)
     b = np.unique(faces)
     args = (metric, src.points, tgt.points, src.tets, b, times)
-    _, kind, crossing = _initial_path(*args, "auto", 12, None)
-    assert (kind, crossing) == ("linear", False)  # not asked
+    assert _initial_path(*args, "auto", 12, None)[1] == "linear"  # not asked
     crosses = lambda Q: bool(len(self_intersections(Q, faces)))  # noqa: E731
-    path, kind, crossing = _initial_path(*args, "auto", 12, crosses)
-    assert kind == "continuation"
-    assert crossing == any(crosses(Q) for Q in path[1:-1])
-    assert _initial_path(*args, "linear", 12, crosses)[1:] == ("linear", True)
+    assert _initial_path(*args, "auto", 12, crosses)[1] == "continuation"
+    assert _initial_path(*args, "linear", 12, crosses)[1] == "linear"  # as asked
+    # a clean linear path is kept
+    near = cube_through_wall(0.4)[1].points
+    assert _initial_path(metric, src.points, near, src.tets, b, times, "auto", 12,
+                         crosses)[1] == "linear"
 
 
 def test_avoidance_reaches_the_geodesic_on_request(monkeypatch):

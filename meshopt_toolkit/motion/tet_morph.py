@@ -260,11 +260,12 @@ def morph_tets(source: TetMesh, target: TetMesh, frames: int = 9, *, weight: flo
             # the pair differs by a similarity: so do all frames, exactly
             residual, kind, geo = np.array([P0] * len(times)), "similarity", None
         else:
-            init, kind, crossing = _initial_path(metric, P0, R1, T, boundary, times,
-                                                 initial, max_splits, crosses)
+            init, kind = _initial_path(metric, P0, R1, T, boundary, times, initial,
+                                       max_splits, crosses)
             # trials through themselves refused on request, unless the start is one
-            model = TetPath(metric, init, crosses=crosses if avoid_crossings and not crossing
-                            else None)
+            avoid = avoid_crossings and crosses is not None and not any(
+                crosses(Q) for Q in init[1:-1])
+            model = TetPath(metric, init, crosses=crosses if avoid else None)
             geo = levenberg_marquardt(model, init, LevenbergMarquardtOptions(
                 max_iter=int(max_iter), gtol=gtol, cg_rtol=PATH_CG_RTOL, newton=newton),
                 callback)
@@ -296,26 +297,21 @@ def morph_tets(source: TetMesh, target: TetMesh, frames: int = 9, *, weight: flo
 
 def _initial_path(metric: TetGraphMetric, P0: FloatArray, R1: FloatArray, T: IntArray,
                   boundary: IntArray, times: FloatArray, initial: str, max_splits: int,
-                  crosses=None) -> tuple[FloatArray, str, bool]:
-    """A path from ``P0`` to ``R1`` at ``times`` with every tet positive, its kind, and
-    whether a frame's boundary intersects itself (``crosses`` of a frame; None: never
-    asked). "auto" takes the linear path only where it does not."""
-
-    def crossing(path: FloatArray) -> bool:
-        return crosses is not None and any(crosses(Q) for Q in path[1:-1])
-
+                  crosses=None) -> tuple[FloatArray, str]:
+    """A path from ``P0`` to ``R1`` at ``times`` with every tet positive, and its kind;
+    "auto" takes the linear path only where no frame's boundary intersects itself
+    (``crosses`` of a frame, if given)."""
     if initial in ("auto", "linear"):
         linear = (1.0 - times)[:, None, None] * P0 + times[:, None, None] * R1
         linear[0], linear[-1] = P0, R1
         if all((metric.strain.determinants(Q) > 0).all() for Q in linear[1:-1]):
-            through = crossing(linear)
-            if initial == "linear" or not through:
-                return linear, "linear", through
+            if initial == "linear" or crosses is None or not any(
+                    crosses(Q) for Q in linear[1:-1]):
+                return linear, "linear"
         elif initial == "linear":
             raise NoAdmissiblePathError(
                 "the linear interpolation inverts a tet (use the continuation start)")
-    path = _continuation(metric, P0, R1, T, boundary, times, max_splits)
-    return path, "continuation", crossing(path)
+    return _continuation(metric, P0, R1, T, boundary, times, max_splits), "continuation"
 
 
 def _continuation(metric: TetGraphMetric, P0: FloatArray, R1: FloatArray, T: IntArray,
