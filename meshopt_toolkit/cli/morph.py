@@ -13,7 +13,8 @@ Tetrahedral meshes (a file with any tetrahedron) are morphed with the tet distor
 metric (:func:`meshopt_toolkit.motion.tet_morph.morph_tets`): every frame has every tet
 positively oriented; the frames are the source file with only its points replaced (every
 block, physical group, name and datum kept), with ``quality.csv`` and ``summary.json``
-beside them (no plots).
+beside them (no plots). An end whose boundary intersects itself, or a morph with a frame
+whose boundary (or surface) does, is refused in one line and nothing is written.
 
 Two poses of a triangle surface in 3D (same triangles) are morphed by
 :mod:`meshopt_toolkit.motion.surface_morph` (membrane distortion and bending, every frame

@@ -200,7 +200,8 @@ class SelfIntersectionGuard:
     Made before the solve, it refuses a tet mesh whose boundary already intersects
     itself, and targets that fix two intersecting triangles (every vertex of both a
     handle); :meth:`check` refuses a motion with a frame that intersects itself. A surface
-    that intersects itself before the motion is not checked at all.
+    that intersects itself before the motion is not checked at all. A morph's guard is
+    :meth:`of_morph`.
 
     Raises
     ------
@@ -209,10 +210,7 @@ class SelfIntersectionGuard:
     """
 
     def __init__(self, mesh, handles, targets) -> None:
-        points, self.triangles = _points_and_triangles(mesh)
-        self.what = "the boundary" if hasattr(mesh, "boundary_faces") else "the surface"
-        self.active = (bool(np.isfinite(points).all()) and len(self.triangles) > 1
-                       and getattr(mesh, "is_admissible", True))
+        points = self._start(mesh)
         if not self.active:
             return  # the solver names what is wrong (inverted tets: a boundary of no use)
         if found := self._pairs(points, self.triangles):
@@ -230,6 +228,41 @@ class SelfIntersectionGuard:
             raise SelfIntersectionError(
                 f"the targets make {self.what} intersect itself: {found}")
 
+    def _start(self, mesh) -> FloatArray:
+        """Set the triangles, their name and whether to check; ``mesh``'s points."""
+        points, self.triangles = _points_and_triangles(mesh)
+        self.what = "the boundary" if hasattr(mesh, "boundary_faces") else "the surface"
+        self.active = (bool(np.isfinite(points).all()) and len(self.triangles) > 1
+                       and getattr(mesh, "is_admissible", True))
+        return points
+
+    @classmethod
+    def of_morph(cls, source, target) -> SelfIntersectionGuard:
+        """The guard of a morph from ``source`` to ``target`` (the same triangles): it
+        refuses a tet mesh end whose boundary intersects itself, naming the end; a surface
+        morph with an end that intersects itself is not checked (as a move's source).
+
+        Raises
+        ------
+        SelfIntersectionError
+            ``"<end>: the boundary intersects itself: …"``, the end by its file or as
+            "the morph's source"/"the morph's target".
+        """
+        guard = cls.__new__(cls)
+        guard._start(source)
+        for name, mesh in (("source", source), ("target", target)):
+            points = _points_and_triangles(mesh)[0]
+            if not guard.active or not np.isfinite(points).all():
+                guard.active = False
+                return guard
+            if found := cls._pairs(points, guard.triangles):
+                if guard.what == "the surface":
+                    guard.active = False  # not ours to keep
+                    return guard
+                end = getattr(mesh, "source", None) or f"the morph's {name}"
+                raise SelfIntersectionError(f"{end}: {guard.what} intersects itself: {found}")
+        return guard
+
     @staticmethod
     def _pairs(points: FloatArray, triangles: IntArray) -> str:
         """``""`` or the intersecting pairs of ``triangles`` in words."""
@@ -240,13 +273,26 @@ class SelfIntersectionGuard:
         return (f"{len(pairs)} pair{'s' if len(pairs) > 1 else ''} of triangles "
                 f"(e.g. on vertices {a} and {b})")
 
-    def check(self, frames) -> None:
-        """Refuse the motion if a frame after the first intersects itself."""
+    def check(self, frames, *, motion: str = "the motion", last: bool = True) -> None:
+        """Refuse the motion if a frame after the first intersects itself.
+
+        Parameters
+        ----------
+        frames : sequence of meshes or of (N, 3) point arrays
+            The first is not checked.
+        motion : str
+            How the message names the motion ("the motion", "the morph").
+        last : bool
+            Check the last frame too (False: a morph's target, checked already).
+        """
         if not self.active:
             return
-        for k, frame in enumerate(frames[1:], start=1):
-            points = _points_and_triangles(frame)[0]
+        stop = len(frames) if last else len(frames) - 1
+        for k in range(1, stop):
+            frame = frames[k]
+            points = (np.asarray(frame, float) if isinstance(frame, np.ndarray)
+                      else _points_and_triangles(frame)[0])
             if found := self._pairs(points, self.triangles):
                 where = "the result" if k == len(frames) - 1 else f"frame {k}"
                 raise SelfIntersectionError(
-                    f"the motion makes {self.what} intersect itself at {where}: {found}")
+                    f"{motion} makes {self.what} intersect itself at {where}: {found}")

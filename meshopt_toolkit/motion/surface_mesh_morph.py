@@ -13,6 +13,7 @@ import numpy as np
 from ..errors import InvalidMeshError
 from ..mesh import SurfaceMesh
 from ..results import PathIteration
+from .handles3d import SelfIntersectionGuard
 from .surface_mesh_move import surface_with_points
 from .surface_morph import BENDING, WEIGHT, SurfaceMorph, morph_surface
 
@@ -84,6 +85,9 @@ def morph_surface_mesh(source, target, frames: int = 9, *, weight: float = WEIGH
         degenerate triangle.
     NotAdmissibleError
         No fold-free start path.
+    SelfIntersectionError
+        A frame that intersects itself, where neither end does (exact; no frame is
+        returned).
     """
     kind = _kind(source)
     if kind is None or _kind(target) != kind:
@@ -97,6 +101,7 @@ def morph_surface_mesh(source, target, frames: int = 9, *, weight: float = WEIGH
                f"{len(t.points)} and {len(t.triangles)}"
                if (len(s.points), len(s.triangles)) != (len(t.points), len(t.triangles))
                else "other triangles"))
+    guard = SelfIntersectionGuard.of_morph(s, t)  # ends through themselves: not checked
     if progress is not None:
         progress(0.0)
     hook = callback
@@ -106,6 +111,8 @@ def morph_surface_mesh(source, target, frames: int = 9, *, weight: float = WEIGH
             return callback(record) if callback is not None else None
     res = morph_surface(s.points, t.points, s.triangles, frames, weight=weight,
                         bending=bending, max_iterations=max_iterations, callback=hook)
+
+    guard.check(res.points, motion="the morph", last=False)
 
     def typed(points):
         if kind == "trimesh":

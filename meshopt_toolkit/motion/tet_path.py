@@ -13,10 +13,14 @@ frames (:class:`.assembly.BlockTridiagonal`), each block a sparse ``3N × 3N`` m
 one 12×12 block per tet (:class:`TetMeshPattern`), solved by conjugate gradients with the
 frames' kept factorizations and the time-coupled preconditioner (:class:`.FrameBlocks`,
 :mod:`.time_coupling`, which take any per-cell blocks). A frame with a tet not positively
-oriented (``φ = ∞``) is not admissible.
+oriented (``φ = ∞``) is not admissible; with ``crosses``, neither is one whose boundary
+intersects itself (the morph's avoidance: a trial through itself is refused like an
+inverted one).
 """
 
 from __future__ import annotations
+
+from collections.abc import Callable
 
 import numpy as np
 import scipy.sparse as sp
@@ -74,10 +78,14 @@ class TetPath:
     frames : (K+1, N, 3) float array
         Every vertex in some tet (the mass of the others is zero). The ends are fixed:
         the frames given later have the same ends.
+    crosses : callable ``(N, 3) points -> bool``, optional
+        Whether a frame's boundary intersects itself; such a frame is not admissible.
     """
 
-    def __init__(self, metric: TetGraphMetric, frames: FloatArray) -> None:
+    def __init__(self, metric: TetGraphMetric, frames: FloatArray,
+                 crosses: Callable[[FloatArray], bool] | None = None) -> None:
         self.metric = metric
+        self.crosses = crosses
         self.frames = np.array(frames, dtype=float)
         self.K = self.frames.shape[0] - 1
         self.N = self.frames.shape[1]
@@ -187,9 +195,12 @@ class TetPath:
 
     # -- admissibility and the step solver ----------------------------------------------
     def admissible(self, frames: FloatArray) -> bool:
-        """Every tet of every interior frame positively oriented."""
+        """Every tet of every interior frame positively oriented (and, with ``crosses``,
+        no interior frame's boundary through itself: checked last, it costs more)."""
+        inner = frames[1:-1]
         return all(np.isfinite(Q).all() and (self.metric.strain.determinants(Q) > 0).all()
-                   for Q in frames[1:-1])
+                   for Q in inner) and (self.crosses is None
+                                        or not any(self.crosses(Q) for Q in inner))
 
     def step_solver(self, kept: FrameBlocks | None = None) -> FrameBlocks:
         """The interior frames' factorizations (block Jacobi or time-coupled
