@@ -17,8 +17,8 @@ three vertices. Sharing is by vertex index: distinct vertices at the same point 
   point on an edge of one of them). A segment meets a triangle not in its plane iff its
   endpoints are not strictly on one side of the plane and the three orientations of the
   segment's line with the triangle's edges agree in sign (zeros allowed). A segment in
-  the triangle's plane meets it iff their projections on the three coordinate planes
-  meet (projections of meeting sets meet; one projection is injective on the plane);
+  the triangle's plane meets it iff their projections meet on a coordinate plane where
+  the triangle keeps a nonzero area (that projection is one-to-one on the plane);
   two segments in space likewise, once coplanar. A zero-area triangle is the union of its
   edges.
 
@@ -165,15 +165,25 @@ def _inside_2d(p, a, b, c) -> np.ndarray:
 
 
 def _coplanar_segment_meets(p, q, a, b, c) -> np.ndarray:
-    """Segment and non-degenerate triangle in one plane: do they meet? (K,) bool."""
-    hit = np.ones(len(p), bool)
-    for d in _DROPS:
-        if not hit.any():
-            break
-        k = np.flatnonzero(hit)
-        P, Q, A, B, C = (x[k][:, d] for x in (p, q, a, b, c))
-        hit[k] = (segments_intersect(P, Q, A, B) | segments_intersect(P, Q, B, C)
-                  | segments_intersect(P, Q, C, A) | _inside_2d(P, A, B, C))
+    """Segment and non-degenerate triangle in one plane: do they meet? (K,) bool.
+
+    Decided in one coordinate projection per row, one on which the triangle keeps a
+    nonzero area (exact): that projection is one-to-one on the plane. The normal's largest
+    component (floats) names the first tried."""
+    drop = np.argmax(np.abs(np.cross(b - a, c - a)), axis=1)
+    hit = np.zeros(len(p), bool)
+    todo = np.ones(len(p), bool)
+    for shift in range(3):
+        for i, d in enumerate(_DROPS):
+            k = np.flatnonzero(todo & ((drop + shift) % 3 == i))
+            if not len(k):
+                continue
+            P, Q, A, B, C = (x[k][:, d] for x in (p, q, a, b, c))
+            k = k[orient2d(A, B, C) != 0]
+            todo[k] = False
+            P, Q, A, B, C = (x[k][:, d] for x in (p, q, a, b, c))
+            hit[k] = (segments_intersect(P, Q, A, B) | segments_intersect(P, Q, B, C)
+                      | segments_intersect(P, Q, C, A) | _inside_2d(P, A, B, C))
     return hit
 
 
