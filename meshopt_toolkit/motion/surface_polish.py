@@ -8,13 +8,15 @@ triangles these vertices touch,
 
     F = (1/s) log Σ_t exp(s r_t),    r_t = q̄_t / q_t = q̄_t (ℓ_0+ℓ_1+ℓ_2) ℓ_0 ℓ_1 ℓ_2 / (4 |n_t|²),
 
-(``n_t`` the triangle's normal of length twice its area) by L-BFGS over tangential
-displacements: each free vertex moves in the plane through its start position orthogonal to
-its area-weighted normal there, so the surface keeps its shape to first order. The line
-search refuses every trial with a degenerate triangle (``F = +inf``) or a new fold
-(:class:`.surface_paths.FoldTest` against the rest surface, evaluated on the triangles whose
-corners' fans the free vertices touch); the result is kept only where the worst relative
-quality of the triangles not wholly handles rises.
+(``n_t`` the triangle's normal of length twice its area), plus ``μ`` times the
+area-weighted mean ``|φ_t|²`` of their membrane distortion (the neighbourhood stays where
+the motion put it), by L-BFGS over tangential displacements: each free vertex moves in the
+plane through its start position orthogonal to its area-weighted normal there, so the
+surface keeps its shape to first order. The line search refuses every trial with a
+degenerate triangle (``F = +inf``) or a new fold (:class:`.surface_paths.FoldTest` against
+the rest surface, evaluated on the triangles whose corners' fans the free vertices touch);
+the result is kept only where the worst relative quality of the triangles not wholly
+handles rises.
 """
 
 from __future__ import annotations
