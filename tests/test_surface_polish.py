@@ -162,3 +162,12 @@ def test_polish_raises_a_twisted_patch_and_move_surface_reports_it():
     assert np.array_equal(polished.points[boundary], targets)
     assert np.array_equal(polished.frames[-1][np.setdiff1d(np.arange(len(V)), boundary)],
                           polished.points[np.setdiff1d(np.arange(len(V)), boundary)])
+
+
+def test_a_degenerate_triangle_at_the_start_leaves_the_points_as_they_are():
+    V, F, boundary = patch(5)
+    P = V.copy()
+    P[12] = P[13]  # two triangles collapsed onto an edge
+    out, info = polish_worst_triangles(V, F, P, boundary)
+    assert out is P and info["polish_vertices"] == 0
+    assert info["polish_worst_quality"] == [0.0, 0.0]

@@ -100,6 +100,8 @@ def _lbfgs(objective, admissible, u: FloatArray, iterations: int, first_step: fl
     not ``admissible`` halves the step. ``first_step``: the largest displacement of the
     first (steepest-descent) step."""
     F, G = objective(u)
+    if G is None:  # a degenerate triangle at the start: nothing to descend
+        return u
     S: list = []
     Y: list = []
     for _ in range(iterations):
