@@ -171,3 +171,17 @@ def test_a_degenerate_triangle_at_the_start_leaves_the_points_as_they_are():
     out, info = polish_worst_triangles(V, F, P, boundary)
     assert out is P and info["polish_vertices"] == 0
     assert info["polish_worst_quality"] == [0.0, 0.0]
+
+
+def test_a_rigid_motion_is_left_as_it_is():
+    """Every relative quality 1 (to rounding): nothing is worse than at rest."""
+    V, F, boundary = patch(6)
+    c, s = np.cos(0.7), np.sin(0.7)
+    P = V @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) + [0.3, -1.0, 2.0]
+    out, info = polish_worst_triangles(V, F, P, boundary[:3])
+    assert out is P and info["polish_vertices"] == 0
+    # the same surface with one vertex pushed sideways is polished
+    P[20] += 0.05 * (P[21] - P[20])
+    out, info = polish_worst_triangles(V, F, P, boundary[:3])
+    assert info["polish_vertices"] > 0
+    assert info["polish_worst_quality"][1] > info["polish_worst_quality"][0]

@@ -16,7 +16,8 @@ surface keeps its shape to first order. The line search refuses every trial with
 degenerate triangle (``F = +inf``) or a new fold (:class:`.surface_paths.FoldTest` against
 the rest surface, evaluated on the triangles whose corners' fans the free vertices touch);
 the result is kept only where the worst relative quality of the triangles not wholly
-handles rises.
+handles rises. A surface with no triangle worse than at rest (worst relative quality ≥ 1)
+is left as it is.
 """
 
 from __future__ import annotations
@@ -27,6 +28,10 @@ from .._typing import FloatArray, IntArray
 from ..kernels.surface import aspect_ratios
 from .surface_distortion import SurfaceDistortion
 from .surface_paths import FoldTest
+
+#: a worst relative quality this close to 1 (or above) is left alone: no triangle is worse
+#: than at rest, and trading shape for rounding-level gains would only cost energy
+_AT_REST = 1e-9
 
 
 def inverse_qualities(points: FloatArray, triangles: IntArray) -> tuple[FloatArray, FloatArray]:
@@ -189,7 +194,7 @@ def polish_worst_triangles(rest: FloatArray, triangles: IntArray, points: FloatA
     -------
     points : (N, 3) float array
         The polished points, or ``points`` itself where the polish did not raise the worst
-        relative quality.
+        relative quality or where it is ≥ 1 already.
     info : dict
         ``polish_vertices`` (how many moved; 0 where ``points`` is returned),
         ``polish_worst_quality`` (before, after).
@@ -204,8 +209,8 @@ def polish_worst_triangles(rest: FloatArray, triangles: IntArray, points: FloatA
     rel = np.where(counted, aspect_ratios(P, F) / rest_q, np.inf)
     before = float(rel.min()) if counted.any() else 1.0
     info = {"polish_vertices": 0, "polish_worst_quality": [before, before]}
-    if iterations <= 0 or not counted.any():
-        return P, info
+    if iterations <= 0 or not counted.any() or before >= 1.0 - _AT_REST:
+        return P, info  # nothing to do, or no triangle worse than at rest
     seeds = np.argsort(rel)[:min(worst, int(counted.sum()))]
     near = np.zeros(len(P), bool)
     near[F[seeds]] = True
