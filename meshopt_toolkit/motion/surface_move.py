@@ -51,6 +51,7 @@ from ..solvers import factorize_spd
 from .bending import ShellBending
 from .surface_distortion import SurfaceDistortion
 from .surface_paths import FoldTest, HandlePath, global_similarity, handle_groups
+from .surface_polish import polish_worst_triangles
 
 SQRT2 = np.sqrt(2.0)
 
@@ -93,6 +94,7 @@ class SurfaceMoveResult:
     seconds: float
     steps: int = field(default=0)
     factorizations: int = field(default=0)
+    polished: int = field(default=0)
 
     def summary(self) -> dict:
         """Worst relative quality, folds, handle error, seconds, steps (and the
@@ -100,7 +102,7 @@ class SurfaceMoveResult:
         return {"worst relative quality": self.worst_quality, "folds": self.folds,
                 "handle error": self.handle_error, "seconds": self.seconds,
                 "steps": self.steps, "iterations": self.iterations,
-                "factorizations": self.factorizations}
+                "factorizations": self.factorizations, "polished vertices": self.polished}
 
 
 def upper_products(J: FloatArray) -> FloatArray:
@@ -294,7 +296,8 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
                  steps: int = 10, weight: float = 1.0, bending: float = 0.3,
                  anchor: str = "rest", emphasis: float = 1.0, area_weights: bool = True,
                  max_iterations: int = 4, rtol: float = 1e-3, final_iterations: int = 30,
-                 final_rtol: float = 1e-6, max_halvings: int = 8) -> SurfaceMoveResult:
+                 final_rtol: float = 1e-6, max_halvings: int = 8,
+                 polish: int = 30) -> SurfaceMoveResult:
     """Move a triangle surface: ``handles`` exactly to ``targets``, the rest placed so
     that each triangle's shape changes as little as the motion allows (module docstring).
 
@@ -324,6 +327,8 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
         step lowers the energy by less than ``rtol`` times the energy.
     final_iterations, final_rtol : the same for the last increment (the result).
     max_halvings : how often one increment may be halved.
+    polish : L-BFGS iterations of the last frame's local polish of the worst triangles
+        (:mod:`.surface_polish`; 0: none).
 
     Raises
     ------
@@ -395,6 +400,8 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
             dt /= 2.0
             continue
         Q, n_it = out
+        if t1 >= 1.0 and polish > 0:  # the result's worst triangles polished
+            Q, polished = polish_worst_triangles(V, F, Q, handles, iterations=polish)
         iterations += n_it
         new_phi = problem.membrane.values(Q)
         dphi = np.linalg.norm(new_phi - phi, axis=1)
@@ -415,4 +422,5 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
         folds=int(np.sum(problem.folds.mask(Q) & free)),
         handle_error=float(np.abs(Q[handles] - targets).max()) if len(handles) else 0.0,
         iterations=iterations, seconds=time.perf_counter() - t_start, steps=len(frames) - 1,
-        factorizations=problem.factorizations)
+        factorizations=problem.factorizations,
+        polished=polished["polish_vertices"] if polish > 0 else 0)

@@ -1,0 +1,187 @@
+"""The local polish of a moved surface's worst triangles (motion/surface_polish.py)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from meshopt_toolkit.diagnostics import check_gradient
+from meshopt_toolkit.motion.surface_distortion import SurfaceDistortion
+from meshopt_toolkit.motion.surface_move import move_surface
+from meshopt_toolkit.motion.surface_polish import (SoftMaxObjective, _tangent_bases,
+                                                   inverse_qualities, polish_worst_triangles)
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "benchmarks"))
+import _surface_measures as sm  # noqa: E402
+
+
+def patch(n: int = 7):
+    """A bumpy n×n grid patch in R³ (each square cut along a diagonal) and its boundary."""
+    x, y = np.meshgrid(np.linspace(0.0, 1.0, n), np.linspace(0.0, 1.0, n))
+    V = np.column_stack([x.ravel(), y.ravel(), 0.15 * np.sin(3.0 * x.ravel()) * y.ravel()])
+    a = (np.arange(n - 1)[:, None] * n + np.arange(n - 1)[None, :]).ravel()
+    F = np.concatenate([np.column_stack([a, a + 1, a + n + 1]),
+                        np.column_stack([a, a + n + 1, a + n])])
+    i, j = np.divmod(np.arange(n * n), n)
+    boundary = np.flatnonzero((i == 0) | (j == 0) | (i == n - 1) | (j == n - 1))
+    return V, F, boundary
+
+
+def angle_quality(P: np.ndarray) -> np.ndarray:
+    """2r/R of triangles (T, 3, 3) from their angles: r/R = cos α + cos β + cos γ − 1."""
+    total = 0.0
+    for k in range(3):
+        u, v = P[:, (k + 1) % 3] - P[:, k], P[:, (k + 2) % 3] - P[:, k]
+        total = total + np.sum(u * v, 1) / (np.linalg.norm(u, axis=1) * np.linalg.norm(v, axis=1))
+    return 2.0 * (total - 1.0)
+
+
+def test_inverse_quality_is_one_over_twice_inradius_over_circumradius_and_its_gradient():
+    rng = np.random.default_rng(3)
+    P = rng.normal(size=(40, 3))
+    F = rng.permutation(40)[:39].reshape(13, 3)
+    r, _ = inverse_qualities(P, F)
+    assert np.allclose(1.0 / r, angle_quality(P[F]), rtol=1e-10, atol=1e-12)
+    one = np.array([[0, 1, 2]])
+    for t in range(4):  # the gradient of each triangle's 1/q, each corner
+        res = check_gradient(lambda x: float(inverse_qualities(x, one)[0][0]),
+                             lambda x: inverse_qualities(x, one)[1][0], P[F[t]].copy(), rng=t)
+        assert res.passed, res
+    equilateral = np.array([[0.0, 0, 0], [1, 0, 0], [0.5, np.sqrt(3) / 2, 0]])
+    r, _ = inverse_qualities(equilateral, np.array([[0, 1, 2]]))
+    assert r[0] == pytest.approx(1.0, rel=1e-14)
+    r, g = inverse_qualities(np.array([[0.0, 0, 0], [1, 0, 0], [2, 0, 0]]), np.array([[0, 1, 2]]))
+    assert r[0] == np.inf and not g.any()
+
+
+@pytest.mark.parametrize("shape", [0.0, 10.0])
+def test_objective_gradient_taylor(shape):
+    rng = np.random.default_rng(11)
+    V, F, boundary = patch(6)
+    P = V + 0.03 * rng.normal(size=V.shape)
+    free = np.setdiff1d(np.arange(len(V)), boundary)
+    P0 = V[F]
+    areas = np.linalg.norm(np.cross(P0[:, 1] - P0[:, 0], P0[:, 2] - P0[:, 0]), axis=1)
+    objective = SoftMaxObjective(P, F, sm.aspect_ratios(V, F), free,
+                                 _tangent_bases(P, F, free), 50.0, SurfaceDistortion(V, F),
+                                 areas, shape)
+    u = 0.01 * rng.normal(size=2 * len(free))
+    res = check_gradient(lambda u: objective(u)[0], lambda u: objective(u)[1], u, rng=1)
+    assert res.passed, res
+    # the soft maximum lies between the largest r and it plus log(T)/s
+    r = sm.aspect_ratios(V, F) / sm.aspect_ratios(objective.points(u), F)
+    objective.shape = 0.0
+    value = objective(u)[0]
+    assert r.max() <= value <= r.max() + np.log(len(F)) / 50.0 + 1e-12
+
+
+def test_a_pushed_vertex_is_polished_back_to_its_rest_shapes():
+    """One interior vertex of a flat grid pushed sideways, every other vertex a handle: the
+    best worst relative quality is 1 (the rest position, closed form), and the polish comes
+    to it in the plane."""
+    V, F, _ = patch(5)
+    V[:, 2] = 0.0
+    k = 12  # the centre
+    P = V.copy()
+    P[k, :2] += [0.12, 0.07]
+    handles = np.setdiff1d(np.arange(len(V)), [k])
+    before = sm.worst_relative_quality(V, P, F, handles)
+    out, info = polish_worst_triangles(V, F, P, handles, iterations=60)
+    after = sm.worst_relative_quality(V, out, F, handles)
+    assert before < 0.75
+    assert after > 0.99 and info["polish_worst_quality"][1] == pytest.approx(after)
+    assert np.linalg.norm(out[k] - V[k]) < 0.02 and out[k, 2] == 0.0
+    assert np.array_equal(out[handles], P[handles]) and info["polish_vertices"] == 1
+    # a brute-force search over the vertex's plane finds nothing better than the polish
+    # beyond its distance to the rest position
+    g = np.linspace(-0.2, 0.2, 81)
+    best = 0.0
+    for dx in g:
+        trial = np.repeat(P[None], len(g), axis=0)
+        trial[:, k, 0] = V[k, 0] + dx
+        trial[:, k, 1] = V[k, 1] + g
+        best = max(best, max(sm.worst_relative_quality(V, T, F, handles) for T in trial))
+    assert best == pytest.approx(1.0) and after >= best - 0.01
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), amplitude=st.floats(0.02, 0.25),
+       twist=st.floats(-0.8, 0.8), n=st.integers(4, 8))
+def test_polish_never_lowers_the_worst_quality_folds_or_moves_a_handle(seed, amplitude,
+                                                                       twist, n):
+    rng = np.random.default_rng(seed)
+    V, F, boundary = patch(n)
+    k = rng.normal(size=(3, 3)) * 3.0
+    phase = rng.uniform(0, 2 * np.pi, 3)
+    P = V + amplitude * np.sin(V @ k + phase)  # a smooth motion
+    c, s = np.cos(twist * V[:, 0]), np.sin(twist * V[:, 0])  # twisted about the x axis
+    P[:, 1], P[:, 2] = c * P[:, 1] - s * P[:, 2], s * P[:, 1] + c * P[:, 2]
+    P += 0.01 * amplitude * rng.normal(size=V.shape)
+    handles = np.union1d(boundary, rng.choice(len(V), size=n // 2, replace=False))
+    if (sm.aspect_ratios(P, F) < 1e-3).any():
+        return
+    folded = sm.fold_mask(V, P, F)
+    out, info = polish_worst_triangles(V, F, P, handles)
+    assert np.array_equal(out[handles], P[handles])
+    before = sm.worst_relative_quality(V, P, F, handles)
+    after = sm.worst_relative_quality(V, out, F, handles)
+    assert after >= before
+    assert not np.any(sm.fold_mask(V, out, F) & ~folded)
+    assert (sm.aspect_ratios(out, F) > 0).all()
+    if info["polish_vertices"]:
+        assert after > before
+        # each vertex moved in its tangent plane at the start (area-weighted normal)
+        moved = np.flatnonzero(np.any(out != P, axis=1))
+        N = np.zeros_like(P)
+        np.add.at(N, F.ravel(), np.repeat(sm.normals(P, F), 3, axis=0))
+        N /= np.linalg.norm(N, axis=1, keepdims=True)
+        assert np.abs(np.sum((out - P)[moved] * N[moved], axis=1)).max() < 1e-12
+    else:
+        assert out is P or np.array_equal(out, P)
+
+
+def test_polish_raises_a_twisted_patch_and_move_surface_reports_it():
+    V, F, boundary = patch(7)
+    rng = np.random.default_rng(5)
+    P = V + 0.15 * np.sin(V @ (3.0 * rng.normal(size=(3, 3))))
+    out, info = polish_worst_triangles(V, F, P, boundary)
+    b, a = info["polish_worst_quality"]
+    assert a > b + 0.01 and info["polish_vertices"] > 0
+    assert sm.worst_relative_quality(V, out, F, boundary) == pytest.approx(a, rel=1e-12)
+    targets = P[boundary]
+    plain = move_surface(V, F, boundary, targets, steps=4, polish=0)
+    polished = move_surface(V, F, boundary, targets, steps=4)
+    assert plain.polished == 0 and plain.summary()["polished vertices"] == 0
+    assert polished.worst_quality >= plain.worst_quality and polished.folds == 0
+    assert np.array_equal(polished.points[boundary], targets)
+    assert np.array_equal(polished.frames[-1][np.setdiff1d(np.arange(len(V)), boundary)],
+                          polished.points[np.setdiff1d(np.arange(len(V)), boundary)])
+
+
+def test_a_degenerate_triangle_at_the_start_leaves_the_points_as_they_are():
+    V, F, boundary = patch(5)
+    P = V.copy()
+    P[12] = P[13]  # two triangles collapsed onto an edge
+    out, info = polish_worst_triangles(V, F, P, boundary)
+    assert out is P and info["polish_vertices"] == 0
+    assert info["polish_worst_quality"] == [0.0, 0.0]
+
+
+def test_a_rigid_motion_is_left_as_it_is():
+    """Every relative quality 1 (to rounding): nothing is worse than at rest."""
+    V, F, boundary = patch(6)
+    c, s = np.cos(0.7), np.sin(0.7)
+    P = V @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) + [0.3, -1.0, 2.0]
+    out, info = polish_worst_triangles(V, F, P, boundary[:3])
+    assert out is P and info["polish_vertices"] == 0
+    # the same surface with one vertex pushed sideways is polished
+    P[20] += 0.05 * (P[21] - P[20])
+    out, info = polish_worst_triangles(V, F, P, boundary[:3])
+    assert info["polish_vertices"] > 0
+    assert info["polish_worst_quality"][1] > info["polish_worst_quality"][0]
