@@ -22,7 +22,8 @@ displacement into the free vertices, then steps on the normal equations (CHOLMOD
 increment's first factor is kept while full steps are taken), each iterate accepted only
 where the energy decreases, every triangle keeps ``det C > 0`` and none folds
 (:class:`.surface_paths.FoldTest`). The last increment, whose end is the result, is
-iterated further (``final_iterations``, ``final_rtol``).
+iterated further (``final_iterations``, ``final_rtol``), its factor kept through shortened
+steps until they stall (``final_stall``: chord steps).
 
 Where one similarity moves all handles, the whole surface follows it exactly (φ moves by
 ``√2 log s`` in its first component, bending not at all), so a rigid motion of the
