@@ -285,3 +285,26 @@ def test_every_vertex_a_handle_is_moved_to_its_target():
         res = move_surface(V, F, handles, targets, steps=3)
         assert np.array_equal(res.points, targets)
         assert res.iterations == 0
+
+
+def test_chord_steps_of_the_last_increment_reach_the_minimizer_of_full_gauss_newton():
+    """The last increment on a kept factor (renewed only where its shortened steps stall)
+    ends where Gauss–Newton renewing its factor after every shortened step ends, both run
+    to a tight tolerance, with fewer factorizations; at the defaults too (one increment:
+    the bar turned 90° at once, whose steps are shortened)."""
+    case = coarse_bar(90.0)
+    args = (case.V, case.F, case.handles, case.path(1.0))
+    tight = dict(steps=1, final_iterations=400, final_rtol=1e-13)
+    full = move_surface(*args, final_stall=None, **tight)
+    chord = move_surface(*args, final_stall=0.1, **tight)
+    assert np.array_equal(chord.points[case.handles], case.path(1.0)) and chord.folds == 0
+    assert np.abs(chord.points - full.points).max() < 1e-5 * np.ptp(case.V, axis=0).max()
+    assert sm.arap_energy(case.V, chord.points, case.F) == pytest.approx(
+        sm.arap_energy(case.V, full.points, case.F), rel=1e-6)
+    assert chord.worst_quality == pytest.approx(full.worst_quality, abs=1e-6)
+    assert chord.factorizations < full.factorizations
+    default_full = move_surface(*args, steps=1, final_stall=None)
+    default = move_surface(*args, steps=1)
+    assert default.factorizations < default_full.factorizations
+    assert default.folds == 0 and np.array_equal(default.points[case.handles], case.path(1.0))
+    assert sm.fold_count(case.V, default.points, case.F, case.handles) == 0

@@ -22,7 +22,8 @@ displacement into the free vertices, then steps on the normal equations (CHOLMOD
 increment's first factor is kept while full steps are taken), each iterate accepted only
 where the energy decreases, every triangle keeps ``det C > 0`` and none folds
 (:class:`.surface_paths.FoldTest`). The last increment, whose end is the result, is
-iterated further (``final_iterations``, ``final_rtol``).
+iterated further (``final_iterations``, ``final_rtol``), its factor kept through shortened
+steps until they stall (``final_stall``: chord steps).
 
 Where one similarity moves all handles, the whole surface follows it exactly (φ moves by
 ``√2 log s`` in its first component, bending not at all), so a rigid motion of the
@@ -232,9 +233,16 @@ class _Problem:
         return None if rhs is None else self.factor(rhs)
 
 
-def _step(problem: _Problem, Q0, H1, handles, max_iterations: int, rtol: float):
+def _step(problem: _Problem, Q0, H1, handles, max_iterations: int, rtol: float,
+          stall: float | None = None):
     """One increment from the admissible ``Q0`` to handles at ``H1``: the converged
-    positions and the iterations, or None where no admissible predictor exists."""
+    positions and the iterations, or None where no admissible predictor exists.
+
+    The factor is kept while full steps are taken. ``stall=None``: renewed after every
+    shortened step. A number: kept (chord steps) while each shortened step lowers the
+    energy by at least ``stall`` times the first step on that factor and by more than
+    ``rtol·E``; the increment ends where a full step, or one on a factor of its own
+    linearization, lowers it by ``rtol·E`` or less."""
     d = np.zeros_like(Q0)
     d[handles] = H1 - Q0[handles]
     if not problem.free.any():  # every vertex a handle: the step is the handles' path
@@ -261,12 +269,14 @@ def _step(problem: _Problem, Q0, H1, handles, max_iterations: int, rtol: float):
     else:
         return None
     E = problem.energy(Q, parts)
-    iterations, stale = 0, not fresh
+    iterations, stale, first = 0, not fresh, None
     for _ in range(max_iterations):
         rm, Jm, rb, Jb = problem.linearization(Q)
         g = problem.gradient(rm, Jm, rb, Jb, Q - problem.previous)
+        renewed = stale
         if stale:  # otherwise the factor of the increment's start serves (chord steps)
             problem.solve(problem.normal_matrix(Jm, Jb), 1e-6, None)
+            first = None
         step = problem.factor(g)
         iterations += 1
         # backtracking: the first fraction of the step that lowers the energy and keeps
@@ -286,9 +296,17 @@ def _step(problem: _Problem, Q0, H1, handles, max_iterations: int, rtol: float):
             continue
         decrease = E - E_trial
         Q, E = trial, E_trial
-        if decrease <= rtol * E:
+        if stall is None:
+            if decrease <= rtol * E:
+                break
+            stale = alpha < 1.0
+            continue
+        # a small decrease is convergence only from a full step or a renewed factor (a
+        # shortened chord step may be small because the factor is old)
+        if decrease <= rtol * E and (renewed or alpha == 1.0):
             break
-        stale = alpha < 1.0
+        first = decrease if first is None else first
+        stale = decrease <= rtol * E or (alpha < 1.0 and decrease < stall * first)
     return Q, iterations
 
 
@@ -296,8 +314,8 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
                  steps: int = 10, weight: float = 1.0, bending: float = 0.3,
                  anchor: str = "rest", emphasis: float = 1.0, area_weights: bool = True,
                  max_iterations: int = 4, rtol: float = 1e-3, final_iterations: int = 30,
-                 final_rtol: float = 1e-6, max_halvings: int = 8,
-                 polish: int = 30) -> SurfaceMoveResult:
+                 final_rtol: float = 1e-6, final_stall: float | None = 0.1,
+                 max_halvings: int = 8, polish: int = 30) -> SurfaceMoveResult:
     """Move a triangle surface: ``handles`` exactly to ``targets``, the rest placed so
     that each triangle's shape changes as little as the motion allows (module docstring).
 
@@ -326,6 +344,11 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
     max_iterations, rtol : Gauss–Newton–Marquardt steps per increment; stop when an accepted
         step lowers the energy by less than ``rtol`` times the energy.
     final_iterations, final_rtol : the same for the last increment (the result).
+    final_stall : float or None
+        The last increment keeps its factor while each shortened step lowers the energy
+        by at least this fraction of the first step on it (chord steps; a shortened step's
+        small decrease is convergence only on a renewed factor); None: renewed after
+        every shortened step, as in the other increments.
     max_halvings : how often one increment may be halved.
     polish : L-BFGS iterations of the last frame's local polish of the worst triangles
         (:mod:`.surface_polish`; 0: none).
@@ -391,7 +414,7 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
         last = t1 >= 1.0  # the end state is the result: converged further
         out = _step(problem, start, H1, handles,
                     max(max_iterations, final_iterations) if last else max_iterations,
-                    final_rtol if last else rtol)
+                    final_rtol if last else rtol, final_stall if last else None)
         if out is None:
             halvings += 1
             if halvings > max_halvings:
