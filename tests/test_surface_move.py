@@ -152,6 +152,36 @@ def test_handle_path_interpolates_the_rotation_angle():
     assert np.allclose(path(0.5), V[handles] @ bench.rotation([0, 0, 1], 1.0).T, atol=1e-12)
 
 
+def test_handle_path_turns_about_the_hinge_along_the_arc():
+    """A group turned about an axis line off its centroid travels along the arc about that
+    line (closed form), not along the chord; a shift along the axis is added linearly."""
+    V, F = sphere(2)
+    handles = np.flatnonzero(V[:, 2] > 0.6)
+    axis, pivot, lift = np.array([0.0, 1.0, 0.0]), np.array([0.4, 0.0, -0.7]), 0.3
+    R = bench.rotation(axis, 1.9)
+    X = V[handles]
+    path = HandlePath(X, pivot + (X - pivot) @ R.T + lift * axis, np.zeros(len(handles), int))
+    for t in (0.25, 0.5, 0.8):
+        arc = pivot + (X - pivot) @ bench.rotation(axis, 1.9 * t).T + t * lift * axis
+        assert np.allclose(path(t), arc, atol=1e-12)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 2**31 - 1), st.floats(-1.0, 1.0), st.floats(0.0, 1.0), st.floats(0.0, 1.0))
+def test_similarity_path_is_a_one_parameter_group(seed, log_scale, a, b):
+    """``screw(a)`` after ``screw(b)`` is ``screw(a + b)`` (with its spiral scale),
+    ``screw(0)`` the identity and ``screw(1)`` the similarity itself, for random
+    similarities."""
+    from meshopt_toolkit.motion.surface_paths import Similarity3
+    rng = np.random.default_rng(seed)
+    S = Similarity3(float(np.exp(log_scale)), random_rotation(rng), rng.normal(size=3),
+                    rng.normal(size=3))
+    x = rng.normal(size=(5, 3))
+    assert np.allclose(S.screw(a)(S.screw(b)(x)), S.screw(a + b)(x), atol=1e-9)
+    assert np.allclose(S.screw(0.0)(x), x, atol=1e-12)
+    assert np.allclose(S.screw(1.0 - 1e-13)(x), S(x), atol=1e-9)
+
+
 def test_bad_input_raises():
     V, F = sphere(1)
     with pytest.raises(InvalidMeshError):

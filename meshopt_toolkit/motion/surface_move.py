@@ -3,7 +3,7 @@ exactly at their targets and every other vertex so that the triangles keep their
 as well as the motion allows, with no degenerate and no folded triangle.
 
 The handles travel along :class:`.surface_paths.HandlePath` (each connected group's
-similarity followed in angle, the remainder linearly) in ``steps`` increments, an
+similarity followed along its screw motion, the remainder linearly) in ``steps`` increments, an
 increment halved where it cannot be taken. Each increment is a minimizing movement:
 
     min_Q  ½|Q − Q_prev|²_M + ½ w² Σ_t a_t c_t |φ_t(Q) − φ̄_t|² + ½ b Σ_e c_e (θ_e(Q) − θ̄_e)²
@@ -396,12 +396,12 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
         t1 = min(1.0, t + dt) if 1.0 - (t + dt) > 1e-12 else 1.0
         start = Q
         if whole is not None:  # the whole surface follows the handles' similarity
-            a, b = whole.at(t), whole.at(t1)
+            a, b = whole.screw(t), whole.screw(t1)
             start = b((Q - a.image) @ a.rotation / a.scale + a.centre)
             shift = SQRT2 * np.log(b.scale)
         else:
             shift = 0.0
-        H1 = path(t1) if whole is None or t1 >= 1.0 else whole.at(t1)(V[handles])
+        H1 = path(t1) if whole is None or t1 >= 1.0 else whole.screw(t1)(V[handles])
         problem.previous = start
         if emphasis > 0 and problem.free_triangles.any():  # the worst weigh more (c_t ≥ 1)
             size = np.linalg.norm(problem.membrane.values(start), axis=1)

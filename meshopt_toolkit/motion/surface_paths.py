@@ -1,6 +1,7 @@
 """Handle paths for moving triangle surfaces in R³: the similarity part of each group of
-handles (Umeyama's fit) followed along its own path — the rotation interpolated in angle,
-the scale geometrically, the centroid linearly — and the rest of the motion linearly; the
+handles (Umeyama's fit) followed along its screw motion — about the similarity's own axis
+line, so a group turned about a hinge moves along the arc — and the rest of the motion
+linearly; the
 fold test of a surface against its rest shape.
 
 A group is a connected piece of the handles (through mesh edges between handles). Where
@@ -22,7 +23,8 @@ from .._typing import FloatArray, IntArray
 
 @dataclass(frozen=True)
 class Similarity3:
-    """``x ↦ s R (x − c) + d``; its path ``t ↦ s^t R^t (x − c) + c + t (d − c)``."""
+    """``x ↦ s R (x − c) + d``, with two paths from the identity: :meth:`at` (the centroid
+    along the chord) and :meth:`screw` (about the similarity's own axis line)."""
 
     scale: float
     rotation: FloatArray  # (3, 3), det +1
@@ -33,13 +35,48 @@ class Similarity3:
         return self.scale * (np.asarray(x) - self.centre) @ self.rotation.T + self.image
 
     def at(self, t: float) -> "Similarity3":
-        """The similarity at fraction ``t`` of the path from the identity (t = 1: itself)."""
+        """The similarity at fraction ``t`` of its path of least mass-weighted motion from
+        the identity: the centroid along the chord, the rotation in angle about its axis,
+        the scale geometrically (t = 1: itself)."""
         if t == 1.0:
             return self
         rotvec = Rotation.from_matrix(self.rotation).as_rotvec()
         R = Rotation.from_rotvec(t * rotvec).as_matrix()
         return Similarity3(self.scale**t, R, self.centre,
                            self.centre + t * (self.image - self.centre))
+
+    def screw(self, t: float) -> "Similarity3":
+        """The similarity at fraction ``t`` of its screw (spiral) motion
+        ``p + s^t R^t (x − p)`` plus the shift along the axis, about the axis line through
+        ``p`` it turns about: a turn about a hinge moves along the arc, not the chord
+        (t = 1: itself; ``screw(a)`` after ``screw(b)`` is ``screw(a + b)``)."""
+        if t == 1.0:
+            return self
+        rotvec = Rotation.from_matrix(self.rotation).as_rotvec()
+        R = Rotation.from_rotvec(t * rotvec).as_matrix()
+        q, u, v_u = self._axis(rotvec)
+        log_s = float(np.log(self.scale))
+        # the shift along the axis under the scale: v_u (s^t − 1)/(s − 1), → t v_u at s = 1
+        along = t if abs(log_s) < 1e-12 else np.expm1(t * log_s) / np.expm1(log_s)
+        return Similarity3(self.scale**t, R, self.centre,
+                           self.centre + q - self.scale**t * (R @ q) + along * v_u * u)
+
+    def _axis(self, rotvec: FloatArray) -> tuple[FloatArray, FloatArray, float]:
+        """``(p − c, u, v·u)``: the point of the axis line nearest the centre ``c``
+        (relative to it), the unit axis ``u`` (0 without a turn) and the shift ``v = d − c``
+        along it; ``(0, v/|v|, |v|)``, the chord, where the similarity is within 1e-6 of a
+        translation."""
+        v = self.image - self.centre
+        angle = float(np.linalg.norm(rotvec))
+        if abs(1.0 - self.scale * np.exp(1j * angle)) < 1e-6:
+            size = float(np.linalg.norm(v))
+            return np.zeros(3), (v / size if size > 0 else np.zeros(3)), size
+        u = rotvec / angle if angle > 0 else np.zeros(3)
+        v_u = float(v @ u)
+        # (I − sR) maps the plane normal to u onto itself, invertibly: |1 − s e^{iθ}| > 0
+        uu = np.outer(u, u)
+        K = (np.eye(3) - self.scale * self.rotation) @ (np.eye(3) - uu) + uu
+        return np.linalg.solve(K, v - v_u * u), u, v_u
 
 
 def fit_similarity(source: FloatArray, target: FloatArray, scaling: bool = True
@@ -103,7 +140,7 @@ class HandlePath:
         out = np.empty_like(self.start)
         for g, S in enumerate(self.similarities):
             m = self.groups == g
-            out[m] = S.at(t)(self.start[m]) + t * self.rest[m]
+            out[m] = S.screw(t)(self.start[m]) + t * self.rest[m]
         return out
 
 
