@@ -311,7 +311,8 @@ def morph_surface(source: FloatArray, target: FloatArray, triangles: IntArray,
         worst, folds = frame_measures(V0, points, F)
     else:  # the measures of the path's frames, most already taken by the tests above
         worst = np.array([problem.worst(Q) for Q in path])
-        folds = np.array([int(problem.fold_mask(Q).sum()) for Q in path])
+        # the source against itself: every rotation the identity, no fold
+        folds = np.array([0] + [int(problem.fold_mask(Q).sum()) for Q in path[1:]])
     return SurfaceMorph(points=points, times=times, worst_quality=worst, folds=folds,
                         triangles=F, status=status, initial_path=initial, energy=energy,
                         initial_energy=E0, length=length, iterations=it,
