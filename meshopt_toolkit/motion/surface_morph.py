@@ -12,20 +12,22 @@ the discrete path energy
 
 over the interior frames, by Levenberg–Marquardt (the block-tridiagonal normal equations
 solved by conjugate gradients, preconditioned by one kept Cholesky factor per frame,
-:class:`_PathSystem`), started from the
-as-rigid-as-possible interpolation (:mod:`.surface_interpolation`) or, where that folds,
-linear interpolation, and stopped where the Gauss–Newton model of the next step predicts,
-or a step achieved, a decrease below ``rtol·E`` (a start stationary to that tolerance is
-returned unchanged), or, first, where the path is *healthy*: every interior frame's worst
-relative quality (aspect ratio 2r/R over the source's) at least the worse end's. No path
-has a better worst frame than its worse end, so a healthy path is optimal in that measure;
-its energy is not minimized further (the start returned as it is where healthy, without a
-Gauss–Newton model: 0.2–35 % above the converged path's energy on the pairs of the tests
-and ``bench_surface_morph.py``; ``stop_when_healthy=False`` for the energy tests alone).
-Every accepted iterate has ``det C > 0`` in every triangle of every
-frame and no fold (:class:`.surface_paths.FoldTest` against the source) that the target
-does not have. The mass term fixes the frames' rigid motions (a rotation of one frame
-costs ``|ΔQ|²_M``), so nothing is pinned.
+:class:`_PathSystem`), started from the as-rigid-as-possible interpolation
+(:mod:`.surface_interpolation`) or, where that folds, linear interpolation.
+
+It stops first where the path is *healthy* (the start included, then after each step):
+every interior frame's worst relative quality (aspect ratio 2r/R over the source's) at
+least the worse end's. No path has a better worst frame than its worse end, so a healthy
+path is optimal in that measure; its energy is not minimized further (a healthy start is
+returned without a Gauss–Newton model: 0.2–35 % above the converged path's energy on the
+pairs of the tests and of ``bench_surface_morph.py``, the worst quality the same). Else
+it stops where the Gauss–Newton model of the next step predicts, or a step achieved, a
+decrease below ``rtol·E`` (a start stationary to that tolerance is returned unchanged);
+``stop_when_healthy=False`` leaves the energy tests alone. Every accepted iterate has
+``det C > 0`` in every triangle of every frame and no fold
+(:class:`.surface_paths.FoldTest` against the source) that the target does not have. The
+mass term fixes the frames' rigid motions (a rotation of one frame costs ``|ΔQ|²_M``), so
+nothing is pinned.
 
 A pair related by a similarity (to ``1e-10`` of the diameter) is followed along that
 similarity exactly (rotation in angle, scale geometrically), an identical pair by copies;
