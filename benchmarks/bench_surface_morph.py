@@ -11,12 +11,15 @@ our solver) or by our ``move_surface``:
 * armadillo-libigl (not in the default list: libigl takes minutes): the hand raised 90°.
 
 "ours' start" is the library's as-rigid-as-possible interpolation with the pair's best
-rotation factored out (``motion/surface_interpolation.py``), the path ours starts from.
+rotation factored out (``motion/surface_interpolation.py``), the path ours starts from;
+"ours" stops as soon as every frame is at least as healthy as the worse end (the start
+included), "ours, energy stop" only by the Gauss–Newton energy tests (``rtol = 0.05``).
 
 Printed per pair and method: the worst relative quality over all frames (aspect ratio 2r/R
 over its value in the source, ``_surface_measures.py``), the folds summed over the frames
-(against the source), seconds; and the requirement 0.9 × the worse end. ``--docs`` writes
-the table into docs/benchmarks-surface.md (its last section).
+(against the source), the path energy ``E`` of ``morph_surface`` (where no triangle is
+degenerate), seconds; and the requirement 0.9 × the worse end. ``--docs`` writes
+the table into docs/benchmarks-surface.md (its own section, the rest kept).
 
 Run ``python benchmarks/bench_surface_morph.py [--pairs bar-ours,bunny-libigl] [--frames 9]``.
 """
@@ -58,10 +61,21 @@ PAIRS = {"bar-ours": ("bar", "ours"), "bar-libigl": ("bar", "libigl"),
 DEFAULT = "bar-ours,bar-libigl,bunny-ours,bunny-libigl"
 
 
-def ours(V0, V1, F, times):
+def ours(V0, V1, F, times, **options):
     from meshopt_toolkit.motion.surface_morph import morph_surface
 
-    return list(morph_surface(V0, V1, F, len(times)).points)
+    return list(morph_surface(V0, V1, F, len(times), **options).points)
+
+
+def path_energy(V0, V1, F, path) -> float:
+    """``morph_surface``'s path energy of ``path`` (NaN where a triangle degenerates)."""
+    from meshopt_toolkit.motion.surface_morph import BENDING, WEIGHT, _PathProblem
+
+    problem = _PathProblem(V0, V1, F, WEIGHT, BENDING)
+    X = [problem.embed(Q) for Q in path]
+    if any(x is None for x in X):
+        return float("nan")
+    return 0.5 * sum(float(r @ r) for r in (problem.segment(a, b) for a, b in zip(X, X[1:])))
 
 
 def ours_start(V0, V1, F, times):
@@ -72,7 +86,8 @@ def ours_start(V0, V1, F, times):
 
 METHODS = {"linear": lambda V0, V1, F, t: linear_interpolation(V0, V1, t),
            "ARAP interpolation": arap_interpolation, "ours' start": ours_start,
-           "ours": ours}
+           "ours": ours,
+           "ours, energy stop": lambda *a: ours(*a, stop_when_healthy=False)}
 
 
 def run_pair(name: str, frames: int) -> list:
@@ -80,7 +95,7 @@ def run_pair(name: str, frames: int) -> list:
     end = min(1.0, worst_relative_quality(V0, V1, F, []))
     print(f"\n{name}: {len(V0)} vertices, {len(F)} triangles, {frames} frames; target's "
           f"worst relative quality {end:.3f} (frames need ≥ {0.9 * end:.3f})")
-    print(f"  {'method':<20} {'worst rel. q':>12} {'folds':>6} {'seconds':>8}")
+    print(f"  {'method':<20} {'worst rel. q':>12} {'folds':>6} {'energy':>8} {'seconds':>8}")
     times = np.linspace(0.0, 1.0, frames)
     rows = []
     for method, run in METHODS.items():
@@ -89,8 +104,9 @@ def run_pair(name: str, frames: int) -> list:
         seconds = time.perf_counter() - t0
         q = min(worst_relative_quality(V0, X, F, []) for X in path)
         folds = sum(fold_count(V0, X, F) for X in path)
-        rows.append((name, len(F), end, method, q, folds, seconds))
-        print(f"  {method:<20} {q:>12.3f} {folds:>6d} {seconds:>8.2f}", flush=True)
+        E = path_energy(V0, V1, F, path)
+        rows.append((name, len(F), end, method, q, folds, E, seconds))
+        print(f"  {method:<20} {q:>12.3f} {folds:>6d} {E:>8.3f} {seconds:>8.2f}", flush=True)
     return rows
 
 
@@ -100,21 +116,32 @@ def markdown(rows: list, frames: int) -> str:
              "the shared 2-core machine's load varies: compare seconds within a pair; run "
              "with `OPENBLAS_NUM_THREADS=1`). "
              "Worst relative quality: the minimum over all frames and triangles of the aspect "
-             "ratio 2r/R over its value in the source; folds summed over the frames.", "",
+             "ratio 2r/R over its value in the source; folds summed over the frames; path "
+             "energy E of `morph_surface` (– where a triangle degenerates). \"ours\" stops "
+             "once every frame is at least as healthy as the worse end, \"ours, energy "
+             "stop\" by the Gauss–Newton energy tests alone (`stop_when_healthy=False`).", "",
              "| pair | triangles | target's quality | method | worst rel. quality | folds "
-             "| seconds | × ARAP interpolation |", "| --- | --- | --- | --- | --- | --- | --- "
-             "| --- |"]
-    arap = {r[0]: r[6] for r in rows if r[3] == "ARAP interpolation"}
-    for name, T, end, method, q, folds, seconds in rows:
+             "| E | seconds | × ARAP interpolation |", "| --- | --- | --- | --- | --- | --- "
+             "| --- | --- | --- |"]
+    arap = {r[0]: r[7] for r in rows if r[3] == "ARAP interpolation"}
+    for name, T, end, method, q, folds, E, seconds in rows:
+        energy = "–" if np.isnan(E) else f"{E:.3f}"
         lines.append(f"| {name} | {T:,} | {end:.3f} | {method} | {q:.3f} | {folds} "
-                     f"| {seconds:.2f} | {seconds / max(arap[name], 1e-9):.1f} |")
+                     f"| {energy} | {seconds:.2f} | {seconds / max(arap[name], 1e-9):.1f} |")
     return "\n".join(lines) + "\n"
 
 
 def write_docs(text: str) -> None:
+    """Replace the section under ``HEADING`` (up to the next ``## `` heading) by ``text``,
+    or append it; the rest of the page is kept as it is."""
     old = DOCS.read_text(encoding="utf-8")
-    head = old.split(HEADING)[0].rstrip("\n")
-    DOCS.write_text(head + "\n\n" + text, encoding="utf-8")
+    head, found, rest = old.partition(HEADING)
+    tail = ""
+    if found:
+        after = rest.find("\n## ")
+        tail = "" if after < 0 else rest[after + 1:]
+    new = head.rstrip("\n") + "\n\n" + text
+    DOCS.write_text(new + ("\n" + tail if tail else ""), encoding="utf-8")
 
 
 def main(argv=None) -> int:

@@ -63,7 +63,7 @@ class SurfaceMeshMorph:
 
     seconds = property(lambda self: self.morph.seconds, doc="Wall time.")
     status = property(lambda self: self.morph.status,
-                      doc='"converged", "max_iterations", "stalled", "stopped", '
+                      doc='"healthy", "converged", "max_iterations", "stalled", "stopped", '
                           '"similarity" or "identical".')
     n_frames = property(lambda self: len(self.frames), doc="Number of frames.")
 
