@@ -174,10 +174,15 @@ class Problem:
             full = self.pattern.matrix(blocks, diag)
         return g[self.pattern.free], gn, full
 
-    def solve_step(self, lower: sp.csc_matrix, rhs: FloatArray) -> FloatArray:
+    def solve_step(self, lower: sp.csc_matrix, rhs: FloatArray, *,
+                   maybe_indefinite: bool = False) -> FloatArray:
         """Solve with the matrix of lower triangle ``lower``: by conjugate gradients
         preconditioned with the kept factorization of an earlier matrix where they reach
-        ``cg_rtol`` within ``cg_maxiter`` iterations, else by factorizing it."""
+        ``cg_rtol`` within ``cg_maxiter`` iterations, else by factorizing it.
+
+        With ``maybe_indefinite``, a direction of non-positive curvature met by the
+        conjugate gradients raises RuntimeError at once (the matrix is not positive
+        definite: its factorization would fail, and the kept one would be lost)."""
         if self.cg_rtol > 0 and self.factor.solve is not None:
             d = lower.diagonal()
             upper = lower.T.tocsr()
@@ -187,8 +192,9 @@ class Problem:
                                 self.cg_maxiter)
                 if rel <= self.cg_rtol:
                     return x
-            except FloatingPointError:
-                pass
+            except FloatingPointError as exc:
+                if maybe_indefinite and "pᵀAp" in str(exc):  # not "non-finite"
+                    raise RuntimeError("the matrix is not positive definite") from exc
         return self.factor(lower)(rhs)
 
 
@@ -216,7 +222,11 @@ def minimize(problem: Problem, Q: FloatArray, centre: FloatArray, anchor: FloatA
     """Minimize ``E`` from the admissible ``Q`` (its fixed coordinates kept bitwise).
 
     Stops when the free gradient fell by ``rtol`` (or below ``gtol``), after ``max_iter``
-    iterations, or when no step along the (Gauss–)Newton direction lowers ``E``.
+    iterations, or when no step along the (Gauss–)Newton direction lowers ``E``. Once the
+    Newton matrix is found not positive definite (or its step not a descent direction),
+    the remaining iterations take Gauss–Newton steps without trying it again: it rarely
+    becomes definite again within a few iterations, and each failed factorization costs
+    as much as a successful one.
     """
     Q = np.array(Q, float)
     w = np.ones(len(problem.strain.tets)) if cell_weights is None else np.asarray(cell_weights)
@@ -236,11 +246,12 @@ def minimize(problem: Problem, Q: FloatArray, centre: FloatArray, anchor: FloatA
         step = None
         if full is not None:
             try:
-                step = -problem.solve_step(full, g)
+                step = -problem.solve_step(full, g, maybe_indefinite=True)
                 if step @ g >= 0:
                     step = None
             except RuntimeError:  # not positive definite: Gauss–Newton
                 step = None
+            newton = step is not None  # from now on Gauss–Newton where it failed
         if step is None:
             step = -problem.solve_step(gn, g)
         slope = float(step @ g)
