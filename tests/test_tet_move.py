@@ -518,3 +518,17 @@ def test_polish_is_not_tried_where_the_worst_tet_has_only_fixed_corners(monkeypa
     monkeypatch.setattr(tet_polish, "_lbfgs", lambda *a, **k: pytest.fail("polish tried"))
     out, info = polish_worst_tets(P, T, fixed)
     assert np.array_equal(out, P) and info["polish_min_mean_ratio"] == [eta.min()] * 2
+
+
+def test_a_failed_factorization_keeps_the_last_good_factor():
+    problem, Q, centre, anchor, weights = _problem(4)
+    _, gn, _ = problem.normal_equations(Q, centre, anchor, weights, False)
+    A = (gn + sp.tril(gn, -1).T).toarray()
+    b = np.random.default_rng(3).standard_normal(len(A))
+    for _ in range(3):  # the first, its spare, then the two in turn
+        solve = problem.factor(gn)
+        with pytest.raises(RuntimeError):
+            problem.factor(gn - sp.diags(np.full(len(A), 2 * np.linalg.eigvalsh(A).max()),
+                                         format="csc"))
+        assert problem.factor.solve is solve
+        assert np.allclose(A @ problem.factor.solve(b), b, atol=1e-9 * np.abs(b).max())

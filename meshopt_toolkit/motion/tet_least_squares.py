@@ -68,24 +68,28 @@ class FreePattern:
 class Factor:
     """A kept sparse Cholesky factorization (CHOLMOD, refactorized on its analysis), or a
     fresh SuperLU factorization per matrix where CHOLMOD is not installed; ``solve`` is
-    the last successful one (``None`` after a failure)."""
+    the last successful one. A matrix is factorized into a second factor (analysed once),
+    which replaces the kept one only where it succeeds: a matrix found not positive
+    definite leaves the kept one to precondition the next steps."""
 
     def __init__(self) -> None:
         self._chol = None
+        self._spare = None
         self.solve = None
 
     def __call__(self, lower: sp.csc_matrix):
         """Factorize the SPD matrix whose lower triangle is ``lower``; returns its solve.
-        Raises RuntimeError where it is not positive definite."""
-        self.solve = None
+        Raises RuntimeError where it is not positive definite (``solve`` unchanged)."""
         if not cholmod_available():
             full = lower + sp.tril(lower, -1).T
             self.solve = factorize_spd(full.tocsc())
-        elif self._chol is None:
-            self._chol = cholesky_spd(lower)
+        elif self._spare is None:
+            self._spare = cholesky_spd(lower)
+            self._chol, self._spare = self._spare, self._chol
             self.solve = self._chol
         else:
-            self._chol.refactorize(lower)
+            self._spare.refactorize(lower)
+            self._chol, self._spare = self._spare, self._chol
             self.solve = self._chol
         return self.solve
 
