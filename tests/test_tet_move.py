@@ -438,8 +438,8 @@ def test_steps_that_shrink_towards_a_point_stop_with_an_error(monkeypatch):
 
 
 def test_minimize_leaves_an_indefinite_newton_matrix_for_gauss_newton(monkeypatch):
-    # a far anchor makes the Newton matrix indefinite at the start: it is tried once,
-    # then every step is Gauss–Newton, and the result is a minimizer: an independent
+    # a far anchor makes the Newton matrix indefinite at the start: it is factorized
+    # once, never again in this minimization, and the result is a minimizer: an independent
     # quasi-Newton minimization started near it comes back to it
     from scipy.optimize import minimize as scipy_minimize
 
@@ -448,25 +448,23 @@ def test_minimize_leaves_an_indefinite_newton_matrix_for_gauss_newton(monkeypatc
     problem = Problem.build(TetDistortion(P, T), 2.0, tet_lumped_mass(P, T), handles)
     problem.newton_threshold = 0.0
     anchor = 0.6 * np.random.default_rng(0).standard_normal((len(T), 7))
-    calls, factorized = [], []
+    calls, factorized = [], []  # per solve: Newton's matrix?; per factorization: the same
     solve_step, factor = problem.solve_step, Factor.__call__
 
-    def spy_solve(lower, rhs, maybe_indefinite=False):
+    def spy_solve(lower, rhs, maybe_indefinite=False, **kwargs):
         calls.append(maybe_indefinite)
-        return solve_step(lower, rhs, maybe_indefinite=maybe_indefinite)
+        return solve_step(lower, rhs, maybe_indefinite=maybe_indefinite, **kwargs)
 
     def spy_factor(self, lower):
-        factorized.append(lower.copy())
+        factorized.append(calls[-1])
         return factor(self, lower)
 
     problem.solve_step = spy_solve
     monkeypatch.setattr(Factor, "__call__", spy_factor)
     res = minimize(problem, P, P, anchor, rtol=1e-10, max_iter=200, newton=True)
-    assert calls[0] is True and not any(calls[1:])  # the Newton matrix: the first try only
-    _, gn0, full0 = problem.normal_equations(P, P, anchor, np.ones(len(T)), True)
-    newton_factorized = [L for L in factorized if abs(L - full0).max() == 0]
-    assert len(newton_factorized) == 1
-    assert res.gradient_ratio < 1e-8 and len(calls) == res.iterations + 1  # + the failed try
+    # the Newton matrix was factorized once (and failed: a Gauss–Newton step followed)
+    assert factorized[0] is True and factorized.count(True) == 1 and calls[:2] == [True, False]
+    assert res.gradient_ratio < 1e-8
 
     free = problem.pattern.free
 
