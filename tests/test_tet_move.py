@@ -17,7 +17,7 @@ from meshopt_toolkit.kernels.tetrahedra import signed_volumes as tet_signed_volu
 from meshopt_toolkit.motion.similarity_3d import (HandlePath3, fit_similarity_3d,
                                                   handle_groups_3d, tet_boundary_faces)
 from meshopt_toolkit.motion.tet_distortion import TetDistortion
-from meshopt_toolkit.motion.tet_least_squares import FreePattern, Problem, minimize
+from meshopt_toolkit.motion.tet_least_squares import Factor, FreePattern, Problem, minimize
 from meshopt_toolkit.motion.tet_metric import tet_lumped_mass
 from meshopt_toolkit.motion.tet_move import move_tets
 from meshopt_toolkit.motion.tet_polish import inverse_mean_ratios, polish_worst_tets
@@ -435,3 +435,98 @@ def test_steps_that_shrink_towards_a_point_stop_with_an_error(monkeypatch):
     monkeypatch.setattr(tet_move, "_predictions", every_other)
     with pytest.raises(NoAdmissiblePathError, match="shrink"):
         move_tets(P, T, h, targets, steps=1)
+
+
+def test_minimize_leaves_an_indefinite_newton_matrix_for_gauss_newton(monkeypatch):
+    # a far anchor makes the Newton matrix indefinite at the start: it is factorized
+    # once, never again in this minimization, and the result is a minimizer: an independent
+    # quasi-Newton minimization started near it comes back to it
+    from scipy.optimize import minimize as scipy_minimize
+
+    P, T = cube_tets(3, jitter=0.3, seed=0)
+    handles = np.unique(tet_boundary_faces(T))
+    problem = Problem.build(TetDistortion(P, T), 2.0, tet_lumped_mass(P, T), handles)
+    problem.newton_threshold = 0.0
+    anchor = 0.6 * np.random.default_rng(0).standard_normal((len(T), 7))
+    calls, factorized = [], []  # per solve: Newton's matrix?; per factorization: the same
+    solve_step, factor = problem.solve_step, Factor.__call__
+
+    def spy_solve(lower, rhs, maybe_indefinite=False, **kwargs):
+        calls.append(maybe_indefinite)
+        return solve_step(lower, rhs, maybe_indefinite=maybe_indefinite, **kwargs)
+
+    def spy_factor(self, lower):
+        factorized.append(calls[-1])
+        return factor(self, lower)
+
+    problem.solve_step = spy_solve
+    monkeypatch.setattr(Factor, "__call__", spy_factor)
+    res = minimize(problem, P, P, anchor, rtol=1e-10, max_iter=200, newton=True)
+    # the Newton matrix was factorized once (and failed: a Gauss–Newton step followed)
+    assert factorized[0] is True and factorized.count(True) == 1 and calls[:2] == [True, False]
+    assert res.gradient_ratio < 1e-8
+
+    free = problem.pattern.free
+
+    def lift(x):
+        out = P.copy()
+        out.reshape(-1)[free] = x
+        return out
+
+    ones = np.ones(len(T))
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):  # trials may invert
+        ref = scipy_minimize(lambda x: problem.energy(lift(x), P, anchor, ones) - res.energy,
+                             res.points.reshape(-1)[free]
+                             + 1e-3 * np.random.default_rng(1).standard_normal(free.sum()),
+                             method="BFGS",
+                             jac=lambda x: problem.normal_equations(lift(x), P, anchor, ones,
+                                                                    False)[0],
+                             options={"maxiter": 5000, "gtol": 1e-12})
+    assert np.abs(res.points.reshape(-1)[free] - ref.x).max() < 1e-6
+    assert ref.fun >= -1e-9 * res.energy  # (shifted by res.energy)
+    assert np.array_equal(res.points.reshape(-1)[~free], P.reshape(-1)[~free])
+
+
+def test_negative_curvature_in_conjugate_gradients_reports_indefinite_without_factorizing():
+    problem, Q, centre, anchor, weights = _problem(4)
+    _, gn, _ = problem.normal_equations(centre, centre, anchor, weights, False)
+    problem.factor(gn)  # kept
+    kept = problem.factor.solve
+    n = gn.shape[0]
+    indefinite = sp.tril(sp.diags(np.r_[-1.0, np.ones(n - 1)]), format="csc")
+    rhs = np.r_[1.0, np.zeros(n - 1)]
+    with pytest.raises(RuntimeError, match="not positive definite"):
+        problem.solve_step(indefinite, rhs, maybe_indefinite=True)
+    assert problem.factor.solve is kept  # the kept factorization survives
+
+
+def test_polish_is_not_tried_where_the_worst_tet_has_only_fixed_corners(monkeypatch):
+    from meshopt_toolkit.motion import tet_polish
+    from meshopt_toolkit.motion.tet_polish import fixed_ceiling
+
+    P, T = cube_tets(3, jitter=0.3, seed=2)
+    h = np.unique(tet_boundary_faces(T))
+    eta = tet_mean_ratios(P, T)
+    pinned = np.isin(T, h).all(axis=1)
+    assert pinned.any() and fixed_ceiling(P, T, h) == eta[pinned].min()
+    assert fixed_ceiling(P, T, np.array([], int)) == np.inf
+    assert fixed_ceiling(P, T, h) > eta.min()  # here the worst tet has a free corner
+    fixed = np.union1d(h, T[np.argmin(eta)])  # now it has none
+    assert fixed_ceiling(P, T, fixed) == eta.min()
+    monkeypatch.setattr(tet_polish, "_lbfgs", lambda *a, **k: pytest.fail("polish tried"))
+    out, info = polish_worst_tets(P, T, fixed)
+    assert np.array_equal(out, P) and info["polish_min_mean_ratio"] == [eta.min()] * 2
+
+
+def test_a_failed_factorization_keeps_the_last_good_factor():
+    problem, Q, centre, anchor, weights = _problem(4)
+    _, gn, _ = problem.normal_equations(Q, centre, anchor, weights, False)
+    A = (gn + sp.tril(gn, -1).T).toarray()
+    b = np.random.default_rng(3).standard_normal(len(A))
+    for _ in range(3):  # the first, its spare, then the two in turn
+        solve = problem.factor(gn)
+        with pytest.raises(RuntimeError):
+            problem.factor(gn - sp.diags(np.full(len(A), 2 * np.linalg.eigvalsh(A).max()),
+                                         format="csc"))
+        assert problem.factor.solve is solve
+        assert np.allclose(A @ problem.factor.solve(b), b, atol=1e-9 * np.abs(b).max())

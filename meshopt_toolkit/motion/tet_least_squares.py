@@ -68,24 +68,28 @@ class FreePattern:
 class Factor:
     """A kept sparse Cholesky factorization (CHOLMOD, refactorized on its analysis), or a
     fresh SuperLU factorization per matrix where CHOLMOD is not installed; ``solve`` is
-    the last successful one (``None`` after a failure)."""
+    the last successful one. A matrix is factorized into a second factor (analysed once),
+    which replaces the kept one only where it succeeds: a matrix found not positive
+    definite leaves the kept one to precondition the next steps."""
 
     def __init__(self) -> None:
         self._chol = None
+        self._spare = None
         self.solve = None
 
     def __call__(self, lower: sp.csc_matrix):
         """Factorize the SPD matrix whose lower triangle is ``lower``; returns its solve.
-        Raises RuntimeError where it is not positive definite."""
-        self.solve = None
+        Raises RuntimeError where it is not positive definite (``solve`` unchanged)."""
         if not cholmod_available():
             full = lower + sp.tril(lower, -1).T
             self.solve = factorize_spd(full.tocsc())
-        elif self._chol is None:
-            self._chol = cholesky_spd(lower)
+        elif self._spare is None:
+            self._spare = cholesky_spd(lower)
+            self._chol, self._spare = self._spare, self._chol
             self.solve = self._chol
         else:
-            self._chol.refactorize(lower)
+            self._spare.refactorize(lower)
+            self._chol, self._spare = self._spare, self._chol
             self.solve = self._chol
         return self.solve
 
@@ -174,10 +178,15 @@ class Problem:
             full = self.pattern.matrix(blocks, diag)
         return g[self.pattern.free], gn, full
 
-    def solve_step(self, lower: sp.csc_matrix, rhs: FloatArray) -> FloatArray:
+    def solve_step(self, lower: sp.csc_matrix, rhs: FloatArray, *,
+                   maybe_indefinite: bool = False) -> FloatArray:
         """Solve with the matrix of lower triangle ``lower``: by conjugate gradients
         preconditioned with the kept factorization of an earlier matrix where they reach
-        ``cg_rtol`` within ``cg_maxiter`` iterations, else by factorizing it."""
+        ``cg_rtol`` within ``cg_maxiter`` iterations, else by factorizing it.
+
+        With ``maybe_indefinite``, a direction of non-positive curvature met by the
+        conjugate gradients raises RuntimeError at once (the matrix is not positive
+        definite: its factorization would fail, and the kept one would be lost)."""
         if self.cg_rtol > 0 and self.factor.solve is not None:
             d = lower.diagonal()
             upper = lower.T.tocsr()
@@ -187,8 +196,9 @@ class Problem:
                                 self.cg_maxiter)
                 if rel <= self.cg_rtol:
                     return x
-            except FloatingPointError:
-                pass
+            except FloatingPointError as exc:
+                if maybe_indefinite and "pᵀAp" in str(exc):  # not "non-finite"
+                    raise RuntimeError("the matrix is not positive definite") from exc
         return self.factor(lower)(rhs)
 
 
@@ -216,7 +226,11 @@ def minimize(problem: Problem, Q: FloatArray, centre: FloatArray, anchor: FloatA
     """Minimize ``E`` from the admissible ``Q`` (its fixed coordinates kept bitwise).
 
     Stops when the free gradient fell by ``rtol`` (or below ``gtol``), after ``max_iter``
-    iterations, or when no step along the (Gauss–)Newton direction lowers ``E``.
+    iterations, or when no step along the (Gauss–)Newton direction lowers ``E``. Once the
+    Newton matrix is found not positive definite (or its step not a descent direction),
+    the remaining iterations take Gauss–Newton steps without trying it again: it rarely
+    becomes definite again within a few iterations, and each failed factorization costs
+    as much as a successful one.
     """
     Q = np.array(Q, float)
     w = np.ones(len(problem.strain.tets)) if cell_weights is None else np.asarray(cell_weights)
@@ -236,11 +250,12 @@ def minimize(problem: Problem, Q: FloatArray, centre: FloatArray, anchor: FloatA
         step = None
         if full is not None:
             try:
-                step = -problem.solve_step(full, g)
+                step = -problem.solve_step(full, g, maybe_indefinite=True)
                 if step @ g >= 0:
                     step = None
             except RuntimeError:  # not positive definite: Gauss–Newton
                 step = None
+            newton = step is not None  # from now on Gauss–Newton where it failed
         if step is None:
             step = -problem.solve_step(gn, g)
         slope = float(step @ g)

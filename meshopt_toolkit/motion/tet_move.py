@@ -35,7 +35,7 @@ from .similarity_3d import (HandlePath3, Similarity3, fit_similarity_3d, handle_
 from .tet_distortion import SQRT3, TetDistortion
 from .tet_least_squares import Problem, extend, minimize
 from .tet_metric import tet_lumped_mass
-from .tet_polish import polish_worst_tets
+from .tet_polish import fixed_ceiling, polish_worst_tets
 
 __all__ = ["TetMeshMoveResult", "TetMoveResult", "move_tet_mesh", "move_tets"]
 
@@ -114,17 +114,22 @@ def _check(points, tets, handles, targets) -> tuple[FloatArray, IntArray, IntArr
 
 
 def _finish(strain_source: FloatArray, tets: IntArray, problem: Problem, Q: FloatArray,
-            rounds: int, max_iter: int, newton: bool) -> tuple[FloatArray, dict]:
+            rounds: int, max_iter: int, newton: bool, ceiling: float = np.inf
+            ) -> tuple[FloatArray, dict]:
     """Quality rounds with the handles fixed: proximal least squares of the distortion
     from regular tets of the source's volumes, each round's tet weights those of the last
     times ``max(1, |φ_shape|/rms)^½`` (the tets that stay the worst weigh more and more);
-    the iterate with the best minimum mean ratio is kept (the unfinished one included)."""
+    the iterate with the best minimum mean ratio is kept (the unfinished one included).
+    The rounds stop once it reaches ``ceiling`` (the worst mean ratio of the tets with
+    only fixed corners: no later round can beat it)."""
     absolute = TetDistortion.regular(strain_source, tets)
     quality = replace(problem, strain=absolute)  # the same pattern, factor and settings
     best, best_q = Q, float(tet_mean_ratios(Q, tets).min())
     kept, nit, weights = 0, 0, np.ones(len(tets))
     zero = np.zeros((len(tets), 7))
     for k in range(1, rounds + 1):
+        if best_q >= ceiling:
+            break
         res = minimize(quality, Q, Q, zero, weights, rtol=QUALITY_RTOL, max_iter=max_iter,
                        newton=newton)
         nit += res.iterations
@@ -204,7 +209,7 @@ def move_tets(points: FloatArray, tets: IntArray, handles, targets, *, steps: in
         details.update(cont)
         if quality_rounds > 0:
             residual[-1], fin = _finish(P, T, problem, residual[-1], quality_rounds,
-                                        relax_iter, newton)
+                                        relax_iter, newton, fixed_ceiling(residual[-1], T, h))
             details.update(fin)
         if polish > 0:
             residual[-1], pol = polish_worst_tets(residual[-1], T, h, iterations=polish)

@@ -9,7 +9,8 @@ mean ratios ``q = 1/η = Σℓ² / (12 (3V)^{2/3})`` of the tets these vertices 
 
 by L-BFGS whose backtracking line search refuses every trial with an inverted tet (``F``
 is ``+inf`` there): every accepted iterate has every tet positively oriented, and the
-result is kept only where its worst mean ratio is higher.
+result is kept only where its worst mean ratio is higher (it is not tried where the worst tet
+has only fixed corners).
 """
 
 from __future__ import annotations
@@ -116,6 +117,16 @@ def _lbfgs(energy: _SoftMax, x: FloatArray, iterations: int, memory: int = 10) -
     return x
 
 
+def fixed_ceiling(points: FloatArray, tets: IntArray, fixed: IntArray) -> float:
+    """The lowest mean ratio of the tets whose four corners are all ``fixed`` (``inf``
+    where there are none): no motion of the other vertices raises the worst mean ratio
+    above it."""
+    is_fixed = np.zeros(len(points), bool)
+    is_fixed[np.asarray(fixed, dtype=np.int64)] = True
+    pinned = is_fixed[tets].all(axis=1)
+    return float(mean_ratios(points, tets[pinned]).min()) if pinned.any() else np.inf
+
+
 def polish_worst_tets(points: FloatArray, tets: IntArray, fixed: IntArray, *,
                       worst: int = 300, rings: int = 3, iterations: int = 300,
                       sharpness: float = 1.0) -> tuple[FloatArray, dict]:
@@ -157,8 +168,8 @@ def polish_worst_tets(points: FloatArray, tets: IntArray, fixed: IntArray, *,
     movable[np.asarray(fixed, dtype=np.int64)] = False
     free = np.flatnonzero(movable)
     info = {"polish_vertices": int(len(free)), "polish_min_mean_ratio": [before, before]}
-    if len(free) == 0 or iterations <= 0:
-        return P, info
+    if len(free) == 0 or iterations <= 0 or before >= fixed_ceiling(P, T, fixed):
+        return P, info  # (the worst tet has only fixed corners: nothing to gain)
     active = movable[T].any(axis=1)
     out = _lbfgs(_SoftMax(T[active], len(P), free, float(sharpness)), P, iterations)
     after = float(mean_ratios(out, T).min())
