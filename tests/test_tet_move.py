@@ -513,7 +513,7 @@ def test_polish_is_not_tried_where_the_worst_tet_has_only_fixed_corners(monkeypa
     assert fixed_ceiling(P, T, h) > eta.min()  # here the worst tet has a free corner
     fixed = np.union1d(h, T[np.argmin(eta)])  # now it has none
     assert fixed_ceiling(P, T, fixed) == eta.min()
-    monkeypatch.setattr(tet_polish, "_lbfgs", lambda *a, **k: pytest.fail("polish tried"))
+    monkeypatch.setattr(tet_polish, "minimize_lbfgs", lambda *a, **k: pytest.fail("polish tried"))
     out, info = polish_worst_tets(P, T, fixed)
     assert np.array_equal(out, P) and info["polish_min_mean_ratio"] == [eta.min()] * 2
 

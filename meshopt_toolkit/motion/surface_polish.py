@@ -27,6 +27,7 @@ import numpy as np
 from .._typing import FloatArray, IntArray
 from ..kernels.surface import aspect_ratios
 from .surface_distortion import SurfaceDistortion
+from .lbfgs import minimize_lbfgs
 from .surface_paths import FoldTest
 
 #: a worst relative quality this close to 1 (or above) is left alone: no triangle is worse
@@ -97,53 +98,6 @@ class SoftMaxObjective:
         G = np.column_stack([np.bincount(flat, g[:, :, k].ravel(), n) for k in range(3)])
         dU = np.einsum("kij,ki->kj", self.basis, G[self.free])
         return float(value), dU.reshape(np.shape(u))
-
-
-def _lbfgs(objective, admissible, u: FloatArray, iterations: int, first_step: float,
-           memory: int = 10) -> FloatArray:
-    """L-BFGS from the admissible ``u``; a trial with ``F = inf``, too little decrease or
-    not ``admissible`` halves the step. ``first_step``: the largest displacement of the
-    first (steepest-descent) step."""
-    F, G = objective(u)
-    if G is None:  # a degenerate triangle at the start: nothing to descend
-        return u
-    S: list = []
-    Y: list = []
-    for _ in range(iterations):
-        d = -G
-        alphas = []
-        for s_, y_ in reversed(list(zip(S, Y))):
-            a = s_ @ d / (y_ @ s_)
-            alphas.append(a)
-            d = d - a * y_
-        d = d * ((S[-1] @ Y[-1]) / (Y[-1] @ Y[-1]) if S
-                 else first_step / max(np.abs(d).max(), 1e-300))
-        for (s_, y_), a in zip(zip(S, Y), reversed(alphas)):
-            d = d + (a - (y_ @ d) / (y_ @ s_)) * s_
-        slope = G @ d
-        if slope >= 0:  # not a descent direction: start again from steepest descent
-            if not S:
-                break
-            S, Y = [], []
-            continue
-        step = 1.0
-        while step > 1e-10:
-            trial = u + step * d
-            F1, G1 = objective(trial)
-            if F1 <= F + 1e-4 * step * slope and admissible(trial):
-                break
-            step *= 0.5
-        else:
-            break
-        s_, y_ = trial - u, G1 - G
-        u, F, G = trial, F1, G1
-        if s_ @ y_ > 1e-300:
-            S.append(s_)
-            Y.append(y_)
-            if len(S) > memory:
-                S.pop(0)
-                Y.pop(0)
-    return u
 
 
 def _tangent_bases(points: FloatArray, triangles: IntArray, vertices: IntArray) -> FloatArray:
@@ -244,8 +198,8 @@ def polish_worst_triangles(rest: FloatArray, triangles: IntArray, points: FloatA
         return not np.any(folds.mask(objective.points(u)) & check & ~folded)
 
     edges = np.linalg.norm(P[F[active]] - np.roll(P[F[active]], 1, axis=1), axis=2)
-    u = _lbfgs(objective, admissible, np.zeros(2 * len(free)), int(iterations),
-               1e-2 * float(edges.mean()))
+    u = minimize_lbfgs(objective, np.zeros(2 * len(free)), int(iterations),
+                       first_step=1e-2 * float(edges.mean()), admissible=admissible)
     out = objective.points(u)
     out[is_handle] = P[is_handle]
     after = float((aspect_ratios(out, F)[counted] / rest_q[counted]).min())

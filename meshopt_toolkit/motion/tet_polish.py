@@ -21,6 +21,7 @@ import numpy as np
 
 from .._typing import FloatArray, IntArray
 from ..kernels.tetrahedra import mean_ratios
+from .lbfgs import minimize_lbfgs
 
 _I, _J = np.triu_indices(4, 1)
 
@@ -71,50 +72,6 @@ class _SoftMax:
         G = np.column_stack([np.bincount(flat, gq[:, :, k].ravel(), self.n_vertices)
                              for k in range(3)])
         return top + np.log(total) / self.sharpness, G[self.free].ravel()
-
-
-def _lbfgs(energy: _SoftMax, x: FloatArray, iterations: int, memory: int = 10) -> FloatArray:
-    """L-BFGS over ``x[energy.free]`` from an admissible ``x``; a trial with an inverted
-    tet (``F = inf``) or too little decrease halves the step."""
-    x, free = x.copy(), energy.free
-    F, G = energy(x)
-    S: list = []
-    Y: list = []
-    for _ in range(iterations):
-        d = -G
-        alphas = []
-        for s_, y_ in reversed(list(zip(S, Y))):
-            a = s_ @ d / (y_ @ s_)
-            alphas.append(a)
-            d = d - a * y_
-        d = d * ((S[-1] @ Y[-1]) / (Y[-1] @ Y[-1]) if S
-                 else 1e-3 / max(np.abs(d).max(), 1e-300))
-        for (s_, y_), a in zip(zip(S, Y), reversed(alphas)):
-            d = d + (a - (y_ @ d) / (y_ @ s_)) * s_
-        slope = G @ d
-        if slope >= 0:  # not a descent direction: start again from steepest descent
-            if not S:
-                break
-            S, Y = [], []
-            continue
-        step, trial = 1.0, x.copy()
-        while step > 1e-12:
-            trial[free] = x[free] + step * d.reshape(-1, 3)
-            F1, G1 = energy(trial)
-            if F1 <= F + 1e-4 * step * slope:
-                break
-            step *= 0.5
-        else:
-            break
-        s_, y_ = (trial[free] - x[free]).ravel(), G1 - G
-        x, F, G = trial, F1, G1
-        if s_ @ y_ > 1e-16:
-            S.append(s_)
-            Y.append(y_)
-            if len(S) > memory:
-                S.pop(0)
-                Y.pop(0)
-    return x
 
 
 def fixed_ceiling(points: FloatArray, tets: IntArray, fixed: IntArray) -> float:
@@ -171,7 +128,16 @@ def polish_worst_tets(points: FloatArray, tets: IntArray, fixed: IntArray, *,
     if len(free) == 0 or iterations <= 0 or before >= fixed_ceiling(P, T, fixed):
         return P, info  # (the worst tet has only fixed corners: nothing to gain)
     active = movable[T].any(axis=1)
-    out = _lbfgs(_SoftMax(T[active], len(P), free, float(sharpness)), P, iterations)
+    energy = _SoftMax(T[active], len(P), free, float(sharpness))
+
+    def objective(u: FloatArray):
+        x = P.copy()
+        x[free] = u.reshape(-1, 3)
+        return energy(x)
+
+    out = P.copy()
+    out[free] = minimize_lbfgs(objective, P[free].ravel(), iterations, first_step=1e-3,
+                               min_step=1e-12, curvature=1e-16).reshape(-1, 3)
     after = float(mean_ratios(out, T).min())
     if not after > before:
         return P, info
