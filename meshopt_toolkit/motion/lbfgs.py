@@ -1,5 +1,6 @@
-"""L-BFGS with a backtracking line search that refuses inadmissible trials: the descent of
-the local polishes (:mod:`.tet_polish`, :mod:`.surface_polish`)."""
+"""The descent of the local polishes (:mod:`.tet_polish`, :mod:`.surface_polish`): the
+soft maximum they lower and L-BFGS with a backtracking line search that refuses
+inadmissible trials."""
 
 from __future__ import annotations
 
@@ -8,6 +9,17 @@ from collections.abc import Callable
 import numpy as np
 
 from .._typing import FloatArray
+
+
+def soft_maximum(values: FloatArray, gradients: FloatArray, sharpness: float
+                 ) -> tuple[float, FloatArray]:
+    """``max v + log Σ exp(s (v − max v)) / s`` of per-cell ``values`` (C,) and its
+    per-cell gradients: ``gradients`` (C, ...) weighted by the softmax of ``s·values``."""
+    top = values.max()
+    w = np.exp(sharpness * (values - top))
+    total = w.sum()
+    weighted = (w / total).reshape((-1,) + (1,) * (gradients.ndim - 1)) * gradients
+    return top + np.log(total) / sharpness, weighted
 
 
 def minimize_lbfgs(objective: Callable, u: FloatArray, iterations: int, *, first_step: float,

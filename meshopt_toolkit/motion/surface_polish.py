@@ -27,7 +27,7 @@ import numpy as np
 from .._typing import FloatArray, IntArray
 from ..kernels.surface import aspect_ratios
 from .surface_distortion import SurfaceDistortion
-from .lbfgs import minimize_lbfgs
+from .lbfgs import minimize_lbfgs, soft_maximum
 from .surface_paths import FoldTest
 
 #: a worst relative quality this close to 1 (or above) is left alone: no triangle is worse
@@ -84,12 +84,7 @@ class SoftMaxObjective:
         r, g = inverse_qualities(x, self.triangles)
         if not np.isfinite(r).all():
             return np.inf, None
-        r, g = self.rest * r, self.rest[:, None, None] * g
-        top = r.max()
-        w = np.exp(self.sharpness * (r - top))
-        total = w.sum()
-        g = (w / total)[:, None, None] * g
-        value = top + np.log(total) / self.sharpness
+        value, g = soft_maximum(self.rest * r, self.rest[:, None, None] * g, self.sharpness)
         if self.shape > 0:
             phi, J = self.membrane.values_and_jacobian(x)
             value += 0.5 * float(self.area_weights @ np.einsum("ti,ti->t", phi, phi))

@@ -21,7 +21,7 @@ import numpy as np
 
 from .._typing import FloatArray, IntArray
 from ..kernels.tetrahedra import mean_ratios
-from .lbfgs import minimize_lbfgs
+from .lbfgs import minimize_lbfgs, soft_maximum
 
 _I, _J = np.triu_indices(4, 1)
 
@@ -64,14 +64,11 @@ class _SoftMax:
         q, g = inverse_mean_ratios(x, self.tets)
         if not np.isfinite(q).all():
             return np.inf, None
-        top = q.max()
-        w = np.exp(self.sharpness * (q - top))
-        total = w.sum()
-        gq = (w / total)[:, None, None] * g
+        value, gq = soft_maximum(q, g, self.sharpness)
         flat = self.tets.ravel()
         G = np.column_stack([np.bincount(flat, gq[:, :, k].ravel(), self.n_vertices)
                              for k in range(3)])
-        return top + np.log(total) / self.sharpness, G[self.free].ravel()
+        return value, G[self.free].ravel()
 
 
 def fixed_ceiling(points: FloatArray, tets: IntArray, fixed: IntArray) -> float:
