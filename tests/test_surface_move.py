@@ -338,3 +338,20 @@ def test_chord_steps_of_the_last_increment_reach_the_minimizer_of_full_gauss_new
     assert default.factorizations < default_full.factorizations
     assert default.folds == 0 and np.array_equal(default.points[case.handles], case.path(1.0))
     assert sm.fold_count(case.V, default.points, case.F, case.handles) == 0
+
+
+def test_strip_rolled_into_a_quarter_circle_is_rolled_isometrically():
+    """bench_surface's rolled strip: the exact answer bends the 4×1 strip into a quarter
+    cylinder of radius 8/π without stretching it; its centre line lies on that circle."""
+    case = bench.plate_bent()
+    r = move_surface(case.V, case.F, case.handles, case.path(1.0))
+    assert r.folds == 0 and r.handle_error == 0.0
+    mid = np.flatnonzero(np.abs(case.V[:, 1] - 0.5) < 1e-9)
+    mid = mid[np.argsort(case.V[mid, 0])]
+    P = r.points[mid]
+    radius = 4.0 / (np.pi / 2)
+    np.testing.assert_allclose(np.hypot(P[:, 0], P[:, 2] - radius), radius, atol=0.02)
+    np.testing.assert_allclose(P[:, 1], 0.5, atol=0.01)
+    length = np.linalg.norm(np.diff(P, axis=0), axis=1).sum()
+    assert abs(length - 4.0) < 0.01
+    assert r.worst_quality >= 0.99

@@ -313,7 +313,7 @@ def _step(problem: _Problem, Q0, H1, handles, max_iterations: int, rtol: float,
 def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatArray, *,
                  steps: int = 10, weight: float = 1.0, bending: float = 0.3,
                  anchor: str = "rest", emphasis: float = 1.0, area_weights: bool = True,
-                 max_iterations: int = 4, rtol: float = 1e-3, final_iterations: int = 30,
+                 max_iterations: int = 8, rtol: float = 1e-3, final_iterations: int = 30,
                  final_rtol: float = 1e-6, final_stall: float | None = 0.1,
                  max_halvings: int = 8, polish: int = 30) -> SurfaceMoveResult:
     """Move a triangle surface: ``handles`` exactly to ``targets``, the rest placed so
@@ -342,7 +342,9 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
     area_weights : bool
         Weigh triangle t's membrane rows by its rest area over the mean, ``a_t``.
     max_iterations, rtol : Gauss–Newton–Marquardt steps per increment; stop when an accepted
-        step lowers the energy by less than ``rtol`` times the energy.
+        step lowers the energy by less than ``rtol`` times the energy. An increment left
+        short of its minimizer is the next one's start: too few steps can carry a transient
+        kink to the end (a strip rolled into an arc ends kinked with 4).
     final_iterations, final_rtol : the same for the last increment (the result).
     final_stall : float or None
         The last increment keeps its factor while each shortened step lowers the energy
