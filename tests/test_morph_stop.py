@@ -178,3 +178,8 @@ def test_filter_refuses_healthy_for_planar_meshes():
     with pytest.raises(FilterError, match="surfaces in 3D only; planar morphs"):
         registry.get("generate_geodesic_morph")()(doc, frames=3, stop="healthy")
     assert len(doc) == 2
+    P, T = _cube_tets()
+    doc = Document([TetMesh(P, T), TetMesh(1.1 * P, T)])
+    with pytest.raises(FilterError, match="a surface in 3D; .* has 6 tetrahedra"):
+        registry.get("generate_geodesic_morph")()(doc, frames=3)
+    assert len(doc) == 2
