@@ -5,6 +5,10 @@ per-triangle distortion metric ``M + w² JᵀJ``, :func:`~.motion.morph.distorti
 frames as healthy as their ends) or ``"complete"`` (the complete metric of ``√N·f2``,
 :func:`~.motion.scalar_morph.geodesic_morph`: frames only non-inverted). The command
 line's ``--metric scalar`` is the complete metric (:data:`METRIC_ALIASES`).
+
+When a morph stops is :data:`STOP_RULES`: ``"healthy"`` stops a surface's morph as soon as
+every interior frame is as healthy as the worse end (its default, ``"auto"``),
+``"converged"`` runs the energy tests alone; planar and tet morphs have only the latter.
 """
 
 from __future__ import annotations
@@ -15,7 +19,7 @@ from dataclasses import dataclass
 from .errors import OptionError
 from .results import PathIteration
 
-__all__ = ["IN_SPACE", "METRIC_ALIASES", "MORPH_METRICS", "morph"]
+__all__ = ["IN_SPACE", "METRIC_ALIASES", "MORPH_METRICS", "STOP_RULES", "morph"]
 
 #: other names of the morph metrics
 METRIC_ALIASES = {"scalar": "complete"}
@@ -24,6 +28,12 @@ METRIC_ALIASES = {"scalar": "complete"}
 #: distortion metric, Newton–CG for the complete one, which usually stops earlier:
 #: stationary energy)
 DEFAULT_MAX_ITER = {"distortion": 200, "complete": 500}
+
+#: when a morph stops: "auto" (each kind's default: "healthy" for surfaces in 3D,
+#: "converged" for the others), "healthy" (surfaces in 3D: as soon as every interior frame's
+#: worst relative quality is at least the worse end's, else on the energy tests) or
+#: "converged" (the energy tests alone: a minimizer of the path energy)
+STOP_RULES = ("auto", "healthy", "converged")
 
 
 @dataclass(frozen=True)
@@ -34,6 +44,7 @@ class _Settings:
     method: str
     max_iter: int
     callback: Callable | None
+    stop: str = "auto"
 
 
 def _distortion_only(o: _Settings) -> None:
@@ -41,10 +52,17 @@ def _distortion_only(o: _Settings) -> None:
         raise OptionError("beta, normalize and method apply to metric='complete' only")
 
 
+def _no_healthy_stop(o: _Settings, what: str) -> None:
+    if o.stop == "healthy":
+        raise OptionError(f"stop='healthy' applies to surfaces in 3D only; {what} stop on "
+                          "their energy tests alone (stop='converged', their default)")
+
+
 def _distortion(source, target, frames: int, o: _Settings):
     from .motion.morph import distortion_morph
 
     _distortion_only(o)
+    _no_healthy_stop(o, "planar morphs")
     return distortion_morph(source, target, frames, weight=o.weight, max_iter=o.max_iter,
                             callback=o.callback)
 
@@ -54,6 +72,7 @@ def _complete(source, target, frames: int, o: _Settings):
 
     if o.weight != 1.0:
         raise OptionError("weight applies to metric='distortion' only")
+    _no_healthy_stop(o, "planar morphs")
     return geodesic_morph(source, target, frames,
                           beta=DEFAULT_BETA if o.beta is None else tuple(o.beta),
                           normalize=o.normalize, method=o.method, max_iter=o.max_iter,
@@ -68,6 +87,7 @@ def _tets(source, target, frames: int, o: _Settings):
     from .motion.tet_morph import morph_tets
 
     _distortion_only(o)
+    _no_healthy_stop(o, "tet morphs")
     return morph_tets(source, target, frames, weight=o.weight, max_iter=o.max_iter,
                       callback=o.callback)
 
@@ -78,7 +98,8 @@ def _surfaces(source, target, frames: int, o: _Settings):
     _distortion_only(o)
     hook = o.callback
     return morph_surface_mesh(source, target, frames, weight=o.weight,
-                              max_iterations=o.max_iter, callback=None if hook is None else (
+                              max_iterations=o.max_iter, stop_when_healthy=o.stop != "converged",
+                              callback=None if hook is None else (
                                   lambda r: hook(r.iteration, r.energy, r.gradient_norm)))
 
 
@@ -108,6 +129,7 @@ def morph(
     normalize: bool = True,
     method: str = "discrete",
     max_iterations: int | None = None,
+    stop: str = "auto",
     callback: Callable[[PathIteration], bool | None] | None = None,
     progress: Callable[[float], None] | None = None,
 ):
@@ -134,6 +156,12 @@ def morph(
     max_iterations : int, optional
         Iterations of the discrete geodesic (default :data:`DEFAULT_MAX_ITER`, in space
         :data:`IN_SPACE`).
+    stop : ``"auto"`` (default), ``"healthy"`` or ``"converged"`` (:data:`STOP_RULES`)
+        Surfaces in 3D: ``"healthy"`` (their default) stops as soon as every interior
+        frame's worst relative quality is at least the worse end's (then no frame can be
+        better; the path energy is not minimized further), ``"converged"`` runs the energy
+        tests alone (a lower path energy, more iterations). Planar and tet morphs stop on
+        their energy tests only: ``"healthy"`` is refused for them.
     callback : callable ``PathIteration -> bool | None``, optional
         Called once per iteration; returning True stops the iteration (status
         ``"stopped"``; the frames are admissible, not yet a minimizer).
@@ -149,7 +177,8 @@ def morph(
     Raises
     ------
     OptionError
-        ``frames < 2``, an unknown metric or method, an option of the other metric.
+        ``frames < 2``, an unknown metric, method or stop rule, an option of the other
+        metric, ``stop="healthy"`` for a planar or tet morph.
     InvalidMeshError, NotAdmissibleError
         Different connectivity, a non-admissible end.
     """
@@ -168,6 +197,8 @@ def morph(
         default_iterations = DEFAULT_MAX_ITER[name]
     if int(frames) < 2:
         raise OptionError(f"frames must be at least 2, got {frames}")
+    if stop not in STOP_RULES:
+        raise OptionError(f"unknown stop rule {stop!r}; choose one of {', '.join(STOP_RULES)}")
     n_iter = default_iterations if max_iterations is None else int(max_iterations)
     if n_iter < 1:
         raise OptionError(f"max_iterations must be at least 1, got {max_iterations}")
@@ -181,4 +212,4 @@ def morph(
 
     hook = step if callback is not None or progress is not None else None
     return run(source, target, int(frames),
-               _Settings(float(weight), beta, bool(normalize), method, n_iter, hook))
+               _Settings(float(weight), beta, bool(normalize), method, n_iter, hook, stop))

@@ -17,7 +17,8 @@ from meshopt_toolkit.kernels.cell_maps import surface_inverse_shape_quality
 from meshopt_toolkit.motion.bending import ShellBending, dihedral_angles, edge_diamonds
 from meshopt_toolkit.motion.surface_distortion import SurfaceDistortion, surface_quality_bound
 from meshopt_toolkit.motion.surface_move import move_surface
-from meshopt_toolkit.motion.surface_paths import FoldTest, HandlePath, best_rotations, handle_groups
+from meshopt_toolkit.motion.similarity_3d import HandlePath, handle_groups
+from meshopt_toolkit.motion.surface_paths import FoldTest, best_rotations
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "benchmarks"))
@@ -164,22 +165,6 @@ def test_handle_path_turns_about_the_hinge_along_the_arc():
     for t in (0.25, 0.5, 0.8):
         arc = pivot + (X - pivot) @ bench.rotation(axis, 1.9 * t).T + t * lift * axis
         assert np.allclose(path(t), arc, atol=1e-12)
-
-
-@settings(max_examples=40, deadline=None)
-@given(st.integers(0, 2**31 - 1), st.floats(-1.0, 1.0), st.floats(0.0, 1.0), st.floats(0.0, 1.0))
-def test_similarity_path_is_a_one_parameter_group(seed, log_scale, a, b):
-    """``screw(a)`` after ``screw(b)`` is ``screw(a + b)`` (with its spiral scale),
-    ``screw(0)`` the identity and ``screw(1)`` the similarity itself, for random
-    similarities."""
-    from meshopt_toolkit.motion.surface_paths import Similarity3
-    rng = np.random.default_rng(seed)
-    S = Similarity3(float(np.exp(log_scale)), random_rotation(rng), rng.normal(size=3),
-                    rng.normal(size=3))
-    x = rng.normal(size=(5, 3))
-    assert np.allclose(S.screw(a)(S.screw(b)(x)), S.screw(a + b)(x), atol=1e-9)
-    assert np.allclose(S.screw(0.0)(x), x, atol=1e-12)
-    assert np.allclose(S.screw(1.0 - 1e-13)(x), S(x), atol=1e-9)
 
 
 def test_bad_input_raises():

@@ -14,8 +14,8 @@ from meshopt_toolkit.errors import InvalidMeshError
 from meshopt_toolkit.kernels.cell_maps import barycentric_gradients
 from meshopt_toolkit.kernels.tetrahedra import mean_ratios as tet_mean_ratios
 from meshopt_toolkit.kernels.tetrahedra import signed_volumes as tet_signed_volumes
-from meshopt_toolkit.motion.similarity_3d import (HandlePath3, fit_similarity_3d,
-                                                  handle_groups_3d, tet_boundary_faces)
+from meshopt_toolkit.motion.similarity_3d import (HandlePath, fit_similarity_3d, handle_groups,
+                                                  tet_boundary_faces)
 from meshopt_toolkit.motion.tet_distortion import TetDistortion
 from meshopt_toolkit.motion.tet_least_squares import Factor, FreePattern, Problem, minimize
 from meshopt_toolkit.motion.tet_metric import tet_lumped_mass
@@ -215,9 +215,9 @@ def test_fit_excludes_reflections():
 def test_handle_path_groups_and_ends():
     P, T = box_with_hole(0.5)
     handles, at = sphere_turn(P, T, push=0.2)
-    groups = handle_groups_3d(handles, tet_boundary_faces(T), len(P))
-    assert len(groups) == 2
-    path = HandlePath3(P[handles], at(1.0), groups)
+    groups = handle_groups(tet_boundary_faces(T), handles, len(P))
+    assert groups.max() + 1 == 2
+    path = HandlePath(P[handles], at(1.0), groups, motion="chord")
     assert np.array_equal(path(1.0), at(1.0)) and np.allclose(path(0.0), P[handles])
     # the sphere turns rigidly along the path rather than collapsing through its centre
     mid = path(0.5)[inner := np.linalg.norm(P[handles], axis=1) < 0.6]

@@ -19,7 +19,10 @@ whose boundary (or surface) does, is refused in one line and nothing is written.
 Two poses of a triangle surface in 3D (same triangles) are morphed by
 :mod:`meshopt_toolkit.motion.surface_morph` (membrane distortion and bending, every frame
 fold-free): the frames are the source's file with new points, with ``quality.csv`` (per
-frame the worst relative quality and the folds) and ``summary.json``.
+frame the worst relative quality and the folds) and ``summary.json``. ``--stop healthy``
+(their default, ``auto``) stops as soon as every interior frame is as healthy as the worse
+end, ``--stop converged`` runs the energy tests alone; planar and tet morphs stop on those
+only and refuse ``--stop healthy``.
 
 Both planar meshes are morphed at unit size (divided by one power of two nearest their size, see
 :mod:`meshopt_toolkit.scaling`) and the frames scaled back, so coordinates near 1e300 or
@@ -45,7 +48,7 @@ from ._validate import check_int, check_numbers
 HELP = "geodesic morph between two meshes of the same connectivity (never inverts)"
 #: options generated from the filter's parameters (one schema: cli/_params.py)
 OPTIONS = {"frames": "--frames", "metric": "--metric", "weight": "--weight",
-           "method": "--method"}
+           "method": "--method", "stop": "--stop"}
 
 PLOTS = ("strip.png", "quality.png")
 
@@ -100,6 +103,12 @@ def run(args: argparse.Namespace) -> int:
     _check_numbers(args)
     _check_outputs(args, others=())  # the outputs of every kind, before reading
     kind, cells = read_kind(args.source)
+    if args.stop == "healthy" and kind != SURFACE:
+        from ..errors import OptionError
+
+        raise OptionError(f"{args.source}: --stop healthy applies to surfaces in 3D only; "
+                          f"{'tet' if kind == TETS else 'planar'} morphs stop on their energy "
+                          "tests alone (--stop converged, their default)")
     if kind == TETS:
         return _run_tets(args, cells)
     if kind == SURFACE:  # poses of a triangle surface in 3D
@@ -118,7 +127,7 @@ def run(args: argparse.Namespace) -> int:
     with ProgressBar(max_iter, "morph") as bar:
         result = morph(source, target, args.frames, metric=args.metric, weight=args.weight,
                        beta=args.beta, normalize=not args.no_normalize, method=args.method,
-                       max_iterations=max_iter,
+                       max_iterations=max_iter, stop=args.stop,
                        callback=lambda it: bar.update(status=f"E={it.energy:.8g}"))
     for name, mesh in zip(names, result.frames):
         save_moved(wp, mesh, outdir / name, what=name)
@@ -176,7 +185,7 @@ def _run_tets(args: argparse.Namespace, cells) -> int:
     max_iter = args.max_iter or 200
     with ProgressBar(max_iter, "morph") as bar:
         result = morph(source, target, args.frames, weight=args.weight, max_iterations=max_iter,
-                       callback=lambda it: bar.update(status=f"E={it.energy:.8g}"))
+                       stop=args.stop, callback=lambda it: bar.update(status=f"E={it.energy:.8g}"))
     prepare_output_dir(outdir, force=args.force, names=files)
     for name, points in zip(names, result.points):
         save_cells(replace(cells, points=np.array(points, dtype=float)), outdir / name)
@@ -227,7 +236,7 @@ def _run_surface(args: argparse.Namespace, cells) -> int:
     with ProgressBar(max_iter, "morph") as bar:
         result = morph(source, target, args.frames, metric=args.metric, weight=args.weight,
                        beta=args.beta, normalize=not args.no_normalize, method=args.method,
-                       max_iterations=max_iter,
+                       max_iterations=max_iter, stop=args.stop,
                        callback=lambda it: bar.update(status=f"E={it.energy:.8g}"))
     prepare_output_dir(outdir, force=args.force, names=written)
     for name, mesh in zip(names, result.frames):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from meshopt_toolkit.bounds import MAX_FRAMES
 from meshopt_toolkit.errors import FilterError, MeshoptError
+from meshopt_toolkit.operations import STOP_RULES
 from meshopt_toolkit.pipeline.filter import Filter, register
 from meshopt_toolkit.pipeline.params import (BoolParam, EnumParam, FloatParam, IntParam,
                                              NumberListParam, number_list)
@@ -26,7 +27,12 @@ class GenerateGeodesicMorph(Filter):
 
     The source is document mesh ``source`` (default 0, the first), the target mesh
     ``target`` (default −1, the current one); both must be planar, admissible and share
-    vertices and triangles. The ``frames`` meshes of
+    vertices and triangles, or be two poses of one triangle surface in 3D (morphed with
+    membrane distortion and bending, as ``meshopt morph``; face quality the unsigned 2r/R).
+    ``stop`` says when the morph of a surface in 3D stops: ``"healthy"`` (its default,
+    ``"auto"``) as soon as every frame is as healthy as the worse end, ``"converged"`` on
+    the energy tests alone; planar morphs stop on these only and refuse ``"healthy"``.
+    The ``frames`` meshes of
     the morph (frame 0 the source, the last the target) are appended to the document as ``morph_000``, ``morph_001``, …, the last
     one current, each with its per-face aspect ratio 2r/R as face quality. The summary
     holds the morph's diagnostics (``target_error``, ``min_aspect_ratio``,
@@ -58,6 +64,10 @@ class GenerateGeodesicMorph(Filter):
                   "of f2", label="Normalize"),
         EnumParam("method", METHODS[0], "discrete geodesic, shooting geodesic, or shooting "
                   "with a fallback", label="Method", choices=METHODS),
+        EnumParam("stop", STOP_RULES[0], "when to stop: surfaces in 3D as soon as every "
+                  "frame is as healthy as the worse end (healthy, their auto) or on the energy "
+                  "tests alone (converged, the only rule of planar and tet morphs)",
+                  label="Stop", choices=STOP_RULES),
     )
 
     former_parameters = dict.fromkeys(FORMER_BETAS, "penalty")
@@ -81,7 +91,8 @@ class GenerateGeodesicMorph(Filter):
 
     def apply(self, document, *, source: int = 0, target: int = -1, frames: int = 9,
               metric: str = METRICS[0], weight: float = 1.0, penalty: str = "",
-              normalize: bool = True, method: str = METHODS[0]) -> dict:
+              normalize: bool = True, method: str = METHODS[0],
+              stop: str = STOP_RULES[0]) -> dict:
         from meshopt_toolkit.kernels.triangles import aspect_ratios
         from meshopt_toolkit.motion.scalar_morph import DEFAULT_BETA
         from meshopt_toolkit.operations import morph
@@ -92,7 +103,10 @@ class GenerateGeodesicMorph(Filter):
         for idx, what in ((source, "source"), (target, "target")):
             if not -n <= idx < n:
                 raise FilterError(f"{self.name}: the document has {n} meshes, no {what} mesh {idx}")
-        src = document.entries[source].workpiece(f"{self.name}: the source")
+        src = document.entries[source].workpiece(f"{self.name}: the source", required=False)
+        if src is None:  # a surface in 3D (a tet mesh is refused there)
+            return self._surface(document, document.entries[source], document.entries[target],
+                                 frames, metric, weight, penalty, normalize, method, stop)
         tgt = document.entries[target].workpiece(f"{self.name}: the target")
         try:
             # the source's plane at unit size (one power of two for both); the frames
@@ -102,7 +116,7 @@ class GenerateGeodesicMorph(Filter):
             beta = (beta1, beta2, beta3, beta4)
             result = morph(base, end, frames, metric=metric, weight=weight,
                            beta=None if beta == DEFAULT_BETA else beta, normalize=normalize,
-                           method=method)
+                           method=method, stop=stop)
             width = max(3, len(str(frames - 1)))
             meshes = [(f"morph_{k:0{width}d}", src.moved(m.points, what=f"frame {k}"),
                        aspect_ratios(m.points, m.triangles))
@@ -115,3 +129,35 @@ class GenerateGeodesicMorph(Filter):
             document.add(entry)
             entry.set_face_attribute("quality", quality)
         return {**result.summary(), "unit_scale": src.scale.factor}
+
+    def _surface(self, document, source, target, frames: int, metric: str, weight: float,
+                 penalty: str, normalize: bool, method: str, stop: str) -> dict:
+        """Morph two poses of a triangle surface in 3D; each frame keeps the source file's
+        blocks, tags and data (``source_cells``) at its points."""
+        from meshopt_toolkit.kernels.surface import aspect_ratios
+        from meshopt_toolkit.mesh import SurfaceMesh, TetMesh, TriangleMesh
+        from meshopt_toolkit.operations import morph
+        from meshopt_toolkit.pipeline.document import MeshEntry
+
+        for entry, what in ((source, "source"), (target, "target")):
+            if isinstance(entry.mesh, TetMesh):
+                raise FilterError(f"{self.name}: the {what} needs a planar mesh or a surface "
+                                  f"in 3D; {entry.name} has {entry.mesh.n_tets} tetrahedra")
+        if metric != METRICS[0] or penalty or not normalize or method != METHODS[0]:
+            raise FilterError(f"{self.name}: surfaces in 3D are morphed with the distortion "
+                              "metric only (metric, penalty, normalize and method do not apply)")
+        a, b = source.mesh, target.mesh
+        try:
+            result = morph(SurfaceMesh(a.points, a.triangles, **a._tag_kwargs()),
+                           SurfaceMesh(b.points, b.triangles, **b._tag_kwargs()), frames,
+                           weight=weight, stop=stop)
+        except MeshoptError as exc:
+            raise FilterError(f"{self.name}: {exc}") from None
+        cells = source.source_cells if source.keeps_source_cells else None
+        width = max(3, len(str(frames - 1)))
+        for k, m in enumerate(result.frames):
+            entry = MeshEntry(TriangleMesh(m.points, a.triangles, **a._tag_kwargs()),
+                              name=f"morph_{k:0{width}d}", source_cells=cells)
+            document.add(entry)
+            entry.set_face_attribute("quality", aspect_ratios(m.points, a.triangles))
+        return result.summary()

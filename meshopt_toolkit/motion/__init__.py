@@ -14,6 +14,7 @@ nonlinear least-squares problem, whose discrete geodesics
 :func:`~meshopt_toolkit.riemannian.discrete_geodesic.discrete_geodesic` computes by
 Levenberg–Marquardt), :mod:`.move` (prescribed motion of handle vertices), :mod:`.morph`
 (morphing between two meshes). Tet meshes: :mod:`.tet_distortion` (φ ∈ R⁷ per tet),
-:mod:`.tet_metric`, :mod:`.similarity_3d`, :mod:`.tet_least_squares` and :mod:`.tet_move`
-(prescribed motion, ``move_tets``).
+:mod:`.tet_metric`, :mod:`.similarity_3d` (the similarity of space and handle paths that tets
+and surfaces share), :mod:`.tet_least_squares` and :mod:`.tet_move` (prescribed motion,
+``move_tets``).
 """

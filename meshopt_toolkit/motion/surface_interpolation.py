@@ -18,7 +18,7 @@ from scipy.spatial.transform import Rotation
 from .._typing import FloatArray, IntArray
 from ..solvers import factorize_spd
 from .surface_distortion import SurfaceDistortion
-from .surface_paths import fit_similarity
+from .similarity_3d import fit_similarity_3d as fit_similarity
 
 
 def _frames(P: FloatArray) -> FloatArray:

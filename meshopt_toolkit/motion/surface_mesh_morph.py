@@ -73,10 +73,12 @@ class SurfaceMeshMorph:
 
 def morph_surface_mesh(source, target, frames: int = 9, *, weight: float = WEIGHT,
                        bending: float = BENDING, max_iterations: int = 10,
+                       stop_when_healthy: bool = True,
                        callback: Callable[[PathIteration], bool | None] | None = None,
                        progress: Callable[[float], None] | None = None) -> SurfaceMeshMorph:
     """:func:`morph_surface` between two poses given as :class:`SurfaceMesh`,
-    ``trimesh.Trimesh`` or ``pymeshlab.Mesh`` (both of one type, the same triangles).
+    ``trimesh.Trimesh`` or ``pymeshlab.Mesh`` (both of one type, the same triangles);
+    ``stop_when_healthy`` as there.
 
     Raises
     ------
@@ -110,7 +112,8 @@ def morph_surface_mesh(source, target, frames: int = 9, *, weight: float = WEIGH
             progress(min(1.0, record.iteration / max(int(max_iterations), 1)))
             return callback(record) if callback is not None else None
     res = morph_surface(s.points, t.points, s.triangles, frames, weight=weight,
-                        bending=bending, max_iterations=max_iterations, callback=hook)
+                        bending=bending, max_iterations=max_iterations,
+                        stop_when_healthy=stop_when_healthy, callback=hook)
 
     guard.check(res.points, motion="the morph", last=False)
 

@@ -55,7 +55,8 @@ from .bending import ShellBending, dihedral_angles, wrap
 from .surface_distortion import SurfaceDistortion
 from .surface_interpolation import arap_interpolation
 from .surface_move import lumped_mass
-from .surface_paths import FoldTest, global_similarity
+from .similarity_3d import global_similarity
+from .surface_paths import FoldTest
 
 __all__ = ["SurfaceMorph", "morph_surface", "frame_measures"]
 

@@ -51,7 +51,8 @@ from ..kernels.surface import aspect_ratios
 from ..solvers import factorize_spd
 from .bending import ShellBending
 from .surface_distortion import SurfaceDistortion
-from .surface_paths import FoldTest, HandlePath, global_similarity, handle_groups
+from .similarity_3d import HandlePath, global_similarity, handle_groups
+from .surface_paths import FoldTest
 from .surface_polish import polish_worst_triangles
 
 SQRT2 = np.sqrt(2.0)

@@ -35,7 +35,7 @@ from ..riemannian.path_options import LevenbergMarquardtOptions
 from ..results import PathFrames
 from .continuation import NoAdmissiblePathError
 from .handles3d import SelfIntersectionGuard
-from .similarity_3d import (HandlePath3, Similarity3, fit_similarity_3d, handle_groups_3d,
+from .similarity_3d import (HandlePath, Similarity3, fit_similarity_3d, handle_groups,
                             tet_boundary_faces)
 from .tet_distortion import SQRT3
 from .tet_least_squares import Problem, extend, minimize
@@ -318,14 +318,14 @@ def _continuation(metric: TetGraphMetric, P0: FloatArray, R1: FloatArray, T: Int
                   boundary: IntArray, times: FloatArray, max_splits: int,
                   relax_iter: int = 15) -> FloatArray:
     """Frames at ``times`` of a minimizing movement from ``P0``: the boundary along each
-    boundary piece's similarity to its place in ``R1`` (:class:`.HandlePath3`), each
+    boundary piece's similarity to its place in ``R1`` (:class:`.HandlePath`), each
     step started at the first admissible of the linearized extension of the boundary's
     increment and the interior kept (halved where both invert a tet), then
     ``½|Q − Q_prev|²_M + ½w²|φ(Q) − s·φ(R1)|²`` minimized with the boundary fixed (every
     accepted iterate admissible); the last frame is ``R1``."""
     problem = Problem.build(metric.strain, metric.weight, metric.mass, boundary)
-    path = HandlePath3(P0[boundary], R1[boundary],
-                       handle_groups_3d(boundary, tet_boundary_faces(T), len(P0)))
+    path = HandlePath(P0[boundary], R1[boundary],
+                      handle_groups(tet_boundary_faces(T), boundary, len(P0)), motion="chord")
     phi1 = metric.strain.values(R1)
     Q, s_now, out = P0.copy(), 0.0, [P0.copy()]
     for s_goal in times[1:-1]:

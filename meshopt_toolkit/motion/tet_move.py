@@ -30,7 +30,7 @@ from ..kernels.tetrahedra import signed_volumes as tet_signed_volumes
 from ..mesh import TetMesh
 from .continuation import NoAdmissiblePathError
 from .handles3d import SolvedVertices, check_handles, distinct_handles
-from .similarity_3d import (HandlePath3, Similarity3, fit_similarity_3d, handle_groups_3d,
+from .similarity_3d import (HandlePath, Similarity3, fit_similarity_3d, handle_groups,
                             tet_boundary_faces)
 from .tet_distortion import SQRT3, TetDistortion
 from .tet_least_squares import Problem, extend, minimize
@@ -201,8 +201,8 @@ def move_tets(points: FloatArray, tets: IntArray, handles, targets, *, steps: in
         residual = [P.copy() for _ in times]  # the handles move by a similarity: so does all
         length = 0.0
     else:
-        path = HandlePath3(P[h], residual_targets, handle_groups_3d(h, tet_boundary_faces(T),
-                                                                  len(P)))
+        path = HandlePath(P[h], residual_targets,
+                          handle_groups(tet_boundary_faces(T), h, len(P)), motion="chord")
         problem = Problem.build(strain, weight, mass, h)
         residual, cont = _continuation(problem, P, h, path, times, relax_iter, max_splits,
                                        newton)
@@ -248,7 +248,7 @@ def _predictions(problem: Problem, Q: FloatArray, h: IntArray, target: FloatArra
     yield "kept", kept
 
 
-def _continuation(problem: Problem, P: FloatArray, h: IntArray, path: HandlePath3,
+def _continuation(problem: Problem, P: FloatArray, h: IntArray, path: HandlePath,
                   times: FloatArray, relax_iter: int, max_splits: int, newton: bool
                   ) -> tuple[list[FloatArray], dict]:
     """Frames at ``times`` of the minimizing movement (see :func:`move_tets`)."""
