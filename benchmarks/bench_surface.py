@@ -353,7 +353,8 @@ def tube_surface(length: float, radius: float, spacing: float):
     idx = np.arange((nu + 1) * nv).reshape(nu + 1, nv)
     nxt = np.roll(idx, -1, axis=1)
     a0, b0, c0, d0 = idx[:-1].ravel(), idx[1:].ravel(), nxt[1:].ravel(), nxt[:-1].ravel()
-    F = np.concatenate([np.stack([a0, b0, c0], 1), np.stack([a0, c0, d0], 1)])
+    # ordered so that the normals point away from the axis
+    F = np.concatenate([np.stack([a0, c0, b0], 1), np.stack([a0, d0, c0], 1)])
     V = np.stack([x.ravel(), radius * np.cos(a.ravel()), radius * np.sin(a.ravel())], 1)
     return V, F.astype(np.int64)
 
