@@ -12,7 +12,10 @@ Cases (data/surfaces/README.md names the sources and terms of the meshes):
   long axis, the other fixed;
 * ``--unseen`` (cases defined by coordinate rules after the method's defaults were set):
   Keenan Crane's spot (head turned 60°, a leg bent 60°), bob (head turned 90°) and blub
-  (tail turned 60°), the bar bent 90° and an open strip rolled 90°.
+  (tail turned 60°), the bar bent 90° and an open strip rolled 90°;
+* ``--unseen2`` (more such cases): the bunny's front ear turned 90°, bob's tail tilted
+  60°, the armadillo's tail turned 60°, an open tube twisted 180° and bent 90°, a thin
+  plate twisted 90°, the rolled strip with a hole, a flat disc pushed into a bump.
 
 Methods: libigl harmonic (k = 1) and biharmonic (k = 2) extensions of the handle
 displacements; libigl ARAP single shot (100 iterations from the biharmonic result) and in
@@ -25,7 +28,8 @@ Printed per case and method: worst relative quality (aspect ratio 2r/R over its 
 triangles not wholly handles), folds, max handle error, seconds and the ARAP energy
 (``_surface_measures.py``). ``--figures DIR`` writes one PNG per case.
 
-Run ``python benchmarks/bench_surface.py [--cases knight,bar] [--unseen] [--figures DIR]``.
+Run ``python benchmarks/bench_surface.py [--cases knight,bar] [--unseen] [--unseen2]
+[--figures DIR]``.
 """
 
 from __future__ import annotations
@@ -300,10 +304,151 @@ def plate_bent() -> Case:
                        [0, -1, 0], np.pi / 2, pivot)
 
 
+# ``--unseen2``: more cases defined by coordinate rules before ours was run on them: the
+# other ear, tails, and generated open tubes, a thin plate, a holed strip and a disc.
+
+def largest_component(V, F, mask):
+    """The largest connected component of ``mask`` (see :func:`components`) as a mask."""
+    labels = components(V, F, mask)
+    ids, counts = np.unique(labels[labels >= 0], return_counts=True)
+    return labels == ids[np.argmax(counts)]
+
+
+def bunny_front_ear() -> Case:
+    """The bunny's front ear (z < −0.035, y > 0.14): its tip (y > 0.165) turned 90°
+    outwards (to −z) about the long (x) axis through the ear's base (y < 0.155); the
+    bottom (lowest 2 % of the height) fixed."""
+    V, F = read_mesh(DATA / "bunny.off")
+    ear = largest_component(V, F, (V[:, 2] < -0.035) & (V[:, 1] > 0.14))
+    bottom = V[:, 1] < V[:, 1].min() + 0.02 * np.ptp(V[:, 1])
+    return region_turn("bunny front ear", V, F, ear & (V[:, 1] > 0.165), bottom,
+                       [1, 0, 0], -np.pi / 2, V[ear & (V[:, 1] < 0.155)].mean(0))
+
+
+def bob_tail() -> Case:
+    """Bob's tail (x > 0.6, y > 0.03) tilted 60° sideways (to +z) about the long (x)
+    axis through its boundary; the bottom (lowest 5 % of the height) fixed."""
+    V, F = read_mesh(DATA / "bob.obj")
+    bottom = V[:, 1] < V[:, 1].min() + 0.05 * np.ptp(V[:, 1])
+    tail = largest_component(V, F, (V[:, 0] > 0.6) & (V[:, 1] > 0.03))
+    return region_turn("bob tail", V, F, tail, bottom, [1, 0, 0], np.pi / 3)
+
+
+def armadillo_tail() -> Case:
+    """The armadillo's tail (z < −0.2, y < −0.1) turned 60° sideways about the vertical
+    axis through its boundary; the feet fixed (as in the armadillo case)."""
+    V, F = read_mesh(DATA / "armadillo.ply.xz")
+    tail = largest_component(V, F, (V[:, 2] < -0.2) & (V[:, 1] < -0.1))
+    return region_turn("armadillo tail", V, F, tail, V[:, 1] < V[:, 1].min() + 0.06,
+                       [0, 1, 0], np.pi / 3)
+
+
+def tube_surface(length: float, radius: float, spacing: float):
+    """An open circular tube about the x axis, x ∈ [0, length]: rings of ≈ ``spacing``
+    apart, squares cut into two triangles, normals out."""
+    nu = int(round(length / spacing))
+    nv = int(round(2 * np.pi * radius / spacing))
+    x, a = np.meshgrid(np.linspace(0, length, nu + 1), np.arange(nv) * (2 * np.pi / nv),
+                       indexing="ij")
+    idx = np.arange((nu + 1) * nv).reshape(nu + 1, nv)
+    nxt = np.roll(idx, -1, axis=1)
+    a0, b0, c0, d0 = idx[:-1].ravel(), idx[1:].ravel(), nxt[1:].ravel(), nxt[:-1].ravel()
+    # ordered so that the normals point away from the axis
+    F = np.concatenate([np.stack([a0, c0, b0], 1), np.stack([a0, d0, c0], 1)])
+    V = np.stack([x.ravel(), radius * np.cos(a.ravel()), radius * np.sin(a.ravel())], 1)
+    return V, F.astype(np.int64)
+
+
+def tube_twist() -> Case:
+    """An open tube (length 4, radius 0.5, spacing ≈ 0.0625): the band x ≥ 3.9 turned
+    180° about the tube's axis, the band x ≤ 0.1 fixed."""
+    V, F = tube_surface(4.0, 0.5, 0.0625)
+    return region_turn("tube twist", V, F, V[:, 0] > 3.9 - 1e-9, V[:, 0] < 0.1 + 1e-9,
+                       [1, 0, 0], np.pi, np.array([4.0, 0.0, 0.0]))
+
+
+def tube_bent() -> Case:
+    """The open tube of :func:`tube_twist` bent 90° in the x–y plane: the band x ≥ 3.9
+    turned so that the end ring's centre goes to the end of a quarter circle of length 4,
+    the band x ≤ 0.1 fixed."""
+    V, F = tube_surface(4.0, 0.5, 0.0625)
+    r = 4.0 / (np.pi / 2)
+    pivot = planar_pivot([4.0, 0.0, 0.0], [r, r, 0.0], [0, 0, 1], np.pi / 2)
+    return region_turn("tube bent", V, F, V[:, 0] > 3.9 - 1e-9, V[:, 0] < 0.1 + 1e-9,
+                       [0, 0, 1], np.pi / 2, pivot)
+
+
+def plate_twist() -> Case:
+    """A thin 4×1×0.1 box (spacing 0.05): the cap x = 4 turned 90° about the long axis
+    through its centre, the cap x = 0 fixed."""
+    V, F = box_surface([4.0, 1.0, 0.1], 0.05)
+    return region_turn("plate twist", V, F, V[:, 0] > 4.0 - 1e-9, V[:, 0] < 1e-9,
+                       [1, 0, 0], np.pi / 2, np.array([4.0, 0.5, 0.05]))
+
+
+def holed_strip(length: float, width: float, spacing: float, centre, radius: float):
+    """:func:`strip_surface` without the squares whose centre is within ``radius`` of
+    ``centre`` (x, y), unused vertices dropped (the others keep their order)."""
+    V, F = strip_surface(length, width, spacing)
+    # each square is two consecutive halves: rows k and k + n of F (a, b, c) / (a, c, d)
+    n = len(F) // 2
+    mid = 0.5 * (V[F[:n, 0]] + V[F[:n, 2]])
+    keep = np.linalg.norm(mid[:, :2] - np.asarray(centre), axis=1) >= radius
+    F = np.concatenate([F[:n][keep], F[n:][keep]])
+    used = np.zeros(len(V), bool)
+    used[F] = True
+    new = np.cumsum(used) - 1
+    return V[used], new[F]
+
+
+def strip_hole() -> Case:
+    """The rolled strip of :func:`plate_bent` with a hole (the squares whose centre is
+    within 0.25 of its middle (2, 0.5) removed)."""
+    V, F = holed_strip(4.0, 1.0, 0.05, [2.0, 0.5], 0.25)
+    r = 4.0 / (np.pi / 2)
+    pivot = planar_pivot([4.0, 0.0, 0.0], [r, 0.0, r], [0, -1, 0], np.pi / 2)
+    return region_turn("strip hole", V, F, V[:, 0] > 3.9 - 1e-9, V[:, 0] < 0.1 + 1e-9,
+                       [0, -1, 0], np.pi / 2, pivot)
+
+
+def disc_surface(rings: int):
+    """A flat unit disc in z = 0: the centre and ``rings`` rings (ring k of radius
+    k/rings with 6k points, alternate rings turned half a step), Delaunay triangles
+    oriented with normals +z."""
+    from scipy.spatial import Delaunay
+
+    pts = [np.zeros((1, 2))]
+    for k in range(1, rings + 1):
+        a = (np.arange(6 * k) + 0.5 * (k % 2)) * (2 * np.pi / (6 * k))
+        pts.append(k / rings * np.stack([np.cos(a), np.sin(a)], 1))
+    P = np.concatenate(pts)
+    F = Delaunay(P).simplices.astype(np.int64)
+    e1, e2 = P[F[:, 1]] - P[F[:, 0]], P[F[:, 2]] - P[F[:, 0]]
+    cw = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0] < 0
+    F[cw] = F[cw, ::-1]
+    return np.column_stack([P, np.zeros(len(P))]), F
+
+
+def disc_bump() -> Case:
+    """A flat unit disc (30 rings, 5.4k triangles): the middle (r ≤ 0.2) raised by 0.4
+    into a bump, the rim band (r ≥ 0.95) fixed."""
+    V, F = disc_surface(30)
+    r = np.linalg.norm(V[:, :2], axis=1)
+    m, f = np.flatnonzero(r <= 0.2 + 1e-9), np.flatnonzero(r >= 0.95 - 1e-9)
+    lift = np.array([0.0, 0.0, 0.4])
+    return Case("disc bump", V, F, np.concatenate([m, f]),
+                lambda t: np.concatenate([V[m] + t * lift, V[f]]),
+                np.r_[np.ones(len(m)), np.zeros(len(f))])
+
+
 CASES = {"knight": knight, "bunny": bunny, "armadillo": armadillo, "bar": bar}
 #: ``--unseen``: cases defined by simple rules after the method's defaults were fixed
 UNSEEN = {"spot-head": spot_head, "spot-leg": spot_leg, "bob-head": bob_head,
           "blub-tail": blub_tail, "bar-bent": bar_bent, "plate-bent": plate_bent}
+#: ``--unseen2``: more such cases, defined before ours was run on them
+UNSEEN2 = {"bunny-front-ear": bunny_front_ear, "bob-tail": bob_tail,
+           "armadillo-tail": armadillo_tail, "tube-twist": tube_twist, "tube-bent": tube_bent,
+           "plate-twist": plate_twist, "strip-hole": strip_hole, "disc-bump": disc_bump}
 #: the knight's files are not committed (no licence is stated for the model): its case runs
 #: where they have been copied from the libigl tutorial data into data/surfaces
 KNIGHT_FILES = ("decimated-knight.off", "decimated-knight-selection.dmat")
@@ -506,10 +651,13 @@ def check(rows: dict) -> str:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--cases", help="comma-separated: " + ", ".join({**CASES, **UNSEEN})
+    ap.add_argument("--cases", help="comma-separated: "
+                    + ", ".join({**CASES, **UNSEEN, **UNSEEN2})
                     + " (default: " + ", ".join(CASES) + ")")
     ap.add_argument("--unseen", action="store_true",
                     help="the cases defined after the method: " + ", ".join(UNSEEN))
+    ap.add_argument("--unseen2", action="store_true",
+                    help="more cases defined after the method: " + ", ".join(UNSEEN2))
     ap.add_argument("--methods", default=",".join(METHODS),
                     help="comma-separated: " + ", ".join(METHODS))
     ap.add_argument("--figures", type=Path, help="write one PNG per case into this folder")
@@ -521,8 +669,8 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     MARKDOWN[0] = args.markdown
     STEP_ITERATIONS[0] = args.step_iterations
-    every = {**CASES, **UNSEEN}
-    default = UNSEEN if args.unseen else CASES
+    every = {**CASES, **UNSEEN, **UNSEEN2}
+    default = {**(UNSEEN if args.unseen else {}), **(UNSEEN2 if args.unseen2 else {})} or CASES
     names = [c for c in (args.cases or ",".join(default)).split(",") if c]
     methods = [m for m in args.methods.split(",") if m]
     unknown = [c for c in names if c not in every] + [m for m in methods if m not in METHODS]

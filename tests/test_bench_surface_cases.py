@@ -1,0 +1,153 @@
+"""The case builders of ``bench_surface.py --unseen2``: valid rest meshes, finite rigid
+handle paths, and the generated surfaces against closed forms (areas, Euler
+characteristics, where the turned ends go)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "benchmarks"))
+import _surface_measures as sm  # noqa: E402
+
+bench = pytest.importorskip("bench_surface")
+pytest.importorskip("trimesh")
+
+
+def triangle_areas(V, F):
+    return 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]),
+                                axis=1)
+
+
+def euler_characteristic(V, F):
+    edges = np.unique(np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]),
+                              axis=1), axis=0)
+    return len(V) - len(edges) + len(F)
+
+
+def boundary_edge_count(F):
+    half = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    _, counts = np.unique(np.sort(half, axis=1), axis=0, return_counts=True)
+    return int(np.sum(counts == 1))
+
+
+@pytest.mark.parametrize("name", list(bench.UNSEEN2))
+def test_case_is_a_valid_rest_mesh_with_two_handle_groups_and_finite_targets(name):
+    from meshopt_toolkit.mesh.surface import SurfaceMesh
+
+    case = bench.UNSEEN2[name]()
+    assert SurfaceMesh(case.V, case.F).problems == []
+    assert sm.aspect_ratios(case.V, case.F).min() > 0.005
+    assert len(case.handles) == len(np.unique(case.handles)) == len(case.groups)
+    groups, counts = np.unique(case.groups, return_counts=True)
+    assert list(groups) == [0, 1] and counts.min() >= 50
+    P = case.path(1.0)
+    assert P.shape == (len(case.handles), 3) and np.isfinite(P).all()
+    moved = np.abs(P - case.V[case.handles]).max(axis=1)
+    assert moved[case.groups == 0].max() == 0.0  # the fixed group stays
+    assert moved[case.groups == 1].max() > 0.01 * np.ptp(case.V, axis=0).max()
+
+
+@pytest.mark.parametrize("name", list(bench.UNSEEN2))
+def test_case_path_starts_at_rest_and_moves_each_group_rigidly(name):
+    case = bench.UNSEEN2[name]()
+    np.testing.assert_allclose(case.path(0.0), case.V[case.handles], atol=1e-14)
+    for t in (0.37, 1.0):
+        P = case.path(t)
+        for g in (0, 1):
+            i = np.flatnonzero(case.groups == g)[::7][:60]
+            R = case.V[case.handles[i]]
+            d0 = np.linalg.norm(R[:, None] - R, axis=2)
+            d1 = np.linalg.norm(P[i][:, None] - P[i], axis=2)
+            np.testing.assert_allclose(d1, d0, atol=1e-12)
+
+
+def test_tube_is_an_open_outward_cylinder_of_the_polygon_area():
+    V, F = bench.tube_surface(4.0, 0.5, 0.0625)
+    nv = 50  # 2π·0.5 / 0.0625 rounded
+    assert len(F) == 2 * 64 * nv
+    assert euler_characteristic(V, F) == 0 and boundary_edge_count(F) == 2 * nv
+    # the prism over a regular nv-gon inscribed in the circle
+    area = 4.0 * nv * 2 * 0.5 * np.sin(np.pi / nv)
+    assert triangle_areas(V, F).sum() == pytest.approx(area, rel=1e-12)
+    n = sm.normals(V, F)
+    radial = V[F].mean(axis=1) * [0, 1, 1]
+    assert (np.einsum("ij,ij->i", n, radial) > 0).all()
+
+
+def test_tube_twist_turns_the_end_half_way_round_and_tube_bent_ends_on_the_arc():
+    case = bench.tube_twist()
+    end = case.groups == 1
+    Q = case.V[case.handles[end]]
+    np.testing.assert_allclose(case.path(1.0)[end], Q * [1, -1, -1], atol=1e-12)
+    bent = bench.tube_bent()
+    end = bent.groups == 1
+    P, Q = bent.path(1.0)[end], bent.V[bent.handles[end]]
+    r = 4.0 / (np.pi / 2)
+    ring = Q[:, 0] == 4.0
+    np.testing.assert_allclose(P[ring].mean(0), [r, r, 0.0], atol=1e-12)
+    # the end ring now lies in a plane y = r, its axis along +y
+    np.testing.assert_allclose(P[ring, 1], r, atol=1e-12)
+    np.testing.assert_allclose(P[:, 2], Q[:, 2], atol=1e-12)
+
+
+def test_plate_is_a_closed_thin_box_and_its_cap_turns_a_quarter():
+    V, F = bench.box_surface([4.0, 1.0, 0.1], 0.05)
+    assert euler_characteristic(V, F) == 2 and boundary_edge_count(F) == 0
+    signed_volume = np.einsum("ij,ij->i", V[F[:, 0]], np.cross(V[F[:, 1]], V[F[:, 2]])).sum() / 6
+    assert signed_volume == pytest.approx(0.4, rel=1e-12)
+    case = bench.plate_twist()
+    end = case.groups == 1
+    Q = case.V[case.handles[end]]
+    assert (Q[:, 0] == 4.0).all()
+    expected = np.column_stack([Q[:, 0], 0.5 - (Q[:, 2] - 0.05), 0.05 + (Q[:, 1] - 0.5)])
+    np.testing.assert_allclose(case.path(1.0)[end], expected, atol=1e-12)
+
+
+def test_holed_strip_is_an_annulus_missing_about_the_disc_area():
+    V, F = bench.holed_strip(4.0, 1.0, 0.05, [2.0, 0.5], 0.25)
+    assert euler_characteristic(V, F) == 0  # a disc with one hole
+    assert len(np.unique(F)) == len(V)  # no unused vertex
+    hole = 4.0 - triangle_areas(V, F).sum()
+    assert hole == pytest.approx(np.pi * 0.25**2, rel=0.05)
+    assert (sm.normals(V, F)[:, 2] > 0).all()
+    # nothing inside the hole, the outer boundary untouched
+    centres = V[F].mean(axis=1)
+    assert np.linalg.norm(centres[:, :2] - [2.0, 0.5], axis=1).min() > 0.25 - 0.05
+    np.testing.assert_array_equal(V.min(0), [0, 0, 0])
+    np.testing.assert_array_equal(V.max(0), [4, 1, 0])
+
+
+def test_disc_is_the_outer_polygon_triangulated_facing_up():
+    rings = 30
+    V, F = bench.disc_surface(rings)
+    assert len(V) == 1 + 3 * rings * (rings + 1)
+    assert euler_characteristic(V, F) == 1 and boundary_edge_count(F) == 6 * rings
+    m = 6 * rings
+    assert triangle_areas(V, F).sum() == pytest.approx(0.5 * m * np.sin(2 * np.pi / m),
+                                                       rel=1e-12)
+    assert (sm.normals(V, F)[:, 2] > 0).all()
+    case = bench.disc_bump()
+    middle = case.groups == 1
+    r = np.linalg.norm(case.V[case.handles, :2], axis=1)
+    assert (r[middle] <= 0.2 + 1e-9).all() and (r[~middle] >= 0.95 - 1e-9).all()
+    lift = case.path(0.5)[middle] - case.V[case.handles[middle]]
+    np.testing.assert_allclose(lift, np.tile([0, 0, 0.2], (middle.sum(), 1)), atol=1e-15)
+
+
+def test_real_mesh_cases_pick_the_named_parts():
+    ear = bench.bunny_front_ear()
+    tip = ear.V[ear.handles[ear.groups == 1]]
+    assert (tip[:, 0] < -0.05).all() and (tip[:, 1] > 0.165).all()
+    assert ear.path(1.0)[ear.groups == 1][:, 2].min() < tip[:, 2].min()  # outwards, −z
+    tail = bench.bob_tail()
+    T = tail.V[tail.handles[tail.groups == 1]]
+    assert (T[:, 0] > 0.6).all() and (T[:, 1] > 0.03).all() and len(T) == 234
+    assert tail.path(1.0)[tail.groups == 1][:, 2].mean() > T[:, 2].mean() + 0.05  # to +z
+    arm = bench.armadillo_tail()
+    T = arm.V[arm.handles[arm.groups == 1]]
+    assert (T[:, 2] < -0.2).all() and np.abs(T[:, 0]).max() < 0.05 and len(T) == 797
