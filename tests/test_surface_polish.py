@@ -180,8 +180,35 @@ def test_a_rigid_motion_is_left_as_it_is():
     P = V @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) + [0.3, -1.0, 2.0]
     out, info = polish_worst_triangles(V, F, P, boundary[:3])
     assert out is P and info["polish_vertices"] == 0
-    # the same surface with one vertex pushed sideways is polished
+    # the same surface with one vertex pushed sideways is polished where the membrane
+    # energy may rise; by default it is not: the polish would spread the push over the
+    # patch at several times its membrane energy
     P[20] += 0.05 * (P[21] - P[20])
-    out, info = polish_worst_triangles(V, F, P, boundary[:3])
+    out, info = polish_worst_triangles(V, F, P, boundary[:3], max_energy_rise=np.inf)
     assert info["polish_vertices"] > 0
     assert info["polish_worst_quality"][1] > info["polish_worst_quality"][0]
+    out, info = polish_worst_triangles(V, F, P, boundary[:3])
+    assert out is P and info["polish_vertices"] == 0
+
+
+def membrane_energy(V, F, P):
+    """Σ_t a_t |φ_t|², a_t the rest areas."""
+    areas = np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)
+    return float(areas @ np.sum(SurfaceDistortion(V, F).values(P) ** 2, axis=1))
+
+
+def test_a_polish_that_costs_more_membrane_energy_than_allowed_is_refused():
+    """A flat patch with one vertex pushed sideways: the polish spreads the push, which
+    raises the worst relative quality and the membrane energy; the allowed rise decides."""
+    V, F, boundary = patch(6)
+    V[:, 2] = 0.0
+    P = V.copy()
+    P[20] += 0.05 * (P[21] - P[20])
+    out, info = polish_worst_triangles(V, F, P, boundary[:3], max_energy_rise=np.inf)
+    rise = membrane_energy(V, F, out) / membrane_energy(V, F, P) - 1.0
+    assert info["polish_vertices"] > 0 and rise > 0.1
+    kept, info = polish_worst_triangles(V, F, P, boundary[:3], max_energy_rise=1.001 * rise)
+    assert np.array_equal(kept, out) and info["polish_vertices"] > 0
+    refused, info = polish_worst_triangles(V, F, P, boundary[:3],
+                                           max_energy_rise=0.999 * rise)
+    assert refused is P and info["polish_vertices"] == 0

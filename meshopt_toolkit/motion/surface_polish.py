@@ -16,7 +16,9 @@ surface keeps its shape to first order. The line search refuses every trial with
 degenerate triangle (``F = +inf``) or a new fold (:class:`.surface_paths.FoldTest` against
 the rest surface, evaluated on the triangles whose corners' fans the free vertices touch);
 the result is kept only where the worst relative quality of the triangles not wholly
-handles rises. A surface with no triangle worse than at rest (worst relative quality ≥ 1)
+handles rises and the surface's membrane energy ``Σ_t a_t |φ_t|²`` (``a_t`` the rest areas)
+rises by at most ``max_energy_rise`` of itself: a nearly isometric motion is not traded for
+a sliver of quality. A surface with no triangle worse than at rest (worst relative quality ≥ 1)
 is left as it is.
 """
 
@@ -33,6 +35,17 @@ from .surface_paths import FoldTest
 #: a worst relative quality this close to 1 (or above) is left alone: no triangle is worse
 #: than at rest, and trading shape for rounding-level gains would only cost energy
 _AT_REST = 1e-9
+
+
+def _energy_kept(rest: FloatArray, triangles: IntArray, before: FloatArray,
+                 after: FloatArray, max_rise: float) -> bool:
+    """Whether ``Σ_t a_t |φ_t|²`` (rest areas ``a_t``) at ``after`` is at most
+    ``1 + max_rise`` times its value at ``before``."""
+    P = rest[triangles]
+    areas = np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1)
+    membrane = SurfaceDistortion(rest, triangles)
+    energy = [float(areas @ np.sum(membrane.values(X) ** 2, axis=1)) for X in (before, after)]
+    return energy[1] <= (1.0 + max_rise) * energy[0]
 
 
 def inverse_qualities(points: FloatArray, triangles: IntArray) -> tuple[FloatArray, FloatArray]:
@@ -112,7 +125,7 @@ def _tangent_bases(points: FloatArray, triangles: IntArray, vertices: IntArray) 
 def polish_worst_triangles(rest: FloatArray, triangles: IntArray, points: FloatArray,
                            handles: IntArray, *, worst: int = 50, rings: int = 3,
                            iterations: int = 30, sharpness: float = 200.0,
-                           shape: float = 10.0
+                           shape: float = 10.0, max_energy_rise: float = 0.1
                            ) -> tuple[FloatArray, dict]:
     """Raise the worst relative quality of a moved surface by tangential moves of the
     vertices near its worst triangles (the ``handles`` kept bitwise; module docstring).
@@ -138,12 +151,16 @@ def polish_worst_triangles(rest: FloatArray, triangles: IntArray, points: FloatA
         ``μ``, the weight of the area-weighted mean squared membrane distortion
         (:class:`.surface_distortion.SurfaceDistortion`) of the triangles moved, against
         the soft maximum (0: the soft maximum alone).
+    max_energy_rise : float
+        The largest relative rise of the whole surface's area-weighted membrane energy
+        that a polish may cost.
 
     Returns
     -------
     points : (N, 3) float array
         The polished points, or ``points`` itself where the polish did not raise the worst
-        relative quality or where it is ≥ 1 already.
+        relative quality, cost more membrane energy than allowed, or where the worst
+        relative quality is ≥ 1 already.
     info : dict
         ``polish_vertices`` (how many moved; 0 where ``points`` is returned),
         ``polish_worst_quality`` (before, after).
@@ -198,7 +215,7 @@ def polish_worst_triangles(rest: FloatArray, triangles: IntArray, points: FloatA
     out = objective.points(u)
     out[is_handle] = P[is_handle]
     after = float((aspect_ratios(out, F)[counted] / rest_q[counted]).min())
-    if not after > before:
+    if not after > before or not _energy_kept(V, F, P, out, max_energy_rise):
         return P, info
     info["polish_vertices"] = int(np.any(out != P, axis=1).sum())
     info["polish_worst_quality"] = [before, after]
