@@ -4,9 +4,19 @@ Cohen-Or & Levin 2000), the start of :func:`.surface_morph.morph_surface`.
 Each triangle's map from the source to the target (completed by its normal scaled by
 ``1/√|n|``, as in deformation transfer) is split ``A = R_g R S``: ``R_g`` the best global
 rotation of the pair (Umeyama), ``R S`` the polar decomposition of what is left. At time
-``t`` the triangle wants ``A(t) = R_g^t R^t ((1 − t) I + t S)`` (rotations in angle);
-the vertices are the least-squares fit of these maps (a cotangent-Laplacian system,
+``t`` the triangle wants ``A(t) = R_g^t R^t M(t)``, ``M(t) = (1 − t) I + t S`` (rotations in
+angle); the vertices are the least-squares fit of these maps (a cotangent-Laplacian system,
 factorized once), translated so that the area-weighted centroid moves linearly.
+
+Each triangle's rotation is interpolated alone, so neighbours whose residual rotations lie
+near a half turn (where the axis of ``R`` turns fast with the map, e.g. a bar twisted by
+half a turn mostly near one end) want half-way rotations about different axes, which no
+surface fits: the fit shears those triangles. Optional local/global steps (Sorkine & Alexa
+2007, per triangle) then lower the as-rigid-as-possible energy of the frame against the
+interpolated stretch, ``Σ a |∇X − R_t M(t) ∇X_0|²``: each triangle's rotation ``R_t``
+becomes the best one for the current frame (Procrustes), the vertices the fit of those
+maps (the same factor). Alexa's rotations are the first iterate; every step lowers the
+energy.
 """
 
 from __future__ import annotations
@@ -16,6 +26,7 @@ import scipy.sparse as sp
 from scipy.spatial.transform import Rotation
 
 from .._typing import FloatArray, IntArray
+from ..kernels.surface import aspect_ratios
 from ..solvers import factorize_spd
 from .surface_distortion import SurfaceDistortion
 from .surface_paths import fit_similarity
@@ -43,8 +54,66 @@ def _polar(A: FloatArray) -> tuple[FloatArray, FloatArray]:
     return R, S
 
 
+class _Fit:
+    """The least-squares fit of per-triangle maps from the rest planes: the cotangent
+    Laplacian (vertex 0 pinned) factorized once, the area-weighted centroid placed."""
+
+    def __init__(self, V0: FloatArray, F: IntArray) -> None:
+        self.F, self.n = F, len(V0)
+        self.distortion = SurfaceDistortion(V0, F)
+        self.grads = self.distortion.gradients  # (T, 3, 2) barycentric gradients
+        P = V0[F]
+        self.area = 0.5 * np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]),
+                                         axis=1)
+        # L_jk = Σ_t a_t γ_j·γ_k
+        G = self.area[:, None, None] * np.einsum("tja,tka->tjk", self.grads, self.grads)
+        rows = np.repeat(F, 3, axis=1).ravel()
+        cols = np.tile(F, (1, 3)).ravel()
+        L = sp.coo_matrix((G.ravel(), (rows, cols)), shape=(self.n, self.n)).tocsr()
+        self.solve = factorize_spd(L[1:, 1:].tocsc())
+        mass = np.bincount(F.ravel(), np.repeat(self.area / 3.0, 3), minlength=self.n)
+        self.mass = mass / mass.sum()
+
+    def __call__(self, D: FloatArray, centroid: FloatArray) -> FloatArray:
+        """The vertices whose gradients best fit ``D`` (T, 3, 2), centroid ``centroid``."""
+        b = self.area[:, None, None] * np.einsum("tdb,tjb->tjd", D, self.grads)
+        rhs = np.stack([np.bincount(self.F.ravel(), b[:, :, d].ravel(), minlength=self.n)
+                        for d in range(3)], axis=1)
+        X = np.zeros((self.n, 3))
+        X[1:] = self.solve(rhs[1:])
+        return X + (centroid - self.mass @ X)
+
+
+def _plane_frames(A: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Per 3×2 block ``A = Q r`` (Gram–Schmidt): ``Q`` (T, 3, 2) orthonormal columns,
+    ``r`` (T, 2, 2) upper triangular with a positive diagonal."""
+    a0, a1 = A[:, :, 0], A[:, :, 1]
+    r00 = np.linalg.norm(a0, axis=1)
+    u = a0 / r00[:, None]
+    r01 = np.einsum("ti,ti->t", u, a1)
+    w = a1 - r01[:, None] * u
+    r11 = np.linalg.norm(w, axis=1)
+    r = np.zeros((len(A), 2, 2))
+    r[:, 0, 0], r[:, 0, 1], r[:, 1, 1] = r00, r01, r11
+    return np.stack([u, w / r11[:, None]], axis=2), r
+
+
+def _best_rotated(J: FloatArray, M: FloatArray) -> FloatArray:
+    """``R M`` per triangle, ``R`` the rotation (det +1) minimizing ``|J − R M|`` for 3×2
+    blocks of rank 2 (T, 3, 2). ``R`` maps ``M``'s oriented plane onto ``J``'s (the
+    optimum: in those planes' bases both blocks have a positive determinant) and turns it
+    by the 2D Procrustes angle, in closed form."""
+    QJ, j = _plane_frames(J)
+    QM, m = _plane_frames(M)
+    K = j @ np.swapaxes(m, 1, 2)  # the 2×2 cross-covariance in the planes' bases
+    angle = np.arctan2(K[:, 1, 0] - K[:, 0, 1], K[:, 0, 0] + K[:, 1, 1])
+    c, s = np.cos(angle), np.sin(angle)
+    R2 = np.stack([np.stack([c, -s], axis=1), np.stack([s, c], axis=1)], axis=1)
+    return QJ @ (R2 @ m)
+
+
 def arap_interpolation(source: FloatArray, target: FloatArray, triangles: IntArray,
-                       times) -> list:
+                       times, *, iterations: int = 0, floor: float | None = None) -> list:
     """The frames of the as-rigid-as-possible interpolation at ``times`` (module
     docstring); ``source`` at ``t = 0`` and ``target`` at ``t = 1`` exactly.
 
@@ -53,6 +122,11 @@ def arap_interpolation(source: FloatArray, target: FloatArray, triangles: IntArr
     source, target : (N, 3) float arrays, every vertex in some triangle
     triangles : (T, 3) int array, no degenerate triangle in ``source``
     times : sequence of floats in [0, 1]
+    iterations : local/global steps per frame at most (module docstring); 0 returns
+        Alexa et al.'s fit
+    floor : where given, only frames whose worst relative quality (aspect ratio 2r/R over
+        its value in ``source``) is below ``floor`` take steps, each until it reaches
+        ``floor``; else every frame strictly inside takes all ``iterations``
     """
     V0, V1 = np.asarray(source, float), np.asarray(target, float)
     F = np.asarray(triangles, np.int64)
@@ -61,21 +135,14 @@ def arap_interpolation(source: FloatArray, target: FloatArray, triangles: IntArr
     A = _frames(V1[F]) @ np.linalg.inv(_frames(V0[F]))
     R, S = _polar(np.swapaxes(Rg, 0, 1)[None] @ A)
     local_vec = Rotation.from_matrix(R).as_rotvec()
-    dist = SurfaceDistortion(V0, F)
-    grads = dist.gradients  # (T, 3, 2) barycentric gradients in the rest planes
-    A0 = dist.affine_maps(V0)  # (T, 3, 2)
-    P = V0[F]
-    area = 0.5 * np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1)
-    n = len(V0)
-    # L_jk = Σ_t a_t γ_j·γ_k, vertex 0 pinned (its row and column dropped)
-    G = area[:, None, None] * np.einsum("tja,tka->tjk", grads, grads)
-    rows = np.repeat(F, 3, axis=1).ravel()
-    cols = np.tile(F, (1, 3)).ravel()
-    L = sp.coo_matrix((G.ravel(), (rows, cols)), shape=(n, n)).tocsr()
-    solve = factorize_spd(L[1:, 1:].tocsc())
-    mass = np.bincount(F.ravel(), np.repeat(area / 3.0, 3), minlength=n)
-    mass /= mass.sum()
-    c0, c1 = mass @ V0, mass @ V1
+    fit = _Fit(V0, F)
+    A0 = fit.distortion.affine_maps(V0)  # (T, 3, 2)
+    c0, c1 = fit.mass @ V0, fit.mass @ V1
+    q0 = aspect_ratios(V0, F) if floor is not None else None
+
+    def low(X):
+        return floor is not None and float((aspect_ratios(X, F) / q0).min()) < floor
+
     out = []
     for t in times:
         t = float(t)
@@ -85,15 +152,14 @@ def arap_interpolation(source: FloatArray, target: FloatArray, triangles: IntArr
         if t == 1.0:
             out.append(V1.copy())
             continue
-        At = (Rotation.from_rotvec(t * global_vec).as_matrix()[None]
-              @ Rotation.from_rotvec(t * local_vec).as_matrix()
-              @ ((1.0 - t) * np.eye(3) + t * S))
-        D = At @ A0  # (T, 3, 2): each triangle's wanted map from its rest plane
-        b = area[:, None, None] * np.einsum("tdb,tjb->tjd", D, grads)  # (T, 3 corners, 3)
-        rhs = np.stack([np.bincount(F.ravel(), b[:, :, d].ravel(), minlength=n)
-                        for d in range(3)], axis=1)
-        X = np.zeros((n, 3))
-        X[1:] = solve(rhs[1:])
-        X += (1.0 - t) * c0 + t * c1 - mass @ X
+        M = ((1.0 - t) * np.eye(3) + t * S) @ A0  # (T, 3, 2): the interpolated stretch
+        Rt = (Rotation.from_rotvec(t * global_vec).as_matrix()[None]
+              @ Rotation.from_rotvec(t * local_vec).as_matrix())
+        centroid = (1.0 - t) * c0 + t * c1
+        X = fit(Rt @ M, centroid)
+        for _ in range(iterations if floor is None or low(X) else 0):
+            X = fit(_best_rotated(fit.distortion.affine_maps(X), M), centroid)
+            if floor is not None and not low(X):
+                break
         out.append(X)
     return out

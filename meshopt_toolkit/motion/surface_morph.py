@@ -13,7 +13,11 @@ the discrete path energy
 over the interior frames, by Levenberg–Marquardt (the block-tridiagonal normal equations
 solved by conjugate gradients, preconditioned by one kept Cholesky factor per frame,
 :class:`_PathSystem`), started from the as-rigid-as-possible interpolation
-(:mod:`.surface_interpolation`) or, where that folds, linear interpolation.
+(:mod:`.surface_interpolation`) or, where that folds, linear interpolation. A start frame
+whose worst relative quality is below the worse end's takes as-rigid-as-possible
+local/global steps toward its interpolated stretch (at most ``START_ITERATIONS``, until it
+reaches the worse end's): they straighten the shear where neighbouring triangles'
+rotations, interpolated one by one, disagree (residual rotations near a half turn).
 
 It stops first where the path is *healthy* (the start included, then after each step):
 every interior frame's worst relative quality (aspect ratio 2r/R over the source's) at
@@ -68,6 +72,9 @@ RTOL = 5e-2
 #: conjugate-gradient iterations per Levenberg–Marquardt step at most, and the count above
 #: which the kept per-frame factors are refactorized at the next iterate
 CG_ITERATIONS, CG_REFACTORIZE = 30, 15
+#: local/global steps at most per start frame below the worse end's quality
+#: (:func:`.surface_interpolation.arap_interpolation`'s ``iterations``)
+START_ITERATIONS = 10
 
 
 def frame_measures(source: FloatArray, frames, triangles: IntArray,
@@ -325,7 +332,9 @@ def morph_surface(source: FloatArray, target: FloatArray, triangles: IntArray,
 def _initial_path(problem: _PathProblem, V0, V1, F, times) -> tuple[list, str]:
     """The as-rigid-as-possible interpolation where every frame is admissible, else the
     linear one where it is (:class:`NotAdmissibleError` else)."""
-    candidates = (("arap", lambda: arap_interpolation(V0, V1, F, times)),
+    candidates = (("arap", lambda: arap_interpolation(V0, V1, F, times,
+                                                      iterations=START_ITERATIONS,
+                                                      floor=problem.floor)),
                   ("linear", lambda: [(1.0 - t) * V0 + t * V1 for t in times]))
     for name, make in candidates:
         path = make()
