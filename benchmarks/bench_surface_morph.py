@@ -11,7 +11,9 @@ our solver) or by our ``move_surface``:
 * armadillo-libigl (not in the default list: libigl takes minutes): the hand raised 90°.
 
 "ours' start" is the library's as-rigid-as-possible interpolation with the pair's best
-rotation factored out (``motion/surface_interpolation.py``), the path ours starts from;
+rotation factored out (``motion/surface_interpolation.py``), its frames below the worse
+end's quality lifted by local/global steps: the path ours starts from ("no steps": Alexa
+et al.'s fit alone);
 "ours" stops as soon as every frame is at least as healthy as the worse end (the start
 included), "ours, energy stop" only by the Gauss–Newton energy tests (``rtol = 0.05``).
 
@@ -78,14 +80,22 @@ def path_energy(V0, V1, F, path) -> float:
     return 0.5 * sum(float(r @ r) for r in (problem.segment(a, b) for a, b in zip(X, X[1:])))
 
 
-def ours_start(V0, V1, F, times):
+def ours_start(V0, V1, F, times, steps=True):
+    """The start of ``morph_surface``: its frames below the worse end's quality lifted by
+    local/global steps (``steps``), or Alexa et al.'s fit alone."""
     from meshopt_toolkit.motion.surface_interpolation import arap_interpolation as start
+    from meshopt_toolkit.motion.surface_morph import START_ITERATIONS
 
-    return start(V0, V1, F, times)
+    if not steps:
+        return start(V0, V1, F, times)
+    floor = min(1.0, worst_relative_quality(V0, V1, F, []))
+    return start(V0, V1, F, times, iterations=START_ITERATIONS, floor=floor)
 
 
 METHODS = {"linear": lambda V0, V1, F, t: linear_interpolation(V0, V1, t),
-           "ARAP interpolation": arap_interpolation, "ours' start": ours_start,
+           "ARAP interpolation": arap_interpolation,
+           "ours' start, no steps": lambda *a: ours_start(*a, steps=False),
+           "ours' start": ours_start,
            "ours": ours,
            "ours, energy stop": lambda *a: ours(*a, stop_when_healthy=False)}
 

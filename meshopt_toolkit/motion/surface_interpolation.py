@@ -73,12 +73,17 @@ class _Fit:
         self.solve = factorize_spd(L[1:, 1:].tocsc())
         mass = np.bincount(F.ravel(), np.repeat(self.area / 3.0, 3), minlength=self.n)
         self.mass = mass / mass.sum()
+        # the right-hand side Σ_t a_t D_t γ_j as one operator on the maps' columns (n, 2T)
+        T = len(F)
+        self.divergence = sp.csr_matrix(
+            ((self.area[:, None, None] * self.grads).ravel(),
+             (np.repeat(F, 2, axis=1).ravel(), np.tile(np.arange(2 * T).reshape(T, 1, 2),
+                                                     (1, 3, 1)).ravel())),
+            shape=(self.n, 2 * T))
 
     def __call__(self, D: FloatArray, centroid: FloatArray) -> FloatArray:
         """The vertices whose gradients best fit ``D`` (T, 3, 2), centroid ``centroid``."""
-        b = self.area[:, None, None] * np.einsum("tdb,tjb->tjd", D, self.grads)
-        rhs = np.stack([np.bincount(self.F.ravel(), b[:, :, d].ravel(), minlength=self.n)
-                        for d in range(3)], axis=1)
+        rhs = self.divergence @ np.swapaxes(D, 1, 2).reshape(-1, 3)
         X = np.zeros((self.n, 3))
         X[1:] = self.solve(rhs[1:])
         return X + (centroid - self.mass @ X)
