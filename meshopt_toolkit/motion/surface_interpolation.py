@@ -10,13 +10,13 @@ factorized once), translated so that the area-weighted centroid moves linearly.
 
 Each triangle's rotation is interpolated alone, so neighbours whose residual rotations lie
 near a half turn (where the axis of ``R`` turns fast with the map, e.g. a bar twisted by
-half a turn mostly near one end) want half-way rotations about different axes, which no
-surface fits: the fit shears those triangles. Optional local/global steps (Sorkine & Alexa
-2007, per triangle) then lower the as-rigid-as-possible energy of the frame against the
-interpolated stretch, ``Σ a |∇X − R_t M(t) ∇X_0|²``: each triangle's rotation ``R_t``
-becomes the best one for the current frame (Procrustes), the vertices the fit of those
-maps (the same factor). Alexa's rotations are the first iterate; every step lowers the
-energy.
+half a turn mostly near one end) want half-way maps that disagree on their shared edge, and
+the fit shears them. Optional local/global steps (Sorkine & Alexa 2007, per triangle) then
+lower each frame's as-rigid-as-possible energy against the interpolated stretch,
+``Σ a |∇X − R_t M(t) ∇X_0|²``: each triangle's rotation ``R_t`` becomes the best one for the
+current frame (Procrustes, in closed form), the vertices the fit of those maps (the same
+factor). Alexa's rotations are the first iterate; no step raises the energy. All frames
+take the same number of steps, so that neighbouring frames stay alike.
 """
 
 from __future__ import annotations
@@ -127,11 +127,11 @@ def arap_interpolation(source: FloatArray, target: FloatArray, triangles: IntArr
     source, target : (N, 3) float arrays, every vertex in some triangle
     triangles : (T, 3) int array, no degenerate triangle in ``source``
     times : sequence of floats in [0, 1]
-    iterations : local/global steps per frame at most (module docstring); 0 returns
-        Alexa et al.'s fit
-    floor : where given, only frames whose worst relative quality (aspect ratio 2r/R over
-        its value in ``source``) is below ``floor`` take steps, each until it reaches
-        ``floor``; else every frame strictly inside takes all ``iterations``
+    iterations : local/global steps at most (module docstring), taken by every frame
+        strictly inside together; 0 returns Alexa et al.'s fit
+    floor : where given, steps are taken only while some frame's worst relative quality
+        (aspect ratio 2r/R over its value in ``source``) is below ``floor``: the frames
+        are the fewest steps' that bring all to ``floor``, or all ``iterations``'
     """
     V0, V1 = np.asarray(source, float), np.asarray(target, float)
     F = np.asarray(triangles, np.int64)
@@ -143,28 +143,23 @@ def arap_interpolation(source: FloatArray, target: FloatArray, triangles: IntArr
     fit = _Fit(V0, F)
     A0 = fit.distortion.affine_maps(V0)  # (T, 3, 2)
     c0, c1 = fit.mass @ V0, fit.mass @ V1
-    q0 = aspect_ratios(V0, F) if floor is not None else None
-
-    def low(X):
-        return floor is not None and float((aspect_ratios(X, F) / q0).min()) < floor
-
-    out = []
+    out, inside = [], []  # the frames; per frame strictly inside (index, M(t), centroid)
     for t in times:
         t = float(t)
-        if t == 0.0:
-            out.append(V0.copy())
-            continue
-        if t == 1.0:
-            out.append(V1.copy())
+        if t in (0.0, 1.0):
+            out.append((V0 if t == 0.0 else V1).copy())
             continue
         M = ((1.0 - t) * np.eye(3) + t * S) @ A0  # (T, 3, 2): the interpolated stretch
         Rt = (Rotation.from_rotvec(t * global_vec).as_matrix()[None]
               @ Rotation.from_rotvec(t * local_vec).as_matrix())
         centroid = (1.0 - t) * c0 + t * c1
-        X = fit(Rt @ M, centroid)
-        for _ in range(iterations if floor is None or low(X) else 0):
-            X = fit(_best_rotated(fit.distortion.affine_maps(X), M), centroid)
-            if floor is not None and not low(X):
-                break
-        out.append(X)
+        inside.append((len(out), M, centroid))
+        out.append(fit(Rt @ M, centroid))
+    q0 = aspect_ratios(V0, F) if floor is not None else None
+    for _ in range(iterations):
+        if floor is not None and all(float((aspect_ratios(out[k], F) / q0).min()) >= floor
+                                     for k, _, _ in inside):
+            break
+        for k, M, centroid in inside:
+            out[k] = fit(_best_rotated(fit.distortion.affine_maps(out[k]), M), centroid)
     return out
