@@ -89,7 +89,8 @@ def ours_start(V0, V1, F, times, steps=True):
     if not steps:
         return start(V0, V1, F, times)
     floor = min(1.0, worst_relative_quality(V0, V1, F, []))
-    return start(V0, V1, F, times, iterations=START_ITERATIONS, floor=floor)
+    return start(V0, V1, F, times, iterations=START_ITERATIONS, until=lambda frames: all(
+        worst_relative_quality(V0, X, F, []) >= floor for X in frames[1:-1]))
 
 
 METHODS = {"linear": lambda V0, V1, F, t: linear_interpolation(V0, V1, t),

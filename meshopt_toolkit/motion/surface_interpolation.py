@@ -21,12 +21,13 @@ take the same number of steps, so that neighbouring frames stay alike.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import scipy.sparse as sp
 from scipy.spatial.transform import Rotation
 
 from .._typing import FloatArray, IntArray
-from ..kernels.surface import aspect_ratios
 from ..solvers import factorize_spd
 from .surface_distortion import SurfaceDistortion
 from .surface_paths import fit_similarity
@@ -89,36 +90,40 @@ class _Fit:
         return X + (centroid - self.mass @ X)
 
 
-def _plane_frames(A: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """Per 3×2 block ``A = Q r`` (Gram–Schmidt): ``Q`` (T, 3, 2) orthonormal columns,
-    ``r`` (T, 2, 2) upper triangular with a positive diagonal."""
+def _plane_frames(A: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Per 3×2 block ``A = [u v] r`` (Gram–Schmidt): the orthonormal ``u, v`` (T, 3) and
+    the upper triangular ``r`` as its entries ``r00, r01, r11`` (T, 3), ``r00, r11 > 0``."""
     a0, a1 = A[:, :, 0], A[:, :, 1]
-    r00 = np.linalg.norm(a0, axis=1)
+    r00 = np.sqrt(np.einsum("ti,ti->t", a0, a0))
     u = a0 / r00[:, None]
     r01 = np.einsum("ti,ti->t", u, a1)
     w = a1 - r01[:, None] * u
-    r11 = np.linalg.norm(w, axis=1)
-    r = np.zeros((len(A), 2, 2))
-    r[:, 0, 0], r[:, 0, 1], r[:, 1, 1] = r00, r01, r11
-    return np.stack([u, w / r11[:, None]], axis=2), r
+    r11 = np.sqrt(np.einsum("ti,ti->t", w, w))
+    return u, w / r11[:, None], np.stack([r00, r01, r11], axis=1)
 
 
-def _best_rotated(J: FloatArray, M: FloatArray) -> FloatArray:
+def _best_rotated(J: FloatArray, m: FloatArray) -> FloatArray:
     """``R M`` per triangle, ``R`` the rotation (det +1) minimizing ``|J − R M|`` for 3×2
-    blocks of rank 2 (T, 3, 2). ``R`` maps ``M``'s oriented plane onto ``J``'s (the
+    blocks of rank 2 (T, 3, 2), ``M`` given by its triangular factor ``m`` of
+    :func:`_plane_frames` (T, 3). ``R`` maps ``M``'s oriented plane onto ``J``'s (the
     optimum: in those planes' bases both blocks have a positive determinant) and turns it
     by the 2D Procrustes angle, in closed form."""
-    QJ, j = _plane_frames(J)
-    QM, m = _plane_frames(M)
-    K = j @ np.swapaxes(m, 1, 2)  # the 2×2 cross-covariance in the planes' bases
-    angle = np.arctan2(K[:, 1, 0] - K[:, 0, 1], K[:, 0, 0] + K[:, 1, 1])
-    c, s = np.cos(angle), np.sin(angle)
-    R2 = np.stack([np.stack([c, -s], axis=1), np.stack([s, c], axis=1)], axis=1)
-    return QJ @ (R2 @ m)
+    u, v, j = _plane_frames(J)
+    j00, j01, j11 = j.T
+    m00, m01, m11 = m.T
+    # the 2×2 cross-covariance j mᵀ in the planes' bases, and its rotation (c, s)
+    c, s = j00 * m00 + j01 * m01 + j11 * m11, j11 * m01 - j01 * m11
+    h = np.hypot(c, s)
+    c, s = c / h, s / h
+    # [u v] R(c, s) m, m upper triangular
+    return np.stack([(c * m00)[:, None] * u + (s * m00)[:, None] * v,
+                     (c * m01 - s * m11)[:, None] * u + (s * m01 + c * m11)[:, None] * v],
+                    axis=2)
 
 
 def arap_interpolation(source: FloatArray, target: FloatArray, triangles: IntArray,
-                       times, *, iterations: int = 0, floor: float | None = None) -> list:
+                       times, *, iterations: int = 0,
+                       until: Callable[[list], bool] | None = None) -> list:
     """The frames of the as-rigid-as-possible interpolation at ``times`` (module
     docstring); ``source`` at ``t = 0`` and ``target`` at ``t = 1`` exactly.
 
@@ -129,9 +134,9 @@ def arap_interpolation(source: FloatArray, target: FloatArray, triangles: IntArr
     times : sequence of floats in [0, 1]
     iterations : local/global steps at most (module docstring), taken by every frame
         strictly inside together; 0 returns Alexa et al.'s fit
-    floor : where given, steps are taken only while some frame's worst relative quality
-        (aspect ratio 2r/R over its value in ``source``) is below ``floor``: the frames
-        are the fewest steps' that bring all to ``floor``, or all ``iterations``'
+    until : called with the frames (all of them, new arrays after each step) before each
+        step; True ends the steps, so the frames are the fewest steps' it accepts (or all
+        ``iterations``')
     """
     V0, V1 = np.asarray(source, float), np.asarray(target, float)
     F = np.asarray(triangles, np.int64)
@@ -153,13 +158,11 @@ def arap_interpolation(source: FloatArray, target: FloatArray, triangles: IntArr
         Rt = (Rotation.from_rotvec(t * global_vec).as_matrix()[None]
               @ Rotation.from_rotvec(t * local_vec).as_matrix())
         centroid = (1.0 - t) * c0 + t * c1
-        inside.append((len(out), M, centroid))
+        inside.append((len(out), _plane_frames(M)[2], centroid))
         out.append(fit(Rt @ M, centroid))
-    q0 = aspect_ratios(V0, F) if floor is not None else None
     for _ in range(iterations):
-        if floor is not None and all(float((aspect_ratios(out[k], F) / q0).min()) >= floor
-                                     for k, _, _ in inside):
+        if until is not None and until(out):
             break
-        for k, M, centroid in inside:
-            out[k] = fit(_best_rotated(fit.distortion.affine_maps(out[k]), M), centroid)
+        for k, m, centroid in inside:
+            out[k] = fit(_best_rotated(fit.distortion.affine_maps(out[k]), m), centroid)
     return out

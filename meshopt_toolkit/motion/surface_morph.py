@@ -334,7 +334,7 @@ def _initial_path(problem: _PathProblem, V0, V1, F, times) -> tuple[list, str]:
     linear one where it is (:class:`NotAdmissibleError` else)."""
     candidates = (("arap", lambda: arap_interpolation(V0, V1, F, times,
                                                       iterations=START_ITERATIONS,
-                                                      floor=problem.floor)),
+                                                      until=problem.healthy)),
                   ("linear", lambda: [(1.0 - t) * V0 + t * V1 for t in times]))
     for name, make in candidates:
         path = make()
