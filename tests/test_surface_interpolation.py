@@ -31,7 +31,8 @@ def sheet(nx=8, ny=4, width=2.0):
     x, y = np.meshgrid(np.linspace(0, width, nx + 1), np.linspace(0, 1, ny + 1), indexing="ij")
     V = np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)])
     idx = np.arange(V.shape[0]).reshape(nx + 1, ny + 1)
-    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+    a, b = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel()
+    c, d = idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
     return V, np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
 
 

@@ -133,7 +133,8 @@ def arap_interpolation(source: FloatArray, target: FloatArray, triangles: IntArr
     triangles : (T, 3) int array, no degenerate triangle in ``source``
     times : sequence of floats in [0, 1]
     iterations : local/global steps at most (module docstring), taken by every frame
-        strictly inside together; 0 returns Alexa et al.'s fit
+        strictly inside together (none that would leave a degenerate triangle, where the
+        closed-form rotation is undefined); 0 returns Alexa et al.'s fit
     until : called with the frames (all of them, new arrays after each step) before each
         step; True ends the steps, so the frames are the fewest steps' it accepts (or all
         ``iterations``')
@@ -163,6 +164,11 @@ def arap_interpolation(source: FloatArray, target: FloatArray, triangles: IntArr
     for _ in range(iterations):
         if until is not None and until(out):
             break
-        for k, m, centroid in inside:
-            out[k] = fit(_best_rotated(fit.distortion.affine_maps(out[k]), m), centroid)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            stepped = [fit(_best_rotated(fit.distortion.affine_maps(out[k]), m), centroid)
+                       for k, m, centroid in inside]
+        if not all(np.isfinite(X).all() for X in stepped):
+            break  # a frame's triangle degenerated: keep the last frames
+        for (k, _, _), X in zip(inside, stepped):
+            out[k] = X
     return out

@@ -13,10 +13,10 @@ the discrete path energy
 over the interior frames, by Levenberg–Marquardt (the block-tridiagonal normal equations
 solved by conjugate gradients, preconditioned by one kept Cholesky factor per frame,
 :class:`_PathSystem`), started from the as-rigid-as-possible interpolation
-(:mod:`.surface_interpolation`) or, where that folds, linear interpolation. While a start frame's
-worst relative quality is below the worse end's, all its interior frames take
-as-rigid-as-possible local/global steps toward their interpolated stretches together (at
-most ``START_ITERATIONS``): they straighten the shear where neighbouring triangles'
+(:mod:`.surface_interpolation`) or, where that folds, linear interpolation. While one of
+its frames has a worst relative quality below the worse end's, all its interior frames
+take as-rigid-as-possible local/global steps toward their interpolated stretches together
+(at most ``START_ITERATIONS``): they straighten the shear where neighbouring triangles'
 rotations, interpolated one by one, disagree (residual rotations near a half turn).
 
 It stops first where the path is *healthy* (the start included, then after each step):
