@@ -156,6 +156,30 @@ def test_steps_end_where_until_accepts():
                zip(after_two, arap_interpolation(V0, V1, F, times, iterations=2)))
 
 
+def test_a_step_with_a_degenerate_triangle_is_not_taken(monkeypatch):
+    """Where the closed-form rotation is undefined (a triangle of a frame degenerate), the
+    frames of the last step are kept."""
+    import meshopt_toolkit.motion.surface_interpolation as si
+
+    V0, F = sheet()
+    V1 = random_pose(11, V0)
+    times = np.linspace(0.0, 1.0, 5)
+    one = arap_interpolation(V0, V1, F, times, iterations=1)
+    calls = []
+    real = si._best_rotated
+
+    def second_step_degenerates(J, m):
+        calls.append(1)
+        out = real(J, m)
+        if len(calls) > len(times) - 2:  # every frame of the second step
+            out[0] = np.nan
+        return out
+
+    monkeypatch.setattr(si, "_best_rotated", second_step_degenerates)
+    kept = arap_interpolation(V0, V1, F, times, iterations=5)
+    assert all(np.array_equal(a, b) for a, b in zip(one, kept))
+
+
 @pytest.fixture(scope="module")
 def libigl_bar():
     """A 3×1×1 box (spacing 0.1), the cap x = 3 turned 180° by libigl ARAP in 10 steps of
