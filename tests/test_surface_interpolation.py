@@ -180,6 +180,28 @@ def test_a_step_with_a_degenerate_triangle_is_not_taken(monkeypatch):
     assert all(np.array_equal(a, b) for a, b in zip(one, kept))
 
 
+def test_morph_falls_back_to_the_fit_without_steps(monkeypatch):
+    """Where the stepped start is not admissible, ``morph_surface`` starts from Alexa et
+    al.'s fit without steps, not from linear interpolation."""
+    import meshopt_toolkit.motion.surface_morph as smorph
+
+    V0, F = sheet()
+    V1 = random_pose(5, V0)
+    asked = []
+
+    def collapsed_when_stepped(*args, iterations=0, until=None):
+        asked.append(iterations)
+        frames = arap_interpolation(*args, iterations=iterations, until=until)
+        if iterations:
+            frames[1:-1] = [np.zeros_like(X) for X in frames[1:-1]]  # degenerate frames
+        return frames
+
+    monkeypatch.setattr(smorph, "arap_interpolation", collapsed_when_stepped)
+    r = smorph.morph_surface(V0, V1, F, 5)
+    assert asked == [smorph.START_ITERATIONS, 0] and r.initial_path == "arap"
+    assert r.folds.sum() == 0
+
+
 @pytest.fixture(scope="module")
 def libigl_bar():
     """A 3×1×1 box (spacing 0.1), the cap x = 3 turned 180° by libigl ARAP in 10 steps of

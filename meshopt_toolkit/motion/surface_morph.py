@@ -330,11 +330,13 @@ def morph_surface(source: FloatArray, target: FloatArray, triangles: IntArray,
 
 
 def _initial_path(problem: _PathProblem, V0, V1, F, times) -> tuple[list, str]:
-    """The as-rigid-as-possible interpolation where every frame is admissible, else the
-    linear one where it is (:class:`NotAdmissibleError` else)."""
+    """The as-rigid-as-possible interpolation (with its local/global steps, else without)
+    where every frame is admissible, else the linear one where it is
+    (:class:`NotAdmissibleError` else)."""
     candidates = (("arap", lambda: arap_interpolation(V0, V1, F, times,
                                                       iterations=START_ITERATIONS,
                                                       until=problem.healthy)),
+                  ("arap", lambda: arap_interpolation(V0, V1, F, times)),
                   ("linear", lambda: [(1.0 - t) * V0 + t * V1 for t in times]))
     for name, make in candidates:
         path = make()
