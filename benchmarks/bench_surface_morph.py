@@ -86,14 +86,16 @@ def path_energy(V0, V1, F, path) -> float:
 def ours_start(V0, V1, F, times, steps=True):
     """The start of ``morph_surface``: its frames below the worse end's quality lifted by
     local/global steps (``steps``), or Alexa et al.'s fit alone."""
+    from meshopt_toolkit.kernels.surface import aspect_ratios
     from meshopt_toolkit.motion.surface_interpolation import arap_interpolation as start
     from meshopt_toolkit.motion.surface_morph import START_ITERATIONS
 
     if not steps:
         return start(V0, V1, F, times)
-    floor = min(1.0, worst_relative_quality(V0, V1, F, []))
+    q0 = aspect_ratios(V0, F)  # the library's measure, as in morph_surface's healthy test
+    floor = min(1.0, float((aspect_ratios(V1, F) / q0).min()))
     return start(V0, V1, F, times, iterations=START_ITERATIONS, until=lambda frames: all(
-        worst_relative_quality(V0, X, F, []) >= floor for X in frames[1:-1]))
+        float((aspect_ratios(X, F) / q0).min()) >= floor for X in frames[1:-1]))
 
 
 METHODS = {"linear": lambda V0, V1, F, t: linear_interpolation(V0, V1, t),
