@@ -4,12 +4,24 @@ Cohen-Or & Levin 2000), the start of :func:`.surface_morph.morph_surface`.
 Each triangle's map from the source to the target (completed by its normal scaled by
 ``1/√|n|``, as in deformation transfer) is split ``A = R_g R S``: ``R_g`` the best global
 rotation of the pair (Umeyama), ``R S`` the polar decomposition of what is left. At time
-``t`` the triangle wants ``A(t) = R_g^t R^t ((1 − t) I + t S)`` (rotations in angle);
-the vertices are the least-squares fit of these maps (a cotangent-Laplacian system,
+``t`` the triangle wants ``A(t) = R_g^t R^t M(t)``, ``M(t) = (1 − t) I + t S`` (rotations in
+angle); the vertices are the least-squares fit of these maps (a cotangent-Laplacian system,
 factorized once), translated so that the area-weighted centroid moves linearly.
+
+Each triangle's rotation is interpolated alone, so neighbours whose residual rotations lie
+near a half turn (where the axis of ``R`` turns fast with the map, e.g. a bar twisted by
+half a turn mostly near one end) want half-way maps that disagree on their shared edge, and
+the fit shears them. Optional local/global steps (Sorkine & Alexa 2007, per triangle) then
+lower each frame's as-rigid-as-possible energy against the interpolated stretch,
+``Σ a |∇X − R_t M(t) ∇X_0|²``: each triangle's rotation ``R_t`` becomes the best one for the
+current frame (Procrustes, in closed form), the vertices the fit of those maps (the same
+factor). Alexa's rotations are the first iterate; no step raises the energy. All frames
+take the same number of steps, so that neighbouring frames stay alike.
 """
 
 from __future__ import annotations
+
+from collections.abc import Callable
 
 import numpy as np
 import scipy.sparse as sp
@@ -43,8 +55,75 @@ def _polar(A: FloatArray) -> tuple[FloatArray, FloatArray]:
     return R, S
 
 
+class _Fit:
+    """The least-squares fit of per-triangle maps from the rest planes: the cotangent
+    Laplacian (vertex 0 pinned) factorized once, the area-weighted centroid placed."""
+
+    def __init__(self, V0: FloatArray, F: IntArray) -> None:
+        self.F, self.n = F, len(V0)
+        self.distortion = SurfaceDistortion(V0, F)
+        self.grads = self.distortion.gradients  # (T, 3, 2) barycentric gradients
+        P = V0[F]
+        self.area = 0.5 * np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]),
+                                         axis=1)
+        # L_jk = Σ_t a_t γ_j·γ_k
+        G = self.area[:, None, None] * np.einsum("tja,tka->tjk", self.grads, self.grads)
+        rows = np.repeat(F, 3, axis=1).ravel()
+        cols = np.tile(F, (1, 3)).ravel()
+        L = sp.coo_matrix((G.ravel(), (rows, cols)), shape=(self.n, self.n)).tocsr()
+        self.solve = factorize_spd(L[1:, 1:].tocsc())
+        mass = np.bincount(F.ravel(), np.repeat(self.area / 3.0, 3), minlength=self.n)
+        self.mass = mass / mass.sum()
+        # the right-hand side Σ_t a_t D_t γ_j as one operator on the maps' columns (n, 2T)
+        T = len(F)
+        self.divergence = sp.csr_matrix(
+            ((self.area[:, None, None] * self.grads).ravel(),
+             (np.repeat(F, 2, axis=1).ravel(), np.tile(np.arange(2 * T).reshape(T, 1, 2),
+                                                     (1, 3, 1)).ravel())),
+            shape=(self.n, 2 * T))
+
+    def __call__(self, D: FloatArray, centroid: FloatArray) -> FloatArray:
+        """The vertices whose gradients best fit ``D`` (T, 3, 2), centroid ``centroid``."""
+        rhs = self.divergence @ np.swapaxes(D, 1, 2).reshape(-1, 3)
+        X = np.zeros((self.n, 3))
+        X[1:] = self.solve(rhs[1:])
+        return X + (centroid - self.mass @ X)
+
+
+def _plane_frames(A: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Per 3×2 block ``A = [u v] r`` (Gram–Schmidt): the orthonormal ``u, v`` (T, 3) and
+    the upper triangular ``r`` as its entries ``r00, r01, r11`` (T, 3), ``r00, r11 > 0``."""
+    a0, a1 = A[:, :, 0], A[:, :, 1]
+    r00 = np.sqrt(np.einsum("ti,ti->t", a0, a0))
+    u = a0 / r00[:, None]
+    r01 = np.einsum("ti,ti->t", u, a1)
+    w = a1 - r01[:, None] * u
+    r11 = np.sqrt(np.einsum("ti,ti->t", w, w))
+    return u, w / r11[:, None], np.stack([r00, r01, r11], axis=1)
+
+
+def _best_rotated(J: FloatArray, m: FloatArray) -> FloatArray:
+    """``R M`` per triangle, ``R`` the rotation (det +1) minimizing ``|J − R M|`` for 3×2
+    blocks of rank 2 (T, 3, 2), ``M`` given by its triangular factor ``m`` of
+    :func:`_plane_frames` (T, 3). ``R`` maps ``M``'s oriented plane onto ``J``'s (the
+    optimum: in those planes' bases both blocks have a positive determinant) and turns it
+    by the 2D Procrustes angle, in closed form."""
+    u, v, j = _plane_frames(J)
+    j00, j01, j11 = j.T
+    m00, m01, m11 = m.T
+    # the 2×2 cross-covariance j mᵀ in the planes' bases, and its rotation (c, s)
+    c, s = j00 * m00 + j01 * m01 + j11 * m11, j11 * m01 - j01 * m11
+    h = np.hypot(c, s)
+    c, s = c / h, s / h
+    # [u v] R(c, s) m, m upper triangular
+    return np.stack([(c * m00)[:, None] * u + (s * m00)[:, None] * v,
+                     (c * m01 - s * m11)[:, None] * u + (s * m01 + c * m11)[:, None] * v],
+                    axis=2)
+
+
 def arap_interpolation(source: FloatArray, target: FloatArray, triangles: IntArray,
-                       times) -> list:
+                       times, *, iterations: int = 0,
+                       until: Callable[[list], bool] | None = None) -> list:
     """The frames of the as-rigid-as-possible interpolation at ``times`` (module
     docstring); ``source`` at ``t = 0`` and ``target`` at ``t = 1`` exactly.
 
@@ -53,6 +132,12 @@ def arap_interpolation(source: FloatArray, target: FloatArray, triangles: IntArr
     source, target : (N, 3) float arrays, every vertex in some triangle
     triangles : (T, 3) int array, no degenerate triangle in ``source``
     times : sequence of floats in [0, 1]
+    iterations : local/global steps at most (module docstring), taken by every frame
+        strictly inside together (none that would leave a degenerate triangle, where the
+        closed-form rotation is undefined); 0 returns Alexa et al.'s fit
+    until : called with the frames (all of them, new arrays after each step) before each
+        step; True ends the steps, so the frames are the fewest steps' it accepts (or all
+        ``iterations``')
     """
     V0, V1 = np.asarray(source, float), np.asarray(target, float)
     F = np.asarray(triangles, np.int64)
@@ -61,39 +146,29 @@ def arap_interpolation(source: FloatArray, target: FloatArray, triangles: IntArr
     A = _frames(V1[F]) @ np.linalg.inv(_frames(V0[F]))
     R, S = _polar(np.swapaxes(Rg, 0, 1)[None] @ A)
     local_vec = Rotation.from_matrix(R).as_rotvec()
-    dist = SurfaceDistortion(V0, F)
-    grads = dist.gradients  # (T, 3, 2) barycentric gradients in the rest planes
-    A0 = dist.affine_maps(V0)  # (T, 3, 2)
-    P = V0[F]
-    area = 0.5 * np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1)
-    n = len(V0)
-    # L_jk = Σ_t a_t γ_j·γ_k, vertex 0 pinned (its row and column dropped)
-    G = area[:, None, None] * np.einsum("tja,tka->tjk", grads, grads)
-    rows = np.repeat(F, 3, axis=1).ravel()
-    cols = np.tile(F, (1, 3)).ravel()
-    L = sp.coo_matrix((G.ravel(), (rows, cols)), shape=(n, n)).tocsr()
-    solve = factorize_spd(L[1:, 1:].tocsc())
-    mass = np.bincount(F.ravel(), np.repeat(area / 3.0, 3), minlength=n)
-    mass /= mass.sum()
-    c0, c1 = mass @ V0, mass @ V1
-    out = []
+    fit = _Fit(V0, F)
+    A0 = fit.distortion.affine_maps(V0)  # (T, 3, 2)
+    c0, c1 = fit.mass @ V0, fit.mass @ V1
+    out, inside = [], []  # the frames; per frame strictly inside (index, M(t), centroid)
     for t in times:
         t = float(t)
-        if t == 0.0:
-            out.append(V0.copy())
+        if t in (0.0, 1.0):
+            out.append((V0 if t == 0.0 else V1).copy())
             continue
-        if t == 1.0:
-            out.append(V1.copy())
-            continue
-        At = (Rotation.from_rotvec(t * global_vec).as_matrix()[None]
-              @ Rotation.from_rotvec(t * local_vec).as_matrix()
-              @ ((1.0 - t) * np.eye(3) + t * S))
-        D = At @ A0  # (T, 3, 2): each triangle's wanted map from its rest plane
-        b = area[:, None, None] * np.einsum("tdb,tjb->tjd", D, grads)  # (T, 3 corners, 3)
-        rhs = np.stack([np.bincount(F.ravel(), b[:, :, d].ravel(), minlength=n)
-                        for d in range(3)], axis=1)
-        X = np.zeros((n, 3))
-        X[1:] = solve(rhs[1:])
-        X += (1.0 - t) * c0 + t * c1 - mass @ X
-        out.append(X)
+        M = ((1.0 - t) * np.eye(3) + t * S) @ A0  # (T, 3, 2): the interpolated stretch
+        Rt = (Rotation.from_rotvec(t * global_vec).as_matrix()[None]
+              @ Rotation.from_rotvec(t * local_vec).as_matrix())
+        centroid = (1.0 - t) * c0 + t * c1
+        inside.append((len(out), _plane_frames(M)[2], centroid))
+        out.append(fit(Rt @ M, centroid))
+    for _ in range(iterations):
+        if until is not None and until(out):
+            break
+        with np.errstate(divide="ignore", invalid="ignore"):
+            stepped = [fit(_best_rotated(fit.distortion.affine_maps(out[k]), m), centroid)
+                       for k, m, centroid in inside]
+        if not all(np.isfinite(X).all() for X in stepped):
+            break  # a frame's triangle degenerated: keep the last frames
+        for (k, _, _), X in zip(inside, stepped):
+            out[k] = X
     return out

@@ -13,13 +13,17 @@ the discrete path energy
 over the interior frames, by Levenberg–Marquardt (the block-tridiagonal normal equations
 solved by conjugate gradients, preconditioned by one kept Cholesky factor per frame,
 :class:`_PathSystem`), started from the as-rigid-as-possible interpolation
-(:mod:`.surface_interpolation`) or, where that folds, linear interpolation.
+(:mod:`.surface_interpolation`) or, where that folds, linear interpolation. While one of
+its frames has a worst relative quality below the worse end's, all its interior frames
+take as-rigid-as-possible local/global steps toward their interpolated stretches together
+(at most ``START_ITERATIONS``): they straighten the shear where neighbouring triangles'
+rotations, interpolated one by one, disagree (residual rotations near a half turn).
 
 It stops first where the path is *healthy* (the start included, then after each step):
 every interior frame's worst relative quality (aspect ratio 2r/R over the source's) at
 least the worse end's. No path has a better worst frame than its worse end, so a healthy
 path is optimal in that measure; its energy is not minimized further (a healthy start is
-returned without a Gauss–Newton model: 0.2–35 % above the converged path's energy on the
+returned without a Gauss–Newton model: 0.2–26 % above the converged path's energy on the
 pairs of the tests and of ``bench_surface_morph.py``, the worst quality the same). Else
 it stops where the Gauss–Newton model of the next step predicts, or a step achieved, a
 decrease below ``rtol·E`` (a start stationary to that tolerance is returned unchanged);
@@ -69,6 +73,9 @@ RTOL = 5e-2
 #: conjugate-gradient iterations per Levenberg–Marquardt step at most, and the count above
 #: which the kept per-frame factors are refactorized at the next iterate
 CG_ITERATIONS, CG_REFACTORIZE = 30, 15
+#: local/global steps at most of the start while a frame is below the worse end's quality
+#: (:func:`.surface_interpolation.arap_interpolation`'s ``iterations``)
+START_ITERATIONS = 10
 
 
 def frame_measures(source: FloatArray, frames, triangles: IntArray,
@@ -324,9 +331,13 @@ def morph_surface(source: FloatArray, target: FloatArray, triangles: IntArray,
 
 
 def _initial_path(problem: _PathProblem, V0, V1, F, times) -> tuple[list, str]:
-    """The as-rigid-as-possible interpolation where every frame is admissible, else the
-    linear one where it is (:class:`NotAdmissibleError` else)."""
-    candidates = (("arap", lambda: arap_interpolation(V0, V1, F, times)),
+    """The as-rigid-as-possible interpolation (with its local/global steps, else without)
+    where every frame is admissible, else the linear one where it is
+    (:class:`NotAdmissibleError` else)."""
+    candidates = (("arap", lambda: arap_interpolation(V0, V1, F, times,
+                                                      iterations=START_ITERATIONS,
+                                                      until=problem.healthy)),
+                  ("arap", lambda: arap_interpolation(V0, V1, F, times)),
                   ("linear", lambda: [(1.0 - t) * V0 + t * V1 for t in times]))
     for name, make in candidates:
         path = make()
