@@ -132,6 +132,7 @@ def test_polish_never_lowers_the_worst_quality_folds_or_moves_a_handle(seed, amp
     before = sm.worst_relative_quality(V, P, F, handles)
     after = sm.worst_relative_quality(V, out, F, handles)
     assert after >= before
+    assert membrane_energy(V, F, out) <= 1.1 * membrane_energy(V, F, P) * (1 + 1e-12)
     assert not np.any(sm.fold_mask(V, out, F) & ~folded)
     assert (sm.aspect_ratios(out, F) > 0).all()
     if info["polish_vertices"]:
@@ -180,15 +181,11 @@ def test_a_rigid_motion_is_left_as_it_is():
     P = V @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) + [0.3, -1.0, 2.0]
     out, info = polish_worst_triangles(V, F, P, boundary[:3])
     assert out is P and info["polish_vertices"] == 0
-    # the same surface with one vertex pushed sideways is polished where the membrane
-    # energy may rise; by default it is not: the polish would spread the push over the
-    # patch at several times its membrane energy
+    # the same surface with one vertex pushed sideways is polished
     P[20] += 0.05 * (P[21] - P[20])
-    out, info = polish_worst_triangles(V, F, P, boundary[:3], max_energy_rise=np.inf)
+    out, info = polish_worst_triangles(V, F, P, boundary[:3])
     assert info["polish_vertices"] > 0
     assert info["polish_worst_quality"][1] > info["polish_worst_quality"][0]
-    out, info = polish_worst_triangles(V, F, P, boundary[:3])
-    assert out is P and info["polish_vertices"] == 0
 
 
 def membrane_energy(V, F, P):
@@ -197,18 +194,19 @@ def membrane_energy(V, F, P):
     return float(areas @ np.sum(SurfaceDistortion(V, F).values(P) ** 2, axis=1))
 
 
-def test_a_polish_that_costs_more_membrane_energy_than_allowed_is_refused():
-    """A flat patch with one vertex pushed sideways: the polish spreads the push, which
-    raises the worst relative quality and the membrane energy; the allowed rise decides."""
+def test_the_polish_raises_the_membrane_energy_by_at_most_the_allowed_rise():
+    """A flat patch with one vertex pushed sideways: spreading the push over the patch
+    raises the worst relative quality and the membrane energy; the allowed rise bounds
+    the energy, and with no bound the polish goes beyond it."""
     V, F, boundary = patch(6)
     V[:, 2] = 0.0
     P = V.copy()
     P[20] += 0.05 * (P[21] - P[20])
+    start = membrane_energy(V, F, P)
     out, info = polish_worst_triangles(V, F, P, boundary[:3], max_energy_rise=np.inf)
-    rise = membrane_energy(V, F, out) / membrane_energy(V, F, P) - 1.0
-    assert info["polish_vertices"] > 0 and rise > 0.1
-    kept, info = polish_worst_triangles(V, F, P, boundary[:3], max_energy_rise=1.001 * rise)
-    assert np.array_equal(kept, out) and info["polish_vertices"] > 0
-    refused, info = polish_worst_triangles(V, F, P, boundary[:3],
-                                           max_energy_rise=0.999 * rise)
-    assert refused is P and info["polish_vertices"] == 0
+    assert info["polish_vertices"] > 0 and membrane_energy(V, F, out) > 1.5 * start
+    for rise in (0.0, 0.1, 0.5):
+        out, info = polish_worst_triangles(V, F, P, boundary[:3], max_energy_rise=rise)
+        assert membrane_energy(V, F, out) <= (1.0 + rise) * start * (1 + 1e-12)
+        if rise > 0:
+            assert info["polish_worst_quality"][1] > info["polish_worst_quality"][0]
