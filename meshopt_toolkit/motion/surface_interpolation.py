@@ -5,7 +5,8 @@ Each triangle's map from the source to the target (completed by its normal scale
 ``1/√|n|``, as in deformation transfer) is split ``A = R_g R S``: ``R_g`` the best global
 rotation of the pair (Umeyama), ``R S`` the polar decomposition of what is left. At time
 ``t`` the triangle wants ``A(t) = R_g^t R^t M(t)``, ``M(t) = (1 − t) I + t S`` (rotations in
-angle); the vertices are the least-squares fit of these maps (a cotangent-Laplacian system,
+angle, each ``R``'s branch chosen continuous across the triangles' edges,
+:func:`continuous_rotation_vectors`: a twist past half a turn is followed as one); the vertices are the least-squares fit of these maps (a cotangent-Laplacian system,
 factorized once), translated so that the area-weighted centroid moves linearly.
 
 Each triangle's rotation is interpolated alone, so neighbours whose residual rotations lie
@@ -25,9 +26,11 @@ from collections.abc import Callable
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial.transform import Rotation
 
 from .._typing import FloatArray, IntArray
+from ..mesh.core import TriangleMesh
 from ..solvers import factorize_spd
 from .surface_distortion import SurfaceDistortion
 from .similarity_3d import fit_similarity_3d as fit_similarity
@@ -121,6 +124,36 @@ def _best_rotated(J: FloatArray, m: FloatArray) -> FloatArray:
                     axis=2)
 
 
+def continuous_rotation_vectors(rotvecs: FloatArray, points: FloatArray,
+                                triangles: IntArray) -> FloatArray:
+    """The rotation vectors of the same rotations (T, 3), each triangle's branch
+    ``(θ + 2πk) a`` chosen nearest its neighbour's: over a breadth-first tree of the
+    triangles' edge adjacency, rooted at the least turned triangle of each connected piece,
+    each takes the branch nearest its parent's, level by level. Neighbours near a half turn
+    then turn the same way round, and turns beyond a half turn are followed as such
+    (``θ`` beyond π) instead of the other way round."""
+    angle = np.linalg.norm(rotvecs, axis=1)
+    adjacency = TriangleMesh(points, triangles).triangle_adjacency
+    _, labels = connected_components(adjacency, directed=False)
+    order = np.lexsort((angle, labels))
+    roots = order[np.r_[0, np.flatnonzero(np.diff(labels[order])) + 1]]
+    depth, parent, _ = dijkstra(adjacency, directed=False, indices=roots, unweighted=True,
+                                min_only=True, return_predecessors=True)
+    depth = depth.astype(np.int64)
+    out = np.array(rotvecs, float)
+    by_depth = np.argsort(depth, kind="stable")
+    levels = np.split(by_depth, np.searchsorted(depth[by_depth], np.arange(1, depth.max() + 1)))
+    for level in levels[1:]:
+        P = out[parent[level]]
+        a = np.where(angle[level, None] > 0, rotvecs[level], P)  # no turn: the parent's axis
+        size = np.linalg.norm(a, axis=1)
+        a = a / np.where(size > 0, size, 1.0)[:, None]
+        # the branch θ + 2πk along a nearest P: k = round((P·a − θ) / 2π)
+        k = np.round((np.einsum("ti,ti->t", P, a) - angle[level]) / (2.0 * np.pi))
+        out[level] = (angle[level] + 2.0 * np.pi * k)[:, None] * a
+    return out
+
+
 def arap_interpolation(source: FloatArray, target: FloatArray, triangles: IntArray,
                        times, *, iterations: int = 0,
                        until: Callable[[list], bool] | None = None) -> list:
@@ -145,7 +178,7 @@ def arap_interpolation(source: FloatArray, target: FloatArray, triangles: IntArr
     global_vec = Rotation.from_matrix(Rg).as_rotvec()
     A = _frames(V1[F]) @ np.linalg.inv(_frames(V0[F]))
     R, S = _polar(np.swapaxes(Rg, 0, 1)[None] @ A)
-    local_vec = Rotation.from_matrix(R).as_rotvec()
+    local_vec = continuous_rotation_vectors(Rotation.from_matrix(R).as_rotvec(), V0, F)
     fit = _Fit(V0, F)
     A0 = fit.distortion.affine_maps(V0)  # (T, 3, 2)
     c0, c1 = fit.mass @ V0, fit.mass @ V1
