@@ -650,14 +650,18 @@ def check(rows: dict) -> str:
 
 
 def main(argv=None) -> int:
+    from _surface_cases3 import UNSEEN3  # imports this module's helpers
+
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--cases", help="comma-separated: "
-                    + ", ".join({**CASES, **UNSEEN, **UNSEEN2})
+                    + ", ".join({**CASES, **UNSEEN, **UNSEEN2, **UNSEEN3})
                     + " (default: " + ", ".join(CASES) + ")")
     ap.add_argument("--unseen", action="store_true",
                     help="the cases defined after the method: " + ", ".join(UNSEEN))
     ap.add_argument("--unseen2", action="store_true",
                     help="more cases defined after the method: " + ", ".join(UNSEEN2))
+    ap.add_argument("--unseen3", action="store_true",
+                    help="a third such set (_surface_cases3.py): " + ", ".join(UNSEEN3))
     ap.add_argument("--methods", default=",".join(METHODS),
                     help="comma-separated: " + ", ".join(METHODS))
     ap.add_argument("--figures", type=Path, help="write one PNG per case into this folder")
@@ -669,8 +673,9 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     MARKDOWN[0] = args.markdown
     STEP_ITERATIONS[0] = args.step_iterations
-    every = {**CASES, **UNSEEN, **UNSEEN2}
-    default = {**(UNSEEN if args.unseen else {}), **(UNSEEN2 if args.unseen2 else {})} or CASES
+    every = {**CASES, **UNSEEN, **UNSEEN2, **UNSEEN3}
+    default = {**(UNSEEN if args.unseen else {}), **(UNSEEN2 if args.unseen2 else {}),
+               **(UNSEEN3 if args.unseen3 else {})} or CASES
     names = [c for c in (args.cases or ",".join(default)).split(",") if c]
     methods = [m for m in args.methods.split(",") if m]
     unknown = [c for c in names if c not in every] + [m for m in methods if m not in METHODS]

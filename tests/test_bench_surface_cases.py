@@ -151,3 +151,140 @@ def test_real_mesh_cases_pick_the_named_parts():
     arm = bench.armadillo_tail()
     T = arm.V[arm.handles[arm.groups == 1]]
     assert (T[:, 2] < -0.2).all() and np.abs(T[:, 0]).max() < 0.05 and len(T) == 797
+
+
+# ``--unseen3`` (benchmarks/_surface_cases3.py): one builder test per case
+
+c3 = pytest.importorskip("_surface_cases3")
+
+
+def assert_valid_case(case, moved_at_least):
+    """Rest mesh valid, two handle groups, finite targets, each group moved rigidly (the
+    fixed one not at all) along the whole path."""
+    from meshopt_toolkit.mesh.surface import SurfaceMesh
+
+    assert SurfaceMesh(case.V, case.F).problems == []
+    assert sm.aspect_ratios(case.V, case.F).min() > 0.005
+    assert len(case.handles) == len(np.unique(case.handles)) == len(case.groups)
+    groups, counts = np.unique(case.groups, return_counts=True)
+    assert list(groups) == [0, 1] and counts.min() >= 50
+    np.testing.assert_allclose(case.path(0.0), case.V[case.handles], atol=1e-14)
+    P = case.path(1.0)
+    assert P.shape == (len(case.handles), 3) and np.isfinite(P).all()
+    moved = np.abs(P - case.V[case.handles]).max(axis=1)
+    assert moved[case.groups == 0].max() == 0.0
+    assert moved[case.groups == 1].max() > moved_at_least
+    for t in (0.37, 1.0):
+        P = case.path(t)
+        for g in (0, 1):
+            i = np.flatnonzero(case.groups == g)[::5][:80]
+            R = case.V[case.handles[i]]
+            d0 = np.linalg.norm(R[:, None] - R, axis=2)
+            d1 = np.linalg.norm(P[i][:, None] - P[i], axis=2)
+            np.testing.assert_allclose(d1, d0, atol=1e-12)
+
+
+def test_armadillo_head_turns_the_head_in_front_of_the_body_about_the_vertical():
+    case = c3.armadillo_head()
+    assert_valid_case(case, 0.05)
+    head = case.V[case.handles[case.groups == 1]]
+    assert (head[:, 2] > 0.12).all() and (np.abs(head[:, 0]) < 0.15).all()
+    assert (case.V[case.handles[case.groups == 0], 1] < case.V[:, 1].min() + 0.06).all()
+    P = case.path(1.0)[case.groups == 1]
+    np.testing.assert_allclose(P[:, 1], head[:, 1], atol=1e-14)  # a turn about y
+    # the snout's direction from the pivot turned by 45° in the x–z plane
+    c0, c1 = head.mean(0), P.mean(0)
+    pivot = bench.boundary_pivot(case.V, case.F, np.isin(np.arange(len(case.V)),
+                                                          case.handles[case.groups == 1]))
+    a, b = (c0 - pivot)[[0, 2]], (c1 - pivot)[[0, 2]]
+    cos = a @ b / np.linalg.norm(a) / np.linalg.norm(b)
+    assert cos == pytest.approx(np.cos(np.pi / 4), abs=1e-12)
+
+
+def test_spot_nod_lowers_the_head_front():
+    case = c3.spot_nod()
+    assert_valid_case(case, 0.05)
+    head = case.V[case.handles[case.groups == 1]]
+    assert (head[:, 2] < -0.25).all()
+    P = case.path(1.0)[case.groups == 1]
+    np.testing.assert_allclose(P[:, 0], head[:, 0], atol=1e-14)  # a turn about x
+    front = head[:, 2] < np.quantile(head[:, 2], 0.1)
+    assert P[front, 1].mean() < head[front, 1].mean() - 0.05  # the muzzle goes down
+
+
+def test_dome_is_an_outward_unit_hemisphere_and_its_top_turns_a_quarter():
+    rings = 30
+    V, F = c3.dome_surface(rings)
+    np.testing.assert_allclose(np.linalg.norm(V, axis=1), 1.0, atol=1e-14)
+    assert V[:, 2].min() == pytest.approx(0.0, abs=1e-15)
+    assert euler_characteristic(V, F) == 1 and boundary_edge_count(F) == 6 * rings
+    # inscribed in the hemisphere: its area a little under 2π, converging
+    area = triangle_areas(V, F).sum()
+    assert 2 * np.pi * 0.99 < area < 2 * np.pi
+    assert (np.einsum("ij,ij->i", sm.normals(V, F), V[F].mean(axis=1)) > 0).all()
+    case = c3.dome_twist()
+    assert_valid_case(case, 0.3)
+    top = case.groups == 1
+    Q = case.V[case.handles[top]]
+    assert (Q[:, 2] >= np.cos(np.pi / 6) - 1e-9).all()
+    # (x, y, z) ↦ (−y, x, z)
+    np.testing.assert_allclose(case.path(1.0)[top], Q[:, [1, 0, 2]] * [-1, 1, 1], atol=1e-14)
+    assert (case.V[case.handles[~top], 2] <= np.cos(0.95 * np.pi / 2) + 1e-9).all()
+
+
+def test_l_plate_is_the_square_less_a_corner_and_its_arm_rolls_upwards():
+    V, F = c3.l_plate(3.0, 1.0, 0.05)
+    assert euler_characteristic(V, F) == 1 and len(np.unique(F)) == len(V)
+    assert triangle_areas(V, F).sum() == pytest.approx(9.0 - 4.0, rel=1e-12)
+    assert (sm.normals(V, F)[:, 2] > 0).all()
+    assert not ((V[:, 0] > 1 + 1e-9) & (V[:, 1] > 1 + 1e-9)).any()
+    # the boundary: 2·3 + 2·2 + 2·1 of length, in edges of 0.05
+    assert boundary_edge_count(F) == round(12.0 / 0.05)
+    case = c3.l_plate_roll()
+    assert_valid_case(case, 0.5)
+    end = case.groups == 1
+    Q, P = case.V[case.handles[end]], case.path(1.0)[end]
+    r = 2.0 / (np.pi / 2)
+    tip = Q[:, 1] == 3.0
+    # the end edge goes to the top of the quarter circle, standing upright: (x, 1 + r, r)
+    np.testing.assert_allclose(P[tip], np.column_stack([Q[tip, 0], np.full(tip.sum(), 1 + r),
+                                                        np.full(tip.sum(), r)]), atol=1e-12)
+    assert (case.V[case.handles[~end], 0] >= 2.9 - 1e-9).all()
+
+
+def test_capped_cylinder_is_closed_outward_and_of_the_prism_volume():
+    V, F = c3.capped_cylinder(4.0, 0.5, 8)
+    assert euler_characteristic(V, F) == 2 and boundary_edge_count(F) == 0
+    n = 48  # points per ring: the prism over a regular 48-gon inscribed in the circle
+    volume = np.einsum("ij,ij->i", V[F[:, 0]], np.cross(V[F[:, 1]], V[F[:, 2]])).sum() / 6
+    assert volume == pytest.approx(4.0 * n / 2 * 0.25 * np.sin(2 * np.pi / n), rel=1e-12)
+    case = c3.cylinder_bent()
+    assert_valid_case(case, 1.0)
+    end = case.groups == 1
+    Q, P = case.V[case.handles[end]], case.path(1.0)[end]
+    assert (Q[:, 0] == 4.0).all() and (case.V[case.handles[~end], 0] == 0.0).all()
+    r = 4.0 / (np.pi / 3)
+    # the cap's centre to the arc's end, its normal along the arc's tangent (60° in x–y)
+    np.testing.assert_allclose(Q.mean(0), [4.0, 0.0, 0.0], atol=1e-14)
+    np.testing.assert_allclose(P.mean(0), [r * np.sin(np.pi / 3), r / 2, 0.0], atol=1e-12)
+    np.testing.assert_allclose(P[:, 2], Q[:, 2], atol=1e-12)
+
+
+def test_torus_is_closed_outward_and_its_far_segment_tilts():
+    V, F = c3.torus_surface(1.0, 0.3, 0.05)
+    nu, nv = 126, 38
+    assert len(V) == nu * nv and euler_characteristic(V, F) == 0
+    assert boundary_edge_count(F) == 0
+    w = np.hypot(V[:, 0], V[:, 1])
+    np.testing.assert_allclose(np.hypot(w - 1.0, V[:, 2]), 0.3, atol=1e-14)
+    # the enclosed volume tends to 2π²Rr² from below (inscribed polyhedron)
+    volume = np.einsum("ij,ij->i", V[F[:, 0]], np.cross(V[F[:, 1]], V[F[:, 2]])).sum() / 6
+    assert 0.99 * 2 * np.pi**2 * 0.09 < volume < 2 * np.pi**2 * 0.09
+    case = c3.torus_tilt()
+    assert_valid_case(case, 0.1)
+    seg = case.groups == 1
+    Q, P = case.V[case.handles[seg]], case.path(1.0)[seg]
+    assert (Q[:, 0] < -np.cos(np.radians(10)) * 0.7 + 1e-9).all()
+    np.testing.assert_allclose(P[:, 0], Q[:, 0], atol=1e-14)  # a turn about x
+    c, s = np.cos(np.pi / 3), np.sin(np.pi / 3)
+    np.testing.assert_allclose(P[:, 1:], Q[:, 1:] @ np.array([[c, s], [-s, c]]), atol=1e-14)
