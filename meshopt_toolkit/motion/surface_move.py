@@ -25,13 +25,13 @@ where the energy decreases, every triangle keeps ``det C > 0`` and none folds
 iterated further (``final_iterations``, ``final_rtol``), its factor kept through shortened
 steps until they stall (``final_stall``: chord steps).
 
-On large surfaces (``CG_FROM``) a step on a kept factor ``F`` is two conjugate gradients
+On large surfaces (``CG_FROM``) a step on a kept factor ``F`` is four conjugate gradients
 on the current normal equations ``A``, preconditioned by ``R F⁻¹ Rᵀ`` (``cg_iterations``;
 ``R`` each vertex's rotation since the factorization: φ and the bending are invariant
-under rotations, so ``A`` turns with the surface). Two back-solves and products with
+under rotations, so ``A`` turns with the surface). Four back-solves and products with
 ``A`` (from the Jacobian blocks, no assembly) cost far less than a factorization, whose
 cost grows like N^1.5 on a surface; such steps are seldom shortened, so factors are renewed
-seldom (the bar twisted 180° at 83k triangles: 10 factorizations instead of 36).
+seldom (the bar twisted 180° at 83k triangles: 15 factorizations instead of 36).
 
 Where one similarity moves all handles, the whole surface follows it exactly (φ moves by
 ``√2 log s`` in its first component, bending not at all), so a rigid motion of the
@@ -68,7 +68,7 @@ SQRT2 = np.sqrt(2.0)
 #: (``cg_iterations=None``), this many each: below, a factorization costs too few
 #: back-solves to pay for them (the bar twisted 180°: 1.35× the time at 5.2k triangles,
 #: 0.75× at 20.8k, 0.41× at 83k)
-CG_FROM, CG_STEPS = 20_000, 2
+CG_FROM, CG_STEPS = 20_000, 4
 
 
 def lumped_mass(points: FloatArray, triangles: IntArray) -> FloatArray:
