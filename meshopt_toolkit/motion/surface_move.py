@@ -25,13 +25,13 @@ where the energy decreases, every triangle keeps ``det C > 0`` and none folds
 iterated further (``final_iterations``, ``final_rtol``), its factor kept through shortened
 steps until they stall (``final_stall``: chord steps).
 
-On large surfaces (``CG_FROM``) a step on a kept factor ``F`` is four conjugate gradients
-on the current normal equations ``A``, preconditioned by ``R F⁻¹ Rᵀ`` (``cg_iterations``;
-``R`` each vertex's rotation since the factorization: φ and the bending are invariant
-under rotations, so ``A`` turns with the surface). Four back-solves and products with
-``A`` (from the Jacobian blocks, no assembly) cost far less than a factorization, whose
-cost grows like N^1.5 on a surface; such steps are seldom shortened, so factors are renewed
-seldom (the bar twisted 180° at 83k triangles: 15 factorizations instead of 36).
+With ``cg_iterations = k > 0`` a step on a kept factor ``F`` is k conjugate gradients on
+the current normal equations ``A``, preconditioned by ``R F⁻¹ Rᵀ`` (``R`` each vertex's
+rotation since the factorization: φ and the bending are invariant under rotations, so
+``A`` turns with the surface), products with ``A`` from the Jacobian blocks (no
+assembly). Such steps are seldom shortened, so factors are renewed seldom (k = 4, the bar
+twisted 180° at 83k triangles: 15 factorizations instead of 36), but each costs k
+back-solves: on one core 0.91× the time there, 1.24× at 20.8k, 1.06× on the armadillo.
 
 Where one similarity moves all handles, the whole surface follows it exactly (φ moves by
 ``√2 log s`` in its first component, bending not at all), so a rigid motion of the
@@ -64,11 +64,6 @@ from .surface_paths import FoldTest, HandlePath, global_similarity, handle_group
 from .surface_polish import polish_worst_triangles
 
 SQRT2 = np.sqrt(2.0)
-#: steps on a kept factor by conjugate gradients from this many free coordinates on
-#: (``cg_iterations=None``), this many each: below, a factorization costs too few
-#: back-solves to pay for them (the bar twisted 180°: 1.35× the time at 5.2k triangles,
-#: 0.75× at 20.8k, 0.41× at 83k)
-CG_FROM, CG_STEPS = 20_000, 4
 
 
 def lumped_mass(points: FloatArray, triangles: IntArray) -> FloatArray:
@@ -144,7 +139,7 @@ class _Problem:
         self.fresh = False  # whether the factor is of the matrix at the current iterate
         self.factorizations = 0
         #: conjugate gradients on a kept factor: at most this many, to this relative residual
-        self.cg_iterations, self.cg_rtol, self.cg_total = CG_STEPS, 1e-2, 0
+        self.cg_iterations, self.cg_rtol, self.cg_total = 0, 1e-2, 0
         #: ``w √c_t``: the membrane rows' weights (``c_t ≥ 1``, :func:`move_surface`)
         self.row_weights = np.full(len(F), float(weight))
 
@@ -302,7 +297,7 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
                  anchor: str = "rest", emphasis: float = 1.0, area_weights: bool = True,
                  max_iterations: int = 8, rtol: float = 1e-3, final_iterations: int = 30,
                  final_rtol: float = 1e-6, final_stall: float | None = 0.1,
-                 cg_iterations: int | None = None,
+                 cg_iterations: int = 0,
                  max_halvings: int = 8, polish: int = 30) -> SurfaceMoveResult:
     """Move a triangle surface: ``handles`` exactly to ``targets``, the rest placed so
     that each triangle's shape changes as little as the motion allows (module docstring).
@@ -339,11 +334,10 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
         by at least this fraction of the first step on it (chord steps; a shortened step's
         small decrease is convergence only on a renewed factor); None: renewed after
         every shortened step, as in the other increments.
-    cg_iterations : int or None
+    cg_iterations : int
         Steps on a kept factor are this many conjugate gradients on the current normal
-        equations, preconditioned by the factor turned with the surface (0: the factor's
-        own solve, a chord step); None: ``CG_STEPS`` from ``CG_FROM`` free coordinates
-        on, else 0.
+        equations, preconditioned by the factor turned with the surface (module
+        docstring); 0: the factor's own solve, a chord step.
     max_halvings : how often one increment may be halved.
     polish : L-BFGS iterations of the last frame's local polish of the worst triangles
         (:mod:`.surface_polish`; 0: none).
@@ -375,9 +369,7 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
     whole = global_similarity(V[handles], targets, diameter) if len(handles) else None
     path = HandlePath(V[handles], targets, handle_groups(F, handles, len(V)))
     problem = _Problem(V, F, handles, weight, bending, lumped_mass(V, F))
-    n_free = int(problem.free.sum())
-    problem.cg_iterations = (CG_STEPS if n_free >= CG_FROM else 0) if cg_iterations is None \
-        else int(cg_iterations)
+    problem.cg_iterations = int(cg_iterations)
     area_w = np.ones(len(F))  # √a_t
     if area_weights and len(F):
         P = V[F]
