@@ -306,23 +306,28 @@ def test_chord_steps_of_the_last_increment_reach_the_minimizer_of_full_gauss_new
     """The last increment on a kept factor (renewed only where its shortened steps stall)
     ends where Gauss–Newton renewing its factor after every shortened step ends, both run
     to a tight tolerance, with fewer factorizations; at the defaults too (one increment:
-    the bar turned 90° at once, whose steps are shortened)."""
+    the bar turned 90° at once, whose steps are shortened). Plain chord steps
+    (``cg_iterations=0``, the default); steps of four conjugate gradients on
+    the kept factor end there too, on no more factorizations."""
     case = coarse_bar(90.0)
     args = (case.V, case.F, case.handles, case.path(1.0))
     tight = dict(steps=1, final_iterations=400, final_rtol=1e-13, polish=0)  # minimizers
-    full = move_surface(*args, final_stall=None, **tight)
-    chord = move_surface(*args, final_stall=0.1, **tight)
+    full = move_surface(*args, final_stall=None, cg_iterations=0, **tight)
+    chord = move_surface(*args, final_stall=0.1, cg_iterations=0, **tight)
     assert np.array_equal(chord.points[case.handles], case.path(1.0)) and chord.folds == 0
     assert np.abs(chord.points - full.points).max() < 1e-5 * np.ptp(case.V, axis=0).max()
     assert sm.arap_energy(case.V, chord.points, case.F) == pytest.approx(
         sm.arap_energy(case.V, full.points, case.F), rel=1e-6)
     assert chord.worst_quality == pytest.approx(full.worst_quality, abs=1e-6)
     assert chord.factorizations < full.factorizations
-    default_full = move_surface(*args, steps=1, final_stall=None)
-    default = move_surface(*args, steps=1)
+    default_full = move_surface(*args, steps=1, final_stall=None, cg_iterations=0)
+    default = move_surface(*args, steps=1, cg_iterations=0)
     assert default.factorizations < default_full.factorizations
     assert default.folds == 0 and np.array_equal(default.points[case.handles], case.path(1.0))
     assert sm.fold_count(case.V, default.points, case.F, case.handles) == 0
+    cg = move_surface(*args, cg_iterations=4, **tight)
+    assert np.abs(cg.points - full.points).max() < 1e-5 * np.ptp(case.V, axis=0).max()
+    assert cg.factorizations <= chord.factorizations and cg.folds == 0
 
 
 def test_strip_rolled_into_a_quarter_circle_is_rolled_isometrically():
@@ -340,3 +345,126 @@ def test_strip_rolled_into_a_quarter_circle_is_rolled_isometrically():
     length = np.linalg.norm(np.diff(P, axis=0), axis=1).sum()
     assert abs(length - 4.0) < 0.01
     assert r.worst_quality >= 0.99
+
+
+def _bar_problem(seed=0):
+    """A coarse bar's increment problem at a perturbed state, and the exact normal matrix
+    ``JᵀJ + M`` at the free coordinates built from the sparse Jacobian (independently of the
+    blocks' assembly and products)."""
+    import scipy.sparse as sp
+
+    from meshopt_toolkit.motion import surface_move as smv
+
+    case = coarse_bar(90.0)
+    V, F = case.V, case.F
+    problem = smv._Problem(V, F, case.handles, 1.0, 0.3, smv.lumped_mass(V, F))
+    problem.phi_ref = np.zeros((len(F), 3))
+    Q0 = V + 0.01 * np.random.default_rng(seed).normal(size=V.shape)
+
+    def exact(Q):
+        _, Jm, _, Jb = problem.linearization(Q)
+        rows = np.repeat(np.arange(len(Jb)), 12)
+        Jb_mat = sp.coo_matrix((Jb.ravel(), (rows, problem.shell.columns().ravel())),
+                               shape=(len(Jb), 3 * len(V)))
+        J = sp.vstack([problem.membrane.jacobian_matrix(Jm), Jb_mat]).tocsc()
+        A = (J.T @ J + sp.diags(np.repeat(problem.mass, 3))).tocsc()
+        return A[problem.free][:, problem.free], Jm, Jb
+
+    return problem, Q0, exact
+
+
+@settings(max_examples=10, deadline=None)
+@given(st.integers(0, 2**31 - 1))
+def test_vertex_rotations_of_a_rigid_motion_are_its_rotation(seed):
+    V, F = sphere(1)
+    rng = np.random.default_rng(seed)
+    A = V * rng.uniform(0.5, 2.0, 3)  # any shape, then turned rigidly
+    R = random_rotation(rng)
+    got = FoldTest(V, F).vertex_rotations(A, A @ R.T + rng.normal(size=3))
+    np.testing.assert_allclose(got, np.broadcast_to(R, got.shape), atol=1e-10)
+
+
+def test_a_kept_factor_turned_with_a_rotated_surface_solves_its_matrix():
+    """φ and the bending are invariant under rotations: at a rigidly turned state the
+    normal matrix is ``R A Rᵀ``, and the factor of ``A`` turned by the vertex rotations
+    solves it; unturned it is far off."""
+    import scipy.sparse.linalg as sla
+
+    from meshopt_toolkit.motion.surface_normal import turned_solve
+    from meshopt_toolkit.solvers import factorize_spd
+
+    problem, Q0, exact = _bar_problem()
+    factor = factorize_spd(exact(Q0)[0])
+    R = random_rotation(np.random.default_rng(4))
+    Q = Q0 @ R.T + [1.0, -2.0, 0.5]
+    A, _, _ = exact(Q)
+    g = np.random.default_rng(5).normal(size=A.shape[0])
+    want = sla.spsolve(A, g)
+    rotations = problem.folds.vertex_rotations(Q0, Q)[problem.free[::3]]
+    turned = turned_solve(factor, rotations)(g)
+    assert np.linalg.norm(turned - want) < 1e-9 * np.linalg.norm(want)
+    assert np.linalg.norm(factor(g) - want) > 0.1 * np.linalg.norm(want)
+
+
+def test_conjugate_gradients_on_a_stale_factor_reach_the_fresh_step():
+    """At a state turned and deformed since the factorization, conjugate gradients
+    preconditioned by the turned stale factor (matrix-free products) reach the step of the
+    exact normal matrix, without a factorization; two of them already
+    decrease the Gauss–Newton model more than the stale factor's own solve."""
+    import scipy.sparse.linalg as sla
+
+    from meshopt_toolkit.motion.surface_normal import normal_operator
+
+    problem, Q0, exact = _bar_problem(1)
+    _, Jm0, _, Jb0 = problem.linearization(Q0)
+    problem.refactorize(Jm0, Jb0, Q0)
+    problem.fresh = False
+    R = random_rotation(np.random.default_rng(6))
+    Q = (Q0 + 0.02 * np.random.default_rng(7).normal(size=Q0.shape)) @ R.T
+    A, Jm, Jb = exact(Q)
+    op = normal_operator(Jm, Jb, problem.membrane.columns(), problem.shell.columns(),
+                         np.repeat(problem.mass, 3), problem.free)
+    x = np.random.default_rng(8).normal(size=A.shape[0])
+    np.testing.assert_allclose(op @ x, A @ x, rtol=1e-12, atol=1e-12 * np.abs(A @ x).max())
+    g = np.random.default_rng(9).normal(size=A.shape[0])
+    want = sla.spsolve(A, g)
+    problem.cg_iterations = 2
+    two = problem.kept_step(Jm, Jb, g, Q)
+    problem.cg_iterations, problem.cg_rtol = 300, 1e-12
+    many = problem.kept_step(Jm, Jb, g, Q)
+    assert np.linalg.norm(many - want) < 1e-8 * np.linalg.norm(want)
+    assert problem.factorizations == 1
+    # the Gauss–Newton model's decrease gᵀs − ½ sᵀAs (its maximum ½ gᵀA⁻¹g at the step)
+    model = [g @ s - 0.5 * s @ (A @ s) for s in (want, two, problem.factor(g))]
+    assert model[1] > model[2] and model[1] > 0.45 * model[0]
+
+
+def test_steps_on_kept_factors_need_fewer_factorizations_at_the_same_quality():
+    """bench_surface's bar twisted 180° in 10 increments: steps of four conjugate gradients
+    on the kept factor against plain chord steps (counted by a spy on the factorization),
+    the default."""
+    from meshopt_toolkit.motion import surface_move as smv
+
+    case = coarse_bar(180.0, spacing=0.1)
+    args = (case.V, case.F, case.handles, case.path(1.0))
+    counts = []
+    original = smv._Problem.refactorize
+
+    def spy(self, *a):
+        counts[-1] += 1
+        return original(self, *a)
+
+    results = []
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(smv._Problem, "refactorize", spy)
+        for k in (0, 4):
+            counts.append(0)
+            results.append(move_surface(*args, cg_iterations=k))
+    chord, cg = results
+    assert counts == [chord.factorizations, cg.factorizations] and chord.cg_iterations == 0
+    assert counts[1] < counts[0]
+    assert cg.folds == 0 and cg.handle_error == 0.0
+    assert sm.fold_count(case.V, cg.points, case.F, case.handles) == 0
+    assert cg.worst_quality >= chord.worst_quality - 0.005
+    assert sm.arap_energy(case.V, cg.points, case.F) <= 1.02 * sm.arap_energy(
+        case.V, chord.points, case.F)

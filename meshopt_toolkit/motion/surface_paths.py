@@ -65,13 +65,24 @@ class FoldTest:
         P = self.rest[F]
         self.rest_normals = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
 
+    def vertex_covariances(self, A: FloatArray, B: FloatArray) -> FloatArray:
+        """``Σ a bᵀ`` over the edges at each vertex, ``a`` the edge vector in ``A`` and ``b``
+        in ``B`` (N, 9); ``A = None``: the rest shape's."""
+        a = self.rest_edges if A is None else A[self.edges[:, 1]] - A[self.edges[:, 0]]
+        b = B[self.edges[:, 1]] - B[self.edges[:, 0]]
+        outer = (a[:, :, None] * b[:, None, :]).reshape(-1, 9)
+        n = len(B)
+        return np.stack([np.bincount(self.edges[:, 0], outer[:, c], n)
+                         + np.bincount(self.edges[:, 1], outer[:, c], n) for c in range(9)], 1)
+
+    def vertex_rotations(self, A: FloatArray, B: FloatArray) -> FloatArray:
+        """The Kabsch rotations (N, 3, 3) of each vertex's edge vectors in ``A`` onto
+        those in ``B``."""
+        return best_rotations(self.vertex_covariances(A, B).reshape(-1, 3, 3))
+
     def mask(self, Q: FloatArray) -> np.ndarray:
         """Folded triangles of ``Q`` (T,) bool."""
-        e1 = Q[self.edges[:, 1]] - Q[self.edges[:, 0]]
-        outer = (self.rest_edges[:, :, None] * e1[:, None, :]).reshape(-1, 9)
-        n = len(Q)
-        Sv = np.stack([np.bincount(self.edges[:, 0], outer[:, c], n)
-                       + np.bincount(self.edges[:, 1], outer[:, c], n) for c in range(9)], 1)
+        Sv = self.vertex_covariances(None, Q)
         R = best_rotations(Sv[self.triangles].sum(axis=1).reshape(-1, 3, 3))
         carried = np.einsum("tij,tj->ti", R, self.rest_normals)
         P = Q[self.triangles]
