@@ -111,9 +111,69 @@ def _tangent_bases(points: FloatArray, triangles: IntArray, vertices: IntArray) 
     return np.where((size > 0)[:, None, None], B, 0.0)
 
 
+def _descend(V: FloatArray, F: IntArray, P: FloatArray, is_handle, rest_q: FloatArray,
+             areas: FloatArray, membrane: SurfaceDistortion, limit: float, worst: int,
+             rings: int, iterations: int, sharpness: float, focus: float,
+             shape: float) -> FloatArray | None:
+    """One L-BFGS pass of :func:`polish_worst_triangles` from ``P``: the moved points, or
+    None where nothing can move or ``focus`` would not sharpen the soft maximum."""
+    counted = ~is_handle[F].all(axis=1)
+    rel = np.where(counted, aspect_ratios(P, F) / rest_q, np.inf)
+    seeds = np.argsort(rel)[:min(worst, int(counted.sum()))]
+    near = np.zeros(len(P), bool)
+    near[F[seeds]] = True
+    for _ in range(rings):
+        near[F[near[F].any(axis=1)]] = True
+    movable = near & ~is_handle
+    free = np.flatnonzero(movable)
+    if len(free) == 0:
+        return None
+    active = movable[F].any(axis=1)  # the triangles whose shape the polish changes
+    if focus > 0:
+        with np.errstate(divide="ignore"):  # a degenerate triangle: 1/q = inf, no gap
+            inverse = 1.0 / rel[active]
+        gap = inverse.max() - np.median(inverse)
+        if not (np.isfinite(gap) and gap > 0 and focus > sharpness * gap):
+            return None
+        sharpness = focus / gap
+    objective = SoftMaxObjective(P, F[active], rest_q[active], free,
+                                 _tangent_bases(P, F, free), sharpness,
+                                 SurfaceDistortion(V, F[active]), areas[active], shape)
+    # a triangle's fold test reads the fans of its corners: those that can change are the
+    # triangles with a corner on or next to a free vertex; their corners' fans make the
+    # submesh on which the test is the whole mesh's
+    touched = movable.copy()
+    touched[F[active]] = True
+    watched = touched[F].any(axis=1)
+    corners = np.zeros(len(P), bool)
+    corners[F[watched]] = True
+    sub = np.flatnonzero(corners[F].any(axis=1))
+    folds = FoldTest(V, F[sub])
+    check = watched[sub]
+    folded = folds.mask(P) & check
+    # the whole surface's membrane energy Σ a_t|φ_t|² stays within ``limit``: only the
+    # active triangles' part changes
+    budget = limit - float(areas[~active] @ np.sum(membrane.values(P)[~active] ** 2, axis=1))
+
+    def admissible(u: FloatArray) -> bool:  # no new fold, the membrane energy within budget
+        x = objective.points(u)
+        if np.any(folds.mask(x) & check & ~folded):
+            return False
+        phi = objective.membrane.values(x)
+        return float(areas[active] @ np.sum(phi**2, axis=1)) <= budget
+
+    edges = np.linalg.norm(P[F[active]] - np.roll(P[F[active]], 1, axis=1), axis=2)
+    u = minimize_lbfgs(objective, np.zeros(2 * len(free)), int(iterations),
+                       first_step=1e-2 * float(edges.mean()), admissible=admissible)
+    out = objective.points(u)
+    out[is_handle] = P[is_handle]
+    return out
+
+
 def polish_worst_triangles(rest: FloatArray, triangles: IntArray, points: FloatArray,
                            handles: IntArray, *, worst: int = 400, rings: int = 5,
                            iterations: int = 300, sharpness: float = 200.0,
+                           focus: float = 20.0,
                            shape: float = 10.0, max_energy_rise: float = 0.02
                            ) -> tuple[FloatArray, dict]:
     """Raise the worst relative quality of a moved surface by tangential moves of the
@@ -134,8 +194,12 @@ def polish_worst_triangles(rest: FloatArray, triangles: IntArray, points: FloatA
         Rings of neighbouring vertices added around them.
     iterations : int
         L-BFGS iterations.
-    sharpness : float
-        ``s`` of the soft maximum (``s → ∞``: the worst triangle alone).
+    sharpness, focus : float
+        ``s`` of the soft maximum (``s → ∞``: the worst triangle alone) of one pass, and
+        of a second, where that is sharper, ``focus`` over the gap between the worst and
+        the median inverse relative quality of the triangles moved (where most are nearly
+        as good as the worst, a fixed ``s`` spreads the descent over all of them); both
+        from ``points``, the better kept.
     shape : float
         ``μ``, the weight of the area-weighted mean squared membrane distortion
         (:class:`.surface_distortion.SurfaceDistortion`) of the triangles moved, against
@@ -165,52 +229,20 @@ def polish_worst_triangles(rest: FloatArray, triangles: IntArray, points: FloatA
     info = {"polish_vertices": 0, "polish_worst_quality": [before, before]}
     if iterations <= 0 or not counted.any() or before >= 1.0 - _AT_REST:
         return P, info  # nothing to do, or no triangle worse than at rest
-    seeds = np.argsort(rel)[:min(worst, int(counted.sum()))]
-    near = np.zeros(len(P), bool)
-    near[F[seeds]] = True
-    for _ in range(rings):
-        near[F[near[F].any(axis=1)]] = True
-    movable = near & ~is_handle
-    free = np.flatnonzero(movable)
-    basis = _tangent_bases(P, F, free)
-    if len(free) == 0:
-        return P, info
-    active = movable[F].any(axis=1)  # the triangles whose shape the polish changes
     R = V[F]
-    all_areas = np.linalg.norm(np.cross(R[:, 1] - R[:, 0], R[:, 2] - R[:, 0]), axis=1)
-    areas = all_areas[active]
-    objective = SoftMaxObjective(P, F[active], rest_q[active], free, basis, sharpness,
-                                 SurfaceDistortion(V, F[active]), areas, shape)
-    # a triangle's fold test reads the fans of its corners: those that can change are the
-    # triangles with a corner on or next to a free vertex; their corners' fans make the
-    # submesh on which the test is the whole mesh's
-    touched = movable.copy()
-    touched[F[active]] = True
-    watched = touched[F].any(axis=1)
-    corners = np.zeros(len(P), bool)
-    corners[F[watched]] = True
-    sub = np.flatnonzero(corners[F].any(axis=1))
-    folds = FoldTest(V, F[sub])
-    check = watched[sub]
-    folded = folds.mask(P) & check
-
-    # the membrane energy Σ a_t|φ_t|² may rise by max_energy_rise of the whole surface's;
-    # only the active triangles' part changes
-    energy = all_areas * np.sum(SurfaceDistortion(V, F).values(P) ** 2, axis=1)
-    budget = (1.0 + max_energy_rise) * energy.sum() - energy[~active].sum()
-
-    def admissible(u: FloatArray) -> bool:  # no new fold, the membrane energy within budget
-        x = objective.points(u)
-        if np.any(folds.mask(x) & check & ~folded):
-            return False
-        return float(areas @ np.sum(objective.membrane.values(x) ** 2, axis=1)) <= budget
-
-    edges = np.linalg.norm(P[F[active]] - np.roll(P[F[active]], 1, axis=1), axis=2)
-    u = minimize_lbfgs(objective, np.zeros(2 * len(free)), int(iterations),
-                       first_step=1e-2 * float(edges.mean()), admissible=admissible)
-    out = objective.points(u)
-    out[is_handle] = P[is_handle]
-    after = float((aspect_ratios(out, F)[counted] / rest_q[counted]).min())
+    areas = np.linalg.norm(np.cross(R[:, 1] - R[:, 0], R[:, 2] - R[:, 0]), axis=1)
+    membrane = SurfaceDistortion(V, F)
+    limit = (1.0 + max_energy_rise) * float(areas @ np.sum(membrane.values(P) ** 2, axis=1))
+    out, after = P, before
+    # a pass at the given sharpness and, where that is sharper, one sharpened to the gap
+    for pass_focus in (0.0, focus):
+        moved = _descend(V, F, P, is_handle, rest_q, areas, membrane, limit, worst, rings,
+                         iterations, sharpness, pass_focus, shape)
+        if moved is None:
+            continue
+        quality = float((aspect_ratios(moved, F)[counted] / rest_q[counted]).min())
+        if quality > after:
+            out, after = moved, quality
     if not after > before:
         return P, info
     info["polish_vertices"] = int(np.any(out != P, axis=1).sum())
