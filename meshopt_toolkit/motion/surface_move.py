@@ -299,7 +299,7 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
                  max_iterations: int = 8, rtol: float = 1e-3, final_iterations: int = 30,
                  final_rtol: float = 1e-6, final_stall: float | None = 0.1,
                  cg_iterations: int = 0,
-                 max_halvings: int = 8, polish: int = 300) -> SurfaceMoveResult:
+                 max_halvings: int = 8, polish: int = 100) -> SurfaceMoveResult:
     """Move a triangle surface: ``handles`` exactly to ``targets``, the rest placed so
     that each triangle's shape changes as little as the motion allows (module docstring).
 

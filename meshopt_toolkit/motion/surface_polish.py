@@ -155,16 +155,17 @@ def _descend(V: FloatArray, F: IntArray, P: FloatArray, is_handle, rest_q: Float
     # active triangles' part changes
     budget = limit - float(areas[~active] @ np.sum(membrane.values(P)[~active] ** 2, axis=1))
 
-    def admissible(u: FloatArray) -> bool:  # no new fold, the membrane energy within budget
+    def admissible(u: FloatArray) -> bool:  # the membrane energy within budget, no new fold
         x = objective.points(u)
-        if np.any(folds.mask(x) & check & ~folded):
-            return False
         phi = objective.membrane.values(x)
-        return float(areas[active] @ np.sum(phi**2, axis=1)) <= budget
+        if float(areas[active] @ np.sum(phi**2, axis=1)) > budget:
+            return False
+        return not np.any(folds.mask(x) & check & ~folded)
 
     edges = np.linalg.norm(P[F[active]] - np.roll(P[F[active]], 1, axis=1), axis=2)
     u = minimize_lbfgs(objective, np.zeros(2 * len(free)), int(iterations),
-                       first_step=1e-2 * float(edges.mean()), admissible=admissible)
+                       first_step=1e-2 * float(edges.mean()), admissible=admissible,
+                       min_step=1e-6)
     out = objective.points(u)
     out[is_handle] = P[is_handle]
     return out
@@ -172,7 +173,7 @@ def _descend(V: FloatArray, F: IntArray, P: FloatArray, is_handle, rest_q: Float
 
 def polish_worst_triangles(rest: FloatArray, triangles: IntArray, points: FloatArray,
                            handles: IntArray, *, worst: int = 400, rings: int = 5,
-                           iterations: int = 300, sharpness: float = 200.0,
+                           iterations: int = 100, sharpness: float = 200.0,
                            focus: float = 20.0,
                            shape: float = 10.0, max_energy_rise: float = 0.02
                            ) -> tuple[FloatArray, dict]:
@@ -235,7 +236,7 @@ def polish_worst_triangles(rest: FloatArray, triangles: IntArray, points: FloatA
     limit = (1.0 + max_energy_rise) * float(areas @ np.sum(membrane.values(P) ** 2, axis=1))
     out, after = P, before
     # a pass at the given sharpness and, where that is sharper, one sharpened to the gap
-    for pass_focus in (0.0, focus):
+    for pass_focus in (0.0, focus) if focus > 0 else (0.0,):
         moved = _descend(V, F, P, is_handle, rest_q, areas, membrane, limit, worst, rings,
                          iterations, sharpness, pass_focus, shape)
         if moved is None:
