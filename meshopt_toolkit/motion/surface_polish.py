@@ -12,14 +12,17 @@ triangles these vertices touch,
 area-weighted mean ``|φ_t|²`` of their membrane distortion (the neighbourhood stays where
 the motion put it), by L-BFGS over tangential displacements: each free vertex moves in the
 plane through its start position orthogonal to its area-weighted normal there, so the
-surface keeps its shape to first order. The line search refuses every trial with a
-degenerate triangle (``F = +inf``) or a new fold (:class:`.surface_paths.FoldTest` against
-the rest surface, evaluated on the triangles whose corners' fans the free vertices touch);
-and every trial that raises the surface's membrane energy ``Σ_t a_t |φ_t|²`` (``a_t`` the
-rest areas) by more than ``max_energy_rise`` of itself: a nearly isometric motion is not
-traded for a sliver of quality. The result is kept only where the worst relative quality
-of the triangles not wholly handles rises. A surface with no triangle worse than at rest (worst relative quality ≥ 1)
-is left as it is.
+surface keeps its shape to first order. Two passes start from the moved points: one at the
+given sharpness ``s`` and, where it is sharper, one at ``focus`` over the gap between the
+worst and the median ``r_t`` (where most triangles are nearly as good as the worst, a fixed
+``s`` spreads the descent over all of them); the better is kept. The line search refuses
+every trial with a degenerate triangle (``F = +inf``), a new fold
+(:class:`.surface_paths.FoldTest` against the rest surface, evaluated on the triangles
+whose corners' fans the free vertices touch) or a rise of the surface's membrane energy
+``Σ_t a_t |φ_t|²`` (``a_t`` the rest areas) by more than ``max_energy_rise`` of itself: a
+nearly isometric motion is not traded for a sliver of quality. The result is kept only
+where the worst relative quality of the triangles not wholly handles rises. A surface with
+no triangle worse than at rest (worst relative quality ≥ 1) is left as it is.
 """
 
 from __future__ import annotations
@@ -112,14 +115,14 @@ def _tangent_bases(points: FloatArray, triangles: IntArray, vertices: IntArray) 
 
 
 def _descend(V: FloatArray, F: IntArray, P: FloatArray, is_handle, rest_q: FloatArray,
-             areas: FloatArray, membrane: SurfaceDistortion, limit: float, worst: int,
-             rings: int, iterations: int, sharpness: float, focus: float,
+             rel: FloatArray, areas: FloatArray, energy: FloatArray, limit: float,
+             worst: int, rings: int, iterations: int, sharpness: float, focus: float,
              shape: float) -> FloatArray | None:
-    """One L-BFGS pass of :func:`polish_worst_triangles` from ``P``: the moved points, or
-    None where nothing can move or ``focus`` would not sharpen the soft maximum."""
-    counted = ~is_handle[F].all(axis=1)
-    rel = np.where(counted, aspect_ratios(P, F) / rest_q, np.inf)
-    seeds = np.argsort(rel)[:min(worst, int(counted.sum()))]
+    """One L-BFGS pass of :func:`polish_worst_triangles` from ``P`` (relative qualities
+    ``rel``, ``inf`` where not counted; membrane energies ``energy`` per triangle, their sum
+    at most ``limit``): the moved points, or None where nothing can move or ``focus`` would
+    not sharpen the soft maximum."""
+    seeds = np.argsort(rel)[:min(worst, int(np.isfinite(rel).sum()))]
     near = np.zeros(len(P), bool)
     near[F[seeds]] = True
     for _ in range(rings):
@@ -153,7 +156,7 @@ def _descend(V: FloatArray, F: IntArray, P: FloatArray, is_handle, rest_q: Float
     folded = folds.mask(P) & check
     # the whole surface's membrane energy Σ a_t|φ_t|² stays within ``limit``: only the
     # active triangles' part changes
-    budget = limit - float(areas[~active] @ np.sum(membrane.values(P)[~active] ** 2, axis=1))
+    budget = limit - float(energy[~active].sum())
 
     def admissible(u: FloatArray) -> bool:  # the membrane energy within budget, no new fold
         x = objective.points(u)
@@ -232,12 +235,12 @@ def polish_worst_triangles(rest: FloatArray, triangles: IntArray, points: FloatA
         return P, info  # nothing to do, or no triangle worse than at rest
     R = V[F]
     areas = np.linalg.norm(np.cross(R[:, 1] - R[:, 0], R[:, 2] - R[:, 0]), axis=1)
-    membrane = SurfaceDistortion(V, F)
-    limit = (1.0 + max_energy_rise) * float(areas @ np.sum(membrane.values(P) ** 2, axis=1))
+    energy = areas * np.sum(SurfaceDistortion(V, F).values(P) ** 2, axis=1)
+    limit = (1.0 + max_energy_rise) * float(energy.sum())
     out, after = P, before
     # a pass at the given sharpness and, where that is sharper, one sharpened to the gap
     for pass_focus in (0.0, focus) if focus > 0 else (0.0,):
-        moved = _descend(V, F, P, is_handle, rest_q, areas, membrane, limit, worst, rings,
+        moved = _descend(V, F, P, is_handle, rest_q, rel, areas, energy, limit, worst, rings,
                          iterations, sharpness, pass_focus, shape)
         if moved is None:
             continue
