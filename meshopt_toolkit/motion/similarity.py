@@ -70,18 +70,25 @@ def fit_similarity(source: FloatArray, target: FloatArray,
     return Similarity(complex(cs), complex(ct - cs), float(np.log(abs(a))), float(np.angle(a)))
 
 
-def handle_groups(handles: IntArray, boundary_edges: IntArray, n_vertices: int) -> list[IntArray]:
-    """Positions (into ``handles``) of the handles grouped by connected boundary pieces:
-    handles joined by boundary edges (vertex pairs ``(E, 2)``) whose both ends are handles
-    form one group."""
+def handle_labels(handles: IntArray, edges: IntArray, n_vertices: int) -> IntArray:
+    """A label per handle (0, 1, …): its connected piece through the edges (vertex pairs
+    ``(E, 2)``) whose both ends are handles."""
     is_handle = np.full(n_vertices, -1)
     is_handle[handles] = np.arange(len(handles))
-    e = boundary_edges
+    e = edges
     both = (is_handle[e[:, 0]] >= 0) & (is_handle[e[:, 1]] >= 0)
     i, j = is_handle[e[both, 0]], is_handle[e[both, 1]]
     graph = sp.coo_matrix((np.ones(len(i)), (i, j)), shape=(len(handles), len(handles)))
-    n, labels = connected_components(graph, directed=False)
-    return [np.flatnonzero(labels == c) for c in range(n)]
+    return connected_components(graph, directed=False)[1]
+
+
+def handle_groups(handles: IntArray, boundary_edges: IntArray, n_vertices: int) -> list[IntArray]:
+    """Positions (into ``handles``) of the handles grouped by connected boundary pieces:
+    handles joined by boundary edges (vertex pairs ``(E, 2)``) whose both ends are handles
+    form one group (:func:`handle_labels`)."""
+    labels = handle_labels(handles, boundary_edges, n_vertices)
+    return [np.flatnonzero(labels == c) for c in range(int(labels.max()) + 1 if len(labels)
+                                                        else 0)]
 
 
 class HandlePath:
@@ -100,15 +107,30 @@ class HandlePath:
         self.targets = np.asarray(targets, float)
         self.pieces = []
         for g in groups:
-            S = self.fit(self.start[g], self.targets[g]) if len(g) >= 3 else None
+            S = self.fit(self.start[g], self.targets[g]) if self.turns(self.start[g]) else None
             rest = self.targets[g] - (S(self.start[g]) if S is not None else self.start[g])
             self.pieces.append((g, S, rest))
+
+    @staticmethod
+    def turns(points: FloatArray) -> bool:
+        """Whether a group at ``points`` has a similarity of its own (else it moves
+        linearly): three points at least."""
+        return len(points) >= 3
+
+    def along(self, S, s: float):
+        """The similarity ``S`` a fraction ``s`` of the way (:meth:`Similarity.at`)."""
+        return S.at(s)
+
+    @property
+    def similarities(self) -> list:
+        """Each group's similarity (None: the group moves linearly)."""
+        return [S for _, S, _ in self.pieces]
 
     def __call__(self, s: float) -> FloatArray:
         if s >= 1.0:
             return self.targets.copy()  # bitwise the targets
         out = np.empty_like(self.start)
         for g, S, rest in self.pieces:
-            base = S.at(s)(self.start[g]) if S is not None else self.start[g]
+            base = self.along(S, s)(self.start[g]) if S is not None else self.start[g]
             out[g] = base + s * rest
         return out

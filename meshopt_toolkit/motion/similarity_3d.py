@@ -14,12 +14,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
 from scipy.spatial.transform import Rotation
 
 from .._typing import FloatArray, IntArray
 from ..errors import OptionError
+from . import similarity
 
 #: the paths of :class:`HandlePath`: a group's similarity along its chord or screw motion
 HANDLE_MOTIONS = ("chord", "screw")
@@ -171,57 +170,37 @@ def tet_boundary_faces(tets: IntArray) -> IntArray:
 
 def handle_groups(triangles: IntArray, handles: IntArray, n_vertices: int) -> IntArray:
     """A label per handle (0, 1, …): its connected piece through edges of ``triangles``
-    (a surface's, or a tet mesh's boundary faces) whose ends are both handles."""
+    (a surface's, or a tet mesh's boundary faces) whose ends are both handles
+    (:func:`.similarity.handle_labels`)."""
     F = np.asarray(triangles)
-    is_handle = np.zeros(n_vertices, bool)
-    is_handle[handles] = True
-    E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
-    E = E[is_handle[E].all(axis=1)]
-    local = np.full(n_vertices, -1)
-    local[handles] = np.arange(len(handles))
-    n = len(handles)
-    A = sp.coo_matrix((np.ones(len(E)), (local[E[:, 0]], local[E[:, 1]])), shape=(n, n))
-    return connected_components(A, directed=False)[1]
+    edges = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    return similarity.handle_labels(handles, edges, n_vertices)
 
 
-class HandlePath:
+class HandlePath(similarity.HandlePath):
     """Positions of the handles at fraction ``t`` of their motion from ``start`` to
-    ``targets``: each group (labels from :func:`handle_groups`) follows the similarity that
-    fits it best — along its ``motion``, "chord" (:meth:`Similarity3.at`) or "screw"
-    (:meth:`Similarity3.screw`), so a turning piece turns instead of collapsing through its
-    centre — plus ``t`` times what the similarity leaves; a group spanning less than a
-    plane moves linearly. Bitwise ``targets`` at ``t = 1``."""
+    ``targets`` (:class:`.similarity.HandlePath` in space): each group (labels from
+    :func:`handle_groups`) follows the similarity that fits it best — along its ``motion``,
+    "chord" (:meth:`Similarity3.at`) or "screw" (:meth:`Similarity3.screw`), so a turning
+    piece turns instead of collapsing through its centre — plus ``t`` times what the
+    similarity leaves; a group spanning less than a plane moves linearly. Bitwise
+    ``targets`` at ``t = 1``."""
+
+    fit = staticmethod(fit_similarity_3d)
 
     def __init__(self, start: FloatArray, targets: FloatArray, groups: IntArray,
                  motion: str = "screw") -> None:
         if motion not in HANDLE_MOTIONS:
             raise OptionError(f"motion must be one of {HANDLE_MOTIONS}, not {motion!r}")
-        self.start = np.asarray(start, float)
-        self.targets = np.asarray(targets, float)
         self.motion = motion
         labels = np.asarray(groups)
-        self.pieces = []
-        for g in range(int(labels.max()) + 1 if len(labels) else 0):
-            m = np.flatnonzero(labels == g)
-            # a single vertex or a collinear piece has no rotation of its own
-            S = fit_similarity_3d(self.start[m], self.targets[m]) \
-                if rank_3d(self.start[m]) >= 2 else None
-            rest = self.targets[m] - (S(self.start[m]) if S is not None else self.start[m])
-            self.pieces.append((m, S, rest))
+        super().__init__(start, targets, [np.flatnonzero(labels == g) for g in range(
+            int(labels.max()) + 1 if len(labels) else 0)])
 
-    @property
-    def similarities(self) -> list[Similarity3 | None]:
-        """Each group's similarity (None: the group moves linearly)."""
-        return [S for _, S, _ in self.pieces]
+    @staticmethod
+    def turns(points: FloatArray) -> bool:
+        """A single vertex or a collinear piece has no rotation of its own."""
+        return rank_3d(points) >= 2
 
-    def __call__(self, t: float) -> FloatArray:
-        if t >= 1.0:
-            return self.targets.copy()
-        out = np.empty_like(self.start)
-        for m, S, rest in self.pieces:
-            if S is None:
-                base = self.start[m]
-            else:
-                base = (S.screw(t) if self.motion == "screw" else S.at(t))(self.start[m])
-            out[m] = base + t * rest
-        return out
+    def along(self, S: Similarity3, t: float) -> Similarity3:
+        return S.screw(t) if self.motion == "screw" else S.at(t)
