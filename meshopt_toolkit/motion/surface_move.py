@@ -52,6 +52,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.sparse.linalg import LinearOperator
 
 from .._typing import FloatArray, IntArray
 from ..errors import InvalidMeshError, NotAdmissibleError
@@ -60,7 +61,7 @@ from ..solvers import factorize_spd, pcg
 from .bending import ShellBending
 from .surface_distortion import SurfaceDistortion
 from .similarity_3d import HandlePath, global_similarity, handle_groups
-from .surface_normal import FreePattern, normal_operator, turned_solve, upper_products
+from .surface_normal import FreePattern, turned_solve, upper_products
 from .surface_paths import FoldTest
 from .surface_polish import polish_worst_triangles
 
@@ -169,6 +170,26 @@ class _Problem:
         Jb = np.sqrt(self.bending) * self.shell.jacobian_blocks(Q)
         return rm, Jm, rb, Jb
 
+    def jacobian_products(self, Jm, Jb, d: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """``J d`` of a displacement ``d`` (N, 3): membrane (T, 3), bending (E,)."""
+        flat = d.ravel()
+        return (np.einsum("tij,tj->ti", Jm, flat[self.membrane.columns()]),
+                np.einsum("ej,ej->e", Jb, flat[self.shell.columns()]))
+
+    def normal_operator(self, Jm, Jb) -> LinearOperator:
+        """``x ↦ (JᵀJ + M) x`` at the free coordinates, without assembly: the gradient of
+        the residuals ``J x`` and the displacement ``x``."""
+        m = int(self.free.sum())
+
+        def apply(x: FloatArray) -> FloatArray:
+            full = np.zeros(self.free.size)
+            full[self.free] = np.ravel(x)
+            d = full.reshape(-1, 3)
+            rm, rb = self.jacobian_products(Jm, Jb, d)
+            return self.gradient(rm, Jm, rb, Jb, d)
+
+        return LinearOperator((m, m), matvec=apply, dtype=float)
+
     def gradient(self, rm, Jm, rb, Jb, displacement) -> FloatArray:
         """``Jᵀ r + M d`` at the free coordinates (d: ``Q − Q_prev``, (N, 3))."""
         n = self.free.size
@@ -206,8 +227,7 @@ class _Problem:
             return self.factor(g)
         precondition = turned_solve(
             self.factor, self.folds.vertex_rotations(self.factor_points, Q)[self.free[::3]])
-        A = normal_operator(Jm, Jb, self.membrane.columns(), self.shell.columns(),
-                            np.repeat(self.mass, 3), self.free)
+        A = self.normal_operator(Jm, Jb)
         try:
             x, its, _ = pcg(A, g, precondition, self.cg_rtol, self.cg_iterations)
         except FloatingPointError:  # not expected (both SPD): the turned factor's solve
@@ -234,11 +254,8 @@ def _step(problem: _Problem, Q0, H1, handles, max_iterations: int, rtol: float,
         return (Q, 0) if problem.admissible(Q, problem.parts(Q)[0]) else None
     rm, Jm, rb, Jb = problem.linearization(Q0)
     # the residuals' change of the handles' displacement, to first order
-    cols_m, cols_b = problem.membrane.columns(), problem.shell.columns()
-    dflat = d.ravel()
-    rm_lin = rm + np.einsum("tij,tj->ti", Jm, dflat[cols_m])
-    rb_lin = rb + np.einsum("ej,ej->e", Jb, dflat[cols_b])
-    g = problem.gradient(rm_lin, Jm, rb_lin, Jb, np.zeros_like(Q0))
+    dm, db = problem.jacobian_products(Jm, Jb, d)
+    g = problem.gradient(rm + dm, Jm, rb + db, Jb, np.zeros_like(Q0))
     # the predictor on the last increment's factor where one is kept, else a fresh one
     for fresh in ((False, True) if hasattr(problem.factor, "refactorize") else (True,)):
         if fresh:

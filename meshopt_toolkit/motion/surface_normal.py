@@ -1,8 +1,7 @@
 """The normal equations ``JᵀJ + M`` of the surface motion's Gauss–Newton
 (:mod:`.surface_move`) at the free coordinates, from the residuals' Jacobian blocks: the
-lower triangle assembled into a fixed pattern (:class:`FreePattern`), the product without
-assembly (:func:`normal_operator`), and a kept factor turned with the surface as a
-preconditioner (:func:`turned_solve`).
+lower triangle assembled into a fixed pattern (:class:`FreePattern`) and a kept factor
+turned with the surface as a preconditioner (:func:`turned_solve`).
 """
 
 from __future__ import annotations
@@ -11,7 +10,6 @@ from collections.abc import Callable
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.linalg import LinearOperator
 
 from .._typing import FloatArray, IntArray
 
@@ -75,25 +73,6 @@ class FreePattern:
         data = data[:-1]
         data[self.diagonal] += diagonal
         return sp.csr_matrix((data, self.indices, self.indptr), shape=(self.n, self.n))
-
-
-def normal_operator(Jm: FloatArray, Jb: FloatArray, cols_m: IntArray, cols_b: IntArray,
-                    mass: FloatArray, free: np.ndarray) -> LinearOperator:
-    """``x ↦ (JᵀJ + M) x`` at the ``free`` coordinates (bool, (3N,)) from the membrane
-    blocks (T, 3, 9) and the bending rows (E, 12) over their coordinate columns, ``mass``
-    (3N,) the diagonal ``M``: two gathers, four block products and two ``bincount``."""
-    n, m = free.size, int(free.sum())
-
-    def apply(x: FloatArray) -> FloatArray:
-        full = np.zeros(n)
-        full[free] = np.ravel(x)
-        y = np.bincount(cols_m.ravel(), np.einsum(
-            "tij,ti->tj", Jm, np.einsum("tij,tj->ti", Jm, full[cols_m])).ravel(), n)
-        y += np.bincount(cols_b.ravel(), (Jb * np.einsum(
-            "ej,ej->e", Jb, full[cols_b])[:, None]).ravel(), n)
-        return (y + mass * full)[free]
-
-    return LinearOperator((m, m), matvec=apply, dtype=float)
 
 
 def turned_solve(solve: Callable[[FloatArray], FloatArray], R: FloatArray
