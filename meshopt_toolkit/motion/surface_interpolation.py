@@ -30,6 +30,7 @@ from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial.transform import Rotation
 
 from .._typing import FloatArray, IntArray
+from ..kernels.surface import areas
 from ..mesh.core import TriangleMesh
 from ..solvers import factorize_spd
 from .surface_distortion import SurfaceDistortion
@@ -66,9 +67,7 @@ class _Fit:
         self.F, self.n = F, len(V0)
         self.distortion = SurfaceDistortion(V0, F)
         self.grads = self.distortion.gradients  # (T, 3, 2) barycentric gradients
-        P = V0[F]
-        self.area = 0.5 * np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]),
-                                         axis=1)
+        self.area = areas(V0, F)
         # L_jk = Σ_t a_t γ_j·γ_k
         G = self.area[:, None, None] * np.einsum("tja,tka->tjk", self.grads, self.grads)
         rows = np.repeat(F, 3, axis=1).ravel()

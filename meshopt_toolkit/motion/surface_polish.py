@@ -30,7 +30,8 @@ from __future__ import annotations
 import numpy as np
 
 from .._typing import FloatArray, IntArray
-from ..kernels.surface import aspect_ratios
+from ..kernels.surface import area_vectors, aspect_ratios
+from ..kernels.surface import areas as triangle_areas
 from .surface_distortion import SurfaceDistortion
 from .lbfgs import minimize_lbfgs, soft_maximum
 from .surface_paths import FoldTest
@@ -103,8 +104,7 @@ class SoftMaxObjective:
 def _tangent_bases(points: FloatArray, triangles: IntArray, vertices: IntArray) -> FloatArray:
     """Orthonormal (k, 3, 2) bases of the planes orthogonal to the area-weighted vertex
     normals at ``vertices`` (zero where the normal vanishes: the vertex stays)."""
-    p = points[triangles]
-    n = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    n = area_vectors(points, triangles)
     N = np.column_stack([np.bincount(triangles.ravel(), np.repeat(n[:, k], 3), len(points))
                          for k in range(3)])[vertices]
     size = np.linalg.norm(N, axis=1)
@@ -233,8 +233,7 @@ def polish_worst_triangles(rest: FloatArray, triangles: IntArray, points: FloatA
     info = {"polish_vertices": 0, "polish_worst_quality": [before, before]}
     if iterations <= 0 or not counted.any() or before >= 1.0 - _AT_REST:
         return P, info  # nothing to do, or no triangle worse than at rest
-    R = V[F]
-    areas = np.linalg.norm(np.cross(R[:, 1] - R[:, 0], R[:, 2] - R[:, 0]), axis=1)
+    areas = triangle_areas(V, F)
     energy = areas * np.sum(SurfaceDistortion(V, F).values(P) ** 2, axis=1)
     limit = (1.0 + max_energy_rise) * float(energy.sum())
     out, after = P, before
