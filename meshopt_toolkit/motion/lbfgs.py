@@ -1,6 +1,6 @@
 """The descent of the local polishes (:mod:`.tet_polish`, :mod:`.surface_polish`): the
-soft maximum they lower and L-BFGS with a backtracking line search that refuses
-inadmissible trials."""
+vertices they move (:func:`cell_neighbourhood`), the soft maximum they lower and L-BFGS
+with a backtracking line search that refuses inadmissible trials."""
 
 from __future__ import annotations
 
@@ -8,7 +8,18 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .._typing import FloatArray
+from .._typing import FloatArray, IntArray
+
+
+def cell_neighbourhood(cells: IntArray, seeds: IntArray, rings: int, n_vertices: int
+                       ) -> np.ndarray:
+    """The vertices (a bool mask (n_vertices,)) of the ``seeds`` cells and ``rings`` rings of
+    neighbours around them: each ring adds the corners of every cell touching the last."""
+    near = np.zeros(n_vertices, bool)
+    near[cells[seeds]] = True
+    for _ in range(rings):
+        near[cells[near[cells].any(axis=1)]] = True
+    return near
 
 
 def soft_maximum(values: FloatArray, gradients: FloatArray, sharpness: float

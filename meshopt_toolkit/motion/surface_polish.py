@@ -33,7 +33,7 @@ from .._typing import FloatArray, IntArray
 from ..kernels.surface import area_vectors, aspect_ratios
 from ..kernels.surface import areas as triangle_areas
 from .surface_distortion import SurfaceDistortion
-from .lbfgs import minimize_lbfgs, soft_maximum
+from .lbfgs import cell_neighbourhood, minimize_lbfgs, soft_maximum
 from .surface_paths import FoldTest
 
 #: a worst relative quality this close to 1 (or above) is left alone: no triangle is worse
@@ -123,11 +123,7 @@ def _descend(V: FloatArray, F: IntArray, P: FloatArray, is_handle, rest_q: Float
     at most ``limit``): the moved points, or None where nothing can move or ``focus`` would
     not sharpen the soft maximum."""
     seeds = np.argsort(rel)[:min(worst, int(np.isfinite(rel).sum()))]
-    near = np.zeros(len(P), bool)
-    near[F[seeds]] = True
-    for _ in range(rings):
-        near[F[near[F].any(axis=1)]] = True
-    movable = near & ~is_handle
+    movable = cell_neighbourhood(F, seeds, rings, len(P)) & ~is_handle
     free = np.flatnonzero(movable)
     if len(free) == 0:
         return None

@@ -21,7 +21,7 @@ import numpy as np
 
 from .._typing import FloatArray, IntArray
 from ..kernels.tetrahedra import mean_ratios
-from .lbfgs import minimize_lbfgs, soft_maximum
+from .lbfgs import cell_neighbourhood, minimize_lbfgs, soft_maximum
 
 _I, _J = np.triu_indices(4, 1)
 
@@ -114,11 +114,7 @@ def polish_worst_tets(points: FloatArray, tets: IntArray, fixed: IntArray, *,
     T = np.asarray(tets)
     eta = mean_ratios(P, T)
     before = float(eta.min())
-    verts = np.unique(T[np.argsort(eta)[:worst]])
-    for _ in range(rings):
-        verts = np.unique(T[np.isin(T, verts).any(axis=1)])
-    movable = np.zeros(len(P), bool)
-    movable[verts] = True
+    movable = cell_neighbourhood(T, np.argsort(eta)[:worst], rings, len(P))
     movable[np.asarray(fixed, dtype=np.int64)] = False
     free = np.flatnonzero(movable)
     info = {"polish_vertices": int(len(free)), "polish_min_mean_ratio": [before, before]}
