@@ -4,10 +4,11 @@ Cohen-Or & Levin 2000), the start of :func:`.surface_morph.morph_surface`.
 Each triangle's map from the source to the target (completed by its normal scaled by
 ``1/√|n|``, as in deformation transfer) is split ``A = R_g R S``: ``R_g`` the best global
 rotation of the pair (Umeyama), ``R S`` the polar decomposition of what is left. At time
-``t`` the triangle wants ``A(t) = R_g^t R^t M(t)``, ``M(t) = (1 − t) I + t S`` (rotations in
-angle, each ``R``'s branch chosen continuous across the triangles' edges,
-:func:`continuous_rotation_vectors`: a twist past half a turn is followed as one); the vertices are the least-squares fit of these maps (a cotangent-Laplacian system,
-factorized once), translated so that the area-weighted centroid moves linearly.
+``t`` the triangle wants ``A(t) = R_g^t R^t M(t)``, ``M(t) = (1 − t) I + t S`` (rotations
+in angle, each ``R``'s branch chosen continuous across the triangles' edges,
+:func:`continuous_rotation_vectors`: a twist past half a turn is followed as one); the
+vertices are the least-squares fit of these maps (a cotangent-Laplacian system, factorized
+once), translated so that the area-weighted centroid moves linearly.
 
 Each triangle's rotation is interpolated alone, so neighbours whose residual rotations lie
 near a half turn (where the axis of ``R`` turns fast with the map, e.g. a bar twisted by
