@@ -153,19 +153,28 @@ def test_moved_pymeshlab_mesh_keeps_tex_coords_colours_and_quality(coloured_pyme
     assert np.abs(r.mesh.vertex_normal_matrix() - m.vertex_normal_matrix()).max() > 0.5
 
 
-def test_what_pymeshlab_cannot_set_is_named_in_one_warning(coloured_pymeshlab, tmp_path):
-    import pymeshlab
+def test_what_pymeshlab_cannot_set_is_named_in_one_warning(tmp_path):
+    pymeshlab = pytest.importorskip("pymeshlab")
+    from PIL import Image
 
+    Image.fromarray(np.zeros((4, 4, 3), np.uint8)).save(tmp_path / "tex.png")
+    (tmp_path / "a.mtl").write_text("newmtl m\nmap_Kd tex.png\n")
+    (tmp_path / "a.obj").write_text(
+        "mtllib a.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\n"
+        "vt 0 1\nusemtl m\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n")
     ms = pymeshlab.MeshSet()
-    ms.add_mesh(coloured_pymeshlab)
-    ms.compute_selection_by_condition_per_vertex(condselect="z > 0.9")
+    ms.load_new_mesh(str(tmp_path / "a.obj"))
+    ms.compute_selection_by_condition_per_vertex(condselect="x > 0.5")
     m = ms.current_mesh()
-    assert m.selected_vertex_number() > 0
+    assert m.texture_number() == 1 and m.selected_vertex_number() > 0
     V = m.vertex_matrix()
-    h = cap(V)
-    with pytest.warns(DataLossWarning, match=r"^pymeshlab.Mesh: its selection cannot be set"):
-        r = mt.move(m, h, V[h] @ TURN.T)
+    with pytest.warns(DataLossWarning) as caught:
+        r = mt.move(m, np.arange(len(V)), V @ TURN.T)
+    assert [str(w.message) for w in caught] == [
+        "pymeshlab.Mesh: its textures (tex.png) and its selection cannot be set on a new "
+        "mesh; the results have none"]
     assert np.array_equal(r.mesh.wedge_tex_coord_matrix(), m.wedge_tex_coord_matrix())
+    assert_turned(r.mesh.vertex_matrix(), V)
 
 
 # ----------------------------------------------------------------------------- meshio
@@ -245,3 +254,14 @@ def test_morphed_planar_meshio_frames_keep_the_source_data(rng):
     for out in r.frames:
         assert_same_meshio_data(out, m)
     np.testing.assert_allclose(r.mesh.points, target.points, atol=1e-12)
+
+
+def test_deformed_planar_meshio_mesh_keeps_its_data(rng):
+    m = with_data(meshio.read(mt.data_path("disc_146.msh")), rng)
+    P = m.points[:, :2]
+    r = mt.deform(m, 0.2 * (P - P.mean(axis=0)), frames=3)
+    assert len(r.frames) == 3
+    for out, points in zip(r.frames, r.points, strict=True):
+        assert_same_meshio_data(out, m)
+        assert np.array_equal(out.points[:, :2], points) and not out.points[:, 2].any()
+    assert np.array_equal(r.mesh.points, r.frames[-1].points)
