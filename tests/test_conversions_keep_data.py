@@ -9,6 +9,8 @@ import warnings
 import meshio
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import meshopt_toolkit as mt
 from meshopt_toolkit.conversions import Carried, DataLossWarning
@@ -265,3 +267,37 @@ def test_deformed_planar_meshio_mesh_keeps_its_data(rng):
         assert_same_meshio_data(out, m)
         assert np.array_equal(out.points[:, :2], points) and not out.points[:, 2].any()
     assert np.array_equal(r.mesh.points, r.frames[-1].points)
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), kind=st.sampled_from(["2d", "z = 0", "3d"]),
+       widths=st.lists(st.integers(1, 4), min_size=0, max_size=3))
+def test_with_points_changes_the_points_only(seed, kind, widths):
+    """Any data of any shape on a meshio mesh and a trimesh: the copy has exactly the new
+    points and equal data, and the object given is left as it was."""
+    rng = np.random.default_rng(seed)
+    V, F = sphere()
+    points = {"2d": V[:, :2], "z = 0": V * [1, 1, 0], "3d": V}[kind]
+    m = meshio.Mesh(points, [("triangle", F)])
+    t = trimesh.Trimesh(V, F, process=False)
+    for k, w in enumerate(widths):
+        m.point_data[f"p{k}"] = rng.random((len(V), w))
+        m.cell_data[f"c{k}"] = [rng.integers(0, 9, (len(F), w))]
+        t.vertex_attributes[f"p{k}"] = rng.random((len(V), w))
+        t.face_attributes[f"c{k}"] = rng.integers(0, 9, (len(F), w))
+        t.metadata[f"m{k}"] = rng.random(w).tolist()
+    kept_m, kept_t = copy.deepcopy(m), t.copy()
+    Q = rng.random((len(V), 3))
+    carried = Carried.of(m)
+    d = carried.mesh.points.shape[1]  # 2 for planar points
+    assert d == (3 if kind == "3d" else 2)
+    out = carried.with_points(Q[:, :d])
+    assert_same_meshio_data(out, kept_m)
+    assert np.array_equal(out.points[:, :d], Q[:, :d])
+    assert np.array_equal(out.points[:, d:], points[:, d:])  # z = 0 stays as it was
+    assert_same_meshio_data(m, kept_m)
+    assert np.array_equal(m.points, kept_m.points)
+    moved = Carried.of(t).with_points(Q)
+    assert_same_trimesh_data(moved, kept_t)
+    assert np.array_equal(moved.vertices, Q)
+    assert np.array_equal(t.vertices, V)
