@@ -185,9 +185,9 @@ def morph(
     InvalidMeshError, NotAdmissibleError
         Different connectivity, ends of different types, a non-admissible end.
     """
-    if (carried := Carried.of(source)) is not None:  # library objects: morphed as ours
-        other = Carried.of(target)
-        if other is None or type(other.original) is not type(source):
+    carried, other = Carried.of(source), Carried.of(target)
+    if carried is not None or other is not None:  # library objects: morphed as ours
+        if carried is None or other is None or type(source) is not type(target):
             raise InvalidMeshError(f"cannot morph a {type(source).__name__} into a "
                                    f"{type(target).__name__}: give both of one type")
         return carried.result(morph(

@@ -108,8 +108,10 @@ def test_morphed_trimesh_frames_keep_the_source_data(textured):
 
 
 def test_morph_of_a_trimesh_into_another_type_is_refused(textured):
-    with pytest.raises(InvalidMeshError, match="both of one type"):
-        mt.morph(textured, Carried.of(textured).mesh, 3)
+    ours = Carried.of(textured).mesh
+    for source, target in ((textured, ours), (ours, textured)):
+        with pytest.raises(InvalidMeshError, match="both of one type"):
+            mt.morph(source, target, 3)
 
 
 def test_not_a_mesh_of_the_library_is_refused():

@@ -231,11 +231,11 @@ def move(
         :func:`~meshopt_toolkit.motion.surface_mesh_move.move_surface_mesh` (targets
         ``(k, 3)``; no boundary is kept unless its vertices are handles), which returns a
         ``SurfaceMeshMoveResult``. A ``trimesh.Trimesh``, ``pymeshlab.Mesh`` (surfaces) or
-        ``meshio.Mesh`` (tets, planar or surface triangles) is moved as that mesh
-        (:class:`~meshopt_toolkit.conversions.Carried`) and comes back as a
-        ``CarriedResult`` whose meshes are of the type given, with everything the object
-        carries but its points (uv, colours, attributes, point and cell data, …; normals
-        of the new points).
+        ``meshio.Mesh`` (tets, planar triangles with ``(k, 2)`` targets, or a surface) is
+        moved as that mesh (:class:`~meshopt_toolkit.conversions.Carried`) and comes back
+        as a ``CarriedResult`` whose meshes are of the type given, with everything the
+        object carries but its points (uv, colours, attributes, point and cell data, …;
+        normals of the new points).
     handles : (k,) int array
         Vertex indices (any vertices; typically the boundary). Duplicates must agree.
     targets : (k, 2) float array, or callable ``t -> (k, 2)``
