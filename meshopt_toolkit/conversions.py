@@ -9,9 +9,9 @@ trimesh and pymeshlab are imported only when their converter is called. A conver
 mesh is a :class:`~meshopt_toolkit.mesh.PlanarMesh` when its points are 2D or every z is
 exactly 0, else a :class:`~meshopt_toolkit.mesh.TriangleMesh`.
 
-:class:`Carried` is how the operations (``mt.move``, ``mt.morph``) take a library object
-and give one back: the object seen as one of our meshes, and the same object with its
-points replaced and everything else it carries kept (:meth:`Carried.with_points`).
+:class:`Carried` is how the operations (``mt.move``, ``mt.morph``, ``mt.deform``) take a
+library object and give one back: the object seen as one of our meshes, and the same object
+with its points replaced and everything else it carries kept (:meth:`Carried.with_points`).
 """
 
 from __future__ import annotations

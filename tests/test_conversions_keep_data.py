@@ -126,7 +126,8 @@ def coloured_pymeshlab(rng):
     V, F = sphere()
     nf = len(F)
     return pymeshlab.Mesh(
-        V, F.astype(np.int32), v_scalar_array=rng.random(len(V)),
+        V, F.astype(np.int32), edge_matrix=F[:, :2].astype(np.int32),
+        v_scalar_array=rng.random(len(V)),
         f_scalar_array=rng.random(nf), v_color_matrix=rng.random((len(V), 4)),
         f_color_matrix=rng.random((nf, 4)), v_tex_coords_matrix=rng.random((len(V), 2)),
         w_tex_coords_matrix=rng.random((3 * nf, 2)))
@@ -134,7 +135,7 @@ def coloured_pymeshlab(rng):
 
 PYMESHLAB_DATA = ("vertex_scalar_array", "face_scalar_array", "vertex_color_matrix",
                   "face_color_matrix", "vertex_tex_coord_matrix", "wedge_tex_coord_matrix",
-                  "face_matrix")
+                  "face_matrix", "edge_matrix")
 
 
 def test_moved_pymeshlab_mesh_keeps_tex_coords_colours_and_quality(coloured_pymeshlab):
