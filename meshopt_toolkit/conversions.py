@@ -323,8 +323,10 @@ class Carried:
             warnings.warn(f"{self.package}.{type(self.original).__name__}: "
                           f"{' and '.join(lost)} cannot be set on a new mesh; the results "
                           "have none", DataLossWarning, stacklevel=3)
-        return CarriedResult(mesh=self.with_points(result.mesh.points),
-                             frames=[self.with_points(f.points) for f in result.frames],
+        def typed(mesh):  # the input itself where the operation returns it
+            return self.original if mesh is self.mesh else self.with_points(mesh.points)
+
+        return CarriedResult(mesh=typed(result.mesh), frames=[typed(f) for f in result.frames],
                              result=result)
 
 
@@ -336,7 +338,8 @@ class CarriedResult:
     Attributes
     ----------
     mesh : the final mesh, of the type given (see :class:`Carried` for what it keeps)
-    frames : list of the same type (first the input's points, last ``mesh``'s)
+    frames : list of the same type (first the input, itself where the operation returned
+        it, last ``mesh``)
     result : the operation's own result, on our meshes; its other attributes
         (``similarity``, ``motion``, …) are read through this one.
     """

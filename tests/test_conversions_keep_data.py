@@ -91,6 +91,7 @@ def test_moved_trimesh_keeps_its_colours(rng, where):
     t = trimesh.Trimesh(V, F, process=False, **{f"{where}_colors": colours})
     h = cap(V)
     r = mt.move(t, h, V[h] @ TURN.T)
+    assert r.frames[0] is t  # the first frame is the input
     assert_same_trimesh_data(r.mesh, t)
     assert np.array_equal(getattr(r.mesh.visual, f"{where}_colors"), colours)
     assert_turned(r.mesh.vertices, V)
