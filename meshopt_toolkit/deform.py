@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ._typing import FloatArray
+from .conversions import Carried
 from .errors import IntegrationError, InvalidMeshError, OptionError, ReadError
 from .kernels.admissibility import BoundaryCheck, area_problem
 from .riemannian.geodesic_options import GeodesicOptions
@@ -129,7 +130,10 @@ def deform(
 
     Parameters
     ----------
-    mesh : PlanarMesh (admissible)
+    mesh : PlanarMesh (admissible), or a planar ``meshio.Mesh``
+        A meshio mesh is deformed as a PlanarMesh and comes back as a ``CarriedResult``
+        whose meshes are meshio meshes with all its cells and data, only the points moved
+        (:class:`~meshopt_toolkit.conversions.Carried`).
     displacement : (N, 2) array_like
         Initial velocity ``V``; at ``time = 1`` a Euclidean path would have moved every
         vertex by exactly this amount.
@@ -162,6 +166,10 @@ def deform(
     IntegrationError
         The geodesic cannot be integrated (never an inverted mesh).
     """
+    if (carried := Carried.of(mesh)) is not None:  # a library object: deformed as ours
+        return carried.result(deform(carried.mesh, displacement, time, frames, penalty=penalty,
+                                     alpha=alpha, metric=metric, options=options,
+                                     progress=progress))
     start = perf_counter()
     if frames is not None and int(frames) < 2:
         raise OptionError(f"frames must be at least 2, got {frames}")

@@ -16,7 +16,8 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from .errors import OptionError
+from .conversions import Carried
+from .errors import InvalidMeshError, OptionError
 from .results import PathIteration
 
 __all__ = ["IN_SPACE", "METRIC_ALIASES", "MORPH_METRICS", "STOP_RULES", "morph"]
@@ -137,10 +138,12 @@ def morph(
 
     Parameters
     ----------
-    source, target : PlanarMesh, TetMesh, or a surface in 3D (SurfaceMesh, trimesh.Trimesh,
-        pymeshlab.Mesh)
-        Admissible meshes with the same connectivity; tets and surfaces are morphed with
-        their distortion metric (:data:`IN_SPACE`), and surfaces come back as the type given.
+    source, target : PlanarMesh, TetMesh, SurfaceMesh, or meshio, trimesh or pymeshlab meshes
+        Admissible meshes with the same connectivity, both of one type; tets and surfaces
+        are morphed with their distortion metric (:data:`IN_SPACE`). Library objects are
+        morphed as our meshes (:class:`~meshopt_toolkit.conversions.Carried`) and the
+        frames come back of their type, each with everything the source carries but its
+        points (uv, colours, attributes, point and cell data, …).
     frames : int
         Number of frames (≥ 2), both ends included.
     metric : ``"distortion"`` (default) or ``"complete"`` (alias ``"scalar"``)
@@ -170,7 +173,7 @@ def morph(
 
     Returns
     -------
-    DistortionMorph, MorphResult, TetMorphResult or SurfaceMeshMorph
+    DistortionMorph, MorphResult, TetMorphResult, SurfaceMeshMorph or CarriedResult
         All with ``mesh``, ``frames`` (meshes with the source's tags), ``summary()``,
         ``seconds`` and ``status`` (:class:`~meshopt_toolkit.results.Result`).
 
@@ -180,8 +183,17 @@ def morph(
         ``frames < 2``, an unknown metric, method or stop rule, an option of the other
         metric, ``stop="healthy"`` for a planar or tet morph.
     InvalidMeshError, NotAdmissibleError
-        Different connectivity, a non-admissible end.
+        Different connectivity, ends of different types, a non-admissible end.
     """
+    carried, other = Carried.of(source), Carried.of(target)
+    if carried is not None or other is not None:  # library objects: morphed as ours
+        if carried is None or other is None or type(source) is not type(target):
+            raise InvalidMeshError(f"cannot morph a {type(source).__name__} into a "
+                                   f"{type(target).__name__}: give both of one type")
+        return carried.result(morph(
+            carried.mesh, other.mesh, frames, metric=metric, weight=weight, beta=beta,
+            normalize=normalize, method=method, max_iterations=max_iterations, stop=stop,
+            callback=callback, progress=progress))
     name = METRIC_ALIASES.get(metric, metric)
     run = MORPH_METRICS.get(name)
     if run is None:

@@ -182,14 +182,10 @@ def handles_in_space(mesh, *, targets=None, mapping: str | None = None,
 
 def _points_and_triangles(mesh) -> tuple[FloatArray, IntArray | None]:
     """The points of a mesh in space and the triangles that must not intersect: a tet
-    mesh's boundary faces, a surface's triangles (``SurfaceMesh``, ``trimesh.Trimesh``,
-    ``pymeshlab.Mesh``)."""
+    mesh's boundary faces, a :class:`SurfaceMesh`'s triangles (``mt.move`` and ``mt.morph``
+    give trimesh and pymeshlab objects here as SurfaceMeshes)."""
     if hasattr(mesh, "boundary_faces"):  # TetMesh
         return np.asarray(mesh.points, float), np.asarray(mesh.boundary_faces)
-    if hasattr(mesh, "vertex_matrix"):  # pymeshlab.Mesh
-        return np.asarray(mesh.vertex_matrix(), float), np.asarray(mesh.face_matrix())
-    if hasattr(mesh, "vertices"):  # trimesh.Trimesh
-        return np.asarray(mesh.vertices, float), np.asarray(mesh.faces)
     return np.asarray(mesh.points, float), np.asarray(mesh.triangles)
 
 

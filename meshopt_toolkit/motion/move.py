@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._typing import FloatArray, IntArray
+from ..conversions import Carried
 from ..cores import thread_budget
 from ..errors import InvalidMeshError, OptionError
 from ..kernels.admissibility import BoundaryCheck, area_problem, target_loop_problem
@@ -200,12 +201,8 @@ _SOLVERS: dict[type, Callable] = {TetMesh: move_tet_mesh, SurfaceMesh: move_surf
 
 
 def _solver(mesh) -> Callable | None:
-    """The solver of ``mesh``'s type; a ``trimesh.Trimesh`` or ``pymeshlab.Mesh`` is moved
-    as a surface."""
-    solver = _SOLVERS.get(type(mesh))
-    if solver is None and type(mesh).__module__.split(".")[0] in ("trimesh", "pymeshlab"):
-        return move_surface_mesh
-    return solver
+    """The solver of ``mesh``'s type."""
+    return _SOLVERS.get(type(mesh))
 
 
 def move(
@@ -226,15 +223,19 @@ def move(
 
     Parameters
     ----------
-    mesh : PlanarMesh or TetMesh
+    mesh : PlanarMesh, TetMesh, SurfaceMesh, or a meshio, trimesh or pymeshlab mesh
         An admissible mesh. A :class:`~meshopt_toolkit.mesh.TetMesh` is moved by
         :func:`~meshopt_toolkit.motion.tet_move.move_tet_mesh` (targets ``(k, 3)``, no
         callable path, ``finish_frames`` unused), which returns a ``TetMeshMoveResult``.
-        A :class:`~meshopt_toolkit.mesh.SurfaceMesh`, ``trimesh.Trimesh`` or
-        ``pymeshlab.Mesh`` is moved by
+        A :class:`~meshopt_toolkit.mesh.SurfaceMesh` is moved by
         :func:`~meshopt_toolkit.motion.surface_mesh_move.move_surface_mesh` (targets
         ``(k, 3)``; no boundary is kept unless its vertices are handles), which returns a
-        ``SurfaceMeshMoveResult`` whose meshes are of the type given.
+        ``SurfaceMeshMoveResult``. A ``trimesh.Trimesh``, ``pymeshlab.Mesh`` (surfaces) or
+        ``meshio.Mesh`` (tets, planar triangles with ``(k, 2)`` targets, or a surface) is
+        moved as that mesh (:class:`~meshopt_toolkit.conversions.Carried`) and comes back
+        as a ``CarriedResult`` whose meshes are of the type given, with everything the
+        object carries but its points (uv, colours, attributes, point and cell data, …;
+        normals of the new points).
     handles : (k,) int array
         Vertex indices (any vertices; typically the boundary). Duplicates must agree.
     targets : (k, 2) float array, or callable ``t -> (k, 2)``
@@ -282,6 +283,11 @@ def move(
     NoAdmissiblePathError
         No admissible interior found after a bounded effort.
     """
+    if (carried := Carried.of(mesh)) is not None:  # a library object: moved as our mesh
+        return carried.result(move(
+            carried.mesh, handles, targets, frames=frames, steps=steps, weight=weight,
+            relax_iterations=relax_iterations, quality_rounds=quality_rounds,
+            finish_frames=finish_frames, max_splits=max_splits, progress=progress))
     t_start = time.perf_counter()
     relax_iter = relax_iterations
     solver = _solver(mesh)

@@ -1,12 +1,12 @@
 """``mt.morph`` on triangle surfaces in 3D: :func:`.surface_morph.morph_surface` between
-two :class:`SurfaceMesh` (or ``trimesh.Trimesh``, ``pymeshlab.Mesh``) poses with the same
-triangles, the frames of the type given with the source's triangles, tags and names."""
+two :class:`SurfaceMesh` poses with the same triangles, the frames with the source's
+triangles, tags and names (``mt.morph`` gives ``trimesh.Trimesh`` and ``pymeshlab.Mesh``
+poses here as SurfaceMeshes)."""
 
 from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
@@ -20,29 +20,9 @@ from .surface_morph import BENDING, WEIGHT, SurfaceMorph, morph_surface
 __all__ = ["SurfaceMeshMorph", "is_surface", "morph_surface_mesh"]
 
 
-def _kind(mesh) -> str | None:
-    """``"surface"``, ``"trimesh"``, ``"pymeshlab"`` or None."""
-    if isinstance(mesh, SurfaceMesh):
-        return "surface"
-    package = type(mesh).__module__.split(".")[0]
-    return package if package in ("trimesh", "pymeshlab") else None
-
-
 def is_surface(mesh) -> bool:
     """Whether ``mesh`` is a triangle surface :func:`morph_surface_mesh` takes."""
-    return _kind(mesh) is not None
-
-
-def _surface(mesh, kind: str) -> SurfaceMesh:
-    if kind == "trimesh":
-        from ..conversions import surface_from_trimesh
-
-        return surface_from_trimesh(mesh)
-    if kind == "pymeshlab":
-        from ..conversions import surface_from_pymeshlab
-
-        return surface_from_pymeshlab(mesh)
-    return mesh
+    return isinstance(mesh, SurfaceMesh)
 
 
 @dataclass
@@ -52,13 +32,13 @@ class SurfaceMeshMorph:
 
     Attributes
     ----------
-    mesh : the target pose (the last frame), of the type given
-    frames : list of the same type, the source first and the target last
+    mesh : SurfaceMesh, the target pose (the last frame)
+    frames : list of SurfaceMesh, the source first and the target last
     morph : SurfaceMorph, the solver's result (points, per-frame measures)
     """
 
-    mesh: Any
-    frames: list
+    mesh: SurfaceMesh
+    frames: list[SurfaceMesh]
     morph: SurfaceMorph
 
     seconds = property(lambda self: self.morph.seconds, doc="Wall time.")
@@ -76,14 +56,14 @@ def morph_surface_mesh(source, target, frames: int = 9, *, weight: float = WEIGH
                        stop_when_healthy: bool = True,
                        callback: Callable[[PathIteration], bool | None] | None = None,
                        progress: Callable[[float], None] | None = None) -> SurfaceMeshMorph:
-    """:func:`morph_surface` between two poses given as :class:`SurfaceMesh`,
-    ``trimesh.Trimesh`` or ``pymeshlab.Mesh`` (both of one type, the same triangles);
-    ``stop_when_healthy`` as there.
+    """:func:`morph_surface` between two poses given as :class:`SurfaceMesh` (the same
+    triangles); ``stop_when_healthy`` as there.
 
     Raises
     ------
     InvalidMeshError
-        Meshes of different types, a different number of points or other triangles, a
+        Meshes that are not both surfaces, a different number of points or other
+        triangles, a
         degenerate triangle.
     NotAdmissibleError
         No fold-free start path.
@@ -91,11 +71,10 @@ def morph_surface_mesh(source, target, frames: int = 9, *, weight: float = WEIGH
         A frame that intersects itself, where neither end does (exact; no frame is
         returned).
     """
-    kind = _kind(source)
-    if kind is None or _kind(target) != kind:
+    if not (is_surface(source) and is_surface(target)):
         raise InvalidMeshError(f"cannot morph a {type(source).__name__} into a "
                                f"{type(target).__name__} as surfaces")
-    s, t = _surface(source, kind), _surface(target, kind)
+    s, t = source, target
     if len(s.points) != len(t.points) or not np.array_equal(s.triangles, t.triangles):
         raise InvalidMeshError(
             "source and target have different connectivity: "
@@ -117,19 +96,7 @@ def morph_surface_mesh(source, target, frames: int = 9, *, weight: float = WEIGH
 
     guard.check(res.points, motion="the morph", last=False)
 
-    def typed(points):
-        if kind == "trimesh":
-            import trimesh
-
-            return trimesh.Trimesh(vertices=points, faces=np.array(s.triangles), process=False)
-        if kind == "pymeshlab":
-            import pymeshlab
-
-            return pymeshlab.Mesh(vertex_matrix=points, face_matrix=np.ascontiguousarray(
-                s.triangles, dtype=np.int32))
-        return surface_with_points(s, points)
-
-    out = [typed(P) for P in res.points]
+    out = [surface_with_points(s, P) for P in res.points]
     if progress is not None:
         progress(1.0)
     return SurfaceMeshMorph(mesh=out[-1], frames=out, morph=res)

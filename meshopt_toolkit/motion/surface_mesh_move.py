@@ -1,5 +1,6 @@
-"""``mt.move`` on triangle surfaces in 3D: :func:`move_surface` on a :class:`SurfaceMesh`
-(or a ``trimesh.Trimesh``, a ``pymeshlab.Mesh``), the moved mesh keeping its triangles, tags and names.
+"""``mt.move`` on triangle surfaces in 3D: :func:`move_surface` on a :class:`SurfaceMesh`,
+the moved mesh keeping its triangles, tags and names (``mt.move`` gives a
+``trimesh.Trimesh`` or ``pymeshlab.Mesh`` here as a SurfaceMesh).
 
 A surface has no boundary to keep when it is closed: the handles are exactly the vertices
 given, every other vertex is free.
@@ -9,7 +10,6 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
@@ -36,10 +36,9 @@ class SurfaceMeshMoveResult:
 
     Attributes
     ----------
-    mesh : SurfaceMesh, trimesh.Trimesh or pymeshlab.Mesh
-        The moved surface, of the type given (same triangles and tags), handles bitwise at
-        their targets.
-    frames : list of the same type
+    mesh : SurfaceMesh
+        The moved surface (same triangles and tags), handles bitwise at their targets.
+    frames : list of SurfaceMesh
         The motion (first = input, last = ``mesh``): ``frames`` meshes when asked for,
         else the input and ``mesh``.
     motion : SurfaceMoveResult
@@ -47,8 +46,8 @@ class SurfaceMeshMoveResult:
         of the vertices in some triangle, in order).
     """
 
-    mesh: Any
-    frames: list
+    mesh: SurfaceMesh
+    frames: list[SurfaceMesh]
     motion: SurfaceMoveResult
 
     seconds = property(lambda self: self.motion.seconds, doc="Wall time.")
@@ -62,24 +61,12 @@ class SurfaceMeshMoveResult:
         return {"status": self.status, **self.motion.summary()}
 
 
-def _kind(mesh) -> str:
-    """``"surface"``, ``"trimesh"`` or ``"pymeshlab"`` (:class:`InvalidMeshError` else)."""
-    if isinstance(mesh, SurfaceMesh):
-        return "surface"
-    for package in ("trimesh", "pymeshlab"):
-        if type(mesh).__module__.split(".")[0] == package:
-            return package
-    raise InvalidMeshError(f"cannot move a {type(mesh).__name__} as a surface")
-
-
 def move_surface_mesh(mesh, handles, targets, *, frames: int | None = None, steps: int = 4,
                       weight: float = 1.0, relax_iter: int = 15, max_splits: int = 8,
                       quality_rounds: int | None = None,
                       progress: Callable[[float], None] | None = None
                       ) -> SurfaceMeshMoveResult:
-    """:func:`move_surface` on a :class:`SurfaceMesh`, a ``trimesh.Trimesh`` or a
-    ``pymeshlab.Mesh`` (what ``mt.move`` calls for one); the result's meshes are of the
-    type given (vertices and faces only for a ``pymeshlab.Mesh``).
+    """:func:`move_surface` on a :class:`SurfaceMesh` (what ``mt.move`` calls for one).
 
     ``steps`` and ``weight`` are those of :func:`move_surface`, ``max_splits`` its
     ``max_halvings``; ``relax_iter`` and ``quality_rounds`` (options of the planar and tet
@@ -94,17 +81,9 @@ def move_surface_mesh(mesh, handles, targets, *, frames: int | None = None, step
         No fold-free increment of the handles' path.
     """
     del relax_iter, quality_rounds  # options of the other solvers
-    kind = _kind(mesh)
-    if kind == "trimesh":
-        from ..conversions import surface_from_trimesh
-
-        surface = surface_from_trimesh(mesh)
-    elif kind == "pymeshlab":
-        from ..conversions import surface_from_pymeshlab
-
-        surface = surface_from_pymeshlab(mesh)
-    else:
-        surface = mesh
+    if not isinstance(mesh, SurfaceMesh):
+        raise InvalidMeshError(f"cannot move a {type(mesh).__name__} as a surface")
+    surface = mesh
     if progress is not None:
         progress(0.0)
     h, tg = distinct_handles(*check_handles(handles, targets, len(surface.points)))
@@ -114,24 +93,12 @@ def move_surface_mesh(mesh, handles, targets, *, frames: int | None = None, step
     res = move_surface(solved.points, solved.cells, solved.handles, solved.targets,
                        steps=n_steps, weight=weight, max_halvings=max_splits)
 
-    def typed(points: FloatArray):
-        if kind == "trimesh":
-            import trimesh
-
-            return trimesh.Trimesh(vertices=points, faces=np.array(surface.triangles),
-                                   process=False)
-        if kind == "pymeshlab":
-            import pymeshlab
-
-            return pymeshlab.Mesh(vertex_matrix=points, face_matrix=np.ascontiguousarray(
-                surface.triangles, dtype=np.int32))
-        return surface_with_points(surface, points)
-
-    moved = typed(solved.full(res.points))
+    moved = surface_with_points(surface, solved.full(res.points))
     if frames is not None:
         times = np.asarray(res.times)
         pick = [int(np.argmin(np.abs(times - s))) for s in np.linspace(0, 1, int(frames))]
-        out = [typed(solved.full(res.frames[i])) for i in pick[:-1]] + [moved]
+        out = [surface_with_points(surface, solved.full(res.frames[i])) for i in pick[:-1]]
+        out.append(moved)
     else:
         out = [mesh, moved]
     if progress is not None:
