@@ -1,7 +1,8 @@
 """Which cell kind a mesh is: the one place where it is decided (:func:`kind_of`).
 
 Our meshes decide by their class (:class:`..mesh.TetMesh`, :class:`..mesh.SurfaceMesh`,
-:class:`..mesh.TriangleMesh` and its :class:`..mesh.PlanarMesh`); ``trimesh.Trimesh`` and
+:class:`..mesh.TriangleMesh` and its :class:`..mesh.PlanarMesh`: planar in its plane's
+coordinates, a surface when its points are on no plane); ``trimesh.Trimesh`` and
 ``pymeshlab.Mesh`` are surfaces in space; a ``meshio.Mesh`` by its cells (tetrahedra, with
 any triangles, lines and vertices beside them, or triangles, with lines and vertices;
 triangles are planar when the points are 2D or every z is 0). The foreign packages are
@@ -78,7 +79,10 @@ def cells_of(mesh, what: str = "meshopt") -> tuple[CellKind, FloatArray, IntArra
     if isinstance(mesh, SurfaceMesh):
         return SURFACE, mesh.points, mesh.triangles
     if isinstance(mesh, TriangleMesh):
-        planar = mesh.as_planar()
+        try:
+            planar = mesh.as_planar()
+        except InvalidMeshError:  # points off every plane: a surface in space
+            return SURFACE, mesh.points, mesh.triangles
         return PLANAR, planar.points, planar.triangles
     package = _package(mesh)
     if package == "trimesh" and type(mesh).__name__ == "Trimesh":
