@@ -1,10 +1,13 @@
 """Small meshes of every cell kind for the tests of ``meshopt_toolkit.cells``: points and
-cells built here from closed-form grids (no file, no mesh generator)."""
+cells of the shared grids (``conftest.grid_mesh``, ``test_tet_move.cube_tets``), the
+planar one lifted onto a bump for surfaces (no file, no mesh generator)."""
 
 from __future__ import annotations
 
 import numpy as np
+from conftest import grid_mesh
 from scipy.spatial.transform import Rotation
+from test_tet_move import cube_tets
 
 from meshopt_toolkit.cells.planar import PLANAR
 from meshopt_toolkit.cells.surface import SURFACE
@@ -13,14 +16,8 @@ from meshopt_toolkit.cells.tetrahedra import TETRAHEDRA
 
 def planar(n: int = 4, jitter: float = 0.3, seed: int = 0):
     """[0, 1]² in n² squares of two counter-clockwise triangles, interior jittered."""
-    x = np.linspace(0.0, 1.0, n + 1)
-    P = np.stack(np.meshgrid(x, x, indexing="xy"), -1).reshape(-1, 2)
-    inner = ((P > 0) & (P < 1)).all(1)
-    P[inner] += jitter / n * np.random.default_rng(seed).uniform(-1, 1, (inner.sum(), 2))
-    idx = np.arange((n + 1) ** 2).reshape(n + 1, n + 1)
-    a, b = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel()
-    c, d = idx[1:, 1:].ravel(), idx[1:, :-1].ravel()
-    return P, np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
+    mesh = grid_mesh(n, jitter, seed)
+    return np.array(mesh.points), np.array(mesh.triangles)
 
 
 def surface(n: int = 4, jitter: float = 0.3, seed: int = 0):
@@ -32,23 +29,7 @@ def surface(n: int = 4, jitter: float = 0.3, seed: int = 0):
 
 def tets(n: int = 2, jitter: float = 0.3, seed: int = 0):
     """[0, 1]³ in n³ cubes of six positively oriented tets each (Kuhn), interior jittered."""
-    x = np.linspace(0.0, 1.0, n + 1)
-    P = np.stack(np.meshgrid(x, x, x, indexing="ij"), -1).reshape(-1, 3)
-    inner = ((P > 0) & (P < 1)).all(1)
-    P[inner] += jitter / n * np.random.default_rng(seed).uniform(-1, 1, (inner.sum(), 3))
-    idx = np.arange((n + 1) ** 3).reshape(n + 1, n + 1, n + 1)
-    corner = idx[:-1, :-1, :-1].ravel()
-    step = np.array([(n + 1) ** 2, n + 1, 1])
-    T = []
-    for perm in [(0, 1, 2), (0, 2, 1), (1, 0, 2), (1, 2, 0), (2, 0, 1), (2, 1, 0)]:
-        b = corner + step[perm[0]]
-        c = b + step[perm[1]]
-        T.append(np.stack([corner, b, c, c + step[perm[2]]], 1))
-    T = np.concatenate(T)
-    e = np.swapaxes(P[T][:, 1:] - P[T][:, :1], 1, 2)
-    flip = np.linalg.det(e) < 0
-    T[flip] = T[flip][:, [1, 0, 2, 3]]
-    return P, T
+    return cube_tets(n, jitter, seed)
 
 
 #: each kind with a mesh of it
