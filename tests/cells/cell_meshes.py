@@ -45,5 +45,7 @@ def rotation(kind, seed: int) -> np.ndarray:
 
 
 def perturbed(points: np.ndarray, seed: int, amount: float) -> np.ndarray:
-    """``points`` plus a small random displacement (relative to the unit-size meshes)."""
+    """``points`` plus a random displacement of at most ``amount`` per coordinate (the
+    meshes' cells stay positive up to 0.01: the measures keep a third of their size over
+    a thousand meshes and displacements)."""
     return points + amount * np.random.default_rng(seed).uniform(-1, 1, points.shape)

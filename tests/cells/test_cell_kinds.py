@@ -65,7 +65,7 @@ def test_jacobians_map_rest_measures_to_current_ones(name, seed):
     # the closed form: |cell| = √det(AᵀA)·|rest cell| (det A·|rest| where A is square)
     kind, make = CASES[name]
     P, C = make(seed=seed % 1000)
-    Q = perturbed(P, seed, 0.03)
+    Q = perturbed(P, seed, 0.01)
     A = kind.jacobians(Q, C, P)
     assert A.shape == (len(C), kind.point_dimension, kind.cell_dimension)
     gram = np.linalg.det(np.swapaxes(A, 1, 2) @ A)
@@ -95,7 +95,7 @@ def test_surface_areas_and_boundary_agree_with_trimesh():
 def test_similarities_scale_measures_and_keep_quality_and_shape(name, seed, log_scale, shift):
     kind, make = CASES[name]
     P, C = make(seed=seed % 1000)
-    Q = perturbed(P, seed, 0.02)
+    Q = perturbed(P, seed, 0.01)
     s = float(np.exp(log_scale))
     R = rotation(kind, seed)
     S = s * Q @ R.T + shift
@@ -187,7 +187,7 @@ def test_surface_admissibility_names_collinear_and_crossing_triangles():
 
 @KINDS
 @FAST
-@given(seed=seeds, amount=st.floats(0.0, 0.05))
+@given(seed=seeds, amount=st.floats(0.0, 0.01))
 def test_distortion_gradient_through_the_interface_taylor(name, seed, amount):
     kind, make = CASES[name]
     P, C = make(seed=seed % 1000)
