@@ -79,6 +79,20 @@ def test_jacobians_map_rest_measures_to_current_ones(name, seed):
             np.eye(kind.point_dimension), A.shape), atol=1e-12)
 
 
+@pytest.mark.parametrize("name", ["planar", "tets"])
+@FAST
+@given(seed=seeds)
+def test_the_lumped_mass_integrates_linear_functions_exactly(name, seed):
+    # the unit square and cube (boundary not jittered): Σ m_i x_i / Σ m_i is the centroid ½
+    kind, make = CASES[name]
+    P, C = make(seed=seed % 1000)
+    m = kind.lumped_mass(P, C)
+    np.testing.assert_allclose(m @ P / m.sum(), 0.5, rtol=1e-12)
+    # Σ m_i |x_i − c|² = 1: the mass is divided by its own mean squared spread
+    np.testing.assert_allclose(m @ np.sum((P - 0.5) ** 2, axis=1), 1.0, rtol=1e-12)
+    assert (m > 0).all()
+
+
 def test_surface_areas_and_boundary_agree_with_trimesh():
     trimesh = pytest.importorskip("trimesh")
     V, F = CASES["surface"][1]()
