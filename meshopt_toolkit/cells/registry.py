@@ -88,7 +88,8 @@ def cells_of(mesh, what: str = "meshopt") -> tuple[CellKind, FloatArray, IntArra
     if package == "trimesh" and type(mesh).__name__ == "Trimesh":
         return SURFACE, np.asarray(mesh.vertices, dtype=float), np.asarray(mesh.faces)
     if package == "pymeshlab" and type(mesh).__name__ == "Mesh":
-        return SURFACE, np.asarray(mesh.vertex_matrix(), dtype=float), np.asarray(mesh.face_matrix())
+        points = np.asarray(mesh.vertex_matrix(), dtype=float)
+        return SURFACE, points, np.asarray(mesh.face_matrix())
     if package == "meshio" and type(mesh).__name__ == "Mesh":
         return _meshio_cells(mesh, what)
     raise OptionError(f"{what} takes a PlanarMesh, TriangleMesh, SurfaceMesh, TetMesh, "

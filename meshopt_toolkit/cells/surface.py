@@ -30,8 +30,8 @@ __all__ = ["SURFACE", "SurfaceTriangles"]
 
 def non_finite_problem(points: FloatArray) -> str | None:
     """A message naming the first vertex with a non-finite coordinate, or None."""
-    bad = ~np.isfinite(points).all(axis=1)
-    return f"vertex {int(np.flatnonzero(bad)[0])} has a non-finite coordinate" if bad.any() else None
+    bad = np.flatnonzero(~np.isfinite(points).all(axis=1))
+    return f"vertex {int(bad[0])} has a non-finite coordinate" if len(bad) else None
 
 
 class SurfaceTriangles(SimplexKind):
