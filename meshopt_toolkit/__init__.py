@@ -30,6 +30,8 @@ _EXPORTS = {
     "PlanarMesh": "mesh",
     "SurfaceMesh": "mesh",
     "TetMesh": "mesh",
+    "CellKind": "cells.base",
+    "kind_of": "cells.registry",
     "MeshReport": "mesh",
     "check_mesh": "mesh",
     "require_admissible": "mesh",
@@ -42,10 +44,12 @@ _EXPORTS = {
     # penalties, metrics, diagnostics
     "HeightPenalty": "penalties",
     "QualityPenalty": "penalties",
+    "Metric": "riemannian.metrics",
     "EuclideanMetric": "riemannian.metrics",
     "ElasticityMetric": "riemannian.metrics",
     "CompleteMetric": "riemannian.metrics",
     "GraphMetric": "motion.graph_metric",
+    "metric_for": "cells.registry",
     "check_gradient": "diagnostics",
     "check_hvp": "diagnostics",
     # geodesics and deformation

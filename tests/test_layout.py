@@ -17,7 +17,7 @@ LAYERS = {
     "mesh": ["mesh", "orientation", "generate", "gmsh_session"],
     "numerics": ["penalties", "fem", "ode", "riemannian", "expressions"],
 }
-HIGHER = ["deform", "operations", "motion", "optimize", "shape", "io", "pipeline", "batch",
+HIGHER = ["deform", "operations", "motion", "cells", "optimize", "shape", "io", "pipeline", "batch",
           "cli",
           "filters", "plotting", "conversions", "datasets"]
 

@@ -8,16 +8,15 @@ energy (:mod:`.path`) to :func:`~meshopt_toolkit.riemannian.discrete_geodesic.di
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import ClassVar
 
 import numpy as np
 import scipy.sparse as sp
 
-from .._linalg import dot
 from .._typing import FloatArray, IntArray
+from ..cells.base import scale_free_mass
 from ..errors import NotAdmissibleError
-from ..riemannian.metrics import MetricNotImplementedError
-from ..solvers import factorize_spd
+from ..kernels.triangles import signed_areas
+from ..riemannian.assembled import AssembledMetric
 from .path import GraphPath
 from .strain import TriangleDistortion
 
@@ -25,19 +24,13 @@ from .strain import TriangleDistortion
 def lumped_mass(points: FloatArray, triangles: IntArray) -> FloatArray:
     """Vertex weights ``m_i`` with ``Σ m_i |v_i|²`` = area-weighted mean of ``|v|²`` divided
     by the mean squared distance from the centroid (a dimensionless, size- and
-    resolution-independent norm of a displacement field)."""
-    p = points[triangles]
-    area = 0.5 * np.abs((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1])
-                        - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0]))
-    m = np.bincount(triangles.ravel(), np.repeat(area / 3.0, 3), minlength=len(points))
-    m /= m.sum()
-    centroid = m @ points
-    spread = float(m @ np.sum((points - centroid) ** 2, axis=1))
-    return m / spread
+    resolution-independent norm of a displacement field; :func:`..cells.base.scale_free_mass`
+    of the triangles' areas)."""
+    return scale_free_mass(points, triangles, np.abs(signed_areas(points, triangles)))
 
 
 @dataclass
-class GraphMetric:
+class GraphMetric(AssembledMetric):
     """``g = M + w² JᵀJ`` of the triangle distortion ``φ`` relative to ``reference``.
 
     Parameters
@@ -52,9 +45,6 @@ class GraphMetric:
         Extra weights ``c_t ≥ 1`` of the triangles' rows (default 1): they only add to the
         metric, so every bound of the unweighted metric still holds.
     """
-
-    #: not the Euclidean metric (the Metric protocol's flag)
-    is_flat: ClassVar[bool] = False
 
     reference: FloatArray
     triangles: IntArray
@@ -120,37 +110,6 @@ class GraphMetric:
         J = self.strain.jacobian_matrix(jb)
         JW = sp.diags(self.row_weights) @ J
         return (sp.diags(np.repeat(self.mass, 2)) + JW.T @ JW).tocsr()
-
-    def inner(self, Q: FloatArray, U: FloatArray, V: FloatArray) -> float:
-        """``vec U · (M + w² JᵀJ)(Q) vec V``. ``Q, U, V`` : (N, 2)."""
-        return dot(np.asarray(U, dtype=float), self.apply(Q, np.asarray(V, dtype=float)))
-
-    def norm(self, Q: FloatArray, V: FloatArray) -> float:
-        """``sqrt(inner(Q, V, V))``."""
-        return float(np.sqrt(max(self.inner(Q, V, V), 0.0)))
-
-    def riesz(self, Q: FloatArray, P: FloatArray, free: np.ndarray | None = None) -> FloatArray:
-        """Gradient ``(M + w² JᵀJ)⁻¹ vec P`` of a derivative ``P`` (N, 2); returns (N, 2).
-        With an (N,) bool mask ``free`` the system is restricted to the free vertices'
-        dofs and the fixed rows of the result are 0 (one sparse factorization per call)."""
-        P = np.asarray(P, dtype=float)
-        A = self.matrix(Q)
-        if P.shape != (A.shape[0] // 2, 2):
-            raise ValueError(f"derivative has shape {P.shape}, expected {(A.shape[0] // 2, 2)}")
-        keep = np.ones(P.shape[0], bool) if free is None else np.asarray(free, dtype=bool)
-        if keep.shape != (P.shape[0],):
-            raise ValueError(f"free mask has shape {keep.shape}, expected ({P.shape[0]},)")
-        dof = np.repeat(keep, 2)
-        out = np.zeros_like(P)
-        if dof.any():
-            out[keep] = factorize_spd(A[dof][:, dof].tocsc())(P[keep].ravel()).reshape(-1, 2)
-        return out
-
-    def exp(self, Q: FloatArray, V: FloatArray, t: float = 1.0) -> FloatArray:
-        """Not available: this metric's geodesics are boundary-value problems."""
-        raise MetricNotImplementedError(
-            "GraphMetric.exp is not implemented: the distortion metric's geodesics are "
-            "computed between two meshes, use riemannian.discrete_geodesic(metric, Q0, Q1, K)")
 
     # -- the discrete path energy (riemannian.levenberg_marquardt.PathModelMetric) ----------
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._typing import FloatArray, IntArray
+from ..cells.registry import cells_of
 from ..errors import InvalidMeshError, SelfIntersectionError
 from ..kernels.intersections3d import self_intersections
 
@@ -180,13 +181,9 @@ def handles_in_space(mesh, *, targets=None, mapping: str | None = None,
     return targets_from_map(mesh, mapping, where, vertices=vertices)
 
 
-def _points_and_triangles(mesh) -> tuple[FloatArray, IntArray | None]:
-    """The points of a mesh in space and the triangles that must not intersect: a tet
-    mesh's boundary faces, a :class:`SurfaceMesh`'s triangles (``mt.move`` and ``mt.morph``
-    give trimesh and pymeshlab objects here as SurfaceMeshes)."""
-    if hasattr(mesh, "boundary_faces"):  # TetMesh
-        return np.asarray(mesh.points, float), np.asarray(mesh.boundary_faces)
-    return np.asarray(mesh.points, float), np.asarray(mesh.triangles)
+def _points(mesh) -> FloatArray:
+    """The points of a mesh in space (:func:`..cells.registry.cells_of`)."""
+    return cells_of(mesh, "move")[1]
 
 
 class SelfIntersectionGuard:
@@ -226,9 +223,15 @@ class SelfIntersectionGuard:
 
     def _start(self, mesh) -> FloatArray:
         """Set the triangles, their name and whether to check; ``mesh``'s points."""
-        points, self.triangles = _points_and_triangles(mesh)
-        self.what = "the boundary" if hasattr(mesh, "boundary_faces") else "the surface"
-        self.active = (bool(np.isfinite(points).all()) and len(self.triangles) > 1
+        kind, points, cells = cells_of(mesh, "move")
+        solid = kind.cell_dimension == 3  # a tet mesh: its boundary faces must not meet
+        finite = bool(np.isfinite(points).all())
+        self.triangles = cells
+        if solid:
+            self.triangles = (kind.boundary_facets(points, cells) if finite
+                              else np.zeros((0, 3), np.int64))
+        self.what = "the boundary" if solid else "the surface"
+        self.active = (finite and len(self.triangles) > 1
                        and getattr(mesh, "is_admissible", True))
         return points
 
@@ -247,7 +250,7 @@ class SelfIntersectionGuard:
         guard = cls.__new__(cls)
         guard._start(source)
         for name, mesh in (("source", source), ("target", target)):
-            points = _points_and_triangles(mesh)[0]
+            points = _points(mesh)
             if not guard.active or not np.isfinite(points).all():
                 guard.active = False
                 return guard
@@ -287,7 +290,7 @@ class SelfIntersectionGuard:
         for k in range(1, stop):
             frame = frames[k]
             points = (np.asarray(frame, float) if isinstance(frame, np.ndarray)
-                      else _points_and_triangles(frame)[0])
+                      else _points(frame))
             if found := self._pairs(points, self.triangles):
                 where = "the result" if k == len(frames) - 1 else f"frame {k}"
                 raise SelfIntersectionError(

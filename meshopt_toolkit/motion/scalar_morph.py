@@ -126,7 +126,7 @@ def _frame_stats(points: FloatArray, triangles) -> tuple[FloatArray, FloatArray]
 
 
 def _check_pair(source, target):
-    from ..mesh import PlanarMesh, TriangleMesh, require_admissible
+    from ..mesh import TriangleMesh, require_admissible
 
     meshes = []
     for m, what in ((source, "source"), (target, "target")):
@@ -148,7 +148,7 @@ def _check_pair(source, target):
     t = require_admissible(t, "the morph target")
     if not np.array_equal(s.triangles, t.triangles):
         raise InvalidMeshError("source and target have opposite orientations")
-    return s.as_planar() if not isinstance(s, PlanarMesh) else s, t
+    return s.as_planar(), t  # a PlanarMesh is its own plane view
 
 
 def metric_scale(mesh, normalize: bool = True) -> float:

@@ -2,11 +2,12 @@
 of the membrane distortion plus shell bending.
 
 A surface ``Q`` is embedded as ``X(Q) = (m^½ ⊙ Q, w φ(Q), √b √c_e θ_e(Q))``: the lumped
-vertex areas ``m`` of :func:`.surface_move.lumped_mass`, the membrane distortion ``φ``
+vertex areas ``m`` (:func:`..cells.base.scale_free_mass`), the membrane distortion ``φ``
 of :class:`.surface_distortion.SurfaceDistortion` (the planar φ through each triangle's
 first fundamental form) and the dihedral angles ``θ`` with the weights ``c_e = ℓ̄²/Ā`` of
 :class:`.bending.ShellBending`. The frames ``Q_0 = source, Q_1, …, Q_K = target`` minimize
-the discrete path energy
+the discrete path energy of the metric ``JᵀJ`` of this embedding
+(:class:`.surface_metric.SurfaceGraphMetric`)
 
     E = ½ Σ_k |X(Q_{k+1}) − X(Q_k)|²      (angle differences wrapped into [−π, π))
 
@@ -55,19 +56,14 @@ from ..kernels.surface import aspect_ratios
 from ..results import PathIteration
 from ..solvers import factorize_spd
 from .frame_threads import frame_map
-from .bending import ShellBending, dihedral_angles, wrap
-from .surface_distortion import SurfaceDistortion
+from .bending import dihedral_angles, wrap
 from .surface_interpolation import arap_interpolation
-from .surface_move import lumped_mass
 from .similarity_3d import global_similarity
+from .surface_metric import BENDING, WEIGHT, SurfaceGraphMetric
 from .surface_paths import FoldTest
 
 __all__ = ["SurfaceMorph", "morph_surface", "frame_measures"]
 
-#: the embedding's default weights ``w`` (membrane) and ``b`` (bending), per triangle and
-#: per edge unweighted by area (``move_surface`` weighs its membrane rows by rest area and
-#: defaults to ``b = 0.3``: its increments and this path energy are separate definitions)
-WEIGHT, BENDING = 1.0, 0.1
 #: the default tolerance of the stopping tests (:func:`morph_surface`'s ``rtol``)
 RTOL = 5e-2
 #: conjugate-gradient iterations per Levenberg–Marquardt step at most, and the count above
@@ -164,11 +160,10 @@ class _PathProblem:
 
     def __init__(self, V0: FloatArray, V1: FloatArray, F: IntArray, weight: float,
                  bending: float) -> None:
-        self.membrane = SurfaceDistortion(V0, F)
-        self.shell = ShellBending(V0, F)
-        self.sqrt_c = np.sqrt(self.shell.weights) * np.sqrt(bending)
-        self.sqrt_m = np.sqrt(np.repeat(lumped_mass(V0, F), 3))
-        self.weight = float(weight)
+        self.metric = SurfaceGraphMetric(V0, F, weight, bending)
+        self.membrane, self.shell = self.metric.membrane, self.metric.shell
+        self.sqrt_c, self.sqrt_m = self.metric.sqrt_c, self.metric.sqrt_m
+        self.weight = self.metric.weight
         self.folds = FoldTest(V0, F)
         self._memo: dict = {}
         #: triangles folded at the target itself: not asked of the frames
@@ -226,12 +221,8 @@ class _PathProblem:
                                self.sqrt_c * wrap(X1[2] - X0[2])])
 
     def jacobian(self, Q: FloatArray) -> sp.csr_matrix:
-        """``∂X/∂Q`` (3N + 3T + E) × 3N."""
-        _, blocks = self.membrane.values_and_jacobian(Q)
-        Jb = self.shell.jacobian_matrix(Q)  # rows √c_e ∇θ_e
-        Jb = sp.diags(self.sqrt_c / np.sqrt(self.shell.weights)) @ Jb
-        return sp.vstack([sp.diags(self.sqrt_m), self.weight
-                          * self.membrane.jacobian_matrix(blocks), Jb]).tocsr()
+        """``∂X/∂Q`` (3N + 3T + E) × 3N (:meth:`.SurfaceGraphMetric.jacobian`)."""
+        return self.metric.jacobian(Q)
 
 
 def _similar_frames(V0, V1, times, S) -> list:

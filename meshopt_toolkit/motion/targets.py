@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from .._typing import FloatArray, IntArray
+from ..cells.registry import cells_of
 from ..errors import ExpressionError, InvalidMeshError, ReadError
 from ..expressions import parse_expression, quoted
 from ..mesh import PlanarMesh, SurfaceMesh, TetMesh
@@ -47,9 +48,8 @@ def _dim(mesh) -> int:
 def _boundary(mesh) -> IntArray:
     """The boundary vertices: of the boundary edges (planar, surface) or faces (tetrahedral);
     none for a closed surface."""
-    if _dim(mesh) == 2 or isinstance(mesh, SurfaceMesh):
-        return np.unique(mesh.boundary_edges)
-    return np.asarray(mesh.boundary_vertices)
+    kind, points, cells = cells_of(mesh, "move")
+    return np.unique(kind.boundary_facets(points, cells))
 
 
 def read_target_table(path: str | Path, dim: int = 2) -> tuple[IntArray, FloatArray]:

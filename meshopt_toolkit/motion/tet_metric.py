@@ -1,6 +1,8 @@
 """The graph metric ``g = M + w² JᵀJ`` of the tet distortion ``φ`` (:mod:`.tet_distortion`)
 and the lumped vertex weights of ``M``: the 3D counterpart of :mod:`.graph_metric`, whose
-length bounds every tet's change of distortion (``|Δφ_c| ≤ ℓ/w``)."""
+length bounds every tet's change of distortion (``|Δφ_c| ≤ ℓ/w``). It implements the
+:class:`~meshopt_toolkit.riemannian.metrics.Metric` protocol on ``(N, 3)`` points
+(:class:`~meshopt_toolkit.riemannian.assembled.AssembledMetric`)."""
 
 from __future__ import annotations
 
@@ -10,24 +12,23 @@ import numpy as np
 import scipy.sparse as sp
 
 from .._typing import FloatArray, IntArray
+from ..cells.base import scale_free_mass
+from ..errors import NotAdmissibleError
 from ..kernels.tetrahedra import signed_volumes
+from ..riemannian.assembled import AssembledMetric
 from .tet_distortion import TetDistortion
 
 
 def tet_lumped_mass(points: FloatArray, tets: IntArray) -> FloatArray:
     """Vertex weights ``m_i`` with ``Σ m_i |v_i|²`` = volume-weighted mean of ``|v|²``
     divided by the mean squared distance from the centroid (dimensionless, size- and
-    resolution-independent, as :func:`.graph_metric.lumped_mass` in the plane)."""
-    vol = np.abs(signed_volumes(points, tets))
-    m = np.bincount(np.asarray(tets).ravel(), np.repeat(vol / 4.0, 4), minlength=len(points))
-    m /= m.sum()
-    centroid = m @ points
-    spread = float(m @ np.sum((points - centroid) ** 2, axis=1))
-    return m / spread
+    resolution-independent, as :func:`.graph_metric.lumped_mass` in the plane;
+    :func:`..cells.base.scale_free_mass` of the tets' volumes)."""
+    return scale_free_mass(points, tets, np.abs(signed_volumes(points, tets)))
 
 
 @dataclass
-class TetGraphMetric:
+class TetGraphMetric(AssembledMetric):
     """``g = M + w² JᵀJ`` of the tet distortion relative to ``reference``.
 
     Parameters
@@ -60,7 +61,17 @@ class TetGraphMetric:
         return self.strain.jacobian_matrix(self.strain.values_and_jacobian(Q)[1])
 
     def matrix(self, Q: FloatArray) -> sp.csr_matrix:
-        """The assembled ``M + w² JᵀJ`` (3N × 3N) at ``Q``."""
+        """The assembled ``M + w² JᵀJ`` (3N × 3N) at ``Q``.
+
+        Raises
+        ------
+        NotAdmissibleError
+            A tet of ``Q`` is inverted or flat (``φ`` is not defined there).
+        """
+        bad = int(np.sum(~(self.strain.determinants(np.asarray(Q, dtype=float)) > 0)))
+        if bad:
+            raise NotAdmissibleError(f"the tet distortion metric is not defined at a mesh "
+                                     f"with {bad} inverted or flat tetrahedra")
         J = self.jacobian(Q)
         return (sp.diags(np.repeat(self.mass, 3)) + self.weight**2 * (J.T @ J)).tocsr()
 

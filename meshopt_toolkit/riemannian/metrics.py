@@ -1,16 +1,17 @@
 """Riemannian metrics on the manifold of planar meshes ``M+`` (SPEC §4, thesis §5–6).
 
-Every metric has the same small interface, in the ``vec`` chart (tangent vectors are
-``(N, 2)`` arrays, ``vec V = V.ravel()``):
+Every metric has the same small interface, in the ``vec`` chart (points and tangent vectors
+are ``(N, d)`` arrays, ``vec V = V.ravel()``; ``d = 2`` for planar meshes, 3 for surfaces
+and tetrahedra):
 
 - ``inner(Q, U, V) -> float``: the metric ``g_Q(U, V)``;
 - ``norm(Q, V) -> float``: ``sqrt(g_Q(V, V))``;
-- ``riesz(Q, P) -> (N, 2)``: the Riesz map turning a derivative ``P = dF(Q)`` (an
-  ``(N, 2)`` array of partial derivatives) into the gradient ``grad F = g_Q⁻¹ P``, so that
+- ``riesz(Q, P) -> (N, d)``: the Riesz map turning a derivative ``P = dF(Q)`` (an
+  ``(N, d)`` array of partial derivatives) into the gradient ``grad F = g_Q⁻¹ P``, so that
   ``inner(Q, riesz(Q, P), V) == P · V`` for every ``V``. With ``free`` (an (N,) bool
   mask) it is the Riesz map of the metric restricted to the tangent vectors that vanish
   on the fixed vertices: the result vanishes there and the identity holds for such ``V``;
-- ``exp(Q, V, t=1.0) -> (N, 2)``: the exponential map (or the retraction the thesis pairs
+- ``exp(Q, V, t=1.0) -> (N, d)``: the exponential map (or the retraction the thesis pairs
   with the metric); optional, missing ones raise :class:`MetricNotImplementedError`
   naming the class and the method.
 
@@ -22,10 +23,13 @@ Optional capabilities, declared by the metric and used by the layer's algorithms
   least-squares problem (:class:`.levenberg_marquardt.PathModelMetric`), minimized by
   Levenberg–Marquardt (:mod:`.levenberg_marquardt`).
 
-Metrics: :class:`EuclideanMetric` (5.2), :class:`ElasticityMetric` (6.24) and
-:class:`CompleteMetric` ``g = I + ∇f∇fᵀ`` (5.17, 5.34) here; the per-triangle distortion
-metric ``M + w² JᵀJ`` (``motion.graph_metric.GraphMetric``, with ``path_model``) lives
-with the motion built on it and implements the same protocol.
+Metrics: :class:`EuclideanMetric` (5.2, any ``d``), :class:`ElasticityMetric` (6.24) and
+:class:`CompleteMetric` ``g = I + ∇f∇fᵀ`` (5.17, 5.34) here (both planar, ``d = 2``); the
+distortion metrics ``M + w² JᵀJ`` live with the motions built on them and implement the
+same protocol through :class:`.assembled.AssembledMetric`: planar
+(``motion.graph_metric.GraphMetric``, with ``path_model``), tetrahedra
+(``motion.tet_metric.TetGraphMetric``) and surfaces (``motion.surface_metric``). Each
+cell kind's default is ``cells.registry.metric_for(mesh)`` (``mt.metric_for``).
 """
 
 from __future__ import annotations
@@ -60,7 +64,8 @@ class MetricNotImplementedError(MeshoptError, NotImplementedError):
 
 @runtime_checkable
 class Metric(Protocol):
-    """The interface shared by all metrics (see the module docstring).
+    """The interface shared by all metrics on ``(N, d)`` points (see the module docstring);
+    ``isinstance(m, Metric)`` checks that ``m`` has every member.
 
     ``is_flat`` declares the Euclidean metric (straight lines are its geodesics), so code
     that needs geodesics asks the metric instead of comparing class names. ``exp`` is
