@@ -79,6 +79,10 @@ class CellMesh:
         What the reader saw but could not represent (e.g. OBJ groups, texture coordinates
         that are not per vertex): ``meshopt convert`` refuses a mesh whose ``dropped`` is
         not empty unless ``--allow-loss``.
+    layout : object, optional
+        What the reader knows of the file's own structure beyond cells and data, which a
+        writer of the same format keeps while it fits the cells (gmsh: version,
+        encoding, entities, node classification; :class:`~.gmsh_layout.GmshLayout`).
     """
 
     points: np.ndarray
@@ -88,6 +92,7 @@ class CellMesh:
     field_data: dict[str, np.ndarray] = field(default_factory=dict)
     source: str | None = None
     dropped: list[str] = field(default_factory=list)
+    layout: Any = field(default=None, compare=False, repr=False)
 
     # -- summary ---------------------------------------------------------------------
     @property
