@@ -65,7 +65,7 @@ def read_cells(path: Path) -> CellMesh:
             parsed = parse41(fh)
     except (ValueError, KeyError, OSError, MemoryError, UnicodeDecodeError, IndexError):
         parsed = None  # damaged: meshio's message
-    if parsed is not None and parsed.complete:
+    if parsed is not None and parsed.complete and parsed.layout is not None:
         return _build(path, parsed)
     cm = _read_meshio(path)
     layout = parsed.layout if parsed is not None else _header_layout(head)

@@ -136,12 +136,13 @@ class _Reader:
 @dataclass
 class Parsed:
     """What :func:`parse41` read; ``complete`` is false when the file had sections it
-    skipped (data, periodic links...), which meshio then reads."""
+    skipped (data, periodic links...), which meshio then reads; ``layout`` is None when
+    node blocks lie on entities that ``$Entities`` does not list (a partitioned mesh)."""
 
     points: np.ndarray
     blocks: list  # (meshio type, nodes (M, k) int64, physical tag or None, entity tag)
     names: dict  # name → (tag, dim)
-    layout: GmshLayout
+    layout: GmshLayout | None
     complete: bool
 
 
@@ -222,8 +223,11 @@ def parse41(fh) -> Parsed | None:
         phys = physical.get((dim, tag)) if physical is not None else None
         blocks.append((ctype, idx, phys[0] if phys else None, tag))
         cells.append(idx)
+    known = {(e.dim, e.tag) for e in entities or ()}
+    if not all((d, t) in known for d, t, _ in node_blocks):
+        return Parsed(points, blocks, names, None, complete)  # partitioned: meshio's
     layout = GmshLayout(
-        "4.1", rd.binary, tuple(entities or ()), tuple(node_blocks), tags, tuple(params),
+        "4.1", rd.binary, tuple(entities), tuple(node_blocks), tags, tuple(params),
         tuple((d, t, e) for d, t, e, _, _ in elements),
         tuple(etags for _, _, _, etags, _ in elements), tuple(cells), points)
     return Parsed(points, blocks, names, layout, complete)
