@@ -716,7 +716,7 @@ def test_mesh_info_agrees_with_check_mesh_and_quality(tmp_path):
             assert info[key] == q[key], (name, key)
 
 
-# -- the direct binary gmsh 4.1 reader (io/gmsh.py) reads exactly what meshio reads -------
+# -- the direct gmsh 4.1 reader (io/gmsh_layout.py) reads exactly what meshio reads -------
 
 
 def _via_meshio(path):
@@ -731,7 +731,7 @@ def _direct(path):
     from meshopt_toolkit.io import gmsh as gmsh_io
 
     with open(path, "rb") as fh:
-        return gmsh_io._read_binary41(fh)
+        return gmsh_io.parse41(fh)
 
 
 def _same_mesh(a, b):
@@ -826,17 +826,20 @@ def test_direct_gmsh_reader_hands_unusual_files_to_meshio(tmp_path):
     sparse[nodes + 24 : nodes + 32] = np.array([2 * n], "<u8").tobytes()  # max tag
     p2 = tmp_path / "sparse.msh"
     p2.write_bytes(bytes(sparse))
-    assert _direct(p2) is None
+    assert _direct(p2).complete  # mapped as meshio maps them
+    np.testing.assert_array_equal(_direct(p2).layout.node_tags, tags)
     assert load(p2) == grid_mesh(3)
-    # an unknown section
+    _same_mesh(load(p2), _via_meshio(p2))
+    # an unknown section: meshio reads the file, the layout is kept
     p3 = tmp_path / "extra.msh"
     p3.write_bytes(data + b"$Comments\nhello\n$EndComments\n")
-    assert _direct(p3) is None
+    assert not _direct(p3).complete
     _same_mesh(load(p3), _via_meshio(p3))
     # truncated: the error is meshio's, named by our reader
     p4 = tmp_path / "cut.msh"
     p4.write_bytes(data[: len(data) - 200])
-    assert _direct(p4) is None
+    with pytest.raises(ValueError):
+        _direct(p4)
     with pytest.raises(ReadError, match=r"cut\.msh: cannot read gmsh file"):
         load(p4)
 

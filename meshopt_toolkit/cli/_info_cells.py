@@ -1,9 +1,14 @@
-"""``meshopt info`` for tetrahedral meshes and triangle surfaces in 3D.
+"""``meshopt info`` for tetrahedral meshes, triangle surfaces in 3D and any other cells.
 
-:func:`cell_kind` sorts a file's cells: any tetrahedron makes it ``"tetrahedra"``;
-triangles whose points are not on one plane are ``"surface triangles"``; the rest
-(``"planar triangles"``) takes the planar path of :mod:`.info`. The dicts here have the
-same ``path``/``problems`` keys as the planar one, and print the same way.
+:func:`info_kind` sorts a file's cells: cells other than tetrahedra, triangles, lines
+and points (quads, hexahedra, wedges, pyramids, polygons, higher order) make it ``"mixed
+cells"``, described by counts per cell type, the bounding box and the quality of the
+types that have one here (tetrahedra, triangles); else (:func:`cell_kind`, which the
+operations use too) any tetrahedron makes it ``"tetrahedra"``; triangles whose points
+are not on one plane are ``"surface triangles"``; the rest (``"planar triangles"``)
+takes the planar path of :mod:`.info`.
+The dicts here have the same ``path``/``problems`` keys as the planar one, and print the
+same way.
 """
 
 from __future__ import annotations
@@ -15,18 +20,22 @@ import numpy as np
 PLANAR = "planar triangles"
 SURFACE = "surface triangles"
 TETS = "tetrahedra"
+MIXED = "mixed cells"
+#: the cell types of the kinds above; any other makes a file's kind MIXED
+SIMPLICES = ("tetra", "triangle", "line", "vertex")
 
 
 def cell_kind(cm) -> str:
-    """``"tetrahedra"``, ``"surface triangles"`` or ``"planar triangles"`` for a cell mesh
-    (planar: 2D points, z ≡ 0, points on any one plane, or no triangle at all)."""
+    """``"tetrahedra"``, ``"surface triangles"`` or ``"planar triangles"``: the mesh an
+    operation reads from a cell mesh (planar: 2D points, z ≡ 0, points on any one plane,
+    or no triangle at all; other cell types are left to that reading to refuse)."""
     if any(t == "tetra" and len(c) for t, c in cm.cells):
         return TETS
     pts = cm.points
     if pts.shape[1] == 2 or not np.any(pts[:, 2]):
         return PLANAR
     tris = [c for t, c in cm.cells if t == "triangle" and len(c)]
-    if not tris or any(t not in ("triangle", "line", "vertex") and len(c) for t, c in cm.cells):
+    if not tris or other_cells(cm):
         return PLANAR  # the planar path says what is wrong
     from ..orientation import plane_of
 
@@ -34,6 +43,17 @@ def cell_kind(cm) -> str:
     used = np.unique(tri)
     emb, _ = plane_of(pts[used], tri if len(used) == len(pts) else None)
     return PLANAR if emb is not None else SURFACE
+
+
+def other_cells(cm) -> set[str]:
+    """The cell types of ``cm`` (with cells) outside :data:`SIMPLICES`."""
+    return {t for t, c in cm.cells if t not in SIMPLICES and len(c)}
+
+
+def info_kind(cm) -> str:
+    """What ``meshopt info`` describes: :data:`MIXED` where :func:`other_cells` has a
+    type, else :func:`cell_kind`."""
+    return MIXED if other_cells(cm) else cell_kind(cm)
 
 
 def read_kind(path):
@@ -145,8 +165,45 @@ def surface_info(mesh) -> dict:
     }
 
 
+def mixed_info(cm) -> dict:
+    """Counts per cell type (``n_<type>``), the bounding box, and the quality of the
+    tetrahedra (mean ratios, dihedral angles, volumes) and triangles (aspect ratios 2r/R)
+    among them; the other types are counted only."""
+    from ..kernels.surface import aspect_ratios, degenerate_triangles
+    from ..kernels.tetrahedra import tet_quality_summary
+
+    pts = np.asarray(cm.points, np.float64)
+    used = np.unique(np.concatenate([np.asarray(c).ravel() for _, c in cm.cells] or
+                                    [np.zeros(0, np.int64)]))
+    box = pts[used] if len(used) else pts
+    info = {"n_vertices": cm.n_points, "n_cells": cm.n_cells, "dim": int(pts.shape[1])}
+    info.update({f"n_{t}": n for t, n in cm.cell_counts().items()})
+    info["bounding_box_min"] = [_float(x) for x in box.min(axis=0)] if len(box) else None
+    info["bounding_box_max"] = [_float(x) for x in box.max(axis=0)] if len(box) else None
+    p3 = pts if pts.shape[1] == 3 else np.column_stack([pts, np.zeros(len(pts))])
+    tets = [c for t, c in cm.cells if t == "tetra" and len(c)]
+    if tets:
+        q = tet_quality_summary(p3, np.concatenate(tets)).as_dict()
+        info.update({f"tetra_{k}": (v if k == "n_inverted" else _float(v)) for k, v in q.items()})
+    tris = [c for t, c in cm.cells if t == "triangle" and len(c)]
+    if tris:
+        tri = np.concatenate(tris)
+        ar = aspect_ratios(p3, tri)
+        info.update({"triangle_min_aspect_ratio": _float(ar.min()),
+                     "triangle_mean_aspect_ratio": _float(ar.mean()),
+                     "triangle_n_degenerate": int(len(degenerate_triangles(p3, tri)))})
+    from ..io.cells import tag_names
+
+    info["physical_names"] = {k: list(v) for k, v in tag_names(cm).items()}
+    other = cm.describe_cells(other_cells(cm))
+    info["operations"] = (f"convert and info only: move, morph, deform and optimize work on "
+                          f"triangles and tetrahedra, not {other} cells")
+    info["problems"] = []
+    return info
+
+
 def cells_info(cm, kind: str, path, merge_tolerance: float | None = None) -> dict:
-    """The info dict of a tetrahedral mesh or a 3D surface read into ``cm``.
+    """The info dict of a tetrahedral mesh, a 3D surface or mixed cells read into ``cm``.
 
     Raises
     ------
@@ -158,6 +215,11 @@ def cells_info(cm, kind: str, path, merge_tolerance: float | None = None) -> dic
     n_merged = 0
     if merge_tolerance is not None:
         cm, n_merged = merged_cells(cm, merge_tolerance)
+    if kind == MIXED:
+        info = {"path": str(path), "cell_kind": kind, **mixed_info(cm)}
+        if merge_tolerance is not None:
+            info["n_merged"] = n_merged
+        return info
     try:
         mesh = cm.to_tet_mesh("meshopt info") if kind == TETS else \
             cm.to_surface_mesh("meshopt info")

@@ -82,7 +82,7 @@ class ConvertOptions:
 
     force: bool = False
     binary: bool | None = None
-    msh_version: str = "4.1"
+    msh_version: str = "input"
     max_bytes: int | None = None
     allow_loss: bool = False
 
@@ -91,7 +91,7 @@ class ConvertOptions:
         return cls(force=bool(getattr(args, "force", False)),
                    allow_loss=bool(getattr(args, "allow_loss", False)),
                    binary=getattr(args, "binary", None),
-                   msh_version=getattr(args, "msh_version", "4.1"),
+                   msh_version=getattr(args, "msh_version", "input"),
                    max_bytes=getattr(args, "max_file_size", None))
 
 

@@ -1,8 +1,10 @@
 """``meshopt info MESH... [--json]``: counts, planarity, admissibility, quality summary.
 
-Tetrahedral meshes and triangle surfaces not on one plane are described by
-:mod:`._info_cells` (cell kind, admissibility and mean ratios; closedness, manifold,
-orientation, genus and aspect ratios).
+Tetrahedral meshes, triangle surfaces not on one plane and files with other cells
+(quads, hexahedra, wedges, pyramids, polygons: counts per cell type, bounding box, the
+quality of their tetrahedra and triangles) are described by :mod:`._info_cells` (cell
+kind, admissibility and mean ratios; closedness, manifold, orientation, genus and aspect
+ratios).
 
 Planar means all points on one plane (any plane: the mesh is checked and measured in the
 plane's coordinates). Each edge-connected component is oriented by propagation and the
@@ -54,9 +56,10 @@ def mesh_info(path: str | Path, merge_tolerance: float | None = None) -> dict:
     from ..io import load
     from ..io.cells import triangle_mesh
     from ..mesh import check_mesh
-    from ._info_cells import PLANAR, cells_info, read_kind
+    from ._info_cells import PLANAR, cells_info, info_kind, read_kind
 
     kind, cells = read_kind(path)
+    kind = kind if cells is None else info_kind(cells)
     if kind != PLANAR:  # tetrahedra, or triangles not on one plane
         return cells_info(cells, kind, path, merge_tolerance)
     mesh = load(path) if cells is None else triangle_mesh(cells)

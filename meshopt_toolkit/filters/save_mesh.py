@@ -8,8 +8,8 @@ from meshopt_toolkit.pipeline.params import BoolParam, EnumParam, PathParam
 
 #: file encodings: the format's default (binary where it has one), binary, text
 ENCODINGS = ("default", "binary", "ascii")
-#: gmsh versions written for .msh files
-MSH_VERSIONS = ("4.1", "2.2")
+#: gmsh versions written for .msh files ("input": the input file's, 4.1 for other formats)
+MSH_VERSIONS = ("input", "4.1", "2.2")
 
 
 def binary_of(encoding: str) -> bool | None:
@@ -41,7 +41,9 @@ class SaveMesh(Filter):
         EnumParam("encoding", ENCODINGS[0], "binary or text output where the format has "
                   "both (default: binary, except the text formats obj and off)",
                   choices=ENCODINGS, label="Encoding"),
-        EnumParam("msh_version", MSH_VERSIONS[0], "gmsh file version of .msh output",
+        EnumParam("msh_version", MSH_VERSIONS[0], "gmsh file version of .msh output "
+                  "(input: the input gmsh file's version, encoding and entities; 4.1 "
+                  "for other inputs)",
                   choices=MSH_VERSIONS, label="MSH version"),
         BoolParam("overwrite", False, "ignored: only --force on the command line replaces "
                   "files", label="Overwrite"),

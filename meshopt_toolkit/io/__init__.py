@@ -15,7 +15,7 @@ are atomic (temporary file in the same directory, then rename).
 =========  ==========================================  ===================================
 format     read                                        write (default)
 =========  ==========================================  ===================================
-``.msh``   gmsh 2.2/4.0/4.1, ASCII and binary, tags    gmsh 4.1 binary (``msh_version``)
+``.msh``   gmsh 2.2/4.0/4.1, ASCII and binary, tags    the input's, else 4.1 binary
 ``.obj``   own reader, file order                      text, 17 significant digits
 ``.off``   own reader                                  text, 17 significant digits
 ``.ply``   own reader, ASCII/binary                    binary doubles
@@ -222,7 +222,7 @@ def save(
     *,
     overwrite: bool = True,
     binary: bool | None = None,
-    msh_version: str = "4.1",
+    msh_version: str | None = None,
 ) -> Path:
     """Write ``mesh`` atomically, choosing the format from the extension of ``path``.
 
@@ -235,9 +235,10 @@ def save(
         If false, an existing file is refused (:class:`WriteError`).
     binary : bool, optional
         None = the format's default (binary where available; OBJ/OFF are text only and
-        refuse ``binary=True``).
-    msh_version : {"4.1", "2.2"}
-        gmsh file version for ``.msh``.
+        refuse ``binary=True``; a gmsh file read and written again keeps its own).
+    msh_version : {"4.1", "2.2"}, optional
+        gmsh file version for ``.msh``; None = the version of the gmsh file the cells
+        were read from, else 4.1.
 
     Returns
     -------
@@ -264,7 +265,7 @@ def save_cells(
     *,
     overwrite: bool = True,
     binary: bool | None = None,
-    msh_version: str = "4.1",
+    msh_version: str | None = None,
 ) -> Path:
     """Write everything of ``cells`` atomically, or refuse.
 

@@ -79,6 +79,7 @@ def without(cm: CellMesh, parts: list[Part]) -> CellMesh:
         field_data={k: v for k, v in cm.field_data.items() if k not in drop["field"]},
         source=cm.source,
         dropped=list(cm.dropped) + [describe(cm, parts)],
+        layout=cm.layout.without(parts) if hasattr(cm.layout, "without") else cm.layout,
     )
 
 

@@ -37,6 +37,8 @@ GMSH_KEYS = (PHYSICAL, GEOMETRICAL)
 NORMALS = "normals"
 TEXCOORDS = "texture_coordinates"
 
+#: the cell types of a triangle mesh (lines and vertices beside the triangles)
+TRIANGLE_KINDS = ("triangle", "line", "vertex")
 #: vertices per cell of the common fixed-size cell types (meshio names)
 NODES_PER_CELL = {
     "vertex": 1, "line": 2, "triangle": 3, "quad": 4, "tetra": 4, "pyramid": 5,
@@ -79,6 +81,10 @@ class CellMesh:
         What the reader saw but could not represent (e.g. OBJ groups, texture coordinates
         that are not per vertex): ``meshopt convert`` refuses a mesh whose ``dropped`` is
         not empty unless ``--allow-loss``.
+    layout : object, optional
+        What the reader knows of the file's own structure beyond cells and data, which a
+        writer of the same format keeps while it fits the cells (gmsh: version,
+        encoding, entities, node classification; :class:`~.gmsh_layout.GmshLayout`).
     """
 
     points: np.ndarray
@@ -88,6 +94,7 @@ class CellMesh:
     field_data: dict[str, np.ndarray] = field(default_factory=dict)
     source: str | None = None
     dropped: list[str] = field(default_factory=list)
+    layout: Any = field(default=None, compare=False, repr=False)
 
     # -- summary ---------------------------------------------------------------------
     @property
@@ -147,6 +154,22 @@ class CellMesh:
             source=source,
         )
 
+    def require_cell_types(self, allowed, supported: str) -> None:
+        """Refuse cells of a type outside ``allowed`` in one line naming the file, the
+        cells and what is ``supported`` (``"triangles"``).
+
+        Raises
+        ------
+        InvalidMeshError
+        """
+        other = {t for t, c in self.cells if t not in allowed and len(c)}
+        if other:
+            where = f"{self.source}: " if self.source else ""
+            raise InvalidMeshError(
+                f"{where}has {self.describe_cells(other)} cells; only {supported} are "
+                "supported (meshopt info describes the file; meshopt convert keeps other "
+                "cell types)")
+
     # -- triangle meshes ---------------------------------------------------------------
     @classmethod
     def from_triangle_mesh(cls, mesh: "TriangleMesh") -> "CellMesh":
@@ -184,11 +207,7 @@ class CellMesh:
         from ..mesh import PlanarMesh, TriangleMesh
 
         where = f"{self.source}: " if self.source else ""
-        other = [t for t, c in self.cells if t not in ("triangle", "line", "vertex") and len(c)]
-        if other:
-            raise InvalidMeshError(
-                f"{where}has {self.describe_cells(set(other))} cells; only triangles are "
-                "supported (meshopt convert keeps other cell types)")
+        self.require_cell_types(TRIANGLE_KINDS, "triangles")
         phys = self.cell_data.get(PHYSICAL)
         tris, ttags, lines, ltags = [], [], [], []
         for i, (t, c) in enumerate(self.cells):
@@ -258,12 +277,8 @@ class CellMesh:
         from ..mesh import TetMesh
 
         where = f"{self.source}: " if self.source else ""
-        kinds = ("tetra", "triangle", "line", "vertex")
-        other = [t for t, c in self.cells if t not in kinds and len(c)]
-        if other:
-            raise InvalidMeshError(
-                f"{where}has {self.describe_cells(set(other))} cells; only tetrahedra are "
-                "supported (meshopt convert keeps other cell types)")
+        kinds = ("tetra", *TRIANGLE_KINDS)
+        self.require_cell_types(kinds, "tetrahedra")
         parts = {t: _concatenated(self, t) for t in kinds[:3]}
         if parts["tetra"] is None:
             found = self.describe_cells() or "none"
@@ -273,7 +288,7 @@ class CellMesh:
             parts[t] or (None, None) for t in kinds[:3])
         return TetMesh(self.points, tets, tet_tags=tet_tags, triangles=tri,
                        triangle_tags=tri_tags, lines=lines, line_tags=line_tags,
-                       tag_names=_tag_names(self), source=self.source)
+                       tag_names=tag_names(self), source=self.source)
 
     @classmethod
     def from_surface_mesh(cls, mesh: "SurfaceMesh") -> "CellMesh":
@@ -310,7 +325,8 @@ def _concatenated(cm: CellMesh, cell_type: str):
     return cells, np.concatenate([np.asarray(phys[i]).reshape(-1) for i in idx]).astype(np.int64)
 
 
-def _tag_names(cm: CellMesh) -> dict:
+def tag_names(cm: CellMesh) -> dict:
+    """The physical names of ``cm``'s field data: ``{name: (tag, dim)}``."""
     names = {}
     for name, value in cm.field_data.items():
         v = np.asarray(value).reshape(-1)

@@ -24,12 +24,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import ReadError, WriteError
-from ._common import format_rows, quiet
-from ._loss import Part, cells_other_than, refuse
-from .gmsh_data import holds, write_node_data
+from ._common import format_rows, pad3, quiet
 from ._files import UNCAPPED, open_input
-from .cells import (GEOMETRICAL, NODES_PER_CELL, PHYSICAL, CellMesh, cell_dimension, check_cells,
-                    triangle_mesh)
+from ._loss import Part, cells_other_than, refuse
+from .cells import GEOMETRICAL, PHYSICAL, CellMesh, cell_dimension, check_cells, triangle_mesh
+from .gmsh_data import holds, write_node_data
+from .gmsh_layout import PARAMETRIC, Entity, GmshLayout, Parsed, parse41, write41
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..mesh import TriangleMesh
@@ -39,14 +39,11 @@ _quiet = quiet
 logger = logging.getLogger(__name__)
 
 VERSIONS = ("2.2", "4.1")
+#: the version argument that asks for the input file's version (as None does)
+INPUT_VERSION = "input"
 
 
 # ----------------------------------------------------------------------------- reading
-#: gmsh element type → meshio cell type, for the types the direct parser reads
-GMSH_TO_MESHIO = {15: "vertex", 1: "line", 2: "triangle", 3: "quad", 4: "tetra",
-                  5: "hexahedron", 6: "wedge", 7: "pyramid", 8: "line3", 9: "triangle6",
-                  10: "quad9", 11: "tetra10", 16: "quad8"}
-
 
 def read(path: Path) -> TriangleMesh:
     """Read a gmsh file as a triangle mesh (triangles, tagged lines, physical tags and
@@ -56,16 +53,37 @@ def read(path: Path) -> TriangleMesh:
 
 def read_cells(path: Path) -> CellMesh:
     """Read everything of a gmsh file: every element block, physical and geometrical
-    tags, physical names, and node/element data (through meshio)."""
+    tags, physical names, node/element data, and the file's layout (version, encoding,
+    entities, node classification: :class:`~.gmsh_layout.GmshLayout`) that
+    :func:`write_cells` keeps."""
     with open_input(path, UNCAPPED) as fh:
-        head = fh.read(64).lstrip()
-    if not (head.startswith(b"$MeshFormat") or head.startswith(b"$Comments")):
+        head = fh.read(4096)
+    if not (head.lstrip().startswith(b"$MeshFormat") or head.lstrip().startswith(b"$Comments")):
         raise ReadError(f"{path}: not a gmsh file (no $MeshFormat header)")
-    if head.startswith(b"$MeshFormat\n4.1 1 8\n"):
+    try:
         with open_input(path, UNCAPPED) as fh:
-            parsed = _read_binary41(fh)
-        if parsed is not None:
-            return _build(path, *parsed)
+            parsed = parse41(fh)
+    except (ValueError, KeyError, OSError, MemoryError, UnicodeDecodeError, IndexError):
+        parsed = None  # damaged: meshio's message
+    if parsed is not None and parsed.complete and parsed.layout is not None:
+        return _build(path, parsed)
+    cm = _read_meshio(path)
+    layout = parsed.layout if parsed is not None else _header_layout(head)
+    if layout is not None and layout.fits(cm):
+        cm.layout = layout
+    return cm
+
+
+def _header_layout(head: bytes) -> GmshLayout | None:
+    """Version and encoding of a file other than 4.1 (4.0 is written as 4.1)."""
+    at = head.find(b"$MeshFormat")
+    fields = head[at:].split(b"\n", 2)[1].split() if at >= 0 and head.count(b"\n") > 1 else []
+    if len(fields) < 2 or fields[0] not in (b"2.2", b"4", b"4.0"):
+        return None
+    return GmshLayout("2.2" if fields[0] == b"2.2" else "4.1", fields[1] == b"1")
+
+
+def _read_meshio(path: Path) -> CellMesh:
     from meshio.gmsh.main import read_buffer
 
     try:
@@ -101,137 +119,21 @@ def _without_trivial_tags(cm: CellMesh) -> CellMesh:
     return cm
 
 
-def _build(path: Path, points, blocks, names: dict) -> CellMesh:
-    """The cell mesh of parsed element ``blocks`` ``[(type, nodes, phys, entity)]`` as
-    meshio's gmsh reader builds it (physical tag 0 where an entity has none)."""
-    cells = [(GMSH_TO_MESHIO[etype], e) for etype, e, _, _ in blocks]
+def _build(path: Path, parsed: Parsed) -> CellMesh:
+    """The cell mesh of a parsed file as meshio's gmsh reader builds it (physical tag 0
+    where an entity has none), with the file's layout."""
+    blocks = parsed.blocks
+    cells = [(ctype, e) for ctype, e, _, _ in blocks]
     cell_data = {}
     if any(t is not None for _, _, t, _ in blocks):
         cell_data[PHYSICAL] = [np.full(len(e), 0 if t is None else t, np.int64)
                                for _, e, t, _ in blocks]
     cell_data[GEOMETRICAL] = [np.full(len(e), g, np.int64) for _, e, _, g in blocks]
-    field_data = {name: np.array([tag, dim]) for name, (tag, dim) in names.items()}
-    cm = CellMesh(points, cells, cell_data=cell_data, field_data=field_data, source=str(path))
+    field_data = {name: np.array([tag, dim]) for name, (tag, dim) in parsed.names.items()}
+    cm = CellMesh(parsed.points, cells, cell_data=cell_data, field_data=field_data,
+                  source=str(path), layout=parsed.layout)
     check_cells(cm)
     return _without_trivial_tags(cm)
-
-
-def _read_binary41(fh):
-    """:func:`_parse_binary41`, or None where it fails (truncated or damaged data)."""
-    try:
-        return _parse_binary41(fh)
-    except (ValueError, KeyError, OSError, MemoryError, UnicodeDecodeError, IndexError):
-        return None
-
-
-def _parse_binary41(fh):
-    """Parse a binary gmsh 4.1 file (size_t of 8 bytes, little-endian) with numpy.
-
-    Returns
-    -------
-    (points (N, 3) float64, blocks, names) or None
-        ``blocks`` lists ``(element type, nodes (M, k) int64 0-based, physical tag or
-        None, entity tag)`` in file order, ``names`` is ``{name: (tag, dim)}``. None when
-        the file has anything this parser does not handle exactly like meshio (other
-        sections, sparse or unordered node tags, parametric nodes, element nodes out of
-        range, element types outside :data:`GMSH_TO_MESHIO`): the caller then reads it
-        with meshio.
-
-    Raises
-    ------
-    ValueError
-        Truncated or malformed data.
-    """
-    import shlex
-
-    def take(dtype: str, count: int) -> np.ndarray:
-        if count < 0 or count > 1 << 40:
-            raise ValueError("bad count")
-        a = np.fromfile(fh, dtype=dtype, count=count)
-        if len(a) != count:
-            raise ValueError("truncated")
-        return a
-
-    def end(name: bytes) -> None:
-        line = fh.readline()
-        if line.strip():
-            raise ValueError("unexpected data")
-        if fh.readline().strip() != b"$End" + name:
-            raise ValueError("unclosed section")
-
-    if fh.readline().strip() != b"$MeshFormat" or fh.readline().split() != [b"4.1", b"1", b"8"]:
-        return None
-    if take("<i4", 1)[0] != 1:
-        return None
-    end(b"MeshFormat")
-    names: dict = {}
-    physical: dict | None = None
-    points = None
-    blocks = None
-    while True:
-        line = fh.readline()
-        if not line:
-            break
-        section = line.strip()
-        if not section:
-            continue
-        if section == b"$PhysicalNames" and not names:
-            for _ in range(int(fh.readline())):
-                dim, tag, name = shlex.split(fh.readline().decode())[:3]
-                names[name] = (int(tag), int(dim))
-            if fh.readline().strip() != b"$EndPhysicalNames":
-                return None
-        elif section == b"$Entities" and physical is None:
-            physical = {}
-            for dim, count in enumerate(take("<u8", 4).tolist()):
-                for _ in range(count):
-                    tag = int(take("<i4", 1)[0])
-                    take("<f8", 3 if dim == 0 else 6)
-                    phys = take("<i4", int(take("<u8", 1)[0])).tolist()
-                    physical[(dim, tag)] = phys
-                    if dim > 0:
-                        take("<i4", int(take("<u8", 1)[0]))
-            end(b"Entities")
-        elif section == b"$Nodes" and points is None:
-            n_blocks, n_nodes = take("<u8", 4)[:2].tolist()
-            parts = []
-            first_tag = 1
-            for _ in range(n_blocks):
-                _, _, parametric = take("<i4", 3).tolist()
-                m = int(take("<u8", 1)[0])
-                if parametric:
-                    return None
-                if not np.array_equal(take("<u8", m), np.arange(first_tag, first_tag + m)):
-                    return None  # sparse or unordered node tags: meshio maps them
-                first_tag += m
-                parts.append(take("<f8", 3 * m).reshape(m, 3))
-            if first_tag - 1 != n_nodes:
-                return None
-            points = parts[0] if len(parts) == 1 else np.concatenate(parts)
-            end(b"Nodes")
-        elif section == b"$Elements" and points is not None and blocks is None:
-            n_blocks = int(take("<u8", 4)[0])
-            blocks = []
-            for _ in range(n_blocks):
-                dim, tag, etype = take("<i4", 3).tolist()
-                m = int(take("<u8", 1)[0])
-                if etype not in GMSH_TO_MESHIO:
-                    return None
-                k = NODES_PER_CELL[GMSH_TO_MESHIO[etype]]
-                data = take("<u8", m * (1 + k)).reshape(m, 1 + k)[:, 1:]
-                if m and (int(data.min()) < 1 or int(data.max()) > len(points)):
-                    return None  # meshio's node-tag map decides what that means
-                nodes = np.subtract(data, 1, dtype=np.int64, casting="unsafe")
-                if physical is not None and (dim, tag) not in physical:
-                    return None
-                phys = physical.get((dim, tag)) if physical is not None else None
-                blocks.append((etype, nodes, phys[0] if phys else None, tag))
-            end(b"Elements")
-        else:
-            return None  # any other section (or a repeated one): meshio's business
-    if points is None or blocks is None:
-        return None
-    return points, blocks, names
 
 
 # ----------------------------------------------------------------------------- writing
@@ -258,7 +160,8 @@ def _groups(cm: CellMesh, path):
 def unsupported(cm: CellMesh) -> list[Part]:
     """What our gmsh writer cannot hold: cell types without a gmsh element (polygon),
     point data other than float views (:func:`.gmsh_data.holds`), cell data other than
-    the physical groups, field data other than ``name: (tag, dim)``."""
+    the physical groups, field data other than ``name: (tag, dim)``, and the parametric
+    coordinates of the file's nodes once the nodes moved (``gmsh:parametric``)."""
     from meshio.gmsh.common import _meshio_to_gmsh_type
 
     parts = cells_other_than(cm, _meshio_to_gmsh_type)
@@ -268,7 +171,15 @@ def unsupported(cm: CellMesh) -> list[Part]:
         v = np.asarray(value).reshape(-1)
         if v.size != 2 or not np.issubdtype(v.dtype, np.integer):
             parts.append(("field", name))
+    layout = _layout(cm)
+    if layout is not None and layout.has_parametric() and (
+            layout.moved(pad3(cm.points)) or not layout.fits(cm)):
+        parts.append(("point", PARAMETRIC))
     return parts
+
+
+def _layout(cm: CellMesh) -> GmshLayout | None:
+    return cm.layout if isinstance(cm.layout, GmshLayout) else None
 
 
 def _physical_names(cm: CellMesh) -> bytes:
@@ -282,59 +193,69 @@ def _physical_names(cm: CellMesh) -> bytes:
     return ("$PhysicalNames\n%d\n%s\n$EndPhysicalNames\n" % (len(lines), "\n".join(lines))).encode()
 
 
-def write(path: Path, mesh: TriangleMesh, binary: bool | None = None, version: str = "4.1") -> None:
+def write(path: Path, mesh: TriangleMesh, binary: bool | None = None,
+          version: str | None = None) -> None:
     """Write a triangle mesh (triangles, tagged lines, physical names) as gmsh ``version``."""
     write_cells(path, CellMesh.from_triangle_mesh(mesh), binary, version)
 
 
 def write_cells(path: Path, cm: CellMesh, binary: bool | None = None,
-                version: str = "4.1") -> None:
-    """Write ``cm`` as gmsh ``version`` ("2.2" or "4.1"), binary unless ``binary=False``.
+                version: str | None = None) -> None:
+    """Write ``cm`` as gmsh ``version`` ("2.2", "4.1", or None/"input"), binary or not.
 
-    Coordinates are exact: binary doubles, or ``repr`` (≤ 17 significant digits) in ASCII.
-    Every cell block is written in order with its ``gmsh:physical`` and
-    ``gmsh:geometrical`` tags (0 and a tag per physical group where missing).
+    A cell mesh read from a gmsh file is written in that file's version and encoding
+    where ``version``/``binary`` are None, and, while its cell blocks and tags are those
+    read (:meth:`~.gmsh_layout.GmshLayout.fits`), in the file's layout: its entities
+    (bounding boxes updated where the points moved), node and element blocks and tags,
+    each node on its entity. Otherwise (other sources, changed cells) 4.1 binary by
+    default, entities made from the ``gmsh:geometrical`` tags (one per physical group
+    and dimension without them), the nodes in one block on the first entity of the
+    highest dimension. Coordinates are exact: binary doubles, or ``repr`` (≤ 17
+    significant digits) in ASCII. Every cell block is written in order with its
+    ``gmsh:physical`` and ``gmsh:geometrical`` tags (0 and a tag per physical group
+    where missing).
 
     Raises
     ------
     WriteError
-        What :func:`unsupported` lists, or (4.1) elements of one geometrical entity with different
-        physical tags (gmsh 2.2 can hold them).
+        What :func:`unsupported` lists, or (4.1, layout not kept) elements of one
+        geometrical entity with different physical tags (gmsh 2.2 can hold them).
     """
+    layout = _layout(cm)
+    if version is None or version == INPUT_VERSION:
+        version = layout.version if layout is not None else "4.1"
     version = str(version)
     if version not in VERSIONS:
         raise WriteError(f"{path}: unsupported gmsh version {version!r}; use one of {VERSIONS}")
     refuse(path, "gmsh", cm, unsupported(cm))
-    groups = _groups(cm, path)
-    binary = True if binary is None else bool(binary)
+    if binary is None:
+        binary = layout.binary if layout is not None else True
+    binary = bool(binary)
+    pts = pad3(cm.points)
+    tags = None
     if version == "4.1":
-        ents, blocks = _entities(groups, _points3d(cm), path)
+        if layout is None or layout.version != "4.1" or not layout.fits(cm):
+            if layout is not None and layout.version == "4.1":
+                logger.info("%s: cells or tags changed; gmsh entities made anew", path)
+            layout = _made_layout(_groups(cm, path), pts, path)
+        tags = layout.node_tags
     with open(path, "wb") as fh:
         if version == "2.2":
-            _write22(fh, cm, groups, binary)
+            _write22(fh, cm, _groups(cm, path), binary)
         else:
-            _write41(fh, cm, ents, blocks, binary)
-        write_node_data(fh, cm.point_data, binary)
-
-
-def _header(fh, version: str, binary: bool) -> None:
-    fh.write(f"$MeshFormat\n{version} {int(binary)} 8\n".encode())
-    if binary:
-        fh.write(np.array([1], "<i4").tobytes() + b"\n")
-    fh.write(b"$EndMeshFormat\n")
-
-
-def _points3d(cm: CellMesh) -> np.ndarray:
-    p = np.asarray(cm.points, np.float64)
-    if p.shape[1] == 3:
-        return np.ascontiguousarray(p)
-    return np.column_stack([p, np.zeros(len(p))])
+            write41(fh, layout, pts, _physical_names(cm), binary)
+        write_node_data(fh, cm.point_data, binary, tags)
 
 
 def _write22(fh, cm: CellMesh, groups, binary: bool) -> None:
-    _header(fh, "2.2", binary)
+    from meshio.gmsh.common import _gmsh_to_meshio_type, _meshio_to_gmsh_order
+
+    fh.write(f"$MeshFormat\n2.2 {int(binary)} 8\n".encode())
+    if binary:
+        fh.write(np.array([1], "<i4").tobytes() + b"\n")
+    fh.write(b"$EndMeshFormat\n")
     fh.write(_physical_names(cm))
-    pts = _points3d(cm)
+    pts = pad3(cm.points)
     n = len(pts)
     fh.write(f"$Nodes\n{n}\n".encode())
     ids = np.arange(1, n + 1)
@@ -356,7 +277,8 @@ def _write22(fh, cm: CellMesh, groups, binary: bool) -> None:
         phys = np.zeros(m, np.int64) if tags is None else tags
         if geom is None:
             geom = np.where(phys > 0, phys, 1)
-        table = np.column_stack([np.arange(first, first + m), phys, geom, elems + 1])
+        nodes = _meshio_to_gmsh_order(_gmsh_to_meshio_type[etype], elems) + 1
+        table = np.column_stack([np.arange(first, first + m), phys, geom, nodes])
         first += m
         if binary:
             fh.write(np.array([etype, m, 2], "<i4").tobytes())
@@ -370,53 +292,53 @@ def _write22(fh, cm: CellMesh, groups, binary: bool) -> None:
     fh.write(b"$EndElements\n")
 
 
-def _entities(groups, pts: np.ndarray, path):
-    """Entities ``{dim: [(tag, phys or None, bbox)]}`` and element blocks
+def _made_layout(groups, pts: np.ndarray, path) -> GmshLayout:
+    """A 4.1 layout for cells of no gmsh file (or changed ones): entities and element
+    blocks by :func:`_entities`, every node in one block on the first entity of the
+    highest dimension, nodes and elements numbered from 1 in order."""
+    ents, blocks = _entities(groups, path)
+    ndim = max((d for d, _ in ents), default=2)
+    first = min((t for d, t in ents if d == ndim), default=1)
+    entities = tuple(Entity(d, t, np.zeros(3 if d == 0 else 6), () if p <= 0 else (p,))
+                     for (d, t), p in sorted(ents.items()))
+    sizes = np.cumsum([0] + [len(e) for *_, e in blocks])
+    return GmshLayout(
+        "4.1", True, entities, ((ndim, first, len(pts)),), np.arange(1, len(pts) + 1),
+        (None,), tuple((d, t, etype) for d, t, etype, _ in blocks),
+        tuple(np.arange(a + 1, b + 1) for a, b in zip(sizes[:-1], sizes[1:])),
+        tuple(e for *_, e in blocks))
+
+
+def _entities(groups, path):
+    """Entities ``{(dim, tag): physical tag}`` and element blocks
     ``[(dim, entity, type, elements)]`` in order.
 
     With ``gmsh:geometrical`` tags the entities are those tags (each must carry one
     physical tag); without, one entity per (dimension, physical tag), numbered from 1.
     """
-    ents: dict[int, dict[int, list]] = {0: {}, 1: {}, 2: {}, 3: {}}
+    ents: dict[tuple[int, int], int] = {}
     blocks = []
     for etype, dim, elems, tags, geom in groups:
         phys = np.zeros(len(elems), np.int64) if tags is None else tags
         if geom is None:  # one entity per physical tag of this dimension
             uniq, inv = np.unique(phys, return_inverse=True)
-            known = {p: e for e, (p, _) in ents[dim].items()}
-            ent_of = {}
-            for t in uniq.tolist():
-                if t not in known:
-                    known[t] = max(ents[dim], default=0) + 1
-                    ents[dim][known[t]] = [t, []]
-                ent_of[t] = known[t]
-            ent = np.array([ent_of[t] for t in uniq.tolist()], np.int64)[inv]
+            known = {p: t for (d, t), p in ents.items() if d == dim}
+            for p in uniq.tolist():
+                if p not in known:
+                    known[p] = max((t for d, t in ents if d == dim), default=0) + 1
+                    ents[(dim, known[p])] = p
+            ent = np.array([known[p] for p in uniq.tolist()], np.int64)[inv]
         else:
             ent = geom
         keys = np.stack([ent, phys], axis=1)
         for e, p in np.unique(keys, axis=0).tolist():
-            have = ents[dim].setdefault(e, [p, []])
-            if have[0] != p:
+            have = ents.setdefault((dim, e), p)
+            if have != p:
                 raise WriteError(f"{path}: gmsh 4.1 entity {e} (dimension {dim}) has elements "
-                                 f"with physical tags {have[0]} and {p}; use --msh-version 2.2")
+                                 f"with physical tags {have} and {p}; use --msh-version 2.2")
         for a, b, e in _runs(ent):
             blocks.append((dim, e, etype, elems[a:b]))
-            ents[dim][e][1].append(elems[a:b])
-    coords = np.ascontiguousarray(pts.T)
-    out: dict[int, list] = {}
-    for dim, table in ents.items():
-        out[dim] = []
-        for e, (p, parts) in sorted(table.items()):
-            used = np.zeros(len(pts), bool)
-            for part in parts:
-                used[part.ravel()] = True
-            sel = coords[:, used]
-            if sel.shape[1]:
-                bbox = np.concatenate([sel.min(axis=1), sel.max(axis=1)])
-            else:
-                bbox = np.zeros(6)
-            out[dim].append((e, p if p > 0 else None, bbox))
-    return out, blocks
+    return ents, blocks
 
 
 def _runs(tags: np.ndarray) -> list[tuple[int, int, int]]:
@@ -427,71 +349,3 @@ def _runs(tags: np.ndarray) -> list[tuple[int, int, int]]:
     starts = np.concatenate([[0], cut])
     stops = np.concatenate([cut, [len(tags)]])
     return [(int(a), int(b), int(tags[a])) for a, b in zip(starts, stops)]
-
-
-def _write41(fh, cm: CellMesh, ents, blocks, binary: bool) -> None:
-    _header(fh, "4.1", binary)
-    fh.write(_physical_names(cm))
-    pts = _points3d(cm)
-    n = len(pts)
-    counts = [len(ents[d]) for d in range(4)]
-    fh.write(b"$Entities\n")
-    if binary:
-        fh.write(np.array(counts, "<u8").tobytes())
-    else:
-        fh.write(" ".join(map(str, counts)).encode() + b"\n")
-    for dim in range(4):
-        for tag, phys, bbox in ents[dim]:
-            box = bbox[:3] if dim == 0 else bbox
-            if binary:
-                fh.write(np.array([tag], "<i4").tobytes() + box.astype("<f8").tobytes())
-                if phys is None:
-                    fh.write(np.array([0], "<u8").tobytes())
-                else:
-                    fh.write(np.array([1], "<u8").tobytes() + np.array([phys], "<i4").tobytes())
-                if dim > 0:
-                    fh.write(np.array([0], "<u8").tobytes())
-            else:
-                text = " ".join(repr(float(v)) for v in box)
-                ph = "0" if phys is None else f"1 {phys}"
-                fh.write(f"{tag} {text} {ph}{' 0' if dim > 0 else ''}\n".encode())
-    if binary:
-        fh.write(b"\n")
-    fh.write(b"$EndEntities\n")
-    # all nodes in one block on the first entity of the highest dimension
-    ndim = max((d for d in range(4) if ents[d]), default=2)
-    first_ent = ents[ndim][0][0] if ents[ndim] else 1
-    fh.write(b"$Nodes\n")
-    if binary:
-        fh.write(np.array([1, n, 1, n], "<u8").tobytes())
-        fh.write(np.array([ndim, first_ent, 0], "<i4").tobytes() + np.array([n], "<u8").tobytes())
-        fh.write(np.arange(1, n + 1, dtype="<u8").tobytes())
-        fh.write(pts.astype("<f8").tobytes())
-        fh.write(b"\n")
-    else:
-        fh.write(f"1 {n} 1 {n}\n{ndim} {first_ent} 0 {n}\n".encode())
-        fh.write(format_rows(np.arange(1, n + 1)[:, None], "%d").encode())
-        fh.write(format_rows(pts, "%r").encode())
-    fh.write(b"$EndNodes\n")
-    total = sum(len(b[3]) for b in blocks)
-    fh.write(b"$Elements\n")
-    if binary:
-        fh.write(np.array([len(blocks), total, 1, total], "<u8").tobytes())
-    else:
-        fh.write(f"{len(blocks)} {total} 1 {total}\n".encode())
-    first = 1
-    for dim, ent, etype, elems in blocks:
-        m = len(elems)
-        table = np.empty((m, 1 + elems.shape[1]), "<u8" if binary else np.int64)
-        table[:, 0] = np.arange(first, first + m)
-        np.add(elems, 1, out=table[:, 1:], casting="unsafe")
-        first += m
-        if binary:
-            fh.write(np.array([dim, ent, etype], "<i4").tobytes() + np.array([m], "<u8").tobytes())
-            table.tofile(fh)
-        else:
-            fh.write(f"{dim} {ent} {etype} {m}\n".encode())
-            fh.write(format_rows(table, "%d").encode())
-    if binary:
-        fh.write(b"\n")
-    fh.write(b"$EndElements\n")

@@ -15,7 +15,8 @@ there is one per vertex, in order). Otherwise, and for statements the mesh canno
 represent (groups, materials, vertex colours), they are listed in
 :attr:`~.cells.CellMesh.dropped`: ``load`` ignores them, ``convert`` refuses the file
 unless ``--allow-loss``. Writing puts the two point data back as ``vt``/``vn`` lines with
-``f v/t/n`` corners (the same index three times).
+``f v/t/n`` corners (the same index three times); normals read with other points than
+those written are those of the moved faces (:mod:`.normals`).
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ from ._common import decode_text, float_array, format_rows, pad3, require_text_m
 from ._files import UNCAPPED, read_input
 from ._loss import Part, cells_other_than, data_parts, refuse
 from .cells import NORMALS, TEXCOORDS, CellMesh, check_cells, face_blocks
+from .normals import ReadNormals, normals_to_write
 
 _ELEMENTS = ("f", "l", "p")
 #: one face corner "v", "v/vt", "v//vn" or "v/vt/vn" per line of the joined tokens
@@ -81,6 +83,8 @@ def read_cells(path: Path) -> CellMesh:
     dropped += [f"{n} '{k}' statements" for k, n in other.items()]
     cm = CellMesh(pts, cells, point_data=point_data, source=str(path), dropped=dropped)
     check_cells(cm)
+    if NORMALS in point_data:
+        cm.layout = ReadNormals(cm.points, point_data[NORMALS])
     return cm
 
 
@@ -259,7 +263,7 @@ def write_cells(path: Path, cm: CellMesh, binary: bool | None = None) -> None:
     """
     require_text_mode(binary, path, "OBJ")
     refuse(path, "OBJ", cm, unsupported(cm))
-    tex, normals = cm.point_data.get(TEXCOORDS), cm.point_data.get(NORMALS)
+    tex, normals = cm.point_data.get(TEXCOORDS), normals_to_write(cm, path)
     # a face corner names its vertex, texture coordinate and normal: the same index
     token = "%d" + ("/%d" if tex is not None else "/" if normals is not None else "") + \
         ("/%d" if normals is not None else "")

@@ -28,6 +28,7 @@ from ._common import pad3, parse_rows
 from ._files import UNCAPPED, read_input
 from ._loss import Part, cells_other_than, refuse
 from .cells import NORMALS, TEXCOORDS, CellMesh, check_cells, face_blocks
+from .normals import ReadNormals, normals_to_write
 
 _TYPES = {
     "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1",
@@ -281,6 +282,8 @@ def read_cells(path: Path) -> CellMesh:
     cm = CellMesh(pts, cells, point_data=point_data, cell_data=cell_data, source=str(path),
                   dropped=dropped)
     check_cells(cm)
+    if NORMALS in point_data:
+        cm.layout = ReadNormals(cm.points, point_data[NORMALS])
     return cm
 
 
@@ -361,7 +364,10 @@ def write_cells(path: Path, cm: CellMesh, binary: bool | None = None) -> None:
     refuse(path, "PLY", cm, unsupported(cm))
     binary = True if binary is None else bool(binary)
     pts = pad3(cm.points)
-    pdata = [(n, *_ply_type(n, c, path)) for k, v in cm.point_data.items()
+    point_data = dict(cm.point_data)
+    if NORMALS in point_data:  # those of the moved faces where the points moved
+        point_data[NORMALS] = normals_to_write(cm, path)
+    pdata = [(n, *_ply_type(n, c, path)) for k, v in point_data.items()
              for n, c in _columns(k, v)]
     cdata = [(k, *_ply_type(k, np.concatenate([np.asarray(x) for x in v]) if v else
                             np.zeros(0), path)) for k, v in cm.cell_data.items()]

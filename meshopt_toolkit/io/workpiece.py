@@ -30,7 +30,7 @@ from ..errors import InvalidMeshError, WriteError
 from ..mesh import PlanarMesh, TriangleMesh
 from ..orientation import PLANE_RTOL, PlaneEmbedding, plane_embedding
 from ..scaling import UnitScale, unit_scale
-from .cells import PHYSICAL, CellMesh
+from .cells import PHYSICAL, TRIANGLE_KINDS, CellMesh
 
 logger = logging.getLogger(__name__)
 
@@ -70,6 +70,7 @@ class Workpiece:
             The points are not on one plane (naming the file and the distance), or
             :meth:`CellMesh.to_triangle_mesh` refuses the cells.
         """
+        cells.require_cell_types(TRIANGLE_KINDS, "triangles")  # before the plane's check
         plane, frame = _plane_coordinates(cells)
         if scale is None:
             scale = unit_scale(plane) if unit_size else UnitScale(0)
