@@ -92,8 +92,9 @@ def _joined(files: list[str]) -> str:
 
 def naming(text: str, files: list[str], others: Iterable[str] = ()) -> str:
     """``text`` as ``"FILE: cause"``: unchanged where it names one of ``files`` or
-    ``others`` already, else with ``files`` (joined) in front."""
-    if names_one_of(text, [*files, *others]):
+    ``others`` already (or a command has no file: ``meshopt filters``), else with
+    ``files`` (joined) in front."""
+    if not files or names_one_of(text, [*files, *others]):
         return text
     return f"{_joined(files)}: {text}"
 

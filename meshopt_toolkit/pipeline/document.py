@@ -41,6 +41,7 @@ import numpy as np
 
 from ..errors import FilterError
 from ..mesh import PlanarMesh, SurfaceMesh, TetMesh, TriangleMesh
+from .filter import PLANAR, SURFACE, TETS
 from .limits import DEFAULT_MAX_TRIANGLES
 from .meshset import add_custom, lost_extras, mesh_ids, read_custom
 
@@ -50,9 +51,22 @@ if TYPE_CHECKING:  # pragma: no cover
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["MeshEntry", "Document", "load_entry", "save_entry"]
+__all__ = ["MeshEntry", "Document", "load_entry", "save_entry", "kind_of", "KIND_NAMES"]
 
 _SPECIAL = ("quality", "color", "selected")
+
+#: each kind of mesh (:data:`~.filter.MESH_KINDS`) in words
+KIND_NAMES = {PLANAR: "a planar triangle mesh", SURFACE: "a triangle surface in 3D",
+              TETS: "a tetrahedral mesh"}
+
+
+def kind_of(mesh) -> str:
+    """The kind of a document's mesh (:data:`~.filter.MESH_KINDS`): ``"tet"`` for a
+    :class:`TetMesh`, ``"planar"`` for triangles on one plane (any plane: what
+    :meth:`MeshEntry.workpiece` takes), else ``"surface"``."""
+    if isinstance(mesh, TetMesh):
+        return TETS
+    return PLANAR if mesh.is_planar else SURFACE
 
 
 @dataclass
