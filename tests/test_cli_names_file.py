@@ -219,3 +219,10 @@ def test_tet_move_names_the_files_vertex_of_a_clash():
     mesh = TetMesh(loose, T + 1)
     with pytest.raises(InvalidMeshError, match="vertex 4 is a handle twice"):
         mt.move(mesh, [4, 4], [[0, 0, 0], [0, 0, 1.0]])
+
+
+def test_control_characters_of_a_name_are_escaped(tmp_path, capsys):
+    out = tmp_path / "o.msh"
+    assert main(["move", str(tmp_path / "d\x01\x00.msh"), "-o", str(out), "--map", "x; y"]) == 1
+    line = _one_line(capsys)
+    assert "d\\x01\\x00.msh" in line and line.isprintable()

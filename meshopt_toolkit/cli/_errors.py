@@ -94,9 +94,19 @@ def naming(text: str, files: list[str], others: Iterable[str] = ()) -> str:
     """``text`` as ``"FILE: cause"``: unchanged where it names one of ``files`` or
     ``others`` already (or a command has no file: ``meshopt filters``), else with
     ``files`` (joined) in front."""
-    if not files or names_one_of(text, [*files, *others]):
-        return text
-    return f"{_joined(files)}: {text}"
+    if files and not names_one_of(text, [*files, *others]):
+        text = f"{_joined(files)}: {text}"
+    return _one_line(text)
+
+
+def _one_line(text: str) -> str:
+    """``text`` on one line: line breaks as spaces, other control characters escaped,
+    cut past :data:`MAX_MESSAGE` characters."""
+    text = " ".join(text.splitlines())
+    if not text.isprintable():
+        text = "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii")
+                       for c in text)
+    return text if len(text) <= MAX_MESSAGE else f"{text[:MAX_MESSAGE]}… ({len(text)} chars)"
 
 
 def _cause(exc: BaseException, args, files: list[str]) -> tuple[str, str]:
@@ -136,7 +146,4 @@ def error_line(exc: BaseException, args, files: list[str] | None = None) -> str:
     files = subject(args) if files is None else files
     kind, text = _cause(exc, args, files)
     text = naming(text, files, _values(args, SUBJECT_ARGS + OTHER_PATH_ARGS))
-    text = text.replace("\r\n", " ").replace("\n", " ")  # one line
-    if len(text) > MAX_MESSAGE:
-        text = f"{text[:MAX_MESSAGE]}… ({len(text)} chars)"
     return f"meshopt {args.command}: {kind}: {text}"

@@ -41,7 +41,6 @@ import numpy as np
 
 from ..errors import FilterError
 from ..mesh import PlanarMesh, SurfaceMesh, TetMesh, TriangleMesh
-from .filter import PLANAR, SURFACE, TETS
 from .limits import DEFAULT_MAX_TRIANGLES
 from .meshset import add_custom, lost_extras, mesh_ids, read_custom
 
@@ -51,17 +50,22 @@ if TYPE_CHECKING:  # pragma: no cover
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["MeshEntry", "Document", "load_entry", "save_entry", "kind_of", "KIND_NAMES"]
+__all__ = ["MeshEntry", "Document", "load_entry", "save_entry", "kind_of", "KIND_NAMES",
+           "MESH_KINDS", "PLANAR", "SURFACE", "TETS"]
 
 _SPECIAL = ("quality", "color", "selected")
 
-#: each kind of mesh (:data:`~.filter.MESH_KINDS`) in words
+#: the kinds of current mesh a step may take (:attr:`~.filter.Filter.kinds`): planar
+#: triangles (on any one plane), a triangle surface in 3D, tetrahedra
+PLANAR, SURFACE, TETS = "planar", "surface", "tet"
+MESH_KINDS = (PLANAR, SURFACE, TETS)
+#: each kind of mesh in words
 KIND_NAMES = {PLANAR: "a planar triangle mesh", SURFACE: "a triangle surface in 3D",
               TETS: "a tetrahedral mesh"}
 
 
 def kind_of(mesh) -> str:
-    """The kind of a document's mesh (:data:`~.filter.MESH_KINDS`): ``"tet"`` for a
+    """The kind of a document's mesh (:data:`MESH_KINDS`): ``"tet"`` for a
     :class:`TetMesh`, ``"planar"`` for triangles on one plane (any plane: what
     :meth:`MeshEntry.workpiece` takes), else ``"surface"``."""
     if isinstance(mesh, TetMesh):

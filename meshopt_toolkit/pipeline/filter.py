@@ -38,6 +38,7 @@ import warnings
 from typing import TYPE_CHECKING, Any, ClassVar, Iterator
 
 from ..errors import FilterError
+from .document import MESH_KINDS, PLANAR, SURFACE, TETS
 from .params import Param, did_you_mean
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -52,10 +53,6 @@ __all__ = ["Filter", "FilterRegistry", "PluginWarning", "registry", "register", 
 ENTRY_POINT_GROUP = "meshopt_toolkit.filters"
 _NAME_RE = re.compile(r"^[a-z][a-z0-9_]*$")
 
-#: the kinds of current mesh a step may take (:attr:`Filter.kinds`): planar triangles (on
-#: any one plane), a triangle surface in 3D, tetrahedra
-PLANAR, SURFACE, TETS = "planar", "surface", "tet"
-MESH_KINDS = (PLANAR, SURFACE, TETS)
 
 
 class PluginWarning(UserWarning):
