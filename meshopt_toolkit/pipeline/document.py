@@ -56,8 +56,9 @@ __all__ = ["MeshEntry", "Document", "load_entry", "save_entry", "kind_of", "KIND
 _SPECIAL = ("quality", "color", "selected")
 
 #: the kinds of current mesh a step may take (:attr:`~.filter.Filter.kinds`): planar
-#: triangles (on any one plane), a triangle surface in 3D, tetrahedra
-PLANAR, SURFACE, TETS = "planar", "surface", "tet"
+#: triangles (on any one plane), a triangle surface in 3D, tetrahedra (the names of the
+#: cell kinds of ``meshopt info``)
+PLANAR, SURFACE, TETS = "planar triangles", "surface triangles", "tetrahedra"
 MESH_KINDS = (PLANAR, SURFACE, TETS)
 #: each kind of mesh in words
 KIND_NAMES = {PLANAR: "a planar triangle mesh", SURFACE: "a triangle surface in 3D",
@@ -65,9 +66,9 @@ KIND_NAMES = {PLANAR: "a planar triangle mesh", SURFACE: "a triangle surface in 
 
 
 def kind_of(mesh) -> str:
-    """The kind of a document's mesh (:data:`MESH_KINDS`): ``"tet"`` for a
-    :class:`TetMesh`, ``"planar"`` for triangles on one plane (any plane: what
-    :meth:`MeshEntry.workpiece` takes), else ``"surface"``."""
+    """The kind of a document's mesh (:data:`MESH_KINDS`): :data:`TETS` for a
+    :class:`TetMesh`, :data:`PLANAR` for triangles on one plane (any plane: what
+    :meth:`MeshEntry.workpiece` takes), else :data:`SURFACE`."""
     if isinstance(mesh, TetMesh):
         return TETS
     return PLANAR if mesh.is_planar else SURFACE
