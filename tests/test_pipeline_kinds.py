@@ -146,5 +146,6 @@ def test_a_filter_with_an_unknown_kind_is_refused():
         description = "Takes a kind that does not exist."
         kinds = ("hexahedra",)
 
-    with pytest.raises(FilterError, match="kinds must be some of planar triangles, surface triangles, tetrahedra"):
+    with pytest.raises(FilterError, match="kinds must be some of planar triangles, surface "
+                                          "triangles, tetrahedra"):
         FilterRegistry(builtin_package=None, group=None).register(Volumes)

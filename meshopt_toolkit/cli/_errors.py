@@ -122,7 +122,8 @@ def _cause(exc: BaseException, args, files: list[str]) -> tuple[str, str]:
         return "error", (f"{shown}: floating-point error in the computation ({exc}); "
                          "the mesh or the options may be degenerate")
     if isinstance(exc, FileExistsError):
-        return "error", f"{_cut(exc.filename or output or shown)}: exists (use --force to overwrite)"
+        name = exc.filename or output or shown
+        return "error", f"{_cut(name)}: exists (use --force to overwrite)"
     if isinstance(exc, OSError) and exc.errno == errno.ENOSPC:
         name = exc.filename or output or shown
         return "error", f"{_cut(name)}: no space left on device (nothing was replaced)"
@@ -134,16 +135,16 @@ def _cause(exc: BaseException, args, files: list[str]) -> tuple[str, str]:
                               "(run with --debug for the traceback)")
 
 
-def error_line(exc: BaseException, args, files: list[str] | None = None) -> str:
+def error_line(exc: BaseException, args) -> str:
     """The one line a failed command prints: ``meshopt CMD: error: FILE: cause``.
 
     Parameters
     ----------
     exc : the exception that ended the command
-    args : the parsed arguments (``args.command`` and the paths it names)
-    files : the files the failure is about (default: :func:`subject`)
+    args : the parsed arguments (``args.command`` and the paths it names; the files the
+        failure is about when its message names none: :func:`subject`)
     """
-    files = subject(args) if files is None else files
+    files = subject(args)
     kind, text = _cause(exc, args, files)
     text = naming(text, files, _values(args, SUBJECT_ARGS + OTHER_PATH_ARGS))
     return f"meshopt {args.command}: {kind}: {text}"

@@ -94,8 +94,10 @@ def read_target_table(path: str | Path, dim: int = 2, n_vertices: int | None = N
     if not np.all(np.isfinite(index)) or np.any(index != np.round(index)):
         raise ReadError(f"{path}: the first column must hold vertex indices (integers)")
     if n_vertices is not None:
-        _check_rows(path, index, table[:, 1:], n_vertices,
-                    (lambda k: f"line {lines[k]}") if lines is not None else (lambda k: f"row {k}"))
+        def row(k: int) -> str:
+            return f"row {k}" if lines is None else f"line {lines[k]}"
+
+        _check_rows(path, index, table[:, 1:], n_vertices, row)
     return index.astype(np.int64), table[:, 1:]
 
 

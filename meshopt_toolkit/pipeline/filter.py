@@ -54,7 +54,6 @@ ENTRY_POINT_GROUP = "meshopt_toolkit.filters"
 _NAME_RE = re.compile(r"^[a-z][a-z0-9_]*$")
 
 
-
 class PluginWarning(UserWarning):
     """A third-party filter plugin could not be loaded (the rest keeps working)."""
 

@@ -33,8 +33,8 @@ from typing import Any, Callable, Iterator
 
 from ..errors import FilterError, MeshoptError
 from .budget import check_budget, check_measured, estimate_meshlab, stats_of, stats_of_arrays
-from .document import KIND_NAMES, Document, kind_of
-from .filter import PLANAR, SURFACE, TETS, registry
+from .document import KIND_NAMES, PLANAR, SURFACE, TETS, Document, kind_of
+from .filter import registry
 from .limits import check_name, check_step_count
 from .orientation import admissible_normal, count_inverted
 from .params import PathParam, did_you_mean
