@@ -23,6 +23,8 @@ LOST = "STL files cannot hold "
 
 @pytest.fixture
 def work(tmp_path):
+    (tmp_path / "in" / "sub").mkdir(parents=True)  # a sub-folder not searched: a warning
+    (tmp_path / "in" / "disc.msh").write_bytes(data_path("disc_25.msh").read_bytes())
     (tmp_path / "disc.msh").write_bytes(data_path("disc_25.msh").read_bytes())
     (tmp_path / "quality.json").write_text(json.dumps({"filters": [QUALITY]}))
     return tmp_path
@@ -32,12 +34,13 @@ def work(tmp_path):
 def test_a_logged_warning_is_one_plain_line_in_the_record(work, jobs):
     """Through the installed command line (a fresh process: its logging as a user's),
     in this process and in worker processes."""
-    src, out = work / "disc.msh", work / "out"
+    folder, out = work / "in", work / "out"
+    src = folder / "disc.msh"
     code = ("import sys; from meshopt_toolkit.cli import main; "
             "raise SystemExit(main(sys.argv[1:]))")
     env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parent.parent)}
     done = subprocess.run([sys.executable, "-c", code, "run", str(work / "quality.json"),
-                           str(src), "-o", str(out), "--to", ".stl", "--json", "-j", jobs],
+                           str(folder), "-o", str(out), "--to", ".stl", "--json", "-j", jobs],
                           capture_output=True, text=True, env=env, timeout=300)
     assert done.returncode == 0, done.stderr
     record = json.loads(done.stdout)
@@ -45,7 +48,10 @@ def test_a_logged_warning_is_one_plain_line_in_the_record(work, jobs):
             if w.startswith(f"{out / 'disc.stl'}: {LOST}") and "quality" in w], record
     lines = done.stderr.strip().splitlines()
     warned = [ln for ln in lines if "warning" in ln.lower()]
-    assert warned and all(ln.startswith(f"meshopt run: warning: {src}: ") for ln in warned)
+    assert f"meshopt run: warning: {folder}: 1 sub-folder(s) not searched (sub); use " \
+           "--recursive to include them" in warned  # the driver's own, as plainly
+    assert [ln for ln in warned if ln.startswith(f"meshopt run: warning: {src}: ")]
+    assert all(ln.startswith("meshopt run: warning: ") for ln in warned), warned
     assert not [ln for ln in lines if ln.startswith("WARNING")], lines
     assert ".meshopt-staging" not in done.stderr + done.stdout
 

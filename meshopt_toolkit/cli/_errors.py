@@ -9,12 +9,14 @@ degenerate``) still says which file it is about. The failures of the machine and
 file system (out of memory, a floating-point trap, a full disk, an existing file, a null
 byte in a path) are one such line too; anything else is a bug, reported as
 ``internal error: FILE: TYPE: message`` (``--debug`` shows the traceback). Long user
-text (expressions, paths) is cut.
+text (expressions, paths) is cut. Log lines (warnings) take the same form
+(:class:`LogLine`): ``meshopt CMD: warning: …``.
 """
 
 from __future__ import annotations
 
 import errno
+import logging
 import re
 from collections.abc import Iterable
 from pathlib import Path
@@ -148,3 +150,16 @@ def error_line(exc: BaseException, args) -> str:
     kind, text = _cause(exc, args, files)
     text = naming(text, files, _values(args, SUBJECT_ARGS + OTHER_PATH_ARGS))
     return f"meshopt {args.command}: {kind}: {text}"
+
+
+class LogLine(logging.Formatter):
+    """Log records of a command as its other lines: ``meshopt CMD: warning: message``
+    (one line), not ``WARNING:...``."""
+
+    def __init__(self, command: str) -> None:
+        super().__init__()
+        self.command = command
+
+    def format(self, record: logging.LogRecord) -> str:
+        return f"meshopt {self.command}: {record.levelname.lower()}: " \
+               f"{_one_line(record.getMessage())}"
