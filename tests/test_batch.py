@@ -240,7 +240,7 @@ def test_missing_dask_is_one_line(meshes, capsys, monkeypatch):
     monkeypatch.setitem(sys.modules, "distributed", None)  # import fails
     assert main(["run", "p.json", "in", "-o", "o", "--scheduler", "tcp://127.0.0.1:1"]) == 1
     err = capsys.readouterr().err
-    assert err.strip() == ("meshopt run: error: a Dask cluster needs dask.distributed: "
+    assert err.strip() == ("meshopt run: error: p.json: a Dask cluster needs dask.distributed: "
                            "pip install 'meshopt-toolkit[dask]'")
 
 

@@ -193,16 +193,17 @@ def test_a_tet_mesh_moves_in_a_pipeline_with_its_file_kept(box, tmp_path):
 def test_a_meshlab_step_on_tets_is_refused_in_one_line(box, tmp_path, dry_run):
     rec = run_file({"filters": [SMOOTH]}, box, tmp_path, options=RunOptions(dry_run=dry_run))
     assert rec["status"] == "failed" and rec["outputs"] == []
-    assert rec["error"] == (f"step 1 ({SMOOTH['name']}): MeshLab filters work on "
-                            f"triangles; box has {load_cells(box).to_tet_mesh().n_tets:,} "
-                            "tetrahedra, which pymeshlab cannot hold")
+    assert rec["error"] == (f"step 1 ({SMOOTH['name']}): supports planar triangle meshes "
+                            "and triangle surfaces in 3D (pymeshlab holds triangles only); "
+                            "the current mesh is a tetrahedral mesh")
     assert not (tmp_path / "box.msh").exists()
 
 
 def test_face_quality_of_tets_is_refused(box, tmp_path):
     rec = run_file({"filters": [QUALITY]}, box, tmp_path)
     assert rec["status"] == "failed"
-    assert "needs a planar mesh; box has" in rec["error"] and "tetrahedra" in rec["error"]
+    assert rec["error"] == (f"step 1 ({QUALITY['name']}): supports planar triangle meshes "
+                            "and triangle surfaces in 3D; the current mesh is a tetrahedral mesh")
 
 
 @pytest.mark.parametrize("name", ["surface_move.json", "surface_move.mlx"])

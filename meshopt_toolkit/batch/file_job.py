@@ -8,8 +8,11 @@ files — in worker processes, on a Dask cluster, resumable — is :mod:`.run`
 
 from __future__ import annotations
 
+import contextlib
 import logging
+import threading
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -21,7 +24,47 @@ from .workers import RESTART_KEY
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["output_path", "run_file", "RunOptions"]
+__all__ = ["output_path", "run_file", "RunOptions", "kept_warnings"]
+
+#: the logger whose warnings a file's record keeps (the library's)
+LIBRARY_LOGGER = "meshopt_toolkit"
+_quiet_lock = threading.Lock()
+_quiet_count = 0
+
+
+class _Lines(logging.Handler):
+    """The warnings this thread logs, as plain one-line messages."""
+
+    def __init__(self) -> None:
+        super().__init__(logging.WARNING)
+        self.lines: list[str] = []
+        self._thread = threading.get_ident()
+
+    def emit(self, record: logging.LogRecord) -> None:
+        if record.thread == self._thread:
+            self.lines.append(" ".join(record.getMessage().split()))
+
+
+@contextlib.contextmanager
+def kept_warnings() -> Iterator[list[str]]:
+    """The library's log warnings while the block runs (in this thread), as the plain
+    lines of a list instead of log lines on stderr: a batch puts them in the file's
+    record, whose paths in the scratch folder the driver turns into the outputs'."""
+    global _quiet_count
+    handler = _Lines()
+    log = logging.getLogger(LIBRARY_LOGGER)
+    with _quiet_lock:
+        _quiet_count += 1
+        log.propagate = False  # not also printed "WARNING:...:" by the root logger
+        log.addHandler(handler)
+    try:
+        yield handler.lines
+    finally:
+        with _quiet_lock:
+            log.removeHandler(handler)
+            _quiet_count -= 1
+            if not _quiet_count:
+                log.propagate = True
 
 
 def output_path(src: Path, outdir: Path, ext: str | None) -> Path:
@@ -100,16 +143,27 @@ def run_file(pipeline: Pipeline | dict, src, outdir, *, ext: str | None = None,
     -------
     dict
         ``{"input", "status": "ok"|"failed", "outputs", "results", "warnings", "error",
-        "seconds"}``.
+        "seconds"}``; ``"warnings"``: one plain line each, the pipeline's and those the
+        library logs meanwhile (:func:`kept_warnings`).
     """
-    from ..pipeline.document import load_entry, save_entry
-
     if options is None:
         options = RunOptions(ext=ext, force=force, dry_run=dry_run)
     t0 = time.perf_counter()
     src = Path(src)
     record: dict = {"input": str(src), "status": "ok", "outputs": [], "results": [],
                     "warnings": [], "error": None}
+    with kept_warnings() as logged:  # the library's warnings, in the record
+        _run_into(record, pipeline, src, outdir, options, index, source)
+    record["warnings"] += logged
+    record["seconds"] = time.perf_counter() - t0
+    return record
+
+
+def _run_into(record: dict, pipeline, src: Path, outdir, options: RunOptions, index: int,
+              source: str | None) -> None:
+    """:func:`run_file`'s work: ``record`` filled in, errors included."""
+    from ..pipeline.document import load_entry, save_entry
+
     doc = None
     try:
         if isinstance(pipeline, dict):
@@ -144,5 +198,3 @@ def run_file(pipeline: Pipeline | dict, src, outdir, *, ext: str | None = None,
         record.update(status="failed", error=f"{src}: internal error: {type(exc).__name__}: {exc}")
     if doc is not None:
         record["warnings"] = list(doc.warnings)
-    record["seconds"] = time.perf_counter() - t0
-    return record

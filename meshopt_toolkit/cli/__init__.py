@@ -13,15 +13,13 @@ variants), so ``meshopt info`` and ``meshopt convert`` load neither scipy nor py
 gmsh nor matplotlib; ``build_parser()`` without a command builds every subcommand. Errors
 derived from :class:`~meshopt_toolkit.errors.MeshoptError` become one line on stderr and
 exit status 1 (2 for usage errors); ``--debug`` shows the traceback instead. So do the
-failures of the machine and of the file system (out of memory, a floating-point trap, a
-full disk, an existing file, a null byte in a path): one line naming the file and the
-cause. Long user text (expressions, paths) is cut in messages.
+failures of the machine and of the file system. Every such line names the file
+(:mod:`._errors`).
 """
 
 from __future__ import annotations
 
 import argparse
-import errno
 import importlib
 import logging
 import pkgutil
@@ -29,6 +27,7 @@ import sys
 
 from .. import __version__
 from ..errors import MeshoptError
+from ._errors import LogLine, error_line
 
 # the order in which subcommands are listed in --help
 _ORDER = ["optimize", "deform", "morph", "info", "convert", "run", "filters"]
@@ -90,7 +89,9 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser(_command_of(words))
     args = parser.parse_args(words)
     level = logging.WARNING - 10 * min(args.verbose, 2)
-    logging.basicConfig(level=level, format="%(levelname)s: %(message)s")
+    stderr = logging.StreamHandler()
+    stderr.setFormatter(LogLine(args.command or ""))
+    logging.basicConfig(level=level, handlers=[stderr])  # "meshopt CMD: warning: ..."
     if not getattr(args, "command", None):
         parser.print_help(sys.stderr)
         return 2
@@ -103,12 +104,8 @@ def main(argv: list[str] | None = None) -> int:
     except Exception as exc:
         if args.debug:
             raise
-        print(f"meshopt {args.command}: {_message(exc, args)}", file=sys.stderr)
+        print(error_line(exc, args), file=sys.stderr)
         return 1
-
-
-#: the longest error line printed (a safety net: messages cut user text themselves)
-MAX_MESSAGE = 1000
 
 
 def _refuse_null_bytes(words: list[str]) -> None:
@@ -118,54 +115,6 @@ def _refuse_null_bytes(words: list[str]) -> None:
     for word in words:
         if "\0" in word:
             raise MeshoptError(f"argument {quoted(word)} contains a null byte")
-
-
-def _files(args) -> str:
-    """The input files of the command, for messages that have no file of their own."""
-    names: list[str] = []
-    for key in ("mesh", "source", "target", "inputs"):
-        value = getattr(args, key, None)
-        if value:
-            names.extend([value] if isinstance(value, str) else value)
-    if not names:
-        return "the input"
-    return ", ".join(names[:3]) + (f" and {len(names) - 3} more" if len(names) > 3 else "")
-
-
-def _cut(name, limit: int = 200) -> str:
-    """A path (or a file descriptor) for a message, cut past ``limit`` characters."""
-    text = str(name)
-    return text if len(text) <= limit else f"{text[:limit]}… ({len(text)} chars)"
-
-
-def _message(exc: BaseException, args) -> str:
-    """One line: ``error: <file>: <cause>``, or ``internal error: ...`` for a bug."""
-    output = getattr(args, "output", None)
-    if isinstance(exc, MeshoptError):
-        text = f"error: {exc}"
-    elif isinstance(exc, MemoryError):
-        text = (f"error: out of memory while running 'meshopt {args.command}' on {_files(args)} "
-                "(try a smaller mesh, fewer frames or fewer jobs)")
-    elif isinstance(exc, FloatingPointError):
-        text = (f"error: {_files(args)}: floating-point error in the computation ({exc}); "
-                "the mesh or the options may be degenerate")
-    elif isinstance(exc, FileExistsError):
-        name = exc.filename or output or _files(args)
-        text = f"error: {_cut(name)}: exists (use --force to overwrite)"
-    elif isinstance(exc, OSError) and exc.errno == errno.ENOSPC:
-        name = exc.filename or output or _files(args)
-        text = f"error: {_cut(name)}: no space left on device (nothing was replaced)"
-    elif isinstance(exc, OSError) and exc.filename is not None:
-        text = f"error: {_cut(exc.filename)}: {exc.strerror or exc}"
-    elif isinstance(exc, ValueError) and "null" in str(exc) and "byte" in str(exc):
-        text = f"error: {_files(args)}: a path or expression contains a null byte"
-    else:  # an unexpected bug: still one line unless --debug
-        text = (f"internal error: {type(exc).__name__}: {exc} "
-                "(run with --debug for the traceback)")
-    text = text.replace("\r\n", " ").replace("\n", " ")  # one line
-    if len(text) > MAX_MESSAGE:
-        text = f"{text[:MAX_MESSAGE]}… ({len(text)} chars)"
-    return text
 
 
 def entry_point() -> None:  # pragma: no cover - thin wrapper for console scripts

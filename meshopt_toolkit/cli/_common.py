@@ -274,15 +274,35 @@ def check_output_target(out: Path, src: Path, frames: int | None, force: bool,
     check_output_dir(out, force=force)
 
 
+#: what a planar-only command says of the other cell kinds (:func:`load_workpiece`)
+_NOT_PLANAR = {"tetrahedra": "a tetrahedral mesh ({n:,} tetrahedra)",
+               "surface triangles": "a triangle surface in 3D (its points are not on one "
+                                    "plane)"}
+
+
 def load_workpiece(src: Path, what: str, *, unit_size: bool = True, cells=None):
     """The file's :class:`~meshopt_toolkit.io.workpiece.Workpiece` (every block, tag and
     datum kept; the plane's coordinates at unit size), its mesh checked admissible for
     ``what``. ``unit_size=False`` keeps the file's scale; ``cells``: the file's
-    :class:`~meshopt_toolkit.io.cells.CellMesh` when already read."""
+    :class:`~meshopt_toolkit.io.cells.CellMesh` when already read.
+
+    Raises
+    ------
+    InvalidMeshError
+        The file holds tetrahedra or a surface in 3D: ``"FILE: optimize supports planar
+        triangle meshes; this is a tetrahedral mesh (384 tetrahedra)"``.
+    """
+    from ..errors import InvalidMeshError
     from ..io import load_cells
     from ..io.workpiece import Workpiece
+    from ._info_cells import cell_kind
 
     cells = load_cells(src) if cells is None else cells
+    kind = cell_kind(cells)
+    if kind in _NOT_PLANAR:
+        n = sum(len(c) for t, c in cells.cells if t == "tetra")
+        raise InvalidMeshError(f"{src}: {what} supports planar triangle meshes; this is "
+                               + _NOT_PLANAR[kind].format(n=n))
     return Workpiece.from_cells(cells, unit_size=unit_size).admissible(what)
 
 

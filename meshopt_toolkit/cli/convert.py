@@ -148,8 +148,10 @@ def _convert_in_batch(src: Path, dst: Path, args) -> dict:
             "warnings": _dropped(cells)}
 
 
-def _usage(msg: str) -> int:
-    print(f"meshopt convert: error: {msg}", file=sys.stderr)
+def _usage(msg: str, args) -> int:
+    from ._errors import naming
+
+    print(f"meshopt convert: error: {naming(msg, args.inputs, [args.output])}", file=sys.stderr)
     return 2
 
 
@@ -163,7 +165,8 @@ def _plan(args) -> tuple[list[tuple[Path, Path]], list[str]] | int:
     if args.to:
         to = args.to.lower() if args.to.startswith(".") else "." + args.to.lower()
         if to not in writable:
-            return _usage(f"--to {args.to}: unknown format; choose from {', '.join(writable)}")
+            return _usage(f"--to {args.to}: unknown format; choose from "
+                          f"{', '.join(writable)}", args)
     inputs: list[Path] = []
     rel: dict[Path, Path] = {}  # input → output name relative to OUTPUT
     failures: list[str] = []
@@ -187,24 +190,24 @@ def _plan(args) -> tuple[list[tuple[Path, Path]], list[str]] | int:
     if not batch:
         if as_dir:
             if to is None:
-                return _usage(f"{out} is a directory: give --to EXT or an output file name")
+                return _usage(f"{out} is a directory: give --to EXT or an output file name", args)
             return ([(p, out / (p.stem + to)) for p in inputs], failures)
         ext = out.suffix.lower()
         if to is not None and ext != to:
-            return _usage(f"output {out} does not end in {to} given by --to")
+            return _usage(f"output {out} does not end in {to} given by --to", args)
         if ext not in writable:
             return _usage(f"output {out}: unknown format {ext or '(no extension)'!r}; "
-                          f"choose from {', '.join(writable)}")
+                          f"choose from {', '.join(writable)}", args)
         return ([(p, out) for p in inputs], failures)
     if to is None:
-        return _usage("several inputs: OUTPUT is a directory and --to EXT picks the format")
+        return _usage("several inputs: OUTPUT is a directory and --to EXT picks the format", args)
     if out.exists() and not out.is_dir():
-        return _usage(f"several inputs: OUTPUT {out} must be a directory, it is a file")
+        return _usage(f"several inputs: OUTPUT {out} must be a directory, it is a file", args)
     jobs = [(p, out / rel.get(p, Path()) / (p.stem + to)) for p in inputs]
     seen: dict[Path, Path] = {}
     for src, dst in jobs:
         if dst in seen:
-            return _usage(f"{src} and {seen[dst]} would both be written to {dst}")
+            return _usage(f"{src} and {seen[dst]} would both be written to {dst}", args)
         seen[dst] = src
     return jobs, failures
 
@@ -220,7 +223,7 @@ def run(args) -> int:
     if isinstance(plan, int):
         return plan
     jobs, failures = plan
-    for msg in failures:
+    for msg in failures:  # each names its item (expand_inputs)
         print(f"meshopt convert: error: {msg}", file=sys.stderr)
     if not jobs:
         return 1

@@ -21,6 +21,7 @@ def add_args(parser) -> None:
 
 def _meshlab_spec(name: str) -> dict:
     from ..pipeline import meshlab
+    from ..pipeline.runner import MESHLAB_KINDS
 
     reverse = {v: k for k, v in meshlab.keys_table().items()}
     return {
@@ -28,6 +29,7 @@ def _meshlab_spec(name: str) -> dict:
         "label": None,
         "description": f"MeshLab filter {reverse.get(name, name)!r}, run by pymeshlab",
         "origin": "pymeshlab",
+        "kinds": list(MESHLAB_KINDS),
         "unsafe": name in meshlab.UNSAFE_FILTERS,
         "parameters": [dict(p) for p in meshlab.parameter_list(name)],
     }
@@ -36,6 +38,8 @@ def _meshlab_spec(name: str) -> dict:
 def _describe(spec: dict) -> str:
     lines = [spec["name"] + (f"  [{spec['label']}]" if spec.get("label") else ""),
              f"  {spec['description']}", f"  origin: {spec['origin']}"]
+    if spec.get("kinds"):
+        lines.append(f"  meshes: {', '.join(spec['kinds'])}")
     if spec.get("aliases"):
         lines.append(f"  also: {', '.join(spec['aliases'])} (former names, still accepted)")
     if spec.get("unsafe"):

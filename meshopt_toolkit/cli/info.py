@@ -165,6 +165,7 @@ def _text(info: dict) -> str:
 
 def run(args) -> int:
     from ._common import expand_inputs
+    from ._errors import naming
     from ._info_cells import PLANAR, cells_text
 
     status = 0
@@ -173,14 +174,15 @@ def run(args) -> int:
         try:
             paths = expand_inputs([item], recursive=args.recursive)
         except MeshoptError as exc:
-            print(f"meshopt info: error: {exc}", file=sys.stderr)
+            print(f"meshopt info: error: {naming(str(exc), [item])}", file=sys.stderr)
             status = 1
             continue
         for path in paths:
             try:
                 info = mesh_info(path, args.merge_tolerance)
             except MeshoptError as exc:
-                print(f"meshopt info: error: {exc}", file=sys.stderr)
+                print(f"meshopt info: error: {naming(str(exc), [str(path)])}",
+                      file=sys.stderr)
                 status = 1
                 continue
             if args.json:

@@ -113,6 +113,7 @@ def run(args) -> int:
     from ..batch.run import Job, execute
     from ..batch.tasks import RunTask
     from ._common import expand_inputs
+    from ._errors import naming
 
     pipeline = load_pipeline(args.pipeline)  # errors here are fatal (one line, exit 1)
     pipeline.validate()
@@ -129,7 +130,7 @@ def run(args) -> int:
                     inputs.append(p)
         except MeshoptError as exc:
             errors.append(str(exc))
-            print(f"meshopt run: error: {exc}", file=sys.stderr)
+            print(f"meshopt run: error: {naming(str(exc), [item])}", file=sys.stderr)
     del seen
     for item in args.allow_read:
         if not Path(item).exists():
@@ -251,15 +252,17 @@ def batch_client(args):
 
 
 def reporter(command: str, as_json: bool, bar, line_ok=None, dry_run: bool = False):
-    """The per-record callback: warnings and errors on stderr, JSON lines on stdout (with
-    ``"dry_run": true`` in a dry run), and ``line_ok(record)`` on stdout for each file done
-    (``meshopt convert``'s "wrote ...", a dry run's "would write ...")."""
+    """The per-record callback: warnings and errors on stderr, each naming the input, JSON
+    lines on stdout (with ``"dry_run": true`` in a dry run), and ``line_ok(record)`` on
+    stdout for each file done (``meshopt convert``'s "wrote ...", a dry run's "would
+    write ...")."""
+    from ._errors import naming
 
     def report(rec: dict) -> None:
         for warning in rec.get("warnings") or ():
             bar.message(f"meshopt {command}: warning: {rec['input']}: {warning}")
         if rec["status"] == "failed":
-            bar.message(f"meshopt {command}: error: {rec['error']}")
+            bar.message(f"meshopt {command}: error: {naming(rec['error'], [rec['input']])}")
         elif rec["status"] == "ok" and line_ok is not None:
             bar.clear()
             print(line_ok(rec), flush=True)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from meshopt_toolkit.bounds import MAX_STEPS
 from meshopt_toolkit.errors import FilterError, OptionError
-from meshopt_toolkit.pipeline.filter import Filter, register
+from meshopt_toolkit.pipeline.filter import MESH_KINDS, Filter, register
 from meshopt_toolkit.pipeline.params import (BoolParam, FloatParam, IntParam, PathParam,
                                               StringParam)
 
@@ -39,6 +39,7 @@ class PrescribedMotion(Filter):
     #: the former name, still accepted in saved pipelines
     aliases = ("apply_prescribed_motion",)
     description = "Move handle vertices exactly to targets; the rest follows without inverting."
+    kinds = MESH_KINDS
     parameters = (
         PathParam("targets", "", "CSV 'index,x,y' ('index,x,y,z' in 3D) or .npy (k, 3|4) "
                   "handle targets", label="Targets"),

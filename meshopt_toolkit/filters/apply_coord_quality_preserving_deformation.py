@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from meshopt_toolkit.errors import FilterError
-from meshopt_toolkit.pipeline.filter import Filter, register
+from meshopt_toolkit.pipeline.filter import PLANAR, Filter, register
 from meshopt_toolkit.pipeline.params import FloatParam, NumberListParam, PathParam, number_list
 
 
@@ -31,6 +31,7 @@ class QualityPreservingDeformation(Filter):
     aliases = ("apply_quality_preserving_deformation",)
     renamed_parameters = {"beta": "penalty"}
     description = "Move the mesh along a complete-metric geodesic with a given initial velocity; never inverts."
+    kinds = (PLANAR,)
     parameters = (
         PathParam("displacement", "", "initial velocity: .npy/.csv (N, 2) array or a mesh with the same connectivity",
                   label="Displacement"),

@@ -5,7 +5,7 @@ from __future__ import annotations
 from meshopt_toolkit.expressions import DEFAULT_RHS
 from meshopt_toolkit.optimize import (DEFAULT_METHOD, DEFAULT_RETRACTION, DEFAULT_VARIANT, METHODS,
                                       RETRACTIONS, VARIANTS)
-from meshopt_toolkit.pipeline.filter import Filter, register
+from meshopt_toolkit.pipeline.filter import PLANAR, Filter, register
 from meshopt_toolkit.shape.preconditioners import DEFAULT_PRECONDITIONER, PRECONDITIONERS
 from meshopt_toolkit.pipeline.params import (
     BoolParam,
@@ -41,6 +41,7 @@ class ShapeOptimization(Filter):
     #: the former name, still accepted in saved pipelines
     aliases = ("compute_shape_optimization",)
     description = "Minimize the integral of the Poisson state plus a mesh-quality penalty, keeping the mesh admissible."
+    kinds = (PLANAR,)
     parameters = (
         EnumParam("variant", DEFAULT_VARIANT, "gradient metric and retraction",
                   label="Variant", choices=VARIANTS),

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from meshopt_toolkit.kernels.triangles import aspect_ratios, inverse_shape_quality, quality_summary
-from meshopt_toolkit.pipeline.filter import Filter, register
+from meshopt_toolkit.pipeline.filter import PLANAR, SURFACE, Filter, register
 from meshopt_toolkit.pipeline.params import EnumParam
 
 METRICS = ("inverse shape quality 1/psi", "aspect ratio 2r/R")
@@ -29,6 +29,7 @@ class ShapeQualityPerFace(Filter):
     name = "compute_scalar_by_shape_quality_per_face"
     label = "Per Face Shape Quality (meshopt)"
     description = "Shape quality 1/psi or aspect ratio 2r/R of each face into face quality, plus a summary."
+    kinds = (PLANAR, SURFACE)
     parameters = (
         EnumParam("metric", METRICS[0], "1/psi (>= 1, 1 is best) or 2r/R (<= 1, 1 is best)",
                   label="Metric", choices=METRICS),

@@ -5,7 +5,7 @@ from __future__ import annotations
 from meshopt_toolkit.bounds import MAX_FRAMES
 from meshopt_toolkit.errors import FilterError, MeshoptError
 from meshopt_toolkit.operations import STOP_RULES
-from meshopt_toolkit.pipeline.filter import Filter, register
+from meshopt_toolkit.pipeline.filter import PLANAR, SURFACE, Filter, register
 from meshopt_toolkit.pipeline.params import (BoolParam, EnumParam, FloatParam, IntParam,
                                              NumberListParam, number_list)
 
@@ -45,6 +45,7 @@ class GenerateGeodesicMorph(Filter):
     name = "generate_geodesic_morph"
     label = "Geodesic Morph (meshopt)"
     description = "Append the frames of an inversion-free geodesic morph from one mesh to another."
+    kinds = (PLANAR, SURFACE)
     parameters = (
         IntParam("source", 0, "document index of the source mesh (negative counts from the end)",
                  label="Source mesh"),

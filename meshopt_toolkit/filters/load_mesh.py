@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from meshopt_toolkit.errors import FilterError
-from meshopt_toolkit.pipeline.filter import Filter, register
+from meshopt_toolkit.pipeline.filter import MESH_KINDS, Filter, register
 from meshopt_toolkit.pipeline.params import PathParam
 
 
@@ -22,6 +22,7 @@ class LoadMesh(Filter):
     name = "load_mesh"
     label = "Load Mesh (meshopt)"
     description = "Read a mesh file into the document and make it current."
+    kinds = MESH_KINDS
     parameters = (
         PathParam("path", "mesh.msh", "mesh file to read ({stem}, {input_dir} expand); only "
                   "inputs and --allow-read paths", label="File"),
@@ -39,15 +40,20 @@ class LoadMesh(Filter):
         return p
 
     @classmethod
+    def kind_after(cls, kind, params):
+        """The file's kind is known once it is read (the steps after it are checked then)."""
+        return None
+
+    @classmethod
     def plan(cls, document, params, stats):
         """The path must be readable; in a dry run the mesh is read to know its size."""
         p = cls._path(document, params["path"])
         if not document.dry_run:
             return None  # measured after the step
-        from meshopt_toolkit.io import load
         from meshopt_toolkit.pipeline.budget import stats_of
+        from meshopt_toolkit.pipeline.document import load_entry
 
-        return stats_of(load(p))
+        return stats_of(load_entry(p).mesh)  # triangles, or tetrahedra
 
     def apply(self, document, *, path: str) -> dict:
         from meshopt_toolkit.pipeline.document import load_entry
@@ -55,4 +61,6 @@ class LoadMesh(Filter):
         p = self._path(document, path)
         entry = document.add(load_entry(p))  # with every block, tag and datum of the file
         mesh = entry.mesh
-        return {"loaded": str(p), "n_vertices": mesh.n_vertices, "n_triangles": mesh.n_triangles}
+        cells = {"n_tets": mesh.n_tets} if hasattr(mesh, "tets") else \
+            {"n_triangles": mesh.n_triangles}
+        return {"loaded": str(p), "n_vertices": mesh.n_vertices, **cells}

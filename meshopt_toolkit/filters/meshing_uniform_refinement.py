@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from meshopt_toolkit.pipeline.filter import Filter, register
+from meshopt_toolkit.pipeline.filter import PLANAR, SURFACE, Filter, register
 from meshopt_toolkit.pipeline.params import IntParam
 
 
@@ -46,6 +46,7 @@ class UniformRefinement(Filter):
     name = "meshing_uniform_refinement"
     label = "Uniform Refinement (meshopt)"
     description = "Split every triangle into four at its edge midpoints (repeated N times)."
+    kinds = (PLANAR, SURFACE)
     parameters = (
         IntParam("iterations", 1, "number of refinement rounds (each multiplies triangles by 4)",
                  label="Iterations", min=1, max=8),

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from meshopt_toolkit.errors import FilterError
-from meshopt_toolkit.pipeline.filter import Filter, register
+from meshopt_toolkit.pipeline.filter import MESH_KINDS, Filter, register
 from meshopt_toolkit.pipeline.params import BoolParam, EnumParam, PathParam
 
 #: file encodings: the format's default (binary where it has one), binary, text
@@ -35,6 +35,7 @@ class SaveMesh(Filter):
     name = "save_mesh"
     label = "Save Mesh (meshopt)"
     description = "Write the current mesh to a file in the output folder (atomic, never overwrites without --force)."
+    kinds = MESH_KINDS
     parameters = (
         PathParam("path", "{stem}.msh", "output file inside the output folder ({stem}, {name} "
                   "expand)", label="File", save=True),

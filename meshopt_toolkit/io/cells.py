@@ -383,6 +383,8 @@ def check_cells(cm: CellMesh) -> None:
     """
     where = f"{cm.source}: " if cm.source else ""
     pts = cm.points
+    if pts.size == 0:
+        raise ReadError(f"{where}has no nodes (no vertices)")
     if pts.ndim != 2 or pts.shape[1] not in (2, 3):
         raise ReadError(f"{where}points must have 2 or 3 coordinates, got shape {pts.shape}")
     with np.errstate(over="ignore", invalid="ignore"):

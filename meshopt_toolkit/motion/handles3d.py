@@ -13,22 +13,28 @@ from ..kernels.intersections3d import self_intersections
 
 def check_handles(handles, targets, n_vertices: int) -> tuple[np.ndarray, FloatArray]:
     """``(handles, targets)`` as arrays after the shape checks: a non-empty 1-D integer
-    array of vertex indices in range, and targets ``(k, 3)``.
+    array of vertex indices in range, and finite targets ``(k, 3)``.
 
     Raises
     ------
     InvalidMeshError
-        One line naming what is wrong.
+        One line naming what is wrong: the first bad entry by its position ``k`` in
+        ``handles`` (``handles[k] = 200 is out of range ...``), its vertex and target.
     """
     h = np.asarray(handles)
     tg = np.asarray(targets, dtype=float)
     if h.ndim != 1 or h.size == 0 or not np.issubdtype(h.dtype, np.integer):
         raise InvalidMeshError("handles must be a non-empty 1-D array of vertex indices")
-    if h.min() < 0 or h.max() >= n_vertices:
-        raise InvalidMeshError(
-            f"a handle index is out of range (the mesh has {n_vertices} vertices)")
+    bad = np.flatnonzero((h < 0) | (h >= n_vertices))
+    if bad.size:
+        raise InvalidMeshError(f"handles[{bad[0]}] = {h[bad[0]]} is out of range (the mesh "
+                               f"has {n_vertices} vertices, 0 to {n_vertices - 1})")
     if tg.shape != (h.size, 3):
         raise InvalidMeshError(f"targets must have shape ({h.size}, 3), got {tg.shape}")
+    bad = np.flatnonzero(~np.isfinite(tg).all(axis=1))
+    if bad.size:
+        raise InvalidMeshError(f"targets[{bad[0]}] (of vertex {h[bad[0]]}) is not finite: "
+                               f"{tg[bad[0]].tolist()}")
     return h.astype(np.int64), tg
 
 
@@ -38,13 +44,15 @@ def distinct_handles(handles: IntArray, targets: FloatArray) -> tuple[IntArray, 
     Raises
     ------
     InvalidMeshError
-        A vertex is a handle twice with different targets.
+        A vertex is a handle twice with different targets (the vertex named).
     """
     order = np.argsort(handles, kind="stable")
     hs, ts = handles[order], targets[order]
     same = hs[1:] == hs[:-1]
-    if (same & np.any(ts[1:] != ts[:-1], axis=1)).any():
-        raise InvalidMeshError("a vertex is a handle twice with different targets")
+    clash = np.flatnonzero(same & np.any(ts[1:] != ts[:-1], axis=1))
+    if clash.size:
+        raise InvalidMeshError(f"vertex {hs[clash[0]]} is a handle twice with different "
+                               "targets")
     keep = np.concatenate([[True], ~same])
     return hs[keep], ts[keep]
 

@@ -52,23 +52,38 @@ def _boundary(mesh) -> IntArray:
     return np.unique(kind.boundary_facets(points, cells))
 
 
-def read_target_table(path: str | Path, dim: int = 2) -> tuple[IntArray, FloatArray]:
+def read_target_table(path: str | Path, dim: int = 2, n_vertices: int | None = None
+                      ) -> tuple[IntArray, FloatArray]:
     """Handles and targets from a CSV (``index,x,y``) or ``.npy`` (k, 3) file; with
-    ``dim=3`` rows ``index,x,y,z`` or (k, 4)."""
+    ``dim=3`` rows ``index,x,y,z`` or (k, 4).
+
+    With ``n_vertices`` every row is checked against the mesh: its index in range, its
+    target finite, no vertex given two different targets; the message names the file
+    and the row (``line 3`` of a CSV file, counted as an editor does; ``row 2`` of an
+    array, from 0).
+
+    Raises
+    ------
+    ReadError
+        The file cannot be read as such a table, or a row is refused (above).
+    """
     path = Path(path)
     if not path.is_file():
         raise ReadError(f"{path}: not a regular file")
     if path.stat().st_size > MAX_TABLE_BYTES:
         raise ReadError(f"{path}: larger than {MAX_TABLE_BYTES // 2**20} MiB")
+    lines = None  # the CSV line of each row
     try:
         if path.suffix.lower() == ".npy":
             table = np.load(path, allow_pickle=False)
         else:
             text = path.read_text(encoding="utf-8").splitlines()
-            rows = [ln for ln in text if ln.strip() and not ln.lstrip().startswith("#")]
-            if rows and not _is_number(rows[0].split(",")[0]):
+            rows = [(k, ln) for k, ln in enumerate(text, start=1)
+                    if ln.strip() and not ln.lstrip().startswith("#")]
+            if rows and not _is_number(rows[0][1].split(",")[0]):
                 rows = rows[1:]  # header
-            table = np.array([[float(v) for v in ln.split(",")] for ln in rows], dtype=float)
+            lines = [k for k, _ in rows]
+            table = np.array([[float(v) for v in ln.split(",")] for _, ln in rows], dtype=float)
     except (ValueError, OSError) as exc:
         raise ReadError(f"{path}: cannot read targets: {exc}") from None
     table = np.asarray(table, dtype=float)
@@ -78,7 +93,35 @@ def read_target_table(path: str | Path, dim: int = 2) -> tuple[IntArray, FloatAr
     index = table[:, 0]
     if not np.all(np.isfinite(index)) or np.any(index != np.round(index)):
         raise ReadError(f"{path}: the first column must hold vertex indices (integers)")
+    if n_vertices is not None:
+        def row(k: int) -> str:
+            return f"row {k}" if lines is None else f"line {lines[k]}"
+
+        _check_rows(path, index, table[:, 1:], n_vertices, row)
     return index.astype(np.int64), table[:, 1:]
+
+
+def _check_rows(path: Path, index: FloatArray, targets: FloatArray, n_vertices: int,
+                row) -> None:
+    """The rows of a target table against a mesh of ``n_vertices``; ``row(k)`` names
+    the k-th row in a message."""
+    bad = np.flatnonzero((index < 0) | (index >= n_vertices))
+    if bad.size:
+        k = int(bad[0])
+        raise ReadError(f"{path}: {row(k)}: vertex index {int(index[k])} is out of range "
+                        f"(the mesh has {n_vertices} vertices, 0 to {n_vertices - 1})")
+    bad = np.flatnonzero(~np.isfinite(targets).all(axis=1))
+    if bad.size:
+        k = int(bad[0])
+        raise ReadError(f"{path}: {row(k)}: the target of vertex {int(index[k])} is not "
+                        f"finite: {targets[k].tolist()}")
+    order = np.argsort(index, kind="stable")
+    same = index[order][1:] == index[order][:-1]
+    clash = np.flatnonzero(same & np.any(targets[order][1:] != targets[order][:-1], axis=1))
+    if clash.size:
+        first, second = sorted((int(order[clash[0]]), int(order[clash[0] + 1])))
+        raise ReadError(f"{path}: {row(first)} and {row(second)} give vertex "
+                        f"{int(index[first])} different targets")
 
 
 def _is_number(text: str) -> bool:
@@ -287,7 +330,7 @@ def handles_of(mesh: PlanarMesh | TetMesh, *, targets: str | Path | None = None,
         With ``targets``: leave the unlisted boundary vertices free.
     """
     if targets is not None:
-        handles, positions = read_target_table(targets, _dim(mesh))
+        handles, positions = read_target_table(targets, _dim(mesh), mesh.n_vertices)
         return (handles, positions) if free_boundary else fix_boundary(mesh, handles, positions)
     if mapping is None:
         raise ExpressionError(f"give a target table or a map '{_MAP[_dim(mesh)]}'")

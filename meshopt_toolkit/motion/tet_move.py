@@ -106,10 +106,7 @@ def _check(points, tets, handles, targets) -> tuple[FloatArray, IntArray, IntArr
     if not (vol > 0).all():
         raise InvalidMeshError(f"{int(np.sum(~(vol > 0)))} tets are not positively oriented "
                                f"(first: tet {int(np.flatnonzero(~(vol > 0))[0])})")
-    h, t = check_handles(handles, targets, len(P))
-    if not np.isfinite(t).all():
-        raise InvalidMeshError("the targets are not all finite")
-    h, t = distinct_handles(h, t)
+    h, t = distinct_handles(*check_handles(handles, targets, len(P)))
     return P, T.astype(np.int64), h, t
 
 
@@ -347,7 +344,8 @@ def move_tet_mesh(mesh: TetMesh, handles, targets, *, frames: int | None = None,
     mesh.require_admissible()
     if progress is not None:
         progress(0.0)
-    h, tg = check_handles(handles, targets, mesh.n_vertices)
+    # each handle once, in the file's numbering (a clash names the file's vertex)
+    h, tg = distinct_handles(*check_handles(handles, targets, mesh.n_vertices))
     # vertices in no tet (a file may hold some) are left out of the solve and stay put
     solved = SolvedVertices(mesh.points, mesh.tets, h, tg)
     res = move_tets(solved.points, solved.cells, solved.handles, solved.targets, steps=steps,

@@ -14,7 +14,18 @@ Running a pipeline over many files is :mod:`meshopt_toolkit.batch`.
 from __future__ import annotations
 
 from .document import Document, MeshEntry
-from .filter import ENTRY_POINT_GROUP, Filter, FilterRegistry, PluginWarning, register, registry
+from .filter import (
+    ENTRY_POINT_GROUP,
+    MESH_KINDS,
+    PLANAR,
+    SURFACE,
+    TETS,
+    Filter,
+    FilterRegistry,
+    PluginWarning,
+    register,
+    registry,
+)
 from .formats import load_pipeline, save_pipeline
 from .params import (
     BoolParam,
@@ -31,6 +42,7 @@ from .runner import Pipeline, Step, make_step
 
 __all__ = [
     "Filter", "FilterRegistry", "PluginWarning", "registry", "register", "ENTRY_POINT_GROUP",
+    "MESH_KINDS", "PLANAR", "SURFACE", "TETS",
     "Param", "BoolParam", "IntParam", "FloatParam", "EnumParam", "StringParam", "PathParam",
     "LengthParam", "Length",
     "Document", "MeshEntry",

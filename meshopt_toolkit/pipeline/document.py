@@ -50,9 +50,28 @@ if TYPE_CHECKING:  # pragma: no cover
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["MeshEntry", "Document", "load_entry", "save_entry"]
+__all__ = ["MeshEntry", "Document", "load_entry", "save_entry", "kind_of", "KIND_NAMES",
+           "MESH_KINDS", "PLANAR", "SURFACE", "TETS"]
 
 _SPECIAL = ("quality", "color", "selected")
+
+#: the kinds of current mesh a step may take (:attr:`~.filter.Filter.kinds`): planar
+#: triangles (on any one plane), a triangle surface in 3D, tetrahedra (the names of the
+#: cell kinds of ``meshopt info``)
+PLANAR, SURFACE, TETS = "planar triangles", "surface triangles", "tetrahedra"
+MESH_KINDS = (PLANAR, SURFACE, TETS)
+#: each kind of mesh in words
+KIND_NAMES = {PLANAR: "a planar triangle mesh", SURFACE: "a triangle surface in 3D",
+              TETS: "a tetrahedral mesh"}
+
+
+def kind_of(mesh) -> str:
+    """The kind of a document's mesh (:data:`MESH_KINDS`): :data:`TETS` for a
+    :class:`TetMesh`, :data:`PLANAR` for triangles on one plane (any plane: what
+    :meth:`MeshEntry.workpiece` takes), else :data:`SURFACE`."""
+    if isinstance(mesh, TetMesh):
+        return TETS
+    return PLANAR if mesh.is_planar else SURFACE
 
 
 @dataclass

@@ -12,6 +12,7 @@ A filter is a small class::
         parameters = (IntParam("times", 2, "how often", min=1),)
         aliases = ("refine_twice",)             # old names, still accepted (optional)
         renamed_parameters = {"n": "times"}    # old parameter names (optional)
+        kinds = (PLANAR, SURFACE)              # the meshes it takes (default: all)
 
         def apply(self, document, *, times):
             ...
@@ -37,6 +38,7 @@ import warnings
 from typing import TYPE_CHECKING, Any, ClassVar, Iterator
 
 from ..errors import FilterError
+from .document import MESH_KINDS, PLANAR, SURFACE, TETS
 from .params import Param, did_you_mean
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -45,7 +47,8 @@ if TYPE_CHECKING:  # pragma: no cover
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["Filter", "FilterRegistry", "PluginWarning", "registry", "register", "ENTRY_POINT_GROUP"]
+__all__ = ["Filter", "FilterRegistry", "PluginWarning", "registry", "register", "ENTRY_POINT_GROUP",
+           "PLANAR", "SURFACE", "TETS", "MESH_KINDS"]
 
 ENTRY_POINT_GROUP = "meshopt_toolkit.filters"
 _NAME_RE = re.compile(r"^[a-z][a-z0-9_]*$")
@@ -75,6 +78,16 @@ class Filter:
     former_parameters: ClassVar[dict[str, str]] = {}
     #: where the filter comes from: "builtin" or the plugin's distribution name
     origin: ClassVar[str] = "builtin"
+    #: the kinds of current mesh the filter takes (of :data:`MESH_KINDS`); a pipeline
+    #: checks every step against them before it runs any (and ``--dry-run`` reports it)
+    kinds: ClassVar[tuple[str, ...]] = MESH_KINDS
+
+    @classmethod
+    def kind_after(cls, kind: str, params: dict[str, Any]) -> str | None:
+        """The kind of the current mesh after this step, given its kind before and the
+        step's validated ``params``; None when only running the step tells (a file it
+        loads). The default: the kind does not change."""
+        return kind
 
     def apply(self, document: "Document", **params: Any) -> dict | None:
         """Run on ``document`` (mutating it); return a JSON-able summary dict or None."""
@@ -155,6 +168,7 @@ class Filter:
             "label": cls.label,
             "description": cls.description,
             "origin": cls.origin,
+            "kinds": list(cls.kinds),
             "aliases": list(cls.aliases),
             "former_parameters": {**cls.renamed_parameters, **cls.former_parameters},
             "parameters": [p.spec() for p in cls.parameters],
@@ -172,6 +186,9 @@ def _check_filter_class(obj: Any, where: str) -> type[Filter]:
         raise FilterError(f"{where}: filter name {obj.name!r} is not snake_case")
     if not obj.label or not obj.description:
         raise FilterError(f"{where}: filter {obj.name!r} needs a label and a description")
+    if not obj.kinds or not set(obj.kinds) <= set(MESH_KINDS):
+        raise FilterError(f"{where}: filter {obj.name!r}: kinds must be some of "
+                          f"{', '.join(MESH_KINDS)}, got {obj.kinds!r}")
     names = [p.name for p in obj.parameters]
     if len(set(names)) != len(names):
         raise FilterError(f"{where}: filter {obj.name!r} has duplicate parameter names")

@@ -15,6 +15,10 @@ A pipeline is untrusted input; running one is confined by its :class:`Document`:
 - MeshLab steps that invert triangles of a planar mesh that was admissible fail (or warn
   with ``document.allow_inverted``) (:mod:`.orientation`).
 
+Before any step runs, and again before each step with the mesh as it is then, every
+step left is checked to take the kind of mesh it will get (planar, a surface in 3D,
+tetrahedra: :meth:`Pipeline.check_kinds`, from the filters' declared ``kinds``).
+
 :meth:`Pipeline.check` does all of it without running a filter (``--dry-run``). Errors
 name the step, counted from 1: ``step 2 (apply_coord_laplacian_smoothing): ...``.
 Reading and writing pipeline files is :mod:`.files`.
@@ -29,7 +33,7 @@ from typing import Any, Callable, Iterator
 
 from ..errors import FilterError, MeshoptError
 from .budget import check_budget, check_measured, estimate_meshlab, stats_of, stats_of_arrays
-from .document import Document
+from .document import KIND_NAMES, PLANAR, SURFACE, TETS, Document, kind_of
 from .filter import registry
 from .limits import check_name, check_step_count
 from .orientation import admissible_normal, count_inverted
@@ -48,6 +52,10 @@ __all__ = ["Step", "Pipeline", "make_step", "MESHOPT", "MESHLAB"]
 
 MESHOPT = "meshopt"
 MESHLAB = "meshlab"
+#: the kinds of mesh a MeshLab step takes (pymeshlab holds triangles); it keeps the kind
+MESHLAB_KINDS = (PLANAR, SURFACE)
+_PLURAL = {PLANAR: "planar triangle meshes", SURFACE: "triangle surfaces in 3D",
+           TETS: "tetrahedral meshes"}
 
 
 @dataclass
@@ -220,6 +228,33 @@ class Pipeline:
                     out.append(dict(s.params))
         return out
 
+    def check_kinds(self, document: Document, validated: list[dict], start: int = 0) -> None:
+        """Check that each step from ``start`` on takes the kind of mesh it will get: the
+        kind of the document's current mesh, changed only by steps that say so
+        (:attr:`Filter.kinds`, :meth:`Filter.kind_after`; a MeshLab step takes triangles
+        and keeps the kind). Nothing runs; the chain stops at a step whose result is
+        known only once it runs (a file it loads), and without a current mesh.
+
+        Raises
+        ------
+        FilterError
+            ``"PIPELINE: step 2 (apply_coord_shape_optimization): supports planar
+            triangle meshes; the current mesh is a tetrahedral mesh"``.
+        """
+        kind = kind_of(document.mesh) if document.entries else None
+        for i in range(start, len(self.steps)):
+            if kind is None:
+                return
+            s, vals = self.steps[i], validated[i]
+            kinds = s.filter.kinds if s.kind == MESHOPT else MESHLAB_KINDS
+            if kind not in kinds:
+                why = "" if s.kind == MESHOPT else " (pymeshlab holds triangles only)"
+                with self._at(i, s):
+                    raise FilterError(f"supports {' and '.join(_PLURAL[k] for k in kinds)}"
+                                      f"{why}; the current mesh is {KIND_NAMES[kind]}")
+            if s.kind == MESHOPT:
+                kind = s.filter.kind_after(kind, vals)
+
     def _resolved(self, document: Document, s: Step, vals: dict) -> dict:
         """``vals`` with every file path expanded and confined (:class:`ResolvedPath`)."""
         out = dict(vals)
@@ -247,6 +282,7 @@ class Pipeline:
             The validated parameters per step.
         """
         validated = self.validate()
+        self.check_kinds(document, validated)
         stats = stats_of(document.mesh) if document.entries else None
         basis = "" if stats is None else f"the input's {stats.n_triangles:,} triangles"
         for i, (s, vals) in enumerate(zip(self.steps, validated)):
@@ -275,12 +311,15 @@ class Pipeline:
         Raises
         ------
         MeshoptError
-            The first failing step, named (from 1) with its filter; over budget, a path
-            outside what is allowed, or inverted triangles after a MeshLab step.
+            The first failing step, named (from 1) with its filter; a step that does not
+            take the kind of mesh it would get (before any step runs), over budget, a
+            path outside what is allowed, or inverted triangles after a MeshLab step.
         """
         validated = self.validate()
         ms = None
         for i, (s, vals) in enumerate(zip(self.steps, validated)):
+            if ms is None:  # the steps left, before any work (the mesh as it is now)
+                self.check_kinds(document, validated, i)
             if callback is not None:
                 callback(i, s)
             with self._at(i, s):
