@@ -391,3 +391,56 @@ def amg_pcg_solve(A, ml, rtol: float, maxiter: int = 500) -> Solve:
         return x
 
     return solve
+
+
+def factorize_saddle(M: sp.spmatrix) -> Solve:
+    """SuperLU factorization of a nonsingular symmetric indefinite matrix (a saddle-point
+    system such as Stokes'), returned as its ``solve``.
+
+    Raises
+    ------
+    RuntimeError
+        Where ``M`` is exactly singular.
+    """
+    from scipy.sparse.linalg import splu
+
+    return splu(sp.csc_matrix(M), permc_spec="COLAMD").solve
+
+
+def minres_block_solve(M: sp.spmatrix, n_primal: int, primal_ml, dual_diagonal: FloatArray,
+                       rtol: float, maxiter: int = 1000) -> Solve:
+    """``b ↦ x`` for a symmetric saddle-point matrix ``M = [[A, Bᵀ], [B, 0]]`` by MINRES
+    with the block-diagonal preconditioner ``diag(V-cycle of A, D⁻¹)``: ``primal_ml`` a
+    pyamg hierarchy of ``A`` (the first ``n_primal`` unknowns), ``D`` ``dual_diagonal``
+    a positive diagonal spectrally equivalent to the Schur complement (for Stokes the
+    lumped pressure mass over the viscosity).
+
+    Raises
+    ------
+    MeshoptError
+        When MINRES does not reach ``rtol`` within ``maxiter`` iterations.
+    """
+    import inspect
+
+    from scipy.sparse.linalg import LinearOperator, minres
+
+    inv_d = 1.0 / np.asarray(dual_diagonal, dtype=float)
+
+    def precondition(r: FloatArray) -> FloatArray:
+        z = np.empty_like(r)
+        x = np.zeros(n_primal)
+        _v_cycle(primal_ml, 0, x, r[:n_primal])
+        z[:n_primal] = x
+        z[n_primal:] = inv_d * r[n_primal:]
+        return z
+
+    P = LinearOperator(M.shape, matvec=precondition, dtype=float)
+    key = "rtol" if "rtol" in inspect.signature(minres).parameters else "tol"
+
+    def solve(b: FloatArray) -> FloatArray:
+        x, info = minres(M, b, M=P, maxiter=maxiter, **{key: rtol})
+        if info != 0 or not np.all(np.isfinite(x)):
+            raise MeshoptError(f"block-preconditioned MINRES did not converge (info {info})")
+        return x
+
+    return solve

@@ -192,7 +192,7 @@ class LagrangeSpace:
 
     def gradients(self, geo: Geometry) -> FloatArray:
         """Physical basis gradients ``(T, Q, nb, d)`` at the quadrature points."""
-        return np.einsum("qbk,tkd->tqbd", self.reference[1], geo.grads)
+        return np.matmul(self.reference[1][None], geo.grads[:, None])
 
     def interpolate(self, points: FloatArray, f) -> FloatArray:
         """Nodal interpolant of ``f: (M, d) → (M, …)`` at the space's nodes."""
