@@ -3,7 +3,8 @@
 Every sparse symmetric positive definite solve of the library goes through here: the P1
 Poisson solver (:class:`.fem.PoissonSolver`), the elasticity metric
 (:func:`.elasticity.factorize`), as-rigid-as-possible interpolation, and the motion
-package's path and continuation systems. Factorize once, reuse the returned solve.
+package's path and continuation systems; the Stokes saddle-point systems by SuperLU or
+block-preconditioned MINRES. Factorize once, reuse the returned solve.
 """
 
 from __future__ import annotations
