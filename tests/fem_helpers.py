@@ -30,14 +30,6 @@ def box_mesh(d: int, n: int, jitter: float = 0.0, seed: int = 0, lengths=None):
     return P, T, boundary
 
 
-def boundary_facets(cells: np.ndarray) -> np.ndarray:
-    """The facets ``(F, d)`` held by one cell (unoriented)."""
-    m = cells.shape[1]
-    f = np.sort(np.concatenate([np.delete(cells, k, axis=1) for k in range(m)]), axis=1)
-    u, c = np.unique(f, axis=0, return_counts=True)
-    return u[c == 1]
-
-
 def random_direction(P: np.ndarray, seed: int = 1) -> np.ndarray:
     """A random displacement of every node, scaled to the mesh size."""
     return np.random.default_rng(seed).standard_normal(P.shape) / np.sqrt(len(P))

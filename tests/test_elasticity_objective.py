@@ -7,7 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fem_helpers import box_mesh, boundary_facets, random_direction
+from fem_helpers import box_mesh, random_direction
+from meshopt_toolkit.fem.simplex import all_boundary_facets as boundary_facets
 from meshopt_toolkit.diagnostics import check_gradient
 from meshopt_toolkit.errors import MeshoptError
 from meshopt_toolkit.fem.linear_elasticity import ComplianceObjective

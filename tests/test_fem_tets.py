@@ -59,7 +59,7 @@ def test_p2_stiffness_integrates_quadratics_exactly(d):
 @pytest.mark.parametrize("d", [2, 3])
 def test_oriented_facets_point_outward(d):
     P, T, _ = box_mesh(d, 2)
-    from fem_helpers import boundary_facets
+    from meshopt_toolkit.fem.simplex import all_boundary_facets as boundary_facets
     F = oriented_facets(P, T, boundary_facets(T)[:, ::-1])
     N = facet_normals(P, F)
     # the divergence theorem: Σ N_F = 0, Σ x_F · N_F = d |Ω| with |Ω| = 1

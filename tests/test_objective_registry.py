@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fem_helpers import box_mesh, boundary_facets
+from fem_helpers import box_mesh
+from meshopt_toolkit.fem.simplex import all_boundary_facets as boundary_facets
 from meshopt_toolkit.errors import OptionError
 from meshopt_toolkit.fem.linear_elasticity import ComplianceObjective
 from meshopt_toolkit.fem.poisson import PoissonObjective

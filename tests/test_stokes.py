@@ -10,7 +10,8 @@ import pytest
 from fem_helpers import box_mesh, random_direction
 from meshopt_toolkit.diagnostics import check_gradient
 from meshopt_toolkit.errors import MeshoptError
-from meshopt_toolkit.fem.stokes import StokesDissipation, all_boundary_facets
+from meshopt_toolkit.fem.simplex import all_boundary_facets
+from meshopt_toolkit.fem.stokes import StokesDissipation
 
 skfem = pytest.importorskip("skfem")
 

@@ -30,7 +30,7 @@ from .._typing import FloatArray, IntArray
 from ..errors import MeshoptError
 from .p1 import PoissonSolver
 from .simplex import (Geometry, LagrangeSpace, assemble, facet_normal_gradient, facet_normals,
-                      geometry, node_gradient, oriented_facets)
+                      geometry, node_gradient, oriented_facets, same_configuration)
 
 __all__ = ["ComplianceObjective", "elastic_lame", "facet_weights", "strain_energy_tensor",
            "vector_dofs", "vector_stiffness"]
@@ -159,9 +159,8 @@ class ComplianceObjective:
         return assemble(dofs, dofs, vector_stiffness(self.space, geo, self.lam, self.mu), (n, n))
 
     def _state(self, Q) -> _State:
-        c = self._cache
-        if c is not None and np.shape(Q) == c.Q.shape and np.array_equal(Q, c.Q):
-            return c
+        if same_configuration(self._cache, Q):
+            return self._cache
         Q = np.array(Q, dtype=float)
         geo = geometry(Q, self.cells)
         b = self.load(Q).ravel()

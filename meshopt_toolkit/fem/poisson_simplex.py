@@ -28,7 +28,7 @@ from .._typing import FloatArray, IntArray
 from ..errors import ExpressionError, MeshoptError
 from ..expressions import parse_expression
 from .p1 import PoissonSolver
-from .simplex import Geometry, assemble, geometry, node_gradient
+from .simplex import Geometry, assemble, geometry, node_gradient, same_configuration
 
 __all__ = ["SimplexPoisson", "data_function", "p1_matrices", "poisson_node_gradient"]
 
@@ -154,9 +154,8 @@ class SimplexPoisson:
         self._cache: _State | None = None
 
     def _state(self, Q) -> _State:
-        c = self._cache
-        if c is not None and np.shape(Q) == c.Q.shape and np.array_equal(Q, c.Q):
-            return c
+        if same_configuration(self._cache, Q):
+            return self._cache
         Q = np.array(Q, dtype=float)
         geo, K, m = p1_matrices(Q, self.cells)
         solver = PoissonSolver(K, self.dirichlet, method=self.solver, rtol=self.rtol)

@@ -30,7 +30,7 @@ from ..errors import InvalidMeshError, NotAdmissibleError
 
 __all__ = ["QUADRATURE", "Geometry", "LagrangeSpace", "assemble", "geometry",
            "local_edges", "node_gradient", "oriented_facets", "facet_normals",
-           "facet_normal_gradient"]
+           "facet_normal_gradient", "same_configuration", "all_boundary_facets"]
 
 #: degree-2 rules per dimension: barycentric points ``(Q, d+1)`` and weights (sum 1)
 _A3 = (5.0 + 3.0 * math.sqrt(5.0)) / 20.0
@@ -199,6 +199,12 @@ class LagrangeSpace:
         return np.asarray(f(self.dof_points(points)), dtype=float)
 
 
+def same_configuration(state, Q) -> bool:
+    """Whether a cached ``state`` (with the positions ``.Q`` it was computed at, or None)
+    holds for ``Q``: the objectives' one-configuration cache."""
+    return state is not None and np.shape(Q) == state.Q.shape and np.array_equal(Q, state.Q)
+
+
 def assemble(rows: IntArray, cols: IntArray, local: FloatArray, shape: tuple[int, int]
              ) -> sp.csr_matrix:
     """Sparse matrix ``Σ_K`` of local matrices ``(T, a, b)`` at rows ``(T, a)`` and columns
@@ -214,6 +220,14 @@ def node_gradient(S: FloatArray, geo: Geometry, cells: IntArray, n: int) -> Floa
     per = np.einsum("tij,taj->tai", S, geo.grads)
     return np.stack([np.bincount(cells.ravel(), weights=per[..., i].ravel(), minlength=n)
                      for i in range(S.shape[1])], axis=1)
+
+
+def all_boundary_facets(cells: IntArray) -> IntArray:
+    """The facets ``(F, d)`` held by exactly one cell, sorted vertex indices."""
+    m = cells.shape[1]
+    f = np.sort(np.concatenate([np.delete(cells, k, axis=1) for k in range(m)]), axis=1)
+    u, c = np.unique(f, axis=0, return_counts=True)
+    return u[c == 1]
 
 
 def oriented_facets(points: FloatArray, cells: IntArray, facets: IntArray) -> IntArray:

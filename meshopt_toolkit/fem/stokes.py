@@ -29,20 +29,13 @@ from .._typing import FloatArray, IntArray
 from ..errors import MeshoptError
 from ..solvers import choose_method, factorize_saddle, import_pyamg, minres_block_solve
 from .linear_elasticity import strain_energy_tensor, vector_dofs, vector_stiffness
-from .simplex import Geometry, LagrangeSpace, assemble, geometry, node_gradient
+from .simplex import (Geometry, LagrangeSpace, all_boundary_facets, assemble, geometry,
+                      node_gradient, same_configuration)
 
-__all__ = ["StokesDissipation", "all_boundary_facets"]
+__all__ = ["StokesDissipation"]
 
 #: ``solver="auto"`` uses MINRES with AMG from this many unknowns, SuperLU below
 STOKES_AMG_THRESHOLD = 200_000
-
-
-def all_boundary_facets(cells: IntArray) -> IntArray:
-    """The facets ``(F, d)`` held by exactly one cell, sorted vertex indices."""
-    m = cells.shape[1]
-    f = np.sort(np.concatenate([np.delete(cells, k, axis=1) for k in range(m)]), axis=1)
-    u, c = np.unique(f, axis=0, return_counts=True)
-    return u[c == 1]
 
 
 @dataclass
@@ -136,27 +129,24 @@ class StokesDissipation:
         Bf = B[keep_p][:, free_v]
         M = sp.bmat([[Aff, Bf.T], [Bf, None]], format="csr")
         rhs = -np.concatenate([(A @ g)[free_v], (B @ g)[keep_p]])
+        mass = np.bincount(self.cells.ravel(), minlength=n_p,  # lumped P1 pressure mass
+                           weights=np.repeat(geo.volumes / (self.dim + 1), self.dim + 1))
         if self.method == "direct":
             x = factorize_saddle(M)(rhs)
         else:
             ml = import_pyamg().smoothed_aggregation_solver(Aff.tocsr())
-            mass = np.bincount(self.cells.ravel(), minlength=n_p,
-                               weights=np.repeat(geo.volumes / (self.dim + 1), self.dim + 1))
             x = minres_block_solve(M, len(free_v), ml, mass[keep_p] / self.mu, self.rtol)(rhs)
         u = g.copy()
         u[free_v] = x[:len(free_v)]
         p = np.zeros(n_p)
         p[keep_p] = x[len(free_v):]
         if self.fix_pressure:
-            mass = np.bincount(self.cells.ravel(), minlength=n_p,
-                               weights=np.repeat(geo.volumes / (self.dim + 1), self.dim + 1))
             p -= (mass @ p) / mass.sum()
         return u, p, A
 
     def _state(self, Q) -> _State:
-        c = self._cache
-        if c is not None and np.shape(Q) == c.Q.shape and np.array_equal(Q, c.Q):
-            return c
+        if same_configuration(self._cache, Q):
+            return self._cache
         Q = np.array(Q, dtype=float)
         geo = geometry(Q, self.cells)
         u, p, A = self._solve(Q, geo)

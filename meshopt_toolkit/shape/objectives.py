@@ -145,7 +145,8 @@ def compliance(mesh, *, clamped, tractions: Mapping, E: float = 1.0, nu: float =
 def dissipation(mesh, *, velocities: Mapping, mu: float = 1.0, solver: str = "auto"):
     """:class:`~meshopt_toolkit.fem.stokes.StokesDissipation`: ``u`` = the given vector on
     each group of ``velocities``, ``u = 0`` on the rest of the boundary."""
-    from ..fem.stokes import StokesDissipation, all_boundary_facets
+    from ..fem.simplex import all_boundary_facets
+    from ..fem.stokes import StokesDissipation
 
     points, cells = _arrays(mesh)
     d = points.shape[1]
