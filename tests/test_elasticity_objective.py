@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings, strategies as st
 
 from fem_helpers import box_mesh, random_direction
 from meshopt_toolkit.fem.simplex import all_boundary_facets as boundary_facets
@@ -84,6 +85,20 @@ def test_compliance_derivative_taylor(d, degree):
     P, T, j, _ = bar(d, degree)
     res = check_gradient(j.value, j.derivative, P, random_direction(P), eps0=1e-2)
     assert abs(res.order - 2) < 0.1, res
+
+
+@settings(max_examples=8, deadline=None)
+@given(seed=st.integers(0, 2**16), d=st.sampled_from([2, 3]), degree=st.sampled_from([1, 2]))
+def test_derivative_of_a_translation_vanishes(seed, d, degree):
+    # translating the body changes neither u nor J: Σ_a dJ/dx_a = 0 on any mesh
+    P, T, _ = box_mesh(d, 2, jitter=0.5, seed=seed, lengths=[2] + [1] * (d - 1))
+    F = boundary_facets(T)
+    X = P[F][..., 0]
+    j = ComplianceObjective(P, T, F[np.all(X < 1e-12, axis=1)],
+                            [(F[np.all(X > 2 - 1e-12, axis=1)], np.eye(d))], degree=degree,
+                            solver="direct")
+    g = j.derivative(P)
+    np.testing.assert_allclose(g.sum(axis=0), 0, atol=1e-11 * np.abs(g).max())
 
 
 def test_refuses_a_floating_body_and_bad_stress():
