@@ -3,7 +3,7 @@ plane and tetrahedra in space behind one interface (the dimension is that of the
 
 A cell ``K = (x_0, …, x_d)`` has edge rows ``E = (x_1 − x_0, …, x_d − x_0)`` ``(d, d)``,
 signed volume ``det E / d!`` and barycentric gradients ``∇λ_k = (E⁻¹)_{:,k}`` (k ≥ 1),
-``∇λ_0 = −Σ_k ∇λ_k``. P2 adds one node per edge (basis ``4 λ_i λ_j``; vertex basis
+``∇λ_0 = −Σ_k ∇λ_k`` (from their owners in :mod:`~meshopt_toolkit.kernels`). P2 adds one node per edge (basis ``4 λ_i λ_j``; vertex basis
 ``λ_i (2 λ_i − 1)``). Every form here has polynomial integrands of degree ≤ 2 on each
 cell, integrated exactly by the degree-2 rules of :data:`QUADRATURE`.
 
@@ -27,6 +27,9 @@ import scipy.sparse as sp
 
 from .._typing import FloatArray, IntArray
 from ..errors import InvalidMeshError, NotAdmissibleError
+from ..kernels.cell_maps import barycentric_gradients
+from ..kernels.tetrahedra import signed_volumes
+from ..kernels.triangles import signed_areas
 
 __all__ = ["QUADRATURE", "Geometry", "LagrangeSpace", "assemble", "geometry",
            "local_edges", "node_gradient", "oriented_facets", "facet_normals",
@@ -74,29 +77,27 @@ class Geometry:
         return self.grads.shape[2]
 
 
-def geometry(points: FloatArray, cells: IntArray, require_positive: bool = True) -> Geometry:
+def geometry(points: FloatArray, cells: IntArray) -> Geometry:
     """Barycentric gradients and signed volumes of every simplex.
 
     Parameters
     ----------
     points : (N, d) node positions, d = 2 or 3
     cells : (T, d+1) vertex indices
-    require_positive : raise :class:`NotAdmissibleError` on a cell of volume ≤ 0
+
+    Raises
+    ------
+    NotAdmissibleError
+        A cell of volume ≤ 0.
     """
     points = np.asarray(points, dtype=float)
     cells = np.asarray(cells)
     d = _check_cells(points, cells)
-    x = points[cells]
-    E = x[:, 1:] - x[:, :1]  # (T, d, d) rows x_k − x_0
-    det = np.linalg.det(E)
-    if require_positive and not np.all(det > 0):
-        bad = int(np.flatnonzero(~(det > 0))[0])
-        raise NotAdmissibleError(f"cell {bad} has signed volume {det[bad] / math.factorial(d):.3e}")
-    inv = np.linalg.inv(E)  # (E⁻¹)_{:,k} = ∇λ_k
-    g = np.empty((len(cells), d + 1, d))
-    g[:, 1:] = inv.transpose(0, 2, 1)
-    g[:, 0] = -g[:, 1:].sum(axis=1)
-    return Geometry(g, det / math.factorial(d))
+    volumes = signed_areas(points, cells) if d == 2 else signed_volumes(points, cells)
+    if not np.all(volumes > 0):
+        bad = int(np.flatnonzero(~(volumes > 0))[0])
+        raise NotAdmissibleError(f"cell {bad} has signed volume {volumes[bad]:.3e}")
+    return Geometry(barycentric_gradients(points[cells]), volumes)
 
 
 def _p2_barycentric_derivatives(lam: FloatArray) -> FloatArray:
