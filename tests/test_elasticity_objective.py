@@ -19,7 +19,7 @@ skfem = pytest.importorskip("skfem")
 CASES = [(2, 1), (2, 2), (3, 1), (3, 2)]
 
 
-def bar(d, degree, n=3, jitter=0.3, top_load=True):
+def bar(d, degree, n=3, jitter=0.3, top_load=True, solver="direct"):
     """A bar [0, 2] × [0, 1]^(d-1) clamped at x = 0, pulled and sheared at x = 2, pressed
     on y = 1."""
     P, T, _ = box_mesh(d, n, jitter=jitter, lengths=[2] + [1] * (d - 1))
@@ -33,7 +33,7 @@ def bar(d, degree, n=3, jitter=0.3, top_load=True):
     if top_load:
         loads.append((F[np.all(X[..., 1] > 1 - 1e-12, axis=1)], press))
     j = ComplianceObjective(P, T, F[np.all(X[..., 0] < 1e-12, axis=1)], loads, E=2.0, nu=0.3,
-                            degree=degree, solver="direct")
+                            degree=degree, solver=solver, rtol=1e-12)
     return P, T, j, s
 
 
@@ -99,6 +99,20 @@ def test_derivative_of_a_translation_vanishes(seed, d, degree):
                             solver="direct")
     g = j.derivative(P)
     np.testing.assert_allclose(g.sum(axis=0), 0, atol=1e-11 * np.abs(g).max())
+
+
+@pytest.mark.parametrize("d, degree", CASES)
+def test_rigid_modes_span_the_kernel_and_amg_agrees(d, degree):
+    from meshopt_toolkit.fem.elasticity import rigid_modes
+
+    P, T, direct, _ = bar(d, degree)
+    B = rigid_modes(direct.space.dof_points(P))
+    assert B.shape[1] == (3 if d == 2 else 6)
+    K = direct.stiffness(P)
+    assert abs(K @ B).max() < 1e-12 * abs(K).max()
+    _, _, iterative, _ = bar(d, degree, solver="amg")
+    np.testing.assert_allclose(iterative.displacement(P), direct.displacement(P),
+                               atol=1e-8 * np.abs(direct.displacement(P)).max())
 
 
 def test_refuses_a_floating_body_and_bad_stress():

@@ -28,6 +28,7 @@ import numpy as np
 
 from .._typing import FloatArray, IntArray
 from ..errors import MeshoptError
+from .elasticity import factorize, solver_method
 from .p1 import PoissonSolver
 from .simplex import (Geometry, LagrangeSpace, assemble, facet_normal_gradient, facet_normals,
                       geometry, node_gradient, oriented_facets, same_configuration)
@@ -106,8 +107,10 @@ class ComplianceObjective:
     tractions : sequence of ``(facets (F, d), stress (d, d))``: ``t = σ_g n`` on the facets
     E, nu : Young's modulus and Poisson ratio (plane stress in 2D)
     degree : 1 or 2
-    solver : ``"auto"``, ``"direct"`` or ``"amg"`` (:class:`~.p1.PoissonSolver` on the
-        clamped-reduced SPD system)
+    solver : ``"auto"``, ``"direct"`` (CHOLMOD on the clamped-reduced SPD system) or
+        ``"amg"`` (CG preconditioned by smoothed aggregation with the rigid modes,
+        :func:`~.elasticity.factorize`); ``"auto"`` as the elasticity metric
+        (:func:`~.elasticity.solver_method`)
 
     Notes
     -----
@@ -125,7 +128,9 @@ class ComplianceObjective:
         clamped = np.asarray(clamped, dtype=np.int64).reshape(-1, self.dim)
         if not len(clamped):
             raise MeshoptError("elasticity needs clamped facets (the body floats otherwise)")
-        self.clamped = vector_dofs(np.unique(self.space.facet_dofs(clamped)), self.dim).ravel()
+        fixed = np.unique(self.space.facet_dofs(clamped))
+        self.clamped = vector_dofs(fixed, self.dim).ravel()
+        self._free_nodes = np.setdiff1d(np.arange(self.space.n_dofs), fixed)
         facets, stresses = [], []
         for f, s in tractions:
             f = oriented_facets(points, self.cells, np.asarray(f, dtype=np.int64))
@@ -164,9 +169,14 @@ class ComplianceObjective:
         Q = np.array(Q, dtype=float)
         geo = geometry(Q, self.cells)
         b = self.load(Q).ravel()
-        solver = PoissonSolver(self.stiffness(Q, geo), self.clamped, method=self.solver,
-                               rtol=self.rtol)
-        u = solver.solve(b)
+        K = self.stiffness(Q, geo)
+        if solver_method(self.solver, K.shape[0]) == "direct":
+            u = PoissonSolver(K, self.clamped, method="direct").solve(b)
+        else:  # smoothed aggregation with the rigid modes (the elasticity metric's AMG)
+            free = vector_dofs(self._free_nodes[:, None], self.dim).ravel()
+            points = self.space.dof_points(Q)[self._free_nodes]
+            u = np.zeros_like(b)
+            u[free] = factorize(K[free][:, free], points, "amg", self.rtol).solve(b[free])
         self._cache = _State(Q, geo, u.reshape(-1, self.dim), float(b @ u))
         return self._cache
 
