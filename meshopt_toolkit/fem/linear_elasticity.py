@@ -3,7 +3,8 @@ loads per boundary group and the compliance objective with its exact node deriva
 
 Vector dofs are interleaved: component ``c`` of scalar node ``i`` is dof ``d i + c``. The
 bilinear form is ``a(u, v) = ∫ σ(u) : ε(v)``, ``σ(u) = 2μ ε(u) + λ tr ε(u) I``; in 2D
-``λ = Eν/(1 − ν²)`` (plane stress), in 3D ``λ = Eν/((1 + ν)(1 − 2ν))``, ``μ = E/(2(1 + ν))``.
+``λ = Eν/(1 − ν²)`` (plane stress), in 3D ``λ = Eν/((1 + ν)(1 − 2ν))``,
+``μ = E/(2(1 + ν))``.
 A traction group is a set of boundary facets with a stress tensor ``σ_g``: the load is
 ``∫_F (σ_g n)·v``, i.e. ``b_{a} = ω_a σ_g N_F`` with ``N_F = n |F|`` and the facet
 weights ``ω_a = ∫_F φ_a / |F|`` (P1: ``1/d``; P2 on an edge ``(1/6, 1/6, 2/3)``, on a
@@ -65,7 +66,7 @@ def vector_stiffness(space: LagrangeSpace, geo: Geometry, lam: float, mu: float)
     t, nq, nb, d = g.shape
     gf = g.reshape(t, nq, nb * d)
     scale = space.reference[2][None, :, None] * geo.volumes[:, None, None]
-    # A[t, a, i, b, j] = |K| Σ_q w_q ∂_i φ_a ∂_j φ_b (batched products, not einsum: 10× faster)
+    # A[t, a, i, b, j] = |K| Σ_q w_q ∂_i φ_a ∂_j φ_b (batched products: einsum is far slower)
     A = np.matmul((gf * scale).transpose(0, 2, 1), gf).reshape(t, nb, d, nb, d)
     K = lam * A + mu * A.transpose(0, 1, 4, 3, 2)
     trace = np.einsum("taibi->tab", A)
@@ -136,7 +137,8 @@ class ComplianceObjective:
             f = oriented_facets(points, self.cells, np.asarray(f, dtype=np.int64))
             s = np.asarray(s, dtype=float)
             if s.shape != (self.dim, self.dim) or not np.isfinite(s).all():
-                raise MeshoptError(f"a traction stress must be a finite {self.dim}×{self.dim} tensor")
+                raise MeshoptError(
+                    f"a traction stress must be a finite {self.dim}×{self.dim} tensor")
             facets.append(f)
             stresses.append(np.broadcast_to(s, (len(f), self.dim, self.dim)))
         self.facets = np.concatenate(facets) if facets else np.zeros((0, self.dim), np.int64)

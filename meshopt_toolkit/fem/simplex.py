@@ -3,8 +3,8 @@ plane and tetrahedra in space behind one interface (the dimension is that of the
 
 A cell ``K = (x_0, …, x_d)`` has edge rows ``E = (x_1 − x_0, …, x_d − x_0)`` ``(d, d)``,
 signed volume ``det E / d!`` and barycentric gradients ``∇λ_k = (E⁻¹)_{:,k}`` (k ≥ 1),
-``∇λ_0 = −Σ_k ∇λ_k`` (from their owners in :mod:`~meshopt_toolkit.kernels`). P2 adds one node per edge (basis ``4 λ_i λ_j``; vertex basis
-``λ_i (2 λ_i − 1)``). Every form here has polynomial integrands of degree ≤ 2 on each
+``∇λ_0 = −Σ_k ∇λ_k`` (from their owners in :mod:`~meshopt_toolkit.kernels`). P2 adds
+one node per edge (basis ``4 λ_i λ_j``; vertex basis ``λ_i (2 λ_i − 1)``). Every form here has polynomial integrands of degree ≤ 2 on each
 cell, integrated exactly by the degree-2 rules of :data:`QUADRATURE`.
 
 Shape derivatives use the volume form. Moving the nodes by a P1 field ``V`` changes a
@@ -116,8 +116,8 @@ def _p2_barycentric_derivatives(lam: FloatArray) -> FloatArray:
 def _p2_values(lam: FloatArray) -> FloatArray:
     """The P2 basis ``(Q, nb)`` at barycentric points ``(Q, d+1)``."""
     edges = local_edges(lam.shape[1] - 1)
-    return np.concatenate([lam * (2.0 * lam - 1.0), 4.0 * lam[:, edges[:, 0]] * lam[:, edges[:, 1]]],
-                          axis=1)
+    on_edges = 4.0 * lam[:, edges[:, 0]] * lam[:, edges[:, 1]]
+    return np.concatenate([lam * (2.0 * lam - 1.0), on_edges], axis=1)
 
 
 class LagrangeSpace:
@@ -188,7 +188,8 @@ class LagrangeSpace:
         at the degree-2 rule's points."""
         lam, w = QUADRATURE[self.dim]
         if self.degree == 1:
-            return lam, np.broadcast_to(np.eye(self.dim + 1), (len(w),) + (self.dim + 1,) * 2), w, lam
+            identity = np.broadcast_to(np.eye(self.dim + 1), (len(w),) + (self.dim + 1,) * 2)
+            return lam, identity, w, lam
         return _p2_values(lam), _p2_barycentric_derivatives(lam), w, lam
 
     def gradients(self, geo: Geometry) -> FloatArray:
@@ -264,7 +265,8 @@ def oriented_facets(points: FloatArray, cells: IntArray, facets: IntArray) -> In
 
 def facet_normals(points: FloatArray, facets: IntArray) -> FloatArray:
     """Area-weighted normals ``N_F = n |F|`` ``(F, d)``: for an edge ``(a, b)``
-    ``R (b − a)`` with ``R (t_x, t_y) = (t_y, −t_x)``; for a triangle ``½ (b−a)×(c−a)``."""
+    ``R (b − a)`` with ``R (t_x, t_y) = (t_y, −t_x)``; for a triangle
+    ``½ (b−a)×(c−a)``."""
     x = np.asarray(points, dtype=float)[facets]
     if facets.shape[1] == 2:
         t = x[:, 1] - x[:, 0]

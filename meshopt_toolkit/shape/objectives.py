@@ -70,7 +70,8 @@ def make_objective(name: str, mesh, **parameters):
     """
     entry = OBJECTIVE_REGISTRY.get(name)
     if entry is None:
-        raise OptionError(f"unknown objective {name!r}; known: {', '.join(sorted(OBJECTIVE_REGISTRY))}")
+        known = ", ".join(sorted(OBJECTIVE_REGISTRY))
+        raise OptionError(f"unknown objective {name!r}; known: {known}")
     dim = _arrays(mesh)[0].shape[1]
     if dim not in entry.dims:
         raise OptionError(f"objective {name!r} needs a mesh in {entry.dims} dimensions, not {dim}")
@@ -100,10 +101,11 @@ def _poisson(mesh, rhs, dirichlet, neumann, tracking, solver):
                           dirichlet_values=lift[nodes], tracking=tracking, solver=solver)
 
 
-@register_objective("integral", (2, 3), "∫y, −Δy = r, y = 0 on the boundary but Dirichlet groups")
+@register_objective("integral", (2, 3), "∫y, −Δy = r, y = 0 on the boundary but on groups")
 def integral(mesh, *, rhs="default", dirichlet: Mapping | None = None,
              neumann: Mapping | None = None, solver: str = "auto"):
-    """``∫ y`` (:mod:`~meshopt_toolkit.fem.poisson`, :mod:`~meshopt_toolkit.fem.poisson_simplex`)."""
+    """``∫ y`` (:mod:`~meshopt_toolkit.fem.poisson`,
+    :mod:`~meshopt_toolkit.fem.poisson_simplex`)."""
     return _poisson(mesh, rhs, dirichlet, neumann, None, solver)
 
 
@@ -141,7 +143,7 @@ def compliance(mesh, *, clamped, tractions: Mapping, E: float = 1.0, nu: float =
                                solver=solver)
 
 
-@register_objective("dissipation", (2, 3), "∫2μ|ε(u)|² of Stokes flow (the drag of moved bodies)")
+@register_objective("dissipation", (2, 3), "∫2μ|ε(u)|² of Stokes flow (moved bodies' drag)")
 def dissipation(mesh, *, velocities: Mapping, mu: float = 1.0, solver: str = "auto"):
     """:class:`~meshopt_toolkit.fem.stokes.StokesDissipation`: ``u`` = the given vector on
     each group of ``velocities``, ``u = 0`` on the rest of the boundary."""
@@ -153,7 +155,8 @@ def dissipation(mesh, *, velocities: Mapping, mu: float = 1.0, solver: str = "au
     groups = [(group_facets(mesh, g), np.asarray(v, dtype=float)) for g, v in velocities.items()]
     walls = all_boundary_facets(cells)
     if groups:
-        listed = {tuple(f) for f in np.sort(np.concatenate([g[0] for g in groups]), axis=1).tolist()}
+        listed = np.sort(np.concatenate([g[0] for g in groups]), axis=1)
+        listed = {tuple(f) for f in listed.tolist()}
         walls = walls[np.array([tuple(f) not in listed for f in walls.tolist()], dtype=bool)]
     return StokesDissipation(points, cells, [(walls, np.zeros(d))] + groups, mu=mu,
                              solver=solver)
