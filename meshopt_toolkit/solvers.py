@@ -3,8 +3,8 @@
 Every sparse symmetric positive definite solve of the library goes through here: the P1
 Poisson solver (:class:`.fem.PoissonSolver`), the elasticity metric
 (:func:`.elasticity.factorize`), as-rigid-as-possible interpolation, and the motion
-package's path and continuation systems; the Stokes saddle-point systems by SuperLU or
-block-preconditioned MINRES. Factorize once, reuse the returned solve.
+package's path and continuation systems; the Stokes saddle-point systems by CG on the
+Schur complement over a factor of the velocity block, or block-preconditioned MINRES. Factorize once, reuse the returned solve.
 """
 
 from __future__ import annotations
@@ -394,18 +394,38 @@ def amg_pcg_solve(A, ml, rtol: float, maxiter: int = 500) -> Solve:
     return solve
 
 
-def factorize_saddle(M: sp.spmatrix) -> Solve:
-    """SuperLU factorization of a nonsingular symmetric indefinite matrix (a saddle-point
-    system such as Stokes'), returned as its ``solve``.
+def schur_complement_solve(primal_solve: Solve, B: sp.spmatrix, dual_diagonal: FloatArray,
+                           rtol: float, maxiter: int = 1000) -> Solve:
+    """``b ↦ x`` for a saddle-point matrix ``[[A, Bᵀ], [B, 0]]`` with ``A`` SPD and ``B`` of
+    full row rank: :func:`pcg` on the Schur complement ``S = B A⁻¹ Bᵀ`` preconditioned by
+    ``D⁻¹`` (``dual_diagonal``, spectrally equivalent to ``S``: for Stokes the lumped
+    pressure mass over the viscosity), each product one solve with ``A``'s factor
+    ``primal_solve`` (:func:`factorize_spd`); then ``u = A⁻¹(f − Bᵀp)``.
 
     Raises
     ------
-    RuntimeError
-        Where ``M`` is exactly singular.
+    MeshoptError
+        When CG does not reach ``rtol`` within ``maxiter`` iterations.
     """
-    from scipy.sparse.linalg import splu
+    from scipy.sparse.linalg import LinearOperator
 
-    return splu(sp.csc_matrix(M), permc_spec="COLAMD").solve
+    B = sp.csr_matrix(B)
+    n_dual, n_primal = B.shape
+    BT = B.T.tocsr()
+    S = LinearOperator((n_dual, n_dual), matvec=lambda q: B @ primal_solve(BT @ q), dtype=float)
+    inv_d = 1.0 / np.asarray(dual_diagonal, dtype=float)
+
+    def solve(b: FloatArray) -> FloatArray:
+        f, g = b[:n_primal], b[n_primal:]
+        p, iterations, residual = pcg(S, B @ primal_solve(f) - g, lambda r: inv_d * r, rtol,
+                                      maxiter)
+        if residual > rtol:
+            raise MeshoptError(f"CG on the Schur complement did not converge: relative "
+                               f"residual {residual:.2e} > {rtol:.1e} after {iterations} "
+                               f"iterations")
+        return np.concatenate([primal_solve(f - BT @ p), p])
+
+    return solve
 
 
 def minres_block_solve(M: sp.spmatrix, n_primal: int, primal_ml, dual_diagonal: FloatArray,

@@ -27,14 +27,16 @@ import scipy.sparse as sp
 
 from .._typing import FloatArray, IntArray
 from ..errors import MeshoptError
-from ..solvers import choose_method, factorize_saddle, import_pyamg, minres_block_solve
+from ..solvers import (choose_method, factorize_spd, import_pyamg, minres_block_solve,
+                       schur_complement_solve)
 from .linear_elasticity import strain_energy_tensor, vector_dofs, vector_stiffness
 from .simplex import (Geometry, LagrangeSpace, all_boundary_facets, assemble, geometry,
                       node_gradient, same_configuration)
 
 __all__ = ["StokesDissipation"]
 
-#: ``solver="auto"`` uses MINRES with AMG from this many unknowns, SuperLU below
+#: ``solver="auto"`` uses MINRES with AMG from this many unknowns, the velocity block's
+#: factor and CG on the Schur complement below
 STOKES_AMG_THRESHOLD = 200_000
 
 
@@ -58,9 +60,11 @@ class StokesDissipation:
         nodes, a constant ``(d,)`` vector or a callable ``(M, d) → (M, d)`` of the nodes'
         current positions (a later group wins at shared nodes)
     mu : viscosity
-    solver : ``"direct"`` (SuperLU on the saddle-point system), ``"amg"`` (MINRES with a
-        V-cycle on the velocity block and the lumped pressure mass) or ``"auto"``
-    rtol : relative residual of MINRES
+    solver : ``"direct"`` (CHOLMOD's factor of the velocity block, CG on the pressure's
+        Schur complement preconditioned by the lumped pressure mass), ``"amg"`` (MINRES
+        with a V-cycle on the velocity block and the lumped pressure mass) or ``"auto"``
+        (direct below :data:`STOKES_AMG_THRESHOLD` unknowns)
+    rtol : relative residual of CG on the Schur complement or of MINRES
 
     Notes
     -----
@@ -127,14 +131,15 @@ class StokesDissipation:
         keep_p = np.arange(1 if self.fix_pressure else 0, n_p)
         Aff = A[free_v][:, free_v]
         Bf = B[keep_p][:, free_v]
-        M = sp.bmat([[Aff, Bf.T], [Bf, None]], format="csr")
         rhs = -np.concatenate([(A @ g)[free_v], (B @ g)[keep_p]])
         mass = np.bincount(self.cells.ravel(), minlength=n_p,  # lumped P1 pressure mass
                            weights=np.repeat(geo.volumes / (self.dim + 1), self.dim + 1))
         if self.method == "direct":
-            x = factorize_saddle(M)(rhs)
+            x = schur_complement_solve(factorize_spd(Aff), Bf, mass[keep_p] / self.mu,
+                                       self.rtol)(rhs)
         else:
             ml = import_pyamg().smoothed_aggregation_solver(Aff.tocsr())
+            M = sp.bmat([[Aff, Bf.T], [Bf, None]], format="csr")
             x = minres_block_solve(M, len(free_v), ml, mass[keep_p] / self.mu, self.rtol)(rhs)
         u = g.copy()
         u[free_v] = x[:len(free_v)]
