@@ -29,8 +29,7 @@ import numpy as np
 
 from .._typing import FloatArray, IntArray
 from ..errors import MeshoptError
-from .elasticity import factorize, solver_method
-from .p1 import PoissonSolver
+from .elasticity import factorize
 from .simplex import (Geometry, LagrangeSpace, assemble, facet_normal_gradient, facet_normals,
                       geometry, node_gradient, oriented_facets, same_configuration)
 
@@ -108,10 +107,9 @@ class ComplianceObjective:
     tractions : sequence of ``(facets (F, d), stress (d, d))``: ``t = σ_g n`` on the facets
     E, nu : Young's modulus and Poisson ratio (plane stress in 2D)
     degree : 1 or 2
-    solver : ``"auto"``, ``"direct"`` (CHOLMOD on the clamped-reduced SPD system) or
-        ``"amg"`` (CG preconditioned by smoothed aggregation with the rigid modes,
-        :func:`~.elasticity.factorize`); ``"auto"`` as the elasticity metric
-        (:func:`~.elasticity.solver_method`)
+    solver : ``"auto"``, ``"direct"`` (CHOLMOD on the clamped-reduced SPD system, nested
+        dissection ordering) or ``"amg"`` (CG preconditioned by smoothed aggregation with
+        the rigid modes): :func:`~.elasticity.factorize`, the elasticity metric's solvers
 
     Notes
     -----
@@ -172,13 +170,12 @@ class ComplianceObjective:
         geo = geometry(Q, self.cells)
         b = self.load(Q).ravel()
         K = self.stiffness(Q, geo)
-        if solver_method(self.solver, K.shape[0]) == "direct":
-            u = PoissonSolver(K, self.clamped, method="direct").solve(b)
-        else:  # smoothed aggregation with the rigid modes (the elasticity metric's AMG)
-            free = vector_dofs(self._free_nodes[:, None], self.dim).ravel()
-            points = self.space.dof_points(Q)[self._free_nodes]
-            u = np.zeros_like(b)
-            u[free] = factorize(K[free][:, free], points, "amg", self.rtol).solve(b[free])
+        # the elasticity metric's solvers: CHOLMOD on a geometric nested-dissection
+        # ordering, or CG preconditioned by smoothed aggregation with the rigid modes
+        free = vector_dofs(self._free_nodes[:, None], self.dim).ravel()
+        points = self.space.dof_points(Q)[self._free_nodes]
+        u = np.zeros_like(b)
+        u[free] = factorize(K[free][:, free], points, self.solver, self.rtol).solve(b[free])
         self._cache = _State(Q, geo, u.reshape(-1, self.dim), float(b @ u))
         return self._cache
 
