@@ -28,7 +28,7 @@ import scipy.sparse as sp
 from .._typing import FloatArray, IntArray
 from ..errors import MeshoptError
 from ..solvers import (choose_method, factorize_spd, import_pyamg, minres_block_solve,
-                       schur_complement_solve)
+                       nested_dissection, schur_complement_solve)
 from .linear_elasticity import strain_energy_tensor, vector_dofs, vector_stiffness
 from .simplex import (Geometry, LagrangeSpace, all_boundary_facets, assemble, geometry,
                       node_gradient, same_configuration)
@@ -60,8 +60,9 @@ class StokesDissipation:
         nodes, a constant ``(d,)`` vector or a callable ``(M, d) → (M, d)`` of the nodes'
         current positions (a later group wins at shared nodes)
     mu : viscosity
-    solver : ``"direct"`` (CHOLMOD's factor of the velocity block, CG on the pressure's
-        Schur complement preconditioned by the lumped pressure mass), ``"amg"`` (MINRES
+    solver : ``"direct"`` (CHOLMOD's factor of the velocity block on a nested-dissection
+        ordering, CG on the pressure's Schur complement preconditioned by the lumped
+        pressure mass), ``"amg"`` (MINRES
         with a V-cycle on the velocity block and the lumped pressure mass) or ``"auto"``
         (direct below :data:`STOKES_AMG_THRESHOLD` unknowns)
     rtol : relative residual of CG on the Schur complement or of MINRES
@@ -135,7 +136,9 @@ class StokesDissipation:
         mass = np.bincount(self.cells.ravel(), minlength=n_p,  # lumped P1 pressure mass
                            weights=np.repeat(geo.volumes / (self.dim + 1), self.dim + 1))
         if self.method == "direct":
-            x = schur_complement_solve(factorize_spd(Aff), Bf, mass[keep_p] / self.mu,
+            nodes = np.unique(free_v // self.dim)  # whole nodes: Dirichlet fixes all components
+            order = nested_dissection(self.space.dof_points(Q)[nodes], Aff, block=self.dim)
+            x = schur_complement_solve(factorize_spd(Aff, order), Bf, mass[keep_p] / self.mu,
                                        self.rtol)(rhs)
         else:
             ml = import_pyamg().smoothed_aggregation_solver(Aff.tocsr())
