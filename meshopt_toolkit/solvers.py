@@ -3,7 +3,8 @@
 Every sparse symmetric positive definite solve of the library goes through here: the P1
 Poisson solver (:class:`.fem.PoissonSolver`), the elasticity metric
 (:func:`.elasticity.factorize`), as-rigid-as-possible interpolation, and the motion
-package's path and continuation systems. Factorize once, reuse the returned solve.
+package's path and continuation systems; the Stokes saddle-point systems by CG on the
+Schur complement over a factor of the velocity block, or block-preconditioned MINRES. Factorize once, reuse the returned solve.
 """
 
 from __future__ import annotations
@@ -388,6 +389,79 @@ def amg_pcg_solve(A, ml, rtol: float, maxiter: int = 500) -> Solve:
             raise MeshoptError(f"AMG-preconditioned CG did not converge: relative residual "
                                f"{residual:.2e} > {rtol:.1e} after {iterations} iterations")
         logger.debug("AMG-PCG: %d iterations, relative residual %.2e", iterations, residual)
+        return x
+
+    return solve
+
+
+def schur_complement_solve(primal_solve: Solve, B: sp.spmatrix, dual_diagonal: FloatArray,
+                           rtol: float, maxiter: int = 1000) -> Solve:
+    """``b ↦ x`` for a saddle-point matrix ``[[A, Bᵀ], [B, 0]]`` with ``A`` SPD and ``B`` of
+    full row rank: :func:`pcg` on the Schur complement ``S = B A⁻¹ Bᵀ`` preconditioned by
+    ``D⁻¹`` (``dual_diagonal``, spectrally equivalent to ``S``: for Stokes the lumped
+    pressure mass over the viscosity), each product one solve with ``A``'s factor
+    ``primal_solve`` (:func:`factorize_spd`); then ``u = A⁻¹(f − Bᵀp)``.
+
+    Raises
+    ------
+    MeshoptError
+        When CG does not reach ``rtol`` within ``maxiter`` iterations.
+    """
+    from scipy.sparse.linalg import LinearOperator
+
+    B = sp.csr_matrix(B)
+    n_dual, n_primal = B.shape
+    BT = B.T.tocsr()
+    S = LinearOperator((n_dual, n_dual), matvec=lambda q: B @ primal_solve(BT @ q), dtype=float)
+    inv_d = 1.0 / np.asarray(dual_diagonal, dtype=float)
+
+    def solve(b: FloatArray) -> FloatArray:
+        f, g = b[:n_primal], b[n_primal:]
+        p, iterations, residual = pcg(S, B @ primal_solve(f) - g, lambda r: inv_d * r, rtol,
+                                      maxiter)
+        if residual > rtol:
+            raise MeshoptError(f"CG on the Schur complement did not converge: relative "
+                               f"residual {residual:.2e} > {rtol:.1e} after {iterations} "
+                               f"iterations")
+        return np.concatenate([primal_solve(f - BT @ p), p])
+
+    return solve
+
+
+def minres_block_solve(M: sp.spmatrix, n_primal: int, primal_ml, dual_diagonal: FloatArray,
+                       rtol: float, maxiter: int = 1000) -> Solve:
+    """``b ↦ x`` for a symmetric saddle-point matrix ``M = [[A, Bᵀ], [B, 0]]`` by MINRES
+    with the block-diagonal preconditioner ``diag(V-cycle of A, D⁻¹)``: ``primal_ml`` a
+    pyamg hierarchy of ``A`` (the first ``n_primal`` unknowns), ``D`` ``dual_diagonal``
+    a positive diagonal spectrally equivalent to the Schur complement (for Stokes the
+    lumped pressure mass over the viscosity).
+
+    Raises
+    ------
+    MeshoptError
+        When MINRES does not reach ``rtol`` within ``maxiter`` iterations.
+    """
+    import inspect
+
+    from scipy.sparse.linalg import LinearOperator, minres
+
+    inv_d = 1.0 / np.asarray(dual_diagonal, dtype=float)
+
+    def precondition(r: FloatArray) -> FloatArray:
+        z = np.empty_like(r)
+        x = np.zeros(n_primal)
+        _v_cycle(primal_ml, 0, x, r[:n_primal])
+        z[:n_primal] = x
+        z[n_primal:] = inv_d * r[n_primal:]
+        return z
+
+    P = LinearOperator(M.shape, matvec=precondition, dtype=float)
+    key = "rtol" if "rtol" in inspect.signature(minres).parameters else "tol"
+
+    def solve(b: FloatArray) -> FloatArray:
+        x, info = minres(M, b, M=P, maxiter=maxiter, **{key: rtol})
+        if info != 0 or not np.all(np.isfinite(x)):
+            raise MeshoptError(f"block-preconditioned MINRES did not converge (info {info})")
         return x
 
     return solve

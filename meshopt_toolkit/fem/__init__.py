@@ -1,6 +1,9 @@
-"""P1 finite elements: stiffness and loads (``p1``), the Poisson model problem and its
-shape derivative (``poisson``), linear elasticity (``elasticity``) and the
-as-rigid-as-possible interpolation built on them (``interpolation``).
+"""Finite elements: planar P1 stiffness and loads (``p1``), the Poisson model problem and
+its shape derivative (``poisson``), linear elasticity (``elasticity``) and the
+as-rigid-as-possible interpolation built on them (``interpolation``); on triangles and
+tetrahedra alike, P1/P2 elements (``simplex``), the Poisson objective
+(``poisson_simplex``), elasticity with the compliance (``linear_elasticity``) and
+Taylor–Hood Stokes flow with the dissipation (``stokes``).
 
 ``from meshopt_toolkit import fem; fem.PoissonSolver`` keeps working: the names of
 ``fem.p1`` are re-exported here.

@@ -18,7 +18,8 @@ import numpy as np
 from .._typing import FloatArray, IntArray
 from ..errors import InvalidMeshError, MeshoptError
 
-__all__ = ["BoundaryData", "group_edges", "group_key", "neumann_load", "neumann_shape_derivative"]
+__all__ = ["BoundaryData", "group_edges", "group_facets", "group_key", "neumann_load",
+           "neumann_shape_derivative"]
 
 
 def group_key(group) -> int | str:
@@ -44,6 +45,22 @@ def group_edges(mesh, group) -> IntArray:
     if mesh.lines is None or not np.any(mesh.line_tags == key):
         raise InvalidMeshError(f"no line element carries physical group {group!r}")
     return np.asarray(mesh.lines[mesh.line_tags == key], dtype=np.int64)
+
+
+def group_facets(mesh, group) -> IntArray:
+    """The boundary facets of a physical group: its line elements ``(E, 2)`` on a planar
+    mesh, its triangles ``(F, 3)`` on a tet mesh (a ``TetMesh``, which has ``tets``)."""
+    if not hasattr(mesh, "tets"):
+        return group_edges(mesh, group)
+    key = group_key(group)
+    if isinstance(key, str):
+        if key not in mesh.tag_names:
+            raise InvalidMeshError(f"no physical group named {key!r}; known: "
+                                   f"{sorted(mesh.tag_names)}")
+        key = mesh.tag_names[key][0]
+    if mesh.triangles is None or not np.any(mesh.triangle_tags == key):
+        raise InvalidMeshError(f"no triangle carries physical group {group!r}")
+    return np.asarray(mesh.triangles[mesh.triangle_tags == key], dtype=np.int64)
 
 
 def neumann_load(Q: FloatArray, edges: IntArray, g: FloatArray, n: int) -> FloatArray:

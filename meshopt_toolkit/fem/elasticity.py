@@ -256,24 +256,32 @@ def assemble(points: FloatArray, triangles: IntArray, E: float = 1.0, nu: float 
 
 
 def rigid_modes(points: FloatArray) -> FloatArray:
-    """Rigid velocities (two translations, one rotation about the centroid) in vec ordering.
+    """Rigid velocities in vec ordering: in the plane two translations and the rotation
+    about the centroid, in space three translations and three rotations.
 
     Parameters
     ----------
-    points : (N, 2) float array
+    points : (N, d) float array, d = 2 or 3
 
     Returns
     -------
-    (2N, 3) float array; column ``k`` is ``vec`` of an ``(N, 2)`` rigid velocity field.
+    (d N, 3) or (3 N, 6) float array; column ``k`` is ``vec`` of an ``(N, d)`` rigid
+    velocity field.
     """
-    n = points.shape[0]
-    B = np.zeros((n, 2, 3))
-    B[:, 0, 0] = 1.0
-    B[:, 1, 1] = 1.0
+    n, d = points.shape
     c = points - points.mean(axis=0)
-    B[:, 0, 2] = -c[:, 1]
-    B[:, 1, 2] = c[:, 0]
-    return B.reshape(2 * n, 3)
+    if d == 2:
+        B = np.zeros((n, 2, 3))
+        B[:, 0, 0] = 1.0
+        B[:, 1, 1] = 1.0
+        B[:, 0, 2] = -c[:, 1]
+        B[:, 1, 2] = c[:, 0]
+        return B.reshape(2 * n, 3)
+    B = np.zeros((n, 3, 6))
+    B[:, [0, 1, 2], [0, 1, 2]] = 1.0
+    for k in range(3):  # e_k × c
+        B[:, :, 3 + k] = np.cross(np.eye(3)[k], c)
+    return B.reshape(3 * n, 6)
 
 
 @dataclass
@@ -341,9 +349,9 @@ def factorize(
 
     Parameters
     ----------
-    A : (2N, 2N) sparse SPD matrix (BSR with 2×2 blocks preferred for AMG)
-    points : (N, 2) node positions (rigid modes for the AMG near-null space, the
-        geometric nested-dissection ordering of the direct method)
+    A : (dN, dN) sparse SPD matrix (BSR with d×d blocks preferred for AMG)
+    points : (N, d) node positions, d = 2 or 3 (rigid modes for the AMG near-null space,
+        the geometric nested-dissection ordering of the direct method)
     method : "direct" (nested-dissection ordering; CHOLMOD's Cholesky where installed,
         else SuperLU in symmetric mode, from ``SINGLE_PRECISION_MIN_DOFS`` dofs in
         float32 as the preconditioner of CG to ``rtol``:
@@ -364,11 +372,12 @@ def factorize(
     method = solver_method(method, A.shape[0])
     if method == "direct":
         if ordering is None:
-            ordering = nested_dissection(points, A, block=2)
+            ordering = nested_dissection(points, A, block=points.shape[1])
         if A.shape[0] < SINGLE_PRECISION_MIN_DOFS or cholmod_available():
             exact = factorize_spd(A, ordering)
             return SPDSolve("direct", exact, A, exact)
         solve, precondition = refined_spd_solve(A, ordering, rtol)
         return SPDSolve("direct", solve, A, precondition)
-    bsr = A if A.format == "bsr" else sp.bsr_matrix(A, blocksize=(2, 2))
+    d = points.shape[1]
+    bsr = A if A.format == "bsr" else sp.bsr_matrix(A, blocksize=(d, d))
     return SPDSolve("amg", _factorize_amg(bsr, points, rtol, maxiter), bsr)

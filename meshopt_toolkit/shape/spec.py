@@ -149,15 +149,15 @@ class ProblemSpec:
             raise OptimizationError(f"scale must be a positive number or 'auto', not {self.scale!r}")
 
     def make_objective(self, mesh, **options):
-        """The :class:`~meshopt_toolkit.fem.poisson.PoissonObjective` of this problem
-        (unweighed; ``options`` go to its constructor)."""
-        from ..fem.poisson import PoissonObjective
+        """The objective of this problem (unweighed), the registered ``integral`` or
+        ``tracking`` (:mod:`.objectives`); ``options`` (``solver``) go to its factory."""
+        from .objectives import make_objective
 
-        bc = {}
-        if self.dirichlet or self.neumann:
-            bc = {"dirichlet": dict(self.dirichlet), "neumann": dict(self.neumann)}
-        return PoissonObjective(mesh, rhs=self.rhs, tracking=parse_objective(self.objective),
-                                **bc, **options)
+        target = parse_objective(self.objective)
+        data = dict(rhs=self.rhs, dirichlet=dict(self.dirichlet), neumann=dict(self.neumann))
+        if target is None:
+            return make_objective("integral", mesh, **data, **options)
+        return make_objective("tracking", mesh, target=target, **data, **options)
 
     def fixed_mask(self, mesh) -> np.ndarray | None:
         """``(N,)`` True on the vertices that stay, or None when every vertex moves."""

@@ -1,0 +1,188 @@
+"""Stokes flow by Taylor–Hood P2–P1 elements on triangles and tetrahedra, and the
+dissipation objective with its exact node derivative.
+
+Find the velocity ``u`` (P2, ``u = g`` on the Dirichlet facet groups) and pressure ``p``
+(P1) with ``∫ 2μ ε(u):ε(v) − ∫ p div v = 0`` for every ``v`` vanishing on the Dirichlet
+facets and ``−∫ q div u = 0`` for every ``q``; in matrices ``A u + Bᵀp = 0`` (free rows),
+``B u = 0``. Where every boundary facet is Dirichlet ``p`` is unique up to a constant:
+one pressure node is fixed and ``p`` is returned with zero mean.
+
+The dissipation ``J = ∫ 2μ |ε(u)|² = uᵀ A u`` (for a body moved at unit speed through
+fluid at rest, its drag) is the minimum of ``uᵀAu`` over the divergence-free ``u`` with
+the Dirichlet data, so with the Lagrangian ``ℒ = uᵀAu + 2 pᵀ B u`` the adjoint of ``J``
+is the state itself: adjoint velocity ``0`` and adjoint pressure ``2p`` solve the adjoint
+system ``A w + Bᵀq = 2 Bᵀp − 2(Au + Bᵀp) = 2Bᵀp``, ``B w = 0``. For Dirichlet values
+constant per group (attached to the nodes), ``dJ/dx = ∂_x ℒ`` at fixed ``(u, p)``, whose
+Eshelby tensor (:mod:`.simplex`) is, per cell, with ``G = ∇u`` and ``σ = 2μ ε(u)``,
+
+``S = |K| Σ_q w_q [(σ:G) I − 2 Gᵀσ − 2 p tr G I + 2 p Gᵀ]``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from .._typing import FloatArray, IntArray
+from ..errors import MeshoptError
+from ..solvers import (choose_method, factorize_spd, import_pyamg, minres_block_solve,
+                       nested_dissection, schur_complement_solve)
+from .linear_elasticity import strain_energy_tensor, vector_dofs, vector_stiffness
+from .simplex import (Geometry, LagrangeSpace, all_boundary_facets, assemble, geometry,
+                      node_gradient, same_configuration)
+
+__all__ = ["StokesDissipation"]
+
+#: ``solver="auto"`` uses MINRES with AMG from this many unknowns, the velocity block's
+#: factor and CG on the Schur complement below
+STOKES_AMG_THRESHOLD = 200_000
+
+
+@dataclass
+class _State:
+    Q: FloatArray
+    geo: Geometry
+    u: FloatArray  # (n2, d)
+    p: FloatArray  # (N,)
+    value: float
+
+
+class StokesDissipation:
+    """``J = ∫ 2μ |ε(u)|²`` of the Stokes flow with Dirichlet velocities per facet group.
+
+    Parameters
+    ----------
+    points : (N, d) reference positions
+    cells : (T, d+1) positive simplices
+    dirichlet : sequence of ``(facets (F, d), value)``: ``u = value`` on the facets' P2
+        nodes, a constant ``(d,)`` vector or a callable ``(M, d) → (M, d)`` of the nodes'
+        current positions (a later group wins at shared nodes)
+    mu : viscosity
+    solver : ``"direct"`` (CHOLMOD's factor of the velocity block on a nested-dissection
+        ordering, CG on the pressure's Schur complement preconditioned by the lumped
+        pressure mass), ``"amg"`` (MINRES
+        with a V-cycle on the velocity block and the lumped pressure mass) or ``"auto"``
+        (direct below :data:`STOKES_AMG_THRESHOLD` unknowns)
+    rtol : relative residual of CG on the Schur complement or of MINRES
+
+    Notes
+    -----
+    :meth:`derivative` is exact for constant Dirichlet values; with a callable value it
+    raises (the data's own motion is not differentiated).
+    """
+
+    def __init__(self, points: FloatArray, cells: IntArray, dirichlet, *, mu: float = 1.0,
+                 solver: str = "auto", rtol: float = 1e-10) -> None:
+        points = np.asarray(points, dtype=float)
+        self.cells = np.asarray(cells, dtype=np.int64)
+        self.dim = d = points.shape[1]
+        if not mu > 0:
+            raise MeshoptError(f"the viscosity must be > 0, got {mu}")
+        self.mu = float(mu)
+        self.space = LagrangeSpace(self.cells, len(points), degree=2)
+        self._groups = []
+        for facets, value in dirichlet:
+            dofs = np.unique(self.space.facet_dofs(np.asarray(facets, dtype=np.int64)))
+            if not callable(value):
+                value = np.asarray(value, dtype=float)
+                if value.shape != (d,) or not np.isfinite(value).all():
+                    raise MeshoptError(f"a Dirichlet velocity is a finite vector of {d} components")
+            self._groups.append((dofs, value))
+        if not self._groups:
+            raise MeshoptError("the Stokes problem needs Dirichlet velocities")
+        fixed = np.unique(np.concatenate([g[0] for g in self._groups]))
+        self.dirichlet = vector_dofs(fixed, d).ravel()
+        bnd = self.space.facet_dofs(all_boundary_facets(self.cells))
+        self.fix_pressure = bool(np.isin(bnd, fixed).all())
+        self.constant_data = not any(callable(g[1]) for g in self._groups)
+        n_unknowns = d * self.space.n_dofs + len(points)
+        self.method = choose_method(solver, n_unknowns, STOKES_AMG_THRESHOLD)
+        self.rtol = float(rtol)
+        self._cache: _State | None = None
+
+    def _lift(self, Q: FloatArray) -> FloatArray:
+        g = np.zeros((self.space.n_dofs, self.dim))
+        X = self.space.dof_points(Q)
+        for dofs, value in self._groups:
+            g[dofs] = np.asarray(value(X[dofs]), dtype=float) if callable(value) else value
+        return g.ravel()
+
+    def matrices(self, Q: FloatArray, geo: Geometry | None = None
+                 ) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+        """The velocity block ``A`` ``(d n2, d n2)`` and the divergence ``B`` ``(N, d n2)``."""
+        geo = geometry(Q, self.cells) if geo is None else geo
+        d, n2 = self.dim, self.space.n_dofs
+        vdofs = vector_dofs(self.space.cell_dofs, d)
+        A = assemble(vdofs, vdofs, vector_stiffness(self.space, geo, 0.0, self.mu), (d * n2,) * 2)
+        lam, w = self.space.reference[3], self.space.reference[2]
+        g = self.space.gradients(geo)  # (T, Q, nb, d)
+        local = -np.einsum("q,qa,tqbe->tabe", w, lam, g) * geo.volumes[:, None, None, None]
+        B = assemble(self.cells, vdofs, local.reshape(len(self.cells), d + 1, -1),
+                     (len(Q), d * n2))
+        return A, B
+
+    def _solve(self, Q: FloatArray, geo: Geometry) -> tuple[FloatArray, FloatArray, sp.csr_matrix]:
+        """Velocity ``(d n2,)``, pressure ``(N,)`` and the velocity block ``A``."""
+        A, B = self.matrices(Q, geo)
+        nv, n_p = A.shape[0], B.shape[0]
+        g = self._lift(Q)
+        free_v = np.setdiff1d(np.arange(nv), self.dirichlet)
+        keep_p = np.arange(1 if self.fix_pressure else 0, n_p)
+        Aff = A[free_v][:, free_v]
+        Bf = B[keep_p][:, free_v]
+        rhs = -np.concatenate([(A @ g)[free_v], (B @ g)[keep_p]])
+        mass = np.bincount(self.cells.ravel(), minlength=n_p,  # lumped P1 pressure mass
+                           weights=np.repeat(geo.volumes / (self.dim + 1), self.dim + 1))
+        if self.method == "direct":
+            nodes = np.unique(free_v // self.dim)  # whole nodes: Dirichlet fixes all components
+            order = nested_dissection(self.space.dof_points(Q)[nodes], Aff, block=self.dim)
+            x = schur_complement_solve(factorize_spd(Aff, order), Bf, mass[keep_p] / self.mu,
+                                       self.rtol)(rhs)
+        else:
+            ml = import_pyamg().smoothed_aggregation_solver(Aff.tocsr())
+            M = sp.bmat([[Aff, Bf.T], [Bf, None]], format="csr")
+            x = minres_block_solve(M, len(free_v), ml, mass[keep_p] / self.mu, self.rtol)(rhs)
+        u = g.copy()
+        u[free_v] = x[:len(free_v)]
+        p = np.zeros(n_p)
+        p[keep_p] = x[len(free_v):]
+        if self.fix_pressure:
+            p -= (mass @ p) / mass.sum()
+        return u, p, A
+
+    def _state(self, Q) -> _State:
+        if same_configuration(self._cache, Q):
+            return self._cache
+        Q = np.array(Q, dtype=float)
+        geo = geometry(Q, self.cells)
+        u, p, A = self._solve(Q, geo)
+        self._cache = _State(Q, geo, u.reshape(-1, self.dim), p, float(u @ (A @ u)))
+        return self._cache
+
+    def value(self, Q: FloatArray) -> float:
+        """``J(Q) = ∫ 2μ |ε(u)|²``."""
+        return self._state(Q).value
+
+    def velocity(self, Q: FloatArray) -> FloatArray:
+        """Nodal velocities ``(n2, d)``: vertices, then edge midpoints."""
+        return self._state(Q).u.copy()
+
+    def pressure(self, Q: FloatArray) -> FloatArray:
+        """Nodal pressures ``(N,)`` (zero mean where every boundary facet is Dirichlet)."""
+        return self._state(Q).p.copy()
+
+    def derivative(self, Q: FloatArray) -> FloatArray:
+        """Exact ``dJ/dQ`` ``(N, d)`` for constant Dirichlet values (module docstring)."""
+        if not self.constant_data:
+            raise MeshoptError("the dissipation's derivative needs constant Dirichlet velocities")
+        s = self._state(Q)
+        S = strain_energy_tensor(self.space, s.geo, s.u, 0.0, self.mu)
+        G = np.einsum("tqbj,tbi->tqij", self.space.gradients(s.geo), s.u[self.space.cell_dofs])
+        pq = np.einsum("qa,ta->tq", self.space.reference[3], s.p[self.cells])
+        tr = np.trace(G, axis1=2, axis2=3)
+        per_q = 2.0 * pq[..., None, None] * (G.transpose(0, 1, 3, 2)
+                                             - tr[..., None, None] * np.eye(self.dim))
+        S += np.einsum("q,tqij->tij", self.space.reference[2], per_q) * s.geo.volumes[:, None, None]
+        return node_gradient(S, s.geo, self.cells, len(s.Q))
