@@ -39,7 +39,7 @@ def choose_method(method: str, n_unknowns: int, amg_from: int) -> str:
     method : "auto", "direct" or "amg"
     n_unknowns : size of the system
     amg_from : size from which AMG beats the direct solver for this kind of matrix
-        (measured per problem: scalar Poisson and vector elasticity differ)
+        (it differs between problems: scalar Poisson and vector elasticity)
 
     Returns
     -------
@@ -133,9 +133,8 @@ def refined_spd_solve(A: sp.spmatrix, ordering: IntArray, rtol: float, maxiter: 
     factorization: :func:`pcg` preconditioned by ``factorize_spd(A, ordering, single=True)``
     (a few iterations: the float32 factor is ``A``'s own up to rounding).
 
-    A third less factor memory than in double precision and about 30 % less time
-    (the elasticity metric's matrix at 429k triangles, nested dissection: 1.38 against
-    2.0 GB peak, 4.4 against 6.2 s). Where CG does not converge within ``maxiter`` (the
+    Less factor memory and time than a double-precision factorization
+    (``docs/benchmarks.md``, "Solver choices"). Where CG does not converge within ``maxiter`` (the
     float32 factor too far off), the matrix is factorized in double precision once and
     that factor preconditions from then on.
 
@@ -175,10 +174,8 @@ def nested_dissection(points: FloatArray, graph: sp.spmatrix, block: int = 1, le
     The vertices are split at the median of their longer extent; the vertices of the
     first half adjacent to the second separate them and are numbered last, after both
     halves (ordered the same way, down to ``leaf`` vertices). On planar meshes this
-    gives less fill than minimum degree and SuperLU factorizes much faster (the
-    motion's Gauss–Newton matrices, 2 × 2 blocks per vertex: 42.6k triangles 0.18 s
-    against 0.31 s with 11 % less fill, 106k 0.62–0.83 s against 1.22–1.66 s with 17 %
-    less; triangular solves as fast). The result depends only on the inputs and is kept
+    gives less fill than minimum degree and faster factorizations
+    (``docs/benchmarks.md``, "Solver choices"). The result depends only on the inputs and is kept
     for the next calls with the same ones (the rounds of a computation).
 
     Parameters
