@@ -25,13 +25,11 @@ logger = logging.getLogger(__name__)
 
 # A frame's relaxation stops when its gradient fell by this factor: the frames only need
 # to be admissible and close to the minimizing movement (the final quality step does the
-# rest); measured on the benchmark cases, 1e-2 gives the same frames as 1e-3 and 1e-6.
+# rest); on the benchmark cases a tighter factor gives the same frames.
 RELAX_RTOL = 1e-2
 # Their Newton steps are solved to this CG residual, and so are those of move's quality
-# rounds. Measured on the move benchmarks: for the relaxations (Gauss–Newton then), the
-# same iterations and results as 1e-3 with 44 % fewer triangular solves; for the quality
-# rounds, the same Newton iterations and min AR as 1e-2 on the ten cases that do not
-# move with every change of path (106k annulus turn: 163 CG iterations instead of 213).
+# rounds: on the move benchmarks a tighter residual gives the same iterations and results
+# with more triangular solves.
 RELAX_CG_RTOL = 0.1
 
 

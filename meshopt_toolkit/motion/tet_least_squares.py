@@ -122,14 +122,12 @@ class Problem:
     #: times its root mean square (0: all)
     newton_threshold: float = 1.0
     #: project each tet's Newton block onto the PSD cone (False: the exact Hessian, and
-    #: Gauss–Newton where it is not positive definite). Measured on the 90° sphere turn
-    #: (23k tets): projected, 64 iterations and 23 s of CPU; not, 50 and 16 s; the same
-    #: worst mean ratio (0.253)
+    #: Gauss–Newton where it is not positive definite; without the projection, fewer
+    #: iterations to the same worst mean ratio)
     project: bool = False
     #: steps solved by conjugate gradients to this relative residual, preconditioned by
-    #: the kept factorization (0: a factorization per step). Measured on the 90° sphere
-    #: turn (23k tets): the solves' CPU time 3.2 → 1.9 s, the same iterations and worst
-    #: mean ratio (0.253)
+    #: the kept factorization (0: a factorization per step; the same iterations and worst
+    #: mean ratio, in less time)
     cg_rtol: float = 0.1
     cg_maxiter: int = 25
 
