@@ -75,8 +75,8 @@ def test_levenberg_marquardt_without_unknowns(mesh):
 def test_settings_as_objects_or_mappings(mesh):
     P, Q1 = mesh.points, _bent(mesh)
     metric = GraphMetric(P, mesh.triangles)
-    a = discrete_geodesic(metric, P, Q1, 2, options=LevenbergMarquardtOptions(max_iter=2))
-    b = discrete_geodesic(metric, P, Q1, 2, options={"max_iter": 2})
+    a = discrete_geodesic(metric, P, Q1, 2, options=LevenbergMarquardtOptions(max_iterations=2))
+    b = discrete_geodesic(metric, P, Q1, 2, options={"max_iterations": 2})
     assert a.nit == b.nit == 2 and a.status == "max_iter"
     assert np.array_equal(a.points, b.points)
     with pytest.raises(TypeError, match="unknown levenberg-marquardt setting.*tol"):

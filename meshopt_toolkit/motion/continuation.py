@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._options import renamed_keywords
 from .._typing import FloatArray, IntArray
 from ..errors import MeshoptError
 from ..riemannian.discrete_geodesic import discrete_geodesic
@@ -72,6 +73,7 @@ class ContinuationResult:
     seconds: list[float] = field(default_factory=list)
 
 
+@renamed_keywords(relax_iter="max_iterations")  # motion/move.py still says relax_iter
 def continuation_path(
     metric: GraphMetric,
     start: FloatArray,
@@ -82,7 +84,7 @@ def continuation_path(
     boundary_edges: IntArray | None,
     strain_target: Callable[[float], FloatArray] | None = None,
     max_splits: int = 12,
-    relax_iter: int = 50,
+    max_iterations: int = 50,
     progress: Callable[[float], None] | None = None,
 ) -> ContinuationResult:
     """Frames at ``times`` (increasing, from 0) of an admissible motion of the handles.
@@ -100,7 +102,7 @@ def continuation_path(
         minimizing movement that keeps every triangle as it was).
     max_splits : int
         How many times one step may be halved before giving up (bounded effort).
-    relax_iter : int
+    max_iterations : int
         Levenberg–Marquardt iterations per frame.
     """
     import time as _time
@@ -135,7 +137,7 @@ def continuation_path(
             res = discrete_geodesic(metric, Q, trial, 1, free=free,
                                     boundary_edges=boundary_edges, anchor=anchor,
                                     options=LevenbergMarquardtOptions(
-                                        gtol=1e-6, rtol=RELAX_RTOL, max_iter=relax_iter,
+                                        gtol=1e-6, rtol=RELAX_RTOL, max_iterations=max_iterations,
                                         cg_rtol=RELAX_CG_RTOL, newton=True, factors=factors))
             nit += res.nit
             Q = res.points[1]

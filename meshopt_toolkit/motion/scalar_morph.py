@@ -80,9 +80,11 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Mapping
 
 import numpy as np
 
+from .._options import renamed_keywords
 from .._typing import FloatArray
 from ..errors import InvalidMeshError, OptionError
 from ..generate import twisted  # the 225° twist target lives in generate; kept importable
@@ -99,6 +101,9 @@ logger = logging.getLogger(__name__)
 
 #: default f2 coefficients (β1, β2, β3, β4) of the morph metric (β4 unscaled)
 DEFAULT_BETA = (1.0, 1.0, 0.0, 1.0)
+
+#: the morph's shooting: the log map's settings with a smaller exponential-map budget
+SHOOTING = LogMapOptions(max_exp=400)
 
 __all__ = [
     "DEFAULT_BETA",
@@ -170,6 +175,15 @@ def morph_metric(source, beta=DEFAULT_BETA, *, normalize: bool = True):
     return CompleteMetric(QualityPenalty(source, beta=scaled, reference=source))
 
 
+def _shooting_options(shooting: LogMapOptions | Mapping | None) -> LogMapOptions:
+    """The shooting's settings: :data:`SHOOTING`, a mapping of fields on top of it, or an
+    instance as given."""
+    if shooting is None or isinstance(shooting, Mapping):
+        return LogMapOptions.of(SHOOTING, **(shooting or {}))
+    return LogMapOptions.of(shooting)
+
+
+@renamed_keywords(max_iter="max_iterations")  # operations.py still says max_iter
 def geodesic_morph(
     source,
     target,
@@ -180,10 +194,9 @@ def geodesic_morph(
     metric=None,
     method: str = "discrete",
     segments: int | None = None,
-    tol: float | None = None,
-    discrete_tol: float = 1e-9,
-    max_iter: int = 500,
-    max_exp: int = 400,
+    discrete_tolerance: float = 1e-9,
+    max_iterations: int = 500,
+    shooting: LogMapOptions | Mapping | None = None,
     callback=None,
 ) -> MorphResult:
     """``frames`` meshes along the geodesic from ``source`` to ``target``.
@@ -200,16 +213,17 @@ def geodesic_morph(
     metric : a CompleteMetric to use instead (``beta`` is then ignored)
     method : "discrete" (default: nodes of the discrete geodesic, admissible by
         construction), "shooting" (frames ``exp(t_k V)`` of the shooting geodesic; must
-        converge) or "auto" (shooting within ``max_exp`` exponential maps, the discrete
+        converge) or "auto" (shooting within ``shooting.max_exp`` exponential maps, the discrete
         frames otherwise). Shooting is exact where it converges, but on the 225° twist
         of the 146-vertex disc Newton–Krylov stalls near a residual of 1e-2 (module
         docstring)
     segments : segments of the discrete geodesic: a multiple of ``frames − 1`` (default
         the smallest multiple ≥ 16); frames are every m-th node
-    tol : shooting tolerance (default 1e-8 · diameter)
-    discrete_tol : Newton tolerance of the discrete geodesic
-    max_iter : Newton iterations of the discrete geodesic
-    max_exp : exponential-map budget of the shooting
+    discrete_tolerance : Newton tolerance of the discrete geodesic
+    max_iterations : Newton iterations of the discrete geodesic
+    shooting : :class:`~meshopt_toolkit.riemannian.log_map.LogMapOptions` of the shooting
+        (or a mapping of its fields on top of :data:`SHOOTING`: ``tolerance`` (default
+        1e-8 · diameter), the exponential-map budget ``max_exp``, ...)
     callback : passed to :func:`discrete_geodesic` (``callback(nit, E, gradient_norm)``;
         returning True stops it)
 
@@ -248,7 +262,7 @@ def geodesic_morph(
                           f"({frames - 1})")
     K = m * (frames - 1)
     dg = discrete_geodesic(metric, Q0, Q1, K, method="newton-cg",
-                           options=NewtonCGOptions(tol=discrete_tol, max_iter=max_iter),
+                           options=NewtonCGOptions(tol=discrete_tolerance, max_iterations=max_iterations),
                            callback=callback)
     if dg.status not in ("converged", "stationary"):
         logger.warning("geodesic_morph: the discrete geodesic did not converge in %d Newton "
@@ -260,7 +274,7 @@ def geodesic_morph(
     used, target_error, length = "discrete", 0.0, dg.length
     if method in ("auto", "shooting"):
         log = log_map(metric, Q0, Q1, discrete=dg,
-                      options=LogMapOptions(tolerance=tol, max_exp=max_exp),
+                      options=_shooting_options(shooting),
                       raise_on_failure=(method == "shooting"))
         if log.success:
             geo = geodesic(metric, Q0, log.velocity, 1.0, times=times, rtol=SHOOTING_RTOL,

@@ -47,8 +47,8 @@ Methods (``method=``):
 ``"stormer-verlet"``
     The thesis' algorithm 1 with ``steps`` uniform steps (default 1024): the reference.
     Its fixed points use the thesis' tolerance 1e-8 and at most 10 iterations
-    (``fixed_point_tol``, ``fixed_point_iter``); when the contraction is slow (stiff
-    penalty, large velocity) it raises "use more steps".
+    (``fixed_point_tolerance``, ``fixed_point_max_iterations``); when the contraction is
+    slow (stiff penalty, large velocity) it raises "use more steps".
 ``"scipy"``
     ``scipy.integrate.solve_ivp`` with DOP853 on the same right-hand side, default
     ``rtol = 1e-10``: an independent check (it sees a stage outside M+ only as NaN).
@@ -332,7 +332,8 @@ def geodesic(
     elif method_used == "stormer-verlet":
         out = stormer_verlet(fld, Q, V, positive,
                              steps=1024 if opts.steps is None else int(opts.steps),
-                             tol=opts.fixed_point_tol, max_iter=opts.fixed_point_iter)
+                             tolerance=opts.fixed_point_tolerance,
+                             max_iterations=opts.fixed_point_max_iterations)
     else:
         scale = max(float(np.max(np.abs(Q))), float(np.max(np.abs(V))) * positive[-1], 1e-300)
         out = _scipy_dop853(fld, Q, V, positive, rtol, rtol * scale if atol is None else atol)

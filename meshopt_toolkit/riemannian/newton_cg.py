@@ -132,7 +132,7 @@ def newton_cg(metric, Q0: FloatArray, Q1: FloatArray, K: int, path: FloatArray |
     """The K-segment discrete geodesic of a complete (or the Euclidean) metric from ``Q0``
     to ``Q1`` by Newton–CG; see :func:`.discrete_geodesic.discrete_geodesic`."""
     tol, energy_rtol, window = options.tol, options.energy_rtol, options.window
-    max_iter, max_cg = options.max_iter, options.max_cg
+    max_iterations, max_cg = options.max_iterations, options.max_cg
     raw = penalty_of(metric)
     if raw is None:
         t = np.linspace(0.0, 1.0, K + 1)[:, None, None]
@@ -166,7 +166,7 @@ def newton_cg(metric, Q0: FloatArray, Q1: FloatArray, K: int, path: FloatArray |
     converged = gnorm <= tol * np.sqrt(E)
     status = "converged" if converged else "max_iter"
     energies = [E]
-    while not converged and nit < max_iter:
+    while not converged and nit < max_iterations:
         nit += 1
         eta = min(0.5, np.sqrt(gnorm / max(np.sqrt(E), 1e-300)))
         D, n_cg, negative = _newton_cg_direction(G, pe.hvp, pe.precondition, eta, max_cg)

@@ -10,6 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._options import renamed_keywords
+
 #: the minimizers of the path energy ("auto": Levenberg–Marquardt where the metric provides
 #: a least-squares path model, else Newton–CG)
 METHODS = ("auto", "newton-cg", "levenberg-marquardt")
@@ -43,13 +45,13 @@ class NewtonCGOptions:
         Near the minimizer the frames hold nearly degenerate triangles whose barrier
         makes the quadratic model valid only in a tiny region: Newton then creeps, so the
         stagnation test saves most of the work at no visible cost (0 disables it)
-    max_iter, max_cg : Newton iterations and CG iterations per Newton step
+    max_iterations, max_cg : Newton iterations and CG iterations per Newton step
     """
 
     tol: float = 1e-9
     energy_rtol: float = 1e-7
     window: int = 20
-    max_iter: int = 500
+    max_iterations: int = 500
     max_cg: int = 200
 
 
@@ -66,7 +68,7 @@ class LevenbergMarquardtOptions:
         energy may not reach.
     rtol : or when ``|∇E| ≤ rtol · |∇E₀|`` (the first gradient): enough for a relaxation
         whose start is already close (the Gauss–Newton steps then converge fast).
-    max_iter : iterations
+    max_iterations : iterations
     cg_rtol : relative residual of the conjugate-gradient solve of each step. An inexact
         step is fine (the ratio test judges it): a looser residual takes the same
         iterations to the same frames in less time; move's relaxations and quality rounds
@@ -93,12 +95,16 @@ class LevenbergMarquardtOptions:
 
     gtol: float = 1e-7
     rtol: float = 0.0
-    max_iter: int = 200
+    max_iterations: int = 200
     cg_rtol: float = 1e-2
     newton: bool = False
     lambda_decrease: float = LAMBDA_DECREASE
     factors: object | None = None
 
+
+# motion/move.py still says max_iter
+LevenbergMarquardtOptions.__init__ = renamed_keywords(max_iter="max_iterations")(
+    LevenbergMarquardtOptions.__init__)
 
 #: the settings class of each method
 OPTIONS = {"newton-cg": NewtonCGOptions, "levenberg-marquardt": LevenbergMarquardtOptions}
