@@ -319,8 +319,8 @@ def _residual_morph(metric: GraphMetric, R1: FloatArray, be: IntArray, times: Fl
              if refined else dict(cg_rtol=PATH_CG_RTOL))
     res = discrete_geodesic(metric, init[0], init[-1], len(times) - 1, path=init, free=free,
                             boundary_edges=be, callback=callback,
-                            options=LevenbergMarquardtOptions(max_iterations=max_iterations, gtol=gtol,
-                                                              **steps))
+                            options=LevenbergMarquardtOptions(
+                                max_iterations=max_iterations, gtol=gtol, **steps))
     levels.append({"triangles": int(len(tri)), "iterations": int(res.nit),
                    "status": res.status, "seconds": float(time.perf_counter() - t0)})
     return res, kind, levels

@@ -327,8 +327,8 @@ def geodesic(
             h0 = LINE_SEARCH_FIRST_STEP * positive[-1]
         out = runge_kutta(fld, Q, V, positive, pair="bs3" if line_search else method_used,
                           rtol=rtol, atol=rtol * scale if atol is None else atol,
-                          max_steps=opts.max_steps, dense=opts.dense, h0=h0, partial=True,
-                          progress=progress, **extra)
+                          dense=opts.dense, h0=h0, partial=True, progress=progress,
+                          control={"max_steps": opts.max_steps, **extra})
     elif method_used == "stormer-verlet":
         out = stormer_verlet(fld, Q, V, positive,
                              steps=1024 if opts.steps is None else int(opts.steps),
