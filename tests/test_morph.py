@@ -203,7 +203,7 @@ def test_stationary_stop_is_close_to_the_minimum(disc):
     Q1 = twisted(disc).points
     stopped = discrete_geodesic(metric, disc.points, Q1, 8)
     tight = discrete_geodesic(metric, disc.points, Q1, 8,
-                               options=dict(energy_rtol=0, tol=1e-7))
+                               options=dict(energy_rtol=0, tolerance=1e-7))
     assert stopped.status in ("converged", "stationary")
     assert tight.converged and tight.status == "converged"
     assert tight.energy <= stopped.energy * (1 + 1e-12)

@@ -127,7 +127,7 @@ class FrameBlocks:
         coupled = _time_coupling(A) is not None
         capped = coupled and not fresh
         try:
-            x, iterations, residual = pcg(A, b, self.preconditioner(A), rtol, maxiter=(
+            x, iterations, residual = pcg(A, b, self.preconditioner(A), rtol, max_iterations=(
                 STALE_CG_LIMIT if capped else max(200, b.size // 2_000)))
         except FloatingPointError:
             self.stale = True

@@ -262,7 +262,7 @@ def geodesic_morph(
                           f"({frames - 1})")
     K = m * (frames - 1)
     dg = discrete_geodesic(metric, Q0, Q1, K, method="newton-cg",
-                           options=NewtonCGOptions(tol=discrete_tolerance,
+                           options=NewtonCGOptions(tolerance=discrete_tolerance,
                                                    max_iterations=max_iterations),
                            callback=callback)
     if dg.status not in ("converged", "stationary"):

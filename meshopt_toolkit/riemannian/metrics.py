@@ -318,7 +318,7 @@ class ElasticityMetric:
                 return current.solve(b)  # refactorized at this Q meanwhile
             try:
                 x, _, residual = pcg(csr, b, kept.precondition or kept.solve, self.rtol,
-                                     maxiter=self.REFACTOR_AFTER_CG)
+                                     max_iterations=self.REFACTOR_AFTER_CG)
             except FloatingPointError:  # the kept factor is too far off to precondition
                 residual = np.inf
             if not residual <= self.rtol:

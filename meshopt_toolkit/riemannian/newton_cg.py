@@ -131,7 +131,7 @@ def newton_cg(metric, Q0: FloatArray, Q1: FloatArray, K: int, path: FloatArray |
               options: NewtonCGOptions, callback=None) -> DiscreteGeodesic:
     """The K-segment discrete geodesic of a complete (or the Euclidean) metric from ``Q0``
     to ``Q1`` by Newton–CG; see :func:`.discrete_geodesic.discrete_geodesic`."""
-    tol, energy_rtol, window = options.tol, options.energy_rtol, options.window
+    tol, energy_rtol, window = options.tolerance, options.energy_rtol, options.window
     max_iterations, max_cg = options.max_iterations, options.max_cg
     raw = penalty_of(metric)
     if raw is None:

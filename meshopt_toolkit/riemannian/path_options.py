@@ -39,7 +39,7 @@ class NewtonCGOptions:
 
     Attributes
     ----------
-    tol : stop when ``√(∇E·H_GN⁻¹∇E) ≤ tol·√E`` (status "converged")
+    tolerance : stop when ``√(∇E·H_GN⁻¹∇E) ≤ tolerance·√E`` (status "converged")
     energy_rtol, window : also stop when ``E`` fell by less than ``energy_rtol·E`` per
         iteration on average over the last ``window`` iterations (status "stationary").
         Near the minimizer the frames hold nearly degenerate triangles whose barrier
@@ -48,7 +48,7 @@ class NewtonCGOptions:
     max_iterations, max_cg : Newton iterations and CG iterations per Newton step
     """
 
-    tol: float = 1e-9
+    tolerance: float = 1e-9
     energy_rtol: float = 1e-7
     window: int = 20
     max_iterations: int = 500
