@@ -14,7 +14,7 @@ import numpy as np
 
 from .._options import renamed_keywords
 from .._typing import FloatArray, IntArray
-from ..errors import MeshoptError
+from ..errors import MeshoptError, OptionError
 from ..riemannian.discrete_geodesic import discrete_geodesic
 from ..riemannian.path_options import LevenbergMarquardtOptions
 from ..solvers import factorize_spd
@@ -38,6 +38,24 @@ class NoAdmissiblePathError(MeshoptError):
     """No admissible motion was found within the effort allowed."""
 
 
+def check_frames_and_weight(frames: int, weight: float) -> None:
+    """Refuse a path of fewer than two frames or a metric weight that is not positive
+    (:class:`~meshopt_toolkit.errors.OptionError`)."""
+    if int(frames) < 2:
+        raise OptionError(f"frames must be at least 2, got {frames}")
+    if not weight > 0:
+        raise OptionError(f"weight must be > 0, got {weight}")
+
+
+def _step_free(n_vertices: int, handles: IntArray) -> np.ndarray:
+    """The free vertices of a one-segment path from a kept frame: none of the first, all
+    but the handles of the second."""
+    free = np.ones((2, n_vertices), bool)
+    free[0] = False
+    free[1, handles] = False
+    return free
+
+
 def extend(metric: GraphMetric, Q: FloatArray, handles: IntArray,
            new_positions: FloatArray, factors: FrameBlocks | None = None) -> FloatArray:
     """``Q`` with the handles at ``new_positions`` and the other vertices moved by the
@@ -47,9 +65,7 @@ def extend(metric: GraphMetric, Q: FloatArray, handles: IntArray,
     relaxations', assembled from per-triangle blocks); ``H_fh δ_h`` is applied triangle
     by triangle."""
     N = Q.shape[0]
-    free = np.ones((2, N), bool)
-    free[0] = False
-    free[1, handles] = False
+    free = _step_free(N, handles)
     delta = np.zeros((N, 2))
     delta[handles] = new_positions - Q[handles]
     out = Q.copy()
@@ -107,10 +123,7 @@ def continuation_path(
     """
     import time as _time
 
-    N = start.shape[0]
-    free = np.ones((2, N), bool)
-    free[0] = False
-    free[1, handles] = False
+    free = _step_free(start.shape[0], handles)
     Q = np.array(start, float)
     s_now = float(times[0])
     frames, out_times, secs = [Q.copy()], [s_now], []

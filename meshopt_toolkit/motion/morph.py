@@ -19,7 +19,7 @@ import numpy as np
 
 from .._options import renamed_keywords
 from .._typing import FloatArray, IntArray
-from ..errors import InvalidMeshError, OptionError
+from ..errors import InvalidMeshError
 from ..kernels.admissibility import BoundaryCheck, area_problem
 from ..kernels.triangles import aspect_ratios, inverse_shape_quality, signed_areas
 from ..mesh import PlanarMesh, require_admissible
@@ -27,7 +27,7 @@ from ..riemannian.discrete_geodesic import discrete_geodesic
 from ..riemannian.geodesic_result import DiscreteGeodesic
 from ..riemannian.path_options import LevenbergMarquardtOptions
 from ..results import PathFrames
-from .continuation import continuation_path
+from .continuation import check_frames_and_weight, continuation_path
 from .graph_metric import GraphMetric
 from .refinement import refine_frames, unrefined
 from .similarity import HandlePath, Similarity, fit_similarity, handle_groups
@@ -238,10 +238,7 @@ def distortion_morph(
     from ..fem.interpolation import arap_interpolation
 
     t_start = time.perf_counter()
-    if int(frames) < 2:
-        raise OptionError(f"frames must be at least 2, got {frames}")
-    if not weight > 0:
-        raise OptionError(f"weight must be > 0, got {weight}")
+    check_frames_and_weight(frames, weight)
     source = require_admissible(source, "morph (source)")
     target = require_admissible(target, "morph (target)")
     if source.n_vertices != target.n_vertices or not np.array_equal(source.triangles,

@@ -34,7 +34,7 @@ from ..mesh import TetMesh
 from ..riemannian.levenberg_marquardt import levenberg_marquardt
 from ..riemannian.path_options import LevenbergMarquardtOptions
 from ..results import PathFrames
-from .continuation import NoAdmissiblePathError
+from .continuation import NoAdmissiblePathError, check_frames_and_weight
 from .handles3d import SelfIntersectionGuard
 from .similarity_3d import (HandlePath, Similarity3, fit_similarity_3d, handle_groups,
                             tet_boundary_faces)
@@ -229,10 +229,7 @@ def morph_tets(source: TetMesh, target: TetMesh, frames: int = 9, *, weight: flo
         ``initial="linear"`` inverts a tet, or the continuation found no admissible step.
     """
     t_start = time.perf_counter()
-    if int(frames) < 2:
-        raise OptionError(f"frames must be at least 2, got {frames}")
-    if not weight > 0:
-        raise OptionError(f"weight must be > 0, got {weight}")
+    check_frames_and_weight(frames, weight)
     if initial not in INITIAL_PATHS:
         raise OptionError(f"unknown initial path {initial!r}; choose one of "
                           f"{', '.join(INITIAL_PATHS)}")

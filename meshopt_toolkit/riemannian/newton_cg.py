@@ -11,8 +11,8 @@ import numpy as np
 
 from .._linalg import dot as _dot
 from .._typing import FloatArray
-from ..errors import InvalidMeshError, NotAdmissibleError
-from ._boundary_value import _Counter, _require_finite
+from ..errors import NotAdmissibleError
+from ._boundary_value import _Counter, _path_frames, _require_finite
 from .geodesic_result import DiscreteGeodesic
 from .geodesics import penalty_of
 from .initial_path import initial_path
@@ -145,10 +145,7 @@ def newton_cg(metric, Q0: FloatArray, Q1: FloatArray, K: int, path: FloatArray |
     f1 = _require_finite(pen, Q1, "the target")
     if path is None:
         path = initial_path(raw, Q0, Q1, K)
-    path = np.array(path, dtype=np.float64)
-    if path.shape != (K + 1,) + Q0.shape:
-        raise InvalidMeshError(f"path must have shape {(K + 1,) + Q0.shape}, got {path.shape}")
-    path[0], path[-1] = Q0, Q1
+    path = _path_frames(path, Q0, Q1, K)
     if K == 1:
         fs = np.array([f0, f1])
         return DiscreteGeodesic(path, fs, float(_dot(Q1 - Q0, Q1 - Q0) + (f1 - f0) ** 2),
