@@ -16,6 +16,15 @@ from .base import IntegrationOutput, SecondOrderField, _combine, energy
 from .tableaus import _Pair, _error_norm, _hermite_many, dense_evaluate, dense_polynomial, rk_pair
 
 
+def _acceleration(field: SecondOrderField, y: FloatArray) -> FloatArray | None:
+    """The field's acceleration at the state ``y = (Q, V)``, None where ``Q`` is not
+    admissible."""
+    try:
+        return field.acceleration(y[0], y[1])[0]
+    except NotAdmissibleError:
+        return None
+
+
 def _initial_step(field: SecondOrderField, y, a, rk: _Pair, rtol, atol, time: float) -> float:
     """Starting step of Hairer, Nørsett & Wanner I, II.4 (as in scipy's ``solve_ivp``), in
     the scaled max-norm: ``h₀ = 0.01 |y|/|y'|``, one trial Euler step of that size to
@@ -29,9 +38,8 @@ def _initial_step(field: SecondOrderField, y, a, rk: _Pair, rtol, atol, time: fl
     h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
     h0 = min(h0, time)
     y1 = y + h0 * f0
-    try:
-        a1, _ = field.acceleration(y1[0], y1[1])
-    except NotAdmissibleError:
+    a1 = _acceleration(field, y1)
+    if a1 is None:
         return h0
     d2 = float(np.max(np.abs(np.stack([y1[1], a1]) - f0) / sc)) / h0
     if not np.isfinite(d2):
@@ -55,11 +63,8 @@ def _continuous_extension(field: SecondOrderField, rk: _Pair, k, y, y_new, h: fl
         ys = y + h * _combine(row[:s], kx)
         if not field.checks_areas and not field.admissible(ys[0]):
             return None
-        try:
-            acc, _ = field.acceleration(ys[0], ys[1])
-        except NotAdmissibleError:
-            return None
-        if not np.isfinite(acc).all():
+        acc = _acceleration(field, ys)
+        if acc is None or not np.isfinite(acc).all():
             return None
         kx[s, 0], kx[s, 1] = ys[1], acc
     out = dense_evaluate(dense_polynomial(rk, kx, y, y_new, h), y, theta)
