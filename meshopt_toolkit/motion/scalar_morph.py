@@ -39,22 +39,17 @@ to the graph of ``f`` in ``R^{2N+1}`` with the Euclidean metric. Three stages:
    the discrete geodesic, Jacobian-vector products by directional differences of the
    exponential map, GMRES, step halving when the residual grows.
 
-Measured (``benchmarks/bench_morph.py``): stage 2 is robust and cheap — the 225° twist
-of the 146-vertex disc takes about 17 exp_map calls' worth of time (4.5 s), the twist of
-a 107k-triangle disc 31 s — and converges to the shooting geodesic at second order in
-``1/K`` (tested). Stage 3 meets 1e-8·diameter on moderate deformations (tested round
-trips) but not on the 225° twist, where the geodesic passes triangles of aspect ratio
-~5e-4 and the exponential map is strongly nonlinear: one exponential map at ``rtol =
-1e-10`` takes ~0.6 s (3300 penalty calls), the integration is accurate (1.5e-9 from
-``rtol = 1e-13``) and the Jacobian only moderately ill-conditioned (GMRES: 14–24
-products for 1e-3), but a full Newton step raises the residual 7-fold and only ~1/8 of
-it lowers it. Newton–Krylov stalls near 1e-2 from the discrete geodesic's velocity (the
-residual of that start is 1.4e-2 for K = 32 and 64: the frames do not resolve the
+Stage 2 is robust and cheap against the shooting (``benchmarks/bench_morph.py``) and
+converges to the shooting geodesic at second order in ``1/K`` (tested). Stage 3 meets 1e-8·diameter on
+moderate deformations (tested round trips) but not on the 225° twist, where the geodesic
+passes triangles of aspect ratio ~5e-4 and the exponential map is strongly nonlinear:
+the integration is accurate and the Jacobian only moderately ill-conditioned, but a full
+Newton step raises the residual and only a small fraction of it lowers it. Newton–Krylov
+stalls near 1e-2 from the discrete geodesic's velocity (the frames do not resolve the
 thin-triangle stretch); an exact forward-mode Jacobian of the discretized map and
-multiple shooting (K = 8) from the same start stall as well, at 4e-3 and 5e-3 after ~500
-s. Hence :func:`geodesic_morph` uses the discrete
-geodesic by default (``method="discrete"``: every frame admissible, end frames exact)
-and shooting on request (``"shooting"``, ``"auto"``).
+multiple shooting from the same start stall as well. Hence :func:`geodesic_morph` uses
+the discrete geodesic by default (``method="discrete"``: every frame admissible, end
+frames exact) and shooting on request (``"shooting"``, ``"auto"``).
 
 Default metric of the morph: the complete metric of ``√N · f2`` with f2
 ``QualityPenalty(source, beta=DEFAULT_BETA, reference=source)``, ``DEFAULT_BETA = (1, 1,

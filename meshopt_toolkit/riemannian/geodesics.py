@@ -19,8 +19,8 @@ Methods (``method=``):
     scipy), steps landing exactly on the requested times, stages outside M+ rejected.
     Default tolerance ``rtol = 1e-6``, ``atol = 1e-6 · scale`` (scale = ``max(max|Q|,
     max|V|·t)``): about 1e-7·max|V| from a tight solution on the benchmark disc
-    (``benchmarks/bench_geodesics.py``) with ~25% fewer penalty calls than dopri5 at
-    equal accuracy. ``rtol = atol = 1e-5`` is plenty for a line-search retraction.
+    (``benchmarks/bench_geodesics.py``) with fewer penalty calls than dopri5 at equal
+    accuracy. ``rtol = atol = 1e-5`` is plenty for a line-search retraction.
 ``"dopri5"``
     The same stepping with our Dormand–Prince 5(4) pair (6 calls per step), default
     ``rtol = 1e-7``; cheaper per step, better at loose tolerances.
@@ -115,7 +115,7 @@ LINE_SEARCH_OPTIONS = {"project_energy": True, "energy_rtol": np.inf, "exit_shri
 
 #: first step of ``method="line-search"`` as a fraction of the interval: its geodesics take
 #: about ten steps, and starting there saves the trial evaluation and the cautious first
-#: steps of the general heuristic (10–20% fewer penalty calls on the bundled discs)
+#: steps of the general heuristic (fewer penalty calls on the bundled discs)
 LINE_SEARCH_FIRST_STEP = 0.1
 
 
