@@ -42,12 +42,12 @@ to the graph of ``f`` in ``R^{2N+1}`` with the Euclidean metric. Three stages:
 Stage 2 is robust and cheap against the shooting (``benchmarks/bench_morph.py``) and
 converges to the shooting geodesic at second order in ``1/K`` (tested). Stage 3 meets
 1e-8·diameter on moderate deformations (tested round trips) but not on the 225° twist,
-where the geodesic passes triangles of aspect ratio ~5e-4 and the exponential map is strongly nonlinear:
-the integration is accurate and the Jacobian only moderately ill-conditioned, but a full
-Newton step raises the residual and only a small fraction of it lowers it. Newton–Krylov
-stalls near 1e-2 from the discrete geodesic's velocity (the frames do not resolve the
-thin-triangle stretch); an exact forward-mode Jacobian of the discretized map and
-multiple shooting from the same start stall as well. Hence :func:`geodesic_morph` uses
+where the geodesic passes triangles of aspect ratio ~5e-4 and the exponential map is
+strongly nonlinear: the integration is accurate and the Jacobian only moderately
+ill-conditioned, but a full Newton step raises the residual and only a small fraction of
+it lowers it. Newton–Krylov stalls near 1e-2 from the discrete geodesic's velocity (the
+frames do not resolve the thin-triangle stretch); an exact forward-mode Jacobian of the
+discretized map and multiple shooting from the same start stall as well. Hence :func:`geodesic_morph` uses
 the discrete geodesic by default (``method="discrete"``: every frame admissible, end
 frames exact) and shooting on request (``"shooting"``, ``"auto"``).
 
