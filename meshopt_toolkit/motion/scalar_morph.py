@@ -47,9 +47,10 @@ strongly nonlinear: the integration is accurate and the Jacobian only moderately
 ill-conditioned, but a full Newton step raises the residual and only a small fraction of
 it lowers it. Newton–Krylov stalls near 1e-2 from the discrete geodesic's velocity (the
 frames do not resolve the thin-triangle stretch); an exact forward-mode Jacobian of the
-discretized map and multiple shooting from the same start stall as well. Hence :func:`geodesic_morph` uses
-the discrete geodesic by default (``method="discrete"``: every frame admissible, end
-frames exact) and shooting on request (``"shooting"``, ``"auto"``).
+discretized map and multiple shooting from the same start stall as well. Hence
+:func:`geodesic_morph` uses the discrete geodesic by default (``method="discrete"``:
+every frame admissible, end frames exact) and shooting on request (``"shooting"``,
+``"auto"``).
 
 Default metric of the morph: the complete metric of ``√N · f2`` with f2
 ``QualityPenalty(source, beta=DEFAULT_BETA, reference=source)``, ``DEFAULT_BETA = (1, 1,
