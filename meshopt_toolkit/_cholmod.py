@@ -197,8 +197,8 @@ class CholeskyFactor:
     symmetric mode computes an LU with twice the flops (``benchmarks/bench_solvers.py``).
 
     :meth:`refactorize` factorizes another matrix of the same pattern on the kept
-    analysis (symbolic factorization and the matrix's conversion): at 107k triangles and
-    7 frames, 2.5 of the morph's 10.6 s of factorizations were the analysis.
+    analysis (symbolic factorization and the matrix's conversion), a large part of a
+    factorization's time.
 
     The calls go to the library through ``ctypes``, the GIL released
     (``releases_gil``), where :func:`library` loads it, else through ``cvxopt.cholmod``:

@@ -40,7 +40,7 @@ def choose_method(method: str, n_unknowns: int, amg_from: int) -> str:
     method : "auto", "direct" or "amg"
     n_unknowns : size of the system
     amg_from : size from which AMG beats the direct solver for this kind of matrix
-        (measured per problem: scalar Poisson and vector elasticity differ)
+        (it differs between problems: scalar Poisson and vector elasticity)
 
     Returns
     -------
@@ -128,17 +128,16 @@ def _superlu_spd(A: sp.spmatrix, ordering: IntArray | None, single: bool) -> Sol
     return solve
 
 
-def refined_spd_solve(A: sp.spmatrix, ordering: IntArray, rtol: float, maxiter: int = 50
+def refined_spd_solve(A: sp.spmatrix, ordering: IntArray, rtol: float, max_iterations: int = 50
                       ) -> tuple[Solve, Solve]:
     """A solve of an SPD system to the relative residual ``rtol`` from a float32
     factorization: :func:`pcg` preconditioned by ``factorize_spd(A, ordering, single=True)``
     (a few iterations: the float32 factor is ``A``'s own up to rounding).
 
-    A third less factor memory than in double precision and about 30 % less time
-    (the elasticity metric's matrix at 429k triangles, nested dissection: 1.38 against
-    2.0 GB peak, 4.4 against 6.2 s). Where CG does not converge within ``maxiter`` (the
-    float32 factor too far off), the matrix is factorized in double precision once and
-    that factor preconditions from then on.
+    Less factor memory and time than a double-precision factorization
+    (``docs/benchmarks.md``, "Solver choices"). Where CG does not converge within
+    ``max_iterations`` (the float32 factor too far off), the matrix is factorized in double
+    precision once and that factor preconditions from then on.
 
     Returns
     -------
@@ -151,7 +150,7 @@ def refined_spd_solve(A: sp.spmatrix, ordering: IntArray, rtol: float, maxiter: 
 
     def solve(b: FloatArray) -> FloatArray:
         try:
-            x, _, residual = pcg(csr, b, factor["solve"], rtol, maxiter)
+            x, _, residual = pcg(csr, b, factor["solve"], rtol, max_iterations)
         except FloatingPointError:
             residual = np.inf
         if residual <= rtol:
@@ -176,10 +175,8 @@ def nested_dissection(points: FloatArray, graph: sp.spmatrix, block: int = 1, le
     The vertices are split at the median of their longer extent; the vertices of the
     first half adjacent to the second separate them and are numbered last, after both
     halves (ordered the same way, down to ``leaf`` vertices). On planar meshes this
-    gives less fill than minimum degree and SuperLU factorizes much faster (the
-    motion's Gauss–Newton matrices, 2 × 2 blocks per vertex: 42.6k triangles 0.18 s
-    against 0.31 s with 11 % less fill, 106k 0.62–0.83 s against 1.22–1.66 s with 17 %
-    less; triangular solves as fast). The result depends only on the inputs and is kept
+    gives less fill than minimum degree and faster factorizations
+    (``docs/benchmarks.md``, "Solver choices"). The result depends only on the inputs and is kept
     for the next calls with the same ones (the rounds of a computation).
 
     Parameters
@@ -281,7 +278,7 @@ def _dissection_order(points: FloatArray, adjacency: sp.csr_matrix, leaf: int) -
 
 
 def pcg(A, b: FloatArray, precondition: Solve, rtol: float,
-        maxiter: int) -> tuple[FloatArray, int, float]:
+        max_iterations: int) -> tuple[FloatArray, int, float]:
     """Preconditioned conjugate gradients from ``x = 0`` to ``‖b − Ax‖ ≤ rtol ‖b‖``.
 
     Inner products through :func:`._linalg.dot` (single-threaded): multi-threaded BLAS
@@ -294,7 +291,7 @@ def pcg(A, b: FloatArray, precondition: Solve, rtol: float,
     b : right-hand side
     precondition : ``r ↦ P⁻¹ r`` with ``P`` symmetric positive definite
     rtol : relative residual to reach
-    maxiter : iteration cap
+    max_iterations : iteration cap
 
     Returns
     -------
@@ -319,7 +316,7 @@ def pcg(A, b: FloatArray, precondition: Solve, rtol: float,
     rz = dot(r, z)
     rnorm = bnorm
     iteration = 0
-    for iteration in range(1, maxiter + 1):
+    for iteration in range(1, max_iterations + 1):
         q = A @ p
         curvature = dot(p, q)
         if not curvature > 0:
@@ -369,14 +366,14 @@ def _v_cycle(ml, lvl: int, x: FloatArray, b: FloatArray) -> None:
     level.postsmoother(A, x, b)
 
 
-def amg_pcg_solve(A, ml, rtol: float, maxiter: int = 500) -> Solve:
+def amg_pcg_solve(A, ml, rtol: float, max_iterations: int = 500) -> Solve:
     """``b ↦ x`` with ``‖b − Ax‖ ≤ rtol ‖b‖``: :func:`pcg` preconditioned by one V-cycle of
     the pyamg hierarchy ``ml`` (built once for ``A``, reused for every right-hand side).
 
     Raises
     ------
     MeshoptError
-        When CG does not reach ``rtol`` within ``maxiter`` iterations.
+        When CG does not reach ``rtol`` within ``max_iterations`` iterations.
     """
     def precondition(r: FloatArray) -> FloatArray:
         x = np.zeros_like(r)
@@ -384,7 +381,7 @@ def amg_pcg_solve(A, ml, rtol: float, maxiter: int = 500) -> Solve:
         return x
 
     def solve(b: FloatArray) -> FloatArray:
-        x, iterations, residual = pcg(A, b, precondition, rtol, maxiter)
+        x, iterations, residual = pcg(A, b, precondition, rtol, max_iterations)
         if residual > rtol:
             raise MeshoptError(f"AMG-preconditioned CG did not converge: relative residual "
                                f"{residual:.2e} > {rtol:.1e} after {iterations} iterations")

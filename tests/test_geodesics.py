@@ -487,7 +487,8 @@ def test_energy_projection_keeps_the_energy_at_loose_tolerance(rng):
     for project in (False, True):
         fld = GeodesicField(pen)
         outs[project] = runge_kutta(fld, mesh.points, V, t, rtol=5e-2, atol=5e-2, pair="bs3",
-                                    energy_rtol=np.inf, project_energy=project, dense=False)
+                                    dense=False,
+                                    control={"energy_rtol": np.inf, "project_energy": project})
     e0 = energy(pen.gradient(mesh.points), V)
     e_free = np.array([energy(pen.gradient(q), v) for q, v in zip(outs[False].points,
                                                                   outs[False].velocities)])
@@ -586,3 +587,21 @@ def test_curvature_without_the_boundary_check():
     unchecked = pen.gradient_and_curvature(mesh.points, Q, check_boundary=False)
     np.testing.assert_array_equal(checked[0], unchecked[0])
     assert checked[1] == unchecked[1]
+
+
+def test_step_control_is_given_as_an_object_or_a_mapping_of_its_fields():
+    from meshopt_toolkit import data_path, load
+    from meshopt_toolkit.ode import StepControl, runge_kutta
+
+    mesh = load(data_path("disc_25.msh")).as_planar()
+    fld = GeodesicField(QualityPenalty(mesh, beta=(10, 1, 0, 0.25)))
+    V = 0.1 * np.ones_like(mesh.points)
+    V[mesh.boundary_vertices] = 0.0
+    t = np.array([0.5, 1.0])
+    a = runge_kutta(fld, mesh.points, V, t, rtol=1e-4, atol=1e-4,
+                    control=StepControl(max_steps=500, exit_shrink=0.5))
+    b = runge_kutta(fld, mesh.points, V, t, rtol=1e-4, atol=1e-4,
+                    control={"max_steps": 500, "exit_shrink": 0.5})
+    assert np.array_equal(a.points, b.points)
+    with pytest.raises(TypeError, match="max_step"):
+        runge_kutta(fld, mesh.points, V, t, rtol=1e-4, atol=1e-4, control={"max_step": 5})

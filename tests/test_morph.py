@@ -203,7 +203,7 @@ def test_stationary_stop_is_close_to_the_minimum(disc):
     Q1 = twisted(disc).points
     stopped = discrete_geodesic(metric, disc.points, Q1, 8)
     tight = discrete_geodesic(metric, disc.points, Q1, 8,
-                               options=dict(energy_rtol=0, tol=1e-7))
+                               options=dict(energy_rtol=0, tolerance=1e-7))
     assert stopped.status in ("converged", "stationary")
     assert tight.converged and tight.status == "converged"
     assert tight.energy <= stopped.energy * (1 + 1e-12)
@@ -346,7 +346,7 @@ def test_cli_morph_max_iter_and_callback(tmp_path, capsys, disc):
                  str(tmp_path / "o2"), "--max-iter", "0"]) == 1
     assert "--max-iterations" in capsys.readouterr().err
     seen = []
-    geodesic_morph(disc, twisted(disc), frames=3, max_iter=3,
+    geodesic_morph(disc, twisted(disc), frames=3, max_iterations=3,
                    callback=lambda nit, E, g: seen.append((nit, E, g)))
     assert [n for n, _, _ in seen] == [1, 2, 3]
     energies = [E for _, E, _ in seen]
@@ -408,11 +408,11 @@ def test_auto_method_shoots_or_falls_back():
     shot = geodesic_morph(mesh, B, frames=3, method="auto")
     assert shot.method == "shooting" and shot.log.success
     assert shot.target_error <= 1e-8 * mesh.diameter
-    starved = geodesic_morph(mesh, B, frames=3, method="auto", max_exp=1)
+    starved = geodesic_morph(mesh, B, frames=3, method="auto", shooting={"max_exp": 1})
     assert starved.method == "discrete" and not starved.log.success
     assert starved.summary()["shooting_residual"] > 0
     with pytest.raises(IntegrationError):
-        geodesic_morph(mesh, B, frames=3, method="shooting", max_exp=1)
+        geodesic_morph(mesh, B, frames=3, method="shooting", shooting={"max_exp": 1})
 
 
 def test_normalized_metric_keeps_a_half_turn_rigid(disc):

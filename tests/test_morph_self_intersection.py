@@ -217,7 +217,7 @@ def test_random_small_morphs_write_only_clean_frames(seed, angle, noise, frames,
     if not (signed_volumes(Q, T) > 0).all():
         Q = R.apply(P)  # the perturbation inverted a tet: the rigid image
     src, tgt = TetMesh(P, T), TetMesh(Q, T)
-    res = (morph_tets(src, tgt, frames, max_iter=30, avoid_crossings=True) if avoid
+    res = (morph_tets(src, tgt, frames, max_iterations=30, avoid_crossings=True) if avoid
            else mt.morph(src, tgt, frames, max_iterations=30))
     for X in res.points:
         assert (signed_volumes(X, T) > 0).all()

@@ -29,7 +29,7 @@ def test_time_coupled_solve_on_stale_factors_goes_on_with_fresh_ones(disc, rng, 
 
     def counting(*args, **kwargs):
         out = pcg(*args, **kwargs)
-        iterations.append((out[1], kwargs["maxiter"]))
+        iterations.append((out[1], kwargs["max_iterations"]))
         return out
 
     monkeypatch.setattr(frame_blocks, "pcg", counting)

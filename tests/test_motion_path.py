@@ -165,7 +165,7 @@ def test_discrete_geodesic_at_machine_precision_is_converged(disc):
     free = np.ones((4, disc.n_vertices), bool)
     free[[0, -1]] = False
     res = _geodesic(GraphMetric(P, disc.triangles), frames, free, gtol=0.0,
-                            max_iter=200)
+                            max_iterations=200)
     assert res.status == "converged" and res.nit < 200
     assert res.gradient_norm <= 1e-10 * max(1.0, np.sqrt(res.energy))
 

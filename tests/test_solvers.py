@@ -221,7 +221,7 @@ def test_amg_pcg_solve_reaches_rtol_or_says_it_did_not():
     x = amg_pcg_solve(grid, ml, 1e-10)(b)
     assert np.linalg.norm(grid @ x - b) <= 1e-10 * np.linalg.norm(b)
     with pytest.raises(MeshoptError, match="did not converge"):
-        amg_pcg_solve(grid, ml, 1e-14, maxiter=2)(b)
+        amg_pcg_solve(grid, ml, 1e-14, max_iterations=2)(b)
 
 
 def _grid(n: int) -> tuple[np.ndarray, sp.csr_matrix]:
@@ -330,7 +330,7 @@ def test_factorize_spd_in_single_precision():
 
 def test_refined_spd_solve_reaches_rtol_and_falls_back_to_double():
     """The float32 factor preconditions CG to ``rtol``; where it is too far off to get
-    there within ``maxiter``, the double-precision factor takes over (and stays)."""
+    there within ``max_iterations``, the double-precision factor takes over (and stays)."""
     from meshopt_toolkit.solvers import nested_dissection, refined_spd_solve
 
     rng = np.random.default_rng(4)
@@ -347,7 +347,7 @@ def test_refined_spd_solve_reaches_rtol_and_falls_back_to_double():
     b2 = np.array([1.0, -0.5])
     _, _, single_residual = pcg(near, b2, factorize_spd(near, single=True), 1e-9, 1)
     assert single_residual > 1e-9  # one float32-preconditioned step is not enough ...
-    solve2, precondition2 = refined_spd_solve(near, np.arange(2), rtol=1e-9, maxiter=1)
+    solve2, precondition2 = refined_spd_solve(near, np.arange(2), rtol=1e-9, max_iterations=1)
     x2 = solve2(b2)  # ... so the double factor did it
     assert np.linalg.norm(b2 - near @ x2) <= 1e-9 * np.linalg.norm(b2)
     assert np.allclose(precondition2(b2), np.linalg.solve(near.toarray(), b2), rtol=1e-8)

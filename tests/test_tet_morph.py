@@ -219,7 +219,7 @@ def test_random_small_pairs_every_frame_admissible(seed, amplitude, frames):
     Q = P @ A.T + 0.3 * amplitude * rng.standard_normal(P.shape) * 0.5
     assume((signed_volumes(Q, T) > 0).all() and np.linalg.det(A) > 0)
     src, tgt = TetMesh(P, T), TetMesh(Q, T)
-    res = morph_tets(src, tgt, frames, max_iter=60)
+    res = morph_tets(src, tgt, frames, max_iterations=60)
     assert admissible_frames(res)
     assert np.array_equal(res.points[0], P) and np.array_equal(res.points[-1], Q)
     assert res.status in ("converged", "stalled", "max_iter")

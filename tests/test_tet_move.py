@@ -321,7 +321,7 @@ def test_steps_by_conjugate_gradients_on_a_kept_factor_reach_their_tolerance():
 def test_minimize_decreases_energy_keeps_fixed_bitwise():
     problem, Q, centre, anchor, weights = _problem(3)
     E0 = problem.energy(Q, centre, anchor, weights)
-    res = minimize(problem, Q, centre, anchor, weights, rtol=1e-8, max_iter=30)
+    res = minimize(problem, Q, centre, anchor, weights, rtol=1e-8, max_iterations=30)
     fixed = ~problem.pattern.free.reshape(-1, 3).all(1)
     assert np.array_equal(res.points[fixed], Q[fixed])
     assert res.energy < E0 and res.gradient_ratio < 1e-6
@@ -461,7 +461,7 @@ def test_minimize_leaves_an_indefinite_newton_matrix_for_gauss_newton(monkeypatc
 
     problem.solve_step = spy_solve
     monkeypatch.setattr(Factor, "__call__", spy_factor)
-    res = minimize(problem, P, P, anchor, rtol=1e-10, max_iter=200, newton=True)
+    res = minimize(problem, P, P, anchor, rtol=1e-10, max_iterations=200, newton=True)
     # the Newton matrix was factorized once (and failed: a Gauss–Newton step followed)
     assert factorized[0] is True and factorized.count(True) == 1 and calls[:2] == [True, False]
     assert res.gradient_ratio < 1e-8

@@ -86,7 +86,7 @@ class BoundaryCheck:
     The test depends on the boundary positions only; the 128-bit digests of the last
     ``cache_size`` boundaries found simple are remembered, so iterative methods that come
     back to the same configurations (the morph's path energy evaluates value, gradient
-    and Hessian products at each frame; half its penalty time was this test) pay for it
+    and Hessian products at each frame) pay for it
     once per configuration.
     """
 

@@ -108,10 +108,9 @@ class MeshPattern:
     def symmetric_values(self, upper: FloatArray, diagonal: FloatArray) -> FloatArray:
         """Slot values of ``Σ_t`` the symmetric blocks given by ``upper`` (21, T) plus
         ``diag(diagonal)``: one ``bincount`` of the 21 entries (the blocks' diagonal
-        halved, in place in ``upper``) and the sum with its transpose (measured at 106k
-        triangles with :func:`symmetric_products`: 26 ms against 31 ms for the full
-        blocks' products and :meth:`values`; the layout is what makes the Newton term
-        cheap)."""
+        halved, in place in ``upper``) and the sum with its transpose: with
+        :func:`symmetric_products`, less work than the full blocks' products and
+        :meth:`values`; the layout is what makes the Newton term cheap."""
         upper[UPPER_DIAGONAL] *= 0.5
         out = np.bincount(self.upper_slots, upper.ravel(), minlength=self.nnz)
         out += out[self.transposed]
@@ -218,7 +217,7 @@ class BlockTridiagonal:
         time-coupled preconditioner (:mod:`.time_coupling`).
     frames_map : callable, optional
         ``map`` over the frames for products (:func:`.frame_threads.frame_map`: scipy's
-        sparse products release the GIL; 107k triangles, 7 frames: 54 → 31–42 ms).
+        sparse products release the GIL).
     """
 
     def __init__(self, ranges: list[tuple[int, int]], diagonal: list, upper: dict, lower: dict,

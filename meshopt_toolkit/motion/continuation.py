@@ -12,8 +12,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._options import renamed_keywords
 from .._typing import FloatArray, IntArray
-from ..errors import MeshoptError
+from ..errors import MeshoptError, OptionError
 from ..riemannian.discrete_geodesic import discrete_geodesic
 from ..riemannian.path_options import LevenbergMarquardtOptions
 from ..solvers import factorize_spd
@@ -25,18 +26,34 @@ logger = logging.getLogger(__name__)
 
 # A frame's relaxation stops when its gradient fell by this factor: the frames only need
 # to be admissible and close to the minimizing movement (the final quality step does the
-# rest); measured on the benchmark cases, 1e-2 gives the same frames as 1e-3 and 1e-6.
+# rest); on the benchmark cases a tighter factor gives the same frames.
 RELAX_RTOL = 1e-2
 # Their Newton steps are solved to this CG residual, and so are those of move's quality
-# rounds. Measured on the move benchmarks: for the relaxations (Gauss–Newton then), the
-# same iterations and results as 1e-3 with 44 % fewer triangular solves; for the quality
-# rounds, the same Newton iterations and min AR as 1e-2 on the ten cases that do not
-# move with every change of path (106k annulus turn: 163 CG iterations instead of 213).
+# rounds: on the move benchmarks a tighter residual gives the same iterations and results
+# with more triangular solves.
 RELAX_CG_RTOL = 0.1
 
 
 class NoAdmissiblePathError(MeshoptError):
     """No admissible motion was found within the effort allowed."""
+
+
+def check_frames_and_weight(frames: int, weight: float) -> None:
+    """Refuse a path of fewer than two frames or a metric weight that is not positive
+    (:class:`~meshopt_toolkit.errors.OptionError`)."""
+    if int(frames) < 2:
+        raise OptionError(f"frames must be at least 2, got {frames}")
+    if not weight > 0:
+        raise OptionError(f"weight must be > 0, got {weight}")
+
+
+def _step_free(n_vertices: int, handles: IntArray) -> np.ndarray:
+    """The free vertices of a one-segment path from a kept frame: none of the first, all
+    but the handles of the second."""
+    free = np.ones((2, n_vertices), bool)
+    free[0] = False
+    free[1, handles] = False
+    return free
 
 
 def extend(metric: GraphMetric, Q: FloatArray, handles: IntArray,
@@ -48,9 +65,7 @@ def extend(metric: GraphMetric, Q: FloatArray, handles: IntArray,
     relaxations', assembled from per-triangle blocks); ``H_fh δ_h`` is applied triangle
     by triangle."""
     N = Q.shape[0]
-    free = np.ones((2, N), bool)
-    free[0] = False
-    free[1, handles] = False
+    free = _step_free(N, handles)
     delta = np.zeros((N, 2))
     delta[handles] = new_positions - Q[handles]
     out = Q.copy()
@@ -74,6 +89,7 @@ class ContinuationResult:
     seconds: list[float] = field(default_factory=list)
 
 
+@renamed_keywords(relax_iter="max_iterations")  # motion/move.py still says relax_iter
 def continuation_path(
     metric: GraphMetric,
     start: FloatArray,
@@ -84,7 +100,7 @@ def continuation_path(
     boundary_edges: IntArray | None,
     strain_target: Callable[[float], FloatArray] | None = None,
     max_splits: int = 12,
-    relax_iter: int = 50,
+    max_iterations: int = 50,
     progress: Callable[[float], None] | None = None,
 ) -> ContinuationResult:
     """Frames at ``times`` (increasing, from 0) of an admissible motion of the handles.
@@ -102,15 +118,12 @@ def continuation_path(
         minimizing movement that keeps every triangle as it was).
     max_splits : int
         How many times one step may be halved before giving up (bounded effort).
-    relax_iter : int
+    max_iterations : int
         Levenberg–Marquardt iterations per frame.
     """
     import time as _time
 
-    N = start.shape[0]
-    free = np.ones((2, N), bool)
-    free[0] = False
-    free[1, handles] = False
+    free = _step_free(start.shape[0], handles)
     Q = np.array(start, float)
     s_now = float(times[0])
     frames, out_times, secs = [Q.copy()], [s_now], []
@@ -137,7 +150,7 @@ def continuation_path(
             res = discrete_geodesic(metric, Q, trial, 1, free=free,
                                     boundary_edges=boundary_edges, anchor=anchor,
                                     options=LevenbergMarquardtOptions(
-                                        gtol=1e-6, rtol=RELAX_RTOL, max_iter=relax_iter,
+                                        gtol=1e-6, rtol=RELAX_RTOL, max_iterations=max_iterations,
                                         cg_rtol=RELAX_CG_RTOL, newton=True, factors=factors))
             nit += res.nit
             Q = res.points[1]

@@ -20,14 +20,11 @@ from .time_coupling import FrameEmbedding
 REFACTOR_AFTER_CG = 12  # CG iterations after which the kept factorizations are renewed
 #: the same with the time-coupled preconditioner, which needs fresher factors: its frame
 #: solves stand for the pseudo-inverses of the current frames' Jacobians, twice per
-#: application (225° twist at 4.2k / 27k: with 12, single solves of 75 and 118 iterations
-#: on stale factors; with 4 at most 12, and 27k 14.0 → 11.4 s against block Jacobi)
+#: application
 REFACTOR_AFTER_CG_COUPLED = 4
 #: and a solve on kept factors that needs more than this many iterations goes on from
-#: there on fresh ones (the 180° annulus pair: one such solve took 56 iterations where
-#: block Jacobi took 18; with the limit 108 → 86 CG iterations in all. A limit of 6 saved
-#: more there, 1.69 → 1.36 s, but cost the 107k twist's finest level 2.5 s: its Newton
-#: systems take up to 9 iterations on fresh factors)
+#: there on fresh ones (stale factors can make a single solve several times longer; the
+#: limit stays above the iterations a Newton system takes on fresh factors)
 STALE_CG_LIMIT = 12
 
 
@@ -56,23 +53,18 @@ class FrameBlocks:
     decisions and so the results must not depend on the machine's load); CHOLMOD's are
     then refactorized on their kept analyses. The frames' blocks are independent: with
     several frames of at least ``PARALLEL_FROM`` unknowns they are factorized and solved
-    in threads, one per core (``threaded``; the results do not depend on it). Measured on
-    the 225° twist of the 4.2k disc: block Jacobi needs 35 % fewer triangular solves than
-    symmetric block Gauss–Seidel (which does two per block) and is 20 % faster.
+    in threads, one per core (``threaded``; the results do not depend on it). Block
+    Jacobi rather than symmetric block Gauss–Seidel, which does two solves per block.
 
     ``indices`` are each frame's columns, its vertices' ``x, y`` in turn; with ``points``,
     the positions of each frame's vertices (the reference mesh), the blocks are factorized
-    in :func:`.solvers.nested_dissection` order (computed once) instead of minimum degree:
-    about half the factorization time.
+    in :func:`.solvers.nested_dissection` order (computed once) instead of minimum degree
+    (less fill).
 
     Where CHOLMOD is installed (:func:`.solvers.cholmod_available`) the blocks are its
-    double-precision Cholesky factors: measured on a 108k-unknown block, 0.16 s per
-    factorization against 0.56 s for SuperLU's float32 LU and 0.018 against 0.026 s per
-    solve; the 225° twist at 107k triangles (9 frames, 2 cores) 105 → 85 s while its
-    factors were still called through ``cvxopt`` (which holds the GIL: one frame after
-    another) and SuperLU's solves ran two frames at a time. Through :mod:`.._cholmod` they
-    run in threads too (the 107k twist 29.5 → 24.1 s). Without CHOLMOD, SuperLU in
-    float32, in threads.
+    double-precision Cholesky factors (faster to factorize and to solve than SuperLU's
+    float32 LU), called through :mod:`.._cholmod`, which releases the GIL, so the frames
+    run in threads. Without CHOLMOD, SuperLU in float32, in threads.
     """
 
     def __init__(self, indices: list[np.ndarray], points: list[FloatArray] | None = None):
@@ -135,7 +127,7 @@ class FrameBlocks:
         coupled = _time_coupling(A) is not None
         capped = coupled and not fresh
         try:
-            x, iterations, residual = pcg(A, b, self.preconditioner(A), rtol, maxiter=(
+            x, iterations, residual = pcg(A, b, self.preconditioner(A), rtol, max_iterations=(
                 STALE_CG_LIMIT if capped else max(200, b.size // 2_000)))
         except FloatingPointError:
             self.stale = True

@@ -26,8 +26,8 @@ def frame_pool() -> ThreadPoolExecutor | None:
 
 
 #: paths with at least this many triangles assemble their frames in threads (numpy's
-#: per-triangle kernels release the GIL: 107k triangles, 8 frames, 2 cores: the strain
-#: and its Jacobian 0.31–0.57 → 0.14 s, with the diagonal blocks 0.83–1.07 → 0.35–0.53 s)
+#: per-triangle kernels release the GIL; below this the threads' overhead outweighs the
+#: work)
 PARALLEL_ASSEMBLY_FROM = 5_000
 
 

@@ -17,8 +17,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._options import renamed_keywords
 from .._typing import FloatArray, IntArray
-from ..errors import InvalidMeshError, OptionError
+from ..errors import InvalidMeshError
 from ..kernels.admissibility import BoundaryCheck, area_problem
 from ..kernels.triangles import aspect_ratios, inverse_shape_quality, signed_areas
 from ..mesh import PlanarMesh, require_admissible
@@ -26,7 +27,7 @@ from ..riemannian.discrete_geodesic import discrete_geodesic
 from ..riemannian.geodesic_result import DiscreteGeodesic
 from ..riemannian.path_options import LevenbergMarquardtOptions
 from ..results import PathFrames
-from .continuation import continuation_path
+from .continuation import check_frames_and_weight, continuation_path
 from .graph_metric import GraphMetric
 from .refinement import refine_frames, unrefined
 from .similarity import HandlePath, Similarity, fit_similarity, handle_groups
@@ -193,13 +194,14 @@ REFINED_LAMBDA_DECREASE = 0.01
 COARSE_MIN_TRIANGLES = 5000
 
 
+@renamed_keywords(max_iter="max_iterations")  # operations.py still says max_iter
 def distortion_morph(
     source: PlanarMesh,
     target: PlanarMesh,
     frames: int = 9,
     *,
     weight: float = 1.0,
-    max_iter: int = 200,
+    max_iterations: int = 200,
     callback: Callable[[int, float, float], None] | None = None,
     coarse_min_triangles: int = COARSE_MIN_TRIANGLES,
     gtol: float = GTOL,
@@ -215,7 +217,7 @@ def distortion_morph(
         Number of frames (≥ 2) including both ends.
     weight : float
         ``w`` in ``g = M + w² JᵀJ``.
-    max_iter : int
+    max_iterations : int
         Levenberg–Marquardt iterations of the discrete geodesic.
     callback : callable ``(iteration, E, |∇E|) -> bool | None``, optional
         Called at every iteration of the finest level; returning True stops it.
@@ -236,10 +238,7 @@ def distortion_morph(
     from ..fem.interpolation import arap_interpolation
 
     t_start = time.perf_counter()
-    if int(frames) < 2:
-        raise OptionError(f"frames must be at least 2, got {frames}")
-    if not weight > 0:
-        raise OptionError(f"weight must be > 0, got {weight}")
+    check_frames_and_weight(frames, weight)
     source = require_admissible(source, "morph (source)")
     target = require_admissible(target, "morph (target)")
     if source.n_vertices != target.n_vertices or not np.array_equal(source.triangles,
@@ -255,7 +254,7 @@ def distortion_morph(
     rigid_frames = arap_interpolation(P0, P1, tri, times)
     linear_frames = np.array([(1 - s) * P0 + s * P1 for s in times])
     metric = GraphMetric(P0, tri, weight)
-    res, kind, levels = _residual_morph(metric, R1, be, times, max_iter, callback,
+    res, kind, levels = _residual_morph(metric, R1, be, times, max_iterations, callback,
                                         coarse_min_triangles, gtol)
     out = np.array([S.at(float(s))(R) for s, R in zip(times, res.points)])
     out[0], out[-1] = P0, P1
@@ -272,7 +271,7 @@ def distortion_morph(
 
 
 def _residual_morph(metric: GraphMetric, R1: FloatArray, be: IntArray, times: FloatArray,
-                    max_iter: int, callback, coarse_min_triangles: int, gtol: float
+                    max_iterations: int, callback, coarse_min_triangles: int, gtol: float
                     ) -> tuple[DiscreteGeodesic, str, list[dict]]:
     """The discrete geodesic of ``metric`` from its reference ``P0`` to the residual target
     ``R1``, its initial path's kind and, per level (coarsest first), triangles, iterations,
@@ -291,7 +290,7 @@ def _residual_morph(metric: GraphMetric, R1: FloatArray, be: IntArray, times: Fl
         if _admissible_path(R1[None, :n], coarse.triangles, coarse.boundary_edges):
             coarse_res, coarse_kind, levels = _residual_morph(
                 GraphMetric(coarse.points, coarse.triangles, metric.weight), R1[:n],
-                coarse.boundary_edges, times, max_iter, None, coarse_min_triangles, gtol)
+                coarse.boundary_edges, times, max_iterations, None, coarse_min_triangles, gtol)
             init = refine_frames(coarse_res.points, coarse)
             init[0], init[-1] = P0, R1
             kind = f"coarse-to-fine ({coarse_kind})"
@@ -317,8 +316,8 @@ def _residual_morph(metric: GraphMetric, R1: FloatArray, be: IntArray, times: Fl
              if refined else dict(cg_rtol=PATH_CG_RTOL))
     res = discrete_geodesic(metric, init[0], init[-1], len(times) - 1, path=init, free=free,
                             boundary_edges=be, callback=callback,
-                            options=LevenbergMarquardtOptions(max_iter=max_iter, gtol=gtol,
-                                                              **steps))
+                            options=LevenbergMarquardtOptions(
+                                max_iterations=max_iterations, gtol=gtol, **steps))
     levels.append({"triangles": int(len(tri)), "iterations": int(res.nit),
                    "status": res.status, "seconds": float(time.perf_counter() - t0)})
     return res, kind, levels

@@ -39,22 +39,18 @@ to the graph of ``f`` in ``R^{2N+1}`` with the Euclidean metric. Three stages:
    the discrete geodesic, Jacobian-vector products by directional differences of the
    exponential map, GMRES, step halving when the residual grows.
 
-Measured (``benchmarks/bench_morph.py``): stage 2 is robust and cheap — the 225° twist
-of the 146-vertex disc takes about 17 exp_map calls' worth of time (4.5 s), the twist of
-a 107k-triangle disc 31 s — and converges to the shooting geodesic at second order in
-``1/K`` (tested). Stage 3 meets 1e-8·diameter on moderate deformations (tested round
-trips) but not on the 225° twist, where the geodesic passes triangles of aspect ratio
-~5e-4 and the exponential map is strongly nonlinear: one exponential map at ``rtol =
-1e-10`` takes ~0.6 s (3300 penalty calls), the integration is accurate (1.5e-9 from
-``rtol = 1e-13``) and the Jacobian only moderately ill-conditioned (GMRES: 14–24
-products for 1e-3), but a full Newton step raises the residual 7-fold and only ~1/8 of
+Stage 2 is robust and cheap against the shooting (``benchmarks/bench_morph.py``) and
+converges to the shooting geodesic at second order in ``1/K`` (tested). Stage 3 meets
+1e-8·diameter on moderate deformations (tested round trips) but not on the 225° twist,
+where the geodesic passes triangles of aspect ratio ~5e-4 and the exponential map is
+strongly nonlinear: the integration is accurate and the Jacobian only moderately
+ill-conditioned, but a full Newton step raises the residual and only a small fraction of
 it lowers it. Newton–Krylov stalls near 1e-2 from the discrete geodesic's velocity (the
-residual of that start is 1.4e-2 for K = 32 and 64: the frames do not resolve the
-thin-triangle stretch); an exact forward-mode Jacobian of the discretized map and
-multiple shooting (K = 8) from the same start stall as well, at 4e-3 and 5e-3 after ~500
-s. Hence :func:`geodesic_morph` uses the discrete
-geodesic by default (``method="discrete"``: every frame admissible, end frames exact)
-and shooting on request (``"shooting"``, ``"auto"``).
+frames do not resolve the thin-triangle stretch); an exact forward-mode Jacobian of the
+discretized map and multiple shooting from the same start stall as well. Hence
+:func:`geodesic_morph` uses the discrete geodesic by default (``method="discrete"``:
+every frame admissible, end frames exact) and shooting on request (``"shooting"``,
+``"auto"``).
 
 Default metric of the morph: the complete metric of ``√N · f2`` with f2
 ``QualityPenalty(source, beta=DEFAULT_BETA, reference=source)``, ``DEFAULT_BETA = (1, 1,
@@ -80,9 +76,11 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Mapping
 
 import numpy as np
 
+from .._options import renamed_keywords
 from .._typing import FloatArray
 from ..errors import InvalidMeshError, OptionError
 from ..generate import twisted  # the 225° twist target lives in generate; kept importable
@@ -99,6 +97,9 @@ logger = logging.getLogger(__name__)
 
 #: default f2 coefficients (β1, β2, β3, β4) of the morph metric (β4 unscaled)
 DEFAULT_BETA = (1.0, 1.0, 0.0, 1.0)
+
+#: the morph's shooting: the log map's settings with a smaller exponential-map budget
+SHOOTING = LogMapOptions(max_exp=400)
 
 __all__ = [
     "DEFAULT_BETA",
@@ -170,6 +171,15 @@ def morph_metric(source, beta=DEFAULT_BETA, *, normalize: bool = True):
     return CompleteMetric(QualityPenalty(source, beta=scaled, reference=source))
 
 
+def _shooting_options(shooting: LogMapOptions | Mapping | None) -> LogMapOptions:
+    """The shooting's settings: :data:`SHOOTING`, a mapping of fields on top of it, or an
+    instance as given."""
+    if shooting is None or isinstance(shooting, Mapping):
+        return LogMapOptions.of(SHOOTING, **(shooting or {}))
+    return LogMapOptions.of(shooting)
+
+
+@renamed_keywords(max_iter="max_iterations")  # operations.py still says max_iter
 def geodesic_morph(
     source,
     target,
@@ -180,10 +190,9 @@ def geodesic_morph(
     metric=None,
     method: str = "discrete",
     segments: int | None = None,
-    tol: float | None = None,
-    discrete_tol: float = 1e-9,
-    max_iter: int = 500,
-    max_exp: int = 400,
+    discrete_tolerance: float = 1e-9,
+    max_iterations: int = 500,
+    shooting: LogMapOptions | Mapping | None = None,
     callback=None,
 ) -> MorphResult:
     """``frames`` meshes along the geodesic from ``source`` to ``target``.
@@ -200,16 +209,17 @@ def geodesic_morph(
     metric : a CompleteMetric to use instead (``beta`` is then ignored)
     method : "discrete" (default: nodes of the discrete geodesic, admissible by
         construction), "shooting" (frames ``exp(t_k V)`` of the shooting geodesic; must
-        converge) or "auto" (shooting within ``max_exp`` exponential maps, the discrete
+        converge) or "auto" (shooting within ``shooting.max_exp`` exponential maps, the discrete
         frames otherwise). Shooting is exact where it converges, but on the 225° twist
         of the 146-vertex disc Newton–Krylov stalls near a residual of 1e-2 (module
         docstring)
     segments : segments of the discrete geodesic: a multiple of ``frames − 1`` (default
         the smallest multiple ≥ 16); frames are every m-th node
-    tol : shooting tolerance (default 1e-8 · diameter)
-    discrete_tol : Newton tolerance of the discrete geodesic
-    max_iter : Newton iterations of the discrete geodesic
-    max_exp : exponential-map budget of the shooting
+    discrete_tolerance : Newton tolerance of the discrete geodesic
+    max_iterations : Newton iterations of the discrete geodesic
+    shooting : :class:`~meshopt_toolkit.riemannian.log_map.LogMapOptions` of the shooting
+        (or a mapping of its fields on top of :data:`SHOOTING`: ``tolerance`` (default
+        1e-8 · diameter), the exponential-map budget ``max_exp``, ...)
     callback : passed to :func:`discrete_geodesic` (``callback(nit, E, gradient_norm)``;
         returning True stops it)
 
@@ -248,7 +258,8 @@ def geodesic_morph(
                           f"({frames - 1})")
     K = m * (frames - 1)
     dg = discrete_geodesic(metric, Q0, Q1, K, method="newton-cg",
-                           options=NewtonCGOptions(tol=discrete_tol, max_iter=max_iter),
+                           options=NewtonCGOptions(tolerance=discrete_tolerance,
+                                                   max_iterations=max_iterations),
                            callback=callback)
     if dg.status not in ("converged", "stationary"):
         logger.warning("geodesic_morph: the discrete geodesic did not converge in %d Newton "
@@ -260,7 +271,7 @@ def geodesic_morph(
     used, target_error, length = "discrete", 0.0, dg.length
     if method in ("auto", "shooting"):
         log = log_map(metric, Q0, Q1, discrete=dg,
-                      options=LogMapOptions(tolerance=tol, max_exp=max_exp),
+                      options=_shooting_options(shooting),
                       raise_on_failure=(method == "shooting"))
         if log.success:
             geo = geodesic(metric, Q0, log.velocity, 1.0, times=times, rtol=SHOOTING_RTOL,

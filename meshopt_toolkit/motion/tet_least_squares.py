@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from .._options import renamed_keywords
 from .._typing import FloatArray, IntArray
 from ..solvers import cholesky_spd, cholmod_available, factorize_spd, pcg
 from .tet_distortion import TetDistortion
@@ -122,14 +123,12 @@ class Problem:
     #: times its root mean square (0: all)
     newton_threshold: float = 1.0
     #: project each tet's Newton block onto the PSD cone (False: the exact Hessian, and
-    #: Gauss–Newton where it is not positive definite). Measured on the 90° sphere turn
-    #: (23k tets): projected, 64 iterations and 23 s of CPU; not, 50 and 16 s; the same
-    #: worst mean ratio (0.253)
+    #: Gauss–Newton where it is not positive definite; without the projection, fewer
+    #: iterations to the same worst mean ratio)
     project: bool = False
     #: steps solved by conjugate gradients to this relative residual, preconditioned by
-    #: the kept factorization (0: a factorization per step). Measured on the 90° sphere
-    #: turn (23k tets): the solves' CPU time 3.2 → 1.9 s, the same iterations and worst
-    #: mean ratio (0.253)
+    #: the kept factorization (0: a factorization per step; the same iterations and worst
+    #: mean ratio, in less time)
     cg_rtol: float = 0.1
     cg_maxiter: int = 25
 
@@ -220,12 +219,13 @@ class Minimized:
     gradient_ratio: float
 
 
+@renamed_keywords(max_iter="max_iterations")  # motion/tet_move.py still says max_iter
 def minimize(problem: Problem, Q: FloatArray, centre: FloatArray, anchor: FloatArray,
              cell_weights: FloatArray | None = None, *, rtol: float = 1e-2, gtol: float = 1e-10,
-             max_iter: int = 20, newton: bool = False) -> Minimized:
+             max_iterations: int = 20, newton: bool = False) -> Minimized:
     """Minimize ``E`` from the admissible ``Q`` (its fixed coordinates kept bitwise).
 
-    Stops when the free gradient fell by ``rtol`` (or below ``gtol``), after ``max_iter``
+    Stops when the free gradient fell by ``rtol`` (or below ``gtol``), after ``max_iterations``
     iterations, or when no step along the (Gauss–)Newton direction lowers ``E``. Once the
     Newton matrix is found not positive definite (or its step not a descent direction),
     the remaining iterations take Gauss–Newton steps without trying it again: it rarely
@@ -240,7 +240,7 @@ def minimize(problem: Problem, Q: FloatArray, centre: FloatArray, anchor: FloatA
     free = problem.pattern.free
     g0 = None
     ratio = 1.0
-    for it in range(max_iter):
+    for it in range(max_iterations):
         g, gn, full = problem.normal_equations(Q, centre, anchor, w, newton)
         gnorm = float(np.linalg.norm(g))
         g0 = gnorm if g0 is None else g0
@@ -270,7 +270,7 @@ def minimize(problem: Problem, Q: FloatArray, centre: FloatArray, anchor: FloatA
         else:
             return Minimized(Q, it, E, ratio)
         Q, E = trial, Et
-    return Minimized(Q, max_iter, E, ratio)
+    return Minimized(Q, max_iterations, E, ratio)
 
 
 def extend(problem: Problem, Q: FloatArray, handles: IntArray,

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._options import renamed_keywords
 from .._typing import FloatArray, IntArray
 from ..errors import InvalidMeshError, NotAdmissibleError, OptionError
 from ..kernels.intersections3d import self_intersections
@@ -33,7 +34,7 @@ from ..mesh import TetMesh
 from ..riemannian.levenberg_marquardt import levenberg_marquardt
 from ..riemannian.path_options import LevenbergMarquardtOptions
 from ..results import PathFrames
-from .continuation import NoAdmissiblePathError
+from .continuation import NoAdmissiblePathError, check_frames_and_weight
 from .handles3d import SelfIntersectionGuard
 from .similarity_3d import (HandlePath, Similarity3, fit_similarity_3d, handle_groups,
                             tet_boundary_faces)
@@ -171,8 +172,9 @@ def _check_pair(source, target) -> None:
                                      f"{mesh.problems[0]}")
 
 
+@renamed_keywords(max_iter="max_iterations")  # operations.py still says max_iter
 def morph_tets(source: TetMesh, target: TetMesh, frames: int = 9, *, weight: float = 1.0,
-               max_iter: int = 200, gtol: float = GTOL, newton: bool = False,
+               max_iterations: int = 200, gtol: float = GTOL, newton: bool = False,
                initial: str = "auto", max_splits: int = 12, avoid_crossings: bool = False,
                callback: Callable[[int, float, float], bool | None] | None = None
                ) -> TetMorphResult:
@@ -188,7 +190,7 @@ def morph_tets(source: TetMesh, target: TetMesh, frames: int = 9, *, weight: flo
         Frames (≥ 2), both ends included.
     weight : float
         ``w`` of ``M + w² JᵀJ``.
-    max_iter : int
+    max_iterations : int
         Levenberg–Marquardt iterations of the discrete geodesic.
     gtol : float
         Stop at ``|∇E| ≤ gtol·√E`` (or at the minimum to machine precision).
@@ -227,10 +229,7 @@ def morph_tets(source: TetMesh, target: TetMesh, frames: int = 9, *, weight: flo
         ``initial="linear"`` inverts a tet, or the continuation found no admissible step.
     """
     t_start = time.perf_counter()
-    if int(frames) < 2:
-        raise OptionError(f"frames must be at least 2, got {frames}")
-    if not weight > 0:
-        raise OptionError(f"weight must be > 0, got {weight}")
+    check_frames_and_weight(frames, weight)
     if initial not in INITIAL_PATHS:
         raise OptionError(f"unknown initial path {initial!r}; choose one of "
                           f"{', '.join(INITIAL_PATHS)}")
@@ -267,7 +266,7 @@ def morph_tets(source: TetMesh, target: TetMesh, frames: int = 9, *, weight: flo
                 crosses(Q) for Q in init[1:-1])
             model = TetPath(metric, init, crosses=crosses if avoid else None)
             geo = levenberg_marquardt(model, init, LevenbergMarquardtOptions(
-                max_iter=int(max_iter), gtol=gtol, cg_rtol=PATH_CG_RTOL, newton=newton),
+                max_iterations=int(max_iterations), gtol=gtol, cg_rtol=PATH_CG_RTOL, newton=newton),
                 callback)
             residual = geo.points
     moved = np.array([R if S.is_identity else S.at(float(s))(R) for s, R in zip(times, residual)])
@@ -316,7 +315,7 @@ def _initial_path(metric: TetGraphMetric, P0: FloatArray, R1: FloatArray, T: Int
 
 def _continuation(metric: TetGraphMetric, P0: FloatArray, R1: FloatArray, T: IntArray,
                   boundary: IntArray, times: FloatArray, max_splits: int,
-                  relax_iter: int = 15) -> FloatArray:
+                  max_iterations: int = 15) -> FloatArray:
     """Frames at ``times`` of a minimizing movement from ``P0``: the boundary along each
     boundary piece's similarity to its place in ``R1`` (:class:`.HandlePath`), each
     step started at the first admissible of the linearized extension of the boundary's
@@ -348,7 +347,7 @@ def _continuation(metric: TetGraphMetric, P0: FloatArray, R1: FloatArray, T: Int
                     f"no admissible frame of the morph's start at s = {s_now + ds:.4g} "
                     f"(the step was halved {max_splits} times)")
             Q = minimize(problem, trial, Q, s_try * phi1, rtol=STEP_RTOL,
-                         max_iter=relax_iter, newton=True).points
+                         max_iterations=max_iterations, newton=True).points
             s_now = s_try
         out.append(Q.copy())
     out.append(R1.copy())

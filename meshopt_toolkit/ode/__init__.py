@@ -7,7 +7,7 @@ dense output (``tableaus``), adaptive Runge–Kutta (``runge_kutta``) and Störm
 from __future__ import annotations
 
 from .base import IntegrationOutput, SecondOrderField, energy
-from .runge_kutta import bs3, dop853, dopri5, runge_kutta
+from .runge_kutta import StepControl, bs3, dop853, dopri5, runge_kutta
 from .tableaus import BS3_TABLEAU, DOPRI5_TABLEAU, PAIRS, _hermite, _hermite_many, rk_pair
 from .verlet import stormer_verlet
 
@@ -17,6 +17,7 @@ __all__ = [
     "PAIRS",
     "IntegrationOutput",
     "SecondOrderField",
+    "StepControl",
     "bs3",
     "dop853",
     "dopri5",

@@ -4,15 +4,28 @@ docstring)."""
 from __future__ import annotations
 
 
+from collections.abc import Mapping
+from dataclasses import dataclass
+
 import numpy as np
 
+from .._options import options_of
 from .._typing import FloatArray
 from ..errors import IntegrationError, NotAdmissibleError
 from .base import IntegrationOutput, SecondOrderField, _combine, energy
 from .tableaus import _Pair, _error_norm, _hermite_many, dense_evaluate, dense_polynomial, rk_pair
 
 
-def _initial_step(field: SecondOrderField, y, a, rk: _Pair, rtol, atol, t_end: float) -> float:
+def _acceleration(field: SecondOrderField, y: FloatArray) -> FloatArray | None:
+    """The field's acceleration at the state ``y = (Q, V)``, None where ``Q`` is not
+    admissible."""
+    try:
+        return field.acceleration(y[0], y[1])[0]
+    except NotAdmissibleError:
+        return None
+
+
+def _initial_step(field: SecondOrderField, y, a, rk: _Pair, rtol, atol, time: float) -> float:
     """Starting step of Hairer, Nørsett & Wanner I, II.4 (as in scipy's ``solve_ivp``), in
     the scaled max-norm: ``h₀ = 0.01 |y|/|y'|``, one trial Euler step of that size to
     estimate ``|y''|``, then ``h₁ = (0.01 / max(|y'|, |y''|))^(1/(q+1))`` (``q`` the order
@@ -23,11 +36,10 @@ def _initial_step(field: SecondOrderField, y, a, rk: _Pair, rtol, atol, t_end: f
     d0 = float(np.max(np.abs(y) / sc))
     d1 = float(np.max(np.abs(f0) / sc))
     h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
-    h0 = min(h0, t_end)
+    h0 = min(h0, time)
     y1 = y + h0 * f0
-    try:
-        a1, _ = field.acceleration(y1[0], y1[1])
-    except NotAdmissibleError:
+    a1 = _acceleration(field, y1)
+    if a1 is None:
         return h0
     d2 = float(np.max(np.abs(np.stack([y1[1], a1]) - f0) / sc)) / h0
     if not np.isfinite(d2):
@@ -51,11 +63,8 @@ def _continuous_extension(field: SecondOrderField, rk: _Pair, k, y, y_new, h: fl
         ys = y + h * _combine(row[:s], kx)
         if not field.checks_areas and not field.admissible(ys[0]):
             return None
-        try:
-            acc, _ = field.acceleration(ys[0], ys[1])
-        except NotAdmissibleError:
-            return None
-        if not np.isfinite(acc).all():
+        acc = _acceleration(field, ys)
+        if acc is None or not np.isfinite(acc).all():
             return None
         kx[s, 0], kx[s, 1] = ys[1], acc
     out = dense_evaluate(dense_polynomial(rk, kx, y, y_new, h), y, theta)
@@ -77,6 +86,36 @@ def bs3(field: SecondOrderField, Q0, V0, t_out, **kwargs) -> IntegrationOutput:
     return runge_kutta(field, Q0, V0, t_out, pair="bs3", **kwargs)
 
 
+@dataclass(frozen=True)
+class StepControl:
+    """How :func:`runge_kutta` caps, rejects and shrinks steps beyond its error estimate.
+
+    Attributes
+    ----------
+    max_steps : cap on accepted + rejected steps
+    energy_rtol : a step is also rejected when it changes the energy ``e = (V, V)_g`` by
+        more than ``energy_rtol · e(0)`` (None: ``10·rtol``; ``inf`` disables it; the
+        gradient at the new point comes for free from the last stage, so this costs
+        nothing). Without it the ``(∇f·V)²`` part of the energy, which amplifies errors in
+        V by ``|∇f|``, can drift far on stiff penalties while the position error is
+        controlled.
+    project_energy : after each accepted step rescale the velocity to the initial energy,
+        ``V ← V·sqrt(e(0)/e)`` (a projection onto the invariant ``(V, V)_g = e(0)``,
+        Hairer, Lubich & Wanner, *Geometric Numerical Integration*, IV.4; it keeps the
+        order of the method). The acceleration is quadratic in V, so the first stage of
+        the next step is rescaled by ``e(0)/e`` at no cost. At loose tolerances this keeps
+        the bound ``|f(γ(t)) − f(γ(0))| ≤ √e(0)·t`` that prevents the discrete path from
+        running into a degenerate mesh.
+    exit_shrink : factor applied to the step size after a step is rejected because a
+        stage or its end is not admissible.
+    """
+
+    max_steps: int = 100_000
+    energy_rtol: float | None = None
+    project_energy: bool = False
+    exit_shrink: float = 0.25
+
+
 def runge_kutta(
     field: SecondOrderField,
     Q0: FloatArray,
@@ -87,11 +126,8 @@ def runge_kutta(
     atol: float,
     pair: str = "dopri5",
     h0: float | None = None,
-    max_steps: int = 100_000,
-    energy_rtol: float | None = None,
     dense: bool = True,
-    project_energy: bool = False,
-    exit_shrink: float = 0.25,
+    control: StepControl | Mapping | None = None,
     partial: bool = False,
     progress=None,
 ) -> IntegrationOutput:
@@ -110,13 +146,6 @@ def runge_kutta(
         ``|err| ≤ atol + rtol·|y|``
     pair : "dopri5", "dop853" or "bs3"
     h0 : initial step (default: Hairer's heuristic from ``|y|`` and ``|y'|``)
-    max_steps : cap on accepted + rejected steps
-    energy_rtol : a step is also rejected when it changes the energy ``e = (V, V)_g`` by
-        more than ``energy_rtol · e(0)`` (default ``10·rtol``; ``inf`` disables it; the
-        gradient at the new point comes for free from the last stage, so this costs
-        nothing). Without it the ``(∇f·V)²`` part of the energy, which amplifies errors in
-        V by ``|∇f|``, can drift far on stiff penalties while the position error is
-        controlled.
     dense : bool
         True (default): steps are chosen by the error control alone (the last one lands on
         ``t_out[-1]``) and outputs inside a step come from DOP853's own 7th-order
@@ -128,16 +157,9 @@ def runge_kutta(
         that it lands exactly on that output. False: every output is a step end.
         Many outputs (e.g. the backtracking times ``τ^k`` of a line search) then cost
         nothing extra.
-    project_energy : bool
-        After each accepted step rescale the velocity to the initial energy,
-        ``V ← V·sqrt(e(0)/e)`` (a projection onto the invariant ``(V, V)_g = e(0)``, Hairer,
-        Lubich & Wanner, *Geometric Numerical Integration*, IV.4; it keeps the order of
-        the method). The acceleration is quadratic in V, so the first stage of the next
-        step is rescaled by ``e(0)/e`` at no cost. At loose tolerances this keeps the
-        bound ``|f(γ(t)) − f(γ(0))| ≤ √e(0)·t`` that prevents the discrete path from
-        running into a degenerate mesh.
-    exit_shrink : factor applied to the step size after a step is rejected because a
-        stage or its end is not admissible.
+    control : :class:`StepControl` (or a mapping of its fields; None: the defaults):
+        the step cap, the energy test and projection, the shrink after an inadmissible
+        stage
     partial : bool
         False (default): a failure raises. True: a failure (step size underflow, too many
         steps) ends the integration; the outputs reached so far are returned and
@@ -155,6 +177,8 @@ def runge_kutta(
         Step size underflow, too many steps (unless ``partial``), or a non-finite
         right-hand side at the initial mesh.
     """
+    c = options_of(StepControl, control, {}, error=TypeError, what="step control setting(s)")
+    max_steps, energy_rtol, exit_shrink = c.max_steps, c.energy_rtol, c.exit_shrink
     rk = rk_pair(pair)
     S = len(rk.b)
     t_out = np.asarray(t_out, dtype=float)
@@ -170,7 +194,7 @@ def runge_kutta(
     out_v = np.empty((K,) + y.shape[1:])
     out_e = np.empty(K)
     t_end = float(t_out[-1])
-    project = bool(project_energy) and e0 > 0
+    project = bool(c.project_energy) and e0 > 0
 
     if h0 is None:
         h0 = _initial_step(field, y, a, rk, rtol, atol, t_end)

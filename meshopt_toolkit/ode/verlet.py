@@ -39,8 +39,8 @@ def stormer_verlet(
     t_out: FloatArray,
     *,
     steps: int,
-    tol: float = 1e-8,
-    max_iter: int = 10,
+    tolerance: float = 1e-8,
+    max_iterations: int = 10,
 ) -> IntegrationOutput:
     """The thesis' Störmer–Verlet scheme (algorithm 1) for (5.40).
 
@@ -50,7 +50,7 @@ def stormer_verlet(
     2. ``Q_{n+1} = Q_n + (Δt/2)(V(Q_n, P½) + V(Q_{n+1}, P½))``  (implicit, from Q_n)
     3. ``P_{n+1} = P½ + (Δt/2) F(Q_{n+1}, P½)``          (explicit)
 
-    Fixed points stop when ``max|x_{k+1} − x_k| ≤ tol·(1 + max|x_{k+1}|)``.
+    Fixed points stop when ``max|x_{k+1} − x_k| ≤ tolerance·(1 + max|x_{k+1}|)``.
 
     Parameters
     ----------
@@ -61,7 +61,7 @@ def stormer_verlet(
         ``max(1, round(steps · length / t_end))`` of them (exactly Δt = t_end/steps when
         the outputs lie on that grid)
     steps : number of steps on ``[0, t_out[-1]]`` (the thesis used 1024)
-    tol, max_iter : fixed-point tolerance and iteration cap (thesis: 1e-8, 10)
+    tolerance, max_iterations : fixed-point tolerance and iteration cap (thesis: 1e-8, 10)
 
     Raises
     ------
@@ -96,12 +96,12 @@ def stormer_verlet(
             t_here = t_prev + j * dt
             # 1. implicit momentum half-step at Q_n (∇f(Q_n) is fixed during the iteration)
             p_half = p
-            for _ in range(max_iter):
+            for _ in range(max_iterations):
                 with np.errstate(over="ignore", invalid="ignore"):
                     new = p + 0.5 * dt * _force(field, q, grad, p_half)
                 if not np.isfinite(new).all():
                     raise fail("the momentum fixed point diverged", t_here)
-                done = _converged(new, p_half, tol)
+                done = _converged(new, p_half, tolerance)
                 p_half = new
                 if done:
                     break
@@ -110,12 +110,12 @@ def stormer_verlet(
             # 2. implicit position step
             v_n = _velocity(grad, p_half)
             q_new, grad_new = q, grad
-            for _ in range(max_iter):
+            for _ in range(max_iterations):
                 with np.errstate(over="ignore", invalid="ignore"):
                     cand = q + 0.5 * dt * (v_n + _velocity(grad_new, p_half))
                 if not field.admissible(cand):
                     raise fail("the position iterate left the admissible set", t_here)
-                done = _converged(cand, q_new, tol)
+                done = _converged(cand, q_new, tolerance)
                 q_new = cand
                 grad_new = field.gradient(q_new)
                 if done:

@@ -128,9 +128,9 @@ class BlockedEngine:
         return True
 
 
-class ComplexEngine:
-    """The triangle term and the total-area term of a mesh of one block, in complex
-    arithmetic (value, gradient, curvature; not the hvp)."""
+class _OneBlockEngine:
+    """The triangle term and the total-area term of a mesh of one block, in one pass
+    (value, gradient, curvature; not the hvp)."""
 
     supports_hvp = False
 
@@ -144,6 +144,18 @@ class ComplexEngine:
         self._triangle_term = triangle_term
         self._area_term = area_term
         self.n_vertices = n_vertices
+        self._index(tri_t)
+
+    def _index(self, tri_t: IntArray) -> None:
+        """Keep the index arrays of the triangles ``tri_t`` (3, T) that :meth:`run` uses."""
+        raise NotImplementedError
+
+
+class ComplexEngine(_OneBlockEngine):
+    """The triangle term and the total-area term of a mesh of one block, in complex
+    arithmetic (value, gradient, curvature; not the hvp)."""
+
+    def _index(self, tri_t: IntArray) -> None:
         self._edge_head = np.ascontiguousarray(tri_t[[2, 0, 1]])  # e_l = q_head − q_tail
         self._edge_tail = np.ascontiguousarray(tri_t[[1, 2, 0]])
         flat2 = 2 * tri_t.ravel()
@@ -246,22 +258,12 @@ class ComplexEngine:
         return True
 
 
-class FourierEngine:
+class FourierEngine(_OneBlockEngine):
     """The quality term (f2) and the total-area term of a mesh of one block, in the
-    triangles' discrete Fourier coordinates (value, gradient, curvature; not the hvp)."""
+    triangles' discrete Fourier coordinates (value, gradient, curvature; not the hvp; the
+    triangle term must be given)."""
 
-    supports_hvp = False
-
-    def __init__(
-        self,
-        tri_t: IntArray,
-        n_vertices: int,
-        triangle_term: _TriangleQuotientTerm,
-        area_term: _TotalAreaTerm | None,
-    ) -> None:
-        self._triangle_term = triangle_term
-        self._area_term = area_term
-        self.n_vertices = n_vertices
+    def _index(self, tri_t: IntArray) -> None:
         self._tri_t = tri_t
         T = self.n_triangles = tri_t.shape[1]
         flat = tri_t.ravel()
@@ -270,7 +272,7 @@ class FourierEngine:
         rows = np.concatenate([np.tile(np.arange(T), 3), np.tile(np.arange(T, 2 * T), 3)])
         cols = np.concatenate([flat, flat])
         vals = np.concatenate([np.repeat(_OMEGA, T), np.repeat(_OMEGA**2, T)])
-        W = sp.csr_matrix((vals, (rows, cols)), shape=(2 * T, n_vertices))
+        W = sp.csr_matrix((vals, (rows, cols)), shape=(2 * T, self.n_vertices))
         self._fourier_adjoint = W.conj().T.tocsr()  # (N, 2T): the gradient's scatter
 
     def run(self, Q: FloatArray, V: FloatArray | None, acc: _Accumulator) -> bool:

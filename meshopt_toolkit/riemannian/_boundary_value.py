@@ -24,6 +24,17 @@ def _as_points(Q, what: str) -> FloatArray:
     return np.ascontiguousarray(Q[:, :2])
 
 
+def _path_frames(path, Q0: FloatArray, Q1: FloatArray, segments: int) -> FloatArray:
+    """The ``segments + 1`` frames of ``path`` as a new float array, its ends set to ``Q0``
+    and ``Q1`` (InvalidMeshError for another shape)."""
+    frames = np.array(path, dtype=np.float64)
+    if frames.shape != (segments + 1,) + Q0.shape:
+        raise InvalidMeshError(f"path must have shape {(segments + 1,) + Q0.shape}, "
+                               f"got {frames.shape}")
+    frames[0], frames[-1] = Q0, Q1
+    return frames
+
+
 def _require_finite(pen, Q: FloatArray, what: str) -> float:
     try:
         f = float(pen.value(Q))

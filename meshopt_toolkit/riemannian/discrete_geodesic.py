@@ -16,7 +16,7 @@ import numpy as np
 
 from .._typing import FloatArray
 from ..errors import InvalidMeshError
-from ._boundary_value import _as_points
+from ._boundary_value import _as_points, _path_frames
 from .geodesic_result import DiscreteGeodesic
 from .levenberg_marquardt import levenberg_marquardt
 from .metrics import MetricNotImplementedError
@@ -114,10 +114,7 @@ def discrete_geodesic(
     if path is None:
         t = np.linspace(0.0, 1.0, K + 1)[:, None, None]
         path = (1.0 - t) * Q0 + t * Q1
-    frames = np.array(path, dtype=np.float64)
-    if frames.shape != (K + 1,) + Q0.shape:
-        raise InvalidMeshError(f"path must have shape {(K + 1,) + Q0.shape}, got {frames.shape}")
-    frames[0], frames[-1] = Q0, Q1
+    frames = _path_frames(path, Q0, Q1, K)
     if free is None:
         free = np.ones(frames.shape[:2], dtype=bool)
         free[-1] = False

@@ -44,7 +44,8 @@ class GeodesicOptions:
         geodesic); default Hairer's tolerance-aware heuristic (one penalty call), for
         ``"line-search"`` ``LINE_SEARCH_FIRST_STEP`` of the interval.
     steps : Störmer–Verlet steps on [0, time] (default 1024)
-    fixed_point_tol, fixed_point_iter : Störmer–Verlet fixed-point tolerance and cap
+    fixed_point_tolerance, fixed_point_max_iterations : Störmer–Verlet fixed-point tolerance
+        and cap
     """
 
     method: str = "auto"
@@ -57,8 +58,8 @@ class GeodesicOptions:
     monitor: bool | None = None
     h0: float | None = None
     steps: int | None = None
-    fixed_point_tol: float = 1e-8
-    fixed_point_iter: int = 10
+    fixed_point_tolerance: float = 1e-8
+    fixed_point_max_iterations: int = 10
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -72,7 +73,7 @@ class GeodesicOptions:
                 raise IntegrationError(f"{name} must be > 0, got {value!r}")
         if self.atol is not None and not self.atol >= 0:
             raise IntegrationError(f"atol must be >= 0, got {self.atol!r}")
-        for name in ("max_steps", "fixed_point_iter", "steps"):
+        for name in ("max_steps", "fixed_point_max_iterations", "steps"):
             value = getattr(self, name)
             if value is not None and not value >= 1:
                 raise IntegrationError(f"{name} must be at least 1, got {value!r}")

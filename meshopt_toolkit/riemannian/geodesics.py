@@ -19,8 +19,8 @@ Methods (``method=``):
     scipy), steps landing exactly on the requested times, stages outside M+ rejected.
     Default tolerance ``rtol = 1e-6``, ``atol = 1e-6 · scale`` (scale = ``max(max|Q|,
     max|V|·t)``): about 1e-7·max|V| from a tight solution on the benchmark disc
-    (``benchmarks/bench_geodesics.py``) with ~25% fewer penalty calls than dopri5 at
-    equal accuracy. ``rtol = atol = 1e-5`` is plenty for a line-search retraction.
+    (``benchmarks/bench_geodesics.py``) with fewer penalty calls than dopri5 at equal
+    accuracy. ``rtol = atol = 1e-5`` is plenty for a line-search retraction.
 ``"dopri5"``
     The same stepping with our Dormand–Prince 5(4) pair (6 calls per step), default
     ``rtol = 1e-7``; cheaper per step, better at loose tolerances.
@@ -47,8 +47,8 @@ Methods (``method=``):
 ``"stormer-verlet"``
     The thesis' algorithm 1 with ``steps`` uniform steps (default 1024): the reference.
     Its fixed points use the thesis' tolerance 1e-8 and at most 10 iterations
-    (``fixed_point_tol``, ``fixed_point_iter``); when the contraction is slow (stiff
-    penalty, large velocity) it raises "use more steps".
+    (``fixed_point_tolerance``, ``fixed_point_max_iterations``); when the contraction is
+    slow (stiff penalty, large velocity) it raises "use more steps".
 ``"scipy"``
     ``scipy.integrate.solve_ivp`` with DOP853 on the same right-hand side, default
     ``rtol = 1e-10``: an independent check (it sees a stage outside M+ only as NaN).
@@ -115,7 +115,7 @@ LINE_SEARCH_OPTIONS = {"project_energy": True, "energy_rtol": np.inf, "exit_shri
 
 #: first step of ``method="line-search"`` as a fraction of the interval: its geodesics take
 #: about ten steps, and starting there saves the trial evaluation and the cautious first
-#: steps of the general heuristic (10–20% fewer penalty calls on the bundled discs)
+#: steps of the general heuristic (fewer penalty calls on the bundled discs)
 LINE_SEARCH_FIRST_STEP = 0.1
 
 
@@ -327,12 +327,13 @@ def geodesic(
             h0 = LINE_SEARCH_FIRST_STEP * positive[-1]
         out = runge_kutta(fld, Q, V, positive, pair="bs3" if line_search else method_used,
                           rtol=rtol, atol=rtol * scale if atol is None else atol,
-                          max_steps=opts.max_steps, dense=opts.dense, h0=h0, partial=True,
-                          progress=progress, **extra)
+                          dense=opts.dense, h0=h0, partial=True, progress=progress,
+                          control={"max_steps": opts.max_steps, **extra})
     elif method_used == "stormer-verlet":
         out = stormer_verlet(fld, Q, V, positive,
                              steps=1024 if opts.steps is None else int(opts.steps),
-                             tol=opts.fixed_point_tol, max_iter=opts.fixed_point_iter)
+                             tolerance=opts.fixed_point_tolerance,
+                             max_iterations=opts.fixed_point_max_iterations)
     else:
         scale = max(float(np.max(np.abs(Q))), float(np.max(np.abs(V))) * positive[-1], 1e-300)
         out = _scipy_dop853(fld, Q, V, positive, rtol, rtol * scale if atol is None else atol)

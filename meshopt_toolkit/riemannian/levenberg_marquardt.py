@@ -93,7 +93,7 @@ def levenberg_marquardt(path: LeastSquaresPath, frames: FloatArray,
                         options: LevenbergMarquardtOptions, callback=None) -> DiscreteGeodesic:
     """Minimize the path energy of ``path`` from ``frames`` over its unknowns; see
     :func:`.discrete_geodesic.discrete_geodesic` and :class:`.LevenbergMarquardtOptions`."""
-    gtol, rtol, max_iter = options.gtol, options.rtol, options.max_iter
+    gtol, rtol, max_iterations = options.gtol, options.rtol, options.max_iterations
     cg_rtol, newton, lambda_decrease = options.cg_rtol, options.newton, options.lambda_decrease
     if not path.admissible(frames):
         raise NotAdmissibleError("the initial path is not admissible")
@@ -107,7 +107,7 @@ def levenberg_marquardt(path: LeastSquaresPath, frames: FloatArray,
     status = "max_iter"
     history = []
     it = 0
-    for it in range(1, max_iter + 1):
+    for it in range(1, max_iterations + 1):
         gnorm = 2.0 * float(np.linalg.norm(g))
         history.append((E, gnorm))
         if callback is not None and callback(it - 1, E, gnorm):

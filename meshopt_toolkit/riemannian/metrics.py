@@ -131,6 +131,14 @@ class _LastQCache:
         self._q = self._mask = self._value = None
 
 
+def _derivative(P, shape: tuple) -> FloatArray:
+    """``P`` as a float array of ``shape`` (ValueError for another)."""
+    P = np.asarray(P, dtype=np.float64)
+    if P.shape != shape:
+        raise ValueError(f"derivative has shape {P.shape}, expected {shape}")
+    return P
+
+
 def _free_mask(free, n: int) -> np.ndarray | None:
     """Validate an optional per-vertex ``free`` mask (N,) bool; None if all are free."""
     if free is None:
@@ -318,7 +326,7 @@ class ElasticityMetric:
                 return current.solve(b)  # refactorized at this Q meanwhile
             try:
                 x, _, residual = pcg(csr, b, kept.precondition or kept.solve, self.rtol,
-                                     maxiter=self.REFACTOR_AFTER_CG)
+                                     max_iterations=self.REFACTOR_AFTER_CG)
             except FloatingPointError:  # the kept factor is too far off to precondition
                 residual = np.inf
             if not residual <= self.rtol:
@@ -348,9 +356,7 @@ class ElasticityMetric:
         system is restricted to the free vertices' dofs; fixed rows of the result are 0.
         """
         Q = self._points(Q)
-        P = np.asarray(P, dtype=np.float64)
-        if P.shape != Q.shape:
-            raise ValueError(f"derivative has shape {P.shape}, expected {Q.shape}")
+        P = _derivative(P, Q.shape)
         mask = _free_mask(free, Q.shape[0])
         solver = self._solver(Q, mask)
         if mask is None:
@@ -425,9 +431,7 @@ class CompleteMetric:
         vertices first (the metric restricted to fields vanishing on fixed vertices).
         """
         g, gg = self.gradient_of_penalty(Q)
-        P = np.asarray(P, dtype=np.float64)
-        if P.shape != g.shape:
-            raise ValueError(f"derivative has shape {P.shape}, expected {g.shape}")
+        P = _derivative(P, g.shape)
         mask = _free_mask(free, g.shape[0])
         if mask is not None:
             g = np.where(mask[:, None], g, 0.0)

@@ -11,8 +11,8 @@ import numpy as np
 
 from .._linalg import dot as _dot
 from .._typing import FloatArray
-from ..errors import InvalidMeshError, NotAdmissibleError
-from ._boundary_value import _Counter, _require_finite
+from ..errors import NotAdmissibleError
+from ._boundary_value import _Counter, _path_frames, _require_finite
 from .geodesic_result import DiscreteGeodesic
 from .geodesics import penalty_of
 from .initial_path import initial_path
@@ -131,8 +131,8 @@ def newton_cg(metric, Q0: FloatArray, Q1: FloatArray, K: int, path: FloatArray |
               options: NewtonCGOptions, callback=None) -> DiscreteGeodesic:
     """The K-segment discrete geodesic of a complete (or the Euclidean) metric from ``Q0``
     to ``Q1`` by Newton–CG; see :func:`.discrete_geodesic.discrete_geodesic`."""
-    tol, energy_rtol, window = options.tol, options.energy_rtol, options.window
-    max_iter, max_cg = options.max_iter, options.max_cg
+    tol, energy_rtol, window = options.tolerance, options.energy_rtol, options.window
+    max_iterations, max_cg = options.max_iterations, options.max_cg
     raw = penalty_of(metric)
     if raw is None:
         t = np.linspace(0.0, 1.0, K + 1)[:, None, None]
@@ -145,10 +145,7 @@ def newton_cg(metric, Q0: FloatArray, Q1: FloatArray, K: int, path: FloatArray |
     f1 = _require_finite(pen, Q1, "the target")
     if path is None:
         path = initial_path(raw, Q0, Q1, K)
-    path = np.array(path, dtype=np.float64)
-    if path.shape != (K + 1,) + Q0.shape:
-        raise InvalidMeshError(f"path must have shape {(K + 1,) + Q0.shape}, got {path.shape}")
-    path[0], path[-1] = Q0, Q1
+    path = _path_frames(path, Q0, Q1, K)
     if K == 1:
         fs = np.array([f0, f1])
         return DiscreteGeodesic(path, fs, float(_dot(Q1 - Q0, Q1 - Q0) + (f1 - f0) ** 2),
@@ -166,7 +163,7 @@ def newton_cg(metric, Q0: FloatArray, Q1: FloatArray, K: int, path: FloatArray |
     converged = gnorm <= tol * np.sqrt(E)
     status = "converged" if converged else "max_iter"
     energies = [E]
-    while not converged and nit < max_iter:
+    while not converged and nit < max_iterations:
         nit += 1
         eta = min(0.5, np.sqrt(gnorm / max(np.sqrt(E), 1e-300)))
         D, n_cg, negative = _newton_cg_direction(G, pe.hvp, pe.precondition, eta, max_cg)

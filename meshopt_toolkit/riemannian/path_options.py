@@ -10,6 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._options import renamed_keywords
+
 #: the minimizers of the path energy ("auto": Levenberg–Marquardt where the metric provides
 #: a least-squares path model, else Newton–CG)
 METHODS = ("auto", "newton-cg", "levenberg-marquardt")
@@ -19,19 +21,15 @@ METHODS = ("auto", "newton-cg", "levenberg-marquardt")
 ENERGY_RESOLUTION = 100 * np.finfo(float).eps
 #: the damping's factor after a step whose decrease the model predicted well (ρ > 0.75).
 #: The paths have soft directions (a frame sliding along itself) that a damped step
-#: barely moves along; with the usual 1/3 the morph spent its last iterations waiting
-#: for λ to fall (4.2k twist: 14 iterations, 6 of them at |∇E| ≈ 1e-3 with ρ ≈ 1);
-#: with 1/10, 10 iterations to the same min AR in every frame, and move's relaxations
-#: and quality rounds 10–15 % fewer.
+#: barely moves along; with the usual 1/3 the last iterations wait for λ to fall.
 LAMBDA_DECREASE = 0.1
 #: damping below which a step is the model's own (Gauss–Newton or Newton) step. Such a
 #: step that promises less than ``ENERGY_RESOLUTION · E`` cannot be judged by E (its
 #: change is rounding, ~1e-16·E, either sign): it is taken if it lowers |∇E| (one
 #: assembly at the trial, reused as the next iteration's), and where it does not, the
-#: path is converged to machine precision. Measured on the 225° twist of the 27k disc
-#: (|∇E| ≈ 1e-4 there, gtol·√E = 2.2e-5): the ratio test rejected such steps on E's
-#: rounding and raised λ fourfold each time, 20 CG solves in one iteration; a target
-#: changed by 2e-16 so took 14 iterations (26 s) instead of 11 (13 s).
+#: path is converged to machine precision. The ratio test alone would reject such steps
+#: on E's rounding and raise λ each time, so a target changed by rounding could take
+#: more iterations.
 UNDAMPED = 1e-6
 
 
@@ -41,21 +39,19 @@ class NewtonCGOptions:
 
     Attributes
     ----------
-    tol : stop when ``√(∇E·H_GN⁻¹∇E) ≤ tol·√E`` (status "converged")
+    tolerance : stop when ``√(∇E·H_GN⁻¹∇E) ≤ tolerance·√E`` (status "converged")
     energy_rtol, window : also stop when ``E`` fell by less than ``energy_rtol·E`` per
         iteration on average over the last ``window`` iterations (status "stationary").
         Near the minimizer the frames hold nearly degenerate triangles whose barrier
-        makes the quadratic model valid only in a tiny region: Newton then creeps (on the
-        twisted 541-vertex disc ``E`` changes by 1e-5 relative over the last 380 of 500
-        iterations), so the stagnation test saves most of the work at no visible cost
-        (0 disables it)
-    max_iter, max_cg : Newton iterations and CG iterations per Newton step
+        makes the quadratic model valid only in a tiny region: Newton then creeps, so the
+        stagnation test saves most of the work at no visible cost (0 disables it)
+    max_iterations, max_cg : Newton iterations and CG iterations per Newton step
     """
 
-    tol: float = 1e-9
+    tolerance: float = 1e-9
     energy_rtol: float = 1e-7
     window: int = 20
-    max_iter: int = 500
+    max_iterations: int = 500
     max_cg: int = 200
 
 
@@ -69,26 +65,20 @@ class LevenbergMarquardtOptions:
     gtol : stop when ``|∇E| ≤ gtol · max(1, √E)``; also reported "converged" when no step
         can lower ``E`` by more than its floating-point resolution (``ENERGY_RESOLUTION``
         relative): the minimum to machine precision, which a tight ``gtol`` on a large
-        energy may not reach (measured: a morph whose ``E ≈ 1e4`` stopped at
-        ``|∇E| = 6e-5`` with model decreases of 3e-12).
+        energy may not reach.
     rtol : or when ``|∇E| ≤ rtol · |∇E₀|`` (the first gradient): enough for a relaxation
         whose start is already close (the Gauss–Newton steps then converge fast).
-    max_iter : iterations
+    max_iterations : iterations
     cg_rtol : relative residual of the conjugate-gradient solve of each step. An inexact
-        step is fine (the ratio test judges it): measured on the 225° twist of the 4.2k
-        disc, 1e-6, 1e-3 and 1e-2 take the same 14 iterations to the same frames (1e-3:
-        13 % less time than 1e-6; 1e-2: 1862 triangular solves instead of 2058); move's
-        relaxations and quality rounds and the morph use 0.1 (see where they say so).
+        step is fine (the ratio test judges it): a looser residual takes the same
+        iterations to the same frames in less time; move's relaxations and quality rounds
+        and the morph use 0.1 (see where they say so).
     newton : steps from the Hessian of the energy (True) or from its Gauss–Newton part
         ``JᵀJ`` (False). Where the residual is not small (a frame pulled towards strains
         it cannot reach: move's relaxations and quality step), Gauss–Newton converges only
-        linearly (measured on the 90° annulus turn, 42.6k triangles: a relaxation took 5
-        iterations to a 100× smaller gradient, Newton 3; a quality round's gradient fell
-        30× in 15 Gauss–Newton iterations, 1e5× in 7 Newton ones). On the morph's paths
-        from a cold start it saves none (225° twist, 4.2k / 27k triangles: 14 / 17
-        iterations either way; 180° annulus pair 17 → 23); from the refined frames of a
-        coarser level it does (107k: 7 iterations instead of 11,
-        ``motion.morph.REFINED_CG_RTOL``). The Hessian may be indefinite: a step on which
+        linearly and Newton's steps save iterations. On the morph's paths from a cold
+        start they save none; from the refined frames of a coarser level they do
+        (``motion.morph.REFINED_CG_RTOL``). The Hessian may be indefinite: a step on which
         conjugate gradients meet non-positive curvature is rejected like one that raises
         the energy (the damping ``λ·diag(JᵀJ)`` grows until the matrix is positive
         definite).
@@ -105,12 +95,16 @@ class LevenbergMarquardtOptions:
 
     gtol: float = 1e-7
     rtol: float = 0.0
-    max_iter: int = 200
+    max_iterations: int = 200
     cg_rtol: float = 1e-2
     newton: bool = False
     lambda_decrease: float = LAMBDA_DECREASE
     factors: object | None = None
 
+
+# motion/move.py still says max_iter
+LevenbergMarquardtOptions.__init__ = renamed_keywords(max_iter="max_iterations")(
+    LevenbergMarquardtOptions.__init__)
 
 #: the settings class of each method
 OPTIONS = {"newton-cg": NewtonCGOptions, "levenberg-marquardt": LevenbergMarquardtOptions}
