@@ -392,7 +392,7 @@ def amg_pcg_solve(A, ml, rtol: float, max_iterations: int = 500) -> Solve:
 
 
 def schur_complement_solve(primal_solve: Solve, B: sp.spmatrix, dual_diagonal: FloatArray,
-                           rtol: float, maxiter: int = 1000) -> Solve:
+                           rtol: float, max_iterations: int = 1000) -> Solve:
     """``b ↦ x`` for a saddle-point matrix ``[[A, Bᵀ], [B, 0]]`` with ``A`` SPD and ``B`` of
     full row rank: :func:`pcg` on the Schur complement ``S = B A⁻¹ Bᵀ`` preconditioned by
     ``D⁻¹`` (``dual_diagonal``, spectrally equivalent to ``S``: for Stokes the lumped
@@ -402,7 +402,7 @@ def schur_complement_solve(primal_solve: Solve, B: sp.spmatrix, dual_diagonal: F
     Raises
     ------
     MeshoptError
-        When CG does not reach ``rtol`` within ``maxiter`` iterations.
+        When CG does not reach ``rtol`` within ``max_iterations`` iterations.
     """
     from scipy.sparse.linalg import LinearOperator
 
@@ -415,7 +415,7 @@ def schur_complement_solve(primal_solve: Solve, B: sp.spmatrix, dual_diagonal: F
     def solve(b: FloatArray) -> FloatArray:
         f, g = b[:n_primal], b[n_primal:]
         p, iterations, residual = pcg(S, B @ primal_solve(f) - g, lambda r: inv_d * r, rtol,
-                                      maxiter)
+                                      max_iterations)
         if residual > rtol:
             raise MeshoptError(f"CG on the Schur complement did not converge: relative "
                                f"residual {residual:.2e} > {rtol:.1e} after {iterations} "
@@ -426,7 +426,7 @@ def schur_complement_solve(primal_solve: Solve, B: sp.spmatrix, dual_diagonal: F
 
 
 def minres_block_solve(M: sp.spmatrix, n_primal: int, primal_ml, dual_diagonal: FloatArray,
-                       rtol: float, maxiter: int = 1000) -> Solve:
+                       rtol: float, max_iterations: int = 1000) -> Solve:
     """``b ↦ x`` for a symmetric saddle-point matrix ``M = [[A, Bᵀ], [B, 0]]`` by MINRES
     with the block-diagonal preconditioner ``diag(V-cycle of A, D⁻¹)``: ``primal_ml`` a
     pyamg hierarchy of ``A`` (the first ``n_primal`` unknowns), ``D`` ``dual_diagonal``
@@ -436,7 +436,7 @@ def minres_block_solve(M: sp.spmatrix, n_primal: int, primal_ml, dual_diagonal: 
     Raises
     ------
     MeshoptError
-        When MINRES does not reach ``rtol`` within ``maxiter`` iterations.
+        When MINRES does not reach ``rtol`` within ``max_iterations`` iterations.
     """
     import inspect
 
@@ -456,7 +456,7 @@ def minres_block_solve(M: sp.spmatrix, n_primal: int, primal_ml, dual_diagonal: 
     key = "rtol" if "rtol" in inspect.signature(minres).parameters else "tol"
 
     def solve(b: FloatArray) -> FloatArray:
-        x, info = minres(M, b, M=P, maxiter=maxiter, **{key: rtol})
+        x, info = minres(M, b, M=P, maxiter=max_iterations, **{key: rtol})
         if info != 0 or not np.all(np.isfinite(x)):
             raise MeshoptError(f"block-preconditioned MINRES did not converge (info {info})")
         return x

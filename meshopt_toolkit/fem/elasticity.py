@@ -306,7 +306,7 @@ class SPDSolve:
 
 
 def _factorize_amg(
-    A: sp.bsr_matrix, points: FloatArray, rtol: float, maxiter: int
+    A: sp.bsr_matrix, points: FloatArray, rtol: float, max_iterations: int
 ) -> Callable[[FloatArray], FloatArray]:
     ml = import_pyamg().smoothed_aggregation_solver(
         A,
@@ -314,7 +314,7 @@ def _factorize_amg(
         symmetry="symmetric",
         strength=("symmetric", {"theta": 0.05}),
     )
-    return amg_pcg_solve(A, ml, rtol, maxiter)
+    return amg_pcg_solve(A, ml, rtol, max_iterations)
 
 
 def solver_method(method: str, n_dofs: int) -> str:
@@ -342,7 +342,7 @@ def factorize(
     points: FloatArray,
     method: str = "auto",
     rtol: float = 1e-10,
-    maxiter: int = 500,
+    max_iterations: int = 500,
     ordering: IntArray | None = None,
 ) -> SPDSolve:
     """Prepare a reusable solver for the SPD matrix ``A = K + δM``.
@@ -359,7 +359,7 @@ def factorize(
         aggregation preconditioned CG to ``rtol``) or "auto"
         (:func:`solver_method`: direct below ``CHOLMOD_AMG_MIN_DOFS`` dofs with CHOLMOD,
         ``AUTO_AMG_MIN_DOFS`` without, AMG above when pyamg is importable)
-    rtol, maxiter : relative residual of the solve; AMG-PCG's iteration cap
+    rtol, max_iterations : relative residual of the solve; AMG-PCG's iteration cap
     ordering : (2N,) int array, optional
         The direct method's fill-reducing ordering (new → old); default
         ``nested_dissection(points, A, block=2)``. A moving mesh keeps a good ordering,
@@ -380,4 +380,4 @@ def factorize(
         return SPDSolve("direct", solve, A, precondition)
     d = points.shape[1]
     bsr = A if A.format == "bsr" else sp.bsr_matrix(A, blocksize=(d, d))
-    return SPDSolve("amg", _factorize_amg(bsr, points, rtol, maxiter), bsr)
+    return SPDSolve("amg", _factorize_amg(bsr, points, rtol, max_iterations), bsr)
