@@ -112,7 +112,7 @@ def test_unreachable_scheduler_is_one_line(batch, capsys, monkeypatch):
     monkeypatch.setattr(backend, "CONNECT_TIMEOUT", 0.5)
     assert main(["run", "p.json", "in", "-o", "o", "--scheduler", f"tcp://127.0.0.1:{port}"]) == 1
     err = capsys.readouterr().err
-    assert err.startswith(f"meshopt run: error: cannot reach the Dask scheduler at "
+    assert err.startswith(f"meshopt run: error: p.json: cannot reach the Dask scheduler at "
                           f"tcp://127.0.0.1:{port}: ") and err.count("\n") == 1
     with pytest.raises(MeshoptError, match="cannot reach"):
         backend.connect("tcp://127.0.0.1:%d" % port, timeout=0.5)
