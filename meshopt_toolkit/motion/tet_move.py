@@ -26,10 +26,13 @@ import numpy as np
 from .._typing import FloatArray, IntArray
 from ..errors import InvalidMeshError
 from ..kernels.tetrahedra import mean_ratios as tet_mean_ratios
+from ..kernels.tetrahedra import orientations as tet_orientations
 from ..kernels.tetrahedra import signed_volumes as tet_signed_volumes
 from ..mesh import TetMesh
+from ..scaling import UnitScale, unit_scale
 from .continuation import NoAdmissiblePathError
 from .handles3d import SolvedVertices, check_handles, distinct_handles
+from .pinned_cells import pinned, turned_over_problem
 from .similarity_3d import (HandlePath, Similarity3, fit_similarity_3d, handle_groups,
                             tet_boundary_faces)
 from .tet_distortion import SQRT3, TetDistortion
@@ -92,6 +95,16 @@ class TetMoveResult:
             **self.details,
         }
 
+    def scaled_up(self, scale: UnitScale) -> TetMoveResult:
+        """This motion of the mesh at unit size, at the user's scale (points, frames, the
+        similarity's centre and shift, the handle error; the rest is scale-free)."""
+        S = self.similarity
+        return replace(
+            self, points=scale.up(self.points), frames=[scale.up(F) for F in self.frames],
+            similarity=Similarity3(scale.up(S.centre), scale.up(S.shift), S.log_scale,
+                                   S.rotvec),
+            handle_error=float(scale.up(self.handle_error)))
+
 
 def _check(points, tets, handles, targets) -> tuple[FloatArray, IntArray, IntArray, FloatArray]:
     P = np.asarray(points, dtype=float)
@@ -110,6 +123,11 @@ def _check(points, tets, handles, targets) -> tuple[FloatArray, IntArray, IntArr
     if not np.isfinite(t).all():
         raise InvalidMeshError("the targets are not all finite")
     h, t = distinct_handles(h, t)
+    final = P.copy()
+    final[h] = t
+    if problem := turned_over_problem(tet_orientations(final, T) <= 0,
+                                      pinned(T, h, len(P)), "tet"):
+        raise InvalidMeshError(problem)
     return P, T.astype(np.int64), h, t
 
 
@@ -179,7 +197,8 @@ def move_tets(points: FloatArray, tets: IntArray, handles, targets, *, steps: in
     Raises
     ------
     InvalidMeshError
-        Bad points, tets, handles or targets.
+        Bad points, tets, handles or targets; targets that turn over or flatten a tet
+        whose vertices are all handles (a mirror image of the mesh turns every tet over).
     NoAdmissiblePathError
         No admissible step found after ``max_splits`` halvings.
     """
@@ -335,7 +354,9 @@ def move_tet_mesh(mesh: TetMesh, handles, targets, *, frames: int | None = None,
                   quality_rounds: int = 4, max_splits: int = 12,
                   progress: Callable[[float], None] | None = None) -> TetMeshMoveResult:
     """:func:`move_tets` on a :class:`TetMesh`: the moved mesh and frames keep its tets,
-    tags and names (``mt.move`` calls this for a TetMesh).
+    tags and names (``mt.move`` calls this for a TetMesh). The motion is solved at unit
+    size (the mesh divided by the power of two nearest its size, :mod:`..scaling`) and
+    scaled back: a mesh scaled by ``2**k`` moves to the result scaled by ``2**k``.
 
     Raises
     ------
@@ -350,9 +371,13 @@ def move_tet_mesh(mesh: TetMesh, handles, targets, *, frames: int | None = None,
     h, tg = check_handles(handles, targets, mesh.n_vertices)
     # vertices in no tet (a file may hold some) are left out of the solve and stay put
     solved = SolvedVertices(mesh.points, mesh.tets, h, tg)
-    res = move_tets(solved.points, solved.cells, solved.handles, solved.targets, steps=steps,
-                    frames=frames, weight=weight, relax_iter=relax_iter,
-                    quality_rounds=quality_rounds, max_splits=max_splits)
+    # solved at unit size (an exact power of two): the same motion at every scale
+    scale = unit_scale(solved.points, columns=3)
+    res = move_tets(scale.down(solved.points), solved.cells, solved.handles,
+                    scale.down(solved.targets), steps=steps, frames=frames, weight=weight,
+                    relax_iter=relax_iter, quality_rounds=quality_rounds,
+                    max_splits=max_splits).scaled_up(scale)
+    res.points[solved.handles] = solved.targets  # bitwise, subnormal targets included
 
     moved = mesh.with_points(solved.full(res.points))
     out = ([mesh.with_points(solved.full(F)) for F in res.frames[:-1]] + [moved]
