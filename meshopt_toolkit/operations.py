@@ -86,10 +86,19 @@ MORPH_METRICS = {"distortion": _distortion, "complete": _complete}
 def _tets(source, target, frames: int, o: _Settings):
     from .motion.tet_morph import morph_tets
 
+    from .scaling import unit_scale
+
     _distortion_only(o)
     _no_healthy_stop(o, "tet morphs")
-    return morph_tets(source, target, frames, weight=o.weight, max_iter=o.max_iter,
-                      callback=o.callback)
+    # at unit size (an exact power of two, both ends alike) and back: the same morph at
+    # every scale
+    scale = unit_scale(source.points, target.points, columns=3)
+    if scale.is_identity:
+        return morph_tets(source, target, frames, weight=o.weight, max_iter=o.max_iter,
+                          callback=o.callback)
+    return morph_tets(source.with_points(scale.down(source.points)),
+                      target.with_points(scale.down(target.points)), frames, weight=o.weight,
+                      max_iter=o.max_iter, callback=o.callback).scaled_up(scale, source)
 
 
 def _surfaces(source, target, frames: int, o: _Settings):

@@ -164,3 +164,30 @@ def test_moves_at_1e300_keep_their_quality(name, scale):
     # moves with rounding-level changes of its input (see above)
     assert q == pytest.approx(q_unit, rel=1e-9 if name != "surface" else 2e-2)
     assert np.isfinite(np.asarray(result.mesh.points)).all()
+
+
+# --- morphs ------------------------------------------------------------------------------
+def _tet_morph(scale: float):
+    return mt.morph(TetMesh(TET_P * scale, TET_T),
+                    TetMesh(TET_P * [1.3, 1.0, 0.8] * scale, TET_T), frames=4)
+
+
+def _surface_morph(scale: float):
+    return mt.morph(SurfaceMesh(ICO_V * scale, ICO_F),
+                    SurfaceMesh(ICO_V * [1.4, 1.0, 0.7] * scale, ICO_F), frames=4)
+
+
+MORPHS = {"tets": (_tet_morph, "min_mean_ratio"),
+          "surface": (_surface_morph, "worst relative quality")}
+UNIT_MORPHS = {name: morph(1.0) for name, (morph, _) in MORPHS.items()}
+
+
+@pytest.mark.parametrize("name", sorted(MORPHS))
+@pytest.mark.parametrize("scale", [2.0**40, 1e12, 1e-12, 1e300, 1e-300])
+def test_a_scaled_morph_is_the_unit_morph_scaled(name, scale):
+    morph, key = MORPHS[name]
+    result, unit = morph(scale), UNIT_MORPHS[name]
+    frames = np.array([np.asarray(f.points) for f in result.frames])
+    unit_frames = np.array([np.asarray(f.points) for f in unit.frames])
+    assert np.abs(frames / scale - unit_frames).max() <= 1e-9 * np.abs(unit_frames).max()
+    assert result.summary()[key] == pytest.approx(unit.summary()[key], rel=1e-9)

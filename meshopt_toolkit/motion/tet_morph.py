@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -113,6 +113,15 @@ class TetMorphResult(PathFrames):
     def frames(self) -> list[TetMesh]:
         """The frames as meshes with the source's tets and tags (first = source)."""
         return [self.source.with_points(p) for p in self.points]
+
+    def scaled_up(self, scale, source: TetMesh) -> TetMorphResult:
+        """This morph of the meshes at unit size (a :class:`~..scaling.UnitScale` below
+        the user's), at the user's scale: frames, the similarity's centre and shift and
+        the user's ``source`` (the rest is scale-free)."""
+        S = self.similarity
+        return replace(self, points=scale.up(self.points), source=source,
+                       similarity=Similarity3(scale.up(S.centre), scale.up(S.shift),
+                                              S.log_scale, S.rotvec))
 
     @property
     def mesh(self) -> TetMesh:
