@@ -182,7 +182,13 @@ def unit_cells(vectors: FloatArray, axis: int = 0) -> tuple[FloatArray, IntArray
         ``e`` per cell.
     """
     v = np.asarray(vectors, dtype=float)
-    others = tuple(a for a in range(v.ndim) if a != axis % v.ndim)
-    largest = np.abs(v).max(axis=others, keepdims=True, initial=0.0)
+    cells = np.moveaxis(np.abs(v), axis, -1)  # a view (..., M)
+    largest = np.zeros(cells.shape[-1])
+    for index in np.ndindex(cells.shape[:-1]):  # one slice at a time: faster than max()
+        np.maximum(largest, cells[index], out=largest)  # over several axes
     _, e = np.frexp(np.where(np.isfinite(largest), largest, 0.0))
-    return np.ldexp(v, -e), e.reshape(-1)
+    shape = [1] * v.ndim
+    shape[axis] = len(e)
+    if np.abs(e).max(initial=0) < 1000:  # 2**-e a normal number: one exact product
+        return v * np.ldexp(1.0, -e).reshape(shape), e
+    return np.ldexp(v, -e.reshape(shape)), e

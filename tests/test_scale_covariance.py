@@ -191,3 +191,19 @@ def test_a_scaled_morph_is_the_unit_morph_scaled(name, scale):
     unit_frames = np.array([np.asarray(f.points) for f in unit.frames])
     assert np.abs(frames / scale - unit_frames).max() <= 1e-9 * np.abs(unit_frames).max()
     assert result.summary()[key] == pytest.approx(unit.summary()[key], rel=1e-9)
+
+
+@settings(max_examples=30, deadline=None)
+@given(exponents=st.lists(st.integers(-1070, 1020), min_size=1, max_size=6),
+       seed=st.integers(0, 2**16))
+def test_unit_cells_scales_each_cell_exactly_to_its_own_size(exponents, seed):
+    from meshopt_toolkit.scaling import unit_cells
+
+    rng = np.random.default_rng(seed)
+    v = np.ldexp(rng.uniform(-1.0, 1.0, (3, len(exponents), 3)),
+                 np.array(exponents)[None, :, None])
+    unit, e = unit_cells(v, axis=1)
+    largest = np.abs(unit).max(axis=(0, 2))
+    normal = np.abs(v).min(axis=(0, 2)) > 2.0**-1000  # no subnormal component
+    assert ((largest >= 0.5) & (largest < 1.0) | (largest == 0))[normal].all()
+    assert np.array_equal(np.ldexp(unit, e[None, :, None])[:, normal], v[:, normal])

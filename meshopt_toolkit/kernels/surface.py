@@ -18,33 +18,36 @@ from ..scaling import unit_cells
 DEGENERATE_ASPECT = 1e-12
 
 
-def _unit_edges(points: FloatArray, triangles: IntArray) -> tuple[FloatArray, IntArray]:
-    """Edges ``q1 − q0, q2 − q0, q2 − q1`` ``(3, T, 3)`` of each triangle divided by a power
-    of two of its size (:func:`~meshopt_toolkit.scaling.unit_cells`), and the exponents
-    ``(T,)``: the measures formed from them neither overflow nor underflow at 1e±300."""
+def _unit_edges(points: FloatArray, triangles: IntArray, count: int = 3
+                ) -> tuple[FloatArray, IntArray]:
+    """The first ``count`` of the edges ``q1 − q0, q2 − q0, q2 − q1`` ``(count, T, 3)`` of
+    each triangle divided by a power of two of its size
+    (:func:`~meshopt_toolkit.scaling.unit_cells`), and the exponents ``(T,)``: the
+    measures formed from them neither overflow nor underflow at 1e±300."""
     pts = np.asarray(points, dtype=np.float64)
     p = pts[np.ascontiguousarray(np.asarray(triangles, dtype=np.int64).T)]
-    return unit_cells(np.stack([p[1] - p[0], p[2] - p[0], p[2] - p[1]]), axis=1)
+    edges = p[1:] - p[0] if count == 2 else np.stack([p[1] - p[0], p[2] - p[0], p[2] - p[1]])
+    return unit_cells(edges, axis=1)
 
 
 def area_vectors(points: FloatArray, triangles: IntArray) -> FloatArray:
     """``(q1 − q0) × (q2 − q0)``: normal by the right-hand rule, length = twice the area.
     Returns ``(T, 3)``."""
-    d, e = _unit_edges(points, triangles)
+    d, e = _unit_edges(points, triangles, 2)
     with np.errstate(over="ignore", under="ignore"):
         return np.ldexp(np.cross(d[0], d[1]), 2 * e[:, None])
 
 
 def areas(points: FloatArray, triangles: IntArray) -> FloatArray:
     """Areas (≥ 0) of triangles in space. Returns ``(T,)``."""
-    d, e = _unit_edges(points, triangles)
+    d, e = _unit_edges(points, triangles, 2)
     with np.errstate(over="ignore", under="ignore"):
         return np.ldexp(0.5 * np.linalg.norm(np.cross(d[0], d[1]), axis=1), 2 * e)
 
 
 def unit_normals(points: FloatArray, triangles: IntArray) -> FloatArray:
     """Unit normals by the right-hand rule; zero rows for zero-area triangles. ``(T, 3)``."""
-    d, _ = _unit_edges(points, triangles)
+    d, _ = _unit_edges(points, triangles, 2)
     n = np.cross(d[0], d[1])
     length = np.linalg.norm(n, axis=1, keepdims=True)
     with np.errstate(divide="ignore", invalid="ignore"):

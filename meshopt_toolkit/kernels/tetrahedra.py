@@ -30,17 +30,21 @@ def _corners(points: FloatArray, tets: IntArray) -> FloatArray:
     return pts[np.ascontiguousarray(np.asarray(tets, dtype=np.int64).T)]
 
 
-def _unit_edges(points: FloatArray, tets: IntArray) -> tuple[FloatArray, IntArray]:
-    """The edge vectors ``(6, M, 3)`` of :data:`TET_EDGES`, each tet's divided by a power
-    of two of its size (:func:`~meshopt_toolkit.scaling.unit_cells`), and the exponents
-    ``(M,)``. The measures below are formed from these, so none overflows or underflows
-    at 1e±300 and the ratios are the same numbers at every scale."""
+def _unit_edges(points: FloatArray, tets: IntArray, count: int = 6
+                ) -> tuple[FloatArray, IntArray]:
+    """The first ``count`` edge vectors ``(count, M, 3)`` of :data:`TET_EDGES` (3: those
+    from ``q0``), each tet's divided by a power of two of its size
+    (:func:`~meshopt_toolkit.scaling.unit_cells`), and the exponents ``(M,)``. The
+    measures below are formed from these, so none overflows or underflows at 1e±300 and
+    the ratios are the same numbers at every scale."""
     p = _corners(points, tets)
+    if count == 3:
+        return unit_cells(p[1:] - p[0], axis=1)
     return unit_cells(p[TET_EDGES[:, 1]] - p[TET_EDGES[:, 0]], axis=1)
 
 
 def _volumes6(d: FloatArray) -> FloatArray:
-    """``det[q1 − q0, q2 − q0, q3 − q0]`` of edge vectors ``d`` ``(6, M, 3)``."""
+    """``det[q1 − q0, q2 − q0, q3 − q0]`` of edge vectors ``d`` (:func:`_unit_edges`)."""
     return np.einsum("mk,mk->m", d[0], np.cross(d[1], d[2]))
 
 
@@ -48,7 +52,7 @@ def signed_volumes(points: FloatArray, tets: IntArray) -> FloatArray:
     """Signed volumes ``det[q1 − q0, q2 − q0, q3 − q0] / 6``; positive iff positively
     oriented (0 where the volume is below the floating-point range: see
     :func:`orientations`). Returns ``(M,)``."""
-    d, e = _unit_edges(points, tets)
+    d, e = _unit_edges(points, tets, 3)
     with np.errstate(over="ignore", under="ignore"):
         return np.ldexp(_volumes6(d) / 6.0, 3 * e)
 
@@ -56,7 +60,7 @@ def signed_volumes(points: FloatArray, tets: IntArray) -> FloatArray:
 def orientations(points: FloatArray, tets: IntArray) -> FloatArray:
     """The sign of each tet's volume (+1 positively oriented, 0 flat, −1 inverted), the
     same at every scale (a volume of 1e-900 is positive). Returns ``(M,)``."""
-    return np.sign(_volumes6(_unit_edges(points, tets)[0]))
+    return np.sign(_volumes6(_unit_edges(points, tets, 3)[0]))
 
 
 def edge_lengths(points: FloatArray, tets: IntArray) -> FloatArray:
