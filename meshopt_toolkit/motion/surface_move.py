@@ -92,6 +92,8 @@ class SurfaceMoveResult:
     times : the handle-path fraction of each frame
     phi_lengths : (T,) each triangle's ``Σ_k |Δφ_t|`` along the frames
     length : the frames' polygon length ``ℓ`` (module docstring); ``phi_lengths ≤ ℓ/w``
+    worst_quality, folds : the result's lowest aspect ratio over its rest one and its
+        folded triangles, over all triangles (those of handles only included)
     """
 
     points: FloatArray
