@@ -85,7 +85,6 @@ MORPH_METRICS = {"distortion": _distortion, "complete": _complete}
 
 def _tets(source, target, frames: int, o: _Settings):
     from .motion.tet_morph import morph_tets
-
     from .scaling import unit_scale
 
     _distortion_only(o)

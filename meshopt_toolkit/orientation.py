@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._typing import FloatArray, IntArray
+from .scaling import UnitScale, unit_scale
 
 __all__ = [
     "PLANE_RTOL",
@@ -182,8 +183,6 @@ def plane_of(points: FloatArray, triangles: IntArray | None = None,
     -------
     (embedding or None, largest distance to the plane relative to the diagonal)
     """
-    from .scaling import UnitScale, unit_scale
-
     if len(points) == 0:
         return None, 0.0
     # measured at unit size (an exact power of two): no square under- or overflows at 1e±300

@@ -33,6 +33,7 @@ from ..mesh import TetMesh
 from ..riemannian.levenberg_marquardt import levenberg_marquardt
 from ..riemannian.path_options import LevenbergMarquardtOptions
 from ..results import PathFrames
+from ..scaling import UnitScale
 from .continuation import NoAdmissiblePathError
 from .handles3d import SelfIntersectionGuard
 from .similarity_3d import (HandlePath, Similarity3, fit_similarity_3d, handle_groups,
@@ -114,10 +115,9 @@ class TetMorphResult(PathFrames):
         """The frames as meshes with the source's tets and tags (first = source)."""
         return [self.source.with_points(p) for p in self.points]
 
-    def scaled_up(self, scale, source: TetMesh) -> TetMorphResult:
-        """This morph of the meshes at unit size (a :class:`~..scaling.UnitScale` below
-        the user's), at the user's scale: frames, the similarity's centre and shift and
-        the user's ``source`` (the rest is scale-free)."""
+    def scaled_up(self, scale: UnitScale, source: TetMesh) -> TetMorphResult:
+        """This morph of the meshes at unit size, at the user's scale: frames, the
+        similarity's centre and shift and the user's ``source`` (the rest is scale-free)."""
         S = self.similarity
         return replace(self, points=scale.up(self.points), source=source,
                        similarity=Similarity3(scale.up(S.centre), scale.up(S.shift),
