@@ -60,11 +60,19 @@ def _no_healthy_stop(o: _Settings, what: str) -> None:
 
 def _distortion(source, target, frames: int, o: _Settings):
     from .motion.morph import distortion_morph
+    from .scaling import unit_scale
 
     _distortion_only(o)
     _no_healthy_stop(o, "planar morphs")
-    return distortion_morph(source, target, frames, weight=o.weight, max_iter=o.max_iter,
-                            callback=o.callback)
+    # at unit size (an exact power of two, both ends alike) and back: the same morph at
+    # every scale
+    scale = unit_scale(source, target)
+    if scale.is_identity:
+        return distortion_morph(source, target, frames, weight=o.weight, max_iter=o.max_iter,
+                                callback=o.callback)
+    return distortion_morph(scale.mesh_down(source), scale.mesh_down(target), frames,
+                            weight=o.weight, max_iter=o.max_iter,
+                            callback=o.callback).scaled_up(scale, source)
 
 
 def _complete(source, target, frames: int, o: _Settings):

@@ -177,8 +177,14 @@ def _surface_morph(scale: float):
                     SurfaceMesh(ICO_V * [1.4, 1.0, 0.7] * scale, ICO_F), frames=4)
 
 
+def _planar_morph(scale: float):
+    return mt.morph(DISC.with_points(DISC.points * scale),
+                    DISC.with_points(DISC.points * [1.3, 0.8] * scale), frames=4)
+
+
 MORPHS = {"tets": (_tet_morph, "min_mean_ratio"),
-          "surface": (_surface_morph, "worst relative quality")}
+          "surface": (_surface_morph, "worst relative quality"),
+          "planar": (_planar_morph, "min_aspect_ratio")}
 UNIT_MORPHS = {name: morph(1.0) for name, (morph, _) in MORPHS.items()}
 
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -26,6 +26,7 @@ from ..riemannian.discrete_geodesic import discrete_geodesic
 from ..riemannian.geodesic_result import DiscreteGeodesic
 from ..riemannian.path_options import LevenbergMarquardtOptions
 from ..results import PathFrames
+from ..scaling import UnitScale
 from .continuation import continuation_path
 from .graph_metric import GraphMetric
 from .refinement import refine_frames, unrefined
@@ -126,6 +127,12 @@ class DistortionMorph(PathFrames):
     @property
     def rigid_min_aspect_ratio(self) -> FloatArray:
         return self.rigid.min_aspect_ratio
+
+    def scaled_up(self, scale: UnitScale, source: PlanarMesh) -> DistortionMorph:
+        """This morph of the meshes at unit size, at the user's scale: frames, the
+        similarity's centre and shift and the user's ``source`` (the rest is scale-free)."""
+        return replace(self, points=scale.up(self.points), source=source,
+                       similarity=self.similarity.scaled_up(scale))
 
     def meshes(self, like: PlanarMesh | None = None) -> list[PlanarMesh]:
         """The frames as meshes (tags of ``like`` kept when given)."""

@@ -96,15 +96,9 @@ class MoveResult:
     def scaled_up(self, scale: UnitScale) -> MoveResult:
         """This motion of the mesh at unit size, at the user's scale (meshes, the
         similarity's centre and shift, the handle error; the rest is scale-free)."""
-        S = self.similarity
-
-        def up(z: complex) -> complex:
-            x, y = scale.up([z.real, z.imag])
-            return complex(x, y)
-
         return replace(self, mesh=scale.mesh_up(self.mesh),
                        frames=[scale.mesh_up(m) for m in self.frames],
-                       similarity=Similarity(up(S.center), up(S.shift), S.log_scale, S.angle),
+                       similarity=self.similarity.scaled_up(scale),
                        handle_error=float(scale.up(self.handle_error)))
 
 
