@@ -12,11 +12,12 @@ exact in floating point (apart from subnormal numbers), so a mesh of unit size i
 changed at all, handles set bitwise stay bitwise, and the results are *scale covariant*:
 for a mesh scaled by ``2**j`` they are the same numbers scaled by ``2**j``.
 
-``mt.move`` and ``mt.morph`` do the same for every kind of mesh (tets and surfaces in
-space: ``unit_scale(..., columns=3)``), so a library call is scale covariant too; a mesh
-the commands already brought to unit size is left as it is (exponent 0). The per-cell
-measures (mean ratios, aspect ratios, angles) go further: :func:`unit_cells` scales each
-cell by a power of two of its own size, so they are the same numbers at every scale.
+``mt.move`` and ``mt.morph`` (its distortion metric) do the same for every kind of mesh
+(tets and surfaces in space: ``unit_scale(..., columns=3)``), so a library call is scale
+covariant too; a mesh the commands already brought to unit size is left as it is
+(exponent 0). The per-cell measures (mean ratios, aspect ratios, angles) go further:
+:func:`unit_cells` scales each cell by a power of two of its own size, so they are the
+same numbers at every scale.
 
 The size is ``R``, half the largest side of the bounding box (1 for the unit disc), and
 ``k = round(log2 R)``; at unit scale ``R`` lies in ``[2**-0.5, 2**0.5)``. Translation is
