@@ -4,10 +4,9 @@ None (the defaults), with changes on top (:func:`options_of`)."""
 from __future__ import annotations
 
 import dataclasses
-import functools
 from collections.abc import Mapping
 
-__all__ = ["options_of", "renamed_keywords"]
+__all__ = ["options_of"]
 
 
 def options_of(cls, options, changes: Mapping, *, error: type[Exception], what: str):
@@ -42,26 +41,3 @@ def options_of(cls, options, changes: Mapping, *, error: type[Exception], what: 
     if unknown:
         raise error(f"unknown {what} {', '.join(unknown)}; choose from {', '.join(sorted(known))}")
     return dataclasses.replace(base, **changes) if changes else base
-
-
-def renamed_keywords(**renames: str):
-    """A decorator: the call also takes each old keyword of ``renames`` (old → new) under
-    its new name, for internal callers not yet renamed; the signature shown
-    (:func:`inspect.signature`) is the new one.
-
-    Raises
-    ------
-    TypeError
-        A call gives both the old and the new name.
-    """
-    def decorate(func):
-        @functools.wraps(func)
-        def call(*args, **kwargs):
-            for old, new in renames.items():
-                if old in kwargs:
-                    if new in kwargs:
-                        raise TypeError(f"{func.__name__}() got both {old!r} and {new!r}")
-                    kwargs[new] = kwargs.pop(old)
-            return func(*args, **kwargs)
-        return call
-    return decorate

@@ -43,7 +43,7 @@ class _Settings:
     beta: tuple | None
     normalize: bool
     method: str
-    max_iter: int
+    max_iterations: int
     callback: Callable | None
     stop: str = "auto"
 
@@ -61,11 +61,20 @@ def _no_healthy_stop(o: _Settings, what: str) -> None:
 
 def _distortion(source, target, frames: int, o: _Settings):
     from .motion.morph import distortion_morph
+    from .scaling import unit_scale
 
     _distortion_only(o)
     _no_healthy_stop(o, "planar morphs")
-    return distortion_morph(source, target, frames, weight=o.weight, max_iter=o.max_iter,
-                            callback=o.callback)
+    # at unit size (an exact power of two, both ends alike) and back: the same morph at
+    # every scale
+    scale = unit_scale(source, target)
+    if scale.is_identity:
+        return distortion_morph(source, target, frames, weight=o.weight,
+                                max_iterations=o.max_iterations,
+                                callback=o.callback)
+    return distortion_morph(scale.mesh_down(source), scale.mesh_down(target), frames,
+                            weight=o.weight, max_iterations=o.max_iterations,
+                            callback=o.callback).scaled_up(scale, source)
 
 
 def _complete(source, target, frames: int, o: _Settings):
@@ -76,7 +85,7 @@ def _complete(source, target, frames: int, o: _Settings):
     _no_healthy_stop(o, "planar morphs")
     return geodesic_morph(source, target, frames,
                           beta=DEFAULT_BETA if o.beta is None else tuple(o.beta),
-                          normalize=o.normalize, method=o.method, max_iter=o.max_iter,
+                          normalize=o.normalize, method=o.method, max_iterations=o.max_iterations,
                           callback=o.callback)
 
 
@@ -86,11 +95,20 @@ MORPH_METRICS = {"distortion": _distortion, "complete": _complete}
 
 def _tets(source, target, frames: int, o: _Settings):
     from .motion.tet_morph import morph_tets
+    from .scaling import unit_scale
 
     _distortion_only(o)
     _no_healthy_stop(o, "tet morphs")
-    return morph_tets(source, target, frames, weight=o.weight, max_iter=o.max_iter,
-                      callback=o.callback)
+    # at unit size (an exact power of two, both ends alike) and back: the same morph at
+    # every scale
+    scale = unit_scale(source.points, target.points, columns=3)
+    if scale.is_identity:
+        return morph_tets(source, target, frames, weight=o.weight,
+                          max_iterations=o.max_iterations,
+                          callback=o.callback)
+    return morph_tets(source.with_points(scale.down(source.points)),
+                      target.with_points(scale.down(target.points)), frames, weight=o.weight,
+                      max_iterations=o.max_iterations, callback=o.callback).scaled_up(scale, source)
 
 
 def _surfaces(source, target, frames: int, o: _Settings):
@@ -99,7 +117,8 @@ def _surfaces(source, target, frames: int, o: _Settings):
     _distortion_only(o)
     hook = o.callback
     return morph_surface_mesh(source, target, frames, weight=o.weight,
-                              max_iterations=o.max_iter, stop_when_healthy=o.stop != "converged",
+                              max_iterations=o.max_iterations,
+                              stop_when_healthy=o.stop != "converged",
                               callback=None if hook is None else (
                                   lambda r: hook(r.iteration, r.energy, r.gradient_norm)))
 

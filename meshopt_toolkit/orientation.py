@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._typing import FloatArray, IntArray
+from .scaling import UnitScale, unit_scale
 
 __all__ = [
     "PLANE_RTOL",
@@ -182,9 +183,12 @@ def plane_of(points: FloatArray, triangles: IntArray | None = None,
     -------
     (embedding or None, largest distance to the plane relative to the diagonal)
     """
-    p = np.asarray(points, np.float64)
-    if len(p) == 0:
+    if len(points) == 0:
         return None, 0.0
+    # measured at unit size (an exact power of two): no square under- or overflows at 1e±300
+    scale = unit_scale(points, columns=3) if np.isfinite(points).all() else UnitScale(0)
+    user = np.asarray(points, np.float64)
+    p = scale.down(user)
     lo, hi = p.min(axis=0), p.max(axis=0)
     diag = float(np.linalg.norm(hi - lo)) or 1.0
     normal_hint = None
@@ -202,7 +206,7 @@ def plane_of(points: FloatArray, triangles: IntArray | None = None,
         if normal_hint is not None and normal_hint @ normal < 0:
             basis[1] *= -1.0
         origin = np.zeros(3)
-        origin[axis] = lo[axis]
+        origin[axis] = user[0, axis]
         return PlaneEmbedding(origin, basis), 0.0
     centre = p.mean(axis=0)
     _, _, vt = np.linalg.svd(p - centre, full_matrices=False)
@@ -215,7 +219,7 @@ def plane_of(points: FloatArray, triangles: IntArray | None = None,
     e1 = vt[0] - (vt[0] @ normal) * normal
     e1 /= np.linalg.norm(e1)
     e2 = np.cross(normal, e1)
-    return PlaneEmbedding(centre, np.stack([e1, e2])), dist
+    return PlaneEmbedding(scale.up(centre), np.stack([e1, e2])), dist
 
 
 def plane_embedding(points: FloatArray, triangles: IntArray,

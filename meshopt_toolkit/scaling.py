@@ -12,6 +12,13 @@ exact in floating point (apart from subnormal numbers), so a mesh of unit size i
 changed at all, handles set bitwise stay bitwise, and the results are *scale covariant*:
 for a mesh scaled by ``2**j`` they are the same numbers scaled by ``2**j``.
 
+``mt.move`` and ``mt.morph`` (its distortion metric) do the same for every kind of mesh
+(tets and surfaces in space: ``unit_scale(..., columns=3)``), so a library call is scale
+covariant too; a mesh the commands already brought to unit size is left as it is
+(exponent 0). The per-cell measures (mean ratios, aspect ratios, angles) go further:
+:func:`unit_cells` scales each cell by a power of two of its own size, so they are the
+same numbers at every scale.
+
 The size is ``R``, half the largest side of the bounding box (1 for the unit disc), and
 ``k = round(log2 R)``; at unit scale ``R`` lies in ``[2**-0.5, 2**0.5)``. Translation is
 left alone (every penalty and metric here is translation invariant).
@@ -32,10 +39,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._typing import FloatArray
+from ._typing import FloatArray, IntArray
 from .errors import InvalidMeshError
 
-__all__ = ["UnitScale", "unit_scale"]
+__all__ = ["UnitScale", "unit_cells", "unit_scale"]
 
 
 @dataclass(frozen=True)
@@ -115,14 +122,17 @@ def _with_points(mesh, points):
     return type(mesh)(points, mesh.triangles, **mesh._tag_kwargs())
 
 
-def unit_scale(*point_sets) -> UnitScale:
+def unit_scale(*point_sets, columns: int = 2) -> UnitScale:
     """The :class:`UnitScale` of one or more point arrays ``(N, d)`` (or meshes) together.
 
     Parameters
     ----------
     *point_sets : arrays of shape (N, 2) or (N, 3), or objects with ``.points``
         Every set is scaled by the same factor (e.g. the source and target of a morph, a
-        mesh and its handle targets). Only the x and y columns set the size.
+        mesh and its handle targets).
+    columns : int
+        How many leading columns set the size: 2 (x and y, a planar mesh whose z is never
+        scaled) or 3 (a mesh in space).
 
     Returns
     -------
@@ -142,7 +152,7 @@ def unit_scale(*point_sets) -> UnitScale:
             continue
         if not np.isfinite(pts).all():
             raise InvalidMeshError("a coordinate is not finite (nan or inf)")
-        xy = pts.reshape(len(pts), -1)[:, :2]
+        xy = pts.reshape(len(pts), -1)[:, :columns]
         lo = np.minimum(lo, xy.min(axis=0))
         hi = np.maximum(hi, xy.max(axis=0))
     if np.ndim(lo) == 0:
@@ -153,3 +163,39 @@ def unit_scale(*point_sets) -> UnitScale:
         return UnitScale(0)
     mantissa, exponent = np.frexp(extent)  # extent = mantissa * 2**exponent, 0.5 <= m < 1
     return UnitScale(int(exponent) if mantissa >= np.sqrt(0.5) else int(exponent) - 1)
+
+
+def unit_cells(vectors: FloatArray, axis: int = 0) -> tuple[FloatArray, IntArray]:
+    """Each cell's vectors divided by a power of two of their own size, and its exponent.
+
+    A per-cell measure that is a ratio of lengths, areas or volumes (a mean ratio, an
+    aspect ratio, an angle) formed from the returned vectors is the same number at every
+    scale, 1e±300 included: no square or cube of them overflows or underflows. A
+    dimensional one (a volume) is scaled back by ``numpy.ldexp(value, power * exponent)``,
+    exact in the floating-point range.
+
+    Parameters
+    ----------
+    vectors : float array
+        Edge vectors of cells, ``axis`` the cell axis (e.g. ``(3, M, 3)`` with ``axis=1``).
+    axis : int
+
+    Returns
+    -------
+    unit : float array, same shape
+        ``vectors / 2**e`` per cell, the largest absolute component in ``[0.5, 1)``
+        (cells all zero, or not finite, unscaled).
+    exponents : (M,) int array
+        ``e`` per cell.
+    """
+    v = np.asarray(vectors, dtype=float)
+    cells = np.moveaxis(np.abs(v), axis, -1)  # a view (..., M)
+    largest = np.zeros(cells.shape[-1])
+    for index in np.ndindex(cells.shape[:-1]):  # one slice at a time: faster than max()
+        np.maximum(largest, cells[index], out=largest)  # over several axes
+    _, e = np.frexp(np.where(np.isfinite(largest), largest, 0.0))
+    shape = [1] * v.ndim
+    shape[axis] = len(e)
+    if np.abs(e).max(initial=0) < 1000:  # 2**-e a normal number: one exact product
+        return v * np.ldexp(1.0, -e).reshape(shape), e
+    return np.ldexp(v, -e.reshape(shape)), e

@@ -102,19 +102,3 @@ def test_euclidean_is_the_straight_line(mesh):
     t = np.linspace(0, 1, 5)[:, None, None]
     np.testing.assert_allclose(res.points, (1 - t) * P + t * Q1, rtol=0, atol=1e-15)
     assert res.length == pytest.approx(np.linalg.norm(Q1 - P), rel=1e-12)
-
-
-def test_renamed_keywords_take_the_old_name_under_the_new_one():
-    import inspect
-
-    from meshopt_toolkit._options import renamed_keywords
-
-    @renamed_keywords(max_iter="max_iterations")
-    def limit(*, max_iterations=1):
-        return max_iterations
-
-    assert list(inspect.signature(limit).parameters) == ["max_iterations"]
-    assert limit(max_iter=7) == limit(max_iterations=7) == 7
-    assert LevenbergMarquardtOptions(max_iter=3) == LevenbergMarquardtOptions(max_iterations=3)
-    with pytest.raises(TypeError, match="both"):
-        limit(max_iter=2, max_iterations=3)

@@ -16,7 +16,8 @@ import numpy as np
 
 from .._typing import FloatArray, IntArray
 from ..errors import InvalidMeshError, NotAdmissibleError
-from ..kernels.tetrahedra import TET_FACES, mean_ratios, signed_volumes, tet_quality_summary
+from ..kernels.tetrahedra import (TET_FACES, mean_ratios, orientations, signed_volumes,
+                                  tet_quality_summary)
 from .surface import SurfaceMesh, listed
 from .topology import _frozen
 
@@ -215,8 +216,9 @@ class TetMesh:
     # -- admissibility --------------------------------------------------------------
     @cached_property
     def inverted(self) -> IntArray:
-        """Tetrahedra with signed volume ≤ 0 (inverted or flat), sorted."""
-        return _frozen(np.flatnonzero(self.signed_volumes <= 0))
+        """Tetrahedra with signed volume ≤ 0 (inverted or flat), sorted; by the volume's
+        sign at the tet's own scale (a volume below the float range is still positive)."""
+        return _frozen(np.flatnonzero(orientations(self._points, self._tets) <= 0))
 
     @property
     def is_admissible(self) -> bool:

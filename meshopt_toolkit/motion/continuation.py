@@ -12,7 +12,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._options import renamed_keywords
 from .._typing import FloatArray, IntArray
 from ..errors import MeshoptError, OptionError
 from ..riemannian.discrete_geodesic import discrete_geodesic
@@ -89,7 +88,6 @@ class ContinuationResult:
     seconds: list[float] = field(default_factory=list)
 
 
-@renamed_keywords(relax_iter="max_iterations")  # motion/move.py still says relax_iter
 def continuation_path(
     metric: GraphMetric,
     start: FloatArray,

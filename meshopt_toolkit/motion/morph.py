@@ -13,11 +13,10 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .._options import renamed_keywords
 from .._typing import FloatArray, IntArray
 from ..errors import InvalidMeshError
 from ..kernels.admissibility import BoundaryCheck, area_problem
@@ -27,6 +26,7 @@ from ..riemannian.discrete_geodesic import discrete_geodesic
 from ..riemannian.geodesic_result import DiscreteGeodesic
 from ..riemannian.path_options import LevenbergMarquardtOptions
 from ..results import PathFrames
+from ..scaling import UnitScale
 from .continuation import check_frames_and_weight, continuation_path
 from .graph_metric import GraphMetric
 from .refinement import refine_frames, unrefined
@@ -128,6 +128,12 @@ class DistortionMorph(PathFrames):
     def rigid_min_aspect_ratio(self) -> FloatArray:
         return self.rigid.min_aspect_ratio
 
+    def scaled_up(self, scale: UnitScale, source: PlanarMesh) -> DistortionMorph:
+        """This morph of the meshes at unit size, at the user's scale: frames, the
+        similarity's centre and shift and the user's ``source`` (the rest is scale-free)."""
+        return replace(self, points=scale.up(self.points), source=source,
+                       similarity=self.similarity.scaled_up(scale))
+
     def meshes(self, like: PlanarMesh | None = None) -> list[PlanarMesh]:
         """The frames as meshes (tags of ``like`` kept when given)."""
         if like is not None:
@@ -194,7 +200,6 @@ REFINED_LAMBDA_DECREASE = 0.01
 COARSE_MIN_TRIANGLES = 5000
 
 
-@renamed_keywords(max_iter="max_iterations")  # operations.py still says max_iter
 def distortion_morph(
     source: PlanarMesh,
     target: PlanarMesh,

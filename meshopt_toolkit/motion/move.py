@@ -14,7 +14,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -23,14 +23,16 @@ from ..conversions import Carried
 from ..cores import thread_budget
 from ..errors import InvalidMeshError, OptionError
 from ..kernels.admissibility import BoundaryCheck, area_problem, target_loop_problem
-from ..kernels.triangles import aspect_ratios, inverse_shape_quality
+from ..kernels.triangles import aspect_ratios, inverse_shape_quality, signed_areas
 from ..mesh import PlanarMesh, SurfaceMesh, TetMesh, require_admissible
 from ..riemannian.discrete_geodesic import discrete_geodesic
 from ..riemannian.path_options import LevenbergMarquardtOptions
+from ..scaling import UnitScale, unit_scale
 from .continuation import RELAX_CG_RTOL, NoAdmissiblePathError, continuation_path
 from .frame_blocks import FrameBlocks
 from .graph_metric import GraphMetric
 from .handles3d import SelfIntersectionGuard
+from .pinned_cells import pinned, turned_over_problem
 from .similarity import HandlePath, Similarity, fit_similarity, handle_groups
 from .strain import TriangleDistortion
 from .surface_mesh_move import move_surface_mesh
@@ -91,6 +93,14 @@ class MoveResult:
                            "shift": [self.similarity.shift.real, self.similarity.shift.imag]},
             **self.details,
         }
+
+    def scaled_up(self, scale: UnitScale) -> MoveResult:
+        """This motion of the mesh at unit size, at the user's scale (meshes, the
+        similarity's centre and shift, the handle error; the rest is scale-free)."""
+        return replace(self, mesh=scale.mesh_up(self.mesh),
+                       frames=[scale.mesh_up(m) for m in self.frames],
+                       similarity=self.similarity.scaled_up(scale),
+                       handle_error=float(scale.up(self.handle_error)))
 
 
 def _check_handles(mesh: PlanarMesh, handles, targets) -> tuple[IntArray, FloatArray | None]:
@@ -163,7 +173,7 @@ def _finish(metric: GraphMetric, Q: FloatArray, handles: IntArray, boundary_edge
         res = discrete_geodesic(m, Q, Q, 1, free=free, boundary_edges=boundary_edges,
                                 anchor=np.zeros((len(tri), 3)),
                                 options=LevenbergMarquardtOptions(
-                                    gtol=1e-6, rtol=QUALITY_RTOL, max_iter=relax_iter,
+                                    gtol=1e-6, rtol=QUALITY_RTOL, max_iterations=relax_iter,
                                     cg_rtol=RELAX_CG_RTOL, newton=True, factors=factors))
         nit += res.nit
         Q = res.points[1]
@@ -269,13 +279,19 @@ def move(
     Returns
     -------
     MoveResult
+        Every kind of mesh is moved at unit size (divided by the power of two nearest its
+        size, :mod:`..scaling`; targets alike) and scaled back, so a mesh scaled by
+        ``2**k`` gives the result scaled by ``2**k``, and meshes near 1e±300 move as at
+        unit size; the result's quality numbers are scale-free.
 
     Raises
     ------
     OptionError
         ``frames < 2``, ``steps < 1``, ``weight <= 0`` or another option out of range.
     InvalidMeshError
-        Bad handles or targets, or targets that make the boundary cross itself.
+        Bad handles or targets, targets that make the boundary cross itself, or that
+        turn over a cell whose vertices are all handles (a mirror image turns every
+        cell over; :mod:`.pinned_cells`).
     SelfIntersectionError
         In space: a tet mesh whose boundary intersects itself, targets that make it (or a
         surface free of self-intersections) intersect itself, or a motion that does
@@ -288,7 +304,6 @@ def move(
             carried.mesh, handles, targets, frames=frames, steps=steps, weight=weight,
             relax_iterations=relax_iterations, quality_rounds=quality_rounds,
             finish_frames=finish_frames, max_splits=max_splits, progress=progress))
-    t_start = time.perf_counter()
     relax_iter = relax_iterations
     solver = _solver(mesh)
     if solver is not None:  # another kind of mesh: its own solver, the same options
@@ -303,6 +318,33 @@ def move(
     quality_rounds = 6 if quality_rounds is None else quality_rounds
     _check_options(frames, steps, relax_iter, quality_rounds, max_splits, weight)
     mesh = require_admissible(mesh, "move")
+    _check_handles(mesh, handles, targets)  # named in the user's units
+    options = dict(frames=frames, steps=steps, weight=weight, relax_iter=relax_iter,
+                   quality_rounds=quality_rounds, finish_frames=finish_frames,
+                   max_splits=max_splits, progress=progress)
+    scale = unit_scale(mesh)
+    if scale.is_identity:
+        return _move_planar(mesh, handles, targets, **options)
+    # at unit size (an exact power of two) and back: the same motion at every scale
+    unit = ((lambda t: scale.down(targets(t))) if callable(targets)
+            else scale.down(targets))
+    result = _move_planar(scale.mesh_down(mesh), handles, unit, **options).scaled_up(scale)
+    result.mesh = result.frames[-1] = mesh.with_points(_at_targets(result.mesh.points,
+                                                                   handles, targets))
+    return result
+
+
+def _at_targets(points: FloatArray, handles, targets) -> FloatArray:
+    """``points`` with the handles bitwise at their final targets."""
+    out = np.array(points)
+    out[np.asarray(handles)] = targets(1.0) if callable(targets) else targets
+    return out
+
+
+def _move_planar(mesh: PlanarMesh, handles, targets, *, frames, steps, weight, relax_iter,
+                 quality_rounds, finish_frames, max_splits, progress) -> MoveResult:
+    """:func:`move` of an admissible planar mesh (options checked)."""
+    t_start = time.perf_counter()
     P = mesh.points
     tri = mesh.triangles
     h, tg = _check_handles(mesh, handles, targets)
@@ -313,6 +355,9 @@ def move(
         # loops that are all handles: fixed by the targets, checked before any work
         if problem := target_loop_problem(P, final_guess, be, h):
             raise InvalidMeshError(f"the targets {problem}")
+        if problem := turned_over_problem(signed_areas(final_guess, tri) <= 0,
+                                          pinned(tri, h, len(P)), "triangle"):
+            raise InvalidMeshError(problem)
         # handles that stay exactly: no similarity at all (the identity stays bit for bit)
         S = Similarity(0j, 0j, 0.0, 0.0) if np.array_equal(P[h], tg) else fit_similarity(P[h], tg)
         residual_targets = S.inverse(tg)
@@ -337,7 +382,8 @@ def move(
         share = 1.0 / (2 + len(inner))
         report = (lambda s: progress(s * share)) if progress is not None else None
         cont = continuation_path(metric, P, h, path, times, boundary_edges=be,
-                                 max_splits=max_splits, relax_iter=relax_iter, progress=report)
+                                 max_splits=max_splits, max_iterations=relax_iter,
+                                 progress=report)
         residual = cont.frames
         residual[-1], finish = _finish(metric, residual[-1], h, be, relax_iter, quality_rounds)
         details = {"continuation_splits": cont.splits,

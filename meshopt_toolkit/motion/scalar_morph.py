@@ -80,7 +80,6 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from .._options import renamed_keywords
 from .._typing import FloatArray
 from ..errors import InvalidMeshError, OptionError
 from ..generate import twisted  # the 225° twist target lives in generate; kept importable
@@ -179,7 +178,6 @@ def _shooting_options(shooting: LogMapOptions | Mapping | None) -> LogMapOptions
     return LogMapOptions.of(shooting)
 
 
-@renamed_keywords(max_iter="max_iterations")  # operations.py still says max_iter
 def geodesic_morph(
     source,
     target,

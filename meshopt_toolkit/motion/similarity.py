@@ -14,6 +14,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from .._typing import FloatArray, IntArray
+from ..scaling import UnitScale
 
 
 def _c(P: FloatArray) -> np.ndarray:
@@ -50,6 +51,13 @@ class Similarity:
     @property
     def is_identity(self) -> bool:
         return self.shift == 0 and self.log_scale == 0 and self.angle == 0
+
+    def scaled_up(self, scale: UnitScale) -> Similarity:
+        """This similarity of unit-size coordinates in the user's (centre and shift
+        multiplied by ``scale.factor``; the angle and scale are the same)."""
+        (cx, sx), (cy, sy) = scale.up([[self.center.real, self.shift.real],
+                                       [self.center.imag, self.shift.imag]])
+        return Similarity(complex(cx, cy), complex(sx, sy), self.log_scale, self.angle)
 
 
 def fit_similarity(source: FloatArray, target: FloatArray,

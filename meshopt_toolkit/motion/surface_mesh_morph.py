@@ -6,13 +6,14 @@ poses here as SurfaceMeshes)."""
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..errors import InvalidMeshError
 from ..mesh import SurfaceMesh
 from ..results import PathIteration
+from ..scaling import unit_scale
 from .handles3d import SelfIntersectionGuard
 from .surface_mesh_move import surface_with_points
 from .surface_morph import BENDING, WEIGHT, SurfaceMorph, morph_surface
@@ -90,9 +91,13 @@ def morph_surface_mesh(source, target, frames: int = 9, *, weight: float = WEIGH
         def hook(record: PathIteration):
             progress(min(1.0, record.iteration / max(int(max_iterations), 1)))
             return callback(record) if callback is not None else None
-    res = morph_surface(s.points, t.points, s.triangles, frames, weight=weight,
-                        bending=bending, max_iterations=max_iterations,
+    # at unit size (an exact power of two, both poses alike) and back: the same morph at
+    # every scale
+    scale = unit_scale(s.points, t.points, columns=3)
+    res = morph_surface(scale.down(s.points), scale.down(t.points), s.triangles, frames,
+                        weight=weight, bending=bending, max_iterations=max_iterations,
                         stop_when_healthy=stop_when_healthy, callback=hook)
+    res = replace(res, points=scale.up(res.points))
 
     guard.check(res.points, motion="the morph", last=False)
 

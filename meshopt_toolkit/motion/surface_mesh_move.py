@@ -16,7 +16,9 @@ import numpy as np
 from .._typing import FloatArray
 from ..errors import InvalidMeshError
 from ..mesh import SurfaceMesh
+from ..scaling import unit_scale
 from .handles3d import SolvedVertices, check_handles, distinct_handles
+from .pinned_cells import surface_targets_problem
 from .surface_move import SurfaceMoveResult, move_surface
 
 __all__ = ["SurfaceMeshMoveResult", "move_surface_mesh", "surface_with_points"]
@@ -72,11 +74,16 @@ def move_surface_mesh(mesh, handles, targets, *, frames: int | None = None, step
     ``max_halvings``; ``relax_iter`` and ``quality_rounds`` (options of the planar and tet
     solvers) are not used. With ``frames = K`` at least ``K − 1`` increments are taken and
     the K frames are those whose path fractions are nearest to ``0, 1/(K−1), …, 1``.
+    The motion is solved at unit size (the surface divided by the power of two nearest
+    its size, :mod:`..scaling`) and scaled back: a surface scaled by ``2**k`` moves to
+    the result scaled by ``2**k``.
 
     Raises
     ------
     InvalidMeshError
-        Bad handles or targets, a degenerate triangle.
+        Bad handles or targets, a degenerate triangle; targets that make a triangle
+        whose corners are all handles degenerate, or turn a closed surface whose
+        vertices are all handles inside out (a mirror image).
     NotAdmissibleError
         No fold-free increment of the handles' path.
     """
@@ -90,8 +97,16 @@ def move_surface_mesh(mesh, handles, targets, *, frames: int | None = None, step
     # vertices in no triangle are left out of the solve (no mass) and stay put
     solved = SolvedVertices(surface.points, surface.triangles, h, tg)
     n_steps = max(int(steps), (frames or 2) - 1)
-    res = move_surface(solved.points, solved.cells, solved.handles, solved.targets,
-                       steps=n_steps, weight=weight, max_halvings=max_splits)
+    # solved at unit size (an exact power of two): the same motion at every scale
+    scale = unit_scale(solved.points, columns=3)
+    if problem := surface_targets_problem(
+            scale.down(solved.points), solved.cells, solved.handles,
+            scale.down(solved.targets), surface.is_closed and surface.is_oriented):
+        raise InvalidMeshError(problem)
+    res = move_surface(scale.down(solved.points), solved.cells, solved.handles,
+                       scale.down(solved.targets), steps=n_steps, weight=weight,
+                       max_halvings=max_splits).scaled_up(scale)
+    res.points[solved.handles] = solved.targets  # bitwise, subnormal targets included
 
     moved = surface_with_points(surface, solved.full(res.points))
     if frames is not None:

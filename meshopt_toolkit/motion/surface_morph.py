@@ -53,6 +53,7 @@ import scipy.sparse as sp
 from .._typing import FloatArray, IntArray
 from ..errors import InvalidMeshError, NotAdmissibleError, OptionError
 from ..kernels.surface import aspect_ratios
+from ..scaling import unit_scale
 from ..results import PathIteration
 from ..solvers import factorize_spd
 from .frame_threads import frame_map
@@ -126,8 +127,10 @@ class SurfaceMorph:
     gradient_norm: float = field(default=0.0)
 
     def linear_measures(self) -> tuple[FloatArray, IntArray]:
-        """:func:`frame_measures` of linear interpolation at the same times."""
-        V0, V1 = self.points[0], self.points[-1]
+        """:func:`frame_measures` of linear interpolation at the same times (measured at
+        unit size: the fold test's products neither overflow nor underflow at 1e±300)."""
+        scale = unit_scale(self.points[0], self.points[-1], columns=3)
+        V0, V1 = scale.down(self.points[0]), scale.down(self.points[-1])
         return frame_measures(V0, [(1.0 - t) * V0 + t * V1 for t in self.times],
                               self.triangles)
 

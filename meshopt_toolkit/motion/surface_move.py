@@ -48,7 +48,7 @@ summed change of distortion, ``Σ_k |Δφ_t| ≤ ℓ/w`` (``SurfaceMoveResult.ph
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -57,6 +57,7 @@ from scipy.sparse.linalg import LinearOperator
 from .._typing import FloatArray, IntArray
 from ..errors import InvalidMeshError, NotAdmissibleError
 from ..kernels.surface import aspect_ratios
+from ..scaling import UnitScale
 from ..solvers import factorize_spd, pcg
 from .bending import ShellBending
 from .surface_distortion import SurfaceDistortion
@@ -91,6 +92,8 @@ class SurfaceMoveResult:
     times : the handle-path fraction of each frame
     phi_lengths : (T,) each triangle's ``Σ_k |Δφ_t|`` along the frames
     length : the frames' polygon length ``ℓ`` (module docstring); ``phi_lengths ≤ ℓ/w``
+    worst_quality, folds : the result's lowest aspect ratio over its rest one and its
+        folded triangles, over all triangles (those of handles only included)
     """
 
     points: FloatArray
@@ -116,6 +119,13 @@ class SurfaceMoveResult:
                 "handle error": self.handle_error, "seconds": self.seconds,
                 "steps": self.steps, "iterations": self.iterations,
                 "factorizations": self.factorizations, "polished vertices": self.polished}
+
+    def scaled_up(self, scale: UnitScale) -> SurfaceMoveResult:
+        """This motion of the surface at unit size, at the user's scale (points, frames,
+        the handle error; the rest is scale-free)."""
+        return replace(self, points=scale.up(self.points),
+                       frames=[scale.up(F) for F in self.frames],
+                       handle_error=float(scale.up(self.handle_error)))
 
 
 class _Problem:
@@ -444,13 +454,12 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
         frames.append(Q.copy())
         times.append(t)
     Q[handles] = targets
-    rest_q = aspect_ratios(V, F)
-    free = problem.free_triangles
-    rq = aspect_ratios(Q, F)[free] / rest_q[free]
+    # the result's measures over all its triangles, those the targets alone place included
+    rq = aspect_ratios(Q, F) / aspect_ratios(V, F)
     return SurfaceMoveResult(
         points=Q, frames=frames, times=times, phi_lengths=phi_lengths, length=length,
         weight=weight, worst_quality=float(rq.min()) if rq.size else 1.0,
-        folds=int(np.sum(problem.folds.mask(Q) & free)),
+        folds=int(np.sum(problem.folds.mask(Q))),
         handle_error=float(np.abs(Q[handles] - targets).max()) if len(handles) else 0.0,
         iterations=iterations, seconds=time.perf_counter() - t_start, steps=len(frames) - 1,
         factorizations=problem.factorizations, cg_iterations=problem.cg_total,

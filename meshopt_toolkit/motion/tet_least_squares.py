@@ -23,7 +23,6 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .._options import renamed_keywords
 from .._typing import FloatArray, IntArray
 from ..solvers import cholesky_spd, cholmod_available, factorize_spd, pcg
 from .tet_distortion import TetDistortion
@@ -219,7 +218,6 @@ class Minimized:
     gradient_ratio: float
 
 
-@renamed_keywords(max_iter="max_iterations")  # motion/tet_move.py still says max_iter
 def minimize(problem: Problem, Q: FloatArray, centre: FloatArray, anchor: FloatArray,
              cell_weights: FloatArray | None = None, *, rtol: float = 1e-2, gtol: float = 1e-10,
              max_iterations: int = 20, newton: bool = False) -> Minimized:

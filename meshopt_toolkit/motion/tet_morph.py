@@ -21,11 +21,10 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .._options import renamed_keywords
 from .._typing import FloatArray, IntArray
 from ..errors import InvalidMeshError, NotAdmissibleError, OptionError
 from ..kernels.intersections3d import self_intersections
@@ -34,6 +33,7 @@ from ..mesh import TetMesh
 from ..riemannian.levenberg_marquardt import levenberg_marquardt
 from ..riemannian.path_options import LevenbergMarquardtOptions
 from ..results import PathFrames
+from ..scaling import UnitScale
 from .continuation import NoAdmissiblePathError, check_frames_and_weight
 from .handles3d import SelfIntersectionGuard
 from .similarity_3d import (HandlePath, Similarity3, fit_similarity_3d, handle_groups,
@@ -115,6 +115,14 @@ class TetMorphResult(PathFrames):
         """The frames as meshes with the source's tets and tags (first = source)."""
         return [self.source.with_points(p) for p in self.points]
 
+    def scaled_up(self, scale: UnitScale, source: TetMesh) -> TetMorphResult:
+        """This morph of the meshes at unit size, at the user's scale: frames, the
+        similarity's centre and shift and the user's ``source`` (the rest is scale-free)."""
+        S = self.similarity
+        return replace(self, points=scale.up(self.points), source=source,
+                       similarity=Similarity3(scale.up(S.centre), scale.up(S.shift),
+                                              S.log_scale, S.rotvec))
+
     @property
     def mesh(self) -> TetMesh:
         """The last frame: the target's points, the source's tags."""
@@ -172,7 +180,6 @@ def _check_pair(source, target) -> None:
                                      f"{mesh.problems[0]}")
 
 
-@renamed_keywords(max_iter="max_iterations")  # operations.py still says max_iter
 def morph_tets(source: TetMesh, target: TetMesh, frames: int = 9, *, weight: float = 1.0,
                max_iterations: int = 200, gtol: float = GTOL, newton: bool = False,
                initial: str = "auto", max_splits: int = 12, avoid_crossings: bool = False,

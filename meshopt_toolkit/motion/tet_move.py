@@ -26,10 +26,13 @@ import numpy as np
 from .._typing import FloatArray, IntArray
 from ..errors import InvalidMeshError
 from ..kernels.tetrahedra import mean_ratios as tet_mean_ratios
+from ..kernels.tetrahedra import orientations as tet_orientations
 from ..kernels.tetrahedra import signed_volumes as tet_signed_volumes
 from ..mesh import TetMesh
+from ..scaling import UnitScale, unit_scale
 from .continuation import NoAdmissiblePathError
 from .handles3d import SolvedVertices, check_handles, distinct_handles
+from .pinned_cells import pinned, turned_over_problem
 from .similarity_3d import (HandlePath, Similarity3, fit_similarity_3d, handle_groups,
                             tet_boundary_faces)
 from .tet_distortion import SQRT3, TetDistortion
@@ -92,6 +95,16 @@ class TetMoveResult:
             **self.details,
         }
 
+    def scaled_up(self, scale: UnitScale) -> TetMoveResult:
+        """This motion of the mesh at unit size, at the user's scale (points, frames, the
+        similarity's centre and shift, the handle error; the rest is scale-free)."""
+        S = self.similarity
+        return replace(
+            self, points=scale.up(self.points), frames=[scale.up(F) for F in self.frames],
+            similarity=Similarity3(scale.up(S.centre), scale.up(S.shift), S.log_scale,
+                                   S.rotvec),
+            handle_error=float(scale.up(self.handle_error)))
+
 
 def _check(points, tets, handles, targets) -> tuple[FloatArray, IntArray, IntArray, FloatArray]:
     P = np.asarray(points, dtype=float)
@@ -107,6 +120,11 @@ def _check(points, tets, handles, targets) -> tuple[FloatArray, IntArray, IntArr
         raise InvalidMeshError(f"{int(np.sum(~(vol > 0)))} tets are not positively oriented "
                                f"(first: tet {int(np.flatnonzero(~(vol > 0))[0])})")
     h, t = distinct_handles(*check_handles(handles, targets, len(P)))
+    final = P.copy()
+    final[h] = t
+    if problem := turned_over_problem(tet_orientations(final, T) <= 0,
+                                      pinned(T, h, len(P)), "tet"):
+        raise InvalidMeshError(problem)
     return P, T.astype(np.int64), h, t
 
 
@@ -127,7 +145,7 @@ def _finish(strain_source: FloatArray, tets: IntArray, problem: Problem, Q: Floa
     for k in range(1, rounds + 1):
         if best_q >= ceiling:
             break
-        res = minimize(quality, Q, Q, zero, weights, rtol=QUALITY_RTOL, max_iter=max_iter,
+        res = minimize(quality, Q, Q, zero, weights, rtol=QUALITY_RTOL, max_iterations=max_iter,
                        newton=newton)
         nit += res.iterations
         Q = res.points
@@ -176,7 +194,8 @@ def move_tets(points: FloatArray, tets: IntArray, handles, targets, *, steps: in
     Raises
     ------
     InvalidMeshError
-        Bad points, tets, handles or targets.
+        Bad points, tets, handles or targets; targets that turn over or flatten a tet
+        whose vertices are all handles (a mirror image of the mesh turns every tet over).
     NoAdmissiblePathError
         No admissible step found after ``max_splits`` halvings.
     """
@@ -281,7 +300,7 @@ def _continuation(problem: Problem, P: FloatArray, h: IntArray, path: HandlePath
                 raise NoAdmissiblePathError(
                     f"no admissible position of the mesh for the handles at s = {s_now + ds:.4g}"
                     f" (the step was halved {max_splits} times)")
-            res = minimize(problem, trial, Q, rest, rtol=STEP_RTOL, max_iter=relax_iter,
+            res = minimize(problem, trial, Q, rest, rtol=STEP_RTOL, max_iterations=relax_iter,
                            newton=newton)
             nit += res.iterations
             rate = (res.points - Q) / (s_try - s_now)
@@ -332,7 +351,9 @@ def move_tet_mesh(mesh: TetMesh, handles, targets, *, frames: int | None = None,
                   quality_rounds: int = 4, max_splits: int = 12,
                   progress: Callable[[float], None] | None = None) -> TetMeshMoveResult:
     """:func:`move_tets` on a :class:`TetMesh`: the moved mesh and frames keep its tets,
-    tags and names (``mt.move`` calls this for a TetMesh).
+    tags and names (``mt.move`` calls this for a TetMesh). The motion is solved at unit
+    size (the mesh divided by the power of two nearest its size, :mod:`..scaling`) and
+    scaled back: a mesh scaled by ``2**k`` moves to the result scaled by ``2**k``.
 
     Raises
     ------
@@ -348,9 +369,13 @@ def move_tet_mesh(mesh: TetMesh, handles, targets, *, frames: int | None = None,
     h, tg = distinct_handles(*check_handles(handles, targets, mesh.n_vertices))
     # vertices in no tet (a file may hold some) are left out of the solve and stay put
     solved = SolvedVertices(mesh.points, mesh.tets, h, tg)
-    res = move_tets(solved.points, solved.cells, solved.handles, solved.targets, steps=steps,
-                    frames=frames, weight=weight, relax_iter=relax_iter,
-                    quality_rounds=quality_rounds, max_splits=max_splits)
+    # solved at unit size (an exact power of two): the same motion at every scale
+    scale = unit_scale(solved.points, columns=3)
+    res = move_tets(scale.down(solved.points), solved.cells, solved.handles,
+                    scale.down(solved.targets), steps=steps, frames=frames, weight=weight,
+                    relax_iter=relax_iter, quality_rounds=quality_rounds,
+                    max_splits=max_splits).scaled_up(scale)
+    res.points[solved.handles] = solved.targets  # bitwise, subnormal targets included
 
     moved = mesh.with_points(solved.full(res.points))
     out = ([mesh.with_points(solved.full(F)) for F in res.frames[:-1]] + [moved]

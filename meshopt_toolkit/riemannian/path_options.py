@@ -10,7 +10,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._options import renamed_keywords
 
 #: the minimizers of the path energy ("auto": Levenberg–Marquardt where the metric provides
 #: a least-squares path model, else Newton–CG)
@@ -101,10 +100,6 @@ class LevenbergMarquardtOptions:
     lambda_decrease: float = LAMBDA_DECREASE
     factors: object | None = None
 
-
-# motion/move.py still says max_iter
-LevenbergMarquardtOptions.__init__ = renamed_keywords(max_iter="max_iterations")(
-    LevenbergMarquardtOptions.__init__)
 
 #: the settings class of each method
 OPTIONS = {"newton-cg": NewtonCGOptions, "levenberg-marquardt": LevenbergMarquardtOptions}
