@@ -100,6 +100,22 @@ def test_hole_is_a_body_of_its_own():
     np.testing.assert_allclose(barycenter(Q, inner), [1.5, 1.5])
 
 
+def test_obstacle_of_a_physical_group(tmp_path):
+    """The channel's rotated 0.3 × 0.3 square obstacle, found by its physical group."""
+    pytest.importorskip("gmsh")
+    from meshopt_toolkit.io import load
+    from meshopt_toolkit.shape.cases import user_mesh
+
+    mesh = load(user_mesh("channel", tmp_path / "channel.msh", 0.2)).as_planar()
+    Q, E = np.asarray(mesh.points), mesh.boundary_edges
+    square = body_facets(Q, E, mesh.tagged_vertices("square"))
+    disc = body_facets(Q, E, mesh.tagged_vertices("disc"))
+    assert enclosed_measure(Q, square) == pytest.approx(0.09, abs=1e-14)
+    np.testing.assert_allclose(barycenter(Q, square), [1.95, 0.5], atol=1e-14)
+    assert enclosed_measure(Q, E) == pytest.approx(
+        3.0 - 0.09 - enclosed_measure(Q, disc), abs=1e-14)
+
+
 def test_unit_cube():
     mesh = cube_mesh(3)
     Q, F = np.asarray(mesh.points), mesh.boundary_faces
