@@ -233,3 +233,17 @@ def test_restore_fails_without_free_vertices():
                          barycenter=True)
     _, N, _ = c.normals(Q0)
     assert c.restore(Q0 + 1e-3, N) is None
+
+
+def test_far_from_the_origin():
+    """A unit ball 1000 away from the origin: values and restoration keep their digits."""
+    Q0 = np.asarray(ball_mesh(4).points)
+    F = ball_mesh(4).boundary_faces
+    shift = np.array([1e3, 1e3, 0.0])
+    assert enclosed_measure(Q0 + shift, F) == pytest.approx(enclosed_measure(Q0, F), rel=1e-13)
+    np.testing.assert_allclose(barycenter(Q0 + shift, F) - shift, barycenter(Q0, F), atol=1e-12)
+    c = ExactConstraints(F, Q0 + shift, diagonal_riesz(np.ones(len(Q0)), np.ones(len(Q0), bool)),
+                         barycenter=True)
+    X = Q0 + shift + 0.01 * np.random.default_rng(1).standard_normal(Q0.shape)
+    R = c.restore(X, c.normals(Q0 + shift)[1])
+    assert R is not None and np.all(np.abs(c.values(R) - c.target) <= 1e-12 * c.scale)

@@ -10,7 +10,7 @@ triangles ``(F, 3)`` of a tetrahedral one — encloses the measure (divergence t
     ``M = ∫ x dV = Σ_f D_f (q_0 + … + q_{d−1}) / (d! (d+1))``,
 
 each facet adding the cone from the origin (exact for a closed boundary, whatever the
-origin). The barycenter is ``b = M / V``. :class:`ExactConstraints` keeps ``c(Q) = c(Q0)``
+origin: the sums are evaluated about the mean facet corner). The barycenter is ``b = M / V``. :class:`ExactConstraints` keeps ``c(Q) = c(Q0)``
 for ``c`` the measure and/or the ``d`` barycenter coordinates: directions are projected
 G-orthogonally onto ``{V : ∇c·V = 0}`` with the ``m × m`` Gram matrix of ``N = G⁻¹∇c``, and
 trial points are restored by Newton's method along ``span N``. Vertices fixed by the
@@ -54,59 +54,84 @@ def _scatter(facets: IntArray, values: FloatArray, n: int) -> FloatArray:
     return np.column_stack([np.bincount(idx, flat[:, k], n) for k in range(flat.shape[1])])
 
 
-def _check(Q: FloatArray, facets: IntArray) -> int:
+def _centred(Q: FloatArray, facets: IntArray) -> tuple[FloatArray, FloatArray]:
+    """``(Q − o, o)`` with ``o`` the mean facet corner: every form below is the same about
+    any origin for a closed boundary, and about ``o`` it does not cancel digits far from
+    the origin. ``o`` is a constant for the derivatives (they do not depend on it)."""
     d = np.shape(Q)[1]
     if d not in (2, 3) or np.shape(facets)[1] != d:
         raise ValueError(f"facets {np.shape(facets)} do not bound a region of points {np.shape(Q)}")
-    return d
+    Q = np.asarray(Q, dtype=float)
+    o = Q[np.asarray(facets)].reshape(-1, d).mean(axis=0)
+    return Q - o, o
+
+
+def _measure(Qc: FloatArray, facets: IntArray) -> float:
+    if Qc.shape[1] == 2:
+        return shoelace_area(Qc, np.asarray(facets))
+    return float(np.sum(_determinants(Qc, facets)[0])) / 6.0
+
+
+def _measure_gradient(Qc: FloatArray, facets: IntArray) -> FloatArray:
+    if Qc.shape[1] == 2:
+        return shoelace_gradient(Qc, np.asarray(facets))
+    return _scatter(facets, _determinants(Qc, facets)[1], len(Qc)) / 6.0
+
+
+def _moments(Qc: FloatArray, facets: IntArray) -> FloatArray:
+    d = Qc.shape[1]
+    D, _, p = _determinants(Qc, facets)
+    return D @ p.sum(axis=1) / (math.factorial(d) * (d + 1))
+
+
+def _moments_gradient(Qc: FloatArray, facets: IntArray) -> FloatArray:
+    d = Qc.shape[1]
+    D, cof, p = _determinants(Qc, facets)
+    S = p.sum(axis=1)
+    out = np.empty((d, len(Qc), d))
+    for i in range(d):
+        per = cof * S[:, None, i, None]
+        per[:, :, i] += D[:, None]
+        out[i] = _scatter(facets, per, len(Qc))
+    return out / (math.factorial(d) * (d + 1))
 
 
 def enclosed_measure(Q: FloatArray, facets: IntArray) -> float:
     """Signed area (``Q (N, 2)``, edges ``(F, 2)``) or volume (``Q (N, 3)``, triangles
     ``(F, 3)``) enclosed by the oriented boundary; positive for outward orientation."""
-    if _check(Q, facets) == 2:
-        return shoelace_area(Q, np.asarray(facets))
-    return float(np.sum(_determinants(Q, facets)[0])) / 6.0
+    return _measure(_centred(Q, facets)[0], facets)
 
 
 def measure_gradient(Q: FloatArray, facets: IntArray) -> FloatArray:
     """``∇V`` ``(N, d)``: facet ``f`` adds ``∂D_f/∂q_k / d!`` at its ``k``-th vertex."""
-    if _check(Q, facets) == 2:
-        return shoelace_gradient(Q, np.asarray(facets))
-    return _scatter(facets, _determinants(Q, facets)[1], len(Q)) / 6.0
+    return _measure_gradient(_centred(Q, facets)[0], facets)
 
 
 def first_moments(Q: FloatArray, facets: IntArray) -> FloatArray:
     """``∫ x dV`` ``(d,)`` over the region the oriented boundary encloses."""
-    d = _check(Q, facets)
-    D, _, p = _determinants(Q, facets)
-    return D @ p.sum(axis=1) / (math.factorial(d) * (d + 1))
+    Qc, o = _centred(Q, facets)
+    return _moments(Qc, facets) + o * _measure(Qc, facets)
 
 
 def moments_gradient(Q: FloatArray, facets: IntArray) -> FloatArray:
     """``∇M_i`` ``(d, N, d)``: ``∂M_i/∂q_k = (∂D/∂q_k S_i + D e_i) / (d!(d+1))`` per facet,
     ``S`` the sum of its corners."""
-    d = _check(Q, facets)
-    D, cof, p = _determinants(Q, facets)
-    S = p.sum(axis=1)
-    out = np.empty((d, len(Q), d))
-    for i in range(d):
-        per = cof * S[:, None, i, None]
-        per[:, :, i] += D[:, None]
-        out[i] = _scatter(facets, per, len(Q))
-    return out / (math.factorial(d) * (d + 1))
+    Qc, o = _centred(Q, facets)
+    return _moments_gradient(Qc, facets) + o[:, None, None] * _measure_gradient(Qc, facets)
 
 
 def barycenter(Q: FloatArray, facets: IntArray) -> FloatArray:
     """``M / V`` ``(d,)``: the centroid of the enclosed region."""
-    return first_moments(Q, facets) / enclosed_measure(Q, facets)
+    Qc, o = _centred(Q, facets)
+    return _moments(Qc, facets) / _measure(Qc, facets) + o
 
 
 def barycenter_gradient(Q: FloatArray, facets: IntArray) -> FloatArray:
-    """``∇b_i = (∇M_i − b_i ∇V) / V`` ``(d, N, d)``."""
-    V = enclosed_measure(Q, facets)
-    b = first_moments(Q, facets) / V
-    return (moments_gradient(Q, facets) - b[:, None, None] * measure_gradient(Q, facets)) / V
+    """``∇b_i = (∇M_i − b_i ∇V) / V`` ``(d, N, d)`` (about ``o``, where ``b`` is small)."""
+    Qc, _ = _centred(Q, facets)
+    V = _measure(Qc, facets)
+    b = _moments(Qc, facets) / V
+    return (_moments_gradient(Qc, facets) - b[:, None, None] * _measure_gradient(Qc, facets)) / V
 
 
 def body_facets(Q: FloatArray, facets: IntArray, vertices: IntArray) -> IntArray:
