@@ -247,3 +247,25 @@ def test_far_from_the_origin():
     X = Q0 + shift + 0.01 * np.random.default_rng(1).standard_normal(Q0.shape)
     R = c.restore(X, c.normals(Q0 + shift)[1])
     assert R is not None and np.all(np.abs(c.values(R) - c.target) <= 1e-12 * c.scale)
+
+
+def test_curve_stays_on_the_constraints_with_tangent_velocities():
+    """The retraction curve: points hold ``c``, velocities are tangent at them and are the
+    curve's derivative (central differences, error O(h²))."""
+    Q0, F = cases()[1]
+    r = np.random.default_rng(3)
+    free = r.uniform(size=len(Q0)) < 0.8
+    c = ExactConstraints(F, Q0, diagonal_riesz(r.uniform(0.5, 2, len(Q0)), free),
+                         barycenter=True)
+    d = c.project(Q0, np.where(free[:, None], r.standard_normal(Q0.shape), 0.0))
+    d *= 0.1 / np.abs(d).max()
+    retract = c.curve(Q0)
+    (R,), (V,) = retract(Q0, d, [0.5])
+    assert np.all(np.abs(c.values(R) - c.target) <= 1e-12 * c.scale)
+    J = c.jacobian(R)
+    assert np.all(np.abs(np.einsum("inx,nx->i", J, V)) <= 1e-12 * np.abs(J).sum() * np.abs(V).max())
+    errors = []
+    for h in (1e-2, 5e-3):
+        (Rp, Rm), _ = retract(Q0, d, [0.5 + h, 0.5 - h])
+        errors.append(np.abs((Rp - Rm) / (2 * h) - V).max())
+    assert errors[1] < 0.3 * errors[0] and errors[1] < 1e-3 * np.abs(V).max()

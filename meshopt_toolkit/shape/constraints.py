@@ -27,7 +27,7 @@ import numpy as np
 
 from .._linalg import dot
 from .._typing import FloatArray, IntArray
-from .area import shoelace_area, shoelace_gradient
+from .area import restored_curve, shoelace_area, shoelace_gradient
 
 
 def _determinants(Q: FloatArray, facets: IntArray) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -225,3 +225,17 @@ class ExactConstraints:
             except np.linalg.LinAlgError:
                 return None
         return None
+
+    def curve(self, Q: FloatArray, base=None):
+        """The retraction ``t ↦ restore(R(t))`` with ``R`` the straight line (``base``
+        None) or ``base``, as ``(Q, d, ts) -> (points, velocities)`` (the protocol of
+        :meth:`~.area.AreaConstraint.curve`); the velocity is ``R'(t) + N μ'(t)`` with
+        ``(∇c·N) μ' = −∇c·R'`` at the restored point, so it is tangent there."""
+        N = self.normals(Q)[1]
+
+        def velocity(R, V):
+            J = self.jacobian(R)
+            dmu = np.linalg.solve(np.einsum("inx,jnx->ij", J, N), -np.einsum("inx,nx->i", J, V))
+            return V + np.einsum("i,inx->nx", dmu, N)
+
+        return restored_curve(base, lambda X: self.restore(X, N), velocity)
