@@ -9,6 +9,7 @@ from hypothesis import strategies as st
 from scipy.spatial import Delaunay
 
 from meshopt_toolkit.diagnostics import check_gradient
+from meshopt_toolkit.errors import InvalidMeshError, OptionError
 from meshopt_toolkit.kernels.tetrahedra import signed_volumes
 from meshopt_toolkit.mesh.volume import TetMesh
 from meshopt_toolkit.shape.area import AreaConstraint
@@ -269,3 +270,16 @@ def test_curve_stays_on_the_constraints_with_tangent_velocities():
         (Rp, Rm), _ = retract(Q0, d, [0.5 + h, 0.5 - h])
         errors.append(np.abs((Rp - Rm) / (2 * h) - V).max())
     assert errors[1] < 0.3 * errors[0] and errors[1] < 1e-3 * np.abs(V).max()
+
+
+def test_refusals():
+    sq = np.array([[0.0, 0], [1, 0], [1, 1], [0, 1]])
+    with pytest.raises(InvalidMeshError, match="do not bound"):
+        enclosed_measure(sq, np.array([[0, 1, 2]]))
+    with pytest.raises(InvalidMeshError, match="no boundary facet"):
+        body_facets(sq, loop(4), [0, 2])
+    riesz = diagonal_riesz(np.ones(4), np.ones(4, bool))
+    with pytest.raises(OptionError, match="no constraint"):
+        ExactConstraints(loop(4), sq, riesz, measure=False)
+    with pytest.raises(InvalidMeshError, match="encloses no"):
+        ExactConstraints(np.array([[0, 1], [1, 0]]), sq, riesz, barycenter=True)

@@ -10,8 +10,9 @@ triangles ``(F, 3)`` of a tetrahedral one — encloses the measure (divergence t
     ``M = ∫ x dV = Σ_f D_f (q_0 + … + q_{d−1}) / (d! (d+1))``,
 
 each facet adding the cone from the origin (exact for a closed boundary, whatever the
-origin: the sums are evaluated about the mean facet corner). The barycenter is ``b = M / V``. :class:`ExactConstraints` keeps ``c(Q) = c(Q0)``
-for ``c`` the measure and/or the ``d`` barycenter coordinates: directions are projected
+origin: the sums are evaluated about the mean facet corner). The barycenter is
+``b = M / V``. :class:`ExactConstraints` keeps ``c(Q) = c(Q0)`` for ``c`` the measure
+and/or the ``d`` barycenter coordinates: directions are projected
 G-orthogonally onto ``{V : ∇c·V = 0}`` with the ``m × m`` Gram matrix of ``N = G⁻¹∇c``, and
 trial points are restored by Newton's method along ``span N``. Vertices fixed by the
 metric (where ``N`` vanishes) are never moved. The single area constraint of the planar
@@ -25,7 +26,7 @@ import math
 
 import numpy as np
 
-from .._linalg import dot
+from ..errors import InvalidMeshError, OptionError
 from .._typing import FloatArray, IntArray
 from .area import restored_curve, shoelace_area, shoelace_gradient
 
@@ -60,7 +61,8 @@ def _centred(Q: FloatArray, facets: IntArray) -> tuple[FloatArray, FloatArray]:
     the origin. ``o`` is a constant for the derivatives (they do not depend on it)."""
     d = np.shape(Q)[1]
     if d not in (2, 3) or np.shape(facets)[1] != d:
-        raise ValueError(f"facets {np.shape(facets)} do not bound a region of points {np.shape(Q)}")
+        raise InvalidMeshError(f"facets {np.shape(facets)} do not bound a region of points "
+                               f"{np.shape(Q)}")
     Q = np.asarray(Q, dtype=float)
     o = Q[np.asarray(facets)].reshape(-1, d).mean(axis=0)
     return Q - o, o
@@ -114,7 +116,7 @@ def first_moments(Q: FloatArray, facets: IntArray) -> FloatArray:
 
 
 def moments_gradient(Q: FloatArray, facets: IntArray) -> FloatArray:
-    """``∇M_i`` ``(d, N, d)``: ``∂M_i/∂q_k = (∂D/∂q_k S_i + D e_i) / (d!(d+1))`` per facet,
+    """``∇M_i`` ``(d, N, d)``: per facet ``∂M_i/∂q_k = (∂D/∂q_k S_i + D e_i) / (d!(d+1))``,
     ``S`` the sum of its corners."""
     Qc, o = _centred(Q, facets)
     return _moments_gradient(Qc, facets) + o[:, None, None] * _measure_gradient(Qc, facets)
@@ -143,7 +145,7 @@ def body_facets(Q: FloatArray, facets: IntArray, vertices: IntArray) -> IntArray
     inside[np.asarray(vertices)] = True
     own = facets[inside[facets].all(axis=1)]
     if not len(own):
-        raise ValueError("no boundary facet has all its vertices in the body")
+        raise InvalidMeshError("no boundary facet has all its vertices in the body")
     return own[:, ::-1].copy() if enclosed_measure(Q, own) < 0 else own
 
 
@@ -161,16 +163,18 @@ class ExactConstraints:
     def __init__(self, facets: IntArray, Q0: FloatArray, riesz, *, measure: bool = True,
                  barycenter: bool = False) -> None:
         if not (measure or barycenter):
-            raise ValueError("no constraint selected")
+            raise OptionError("no constraint selected: measure or barycenter")
         self.facets = np.asarray(facets)
         self.measure, self.barycenter = bool(measure), bool(barycenter)
         self._riesz = riesz
-        self.target = self.values(Q0)
         V0 = abs(enclosed_measure(Q0, self.facets))
+        if not V0 > 0:
+            raise InvalidMeshError("the boundary encloses no area or volume")
         length = V0 ** (1.0 / np.shape(Q0)[1])
         # the relative scale of each constraint: the measure, a length for coordinates
         self.scale = np.array(([V0] if measure else []) + ([length] * np.shape(Q0)[1]
                                                            if barycenter else []))
+        self.target = self.values(Q0)
         self._at: FloatArray | None = None
         self._normals = None
 
