@@ -89,22 +89,29 @@ class AreaConstraint:
         ``R'(t) + μ'(t) n`` with ``μ' = −∇A·R' / ∇A·n`` at the restored point."""
         _, n, _ = self.normal(Q)
 
-        def retract(Q0, d, ts):
-            if base is None:
-                pts, vel = [Q0 + t * d for t in ts], [d] * len(ts)
-            else:
-                pts, vel = base(Q0, d, ts)
-            out_p, out_v = [], []
-            for X, V in zip(pts, vel):
-                R = None if X is None else self.restore(X, n)
-                if R is None:
-                    out_p.append(None)
-                    out_v.append(None)
-                    continue
-                aR = shoelace_gradient(R, self.edges)
-                an = dot(aR, n)
-                out_p.append(R)
-                out_v.append(V - (dot(aR, V) / an) * n if an != 0 else V)
-            return out_p, out_v
+        def velocity(R, V):
+            aR = shoelace_gradient(R, self.edges)
+            an = dot(aR, n)
+            return V - (dot(aR, V) / an) * n if an != 0 else V
 
-        return retract
+        return restored_curve(base, lambda X: self.restore(X, n), velocity)
+
+
+def restored_curve(base, restore, velocity):
+    """``(Q, d, ts) -> (points, velocities)``: the points of the straight line ``Q + t d``
+    (``base`` None) or of ``base`` passed through ``restore(X)`` (None: no point), their
+    velocities ``V`` through ``velocity(R, V)`` at the restored point ``R``."""
+
+    def retract(Q0, d, ts):
+        if base is None:
+            pts, vel = [Q0 + t * d for t in ts], [d] * len(ts)
+        else:
+            pts, vel = base(Q0, d, ts)
+        out_p, out_v = [], []
+        for X, V in zip(pts, vel):
+            R = None if X is None else restore(X)
+            out_p.append(R)
+            out_v.append(None if R is None else velocity(R, V))
+        return out_p, out_v
+
+    return retract
