@@ -75,3 +75,19 @@ def test_meshopt_move_writes_fresh_normals(tmp_path, caplog):
                     true_normals(back.points, back.cells[0][1]))
     assert cos.min() > 0.99
     assert sum("normals recomputed" in r.getMessage() for r in caplog.records) == 1
+
+
+def test_per_corner_normals_a_move_cannot_keep_are_named(tmp_path, caplog):
+    """Normals given per face corner (not per vertex) are not held by the moved file: the
+    move says so in one line naming the input."""
+    s = trimesh.creation.icosphere(subdivisions=1)
+    lines = [f"v {x} {y} {z}" for x, y, z in s.vertices]
+    lines += [f"vn {x} {y} {z}" for x, y, z in s.face_normals]
+    lines += [f"f {a + 1}//{k + 1} {b + 1}//{k + 1} {c + 1}//{k + 1}"
+              for k, (a, b, c) in enumerate(s.faces)]
+    src = tmp_path / "corners.obj"
+    src.write_text("\n".join(lines) + "\n")
+    assert main(["move", str(src), "-o", str(tmp_path / "out.obj"), "--where", "z > 0.5",
+                 "--map", "x; y; z + 0.1"]) == 0
+    warned = [r.getMessage() for r in caplog.records if "not kept" in r.getMessage()]
+    assert len(warned) == 1 and str(src) in warned[0] and "normals 'vn'" in warned[0]

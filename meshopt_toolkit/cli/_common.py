@@ -280,6 +280,25 @@ _NOT_PLANAR = {"tetrahedra": "a tetrahedral mesh ({n:,} tetrahedra)",
                                     "plane)"}
 
 
+def warn_dropped(cells, src) -> None:
+    """One warning line naming what the file holds that the reader could not represent
+    (``cells.dropped``: per-corner OBJ normals, unknown statements): an operation's output
+    will not hold it."""
+    if cells is not None and cells.dropped:
+        logging.getLogger("meshopt").warning("%s: not kept in the output: %s", src,
+                                             "; ".join(cells.dropped))
+
+
+def read_cells(src: Path):
+    """The file's :class:`~meshopt_toolkit.io.cells.CellMesh` for an operation, what it
+    cannot keep named (:func:`warn_dropped`)."""
+    from ..io import load_cells
+
+    cells = load_cells(src)
+    warn_dropped(cells, src)
+    return cells
+
+
 def load_workpiece(src: Path, what: str, *, unit_size: bool = True, cells=None):
     """The file's :class:`~meshopt_toolkit.io.workpiece.Workpiece` (every block, tag and
     datum kept; the plane's coordinates at unit size), its mesh checked admissible for
@@ -293,11 +312,10 @@ def load_workpiece(src: Path, what: str, *, unit_size: bool = True, cells=None):
         triangle meshes; this is a tetrahedral mesh (384 tetrahedra)"``.
     """
     from ..errors import InvalidMeshError
-    from ..io import load_cells
     from ..io.workpiece import Workpiece
     from ._info_cells import cell_kind
 
-    cells = load_cells(src) if cells is None else cells
+    cells = read_cells(src) if cells is None else cells
     kind = cell_kind(cells)
     if kind in _NOT_PLANAR:
         n = sum(len(c) for t, c in cells.cells if t == "tetra")

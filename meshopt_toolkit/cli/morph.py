@@ -41,7 +41,7 @@ from pathlib import Path
 from ..bounds import MAX_ITERATIONS
 from ..filters.generate_geodesic_morph import GenerateGeodesicMorph
 from ._common import (add_output_flags, check_mesh_format, check_output_dir, float_list,
-                      frame_names, prepare_output_dir, save_moved, write_text)
+                      frame_names, prepare_output_dir, save_moved, warn_dropped, write_text)
 from ._params import add_options, check_options
 from ._validate import check_int, check_numbers
 
@@ -103,6 +103,7 @@ def run(args: argparse.Namespace) -> int:
     _check_numbers(args)
     _check_outputs(args, others=())  # the outputs of every kind, before reading
     kind, cells = read_kind(args.source)
+    warn_dropped(cells, args.source)
     if args.stop == "healthy" and kind != SURFACE:
         from ..errors import OptionError
 

@@ -32,7 +32,7 @@ import argparse
 from .. import strict_json
 
 from ._common import (add_output_flags, checked_paths, frame_names, load_workpiece,
-                      save_moved, save_moved_frames, write_text)
+                      read_cells, save_moved, save_moved_frames, write_text)
 from ..bounds import MAX_FRAMES
 from ..filters.apply_coord_prescribed_motion import PrescribedMotion
 from ._params import add_options, check_options
@@ -99,7 +99,6 @@ def _check_numbers(args: argparse.Namespace) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..io import load_cells
     from ..motion.handles3d import handles_in_space
     from ..motion.move import move
     from ..progress import ProgressBar
@@ -109,7 +108,7 @@ def run(args: argparse.Namespace) -> int:
     _check_numbers(args)
     src, out = checked_paths(args)
     frames = args.frames
-    cells = load_cells(src)
+    cells = read_cells(src)
     kind = cell_kind(cells)
     if kind in (TETS, SURFACE):  # handles in x, y, z; the file written back, new points
         return run_in_space(args, cells, kind)
