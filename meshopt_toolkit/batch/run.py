@@ -11,11 +11,10 @@ How a batch runs
 - Executors (:mod:`.workers`, :mod:`.cluster`): this process (``jobs=1``), N worker
   processes (``jobs=N``; a crash, a native abort or a ``MemoryError`` fails that file
   only), or a Dask cluster (``client=``).
-- Tasks write into a scratch folder ``OUTDIR/.meshopt-staging/<run>-<n>``; this process
-  moves each output into place (hard link or rename: atomic; an existing file is replaced
-  only with ``force``) and records it in the journal (:mod:`.journal`). A killed run
-  leaves no partial output: at worst a scratch folder, removed by the next run. ``<run>``
-  is new for each run, so a file of a killed run can never land in a folder of the next.
+- Tasks write into a scratch folder ``OUTDIR/.meshopt-staging/<run>-<n>`` (``<run>`` new
+  in each run); this process moves each output into place (hard link or rename: atomic;
+  an existing file is replaced only with ``force``) and records it in the journal
+  (:mod:`.journal`). A killed run leaves no partial output: at worst a scratch folder.
 - ``resume=True`` skips files the journal knows as done with the same input content and
   configuration and with all their outputs intact (``"status": "skipped"``). Temporaries
   are removed only by the exact names the journal recorded before making them.
