@@ -38,7 +38,6 @@ import os
 import shutil
 import sqlite3
 import stat
-import time
 from pathlib import Path
 
 from ..errors import MeshoptError
@@ -73,21 +72,6 @@ def config_sha256(config: dict) -> str:
     """Hex SHA-256 of a JSON-able configuration (keys sorted)."""
     text = json.dumps(config, sort_keys=True, separators=(",", ":"), default=str)
     return hashlib.sha256(text.encode()).hexdigest()
-
-
-def _remove_tree(path: Path, attempts: int = 40) -> None:
-    """``shutil.rmtree``, tried again while entries come or go under it (a dying worker
-    of a killed run finishing a file); the last failure is raised."""
-    for attempt in range(attempts):
-        try:
-            shutil.rmtree(path)
-            return
-        except OSError:
-            if not os.path.lexists(path):
-                return
-            if attempt == attempts - 1:
-                raise
-        time.sleep(0.05)
 
 
 class Journal:
@@ -233,16 +217,18 @@ class Journal:
         for rel in self.temporaries():
             path = self.outdir / rel
             try:
-                if stat.S_ISDIR(os.lstat(path).st_mode):
-                    _remove_tree(path)
-                else:
-                    path.unlink()
-                removed.append(path)
+                mode = os.lstat(path).st_mode
             except FileNotFoundError:
-                pass
+                mode = None
             except OSError as exc:
                 raise MeshoptError(f"{path}: cannot remove the batch's temporary: "
                                    f"{exc.strerror or exc}") from None
+            if mode is not None:
+                if stat.S_ISDIR(mode):
+                    shutil.rmtree(path)
+                else:
+                    path.unlink()
+                removed.append(path)
             with self._transaction():
                 self._db.execute("DELETE FROM temporaries WHERE path=?", (rel,))
         return removed
