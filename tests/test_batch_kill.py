@@ -39,6 +39,8 @@ def _inputs(root: Path) -> None:
 
     from meshopt_toolkit import data
 
+    pytest.importorskip("gmsh")
+
     src, targets = root / "in", root / "targets"
     src.mkdir()
     targets.mkdir()
