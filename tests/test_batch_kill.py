@@ -151,3 +151,53 @@ def test_workers_die_with_a_killed_batch_and_resume_finishes_every_file(tmp_path
         assert (Path("out") / name).read_bytes() == (Path("clean") / name).read_bytes(), name
     with contextlib.closing(sqlite3.connect(Path("out") / JOURNAL_NAME)) as db:
         assert db.execute("SELECT count(*) FROM done").fetchone()[0] == n
+
+
+WATCHED = '''
+import multiprocessing, os, sys, time
+
+
+def busy(parent_pid):
+    sys.platform = "elsewhere"  # no kernel death signal: the portable watch alone
+    from meshopt_toolkit.batch.workers import _die_with_parent
+
+    _die_with_parent(parent_pid)
+    print("watching", flush=True)
+    while True:  # Python code holding the GIL
+        sum(range(10000))
+
+
+if __name__ == "__main__":
+    child = multiprocessing.get_context("spawn").Process(target=busy, args=(os.getpid(),))
+    child.start()
+    print(child.pid, flush=True)
+    time.sleep(600)
+'''
+
+
+def test_without_the_kernel_signal_a_worker_still_ends_with_its_parent(tmp_path):
+    (tmp_path / "watched.py").write_text(WATCHED)
+    proc = subprocess.Popen([sys.executable, str(tmp_path / "watched.py")],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            cwd=tmp_path)
+    lines = _lines(proc.stdout)
+    kid = (0, "")
+    try:
+        pid = int(lines.get(timeout=300))
+        kid = next((k for k in _children(proc.pid) if k[0] == pid), kid)
+        deadline = time.monotonic() + 300
+        while lines.empty():  # until the watch is in place, or the child ended
+            assert _alive(kid) and time.monotonic() < deadline
+            time.sleep(0.01)
+        assert lines.get() == "watching\n"
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+        killed_at = time.monotonic()
+        while _alive(kid) and time.monotonic() - killed_at < 2.5:
+            time.sleep(0.01)
+        assert not _alive(kid)
+        assert proc.stderr.read() == ""
+    finally:
+        proc.kill()
+        if _alive(kid):
+            os.kill(kid[0], signal.SIGKILL)
