@@ -30,6 +30,12 @@ class WriteError(MeshoptError):
     """A mesh cannot be written; the message names the file."""
 
 
+class FileWriteError(WriteError):
+    """A file cannot be written where it was asked: it exists (not overwriting), its
+    folder is missing, or the file system refused (the message names the file and the
+    OS error). Not a matter of what the format can hold: never retried with less."""
+
+
 class FilterError(MeshoptError):
     """A filter or pipeline is invalid or failed."""
 

@@ -9,12 +9,21 @@ isolation, resume after a crash, a Dask cluster.
 - :mod:`.workers` (``-j N``), :mod:`.cluster` (``--scheduler``), :mod:`.journal`
   (``--resume``), :mod:`.progress` (the progress bar and summary).
 
-This package sits above :mod:`meshopt_toolkit.pipeline`: it runs pipelines.
+This package sits above :mod:`meshopt_toolkit.pipeline`: it runs pipelines. Its names
+are imported on first use, so that a worker process starts with :mod:`.workers` alone.
 """
 
 from __future__ import annotations
 
-from .file_job import RunOptions, run_file
-from .run import BatchResult, execute, run_batch
+import importlib
 
-__all__ = ["run_batch", "execute", "BatchResult", "RunOptions", "run_file"]
+_WHERE = {"run_batch": "run", "execute": "run", "BatchResult": "run",
+          "RunOptions": "file_job", "run_file": "file_job"}
+
+__all__ = list(_WHERE)
+
+
+def __getattr__(name: str):
+    if name in _WHERE:
+        return getattr(importlib.import_module(f".{_WHERE[name]}", __name__), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

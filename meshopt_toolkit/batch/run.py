@@ -11,10 +11,10 @@ How a batch runs
 - Executors (:mod:`.workers`, :mod:`.cluster`): this process (``jobs=1``), N worker
   processes (``jobs=N``; a crash, a native abort or a ``MemoryError`` fails that file
   only), or a Dask cluster (``client=``).
-- Tasks write into a scratch folder ``OUTDIR/.meshopt-staging/<n>``; this process moves
-  each output into place (hard link or rename: atomic; an existing file is replaced only
-  with ``force``) and records it in the journal (:mod:`.journal`). A killed run leaves no
-  partial output: at worst a scratch folder, removed by the next run.
+- Tasks write into a scratch folder ``OUTDIR/.meshopt-staging/<run>-<n>`` (``<run>`` new
+  in each run); this process moves each output into place (hard link or rename: atomic;
+  an existing file is replaced only with ``force``) and records it in the journal
+  (:mod:`.journal`). A killed run leaves no partial output: at worst a scratch folder.
 - ``resume=True`` skips files the journal knows as done with the same input content and
   configuration and with all their outputs intact (``"status": "skipped"``). Temporaries
   are removed only by the exact names the journal recorded before making them.
@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import secrets
 import shutil
 import time
 from collections.abc import Iterable, Mapping
@@ -155,6 +156,7 @@ class _Batch:
         self.config_sha = config_sha256(task.config())
         self.journal: Journal | None = None
         self.staging: Path | None = None
+        self._run = secrets.token_hex(4)  # this run's scratch folders: <run>-<n>
         self._seq = 0
 
     def open(self) -> None:
@@ -210,7 +212,7 @@ class _Batch:
                 why = "is the input file" if dst.resolve() == src.resolve() else "already exists"
                 return failed_record(src, f"{dst}: {why} (use --force to overwrite)")
         self._seq += 1
-        pending.stage = self.staging / str(self._seq)
+        pending.stage = self.staging / f"{self._run}-{self._seq}"
         if not self.remote:
             pending.stage.mkdir()
         return pending, (str(src), job.index, job.name, str(pending.stage))

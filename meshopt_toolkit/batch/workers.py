@@ -10,14 +10,22 @@ payload at a time over its own pipe, so a worker that dies — a native abort in
 a segmentation fault, the kernel's out-of-memory killer — is known to have died on
 exactly one payload: that one gets a :class:`WorkerCrash` result, a fresh worker replaces
 it and the others go on. A ``MemoryError`` that the task reports retires its worker too.
+
+Workers die with the batch process, even when it is killed with SIGKILL: on Linux the
+kernel sends them SIGKILL (``PR_SET_PDEATHSIG``), and everywhere a thread of each worker
+waits on its parent's sentinel and ends the worker when the parent is gone. No worker
+outlives its batch to write into the folders of the next run.
 """
 
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import logging
+import multiprocessing
 import os
 import signal
+import sys
 import threading
 from dataclasses import dataclass
 from multiprocessing.connection import wait as _wait_any
@@ -90,10 +98,38 @@ class InlineExecutor:
         pass
 
 
-def _worker_main(conn, task) -> None:  # pragma: no cover - runs in the worker
+_PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
+
+
+def _exit_when_gone(sentinel) -> None:  # pragma: no cover - runs in the worker
+    _wait_any([sentinel])
+    os._exit(1)  # at once and silently: the batch that wanted the result is gone
+
+
+def _die_with_parent(parent_pid: int) -> None:  # pragma: no cover - runs in the worker
+    """End this process as soon as the batch process ``parent_pid`` ends, however it ends."""
+    if sys.platform.startswith("linux"):
+        with contextlib.suppress(OSError, AttributeError):
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+    if os.getppid() != parent_pid:  # gone before the request was in place
+        os._exit(1)
+    parent = multiprocessing.parent_process()
+    if parent is not None:  # the portable watch, where the kernel has no death signal
+        threading.Thread(target=_exit_when_gone, args=(parent.sentinel,), daemon=True,
+                         name="meshopt-parent-watch").start()
+
+
+def _worker_main(conn, parent_pid: int) -> None:  # pragma: no cover - runs in the worker
+    # before the task comes (and its modules load): die with the batch process
+    _die_with_parent(parent_pid)
     # Ctrl-C goes to the whole process group: the parent decides, and stops us
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     logging.basicConfig(level=logging.WARNING)
+    try:
+        task = conn.recv()
+    except (EOFError, OSError):
+        return
     while True:
         try:
             msg = conn.recv()
@@ -111,8 +147,14 @@ def _worker_main(conn, task) -> None:  # pragma: no cover - runs in the worker
             result, restart = MemoryError("out of memory"), True
         try:
             conn.send((ident, result, restart))
+        except OSError:  # the parent is gone: nobody to answer
+            return
         except Exception as exc:  # an unpicklable result: still an answer
-            conn.send((ident, RuntimeError(f"cannot send the result back: {exc}"), restart))
+            try:
+                conn.send((ident, RuntimeError(f"cannot send the result back: {exc}"),
+                           restart))
+            except OSError:
+                return
         if restart:
             return
 
@@ -134,10 +176,13 @@ def _single_threaded_env():
 class _Worker:
     def __init__(self, ctx, task, single_thread: bool) -> None:
         self.conn, child = ctx.Pipe()
-        self.process = ctx.Process(target=_worker_main, args=(child, task), daemon=True)
+        self.process = ctx.Process(target=_worker_main, args=(child, os.getpid()),
+                                   daemon=True)
         with _single_threaded_env() if single_thread else contextlib.nullcontext():
             self.process.start()
         child.close()
+        with contextlib.suppress(OSError):  # dead already: its first payload says so
+            self.conn.send(task)
         self.ident = None
 
     def stop(self, kill: bool) -> None:
@@ -167,8 +212,6 @@ class ProcessPool:
     """
 
     def __init__(self, task, workers: int, *, single_thread: bool = True) -> None:
-        import multiprocessing
-
         self.task = task
         self.workers = max(int(workers), 1)
         self.single_thread = single_thread

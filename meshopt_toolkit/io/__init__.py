@@ -33,7 +33,7 @@ import os
 from collections.abc import Callable
 from pathlib import Path
 
-from ..errors import MeshoptError, ReadError, WriteError
+from ..errors import FileWriteError, MeshoptError, ReadError, WriteError
 from ..mesh import TriangleMesh
 from . import gmsh, medit, obj, off, ply, stl, vtk
 from ._atomic import atomic_path
@@ -287,7 +287,9 @@ def _write(writer, data, path: Path, ext: str, overwrite, binary, msh_version) -
         try:
             writer(tmp, data, binary, **kwargs)
         except WriteError as exc:
-            raise WriteError(str(exc).replace(str(tmp), str(path))) from None
-        except (OSError, ValueError, TypeError) as exc:
+            raise type(exc)(str(exc).replace(str(tmp), str(path))) from None
+        except OSError as exc:  # the file system's refusal, not the format's
+            raise FileWriteError(f"{path}: cannot write: {exc.strerror or exc}") from None
+        except (ValueError, TypeError) as exc:
             raise WriteError(f"{path}: cannot write {ext} file: {exc}") from None
     return path

@@ -15,7 +15,7 @@ import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
-from ..errors import WriteError
+from ..errors import FileWriteError
 
 
 def _umask() -> int:
@@ -34,23 +34,23 @@ def atomic_path(path: str | os.PathLike, *, overwrite: bool = True) -> Iterator[
 
     Raises
     ------
-    WriteError
+    FileWriteError
         ``path`` exists and ``overwrite`` is false, its directory is missing, or the
         temporary file cannot be created or moved.
     """
     path = Path(path)
     if not overwrite and path.exists():
-        raise WriteError(f"{path}: already exists (not overwriting)")
+        raise FileWriteError(f"{path}: already exists (not overwriting)")
     if path.is_dir():
-        raise WriteError(f"{path}: is a directory")
+        raise FileWriteError(f"{path}: is a directory")
     directory = path.parent if str(path.parent) else Path(".")
     if not directory.is_dir():
-        raise WriteError(f"{path}: directory {directory} does not exist")
+        raise FileWriteError(f"{path}: directory {directory} does not exist")
     try:
         fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.{os.getpid()}.", suffix=".part",
                                         dir=directory)
     except OSError as exc:
-        raise WriteError(f"{path}: cannot create a file in {directory}: {exc.strerror}") from None
+        raise FileWriteError(f"{path}: cannot create a file in {directory}: {exc.strerror}") from None
     os.close(fd)
     tmp = Path(tmp_name)
     try:
@@ -62,13 +62,13 @@ def atomic_path(path: str | os.PathLike, *, overwrite: bool = True) -> Iterator[
             try:
                 os.link(tmp, path)
             except FileExistsError:
-                raise WriteError(f"{path}: already exists (not overwriting)") from None
+                raise FileWriteError(f"{path}: already exists (not overwriting)") from None
             except OSError:  # file system without hard links: best effort
                 if path.exists():
-                    raise WriteError(f"{path}: already exists (not overwriting)") from None
+                    raise FileWriteError(f"{path}: already exists (not overwriting)") from None
                 os.replace(tmp, path)
     except OSError as exc:
-        raise WriteError(f"{path}: {exc.strerror or exc}") from None
+        raise FileWriteError(f"{path}: {exc.strerror or exc}") from None
     finally:
         with contextlib.suppress(FileNotFoundError):
             tmp.unlink()

@@ -26,7 +26,7 @@ from functools import cached_property
 
 import numpy as np
 
-from ..errors import InvalidMeshError, WriteError
+from ..errors import FileWriteError, InvalidMeshError, WriteError
 from ..mesh import PlanarMesh, TriangleMesh
 from ..orientation import PLANE_RTOL, PlaneEmbedding, plane_embedding
 from ..scaling import UnitScale, unit_scale
@@ -363,7 +363,11 @@ def save_workpiece(cells: CellMesh, path, *, computed: tuple[str, ...] = (),
 
     First without the ``computed`` data names (what the operation added), then the
     triangle mesh alone (its points, triangles and, where the format has them, lines and
-    physical tags). A failure of the last try is raised.
+    physical tags). Only the format's refusal leads to a smaller try: a file that cannot
+    be written at all (:class:`~meshopt_toolkit.errors.FileWriteError`: it exists, its
+    folder is missing, the file system refused) is raised as it is, and so is the
+    format's refusal when the cells are no triangle mesh (tetrahedra for a surface
+    format).
     """
     from . import save_cells
 
@@ -376,6 +380,8 @@ def save_workpiece(cells: CellMesh, path, *, computed: tuple[str, ...] = (),
     for k, cm in enumerate(tries):
         try:
             out = save_cells(cm, path, overwrite=overwrite, **kwargs)
+        except FileWriteError:
+            raise
         except WriteError as exc:
             first = first or exc
             continue
@@ -384,7 +390,10 @@ def save_workpiece(cells: CellMesh, path, *, computed: tuple[str, ...] = (),
         return out
     from . import save
 
-    mesh = cells.to_triangle_mesh()
+    try:
+        mesh = cells.to_triangle_mesh()
+    except InvalidMeshError:  # other cells than triangles: the format's refusal says it
+        raise first from None
     out = save(mesh, path, overwrite=overwrite, **kwargs)
     logger.warning("%s (only the triangle mesh was written)", first)
     return out
