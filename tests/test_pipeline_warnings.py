@@ -70,3 +70,21 @@ def test_kept_warnings_are_this_threads_and_not_printed(caplog):
         log.info("not a warning")
     assert lines == ["a warning in two lines"]
     assert logging.getLogger("meshopt_toolkit").propagate  # printed again afterwards
+
+
+def test_a_warning_naming_its_input_names_it_once(tmp_path, capsys, monkeypatch):
+    """The library's warning about a file (normals recomputed for moved vertices) is printed
+    with the input named once, not once by the batch and again by the message."""
+    from meshopt_toolkit.cli import main
+
+    trimesh = pytest.importorskip("trimesh")
+    (tmp_path / "in").mkdir()
+    src = tmp_path / "in" / "ball.obj"
+    trimesh.creation.icosphere(2).export(str(src), include_normals=True)
+    (tmp_path / "p.json").write_text(json.dumps({"filters": [{
+        "name": "apply_coord_prescribed_motion",
+        "params": {"where": "z > 0.5", "map": "x; y; z + 0.2"}}]}))
+    monkeypatch.chdir(tmp_path)
+    assert main(["run", "p.json", "in", "-o", "out"]) == 0
+    warned = [ln for ln in capsys.readouterr().err.splitlines() if "normals recomputed" in ln]
+    assert len(warned) == 1 and warned[0].count("ball.obj") == 1, warned

@@ -260,7 +260,7 @@ def reporter(command: str, as_json: bool, bar, line_ok=None, dry_run: bool = Fal
 
     def report(rec: dict) -> None:
         for warning in rec.get("warnings") or ():
-            bar.message(f"meshopt {command}: warning: {rec['input']}: {warning}")
+            bar.message(f"meshopt {command}: warning: {naming(warning, [rec['input']])}")
         if rec["status"] == "failed":
             bar.message(f"meshopt {command}: error: {naming(rec['error'], [rec['input']])}")
         elif rec["status"] == "ok" and line_ok is not None:
