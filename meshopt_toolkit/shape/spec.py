@@ -131,11 +131,12 @@ def spec_from_options(*, fixed=(), move=(), dirichlet=(), neumann=(), keep_area=
     """A :class:`ProblemSpec` from option strings: groups and ``GROUP=VALUE`` items
     comma-separated (or repeated; a vector value ``GROUP=V1,V2``), ``scale`` ``"auto"``
     or a number, ``material`` ``{"young", "poisson_ratio", "viscosity"}`` (the defaults
-    where missing). An empty ``pde`` is the objective's, an empty ``objective`` the PDE's
+    where missing). An empty (or ``"auto"``) ``pde`` is the objective's, an empty ``objective`` the PDE's
     first."""
     from ..fem.boundary_data import group_key
 
     pde = (pde or "").strip()
+    pde = "" if pde == "auto" else pde
     if pde and pde not in PDES:
         raise OptionError(f"--pde {pde!r}: choose one of {', '.join(PDES)}")
     if not (objective or "").strip():
