@@ -113,9 +113,10 @@ def rigid_pins(points: FloatArray) -> IntArray:
     d = X.shape[1]
     a = int(np.argmin(np.linalg.norm(X - X.mean(axis=0), axis=1)))
     b = int(np.argmax(np.linalg.norm(X - X[a], axis=1)))
-    c = int(np.argmax(np.linalg.norm(np.cross(X - X[a], X[b] - X[a])
-                                     .reshape(len(X), -1), axis=1)))
-    nodes = np.unique([a, b, c])
+    nodes = [a, b]
+    if d == 3:
+        nodes.append(int(np.argmax(np.linalg.norm(np.cross(X - X[a], X[b] - X[a]), axis=1))))
+    nodes = np.unique(nodes)
     dofs = vector_dofs(nodes[:, None], d).ravel()
     R = rigid_modes(X)[dofs]
     _, _, piv = qr(R.T, pivoting=True)
