@@ -207,3 +207,22 @@ def test_unbalanced_load_on_a_floating_body_and_tets_are_refused(tmp_path, capsy
                  "left=1,0,0,0,0,0", "-o", str(out)]) == 1
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "planar triangle meshes" in err and not out.exists()
+
+
+def test_filter_runs_the_same_problem_as_the_library(plate):
+    from meshopt_toolkit.io import load
+    from meshopt_toolkit.optimize import optimize
+    from meshopt_toolkit.pipeline import Document, registry
+    from meshopt_toolkit.shape.spec import spec_from_options
+
+    mesh = load(plate).as_planar()
+    doc = Document([mesh])
+    registry.get("apply_coord_shape_optimization")()(
+        doc, pde="elasticity", stress="outer=2,1,0", move="hole", keep_area=True,
+        poisson_ratio=0.25, max_iterations=3, tolerance=0)
+    spec = spec_from_options(pde="elasticity", stress="outer=2,1,0", move="hole",
+                             keep_area=True, material={"poisson_ratio": 0.25})
+    expected = optimize(mesh, problem=spec, max_iterations=3, options=dict(tolerance=None))
+    moved = doc.current_entry.workpiece("test", unit_size=False).mesh.points
+    assert np.allclose(moved, expected.x, rtol=0, atol=1e-12)
+    assert not np.allclose(moved, mesh.points)
