@@ -138,7 +138,10 @@ class ComplianceObjective:
     ----------
     points : (N, d) reference positions (they orient the facets outward)
     cells : (T, d+1) positive simplices
-    clamped : (F, d) boundary facets with ``u = 0``
+    clamped : (F, d) boundary facets with ``u = 0``; none: the body floats, its rigid
+        motions are pinned at :func:`rigid_pins` (no stress: the compliance is that of
+        the free body) and tractions that do not balance are refused; solved by
+        ``factorize_spd`` whatever ``solver`` says
     tractions : sequence of ``(facets (F, d), stress (d, d))``: ``t = σ_g n`` on the facets
     E, nu : Young's modulus and Poisson ratio (plane stress in 2D)
     degree : 1 or 2
