@@ -182,11 +182,13 @@ def optimize(
     mesh : PlanarMesh
         Initial mesh; also the reference Q_ref of the penalty. Must be admissible.
     objective : object with ``value(Q)`` and ``derivative(Q)`` (shape (N, 2)); None:
-        ``problem``'s Poisson objective (:meth:`ProblemSpec.make_objective`).
+        ``problem``'s objective (:meth:`ProblemSpec.make_objective`: Poisson, elasticity
+        compliance or Stokes dissipation).
     problem : :class:`~meshopt_toolkit.shape.spec.ProblemSpec`, optional
         The user's problem by physical group: fixed and moving boundary parts (added to
-        ``fixed``), boundary conditions and objective (when ``objective`` is None), the
-        area kept exactly (``keep_area``, lbfgs and cg), the weight of j (``scale``;
+        ``fixed``), PDE, boundary conditions and objective (when ``objective`` is None),
+        the area and the moving body's barycenter kept exactly (``keep_area``,
+        ``keep_barycenter``, lbfgs and cg), the weight of j (``scale``;
         ``F = w j + f2``, the result's ``j`` is unweighed). ``scale="auto"`` weighs j to
         the mesh, rejects trial steps whose worst triangle falls below half its initial
         aspect ratio and restarts a run that finds no step with a smaller weight
@@ -254,8 +256,8 @@ def optimize(
             free[np.asarray(fixed)] = False
         if not free.any():
             raise OptimizationError("every vertex is fixed: nothing to optimize")
-    if spec.keep_area and method == "steepest":
-        raise OptionError("keep_area needs method 'lbfgs' or 'cg'")
+    if (spec.keep_area or spec.keep_barycenter) and method == "steepest":
+        raise OptionError("keep_area and keep_barycenter need method 'lbfgs' or 'cg'")
     f2 = None
     if penalty is not None and any(b != 0 for b in penalty):
         from .penalties import QualityPenalty
@@ -265,13 +267,8 @@ def optimize(
     metric = _make_metric(variant, mesh, metric_beta, dict(o.metric_options or {}))
     retract = (None if retraction is None
                else _make_retraction(retraction, metric, exp_options, free))
-    constraint = None
-    if spec.keep_area:
-        from .shape.area import AreaConstraint, shoelace_area
-
-        constraint = AreaConstraint(mesh.boundary_edges, shoelace_area(mesh.points,
-                                    mesh.boundary_edges), lambda Q, P: metric.riesz(Q, P, free=free))
-    weight = spec.weight(lambda: _elasticity_gradient_norm(mesh, objective, free, constraint))
+    constraint = spec.constraint(mesh, lambda Q, P: metric.riesz(Q, P, free=free), free)
+    weight = spec.weight(lambda: _elasticity_gradient_norm(mesh, objective, free, spec))
     auto = spec.scale == "auto"
     floor = QUALITY_GUARD * aspect_ratios(mesh.points, tri).min() if auto else None
     start = time.perf_counter()
@@ -320,8 +317,9 @@ def _unweighed(result: OptimizeResult, objective, weight: float) -> OptimizeResu
     return result
 
 
-def _elasticity_gradient_norm(mesh: PlanarMesh, objective, free, constraint) -> float:
-    """``‖grad j‖`` at the initial mesh in the elasticity metric (the area's normal removed)."""
+def _elasticity_gradient_norm(mesh: PlanarMesh, objective, free, spec: ProblemSpec) -> float:
+    """``‖grad j‖`` at the initial mesh in the elasticity metric (projected onto the
+    tangent space of ``spec``'s constraints)."""
     from .riemannian.metrics import ElasticityMetric
 
     Q = mesh.points
@@ -330,9 +328,7 @@ def _elasticity_gradient_norm(mesh: PlanarMesh, objective, free, constraint) -> 
         P = np.where(free[:, None], P, 0.0)
     metric = ElasticityMetric(mesh)
     g = metric.riesz(Q, P, free=free)
+    constraint = spec.constraint(mesh, lambda X, V: metric.riesz(X, V, free=free), free)
     if constraint is not None:
-        from .shape.area import AreaConstraint
-
-        g = AreaConstraint(constraint.edges, constraint.target,
-                           lambda X, V: metric.riesz(X, V, free=free)).project(Q, g)
+        g = constraint.project(Q, g)
     return math.sqrt(max(float(np.sum(P * g)), 0.0))

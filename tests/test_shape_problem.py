@@ -206,7 +206,7 @@ def test_cli_poses_the_users_problem(paths, tmp_path, capsys):
     (["--dirichlet", "hole1"], "GROUP=VALUE"),
     (["--fixed", "inlet"], "no physical group named 'inlet'"),
     (["--objective", "tracking:"], "tracking: EXPR"),
-    (["--keep-area", "--method", "steepest"], "keep_area"),
+    (["--keep-area", "--method", "steepest"], "--keep-area"),
 ])
 def test_cli_bad_problem_options_are_one_line(extra, message, paths, tmp_path, capsys):
     assert main(["optimize", str(paths["plate"]), "-o", str(tmp_path / "o"), "--no-plots",

@@ -24,7 +24,8 @@ from ._common import (add_output_flags, check_output_dir, exclusive_output_dir, 
 from ._params import add_options, check_options
 from ._validate import OptionError
 
-HELP = "shape optimization: minimize ∫y or a tracking functional (P1 Poisson) + f2 over admissible meshes"
+HELP = ("shape optimization: minimize a Poisson, elasticity-compliance or Stokes-dissipation "
+        "objective + f2 over admissible meshes")
 EPILOG = (
     "β4 is given unscaled: f2 divides it by 2N (thesis table 6.3 lists β4/N_V).\n"
     "Default (no MESH): bundled disc_146.msh, elasticity-euclidean, β^penalty =\n"
@@ -33,8 +34,12 @@ EPILOG = (
     "triangles; --penalty 0.1,0.01,0,0.001·N gives set 2) and β3 a contact barrier that\n"
     "acts only where a hole or notch is about to close, β^metric = (10, 1, 0, 0.01·N).\n"
     "With a MESH, j is weighed to the mesh (--objective-scale auto). Physical groups\n"
-    "(--fixed, --move, --dirichlet, --neumann) are gmsh physical groups of boundary\n"
-    "lines, by name or number.\n"
+    "(--fixed, --move, --dirichlet, --neumann, --stress, --clamped) are gmsh physical\n"
+    "groups of boundary lines, by name or number.\n"
+    "--pde stokes --objective dissipation: --dirichlet GROUP=VX,VY sets the velocity, u = 0\n"
+    "on the rest of the boundary. --pde elasticity --objective compliance: --stress\n"
+    "GROUP=SXX,SYY,SXY loads the group by the traction σn (plane stress); without\n"
+    "--clamped the body floats and the loads must balance.\n"
     "Exit status 1 when the run does not converge (max iterations, step too small);\n"
     "its (admissible) last mesh is still written."
 )
@@ -44,14 +49,19 @@ DEFAULT_MESH = "disc_146.msh"
 OPTIONS = {"variant": "--variant", "method": "--method", "retraction": "--retraction",
            "lbfgs_preconditioner": "--lbfgs-preconditioner", "memory": "--memory",
            "rhs": "--rhs", "max_iterations": ("--max-iterations", "--max-iter"),
-           "tolerance": ("--tolerance", "--tol")}
+           "tolerance": ("--tolerance", "--tol"), "pde": "--pde", "young": "--young",
+           "poisson_ratio": "--poisson-ratio", "viscosity": "--viscosity"}
 #: the options naming physical groups (repeatable): metavar and help
 GROUP_OPTIONS = {
     "--fixed": ("GROUP", "keep the vertices of this physical group (name or number) fixed"),
     "--move": ("GROUP", "only this boundary group moves, the rest of the boundary stays"),
-    "--dirichlet": ("GROUP=VALUE", "y = VALUE on the group (default y = 0 on the whole "
-                    "boundary, kept on the parts no option names)"),
-    "--neumann": ("GROUP=VALUE", "dy/dn = VALUE on the group"),
+    "--dirichlet": ("GROUP=VALUE", "poisson: y = VALUE on the group (default y = 0 on the "
+                    "whole boundary, kept on the parts no option names); stokes: "
+                    "GROUP=VX,VY, the velocity there (u = 0 on the rest)"),
+    "--neumann": ("GROUP=VALUE", "poisson: dy/dn = VALUE on the group"),
+    "--stress": ("GROUP=SXX,SYY,SXY", "elasticity: the traction σn of this stress on the "
+                 "group (the rest of the boundary is free)"),
+    "--clamped": ("GROUP", "elasticity: u = 0 on the group (none: the body floats)"),
 }
 OUTPUT_NAMES = ("history.csv", "history.json", "summary.json", "mesh.png", "history.png")
 
@@ -75,10 +85,15 @@ def add_args(p: argparse.ArgumentParser) -> None:
     for flag, (metavar, text) in GROUP_OPTIONS.items():
         p.add_argument(flag, metavar=metavar, action="append", default=[],
                        help=f"{text} (repeatable)")
-    p.add_argument("--keep-area", action="store_true",
+    p.add_argument("--keep-area", "--keep-volume", dest="keep_area", action="store_true",
                    help="the domain's area is an exact constraint (lbfgs, cg)")
-    p.add_argument("--objective", default="integral", metavar="OBJECTIVE",
-                   help="'integral' (∫y, the default) or 'tracking: EXPR' (½∫(y − EXPR)²)")
+    p.add_argument("--keep-barycenter", action="store_true",
+                   help="the barycenter of the region the --move groups enclose is an exact "
+                        "constraint (lbfgs, cg); with --keep-area that region's area is kept")
+    p.add_argument("--objective", default="", metavar="OBJECTIVE",
+                   help="poisson: 'integral' (∫y, the default) or 'tracking: EXPR' "
+                        "(½∫(y − EXPR)²); elasticity: 'compliance'; stokes: 'dissipation' "
+                        "(default: the PDE's first)")
     p.add_argument("--objective-scale", metavar="auto|W",
                    help="weight W of F = W·j + f2; auto (the default with a MESH) scales j to "
                         "the mesh, refuses steps that take the worst triangle below half its "
@@ -129,7 +144,7 @@ def run(args: argparse.Namespace) -> int:
     from ..optimize import (DEFAULT_PENALTY_BETA, DEFAULT_RETRACTION, VARIANT_PARTS,
                             OptimizeOptions, optimize)
     from ..progress import ProgressBar
-    from ..shape.spec import spec_from_options
+    from ..shape.spec import parse_objective, spec_from_options
 
     check_options(args, ShapeOptimization, OPTIONS)
     if args.metric_penalty is not None and VARIANT_PARTS[args.variant][0] != "complete":
@@ -149,14 +164,18 @@ def run(args: argparse.Namespace) -> int:
     spec = spec_from_options(
         fixed=args.fixed, move=args.move, dirichlet=args.dirichlet, neumann=args.neumann,
         keep_area=args.keep_area, objective=args.objective, rhs=args.rhs,
-        scale=args.objective_scale or ("auto" if args.mesh else 1.0))
+        scale=args.objective_scale or ("auto" if args.mesh else 1.0), pde=args.pde,
+        stress=args.stress, clamped=args.clamped, keep_barycenter=args.keep_barycenter,
+        material=dict(young=args.young, poisson_ratio=args.poisson_ratio,
+                      viscosity=args.viscosity))
     try:
         objective = spec.make_objective(mesh)
     except ExpressionError as exc:
-        if args.objective.strip() == "integral":
+        if parse_objective(spec.objective) is None:
             raise ExpressionError(f"--rhs {quoted(args.rhs)}: {exc}") from None
         raise ExpressionError(f"--rhs {quoted(args.rhs)} / --objective {quoted(args.objective)}: "
                               f"{exc}") from None
+    _check_problem(spec, mesh, args.method)
     outdir = Path(args.output)
     mesh_name = "optimized" + input_path.suffix.lower()
     _prepare_outdir(outdir, mesh_name, args.force, input_path)
@@ -180,15 +199,18 @@ def run(args: argparse.Namespace) -> int:
             )
         summary = result.summary()
         summary.update(input=str(input_path), output=str(outdir / mesh_name),
-                       penalty_beta=list(penalty), rhs=args.rhs, functional=args.objective,
+                       penalty_beta=list(penalty), rhs=args.rhs, functional=spec.objective,
                        fixed=args.fixed, move=args.move, dirichlet=args.dirichlet,
-                       neumann=args.neumann, keep_area=args.keep_area)
+                       neumann=args.neumann, keep_area=args.keep_area, pde=spec.pde,
+                       stress=args.stress, clamped=args.clamped,
+                       keep_barycenter=args.keep_barycenter)
         written = [mesh_name, "history.csv", "history.json", "summary.json"]
         try:
             save_moved(wp, result.mesh, outdir / mesh_name)
             _write_history(outdir, result)
             _atomic_text(outdir / "summary.json", strict_json.dumps(summary, indent=2) + "\n")
-            if not args.no_plots and _write_plots(outdir, mesh, result, args.rhs):
+            if not args.no_plots and _write_plots(outdir, mesh, result,
+                                                 args.rhs if spec.pde == "poisson" else None):
                 written += ["mesh.png", "history.png"]
         except OSError as exc:
             raise WriteError(f"{outdir}: cannot write the results ({exc.strerror or exc})") from None
@@ -209,6 +231,15 @@ def run(args: argparse.Namespace) -> int:
     return 0 if result.success else 1
 
 
+def _check_problem(spec, mesh, method: str) -> None:
+    """What :func:`~meshopt_toolkit.optimize.optimize` would refuse of the groups and the
+    constraints, before the output directory is made."""
+    free = spec.fixed_mask(mesh)
+    if (spec.keep_area or spec.keep_barycenter) and method == "steepest":
+        raise OptionError("--keep-area and --keep-barycenter need --method lbfgs or cg")
+    spec.constraint(mesh, None, None if free is None else ~free)
+
+
 def _write_history(outdir: Path, result) -> None:
     from ..io import atomic_path
 
@@ -220,15 +251,16 @@ def _write_history(outdir: Path, result) -> None:
     _atomic_text(outdir / "history.json", strict_json.dumps(rows, indent=1) + "\n")
 
 
-def _write_plots(outdir: Path, mesh, result, rhs_text: str) -> bool:
-    """Write mesh.png and history.png; False (with a warning) when they cannot be made."""
+def _write_plots(outdir: Path, mesh, result, rhs_text: str | None) -> bool:
+    """Write mesh.png and history.png (the Poisson rhs ``rhs_text`` shaded, if given);
+    False (with a warning) when they cannot be made."""
     from ..expressions import parse_expression
     from ..plotting import save_optimization_plots
 
     try:
         save_optimization_plots(outdir / "mesh.png", outdir / "history.png", mesh.points,
                                 result.x, mesh.triangles, result.history_columns(),
-                                parse_expression(rhs_text))
+                                None if rhs_text is None else parse_expression(rhs_text))
     except MeshoptError as exc:  # e.g. matplotlib missing: the run itself succeeded
         logger.warning("figures not written: %s", exc)
         return False

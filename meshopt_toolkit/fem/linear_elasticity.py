@@ -29,6 +29,7 @@ import numpy as np
 
 from .._typing import FloatArray, IntArray
 from ..errors import MeshoptError
+from ..solvers import factorize_spd
 from .elasticity import factorize
 from .simplex import (Geometry, LagrangeSpace, assemble, facet_normal_gradient, facet_normals,
                       geometry, node_gradient, oriented_facets, same_configuration)
@@ -88,6 +89,40 @@ def strain_energy_tensor(space: LagrangeSpace, geo: Geometry, U: FloatArray, lam
     return np.einsum("q,tqij->tij", space.reference[2], per_q) * geo.volumes[:, None, None]
 
 
+def rigid_modes(points: FloatArray) -> FloatArray:
+    """The rigid motions ``(d N, d(d+1)/2)`` at the nodes, interleaved dofs: translations,
+    then rotations about the centroid."""
+    X = np.asarray(points, dtype=float)
+    X = X - X.mean(axis=0)
+    n, d = X.shape
+    cols = [np.tile(np.eye(d)[c], n) for c in range(d)]
+    for a, b in ((0, 1),) if d == 2 else ((0, 1), (1, 2), (2, 0)):
+        r = np.zeros((n, d))
+        r[:, a], r[:, b] = -X[:, b], X[:, a]
+        cols.append(r.ravel())
+    return np.column_stack(cols)
+
+
+def rigid_pins(points: FloatArray) -> IntArray:
+    """``d(d+1)/2`` vertex dofs whose rows of the rigid modes are independent: fixing them
+    removes the rigid motions and nothing else (a statically determinate support). Chosen
+    among the vertex nearest the centroid and the ones farthest from it and from both."""
+    from scipy.linalg import qr
+
+    X = np.asarray(points, dtype=float)
+    d = X.shape[1]
+    a = int(np.argmin(np.linalg.norm(X - X.mean(axis=0), axis=1)))
+    b = int(np.argmax(np.linalg.norm(X - X[a], axis=1)))
+    nodes = [a, b]
+    if d == 3:
+        nodes.append(int(np.argmax(np.linalg.norm(np.cross(X - X[a], X[b] - X[a]), axis=1))))
+    nodes = np.unique(nodes)
+    dofs = vector_dofs(nodes[:, None], d).ravel()
+    R = rigid_modes(X)[dofs]
+    _, _, piv = qr(R.T, pivoting=True)
+    return np.sort(dofs[piv[:R.shape[1]]])
+
+
 @dataclass
 class _State:
     Q: FloatArray
@@ -103,7 +138,10 @@ class ComplianceObjective:
     ----------
     points : (N, d) reference positions (they orient the facets outward)
     cells : (T, d+1) positive simplices
-    clamped : (F, d) boundary facets with ``u = 0``
+    clamped : (F, d) boundary facets with ``u = 0``; none: the body floats, its rigid
+        motions are pinned at :func:`rigid_pins` (no stress: the compliance is that of
+        the free body) and tractions that do not balance are refused; solved by
+        ``factorize_spd`` whatever ``solver`` says
     tractions : sequence of ``(facets (F, d), stress (d, d))``: ``t = σ_g n`` on the facets
     E, nu : Young's modulus and Poisson ratio (plane stress in 2D)
     degree : 1 or 2
@@ -125,11 +163,14 @@ class ComplianceObjective:
         self.space = LagrangeSpace(self.cells, len(points), degree)
         self.lam, self.mu = elastic_lame(E, nu, self.dim)
         clamped = np.asarray(clamped, dtype=np.int64).reshape(-1, self.dim)
-        if not len(clamped):
-            raise MeshoptError("elasticity needs clamped facets (the body floats otherwise)")
-        fixed = np.unique(self.space.facet_dofs(clamped))
-        self.clamped = vector_dofs(fixed, self.dim).ravel()
+        # no clamped facet: the body floats, and its rigid motions are pinned by d(d+1)/2
+        # dofs that hold it without stress (compliance needs loads in equilibrium then)
+        self.floating = not len(clamped)
+        fixed = (np.unique(self.space.facet_dofs(clamped)) if len(clamped)
+                 else np.zeros(0, np.int64))
+        self.clamped = rigid_pins(points) if self.floating else vector_dofs(fixed, self.dim).ravel()
         self._free_nodes = np.setdiff1d(np.arange(self.space.n_dofs), fixed)
+        self._free = np.setdiff1d(np.arange(self.dim * self.space.n_dofs), self.clamped)
         facets, stresses = [], []
         for f, s in tractions:
             f = oriented_facets(points, self.cells, np.asarray(f, dtype=np.int64))
@@ -145,6 +186,14 @@ class ComplianceObjective:
         self._omega = facet_weights(self.dim, degree)
         self.solver, self.rtol = solver, float(rtol)
         self._cache: _State | None = None
+        if self.floating:
+            b = self.load(points).ravel()
+            R = rigid_modes(self.space.dof_points(points))
+            size = np.ptp(points, axis=0).max()
+            scale = np.abs(b).sum() * np.r_[np.ones(self.dim), np.full(len(R[0]) - self.dim, size)]
+            if np.any(np.abs(b @ R) > 1e-9 * scale):
+                raise MeshoptError("the tractions are not in equilibrium: a body with no "
+                                   "clamped group needs loads with zero net force and moment")
 
     def load(self, Q: FloatArray) -> FloatArray:
         """The traction load ``(n_dofs, d)``."""
@@ -172,10 +221,13 @@ class ComplianceObjective:
         K = self.stiffness(Q, geo)
         # the elasticity metric's solvers: CHOLMOD on a geometric nested-dissection
         # ordering, or CG preconditioned by smoothed aggregation with the rigid modes
-        free = vector_dofs(self._free_nodes[:, None], self.dim).ravel()
-        points = self.space.dof_points(Q)[self._free_nodes]
+        free = self._free
         u = np.zeros_like(b)
-        u[free] = factorize(K[free][:, free], points, self.solver, self.rtol).solve(b[free])
+        if self.floating:
+            u[free] = factorize_spd(K[free][:, free].tocsc())(b[free])
+        else:
+            points = self.space.dof_points(Q)[self._free_nodes]
+            u[free] = factorize(K[free][:, free], points, self.solver, self.rtol).solve(b[free])
         self._cache = _State(Q, geo, u.reshape(-1, self.dim), float(b @ u))
         return self._cache
 

@@ -1,4 +1,5 @@
-"""Filter ``apply_coord_shape_optimization``: minimize ∫y + f2 over admissible meshes."""
+"""Filter ``apply_coord_shape_optimization``: minimize a PDE objective + f2 over admissible
+meshes."""
 
 from __future__ import annotations
 
@@ -6,6 +7,7 @@ from meshopt_toolkit.expressions import DEFAULT_RHS
 from meshopt_toolkit.optimize import (DEFAULT_METHOD, DEFAULT_RETRACTION, DEFAULT_VARIANT, METHODS,
                                       RETRACTIONS, VARIANTS)
 from meshopt_toolkit.pipeline.filter import PLANAR, Filter, register
+from meshopt_toolkit.shape.spec import PDES
 from meshopt_toolkit.shape.preconditioners import DEFAULT_PRECONDITIONER, PRECONDITIONERS
 from meshopt_toolkit.pipeline.params import (
     BoolParam,
@@ -25,8 +27,10 @@ class ShapeOptimization(Filter):
 
     Minimizes ``w j(Q) + f2(Q; Q0)`` with ``j = ∫ y`` (or ``½∫(y − y_d)²``), ``−Δy = r``,
     ``y = 0`` on the boundary unless Dirichlet/Neumann data per physical group say otherwise
-    (P1, centroid quadrature), optionally with some groups fixed, only some moving and the
-    area kept exactly (:class:`meshopt_toolkit.shape.spec.ProblemSpec`); ``w`` is scaled to
+    (P1, centroid quadrature); or the compliance of a linear elastic body (plane stress)
+    under boundary stresses; or the dissipation of Stokes flow around moved bodies;
+    optionally with some groups fixed, only some moving and the area and the moving
+    body's barycenter kept exactly (:class:`meshopt_toolkit.shape.spec.ProblemSpec`); ``w`` is scaled to
     the mesh by default. By Riemannian L-BFGS (default), nonlinear CG or the thesis'
     steepest descent (:func:`meshopt_toolkit.optimize.optimize`). ``r`` is parsed by the safe expression
     evaluator (never ``eval``). β4 is unscaled (f2 divides it by 2N). Empty β strings mean
@@ -40,7 +44,8 @@ class ShapeOptimization(Filter):
     label = "Shape Optimization (meshopt)"
     #: the former name, still accepted in saved pipelines
     aliases = ("compute_shape_optimization",)
-    description = "Minimize the integral of the Poisson state plus a mesh-quality penalty, keeping the mesh admissible."
+    description = ("Minimize a PDE objective (Poisson, elasticity compliance, Stokes dissipation) "
+                   "plus a mesh-quality penalty, keeping the mesh admissible.")
     kinds = (PLANAR,)
     parameters = (
         EnumParam("variant", DEFAULT_VARIANT, "gradient metric and retraction",
@@ -73,14 +78,31 @@ class ShapeOptimization(Filter):
                     "vertices stay", label="Fixed groups"),
         StringParam("move", "", "only these boundary groups move (comma-separated); empty = "
                     "the whole boundary", label="Moving groups"),
-        StringParam("dirichlet", "", "GROUP=VALUE,...: y = VALUE on the group (y = 0 on the "
-                    "rest of the boundary)", label="Dirichlet data"),
+        EnumParam("pde", "auto", "the state equation; auto: the objective's",
+                  label="PDE", choices=("auto",) + tuple(PDES)),
+        StringParam("dirichlet", "", "GROUP=VALUE,...: Poisson y = VALUE on the group (y = 0 on "
+                    "the rest of the boundary); Stokes GROUP=VX,VY: the velocity (u = 0 on the "
+                    "rest)", label="Dirichlet data"),
         StringParam("neumann", "", "GROUP=VALUE,...: dy/dn = VALUE on the group",
                     label="Neumann data"),
+        StringParam("stress", "", "GROUP=SXX,SYY,SXY,...: elasticity traction sigma n on the "
+                    "group (the rest of the boundary is free)", label="Boundary stress"),
+        StringParam("clamped", "", "elasticity: groups with u = 0 (none: the body floats "
+                    "and its loads must balance)", label="Clamped groups"),
+        FloatParam("young", 1.0, "elasticity: Young's modulus E", label="Young's modulus",
+                   min=0.0, exclusive_min=True),
+        FloatParam("poisson_ratio", 0.3, "elasticity: Poisson ratio nu (plane stress), "
+                   "-1 < nu < 0.5", label="Poisson ratio", min=-1.0, max=0.5,
+                   exclusive_min=True),
+        FloatParam("viscosity", 1.0, "Stokes: viscosity mu", label="Viscosity", min=0.0,
+                   exclusive_min=True),
         BoolParam("keep_area", False, "keep the domain's area exactly (lbfgs, cg)",
                   label="Keep area"),
-        StringParam("objective", "integral", "integral (the integral of y) or "
-                    "'tracking: EXPR' (half the integral of (y - EXPR)^2)", label="Objective"),
+        BoolParam("keep_barycenter", False, "keep the barycenter of the region the moving "
+                  "groups enclose exactly (lbfgs, cg)", label="Keep barycenter"),
+        StringParam("objective", "", "integral (the integral of y), 'tracking: EXPR' (half "
+                    "the integral of (y - EXPR)^2), compliance or dissipation; empty: the "
+                    "PDE's first (integral)", label="Objective"),
         StringParam("objective_scale", "auto", "weight w of F = w j + f2: a number, or auto "
                     "(scaled to the mesh, guarding the worst triangle)", label="Objective scale"),
     )
@@ -91,8 +113,10 @@ class ShapeOptimization(Filter):
               rhs: str = DEFAULT_RHS,
               penalty: str = "", metric_penalty: str = "", max_iterations: int = 1000,
               tolerance: float = 1e-6, fixed: str = "", move: str = "", dirichlet: str = "",
-              neumann: str = "", keep_area: bool = False, objective: str = "integral",
-              objective_scale: str = "auto") -> dict:
+              neumann: str = "", keep_area: bool = False, objective: str = "",
+              objective_scale: str = "auto", pde: str = "auto", stress: str = "",
+              clamped: str = "", young: float = 1.0, poisson_ratio: float = 0.3,
+              viscosity: float = 1.0, keep_barycenter: bool = False) -> dict:
         from meshopt_toolkit.optimize import DEFAULT_PENALTY_BETA, OptimizeOptions, optimize
         from meshopt_toolkit.shape.spec import spec_from_options
 
@@ -103,7 +127,10 @@ class ShapeOptimization(Filter):
         beta = number_list(penalty, 4, "penalty") or DEFAULT_PENALTY_BETA
         spec = spec_from_options(fixed=fixed, move=move, dirichlet=dirichlet, neumann=neumann,
                                  keep_area=keep_area, objective=objective, rhs=rhs,
-                                 scale=objective_scale)
+                                 scale=objective_scale, pde=pde, stress=stress,
+                                 clamped=clamped, keep_barycenter=keep_barycenter,
+                                 material=dict(young=young, poisson_ratio=poisson_ratio,
+                                               viscosity=viscosity))
         result = optimize(
             mesh, None, problem=spec, variant=variant, method=method,
             penalty=beta, metric_beta=number_list(metric_penalty, 4, "metric_penalty"),

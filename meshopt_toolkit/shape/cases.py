@@ -15,6 +15,10 @@ case                domain                                               boundar
                                                                          walls, disc, square
 ``rectangle``       ``[0, 2] × [0, 1]``                                    left, right, bottom,
                                                                          top
+``holed_square``    ``[−1.5, 1.5]²`` with a centred disc hole of         outer, hole
+                    radius ½ (area π/4): elasticity
+``disc_in_box``     ``[−2, 2] × [−1.5, 1.5]`` around a disc of radius    box, body
+                    ½ at the origin: Stokes
 ==================  ===================================================  =================
 """
 
@@ -27,7 +31,7 @@ import numpy as np
 
 from ..gmsh_session import gmsh_session
 
-CASES = ("plate", "lshape", "airfoil", "channel", "rectangle")
+CASES = ("plate", "lshape", "airfoil", "channel", "rectangle", "holed_square", "disc_in_box")
 
 
 def _naca0012(n: int = 40) -> np.ndarray:
@@ -99,6 +103,14 @@ def _build(gmsh, case: str, size: float) -> dict[str, list[int]]:
         occ.synchronize()
         return _group_curves(gmsh, lambda x, y: "left" if x < 0.5 else "right" if x > 1.5
                              else "bottom" if y < 0.5 else "top")
+    if case in ("holed_square", "disc_in_box"):
+        a, b = (1.5, 1.5) if case == "holed_square" else (2.0, 1.5)
+        box = occ.addRectangle(-a, -b, 0, 2 * a, 2 * b)
+        occ.cut([(2, box)], [(2, occ.addDisk(0, 0, 0, 0.5, 0.5))])
+        occ.synchronize()
+        inner = "hole" if case == "holed_square" else "body"
+        return _group_curves(gmsh, lambda x, y: inner if abs(x) < 1 and abs(y) < 1
+                             else ("outer" if case == "holed_square" else "box"))
     raise ValueError(f"unknown case {case!r}; choose one of {', '.join(CASES)}")
 
 
@@ -128,7 +140,8 @@ def user_mesh(case: str, path: str | os.PathLike, size: float = 0.1, *,
         gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
         if refine_near is not None:
             inner = [c for n, cs in groups.items()
-                     if n in ("hole1", "hole2", "reentrant", "airfoil", "disc", "square")
+                     if n in ("hole1", "hole2", "hole", "body", "reentrant", "airfoil", "disc",
+                              "square")
                      for c in cs]
             f = gmsh.model.mesh.field
             dist = f.add("Distance")
