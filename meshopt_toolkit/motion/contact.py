@@ -1,0 +1,114 @@
+"""Contact of a surface with itself (Incremental Potential Contact, Li et al. 2020), over
+``ipctk``: the barrier on point–triangle and edge–edge distances below ``d̂`` and the
+continuous collision detection (CCD) that caps a step so that no point of the straight
+path from one configuration to the next passes through the surface.
+
+The barrier is IPC's ``b(d) = −(d − d̂)² log(d/d̂)`` summed over the pairs of primitives
+closer than ``d̂`` that share no vertex; it is zero where every such pair is at least
+``d̂`` apart and tends to +∞ as a pair touches. ``d̂`` is a fraction of the rest's mean
+edge length, lowered below half the rest's smallest distance between such pairs, so the
+rest's own energy is zero (a rest that already touches itself has no barrier:
+:attr:`SurfaceContact.usable` is False).
+
+A tet mesh's contact is that of its boundary faces: the points are all the mesh's points
+(interior ones are in no face, so in no pair).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from .._typing import FloatArray, IntArray
+
+__all__ = ["DHAT_FRACTION", "SurfaceContact"]
+
+#: ``d̂`` over the rest's mean edge length
+DHAT_FRACTION = 0.1
+
+
+def _ipctk():
+    import ipctk
+
+    return ipctk
+
+
+class SurfaceContact:
+    """The barrier and the CCD of one surface (its triangles fixed, its points moving).
+
+    Parameters
+    ----------
+    points : (N, 3) float array
+        The rest, free of self-intersections for the barrier to be usable.
+    triangles : (T, 3) int array
+        The faces that must not pass through each other.
+    dhat_fraction : float
+        ``d̂`` over the mean edge length (module docstring).
+    """
+
+    def __init__(self, points: FloatArray, triangles: IntArray,
+                 dhat_fraction: float = DHAT_FRACTION) -> None:
+        ipctk = _ipctk()
+        V = np.asfortranarray(points, dtype=float)
+        F = np.asfortranarray(triangles, dtype=np.int32)
+        self.n = len(V)
+        E = np.asfortranarray(ipctk.edges(F), dtype=np.int32)
+        self.mesh = ipctk.CollisionMesh(V, E, F)
+        lengths = np.linalg.norm(V[E[:, 1]] - V[E[:, 0]], axis=1)
+        dhat = dhat_fraction * float(lengths.mean()) if len(lengths) else 0.0
+        self.usable = dhat > 0 and not ipctk.has_intersections(self.mesh, V)
+        if self.usable:  # d̂ below half the rest's closest pair: no barrier at rest
+            rest = ipctk.NormalCollisions()
+            rest.build(self.mesh, V, dhat)
+            if len(rest):
+                nearest = float(np.sqrt(rest.compute_minimum_distance(self.mesh, V)))
+                self.usable = nearest > 0
+                dhat = min(dhat, 0.5 * nearest)
+        self.dhat = dhat
+        self.potential = ipctk.BarrierPotential(max(dhat, 1e-300), 1.0)
+        self.bbox_diagonal = float(np.linalg.norm(V.max(0) - V.min(0))) if len(V) else 0.0
+
+    def collisions(self, Q: FloatArray):
+        """The pairs closer than ``d̂`` at ``Q`` (an ``ipctk.NormalCollisions``)."""
+        c = _ipctk().NormalCollisions()
+        c.build(self.mesh, np.asfortranarray(Q, dtype=float), self.dhat)
+        return c
+
+    def value(self, Q: FloatArray, collisions=None) -> float:
+        """The barrier's sum at ``Q`` (unit stiffness); +inf where a pair touches. (A
+        configuration through itself need have no touching pair: the CCD keeps it out.)"""
+        Q = np.asfortranarray(Q, dtype=float)
+        c = self.collisions(Q) if collisions is None else collisions
+        if len(c) and c.compute_minimum_distance(self.mesh, Q) <= 0.0:
+            return np.inf
+        return float(self.potential(c, self.mesh, Q))
+
+    def gradient(self, Q: FloatArray, collisions=None) -> FloatArray:
+        """The barrier's gradient (N, 3)."""
+        Q = np.asfortranarray(Q, dtype=float)
+        c = self.collisions(Q) if collisions is None else collisions
+        return np.asarray(self.potential.gradient(c, self.mesh, Q)).reshape(self.n, 3)
+
+    def hessian(self, Q: FloatArray, collisions=None, project: bool = True) -> sp.csr_matrix:
+        """The barrier's Hessian (3N, 3N) in the point-major order of ``Q.ravel()``; each
+        pair's block projected onto the positive semidefinite cone where ``project``."""
+        ipctk = _ipctk()
+        Q = np.asfortranarray(Q, dtype=float)
+        c = self.collisions(Q) if collisions is None else collisions
+        method = ipctk.PSDProjectionMethod.CLAMP if project else ipctk.PSDProjectionMethod.NONE
+        return sp.csr_matrix(self.potential.hessian(c, self.mesh, Q, method))
+
+    def stepsize(self, Q0: FloatArray, Q1: FloatArray) -> float:
+        """The fraction in [0, 1] of the straight path from ``Q0`` (clean) to ``Q1`` that
+        is free of contact (CCD; 1: the whole path)."""
+        return float(_ipctk().compute_collision_free_stepsize(
+            self.mesh, np.asfortranarray(Q0, dtype=float), np.asfortranarray(Q1, dtype=float)))
+
+    def stiffness(self, energy_gradient: FloatArray, Q: FloatArray, mass: float) -> float:
+        """IPC's initial barrier stiffness ``κ`` at ``Q`` against an energy's gradient
+        (N, 3) (``ipctk.initial_barrier_stiffness``; ``mass``: the mean vertex mass)."""
+        ipctk = _ipctk()
+        kappa, _ = ipctk.initial_barrier_stiffness(
+            self.bbox_diagonal, self.potential.barrier, self.dhat, float(mass),
+            np.asarray(energy_gradient, float).ravel(), self.gradient(Q).ravel())
+        return float(kappa)

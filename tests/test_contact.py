@@ -1,0 +1,94 @@
+"""The contact barrier and CCD of a surface (:mod:`meshopt_toolkit.motion.contact`):
+derivatives by Taylor tests, the projected Hessian's sign, the barrier's support, and the
+CCD bound against the closed-form time of impact of a flap dropped onto a sheet."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from test_morph_self_intersection import flap_through_sheet
+
+from meshopt_toolkit.diagnostics import check_gradient, check_hvp
+from meshopt_toolkit.kernels.intersections3d import self_intersections
+from meshopt_toolkit.motion.contact import DHAT_FRACTION, SurfaceContact
+
+pytest.importorskip("ipctk")
+
+
+def _near(drop: float) -> np.ndarray:
+    return flap_through_sheet(drop)[1].points
+
+
+@pytest.fixture(scope="module")
+def contact() -> SurfaceContact:
+    src, _ = flap_through_sheet()
+    return SurfaceContact(src.points, src.triangles)
+
+
+def test_dhat_is_the_fraction_of_the_mean_edge(contact):
+    src, _ = flap_through_sheet()
+    P, F = src.points, src.triangles
+    e = np.vstack([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    e = np.unique(np.sort(e, axis=1), axis=0)
+    mean = np.linalg.norm(P[e[:, 1]] - P[e[:, 0]], axis=1).mean()
+    assert contact.usable
+    assert contact.dhat == pytest.approx(DHAT_FRACTION * mean)
+    assert contact.value(P) == 0.0  # nothing within d̂ at rest
+
+
+def test_dhat_below_half_the_rests_closest_pair():
+    src, _ = flap_through_sheet()
+    close = _near(0.49)  # the flap's lower edge 0.01 above the sheet
+    c = SurfaceContact(close, src.triangles)
+    assert c.usable and c.dhat == pytest.approx(0.005, rel=1e-6)
+    assert c.value(close) == 0.0
+
+
+def test_a_rest_through_itself_has_no_barrier():
+    src, _ = flap_through_sheet()
+    assert not SurfaceContact(_near(1.0), src.triangles).usable
+
+
+@pytest.mark.parametrize("drop", [0.48, 0.485, 0.495])
+def test_barrier_derivatives_taylor(contact, drop):
+    """The flap's lower edge within d̂ of the sheet; random directions of size ~1e-3 of
+    the gap keep every pair apart."""
+    Q = _near(drop)
+    assert contact.value(Q) > 0.0
+    shape = Q.shape
+    f = lambda x: contact.value(x.reshape(shape))  # noqa: E731
+    g = lambda x: contact.gradient(x.reshape(shape)).ravel()  # noqa: E731
+    hvp = lambda x, v: contact.hessian(x.reshape(shape), project=False) @ v  # noqa: E731
+    rng = np.random.default_rng(1)
+    for _ in range(3):
+        v = rng.standard_normal(Q.size)
+        r = check_gradient(f, g, Q.ravel(), v, eps0=1e-4)
+        assert r.passed, str(r)
+        r = check_hvp(f, g, hvp, Q.ravel(), v, eps0=1e-4)
+        assert r.passed, str(r)
+
+
+def test_projected_hessian_is_positive_semidefinite(contact):
+    Q = _near(0.49)
+    H = contact.hessian(Q).toarray()
+    assert np.abs(H - H.T).max() <= 1e-9 * np.abs(H).max()
+    assert np.linalg.eigvalsh(H).min() >= -1e-9 * np.abs(H).max()
+    assert np.abs(H).max() > 0.0
+
+
+def test_barrier_is_infinite_where_a_pair_touches(contact):
+    assert contact.value(_near(0.5)) == np.inf  # the flap's lower edge in the sheet
+
+
+@pytest.mark.parametrize("drop", [2.0, 1.0, 0.6])
+def test_ccd_stops_short_of_the_closed_form_impact(contact, drop):
+    """The flap's lower edge (z = 0.5) falls by ``drop`` along a straight path: it meets
+    the sheet at the fraction 0.5/drop; CCD stops before it, not far before."""
+    src, _ = flap_through_sheet()
+    end = _near(drop)
+    s = contact.stepsize(src.points, end)
+    impact = 0.5 / drop
+    assert 0.5 * impact <= s < impact
+    stop = src.points + s * (end - src.points)
+    assert not len(self_intersections(stop, src.triangles))
+    assert contact.stepsize(src.points, _near(0.4)) == 1.0  # a path that stays clear
