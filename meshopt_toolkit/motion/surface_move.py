@@ -59,6 +59,7 @@ from ..errors import InvalidMeshError, NotAdmissibleError
 from ..kernels.surface import aspect_ratios
 from ..solvers import factorize_spd, pcg
 from .bending import ShellBending
+from .contact import contact_term
 from .surface_distortion import SurfaceDistortion
 from .similarity_3d import HandlePath, global_similarity, handle_groups
 from .surface_normal import FreePattern, turned_solve, upper_products
@@ -144,6 +145,12 @@ class _Problem:
         self.cg_iterations, self.cg_rtol, self.cg_total = 0, 1e-2, 0
         #: ``w √c_t``: the membrane rows' weights (``c_t ≥ 1``, :func:`move_surface`)
         self.row_weights = np.full(len(F), float(weight))
+        #: the contact barrier on the free coordinates (:class:`.contact.ContactTerm`)
+        self.contact = None
+
+    def clear(self, Q0, Q1) -> bool:
+        """Whether the straight step from ``Q0`` to ``Q1`` passes through no contact."""
+        return self.contact is None or self.contact.cap(Q0, Q1) >= 1.0
 
     def parts(self, Q):
         phi = self.membrane.values(Q)
@@ -154,7 +161,8 @@ class _Problem:
     def energy(self, Q, parts=None) -> float:
         phi, rm, rb = self.parts(Q) if parts is None else parts
         d = Q - self.previous
-        return 0.5 * float(self.mass @ np.sum(d * d, axis=1) + np.sum(rm * rm) + rb @ rb)
+        barrier = 0.0 if self.contact is None else self.contact.energy(Q)
+        return 0.5 * float(self.mass @ np.sum(d * d, axis=1) + np.sum(rm * rm) + rb @ rb) + barrier
 
     def admissible(self, Q, phi) -> bool:
         if not np.all(np.isfinite(phi[self.free_triangles])):
@@ -209,6 +217,8 @@ class _Problem:
         D = self.normal_matrix(Jm, Jb)
         diag = D.data[self.pattern.diagonal]
         D.data[self.pattern.diagonal] += 1e-6 * diag + 1e-12 * diag.max()
+        if self.contact is not None and (H := self.contact.hessian(Q)) is not None:
+            D = (D + sp.tril(H, format="csr")).tocsr()
         self.factorizations += 1
         if not hasattr(self.factor, "refactorize"):  # first call, or SuperLU
             self.factor = factorize_spd(D)
@@ -251,7 +261,8 @@ def _step(problem: _Problem, Q0, H1, handles, max_iterations: int, rtol: float,
     if not problem.free.any():  # every vertex a handle: the step is the handles' path
         Q = Q0 + d
         Q[handles] = H1
-        return (Q, 0) if problem.admissible(Q, problem.parts(Q)[0]) else None
+        ok = problem.admissible(Q, problem.parts(Q)[0]) and problem.clear(Q0, Q)
+        return (Q, 0) if ok else None
     rm, Jm, rb, Jb = problem.linearization(Q0)
     # the residuals' change of the handles' displacement, to first order
     dm, db = problem.jacobian_products(Jm, Jb, d)
@@ -268,20 +279,38 @@ def _step(problem: _Problem, Q0, H1, handles, max_iterations: int, rtol: float,
             break
     else:
         return None
+    if not problem.clear(Q0, Q):  # in contact: the handles move alone, the barrier acts
+        Q = Q0 + d
+        Q[handles] = H1
+        parts = problem.parts(Q)
+        if not (problem.admissible(Q, parts[0]) and problem.clear(Q0, Q)):
+            return None
     E = problem.energy(Q, parts)
+    if not np.isfinite(E):
+        return None
     iterations, stale, first = 0, not fresh, None
     for _ in range(max_iterations):
         rm, Jm, rb, Jb = problem.linearization(Q)
         g = problem.gradient(rm, Jm, rb, Jb, Q - problem.previous)
+        if problem.contact is not None:  # the barrier's gradient; its Hessian in the factor
+            if problem.contact.set_stiffness(Q, g):
+                E = problem.energy(Q)
+            g = g + problem.contact.gradient(Q)
+            stale = stale or problem.contact.active(Q)
         renewed = stale
         if stale:  # otherwise the factor of the increment's start serves (chord steps)
             problem.refactorize(Jm, Jb, Q)
             first = None
         step = problem.kept_step(Jm, Jb, g, Q)
         iterations += 1
-        # backtracking: the first fraction of the step that lowers the energy and keeps
-        # every triangle proper and unfolded
-        for alpha in 0.5 ** np.arange(12):
+        # backtracking from the CCD bound: the first fraction of the step that lowers the
+        # energy and keeps every triangle proper and unfolded
+        top = 1.0
+        if problem.contact is not None:
+            full = Q.copy()
+            full.ravel()[problem.free] -= step
+            top = problem.contact.cap(Q, full)
+        for alpha in top * 0.5 ** np.arange(12):
             trial = Q.copy()
             trial.ravel()[problem.free] -= alpha * step
             parts = problem.parts(trial)
@@ -316,7 +345,8 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
                  max_iterations: int = 8, rtol: float = 1e-3, final_iterations: int = 30,
                  final_rtol: float = 1e-6, final_stall: float | None = 0.1,
                  cg_iterations: int = 0,
-                 max_halvings: int = 8, polish: int = 100) -> SurfaceMoveResult:
+                 max_halvings: int = 8, polish: int = 100,
+                 contact: bool = True) -> SurfaceMoveResult:
     """Move a triangle surface: ``handles`` exactly to ``targets``, the rest placed so
     that each triangle's shape changes as little as the motion allows (module docstring).
 
@@ -357,6 +387,10 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
         equations, preconditioned by the factor turned with the surface (module
         docstring); 0: the factor's own solve, a chord step.
     max_halvings : how often one increment may be halved.
+    contact : bool
+        Keep the surface from passing through itself (:mod:`.contact`: the barrier in the
+        energy, every step capped by CCD) where its rest is free of self-intersections
+        (else a :class:`.contact.ContactWarning` with the count, and no contact).
     polish : L-BFGS iterations of the last frame's local polish of the worst triangles
         (:mod:`.surface_polish`; 0: none).
 
@@ -388,6 +422,8 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
     path = HandlePath(V[handles], targets, handle_groups(F, handles, len(V)))
     problem = _Problem(V, F, handles, weight, bending, lumped_mass(V, F))
     problem.cg_iterations = int(cg_iterations)
+    if contact:
+        problem.contact = contact_term(V, F, problem.free, problem.mass)
     area_w = np.ones(len(F))  # √a_t
     if area_weights and len(F):
         P = V[F]
@@ -432,7 +468,11 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
             continue
         Q, n_it = out
         if t1 >= 1.0 and polish > 0:  # the result's worst triangles polished
-            Q, polished = polish_worst_triangles(V, F, Q, handles, iterations=polish)
+            Qp, polished = polish_worst_triangles(V, F, Q, handles, iterations=polish)
+            if problem.clear(Q, Qp):
+                Q = Qp
+            else:  # a polish through contact is dropped
+                polished = {"polish_vertices": 0}
         iterations += n_it
         new_phi = problem.membrane.values(Q)
         dphi = np.linalg.norm(new_phi - phi, axis=1)
