@@ -75,13 +75,13 @@ def _kind(mesh) -> str:
 def move_surface_mesh(mesh, handles, targets, *, frames: int | None = None, steps: int = 4,
                       weight: float = 1.0, relax_iter: int = 15, max_splits: int = 8,
                       quality_rounds: int | None = None,
-                      progress: Callable[[float], None] | None = None
-                      ) -> SurfaceMeshMoveResult:
+                      progress: Callable[[float], None] | None = None,
+                      contact: bool = True) -> SurfaceMeshMoveResult:
     """:func:`move_surface` on a :class:`SurfaceMesh`, a ``trimesh.Trimesh`` or a
     ``pymeshlab.Mesh`` (what ``mt.move`` calls for one); the result's meshes are of the
     type given (vertices and faces only for a ``pymeshlab.Mesh``).
 
-    ``steps`` and ``weight`` are those of :func:`move_surface`, ``max_splits`` its
+    ``steps``, ``weight`` and ``contact`` are those of :func:`move_surface`, ``max_splits`` its
     ``max_halvings``; ``relax_iter`` and ``quality_rounds`` (options of the planar and tet
     solvers) are not used. With ``frames = K`` at least ``K − 1`` increments are taken and
     the K frames are those whose path fractions are nearest to ``0, 1/(K−1), …, 1``.
@@ -112,7 +112,8 @@ def move_surface_mesh(mesh, handles, targets, *, frames: int | None = None, step
     solved = SolvedVertices(surface.points, surface.triangles, h, tg)
     n_steps = max(int(steps), (frames or 2) - 1)
     res = move_surface(solved.points, solved.cells, solved.handles, solved.targets,
-                       steps=n_steps, weight=weight, max_halvings=max_splits)
+                       steps=n_steps, weight=weight, max_halvings=max_splits,
+                       contact=contact)
 
     def typed(points: FloatArray):
         if kind == "trimesh":
