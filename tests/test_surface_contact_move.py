@@ -114,3 +114,26 @@ def test_random_pushes_towards_contact_give_clean_frames(drop, dx, dy):
     assert _clean(res.frames, F) == [0] * len(res.frames)
     np.testing.assert_array_equal(res.points[h], tg)
     assert res.folds == 0
+
+
+def test_the_polish_takes_only_trials_clear_of_contact():
+    """A sheared flap the polish improves; with every straight path reported in contact
+    it moves nothing, and with the CCD of the contact it moves only along clean paths."""
+    from meshopt_toolkit.motion.contact import SurfaceContact
+    from meshopt_toolkit.motion.surface_polish import polish_worst_triangles
+
+    V, F, h, tg = _pushed(0.3, (0.4, 0.0))
+    P = move_surface(V, F, h, tg, polish=0).points
+    seen = []
+
+    def never(a, b):
+        seen.append(True)
+        return False
+
+    assert polish_worst_triangles(V, F, P, h)[1]["polish_vertices"] > 0
+    out, info = polish_worst_triangles(V, F, P, h, clear=never)
+    assert seen and info["polish_vertices"] == 0
+    np.testing.assert_array_equal(out, P)
+    contact = SurfaceContact(V, F)
+    out, _ = polish_worst_triangles(V, F, P, h, clear=lambda a, b: contact.stepsize(a, b) >= 1)
+    assert contact.stepsize(P, out) >= 1.0

@@ -468,11 +468,9 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
             continue
         Q, n_it = out
         if t1 >= 1.0 and polish > 0:  # the result's worst triangles polished
-            Qp, polished = polish_worst_triangles(V, F, Q, handles, iterations=polish)
-            if problem.clear(Q, Qp):
-                Q = Qp
-            else:  # a polish through contact is dropped
-                polished = {"polish_vertices": 0}
+            Q, polished = polish_worst_triangles(
+                V, F, Q, handles, iterations=polish,
+                clear=None if problem.contact is None else problem.clear)
         iterations += n_it
         new_phi = problem.membrane.values(Q)
         dphi = np.linalg.norm(new_phi - phi, axis=1)
