@@ -92,3 +92,20 @@ def test_ccd_stops_short_of_the_closed_form_impact(contact, drop):
     stop = src.points + s * (end - src.points)
     assert not len(self_intersections(stop, src.triangles))
     assert contact.stepsize(src.points, _near(0.4)) == 1.0  # a path that stays clear
+
+
+def test_cap_skips_the_ccd_only_where_no_pair_can_close(contact, monkeypatch):
+    """Far from contact a step shorter than d̂/2 needs no CCD; a longer one, or one from
+    a configuration with a pair within d̂, is CCD's."""
+    from meshopt_toolkit.motion.contact import ContactTerm
+
+    src, _ = flap_through_sheet()
+    term = ContactTerm(contact, np.ones(src.points.size, bool), 1.0)
+    calls = []
+    monkeypatch.setattr(contact, "stepsize", lambda a, b: calls.append(1) or 0.5)
+    small = src.points + [0.0, 0.0, -0.45 * contact.dhat]
+    assert term.cap(src.points, small) == 1.0 and not calls
+    far = src.points + [0.0, 0.0, -0.55 * contact.dhat]
+    assert term.cap(src.points, far) == 0.5 and len(calls) == 1
+    near = _near(0.49)  # a pair within d̂
+    assert term.cap(near, near + [0.0, 0.0, 1e-9]) == 0.5 and len(calls) == 2

@@ -178,7 +178,12 @@ class ContactTerm:
         return self.kappa * H[self.free][:, self.free]
 
     def cap(self, Q0: FloatArray, Q1: FloatArray) -> float:
-        """The CCD fraction of the straight step from ``Q0`` to ``Q1``."""
+        """The CCD fraction of the straight step from ``Q0`` to ``Q1``; 1 without CCD
+        where no pair is within ``d̂`` at ``Q0`` and no point moves by ``d̂/2`` (a pair's
+        distance falls by at most twice the largest displacement)."""
+        step = float(np.sqrt(np.max(np.sum((Q1 - Q0) ** 2, axis=1)))) if len(Q0) else 0.0
+        if 2.0 * step < self.contact.dhat and not self.active(Q0):
+            return 1.0
         return self.contact.stepsize(Q0, Q1)
 
 
