@@ -109,3 +109,16 @@ def test_cap_skips_the_ccd_only_where_no_pair_can_close(contact, monkeypatch):
     assert term.cap(src.points, far) == 0.5 and len(calls) == 1
     near = _near(0.49)  # a pair within d̂
     assert term.cap(near, near + [0.0, 0.0, 1e-9]) == 0.5 and len(calls) == 2
+
+
+def test_triangles_of_one_fan_through_each_other_are_found():
+    """Two triangles sharing the vertex 0: ``B`` turned into ``A``'s interior. No pair of
+    IPC's comes near (the nearest is 0.5 apart); the exact fan test finds them."""
+    rest = np.array([[0, 0, 0], [1, -1, 0], [1, 1, 0], [-0.5, 0, -1], [-0.5, 0, 1.0]])
+    F = np.array([[0, 1, 2], [0, 3, 4]])
+    c = SurfaceContact(rest, F)
+    assert c.usable and not c.neighbours_meet(rest)
+    through = rest.copy()
+    through[3:, 0] = 0.5  # B = (0, (½, 0, ∓1)) cuts A along (0, 0, 0)–(½, 0, 0)
+    assert len(self_intersections(through, F)) == 1
+    assert len(c.collisions(through)) == 0 and c.neighbours_meet(through)

@@ -12,6 +12,10 @@ rest's own energy is zero (a rest that already touches itself has no barrier:
 
 A tet mesh's contact is that of its boundary faces: the points are all the mesh's points
 (interior ones are in no face, so in no pair).
+
+IPC has no pair for an edge and a triangle that share a vertex: two triangles of one fan
+can come to intersect with every pair of it apart. :meth:`SurfaceContact.neighbours_meet`
+tests those triangle pairs exactly (:mod:`..kernels.intersections3d`).
 """
 
 from __future__ import annotations
@@ -22,7 +26,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from .._typing import FloatArray, IntArray
-from ..kernels.intersections3d import self_intersections
+from ..kernels.intersections3d import intersecting_pairs, self_intersections
+from ..kernels.predicates import exactly_scaled
 
 __all__ = ["DHAT_FRACTION", "ContactTerm", "ContactWarning", "SurfaceContact", "contact_term"]
 
@@ -70,6 +75,21 @@ class SurfaceContact:
         self.dhat = dhat
         self.potential = ipctk.BarrierPotential(max(dhat, 1e-300), 1.0)
         self.bbox_diagonal = float(np.linalg.norm(V.max(0) - V.min(0))) if len(V) else 0.0
+        self.triangles = np.asarray(triangles, np.int64)
+        # the pairs of triangles sharing a vertex (the nonzeros of the incidence product)
+        T = len(self.triangles)
+        incidence = sp.csr_matrix((np.ones(3 * T), (np.repeat(np.arange(T), 3),
+                                                    self.triangles.ravel())),
+                                  shape=(T, self.n))
+        shared = sp.triu(incidence @ incidence.T, k=1).tocoo()
+        self.neighbours = np.stack([shared.row, shared.col], axis=1).astype(np.int64)
+
+    def neighbours_meet(self, Q: FloatArray) -> bool:
+        """Whether two triangles sharing a vertex intersect improperly at ``Q`` (exact)."""
+        if not len(self.neighbours):
+            return False
+        return bool(intersecting_pairs(exactly_scaled(np.asarray(Q, float))[0],
+                                       self.triangles, self.neighbours).any())
 
     def collisions(self, Q: FloatArray):
         """The pairs closer than ``d̂`` at ``Q`` (an ``ipctk.NormalCollisions``)."""

@@ -152,6 +152,10 @@ class _Problem:
         """Whether the straight step from ``Q0`` to ``Q1`` passes through no contact."""
         return self.contact is None or self.contact.cap(Q0, Q1) >= 1.0
 
+    def embedded(self, Q) -> bool:
+        """With contact: no two triangles sharing a vertex intersect at ``Q``."""
+        return self.contact is None or not self.contact.contact.neighbours_meet(Q)
+
     def parts(self, Q):
         phi = self.membrane.values(Q)
         rm = self.row_weights[:, None] * (phi - self.phi_ref)
@@ -336,7 +340,7 @@ def _step(problem: _Problem, Q0, H1, handles, max_iterations: int, rtol: float,
             break
         first = decrease if first is None else first
         stale = decrease <= rtol * E or (alpha < 1.0 and decrease < stall * first)
-    return Q, iterations
+    return (Q, iterations) if problem.embedded(Q) else None
 
 
 def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatArray, *,
@@ -468,9 +472,13 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
             continue
         Q, n_it = out
         if t1 >= 1.0 and polish > 0:  # the result's worst triangles polished
-            Q, polished = polish_worst_triangles(
+            Qp, polished = polish_worst_triangles(
                 V, F, Q, handles, iterations=polish,
                 clear=None if problem.contact is None else problem.clear)
+            if problem.embedded(Qp):
+                Q = Qp
+            else:  # two triangles of a fan through each other: the polish dropped
+                polished = {"polish_vertices": 0}
         iterations += n_it
         new_phi = problem.membrane.values(Q)
         dphi = np.linalg.norm(new_phi - phi, axis=1)
