@@ -122,3 +122,28 @@ def test_triangles_of_one_fan_through_each_other_are_found():
     through[3:, 0] = 0.5  # B = (0, (½, 0, ∓1)) cuts A along (0, 0, 0)–(½, 0, 0)
     assert len(self_intersections(through, F)) == 1
     assert len(c.collisions(through)) == 0 and c.neighbours_meet(through)
+
+
+@pytest.mark.parametrize("gap", [1e-6, 1e-9, 5e-11])
+def test_ccd_from_a_near_touch_stops_before_the_impact(contact, gap):
+    """The flap's lower edge ``gap`` above the sheet (tight-inclusion CCD below 10⁻³ d̂),
+    moved down by 0.01 and sideways: CCD stops before the closed-form impact."""
+    Q0, Q1 = _near(0.5 - gap), _near(0.51).copy()
+    Q1[16:, 0] += 0.003
+    impact = gap / (0.01 + gap)
+    assert 0.0 < contact.stepsize(Q0, Q1) < impact
+
+
+def test_stiffness_doubles_as_the_closest_pair_nears(contact):
+    from meshopt_toolkit.motion.contact import ContactTerm
+
+    term = ContactTerm(contact, np.ones(_near(0.4).size, bool), 1.0)
+    g = np.ones(_near(0.4).size)
+    assert not term.set_stiffness(_near(0.4), g) and term.kappa is None  # no pair near
+    assert term.set_stiffness(_near(0.49), g)  # a pair within d̂: IPC's initial κ
+    k0 = term.kappa
+    assert k0 > 0 and term.max_kappa >= k0
+    assert not term.set_stiffness(_near(0.495), g) and term.kappa == k0  # not 10⁻² d̂
+    close = 0.5 - 1e-3 * contact.dhat
+    assert term.set_stiffness(_near(close), g) and term.kappa == min(2 * k0, term.max_kappa)
+    assert not term.set_stiffness(_near(close), g)  # no nearer than at the last update

@@ -29,15 +29,20 @@ from .._typing import FloatArray, IntArray
 from ..kernels.intersections3d import intersecting_pairs, self_intersections
 from ..kernels.predicates import exactly_scaled
 
-__all__ = ["DHAT_FRACTION", "ContactTerm", "ContactWarning", "SurfaceContact", "contact_term"]
+__all__ = ["DHAT_FRACTION", "ContactTerm", "ContactWarning", "NoContact", "SurfaceContact",
+           "contact_term"]
 
 #: ``d̂`` over the rest's mean edge length
 DHAT_FRACTION = 0.1
 
 
 def _ipctk():
+    """``ipctk``, run on one thread: its parallel sums would otherwise make the barrier's
+    gradient, and so the motion, differ from run to run in the last bits."""
     import ipctk
 
+    if ipctk.get_num_threads() != 1:
+        ipctk.set_num_threads(1)
     return ipctk
 
 
@@ -121,24 +126,35 @@ class SurfaceContact:
         method = ipctk.PSDProjectionMethod.CLAMP if project else ipctk.PSDProjectionMethod.NONE
         return sp.csr_matrix(self.potential.hessian(c, self.mesh, Q, method))
 
+    def minimum_distance(self, Q: FloatArray, collisions=None) -> float:
+        """The smallest distance of a pair at ``Q`` (``d̂`` where none is closer)."""
+        Q = np.asfortranarray(Q, dtype=float)
+        c = self.collisions(Q) if collisions is None else collisions
+        return float(np.sqrt(c.compute_minimum_distance(self.mesh, Q))) if len(c) else self.dhat
+
     def stepsize(self, Q0: FloatArray, Q1: FloatArray) -> float:
         """The fraction in [0, 1] of the straight path from ``Q0`` (clean) to ``Q1`` that
-        is free of contact (additive CCD, Li et al. 2021: conservative, 0.9 of the first
-        time of impact; tight-inclusion CCD takes seconds on pairs sliding along each
-        other; 1: the whole path)."""
+        is free of contact (1: the whole path). Additive CCD (Li et al. 2021; 0.9 of the
+        first time of impact) where every pair at ``Q0`` is at least ``10⁻³ d̂`` apart;
+        closer, its squared distances lose the gap to rounding and tight-inclusion CCD
+        (intervals, conservative) decides."""
         ipctk = _ipctk()
+        Q0 = np.asfortranarray(Q0, dtype=float)
+        close = self.minimum_distance(Q0) < 1e-3 * self.dhat
+        ccd = ipctk.TightInclusionCCD(1e-6, 10**6) if close else ipctk.AdditiveCCD()
         return float(ipctk.compute_collision_free_stepsize(
-            self.mesh, np.asfortranarray(Q0, dtype=float), np.asfortranarray(Q1, dtype=float),
-            0.0, None, ipctk.AdditiveCCD()))
+            self.mesh, Q0, np.asfortranarray(Q1, dtype=float), 0.0, None, ccd))
 
-    def stiffness(self, energy_gradient: FloatArray, Q: FloatArray, mass: float) -> float:
+    def stiffness(self, energy_gradient: FloatArray, Q: FloatArray,
+                  mass: float) -> tuple[float, float]:
         """IPC's initial barrier stiffness ``κ`` at ``Q`` against an energy's gradient
-        (N, 3) (``ipctk.initial_barrier_stiffness``; ``mass``: the mean vertex mass)."""
+        (N, 3), and its largest (``ipctk.initial_barrier_stiffness``; ``mass``: the mean
+        vertex mass)."""
         ipctk = _ipctk()
-        kappa, _ = ipctk.initial_barrier_stiffness(
+        kappa, largest = ipctk.initial_barrier_stiffness(
             self.bbox_diagonal, self.potential.barrier, self.dhat, float(mass),
             np.asarray(energy_gradient, float).ravel(), self.gradient(Q).ravel())
-        return float(kappa)
+        return float(kappa), float(largest)
 
 
 class ContactTerm:
@@ -147,12 +163,15 @@ class ContactTerm:
     collisions kept for the last ``Q`` asked, and the CCD cap of a step.
 
     ``κ`` is IPC's initial stiffness (:meth:`SurfaceContact.stiffness`), set against the
-    solver energy's gradient the first time a pair comes within ``d̂`` and kept.
+    solver energy's gradient the first time a pair comes within ``d̂``, and doubled (up to
+    IPC's largest) whenever the closest pair is nearer than ``10⁻² d̂`` and nearer than at
+    the last update (IPC's rule, its threshold relative to ``d̂``).
     """
 
     def __init__(self, contact: SurfaceContact, free: np.ndarray, mean_mass: float) -> None:
         self.contact, self.free, self.mean_mass = contact, free, float(mean_mass)
         self.kappa: float | None = None
+        self.max_kappa, self.closest = np.inf, np.inf
         self._key: np.ndarray | None = None
         self._collisions = None
 
@@ -166,14 +185,21 @@ class ContactTerm:
         return len(self.collisions(Q)) > 0
 
     def set_stiffness(self, Q: FloatArray, energy_gradient: FloatArray) -> bool:
-        """Set ``κ`` at ``Q`` against the energy's gradient on the free coordinates, once,
-        where a pair is within ``d̂``; whether it was set now."""
-        if self.kappa is not None or not self.active(Q):
+        """Set ``κ`` at ``Q`` against the energy's gradient on the free coordinates where a
+        pair is within ``d̂`` (once), or double it (class docstring); whether it changed."""
+        if not self.active(Q):
             return False
-        g = np.zeros(self.free.size)
-        g[self.free] = energy_gradient
-        self.kappa = self.contact.stiffness(g.reshape(-1, 3), Q, self.mean_mass)
-        return True
+        if self.kappa is None:
+            g = np.zeros(self.free.size)
+            g[self.free] = energy_gradient
+            self.kappa, self.max_kappa = self.contact.stiffness(g.reshape(-1, 3), Q,
+                                                                self.mean_mass)
+            return True
+        d = self.contact.minimum_distance(Q, self.collisions(Q))
+        if d < 1e-2 * self.contact.dhat and d < self.closest and self.kappa < self.max_kappa:
+            self.closest, self.kappa = d, min(2.0 * self.kappa, self.max_kappa)
+            return True
+        return False
 
     def energy(self, Q: FloatArray) -> float:
         """``κ B(Q)``; before ``κ`` is set 0, or +inf where a pair touches."""
@@ -197,6 +223,21 @@ class ContactTerm:
         H = self.contact.hessian(Q, self.collisions(Q))
         return self.kappa * H[self.free][:, self.free]
 
+    def clear(self, Q0: FloatArray, Q1: FloatArray) -> bool:
+        """Whether the straight step from ``Q0`` to ``Q1`` passes through no contact."""
+        return self.cap(Q0, Q1) >= 1.0
+
+    def embedded(self, Q: FloatArray) -> bool:
+        """Whether no two triangles sharing a vertex intersect at ``Q`` (exact)."""
+        return not self.contact.neighbours_meet(Q)
+
+    def step_cap(self, Q: FloatArray, step: FloatArray) -> float:
+        """:meth:`cap` of the step from ``Q`` to ``Q`` less ``step`` on the free
+        coordinates."""
+        end = Q.copy()
+        end.ravel()[self.free] -= step
+        return self.cap(Q, end)
+
     def cap(self, Q0: FloatArray, Q1: FloatArray) -> float:
         """The CCD fraction of the straight step from ``Q0`` to ``Q1``; 1 without CCD
         where no pair is within ``d̂`` at ``Q0`` and no point moves by ``d̂/2`` (a pair's
@@ -207,22 +248,53 @@ class ContactTerm:
         return self.contact.stepsize(Q0, Q1)
 
 
+class NoContact:
+    """The contact term of a motion without contact: no energy, every step clear."""
+
+    kappa = None
+
+    def energy(self, Q):
+        return 0.0
+
+    def gradient(self, Q):
+        return 0.0
+
+    def hessian(self, Q):
+        return None
+
+    def active(self, Q):
+        return False
+
+    def set_stiffness(self, Q, energy_gradient):
+        return False
+
+    def clear(self, Q0, Q1):
+        return True
+
+    def embedded(self, Q):
+        return True
+
+    def step_cap(self, Q, step):
+        return 1.0
+
+
 class ContactWarning(UserWarning):
     """A surface moved without contact: its rest already intersects itself."""
 
 
 def contact_term(points: FloatArray, triangles: IntArray, free: np.ndarray,
-                 mass: FloatArray) -> ContactTerm | None:
+                 mass: FloatArray, on: bool = True) -> ContactTerm | NoContact:
     """The contact term of a motion from ``points`` (the rest) over the ``free``
-    coordinates, ``mass`` the vertex masses; None, with a :class:`ContactWarning` giving
-    the count, where the rest intersects itself (exact, :mod:`..kernels.intersections3d`)."""
-    if len(triangles) < 2 or not free.any():
-        return None
+    coordinates, ``mass`` the vertex masses; :class:`NoContact` where ``on`` is False, and,
+    with a :class:`ContactWarning` giving the count, where the rest intersects itself
+    (exact, :mod:`..kernels.intersections3d`)."""
+    if not on or len(triangles) < 2 or not free.any():
+        return NoContact()
     contact = SurfaceContact(points, triangles)
     if not contact.usable:
         pairs = len(self_intersections(points, triangles))
         if pairs:
             warnings.warn(f"the surface intersects itself at rest ({pairs} pairs of "
                           "triangles): moved without contact", ContactWarning, stacklevel=3)
-        return None
+        return NoContact()
     return ContactTerm(contact, free, float(np.mean(mass)))
