@@ -10,8 +10,8 @@ edge length, lowered below half the rest's smallest distance between such pairs,
 rest's own energy is zero (a rest that already touches itself has no barrier:
 :attr:`SurfaceContact.usable` is False).
 
-A tet mesh's contact is that of its boundary faces: the points are all the mesh's points
-(interior ones are in no face, so in no pair).
+Every point must be in some triangle (``ipctk`` would take a lone point for a codimensional
+one): a surface's motion solves for exactly those.
 
 IPC has no pair for an edge and a triangle that share a vertex: two triangles of one fan
 can come to intersect with every pair of it apart. :meth:`SurfaceContact.neighbours_meet`
