@@ -137,3 +137,18 @@ def test_the_polish_takes_only_trials_clear_of_contact():
     contact = SurfaceContact(V, F)
     out, _ = polish_worst_triangles(V, F, P, h, clear=lambda a, b: contact.stepsize(a, b) >= 1)
     assert contact.stepsize(P, out) >= 1.0
+
+
+def test_cli_warns_in_one_line_naming_the_file_of_a_rest_through_itself(tmp_path, capsys):
+    V, F, h, tg, n_sheet = flap_on_sheet(gap=-0.5)  # the flap through the sheet
+    tg[n_sheet:] += [0.0, 0.0, 0.1]
+    src = _file(tmp_path / "through.vtu", V, F)
+    rows = "\n".join(f"{i},{x!r},{y!r},{z!r}" for i, (x, y, z) in zip(h, tg.tolist()))
+    (tmp_path / "t.csv").write_text(rows + "\n")
+    out = tmp_path / "moved.vtu"
+    assert main(["move", str(src), "--targets", str(tmp_path / "t.csv"), "--free-boundary",
+                 "-o", str(out)]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    pairs = len(self_intersections(V, F))
+    assert len(err) == 1 and "warning" in err[0] and "through.vtu" in err[0]
+    assert f"({pairs} pairs of triangles)" in err[0] and out.exists()
