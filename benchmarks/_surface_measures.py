@@ -165,3 +165,17 @@ def arap_energy(V0: np.ndarray, V1: np.ndarray, F: np.ndarray, *, clamp: bool = 
     rj = e1 - np.einsum("kij,kj->ki", R[E[:, 1]], e0)
     energy = float(np.sum(W * (np.sum(ri * ri, axis=1) + np.sum(rj * rj, axis=1))))
     return (energy, R) if return_rotations else energy
+
+
+def self_intersecting_faces(V: np.ndarray, F: np.ndarray) -> int:
+    """How many triangles pymeshlab's test selects as intersecting another
+    (``compute_selection_by_self_intersections_per_face``); -1 where pymeshlab is absent."""
+    try:
+        import pymeshlab
+    except ImportError:
+        return -1
+    ms = pymeshlab.MeshSet()
+    ms.add_mesh(pymeshlab.Mesh(vertex_matrix=np.asarray(V, float),
+                               face_matrix=np.asarray(F, np.int32)))
+    ms.compute_selection_by_self_intersections_per_face()
+    return int(ms.current_mesh().selected_face_number())

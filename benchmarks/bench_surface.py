@@ -26,9 +26,13 @@ follow the tutorial's own animation path); ours
 
 Printed per case and method: worst relative quality (aspect ratio 2r/R over its rest value,
 triangles not wholly handles), folds, max handle error, seconds and the ARAP energy
-(``_surface_measures.py``). ``--figures DIR`` writes one PNG per case.
+(``_surface_measures.py``) and the self-intersecting faces by pymeshlab's test.
+``--figures DIR`` writes one PNG per case.
 
-Run ``python benchmarks/bench_surface.py [--cases knight,bar] [--unseen] [--unseen2]
+* ``--contact``: motions that drive parts of a surface into each other: the bunny's ear
+  turned 120° (into its back), the bar folded back onto itself.
+
+Run ``python benchmarks/bench_surface.py [--cases knight,bar] [--unseen] [--unseen2] [--contact]
 [--figures DIR]``.
 """
 
@@ -48,7 +52,8 @@ from scipy.sparse.csgraph import connected_components
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _surface_measures import (arap_energy, fold_count, normals,  # noqa: E402
-                               relative_quality, worst_relative_quality)
+                               relative_quality, self_intersecting_faces,
+                               worst_relative_quality)
 
 DATA = Path(__file__).resolve().parent.parent / "data" / "surfaces"
 STEPS = 10
@@ -145,6 +150,30 @@ def bunny() -> Case:
     moved = turning(V[tip], pivot, [0, 0, 1], -np.pi / 2)
     return Case("bunny", V, F, b, lambda t: np.concatenate([moved(t), V[bottom]]),
                 np.r_[np.ones(len(tip)), np.zeros(len(bottom))])
+
+
+def bunny_ear_120() -> Case:
+    """The bunny case with the ear's tip turned 120° instead of 90° (into the back)."""
+    case = bunny()
+    V = case.V
+    tip = case.handles[case.groups == 1]
+    bottom = case.handles[case.groups == 0]
+    labels = components(V, case.F, (V[:, 0] > -0.05) & (V[:, 1] > 0.14))
+    ids, counts = np.unique(labels[labels >= 0], return_counts=True)
+    pivot = V[(labels == ids[np.argmax(counts)]) & (V[:, 1] < 0.15)].mean(0)
+    moved = turning(V[tip], pivot, [0, 0, 1], -2.0 * np.pi / 3.0)
+    return Case("bunny ear 120", V, case.F, case.handles,
+                lambda t: np.concatenate([moved(t), V[bottom]]), case.groups)
+
+
+def bar_folded() -> Case:
+    """The 6×1×1 bar folded back on itself in the x–y plane: the cap x = 6 turned 180°
+    about z so that its centre lands at (3, 1.7, 0.5), 0.2 above the bar's top face (the
+    turned half driven against the fixed one); the cap x = 0 fixed."""
+    V, F = box_surface([6.0, 1.0, 1.0], 0.1)
+    pivot = planar_pivot([6.0, 0.5, 0.5], [3.0, 1.7, 0.5], [0, 0, 1], np.pi)
+    return region_turn("bar folded", V, F, V[:, 0] > 6.0 - 1e-9, V[:, 0] < 1e-9,
+                       [0, 0, 1], np.pi, pivot)
 
 
 def armadillo() -> Case:
@@ -442,6 +471,8 @@ def disc_bump() -> Case:
 
 
 CASES = {"knight": knight, "bunny": bunny, "armadillo": armadillo, "bar": bar}
+#: ``--contact``: motions that drive parts of a surface into each other
+CONTACT = {"bunny-ear-120": bunny_ear_120, "bar-folded": bar_folded}
 #: ``--unseen``: cases defined by simple rules after the method's defaults were fixed
 UNSEEN = {"spot-head": spot_head, "spot-leg": spot_leg, "bob-head": bob_head,
           "blub-tail": blub_tail, "bar-bent": bar_bent, "plate-bent": plate_bent}
@@ -520,6 +551,7 @@ def measure(case: Case, U: np.ndarray, seconds: float) -> dict:
         "handle error": float(np.abs(U[case.handles] - case.path(1.0)).max()),
         "seconds": seconds,
         "ARAP energy": arap_energy(case.V, U, case.F),
+        "self-intersecting": self_intersecting_faces(U, case.F),
     }
 
 
@@ -575,7 +607,7 @@ def run_case(case: Case, methods) -> dict:
     print(f"\n{case.name}: {len(case.V)} vertices, {len(case.F)} triangles, "
           f"{len(case.handles)} handle vertices")
     print(f"  {'method':<14} {'worst rel. q':>12} {'folds':>6} {'handle err':>11} "
-          f"{'seconds':>8} {'ARAP energy':>12}")
+          f"{'seconds':>8} {'ARAP energy':>12} {'self-int. faces':>15}")
     results, rows = {}, {}
     for name in methods:
         try:
@@ -591,7 +623,8 @@ def run_case(case: Case, methods) -> dict:
         results[name] = U
         r = rows[name] = measure(case, U, seconds)
         print(f"  {name:<14} {r['quality']:>12.3f} {r['folds']:>6d} {r['handle error']:>11.1e} "
-              f"{r['seconds']:>8.2f} {r['ARAP energy']:>12.4g}", flush=True)
+              f"{r['seconds']:>8.2f} {r['ARAP energy']:>12.4g} {r['self-intersecting']:>15d}",
+              flush=True)
     arap = [rows[m] for m in ("ARAP", f"ARAP {STEPS} steps") if m in rows]
     if "ours" in rows and arap:
         o = rows["ours"]
@@ -628,14 +661,15 @@ def markdown(name: str, rows: dict, verdict: str) -> str:
         err = "0" if r["handle error"] == 0 else f"{r['handle error']:.1e}"
         extra = verdict.split(": ", 1)[-1] if m == "ours" and verdict else ""
         out.append(f"| {name if i == 0 else ''} | {m} | {q} | {r['folds']} | {err} | "
-                   f"{r['seconds']:.2f} | {e} | {extra} |")
+                   f"{r['seconds']:.2f} | {e} | {r['self-intersecting']} | {extra} |")
     return "\n".join(out)
 
 
 def check(rows: dict) -> str:
     """Ours against the best fold-free libigl method by worst relative quality: handles
-    exact, no fold, quality ≥ that method's (to the printed three decimals) and ≥ 0.1,
-    ARAP energy ≤ 1.5× that method's ("" where ours or every libigl method is missing)."""
+    exact, no fold, no self-intersecting face (pymeshlab's test), quality ≥ that method's
+    (to the printed three decimals) and ≥ 0.1, ARAP energy ≤ 1.5× that method's ("" where
+    ours or every libigl method is missing)."""
     libigl = {m: r for m, r in rows.items() if m != "ours" and r["folds"] == 0}
     if "ours" not in rows or not libigl:
         return ""
@@ -644,6 +678,7 @@ def check(rows: dict) -> str:
     q, e = o["quality"] / libigl[best]["quality"], o["ARAP energy"] / libigl[best]["ARAP energy"]
     # qualities compared as printed (three decimals): a tie at 1.000 is not a loss
     ok = (o["handle error"] == 0.0 and o["folds"] == 0 and o["quality"] >= 0.1 and e <= 1.5
+          and o["self-intersecting"] <= 0
           and round(o["quality"], 3) >= round(libigl[best]["quality"], 3))
     return (f"ours / best fold-free libigl ({best}): quality {q:.3f}×, ARAP energy "
             f"{e:.2f}× — {'pass' if ok else 'FAIL'}")
@@ -654,7 +689,7 @@ def main(argv=None) -> int:
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--cases", help="comma-separated: "
-                    + ", ".join({**CASES, **UNSEEN, **UNSEEN2, **UNSEEN3})
+                    + ", ".join({**CASES, **UNSEEN, **UNSEEN2, **UNSEEN3, **CONTACT})
                     + " (default: " + ", ".join(CASES) + ")")
     ap.add_argument("--unseen", action="store_true",
                     help="the cases defined after the method: " + ", ".join(UNSEEN))
@@ -662,6 +697,9 @@ def main(argv=None) -> int:
                     help="more cases defined after the method: " + ", ".join(UNSEEN2))
     ap.add_argument("--unseen3", action="store_true",
                     help="a third such set (_surface_cases3.py): " + ", ".join(UNSEEN3))
+    ap.add_argument("--contact", action="store_true",
+                    help="motions that drive parts of a surface into each other: "
+                    + ", ".join(CONTACT))
     ap.add_argument("--methods", default=",".join(METHODS),
                     help="comma-separated: " + ", ".join(METHODS))
     ap.add_argument("--figures", type=Path, help="write one PNG per case into this folder")
@@ -673,9 +711,10 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     MARKDOWN[0] = args.markdown
     STEP_ITERATIONS[0] = args.step_iterations
-    every = {**CASES, **UNSEEN, **UNSEEN2, **UNSEEN3}
+    every = {**CASES, **UNSEEN, **UNSEEN2, **UNSEEN3, **CONTACT}
     default = {**(UNSEEN if args.unseen else {}), **(UNSEEN2 if args.unseen2 else {}),
-               **(UNSEEN3 if args.unseen3 else {})} or CASES
+               **(UNSEEN3 if args.unseen3 else {}),
+               **(CONTACT if args.contact else {})} or CASES
     names = [c for c in (args.cases or ",".join(default)).split(",") if c]
     methods = [m for m in args.methods.split(",") if m]
     unknown = [c for c in names if c not in every] + [m for m in methods if m not in METHODS]

@@ -35,11 +35,15 @@ def boundary_edge_count(F):
     return int(np.sum(counts == 1))
 
 
-@pytest.mark.parametrize("name", list(bench.UNSEEN2))
+#: the cases of ``--unseen2`` and ``--contact``
+CHECKED = {**bench.UNSEEN2, **bench.CONTACT}
+
+
+@pytest.mark.parametrize("name", list(CHECKED))
 def test_case_is_a_valid_rest_mesh_with_two_handle_groups_and_finite_targets(name):
     from meshopt_toolkit.mesh.surface import SurfaceMesh
 
-    case = bench.UNSEEN2[name]()
+    case = CHECKED[name]()
     assert SurfaceMesh(case.V, case.F).problems == []
     assert sm.aspect_ratios(case.V, case.F).min() > 0.005
     assert len(case.handles) == len(np.unique(case.handles)) == len(case.groups)
@@ -52,9 +56,9 @@ def test_case_is_a_valid_rest_mesh_with_two_handle_groups_and_finite_targets(nam
     assert moved[case.groups == 1].max() > 0.01 * np.ptp(case.V, axis=0).max()
 
 
-@pytest.mark.parametrize("name", list(bench.UNSEEN2))
+@pytest.mark.parametrize("name", list(CHECKED))
 def test_case_path_starts_at_rest_and_moves_each_group_rigidly(name):
-    case = bench.UNSEEN2[name]()
+    case = CHECKED[name]()
     np.testing.assert_allclose(case.path(0.0), case.V[case.handles], atol=1e-14)
     for t in (0.37, 1.0):
         P = case.path(t)
@@ -288,3 +292,22 @@ def test_torus_is_closed_outward_and_its_far_segment_tilts():
     np.testing.assert_allclose(P[:, 0], Q[:, 0], atol=1e-14)  # a turn about x
     c, s = np.cos(np.pi / 3), np.sin(np.pi / 3)
     np.testing.assert_allclose(P[:, 1:], Q[:, 1:] @ np.array([[c, s], [-s, c]]), atol=1e-14)
+
+
+def test_bar_folded_lands_the_cap_over_the_bar_and_bunny_120_turns_a_third():
+    bar = bench.bar_folded()
+    cap = bar.groups == 1
+    np.testing.assert_allclose(bar.path(1.0)[cap].mean(0), [3.0, 1.7, 0.5], atol=1e-12)
+    ear = bench.bunny_ear_120()
+    ninety = bench.bunny()
+    np.testing.assert_array_equal(ear.handles, ninety.handles)
+    tip = ear.groups == 1
+    # both turn the tip about the z axis: the x–y parts of its chords turn by 120° and 90°
+    a, b, c = ear.V[ear.handles][tip], ninety.path(1.0)[tip], ear.path(1.0)[tip]
+
+    def turned(u, v):
+        return np.arctan2(u[0] * v[1] - u[1] * v[0], u[0] * v[0] + u[1] * v[1])
+
+    i, j = 0, int(np.argmax(np.linalg.norm(a[:, :2] - a[0, :2], axis=1)))
+    assert turned(a[j] - a[i], c[j] - c[i]) == pytest.approx(-2 * np.pi / 3, abs=1e-9)
+    assert turned(a[j] - a[i], b[j] - b[i]) == pytest.approx(-np.pi / 2, abs=1e-9)

@@ -298,3 +298,25 @@ def test_a_box_twisted_past_half_a_turn_is_morphed(degrees):
     for X in morph.points:
         assert (aspect_ratios(X, F) / rest).min() >= floor - 1e-12
         assert not folds.mask(X).any()
+
+
+@pytest.mark.parametrize("iterations", [0, 3])
+def test_pieces_translated_apart_move_each_along_its_line(iterations):
+    """Two pieces (a sheet and an upright flap above it), the flap lowered and the sheet
+    shifted sideways: each piece's frames are its own translation at time t. (The
+    Laplacian leaves each piece's translation free: one vertex of each is pinned.)"""
+    x = np.linspace(0.0, 1.0, 4)
+    U, W = (a.ravel() for a in np.meshgrid(x, x, indexing="ij"))
+    idx = np.arange(16).reshape(4, 4)
+    a, b = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel()
+    c, d = idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+    F = np.vstack([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
+    sheet = np.c_[U, W, np.zeros(16)]
+    flap = np.c_[0.3 + 0.4 * U, np.full(16, 0.5), 0.5 + W]
+    V0 = np.vstack([sheet, flap])
+    shift = np.r_[np.tile([0.2, -0.1, 0.0], (16, 1)), np.tile([0.0, 0.0, -0.4], (16, 1))]
+    V1 = V0 + shift
+    times = np.linspace(0.0, 1.0, 5)
+    frames = arap_interpolation(V0, V1, np.vstack([F, F + 16]), times, iterations=iterations)
+    for t, X in zip(times, frames):
+        np.testing.assert_allclose(X, V0 + t * shift, atol=1e-9)

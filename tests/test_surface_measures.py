@@ -287,3 +287,19 @@ def test_figures_write_one_png_per_case(tmp_path, capsys):
                        "--figures", str(out)]) == 0
     png = out / "surface_bar.png"
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000
+
+
+def test_self_intersecting_faces_agree_with_the_exact_kernel():
+    """pymeshlab's per-face test against the exact kernel: an upright flap above a sheet
+    (none), lowered through it (the faces of the crossing pairs)."""
+    pytest.importorskip("pymeshlab")
+    from test_morph_self_intersection import flap_through_sheet
+
+    from meshopt_toolkit.kernels.intersections3d import self_intersections
+
+    for drop, crossing in ((0.4, False), (1.0, True)):
+        m = flap_through_sheet(drop)[1]
+        pairs = self_intersections(m.points, m.triangles)
+        faces = len(np.unique(np.asarray(pairs).ravel())) if len(pairs) else 0
+        assert (faces > 0) == crossing
+        assert sm.self_intersecting_faces(m.points, m.triangles) == faces

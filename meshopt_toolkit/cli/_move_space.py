@@ -8,12 +8,15 @@ which the move filter shares)."""
 from __future__ import annotations
 
 import argparse
+import sys
+import warnings
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from .. import strict_json
+from ..motion.contact import ContactWarning
 from ._common import frame_names, prepare_output_dir, write_text
 from ._info_cells import SURFACE, TETS
 
@@ -68,7 +71,12 @@ def run_in_space(args: argparse.Namespace, cells, kind: str) -> int:
         mesh, targets=args.targets, mapping=args.map, where=args.where, group=args.group,
         selection=args.selection, point_data=cells.point_data,
         free_boundary=args.free_boundary, source=str(src))
-    result = move(mesh, handles, targets, frames=frames, steps=args.steps, weight=args.weight)
+    with warnings.catch_warnings(record=True) as caught:  # each one line naming the file
+        warnings.simplefilter("always", ContactWarning)
+        result = move(mesh, handles, targets, frames=frames, steps=args.steps,
+                      weight=args.weight, contact=getattr(args, "contact", "on") == "on")
+    for w in caught:
+        print(f"meshopt move: warning: {src}: {w.message}", file=sys.stderr)
 
     def written(m):
         """The input's cells and data at the points of ``m``."""

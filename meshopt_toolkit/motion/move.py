@@ -228,6 +228,7 @@ def move(
     finish_frames: bool = True,
     max_splits: int = 12,
     progress: Callable[[float], None] | None = None,
+    contact: bool = True,
 ) -> MoveResult:
     """Move the ``handles`` vertices exactly to ``targets``; place the rest to keep quality.
 
@@ -275,6 +276,11 @@ def move(
         0.075 at 79° before the step); False returns them as they are, for speed.
     progress : callable ``fraction -> None``, optional
         Called with the fraction of the work done, in [0, 1].
+    contact : bool
+        A surface: keep it from passing through itself along the motion
+        (:mod:`~meshopt_toolkit.motion.contact`) where its rest is free of
+        self-intersections; False: the motion as without contact, the result still
+        checked.
 
     Returns
     -------
@@ -303,12 +309,15 @@ def move(
         return carried.result(move(
             carried.mesh, handles, targets, frames=frames, steps=steps, weight=weight,
             relax_iterations=relax_iterations, quality_rounds=quality_rounds,
-            finish_frames=finish_frames, max_splits=max_splits, progress=progress))
+            finish_frames=finish_frames, max_splits=max_splits, progress=progress,
+            contact=contact))
     relax_iter = relax_iterations
     solver = _solver(mesh)
     if solver is not None:  # another kind of mesh: its own solver, the same options
         _check_options(frames, steps, relax_iter, quality_rounds, max_splits, weight)
         rounds = {} if quality_rounds is None else {"quality_rounds": quality_rounds}
+        if solver is move_surface_mesh:
+            rounds["contact"] = contact
         guard = SelfIntersectionGuard(mesh, handles, targets)  # refuses crossing targets
         result = solver(mesh, handles, targets, frames=frames, steps=steps, weight=weight,
                         relax_iter=relax_iter, max_splits=max_splits, progress=progress,

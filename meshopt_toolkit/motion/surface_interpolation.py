@@ -8,7 +8,7 @@ rotation of the pair (Umeyama), ``R S`` the polar decomposition of what is left.
 in angle, each ``R``'s branch chosen continuous across the triangles' edges,
 :func:`continuous_rotation_vectors`: a twist past half a turn is followed as one); the
 vertices are the least-squares fit of these maps (a cotangent-Laplacian system, factorized
-once), translated so that the area-weighted centroid moves linearly.
+once), each connected piece translated so that its area-weighted centroid moves linearly.
 
 Each triangle's rotation is interpolated alone, so neighbours whose residual rotations lie
 near a half turn (where the axis of ``R`` turns fast with the map, e.g. a bar twisted by
@@ -62,7 +62,8 @@ def _polar(A: FloatArray) -> tuple[FloatArray, FloatArray]:
 
 class _Fit:
     """The least-squares fit of per-triangle maps from the rest planes: the cotangent
-    Laplacian (vertex 0 pinned) factorized once, the area-weighted centroid placed."""
+    Laplacian (one vertex of each connected piece pinned) factorized once, each piece's
+    area-weighted centroid placed."""
 
     def __init__(self, V0: FloatArray, F: IntArray) -> None:
         self.F, self.n = F, len(V0)
@@ -74,9 +75,16 @@ class _Fit:
         rows = np.repeat(F, 3, axis=1).ravel()
         cols = np.tile(F, (1, 3)).ravel()
         L = sp.coo_matrix((G.ravel(), (rows, cols)), shape=(self.n, self.n)).tocsr()
-        self.solve = factorize_spd(L[1:, 1:].tocsc())
+        # each piece's translation is free in L: one vertex of each pinned
+        n_pieces, self.piece = connected_components(L, directed=False)
+        self.free = np.ones(self.n, bool)
+        self.free[np.unique(self.piece, return_index=True)[1]] = False
+        self.solve = factorize_spd(L[self.free][:, self.free].tocsc())
         mass = np.bincount(F.ravel(), np.repeat(self.area / 3.0, 3), minlength=self.n)
-        self.mass = mass / mass.sum()
+        # per piece: its vertices' share of its area (the rows of ``centroids``)
+        share = mass / np.bincount(self.piece, mass, n_pieces)[self.piece]
+        self.mass = sp.csr_matrix((share, (self.piece, np.arange(self.n))),
+                                  shape=(n_pieces, self.n))
         # the right-hand side Σ_t a_t D_t γ_j as one operator on the maps' columns (n, 2T)
         T = len(F)
         self.divergence = sp.csr_matrix(
@@ -85,12 +93,17 @@ class _Fit:
                                                      (1, 3, 1)).ravel())),
             shape=(self.n, 2 * T))
 
-    def __call__(self, D: FloatArray, centroid: FloatArray) -> FloatArray:
-        """The vertices whose gradients best fit ``D`` (T, 3, 2), centroid ``centroid``."""
+    def centroids(self, X: FloatArray) -> FloatArray:
+        """Each connected piece's area-weighted centroid (pieces, 3)."""
+        return self.mass @ X
+
+    def __call__(self, D: FloatArray, centroids: FloatArray) -> FloatArray:
+        """The vertices whose gradients best fit ``D`` (T, 3, 2), the pieces' centroids
+        ``centroids`` (pieces, 3)."""
         rhs = self.divergence @ np.swapaxes(D, 1, 2).reshape(-1, 3)
         X = np.zeros((self.n, 3))
-        X[1:] = self.solve(rhs[1:])
-        return X + (centroid - self.mass @ X)
+        X[self.free] = self.solve(rhs[self.free])
+        return X + (centroids - self.centroids(X))[self.piece]
 
 
 def _plane_frames(A: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -181,7 +194,7 @@ def arap_interpolation(source: FloatArray, target: FloatArray, triangles: IntArr
     local_vec = continuous_rotation_vectors(Rotation.from_matrix(R).as_rotvec(), V0, F)
     fit = _Fit(V0, F)
     A0 = fit.distortion.affine_maps(V0)  # (T, 3, 2)
-    c0, c1 = fit.mass @ V0, fit.mass @ V1
+    c0, c1 = fit.centroids(V0), fit.centroids(V1)
     out, inside = [], []  # the frames; per frame strictly inside (index, M(t), centroid)
     for t in times:
         t = float(t)

@@ -66,12 +66,12 @@ class SurfaceMeshMoveResult:
 def move_surface_mesh(mesh, handles, targets, *, frames: int | None = None, steps: int = 4,
                       weight: float = 1.0, relax_iter: int = 15, max_splits: int = 8,
                       quality_rounds: int | None = None,
-                      progress: Callable[[float], None] | None = None
-                      ) -> SurfaceMeshMoveResult:
+                      progress: Callable[[float], None] | None = None,
+                      contact: bool = True) -> SurfaceMeshMoveResult:
     """:func:`move_surface` on a :class:`SurfaceMesh` (what ``mt.move`` calls for one).
 
-    ``steps`` and ``weight`` are those of :func:`move_surface`, ``max_splits`` its
-    ``max_halvings``; ``relax_iter`` and ``quality_rounds`` (options of the planar and tet
+    ``steps``, ``weight`` and ``contact`` are those of :func:`move_surface`, ``max_splits``
+    its ``max_halvings``; ``relax_iter`` and ``quality_rounds`` (options of the planar and tet
     solvers) are not used. With ``frames = K`` at least ``K − 1`` increments are taken and
     the K frames are those whose path fractions are nearest to ``0, 1/(K−1), …, 1``.
     The motion is solved at unit size (the surface divided by the power of two nearest
@@ -105,7 +105,7 @@ def move_surface_mesh(mesh, handles, targets, *, frames: int | None = None, step
         raise InvalidMeshError(problem)
     res = move_surface(scale.down(solved.points), solved.cells, solved.handles,
                        scale.down(solved.targets), steps=n_steps, weight=weight,
-                       max_halvings=max_splits).scaled_up(scale)
+                       max_halvings=max_splits, contact=contact).scaled_up(scale)
     res.points[solved.handles] = solved.targets  # bitwise, subnormal targets included
 
     moved = surface_with_points(surface, solved.full(res.points))

@@ -33,6 +33,11 @@ assembly). Such steps are seldom shortened, so factors are renewed seldom (k = 4
 twisted 180° at 83k triangles: 15 factorizations instead of 36), but each costs k
 back-solves: on one core 0.91× the time there, 1.24× at 20.8k, 1.06× on the armadillo.
 
+With ``contact`` (the default, where the rest is free of self-intersections) the energy
+gains IPC's barrier and every step, the predictor included, starts its backtracking at
+the fraction CCD allows (:mod:`.contact`; the handles move alone where the predictor would
+pass through): no iterate passes through the surface (docs/move-3d.md, "Contact").
+
 Where one similarity moves all handles, the whole surface follows it exactly (φ moves by
 ``√2 log s`` in its first component, bending not at all), so a rigid motion of the
 handles is a rigid motion of the surface.
@@ -60,6 +65,7 @@ from ..kernels.surface import aspect_ratios
 from ..scaling import UnitScale
 from ..solvers import factorize_spd, pcg
 from .bending import ShellBending
+from .contact import NoContact, contact_term
 from .surface_distortion import SurfaceDistortion
 from .similarity_3d import HandlePath, global_similarity, handle_groups
 from .surface_normal import FreePattern, turned_solve, upper_products
@@ -154,6 +160,8 @@ class _Problem:
         self.cg_iterations, self.cg_rtol, self.cg_total = 0, 1e-2, 0
         #: ``w √c_t``: the membrane rows' weights (``c_t ≥ 1``, :func:`move_surface`)
         self.row_weights = np.full(len(F), float(weight))
+        #: the contact barrier on the free coordinates (:func:`.contact.contact_term`)
+        self.contact = NoContact()
 
     def parts(self, Q):
         phi = self.membrane.values(Q)
@@ -164,7 +172,8 @@ class _Problem:
     def energy(self, Q, parts=None) -> float:
         phi, rm, rb = self.parts(Q) if parts is None else parts
         d = Q - self.previous
-        return 0.5 * float(self.mass @ np.sum(d * d, axis=1) + np.sum(rm * rm) + rb @ rb)
+        return (0.5 * float(self.mass @ np.sum(d * d, axis=1) + np.sum(rm * rm) + rb @ rb)
+                + self.contact.energy(Q))
 
     def admissible(self, Q, phi) -> bool:
         if not np.all(np.isfinite(phi[self.free_triangles])):
@@ -219,6 +228,8 @@ class _Problem:
         D = self.normal_matrix(Jm, Jb)
         diag = D.data[self.pattern.diagonal]
         D.data[self.pattern.diagonal] += 1e-6 * diag + 1e-12 * diag.max()
+        if (H := self.contact.hessian(Q)) is not None:
+            D = (D + sp.tril(H, format="csr")).tocsr()
         self.factorizations += 1
         if not hasattr(self.factor, "refactorize"):  # first call, or SuperLU
             self.factor = factorize_spd(D)
@@ -261,7 +272,8 @@ def _step(problem: _Problem, Q0, H1, handles, max_iterations: int, rtol: float,
     if not problem.free.any():  # every vertex a handle: the step is the handles' path
         Q = Q0 + d
         Q[handles] = H1
-        return (Q, 0) if problem.admissible(Q, problem.parts(Q)[0]) else None
+        ok = problem.admissible(Q, problem.parts(Q)[0]) and problem.contact.clear(Q0, Q)
+        return (Q, 0) if ok else None
     rm, Jm, rb, Jb = problem.linearization(Q0)
     # the residuals' change of the handles' displacement, to first order
     dm, db = problem.jacobian_products(Jm, Jb, d)
@@ -278,20 +290,32 @@ def _step(problem: _Problem, Q0, H1, handles, max_iterations: int, rtol: float,
             break
     else:
         return None
+    if not problem.contact.clear(Q0, Q):  # in contact: the handles alone, the barrier acts
+        Q = Q0 + d
+        Q[handles] = H1
+        parts = problem.parts(Q)
+        if not (problem.admissible(Q, parts[0]) and problem.contact.clear(Q0, Q)):
+            return None
     E = problem.energy(Q, parts)
+    if not np.isfinite(E):
+        return None
     iterations, stale, first = 0, not fresh, None
     for _ in range(max_iterations):
         rm, Jm, rb, Jb = problem.linearization(Q)
         g = problem.gradient(rm, Jm, rb, Jb, Q - problem.previous)
+        if problem.contact.set_stiffness(Q, g):  # κ set: the energy gains the barrier
+            E = problem.energy(Q)
+        g = g + problem.contact.gradient(Q)  # the barrier's Hessian in a fresh factor
+        stale = stale or problem.contact.active(Q)
         renewed = stale
         if stale:  # otherwise the factor of the increment's start serves (chord steps)
             problem.refactorize(Jm, Jb, Q)
             first = None
         step = problem.kept_step(Jm, Jb, g, Q)
         iterations += 1
-        # backtracking: the first fraction of the step that lowers the energy and keeps
-        # every triangle proper and unfolded
-        for alpha in 0.5 ** np.arange(12):
+        # backtracking from the CCD bound: the first fraction of the step that lowers the
+        # energy and keeps every triangle proper and unfolded
+        for alpha in problem.contact.step_cap(Q, step) * 0.5 ** np.arange(12):
             trial = Q.copy()
             trial.ravel()[problem.free] -= alpha * step
             parts = problem.parts(trial)
@@ -317,7 +341,7 @@ def _step(problem: _Problem, Q0, H1, handles, max_iterations: int, rtol: float,
             break
         first = decrease if first is None else first
         stale = decrease <= rtol * E or (alpha < 1.0 and decrease < stall * first)
-    return Q, iterations
+    return (Q, iterations) if problem.contact.embedded(Q) else None
 
 
 def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatArray, *,
@@ -326,7 +350,8 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
                  max_iterations: int = 8, rtol: float = 1e-3, final_iterations: int = 30,
                  final_rtol: float = 1e-6, final_stall: float | None = 0.1,
                  cg_iterations: int = 0,
-                 max_halvings: int = 8, polish: int = 100) -> SurfaceMoveResult:
+                 max_halvings: int = 8, polish: int = 100,
+                 contact: bool = True) -> SurfaceMoveResult:
     """Move a triangle surface: ``handles`` exactly to ``targets``, the rest placed so
     that each triangle's shape changes as little as the motion allows (module docstring).
 
@@ -367,6 +392,10 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
         equations, preconditioned by the factor turned with the surface (module
         docstring); 0: the factor's own solve, a chord step.
     max_halvings : how often one increment may be halved.
+    contact : bool
+        Keep the surface from passing through itself (:mod:`.contact`: the barrier in the
+        energy, every step capped by CCD) where its rest is free of self-intersections
+        (else a :class:`.contact.ContactWarning` with the count, and no contact).
     polish : L-BFGS iterations of the last frame's local polish of the worst triangles
         (:mod:`.surface_polish`; 0: none).
 
@@ -398,6 +427,7 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
     path = HandlePath(V[handles], targets, handle_groups(F, handles, len(V)))
     problem = _Problem(V, F, handles, weight, bending, lumped_mass(V, F))
     problem.cg_iterations = int(cg_iterations)
+    problem.contact = contact_term(V, F, problem.free, problem.mass, contact)
     area_w = np.ones(len(F))  # √a_t
     if area_weights and len(F):
         P = V[F]
@@ -442,7 +472,12 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
             continue
         Q, n_it = out
         if t1 >= 1.0 and polish > 0:  # the result's worst triangles polished
-            Q, polished = polish_worst_triangles(V, F, Q, handles, iterations=polish)
+            Qp, polished = polish_worst_triangles(V, F, Q, handles, iterations=polish,
+                                                  clear=problem.contact.clear)
+            if problem.contact.embedded(Qp):  # else two triangles of a fan meet: dropped
+                Q = Qp
+            else:
+                polished = {"polish_vertices": 0}
         iterations += n_it
         new_phi = problem.membrane.values(Q)
         dphi = np.linalg.norm(new_phi - phi, axis=1)

@@ -117,7 +117,7 @@ def _tangent_bases(points: FloatArray, triangles: IntArray, vertices: IntArray) 
 def _descend(V: FloatArray, F: IntArray, P: FloatArray, is_handle, rest_q: FloatArray,
              rel: FloatArray, areas: FloatArray, energy: FloatArray, limit: float,
              worst: int, rings: int, iterations: int, sharpness: float, focus: float,
-             shape: float) -> FloatArray | None:
+             shape: float, clear=None) -> FloatArray | None:
     """One L-BFGS pass of :func:`polish_worst_triangles` from ``P`` (relative qualities
     ``rel``, ``inf`` where not counted; membrane energies ``energy`` per triangle, their sum
     at most ``limit``): the moved points, or None where nothing can move or ``focus`` would
@@ -159,7 +159,9 @@ def _descend(V: FloatArray, F: IntArray, P: FloatArray, is_handle, rest_q: Float
         phi = objective.membrane.values(x)
         if float(areas[active] @ np.sum(phi**2, axis=1)) > budget:
             return False
-        return not np.any(folds.mask(x) & check & ~folded)
+        if np.any(folds.mask(x) & check & ~folded):
+            return False
+        return clear is None or clear(P, x)
 
     edges = np.linalg.norm(P[F[active]] - np.roll(P[F[active]], 1, axis=1), axis=2)
     u = minimize_lbfgs(objective, np.zeros(2 * len(free)), int(iterations),
@@ -174,8 +176,8 @@ def polish_worst_triangles(rest: FloatArray, triangles: IntArray, points: FloatA
                            handles: IntArray, *, worst: int = 400, rings: int = 5,
                            iterations: int = 100, sharpness: float = 200.0,
                            focus: float = 20.0,
-                           shape: float = 10.0, max_energy_rise: float = 0.02
-                           ) -> tuple[FloatArray, dict]:
+                           shape: float = 10.0, max_energy_rise: float = 0.02,
+                           clear=None) -> tuple[FloatArray, dict]:
     """Raise the worst relative quality of a moved surface by tangential moves of the
     vertices near its worst triangles (the ``handles`` kept bitwise; module docstring).
 
@@ -207,6 +209,9 @@ def polish_worst_triangles(rest: FloatArray, triangles: IntArray, points: FloatA
     max_energy_rise : float
         The largest relative rise of the whole surface's area-weighted membrane energy
         that a trial may cost (a constraint of the line search).
+    clear : callable ``(P0, P1) -> bool``, optional
+        Whether the straight path from ``points`` to a trial is free of contact
+        (:mod:`.contact`: a constraint of the line search; None: none).
 
     Returns
     -------
@@ -236,7 +241,7 @@ def polish_worst_triangles(rest: FloatArray, triangles: IntArray, points: FloatA
     # a pass at the given sharpness and, where that is sharper, one sharpened to the gap
     for pass_focus in (0.0, focus) if focus > 0 else (0.0,):
         moved = _descend(V, F, P, is_handle, rest_q, rel, areas, energy, limit, worst, rings,
-                         iterations, sharpness, pass_focus, shape)
+                         iterations, sharpness, pass_focus, shape, clear)
         if moved is None:
             continue
         quality = float((aspect_ratios(moved, F)[counted] / rest_q[counted]).min())

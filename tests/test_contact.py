@@ -1,0 +1,149 @@
+"""The contact barrier and CCD of a surface (:mod:`meshopt_toolkit.motion.contact`):
+derivatives by Taylor tests, the projected Hessian's sign, the barrier's support, and the
+CCD bound against the closed-form time of impact of a flap dropped onto a sheet."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from test_morph_self_intersection import flap_through_sheet
+
+from meshopt_toolkit.diagnostics import check_gradient, check_hvp
+from meshopt_toolkit.kernels.intersections3d import self_intersections
+from meshopt_toolkit.motion.contact import DHAT_FRACTION, SurfaceContact
+
+pytest.importorskip("ipctk")
+
+
+def _near(drop: float) -> np.ndarray:
+    return flap_through_sheet(drop)[1].points
+
+
+@pytest.fixture(scope="module")
+def contact() -> SurfaceContact:
+    src, _ = flap_through_sheet()
+    return SurfaceContact(src.points, src.triangles)
+
+
+def test_dhat_is_the_fraction_of_the_mean_edge(contact):
+    src, _ = flap_through_sheet()
+    P, F = src.points, src.triangles
+    e = np.vstack([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    e = np.unique(np.sort(e, axis=1), axis=0)
+    mean = np.linalg.norm(P[e[:, 1]] - P[e[:, 0]], axis=1).mean()
+    assert contact.usable
+    assert contact.dhat == pytest.approx(DHAT_FRACTION * mean)
+    assert contact.value(P) == 0.0  # nothing within d̂ at rest
+
+
+def test_dhat_below_half_the_rests_closest_pair():
+    src, _ = flap_through_sheet()
+    close = _near(0.49)  # the flap's lower edge 0.01 above the sheet
+    c = SurfaceContact(close, src.triangles)
+    assert c.usable and c.dhat == pytest.approx(0.005, rel=1e-6)
+    assert c.value(close) == 0.0
+
+
+def test_a_rest_through_itself_has_no_barrier():
+    src, _ = flap_through_sheet()
+    assert not SurfaceContact(_near(1.0), src.triangles).usable
+
+
+@pytest.mark.parametrize("drop", [0.48, 0.485, 0.495])
+def test_barrier_derivatives_taylor(contact, drop):
+    """The flap's lower edge within d̂ of the sheet; random directions of size ~1e-3 of
+    the gap keep every pair apart."""
+    Q = _near(drop)
+    assert contact.value(Q) > 0.0
+    shape = Q.shape
+    f = lambda x: contact.value(x.reshape(shape))  # noqa: E731
+    g = lambda x: contact.gradient(x.reshape(shape)).ravel()  # noqa: E731
+    hvp = lambda x, v: contact.hessian(x.reshape(shape), project=False) @ v  # noqa: E731
+    rng = np.random.default_rng(1)
+    for _ in range(3):
+        v = rng.standard_normal(Q.size)
+        r = check_gradient(f, g, Q.ravel(), v, eps0=1e-4)
+        assert r.passed, str(r)
+        r = check_hvp(f, g, hvp, Q.ravel(), v, eps0=1e-4)
+        assert r.passed, str(r)
+
+
+def test_projected_hessian_is_positive_semidefinite(contact):
+    Q = _near(0.49)
+    H = contact.hessian(Q).toarray()
+    assert np.abs(H - H.T).max() <= 1e-9 * np.abs(H).max()
+    assert np.linalg.eigvalsh(H).min() >= -1e-9 * np.abs(H).max()
+    assert np.abs(H).max() > 0.0
+
+
+def test_barrier_is_infinite_where_a_pair_touches(contact):
+    assert contact.value(_near(0.5)) == np.inf  # the flap's lower edge in the sheet
+
+
+@pytest.mark.parametrize("drop", [2.0, 1.0, 0.6])
+def test_ccd_stops_short_of_the_closed_form_impact(contact, drop):
+    """The flap's lower edge (z = 0.5) falls by ``drop`` along a straight path: it meets
+    the sheet at the fraction 0.5/drop; CCD stops before it, not far before."""
+    src, _ = flap_through_sheet()
+    end = _near(drop)
+    s = contact.stepsize(src.points, end)
+    impact = 0.5 / drop
+    assert 0.5 * impact <= s < impact
+    stop = src.points + s * (end - src.points)
+    assert not len(self_intersections(stop, src.triangles))
+    assert contact.stepsize(src.points, _near(0.4)) == 1.0  # a path that stays clear
+
+
+def test_cap_skips_the_ccd_only_where_no_pair_can_close(contact, monkeypatch):
+    """Far from contact a step shorter than d̂/2 needs no CCD; a longer one, or one from
+    a configuration with a pair within d̂, is CCD's."""
+    from meshopt_toolkit.motion.contact import ContactTerm
+
+    src, _ = flap_through_sheet()
+    term = ContactTerm(contact, np.ones(src.points.size, bool), 1.0)
+    calls = []
+    monkeypatch.setattr(contact, "stepsize", lambda a, b: calls.append(1) or 0.5)
+    small = src.points + [0.0, 0.0, -0.45 * contact.dhat]
+    assert term.cap(src.points, small) == 1.0 and not calls
+    far = src.points + [0.0, 0.0, -0.55 * contact.dhat]
+    assert term.cap(src.points, far) == 0.5 and len(calls) == 1
+    near = _near(0.49)  # a pair within d̂
+    assert term.cap(near, near + [0.0, 0.0, 1e-9]) == 0.5 and len(calls) == 2
+
+
+def test_triangles_of_one_fan_through_each_other_are_found():
+    """Two triangles sharing the vertex 0: ``B`` turned into ``A``'s interior. No pair of
+    IPC's comes near (the nearest is 0.5 apart); the exact fan test finds them."""
+    rest = np.array([[0, 0, 0], [1, -1, 0], [1, 1, 0], [-0.5, 0, -1], [-0.5, 0, 1.0]])
+    F = np.array([[0, 1, 2], [0, 3, 4]])
+    c = SurfaceContact(rest, F)
+    assert c.usable and not c.neighbours_meet(rest)
+    through = rest.copy()
+    through[3:, 0] = 0.5  # B = (0, (½, 0, ∓1)) cuts A along (0, 0, 0)–(½, 0, 0)
+    assert len(self_intersections(through, F)) == 1
+    assert len(c.collisions(through)) == 0 and c.neighbours_meet(through)
+
+
+@pytest.mark.parametrize("gap", [1e-6, 1e-9, 5e-11])
+def test_ccd_from_a_near_touch_stops_before_the_impact(contact, gap):
+    """The flap's lower edge ``gap`` above the sheet (tight-inclusion CCD below 10⁻³ d̂),
+    moved down by 0.01 and sideways: CCD stops before the closed-form impact."""
+    Q0, Q1 = _near(0.5 - gap), _near(0.51).copy()
+    Q1[16:, 0] += 0.003
+    impact = gap / (0.01 + gap)
+    assert 0.0 < contact.stepsize(Q0, Q1) < impact
+
+
+def test_stiffness_doubles_as_the_closest_pair_nears(contact):
+    from meshopt_toolkit.motion.contact import ContactTerm
+
+    term = ContactTerm(contact, np.ones(_near(0.4).size, bool), 1.0)
+    g = np.ones(_near(0.4).size)
+    assert not term.set_stiffness(_near(0.4), g) and term.kappa is None  # no pair near
+    assert term.set_stiffness(_near(0.49), g)  # a pair within d̂: IPC's initial κ
+    k0 = term.kappa
+    assert k0 > 0 and term.max_kappa >= k0
+    assert not term.set_stiffness(_near(0.495), g) and term.kappa == k0  # not 10⁻² d̂
+    close = 0.5 - 1e-3 * contact.dhat
+    assert term.set_stiffness(_near(close), g) and term.kappa == min(2 * k0, term.max_kappa)
+    assert not term.set_stiffness(_near(close), g)  # no nearer than at the last update
