@@ -103,6 +103,7 @@ def test_a_batch_reports_the_write_error_of_each_file(tmp_path, monkeypatch, cap
     assert [r["error"] for r in recs] == [
         f"{out / name}: cannot write: No space left on device"
         for name in ("body.msh", "plane.msh")]
+    # each line names the input, then the output the file system refused
     assert [x for x in cap.err.splitlines() if "error" in x] == [
-        f"meshopt run: error: {r['error']}" for r in recs]
+        f"meshopt run: error: {r['input']}: {r['error']}" for r in recs]
     assert sorted(p.name for p in out.iterdir()) == [".meshopt-journal.db"]
