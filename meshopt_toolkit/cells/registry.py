@@ -1,5 +1,5 @@
 """Which cell kind a mesh is, as a :class:`.base.CellKind` (:func:`kind_of`), with its points
-and cells (:func:`cells_of`). The kind is decided by :func:`.kinds.mesh_kind` (the rule
+and cells (:func:`cells_of`). The kind is decided by :func:`..mesh.kinds.mesh_kind` (the rule
 is there); here each name becomes its kind and the mesh its arrays: a planar
 :class:`..mesh.TriangleMesh` in its plane's coordinates, a ``meshio.Mesh`` by its main
 cells (tetrahedra with any triangles, lines and vertices beside them, or triangles with
@@ -11,11 +11,10 @@ from __future__ import annotations
 import numpy as np
 
 from .._typing import FloatArray, IntArray
-from ..mesh import SurfaceMesh, TetMesh
+from ..mesh.kinds import PLANAR as PLANAR_NAME
+from ..mesh.kinds import TETS as TETS_NAME
+from ..mesh.kinds import class_kind, foreign_package, mesh_kind, meshio_blocks
 from .base import CellKind
-from .kinds import PLANAR as PLANAR_NAME
-from .kinds import TETS as TETS_NAME
-from .kinds import mesh_kind, meshio_blocks
 from .planar import PLANAR
 from .surface import SURFACE
 from .tetrahedra import TETRAHEDRA
@@ -28,9 +27,9 @@ KINDS: dict[str, CellKind] = {k.name: k for k in (PLANAR, SURFACE, TETRAHEDRA)}
 
 def _arrays(mesh, name: str, what: str) -> tuple[FloatArray, IntArray]:
     """The points and cells of ``mesh``, of kind ``name``."""
-    if isinstance(mesh, (TetMesh, SurfaceMesh)):
+    if class_kind(mesh) is not None:
         return mesh.points, (mesh.tets if name == TETS_NAME else mesh.triangles)
-    package = type(mesh).__module__.split(".")[0]
+    package = foreign_package(mesh)
     if package == "trimesh":
         return np.asarray(mesh.vertices, dtype=float), np.asarray(mesh.faces)
     if package == "pymeshlab":

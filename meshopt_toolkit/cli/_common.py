@@ -313,7 +313,7 @@ def load_workpiece(src: Path, what: str, *, unit_size: bool = True, cells=None):
     """
     from ..errors import InvalidMeshError
     from ..io.workpiece import Workpiece
-    from ..cells.kinds import cells_kind
+    from ..mesh.kinds import cells_kind
     from ._info_cells import other_cells
 
     cells = read_cells(src) if cells is None else cells

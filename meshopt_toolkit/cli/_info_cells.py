@@ -3,10 +3,10 @@
 :func:`info_kind` sorts a file's cells: cells other than tetrahedra, triangles, lines
 and points (quads, hexahedra, wedges, pyramids, polygons, higher order) make it ``"mixed
 cells"``, described by counts per cell type, the bounding box and the quality of the
-types that have one here (tetrahedra, triangles); else (:func:`~..cells.kinds.cells_kind`, which
-the operations use too) any tetrahedron makes it ``"tetrahedra"``; triangles whose points
-are not on one plane are ``"surface triangles"``; the rest (``"planar triangles"``)
-takes the planar path of :mod:`.info`.
+types that have one here (tetrahedra, triangles); else
+(:func:`~..mesh.kinds.cells_kind`, which the operations use too) any tetrahedron makes
+it ``"tetrahedra"``; triangles whose points are not on one plane are ``"surface
+triangles"``; the rest (``"planar triangles"``) takes the planar path of :mod:`.info`.
 The dicts here have the same ``path``/``problems`` keys as the planar one, and print the
 same way.
 """
@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from ..cells.kinds import PLANAR, SURFACE, TETS, cells_kind
+from ..mesh.kinds import PLANAR, SURFACE, TETS, cells_kind
 
 MIXED = "mixed cells"
 #: the cell types of the kinds above; any other makes a file's kind MIXED
@@ -31,7 +31,7 @@ def other_cells(cm) -> set[str]:
 
 def info_kind(cm) -> str:
     """What ``meshopt info`` describes: :data:`MIXED` where :func:`other_cells` has a
-    type, else :func:`~..cells.kinds.cells_kind`."""
+    type, else :func:`~..mesh.kinds.cells_kind`."""
     return MIXED if other_cells(cm) else cells_kind(cm)
 
 

@@ -53,7 +53,7 @@ KINDS = {
 
 def run_in_space(args: argparse.Namespace, cells, kind: str) -> int:
     """Move the mesh of ``cells`` (read from ``args.mesh``; ``kind`` its
-    :func:`~..cells.kinds.cells_kind`, a key of :data:`KINDS`) as ``args`` ask, and write it.
+    :func:`~..mesh.kinds.cells_kind`, a key of :data:`KINDS`) as ``args`` ask, and write it.
 
     The output checks (:func:`~._common.check_output_target`) are done by the caller.
     """

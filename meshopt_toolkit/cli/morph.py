@@ -168,7 +168,7 @@ def _run_tets(args: argparse.Namespace, cells) -> int:
     from ..io import load_cells, save_cells
     from ..operations import morph
     from ..progress import ProgressBar
-    from ..cells.kinds import TETS, cells_kind
+    from ..mesh.kinds import TETS, cells_kind
 
     src_path, tgt_path, outdir = Path(args.source), Path(args.target), Path(args.output)
     if args.metric != "distortion" or args.beta is not None or args.no_normalize:

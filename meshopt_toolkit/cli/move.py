@@ -102,7 +102,7 @@ def run(args: argparse.Namespace) -> int:
     from ..motion.handles3d import handles_in_space
     from ..motion.move import move
     from ..progress import ProgressBar
-    from ..cells.kinds import SURFACE, TETS, cells_kind
+    from ..mesh.kinds import SURFACE, TETS, cells_kind
     from ._move_space import run_in_space
 
     _check_numbers(args)

@@ -39,7 +39,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..cells.kinds import PLANAR, SURFACE, TETS, is_surface, is_tets, mesh_kind
+from ..mesh.kinds import PLANAR, SURFACE, TETS, cells_kind, is_surface, is_tets, mesh_kind
 from ..errors import FilterError
 from ..mesh import PlanarMesh, TetMesh, TriangleMesh
 from .limits import DEFAULT_MAX_TRIANGLES
@@ -67,7 +67,7 @@ KIND_NAMES = {PLANAR: "a planar triangle mesh", SURFACE: "a triangle surface in 
 
 def kind_of(mesh) -> str:
     """The kind of a document's mesh (:data:`MESH_KINDS`), as
-    :func:`~meshopt_toolkit.cells.kinds.mesh_kind` decides it: :data:`PLANAR` for
+    :func:`~meshopt_toolkit.mesh.kinds.mesh_kind` decides it: :data:`PLANAR` for
     triangles on one plane (any plane: what :meth:`MeshEntry.workpiece` takes)."""
     return mesh_kind(mesh, "a pipeline")
 
@@ -230,7 +230,7 @@ def load_entry(path) -> MeshEntry:
 
     cells = load_cells(path)
     name = Path(path).stem
-    if any(t == "tetra" and len(c) for t, c in cells.cells):
+    if cells_kind(cells) == TETS:
         try:
             return MeshEntry(cells.to_tet_mesh("a pipeline"), name=name, source_cells=cells)
         except InvalidMeshError as exc:

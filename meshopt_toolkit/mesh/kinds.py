@@ -1,14 +1,14 @@
-"""The one decider of a mesh's cell kind, by name: what every layer asks (``io/``,
-``pipeline/``, ``cli/``, the motions) and what :mod:`.registry` maps to a
-:class:`.base.CellKind`. It imports only the mesh layer, so any layer above may ask it.
+"""The one decider of a mesh's cell kind, by name: what every layer asks (``fem/``,
+``io/``, ``pipeline/``, ``cli/``, the motions) and what :mod:`..cells.registry` maps to a
+:class:`..cells.base.CellKind`. It sits in the mesh layer, so every layer above may ask it.
 
 The rule, one for every mesh:
 
 - tetrahedra make a mesh :data:`TETS` (with any triangles, lines and vertices beside them);
-- a :class:`~..mesh.SurfaceMesh`, ``trimesh.Trimesh`` and ``pymeshlab.Mesh`` are
+- a :class:`~.surface.SurfaceMesh`, ``trimesh.Trimesh`` and ``pymeshlab.Mesh`` are
   :data:`SURFACE` (a surface in space by the caller's choice of object);
 - other triangles are :data:`PLANAR` when their points lie on one plane, any plane
-  (:attr:`~..mesh.TriangleMesh.is_planar`: a :class:`~..mesh.TriangleMesh`, and the
+  (:attr:`~.core.TriangleMesh.is_planar`: a :class:`~..mesh.TriangleMesh`, and the
   cells of a file, :func:`cells_kind`, whose plane the workpiece maps and writes back),
   else :data:`SURFACE`. An in-memory ``meshio.Mesh`` is handed back at its own
   coordinates, so it is planar only when those are the plane's (2D points or every z 0).
@@ -19,13 +19,15 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InvalidMeshError, OptionError
-from ..mesh import SurfaceMesh, TetMesh, TriangleMesh
+from .core import TriangleMesh
+from .surface import SurfaceMesh
+from .volume import TetMesh
 
-__all__ = ["KIND_NAMES", "PLANAR", "SURFACE", "TETS", "cells_kind", "is_surface", "is_tets",
-           "meshio_blocks", "mesh_kind"]
+__all__ = ["KIND_NAMES", "PLANAR", "SURFACE", "TETS", "cells_kind", "class_kind",
+           "foreign_package", "is_surface", "is_tets", "mesh_kind", "meshio_blocks"]
 
-#: the kinds' names (the ``name`` of each :class:`.base.CellKind`, and what ``meshopt info``
-#: prints as ``cell_kind``)
+#: the kinds' names (the ``name`` of each :class:`..cells.base.CellKind`, and what
+#: ``meshopt info`` prints as ``cell_kind``)
 PLANAR, SURFACE, TETS = "planar triangles", "surface triangles", "tetrahedra"
 KIND_NAMES = (PLANAR, SURFACE, TETS)
 
@@ -39,7 +41,7 @@ _PLURAL = {"quad": "quadrilaterals", "hexahedron": "hexahedra", "wedge": "wedges
 _SIMPLICES = ("tetra", "triangle", "line", "vertex")
 
 
-def _foreign(mesh) -> str | None:
+def foreign_package(mesh) -> str | None:
     """``"trimesh"``, ``"pymeshlab"`` or ``"meshio"`` for those packages' mesh classes
     (recognized by module, never imported here), else None."""
     package = type(mesh).__module__.split(".")[0]
@@ -64,13 +66,12 @@ def mesh_kind(mesh, what: str = "meshopt") -> str:
     InvalidMeshError
         A ``meshio.Mesh`` with cells no kind takes, or none (:func:`meshio_blocks`).
     """
-    if isinstance(mesh, TetMesh):
-        return TETS
-    if isinstance(mesh, SurfaceMesh):
-        return SURFACE
+    kind = class_kind(mesh)
+    if kind is not None:
+        return kind
     if isinstance(mesh, TriangleMesh):
         return PLANAR if mesh.is_planar else SURFACE
-    package = _foreign(mesh)
+    package = foreign_package(mesh)
     if package == "meshio":
         main, _ = meshio_blocks(mesh, what)
         return TETS if main == "tetra" else \
@@ -82,15 +83,23 @@ def mesh_kind(mesh, what: str = "meshopt") -> str:
                       f"{type(mesh).__module__}.{type(mesh).__name__}")
 
 
+def class_kind(mesh) -> str | None:
+    """The kind that one of our meshes has by its class alone: :data:`TETS` for a
+    :class:`~.volume.TetMesh`, :data:`SURFACE` for a :class:`~.surface.SurfaceMesh`, None
+    for anything else (triangles whose kind follows from their points, other objects)."""
+    return TETS if isinstance(mesh, TetMesh) else SURFACE if isinstance(mesh, SurfaceMesh) \
+        else None
+
+
 def is_tets(mesh) -> bool:
     """Whether ``mesh`` (one of ours) is a tetrahedral mesh."""
-    return isinstance(mesh, TetMesh)
+    return class_kind(mesh) == TETS
 
 
 def is_surface(mesh) -> bool:
-    """Whether ``mesh`` (one of ours) is a :class:`~..mesh.SurfaceMesh`, the object that
+    """Whether ``mesh`` (one of ours) is a :class:`~.surface.SurfaceMesh`, the object that
     makes triangles a surface in space whatever their points."""
-    return isinstance(mesh, SurfaceMesh)
+    return class_kind(mesh) == SURFACE
 
 
 def meshio_blocks(mesh, what: str) -> tuple[str, list]:
