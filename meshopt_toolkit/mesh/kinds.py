@@ -8,7 +8,7 @@ The rule, one for every mesh:
 - a :class:`~.surface.SurfaceMesh`, ``trimesh.Trimesh`` and ``pymeshlab.Mesh`` are
   :data:`SURFACE` (a surface in space by the caller's choice of object);
 - other triangles are :data:`PLANAR` when their points lie on one plane, any plane
-  (:attr:`~.core.TriangleMesh.is_planar`: a :class:`~..mesh.TriangleMesh`, and the
+  (:attr:`~.core.TriangleMesh.is_planar`: a :class:`~.core.TriangleMesh`, and the
   cells of a file, :func:`cells_kind`, whose plane the workpiece maps and writes back),
   else :data:`SURFACE`. An in-memory ``meshio.Mesh`` is handed back at its own
   coordinates, so it is planar only when those are the plane's (2D points or every z 0).

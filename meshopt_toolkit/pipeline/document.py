@@ -39,9 +39,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..mesh.kinds import PLANAR, SURFACE, TETS, cells_kind, is_surface, is_tets, mesh_kind
 from ..errors import FilterError
 from ..mesh import PlanarMesh, TetMesh, TriangleMesh
+from ..mesh.kinds import PLANAR, SURFACE, TETS, cells_kind, is_surface, is_tets, mesh_kind
 from .limits import DEFAULT_MAX_TRIANGLES
 from .meshset import add_custom, lost_extras, mesh_ids, read_custom
 
