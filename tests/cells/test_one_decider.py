@@ -1,7 +1,8 @@
 """The kind of a mesh is decided in one place (``mesh/kinds.py``): no other module of the
-package sniffs a mesh's class (``isinstance`` against the mesh classes, ``hasattr(mesh,
-"tets")``) or its plane (``.is_planar``), except the few named here with their reason; and
-the rule there is one for every object (a file's cells, our meshes, meshio)."""
+package sniffs a mesh's class (``isinstance`` against the mesh classes, ``hasattr`` or
+``getattr`` of ``tets``) or its plane (``.is_planar``), except the few named here with
+their reason; and the rule there is one for every object (a file's cells, our meshes,
+meshio)."""
 
 from __future__ import annotations
 
@@ -53,8 +54,8 @@ def sniffing_sites(source: str) -> list[int]:
             names = {_name(e) for e in (what.elts if isinstance(what, ast.Tuple) else [what])}
             if names & MESH_CLASSES:
                 lines.append(node.lineno)
-        elif isinstance(node, ast.Call) and _name(node.func) == "hasattr" and \
-                len(node.args) == 2 and isinstance(node.args[1], ast.Constant) and \
+        elif isinstance(node, ast.Call) and _name(node.func) in ("hasattr", "getattr") and \
+                len(node.args) >= 2 and isinstance(node.args[1], ast.Constant) and \
                 node.args[1].value in SNIFFED_ATTRIBUTES:
             lines.append(node.lineno)
         elif isinstance(node, ast.Attribute) and node.attr == "is_planar":
@@ -65,8 +66,8 @@ def sniffing_sites(source: str) -> list[int]:
 def test_the_sniffing_finder_sees_each_way_of_sniffing():
     code = ("a = isinstance(m, TetMesh)\nb = isinstance(m, (int, mesh.SurfaceMesh))\n"
             "c = hasattr(m, 'tets')\nd = m.is_planar\ne = isinstance(m, MeshEntry)\n"
-            "f = hasattr(m, 'refactorize')\n")
-    assert sniffing_sites(code) == [1, 2, 3, 4]
+            "f = hasattr(m, 'refactorize')\ng = getattr(m, 'tets', None)\n")
+    assert sniffing_sites(code) == [1, 2, 3, 4, 7]
 
 
 def test_only_the_allowed_modules_decide_a_mesh_s_kind():
