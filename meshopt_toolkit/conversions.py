@@ -201,12 +201,13 @@ def _meshio_view(m: "meshio.Mesh"):
     PlanarMesh when its points are 2D or every z is 0, else a SurfaceMesh; every point
     kept, in order."""
     from .io.cells import CellMesh
+    from .mesh.kinds import PLANAR, TETS, cells_kind, mesh_kind
 
     cells = CellMesh.from_meshio(m)
-    if any(block.type == "tetra" and len(block.data) for block in m.cells):
+    if cells_kind(cells) == TETS:
         return cells.to_tet_mesh()
-    mesh = cells.to_triangle_mesh()
-    return mesh if isinstance(mesh, PlanarMesh) else cells.to_surface_mesh()
+    mesh = cells.to_triangle_mesh()  # other cells refused in its words
+    return mesh if mesh_kind(m) == PLANAR else cells.to_surface_mesh()
 
 
 def _meshio_with_points(m: "meshio.Mesh", points: np.ndarray) -> "meshio.Mesh":

@@ -130,12 +130,9 @@ IN_SPACE = {"tetrahedra": (_tets, 200), "surfaces": (_surfaces, 10)}
 
 
 def _kind_in_space(source) -> str | None:
-    from .mesh import TetMesh
-    from .motion.surface_mesh_morph import is_surface
+    from .mesh.kinds import SURFACE, TETS, class_kind
 
-    if isinstance(source, TetMesh):
-        return "tetrahedra"
-    return "surfaces" if is_surface(source) else None
+    return {TETS: "tetrahedra", SURFACE: "surfaces"}.get(class_kind(source))
 
 
 def morph(

@@ -1,12 +1,9 @@
-"""Which cell kind a mesh is: the one place where it is decided (:func:`kind_of`).
-
-Our meshes decide by their class (:class:`..mesh.TetMesh`, :class:`..mesh.SurfaceMesh`,
-:class:`..mesh.TriangleMesh` and its :class:`..mesh.PlanarMesh`: planar in its plane's
-coordinates, a surface when its points are on no plane); ``trimesh.Trimesh`` and
-``pymeshlab.Mesh`` are surfaces in space; a ``meshio.Mesh`` by its cells (tetrahedra, with
-any triangles, lines and vertices beside them, or triangles, with lines and vertices;
-triangles are planar when the points are 2D or every z is 0). The foreign packages are
-recognized by the object's module, never imported here.
+"""Which cell kind a mesh is, as a :class:`.base.CellKind` (:func:`kind_of`), with its points
+and cells (:func:`cells_of`). The kind is decided by :func:`..mesh.kinds.mesh_kind` (the rule
+is there); here each name becomes its kind and the mesh its arrays: a planar
+:class:`..mesh.TriangleMesh` in its plane's coordinates, a ``meshio.Mesh`` by its main
+cells (tetrahedra with any triangles, lines and vertices beside them, or triangles with
+lines and vertices).
 """
 
 from __future__ import annotations
@@ -14,8 +11,9 @@ from __future__ import annotations
 import numpy as np
 
 from .._typing import FloatArray, IntArray
-from ..errors import InvalidMeshError, OptionError
-from ..mesh import SurfaceMesh, TetMesh, TriangleMesh
+from ..mesh.kinds import PLANAR as PLANAR_NAME
+from ..mesh.kinds import TETS as TETS_NAME
+from ..mesh.kinds import class_kind, foreign_package, mesh_kind, meshio_blocks
 from .base import CellKind
 from .planar import PLANAR
 from .surface import SURFACE
@@ -26,34 +24,25 @@ __all__ = ["KINDS", "cells_of", "kind_of", "metric_for"]
 #: every cell kind, by name
 KINDS: dict[str, CellKind] = {k.name: k for k in (PLANAR, SURFACE, TETRAHEDRA)}
 
-#: meshio cell types beside the cells of a kind (boundary elements, tags)
-_BESIDE = {"tetra": ("triangle", "line", "vertex"), "triangle": ("line", "vertex")}
-#: plural names of the meshio cell types no kind takes
-_PLURAL = {"quad": "quadrilaterals", "hexahedron": "hexahedra", "wedge": "wedges (prisms)",
-           "pyramid": "pyramids", "polygon": "polygons", "line": "only lines",
-           "vertex": "only vertices"}
 
-
-def _package(mesh) -> str:
-    return type(mesh).__module__.split(".")[0]
-
-
-def _meshio_cells(mesh, what: str) -> tuple[CellKind, FloatArray, IntArray]:
-    blocks = [(b.type, np.asarray(b.data)) for b in mesh.cells if len(b.data)]
-    types = {t for t, _ in blocks}
-    main = "tetra" if "tetra" in types else "triangle" if "triangle" in types else None
-    other = sorted(types - ({main, *_BESIDE[main]} if main else set()))
-    if main is None or other:
-        names = ", ".join(_PLURAL.get(t, f"{t} cells") for t in (other or sorted(types)))
-        raise InvalidMeshError(f"the mesh has {names or 'no cells'}; {what} supports "
-                               "triangles and tetrahedra")
-    cells = np.concatenate([c for t, c in blocks if t == main])
-    points = np.asarray(mesh.points, dtype=float)
-    if main == "tetra":
-        return TETRAHEDRA, points, cells
-    if points.shape[1] == 2 or not np.any(points[:, 2]):
-        return PLANAR, points[:, :2], cells
-    return SURFACE, points, cells
+def _arrays(mesh, name: str, what: str) -> tuple[FloatArray, IntArray]:
+    """The points and cells of ``mesh``, of kind ``name``."""
+    if class_kind(mesh) is not None:
+        return mesh.points, (mesh.tets if name == TETS_NAME else mesh.triangles)
+    package = foreign_package(mesh)
+    if package == "trimesh":
+        return np.asarray(mesh.vertices, dtype=float), np.asarray(mesh.faces)
+    if package == "pymeshlab":
+        return np.asarray(mesh.vertex_matrix(), dtype=float), np.asarray(mesh.face_matrix())
+    if package == "meshio":
+        main, blocks = meshio_blocks(mesh, what)
+        points = np.asarray(mesh.points, dtype=float)
+        cells = np.concatenate([c for t, c in blocks if t == main])
+        return (points[:, :2] if name == PLANAR_NAME else points), cells
+    if name == PLANAR_NAME:  # a TriangleMesh on a plane: in its plane's coordinates
+        planar = mesh.as_planar()
+        return planar.points, planar.triangles
+    return mesh.points, mesh.triangles
 
 
 def cells_of(mesh, what: str = "meshopt") -> tuple[CellKind, FloatArray, IntArray]:
@@ -74,33 +63,14 @@ def cells_of(mesh, what: str = "meshopt") -> tuple[CellKind, FloatArray, IntArra
         A ``meshio.Mesh`` with cells no kind takes (quadrilaterals, hexahedra, …) or with
         none.
     """
-    if isinstance(mesh, TetMesh):
-        return TETRAHEDRA, mesh.points, mesh.tets
-    if isinstance(mesh, SurfaceMesh):
-        return SURFACE, mesh.points, mesh.triangles
-    if isinstance(mesh, TriangleMesh):
-        try:
-            planar = mesh.as_planar()
-        except InvalidMeshError:  # points off every plane: a surface in space
-            return SURFACE, mesh.points, mesh.triangles
-        return PLANAR, planar.points, planar.triangles
-    package = _package(mesh)
-    if package == "trimesh" and type(mesh).__name__ == "Trimesh":
-        return SURFACE, np.asarray(mesh.vertices, dtype=float), np.asarray(mesh.faces)
-    if package == "pymeshlab" and type(mesh).__name__ == "Mesh":
-        points = np.asarray(mesh.vertex_matrix(), dtype=float)
-        return SURFACE, points, np.asarray(mesh.face_matrix())
-    if package == "meshio" and type(mesh).__name__ == "Mesh":
-        return _meshio_cells(mesh, what)
-    raise OptionError(f"{what} takes a PlanarMesh, TriangleMesh, SurfaceMesh, TetMesh, "
-                      f"trimesh.Trimesh, pymeshlab.Mesh or meshio.Mesh, got "
-                      f"{type(mesh).__module__}.{type(mesh).__name__}")
+    name = mesh_kind(mesh, what)
+    return (KINDS[name], *_arrays(mesh, name, what))
 
 
 def kind_of(mesh, what: str = "meshopt") -> CellKind:
     """The :class:`.base.CellKind` of ``mesh`` (:func:`cells_of` says which objects are
     meshes and what it raises)."""
-    return cells_of(mesh, what)[0]
+    return KINDS[mesh_kind(mesh, what)]
 
 
 def metric_for(mesh):

@@ -313,10 +313,11 @@ def load_workpiece(src: Path, what: str, *, unit_size: bool = True, cells=None):
     """
     from ..errors import InvalidMeshError
     from ..io.workpiece import Workpiece
-    from ._info_cells import cell_kind, other_cells
+    from ..mesh.kinds import cells_kind
+    from ._info_cells import other_cells
 
     cells = read_cells(src) if cells is None else cells
-    kind = cell_kind(cells)
+    kind = cells_kind(cells)
     if kind in _NOT_PLANAR and not other_cells(cells):  # other cell types: refused below
         n = sum(len(c) for t, c in cells.cells if t == "tetra")
         raise InvalidMeshError(f"{src}: {what} supports planar triangle meshes; this is "

@@ -3,10 +3,10 @@
 :func:`info_kind` sorts a file's cells: cells other than tetrahedra, triangles, lines
 and points (quads, hexahedra, wedges, pyramids, polygons, higher order) make it ``"mixed
 cells"``, described by counts per cell type, the bounding box and the quality of the
-types that have one here (tetrahedra, triangles); else (:func:`cell_kind`, which the
-operations use too) any tetrahedron makes it ``"tetrahedra"``; triangles whose points
-are not on one plane are ``"surface triangles"``; the rest (``"planar triangles"``)
-takes the planar path of :mod:`.info`.
+types that have one here (tetrahedra, triangles); else
+(:func:`~..mesh.kinds.cells_kind`, which the operations use too) any tetrahedron makes
+it ``"tetrahedra"``; triangles whose points are not on one plane are ``"surface
+triangles"``; the rest (``"planar triangles"``) takes the planar path of :mod:`.info`.
 The dicts here have the same ``path``/``problems`` keys as the planar one, and print the
 same way.
 """
@@ -17,32 +17,11 @@ import math
 
 import numpy as np
 
-PLANAR = "planar triangles"
-SURFACE = "surface triangles"
-TETS = "tetrahedra"
+from ..mesh.kinds import PLANAR, SURFACE, TETS, cells_kind
+
 MIXED = "mixed cells"
 #: the cell types of the kinds above; any other makes a file's kind MIXED
 SIMPLICES = ("tetra", "triangle", "line", "vertex")
-
-
-def cell_kind(cm) -> str:
-    """``"tetrahedra"``, ``"surface triangles"`` or ``"planar triangles"``: the mesh an
-    operation reads from a cell mesh (planar: 2D points, z ≡ 0, points on any one plane,
-    or no triangle at all; other cell types are left to that reading to refuse)."""
-    if any(t == "tetra" and len(c) for t, c in cm.cells):
-        return TETS
-    pts = cm.points
-    if pts.shape[1] == 2 or not np.any(pts[:, 2]):
-        return PLANAR
-    tris = [c for t, c in cm.cells if t == "triangle" and len(c)]
-    if not tris or other_cells(cm):
-        return PLANAR  # the planar path says what is wrong
-    from ..orientation import plane_of
-
-    tri = np.concatenate(tris)
-    used = np.unique(tri)
-    emb, _ = plane_of(pts[used], tri if len(used) == len(pts) else None)
-    return PLANAR if emb is not None else SURFACE
 
 
 def other_cells(cm) -> set[str]:
@@ -52,8 +31,8 @@ def other_cells(cm) -> set[str]:
 
 def info_kind(cm) -> str:
     """What ``meshopt info`` describes: :data:`MIXED` where :func:`other_cells` has a
-    type, else :func:`cell_kind`."""
-    return MIXED if other_cells(cm) else cell_kind(cm)
+    type, else :func:`~..mesh.kinds.cells_kind`."""
+    return MIXED if other_cells(cm) else cells_kind(cm)
 
 
 def read_kind(path):
@@ -66,7 +45,7 @@ def read_kind(path):
     if Path(path).suffix.lower() not in CELL_READERS:
         return PLANAR, None
     cells = load_cells(path)
-    return cell_kind(cells), cells
+    return cells_kind(cells), cells
 
 
 def _float(x) -> float | None:

@@ -56,7 +56,7 @@ KINDS = {
 
 def run_in_space(args: argparse.Namespace, cells, kind: str) -> int:
     """Move the mesh of ``cells`` (read from ``args.mesh``; ``kind`` its
-    :func:`~._info_cells.cell_kind`, a key of :data:`KINDS`) as ``args`` ask, and write it.
+    :func:`~..mesh.kinds.cells_kind`, a key of :data:`KINDS`) as ``args`` ask, and write it.
 
     The output checks (:func:`~._common.check_output_target`) are done by the caller.
     """

@@ -56,6 +56,7 @@ def mesh_info(path: str | Path, merge_tolerance: float | None = None) -> dict:
     from ..io import load
     from ..io.cells import triangle_mesh
     from ..mesh import check_mesh
+    from ..mesh.kinds import mesh_kind
     from ._info_cells import PLANAR, cells_info, info_kind, read_kind
 
     kind, cells = read_kind(path)
@@ -72,7 +73,7 @@ def mesh_info(path: str | Path, merge_tolerance: float | None = None) -> dict:
     # the checks are exact and scale-free; the quality is measured at unit size (an
     # exact power of two: no overflow or underflow at 1e±300) and its areas scaled back
     scale = _unit_scale(mesh)
-    if mesh.is_planar:
+    if mesh_kind(mesh) == PLANAR:
         # the summary's smallest signed area tells the check whether it may skip its own
         # area pass (all areas > 0: nothing to re-orient, nothing inverted)
         pm = mesh.as_planar()

@@ -168,7 +168,7 @@ def _run_tets(args: argparse.Namespace, cells) -> int:
     from ..io import load_cells, save_cells
     from ..operations import morph
     from ..progress import ProgressBar
-    from ._info_cells import TETS, cell_kind
+    from ..mesh.kinds import TETS, cells_kind
 
     src_path, tgt_path, outdir = Path(args.source), Path(args.target), Path(args.output)
     if args.metric != "distortion" or args.beta is not None or args.no_normalize:
@@ -178,7 +178,7 @@ def _run_tets(args: argparse.Namespace, cells) -> int:
     names = frame_names(args.frames, args.format, src_path)
     files = names + ["quality.csv", "summary.json"]
     target_cells = load_cells(tgt_path)
-    if cell_kind(target_cells) != TETS:
+    if cells_kind(target_cells) != TETS:
         raise OptionError(f"{tgt_path}: has no tetrahedra, {src_path} has (a tetrahedral "
                           "source needs a tetrahedral target)")
     source = cells.to_tet_mesh("morph").require_admissible()

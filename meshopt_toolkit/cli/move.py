@@ -105,14 +105,14 @@ def run(args: argparse.Namespace) -> int:
     from ..motion.handles3d import handles_in_space
     from ..motion.move import move
     from ..progress import ProgressBar
-    from ._info_cells import SURFACE, TETS, cell_kind
+    from ..mesh.kinds import SURFACE, TETS, cells_kind
     from ._move_space import run_in_space
 
     _check_numbers(args)
     src, out = checked_paths(args)
     frames = args.frames
     cells = read_cells(src)
-    kind = cell_kind(cells)
+    kind = cells_kind(cells)
     if kind in (TETS, SURFACE):  # handles in x, y, z; the file written back, new points
         return run_in_space(args, cells, kind)
     # the plane's coordinates at unit size; every block, tag and datum written back

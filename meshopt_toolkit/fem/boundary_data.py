@@ -17,6 +17,7 @@ import numpy as np
 
 from .._typing import FloatArray, IntArray
 from ..errors import InvalidMeshError, MeshoptError
+from ..mesh.kinds import is_tets
 
 __all__ = ["BoundaryData", "group_edges", "group_facets", "group_key", "neumann_load",
            "neumann_shape_derivative"]
@@ -49,8 +50,8 @@ def group_edges(mesh, group) -> IntArray:
 
 def group_facets(mesh, group) -> IntArray:
     """The boundary facets of a physical group: its line elements ``(E, 2)`` on a planar
-    mesh, its triangles ``(F, 3)`` on a tet mesh (a ``TetMesh``, which has ``tets``)."""
-    if not hasattr(mesh, "tets"):
+    mesh, its triangles ``(F, 3)`` on a tet mesh."""
+    if not is_tets(mesh):
         return group_edges(mesh, group)
     key = group_key(group)
     if isinstance(key, str):

@@ -91,19 +91,20 @@ class PrescribedMotion(Filter):
         """Move a tet mesh or a triangle surface in 3D; its file's cells and data stay."""
         import numpy as np
 
-        from meshopt_toolkit.mesh import SurfaceMesh, TetMesh, TriangleMesh
+        from meshopt_toolkit.mesh import SurfaceMesh, TriangleMesh
+        from meshopt_toolkit.mesh.kinds import is_tets
         from meshopt_toolkit.motion.handles3d import handles_in_space
         from meshopt_toolkit.motion.move import move
 
         mesh = entry.mesh
-        if isinstance(mesh, TetMesh):
+        if is_tets(mesh):
             solid = mesh.require_admissible()
         else:
             solid = SurfaceMesh(mesh.points, mesh.triangles, **mesh._tag_kwargs())
         handles, positions = handles_in_space(solid, **given)
         result = move(solid, handles, positions, steps=steps, weight=weight)
         points = np.array(result.mesh.points, dtype=float)
-        if isinstance(mesh, TetMesh):
+        if is_tets(mesh):
             moved = mesh.with_points(points)
         else:
             moved = TriangleMesh(points, mesh.triangles, **mesh._tag_kwargs())

@@ -36,10 +36,10 @@ class ShapeQualityPerFace(Filter):
     )
 
     def apply(self, document, *, metric: str = METRICS[0]) -> dict:
-        from meshopt_toolkit.mesh import TetMesh
+        from meshopt_toolkit.mesh.kinds import is_tets
 
         entry = document.current_entry
-        required = isinstance(entry.mesh, TetMesh)  # refused with one line
+        required = is_tets(entry.mesh)  # refused with one line
         wp = entry.workpiece(self.name, unit_size=False, required=required)
         if wp is None:  # a surface in 3D
             return _in_space(entry, metric)

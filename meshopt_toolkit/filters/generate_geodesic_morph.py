@@ -136,12 +136,13 @@ class GenerateGeodesicMorph(Filter):
         """Morph two poses of a triangle surface in 3D; each frame keeps the source file's
         blocks, tags and data (``source_cells``) at its points."""
         from meshopt_toolkit.kernels.surface import aspect_ratios
-        from meshopt_toolkit.mesh import SurfaceMesh, TetMesh, TriangleMesh
+        from meshopt_toolkit.mesh import SurfaceMesh, TriangleMesh
+        from meshopt_toolkit.mesh.kinds import is_tets
         from meshopt_toolkit.operations import morph
         from meshopt_toolkit.pipeline.document import MeshEntry
 
         for entry, what in ((source, "source"), (target, "target")):
-            if isinstance(entry.mesh, TetMesh):
+            if is_tets(entry.mesh):
                 raise FilterError(f"{self.name}: the {what} needs a planar mesh or a surface "
                                   f"in 3D; {entry.name} has {entry.mesh.n_tets} tetrahedra")
         if metric != METRICS[0] or penalty or not normalize or method != METHODS[0]:

@@ -51,16 +51,18 @@ class LoadMesh(Filter):
         if not document.dry_run:
             return None  # measured after the step
         from meshopt_toolkit.pipeline.budget import stats_of
+        from meshopt_toolkit.mesh.kinds import is_tets
         from meshopt_toolkit.pipeline.document import load_entry
 
         return stats_of(load_entry(p).mesh)  # triangles, or tetrahedra
 
     def apply(self, document, *, path: str) -> dict:
+        from meshopt_toolkit.mesh.kinds import is_tets
         from meshopt_toolkit.pipeline.document import load_entry
 
         p = self._path(document, path)
         entry = document.add(load_entry(p))  # with every block, tag and datum of the file
         mesh = entry.mesh
-        cells = {"n_tets": mesh.n_tets} if hasattr(mesh, "tets") else \
+        cells = {"n_tets": mesh.n_tets} if is_tets(mesh) else \
             {"n_triangles": mesh.n_triangles}
         return {"loaded": str(p), "n_vertices": mesh.n_vertices, **cells}

@@ -24,7 +24,8 @@ from ..cores import thread_budget
 from ..errors import InvalidMeshError, OptionError
 from ..kernels.admissibility import BoundaryCheck, area_problem, target_loop_problem
 from ..kernels.triangles import aspect_ratios, inverse_shape_quality, signed_areas
-from ..mesh import PlanarMesh, SurfaceMesh, TetMesh, require_admissible
+from ..mesh import PlanarMesh, require_admissible
+from ..mesh.kinds import SURFACE, TETS, class_kind
 from ..riemannian.discrete_geodesic import discrete_geodesic
 from ..riemannian.path_options import LevenbergMarquardtOptions
 from ..scaling import UnitScale, unit_scale
@@ -206,13 +207,14 @@ def _check_options(frames, steps, relax_iter, quality_rounds, max_splits, weight
         raise OptionError(f"weight must be > 0, got {weight}")
 
 
-#: the solver of each other kind of mesh (a PlanarMesh is moved by :func:`move` itself)
-_SOLVERS: dict[type, Callable] = {TetMesh: move_tet_mesh, SurfaceMesh: move_surface_mesh}
+#: the solver of each kind of mesh that has one by its class
+#: (:func:`~..mesh.kinds.class_kind`; a PlanarMesh is moved by :func:`move` itself)
+_SOLVERS: dict[str, Callable] = {TETS: move_tet_mesh, SURFACE: move_surface_mesh}
 
 
 def _solver(mesh) -> Callable | None:
-    """The solver of ``mesh``'s type."""
-    return _SOLVERS.get(type(mesh))
+    """The solver of ``mesh``'s kind, None for a planar one."""
+    return _SOLVERS.get(class_kind(mesh))
 
 
 def move(

@@ -12,18 +12,14 @@ import numpy as np
 
 from ..errors import InvalidMeshError
 from ..mesh import SurfaceMesh
+from ..mesh.kinds import is_surface
 from ..results import PathIteration
 from ..scaling import unit_scale
 from .handles3d import SelfIntersectionGuard
 from .surface_mesh_move import surface_with_points
 from .surface_morph import BENDING, WEIGHT, SurfaceMorph, morph_surface
 
-__all__ = ["SurfaceMeshMorph", "is_surface", "morph_surface_mesh"]
-
-
-def is_surface(mesh) -> bool:
-    """Whether ``mesh`` is a triangle surface :func:`morph_surface_mesh` takes."""
-    return isinstance(mesh, SurfaceMesh)
+__all__ = ["SurfaceMeshMorph", "morph_surface_mesh"]
 
 
 @dataclass

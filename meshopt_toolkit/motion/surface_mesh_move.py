@@ -16,6 +16,7 @@ import numpy as np
 from .._typing import FloatArray
 from ..errors import InvalidMeshError
 from ..mesh import SurfaceMesh
+from ..mesh.kinds import is_surface
 from ..scaling import unit_scale
 from .handles3d import SolvedVertices, check_handles, distinct_handles
 from .pinned_cells import surface_targets_problem
@@ -88,7 +89,7 @@ def move_surface_mesh(mesh, handles, targets, *, frames: int | None = None, step
         No fold-free increment of the handles' path.
     """
     del relax_iter, quality_rounds  # options of the other solvers
-    if not isinstance(mesh, SurfaceMesh):
+    if not is_surface(mesh):
         raise InvalidMeshError(f"cannot move a {type(mesh).__name__} as a surface")
     surface = mesh
     if progress is not None:

@@ -32,6 +32,7 @@ from ..cells.registry import cells_of
 from ..errors import ExpressionError, InvalidMeshError, ReadError
 from ..expressions import parse_expression, quoted
 from ..mesh import PlanarMesh, SurfaceMesh, TetMesh
+from ..mesh.kinds import is_surface
 
 _COMPARE = {ast.Lt: np.less, ast.LtE: np.less_equal, ast.Gt: np.greater,
             ast.GtE: np.greater_equal}
@@ -200,7 +201,7 @@ def group_vertices(mesh: PlanarMesh | TetMesh, group: str, option: str = "--grou
     text = str(group).strip()
     key: int | str = int(text) if text.isdigit() else text
     try:
-        if isinstance(mesh, SurfaceMesh):
+        if is_surface(mesh):
             return _surface_tagged(mesh, key)
         return mesh.tagged_vertices(key)
     except InvalidMeshError:
@@ -278,7 +279,7 @@ def targets_from_map(mesh: PlanarMesh | TetMesh, mapping: str, where: str | None
     if dim == 2 and any(f.uses_z for f in fs):
         raise ExpressionError(f"--map {quoted(mapping)}: z is not defined for a planar mesh")
     boundary = _boundary(mesh)
-    surface = isinstance(mesh, SurfaceMesh)
+    surface = is_surface(mesh)
     if vertices is not None:
         candidates = np.unique(np.asarray(vertices, np.int64))
     else:  # a surface's: every vertex (a closed one has no boundary)

@@ -30,6 +30,7 @@ from ..errors import InvalidMeshError, NotAdmissibleError, OptionError
 from ..kernels.intersections3d import self_intersections
 from ..kernels.tetrahedra import mean_ratios, signed_volumes
 from ..mesh import TetMesh
+from ..mesh.kinds import is_tets
 from ..riemannian.levenberg_marquardt import levenberg_marquardt
 from ..riemannian.path_options import LevenbergMarquardtOptions
 from ..results import PathFrames
@@ -162,7 +163,7 @@ class TetMorphResult(PathFrames):
 
 
 def _check_pair(source, target) -> None:
-    if not isinstance(source, TetMesh) or not isinstance(target, TetMesh):
+    if not (is_tets(source) and is_tets(target)):
         raise InvalidMeshError("a tet morph needs two tetrahedral meshes, got "
                                f"{type(source).__name__} and {type(target).__name__}")
     if source.n_vertices != target.n_vertices or not np.array_equal(source.tets, target.tets):

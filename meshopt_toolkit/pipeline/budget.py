@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import FilterError
+from ..mesh.kinds import is_tets
 
 __all__ = ["MeshStats", "stats_of", "stats_of_arrays", "estimate_meshlab", "check_budget"]
 
@@ -71,10 +72,9 @@ def stats_of(mesh) -> MeshStats:
     """:class:`MeshStats` of a :class:`~meshopt_toolkit.mesh.TriangleMesh`; of a
     :class:`~meshopt_toolkit.mesh.TetMesh`, its tetrahedra counted as the budget's cells
     and its boundary's area."""
-    tets = getattr(mesh, "tets", None)
-    if tets is not None:
+    if is_tets(mesh):
         return replace(stats_of_arrays(mesh.points, mesh.boundary_faces),
-                       n_triangles=int(len(tets)))
+                       n_triangles=int(len(mesh.tets)))
     return stats_of_arrays(mesh.points, mesh.triangles)
 
 

@@ -40,7 +40,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..errors import FilterError
-from ..mesh import PlanarMesh, SurfaceMesh, TetMesh, TriangleMesh
+from ..mesh import PlanarMesh, TetMesh, TriangleMesh
+from ..mesh.kinds import PLANAR, SURFACE, TETS, cells_kind, is_surface, is_tets, mesh_kind
 from .limits import DEFAULT_MAX_TRIANGLES
 from .meshset import add_custom, lost_extras, mesh_ids, read_custom
 
@@ -58,7 +59,6 @@ _SPECIAL = ("quality", "color", "selected")
 #: the kinds of current mesh a step may take (:attr:`~.filter.Filter.kinds`): planar
 #: triangles (on any one plane), a triangle surface in 3D, tetrahedra (the names of the
 #: cell kinds of ``meshopt info``)
-PLANAR, SURFACE, TETS = "planar triangles", "surface triangles", "tetrahedra"
 MESH_KINDS = (PLANAR, SURFACE, TETS)
 #: each kind of mesh in words
 KIND_NAMES = {PLANAR: "a planar triangle mesh", SURFACE: "a triangle surface in 3D",
@@ -66,12 +66,10 @@ KIND_NAMES = {PLANAR: "a planar triangle mesh", SURFACE: "a triangle surface in 
 
 
 def kind_of(mesh) -> str:
-    """The kind of a document's mesh (:data:`MESH_KINDS`): :data:`TETS` for a
-    :class:`TetMesh`, :data:`PLANAR` for triangles on one plane (any plane: what
-    :meth:`MeshEntry.workpiece` takes), else :data:`SURFACE`."""
-    if isinstance(mesh, TetMesh):
-        return TETS
-    return PLANAR if mesh.is_planar else SURFACE
+    """The kind of a document's mesh (:data:`MESH_KINDS`), as
+    :func:`~meshopt_toolkit.mesh.kinds.mesh_kind` decides it: :data:`PLANAR` for
+    triangles on one plane (any plane: what :meth:`MeshEntry.workpiece` takes)."""
+    return mesh_kind(mesh, "a pipeline")
 
 
 @dataclass
@@ -113,7 +111,7 @@ class MeshEntry:
         cells = self.source_cells
         if cells is None or len(cells.points) != self.mesh.n_vertices:
             return False
-        kind = "tetra" if isinstance(self.mesh, TetMesh) else "triangle"
+        kind = "tetra" if is_tets(self.mesh) else "triangle"
         mine = self.mesh.tets if kind == "tetra" else self.mesh.triangles
         blocks = [c for t, c in cells.cells if t == kind]
         return bool(blocks) and np.array_equal(np.concatenate(blocks), mine)
@@ -145,7 +143,7 @@ class MeshEntry:
         from ..errors import InvalidMeshError
         from ..io.workpiece import Workpiece
 
-        if isinstance(self.mesh, TetMesh):
+        if is_tets(self.mesh):
             if not required:
                 return None
             raise FilterError(f"{what} needs a planar mesh; {self.name} has "
@@ -195,18 +193,18 @@ class MeshEntry:
 
 def _n_cells(mesh) -> int:
     """Triangles of a triangle mesh, tetrahedra of a tet mesh."""
-    return mesh.n_tets if isinstance(mesh, TetMesh) else mesh.n_triangles
+    return mesh.n_tets if is_tets(mesh) else mesh.n_triangles
 
 
 def _as_best(mesh):
     """A PlanarMesh where z drops exactly; other planes stay in file coordinates (the
     planar filters see them through :meth:`MeshEntry.workpiece`); a SurfaceMesh as its
     TriangleMesh, a TetMesh as it is."""
-    if isinstance(mesh, TetMesh):
+    if is_tets(mesh):
         return mesh
-    if isinstance(mesh, SurfaceMesh):
+    if is_surface(mesh):
         mesh = mesh.as_triangle_mesh()
-    return mesh.as_planar() if mesh.in_xy_plane and not isinstance(mesh, PlanarMesh) else mesh
+    return mesh.as_planar() if mesh.in_xy_plane else mesh
 
 
 def _same_points(a: np.ndarray, b: np.ndarray) -> bool:
@@ -232,13 +230,13 @@ def load_entry(path) -> MeshEntry:
 
     cells = load_cells(path)
     name = Path(path).stem
-    if any(t == "tetra" and len(c) for t, c in cells.cells):
+    if cells_kind(cells) == TETS:
         try:
             return MeshEntry(cells.to_tet_mesh("a pipeline"), name=name, source_cells=cells)
         except InvalidMeshError as exc:
             raise ReadError(str(exc)) from exc
     entry = MeshEntry(_as_best(triangle_mesh(cells)), name=name)
-    if entry.mesh.is_planar:
+    if kind_of(entry.mesh) == PLANAR:
         entry.set_workpiece(Workpiece.from_cells(cells, unit_size=False))
     else:  # a surface in 3D: its file's blocks, tags and data kept beside it
         entry.source_cells = cells
@@ -254,7 +252,7 @@ def entry_cells(entry: MeshEntry) -> tuple[CellMesh, tuple[str, ...]]:
     wp = entry.source_workpiece
     if entry.keeps_source_cells:  # a mesh in space: the file's cells at its points
         cells = replace(entry.source_cells, points=np.array(entry.mesh.points, dtype=float))
-    elif isinstance(entry.mesh, TetMesh):
+    elif is_tets(entry.mesh):
         cells = CellMesh.from_tet_mesh(entry.mesh)
     elif wp is not None and np.array_equal(wp.mesh.triangles, entry.mesh.triangles):
         # the file's cells at the mesh's points (wherever a MeshLab step put them)
@@ -380,7 +378,7 @@ class Document:
         """Raise FilterError (one line) when a mesh of the document is a tet mesh, which
         pymeshlab cannot hold."""
         for e in self.entries:
-            if isinstance(e.mesh, TetMesh):
+            if is_tets(e.mesh):
                 raise FilterError(f"MeshLab filters work on triangles; {e.name} has "
                                   f"{e.mesh.n_tets:,} tetrahedra, which pymeshlab cannot hold")
 
