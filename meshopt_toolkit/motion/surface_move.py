@@ -127,8 +127,7 @@ class SurfaceMoveResult:
                 "factorizations": self.factorizations, "polished vertices": self.polished}
 
     def scaled_up(self, scale: UnitScale) -> SurfaceMoveResult:
-        """This motion of the surface at unit size, at the user's scale (points, frames,
-        the handle error; the rest is scale-free)."""
+        """This unit-size motion at the user's scale (the rest is scale-free)."""
         return replace(self, points=scale.up(self.points),
                        frames=[scale.up(F) for F in self.frames],
                        handle_error=float(scale.up(self.handle_error)))

@@ -26,6 +26,7 @@ import numpy as np
 from ..errors import OptionError
 from ..expressions import DEFAULT_RHS
 from ..fem.boundary_data import group_facets
+from ..mesh.kinds import is_tets
 
 __all__ = ["OBJECTIVE_REGISTRY", "ObjectiveEntry", "make_objective", "register_objective"]
 
@@ -56,7 +57,7 @@ def register_objective(name: str, dims: tuple[int, ...], description: str):
 
 def _arrays(mesh) -> tuple[np.ndarray, np.ndarray]:
     """Points and cells: a ``TetMesh``'s tets or a planar mesh's triangles."""
-    cells = mesh.tets if hasattr(mesh, "tets") else mesh.triangles
+    cells = mesh.tets if is_tets(mesh) else mesh.triangles
     return np.asarray(mesh.points, dtype=float), np.asarray(cells, dtype=np.int64)
 
 
@@ -79,7 +80,7 @@ def make_objective(name: str, mesh, **parameters):
 
 
 def _poisson(mesh, rhs, dirichlet, neumann, tracking, solver):
-    if not hasattr(mesh, "tets"):
+    if not is_tets(mesh):
         from ..fem.poisson import PoissonObjective
 
         bc = {}

@@ -36,7 +36,6 @@ ALLOWED = {
     "io/workpiece.py": (1, "an assert on the plane view's type"),
     "penalties/penalty.py": (1, "the argument's type (TypeError)"),
     "motion/scalar_morph.py": (1, "the arguments' type (InvalidMeshError)"),
-    "shape/objectives.py": (2, "tets or triangles: to be moved onto mesh.kinds.is_tets"),
 }
 
 
