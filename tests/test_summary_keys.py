@@ -108,6 +108,12 @@ def test_one_key_per_concept_across_cell_kinds():
     morphs = [f().summary() for f in (_morph_planar, _morph_tet, _morph_surface)]
     for key in ("initial_path", "strain_bound", "gradient_norm", "iterations", "seconds"):
         assert all(key in s for s in morphs), key
+    # a per-frame list is spelled ``<measure>_per_frame``
+    summaries = [r.summary() for r in (planar, tet, surface)] + morphs
+    assert not [k for s in summaries for k in s if k.startswith("frames_")]
+    assert "min_aspect_ratio_per_frame" in planar.summary()
+    assert "min_mean_ratio_per_frame" in tet.summary()
+    assert "worst_relative_quality_per_frame" in morphs[2]
 
 
 def _filter_runs(tmp_path):
