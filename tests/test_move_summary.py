@@ -59,7 +59,7 @@ def test_a_surface_move_of_handles_only_reports_its_true_worst_triangle():
     result = mt.move(SurfaceMesh(ICO_V, ICO_F), ALL, target)
     worst = float((_heron_aspect(target, ICO_F) / _heron_aspect(ICO_V, ICO_F)).min())
     assert worst < 0.01
-    assert result.summary()["worst relative quality"] == pytest.approx(worst, rel=1e-9)
+    assert result.summary()["worst_relative_quality"] == pytest.approx(worst, rel=1e-9)
 
 
 def test_the_cli_line_is_the_library_summary(tmp_path, capsys):
@@ -69,7 +69,7 @@ def test_the_cli_line_is_the_library_summary(tmp_path, capsys):
     line = capsys.readouterr().out
     summary = mt.move(SurfaceMesh(ICO_V, ICO_F), ALL, ICO_V * [1.0, 1.0, 0.001]).summary()
     assert f"folds {summary['folds']}," in line
-    assert f"worst relative quality {summary['worst relative quality']:.4f}" in line
+    assert f"worst relative quality {summary['worst_relative_quality']:.4f}" in line
     assert float(re.search(r"worst relative quality ([0-9.]+)", line).group(1)) < 0.01
 
 

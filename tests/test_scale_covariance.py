@@ -110,7 +110,7 @@ def _planar_move(scale: float):
 
 
 MOVES = {"tets": (_tet_move, "min_mean_ratio"),
-         "surface": (_surface_move, "worst relative quality"),
+         "surface": (_surface_move, "worst_relative_quality"),
          "planar": (_planar_move, "min_aspect_ratio")}
 UNIT_MOVES = {name: move(1.0) for name, (move, _) in MOVES.items()}
 
@@ -180,7 +180,7 @@ def _planar_morph(scale: float):
 
 
 MORPHS = {"tets": (_tet_morph, "min_mean_ratio"),
-          "surface": (_surface_morph, "worst relative quality"),
+          "surface": (_surface_morph, "worst_relative_quality"),
           "planar": (_planar_morph, "min_aspect_ratio")}
 UNIT_MORPHS = {name: morph(1.0) for name, (morph, _) in MORPHS.items()}
 

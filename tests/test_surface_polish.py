@@ -158,7 +158,7 @@ def test_polish_raises_a_twisted_patch_and_move_surface_reports_it():
     targets = P[boundary]
     plain = move_surface(V, F, boundary, targets, steps=4, polish=0)
     polished = move_surface(V, F, boundary, targets, steps=4)
-    assert plain.polished == 0 and plain.summary()["polished vertices"] == 0
+    assert plain.polished == 0 and plain.summary()["polished_vertices"] == 0
     assert polished.worst_quality >= plain.worst_quality and polished.folds == 0
     assert np.array_equal(polished.points[boundary], targets)
     assert np.array_equal(polished.frames[-1][np.setdiff1d(np.arange(len(V)), boundary)],

@@ -44,7 +44,7 @@ def _surface_table(result, frames: int) -> tuple[str, str]:
 
 def _surface_line(mesh, result, summary: dict) -> str:
     return (f"folds {summary['folds']}, worst relative quality "
-            f"{summary['worst relative quality']:.4f}")
+            f"{summary['worst_relative_quality']:.4f}")
 
 
 #: per cell kind: the mesh of the file's cells, the frames' table, the console line's middle

@@ -253,9 +253,9 @@ def _run_surface(args: argparse.Namespace, cells) -> int:
         sys.stdout.write("\n")
     else:
         print(f"{len(names)} frames (surface), folds {summary['folds']}, worst relative "
-              f"quality {summary['worst relative quality']:.4g} (target "
-              f"{summary['target worst relative quality']:.4g}; linear interpolation "
-              f"{summary['linear worst relative quality']:.4g}, "
-              f"{summary['linear folds']} folds), {result.status}")
+              f"quality {summary['worst_relative_quality']:.4g} (target "
+              f"{summary['target_worst_relative_quality']:.4g}; linear interpolation "
+              f"{summary['linear_worst_relative_quality']:.4g}, "
+              f"{summary['linear_folds']} folds), {result.status}")
         print(f"wrote {outdir}/ ({names[0]} … {names[-1]}, quality.csv, summary.json)")
     return 0

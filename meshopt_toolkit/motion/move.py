@@ -86,7 +86,7 @@ class MoveResult:
             "inverted": int(self.inverted),
             "min_aspect_ratio": float(self.min_aspect_ratio[-1]),
             "mean_quality": float(self.mean_quality[-1]),
-            "frames_min_aspect_ratio": [float(v) for v in self.min_aspect_ratio],
+            "min_aspect_ratio_per_frame": [float(v) for v in self.min_aspect_ratio],
             "handle_error": float(self.handle_error),
             "seconds": float(self.seconds),
             "similarity": {"angle_degrees": float(np.degrees(self.similarity.angle)),

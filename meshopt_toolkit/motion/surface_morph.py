@@ -144,16 +144,16 @@ class SurfaceMorph:
         lin_worst, lin_folds = self.linear_measures()
         return {
             "status": self.status, "frames": int(len(self.points)),
-            "worst relative quality": float(self.worst_quality.min()),
-            "worst relative quality per frame": [float(v) for v in self.worst_quality],
+            "worst_relative_quality": float(self.worst_quality.min()),
+            "worst_relative_quality_per_frame": [float(v) for v in self.worst_quality],
             "folds": int(self.folds.sum()),
-            "target worst relative quality": float(self.worst_quality[-1]),
-            "linear worst relative quality": float(lin_worst.min()),
-            "linear folds": int(lin_folds.sum()),
-            "initial path": self.initial_path, "energy": self.energy,
-            "initial energy": self.initial_energy, "length": self.length,
-            "strain bound": self.length / self.weight, "iterations": self.iterations,
-            "factorizations": self.factorizations, "gradient norm": self.gradient_norm,
+            "target_worst_relative_quality": float(self.worst_quality[-1]),
+            "linear_worst_relative_quality": float(lin_worst.min()),
+            "linear_folds": int(lin_folds.sum()),
+            "initial_path": self.initial_path, "energy": self.energy,
+            "initial_energy": self.initial_energy, "length": self.length,
+            "strain_bound": self.length / self.weight, "iterations": self.iterations,
+            "factorizations": self.factorizations, "gradient_norm": self.gradient_norm,
             "seconds": self.seconds,
         }
 

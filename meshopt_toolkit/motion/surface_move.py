@@ -121,10 +121,10 @@ class SurfaceMoveResult:
     def summary(self) -> dict:
         """Worst relative quality, folds, handle error, seconds, steps (and the
         Gauss–Newton iterations and factorizations)."""
-        return {"worst relative quality": self.worst_quality, "folds": self.folds,
-                "handle error": self.handle_error, "seconds": self.seconds,
+        return {"worst_relative_quality": self.worst_quality, "folds": self.folds,
+                "handle_error": self.handle_error, "seconds": self.seconds,
                 "steps": self.steps, "iterations": self.iterations,
-                "factorizations": self.factorizations, "polished vertices": self.polished}
+                "factorizations": self.factorizations, "polished_vertices": self.polished}
 
     def scaled_up(self, scale: UnitScale) -> SurfaceMoveResult:
         """This unit-size motion at the user's scale (the rest is scale-free)."""

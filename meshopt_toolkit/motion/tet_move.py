@@ -83,7 +83,7 @@ class TetMoveResult:
         return {
             "inverted": int(self.inverted),
             "min_mean_ratio": float(self.min_mean_ratio[-1]),
-            "frames_min_mean_ratio": [float(v) for v in self.min_mean_ratio],
+            "min_mean_ratio_per_frame": [float(v) for v in self.min_mean_ratio],
             "handle_error": float(self.handle_error),
             "strain_bound": float(self.strain_bound),
             "seconds": float(self.seconds),
