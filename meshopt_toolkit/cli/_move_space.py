@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import strict_json
-from ._common import frame_names, prepare_output_dir, write_text
+from ._common import frame_names, prepare_output_dir, warn_dropped, write_text
 from ._info_cells import SURFACE, TETS
 
 
@@ -69,6 +69,7 @@ def run_in_space(args: argparse.Namespace, cells, kind: str) -> int:
         selection=args.selection, point_data=cells.point_data,
         free_boundary=args.free_boundary, source=str(src))
     result = move(mesh, handles, targets, frames=frames, steps=args.steps, weight=args.weight)
+    warn_dropped(cells, src)  # a refused motion is its one error line alone
 
     def written(m):
         """The input's cells and data at the points of ``m``."""
