@@ -44,3 +44,16 @@ def test_a_written_move_still_names_what_it_did_not_keep(tmp_path, caplog):
                "--map", "x; y; z + 0.1"])
     assert rc == 0 and (tmp_path / "out.obj").exists()
     assert "not kept in the output" in caplog.text and "'g' statements" in caplog.text
+
+
+@pytest.mark.parametrize("ext, binary", [(".ply", True), (".obj", False), (".stl", True)])
+def test_a_mesh_given_as_the_pipeline_is_refused_as_not_a_pipeline(tmp_path, capsys, ext,
+                                                                    binary):
+    mesh = tmp_path / f"sphere{ext}"
+    trimesh.creation.icosphere(1).export(mesh, **({"encoding": "binary"} if ext == ".ply"
+                                                   else {}))
+    rc = main(["run", str(mesh), str(mesh), "-o", str(tmp_path / "out")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 1 and len(err) == 1, err
+    assert str(mesh) in err[0] and "not a pipeline" in err[0], err
+    assert not (tmp_path / "out").exists()
