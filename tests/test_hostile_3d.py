@@ -57,3 +57,14 @@ def test_a_mesh_given_as_the_pipeline_is_refused_as_not_a_pipeline(tmp_path, cap
     assert rc == 1 and len(err) == 1, err
     assert str(mesh) in err[0] and "not a pipeline" in err[0], err
     assert not (tmp_path / "out").exists()
+
+
+def test_a_refused_morph_is_one_line_without_the_not_kept_warning(tmp_path, capsys, caplog):
+    src, tgt = tmp_path / "plate.obj", tmp_path / "other.obj"
+    _obj_with_statements(src, "g left\nf 1 2 5\nf 1 5 4\ng right\nf 5 6 9\nf 5 9 8\n")
+    _obj_with_statements(tgt, "f 1 2 5\nf 1 5 4\n")  # other triangles: refused
+    rc = main(["morph", str(src), str(tgt), "-o", str(tmp_path / "out"), "--frames", "2",
+               "--no-plots"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 1 and len(err) == 1 and "error" in err[0], err
+    assert not [r for r in caplog.records if r.levelname == "WARNING"], caplog.text
