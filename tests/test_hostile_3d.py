@@ -1,5 +1,5 @@
-"""What a hostile user of 3D inputs met: each refusal is one line naming the file, each
-accepted file is written whole (reproducers of the hostile runs, small real files)."""
+"""Inputs a careless or hostile user gives the 3D commands: each refusal is one line naming
+the file (no warning line before it), each accepted file is written (small real files)."""
 
 from __future__ import annotations
 
@@ -11,8 +11,8 @@ trimesh = pytest.importorskip("trimesh")
 
 
 def _obj_with_statements(path, faces: str) -> None:
-    """An OBJ file of a 3 × 3 grid bent in z with an 'o' and two 'g' statements (which
-    the reader does not represent) and the given face lines."""
+    """An OBJ file of a 3 × 3 grid bent in z: an 'o' statement (which the reader does not
+    represent), the vertices, then ``faces`` (face lines, 'g' statements among them)."""
     rows = [f"v {i} {j} {0.1 * i * j}" for j in range(3) for i in range(3)]
     path.write_text("o plate\n" + "\n".join(rows) + "\n" + faces)
 
