@@ -17,7 +17,7 @@ import numpy as np
 
 from .. import strict_json
 from ..motion.contact import ContactWarning
-from ._common import frame_names, prepare_output_dir, write_text
+from ._common import frame_names, prepare_output_dir, warn_dropped, write_text
 from ._info_cells import SURFACE, TETS
 
 
@@ -77,6 +77,7 @@ def run_in_space(args: argparse.Namespace, cells, kind: str) -> int:
                       weight=args.weight, contact=getattr(args, "contact", "on") == "on")
     for w in caught:
         print(f"meshopt move: warning: {src}: {w.message}", file=sys.stderr)
+    warn_dropped(cells, src)  # a refused motion is its one error line alone
 
     def written(m):
         """The input's cells and data at the points of ``m``."""

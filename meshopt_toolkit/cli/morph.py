@@ -102,8 +102,7 @@ def run(args: argparse.Namespace) -> int:
 
     _check_numbers(args)
     _check_outputs(args, others=())  # the outputs of every kind, before reading
-    kind, cells = read_kind(args.source)
-    warn_dropped(cells, args.source)
+    kind, cells = read_kind(args.source)  # what it cannot keep named before the writes
     if args.stop == "healthy" and kind != SURFACE:
         from ..errors import OptionError
 
@@ -124,6 +123,7 @@ def run(args: argparse.Namespace) -> int:
     outdir = Path(args.output)
     names = frame_names(args.frames, args.format, src_path)
     prepare_output_dir(outdir, force=args.force, names=names + list(PLOTS) + ["summary.json"])
+    warn_dropped(cells, args.source)
     max_iter = args.max_iter or DEFAULT_MAX_ITER[METRIC_ALIASES.get(args.metric, args.metric)]
     with ProgressBar(max_iter, "morph") as bar:
         result = morph(source, target, args.frames, metric=args.metric, weight=args.weight,
@@ -188,6 +188,7 @@ def _run_tets(args: argparse.Namespace, cells) -> int:
         result = morph(source, target, args.frames, weight=args.weight, max_iterations=max_iter,
                        stop=args.stop, callback=lambda it: bar.update(status=f"E={it.energy:.8g}"))
     prepare_output_dir(outdir, force=args.force, names=files)
+    warn_dropped(cells, args.source)
     for name, points in zip(names, result.points):
         save_cells(replace(cells, points=np.array(points, dtype=float)), outdir / name)
     stats, linear = result.stats, result.linear
@@ -240,6 +241,7 @@ def _run_surface(args: argparse.Namespace, cells) -> int:
                        max_iterations=max_iter, stop=args.stop,
                        callback=lambda it: bar.update(status=f"E={it.energy:.8g}"))
     prepare_output_dir(outdir, force=args.force, names=written)
+    warn_dropped(cells, args.source)
     for name, mesh in zip(names, result.frames):
         io.save_cells(replace(cells, points=np.array(mesh.points, dtype=float)), outdir / name)
     m = result.morph

@@ -32,7 +32,7 @@ import argparse
 from .. import strict_json
 
 from ._common import (add_output_flags, checked_paths, frame_names, load_workpiece,
-                      read_cells, save_moved, save_moved_frames, write_text)
+                      save_moved, save_moved_frames, warn_dropped, write_text)
 from ..bounds import MAX_FRAMES
 from ..filters.apply_coord_prescribed_motion import PrescribedMotion
 from ._params import add_options, check_options
@@ -102,6 +102,7 @@ def _check_numbers(args: argparse.Namespace) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from ..io import load_cells
     from ..motion.handles3d import handles_in_space
     from ..motion.move import move
     from ..progress import ProgressBar
@@ -111,7 +112,7 @@ def run(args: argparse.Namespace) -> int:
     _check_numbers(args)
     src, out = checked_paths(args)
     frames = args.frames
-    cells = read_cells(src)
+    cells = load_cells(src)  # what it cannot keep named once the motion is done
     kind = cells_kind(cells)
     if kind in (TETS, SURFACE):  # handles in x, y, z; the file written back, new points
         return run_in_space(args, cells, kind)
@@ -126,6 +127,7 @@ def run(args: argparse.Namespace) -> int:
     with ProgressBar(1000, "move") as bar:
         result = move(mesh, handles, wp.to_unit(targets), frames=frames, steps=args.steps,
                       weight=args.weight, progress=bar.to_fraction)
+    warn_dropped(cells, src)
     if frames is None:
         save_moved(wp, result.mesh, out, force=args.force)
         written = str(out)

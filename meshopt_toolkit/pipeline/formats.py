@@ -39,8 +39,12 @@ def load_pipeline(path) -> Pipeline:
     p = Path(path)
     data = read_bounded(p)
     suffix = p.suffix.lower()
-    if suffix == ".mlx" or (suffix != ".json" and data.lstrip()[:1] == b"<"):
+    start = data.lstrip()[:1]
+    if suffix == ".mlx" or (suffix != ".json" and start == b"<"):
         return mlx.loads(data, str(p))
+    if suffix != ".json" and start not in (b"{", b"["):  # a mesh given first, say
+        raise FilterError(f"{p}: not a pipeline: a pipeline is a .json or MeshLab .mlx "
+                          "file, given before the inputs (meshopt run PIPELINE INPUT ...)")
     return loads_json(data, str(p))
 
 
