@@ -102,7 +102,7 @@ def test_cap_skips_the_ccd_only_where_no_pair_can_close(contact, monkeypatch):
     src, _ = flap_through_sheet()
     term = ContactTerm(contact, np.ones(src.points.size, bool), 1.0)
     calls = []
-    monkeypatch.setattr(contact, "stepsize", lambda a, b: calls.append(1) or 0.5)
+    monkeypatch.setattr(contact, "stepsize", lambda *a: calls.append(1) or 0.5)
     small = src.points + [0.0, 0.0, -0.45 * contact.dhat]
     assert term.cap(src.points, small) == 1.0 and not calls
     far = src.points + [0.0, 0.0, -0.55 * contact.dhat]

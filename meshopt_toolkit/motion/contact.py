@@ -132,15 +132,15 @@ class SurfaceContact:
         c = self.collisions(Q) if collisions is None else collisions
         return float(np.sqrt(c.compute_minimum_distance(self.mesh, Q))) if len(c) else self.dhat
 
-    def stepsize(self, Q0: FloatArray, Q1: FloatArray) -> float:
+    def stepsize(self, Q0: FloatArray, Q1: FloatArray, collisions=None) -> float:
         """The fraction in [0, 1] of the straight path from ``Q0`` (clean) to ``Q1`` that
         is free of contact (1: the whole path). Additive CCD (Li et al. 2021; 0.9 of the
         first time of impact) where every pair at ``Q0`` is at least ``10⁻³ d̂`` apart;
         closer, its squared distances lose the gap to rounding and tight-inclusion CCD
-        (intervals, conservative) decides."""
+        (intervals, conservative) decides. ``collisions``: those at ``Q0`` where known."""
         ipctk = _ipctk()
         Q0 = np.asfortranarray(Q0, dtype=float)
-        close = self.minimum_distance(Q0) < 1e-3 * self.dhat
+        close = self.minimum_distance(Q0, collisions) < 1e-3 * self.dhat
         ccd = ipctk.TightInclusionCCD(1e-6, 10**6) if close else ipctk.AdditiveCCD()
         return float(ipctk.compute_collision_free_stepsize(
             self.mesh, Q0, np.asfortranarray(Q1, dtype=float), 0.0, None, ccd))
@@ -245,7 +245,7 @@ class ContactTerm:
         step = float(np.sqrt(np.max(np.sum((Q1 - Q0) ** 2, axis=1)))) if len(Q0) else 0.0
         if 2.0 * step < self.contact.dhat and not self.active(Q0):
             return 1.0
-        return self.contact.stepsize(Q0, Q1)
+        return self.contact.stepsize(Q0, Q1, self.collisions(Q0))
 
 
 class NoContact:
