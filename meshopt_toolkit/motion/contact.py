@@ -191,8 +191,9 @@ class ContactTerm:
         self.max_kappa, self.closest = np.inf, np.inf
         self._key: np.ndarray | None = None
         self._collisions = None
-        #: the start of the last short CCD step, and candidates within reach around it
-        self._start, self._reach = None, None
+        #: the start of the last short CCD steps, their largest move, and candidates
+        #: within a reach (and the reach) around it
+        self._start, self._move, self._reach = None, 0.0, None
 
     def collisions(self, Q: FloatArray):
         if self._key is None or not np.array_equal(self._key, Q):
@@ -268,17 +269,21 @@ class ContactTerm:
 
     def _candidates(self, Q0: FloatArray, Q1: FloatArray):
         """Candidates for the CCD of the short step from ``Q0`` to ``Q1`` kept across steps
-        from one start (a line search's trials): those within ``REACH d̂`` around ``Q0`` from
-        the second step from it on where no coordinate moves further; None (the path's
-        own broad phase) otherwise."""
-        if float(np.max(np.abs(Q1 - Q0))) > REACH * self.contact.dhat:
+        from one start (a line search's trials), from the second step from it on where no
+        coordinate moves by more than ``REACH d̂``: those within 1.5 times the largest such
+        move so far (at most ``REACH d̂``), rebuilt when a step moves further; None (the
+        path's own broad phase) otherwise."""
+        move = float(np.max(np.abs(Q1 - Q0)))
+        if move > REACH * self.contact.dhat:
             return None
         if self._start is None or not np.array_equal(self._start, Q0):
-            self._start, self._reach = np.array(Q0), None
+            self._start, self._move, self._reach = np.array(Q0), move, None
             return None
-        if self._reach is None:
-            self._reach = self.contact.candidates(Q0, REACH * self.contact.dhat)
-        return self._reach
+        if self._reach is None or move > self._reach[0]:
+            self._move = max(move, self._move)
+            reach = min(1.5 * self._move, REACH * self.contact.dhat)
+            self._reach = (reach, self.contact.candidates(Q0, reach))
+        return self._reach[1]
 
 
 class NoContact:
