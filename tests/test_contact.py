@@ -102,13 +102,41 @@ def test_cap_skips_the_ccd_only_where_no_pair_can_close(contact, monkeypatch):
     src, _ = flap_through_sheet()
     term = ContactTerm(contact, np.ones(src.points.size, bool), 1.0)
     calls = []
-    monkeypatch.setattr(contact, "stepsize", lambda a, b: calls.append(1) or 0.5)
+    monkeypatch.setattr(contact, "stepsize", lambda *a: calls.append(1) or 0.5)
     small = src.points + [0.0, 0.0, -0.45 * contact.dhat]
     assert term.cap(src.points, small) == 1.0 and not calls
     far = src.points + [0.0, 0.0, -0.55 * contact.dhat]
     assert term.cap(src.points, far) == 0.5 and len(calls) == 1
     near = _near(0.49)  # a pair within d̂
     assert term.cap(near, near + [0.0, 0.0, 1e-9]) == 0.5 and len(calls) == 2
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_short_steps_from_one_start_share_candidates_and_agree_with_the_broad_phase(
+        contact, seed):
+    """A line search's trials from one start: the second and later CCDs of steps moving no
+    coordinate by more than REACH d̂ run on candidates kept around the start, with the
+    fractions of each path's own broad phase, impacts included; longer steps use their
+    own."""
+    from meshopt_toolkit.motion.contact import ContactTerm
+
+    rng = np.random.default_rng(seed)
+    Q0 = _near(0.505)  # the flap's lowest corner just above the sheet
+    term = ContactTerm(contact, np.ones(Q0.size, bool), 1.0)
+    dhat = contact.dhat
+    down = np.zeros_like(Q0)  # the flap's points down, the sheet's still
+    down[np.any(_near(0.6) != Q0, axis=1), 2] = -1.0
+    trials = [Q0 + dhat * (s * down + rng.uniform(-1, 1, Q0.shape))
+              for s in rng.uniform(0.0, 3.0, 8)]
+    kept = []
+    for Q1 in trials:
+        assert term.cap(Q0, Q1) == contact.stepsize(Q0, Q1)
+        kept.append(term._reach is not None)
+    assert not kept[0] and all(kept[1:])
+    assert min(term.cap(Q0, Q1) for Q1 in trials) < 1.0
+    far = _near(2.0)  # further than REACH d̂
+    assert term._candidates(Q0, far) is None
+    assert term.cap(Q0, far) == contact.stepsize(Q0, far) < 1.0
 
 
 def test_triangles_of_one_fan_through_each_other_are_found():

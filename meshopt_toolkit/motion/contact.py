@@ -34,6 +34,9 @@ __all__ = ["DHAT_FRACTION", "ContactTerm", "ContactWarning", "NoContact", "Surfa
 
 #: ``d̂`` over the rest's mean edge length
 DHAT_FRACTION = 0.1
+#: the largest coordinate move, over ``d̂``, of the steps from one start whose CCD runs on
+#: candidates kept around it (:meth:`ContactTerm.cap`; a polish's trials move ~2 d̂)
+REACH = 4.0
 
 
 def _ipctk():
@@ -132,18 +135,32 @@ class SurfaceContact:
         c = self.collisions(Q) if collisions is None else collisions
         return float(np.sqrt(c.compute_minimum_distance(self.mesh, Q))) if len(c) else self.dhat
 
-    def stepsize(self, Q0: FloatArray, Q1: FloatArray) -> float:
+    def candidates(self, Q: FloatArray, reach: float):
+        """The pairs whose boxes at ``Q``, each grown by ``reach``, meet (an
+        ``ipctk.Candidates``): every pair that can touch along a straight path from ``Q``
+        on which no coordinate moves by more than ``reach``."""
+        c = _ipctk().Candidates()
+        Q = np.asfortranarray(Q, dtype=float)
+        c.build(self.mesh, Q, Q, float(reach))
+        return c
+
+    def stepsize(self, Q0: FloatArray, Q1: FloatArray, collisions=None,
+                 candidates=None) -> float:
         """The fraction in [0, 1] of the straight path from ``Q0`` (clean) to ``Q1`` that
         is free of contact (1: the whole path). Additive CCD (Li et al. 2021; 0.9 of the
         first time of impact) where every pair at ``Q0`` is at least ``10⁻³ d̂`` apart;
         closer, its squared distances lose the gap to rounding and tight-inclusion CCD
-        (intervals, conservative) decides."""
+        (intervals, conservative) decides. ``collisions``: those at ``Q0`` where known;
+        ``candidates``: a superset of the pairs the path can bring into contact (e.g.
+        :meth:`candidates`), else the path's own broad phase."""
         ipctk = _ipctk()
         Q0 = np.asfortranarray(Q0, dtype=float)
-        close = self.minimum_distance(Q0) < 1e-3 * self.dhat
+        Q1 = np.asfortranarray(Q1, dtype=float)
+        close = self.minimum_distance(Q0, collisions) < 1e-3 * self.dhat
         ccd = ipctk.TightInclusionCCD(1e-6, 10**6) if close else ipctk.AdditiveCCD()
-        return float(ipctk.compute_collision_free_stepsize(
-            self.mesh, Q0, np.asfortranarray(Q1, dtype=float), 0.0, None, ccd))
+        if candidates is not None:
+            return float(candidates.compute_collision_free_stepsize(self.mesh, Q0, Q1, 0.0, ccd))
+        return float(ipctk.compute_collision_free_stepsize(self.mesh, Q0, Q1, 0.0, None, ccd))
 
     def stiffness(self, energy_gradient: FloatArray, Q: FloatArray,
                   mass: float) -> tuple[float, float]:
@@ -174,6 +191,9 @@ class ContactTerm:
         self.max_kappa, self.closest = np.inf, np.inf
         self._key: np.ndarray | None = None
         self._collisions = None
+        #: the start of the last short CCD steps, their largest move, and candidates
+        #: within a reach (and the reach) around it
+        self._start, self._move, self._reach = None, 0.0, None
 
     def collisions(self, Q: FloatArray):
         if self._key is None or not np.array_equal(self._key, Q):
@@ -245,7 +265,25 @@ class ContactTerm:
         step = float(np.sqrt(np.max(np.sum((Q1 - Q0) ** 2, axis=1)))) if len(Q0) else 0.0
         if 2.0 * step < self.contact.dhat and not self.active(Q0):
             return 1.0
-        return self.contact.stepsize(Q0, Q1)
+        return self.contact.stepsize(Q0, Q1, self.collisions(Q0), self._candidates(Q0, Q1))
+
+    def _candidates(self, Q0: FloatArray, Q1: FloatArray):
+        """Candidates for the CCD of the short step from ``Q0`` to ``Q1`` kept across steps
+        from one start (a line search's trials), from the second step from it on where no
+        coordinate moves by more than ``REACH d̂``: those within 1.5 times the largest such
+        move so far (at most ``REACH d̂``), rebuilt when a step moves further; None (the
+        path's own broad phase) otherwise."""
+        move = float(np.max(np.abs(Q1 - Q0)))
+        if move > REACH * self.contact.dhat:
+            return None
+        if self._start is None or not np.array_equal(self._start, Q0):
+            self._start, self._move, self._reach = np.array(Q0), move, None
+            return None
+        if self._reach is None or move > self._reach[0]:
+            self._move = max(move, self._move)
+            reach = min(1.5 * self._move, REACH * self.contact.dhat)
+            self._reach = (reach, self.contact.candidates(Q0, reach))
+        return self._reach[1]
 
 
 class NoContact:
