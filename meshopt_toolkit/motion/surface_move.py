@@ -29,9 +29,8 @@ With ``cg_iterations = k > 0`` a step on a kept factor ``F`` is k conjugate grad
 the current normal equations ``A``, preconditioned by ``R F⁻¹ Rᵀ`` (``R`` each vertex's
 rotation since the factorization: φ and the bending are invariant under rotations, so
 ``A`` turns with the surface), products with ``A`` from the Jacobian blocks (no
-assembly). Such steps are seldom shortened, so factors are renewed seldom (k = 4, the bar
-twisted 180° at 83k triangles: 15 factorizations instead of 36), but each costs k
-back-solves: on one core 0.91× the time there, 1.24× at 20.8k, 1.06× on the armadillo.
+assembly). Such steps are seldom shortened, so factors are renewed seldom, but each costs
+k back-solves (docs/benchmarks-surface.md measures the trade).
 
 With ``contact`` (the default, where the rest is free of self-intersections) the energy
 gains IPC's barrier and every step, the predictor included, starts its backtracking at
