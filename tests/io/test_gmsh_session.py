@@ -12,7 +12,7 @@ import pytest
 
 from meshopt_toolkit.gmsh_session import gmsh_session
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _kernel_ignored_signals() -> set[int]:
