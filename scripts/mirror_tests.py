@@ -10,7 +10,8 @@ A file goes to the folder of the first rule of :data:`RULES` its name matches; a
 rule names goes to the package it imports most (``from meshopt_toolkit.X import``) when X
 is a package; the files of :data:`TOP_LEVEL` (tests of the whole package) stay, and so
 does any file neither placed, which is listed. A moved file's ``Path(__file__)`` parent
-chains are deepened by one level. Bare imports between test files and of the helper
+chains are deepened by one level, and ``tests/test_X.py`` in the tracked docs and
+sources becomes ``tests/<folder>/test_X.py``. Bare imports between test files and of the helper
 modules keep working because ``tests/conftest.py`` puts ``tests/`` and each of its test
 folders on ``sys.path`` (so a test file's name must be unique across ``tests/``).
 """
@@ -92,6 +93,25 @@ def deepen(text: str) -> str:
     return _CHAIN.sub(lambda m: f"{m.group(1)}.parents[{_depth(m.group(2))}]", text)
 
 
+def fix_references() -> list[str]:
+    """Rewrite ``tests/test_X.py`` in the tracked docs and sources to the file's folder."""
+    where = {p.name: p.relative_to(ROOT).as_posix() for p in TESTS.glob("*/test_*.py")}
+    pattern = re.compile(r"(?<![\w/])tests/(test_\w+\.py)")
+    changed = []
+    listed = subprocess.run(["git", "ls-files", "*.md", "*.py", "*.toml", ".ci/*"], cwd=ROOT,
+                            capture_output=True, text=True, check=True).stdout.split()
+    for name in listed:
+        path = ROOT / name
+        if not path.is_file():
+            continue
+        text = path.read_text(encoding="utf-8")
+        new = pattern.sub(lambda m: where.get(m.group(1), m.group(0)), text)
+        if new != text:
+            path.write_text(new, encoding="utf-8")
+            changed.append(name)
+    return changed
+
+
 def collect_count() -> int:
     """The number of tests ``pytest --collect-only -q`` finds (the run must succeed)."""
     out = subprocess.run([sys.executable, "-m", "pytest", "--collect-only", "-q", "-p", "no:cacheprovider"],
@@ -137,6 +157,8 @@ def main(argv: list[str] | None = None) -> int:
             target.write_text(deepen(text))
             subprocess.run(["git", "add", str(target)], cwd=ROOT, check=True)
     print(f"moved {len(moves)} file(s)" + (" (dry run)" if args.dry_run else ""))
+    if not args.dry_run:
+        print("references rewritten in:", *fix_references() or ["(none)"], sep="\n  ")
     if unplaced:
         print("not placed (add a rule or TOP_LEVEL entry):", *(p.name for p in unplaced), sep="\n  ")
     if before is not None:
