@@ -53,7 +53,8 @@ RULES: tuple[tuple[str, str], ...] = (
     ("test_morph*", "motion"), ("test_move_*", "motion"), ("test_handles3d.py", "motion"),
     ("test_similarity_3d.py", "motion"), ("test_contact.py", "motion"),
     ("test_self_intersection_moves.py", "motion"),
-    ("test_pipeline_*", "pipeline"), ("test_filter*", "pipeline"), ("test_fuzz_pipelines.py", "pipeline"),
+    ("test_pipeline_*", "pipeline"), ("test_filter*", "pipeline"),
+    ("test_fuzz_pipelines.py", "pipeline"),
     ("test_fem*", "fem"), ("test_poisson.py", "fem"), ("test_stokes.py", "fem"),
     ("test_elasticity*", "fem"), ("test_compliance*", "fem"), ("test_interpolation.py", "fem"),
     ("test_objective_registry.py", "shape"), ("test_shape*", "shape"), ("test_optimize*", "shape"),
@@ -62,8 +63,9 @@ RULES: tuple[tuple[str, str], ...] = (
     ("test_discrete_geodesic.py", "riemannian"),
     ("test_geodesics.py", "ode"),
     ("test_penalt*", "penalties"),
-    ("test_solvers.py", "modules"), ("test_progress.py", "modules"), ("test_expressions.py", "modules"),
-    ("test_diagnostics.py", "modules"), ("test_scal*", "modules"), ("test_operations.py", "modules"),
+    ("test_solvers.py", "modules"), ("test_progress.py", "modules"),
+    ("test_expressions.py", "modules"), ("test_diagnostics.py", "modules"),
+    ("test_scal*", "modules"), ("test_operations.py", "modules"),
     ("test_deform.py", "modules"),
 )
 
@@ -80,7 +82,8 @@ def folder_for(path: Path) -> str | None:
     for pattern, folder in RULES:
         if fnmatch(name, pattern):
             return folder
-    counts = Counter(m for m in _IMPORT.findall(path.read_text()) if (PACKAGE / m / "__init__.py").exists())
+    counts = Counter(m for m in _IMPORT.findall(path.read_text())
+                     if (PACKAGE / m / "__init__.py").exists())
     return counts.most_common(1)[0][0] if counts else None
 
 
@@ -114,11 +117,12 @@ def fix_references() -> list[str]:
 
 def collect_count() -> int:
     """The number of tests ``pytest --collect-only -q`` finds (the run must succeed)."""
-    out = subprocess.run([sys.executable, "-m", "pytest", "--collect-only", "-q", "-p", "no:cacheprovider"],
-                         cwd=ROOT, capture_output=True, text=True)
+    command = [sys.executable, "-m", "pytest", "--collect-only", "-q", "-p", "no:cacheprovider"]
+    out = subprocess.run(command, cwd=ROOT, capture_output=True, text=True)
     found = re.search(r"(\d+) tests? collected", out.stdout)
     if out.returncode != 0 or not found:
-        sys.exit(f"collect-only failed (exit {out.returncode}):\n{out.stdout[-4000:]}{out.stderr[-2000:]}")
+        sys.exit(f"collect-only failed (exit {out.returncode}):\n"
+                 f"{out.stdout[-4000:]}{out.stderr[-2000:]}")
     return int(found.group(1))
 
 
@@ -137,11 +141,13 @@ def plan() -> tuple[dict[Path, str], list[Path]]:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--dry-run", action="store_true", help="only print the moves")
-    parser.add_argument("--no-collect", action="store_true", help="skip the collect-only comparison")
+    parser.add_argument("--no-collect", action="store_true",
+                        help="skip the collect-only comparison")
     args = parser.parse_args(argv)
     moves, unplaced = plan()
     taken = {p.name: p for p in TESTS.glob("*/**/test_*.py")}
-    clashes = [f"{p.name} (already {taken[p.name].relative_to(ROOT)})" for p in moves if p.name in taken]
+    clashes = [f"{p.name} (already {taken[p.name].relative_to(ROOT)})"
+               for p in moves if p.name in taken]
     if clashes:
         sys.exit("a test file name must be unique across tests/: " + ", ".join(clashes))
     before = None if args.dry_run or args.no_collect else collect_count()
@@ -160,7 +166,8 @@ def main(argv: list[str] | None = None) -> int:
     if not args.dry_run:
         print("references rewritten in:", *fix_references() or ["(none)"], sep="\n  ")
     if unplaced:
-        print("not placed (add a rule or TOP_LEVEL entry):", *(p.name for p in unplaced), sep="\n  ")
+        print("not placed (add a rule or TOP_LEVEL entry):", *(p.name for p in unplaced),
+              sep="\n  ")
     if before is not None:
         after = collect_count()
         print(f"collected before: {before}, after: {after}")
