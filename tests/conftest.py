@@ -2,10 +2,21 @@
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from meshopt_toolkit.mesh import PlanarMesh
+
+# tests/ and each of its test folders (tests/<package>/) on sys.path: the helper modules
+# (gmsh_files, motion_helpers, ...) and the builders other test files share import by
+# their bare name from any folder, so a test file's name is unique across tests/
+_HERE = Path(__file__).resolve().parent
+for _folder in [_HERE, *sorted({p.parent for p in _HERE.glob("*/test_*.py")})]:
+    if str(_folder) not in sys.path:
+        sys.path.insert(0, str(_folder))
 
 
 @pytest.fixture

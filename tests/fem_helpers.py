@@ -1,4 +1,4 @@
-"""Shared by the tests of the simplex finite elements (tests/test_fem_tets.py,
+"""Shared by the tests of the simplex finite elements (tests/fem/test_fem_tets.py,
 test_elasticity_objective.py, test_stokes.py): unit-box meshes from scikit-fem,
 positively oriented, optionally jittered inside."""
 

@@ -1,4 +1,4 @@
-"""Shared by the tests of the motion package (tests/test_motion_*.py): hypothesis settings,
+"""Shared by the tests of the motion package (tests/motion/test_motion_*.py): hypothesis settings,
 similar and random admissible meshes, a straight path."""
 
 from __future__ import annotations

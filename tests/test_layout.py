@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import ast
 import importlib
+import importlib.util
 
 import pytest
 from test_architecture import PACKAGE, ROOT, find_cycle, module_level_imports
@@ -114,3 +115,45 @@ def test_every_package_folder_is_installed():
     assert 'include = ["meshopt_toolkit*"]' in text and "package-dir" not in text
     for py in ROOT.rglob("*.py"):
         assert (py.parent / "__init__.py").is_file(), py.parent
+
+
+def _mirror_script():
+    """``scripts/mirror_tests.py``, the one owner of where a test file goes."""
+    path = ROOT.parent / "scripts" / "mirror_tests.py"
+    spec = importlib.util.spec_from_file_location("mirror_tests", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_tests_mirror_the_package():
+    # tests/ holds only the whole-package tests; the others live in tests/<package>/
+    mirror = _mirror_script()
+    tests = ROOT.parent / "tests"
+    stray = sorted(p.name for p in tests.glob("test_*.py") if p.name not in mirror.TOP_LEVEL)
+    assert not stray, f"run python scripts/mirror_tests.py: {stray}"
+    folders = {p.parent.name for p in tests.glob("*/test_*.py")}
+    allowed = {f for _, f in mirror.RULES} | {p.parent.name for p in ROOT.glob("*/__init__.py")}
+    assert folders <= allowed, folders - allowed
+
+
+def test_test_file_names_are_unique():
+    # tests/conftest.py puts every test folder on sys.path: a name may live in one folder only
+    names = [p.name for p in (ROOT.parent / "tests").rglob("*.py")
+             if "plugin_pkg" not in p.parts and p.name not in {"__init__.py", "conftest.py"}]
+    assert sorted(n for n in set(names) if names.count(n) > 1) == []
+
+
+def test_the_mirror_rules_place_by_name_and_by_import(tmp_path):
+    mirror = _mirror_script()
+    (tmp_path / "test_batch_new.py").write_text("")
+    (tmp_path / "test_unnamed.py").write_text("from meshopt_toolkit.riemannian import x\n"
+                                               "from meshopt_toolkit.errors import y\n")
+    (tmp_path / "test_elsewhere.py").write_text("from meshopt_toolkit.errors import y\n")
+    assert [mirror.folder_for(tmp_path / n) for n in
+            ("test_batch_new.py", "test_unnamed.py", "test_elsewhere.py", "test_docs.py")] == [
+        "batch", "riemannian", None, None]
+    assert mirror.deepen("Path(__file__).resolve().parent.parent / 'a'") == (
+        "Path(__file__).resolve().parents[2] / 'a'")
+    assert mirror.deepen("Path(__file__).parents[1], Path(__file__).name") == (
+        "Path(__file__).parents[2], Path(__file__).name")

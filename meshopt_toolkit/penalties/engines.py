@@ -3,7 +3,7 @@
 An engine's ``run(Q, V, acc)`` adds the triangle quotient term (and, for the small-mesh
 engines, the total-area term) to the accumulator and returns False as soon as a signed
 area is not positive; nothing else. All three implement :class:`Engine`, and
-``tests/test_penalty_engines.py`` checks that they agree on random meshes.
+``tests/penalties/test_penalty_engines.py`` checks that they agree on random meshes.
 
 - :class:`BlockedEngine`: any mesh, everything including the Hessian-vector product;
   blocks of :data:`~.tuning.BLOCK` triangles in component-major ``(3, b)`` arrays.

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 
 from _anchors3d import (assemble_blocks, elasticity_blocks, elasticity_motion,  # noqa: E402
                         harmonic_motion, incremental_elasticity_motion, lame, laplacian)

@@ -28,7 +28,7 @@ from meshopt_toolkit.pipeline.document import load_entry
 from meshopt_toolkit.pipeline.filter import registry
 
 trimesh = pytest.importorskip("trimesh")
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 import _surface_measures as sm  # noqa: E402
 import bench_surface as bench  # noqa: E402
 

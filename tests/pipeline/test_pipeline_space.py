@@ -22,7 +22,7 @@ from meshopt_toolkit.pipeline import formats
 from meshopt_toolkit.pipeline.runner import Pipeline
 
 pymeshlab = pytest.importorskip("pymeshlab")
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 import bench_surface as bench  # noqa: E402
 
 SMOOTH = {"name": "apply_coord_laplacian_smoothing", "params": {"stepsmoothnum": 2}}
@@ -208,7 +208,7 @@ def test_face_quality_of_tets_is_refused(box, tmp_path):
 
 @pytest.mark.parametrize("name", ["surface_move.json", "surface_move.mlx"])
 def test_the_documented_examples_run(bar, tmp_path, name):
-    example = Path(__file__).resolve().parent.parent / "examples" / "pipelines" / name
+    example = Path(__file__).resolve().parents[2] / "examples" / "pipelines" / name
     pipeline = formats.load_pipeline(example)
     assert [s.name for s in pipeline.steps] == [SMOOTH["name"], MOVE["name"], QUALITY["name"]]
     rec, b = _run(pipeline, bar, tmp_path / "out")

@@ -12,7 +12,7 @@ import pytest
 
 from meshopt_toolkit.gmsh_session import gmsh_session
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _kernel_ignored_signals() -> set[int]:
@@ -55,7 +55,7 @@ def test_plain_gmsh_initialize_does_reset_sigpipe():
 
 def test_gmsh_is_initialized_only_through_the_session():
     offenders = []
-    for path in [*ROOT.glob("meshopt_toolkit/**/*.py"), *ROOT.glob("tests/*.py"), *ROOT.glob("benchmarks/*.py"),
+    for path in [*ROOT.glob("meshopt_toolkit/**/*.py"), *ROOT.glob("tests/**/*.py"), *ROOT.glob("benchmarks/*.py"),
                  *ROOT.glob("examples/*.py")]:
         if path.name in {"gmsh_session.py", Path(__file__).name}:
             continue

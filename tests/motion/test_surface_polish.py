@@ -16,7 +16,7 @@ from meshopt_toolkit.motion.surface_move import move_surface
 from meshopt_toolkit.motion.surface_polish import (SoftMaxObjective, _tangent_bases,
                                                    inverse_qualities, polish_worst_triangles)
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 import _surface_measures as sm  # noqa: E402
 

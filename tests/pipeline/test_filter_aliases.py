@@ -252,7 +252,7 @@ def test_docs_table_lists_every_filter_and_its_former_name():
     import re
     from pathlib import Path
 
-    text = (Path(__file__).resolve().parents[1] / "docs" / "pipelines.md").read_text()
+    text = (Path(__file__).resolve().parents[2] / "docs" / "pipelines.md").read_text()
     section = text.split("## Filter names and parameters")[1].split("\n## ")[0]
     rows = [r for r in section.splitlines() if r.startswith("| `")]
     named = {}

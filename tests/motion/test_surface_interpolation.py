@@ -23,7 +23,7 @@ from meshopt_toolkit.motion.surface_interpolation import (_best_rotated, _plane_
 from meshopt_toolkit.motion.surface_morph import morph_surface
 from meshopt_toolkit.motion.surface_paths import FoldTest
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 

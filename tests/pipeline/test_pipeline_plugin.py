@@ -16,7 +16,7 @@ from meshopt_toolkit.cli import main
 from meshopt_toolkit.io import load, save
 from meshopt_toolkit.pipeline import Document, FilterRegistry, PluginWarning
 
-HERE = Path(__file__).parent
+HERE = Path(__file__).parents[1]
 
 
 def make_plugin_dir(tmp_path: Path, broken: bool = True) -> Path:

@@ -23,7 +23,7 @@ from meshopt_toolkit.motion.targets import handles_of
 from meshopt_toolkit.results import Result
 
 trimesh = pytest.importorskip("trimesh")
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 import bench_surface as bench  # noqa: E402
 
 # the bar [0, 6]×[0, 1]×[0, 1] twisted about its axis, 0 at x = 0 to 90° at x = 6

@@ -38,7 +38,7 @@ def test_a_logged_warning_is_one_plain_line_in_the_record(work, jobs):
     src = folder / "disc.msh"
     code = ("import sys; from meshopt_toolkit.cli import main; "
             "raise SystemExit(main(sys.argv[1:]))")
-    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parent.parent)}
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])}
     done = subprocess.run([sys.executable, "-c", code, "run", str(work / "quality.json"),
                            str(folder), "-o", str(out), "--to", ".stl", "--json", "-j", jobs],
                           capture_output=True, text=True, env=env, timeout=300)

@@ -26,7 +26,7 @@ from meshopt_toolkit.motion.surface_move import move_surface
 from meshopt_toolkit.results import Result
 
 trimesh = pytest.importorskip("trimesh")
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 import _surface_measures as sm  # noqa: E402
 import bench_surface as bench  # noqa: E402

@@ -20,7 +20,7 @@ from meshopt_toolkit.motion.surface_move import move_surface
 from meshopt_toolkit.motion.similarity_3d import HandlePath, handle_groups
 from meshopt_toolkit.motion.surface_paths import FoldTest, best_rotations
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 import _surface_measures as sm  # noqa: E402
 import bench_surface as bench  # noqa: E402
