@@ -66,7 +66,7 @@ RULES: tuple[tuple[str, str], ...] = (
     ("test_solvers.py", "modules"), ("test_progress.py", "modules"),
     ("test_expressions.py", "modules"), ("test_diagnostics.py", "modules"),
     ("test_scal*", "modules"), ("test_operations.py", "modules"),
-    ("test_deform.py", "modules"),
+    ("test_deform.py", "modules"), ("test_summary_keys.py", "modules"),
 )
 
 _IMPORT = re.compile(r"^\s*(?:from|import)\s+meshopt_toolkit\.(\w+)", re.M)
