@@ -36,6 +36,9 @@ __all__ = [
 #: THE planarity tolerance of the package: points are on a plane when each is within this
 #: fraction of their bounding-box diagonal from it (meshes, workpieces, MeshLab checks)
 PLANE_RTOL = 1e-10
+#: offsets from the plane below this many units in the last place of the largest
+#: coordinate are rounding, whatever the mesh's size
+ROUNDING_ULPS = 64
 #: the former name of :data:`PLANE_RTOL`
 PLANE_TOLERANCE = PLANE_RTOL
 
@@ -211,8 +214,11 @@ def plane_of(points: FloatArray, triangles: IntArray | None = None,
     centre = p.mean(axis=0)
     _, _, vt = np.linalg.svd(p - centre, full_matrices=False)
     normal = vt[2]
-    dist = float(np.abs((p - centre) @ normal).max()) / diag
-    if dist > tol:
+    offset = float(np.abs((p - centre) @ normal).max())
+    dist = offset / diag
+    # an offset within the rounding of the coordinates themselves (a small mesh far from
+    # the origin) is no departure from the plane
+    if offset > tol * diag + ROUNDING_ULPS * np.finfo(float).eps * float(np.abs(p).max()):
         return None, dist
     if normal_hint is not None and normal_hint @ normal < 0:
         normal = -normal
