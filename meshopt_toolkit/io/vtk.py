@@ -35,6 +35,8 @@ def _read(path: Path, reader, kind: str) -> CellMesh:
     except (Exception, SystemExit) as exc:
         detail = str(exc) or f"not a valid {kind} file or truncated"
         raise ReadError(f"{path}: cannot read {kind} file: {detail}") from None
+    if "gmsh:dim_tags" in m.point_data:  # a datum of this file, under a name kept for gmsh's
+        cm.dropped.append("point data 'gmsh:dim_tags'")
     check_cells(cm)
     return cm
 

@@ -68,3 +68,22 @@ def test_a_refused_morph_is_one_line_without_the_not_kept_warning(tmp_path, caps
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 1 and len(err) == 1 and "error" in err[0], err
     assert not [r for r in caplog.records if r.levelname == "WARNING"], caplog.text
+
+
+def test_a_vtu_datum_under_the_gmsh_entity_name_is_named_not_lost(tmp_path, caplog, capsys):
+    """A .vtu's point datum named ``gmsh:dim_tags`` (the name meshio gives gmsh's node
+    entities, which the readers leave out) is named by move and refused by convert."""
+    import meshio
+    import numpy as np
+
+    pts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0]])
+    src = tmp_path / "t.vtu"
+    meshio.Mesh(pts, [("tetra", np.array([[0, 1, 2, 3]]))],
+                point_data={"gmsh:dim_tags": np.arange(8).reshape(4, 2)}).write(src)
+    assert main(["move", str(src), "-o", str(tmp_path / "o.vtu"), "--where", "z > 0.5",
+                 "--map", "x; y; z + 0.1"]) == 0
+    assert [r.getMessage() for r in caplog.records if "gmsh:dim_tags" in r.getMessage()] == [
+        f"{src}: not kept in the output: point data 'gmsh:dim_tags'"]
+    assert main(["convert", str(src), "-o", str(tmp_path / "t.msh")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "gmsh:dim_tags" in err[0] and not (tmp_path / "t.msh").exists()
