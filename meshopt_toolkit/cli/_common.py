@@ -289,16 +289,6 @@ def warn_dropped(cells, src) -> None:
                                              "; ".join(cells.dropped))
 
 
-def read_cells(src: Path):
-    """The file's :class:`~meshopt_toolkit.io.cells.CellMesh` for an operation, what it
-    cannot keep named (:func:`warn_dropped`)."""
-    from ..io import load_cells
-
-    cells = load_cells(src)
-    warn_dropped(cells, src)
-    return cells
-
-
 def load_workpiece(src: Path, what: str, *, unit_size: bool = True, cells=None):
     """The file's :class:`~meshopt_toolkit.io.workpiece.Workpiece` (every block, tag and
     datum kept; the plane's coordinates at unit size), its mesh checked admissible for
@@ -316,7 +306,11 @@ def load_workpiece(src: Path, what: str, *, unit_size: bool = True, cells=None):
     from ..mesh.kinds import cells_kind
     from ._info_cells import other_cells
 
-    cells = read_cells(src) if cells is None else cells
+    if cells is None:
+        from ..io import load_cells
+
+        cells = load_cells(src)
+        warn_dropped(cells, src)
     kind = cells_kind(cells)
     if kind in _NOT_PLANAR and not other_cells(cells):  # other cell types: refused below
         n = sum(len(c) for t, c in cells.cells if t == "tetra")
