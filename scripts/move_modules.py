@@ -88,7 +88,11 @@ def rewrite_imports(path: Path, mapping: dict[str, str], package: list[str],
             stmts = []
             for parent, names in groups.items():
                 where = relative(parent, package) if node.level else parent
-                stmts.append(f"{indent}from {where} import {', '.join(names)}")
+                stmt = f"{indent}from {where} import {', '.join(names)}"
+                if len(stmt) > 100:  # the project's line length: one name per line
+                    inner = "".join(f"{indent}    {n},\n" for n in names)
+                    stmt = f"{indent}from {where} import (\n{inner}{indent})"
+                stmts.append(stmt)
             edits.append((node.lineno, node.end_lineno, "\n".join(stmts).lstrip() + "\n"))
         elif isinstance(node, ast.Import):
             names = []
