@@ -80,8 +80,8 @@ class PathContact:
     def clean(self, path: list) -> bool:
         """Whether every segment between consecutive frames is free of contact and no
         interior frame has two triangles sharing a vertex that meet (module docstring)."""
-        return (all(self.terms[0].embedded(Q) for Q in path[1:-1]) if self.terms else True) \
-            and all(self.segment_clear(a, b) for a, b in zip(path[:-1], path[1:]))
+        return all(self.segment_clear(a, b) for a, b in zip(path[:-1], path[1:])) and all(
+            self._segments.embedded(Q) for Q in path[1:-1])
 
 
 def _components(n: int, triangles: IntArray) -> IntArray:
