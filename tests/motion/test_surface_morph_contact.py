@@ -65,6 +65,34 @@ def test_the_flap_morphs_around_the_sheet_with_clean_frames():
         morph_surface_mesh(src, tgt, 9, contact=False)
 
 
+def test_minimizing_with_the_barrier_active_keeps_every_frame_clean(monkeypatch):
+    """Two poses of the flap pressed onto the sheet from either side (moves with
+    contact), morphed to the energy tests alone: the barrier comes into play in the
+    frames, every frame and every motion between frames stays clean; without contact the
+    frames pass through the sheet."""
+    import meshopt_toolkit.motion.surface_morph_contact as smc
+
+    poses = []
+    for push in ((0.2, 0.3), (-0.2, -0.3)):
+        V, F, h, tg = _pushed(0.9, push)
+        poses.append(SurfaceMesh(move_surface(V, F, h, tg).points, F))
+    active, hessians = [], smc.PathContact.hessians
+
+    def spy(self, path):
+        out = hessians(self, path)
+        active.append(sum(H is not None for H in out))
+        return out
+
+    monkeypatch.setattr(smc.PathContact, "hessians", spy)
+    res = morph_surface_mesh(*poses, 9, stop_when_healthy=False, max_iterations=20)
+    assert res.morph.iterations > 0 and max(active) > 0
+    frames = [f.points for f in res.frames]
+    assert _crossings(frames, F) == [0] * 9
+    assert _steps_collision_free(frames, F)
+    with pytest.raises(SelfIntersectionError, match="at frame"):
+        morph_surface_mesh(*poses, 9, stop_when_healthy=False, contact=False)
+
+
 def test_too_few_frames_for_a_detour_are_refused():
     src, tgt = flap_through_sheet()
     with pytest.raises(SelfIntersectionError, match="no path free of self-contact"):
