@@ -34,6 +34,12 @@ decrease below ``rtol·E`` (a start stationary to that tolerance is returned unc
 mass term fixes the frames' rigid motions (a rotation of one frame costs ``|ΔQ|²_M``), so
 nothing is pinned.
 
+With contact (the default, where both ends are free of self-intersections and there is an
+interior frame) no frame passes through the surface, nor the straight motion between two
+frames: each frame's IPC barrier joins the energy, every step is capped by CCD and taken
+only on a clean path, from a clean start (:mod:`.surface_morph_contact`; a detour of the
+moving components where neither interpolation is clean).
+
 A pair related by a similarity (to ``1e-10`` of the diameter) is followed along that
 similarity exactly (rotation in angle, scale geometrically), an identical pair by copies;
 vertices in no triangle move linearly. Along the frames each triangle's summed change of
