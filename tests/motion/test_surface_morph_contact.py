@@ -202,6 +202,21 @@ def test_cli_contact_on_writes_clean_frames_off_refuses(tmp_path, capsys):
     assert len(frames) == 7 and _crossings(frames, src.triangles) == [0] * 7
 
 
+def test_filter_morphs_around_the_sheet_and_without_contact_refuses():
+    from meshopt_toolkit.errors import FilterError
+    from meshopt_toolkit.pipeline import Document
+    from meshopt_toolkit.pipeline.filter import registry
+
+    src, tgt = flap_through_sheet()
+    doc = Document([src, tgt])
+    with pytest.raises(FilterError, match="intersect itself at frame"):
+        registry.get("generate_geodesic_morph")()(doc, frames=5, contact=False)
+    assert len(doc) == 2
+    registry.get("generate_geodesic_morph")()(doc, frames=5)
+    frames = [np.asarray(e.mesh.points) for e in doc.entries[2:]]
+    assert len(frames) == 5 and _crossings(frames, src.triangles) == [0] * 5
+
+
 def test_cli_names_the_file_of_an_end_through_itself(tmp_path, capsys):
     src, _ = flap_through_sheet()
     inside = SurfaceMesh(flap_through_sheet(1.0)[1].points, src.triangles)
