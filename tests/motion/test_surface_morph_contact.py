@@ -23,6 +23,7 @@ from meshopt_toolkit.kernels.surface import aspect_ratios
 from meshopt_toolkit.mesh import SurfaceMesh
 from meshopt_toolkit.motion.contact import ContactWarning, pair_contact
 from meshopt_toolkit.motion.surface_mesh_morph import morph_surface_mesh
+from meshopt_toolkit.motion.surface_morph import morph_surface
 from meshopt_toolkit.motion.surface_morph_contact import PathContact
 from meshopt_toolkit.motion.surface_move import move_surface
 from meshopt_toolkit.motion.surface_path_system import PathSystem
@@ -91,6 +92,17 @@ def test_minimizing_with_the_barrier_active_keeps_every_frame_clean(monkeypatch)
     assert _steps_collision_free(frames, F)
     with pytest.raises(SelfIntersectionError, match="at frame"):
         morph_surface_mesh(*poses, 9, stop_when_healthy=False, contact=False)
+
+
+def test_far_from_contact_the_morph_is_the_one_without_bitwise():
+    """No pair comes within d̂ and no step is capped: contact changes nothing."""
+    from test_surface_morph import PAIRS
+
+    V0, F, V1 = PAIRS["sphere"]()
+    on = morph_surface(V0, V1, F, 6, stop_when_healthy=False)
+    off = morph_surface(V0, V1, F, 6, stop_when_healthy=False, contact=False)
+    assert on.iterations > 0
+    np.testing.assert_array_equal(on.points, off.points)
 
 
 def test_too_few_frames_for_a_detour_are_refused():
