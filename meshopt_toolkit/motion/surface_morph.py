@@ -117,7 +117,7 @@ class SurfaceMorph:
     triangles : (T, 3) int array
     status : "healthy", "converged", "max_iterations", "stalled", "stopped", "similarity" or
         "identical"
-    initial_path : "arap", "linear", "similarity" or "identical"
+    initial_path : "arap", "linear", "detour" (with contact), "similarity" or "identical"
     energy : the path energy ``E`` (module docstring) at the end
     length : the frames' polygon length ``ℓ`` in the embedding
     """

@@ -53,8 +53,7 @@ class PathContact:
 
     def gradient(self, path: list) -> FloatArray:
         """The barriers' gradient over the interior frames' coordinates."""
-        return np.concatenate([np.zeros(Q.size) + t.gradient(Q)
-                               for t, Q in zip(self.terms, path[1:-1])])
+        return np.concatenate([t.gradient(Q) for t, Q in zip(self.terms, path[1:-1])])
 
     def hessians(self, path: list) -> list:
         """Per interior frame the barrier's projected Hessian, None where none is active."""
@@ -96,11 +95,9 @@ def _components(n: int, triangles: IntArray) -> IntArray:
 def _shifts(V0: FloatArray, V1: FloatArray, moving: np.ndarray, margin: float) -> list:
     """The six axis shifts that carry the ``moving`` points' box (over both ends) clear of
     the other points' box (over both ends) by ``margin``, shortest first."""
-    rest = ~moving
-    both = np.vstack([V0, V1])
-    mask = np.concatenate([moving, moving])
+    both, mask = np.vstack([V0, V1]), np.concatenate([moving, moving])
     lo_m, hi_m = both[mask].min(0), both[mask].max(0)
-    lo_r, hi_r = both[np.concatenate([rest, rest])].min(0), both[np.concatenate([rest, rest])].max(0)
+    lo_r, hi_r = both[~mask].min(0), both[~mask].max(0)
     out = []
     for axis in range(3):
         for sign, length in ((1.0, hi_r[axis] - lo_m[axis]), (-1.0, hi_m[axis] - lo_r[axis])):
