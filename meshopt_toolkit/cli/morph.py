@@ -22,7 +22,11 @@ fold-free): the frames are the source's file with new points, with ``quality.csv
 frame the worst relative quality and the folds) and ``summary.json``. ``--stop healthy``
 (their default, ``auto``) stops as soon as every interior frame is as healthy as the worse
 end, ``--stop converged`` runs the energy tests alone; planar and tet morphs stop on those
-only and refuse ``--stop healthy``.
+only and refuse ``--stop healthy``. Where both poses are free of self-intersections no
+frame passes through the surface, nor the motion between two frames (``--contact on``, the
+default: :mod:`meshopt_toolkit.motion.surface_morph_contact`); a pose that intersects
+itself is morphed without contact, with one warning line naming the file and the count;
+``--contact off`` morphs without contact, a frame through the surface refused.
 
 Both planar meshes are morphed at unit size (divided by one power of two nearest their size, see
 :mod:`meshopt_toolkit.scaling`) and the frames scaled back, so coordinates near 1e300 or
@@ -70,6 +74,10 @@ def add_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--max-iterations", "--max-iter", dest="max_iter", type=int, default=None,
                    help="iterations of the discrete geodesic (default: 200 Levenberg–Marquardt "
                         "for the distortion metric, 500 Newton for the scalar one)")
+    p.add_argument("--contact", choices=("on", "off"), default="on",
+                   help="surfaces in 3D: no frame, nor the motion between frames, passes "
+                        "through the surface (where both poses are free of "
+                        "self-intersections; default on)")
     add_output_flags(p, plots=True, frame_format="the source's")
 
 
@@ -220,26 +228,41 @@ def _run_surface(args: argparse.Namespace, cells) -> int:
     """Morph two poses of a triangle surface in 3D (:mod:`..motion.surface_morph`); the
     frames are the source's file (every block, tag and datum) with new points, plus
     ``quality.csv`` (per frame: worst relative quality, folds) and ``summary.json``."""
+    import warnings
     from dataclasses import replace
 
     import numpy as np
 
     from .. import io
-    from ..operations import morph
+    from ..errors import OptionError
+    from ..motion.contact import ContactWarning
+    from ..motion.surface_mesh_morph import morph_surface_mesh
     from ..progress import ProgressBar
 
     src_path, outdir = Path(args.source), Path(args.output)
+    if (args.metric != "distortion" or args.beta is not None or args.no_normalize
+            or args.method != "discrete"):
+        raise OptionError("surfaces in 3D are morphed with the distortion metric only "
+                          "(--metric scalar, --penalty, --no-normalize and --method do not "
+                          "apply)")
     source = cells.to_surface_mesh("morph")
     target = io.load_cells(Path(args.target)).to_surface_mesh("morph")
     names = frame_names(args.frames, args.format, src_path)
     written = names + ["quality.csv", "summary.json"]
     check_output_dir(outdir, force=args.force, names=written)
     max_iter = args.max_iter or 10
-    with ProgressBar(max_iter, "morph") as bar:
-        result = morph(source, target, args.frames, metric=args.metric, weight=args.weight,
-                       beta=args.beta, normalize=not args.no_normalize, method=args.method,
-                       max_iterations=max_iter, stop=args.stop,
-                       callback=lambda it: bar.update(status=f"E={it.energy:.8g}"))
+    with ProgressBar(max_iter, "morph") as bar, warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ContactWarning)
+        result = morph_surface_mesh(source, target, args.frames, weight=args.weight,
+                                    max_iterations=max_iter,
+                                    stop_when_healthy=args.stop != "converged",
+                                    callback=lambda it: bar.update(status=f"E={it.energy:.8g}"),
+                                    contact=args.contact == "on")
+    for w in caught:
+        if issubclass(w.category, ContactWarning):
+            line = str(w.message).replace("the source", str(src_path), 1)
+            print(f"meshopt morph: warning: {line.replace('the target', str(args.target), 1)}",
+                  file=sys.stderr)
     prepare_output_dir(outdir, force=args.force, names=written)
     warn_dropped(cells, args.source)
     for name, mesh in zip(names, result.frames):

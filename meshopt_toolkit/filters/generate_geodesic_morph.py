@@ -32,6 +32,9 @@ class GenerateGeodesicMorph(Filter):
     ``stop`` says when the morph of a surface in 3D stops: ``"healthy"`` (its default,
     ``"auto"``) as soon as every frame is as healthy as the worse end, ``"converged"`` on
     the energy tests alone; planar morphs stop on these only and refuse ``"healthy"``.
+    ``contact`` (a surface in 3D, default True) keeps every frame, and the motion between
+    frames, from passing through the surface where both poses are free of
+    self-intersections (:mod:`meshopt_toolkit.motion.surface_morph_contact`).
     The ``frames`` meshes of
     the morph (frame 0 the source, the last the target) are appended to the document as ``morph_000``, ``morph_001``, …, the last
     one current, each with its per-face aspect ratio 2r/R as face quality. The summary
@@ -69,6 +72,9 @@ class GenerateGeodesicMorph(Filter):
                   "frame is as healthy as the worse end (healthy, their auto) or on the energy "
                   "tests alone (converged, the only rule of planar and tet morphs)",
                   label="Stop", choices=STOP_RULES),
+        BoolParam("contact", True, "surfaces in 3D: no frame, nor the motion between "
+                  "frames, passes through the surface (where both poses are free of "
+                  "self-intersections)", label="Contact"),
     )
 
     former_parameters = dict.fromkeys(FORMER_BETAS, "penalty")
@@ -93,7 +99,7 @@ class GenerateGeodesicMorph(Filter):
     def apply(self, document, *, source: int = 0, target: int = -1, frames: int = 9,
               metric: str = METRICS[0], weight: float = 1.0, penalty: str = "",
               normalize: bool = True, method: str = METHODS[0],
-              stop: str = STOP_RULES[0]) -> dict:
+              stop: str = STOP_RULES[0], contact: bool = True) -> dict:
         from meshopt_toolkit.kernels.triangles import aspect_ratios
         from meshopt_toolkit.motion.scalar_morph import DEFAULT_BETA
         from meshopt_toolkit.operations import morph
@@ -107,7 +113,8 @@ class GenerateGeodesicMorph(Filter):
         src = document.entries[source].workpiece(f"{self.name}: the source", required=False)
         if src is None:  # a surface in 3D (a tet mesh is refused there)
             return self._surface(document, document.entries[source], document.entries[target],
-                                 frames, metric, weight, penalty, normalize, method, stop)
+                                 frames, metric, weight, penalty, normalize, method, stop,
+                                 contact)
         tgt = document.entries[target].workpiece(f"{self.name}: the target")
         try:
             # the source's plane at unit size (one power of two for both); the frames
@@ -132,13 +139,14 @@ class GenerateGeodesicMorph(Filter):
         return {**result.summary(), "unit_scale": src.scale.factor}
 
     def _surface(self, document, source, target, frames: int, metric: str, weight: float,
-                 penalty: str, normalize: bool, method: str, stop: str) -> dict:
+                 penalty: str, normalize: bool, method: str, stop: str,
+                 contact: bool = True) -> dict:
         """Morph two poses of a triangle surface in 3D; each frame keeps the source file's
         blocks, tags and data (``source_cells``) at its points."""
         from meshopt_toolkit.kernels.surface import aspect_ratios
         from meshopt_toolkit.mesh import SurfaceMesh, TriangleMesh
         from meshopt_toolkit.mesh.kinds import is_tets
-        from meshopt_toolkit.operations import morph
+        from meshopt_toolkit.motion.surface_mesh_morph import morph_surface_mesh
         from meshopt_toolkit.pipeline.document import MeshEntry
 
         for entry, what in ((source, "source"), (target, "target")):
@@ -150,9 +158,10 @@ class GenerateGeodesicMorph(Filter):
                               "metric only (metric, penalty, normalize and method do not apply)")
         a, b = source.mesh, target.mesh
         try:
-            result = morph(SurfaceMesh(a.points, a.triangles, **a._tag_kwargs()),
-                           SurfaceMesh(b.points, b.triangles, **b._tag_kwargs()), frames,
-                           weight=weight, stop=stop)
+            result = morph_surface_mesh(
+                SurfaceMesh(a.points, a.triangles, **a._tag_kwargs()),
+                SurfaceMesh(b.points, b.triangles, **b._tag_kwargs()), frames, weight=weight,
+                stop_when_healthy=stop != "converged", contact=contact)
         except MeshoptError as exc:
             raise FilterError(f"{self.name}: {exc}") from None
         cells = source.source_cells if source.keeps_source_cells else None

@@ -30,7 +30,7 @@ from ..kernels.intersections3d import intersecting_pairs, self_intersections
 from ..kernels.predicates import exactly_scaled
 
 __all__ = ["DHAT_FRACTION", "ContactTerm", "ContactWarning", "NoContact", "SurfaceContact",
-           "contact_term"]
+           "contact_term", "pair_contact"]
 
 #: ``d̂`` over the rest's mean edge length
 DHAT_FRACTION = 0.1
@@ -336,3 +336,24 @@ def contact_term(points: FloatArray, triangles: IntArray, free: np.ndarray,
                           "triangles): moved without contact", ContactWarning, stacklevel=3)
         return NoContact()
     return ContactTerm(contact, free, float(np.mean(mass)))
+
+
+def pair_contact(source: FloatArray, target: FloatArray, triangles: IntArray,
+                 dhat_fraction: float = DHAT_FRACTION) -> SurfaceContact | None:
+    """The :class:`SurfaceContact` of a motion between two poses of one surface (a
+    morph's ends): ``d̂`` also below half the target's closest pair, so neither end has
+    barrier energy; None where either end intersects itself or touches itself."""
+    contact = SurfaceContact(source, triangles, dhat_fraction)
+    if not contact.usable:
+        return None
+    ipctk = _ipctk()
+    V = np.asfortranarray(target, dtype=float)
+    if ipctk.has_intersections(contact.mesh, V):
+        return None
+    nearest = contact.minimum_distance(V)
+    if nearest <= 0.0:
+        return None
+    if nearest < 2.0 * contact.dhat:
+        contact.dhat = 0.5 * nearest
+        contact.potential = ipctk.BarrierPotential(contact.dhat, 1.0)
+    return contact

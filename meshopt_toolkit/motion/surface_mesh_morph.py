@@ -52,9 +52,12 @@ def morph_surface_mesh(source, target, frames: int = 9, *, weight: float = WEIGH
                        bending: float = BENDING, max_iterations: int = 10,
                        stop_when_healthy: bool = True,
                        callback: Callable[[PathIteration], bool | None] | None = None,
-                       progress: Callable[[float], None] | None = None) -> SurfaceMeshMorph:
+                       progress: Callable[[float], None] | None = None,
+                       contact: bool = True) -> SurfaceMeshMorph:
     """:func:`morph_surface` between two poses given as :class:`SurfaceMesh` (the same
-    triangles); ``stop_when_healthy`` as there.
+    triangles); ``stop_when_healthy`` and ``contact`` as there. Every frame returned is
+    checked exactly for self-intersections where neither end has one (with contact too:
+    the exact check is the last guard of every frame).
 
     Raises
     ------
@@ -66,7 +69,7 @@ def morph_surface_mesh(source, target, frames: int = 9, *, weight: float = WEIGH
         No fold-free start path.
     SelfIntersectionError
         A frame that intersects itself, where neither end does (exact; no frame is
-        returned).
+        returned); with contact, no clean start path.
     """
     if not (is_surface(source) and is_surface(target)):
         raise InvalidMeshError(f"cannot morph a {type(source).__name__} into a "
@@ -92,7 +95,8 @@ def morph_surface_mesh(source, target, frames: int = 9, *, weight: float = WEIGH
     scale = unit_scale(s.points, t.points, columns=3)
     res = morph_surface(scale.down(s.points), scale.down(t.points), s.triangles, frames,
                         weight=weight, bending=bending, max_iterations=max_iterations,
-                        stop_when_healthy=stop_when_healthy, callback=hook)
+                        stop_when_healthy=stop_when_healthy, callback=hook,
+                        contact=contact)
     res = replace(res, points=scale.up(res.points))
 
     guard.check(res.points, motion="the morph", last=False)

@@ -13,7 +13,7 @@ the discrete path energy of the metric ``JᵀJ`` of this embedding
 
 over the interior frames, by Levenberg–Marquardt (the block-tridiagonal normal equations
 solved by conjugate gradients, preconditioned by one kept Cholesky factor per frame,
-:class:`_PathSystem`), started from the as-rigid-as-possible interpolation
+:class:`.surface_path_system.PathSystem`), started from the as-rigid-as-possible interpolation
 (:mod:`.surface_interpolation`) or, where that folds, linear interpolation. While one of
 its frames has a worst relative quality below the worse end's, all its interior frames
 take as-rigid-as-possible local/global steps toward their interpolated stretches together
@@ -34,6 +34,12 @@ decrease below ``rtol·E`` (a start stationary to that tolerance is returned unc
 mass term fixes the frames' rigid motions (a rotation of one frame costs ``|ΔQ|²_M``), so
 nothing is pinned.
 
+With contact (the default, where both ends are free of self-intersections and there is an
+interior frame) no frame passes through the surface, nor the straight motion between two
+frames: each frame's IPC barrier joins the energy, every step is capped by CCD and taken
+only on a clean path, from a clean start (:mod:`.surface_morph_contact`; a detour of the
+moving components where neither interpolation is clean).
+
 A pair related by a similarity (to ``1e-10`` of the diameter) is followed along that
 similarity exactly (rotation in angle, scale geometrically), an identical pair by copies;
 vertices in no triangle move linearly. Along the frames each triangle's summed change of
@@ -44,6 +50,7 @@ quality (docs/theory-3d.md §5).
 from __future__ import annotations
 
 import time
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -51,16 +58,18 @@ import numpy as np
 import scipy.sparse as sp
 
 from .._typing import FloatArray, IntArray
-from ..errors import InvalidMeshError, NotAdmissibleError, OptionError
+from ..errors import InvalidMeshError, NotAdmissibleError, OptionError, SelfIntersectionError
+from ..kernels.intersections3d import self_intersections
 from ..kernels.surface import aspect_ratios
 from ..scaling import unit_scale
 from ..results import PathIteration
-from ..solvers import factorize_spd
-from .frame_threads import frame_map
 from .bending import dihedral_angles, wrap
 from .surface_interpolation import arap_interpolation
 from .similarity_3d import global_similarity
+from .contact import ContactWarning, pair_contact
 from .surface_metric import BENDING, WEIGHT, SurfaceGraphMetric
+from .surface_morph_contact import PathContact, detour_path
+from .surface_path_system import PathSystem
 from .surface_paths import FoldTest
 
 __all__ = ["SurfaceMorph", "morph_surface", "frame_measures"]
@@ -73,6 +82,9 @@ CG_ITERATIONS, CG_REFACTORIZE = 30, 15
 #: local/global steps at most of the start while a frame is below the worse end's quality
 #: (:func:`.surface_interpolation.arap_interpolation`'s ``iterations``)
 START_ITERATIONS = 10
+#: a frame whose worst relative quality is within this fraction of the worse end's is as
+#: healthy as it (the rounding of the aspect ratios of a moved triangle)
+HEALTHY_RTOL = 1e-12
 
 
 def frame_measures(source: FloatArray, frames, triangles: IntArray,
@@ -105,7 +117,7 @@ class SurfaceMorph:
     triangles : (T, 3) int array
     status : "healthy", "converged", "max_iterations", "stalled", "stopped", "similarity" or
         "identical"
-    initial_path : "arap", "linear", "similarity" or "identical"
+    initial_path : "arap", "linear", "detour" (with contact), "similarity" or "identical"
     energy : the path energy ``E`` (module docstring) at the end
     length : the frames' polygon length ``ℓ`` in the embedding
     """
@@ -201,8 +213,9 @@ class _PathProblem:
 
     def healthy(self, path: list) -> bool:
         """Every interior frame's worst relative quality at least the worse end's: the
-        path's worst frame is then the worse end, the best any path can have."""
-        return all(self.worst(Q) >= self.floor for Q in path[1:-1])
+        path's worst frame is then the worse end, the best any path can have (to
+        ``HEALTHY_RTOL``)."""
+        return all(self.worst(Q) >= self.floor * (1.0 - HEALTHY_RTOL) for Q in path[1:-1])
 
     def embed(self, Q: FloatArray):
         """``(m^½ Q, w φ, θ)``; None where a triangle is degenerate."""
@@ -238,8 +251,8 @@ def morph_surface(source: FloatArray, target: FloatArray, triangles: IntArray,
                   frames: int = 9, *, weight: float = WEIGHT, bending: float = BENDING,
                   max_iterations: int = 10, rtol: float = RTOL,
                   stop_when_healthy: bool = True,
-                  callback: Callable[[PathIteration], bool | None] | None = None
-                  ) -> SurfaceMorph:
+                  callback: Callable[[PathIteration], bool | None] | None = None,
+                  contact: bool = True) -> SurfaceMorph:
     """Frames from ``source`` to ``target`` (module docstring).
 
     Parameters
@@ -259,6 +272,10 @@ def morph_surface(source: FloatArray, target: FloatArray, triangles: IntArray,
         every interior frame's worst relative quality at least the worse end's (module
         docstring), before the energy tests.
     callback : called once per iteration with a :class:`PathIteration`; True stops.
+    contact : keep every frame, and the segments between frames, from passing through the
+        surface (:mod:`.surface_morph_contact`) where both ends are free of
+        self-intersections (else a :class:`.contact.ContactWarning` gives their count and
+        the morph runs without contact).
 
     Raises
     ------
@@ -266,6 +283,8 @@ def morph_surface(source: FloatArray, target: FloatArray, triangles: IntArray,
         Bad shapes, a degenerate triangle in either pose.
     NotAdmissibleError
         Neither interpolation is free of folds and degenerate triangles.
+    SelfIntersectionError
+        With contact: no clean start path (neither interpolation nor a detour).
     """
     t_start = time.perf_counter()
     V0, V1 = np.asarray(source, float), np.asarray(target, float)
@@ -296,9 +315,10 @@ def morph_surface(source: FloatArray, target: FloatArray, triangles: IntArray,
             0, 0.0, 0.0
         initial = "similarity"
     else:
-        path, initial = _initial_path(problem, W0, W1, G, times)
+        guard = _path_contact(problem, W0, W1, K + 1, contact)
+        path, initial = _initial_path(problem, W0, W1, G, times, guard)
         path, status, it, nf, E0, gnorm = _minimize(problem, path, max_iterations, rtol,
-                                                    callback, stop_when_healthy)
+                                                    callback, stop_when_healthy, guard)
     X = [problem.embed(Q) for Q in path]
     residuals = [problem.segment(X[k], X[k + 1]) for k in range(K)]
     energy = 0.5 * float(sum(r @ r for r in residuals))
@@ -324,100 +344,67 @@ def morph_surface(source: FloatArray, target: FloatArray, triangles: IntArray,
                         weight=float(weight), gradient_norm=gnorm)
 
 
-def _initial_path(problem: _PathProblem, V0, V1, F, times) -> tuple[list, str]:
+def _path_contact(problem: _PathProblem, V0, V1, frames: int, on: bool
+                  ) -> PathContact | None:
+    """The contact of the path from ``V0`` to ``V1`` where ``on`` and both
+    ends are free of self-intersections; a :class:`ContactWarning` with the count where
+    one is not."""
+    F = problem.triangles
+    if not on or len(F) < 2 or frames < 3:
+        return None
+    contact = pair_contact(V0, V1, F)
+    if contact is None:
+        counts = {end: len(self_intersections(V, F)) for end, V in (("source", V0),
+                                                                   ("target", V1))}
+        crossing = [f"the {end} intersects itself ({n} pairs of triangles)"
+                    for end, n in counts.items() if n]
+        if crossing:
+            warnings.warn(" and ".join(crossing) + ": morphed without contact",
+                          ContactWarning, stacklevel=3)
+        return None
+    return PathContact(contact, frames, problem.sqrt_m ** 2)
+
+
+def _initial_path(problem: _PathProblem, V0, V1, F, times,
+                  contact: PathContact | None = None) -> tuple[list, str]:
     """The as-rigid-as-possible interpolation (with its local/global steps, else without)
     where every frame is admissible, else the linear one where it is
-    (:class:`NotAdmissibleError` else)."""
+    (:class:`NotAdmissibleError` else); with ``contact`` only a clean one, else a clean
+    detour (:func:`.surface_morph_contact.detour_path`; :class:`SelfIntersectionError`
+    where there is none)."""
     candidates = (("arap", lambda: arap_interpolation(V0, V1, F, times,
                                                       iterations=START_ITERATIONS,
                                                       until=problem.healthy)),
                   ("arap", lambda: arap_interpolation(V0, V1, F, times)),
-                  ("linear", lambda: [(1.0 - t) * V0 + t * V1 for t in times]))
-    for name, make in candidates:
+                  ("linear", lambda: [(1.0 - t) * V0 + t * V1 for t in times]),
+                  ("detour", lambda: detour_path(contact, V0, V1, F, len(times) - 1)))
+    crossed = False
+    for name, make in candidates[:3] if contact is None else candidates:
         path = make()
+        if path is None:
+            break
         path[0], path[-1] = V0, V1
         if all(problem.embed(Q) is not None and problem.admissible(Q) for Q in path[1:-1]):
-            return path, name
+            if contact is None or contact.clean(path):
+                return path, name
+            crossed = True
+    if crossed:
+        raise SelfIntersectionError(
+            "the morph finds no path free of self-contact: the interpolations of the ends "
+            "pass through the surface and no detour of its moving parts is clean")
     raise NotAdmissibleError("neither the as-rigid-as-possible nor the linear "
                              "interpolation of the pair is free of folds and degenerate "
                              "triangles")
 
 
-class _PathSystem:
-    """The damped Gauss–Newton matrix of the interior frames, ``H + λ diag H`` with
-    ``H = 𝔻ᵀ(T ⊗ I)𝔻``, ``𝔻 = diag(D_1, …, D_{K−1})`` the frames' embedding Jacobians and
-    ``T`` the path's Laplacian in time (2 on the diagonal, −1 beside), never assembled;
-    solved by conjugate gradients preconditioned by its diagonal blocks
-    ``(2 + 2λ diag) D_jᵀD_j``, one Cholesky factor per frame kept across iterations
-    (refactorized on its analysis)."""
-
-    def __init__(self, frames: int) -> None:
-        m = frames - 1
-        self.T = 2.0 * np.eye(m) - np.eye(m, k=1) - np.eye(m, k=-1)
-        self.factors: list = [None] * m
-        self.factorizations = 0
-
-    def update(self, D: list, damping: float, refactorize: bool) -> None:
-        """The frames' Jacobians ``D`` and the damping ``λ``; the blocks factorized again
-        where asked (else the kept factors of an earlier iterate precondition)."""
-        self.D, self.damping = D, damping
-        self.diagonal = np.concatenate([2.0 * np.asarray(Dj.multiply(Dj).sum(axis=0)).ravel()
-                                        for Dj in D])
-        if not refactorize and self.factors[0] is not None:
-            return
-
-        def factorize(j):
-            G = 2.0 * (D[j].T @ D[j]).tocsc()
-            G.setdiag(G.diagonal() * (1.0 + damping))
-            if hasattr(self.factors[j], "refactorize"):
-                self.factors[j].refactorize(G)
-            else:
-                self.factors[j] = factorize_spd(G)
-
-        list(frame_map(D[0].shape[0], len(D))(factorize, range(len(D))))
-        self.factorizations += len(D)
-
-    def product(self, v: FloatArray, damping: float | None = None) -> FloatArray:
-        """``(H + λ·diag H) v``, ``λ`` the system's damping unless given."""
-        V = v.reshape(len(self.D), -1)
-        U = self.T @ np.stack([Dj @ x for Dj, x in zip(self.D, V)])
-        Hv = np.concatenate([Dj.T @ u for Dj, u in zip(self.D, U)])
-        damping = self.damping if damping is None else damping
-        return Hv + damping * self.diagonal * v
-
-    def precondition(self, v: FloatArray) -> FloatArray:
-        V = v.reshape(len(self.D), -1)
-        return np.concatenate(list(frame_map(self.D[0].shape[0], len(self.D))(
-            lambda f, x: f(x), self.factors, V)))
-
-    def solve(self, b: FloatArray, rtol: float = 5e-2, max_iterations: int = 100
-              ) -> FloatArray:
-        """Preconditioned conjugate gradients from 0 to ``|r| ≤ rtol |b|``."""
-        x = np.zeros_like(b)
-        self.iterations = 0
-        r = b.copy()
-        z = self.precondition(r)
-        p, rz = z.copy(), float(r @ z)
-        target = rtol * float(np.linalg.norm(b))
-        for self.iterations in range(1, max_iterations + 1):
-            Ap = self.product(p)
-            alpha = rz / float(p @ Ap)
-            x += alpha * p
-            r -= alpha * Ap
-            if np.linalg.norm(r) <= target:
-                break
-            z = self.precondition(r)
-            rz, rz_old = float(r @ z), rz
-            p = z + (rz / rz_old) * p
-        return x
-
-
 def _minimize(problem: _PathProblem, path: list, max_iterations: int, rtol: float,
-              callback, healthy: bool = False) -> tuple:
+              callback, healthy: bool = False, contact: PathContact | None = None) -> tuple:
     """Levenberg–Marquardt on the interior frames (module docstring): the frames, the
     status, iterations, factorizations, the initial energy (None where the start is
     returned as healthy, unevaluated) and the last gradient norm. With ``healthy``, a
-    path (the start included) whose frames pass :meth:`_PathProblem.healthy` ends it."""
+    path (the start included) whose frames pass :meth:`_PathProblem.healthy` ends it.
+    With ``contact`` (a clean start), the frames' barriers join the energy, each step is
+    capped by the CCD of the frames' moves and a trial is taken only on a clean path."""
     K = len(path) - 1
     if K < 2:
         return path, "converged", 0, 0, 0.0, 0.0
@@ -425,22 +412,29 @@ def _minimize(problem: _PathProblem, path: list, max_iterations: int, rtol: floa
         return path, "healthy", 0, 0, None, 0.0
     X = [problem.embed(Q) for Q in path]
 
-    def energy_of(Xs):
+    def energy_of(Xs, Qs):
         r = [problem.segment(Xs[k], Xs[k + 1]) for k in range(K)]
-        return 0.5 * float(sum(v @ v for v in r)), r
+        barrier = 0.0 if contact is None else contact.energy(Qs)
+        return 0.5 * float(sum(v @ v for v in r)) + barrier, r
 
-    E, r = energy_of(X)
+    E, r = energy_of(X, path)
     E_initial, n = E, path[0].size
-    system = _PathSystem(K)
+    system = PathSystem(K)
     damping, status, gnorm, steps = 1e-4, "max_iterations", 0.0, 0
     fresh = True  # factorize the preconditioner's blocks (again)
     for _ in range(max_iterations):
         D = [problem.jacobian(path[j]) for j in range(1, K)]
         g = np.concatenate([D[j - 1].T @ (r[j - 1] - r[j]) for j in range(1, K)])
+        barriers = None
+        if contact is not None:
+            if contact.set_stiffness(path, g):  # κ set or raised: the energy with it
+                E, r = energy_of(X, path)
+            g = g + contact.gradient(path)
+            barriers = contact.hessians(path)
         gnorm = float(np.linalg.norm(g))
         accepted = stationary = False
         for attempt in range(4):  # raise the damping until a step is taken
-            system.update(D, damping, fresh)
+            system.update(D, damping, fresh, barriers)
             step = -system.solve(g, max_iterations=CG_ITERATIONS)
             # the kept factors serve while conjugate gradients converge quickly with them
             fresh = system.iterations > CG_REFACTORIZE
@@ -450,14 +444,16 @@ def _minimize(problem: _PathProblem, path: list, max_iterations: int, rtol: floa
                 if predicted <= rtol * E:
                     stationary = True
                     break
-            for alpha in 0.5 ** np.arange(8):
+            cap = 1.0 if contact is None else contact.cap(path, step)
+            for alpha in cap * 0.5 ** np.arange(8):
                 trial = [path[0]] + [path[j] + alpha * step[(j - 1) * n:j * n].reshape(-1, 3)
                                      for j in range(1, K)] + [path[K]]
                 Xt = [X[0]] + [problem.embed(Q) for Q in trial[1:-1]] + [X[K]]
                 if any(x is None for x in Xt):
                     continue
-                E_trial, r_trial = energy_of(Xt)
-                if E_trial < E and all(problem.admissible(Q) for Q in trial[1:-1]):
+                E_trial, r_trial = energy_of(Xt, trial)
+                if E_trial < E and all(problem.admissible(Q) for Q in trial[1:-1]) and (
+                        contact is None or contact.clean(trial)):
                     accepted = True
                     break
             if accepted:
