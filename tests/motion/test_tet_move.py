@@ -18,7 +18,8 @@ from meshopt_toolkit.kernels.tetrahedra import signed_volumes as tet_signed_volu
 from meshopt_toolkit.motion.similarity import HandlePath, fit_similarity_3d, handle_groups
 from meshopt_toolkit.motion.similarity_3d import tet_boundary_faces
 from meshopt_toolkit.motion.tet_distortion import TetDistortion
-from meshopt_toolkit.motion.tet_least_squares import Factor, FreePattern, Problem, minimize
+from meshopt_toolkit.motion.sparse_pattern import FreePattern
+from meshopt_toolkit.motion.tet_least_squares import Factor, Problem, minimize
 from meshopt_toolkit.motion.tet_move import move_tets
 from meshopt_toolkit.motion.tet_polish import inverse_mean_ratios, polish_worst_tets
 from meshopt_toolkit.solvers import factorize_spd
