@@ -13,7 +13,8 @@ from test_architecture import PACKAGE, ROOT, find_cycle, module_level_imports
 # the layers, lowest first: a module may import its own layer and the layers below
 LAYERS = {
     "foundations": ["_typing", "_linalg", "_lazy", "errors", "bounds", "progress", "scaling",
-                    "diagnostics", "_cholmod", "solvers", "strict_json", "results", "_options"],
+                    "diagnostics", "_cholmod", "solvers", "strict_json", "results", "_options",
+                    "descent"],
     "kernels": ["kernels"],
     "mesh": ["mesh", "orientation", "generate", "gmsh_session"],
     "numerics": ["penalties", "fem", "ode", "riemannian", "expressions"],

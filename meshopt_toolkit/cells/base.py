@@ -20,8 +20,11 @@ import numpy as np
 
 from .._typing import FloatArray, IntArray
 from ..kernels.cell_maps import affine_maps, barycentric_gradients
+from ..kernels.surface import areas
+from ..kernels.tetrahedra import signed_volumes
+from ..kernels.triangles import signed_areas
 
-__all__ = ["CellDistortion", "CellKind", "SimplexKind", "scale_free_mass"]
+__all__ = ["CellDistortion", "CellKind", "SimplexKind", "lumped_mass", "scale_free_mass"]
 
 
 @runtime_checkable
@@ -94,6 +97,25 @@ def scale_free_mass(points: FloatArray, cells: IntArray, measures: FloatArray) -
     return m / spread
 
 
+def lumped_mass(points: FloatArray, cells: IntArray) -> FloatArray:
+    """The motions' one lumped mass, :func:`scale_free_mass` of the cells' unsigned
+    measures: areas of triangles ``(T, 3)`` in the plane ``(N, 2)`` or in space ``(N, 3)``,
+    volumes of tets ``(C, 4)``; what every :class:`CellKind`'s ``lumped_mass`` returns.
+
+    Returns
+    -------
+    (N,) float array
+    """
+    points, cells = np.asarray(points, dtype=float), np.asarray(cells)
+    if cells.shape[1] == 4:
+        measures = np.abs(signed_volumes(points, cells))
+    elif points.shape[1] == 2:
+        measures = np.abs(signed_areas(points, cells))
+    else:
+        measures = areas(points, cells)
+    return scale_free_mass(points, cells, measures)
+
+
 class SimplexKind:
     """What every simplicial kind computes the same way from its own measures and rest
     coordinates (a kind subclasses it and supplies the rest of :class:`CellKind`)."""
@@ -111,10 +133,6 @@ class SimplexKind:
         ``(C, k, cell_dimension)``."""
         return np.asarray(rest, dtype=float)[cells]
 
-    def unsigned_measures(self, points: FloatArray, cells: IntArray) -> FloatArray:
-        """``|measures|`` (C,)."""
-        return np.abs(self.measures(points, cells))
-
     def jacobians(self, points: FloatArray, cells: IntArray, rest: FloatArray) -> FloatArray:
         """Linear parts ``A`` (C, point_dimension, cell_dimension) of the affine maps from
         the rest cells (``rest`` (N, point_dimension), non-degenerate) to the cells at
@@ -123,9 +141,8 @@ class SimplexKind:
         return affine_maps(points, cells, gradients)
 
     def lumped_mass(self, points: FloatArray, cells: IntArray) -> FloatArray:
-        """The motions' dimensionless lumped mass (:func:`scale_free_mass`) (N,)."""
-        points = np.asarray(points, dtype=float)
-        return scale_free_mass(points, cells, self.unsigned_measures(points, cells))
+        """The motions' dimensionless lumped mass (:func:`lumped_mass`) (N,)."""
+        return lumped_mass(points, cells)
 
     def distortion_gradient(self, points: FloatArray, cells: IntArray, reference: FloatArray,
                             weights: FloatArray) -> tuple[FloatArray, FloatArray]:

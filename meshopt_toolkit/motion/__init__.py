@@ -8,13 +8,13 @@ the path so far), whatever the number of triangles; with ``φ_t`` → ∞ at eve
 triangle the metric is complete. See :mod:`.strain` for the bound on the shape quality.
 
 Modules: :mod:`.strain` (φ and its Jacobian), :mod:`.graph_metric` (the metric, a
-:class:`~meshopt_toolkit.riemannian.metrics.Metric`), :mod:`.similarity` (the global
-similarity factored out of every motion), :mod:`.path` (the path energy as a sparse
-nonlinear least-squares problem, whose discrete geodesics
-:func:`~meshopt_toolkit.riemannian.discrete_geodesic.discrete_geodesic` computes by
-Levenberg–Marquardt), :mod:`.move` (prescribed motion of handle vertices), :mod:`.morph`
-(morphing between two meshes). Tet meshes: :mod:`.tet_distortion` (φ ∈ R⁷ per tet),
-:mod:`.tet_metric`, :mod:`.similarity_3d` (the similarity of space and handle paths that tets
-and surfaces share), :mod:`.tet_least_squares` and :mod:`.tet_move` (prescribed motion,
-``move_tets``).
+:class:`~meshopt_toolkit.riemannian.metrics.Metric`), :mod:`.similarity` (the similarities
+of the plane and of space factored out of every motion, and the one handle path),
+:mod:`.path` (the path energy as a sparse nonlinear least-squares problem, whose discrete
+geodesics :func:`~meshopt_toolkit.riemannian.discrete_geodesic.discrete_geodesic` computes
+by Levenberg–Marquardt), :mod:`.continuation` (the one continuation loop, ``march``),
+:mod:`.move` (prescribed motion of handle vertices), :mod:`.morph` (morphing between two
+meshes). Tet meshes: :mod:`.tet_distortion` (φ ∈ R⁷ per tet), :mod:`.tet_metric`,
+:mod:`.similarity_3d` (a whole point set's similarity, tet boundary faces),
+:mod:`.tet_least_squares` and :mod:`.tet_move` (prescribed motion, ``move_tets``).
 """

@@ -88,6 +88,54 @@ class ContinuationResult:
     seconds: list[float] = field(default_factory=list)
 
 
+def march(start: FloatArray, times: FloatArray,
+          advance: Callable[[FloatArray, float, float], FloatArray | None], *,
+          max_splits: int, progress: Callable[[float], None] | None = None,
+          what: str = "position of the mesh for the handles") -> tuple[list[FloatArray], int]:
+    """The one continuation loop of the motions: frames at ``times`` (increasing, from
+    ``times[0]``), each reached by steps of the path parameter ``s``.
+
+    A step from ``s_now`` tries ``s_try``, the next frame's time first, through
+    ``advance(Q, s_now, s_try)``: the positions at ``s_try`` (the prediction checked
+    admissible and relaxed), or None where no prediction is admissible; then the step is
+    halved, at most ``max_splits`` times in a row (:class:`NoAdmissiblePathError`, naming
+    ``what`` was not found); a step shorter than 1e-12 of the time is refused as well.
+    ``progress(s)`` after each accepted step.
+
+    Returns
+    -------
+    frames : list of arrays, ``frames[0]`` a copy of ``start``
+    splits : int
+        How many times a step was halved.
+    """
+    Q = np.array(start, float)
+    s_now = float(times[0])
+    frames, splits = [Q.copy()], 0
+    for s_goal in times[1:]:
+        while s_now < s_goal:
+            ds, moved = s_goal - s_now, None
+            for _ in range(max_splits + 1):
+                s_try = s_goal if ds == s_goal - s_now else s_now + ds
+                if s_try - s_now <= 1e-12 * max(1.0, s_goal):  # steps too short to go on
+                    raise NoAdmissiblePathError(
+                        f"no admissible {what} beyond s = {s_now:.6g} (the steps shrink "
+                        "towards it)")
+                moved = advance(Q, s_now, s_try)
+                if moved is not None:
+                    break
+                ds *= 0.5
+                splits += 1
+            else:
+                raise NoAdmissiblePathError(
+                    f"no admissible {what} at s = {s_now + ds:.4g} (the step was halved "
+                    f"{max_splits} times)")
+            Q, s_now = moved, s_try
+            if progress is not None:
+                progress(s_now)
+        frames.append(Q.copy())
+    return frames, splits
+
+
 def continuation_path(
     metric: GraphMetric,
     start: FloatArray,
@@ -101,7 +149,10 @@ def continuation_path(
     max_iterations: int = 50,
     progress: Callable[[float], None] | None = None,
 ) -> ContinuationResult:
-    """Frames at ``times`` (increasing, from 0) of an admissible motion of the handles.
+    """Frames at ``times`` (increasing, from 0) of an admissible motion of the handles:
+    :func:`march` with each step predicted by :func:`extend` (admissible: no triangle
+    inverted, the boundary simple) and relaxed by Levenberg–Marquardt on the one-segment
+    path from the last frame.
 
     Parameters
     ----------
@@ -122,43 +173,32 @@ def continuation_path(
     import time as _time
 
     free = _step_free(start.shape[0], handles)
-    Q = np.array(start, float)
-    s_now = float(times[0])
-    frames, out_times, secs = [Q.copy()], [s_now], []
-    nit = splits = 0
     # shared by every step
     factors = FrameBlocks([np.arange(2 * int(free[1].sum()))], [metric.reference[free[1]]])
-    t0 = _time.perf_counter()
-    for s_goal in times[1:]:
-        while s_now < s_goal:
-            ds = s_goal - s_now
-            for attempt in range(max_splits + 1):
-                s_try = s_goal if ds == s_goal - s_now else s_now + ds
-                trial = extend(metric, Q, handles, handle_path(s_try), factors)
-                if (metric.strain.determinants(trial) > 0).all() and _simple(trial, boundary_edges):
-                    break
-                ds *= 0.5
-                splits += 1
-            else:
-                raise NoAdmissiblePathError(
-                    f"no admissible position of the mesh for the handles at s = {s_now + ds:.4g} "
-                    f"(the step was halved {max_splits} times)")
-            anchor = (metric.strain.values(Q) if strain_target is None
-                      else strain_target(s_try))
-            res = discrete_geodesic(metric, Q, trial, 1, free=free,
-                                    boundary_edges=boundary_edges, anchor=anchor,
-                                    options=LevenbergMarquardtOptions(
-                                        gtol=1e-6, rtol=RELAX_RTOL, max_iterations=max_iterations,
-                                        cg_rtol=RELAX_CG_RTOL, newton=True, factors=factors))
-            nit += res.nit
-            Q = res.points[1]
-            s_now = s_try
-            if progress is not None:
-                progress(s_now)
-        frames.append(Q.copy())
-        out_times.append(s_now)
-        secs.append(_time.perf_counter() - t0)
-    return ContinuationResult(frames, out_times, nit, splits, secs)
+    options = LevenbergMarquardtOptions(gtol=1e-6, rtol=RELAX_RTOL, max_iterations=max_iterations,
+                                        cg_rtol=RELAX_CG_RTOL, newton=True, factors=factors)
+    nit, secs, t0 = 0, [], _time.perf_counter()
+    times = np.asarray(times, float)
+
+    def advance(Q: FloatArray, s_now: float, s_try: float) -> FloatArray | None:
+        nonlocal nit
+        trial = extend(metric, Q, handles, handle_path(s_try), factors)
+        if not ((metric.strain.determinants(trial) > 0).all() and _simple(trial, boundary_edges)):
+            return None
+        anchor = metric.strain.values(Q) if strain_target is None else strain_target(s_try)
+        res = discrete_geodesic(metric, Q, trial, 1, free=free, boundary_edges=boundary_edges,
+                                anchor=anchor, options=options)
+        nit += res.nit
+        return res.points[1]
+
+    def frame_done(s: float) -> None:
+        if progress is not None:
+            progress(s)
+        if np.any(times[1:] == s):
+            secs.append(_time.perf_counter() - t0)
+
+    frames, splits = march(start, times, advance, max_splits=max_splits, progress=frame_done)
+    return ContinuationResult(frames, [float(t) for t in times], nit, splits, secs)
 
 
 def _simple(Q: FloatArray, boundary_edges: IntArray | None) -> bool:

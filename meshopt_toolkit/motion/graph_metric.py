@@ -13,20 +13,11 @@ import numpy as np
 import scipy.sparse as sp
 
 from .._typing import FloatArray, IntArray
-from ..cells.base import scale_free_mass
+from ..cells.base import lumped_mass
 from ..errors import NotAdmissibleError
-from ..kernels.triangles import signed_areas
 from ..riemannian.assembled import AssembledMetric
 from .path import GraphPath
 from .strain import TriangleDistortion
-
-
-def lumped_mass(points: FloatArray, triangles: IntArray) -> FloatArray:
-    """Vertex weights ``m_i`` with ``Σ m_i |v_i|²`` = area-weighted mean of ``|v|²`` divided
-    by the mean squared distance from the centroid (a dimensionless, size- and
-    resolution-independent norm of a displacement field; :func:`..cells.base.scale_free_mass`
-    of the triangles' areas)."""
-    return scale_free_mass(points, triangles, np.abs(signed_areas(points, triangles)))
 
 
 @dataclass

@@ -35,7 +35,7 @@ from ..kernels.surface import areas
 from ..mesh.core import TriangleMesh
 from ..solvers import factorize_spd
 from .surface_distortion import SurfaceDistortion
-from .similarity_3d import fit_similarity_3d as fit_similarity
+from .similarity import fit_similarity_3d as fit_similarity
 
 
 def _frames(P: FloatArray) -> FloatArray:

@@ -14,7 +14,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .._typing import FloatArray, IntArray
-from ..cells.base import scale_free_mass
+from ..cells.base import lumped_mass
 from ..errors import NotAdmissibleError
 from ..kernels.surface import areas
 from ..riemannian.assembled import AssembledMetric
@@ -61,7 +61,7 @@ class SurfaceGraphMetric(AssembledMetric):
         self.membrane = SurfaceDistortion(V0, F)
         self.shell = ShellBending(V0, F)
         self.sqrt_c = np.sqrt(self.shell.weights) * np.sqrt(self.bending)
-        self.sqrt_m = np.sqrt(np.repeat(scale_free_mass(V0, F, areas(V0, F)), 3))
+        self.sqrt_m = np.sqrt(np.repeat(lumped_mass(V0, F), 3))
         self.weight = float(self.weight)
 
     def jacobian(self, Q: FloatArray) -> sp.csr_matrix:

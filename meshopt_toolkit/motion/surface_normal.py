@@ -12,6 +12,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .._typing import FloatArray, IntArray
+from .sparse_pattern import pattern_slots
 
 
 def upper_products(J: FloatArray) -> FloatArray:
@@ -32,7 +33,8 @@ class FreePattern:
     pattern: the upper-triangle entries of per-block products (:func:`upper_products`,
     (B, k(k+1)/2)) over block columns (B, k) are summed into it by one ``bincount`` per
     block (CHOLMOD reads the lower triangle only). The pattern and each entry's place in
-    it are found once, by one sort of the entries' keys; entries at a handle go to a slot
+    it are found once, by one sort of the entries' keys
+    (:func:`.sparse_pattern.pattern_slots`); entries at a handle go to a slot
     past the end, so the products are read as they are (no gather of the kept ones)."""
 
     def __init__(self, block_columns: list, free_index: IntArray, n_free: int) -> None:
@@ -47,22 +49,15 @@ class FreePattern:
             take.append(keep)  # place of each kept entry in the flattened products
             sizes.append(len(C) * len(a))
         keys = np.concatenate(keys)
-        order = np.argsort(keys)
-        sorted_keys = keys[order]
-        first = np.ones(len(keys), bool)
-        first[1:] = sorted_keys[1:] != sorted_keys[:-1]
-        unique = sorted_keys[first]
-        inverse = np.empty(len(keys), np.int64)
-        inverse[order] = np.cumsum(first) - 1
+        s = pattern_slots(keys // n_free, keys % n_free, n_free)
         self.slots, at = [], 0  # each flattened product's place in the data
         for keep, size in zip(take, sizes):
-            slot = np.full(size, len(unique), np.int64)
-            slot[keep] = inverse[at:at + len(keep)]
+            slot = np.full(size, s.nnz, np.int64)
+            slot[keep] = s.slot_of_entry[at:at + len(keep)]
             self.slots.append(slot)
             at += len(keep)
-        rows, self.indices = np.divmod(unique, n_free)
-        self.indptr = np.searchsorted(rows, np.arange(n_free + 1))
-        self.diagonal = np.searchsorted(unique, np.arange(n_free) * (n_free + 1))
+        self.indices, self.indptr = s.indices, s.indptr
+        self.diagonal = np.searchsorted(s.keys, np.arange(n_free) * (n_free + 1))
 
     def matrix(self, products: list, diagonal: FloatArray) -> sp.csr_matrix:
         """The lower triangle from the blocks' upper products (B, k(k+1)/2) and the

@@ -1,7 +1,7 @@
 """The fold test of a triangle surface in R³ against its rest shape (:class:`FoldTest`):
 a triangle folds when its normal turns against its rest normal carried by the best rotation
 of its neighbourhood (:func:`best_rotations`, batched Kabsch). The handles' paths and the
-similarities they follow live in :mod:`.similarity_3d`.
+similarities they follow live in :mod:`.similarity`.
 """
 
 from __future__ import annotations

@@ -9,10 +9,10 @@ over the free vertices (``P`` the proximal centre, ``a`` the anchor distortion, 
 tet weights) by Newton (the residual curvature taken on the tets far from their anchor;
 Gauss–Newton where that matrix is not positive definite; optionally each tet's block
 projected onto the positive semidefinite cone instead) with a backtracking line search
-that accepts only steps that lower ``E``: ``E`` is ``+inf`` where a tet is inverted, so
-every accepted iterate has every tet positively oriented. The sparse matrices are lower
-triangles on a pattern built once (:class:`FreePattern`), factorized by CHOLMOD on a kept
-analysis.
+(:func:`..descent.backtrack`) that accepts only steps that lower ``E``: ``E`` is ``+inf``
+where a tet is inverted, so every accepted iterate has every tet positively oriented. The
+sparse matrices are lower triangles on a pattern built once
+(:class:`.sparse_pattern.FreePattern`), factorized by CHOLMOD on a kept analysis.
 """
 
 from __future__ import annotations
@@ -24,45 +24,10 @@ import numpy as np
 import scipy.sparse as sp
 
 from .._typing import FloatArray, IntArray
+from ..descent import backtrack, halvings, sufficient_decrease
 from ..solvers import cholesky_spd, cholmod_available, factorize_spd, pcg
+from .sparse_pattern import FreePattern
 from .tet_distortion import TetDistortion
-
-
-class FreePattern:
-    """Lower-triangular CSC pattern of the free × free block of ``Σ_c (12×12 blocks) +
-    diagonal``, with the map from block entries to its data (assembly = one bincount).
-
-    Parameters
-    ----------
-    columns : (C, 12) int array
-        Global coordinate of each block column (``3·vertex + d``).
-    free : (3N,) bool array
-        Free coordinates.
-    """
-
-    def __init__(self, columns: IntArray, free: FloatArray) -> None:
-        self.free = np.asarray(free, bool)
-        index = np.full(len(self.free), -1)
-        index[self.free] = np.arange(int(self.free.sum()))
-        self.n = n = int(self.free.sum())
-        f = index[columns]  # (C, 12)
-        r = np.broadcast_to(f[:, :, None], f.shape + (12,)).ravel()
-        c = np.broadcast_to(f[:, None, :], f.shape + (12,)).ravel()
-        self.select = np.flatnonzero((r >= 0) & (c >= 0) & (r >= c))
-        r, c = r[self.select], c[self.select]
-        diag = np.arange(n)
-        key = np.concatenate([c, diag]).astype(np.int64) * n + np.concatenate([r, diag])
-        unique, self.inverse = np.unique(key, return_inverse=True)
-        self.indices = (unique % n).astype(np.int32)
-        self.indptr = np.searchsorted(unique // n, np.arange(n + 1)).astype(np.int32)
-        self.n_entries = len(unique)
-
-    def matrix(self, blocks: FloatArray, diagonal: FloatArray) -> sp.csc_matrix:
-        """The lower triangle of the free block of ``Σ blocks + diag(diagonal)``
-        (``diagonal`` over the free coordinates)."""
-        values = np.concatenate([blocks.reshape(-1)[self.select], diagonal])
-        data = np.bincount(self.inverse, values, minlength=self.n_entries)
-        return sp.csc_matrix((data, self.indices, self.indptr), shape=(self.n, self.n))
 
 
 class Factor:
@@ -257,17 +222,17 @@ def minimize(problem: Problem, Q: FloatArray, centre: FloatArray, anchor: FloatA
         if step is None:
             step = -problem.solve_step(gn, g)
         slope = float(step @ g)
-        t = 1.0
-        for _ in range(40):
+
+        def try_step(t: float, Q=Q, E=E, step=step, slope=slope):
             trial = Q.copy()
             trial.reshape(-1)[free] += t * step
             Et = problem.energy(trial, centre, anchor, w)
-            if Et <= E + 1e-4 * t * slope:
-                break
-            t *= 0.5
-        else:
+            return (trial, Et) if sufficient_decrease(Et, E, t, slope) else None
+
+        found = backtrack(try_step, halvings(count=40))
+        if found is None:
             return Minimized(Q, it, E, ratio)
-        Q, E = trial, Et
+        Q, E = found[1]
     return Minimized(Q, max_iterations, E, ratio)
 
 

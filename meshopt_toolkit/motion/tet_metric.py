@@ -12,19 +12,10 @@ import numpy as np
 import scipy.sparse as sp
 
 from .._typing import FloatArray, IntArray
-from ..cells.base import scale_free_mass
+from ..cells.base import lumped_mass
 from ..errors import NotAdmissibleError
-from ..kernels.tetrahedra import signed_volumes
 from ..riemannian.assembled import AssembledMetric
 from .tet_distortion import TetDistortion
-
-
-def tet_lumped_mass(points: FloatArray, tets: IntArray) -> FloatArray:
-    """Vertex weights ``m_i`` with ``Σ m_i |v_i|²`` = volume-weighted mean of ``|v|²``
-    divided by the mean squared distance from the centroid (dimensionless, size- and
-    resolution-independent, as :func:`.graph_metric.lumped_mass` in the plane;
-    :func:`..cells.base.scale_free_mass` of the tets' volumes)."""
-    return scale_free_mass(points, tets, np.abs(signed_volumes(points, tets)))
 
 
 @dataclass
@@ -49,7 +40,7 @@ class TetGraphMetric(AssembledMetric):
     def __post_init__(self) -> None:
         self.reference = np.asarray(self.reference, dtype=float)
         self.strain = TetDistortion(self.reference, self.tets)
-        self.mass = tet_lumped_mass(self.reference, self.strain.tets)
+        self.mass = lumped_mass(self.reference, self.strain.tets)
 
     def embed(self, Q: FloatArray) -> tuple[FloatArray, FloatArray]:
         """``(m^½ ⊙ Q, w φ(Q))`` flattened; ``inf`` in the second part where inverted."""

@@ -35,10 +35,10 @@ from ..riemannian.levenberg_marquardt import levenberg_marquardt
 from ..riemannian.path_options import LevenbergMarquardtOptions
 from ..results import PathFrames
 from ..scaling import UnitScale
-from .continuation import NoAdmissiblePathError, check_frames_and_weight
+from .continuation import NoAdmissiblePathError, check_frames_and_weight, march
 from .handles3d import SelfIntersectionGuard
-from .similarity_3d import (HandlePath, Similarity3, fit_similarity_3d, handle_groups,
-                            tet_boundary_faces)
+from .similarity import HandlePath, Similarity3, fit_similarity_3d, handle_groups
+from .similarity_3d import tet_boundary_faces
 from .tet_distortion import SQRT3
 from .tet_least_squares import Problem, extend, minimize
 from .tet_metric import TetGraphMetric
@@ -332,31 +332,20 @@ def _continuation(metric: TetGraphMetric, P0: FloatArray, R1: FloatArray, T: Int
     accepted iterate admissible); the last frame is ``R1``."""
     problem = Problem.build(metric.strain, metric.weight, metric.mass, boundary)
     path = HandlePath(P0[boundary], R1[boundary],
-                      handle_groups(tet_boundary_faces(T), boundary, len(P0)), motion="chord")
+                      handle_groups(boundary, tet_boundary_faces(T), len(P0)))
     phi1 = metric.strain.values(R1)
-    Q, s_now, out = P0.copy(), 0.0, [P0.copy()]
-    for s_goal in times[1:-1]:
-        while s_now < s_goal:
-            ds, trial = s_goal - s_now, None
-            for _ in range(max_splits + 1):
-                s_try = s_goal if ds == s_goal - s_now else s_now + ds
-                goal = path(s_try)
-                kept = Q.copy()
-                kept[boundary] = goal
-                for start in (extend(problem, Q, boundary, goal), kept):
-                    if (metric.strain.determinants(start) > 0).all():
-                        trial = start
-                        break
-                if trial is not None:
-                    break
-                ds *= 0.5
-            else:
-                raise NoAdmissiblePathError(
-                    f"no admissible frame of the morph's start at s = {s_now + ds:.4g} "
-                    f"(the step was halved {max_splits} times)")
-            Q = minimize(problem, trial, Q, s_try * phi1, rtol=STEP_RTOL,
-                         max_iterations=max_iterations, newton=True).points
-            s_now = s_try
-        out.append(Q.copy())
+
+    def advance(Q: FloatArray, s_now: float, s_try: float) -> FloatArray | None:
+        goal = path(s_try)
+        kept = Q.copy()
+        kept[boundary] = goal
+        for start in (extend(problem, Q, boundary, goal), kept):
+            if (metric.strain.determinants(start) > 0).all():
+                return minimize(problem, start, Q, s_try * phi1, rtol=STEP_RTOL,
+                                max_iterations=max_iterations, newton=True).points
+        return None
+
+    out, _ = march(P0, times[:-1], advance, max_splits=max_splits,
+                   what="frame of the morph's start")
     out.append(R1.copy())
     return np.array(out)

@@ -2,7 +2,7 @@
 positively oriented in every frame.
 
 ``move_tets`` factors the motion into the similarity that best fits the handles (followed
-exactly, free of shape strain: :mod:`.similarity_3d`) and a residual motion of the handles
+exactly, free of shape strain: :mod:`.similarity`) and a residual motion of the handles
 (each connected piece of boundary turns and scales with its own best similarity), built
 in steps as a minimizing movement of the tet distortion (:mod:`.tet_distortion`) in the
 graph metric ``M + w² JᵀJ``: each step moves the handles a little, starts the other
@@ -24,20 +24,20 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .._typing import FloatArray, IntArray
+from ..cells.base import lumped_mass
 from ..errors import InvalidMeshError
 from ..kernels.tetrahedra import mean_ratios as tet_mean_ratios
 from ..kernels.tetrahedra import orientations as tet_orientations
 from ..kernels.tetrahedra import signed_volumes as tet_signed_volumes
 from ..mesh import TetMesh
 from ..scaling import UnitScale, unit_scale
-from .continuation import NoAdmissiblePathError
+from .continuation import NoAdmissiblePathError, march
 from .handles3d import SolvedVertices, check_handles, distinct_handles
 from .pinned_cells import pinned, turned_over_problem
-from .similarity_3d import (HandlePath, Similarity3, fit_similarity_3d, handle_groups,
-                            tet_boundary_faces)
+from .similarity import HandlePath, Similarity3, fit_similarity_3d, handle_groups
+from .similarity_3d import tet_boundary_faces
 from .tet_distortion import SQRT3, TetDistortion
 from .tet_least_squares import Problem, extend, minimize
-from .tet_metric import tet_lumped_mass
 from .tet_polish import fixed_ceiling, polish_worst_tets
 
 __all__ = ["TetMeshMoveResult", "TetMoveResult", "move_tet_mesh", "move_tets"]
@@ -209,7 +209,7 @@ def move_tets(points: FloatArray, tets: IntArray, handles, targets, *, steps: in
     times = np.linspace(0.0, 1.0, n_steps + 1)
     pick = np.round(np.linspace(0, n_steps, int(frames or 2))).astype(int)
     strain = TetDistortion(P, T)
-    mass = tet_lumped_mass(P, T)
+    mass = lumped_mass(P, T)
     details: dict = {"continuation_splits": 0, "step_iterations": 0, "finish_iterations": 0,
                      "finish_rounds_kept": 0}
     scale = np.ptp(P, axis=0).max()
@@ -218,7 +218,7 @@ def move_tets(points: FloatArray, tets: IntArray, handles, targets, *, steps: in
         length = 0.0
     else:
         path = HandlePath(P[h], residual_targets,
-                          handle_groups(tet_boundary_faces(T), h, len(P)), motion="chord")
+                          handle_groups(h, tet_boundary_faces(T), len(P)))
         problem = Problem.build(strain, weight, mass, h)
         residual, cont = _continuation(problem, P, h, path, times, relax_iter, max_splits,
                                        newton)
@@ -267,45 +267,32 @@ def _predictions(problem: Problem, Q: FloatArray, h: IntArray, target: FloatArra
 def _continuation(problem: Problem, P: FloatArray, h: IntArray, path: HandlePath,
                   times: FloatArray, relax_iter: int, max_splits: int, newton: bool
                   ) -> tuple[list[FloatArray], dict]:
-    """Frames at ``times`` of the minimizing movement (see :func:`move_tets`)."""
-    Q = P.copy()
-    s_now, frames, nit, splits = 0.0, [P.copy()], 0, 0
-    rate = None  # the last step's motion per unit of s
+    """Frames at ``times`` of the minimizing movement (see :func:`move_tets`):
+    :func:`.continuation.march` with each step started at the first admissible of
+    :func:`_predictions`."""
+    nit, rate = 0, None  # the last step's motion per unit of s
     used = {"extension": 0, "velocity": 0, "kept": 0}  # steps started by each prediction
     # each step's distortion is measured from the rest shape: anchored at the last frame
     # instead, nothing pulls a sheared tet back and the worst flattens step after step
     # (a box's ball turned 180°, 5k tets: min η 0.1 at s = 0.6, 0.0003 at s = 0.99, stuck)
     rest = np.zeros((len(problem.strain.tets), 7))
-    for s_goal in times[1:]:
-        while s_now < s_goal:
-            ds = s_goal - s_now
-            trial = None
-            for _ in range(max_splits + 1):
-                s_try = s_goal if ds == s_goal - s_now else s_now + ds
-                if s_try - s_now <= 1e-12 * max(1.0, s_goal):  # steps too short to go on
-                    raise NoAdmissiblePathError(
-                        f"no admissible position of the mesh for the handles beyond "
-                        f"s = {s_now:.6g} (the steps shrink towards it)")
-                velocity = None if rate is None else rate * (s_try - s_now)
-                for name, start in _predictions(problem, Q, h, path(s_try), velocity):
-                    if (problem.strain.determinants(start) > 0).all():
-                        trial = start
-                        used[name] += 1
-                        break
-                if trial is not None:
-                    break
-                ds *= 0.5
-                splits += 1
-            else:
-                raise NoAdmissiblePathError(
-                    f"no admissible position of the mesh for the handles at s = {s_now + ds:.4g}"
-                    f" (the step was halved {max_splits} times)")
-            res = minimize(problem, trial, Q, rest, rtol=STEP_RTOL, max_iterations=relax_iter,
-                           newton=newton)
-            nit += res.iterations
-            rate = (res.points - Q) / (s_try - s_now)
-            Q, s_now = res.points, s_try
-        frames.append(Q.copy())
+
+    def advance(Q: FloatArray, s_now: float, s_try: float) -> FloatArray | None:
+        nonlocal nit, rate
+        velocity = None if rate is None else rate * (s_try - s_now)
+        for name, start in _predictions(problem, Q, h, path(s_try), velocity):
+            if (problem.strain.determinants(start) > 0).all():
+                used[name] += 1
+                break
+        else:
+            return None
+        res = minimize(problem, start, Q, rest, rtol=STEP_RTOL, max_iterations=relax_iter,
+                       newton=newton)
+        nit += res.iterations
+        rate = (res.points - Q) / (s_try - s_now)
+        return res.points
+
+    frames, splits = march(P, times, advance, max_splits=max_splits)
     return frames, {"continuation_splits": splits, "step_iterations": nit,
                     "predictions_used": used}
 

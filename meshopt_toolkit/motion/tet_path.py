@@ -10,7 +10,7 @@ A path of ``K`` segments, frames ``Q_0 … Q_K`` with both ends fixed, has the e
 the energy of the polygon through ``X(Q) = (m^½ ⊙ Q, w φ(Q))``; the unknowns are every
 coordinate of the interior frames. The Gauss–Newton matrix is block tridiagonal over the
 frames (:class:`.assembly.BlockTridiagonal`), each block a sparse ``3N × 3N`` matrix with
-one 12×12 block per tet (:class:`TetMeshPattern`), solved by conjugate gradients with the
+one 12×12 block per tet (:class:`CellPattern`), solved by conjugate gradients with the
 frames' kept factorizations and the time-coupled preconditioner (:class:`.FrameBlocks`,
 :mod:`.time_coupling`, which take any per-cell blocks). A frame with a tet not positively
 oriented (``φ = ∞``) is not admissible; with ``crosses``, neither is one whose boundary
@@ -25,47 +25,12 @@ from collections.abc import Callable
 import numpy as np
 import scipy.sparse as sp
 
-from .._typing import FloatArray, IntArray
+from .._typing import FloatArray
 from .assembly import BlockTridiagonal
 from .frame_blocks import FrameBlocks
+from .sparse_pattern import CellPattern
 from .tet_metric import TetGraphMetric
 from .time_coupling import FrameEmbedding
-
-
-class TetMeshPattern:
-    """The CSR pattern of a ``3N × 3N`` matrix with one dense 12×12 block per tet (its
-    corners' coordinates ``x_0, y_0, z_0, x_1, …``) and the diagonal; assembly is one
-    ``bincount`` of the blocks' entries onto its slots.
-
-    Parameters
-    ----------
-    columns : (C, 12) int array
-        Global coordinate ``3·vertex + d`` of each block column.
-    n : int
-        Coordinates (``3N``).
-    """
-
-    def __init__(self, columns: IntArray, n: int) -> None:
-        rows = np.broadcast_to(columns[:, :, None], columns.shape + (12,)).ravel()
-        cols = np.broadcast_to(columns[:, None, :], columns.shape + (12,)).ravel()
-        diag = np.arange(n)
-        keys = np.concatenate([rows, diag]).astype(np.int64) * n + np.concatenate([cols, diag])
-        unique, self.slot_of_entry = np.unique(keys, return_inverse=True)
-        self.n, self.nnz = n, len(unique)
-        self.indices = (unique % n).astype(np.int32)
-        self.indptr = np.searchsorted(unique // n, np.arange(n + 1)).astype(np.int32)
-        #: the slot of (col, row) for each slot
-        self.transposed = np.searchsorted(unique, (unique % n) * n + unique // n)
-
-    def values(self, blocks: FloatArray, diagonal: FloatArray) -> FloatArray:
-        """Slot values of ``Σ_c blocks[c]`` (C, 12, 12) ``+ diag(diagonal)``."""
-        return np.bincount(self.slot_of_entry, np.concatenate([blocks.ravel(), diagonal]),
-                           minlength=self.nnz)
-
-    def matrix(self, values: FloatArray, transpose: bool = False) -> sp.csr_matrix:
-        """The matrix of slot ``values`` (or its transpose)."""
-        data = values[self.transposed] if transpose else values
-        return sp.csr_matrix((data, self.indices, self.indptr), shape=(self.n, self.n))
 
 
 class TetPath:
@@ -93,7 +58,7 @@ class TetPath:
         self.n_unknowns = (self.K - 1) * self.n_coords
         self.sqrt_m = np.repeat(np.sqrt(metric.mass), 3)
         self.columns = metric.strain.columns()  # (C, 12)
-        self._pattern: TetMeshPattern | None = None
+        self._pattern: CellPattern | None = None
         # the fixed ends' distortion, evaluated once
         self._ends = (metric.strain.values(self.frames[0]), metric.strain.values(self.frames[-1]))
 
@@ -107,9 +72,9 @@ class TetPath:
         return frames
 
     @property
-    def pattern(self) -> TetMeshPattern:
+    def pattern(self) -> CellPattern:
         if self._pattern is None:
-            self._pattern = TetMeshPattern(self.columns, self.n_coords)
+            self._pattern = CellPattern(self.columns, self.n_coords)
         return self._pattern
 
     # -- residuals ----------------------------------------------------------------------

@@ -20,8 +20,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._typing import FloatArray, IntArray
+from ..descent import minimize_lbfgs
 from ..kernels.tetrahedra import mean_ratios
-from .lbfgs import cell_neighbourhood, minimize_lbfgs, soft_maximum
+from .lbfgs import cell_neighbourhood, soft_maximum
 
 _I, _J = np.triu_indices(4, 1)
 

@@ -11,6 +11,7 @@ import numpy as np
 
 from .._options import options_of
 from .._typing import FloatArray
+from ..descent import backtrack, halvings
 from ..errors import IntegrationError, InvalidMeshError, NotAdmissibleError, OptionError
 from ._boundary_value import DEFAULT_TOL, SHOOTING_RTOL, _as_points, _diameter, _require_finite
 from .discrete_geodesic import discrete_geodesic
@@ -180,17 +181,18 @@ def log_map(
         dV, _info = gmres(A, -R.ravel(), rtol=1e-3, atol=0.0,
                           restart=k, maxiter=1)
         dV = dV.reshape(V.shape)
-        lam = 1.0
-        for _ in range(8):  # damping: halve the step while the residual grows
+
+        def try_step(lam: float, V=V, dV=dV, res=res):
             Rn, rn = residual_of(V + lam * dV)
-            if rn < res:
-                break
-            lam *= 0.5
-        else:
+            return (Rn, rn) if rn < res else None
+
+        # damping: halve the step while the residual grows
+        found = backtrack(try_step, halvings(count=8))
+        if found is None:
             message = f"not converged: the Newton step does not reduce the residual {res:.3g}"
             break
+        lam, (R, res) = found
         V = V + lam * dV
-        R, res = Rn, rn
         logger.debug("shooting %d: residual %.3g (step %.3g, %d exps)", it, res, lam, n_exp)
     success = res <= tol
     if success:

@@ -11,6 +11,7 @@ import numpy as np
 
 from .._linalg import dot as _dot
 from .._typing import FloatArray
+from ..descent import backtrack, sufficient_decrease
 from ..errors import NotAdmissibleError
 from ._boundary_value import _Counter, _path_frames, _require_finite
 from .geodesic_result import DiscreteGeodesic
@@ -127,6 +128,28 @@ def _newton_cg_direction(G, hvp, prec, eta: float, max_cg: int) -> tuple[FloatAr
     return x, max_cg, False
 
 
+class _ArmijoTrial:
+    """A trial step of the energy ``value`` along ``D`` from ``X`` (Armijo's test), and
+    the steps to try: halved after a refused finite energy, quartered after an infinite
+    one (outside the admissible set), down to 1e-14."""
+
+    def __init__(self, value, X: FloatArray, D: FloatArray, E: float, slope: float) -> None:
+        self.value, self.X, self.D, self.E, self.slope = value, X, D, E, slope
+        self.finite = True
+        self.steps = self._steps()
+
+    def _steps(self):
+        t = 1.0
+        while t >= 1e-14:
+            yield t
+            t *= 0.5 if self.finite else 0.25
+
+    def __call__(self, t: float) -> float | None:
+        En = self.value(self.X + t * self.D)
+        self.finite = bool(np.isfinite(En))
+        return En if sufficient_decrease(En, self.E, t, self.slope) else None
+
+
 def newton_cg(metric, Q0: FloatArray, Q1: FloatArray, K: int, path: FloatArray | None,
               options: NewtonCGOptions, callback=None) -> DiscreteGeodesic:
     """The K-segment discrete geodesic of a complete (or the Euclidean) metric from ``Q0``
@@ -171,18 +194,13 @@ def newton_cg(metric, Q0: FloatArray, Q1: FloatArray, K: int, path: FloatArray |
         if slope >= 0:  # cannot happen with an SPD preconditioner; be safe
             D = -pe.precondition(G)
             slope = float(_dot(G, D))
-        t = 1.0
-        while True:
-            En = pe.value(X + t * D)
-            if En <= E + 1e-4 * t * slope:
-                break
-            t *= 0.5 if np.isfinite(En) else 0.25
-            if t < 1e-14:
-                break
-        if t < 1e-14:
+        trial = _ArmijoTrial(pe.value, X, D, E, slope)
+        found = backtrack(trial, trial.steps)
+        if found is None:
             logger.info("discrete geodesic: line search failed at iteration %d", nit)
             status = "line_search"
             break
+        t = found[0]
         X = X + t * D
         E, G = pe.evaluate(X)
         energies.append(E)

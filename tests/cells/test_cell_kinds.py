@@ -10,7 +10,7 @@ from cell_meshes import CASES, perturbed, rotation
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from meshopt_toolkit.cells.base import CellKind, SimplexKind
+from meshopt_toolkit.cells.base import CellKind, SimplexKind, scale_free_mass
 from meshopt_toolkit.cells.planar import PLANAR
 from meshopt_toolkit.cells.surface import SURFACE
 from meshopt_toolkit.cells.tetrahedra import TETRAHEDRA
@@ -20,10 +20,10 @@ from meshopt_toolkit.kernels import tetrahedra as kt
 from meshopt_toolkit.kernels import triangles as ktri
 from meshopt_toolkit.mesh import SurfaceMesh, TetMesh, TriangleMesh
 from meshopt_toolkit.motion import surface_move
-from meshopt_toolkit.motion.graph_metric import lumped_mass
+from meshopt_toolkit.motion.graph_metric import GraphMetric
 from meshopt_toolkit.motion.surface_distortion import SurfaceDistortion
 from meshopt_toolkit.motion.tet_distortion import TetDistortion
-from meshopt_toolkit.motion.tet_metric import tet_lumped_mass
+from meshopt_toolkit.motion.tet_metric import TetGraphMetric
 
 FAST = settings(max_examples=12, deadline=None)
 KINDS = pytest.mark.parametrize("name", sorted(CASES))
@@ -40,7 +40,9 @@ def test_the_kinds_agree_with_the_kernels_they_delegate_to():
     P, T = CASES["planar"][1]()
     np.testing.assert_array_equal(PLANAR.measures(P, T), ktri.signed_areas(P, T))
     np.testing.assert_array_equal(PLANAR.quality(P, T), ktri.aspect_ratios(P, T))
-    np.testing.assert_array_equal(PLANAR.lumped_mass(P, T), lumped_mass(P, T))
+    np.testing.assert_array_equal(PLANAR.lumped_mass(P, T),
+                                  scale_free_mass(P, T, np.abs(ktri.signed_areas(P, T))))
+    np.testing.assert_array_equal(GraphMetric(P, T).mass, PLANAR.lumped_mass(P, T))
     np.testing.assert_array_equal(PLANAR.boundary_facets(P, T), TriangleMesh(P, T).boundary_edges)
     V, F = CASES["surface"][1]()
     np.testing.assert_array_equal(SURFACE.measures(V, F), ks.areas(V, F))
@@ -52,7 +54,9 @@ def test_the_kinds_agree_with_the_kernels_they_delegate_to():
     X, C = CASES["tets"][1]()
     np.testing.assert_array_equal(TETRAHEDRA.measures(X, C), kt.signed_volumes(X, C))
     np.testing.assert_array_equal(TETRAHEDRA.quality(X, C), kt.mean_ratios(X, C))
-    np.testing.assert_array_equal(TETRAHEDRA.lumped_mass(X, C), tet_lumped_mass(X, C))
+    np.testing.assert_array_equal(TETRAHEDRA.lumped_mass(X, C),
+                                  scale_free_mass(X, C, np.abs(kt.signed_volumes(X, C))))
+    np.testing.assert_array_equal(TetGraphMetric(X, C).mass, TETRAHEDRA.lumped_mass(X, C))
     np.testing.assert_array_equal(TETRAHEDRA.boundary_facets(X, C), TetMesh(X, C).boundary_faces)
     Y = perturbed(X, 2, 0.02)
     np.testing.assert_array_equal(TETRAHEDRA.jacobians(Y, C, X), TetDistortion(X, C).affine_maps(Y))

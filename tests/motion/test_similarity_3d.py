@@ -12,8 +12,9 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from meshopt_toolkit.errors import OptionError
-from meshopt_toolkit.motion.similarity_3d import (HandlePath, Similarity3, fit_similarity_3d,
-                                                  global_similarity, handle_groups)
+from meshopt_toolkit.motion.similarity import (HandlePath, Similarity3, fit_similarity_3d,
+                                               handle_groups)
+from meshopt_toolkit.motion.similarity_3d import global_similarity
 
 
 def rodrigues(axis, angle: float) -> np.ndarray:
@@ -115,14 +116,14 @@ def test_handle_groups_and_the_two_motions():
     (bitwise); the targets are reached bitwise."""
     V, F = strip()
     handles = np.array([0, 1, 2, 3, 10, 11, 12, 13, 6])
-    groups = handle_groups(F, handles, len(V))
-    assert groups.max() + 1 == 3 and len(set(groups[:4])) == 1 and len(set(groups[4:8])) == 1
+    groups = handle_groups(handles, F, len(V))
+    assert [list(g) for g in groups] == [[0, 1, 2, 3], [4, 5, 6, 7], [8]]
     pivot, R = np.array([6.0, 0.0, 0.0]), rodrigues([0.0, 1.0, 0.0], 1.2)
     targets = V[handles].copy()
     targets[4:8] = pivot + (V[handles[4:8]] - pivot) @ R.T
     targets[8] += [0.1, 0.2, 0.3]
     chord = HandlePath(V[handles], targets, groups, motion="chord")
-    screw = HandlePath(V[handles], targets, groups)
+    screw = HandlePath(V[handles], targets, groups, motion="screw")
     for t in (0.3, 0.7):
         c0, c1 = V[handles[4:8]].mean(0), targets[4:8].mean(0)
         assert np.allclose(chord(t)[4:8].mean(0), (1 - t) * c0 + t * c1, atol=1e-12)

@@ -9,16 +9,17 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
+from meshopt_toolkit.cells.base import lumped_mass
 from meshopt_toolkit.diagnostics import check_gradient, check_hvp
 from meshopt_toolkit.errors import InvalidMeshError
 from meshopt_toolkit.kernels.cell_maps import barycentric_gradients
 from meshopt_toolkit.kernels.tetrahedra import mean_ratios as tet_mean_ratios
 from meshopt_toolkit.kernels.tetrahedra import signed_volumes as tet_signed_volumes
-from meshopt_toolkit.motion.similarity_3d import (HandlePath, fit_similarity_3d, handle_groups,
-                                                  tet_boundary_faces)
+from meshopt_toolkit.motion.similarity import HandlePath, fit_similarity_3d, handle_groups
+from meshopt_toolkit.motion.similarity_3d import tet_boundary_faces
 from meshopt_toolkit.motion.tet_distortion import TetDistortion
-from meshopt_toolkit.motion.tet_least_squares import Factor, FreePattern, Problem, minimize
-from meshopt_toolkit.motion.tet_metric import tet_lumped_mass
+from meshopt_toolkit.motion.sparse_pattern import FreePattern
+from meshopt_toolkit.motion.tet_least_squares import Factor, Problem, minimize
 from meshopt_toolkit.motion.tet_move import move_tets
 from meshopt_toolkit.motion.tet_polish import inverse_mean_ratios, polish_worst_tets
 from meshopt_toolkit.solvers import factorize_spd
@@ -215,9 +216,9 @@ def test_fit_excludes_reflections():
 def test_handle_path_groups_and_ends():
     P, T = box_with_hole(0.5)
     handles, at = sphere_turn(P, T, push=0.2)
-    groups = handle_groups(tet_boundary_faces(T), handles, len(P))
-    assert groups.max() + 1 == 2
-    path = HandlePath(P[handles], at(1.0), groups, motion="chord")
+    groups = handle_groups(handles, tet_boundary_faces(T), len(P))
+    assert len(groups) == 2
+    path = HandlePath(P[handles], at(1.0), groups)
     assert np.array_equal(path(1.0), at(1.0)) and np.allclose(path(0.0), P[handles])
     # the sphere turns rigidly along the path rather than collapsing through its centre
     mid = path(0.5)[inner := np.linalg.norm(P[handles], axis=1) < 0.6]
@@ -257,7 +258,7 @@ def _problem(seed=0):
     P, T = cube_tets(2, jitter=0.3, seed=seed)
     handles = np.unique(tet_boundary_faces(T))
     strain = TetDistortion(P, T)
-    problem = Problem.build(strain, 0.7, tet_lumped_mass(P, T), handles)
+    problem = Problem.build(strain, 0.7, lumped_mass(P, T), handles)
     rng = np.random.default_rng(seed)
     Q = P + 0.03 * rng.standard_normal(P.shape)
     centre = P + 0.02 * rng.standard_normal(P.shape)
@@ -445,7 +446,7 @@ def test_minimize_leaves_an_indefinite_newton_matrix_for_gauss_newton(monkeypatc
 
     P, T = cube_tets(3, jitter=0.3, seed=0)
     handles = np.unique(tet_boundary_faces(T))
-    problem = Problem.build(TetDistortion(P, T), 2.0, tet_lumped_mass(P, T), handles)
+    problem = Problem.build(TetDistortion(P, T), 2.0, lumped_mass(P, T), handles)
     problem.newton_threshold = 0.0
     anchor = 0.6 * np.random.default_rng(0).standard_normal((len(T), 7))
     calls, factorized = [], []  # per solve: Newton's matrix?; per factorization: the same
