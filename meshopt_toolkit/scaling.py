@@ -88,8 +88,8 @@ class UnitScale:
         array, a mesh (its points), a path ``t ↦ points`` or None (left as it is)."""
         if value is None:
             return None
-        if hasattr(value, "with_points"):
-            return value.with_points(self.down(value.points))
+        if hasattr(value, "points"):
+            return _with_points(value, self.down(value.points))
         if callable(value):
             return lambda *args: self.down(value(*args))
         return self.down(value)
