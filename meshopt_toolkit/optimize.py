@@ -252,7 +252,8 @@ def optimize(
                step=_iteration_hook(callback, progress, max_iterations, scale))
     return at_unit_size(
         lambda unit: _optimize(unit, objective if scale.is_identity
-                               else _UserScaleObjective(objective, scale), **run),
+                               else _UserScaleObjective(objective, scale, mesh.points),
+                               **run),
         scale, (mesh,), lambda result, sc: _scaled_up(result, sc, mesh))
 
 
@@ -328,16 +329,17 @@ def _iteration_hook(callback, progress, max_iterations: int, scale: UnitScale):
 
 class _UserScaleObjective:
     """The user's objective ``j`` read at unit size: ``U ↦ j(s U)``, derivative
-    ``s j'(s U)`` (``s`` the scale's factor)."""
+    ``s j'(s U)`` (``s`` the scale's factor; the vertices still at the user's ``rest``
+    bitwise, :meth:`~meshopt_toolkit.scaling.UnitScale.points_up`)."""
 
-    def __init__(self, objective, scale: UnitScale):
-        self.objective, self.scale = objective, scale
+    def __init__(self, objective, scale: UnitScale, rest: FloatArray):
+        self.objective, self.scale, self.rest = objective, scale, rest
 
     def value(self, U: FloatArray) -> float:
-        return self.objective.value(self.scale.up(U))
+        return self.objective.value(self.scale.points_up(U, self.rest))
 
     def derivative(self, U: FloatArray) -> FloatArray:
-        return self.scale.up(self.objective.derivative(self.scale.up(U)))
+        return self.scale.up(self.objective.derivative(self.scale.points_up(U, self.rest)))
 
 
 def _scaled_up(result: OptimizeResult, scale: UnitScale, mesh: PlanarMesh) -> OptimizeResult:
