@@ -345,8 +345,10 @@ def move(
 def _scaled_up(result, scale: UnitScale, mesh, handles, targets):
     """A motion of the mesh at unit size at the user's scale: every length of the
     result, the vertices it left alone bitwise, the handles bitwise at their targets."""
-    frames = [mesh.with_points(scale.points_up(f.points, mesh.points)) for f in result.frames]
-    frames[-1] = mesh.with_points(_at_targets(frames[-1].points, handles, targets))
+    points = [scale.points_up(f.points, mesh.points) for f in result.frames[:-1]]
+    frames = [mesh if np.array_equal(p, mesh.points) else mesh.with_points(p) for p in points]
+    frames.append(mesh.with_points(_at_targets(scale.points_up(result.frames[-1].points,
+                                                               mesh.points), handles, targets)))
     if isinstance(result, MoveResult):
         return replace(result.scaled_up(scale), mesh=frames[-1], frames=frames)
     return replace(result, mesh=frames[-1], frames=frames,
