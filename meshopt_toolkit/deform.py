@@ -10,8 +10,11 @@ Default penalty: f1 (:class:`~meshopt_toolkit.penalties.HeightPenalty`) with the
 §5.5 parameters ``α = (α1, α2, α3) = (1, 0, 1)`` and ``Qref`` the input mesh: the height
 term keeps triangles from thinning, the reference term makes the metric complete, and the
 boundary-pair term is off (remark 5.2.10, as in all §5.5 experiments; pass ``alpha`` with
-α2 > 0 to guard against boundary self-contact, at a cost). f1 is not scale invariant: for
-meshes far from unit size, f2 (``penalty=(β1, β2, β3, β4)``) or scaled α are the better choice.
+α2 > 0 to guard against boundary self-contact, at a cost). f1 is not scale invariant, so the
+mesh and the velocity are deformed at unit size (divided by the mesh's size,
+:func:`~meshopt_toolkit.scaling.at_unit_size`) and the frames scaled back: a mesh scaled by
+any factor deforms into the frames scaled by it (a penalty object given by the caller is
+used at the caller's scale).
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ from .riemannian.geodesic_options import GeodesicOptions
 from .riemannian.geodesics import GeodesicResult, geodesic
 from .kernels.triangles import aspect_ratios
 from .mesh import PlanarMesh, TriangleMesh, require_admissible
+from .scaling import UnitScale, at_unit_size, size_scale
 
 __all__ = ["DEFAULT_ALPHA", "DeformResult", "deform"]
 
@@ -154,6 +158,8 @@ def deform(
     Returns
     -------
     DeformResult
+        Its frames at the user's scale; ``penalty`` and ``geodesic`` are those of the
+        unit-size problem.
 
     Raises
     ------
@@ -187,10 +193,24 @@ def deform(
         times = np.array([0.0, float(time)])
     else:
         times = np.linspace(0.0, float(time), int(frames))
+    # at unit size (the mesh and the velocity divided by the mesh's size) and back: the
+    # same deformation at every scale; a penalty object is the user's, at the user's scale
+    scale = (UnitScale() if penalty is not None and not _is_beta(penalty)
+             else size_scale(m))
+    return at_unit_size(
+        lambda unit, velocity: _deform(unit, velocity, times, penalty, alpha, metric, options,
+                                       progress, start),
+        scale, (m, V), lambda result, sc: _scaled_up(result, sc, m))
+
+
+def _deform(m: PlanarMesh, V: FloatArray, times: FloatArray, penalty, alpha, metric: str,
+            options, progress, start: float) -> DeformResult:
+    """:func:`deform` of an admissible mesh and a checked velocity."""
     pen = met = None if metric == "euclidean" else _penalty(m, penalty, alpha)
     # frames are few: land on each (exact velocities and energies in the result)
     opts = dataclasses.replace(options or GeodesicOptions(), dense=False)
-    res = geodesic(met, m.points, V, float(time), times=times, options=opts, progress=progress)
+    res = geodesic(met, m.points, V, float(times[-1]), times=times, options=opts,
+                   progress=progress)
     if pen is not None:  # the complete metric promises admissible frames: judged exactly
         check = BoundaryCheck(m.boundary_edges, m.boundary_vertices)
         for k, p in enumerate(res.points):
@@ -201,6 +221,14 @@ def deform(
         mesh=m.with_points(res.points[-1]), times=times, points=res.points,
         aspect_ratio=ar, penalty=pen, geodesic=res, seconds=perf_counter() - start,
     )
+
+
+def _scaled_up(result: DeformResult, scale: UnitScale, mesh: PlanarMesh) -> DeformResult:
+    """A deformation of the mesh at unit size at the user's scale: the frames (the
+    vertices it leaves alone bitwise, the first the user's mesh)."""
+    points = scale.points_up(result.points, mesh.points)
+    points[0] = mesh.points
+    return dataclasses.replace(result, mesh=mesh.with_points(points[-1]), points=points)
 
 
 def load_displacement(spec, mesh: PlanarMesh, plane=None) -> FloatArray:

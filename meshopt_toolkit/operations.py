@@ -14,11 +14,14 @@ every interior frame is as healthy as the worse end (its default, ``"auto"``),
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+
+import numpy as np
 
 from .conversions import Carried
 from .errors import InvalidMeshError, OptionError
 from .results import PathIteration
+from .scaling import UnitScale, at_unit_size, size_scale
 
 __all__ = ["IN_SPACE", "METRIC_ALIASES", "MORPH_METRICS", "STOP_RULES", "morph"]
 
@@ -61,20 +64,11 @@ def _no_healthy_stop(o: _Settings, what: str) -> None:
 
 def _distortion(source, target, frames: int, o: _Settings):
     from .motion.morph import distortion_morph
-    from .scaling import unit_scale
 
     _distortion_only(o)
     _no_healthy_stop(o, "planar morphs")
-    # at unit size (an exact power of two, both ends alike) and back: the same morph at
-    # every scale
-    scale = unit_scale(source, target)
-    if scale.is_identity:
-        return distortion_morph(source, target, frames, weight=o.weight,
-                                max_iterations=o.max_iterations,
-                                callback=o.callback)
-    return distortion_morph(scale.mesh_down(source), scale.mesh_down(target), frames,
-                            weight=o.weight, max_iterations=o.max_iterations,
-                            callback=o.callback).scaled_up(scale, source)
+    return distortion_morph(source, target, frames, weight=o.weight,
+                            max_iterations=o.max_iterations, callback=o.callback)
 
 
 def _complete(source, target, frames: int, o: _Settings):
@@ -95,20 +89,11 @@ MORPH_METRICS = {"distortion": _distortion, "complete": _complete}
 
 def _tets(source, target, frames: int, o: _Settings):
     from .motion.tet_morph import morph_tets
-    from .scaling import unit_scale
 
     _distortion_only(o)
     _no_healthy_stop(o, "tet morphs")
-    # at unit size (an exact power of two, both ends alike) and back: the same morph at
-    # every scale
-    scale = unit_scale(source.points, target.points, columns=3)
-    if scale.is_identity:
-        return morph_tets(source, target, frames, weight=o.weight,
-                          max_iterations=o.max_iterations,
-                          callback=o.callback)
-    return morph_tets(source.with_points(scale.down(source.points)),
-                      target.with_points(scale.down(target.points)), frames, weight=o.weight,
-                      max_iterations=o.max_iterations, callback=o.callback).scaled_up(scale, source)
+    return morph_tets(source, target, frames, weight=o.weight,
+                      max_iterations=o.max_iterations, callback=o.callback)
 
 
 def _surfaces(source, target, frames: int, o: _Settings):
@@ -239,5 +224,24 @@ def morph(
         return False
 
     hook = step if callback is not None or progress is not None else None
-    return run(source, target, int(frames),
-               _Settings(float(weight), beta, bool(normalize), method, n_iter, hook, stop))
+    settings = _Settings(float(weight), beta, bool(normalize), method, n_iter, hook, stop)
+    # at unit size (both ends divided by their size) and back: the same morph at every
+    # scale
+    return at_unit_size(lambda s, t: run(s, t, int(frames), settings),
+                        size_scale(source, target, columns=2 if space is None else 3),
+                        (source, target), lambda r, scale: _scaled_up(r, scale, source, target))
+
+
+def _scaled_up(result, scale: UnitScale, source, target):
+    """A morph of the ends at unit size at the user's scale: the frames (the vertices it
+    leaves alone bitwise, the ends the user's) and every length of the result."""
+    surface = getattr(result, "morph", None)  # a surface's morph: its solver's inside
+    unit = np.asarray(result.points if surface is None else surface.points)
+    ends = [np.asarray(m.points)[:, :unit.shape[-1]] for m in (source, target)]
+    points = scale.points_up(unit, ends[0])
+    points[0], points[-1] = ends
+    if surface is None:
+        return replace(result.scaled_up(scale, source), points=points)
+    frames = [source.with_points(p) for p in points]
+    return replace(result, mesh=frames[-1], frames=frames,
+                   morph=replace(surface, points=points))

@@ -51,10 +51,8 @@ from .shape.setup import (  # noqa: F401  (the variants' table and set-up, re-ex
     DEFAULT_RETRACTION,
     EXP_DEFAULTS,
     RETRACTIONS,
-    SIZE_RANGE,
     VARIANT_PARTS,
     VARIANTS,
-    _check_size,
     _make_metric,
     _make_retraction,
     _retraction_kind,
@@ -63,6 +61,7 @@ from .shape.setup import (  # noqa: F401  (the variants' table and set-up, re-ex
     default_metric_beta,
 )
 from .shape.problem import max_travel_step
+from .scaling import UnitScale, at_unit_size, size_scale
 
 __all__ = [
     "DEFAULT_METHOD",
@@ -73,7 +72,6 @@ __all__ = [
     "METHODS",
     "PHASES",
     "RETRACTIONS",
-    "SIZE_RANGE",
     "THESIS_PENALTY_SETS",
     "VARIANTS",
     "VARIANT_PARTS",
@@ -216,6 +214,11 @@ def optimize(
     Returns
     -------
     OptimizeResult
+        The mesh is optimized at unit size (divided by its own size, the objective read
+        at the user's scale: :func:`~meshopt_toolkit.scaling.at_unit_size`) and ``x``,
+        ``mesh`` and the callback's ``record.points`` scaled back: a mesh scaled by any
+        factor, with an objective of the scaled mesh, optimizes to the result scaled by
+        it; the history's numbers are those of the unit-size problem.
 
     Raises
     ------
@@ -224,14 +227,9 @@ def optimize(
         retraction or ``exp_options`` given to a variant that moves along straight lines,
         ``max_iterations < 0``.
     OptimizationError
-        A direction that is not a descent direction (a wrong derivative), every vertex
-        fixed, or a mesh whose size is outside :data:`SIZE_RANGE`.
+        A direction that is not a descent direction (a wrong derivative), or every vertex
+        fixed.
     """
-    from .shape.preconditioners import make_preconditioner
-    from .shape.driver import run_descent
-    from .shape.problem import ShapeProblem
-    from .shape.spec import GUARD_FACTOR, GUARD_TRIES, QUALITY_GUARD, ScaledObjective
-
     if variant not in VARIANTS:
         raise OptionError(f"unknown variant {variant!r}; choose one of {', '.join(VARIANTS)}")
     if method not in METHODS:
@@ -242,12 +240,35 @@ def optimize(
     exp_options = o.exp_options
     retraction = _retraction_kind(variant, o.retraction, exp_options)
     mesh = require_admissible(mesh, "shape optimization")
-    _check_size(mesh.points)
-    tri = mesh.triangles
-    N = mesh.n_vertices
     spec = ProblemSpec() if problem is None else problem
     if objective is None:
         objective = spec.make_objective(mesh)
+    # at unit size (the mesh divided by its size, the objective read at the user's scale)
+    # and back: the same optimization at every scale
+    scale = size_scale(mesh)
+    run = dict(spec=spec, variant=variant, method=method, penalty=penalty,
+               metric_beta=metric_beta, fixed=fixed, max_iterations=max_iterations,
+               options=o, retraction=retraction,
+               step=_iteration_hook(callback, progress, max_iterations, scale))
+    return at_unit_size(
+        lambda unit: _optimize(unit, objective if scale.is_identity
+                               else _UserScaleObjective(objective, scale, mesh.points),
+                               **run),
+        scale, (mesh,), lambda result, sc: _scaled_up(result, sc, mesh))
+
+
+def _optimize(mesh: PlanarMesh, objective, *, spec: ProblemSpec, variant: str, method: str,
+              penalty, metric_beta, fixed, max_iterations: int, options: OptimizeOptions,
+              retraction, step) -> OptimizeResult:
+    """:func:`optimize` of an admissible mesh with checked options."""
+    from .shape.preconditioners import make_preconditioner
+    from .shape.driver import run_descent
+    from .shape.problem import ShapeProblem
+    from .shape.spec import GUARD_FACTOR, GUARD_TRIES, QUALITY_GUARD, ScaledObjective
+
+    o, exp_options = options, options.exp_options
+    tri = mesh.triangles
+    N = mesh.n_vertices
     free = None
     stay = spec.fixed_mask(mesh)
     if fixed is not None or stay is not None:
@@ -272,7 +293,6 @@ def optimize(
     auto = spec.scale == "auto"
     floor = QUALITY_GUARD * aspect_ratios(mesh.points, tri).min() if auto else None
     start = time.perf_counter()
-    step = _iteration_hook(callback, progress, max_iterations)
     for attempt in range(1 + (GUARD_TRIES if auto else 0)):
         weighed = objective if weight == 1.0 else ScaledObjective(objective, weight)
         problem = ShapeProblem(weighed, f2, metric, tri, mesh.boundary_edges, free,
@@ -291,18 +311,44 @@ def optimize(
     return _unweighed(result, objective, weight)
 
 
-def _iteration_hook(callback, progress, max_iterations: int):
+def _iteration_hook(callback, progress, max_iterations: int, scale: UnitScale):
     """The drivers' ``(record, Q)`` hook that calls ``progress(fraction)`` and
-    ``callback(record)`` with the iterate's positions in ``record.points``."""
+    ``callback(record)`` with the iterate's positions (at the user's scale) in
+    ``record.points``."""
     if callback is None and progress is None:
         return None
 
     def hook(record: IterationRecord, Q: FloatArray) -> bool:
         if progress is not None:
             progress(min(1.0, record.iteration / max(int(max_iterations), 1)))
-        return callback is not None and bool(callback(dataclasses.replace(record, points=Q)))
+        return callback is not None and bool(callback(dataclasses.replace(
+            record, points=scale.up(Q))))
 
     return hook
+
+
+class _UserScaleObjective:
+    """The user's objective ``j`` read at unit size: ``U ↦ j(s U)``, derivative
+    ``s j'(s U)`` (``s`` the scale's factor; the vertices still at the user's ``rest``
+    bitwise, :meth:`~meshopt_toolkit.scaling.UnitScale.points_up`)."""
+
+    def __init__(self, objective, scale: UnitScale, rest: FloatArray):
+        self.objective, self.scale, self.rest = objective, scale, rest
+
+    def value(self, U: FloatArray) -> float:
+        return self.objective.value(self.scale.points_up(U, self.rest))
+
+    def derivative(self, U: FloatArray) -> FloatArray:
+        return self.scale.up(self.objective.derivative(self.scale.points_up(U, self.rest)))
+
+
+def _scaled_up(result: OptimizeResult, scale: UnitScale, mesh: PlanarMesh) -> OptimizeResult:
+    """An optimization of the mesh at unit size at the user's scale: the optimized points
+    (the vertices it leaves alone bitwise) and the initial mesh; the history's numbers are
+    those of the unit-size problem (its ``j`` the user's)."""
+    x = scale.points_up(result.x, mesh.points)
+    result.x, result.mesh, result.initial = x, mesh.with_points(x), mesh
+    return result
 
 
 def _unweighed(result: OptimizeResult, objective, weight: float) -> OptimizeResult:

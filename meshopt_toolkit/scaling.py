@@ -1,27 +1,30 @@
-"""Work at unit size: scale meshes by an exact power of two in, and back out.
+"""Work at unit size: scale meshes down by their size on the way in, and back out.
 
 Coordinates near ``1e300`` overflow in areas and quality measures, coordinates near
 ``1e-300`` underflow (every area is 0), and penalties that are not scale invariant (f1,
-the β4 distance term of f2) behave differently in millimetres and in metres. The commands
-and filters that move meshes (``deform``, ``morph``, ``move``) therefore work on the mesh
-divided by a power of two ``2**k`` close to its size, and multiply the result by ``2**k``
-again (through :class:`meshopt_toolkit.io.workpiece.Workpiece`, which applies it to the
-coordinates of the mesh's plane: z, or the plane's offset, is never scaled) (only the meshes: plots show shapes, and the numbers of a summary are those of the
-unit-size problem, with the factor given beside them). Multiplying by a power of two is
-exact in floating point (apart from subnormal numbers), so a mesh of unit size is not
-changed at all, handles set bitwise stay bitwise, and the results are *scale covariant*:
-for a mesh scaled by ``2**j`` they are the same numbers scaled by ``2**j``.
+the β4 distance term of f2) behave differently in millimetres and in metres. Every
+operation (``mt.move``, ``mt.morph``, ``mt.deform``, ``mt.optimize``) therefore runs
+through :func:`at_unit_size`: the mesh and every length-valued input (targets, the other
+end of a morph, a velocity; an objective is read at the user's scale) divided by the
+mesh's own size ``R`` (:func:`size_scale`), the results multiplied by it again (only the
+meshes and lengths: the numbers of a summary are those of the unit-size problem). The
+results are *scale covariant*: for a mesh scaled by ``s`` the unit problems differ by
+rounding only, so do the results, and for ``s`` a power of two they are the same numbers
+scaled by ``s`` (a mesh of size 1 is not changed at all; a vertex an operation leaves
+alone stays bitwise, :meth:`UnitScale.points_up`).
 
-``mt.move`` and ``mt.morph`` (its distortion metric) do the same for every kind of mesh
-(tets and surfaces in space: ``unit_scale(..., columns=3)``), so a library call is scale
-covariant too; a mesh the commands already brought to unit size is left as it is
-(exponent 0). The per-cell measures (mean ratios, aspect ratios, angles) go further:
-:func:`unit_cells` scales each cell by a power of two of its own size, so they are the
-same numbers at every scale.
+The commands and filters read files through
+:class:`meshopt_toolkit.io.workpiece.Workpiece`, which divides the coordinates of the
+mesh's plane (z, or the plane's offset, is never scaled) by a power of two ``2**k`` close
+to its size (:func:`unit_scale`), exact in floating point apart from subnormal numbers.
+The per-cell measures (mean ratios, aspect ratios, angles) go further: :func:`unit_cells`
+scales each cell by a power of two of its own size, so they are the same numbers at every
+scale.
 
-The size is ``R``, half the largest side of the bounding box (1 for the unit disc), and
-``k = round(log2 R)``; at unit scale ``R`` lies in ``[2**-0.5, 2**0.5)``. Translation is
-left alone (every penalty and metric here is translation invariant).
+The size is ``R``, half the largest side of the bounding box (1 for the unit disc); for
+:func:`unit_scale` ``k = round(log2 R)``, at unit scale ``R`` lies in
+``[2**-0.5, 2**0.5)``. Translation is left alone (every penalty and metric here is
+translation invariant).
 
 Examples
 --------
@@ -42,36 +45,54 @@ import numpy as np
 from ._typing import FloatArray, IntArray
 from .errors import InvalidMeshError
 
-__all__ = ["UnitScale", "unit_cells", "unit_scale"]
+__all__ = ["UnitScale", "at_unit_size", "size_scale", "unit_cells", "unit_scale"]
 
 
 @dataclass(frozen=True)
 class UnitScale:
-    """The power of two ``factor = 2**exponent`` between user and unit coordinates.
+    """The factor ``factor = mantissa * 2**exponent`` between user and unit coordinates.
 
     ``user = factor * unit``; :meth:`down` goes to unit coordinates, :meth:`up` back.
-    Both are exact (``numpy.ldexp``), except for subnormal numbers.
+    With ``mantissa = 1`` (:func:`unit_scale`) both are exact (``numpy.ldexp``), except
+    for subnormal numbers; with another mantissa in ``(1, 2)`` (:func:`size_scale`) they
+    are one rounding each, and exact for meshes that differ by a power of two.
     """
 
     exponent: int = 0
+    mantissa: float = 1.0
 
     @property
     def factor(self) -> float:
-        """``2**exponent`` (may be ``inf``/0 for extreme exponents; use up/down to scale)."""
-        return float(np.ldexp(1.0, self.exponent))
+        """``mantissa * 2**exponent`` (may be ``inf``/0 for extreme exponents; use up/down
+        to scale)."""
+        return float(np.ldexp(self.mantissa, self.exponent))
 
     @property
     def is_identity(self) -> bool:
-        return self.exponent == 0
+        return self.exponent == 0 and self.mantissa == 1.0
 
     def describe(self) -> str:
         """``"2^-997 (about 1e-300)"``, for messages and summaries."""
+        if self.mantissa != 1.0:
+            return f"{self.mantissa!r}·2^{self.exponent} (about {self.factor:.3g})"
         return f"2^{self.exponent} (about {self.factor:.3g})"
 
     def down(self, values, power: int = 1) -> FloatArray:
         """User → unit coordinates: ``values / factor**power`` (``power=2`` for areas)."""
         with np.errstate(over="ignore", under="ignore"):
-            return np.ldexp(np.asarray(values, dtype=float), -power * self.exponent)
+            out = np.ldexp(np.asarray(values, dtype=float), -power * self.exponent)
+            return out if self.mantissa == 1.0 else out / self.mantissa**power
+
+    def lengths_down(self, value):
+        """:meth:`down` of a length-valued input of an operation, whatever its form: an
+        array, a mesh (its points), a path ``t ↦ points`` or None (left as it is)."""
+        if value is None:
+            return None
+        if hasattr(value, "points"):
+            return _with_points(value, self.down(value.points))
+        if callable(value):
+            return lambda *args: self.down(value(*args))
+        return self.down(value)
 
     def up(self, values, power: int = 1, what: str = "the result") -> FloatArray:
         """Unit → user coordinates: ``values * factor**power``.
@@ -84,13 +105,22 @@ class UnitScale:
         """
         a = np.asarray(values, dtype=float)
         with np.errstate(over="ignore", under="ignore"):
-            out = np.ldexp(a, power * self.exponent)
+            m = a if self.mantissa == 1.0 else a * self.mantissa**power
+            out = np.ldexp(m, power * self.exponent)
         if np.isinf(out).any() and not np.isinf(a[np.isinf(out)]).all():
             raise InvalidMeshError(
                 f"{what} does not fit in floating point at the input's scale "
                 f"{self.describe()}: some value exceeds {np.finfo(float).max:.3g}"
             )
         return out
+
+    def points_up(self, points, rest) -> FloatArray:
+        """:meth:`up` of unit-size ``points`` (one pose ``(N, d)`` or frames ``(K, N, d)``)
+        of a mesh whose user-scale points are ``rest``: a coordinate still at its rest's
+        unit value is the rest's own, bitwise (what an operation leaves alone stays)."""
+        rest = np.asarray(rest, dtype=float)
+        points = np.asarray(points, dtype=float)
+        return np.where(points == self.down(rest), rest, self.up(points))
 
     def mesh_down(self, mesh):
         """The planar mesh at unit size, same connectivity and tags.
@@ -123,7 +153,8 @@ def _with_points(mesh, points):
 
 
 def unit_scale(*point_sets, columns: int = 2) -> UnitScale:
-    """The :class:`UnitScale` of one or more point arrays ``(N, d)`` (or meshes) together.
+    """The power-of-two :class:`UnitScale` of one or more point arrays ``(N, d)`` (or
+    meshes) together: ``2**k`` nearest their size.
 
     Parameters
     ----------
@@ -144,8 +175,32 @@ def unit_scale(*point_sets, columns: int = 2) -> UnitScale:
     InvalidMeshError
         A coordinate is not finite.
     """
+    extent = _extent(point_sets, columns)
+    if extent == 0.0:
+        return UnitScale(0)
+    mantissa, exponent = np.frexp(extent)  # extent = mantissa * 2**exponent, 0.5 <= m < 1
+    return UnitScale(int(exponent) if mantissa >= np.sqrt(0.5) else int(exponent) - 1)
+
+
+def size_scale(*point_sets, columns: int = 2) -> UnitScale:
+    """The :class:`UnitScale` whose factor is the size ``R`` of the point sets itself.
+
+    What the operations work at: every mesh is divided by its own size, so a mesh and
+    the same mesh scaled by any ``s`` give unit problems that differ by rounding only
+    (exactly the same for ``s`` a power of two), and the operation's results differ by
+    rounding too. A mesh of size 1 is left as it is. Parameters and errors as
+    :func:`unit_scale`.
+    """
+    extent = _extent(point_sets, columns)
+    if extent == 0.0:
+        return UnitScale(0)
+    mantissa, exponent = np.frexp(extent)
+    return UnitScale(int(exponent) - 1, 2.0 * float(mantissa))  # mantissa in [1, 2)
+
+
+def _extent(point_sets, columns: int) -> float:
+    """Half the largest side of the point sets' common bounding box (0.0 for none)."""
     lo, hi = np.inf, -np.inf
-    extent = 0.0
     for pts in point_sets:
         pts = np.asarray(getattr(pts, "points", pts), dtype=float)
         if pts.size == 0:
@@ -156,13 +211,34 @@ def unit_scale(*point_sets, columns: int = 2) -> UnitScale:
         lo = np.minimum(lo, xy.min(axis=0))
         hi = np.maximum(hi, xy.max(axis=0))
     if np.ndim(lo) == 0:
-        return UnitScale(0)
+        return 0.0
     # half the largest side, without overflow (hi - lo may exceed the float range)
-    extent = float(np.max(0.5 * hi - 0.5 * lo))
-    if extent == 0.0:
-        return UnitScale(0)
-    mantissa, exponent = np.frexp(extent)  # extent = mantissa * 2**exponent, 0.5 <= m < 1
-    return UnitScale(int(exponent) if mantissa >= np.sqrt(0.5) else int(exponent) - 1)
+    return float(np.max(0.5 * hi - 0.5 * lo))
+
+
+def at_unit_size(operation, scale: UnitScale, lengths, up):
+    """An operation run at unit size and its result brought back: the one way every
+    operation (``move``, ``morph``, ``deform``, ``optimize``) is made scale covariant.
+
+    Parameters
+    ----------
+    operation : callable
+        Called with the length-valued inputs ``lengths`` at unit size
+        (:meth:`UnitScale.lengths_down`: meshes, point arrays, paths ``t ↦ points``).
+    scale : UnitScale
+        Usually :func:`size_scale` of the operation's mesh (and its other end).
+    lengths : sequence
+        The inputs that are lengths, in ``operation``'s order.
+    up : callable ``(result, scale) -> result``
+        The unit-size result at the user's scale (its meshes and every length in it).
+
+    Returns
+    -------
+    The operation's result; ``operation(*lengths)`` itself when ``scale`` is 1.
+    """
+    if scale.is_identity:
+        return operation(*lengths)
+    return up(operation(*(scale.lengths_down(x) for x in lengths)), scale)
 
 
 def unit_cells(vectors: FloatArray, axis: int = 0) -> tuple[FloatArray, IntArray]:

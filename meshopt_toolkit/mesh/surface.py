@@ -68,6 +68,13 @@ class SurfaceMesh:
                    lines=mesh.lines, line_tags=mesh.line_tags, tag_names=mesh.tag_names,
                    source=mesh.source)
 
+    def with_points(self, points) -> SurfaceMesh:
+        """This surface with other points ``(N, 3)``: the same triangles, lines, tags and
+        names."""
+        return SurfaceMesh(points, self.triangles, triangle_tags=self.triangle_tags,
+                           lines=self.lines, line_tags=self.line_tags,
+                           tag_names=self.tag_names, source=self.source)
+
     def as_triangle_mesh(self) -> TriangleMesh:
         """This surface as a readable :class:`TriangleMesh` (what ``io.save`` writes)."""
         return self._mesh

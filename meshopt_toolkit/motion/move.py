@@ -28,7 +28,7 @@ from ..mesh import PlanarMesh, require_admissible
 from ..mesh.kinds import SURFACE, TETS, class_kind
 from ..riemannian.discrete_geodesic import discrete_geodesic
 from ..riemannian.path_options import LevenbergMarquardtOptions
-from ..scaling import UnitScale, unit_scale
+from ..scaling import UnitScale, at_unit_size, size_scale
 from .continuation import RELAX_CG_RTOL, NoAdmissiblePathError, continuation_path
 from .frame_blocks import FrameBlocks
 from .graph_metric import GraphMetric
@@ -287,10 +287,11 @@ def move(
     Returns
     -------
     MoveResult
-        Every kind of mesh is moved at unit size (divided by the power of two nearest its
-        size, :mod:`..scaling`; targets alike) and scaled back, so a mesh scaled by
-        ``2**k`` gives the result scaled by ``2**k``, and meshes near 1e±300 move as at
-        unit size; the result's quality numbers are scale-free.
+        Every kind of mesh is moved at unit size (divided by its own size,
+        :func:`..scaling.at_unit_size`; targets alike) and scaled back, so a mesh scaled
+        by any factor gives the result scaled by it (to rounding; exactly for powers of
+        two), and meshes near 1e±300 move as at unit size; the result's quality numbers
+        are scale-free.
 
     Raises
     ------
@@ -321,9 +322,12 @@ def move(
         if solver is move_surface_mesh:
             rounds["contact"] = contact
         guard = SelfIntersectionGuard(mesh, handles, targets)  # refuses crossing targets
-        result = solver(mesh, handles, targets, frames=frames, steps=steps, weight=weight,
-                        relax_iter=relax_iter, max_splits=max_splits, progress=progress,
-                        **rounds)
+        result = at_unit_size(
+            lambda m, t: solver(m, handles, t, frames=frames, steps=steps, weight=weight,
+                                relax_iter=relax_iter, max_splits=max_splits,
+                                progress=progress, **rounds),
+            size_scale(mesh, columns=3), (mesh, targets),
+            lambda r, scale: _scaled_up(r, scale, mesh, handles, targets))
         guard.check(result.frames)  # and a motion through itself
         return result
     quality_rounds = 6 if quality_rounds is None else quality_rounds
@@ -333,16 +337,22 @@ def move(
     options = dict(frames=frames, steps=steps, weight=weight, relax_iter=relax_iter,
                    quality_rounds=quality_rounds, finish_frames=finish_frames,
                    max_splits=max_splits, progress=progress)
-    scale = unit_scale(mesh)
-    if scale.is_identity:
-        return _move_planar(mesh, handles, targets, **options)
-    # at unit size (an exact power of two) and back: the same motion at every scale
-    unit = ((lambda t: scale.down(targets(t))) if callable(targets)
-            else scale.down(targets))
-    result = _move_planar(scale.mesh_down(mesh), handles, unit, **options).scaled_up(scale)
-    result.mesh = result.frames[-1] = mesh.with_points(_at_targets(result.mesh.points,
-                                                                   handles, targets))
-    return result
+    return at_unit_size(lambda m, t: _move_planar(m, handles, t, **options),
+                        size_scale(mesh), (mesh, targets),
+                        lambda r, scale: _scaled_up(r, scale, mesh, handles, targets))
+
+
+def _scaled_up(result, scale: UnitScale, mesh, handles, targets):
+    """A motion of the mesh at unit size at the user's scale: every length of the
+    result, the vertices it left alone bitwise, the handles bitwise at their targets."""
+    points = [scale.points_up(f.points, mesh.points) for f in result.frames[:-1]]
+    frames = [mesh if np.array_equal(p, mesh.points) else mesh.with_points(p) for p in points]
+    frames.append(mesh.with_points(_at_targets(scale.points_up(result.frames[-1].points,
+                                                               mesh.points), handles, targets)))
+    if isinstance(result, MoveResult):
+        return replace(result.scaled_up(scale), mesh=frames[-1], frames=frames)
+    return replace(result, mesh=frames[-1], frames=frames,
+                   motion=result.motion.scaled_up(scale))
 
 
 def _at_targets(points: FloatArray, handles, targets) -> FloatArray:

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from .._typing import FloatArray
 from ..mesh import PlanarMesh
 from ..riemannian.geodesic_result import DiscreteGeodesic, LogMapResult
+from ..scaling import UnitScale
 
 
 # ---------------------------------------------------------------------------------------
@@ -75,6 +76,20 @@ class MorphResult:
     @property
     def n_frames(self) -> int:
         return len(self.points)
+
+    def scaled_up(self, scale: UnitScale, source: PlanarMesh) -> MorphResult:
+        """This morph of the meshes at unit size, at the user's scale: frames, the target
+        error, the areas and the user's ``source`` (the rest is scale-free, or the unit
+        problem's: ``length``)."""
+        def area(a):
+            return None if a is None else scale.up(a, power=2)
+
+        return replace(self, points=scale.up(self.points), source=source,
+                       target_error=float(scale.up(self.target_error)),
+                       min_area=area(self.min_area), linear_min_area=area(self.linear_min_area),
+                       linear_min_area_dense=float(area(self.linear_min_area_dense)),
+                       rigid_min_area=area(self.rigid_min_area),
+                       between_frames_min_area=area(self.between_frames_min_area))
 
     @property
     def frames(self) -> list:

@@ -30,7 +30,7 @@ from ..kernels.tetrahedra import mean_ratios as tet_mean_ratios
 from ..kernels.tetrahedra import orientations as tet_orientations
 from ..kernels.tetrahedra import signed_volumes as tet_signed_volumes
 from ..mesh import TetMesh
-from ..scaling import UnitScale, unit_scale
+from ..scaling import UnitScale
 from .continuation import NoAdmissiblePathError, march
 from .handles3d import SolvedVertices, check_handles, distinct_handles
 from .pinned_cells import pinned, turned_over_problem
@@ -338,9 +338,8 @@ def move_tet_mesh(mesh: TetMesh, handles, targets, *, frames: int | None = None,
                   quality_rounds: int = 4, max_splits: int = 12,
                   progress: Callable[[float], None] | None = None) -> TetMeshMoveResult:
     """:func:`move_tets` on a :class:`TetMesh`: the moved mesh and frames keep its tets,
-    tags and names (``mt.move`` calls this for a TetMesh). The motion is solved at unit
-    size (the mesh divided by the power of two nearest its size, :mod:`..scaling`) and
-    scaled back: a mesh scaled by ``2**k`` moves to the result scaled by ``2**k``.
+    tags and names (``mt.move`` calls this for a TetMesh, at unit size:
+    :func:`~meshopt_toolkit.scaling.at_unit_size`).
 
     Raises
     ------
@@ -356,13 +355,9 @@ def move_tet_mesh(mesh: TetMesh, handles, targets, *, frames: int | None = None,
     h, tg = distinct_handles(*check_handles(handles, targets, mesh.n_vertices))
     # vertices in no tet (a file may hold some) are left out of the solve and stay put
     solved = SolvedVertices(mesh.points, mesh.tets, h, tg)
-    # solved at unit size (an exact power of two): the same motion at every scale
-    scale = unit_scale(solved.points, columns=3)
-    res = move_tets(scale.down(solved.points), solved.cells, solved.handles,
-                    scale.down(solved.targets), steps=steps, frames=frames, weight=weight,
-                    relax_iter=relax_iter, quality_rounds=quality_rounds,
-                    max_splits=max_splits).scaled_up(scale)
-    res.points[solved.handles] = solved.targets  # bitwise, subnormal targets included
+    res = move_tets(solved.points, solved.cells, solved.handles, solved.targets, steps=steps,
+                    frames=frames, weight=weight, relax_iter=relax_iter,
+                    quality_rounds=quality_rounds, max_splits=max_splits)
 
     moved = mesh.with_points(solved.full(res.points))
     out = ([mesh.with_points(solved.full(F)) for F in res.frames[:-1]] + [moved]

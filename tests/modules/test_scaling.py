@@ -13,7 +13,7 @@ from meshopt_toolkit import data_path
 from meshopt_toolkit.cli import main
 from meshopt_toolkit.errors import InvalidMeshError
 from meshopt_toolkit.io import load, save
-from meshopt_toolkit.scaling import UnitScale, unit_scale
+from meshopt_toolkit.scaling import UnitScale, at_unit_size, size_scale, unit_scale
 
 DISC = load(data_path("disc_25.msh")).as_planar()
 
@@ -39,6 +39,42 @@ def test_unit_size_meshes_are_untouched_and_edge_cases():
     assert unit_scale(np.array([[-1.7e308, 0.0], [1.7e308, 1.0]])).exponent == 1024
     with pytest.raises(InvalidMeshError, match="not finite"):
         unit_scale(np.array([[0.0, np.nan]]))
+
+
+@settings(max_examples=60, deadline=None)
+@given(k=st.integers(-990, 990), factor=st.floats(0.5, 2.0), seed=st.integers(0, 2**16))
+def test_size_scale_brings_every_scale_to_one_problem(k, factor, seed):
+    """The unit points of ``X`` and of ``2**k X`` are the same numbers, of ``c X`` (c not
+    a power of two) the same to rounding; back at the user's scale to rounding, exactly
+    where a point did not move."""
+    X = DISC.points * factor
+    unit = size_scale(X).down(X)
+    half = 0.5 * (unit.max(axis=0) - unit.min(axis=0)).max()
+    assert half == pytest.approx(1.0, rel=1e-15)
+    big = np.ldexp(X, k)
+    s = size_scale(big)
+    assert np.array_equal(s.down(big), unit)  # powers of two: bitwise
+    assert np.abs(size_scale(DISC.points).down(DISC.points) - unit).max() <= 4e-16
+    moved = unit.copy()
+    moved[np.random.default_rng(seed).integers(0, len(unit), 5)] += 1e-3
+    back = s.points_up(moved, big)
+    still = (moved == unit).all(axis=1)
+    assert np.array_equal(back[still], big[still])
+    assert np.allclose(back[~still], np.ldexp(X + 1e-3 * factor, k)[~still], rtol=1e-12)
+
+
+def test_at_unit_size_leaves_a_unit_mesh_alone_and_scales_every_length():
+    assert size_scale(DISC).is_identity and size_scale(np.zeros((2, 2))).is_identity
+    seen = []
+    assert at_unit_size(lambda *a: seen.append(a) or "same", size_scale(DISC), (DISC, 1.0),
+                        lambda r, s: "scaled") == "same" and seen[0][0] is DISC
+    s = size_scale(3.0 * DISC.points)
+    mesh, targets, path, none = s.lengths_down(DISC.with_points(3.0 * DISC.points)), \
+        s.lengths_down(np.array([6.0])), s.lengths_down(lambda t: np.array([3.0 * t])), \
+        s.lengths_down(None)
+    assert np.allclose(mesh.points, DISC.points, rtol=1e-15) and mesh.triangles is not None
+    assert targets == pytest.approx([2.0]) and path(1.5) == pytest.approx([1.5])
+    assert none is None and s.factor == pytest.approx(3.0, rel=1e-15)
 
 
 def test_scaling_back_past_the_float_range_names_the_scale():

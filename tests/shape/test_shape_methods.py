@@ -13,7 +13,7 @@ from conftest import grid_mesh, square5
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from meshopt_toolkit.errors import OptimizationError, OptionError
+from meshopt_toolkit.errors import OptionError
 from meshopt_toolkit.kernels.triangles import signed_areas
 from meshopt_toolkit.mesh import boundary_self_intersections
 from meshopt_toolkit.optimize import METHODS, VARIANTS, optimize
@@ -236,16 +236,6 @@ def test_reaching_max_iterations_is_not_success(method):
                    penalty=None)
     assert res.status == "max_iterations" and not res.success
     assert "without converging" in res.message
-
-
-@pytest.mark.parametrize("scale", [1e12, 1e-12])
-def test_meshes_far_from_unit_size_are_refused_naming_the_scale(scale):
-    from meshopt_toolkit.fem.poisson import PoissonObjective
-
-    mesh = grid_mesh(3, jitter=0.1)
-    big = mesh.with_points(mesh.points * scale)
-    with pytest.raises(OptimizationError, match=r"across.*rescale"):
-        optimize(big, PoissonObjective(big), max_iterations=3, penalty=None)
 
 
 def test_unknown_method_is_refused():
