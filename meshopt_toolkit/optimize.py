@@ -203,7 +203,9 @@ def optimize(
         ``F = w j + f2``, the result's ``j`` is unweighed). ``scale="auto"`` weighs j to
         the mesh, rejects trial steps whose worst triangle falls below half its initial
         aspect ratio and restarts a run that finds no step with a smaller weight
-        (:data:`~meshopt_toolkit.shape.spec.AUTO_GRADIENT_NORM`, ``QUALITY_GUARD``).
+        (:data:`~meshopt_toolkit.shape.spec.AUTO_GRADIENT_NORM`, ``QUALITY_GUARD``);
+        a converged run is restarted with f2's anchor at its last iterate and a larger
+        weight (:data:`ANCHOR_RESTARTS`), so that f2 does not hold the shape back.
     variant : one of :data:`VARIANTS`
     method : one of :data:`METHODS`: ``"lbfgs"`` (Riemannian L-BFGS with the metric as
         inner product and a Wolfe line search), ``"cg"`` (Hestenes–Stiefel+), or

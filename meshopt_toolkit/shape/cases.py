@@ -142,7 +142,7 @@ def ellipse_in_box(path: str | os.PathLike, half_axes: tuple[float, float],
         return _group_curves(gmsh, lambda x, y: inner if abs(x) < w / 2 - 1e-6 and
                              abs(y) < h / 2 - 1e-6 else outer)
 
-    return _mesh(path, build, size, refine_near, (inner,))
+    return _mesh(path, "ellipse_in_box", build, size, refine_near, (inner,))
 
 
 def user_mesh(case: str, path: str | os.PathLike, size: float = 0.1, *,
@@ -161,18 +161,19 @@ def user_mesh(case: str, path: str | os.PathLike, size: float = 0.1, *,
     -------
     Path
     """
-    return _mesh(path, lambda gmsh: _build(gmsh, case, size), size, refine_near,
+    return _mesh(path, case, lambda gmsh: _build(gmsh, case, size), size, refine_near,
                  ("hole1", "hole2", "hole", "body", "reentrant", "airfoil", "disc", "square"))
 
 
-def _mesh(path, build, size: float, refine_near: float | None, refined: tuple) -> Path:
-    """Build the model (``build(gmsh) -> {group: curves}``), mesh it (size ``refine_near``
-    on the ``refined`` groups' curves) and write it to ``path``."""
+def _mesh(path, name: str, build, size: float, refine_near: float | None,
+          refined: tuple) -> Path:
+    """Build the model ``name`` (``build(gmsh) -> {group: curves}``), mesh it (size
+    ``refine_near`` on the ``refined`` groups' curves) and write it to ``path``."""
     path = Path(path)
     with gmsh_session() as gmsh:
         gmsh.option.setNumber("General.NumThreads", 1)
         gmsh.option.setNumber("Mesh.RandomSeed", 1)
-        gmsh.model.add(path.stem)
+        gmsh.model.add(name)
         groups = build(gmsh)
         gmsh.option.setNumber("Mesh.MeshSizeMax", size)
         gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
