@@ -124,9 +124,12 @@ class Objective(Protocol):
     def derivative(self, Q: FloatArray) -> FloatArray: ...
 
 
-#: a converged ``scale="auto"`` run is restarted from its last iterate at most this many
-#: times, f2's anchor moved there and j's weight multiplied by ``ANCHOR_GROWTH``, until a
-#: restart lowers j by at most ``RESTART_GAIN · tolerance`` relative
+#: a converged ``scale="auto"`` run with an exact constraint (the area, a body's
+#: barycenter) is restarted from its last iterate at most this many times, f2's anchor
+#: moved there and j's weight multiplied by ``ANCHOR_GROWTH``, until a restart lowers j by
+#: at most ``RESTART_GAIN · tolerance`` relative; without a constraint many objectives
+#: fall without bound as the domain shrinks or grows, and the restarts would only drive
+#: the mesh to the quality floor
 #: (:func:`_follow_anchor`; ``benchmarks/bench_shape2d.py``: the hole under stresses (2, 1)
 #: reaches the closed-form axis ratio 2 and a body in Stokes flow drags less than the
 #: best ellipse)
@@ -204,8 +207,9 @@ def optimize(
         the mesh, rejects trial steps whose worst triangle falls below half its initial
         aspect ratio and restarts a run that finds no step with a smaller weight
         (:data:`~meshopt_toolkit.shape.spec.AUTO_GRADIENT_NORM`, ``QUALITY_GUARD``);
-        a converged run is restarted with f2's anchor at its last iterate and a larger
-        weight (:data:`ANCHOR_RESTARTS`), so that f2 does not hold the shape back.
+        with an exact constraint (``keep_area``, ``keep_barycenter``) a converged run is
+        restarted with f2's anchor at its last iterate and a larger weight
+        (:data:`ANCHOR_RESTARTS`), so that f2 does not hold the shape back.
     variant : one of :data:`VARIANTS`
     method : one of :data:`METHODS`: ``"lbfgs"`` (Riemannian L-BFGS with the metric as
         inner product and a Wolfe line search), ``"cg"`` (Hestenes–Stiefel+), or
@@ -313,7 +317,7 @@ def optimize(
         logger.info("no step at weight %.3g (%s): restarting with %.3g", weight, result.message,
                     weight / GUARD_FACTOR)
         weight /= GUARD_FACTOR
-    if auto and f2 is not None:
+    if auto and f2 is not None and constraint is not None:
         result = _follow_anchor(
             result, lambda start, n, done, k: descend(start, anchored(start), n, done,
                                                       weight * ANCHOR_GROWTH ** k),
@@ -339,7 +343,8 @@ def _follow_anchor(result: OptimizeResult, descend, mesh: PlanarMesh, max_iterat
     of the initial mesh. ``descend(start, iterations, done, k)`` runs restart ``k``; the
     histories are joined (the objective column jumps at each restart: F changes with
     the anchor and the weight); a restart that does not converge within the iterations
-    left is dropped (one stopped by the callback is kept)."""
+    left is dropped (one stopped by the callback is kept), though the callback has seen
+    its iterations."""
     for k in range(1, ANCHOR_RESTARTS + 1):
         left = max_iterations - result.nit
         if result.status != "converged" or left <= 0:
