@@ -8,7 +8,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import meshopt_toolkit.optimize  # noqa: F401  (the module, not the function of the package)
 from meshopt_toolkit.cli._common import load_workpiece
 from meshopt_toolkit.optimize import ANCHOR_GROWTH, optimize
 from meshopt_toolkit.shape.cases import ellipse_in_box
