@@ -20,6 +20,9 @@ case                domain                                               boundar
 ``disc_in_box``     ``[−2, 2] × [−1.5, 1.5]`` around a disc of radius    box, body
                     ½ at the origin: Stokes
 ==================  ===================================================  =================
+
+:func:`ellipse_in_box` meshes an elliptic hole or body centred in a box (the 2D
+benchmarks' discs and the ellipses they are compared with).
 """
 
 from __future__ import annotations
@@ -114,6 +117,34 @@ def _build(gmsh, case: str, size: float) -> dict[str, list[int]]:
     raise ValueError(f"unknown case {case!r}; choose one of {', '.join(CASES)}")
 
 
+def ellipse_in_box(path: str | os.PathLike, half_axes: tuple[float, float],
+                   box: tuple[float, float], size: float = 0.5, *, refine_near: float = 0.1,
+                   inner: str = "hole", outer: str = "outer") -> Path:
+    """Mesh the box ``[−box/2, box/2]`` minus the ellipse of ``half_axes`` ``(a, b)`` (along
+    x, y) centred at the origin into ``path``: element size ``refine_near`` on the ellipse,
+    graded to ``size`` within ``10 · size``; groups ``inner`` (the ellipse) and ``outer``.
+
+    Returns
+    -------
+    Path
+    """
+    a, b = (float(v) for v in half_axes)
+    w, h = (float(v) for v in box)
+
+    def build(gmsh):
+        occ = gmsh.model.occ
+        r = occ.addRectangle(-w / 2, -h / 2, 0, w, h)
+        e = occ.addDisk(0, 0, 0, max(a, b), min(a, b))
+        if b > a:  # gmsh wants the x radius the larger one
+            occ.rotate([(2, e)], 0, 0, 0, 0, 0, 1, np.pi / 2)
+        occ.cut([(2, r)], [(2, e)])
+        occ.synchronize()
+        return _group_curves(gmsh, lambda x, y: inner if abs(x) < w / 2 - 1e-6 and
+                             abs(y) < h / 2 - 1e-6 else outer)
+
+    return _mesh(path, "ellipse_in_box", build, size, refine_near, (inner,))
+
+
 def user_mesh(case: str, path: str | os.PathLike, size: float = 0.1, *,
               refine_near: float | None = None) -> Path:
     """Mesh ``case`` (one of :data:`CASES`) with element size ``size`` into ``path``.
@@ -130,19 +161,24 @@ def user_mesh(case: str, path: str | os.PathLike, size: float = 0.1, *,
     -------
     Path
     """
+    return _mesh(path, case, lambda gmsh: _build(gmsh, case, size), size, refine_near,
+                 ("hole1", "hole2", "hole", "body", "reentrant", "airfoil", "disc", "square"))
+
+
+def _mesh(path, name: str, build, size: float, refine_near: float | None,
+          refined: tuple) -> Path:
+    """Build the model ``name`` (``build(gmsh) -> {group: curves}``), mesh it (size
+    ``refine_near`` on the ``refined`` groups' curves) and write it to ``path``."""
     path = Path(path)
     with gmsh_session() as gmsh:
         gmsh.option.setNumber("General.NumThreads", 1)
         gmsh.option.setNumber("Mesh.RandomSeed", 1)
-        gmsh.model.add(case)
-        groups = _build(gmsh, case, size)
+        gmsh.model.add(name)
+        groups = build(gmsh)
         gmsh.option.setNumber("Mesh.MeshSizeMax", size)
         gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
         if refine_near is not None:
-            inner = [c for n, cs in groups.items()
-                     if n in ("hole1", "hole2", "hole", "body", "reentrant", "airfoil", "disc",
-                              "square")
-                     for c in cs]
+            inner = [c for n, cs in groups.items() if n in refined for c in cs]
             f = gmsh.model.mesh.field
             dist = f.add("Distance")
             f.setNumbers(dist, "CurvesList", inner)

@@ -285,6 +285,11 @@ class ProblemSpec:
                 if np.size(v) != d:
                     raise OptionError(f"--dirichlet {g}: a velocity in {d}D has {d} "
                                       f"components, not {np.size(v)}")
+            if not any(np.any(np.asarray(v) != 0) for v in self.dirichlet.values()):
+                raise OptionError("--pde stokes: every --dirichlet velocity is 0, so the "
+                                  "flow and its dissipation vanish: give a moving group's "
+                                  "velocity, e.g. --dirichlet GROUP="
+                                  + ",".join(["1"] + ["0"] * (d - 1)))
             return make_objective(name, mesh, velocities=dict(self.dirichlet),
                                   mu=self.constant("viscosity"), **options)
         data = dict(rhs=self.rhs, dirichlet=dict(self.dirichlet), neumann=dict(self.neumann))
