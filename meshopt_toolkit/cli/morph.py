@@ -67,7 +67,8 @@ def add_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-normalize", action="store_true",
                    help="use the plain complete metric of f2 instead of that of √N·f2 "
                         "(which keeps the balance between motion and quality on fine meshes)")
-    p.add_argument("--max-iterations", "--max-iter", dest="max_iter", type=int, default=None,
+    p.add_argument("--max-iterations", "--max-iter", dest="max_iterations", type=int,
+                   default=None,
                    help="iterations of the discrete geodesic (default: 200 Levenberg–Marquardt "
                         "for the distortion metric, 500 Newton for the scalar one)")
     add_output_flags(p, plots=True, frame_format="the source's")
@@ -75,7 +76,7 @@ def add_args(p: argparse.ArgumentParser) -> None:
 
 def _check_numbers(args: argparse.Namespace) -> None:
     check_options(args, GenerateGeodesicMorph, OPTIONS)
-    check_int("--max-iterations", args.max_iter, 1, MAX_ITERATIONS)
+    check_int("--max-iterations", args.max_iterations, 1, MAX_ITERATIONS)
     check_numbers("--penalty", args.beta)
 
 
@@ -124,11 +125,12 @@ def run(args: argparse.Namespace) -> int:
     names = frame_names(args.frames, args.format, src_path)
     prepare_output_dir(outdir, force=args.force, names=names + list(PLOTS) + ["summary.json"])
     warn_dropped(cells, args.source)
-    max_iter = args.max_iter or DEFAULT_MAX_ITER[METRIC_ALIASES.get(args.metric, args.metric)]
-    with ProgressBar(max_iter, "morph") as bar:
+    max_iterations = (args.max_iterations
+                      or DEFAULT_MAX_ITER[METRIC_ALIASES.get(args.metric, args.metric)])
+    with ProgressBar(max_iterations, "morph") as bar:
         result = morph(source, target, args.frames, metric=args.metric, weight=args.weight,
                        beta=args.beta, normalize=not args.no_normalize, method=args.method,
-                       max_iterations=max_iter, stop=args.stop,
+                       max_iterations=max_iterations, stop=args.stop,
                        callback=lambda it: bar.update(status=f"E={it.energy:.8g}"))
     for name, mesh in zip(names, result.frames):
         save_moved(wp, mesh, outdir / name, what=name)
@@ -183,10 +185,10 @@ def _run_tets(args: argparse.Namespace, cells) -> int:
                           "source needs a tetrahedral target)")
     source = cells.to_tet_mesh("morph").require_admissible()
     target = target_cells.to_tet_mesh("morph").require_admissible()
-    max_iter = args.max_iter or 200
-    with ProgressBar(max_iter, "morph") as bar:
-        result = morph(source, target, args.frames, weight=args.weight, max_iterations=max_iter,
-                       stop=args.stop, callback=lambda it: bar.update(status=f"E={it.energy:.8g}"))
+    max_iterations = args.max_iterations or 200
+    with ProgressBar(max_iterations, "morph") as bar:
+        result = morph(source, target, args.frames, weight=args.weight,
+                       max_iterations=max_iterations, stop=args.stop, callback=lambda it: bar.update(status=f"E={it.energy:.8g}"))
     prepare_output_dir(outdir, force=args.force, names=files)
     warn_dropped(cells, args.source)
     for name, points in zip(names, result.points):
@@ -234,11 +236,11 @@ def _run_surface(args: argparse.Namespace, cells) -> int:
     names = frame_names(args.frames, args.format, src_path)
     written = names + ["quality.csv", "summary.json"]
     check_output_dir(outdir, force=args.force, names=written)
-    max_iter = args.max_iter or 10
-    with ProgressBar(max_iter, "morph") as bar:
+    max_iterations = args.max_iterations or 10
+    with ProgressBar(max_iterations, "morph") as bar:
         result = morph(source, target, args.frames, metric=args.metric, weight=args.weight,
                        beta=args.beta, normalize=not args.no_normalize, method=args.method,
-                       max_iterations=max_iter, stop=args.stop,
+                       max_iterations=max_iterations, stop=args.stop,
                        callback=lambda it: bar.update(status=f"E={it.energy:.8g}"))
     prepare_output_dir(outdir, force=args.force, names=written)
     warn_dropped(cells, args.source)

@@ -199,7 +199,7 @@ def run(args: argparse.Namespace) -> int:
             )
         summary = result.summary()
         summary.update(input=str(input_path), output=str(outdir / mesh_name),
-                       penalty_beta=list(penalty), rhs=args.rhs, functional=spec.objective,
+                       penalty_weights=list(penalty), rhs=args.rhs, functional=spec.objective,
                        fixed=args.fixed, move=args.move, dirichlet=args.dirichlet,
                        neumann=args.neumann, keep_area=args.keep_area, pde=spec.pde,
                        stress=args.stress, clamped=args.clamped,
