@@ -233,6 +233,11 @@ def cells_text(info: dict) -> str:
         n = info["self_intersecting"]
         rows = [("self-intersecting", f"{n} triangle pair{'s' * (n > 1)}" if n else "no")
                 if k == "self intersecting" else (k, v) for k, v in rows]
+    return info_text(info, rows)
+
+
+def info_text(info: dict, rows: list[tuple[str, str]]) -> str:
+    """``rows`` as indented ``key  value`` lines under ``info``'s path, then its problems."""
     width = max(len(k) for k, _ in rows)
     lines = [info["path"]] + [f"  {k:<{width}}  {v}" for k, v in rows]
     lines += [f"  problem: {p}" for p in info["problems"]]

@@ -156,12 +156,11 @@ def _fmt(value, key: str = "", info: dict | None = None) -> str:
 
 
 def _text(info: dict) -> str:
+    from ._info_cells import info_text
+
     rows = [(k.replace("_", " "), _fmt(v, k, info)) for k, v in info.items()
             if k not in ("path", "problems", "n_reoriented")]
-    width = max(len(k) for k, _ in rows)
-    lines = [info["path"]] + [f"  {k:<{width}}  {v}" for k, v in rows]
-    lines += [f"  problem: {p}" for p in info["problems"]]
-    return "\n".join(lines)
+    return info_text(info, rows)
 
 
 def run(args) -> int:

@@ -34,14 +34,13 @@ those of the unit-size problem (lengths, areas, energies), with the factor as
 from __future__ import annotations
 
 import argparse
-from .. import strict_json
-import sys
 from pathlib import Path
 
 from ..bounds import MAX_ITERATIONS
 from ..filters.generate_geodesic_morph import GenerateGeodesicMorph
 from ._common import (add_output_flags, check_mesh_format, check_output_dir, float_list,
-                      frame_names, prepare_output_dir, save_moved, warn_dropped, write_text)
+                      frame_names, prepare_output_dir, print_json, save_moved, warn_dropped,
+                      write_summary, write_text)
 from ._params import add_options, check_options
 from ._validate import check_int, check_numbers
 
@@ -92,13 +91,31 @@ def _check_outputs(args: argparse.Namespace, others=PLOTS) -> None:
                      names=names + list(others) + ["summary.json"])
 
 
+def _metric_options(args: argparse.Namespace) -> dict:
+    """The metric options of a planar or surface morph."""
+    return dict(metric=args.metric, beta=args.beta, normalize=not args.no_normalize,
+                method=args.method)
+
+
+def _morph(args: argparse.Namespace, source, target, default_iterations: int, **options):
+    """:func:`~meshopt_toolkit.operations.morph` of ``source`` to ``target`` with the
+    shared options and a progress bar (``--max-iterations`` or ``default_iterations``)."""
+    from ..operations import morph
+    from ..progress import ProgressBar
+
+    max_iterations = args.max_iterations or default_iterations
+    with ProgressBar(max_iterations, "morph") as bar:
+        return morph(source, target, args.frames, weight=args.weight,
+                     max_iterations=max_iterations, stop=args.stop,
+                     callback=lambda it: bar.update(status=f"E={it.energy:.8g}"), **options)
+
+
 def run(args: argparse.Namespace) -> int:
     from .. import io
     from ..io.workpiece import Workpiece
     from ..motion.scalar_morph import DEFAULT_BETA
-    from ..operations import DEFAULT_MAX_ITER, METRIC_ALIASES, morph
+    from ..operations import DEFAULT_MAX_ITER, METRIC_ALIASES
     from ..plotting import save_morph_figures
-    from ..progress import ProgressBar
     from ._info_cells import SURFACE, TETS, read_kind
 
     _check_numbers(args)
@@ -125,13 +142,9 @@ def run(args: argparse.Namespace) -> int:
     names = frame_names(args.frames, args.format, src_path)
     prepare_output_dir(outdir, force=args.force, names=names + list(PLOTS) + ["summary.json"])
     warn_dropped(cells, args.source)
-    max_iterations = (args.max_iterations
-                      or DEFAULT_MAX_ITER[METRIC_ALIASES.get(args.metric, args.metric)])
-    with ProgressBar(max_iterations, "morph") as bar:
-        result = morph(source, target, args.frames, metric=args.metric, weight=args.weight,
-                       beta=args.beta, normalize=not args.no_normalize, method=args.method,
-                       max_iterations=max_iterations, stop=args.stop,
-                       callback=lambda it: bar.update(status=f"E={it.energy:.8g}"))
+    result = _morph(args, source, target,
+                    DEFAULT_MAX_ITER[METRIC_ALIASES.get(args.metric, args.metric)],
+                    **_metric_options(args))
     for name, mesh in zip(names, result.frames):
         save_moved(wp, mesh, outdir / name, what=name)
     summary = result.summary()
@@ -139,12 +152,11 @@ def run(args: argparse.Namespace) -> int:
                    unit_scale=wp.scale.factor)
     if args.metric == "scalar":
         summary["beta"] = list(args.beta or DEFAULT_BETA)
-    write_text(outdir / "summary.json", strict_json.dumps(summary, indent=2) + "\n")
+    write_summary(outdir, summary)
     if not args.no_plots:
         save_morph_figures(result, outdir / "strip.png", outdir / "quality.png")
     if args.json:
-        strict_json.dump(summary, sys.stdout)
-        sys.stdout.write("\n")
+        print_json(summary)
     else:
         lin = "inverts" if summary["linear_inverts"] else "does not invert"
         converged = summary.get("converged", summary.get("discrete_converged"))
@@ -168,8 +180,6 @@ def _run_tets(args: argparse.Namespace, cells) -> int:
 
     from ..errors import OptionError
     from ..io import load_cells, save_cells
-    from ..operations import morph
-    from ..progress import ProgressBar
     from ..mesh.kinds import TETS, cells_kind
 
     src_path, tgt_path, outdir = Path(args.source), Path(args.target), Path(args.output)
@@ -185,10 +195,7 @@ def _run_tets(args: argparse.Namespace, cells) -> int:
                           "source needs a tetrahedral target)")
     source = cells.to_tet_mesh("morph").require_admissible()
     target = target_cells.to_tet_mesh("morph").require_admissible()
-    max_iterations = args.max_iterations or 200
-    with ProgressBar(max_iterations, "morph") as bar:
-        result = morph(source, target, args.frames, weight=args.weight,
-                       max_iterations=max_iterations, stop=args.stop, callback=lambda it: bar.update(status=f"E={it.energy:.8g}"))
+    result = _morph(args, source, target, 200)
     prepare_output_dir(outdir, force=args.force, names=files)
     warn_dropped(cells, args.source)
     for name, points in zip(names, result.points):
@@ -200,10 +207,9 @@ def _run_tets(args: argparse.Namespace, cells) -> int:
                        stats.min_mean_ratio, linear.min_mean_ratio, linear.inverted))))
     summary = result.summary()
     summary.update(source=str(src_path), target=str(tgt_path), files=names)
-    write_text(outdir / "summary.json", strict_json.dumps(summary, indent=2) + "\n")
+    write_summary(outdir, summary)
     if args.json:
-        strict_json.dump(summary, sys.stdout)
-        sys.stdout.write("\n")
+        print_json(summary)
     else:
         worst = int(linear.inverted.max())
         lin = f"inverts up to {worst} tets" if worst else "does not invert"
@@ -227,8 +233,6 @@ def _run_surface(args: argparse.Namespace, cells) -> int:
     import numpy as np
 
     from .. import io
-    from ..operations import morph
-    from ..progress import ProgressBar
 
     src_path, outdir = Path(args.source), Path(args.output)
     source = cells.to_surface_mesh("morph")
@@ -236,12 +240,7 @@ def _run_surface(args: argparse.Namespace, cells) -> int:
     names = frame_names(args.frames, args.format, src_path)
     written = names + ["quality.csv", "summary.json"]
     check_output_dir(outdir, force=args.force, names=written)
-    max_iterations = args.max_iterations or 10
-    with ProgressBar(max_iterations, "morph") as bar:
-        result = morph(source, target, args.frames, metric=args.metric, weight=args.weight,
-                       beta=args.beta, normalize=not args.no_normalize, method=args.method,
-                       max_iterations=max_iterations, stop=args.stop,
-                       callback=lambda it: bar.update(status=f"E={it.energy:.8g}"))
+    result = _morph(args, source, target, 10, **_metric_options(args))
     prepare_output_dir(outdir, force=args.force, names=written)
     warn_dropped(cells, args.source)
     for name, mesh in zip(names, result.frames):
@@ -251,10 +250,9 @@ def _run_surface(args: argparse.Namespace, cells) -> int:
         f"{k},{q:.10g},{f}\n" for k, (q, f) in enumerate(zip(m.worst_quality, m.folds))))
     summary = result.summary()
     summary.update(source=str(src_path), target=str(args.target), files=names)
-    write_text(outdir / "summary.json", strict_json.dumps(summary, indent=2) + "\n")
+    write_summary(outdir, summary)
     if args.json:
-        strict_json.dump(summary, sys.stdout)
-        sys.stdout.write("\n")
+        print_json(summary)
     else:
         print(f"{len(names)} frames (surface), folds {summary['folds']}, worst relative "
               f"quality {summary['worst_relative_quality']:.4g} (target "
