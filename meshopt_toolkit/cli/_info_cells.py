@@ -17,6 +17,7 @@ import math
 
 import numpy as np
 
+from ..kernels.surface import pad3
 from ..mesh.kinds import PLANAR, SURFACE, TETS, cells_kind
 
 MIXED = "mixed cells"
@@ -159,7 +160,7 @@ def mixed_info(cm) -> dict:
     info.update({f"n_{t}": n for t, n in cm.cell_counts().items()})
     info["bounding_box_min"] = [_float(x) for x in box.min(axis=0)] if len(box) else None
     info["bounding_box_max"] = [_float(x) for x in box.max(axis=0)] if len(box) else None
-    p3 = pts if pts.shape[1] == 3 else np.column_stack([pts, np.zeros(len(pts))])
+    p3 = pad3(pts)
     tets = [c for t, c in cm.cells if t == "tetra" and len(c)]
     if tets:
         q = tet_quality_summary(p3, np.concatenate(tets)).as_dict()

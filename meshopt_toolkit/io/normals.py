@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..kernels.surface import pad3
 from .cells import NORMALS, CellMesh
 
 logger = logging.getLogger(__name__)
@@ -38,9 +39,7 @@ def vertex_normals(points: np.ndarray, cells) -> np.ndarray:
     points : (N, 3) or (N, 2) array
     cells : list of (type, (M, k) int array); blocks other than :data:`FACES` are skipped
     """
-    p = np.asarray(points, np.float64)
-    if p.shape[1] == 2:
-        p = np.column_stack([p, np.zeros(len(p))])
+    p = pad3(points)
     acc = np.zeros((len(p), 3))
     for t, c in cells:
         if t not in FACES or not len(c):

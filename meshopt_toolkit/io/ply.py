@@ -24,7 +24,8 @@ import numpy as np
 
 
 from ..errors import ReadError, WriteError
-from ._common import pad3, parse_rows
+from ..kernels.surface import pad3
+from ._common import parse_rows
 from ._files import UNCAPPED, read_input
 from ._loss import Part, cells_other_than, refuse
 from .cells import NORMALS, TEXCOORDS, CellMesh, check_cells, face_blocks

@@ -18,7 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ReadError, WriteError
-from ._common import format_rows, pad3, quiet
+from ..kernels.surface import pad3
+from ._common import format_rows, quiet
 from ._loss import Part, numeric, refuse
 from ._files import UNCAPPED, open_input
 from .cells import CellMesh, check_cells

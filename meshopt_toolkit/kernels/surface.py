@@ -18,6 +18,15 @@ from ..scaling import unit_cells
 DEGENERATE_ASPECT = 1e-12
 
 
+def pad3(points: FloatArray) -> FloatArray:
+    """``(N, 3)`` float64 points: 2D points ``(N, 2)`` with z = 0 added, 3D ones as they
+    are (not copied when already contiguous float64)."""
+    p = np.asarray(points, dtype=np.float64)
+    if p.shape[1] == 3:
+        return np.ascontiguousarray(p)
+    return np.column_stack([p, np.zeros(len(p))])
+
+
 def _unit_edges(points: FloatArray, triangles: IntArray, count: int = 3
                 ) -> tuple[FloatArray, IntArray]:
     """The first ``count`` of the edges ``q1 − q0, q2 − q0, q2 − q1`` ``(count, T, 3)`` of
