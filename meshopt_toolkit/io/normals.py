@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..kernels.surface import pad3
-from .cells import NORMALS, CellMesh
+from .cells import NORMALS, CellMesh, check_cells
 
 logger = logging.getLogger(__name__)
 
@@ -26,6 +26,15 @@ class ReadNormals:
 
     points: np.ndarray
     normals: np.ndarray
+
+
+def keep_read_normals(cm: CellMesh) -> CellMesh:
+    """``cm`` (a reader's, checked) with the normals it read, if any, kept as its layout:
+    written back unchanged while the points stay."""
+    check_cells(cm)
+    if NORMALS in cm.point_data:
+        cm.layout = ReadNormals(cm.points, cm.point_data[NORMALS])
+    return cm
 
 
 def vertex_normals(points: np.ndarray, cells) -> np.ndarray:
