@@ -32,6 +32,17 @@ class AssembledMetric:
     def matrix(self, Q: FloatArray) -> sp.spmatrix:
         raise NotImplementedError
 
+    def embed(self, Q: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """The isometric embedding ``X(Q)`` in two flat parts, where the metric has one
+        (the distortion metrics: ``(m^½ ⊙ Q, w φ(Q))``)."""
+        raise MetricNotImplementedError(f"{type(self).__name__}.embed is not implemented")
+
+    def segment_lengths(self, frames: FloatArray) -> FloatArray:
+        """``|X(Q_{k+1}) − X(Q_k)|`` for consecutive frames (K+1, N, d) → (K,), ``X`` the
+        embedding :meth:`embed`."""
+        X = [np.concatenate(self.embed(Q)) for Q in frames]
+        return np.array([np.linalg.norm(b - a) for a, b in zip(X[:-1], X[1:])])
+
     def inner(self, Q: FloatArray, U: FloatArray, V: FloatArray) -> float:
         """``vec U · g_Q vec V``. ``Q, U, V`` : (N, d)."""
         return dot(np.asarray(U, dtype=float), self.apply(Q, np.asarray(V, dtype=float)))
