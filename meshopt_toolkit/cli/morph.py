@@ -174,21 +174,16 @@ def run(args: argparse.Namespace) -> int:
 def _run_tets(args: argparse.Namespace, cells) -> int:
     """The morph of two tetrahedral files: the source's cells written with each frame's
     points (every block, tag, name and datum kept), ``quality.csv`` and ``summary.json``."""
-    from dataclasses import replace
-
-    import numpy as np
-
     from ..errors import OptionError
-    from ..io import load_cells, save_cells
+    from ..io import load_cells
     from ..mesh.kinds import TETS, cells_kind
 
-    src_path, tgt_path, outdir = Path(args.source), Path(args.target), Path(args.output)
+    src_path, tgt_path = Path(args.source), Path(args.target)
     if args.metric != "distortion" or args.beta is not None or args.no_normalize:
         raise OptionError("tetrahedral meshes are morphed with the distortion metric only "
                           "(--metric scalar, --penalty and --no-normalize do not apply)")
     _check_outputs(args, others=["quality.csv"])
     names = frame_names(args.frames, args.format, src_path)
-    files = names + ["quality.csv", "summary.json"]
     target_cells = load_cells(tgt_path)
     if cells_kind(target_cells) != TETS:
         raise OptionError(f"{tgt_path}: has no tetrahedra, {src_path} has (a tetrahedral "
@@ -196,42 +191,27 @@ def _run_tets(args: argparse.Namespace, cells) -> int:
     source = cells.to_tet_mesh("morph").require_admissible()
     target = target_cells.to_tet_mesh("morph").require_admissible()
     result = _morph(args, source, target, 200)
-    prepare_output_dir(outdir, force=args.force, names=files)
-    warn_dropped(cells, args.source)
-    for name, points in zip(names, result.points):
-        save_cells(replace(cells, points=np.array(points, dtype=float)), outdir / name)
-    stats, linear = result.stats, result.linear
-    write_text(outdir / "quality.csv",
-               "frame,min_mean_ratio,linear_min_mean_ratio,linear_inverted\n" + "".join(
-                   f"{k},{q:.10g},{lq:.10g},{li}\n" for k, (q, lq, li) in enumerate(zip(
-                       stats.min_mean_ratio, linear.min_mean_ratio, linear.inverted))))
-    summary = result.summary()
-    summary.update(source=str(src_path), target=str(tgt_path), files=names)
-    write_summary(outdir, summary)
-    if args.json:
-        print_json(summary)
-    else:
-        worst = int(linear.inverted.max())
-        lin = f"inverts up to {worst} tets" if worst else "does not invert"
-        state = "" if result.converged else (
-            f"; NOT converged ({result.status}: frames admissible, the path is not yet a "
-            "minimizer)")
-        print(f"{result.n_frames} frames (distortion metric, tetrahedra), all admissible: "
-              f"{summary['admissible']}, worst mean ratio {summary['min_mean_ratio']:.4g} "
-              f"(ends {stats.min_mean_ratio[0]:.4g}, {stats.min_mean_ratio[-1]:.4g}); "
-              f"linear interpolation {lin}{state}")
-        print(f"wrote {outdir}/ ({names[0]} … {names[-1]}, quality.csv, summary.json)")
-    return 0
+    summary, stats, linear = result.summary(), result.stats, result.linear
+    worst = int(linear.inverted.max())
+    lin = f"inverts up to {worst} tets" if worst else "does not invert"
+    state = "" if result.converged else (
+        f"; NOT converged ({result.status}: frames admissible, the path is not yet a "
+        "minimizer)")
+    return _write_cell_frames(
+        args, cells, result.points, names, summary,
+        "frame,min_mean_ratio,linear_min_mean_ratio,linear_inverted\n" + "".join(
+            f"{k},{q:.10g},{lq:.10g},{li}\n" for k, (q, lq, li) in enumerate(zip(
+                stats.min_mean_ratio, linear.min_mean_ratio, linear.inverted))),
+        f"{result.n_frames} frames (distortion metric, tetrahedra), all admissible: "
+        f"{summary['admissible']}, worst mean ratio {summary['min_mean_ratio']:.4g} "
+        f"(ends {stats.min_mean_ratio[0]:.4g}, {stats.min_mean_ratio[-1]:.4g}); "
+        f"linear interpolation {lin}{state}")
 
 
 def _run_surface(args: argparse.Namespace, cells) -> int:
     """Morph two poses of a triangle surface in 3D (:mod:`..motion.surface_morph`); the
     frames are the source's file (every block, tag and datum) with new points, plus
     ``quality.csv`` (per frame: worst relative quality, folds) and ``summary.json``."""
-    from dataclasses import replace
-
-    import numpy as np
-
     from .. import io
 
     src_path, outdir = Path(args.source), Path(args.output)
@@ -241,23 +221,40 @@ def _run_surface(args: argparse.Namespace, cells) -> int:
     written = names + ["quality.csv", "summary.json"]
     check_output_dir(outdir, force=args.force, names=written)
     result = _morph(args, source, target, 10, **_metric_options(args))
-    prepare_output_dir(outdir, force=args.force, names=written)
+    summary, m = result.summary(), result.morph
+    return _write_cell_frames(
+        args, cells, [mesh.points for mesh in result.frames], names, summary,
+        "frame,worst_relative_quality,folds\n" + "".join(
+            f"{k},{q:.10g},{f}\n" for k, (q, f) in enumerate(zip(m.worst_quality, m.folds))),
+        f"{len(names)} frames (surface), folds {summary['folds']}, worst relative "
+        f"quality {summary['worst_relative_quality']:.4g} (target "
+        f"{summary['target_worst_relative_quality']:.4g}; linear interpolation "
+        f"{summary['linear_worst_relative_quality']:.4g}, "
+        f"{summary['linear_folds']} folds), {result.status}")
+
+
+def _write_cell_frames(args: argparse.Namespace, cells, frames, names: list[str],
+                       summary: dict, quality_csv: str, text: str) -> int:
+    """Write a tet or surface morph into OUTDIR: the source's ``cells`` (every block, tag,
+    name and datum) with each frame's points under ``names``, ``quality.csv`` and
+    ``summary.json``; then the summary (``--json``) or ``text`` on stdout."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    from ..io import save_cells
+
+    outdir = Path(args.output)
+    prepare_output_dir(outdir, force=args.force, names=names + ["quality.csv", "summary.json"])
     warn_dropped(cells, args.source)
-    for name, mesh in zip(names, result.frames):
-        io.save_cells(replace(cells, points=np.array(mesh.points, dtype=float)), outdir / name)
-    m = result.morph
-    write_text(outdir / "quality.csv", "frame,worst_relative_quality,folds\n" + "".join(
-        f"{k},{q:.10g},{f}\n" for k, (q, f) in enumerate(zip(m.worst_quality, m.folds))))
-    summary = result.summary()
-    summary.update(source=str(src_path), target=str(args.target), files=names)
+    for name, points in zip(names, frames):
+        save_cells(replace(cells, points=np.array(points, dtype=float)), outdir / name)
+    write_text(outdir / "quality.csv", quality_csv)
+    summary.update(source=str(Path(args.source)), target=str(Path(args.target)), files=names)
     write_summary(outdir, summary)
     if args.json:
         print_json(summary)
     else:
-        print(f"{len(names)} frames (surface), folds {summary['folds']}, worst relative "
-              f"quality {summary['worst_relative_quality']:.4g} (target "
-              f"{summary['target_worst_relative_quality']:.4g}; linear interpolation "
-              f"{summary['linear_worst_relative_quality']:.4g}, "
-              f"{summary['linear_folds']} folds), {result.status}")
+        print(text)
         print(f"wrote {outdir}/ ({names[0]} … {names[-1]}, quality.csv, summary.json)")
     return 0

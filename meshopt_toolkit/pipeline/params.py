@@ -142,7 +142,11 @@ class Param:
         """Value of a ``<Param>`` element (its ``value`` attribute), validated."""
         if "value" not in attrs:
             raise self._error(filter_name, "Param element has no 'value' attribute")
-        return self.validate(attrs["value"], filter_name)
+        return self._from_mlx_value(attrs["value"], attrs, filter_name)
+
+    def _from_mlx_value(self, raw: str, attrs: dict[str, str], filter_name: str) -> Any:
+        """The value of the ``value`` attribute ``raw`` (the element's ``attrs`` beside)."""
+        return self.validate(raw, filter_name)
 
 
 @dataclass(frozen=True)
@@ -284,10 +288,7 @@ class EnumParam(Param):
             out[f"enum_val{i}"] = c
         return out
 
-    def from_mlx(self, attrs, filter_name="?"):
-        raw = attrs.get("value")
-        if raw is None:
-            raise self._error(filter_name, "Param element has no 'value' attribute")
+    def _from_mlx_value(self, raw, attrs, filter_name):
         try:
             return self.validate(int(raw), filter_name)
         except ValueError:
@@ -413,10 +414,7 @@ class LengthParam(Param):
                        max=meshlab_float(max(d, 0.0)))
         return out
 
-    def from_mlx(self, attrs, filter_name="?"):
-        raw = attrs.get("value")
-        if raw is None:
-            raise self._error(filter_name, "Param element has no 'value' attribute")
+    def _from_mlx_value(self, raw, attrs, filter_name):
         if attrs.get("percent", "").lower() == "true":
             return self.validate(f"{raw}%", filter_name)
         return self.validate(raw, filter_name)
