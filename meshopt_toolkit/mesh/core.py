@@ -20,7 +20,8 @@ from .._typing import FloatArray, IntArray
 from ..errors import InvalidMeshError
 from ..kernels.triangles import quality_summary, signed_areas
 from ..orientation import plane_embedding
-from .topology import _clean_manifold, _corner_table, _edge_index, _frozen, _sorted_half_edges
+from .topology import (_clean_manifold, _corner_table, _edge_index, _frozen, _sorted_half_edges,
+                       new_points)
 
 sp = lazy_module("scipy.sparse")  # imported on first use: info/convert need no scipy
 
@@ -396,11 +397,7 @@ class PlanarMesh(TriangleMesh):
 
     def with_points(self, points) -> PlanarMesh:
         """A new mesh with the same connectivity and tags at new positions ``(N, 2)``."""
-        q = np.asarray(points, dtype=np.float64)
-        if q.shape != self._points.shape:
-            raise InvalidMeshError(
-                f"new points have shape {q.shape}, the mesh has {self._points.shape}"
-            )
+        q = new_points(points, self._points.shape)
         new = object.__new__(PlanarMesh)
         new.__dict__.update({k: v for k, v in self.__dict__.items() if not k.startswith("_geom")})
         if not np.isfinite(q).all():

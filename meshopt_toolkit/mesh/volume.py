@@ -19,7 +19,7 @@ from ..errors import InvalidMeshError, NotAdmissibleError
 from ..kernels.tetrahedra import (TET_FACES, mean_ratios, orientations, signed_volumes,
                                   tet_quality_summary)
 from .surface import SurfaceMesh, listed
-from .topology import _frozen
+from .topology import _frozen, new_points
 
 __all__ = ["TetMesh"]
 
@@ -128,11 +128,7 @@ class TetMesh:
 
     def with_points(self, points) -> TetMesh:
         """A new mesh with the same cells and tags at new positions ``(N, 3)``."""
-        q = np.asarray(points, dtype=np.float64)
-        if q.shape != self._points.shape:
-            raise InvalidMeshError(f"new points have shape {q.shape}, the mesh has "
-                                   f"{self._points.shape}")
-        return TetMesh(q, self._tets, tet_tags=self._tet_tags, triangles=self._triangles,
+        return TetMesh(new_points(points, self._points.shape), self._tets, tet_tags=self._tet_tags, triangles=self._triangles,
                        triangle_tags=self._triangle_tags, lines=self._lines,
                        line_tags=self._line_tags, tag_names=self._tag_names,
                        source=self._source)
