@@ -12,7 +12,7 @@ import scipy.sparse as sp
 from .._linalg import dot
 from .._typing import FloatArray
 from ..solvers import factorize_spd
-from .metrics import MetricNotImplementedError
+from .metrics import MetricNotImplementedError, _derivative
 
 __all__ = ["AssembledMetric"]
 
@@ -55,11 +55,9 @@ class AssembledMetric:
         """Gradient ``g_Q⁻¹ vec P`` of a derivative ``P`` (N, d); returns (N, d).
         With an (N,) bool mask ``free`` the system is restricted to the free vertices'
         dofs and the fixed rows of the result are 0 (one sparse factorization per call)."""
-        P = np.asarray(P, dtype=float)
         A = self.matrix(Q)
         d = np.shape(Q)[1]
-        if P.shape != (A.shape[0] // d, d):
-            raise ValueError(f"derivative has shape {P.shape}, expected {(A.shape[0] // d, d)}")
+        P = _derivative(P, (A.shape[0] // d, d))
         keep = np.ones(P.shape[0], bool) if free is None else np.asarray(free, dtype=bool)
         if keep.shape != (P.shape[0],):
             raise ValueError(f"free mask has shape {keep.shape}, expected ({P.shape[0]},)")
