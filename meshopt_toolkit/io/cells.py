@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..kernels.admissibility import non_finite_problem
 from ..kernels.surface import pad3
 from ..errors import InvalidMeshError, ReadError
 
@@ -381,11 +382,9 @@ def check_cells(cm: CellMesh) -> None:
         raise ReadError(f"{where}points must have 2 or 3 coordinates, got shape {pts.shape}")
     with np.errstate(over="ignore", invalid="ignore"):
         finite = np.isfinite(pts.sum())
-    if not finite:
-        bad = np.flatnonzero(~np.isfinite(pts).all(axis=1))
-        if bad.size:
-            raise ReadError(f"{where}vertex {bad[0]} has a non-finite coordinate "
-                            f"{pts[bad[0]].tolist()}")
+    problem = None if finite else non_finite_problem(pts, show=True)
+    if problem:
+        raise ReadError(where + problem)
     n = len(pts)
     for t, c in cm.cells:
         if c.size and (int(c.min()) < 0 or int(c.max()) >= n):

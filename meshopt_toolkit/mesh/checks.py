@@ -15,7 +15,7 @@ import numpy as np
 
 from .._lazy import lazy_module
 from ..errors import InvalidMeshError, NotAdmissibleError
-from ..kernels.admissibility import BoundaryCheck, area_message, area_signs
+from ..kernels.admissibility import BoundaryCheck, area_message, area_signs, non_finite_problem
 from .core import PlanarMesh, TriangleMesh
 from .diagnosis import (diagnose, planar_view, repeated_vertex_problem, shared_edge_problem,
                         unused_vertex_problem, with_embedding_of)
@@ -148,8 +148,7 @@ def check_mesh(mesh: TriangleMesh, *, positive_areas: bool = False) -> MeshRepor
     problems = list(soft)
     reoriented = reoriented or n_flipped > 0
     if not finite:
-        v = int(np.flatnonzero(~np.isfinite(pm.points).all(axis=1))[0])
-        problems.append(f"vertex {v} has a non-finite coordinate")
+        problems.append(non_finite_problem(pm.points))
     else:
         # the loops' nesting rule presumes positive triangles: judged only then
         message = area_message(area, sign, exponent, pm._triangle_columns)

@@ -18,6 +18,7 @@ import numpy as np
 from .._lazy import lazy_module
 from .._typing import FloatArray, IntArray
 from ..errors import InvalidMeshError
+from ..kernels.admissibility import non_finite_problem
 from ..kernels.triangles import quality_summary, signed_areas
 from ..orientation import plane_embedding
 from .topology import (_clean_manifold, _corner_table, _edge_index, _frozen, _sorted_half_edges,
@@ -401,8 +402,7 @@ class PlanarMesh(TriangleMesh):
         new = object.__new__(PlanarMesh)
         new.__dict__.update({k: v for k, v in self.__dict__.items() if not k.startswith("_geom")})
         if not np.isfinite(q).all():
-            bad = int(np.flatnonzero(~np.isfinite(q).all(axis=1))[0])
-            raise InvalidMeshError(f"vertex {bad} has a non-finite coordinate")
+            raise InvalidMeshError(non_finite_problem(q))
         new._points = _frozen(q.copy())
         return new
 

@@ -16,6 +16,7 @@ import numpy as np
 
 from .._typing import FloatArray, IntArray
 from ..errors import InvalidMeshError, NotAdmissibleError
+from ..kernels.admissibility import non_finite_problem
 from ..kernels.tetrahedra import (TET_FACES, mean_ratios, orientations, signed_volumes,
                                   tet_quality_summary)
 from .surface import SurfaceMesh, listed
@@ -84,9 +85,7 @@ class TetMesh:
         if pts.ndim != 2 or pts.shape[1] != 3:
             raise InvalidMeshError(f"{where}points must have shape (N, 3), got {pts.shape}")
         if not np.isfinite(pts).all():
-            bad = int(np.flatnonzero(~np.isfinite(pts).all(axis=1))[0])
-            raise InvalidMeshError(f"{where}vertex {bad} has a non-finite coordinate "
-                                   f"{pts[bad].tolist()}")
+            raise InvalidMeshError(where + non_finite_problem(pts, show=True))
         n = len(pts)
         self._points = _frozen(pts)
         self._tets = _indices(tets, 4, "tetrahedra", n, where, required=True)
