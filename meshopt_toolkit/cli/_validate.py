@@ -81,7 +81,7 @@ def check_numbers(option: str, values: Iterable[float] | None, *, low: float | N
         return None
     vals = tuple(values)
     if not all(math.isfinite(v) and (low is None or v >= low) for v in vals):
-        rng = "" if low is None else f" >= {low:g}"
+        rng = bound_text(low, None)
         shown = ",".join(f"{v:g}" for v in vals)
-        raise OptionError(f"{option} must be finite numbers{rng}, got {shown}")
+        raise OptionError(f"{option} must be finite numbers{' ' + rng if rng else ''}, got {shown}")
     return values
