@@ -67,7 +67,7 @@ class AssembledMetric:
             out[keep] = factorize_spd(A[dof][:, dof].tocsc())(P[keep].ravel()).reshape(-1, d)
         return out
 
-    def exp(self, Q: FloatArray, V: FloatArray, t: float = 1.0) -> FloatArray:
+    def exp(self, Q: FloatArray, V: FloatArray, time: float = 1.0) -> FloatArray:
         """Not available: this metric's geodesics are boundary-value problems."""
         raise MetricNotImplementedError(
             f"{type(self).__name__}.exp is not implemented: the distortion metric's geodesics "
