@@ -54,15 +54,15 @@ def _float(x) -> float | None:
     return x if math.isfinite(x) else None
 
 
-def merged_cells(cm, tol: float):
-    """``(cells with vertices closer than tol merged, number merged)``."""
+def merged_cells(cm, tolerance: float):
+    """``(cells with vertices closer than tolerance merged, number merged)``."""
     from ..errors import MeshoptError
     from ..io.cells import CellMesh
     from ..orientation import merge_vertices
 
-    if tol < 0 or tol != tol:
-        raise MeshoptError(f"--merge-tolerance {tol}: must be a number >= 0")
-    keep, cells, n = merge_vertices(cm.points, cm.cells, tol)
+    if tolerance < 0 or tolerance != tolerance:
+        raise MeshoptError(f"--merge-tolerance {tolerance}: must be a number >= 0")
+    keep, cells, n = merge_vertices(cm.points, cm.cells, tolerance)
     if not n:
         return cm, 0
     return CellMesh(cm.points[keep], cells, cell_data=cm.cell_data, field_data=cm.field_data,

@@ -79,9 +79,10 @@ def aspect_ratios(points: FloatArray, triangles: IntArray) -> FloatArray:
 
 
 def degenerate_triangles(points: FloatArray, triangles: IntArray,
-                         tol: float = DEGENERATE_ASPECT) -> IntArray:
-    """Indices of degenerate triangles: a repeated vertex index, or aspect ratio ≤ ``tol``
-    (zero area, or collinear corners up to rounding). Returns sorted ``(K,)`` indices."""
+                         tolerance: float = DEGENERATE_ASPECT) -> IntArray:
+    """Indices of degenerate triangles: a repeated vertex index, or aspect ratio ≤
+    ``tolerance`` (zero area, or collinear corners up to rounding). Returns sorted ``(K,)``
+    indices."""
     tri = np.asarray(triangles)
     repeated = (tri[:, 0] == tri[:, 1]) | (tri[:, 1] == tri[:, 2]) | (tri[:, 0] == tri[:, 2])
-    return np.flatnonzero(repeated | (aspect_ratios(points, tri) <= tol))
+    return np.flatnonzero(repeated | (aspect_ratios(points, tri) <= tolerance))
