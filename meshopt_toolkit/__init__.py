@@ -74,6 +74,7 @@ _EXPORTS = {
     "OptimizeOptions": "optimize",
     # morphing (one call; the metric is an option)
     "morph": "operations",
+    "CompleteMorph": "operations",
     "log_map": "riemannian.log_map",
     "LogMapOptions": "riemannian.log_map",
     "MorphResult": "motion.scalar_morph_result",

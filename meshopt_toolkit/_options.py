@@ -1,12 +1,21 @@
 """The one way an options dataclass is given: an instance, a mapping of its fields, or
-None (the defaults), with changes on top (:func:`options_of`)."""
+None (the defaults), with changes on top (:func:`options_of`); the one check of a named
+choice (:func:`check_choice`)."""
 
 from __future__ import annotations
 
 import dataclasses
 from collections.abc import Mapping
 
-__all__ = ["options_of"]
+__all__ = ["check_choice", "options_of"]
+
+
+def check_choice(value, choices, what: str, *, error: type[Exception]):
+    """``value`` if it is one of ``choices``, else ``error`` naming ``what`` and the
+    choices (``"unknown method 'x'; choose one of a, b"``)."""
+    if value not in choices:
+        raise error(f"unknown {what} {value!r}; choose one of {', '.join(map(str, choices))}")
+    return value
 
 
 def options_of(cls, options, changes: Mapping, *, error: type[Exception], what: str):

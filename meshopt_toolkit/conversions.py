@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .errors import InvalidMeshError
+from .kernels.surface import pad3
 from .mesh import PlanarMesh, SurfaceMesh, TriangleMesh
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -53,11 +54,8 @@ _GEOMETRICAL = "gmsh:geometrical"
 
 
 def _points3d(points: np.ndarray) -> np.ndarray:
-    if points.shape[1] == 3:
-        return np.array(points, dtype=np.float64)
-    out = np.zeros((len(points), 3))
-    out[:, :2] = points
-    return out
+    """A writable ``(N, 3)`` copy of ``points`` (z = 0 added to 2D points)."""
+    return np.array(pad3(points))
 
 
 def _mesh(points, triangles, source=None, **tags) -> TriangleMesh:

@@ -155,6 +155,14 @@ def _source(node: ast.AST, text: str) -> str:
     return seg if len(seg) <= 40 else seg[:37] + "..."
 
 
+def _operator(table: dict, node: ast.AST, hint: str = ""):
+    """The function of ``node``'s operator in ``table``; one not there is refused."""
+    op = table.get(type(node.op))
+    if op is None:
+        raise _err(f"operator {type(node.op).__name__} is not allowed{hint}", node)
+    return op
+
+
 def _convert(node: ast.AST, text: str):
     """Whitelist check and conversion of one AST node (recursion depth is bounded).
 
@@ -209,15 +217,10 @@ def _convert_node(node: ast.AST, text: str):
             f"unknown name {node.id!r} at column {node.col_offset + 1}; allowed: {_ALLOWED_NAMES}"
         )
     if isinstance(node, ast.BinOp):
-        op = _BINOPS.get(type(node.op))
-        if op is None:
-            raise _err(f"operator {type(node.op).__name__} is not allowed; use + - * / **", node)
-        return _Bin(op, _convert(node.left, text), _convert(node.right, text))
+        return _Bin(_operator(_BINOPS, node, "; use + - * / **"), _convert(node.left, text),
+                    _convert(node.right, text))
     if isinstance(node, ast.UnaryOp):
-        op = _UNOPS.get(type(node.op))
-        if op is None:
-            raise _err(f"operator {type(node.op).__name__} is not allowed", node)
-        return _Unary(op, _convert(node.operand, text))
+        return _Unary(_operator(_UNOPS, node), _convert(node.operand, text))
     if isinstance(node, ast.Call):
         if not isinstance(node.func, ast.Name):
             raise _err("only calls of named functions are allowed", node)

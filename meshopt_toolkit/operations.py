@@ -23,7 +23,7 @@ from .errors import InvalidMeshError, OptionError
 from .results import PathIteration
 from .scaling import UnitScale, at_unit_size, size_scale
 
-__all__ = ["IN_SPACE", "METRIC_ALIASES", "MORPH_METRICS", "STOP_RULES", "morph"]
+__all__ = ["CompleteMorph", "IN_SPACE", "METRIC_ALIASES", "MORPH_METRICS", "STOP_RULES", "morph"]
 
 #: other names of the morph metrics
 METRIC_ALIASES = {"scalar": "complete"}
@@ -41,19 +41,34 @@ STOP_RULES = ("auto", "healthy", "converged")
 
 
 @dataclass(frozen=True)
+class CompleteMorph:
+    """The morph in the complete metric of ``√N·f2`` (thesis §5.4) with its options:
+    ``mt.morph(..., metric=CompleteMorph(beta=...))``; ``metric="complete"`` is
+    ``CompleteMorph()``.
+
+    Attributes
+    ----------
+    beta : (β1, β2, β3, β4), optional
+        The f2 coefficients (default :data:`~.motion.scalar_morph.DEFAULT_BETA`).
+    normalize : bool
+        The metric of ``√N·f2`` (default) or of f2.
+    method : str
+        ``"discrete"``, ``"shooting"`` or ``"auto"``.
+    """
+
+    beta: tuple | None = None
+    normalize: bool = True
+    method: str = "discrete"
+
+
+@dataclass(frozen=True)
 class _Settings:
     weight: float
-    beta: tuple | None
-    normalize: bool
-    method: str
+    complete: CompleteMorph
     max_iterations: int
     callback: Callable | None
     stop: str = "auto"
-
-
-def _distortion_only(o: _Settings) -> None:
-    if o.beta is not None or not o.normalize or o.method != "discrete":
-        raise OptionError("beta, normalize and method apply to metric='complete' only")
+    contact: bool = True
 
 
 def _no_healthy_stop(o: _Settings, what: str) -> None:
@@ -65,7 +80,6 @@ def _no_healthy_stop(o: _Settings, what: str) -> None:
 def _distortion(source, target, frames: int, o: _Settings):
     from .motion.morph import distortion_morph
 
-    _distortion_only(o)
     _no_healthy_stop(o, "planar morphs")
     return distortion_morph(source, target, frames, weight=o.weight,
                             max_iterations=o.max_iterations, callback=o.callback)
@@ -77,9 +91,10 @@ def _complete(source, target, frames: int, o: _Settings):
     if o.weight != 1.0:
         raise OptionError("weight applies to metric='distortion' only")
     _no_healthy_stop(o, "planar morphs")
+    c = o.complete
     return geodesic_morph(source, target, frames,
-                          beta=DEFAULT_BETA if o.beta is None else tuple(o.beta),
-                          normalize=o.normalize, method=o.method, max_iterations=o.max_iterations,
+                          beta=DEFAULT_BETA if c.beta is None else tuple(c.beta),
+                          normalize=c.normalize, method=c.method, max_iterations=o.max_iterations,
                           callback=o.callback)
 
 
@@ -90,7 +105,6 @@ MORPH_METRICS = {"distortion": _distortion, "complete": _complete}
 def _tets(source, target, frames: int, o: _Settings):
     from .motion.tet_morph import morph_tets
 
-    _distortion_only(o)
     _no_healthy_stop(o, "tet morphs")
     return morph_tets(source, target, frames, weight=o.weight,
                       max_iterations=o.max_iterations, callback=o.callback)
@@ -99,11 +113,10 @@ def _tets(source, target, frames: int, o: _Settings):
 def _surfaces(source, target, frames: int, o: _Settings):
     from .motion.surface_mesh_morph import morph_surface_mesh
 
-    _distortion_only(o)
     hook = o.callback
     return morph_surface_mesh(source, target, frames, weight=o.weight,
                               max_iterations=o.max_iterations,
-                              stop_when_healthy=o.stop != "converged",
+                              stop_when_healthy=o.stop != "converged", contact=o.contact,
                               callback=None if hook is None else (
                                   lambda r: hook(r.iteration, r.energy, r.gradient_norm)))
 
@@ -125,11 +138,9 @@ def morph(
     target,
     frames: int = 9,
     *,
-    metric: str = "distortion",
+    metric: str | CompleteMorph = "distortion",
     weight: float = 1.0,
-    beta=None,
-    normalize: bool = True,
-    method: str = "discrete",
+    contact: bool = True,
     max_iterations: int | None = None,
     stop: str = "auto",
     callback: Callable[[PathIteration], bool | None] | None = None,
@@ -147,16 +158,17 @@ def morph(
         points (uv, colours, attributes, point and cell data, …).
     frames : int
         Number of frames (≥ 2), both ends included.
-    metric : ``"distortion"`` (default) or ``"complete"`` (alias ``"scalar"``)
+    metric : ``"distortion"`` (default), ``"complete"`` (alias ``"scalar"``) or a
+        :class:`CompleteMorph` (the complete metric with other options than its defaults:
+        ``CompleteMorph(beta=..., normalize=..., method=...)``)
     weight : float
         Distortion metric: ``w`` of ``M + w² JᵀJ``.
-    beta : (β1, β2, β3, β4), optional
-        Complete metric: the f2 coefficients (default
-        :data:`~.motion.scalar_morph.DEFAULT_BETA`).
-    normalize : bool
-        Complete metric: the metric of ``√N·f2`` (default) or of f2.
-    method : str
-        Complete metric: ``"discrete"``, ``"shooting"`` or ``"auto"``.
+    contact : bool
+        Surfaces in 3D (default True): where both poses are free of self-intersections, no
+        frame, nor the motion between two frames, passes through the surface (an IPC
+        barrier in the path energy, every step capped by continuous collision detection;
+        :mod:`~.motion.surface_morph_contact`). Planar and tet meshes need none: an
+        admissible frame cannot overlap itself.
     max_iterations : int, optional
         Iterations of the discrete geodesic (default :data:`DEFAULT_MAX_ITER`, in space
         :data:`IN_SPACE`).
@@ -181,7 +193,7 @@ def morph(
     Raises
     ------
     OptionError
-        ``frames < 2``, an unknown metric, method or stop rule, an option of the other
+        ``frames < 2``, an unknown metric, method or stop rule, ``weight`` with the complete
         metric, ``stop="healthy"`` for a planar or tet morph.
     InvalidMeshError, NotAdmissibleError
         Different connectivity, ends of different types, a non-admissible end.
@@ -192,10 +204,12 @@ def morph(
             raise InvalidMeshError(f"cannot morph a {type(source).__name__} into a "
                                    f"{type(target).__name__}: give both of one type")
         return carried.result(morph(
-            carried.mesh, other.mesh, frames, metric=metric, weight=weight, beta=beta,
-            normalize=normalize, method=method, max_iterations=max_iterations, stop=stop,
-            callback=callback, progress=progress))
-    name = METRIC_ALIASES.get(metric, metric)
+            carried.mesh, other.mesh, frames, metric=metric, weight=weight, contact=contact,
+            max_iterations=max_iterations, stop=stop, callback=callback, progress=progress))
+    if isinstance(metric, CompleteMorph):
+        name, complete = "complete", metric
+    else:
+        name, complete = METRIC_ALIASES.get(metric, metric), CompleteMorph()
     run = MORPH_METRICS.get(name)
     if run is None:
         raise OptionError(f"unknown morph metric {metric!r}; choose one of "
@@ -224,7 +238,7 @@ def morph(
         return False
 
     hook = step if callback is not None or progress is not None else None
-    settings = _Settings(float(weight), beta, bool(normalize), method, n_iter, hook, stop)
+    settings = _Settings(float(weight), complete, n_iter, hook, stop, bool(contact))
     # at unit size (both ends divided by their size) and back: the same morph at every
     # scale
     return at_unit_size(lambda s, t: run(s, t, int(frames), settings),

@@ -40,6 +40,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from ._options import check_choice
 from ._typing import FloatArray
 from .errors import OptimizationError, OptionError
 from .kernels.triangles import aspect_ratios
@@ -247,10 +248,8 @@ def optimize(
         A direction that is not a descent direction (a wrong derivative), or every vertex
         fixed.
     """
-    if variant not in VARIANTS:
-        raise OptionError(f"unknown variant {variant!r}; choose one of {', '.join(VARIANTS)}")
-    if method not in METHODS:
-        raise OptionError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
+    check_choice(variant, VARIANTS, "variant", error=OptionError)
+    check_choice(method, METHODS, "method", error=OptionError)
     if int(max_iterations) < 0:
         raise OptionError(f"max_iterations must be at least 0, got {max_iterations}")
     o = OptimizeOptions.of(options)

@@ -36,6 +36,7 @@ from typing import Any, Callable
 
 from .._options import options_of
 from ..errors import MeshoptError, OptionError, WriteError
+from ..io._atomic import place
 from ..pipeline.runner import Pipeline
 from .file_job import RunOptions
 from .journal import Journal, config_sha256, file_sha256
@@ -124,17 +125,7 @@ def _move(staged: Path, final: Path, overwrite: bool) -> None:
     final.parent.mkdir(parents=True, exist_ok=True)
     if final.is_dir():
         raise WriteError(f"{final}: is a directory")
-    if overwrite:
-        os.replace(staged, final)
-        return
-    try:
-        os.link(staged, final)
-    except FileExistsError:
-        raise WriteError(f"{final}: already exists (use --force to overwrite)") from None
-    except OSError:  # a file system without hard links: best effort
-        if final.exists():
-            raise WriteError(f"{final}: already exists (use --force to overwrite)") from None
-        os.replace(staged, final)
+    place(staged, final, overwrite, "use --force to overwrite")
 
 
 @dataclass

@@ -120,23 +120,24 @@ def _die_with_parent(parent_pid: int) -> None:  # pragma: no cover - runs in the
                          name="meshopt-parent-watch").start()
 
 
+def _received(conn):  # pragma: no cover - runs in the worker
+    """The parent's next message; None when the pipe is closed."""
+    try:
+        return conn.recv()
+    except (EOFError, OSError):
+        return None
+
+
 def _worker_main(conn, parent_pid: int) -> None:  # pragma: no cover - runs in the worker
     # before the task comes (and its modules load): die with the batch process
     _die_with_parent(parent_pid)
     # Ctrl-C goes to the whole process group: the parent decides, and stops us
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     logging.basicConfig(level=logging.WARNING)
-    try:
-        task = conn.recv()
-    except (EOFError, OSError):
+    task = _received(conn)
+    if task is None:
         return
-    while True:
-        try:
-            msg = conn.recv()
-        except (EOFError, OSError):
-            return
-        if msg is None:
-            return
+    while (msg := _received(conn)) is not None:  # None: stop, or the parent is gone
         ident, payload = msg
         restart = False
         try:

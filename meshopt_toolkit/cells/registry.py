@@ -57,11 +57,8 @@ def cells_of(mesh, what: str = "meshopt") -> tuple[CellKind, FloatArray, IntArra
 
     Raises
     ------
-    OptionError
-        ``mesh`` is none of these objects.
-    InvalidMeshError
-        A ``meshio.Mesh`` with cells no kind takes (quadrilaterals, hexahedra, …) or with
-        none.
+    OptionError, InvalidMeshError
+        As :func:`..mesh.kinds.mesh_kind`, the one decider of a mesh's kind.
     """
     name = mesh_kind(mesh, what)
     return (KINDS[name], *_arrays(mesh, name, what))

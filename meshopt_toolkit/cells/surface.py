@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._typing import FloatArray, IntArray
+from ..kernels.admissibility import non_finite_problem
 from ..kernels.cell_maps import triangle_plane_coordinates
 from ..kernels.intersections3d import degenerate_triangles_exact, self_intersections
 from ..kernels.surface import areas, aspect_ratios
@@ -26,12 +27,6 @@ from ..motion.surface_paths import FoldTest
 from .base import SimplexKind
 
 __all__ = ["SURFACE", "SurfaceTriangles"]
-
-
-def non_finite_problem(points: FloatArray) -> str | None:
-    """A message naming the first vertex with a non-finite coordinate, or None."""
-    bad = np.flatnonzero(~np.isfinite(points).all(axis=1))
-    return f"vertex {int(bad[0])} has a non-finite coordinate" if len(bad) else None
 
 
 class SurfaceTriangles(SimplexKind):

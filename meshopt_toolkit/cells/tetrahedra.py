@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._typing import FloatArray, IntArray
+from ..kernels.admissibility import non_finite_problem
 from ..kernels.intersections3d import self_intersections
 from ..kernels.predicates import orient3d
 from ..kernels.tetrahedra import mean_ratios, signed_volumes
@@ -21,7 +22,6 @@ from ..mesh.surface import listed
 from ..motion.tet_distortion import TetDistortion
 from ..motion.tet_metric import TetGraphMetric
 from .base import SimplexKind
-from .surface import non_finite_problem
 
 __all__ = ["TETRAHEDRA", "Tetrahedra"]
 

@@ -8,10 +8,12 @@ import contextlib
 import glob
 import logging
 import os
+import sys
 import tempfile
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
+from .. import strict_json
 from ..errors import MeshoptError, WriteError
 
 #: extensions treated as meshes when a directory is given as input
@@ -249,13 +251,19 @@ def prepare_output_dir(out: Path, *, force: bool, names: Iterable[str] | None = 
         raise WriteError(f"{out}: exists and is not a directory (a directory is written)")
     if out.is_dir() and not force:
         _refuse_outputs_in(out, names)
+    make_output_dir(out)
+    check_writable(out, out)
+    return out
+
+
+def make_output_dir(out: Path) -> None:
+    """Create the directory ``out`` and its parents; what the file system refuses is one
+    WriteError line naming ``out``."""
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise WriteError(f"{out}: cannot create the output directory: "
                          f"{exc.strerror or exc}") from None
-    check_writable(out, out)
-    return out
 
 
 def check_output_target(out: Path, src: Path, frames: int | None, force: bool,
@@ -361,6 +369,17 @@ def write_text(path: Path, text: str) -> None:
 
     with atomic_path(path) as tmp, writing(path):
         tmp.write_text(text, encoding="utf-8")
+
+
+def write_summary(outdir: Path, summary: dict) -> None:
+    """``summary.json`` in ``outdir``: strict JSON, indented, written atomically."""
+    write_text(outdir / "summary.json", strict_json.dumps(summary, indent=2) + "\n")
+
+
+def print_json(obj) -> None:
+    """``obj`` as strict JSON on stdout, ended by a newline (``--json``)."""
+    strict_json.dump(obj, sys.stdout)
+    sys.stdout.write("\n")
 
 
 LOCK_NAME = ".meshopt.lock"

@@ -17,6 +17,7 @@ import math
 
 import numpy as np
 
+from ..kernels.surface import pad3
 from ..mesh.kinds import PLANAR, SURFACE, TETS, cells_kind
 
 MIXED = "mixed cells"
@@ -53,15 +54,15 @@ def _float(x) -> float | None:
     return x if math.isfinite(x) else None
 
 
-def merged_cells(cm, tol: float):
-    """``(cells with vertices closer than tol merged, number merged)``."""
+def merged_cells(cm, tolerance: float):
+    """``(cells with vertices closer than tolerance merged, number merged)``."""
     from ..errors import MeshoptError
     from ..io.cells import CellMesh
     from ..orientation import merge_vertices
 
-    if tol < 0 or tol != tol:
-        raise MeshoptError(f"--merge-tolerance {tol}: must be a number >= 0")
-    keep, cells, n = merge_vertices(cm.points, cm.cells, tol)
+    if tolerance < 0 or tolerance != tolerance:
+        raise MeshoptError(f"--merge-tolerance {tolerance}: must be a number >= 0")
+    keep, cells, n = merge_vertices(cm.points, cm.cells, tolerance)
     if not n:
         return cm, 0
     return CellMesh(cm.points[keep], cells, cell_data=cm.cell_data, field_data=cm.field_data,
@@ -159,7 +160,7 @@ def mixed_info(cm) -> dict:
     info.update({f"n_{t}": n for t, n in cm.cell_counts().items()})
     info["bounding_box_min"] = [_float(x) for x in box.min(axis=0)] if len(box) else None
     info["bounding_box_max"] = [_float(x) for x in box.max(axis=0)] if len(box) else None
-    p3 = pts if pts.shape[1] == 3 else np.column_stack([pts, np.zeros(len(pts))])
+    p3 = pad3(pts)
     tets = [c for t, c in cm.cells if t == "tetra" and len(c)]
     if tets:
         q = tet_quality_summary(p3, np.concatenate(tets)).as_dict()
@@ -233,6 +234,11 @@ def cells_text(info: dict) -> str:
         n = info["self_intersecting"]
         rows = [("self-intersecting", f"{n} triangle pair{'s' * (n > 1)}" if n else "no")
                 if k == "self intersecting" else (k, v) for k, v in rows]
+    return info_text(info, rows)
+
+
+def info_text(info: dict, rows: list[tuple[str, str]]) -> str:
+    """``rows`` as indented ``key  value`` lines under ``info``'s path, then its problems."""
     width = max(len(k) for k, _ in rows)
     lines = [info["path"]] + [f"  {k:<{width}}  {v}" for k, v in rows]
     lines += [f"  problem: {p}" for p in info["problems"]]

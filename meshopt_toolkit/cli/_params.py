@@ -21,7 +21,7 @@ import argparse
 from collections.abc import Mapping, Sequence
 
 from ..pipeline.params import BoolParam, EnumParam, FloatParam, IntParam, Param
-from ._validate import check_int, check_number
+from ._validate import bound_text, check_int, check_number
 
 
 def _help(param: Param) -> str:
@@ -30,10 +30,8 @@ def _help(param: Param) -> str:
         low, high = param.min, param.max
         if low is not None and high is not None and not param.exclusive_min:
             parts.append(f"{low:g} to {high:g}")
-        elif low is not None:
-            parts.append(f"{'>' if param.exclusive_min else '>='} {low:g}")
-        elif high is not None:
-            parts.append(f"<= {high:g}")
+        elif low is not None or high is not None:
+            parts.append(bound_text(low, high, param.exclusive_min))
     parts.append("default: %(default)s")
     return f"{param.help} ({'; '.join(parts)})"
 

@@ -16,7 +16,8 @@ from ..errors import OptionError
 __all__ = ["OptionError", "check_int", "check_number", "check_numbers"]
 
 
-def _bound(low, high, low_open: bool, high_open: bool) -> str:
+def bound_text(low, high, low_open: bool = False, high_open: bool = False) -> str:
+    """The range in words, e.g. ``"> 0 and <= 0.1"`` (a None bound left out)."""
     parts = []
     if low is not None:
         parts.append(f"{'>' if low_open else '>='} {low:g}")
@@ -47,7 +48,7 @@ def check_number(option: str, value, *, low: float | None = None, high: float | 
           and (low is None or (v > low if low_open else v >= low))
           and (high is None or (v < high if high_open else v <= high)))
     if not ok:
-        rng = _bound(low, high, low_open, high_open)
+        rng = bound_text(low, high, low_open, high_open)
         raise OptionError(f"{option} must be a finite number{' ' + rng if rng else ''}, "
                           f"got {v:g}")
     return value
@@ -80,7 +81,7 @@ def check_numbers(option: str, values: Iterable[float] | None, *, low: float | N
         return None
     vals = tuple(values)
     if not all(math.isfinite(v) and (low is None or v >= low) for v in vals):
-        rng = "" if low is None else f" >= {low:g}"
+        rng = bound_text(low, None)
         shown = ",".join(f"{v:g}" for v in vals)
-        raise OptionError(f"{option} must be finite numbers{rng}, got {shown}")
+        raise OptionError(f"{option} must be finite numbers{' ' + rng if rng else ''}, got {shown}")
     return values

@@ -124,20 +124,13 @@ def _unit_scale(mesh):
     return unit_scale(mesh) if np.isfinite(mesh.points).all() else UnitScale(0)
 
 
-def merged(mesh, tol: float):
-    """``(mesh with vertices closer than tol merged, number merged)``; tags are kept."""
+def merged(mesh, tolerance: float):
+    """``(mesh with vertices closer than tolerance merged, number merged)``; tags are kept."""
     from ..io.cells import CellMesh
-    from ..orientation import merge_vertices
+    from ._info_cells import merged_cells
 
-    if tol < 0 or tol != tol:
-        raise MeshoptError(f"--merge-tolerance {tol}: must be a number >= 0")
-    cm = CellMesh.from_triangle_mesh(mesh)
-    keep, cells, n = merge_vertices(cm.points, cm.cells, tol)
-    if not n:
-        return mesh, 0
-    out = CellMesh(cm.points[keep], cells, cell_data=cm.cell_data, field_data=cm.field_data,
-                   source=mesh.source)
-    return out.to_triangle_mesh(), n
+    cells, n = merged_cells(CellMesh.from_triangle_mesh(mesh), tolerance)
+    return (cells.to_triangle_mesh(), n) if n else (mesh, 0)
 
 
 def _fmt(value, key: str = "", info: dict | None = None) -> str:
@@ -156,12 +149,11 @@ def _fmt(value, key: str = "", info: dict | None = None) -> str:
 
 
 def _text(info: dict) -> str:
+    from ._info_cells import info_text
+
     rows = [(k.replace("_", " "), _fmt(v, k, info)) for k, v in info.items()
             if k not in ("path", "problems", "n_reoriented")]
-    width = max(len(k) for k, _ in rows)
-    lines = [info["path"]] + [f"  {k:<{width}}  {v}" for k, v in rows]
-    lines += [f"  problem: {p}" for p in info["problems"]]
-    return "\n".join(lines)
+    return info_text(info, rows)
 
 
 def run(args) -> int:

@@ -38,14 +38,14 @@ those of the unit-size problem (lengths, areas, energies), with the factor as
 from __future__ import annotations
 
 import argparse
-from .. import strict_json
 import sys
 from pathlib import Path
 
 from ..bounds import MAX_ITERATIONS
 from ..filters.generate_geodesic_morph import GenerateGeodesicMorph
 from ._common import (add_output_flags, check_mesh_format, check_output_dir, float_list,
-                      frame_names, prepare_output_dir, save_moved, warn_dropped, write_text)
+                      frame_names, prepare_output_dir, print_json, save_moved, warn_dropped,
+                      write_summary, write_text)
 from ._params import add_options, check_options
 from ._validate import check_int, check_numbers
 
@@ -71,7 +71,8 @@ def add_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-normalize", action="store_true",
                    help="use the plain complete metric of f2 instead of that of √N·f2 "
                         "(which keeps the balance between motion and quality on fine meshes)")
-    p.add_argument("--max-iterations", "--max-iter", dest="max_iter", type=int, default=None,
+    p.add_argument("--max-iterations", "--max-iter", dest="max_iterations", type=int,
+                   default=None,
                    help="iterations of the discrete geodesic (default: 200 Levenberg–Marquardt "
                         "for the distortion metric, 500 Newton for the scalar one)")
     p.add_argument("--contact", choices=("on", "off"), default="on",
@@ -83,7 +84,7 @@ def add_args(p: argparse.ArgumentParser) -> None:
 
 def _check_numbers(args: argparse.Namespace) -> None:
     check_options(args, GenerateGeodesicMorph, OPTIONS)
-    check_int("--max-iterations", args.max_iter, 1, MAX_ITERATIONS)
+    check_int("--max-iterations", args.max_iterations, 1, MAX_ITERATIONS)
     check_numbers("--penalty", args.beta)
 
 
@@ -99,13 +100,39 @@ def _check_outputs(args: argparse.Namespace, others=PLOTS) -> None:
                      names=names + list(others) + ["summary.json"])
 
 
+def _metric_options(args: argparse.Namespace) -> dict:
+    """The metric of a planar morph: its name, or the complete metric with its options."""
+    from ..errors import OptionError
+    from ..operations import METRIC_ALIASES, CompleteMorph
+
+    if METRIC_ALIASES.get(args.metric, args.metric) == "complete":
+        return dict(metric=CompleteMorph(beta=args.beta, normalize=not args.no_normalize,
+                                         method=args.method))
+    if args.beta is not None or args.no_normalize or args.method != "discrete":
+        raise OptionError("--penalty, --no-normalize and --method apply to --metric scalar "
+                          "only")
+    return dict(metric=args.metric)
+
+
+def _morph(args: argparse.Namespace, source, target, default_iterations: int, **options):
+    """:func:`~meshopt_toolkit.operations.morph` of ``source`` to ``target`` with the
+    shared options and a progress bar (``--max-iterations`` or ``default_iterations``)."""
+    from ..operations import morph
+    from ..progress import ProgressBar
+
+    max_iterations = args.max_iterations or default_iterations
+    with ProgressBar(max_iterations, "morph") as bar:
+        return morph(source, target, args.frames, weight=args.weight,
+                     max_iterations=max_iterations, stop=args.stop,
+                     callback=lambda it: bar.update(status=f"E={it.energy:.8g}"), **options)
+
+
 def run(args: argparse.Namespace) -> int:
     from .. import io
     from ..io.workpiece import Workpiece
     from ..motion.scalar_morph import DEFAULT_BETA
-    from ..operations import DEFAULT_MAX_ITER, METRIC_ALIASES, morph
+    from ..operations import DEFAULT_MAX_ITER, METRIC_ALIASES
     from ..plotting import save_morph_figures
-    from ..progress import ProgressBar
     from ._info_cells import SURFACE, TETS, read_kind
 
     _check_numbers(args)
@@ -132,12 +159,9 @@ def run(args: argparse.Namespace) -> int:
     names = frame_names(args.frames, args.format, src_path)
     prepare_output_dir(outdir, force=args.force, names=names + list(PLOTS) + ["summary.json"])
     warn_dropped(cells, args.source)
-    max_iter = args.max_iter or DEFAULT_MAX_ITER[METRIC_ALIASES.get(args.metric, args.metric)]
-    with ProgressBar(max_iter, "morph") as bar:
-        result = morph(source, target, args.frames, metric=args.metric, weight=args.weight,
-                       beta=args.beta, normalize=not args.no_normalize, method=args.method,
-                       max_iterations=max_iter, stop=args.stop,
-                       callback=lambda it: bar.update(status=f"E={it.energy:.8g}"))
+    result = _morph(args, source, target,
+                    DEFAULT_MAX_ITER[METRIC_ALIASES.get(args.metric, args.metric)],
+                    **_metric_options(args))
     for name, mesh in zip(names, result.frames):
         save_moved(wp, mesh, outdir / name, what=name)
     summary = result.summary()
@@ -145,12 +169,11 @@ def run(args: argparse.Namespace) -> int:
                    unit_scale=wp.scale.factor)
     if args.metric == "scalar":
         summary["beta"] = list(args.beta or DEFAULT_BETA)
-    write_text(outdir / "summary.json", strict_json.dumps(summary, indent=2) + "\n")
+    write_summary(outdir, summary)
     if not args.no_plots:
         save_morph_figures(result, outdir / "strip.png", outdir / "quality.png")
     if args.json:
-        strict_json.dump(summary, sys.stdout)
-        sys.stdout.write("\n")
+        print_json(summary)
     else:
         lin = "inverts" if summary["linear_inverts"] else "does not invert"
         converged = summary.get("converged", summary.get("discrete_converged"))
@@ -168,60 +191,38 @@ def run(args: argparse.Namespace) -> int:
 def _run_tets(args: argparse.Namespace, cells) -> int:
     """The morph of two tetrahedral files: the source's cells written with each frame's
     points (every block, tag, name and datum kept), ``quality.csv`` and ``summary.json``."""
-    from dataclasses import replace
-
-    import numpy as np
-
     from ..errors import OptionError
-    from ..io import load_cells, save_cells
-    from ..operations import morph
-    from ..progress import ProgressBar
+    from ..io import load_cells
     from ..mesh.kinds import TETS, cells_kind
 
-    src_path, tgt_path, outdir = Path(args.source), Path(args.target), Path(args.output)
+    src_path, tgt_path = Path(args.source), Path(args.target)
     if args.metric != "distortion" or args.beta is not None or args.no_normalize:
         raise OptionError("tetrahedral meshes are morphed with the distortion metric only "
                           "(--metric scalar, --penalty and --no-normalize do not apply)")
     _check_outputs(args, others=["quality.csv"])
     names = frame_names(args.frames, args.format, src_path)
-    files = names + ["quality.csv", "summary.json"]
     target_cells = load_cells(tgt_path)
     if cells_kind(target_cells) != TETS:
         raise OptionError(f"{tgt_path}: has no tetrahedra, {src_path} has (a tetrahedral "
                           "source needs a tetrahedral target)")
     source = cells.to_tet_mesh("morph").require_admissible()
     target = target_cells.to_tet_mesh("morph").require_admissible()
-    max_iter = args.max_iter or 200
-    with ProgressBar(max_iter, "morph") as bar:
-        result = morph(source, target, args.frames, weight=args.weight, max_iterations=max_iter,
-                       stop=args.stop, callback=lambda it: bar.update(status=f"E={it.energy:.8g}"))
-    prepare_output_dir(outdir, force=args.force, names=files)
-    warn_dropped(cells, args.source)
-    for name, points in zip(names, result.points):
-        save_cells(replace(cells, points=np.array(points, dtype=float)), outdir / name)
-    stats, linear = result.stats, result.linear
-    write_text(outdir / "quality.csv",
-               "frame,min_mean_ratio,linear_min_mean_ratio,linear_inverted\n" + "".join(
-                   f"{k},{q:.10g},{lq:.10g},{li}\n" for k, (q, lq, li) in enumerate(zip(
-                       stats.min_mean_ratio, linear.min_mean_ratio, linear.inverted))))
-    summary = result.summary()
-    summary.update(source=str(src_path), target=str(tgt_path), files=names)
-    write_text(outdir / "summary.json", strict_json.dumps(summary, indent=2) + "\n")
-    if args.json:
-        strict_json.dump(summary, sys.stdout)
-        sys.stdout.write("\n")
-    else:
-        worst = int(linear.inverted.max())
-        lin = f"inverts up to {worst} tets" if worst else "does not invert"
-        state = "" if result.converged else (
-            f"; NOT converged ({result.status}: frames admissible, the path is not yet a "
-            "minimizer)")
-        print(f"{result.n_frames} frames (distortion metric, tetrahedra), all admissible: "
-              f"{summary['admissible']}, worst mean ratio {summary['min_mean_ratio']:.4g} "
-              f"(ends {stats.min_mean_ratio[0]:.4g}, {stats.min_mean_ratio[-1]:.4g}); "
-              f"linear interpolation {lin}{state}")
-        print(f"wrote {outdir}/ ({names[0]} … {names[-1]}, quality.csv, summary.json)")
-    return 0
+    result = _morph(args, source, target, 200)
+    summary, stats, linear = result.summary(), result.stats, result.linear
+    worst = int(linear.inverted.max())
+    lin = f"inverts up to {worst} tets" if worst else "does not invert"
+    state = "" if result.converged else (
+        f"; NOT converged ({result.status}: frames admissible, the path is not yet a "
+        "minimizer)")
+    return _write_cell_frames(
+        args, cells, result.points, names, summary,
+        "frame,min_mean_ratio,linear_min_mean_ratio,linear_inverted\n" + "".join(
+            f"{k},{q:.10g},{lq:.10g},{li}\n" for k, (q, lq, li) in enumerate(zip(
+                stats.min_mean_ratio, linear.min_mean_ratio, linear.inverted))),
+        f"{result.n_frames} frames (distortion metric, tetrahedra), all admissible: "
+        f"{summary['admissible']}, worst mean ratio {summary['min_mean_ratio']:.4g} "
+        f"(ends {stats.min_mean_ratio[0]:.4g}, {stats.min_mean_ratio[-1]:.4g}); "
+        f"linear interpolation {lin}{state}")
 
 
 def _run_surface(args: argparse.Namespace, cells) -> int:
@@ -229,15 +230,10 @@ def _run_surface(args: argparse.Namespace, cells) -> int:
     frames are the source's file (every block, tag and datum) with new points, plus
     ``quality.csv`` (per frame: worst relative quality, folds) and ``summary.json``."""
     import warnings
-    from dataclasses import replace
-
-    import numpy as np
 
     from .. import io
     from ..errors import OptionError
     from ..motion.contact import ContactWarning
-    from ..motion.surface_mesh_morph import morph_surface_mesh
-    from ..progress import ProgressBar
 
     src_path, outdir = Path(args.source), Path(args.output)
     if (args.metric != "distortion" or args.beta is not None or args.no_normalize
@@ -250,37 +246,48 @@ def _run_surface(args: argparse.Namespace, cells) -> int:
     names = frame_names(args.frames, args.format, src_path)
     written = names + ["quality.csv", "summary.json"]
     check_output_dir(outdir, force=args.force, names=written)
-    max_iter = args.max_iter or 10
-    with ProgressBar(max_iter, "morph") as bar, warnings.catch_warnings(record=True) as caught:
+    with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ContactWarning)
-        result = morph_surface_mesh(source, target, args.frames, weight=args.weight,
-                                    max_iterations=max_iter,
-                                    stop_when_healthy=args.stop != "converged",
-                                    callback=lambda it: bar.update(status=f"E={it.energy:.8g}"),
-                                    contact=args.contact == "on")
-    for w in caught:
+        result = _morph(args, source, target, 10, contact=args.contact == "on")
+    for w in caught:  # the poses named by their files
         if issubclass(w.category, ContactWarning):
             line = str(w.message).replace("the source", str(src_path), 1)
             print(f"meshopt morph: warning: {line.replace('the target', str(args.target), 1)}",
                   file=sys.stderr)
-    prepare_output_dir(outdir, force=args.force, names=written)
+    summary, m = result.summary(), result.morph
+    return _write_cell_frames(
+        args, cells, [mesh.points for mesh in result.frames], names, summary,
+        "frame,worst_relative_quality,folds\n" + "".join(
+            f"{k},{q:.10g},{f}\n" for k, (q, f) in enumerate(zip(m.worst_quality, m.folds))),
+        f"{len(names)} frames (surface), folds {summary['folds']}, worst relative "
+        f"quality {summary['worst_relative_quality']:.4g} (target "
+        f"{summary['target_worst_relative_quality']:.4g}; linear interpolation "
+        f"{summary['linear_worst_relative_quality']:.4g}, "
+        f"{summary['linear_folds']} folds), {result.status}")
+
+
+def _write_cell_frames(args: argparse.Namespace, cells, frames, names: list[str],
+                       summary: dict, quality_csv: str, text: str) -> int:
+    """Write a tet or surface morph into OUTDIR: the source's ``cells`` (every block, tag,
+    name and datum) with each frame's points under ``names``, ``quality.csv`` and
+    ``summary.json``; then the summary (``--json``) or ``text`` on stdout."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    from ..io import save_cells
+
+    outdir = Path(args.output)
+    prepare_output_dir(outdir, force=args.force, names=names + ["quality.csv", "summary.json"])
     warn_dropped(cells, args.source)
-    for name, mesh in zip(names, result.frames):
-        io.save_cells(replace(cells, points=np.array(mesh.points, dtype=float)), outdir / name)
-    m = result.morph
-    write_text(outdir / "quality.csv", "frame,worst_relative_quality,folds\n" + "".join(
-        f"{k},{q:.10g},{f}\n" for k, (q, f) in enumerate(zip(m.worst_quality, m.folds))))
-    summary = result.summary()
-    summary.update(source=str(src_path), target=str(args.target), files=names)
-    write_text(outdir / "summary.json", strict_json.dumps(summary, indent=2) + "\n")
+    for name, points in zip(names, frames):
+        save_cells(replace(cells, points=np.array(points, dtype=float)), outdir / name)
+    write_text(outdir / "quality.csv", quality_csv)
+    summary.update(source=str(Path(args.source)), target=str(Path(args.target)), files=names)
+    write_summary(outdir, summary)
     if args.json:
-        strict_json.dump(summary, sys.stdout)
-        sys.stdout.write("\n")
+        print_json(summary)
     else:
-        print(f"{len(names)} frames (surface), folds {summary['folds']}, worst relative "
-              f"quality {summary['worst_relative_quality']:.4g} (target "
-              f"{summary['target_worst_relative_quality']:.4g}; linear interpolation "
-              f"{summary['linear_worst_relative_quality']:.4g}, "
-              f"{summary['linear_folds']} folds), {result.status}")
+        print(text)
         print(f"wrote {outdir}/ ({names[0]} … {names[-1]}, quality.csv, summary.json)")
     return 0

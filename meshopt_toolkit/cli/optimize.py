@@ -20,7 +20,8 @@ from pathlib import Path
 
 from ..errors import ExpressionError, MeshoptError, WriteError
 from ._common import (add_output_flags, check_output_dir, exclusive_output_dir, float_list,
-                      load_workpiece, save_moved)
+                      load_workpiece, print_json, save_moved, write_summary,
+                      write_text)
 from ._params import add_options, check_options
 from ._validate import OptionError
 
@@ -130,13 +131,6 @@ def _prepare_outdir(outdir: Path, mesh_name: str, force: bool, input_path: Path)
         raise WriteError(f"{outdir}: cannot write the results there ({exc.strerror or exc})") from None
 
 
-def _atomic_text(path: Path, text: str) -> None:
-    from ..io import atomic_path
-
-    with atomic_path(path) as tmp:
-        tmp.write_text(text, encoding="utf-8")
-
-
 def run(args: argparse.Namespace) -> int:
     from ..datasets import data_path
     from ..expressions import quoted
@@ -199,7 +193,7 @@ def run(args: argparse.Namespace) -> int:
             )
         summary = result.summary()
         summary.update(input=str(input_path), output=str(outdir / mesh_name),
-                       penalty_beta=list(penalty), rhs=args.rhs, functional=spec.objective,
+                       penalty_weights=list(penalty), rhs=args.rhs, functional=spec.objective,
                        fixed=args.fixed, move=args.move, dirichlet=args.dirichlet,
                        neumann=args.neumann, keep_area=args.keep_area, pde=spec.pde,
                        stress=args.stress, clamped=args.clamped,
@@ -208,15 +202,14 @@ def run(args: argparse.Namespace) -> int:
         try:
             save_moved(wp, result.mesh, outdir / mesh_name)
             _write_history(outdir, result)
-            _atomic_text(outdir / "summary.json", strict_json.dumps(summary, indent=2) + "\n")
+            write_summary(outdir, summary)
             if not args.no_plots and _write_plots(outdir, mesh, result,
                                                  args.rhs if spec.pde == "poisson" else None):
                 written += ["mesh.png", "history.png"]
         except OSError as exc:
             raise WriteError(f"{outdir}: cannot write the results ({exc.strerror or exc})") from None
     if args.json:
-        strict_json.dump(summary, sys.stdout)
-        sys.stdout.write("\n")
+        print_json(summary)
     else:
         print(f"{result.status}: {result.message}")
         F = "j + f2" if result.objective_weight == 1.0 else f"{result.objective_weight:.3g}·j + f2"
@@ -248,7 +241,7 @@ def _write_history(outdir: Path, result) -> None:
         writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
-    _atomic_text(outdir / "history.json", strict_json.dumps(rows, indent=1) + "\n")
+    write_text(outdir / "history.json", strict_json.dumps(rows, indent=1) + "\n")
 
 
 def _write_plots(outdir: Path, mesh, result, rhs_text: str | None) -> bool:

@@ -40,7 +40,7 @@ from pathlib import Path
 
 from ..errors import MeshoptError
 from ..expressions import quoted
-from ._common import check_mesh_format, check_writable
+from ._common import check_mesh_format, check_writable, make_output_dir
 
 HELP = "run a pipeline (.json or MeshLab .mlx) over one mesh or a batch"
 
@@ -97,11 +97,7 @@ def _outdir(args) -> Path | None:
     if outdir.exists() and not outdir.is_dir():
         raise MeshoptError(f"{outdir}: exists and is not a directory")
     if not args.dry_run:
-        try:
-            outdir.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise MeshoptError(f"{outdir}: cannot create the output directory: "
-                               f"{exc.strerror or exc}") from None
+        make_output_dir(outdir)
         check_writable(outdir)  # before any file is processed
     return outdir
 

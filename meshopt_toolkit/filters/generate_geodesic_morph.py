@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from meshopt_toolkit.bounds import MAX_FRAMES
-from meshopt_toolkit.errors import FilterError, MeshoptError
+from meshopt_toolkit.errors import FilterError, MeshoptError, OptionError
 from meshopt_toolkit.operations import STOP_RULES
 from meshopt_toolkit.pipeline.filter import PLANAR, SURFACE, Filter, register
 from meshopt_toolkit.pipeline.params import (BoolParam, EnumParam, FloatParam, IntParam,
@@ -102,7 +102,7 @@ class GenerateGeodesicMorph(Filter):
               stop: str = STOP_RULES[0], contact: bool = True) -> dict:
         from meshopt_toolkit.kernels.triangles import aspect_ratios
         from meshopt_toolkit.motion.scalar_morph import DEFAULT_BETA
-        from meshopt_toolkit.operations import morph
+        from meshopt_toolkit.operations import METRIC_ALIASES, CompleteMorph, morph
         from meshopt_toolkit.pipeline.document import MeshEntry
 
         beta1, beta2, beta3, beta4 = number_list(penalty, 4, "penalty") or DEFAULT_PENALTY
@@ -122,9 +122,13 @@ class GenerateGeodesicMorph(Filter):
             src, tgt = src.with_target(tgt.cells)
             base, end = src.mesh, tgt.mesh
             beta = (beta1, beta2, beta3, beta4)
-            result = morph(base, end, frames, metric=metric, weight=weight,
-                           beta=None if beta == DEFAULT_BETA else beta, normalize=normalize,
-                           method=method, stop=stop)
+            if METRIC_ALIASES.get(metric, metric) == "complete":
+                metric = CompleteMorph(beta=None if beta == DEFAULT_BETA else beta,
+                                       normalize=normalize, method=method)
+            elif beta != DEFAULT_BETA or not normalize or method != METHODS[0]:
+                raise OptionError("penalty, normalize and method apply to the scalar metric "
+                                  "only")
+            result = morph(base, end, frames, metric=metric, weight=weight, stop=stop)
             width = max(3, len(str(frames - 1)))
             meshes = [(f"morph_{k:0{width}d}", src.moved(m.points, what=f"frame {k}"),
                        aspect_ratios(m.points, m.triangles))
@@ -146,7 +150,7 @@ class GenerateGeodesicMorph(Filter):
         from meshopt_toolkit.kernels.surface import aspect_ratios
         from meshopt_toolkit.mesh import SurfaceMesh, TriangleMesh
         from meshopt_toolkit.mesh.kinds import is_tets
-        from meshopt_toolkit.motion.surface_mesh_morph import morph_surface_mesh
+        from meshopt_toolkit.operations import morph
         from meshopt_toolkit.pipeline.document import MeshEntry
 
         for entry, what in ((source, "source"), (target, "target")):
@@ -158,10 +162,9 @@ class GenerateGeodesicMorph(Filter):
                               "metric only (metric, penalty, normalize and method do not apply)")
         a, b = source.mesh, target.mesh
         try:
-            result = morph_surface_mesh(
-                SurfaceMesh(a.points, a.triangles, **a._tag_kwargs()),
-                SurfaceMesh(b.points, b.triangles, **b._tag_kwargs()), frames, weight=weight,
-                stop_when_healthy=stop != "converged", contact=contact)
+            result = morph(SurfaceMesh(a.points, a.triangles, **a._tag_kwargs()),
+                           SurfaceMesh(b.points, b.triangles, **b._tag_kwargs()), frames,
+                           weight=weight, stop=stop, contact=contact)
         except MeshoptError as exc:
             raise FilterError(f"{self.name}: {exc}") from None
         cells = source.source_cells if source.keeps_source_cells else None

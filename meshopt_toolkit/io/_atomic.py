@@ -24,6 +24,23 @@ def _umask() -> int:
     return mask
 
 
+def place(staged: Path, final: Path, overwrite: bool, refusal: str = "not overwriting") -> None:
+    """Put the complete file ``staged`` at ``final`` atomically (a rename, or a hard link
+    that fails where ``final`` exists); without ``overwrite`` an existing ``final`` is a
+    FileWriteError "already exists (``refusal``)", never replaced."""
+    if overwrite:
+        os.replace(staged, final)
+        return
+    try:
+        os.link(staged, final)
+    except FileExistsError:
+        raise FileWriteError(f"{final}: already exists ({refusal})") from None
+    except OSError:  # a file system without hard links: best effort
+        if final.exists():
+            raise FileWriteError(f"{final}: already exists ({refusal})") from None
+        os.replace(staged, final)
+
+
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike, *, overwrite: bool = True) -> Iterator[Path]:
     """Yield a temporary path next to ``path``; on success move it onto ``path``.
@@ -56,17 +73,7 @@ def atomic_path(path: str | os.PathLike, *, overwrite: bool = True) -> Iterator[
     try:
         os.chmod(tmp, 0o666 & ~_umask())
         yield tmp
-        if overwrite:
-            os.replace(tmp, path)
-        else:
-            try:
-                os.link(tmp, path)
-            except FileExistsError:
-                raise FileWriteError(f"{path}: already exists (not overwriting)") from None
-            except OSError:  # file system without hard links: best effort
-                if path.exists():
-                    raise FileWriteError(f"{path}: already exists (not overwriting)") from None
-                os.replace(tmp, path)
+        place(tmp, path, overwrite)
     except OSError as exc:
         raise FileWriteError(f"{path}: {exc.strerror or exc}") from None
     finally:

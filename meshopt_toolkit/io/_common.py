@@ -26,14 +26,6 @@ def quiet() -> Iterator[None]:
         logger.debug("meshio: %s", buf.getvalue().strip())
 
 
-def pad3(points: np.ndarray) -> np.ndarray:
-    """``(N, 3)`` float64 points (z = 0 added to 2D points)."""
-    p = np.asarray(points, dtype=np.float64)
-    if p.shape[1] == 3:
-        return np.ascontiguousarray(p)
-    return np.column_stack([p, np.zeros(len(p))])
-
-
 def build_mesh(points, triangles, source: str | Path, **tags) -> TriangleMesh:
     """A :class:`PlanarMesh` when points are 2D or every z is exactly 0, else a
     :class:`TriangleMesh`; readable-level failures become :class:`ReadError`.
@@ -54,16 +46,6 @@ def build_mesh(points, triangles, source: str | Path, **tags) -> TriangleMesh:
         return cls(pts, triangles, source=str(source), **tags)
     except InvalidMeshError as exc:
         raise ReadError(str(exc)) from exc
-
-
-def points3d(mesh: TriangleMesh) -> np.ndarray:
-    """The points as ``(N, 3)`` float64, padding z = 0 for a planar mesh."""
-    p = mesh.points
-    if p.shape[1] == 3:
-        return np.ascontiguousarray(p, dtype=np.float64)
-    out = np.zeros((len(p), 3))
-    out[:, :2] = p
-    return out
 
 
 def format_rows(values: np.ndarray, fmt: str, prefix: str = "", group: int = 1) -> str:

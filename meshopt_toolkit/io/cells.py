@@ -20,6 +20,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..kernels.admissibility import non_finite_problem
+from ..kernels.surface import pad3
 from ..errors import InvalidMeshError, ReadError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -123,8 +125,8 @@ class CellMesh:
         import meshio
 
         pts = self.points
-        if pad_z and pts.shape[1] == 2:
-            pts = np.column_stack([pts, np.zeros(len(pts))])
+        if pad_z:
+            pts = pad3(pts)
         return meshio.Mesh(pts, [(t, c) for t, c in self.cells],
                            point_data=dict(self.point_data),
                            cell_data={k: list(v) for k, v in self.cell_data.items()},
@@ -221,11 +223,7 @@ class CellMesh:
         if not tris or not sum(len(c) for c in tris):
             found = self.describe_cells() or "none"
             raise InvalidMeshError(f"{where}mesh has no triangles (cells: {found})")
-        ignored = [f"{n} vertex cells" for t, n in self.cell_counts().items() if t == "vertex"]
-        ignored += [f"point data {k!r}" for k in self.point_data]
-        ignored += [f"cell data {k!r}" for k in self.cell_data if k not in GMSH_KEYS]
-        if ignored:
-            logger.info("%snot used by %s: %s", where, what, ", ".join(ignored))
+        _log_unused(self, what)
         triangles = tris[0] if len(tris) == 1 else np.concatenate(tris)
         tags: dict[str, Any] = {"triangle_tags": None}
         if all(t is not None for t in ttags):
@@ -235,12 +233,7 @@ class CellMesh:
         if lines:
             tags["lines"] = np.concatenate(lines)
             tags["line_tags"] = np.concatenate(ltags)
-        names = {}
-        for name, value in self.field_data.items():
-            v = np.asarray(value).reshape(-1)
-            if v.size == 2 and np.issubdtype(v.dtype, np.integer):
-                names[str(name)] = (int(v[0]), int(v[1]))
-        tags["tag_names"] = names
+        tags["tag_names"] = tag_names(self)
         pts = np.asarray(self.points, dtype=np.float64)
         planar = pts.ndim == 2 and (pts.shape[1] == 2
                                     or (pts.shape[1] == 3 and not np.any(pts[:, 2])))
@@ -389,11 +382,9 @@ def check_cells(cm: CellMesh) -> None:
         raise ReadError(f"{where}points must have 2 or 3 coordinates, got shape {pts.shape}")
     with np.errstate(over="ignore", invalid="ignore"):
         finite = np.isfinite(pts.sum())
-    if not finite:
-        bad = np.flatnonzero(~np.isfinite(pts).all(axis=1))
-        if bad.size:
-            raise ReadError(f"{where}vertex {bad[0]} has a non-finite coordinate "
-                            f"{pts[bad[0]].tolist()}")
+    problem = None if finite else non_finite_problem(pts, show=True)
+    if problem:
+        raise ReadError(where + problem)
     n = len(pts)
     for t, c in cm.cells:
         if c.size and (int(c.min()) < 0 or int(c.max()) >= n):

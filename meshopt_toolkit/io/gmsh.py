@@ -24,7 +24,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import ReadError, WriteError
-from ._common import format_rows, pad3, quiet
+from ..kernels.surface import pad3
+from ._common import format_rows, quiet
 from ._files import UNCAPPED, open_input
 from ._loss import Part, cells_other_than, refuse
 from .cells import GEOMETRICAL, PHYSICAL, CellMesh, cell_dimension, check_cells, triangle_mesh

@@ -11,7 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .cells import NORMALS, CellMesh
+from ..kernels.surface import pad3
+from .cells import NORMALS, CellMesh, check_cells
 
 logger = logging.getLogger(__name__)
 
@@ -27,6 +28,15 @@ class ReadNormals:
     normals: np.ndarray
 
 
+def keep_read_normals(cm: CellMesh) -> CellMesh:
+    """``cm`` (a reader's, checked) with the normals it read, if any, kept as its layout:
+    written back unchanged while the points stay."""
+    check_cells(cm)
+    if NORMALS in cm.point_data:
+        cm.layout = ReadNormals(cm.points, cm.point_data[NORMALS])
+    return cm
+
+
 def vertex_normals(points: np.ndarray, cells) -> np.ndarray:
     """Unit area-weighted vertex normals (N, 3); zero where a vertex is in no face.
 
@@ -38,9 +48,7 @@ def vertex_normals(points: np.ndarray, cells) -> np.ndarray:
     points : (N, 3) or (N, 2) array
     cells : list of (type, (M, k) int array); blocks other than :data:`FACES` are skipped
     """
-    p = np.asarray(points, np.float64)
-    if p.shape[1] == 2:
-        p = np.column_stack([p, np.zeros(len(p))])
+    p = pad3(points)
     acc = np.zeros((len(p), 3))
     for t, c in cells:
         if t not in FACES or not len(c):

@@ -27,11 +27,12 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ReadError
-from ._common import decode_text, float_array, format_rows, pad3, require_text_mode
+from ..kernels.surface import pad3
+from ._common import decode_text, float_array, format_rows, require_text_mode
 from ._files import UNCAPPED, read_input
 from ._loss import Part, cells_other_than, data_parts, refuse
-from .cells import NORMALS, TEXCOORDS, CellMesh, check_cells, face_blocks
-from .normals import ReadNormals, normals_to_write
+from .cells import NORMALS, TEXCOORDS, CellMesh, face_blocks
+from .normals import keep_read_normals, normals_to_write
 
 _ELEMENTS = ("f", "l", "p")
 #: one face corner "v", "v/vt", "v//vn" or "v/vt/vn" per line of the joined tokens
@@ -82,10 +83,7 @@ def read_cells(path: Path) -> CellMesh:
             dropped.append(why)
     dropped += [f"{n} '{k}' statements" for k, n in other.items()]
     cm = CellMesh(pts, cells, point_data=point_data, source=str(path), dropped=dropped)
-    check_cells(cm)
-    if NORMALS in point_data:
-        cm.layout = ReadNormals(cm.points, point_data[NORMALS])
-    return cm
+    return keep_read_normals(cm)
 
 
 def _attribute_rows(rows: list[str], key: str, path) -> np.ndarray:

@@ -14,7 +14,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ReadError
-from ._common import decode_text, float_array, format_rows, pad3, require_text_mode
+from ..kernels.surface import pad3
+from ._common import decode_text, float_array, format_rows, require_text_mode
 from ._files import UNCAPPED, read_input
 from ._loss import Part, cells_other_than, data_parts, refuse
 from .cells import CellMesh, face_blocks, check_cells

@@ -24,11 +24,12 @@ import numpy as np
 
 
 from ..errors import ReadError, WriteError
-from ._common import pad3, parse_rows
+from ..kernels.surface import pad3
+from ._common import parse_rows
 from ._files import UNCAPPED, read_input
 from ._loss import Part, cells_other_than, refuse
-from .cells import NORMALS, TEXCOORDS, CellMesh, check_cells, face_blocks
-from .normals import ReadNormals, normals_to_write
+from .cells import NORMALS, TEXCOORDS, CellMesh, face_blocks
+from .normals import keep_read_normals, normals_to_write
 
 _TYPES = {
     "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1",
@@ -281,10 +282,7 @@ def read_cells(path: Path) -> CellMesh:
     dropped += [f"PLY element {n!r}" for n in names if n not in ("vertex", "face")]
     cm = CellMesh(pts, cells, point_data=point_data, cell_data=cell_data, source=str(path),
                   dropped=dropped)
-    check_cells(cm)
-    if NORMALS in point_data:
-        cm.layout = ReadNormals(cm.points, point_data[NORMALS])
-    return cm
+    return keep_read_normals(cm)
 
 
 def _combine(point_data: dict) -> None:

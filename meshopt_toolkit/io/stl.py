@@ -14,7 +14,8 @@ import numpy as np
 
 
 from ..errors import ReadError, WriteError
-from ._common import float_array, pad3
+from ..kernels.surface import pad3
+from ._common import float_array
 from ._loss import Part, cells_other_than, data_parts, refuse
 from ._files import UNCAPPED, read_input
 from .cells import CellMesh, check_cells

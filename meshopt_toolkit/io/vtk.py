@@ -18,7 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ReadError, WriteError
-from ._common import format_rows, pad3, quiet
+from ..kernels.surface import pad3
+from ._common import format_rows, quiet
 from ._loss import Part, numeric, refuse
 from ._files import UNCAPPED, open_input
 from .cells import CellMesh, check_cells
@@ -188,14 +189,9 @@ def _write_vtu_ascii(path: Path, cm: CellMesh) -> None:
         fh.write('</DataArray>\n<DataArray type="UInt8" Name="types" format="ascii">\n')
         fh.write(format_rows(types[:, None], "%d"))
         fh.write("</DataArray>\n</Cells>\n")
-        if cm.point_data:
-            fh.write("<PointData>\n")
-            for k, v in cm.point_data.items():
-                fh.write(_array_xml(k, v))
-            fh.write("</PointData>\n")
-        if cm.cell_data:
-            fh.write("<CellData>\n")
-            for k, v in cm.cell_data.items():
-                fh.write(_array_xml(k, np.concatenate([np.asarray(x) for x in v])))
-            fh.write("</CellData>\n")
+        cell_data = {k: np.concatenate([np.asarray(x) for x in v]) for k, v in cm.cell_data.items()}
+        for tag, data in (("PointData", cm.point_data), ("CellData", cell_data)):
+            if data:
+                fh.write(f"<{tag}>\n" + "".join(_array_xml(k, v) for k, v in data.items())
+                         + f"</{tag}>\n")
         fh.write("</Piece>\n</UnstructuredGrid>\n</VTKFile>\n")

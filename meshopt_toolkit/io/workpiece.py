@@ -28,6 +28,7 @@ import numpy as np
 
 from ..errors import FileWriteError, InvalidMeshError, WriteError
 from ..mesh import PlanarMesh, TriangleMesh
+from ..mesh.topology import new_points
 from ..orientation import PLANE_RTOL, PlaneEmbedding, plane_embedding
 from ..scaling import UnitScale, unit_scale
 from .cells import PHYSICAL, TRIANGLE_KINDS, CellMesh
@@ -167,10 +168,7 @@ class Workpiece:
         A vertex whose plane coordinates come back bit for bit keeps its file
         coordinates; the others are mapped into the plane.
         """
-        q = np.asarray(points, dtype=np.float64)
-        if q.shape != self.plane.shape:
-            raise InvalidMeshError(f"new points have shape {q.shape}, the mesh has "
-                                   f"{self.plane.shape}")
+        q = new_points(points, self.plane.shape)
         # compared at unit size: scaling is exact except for subnormal numbers
         moved = ~(q == self.scale.down(self.plane)).all(axis=1)
         plane = np.array(self.plane, copy=True)

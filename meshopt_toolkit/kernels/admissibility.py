@@ -20,7 +20,18 @@ from .boundary import BoundaryLoops, boundary_self_intersections, loop_orientati
 from .predicates import dot_sign_xy, exactly_scaled, orient2d_xy, triangle_orientations
 
 __all__ = ["BoundaryCheck", "area_message", "area_problem", "area_signs", "loop_message",
-           "target_loop_problem"]
+           "non_finite_problem", "target_loop_problem"]
+
+
+def non_finite_problem(points: FloatArray, *, show: bool = False) -> str | None:
+    """The first vertex with a non-finite coordinate, in words (with its coordinates
+    where ``show``), or None when every coordinate is finite. ``points`` is ``(N, d)``."""
+    points = np.asarray(points)
+    bad = np.flatnonzero(~np.isfinite(points).all(axis=1))
+    if not bad.size:
+        return None
+    v = int(bad[0])
+    return f"vertex {v} has a non-finite coordinate" + (f" {points[v].tolist()}" if show else "")
 
 
 def area_problem(Q: FloatArray, tri_t: IntArray) -> str | None:
@@ -29,8 +40,7 @@ def area_problem(Q: FloatArray, tri_t: IntArray) -> str | None:
     ``Q`` is ``(N, 2)``, ``tri_t`` the triangles as a ``(3, T)`` array.
     """
     if not np.isfinite(Q).all():
-        v = int(np.flatnonzero(~np.isfinite(Q).all(axis=1))[0])
-        return f"vertex {v} has a non-finite coordinate"
+        return non_finite_problem(Q)
     return area_message(*area_signs(Q, tri_t), tri_t)
 
 

@@ -18,6 +18,15 @@ from ..scaling import unit_cells
 DEGENERATE_ASPECT = 1e-12
 
 
+def pad3(points: FloatArray) -> FloatArray:
+    """``(N, 3)`` float64 points: 2D points ``(N, 2)`` with z = 0 added, 3D ones as they
+    are (not copied when already contiguous float64)."""
+    p = np.asarray(points, dtype=np.float64)
+    if p.shape[1] == 3:
+        return np.ascontiguousarray(p)
+    return np.column_stack([p, np.zeros(len(p))])
+
+
 def _unit_edges(points: FloatArray, triangles: IntArray, count: int = 3
                 ) -> tuple[FloatArray, IntArray]:
     """The first ``count`` of the edges ``q1 − q0, q2 − q0, q2 − q1`` ``(count, T, 3)`` of
@@ -70,9 +79,10 @@ def aspect_ratios(points: FloatArray, triangles: IntArray) -> FloatArray:
 
 
 def degenerate_triangles(points: FloatArray, triangles: IntArray,
-                         tol: float = DEGENERATE_ASPECT) -> IntArray:
-    """Indices of degenerate triangles: a repeated vertex index, or aspect ratio ≤ ``tol``
-    (zero area, or collinear corners up to rounding). Returns sorted ``(K,)`` indices."""
+                         tolerance: float = DEGENERATE_ASPECT) -> IntArray:
+    """Indices of degenerate triangles: a repeated vertex index, or aspect ratio ≤
+    ``tolerance`` (zero area, or collinear corners up to rounding). Returns sorted ``(K,)``
+    indices."""
     tri = np.asarray(triangles)
     repeated = (tri[:, 0] == tri[:, 1]) | (tri[:, 1] == tri[:, 2]) | (tri[:, 0] == tri[:, 2])
-    return np.flatnonzero(repeated | (aspect_ratios(points, tri) <= tol))
+    return np.flatnonzero(repeated | (aspect_ratios(points, tri) <= tolerance))

@@ -9,12 +9,13 @@ faces :data:`TET_FACES` are then oriented outward.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 
 import numpy as np
 
 from .._typing import FloatArray, IntArray
 from ..scaling import unit_cells
+from .triangles import SummaryRecord
 
 #: local vertex pairs of the six edges
 TET_EDGES = np.array([[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]])
@@ -125,7 +126,7 @@ def dihedral_angles(points: FloatArray, tets: IntArray) -> FloatArray:
 
 
 @dataclass(frozen=True)
-class TetQualitySummary:
+class TetQualitySummary(SummaryRecord):
     """Mesh-level quality numbers of a tetrahedral mesh.
 
     Attributes
@@ -144,10 +145,6 @@ class TetQualitySummary:
     min_volume: float
     total_volume: float
     n_inverted: int
-
-    def as_dict(self) -> dict:
-        """The summary as a plain JSON-serializable dict."""
-        return {k: (int(v) if k == "n_inverted" else float(v)) for k, v in asdict(self).items()}
 
 
 def tet_quality_summary(points: FloatArray, tets: IntArray) -> TetQualitySummary:

@@ -215,8 +215,16 @@ def aspect_ratios(points: FloatArray, triangles: IntArray) -> FloatArray:
     return np.where(prod > 0, ratio, 0.0)
 
 
+class SummaryRecord:
+    """Base of the quality summaries: dataclasses of floats and the count ``n_inverted``."""
+
+    def as_dict(self) -> dict:
+        """The summary as a plain JSON-serializable dict."""
+        return {k: (int(v) if k == "n_inverted" else float(v)) for k, v in asdict(self).items()}
+
+
 @dataclass(frozen=True)
-class QualitySummary:
+class QualitySummary(SummaryRecord):
     """Mesh-level quality numbers (SPEC §2).
 
     Attributes
@@ -236,10 +244,6 @@ class QualitySummary:
     min_area: float
     total_area: float
     n_inverted: int
-
-    def as_dict(self) -> dict:
-        """The summary as a plain JSON-serializable dict."""
-        return {k: (int(v) if k == "n_inverted" else float(v)) for k, v in asdict(self).items()}
 
 
 def quality_summary(points: FloatArray, triangles: IntArray) -> QualitySummary:

@@ -15,9 +15,10 @@ import numpy as np
 
 from .._lazy import lazy_module
 from ..errors import InvalidMeshError, NotAdmissibleError
-from ..kernels.admissibility import BoundaryCheck, area_message, area_signs
+from ..kernels.admissibility import BoundaryCheck, area_message, area_signs, non_finite_problem
 from .core import PlanarMesh, TriangleMesh
-from .diagnosis import diagnose, planar_view, with_embedding_of
+from .diagnosis import (diagnose, planar_view, repeated_vertex_problem, shared_edge_problem,
+                        unused_vertex_problem, with_embedding_of)
 from .topology import _boundary_edges_of, _fans_per_vertex, _frozen
 
 sp = lazy_module("scipy.sparse")
@@ -64,29 +65,13 @@ class MeshReport:
 
 
 def _manifold_problems(mesh: TriangleMesh) -> list[str]:
-    problems: list[str] = []
+    problems = list(filter(None, [unused_vertex_problem(mesh)]))
+    for first_problem in (repeated_vertex_problem, shared_edge_problem):
+        problem = first_problem(mesh)
+        if problem:  # the checks below need a mesh without it
+            return problems + [problem]
     tri = mesh.triangles
-    n = mesh.n_vertices
-    used = np.zeros(n, bool)
-    used[tri.ravel()] = True
-    if not used.all():
-        v = np.flatnonzero(~used)
-        problems.append(f"vertex {v[0]} is not used by any triangle ({v.size} unused)")
-    degenerate = np.flatnonzero(
-        (tri[:, 0] == tri[:, 1]) | (tri[:, 1] == tri[:, 2]) | (tri[:, 0] == tri[:, 2])
-    )
-    if degenerate.size:
-        k = degenerate[0]
-        problems.append(f"triangle {k} {tri[k].tolist()} repeats a vertex")
-        return problems
     counts = mesh.edge_triangle_counts
-    over = np.flatnonzero(counts > 2)
-    if over.size:
-        e = mesh.edges[over[0]]
-        problems.append(
-            f"edge ({e[0]}, {e[1]}) is shared by {counts[over[0]]} triangles (not edge-manifold)"
-        )
-        return problems
     # consistent orientation: an interior edge appears once in each direction
     directed = np.stack([np.roll(tri, -1, axis=1), np.roll(tri, -2, axis=1)], axis=-1).reshape(-1, 2)
     forward = directed[:, 0] < directed[:, 1]
@@ -163,8 +148,7 @@ def check_mesh(mesh: TriangleMesh, *, positive_areas: bool = False) -> MeshRepor
     problems = list(soft)
     reoriented = reoriented or n_flipped > 0
     if not finite:
-        v = int(np.flatnonzero(~np.isfinite(pm.points).all(axis=1))[0])
-        problems.append(f"vertex {v} has a non-finite coordinate")
+        problems.append(non_finite_problem(pm.points))
     else:
         # the loops' nesting rule presumes positive triangles: judged only then
         message = area_message(area, sign, exponent, pm._triangle_columns)

@@ -18,9 +18,11 @@ import numpy as np
 from .._lazy import lazy_module
 from .._typing import FloatArray, IntArray
 from ..errors import InvalidMeshError
+from ..kernels.admissibility import non_finite_problem
 from ..kernels.triangles import quality_summary, signed_areas
 from ..orientation import plane_embedding
-from .topology import _clean_manifold, _corner_table, _edge_index, _frozen, _sorted_half_edges
+from .topology import (_clean_manifold, _corner_table, _edge_index, _frozen, _sorted_half_edges,
+                       new_points)
 
 sp = lazy_module("scipy.sparse")  # imported on first use: info/convert need no scipy
 
@@ -396,16 +398,11 @@ class PlanarMesh(TriangleMesh):
 
     def with_points(self, points) -> PlanarMesh:
         """A new mesh with the same connectivity and tags at new positions ``(N, 2)``."""
-        q = np.asarray(points, dtype=np.float64)
-        if q.shape != self._points.shape:
-            raise InvalidMeshError(
-                f"new points have shape {q.shape}, the mesh has {self._points.shape}"
-            )
+        q = new_points(points, self._points.shape)
         new = object.__new__(PlanarMesh)
         new.__dict__.update({k: v for k, v in self.__dict__.items() if not k.startswith("_geom")})
         if not np.isfinite(q).all():
-            bad = int(np.flatnonzero(~np.isfinite(q).all(axis=1))[0])
-            raise InvalidMeshError(f"vertex {bad} has a non-finite coordinate")
+            raise InvalidMeshError(non_finite_problem(q))
         new._points = _frozen(q.copy())
         return new
 

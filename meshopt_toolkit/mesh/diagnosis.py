@@ -39,6 +39,34 @@ def with_embedding_of(new: PlanarMesh, old: PlanarMesh) -> PlanarMesh:
     return new
 
 
+def unused_vertex_problem(mesh: TriangleMesh) -> str | None:
+    """The first vertex no triangle uses, in words (None: every vertex is used)."""
+    used = np.zeros(mesh.n_vertices, bool)
+    used[mesh.triangles.ravel()] = True
+    v = np.flatnonzero(~used)
+    return f"vertex {v[0]} is not used by any triangle ({v.size} unused)" if v.size else None
+
+
+def repeated_vertex_problem(mesh: TriangleMesh) -> str | None:
+    """The first triangle that repeats a vertex, in words (None: there is none)."""
+    tri = mesh.triangles
+    bad = np.flatnonzero((tri[:, 0] == tri[:, 1]) | (tri[:, 1] == tri[:, 2])
+                         | (tri[:, 0] == tri[:, 2]))
+    return f"triangle {bad[0]} {tri[bad[0]].tolist()} repeats a vertex" if bad.size else None
+
+
+def shared_edge_problem(mesh: TriangleMesh) -> str | None:
+    """The first edge in three or more triangles, in words (None: the mesh is
+    edge-manifold)."""
+    counts = mesh.edge_triangle_counts
+    over = np.flatnonzero(counts > 2)
+    if not over.size:
+        return None
+    e = mesh.edges[over[0]]
+    return (f"edge ({e[0]}, {e[1]}) is shared by {counts[over[0]]} triangles "
+            "(not edge-manifold)")
+
+
 def diagnose(pm: PlanarMesh) -> tuple[PlanarMesh, int, list[str], list[str]]:
     """Topology of a planar mesh that is not clean: orient it, then sort its problems.
 
@@ -58,27 +86,15 @@ def diagnose(pm: PlanarMesh) -> tuple[PlanarMesh, int, list[str], list[str]]:
     n = pm.n_vertices
     hard: list[str] = []
     soft: list[str] = []
-    used = np.zeros(n, bool)
-    used[tri.ravel()] = True
     same = coincident_vertices(pm.points, tri.ravel())
     if same.size:
         soft.append(f"{same.size} coincident vertices (vertex {same[0]} and others share "
                     "a position; merge them with --merge-tolerance)")
-    if not used.all():
-        v = np.flatnonzero(~used)
-        soft.append(f"vertex {v[0]} is not used by any triangle ({v.size} unused)")
-    degenerate = np.flatnonzero((tri[:, 0] == tri[:, 1]) | (tri[:, 1] == tri[:, 2])
-                                | (tri[:, 0] == tri[:, 2]))
-    if degenerate.size:
-        k = degenerate[0]
-        hard.append(f"triangle {k} {tri[k].tolist()} repeats a vertex")
+    soft += filter(None, [unused_vertex_problem(pm)])
+    hard += filter(None, [repeated_vertex_problem(pm)])
+    if hard:
         return pm, 0, hard, soft
-    counts = pm.edge_triangle_counts
-    over = np.flatnonzero(counts > 2)
-    if over.size:
-        e = pm.edges[over[0]]
-        hard.append(f"edge ({e[0]}, {e[1]}) is shared by {counts[over[0]]} triangles "
-                    "(not edge-manifold)")
+    hard += filter(None, [shared_edge_problem(pm)])
     oriented, n_flipped, orientable = orient_components(tri, n, pm.points)
     if n_flipped:
         pm = with_embedding_of(PlanarMesh(pm.points, oriented, **pm._tag_kwargs()), pm)

@@ -15,7 +15,7 @@ import numpy as np
 
 from .._typing import FloatArray, IntArray
 from ..errors import InvalidMeshError
-from ..kernels.surface import area_vectors, aspect_ratios, degenerate_triangles
+from ..kernels.surface import area_vectors, aspect_ratios, degenerate_triangles, pad3
 from ..orientation import component_labels, orient_components
 from .core import TriangleMesh
 from .topology import _frozen
@@ -53,7 +53,7 @@ class SurfaceMesh:
                  tag_names: dict | None = None, source: str | None = None) -> None:
         pts = np.asarray(points, dtype=np.float64)
         if pts.ndim == 2 and pts.shape[1] == 2:
-            pts = np.column_stack([pts, np.zeros(len(pts))])
+            pts = pad3(pts)
         if pts.ndim != 2 or pts.shape[1] != 3:
             where = f"{source}: " if source else ""
             raise InvalidMeshError(f"{where}surface points must have shape (N, 3), got "

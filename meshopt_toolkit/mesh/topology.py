@@ -15,7 +15,8 @@ from typing import Protocol
 import numpy as np
 
 from .._lazy import lazy_module
-from .._typing import IntArray
+from .._typing import FloatArray, IntArray
+from ..errors import InvalidMeshError
 
 sp = lazy_module("scipy.sparse")
 _csgraph = lazy_module("scipy.sparse.csgraph")
@@ -32,6 +33,15 @@ class MeshTables(Protocol):
 
     @property
     def _edge_corners(self) -> IntArray: ...
+
+
+def new_points(points, shape: tuple[int, ...]) -> FloatArray:
+    """``points`` as float64 for a mesh whose points have ``shape``; another shape is an
+    InvalidMeshError naming both."""
+    q = np.asarray(points, dtype=np.float64)
+    if q.shape != shape:
+        raise InvalidMeshError(f"new points have shape {q.shape}, the mesh has {shape}")
+    return q
 
 
 def _frozen(a: np.ndarray) -> np.ndarray:

@@ -16,10 +16,11 @@ import numpy as np
 
 from .._typing import FloatArray, IntArray
 from ..errors import InvalidMeshError, NotAdmissibleError
+from ..kernels.admissibility import non_finite_problem
 from ..kernels.tetrahedra import (TET_FACES, mean_ratios, orientations, signed_volumes,
                                   tet_quality_summary)
 from .surface import SurfaceMesh, listed
-from .topology import _frozen
+from .topology import _frozen, new_points
 
 __all__ = ["TetMesh"]
 
@@ -84,9 +85,7 @@ class TetMesh:
         if pts.ndim != 2 or pts.shape[1] != 3:
             raise InvalidMeshError(f"{where}points must have shape (N, 3), got {pts.shape}")
         if not np.isfinite(pts).all():
-            bad = int(np.flatnonzero(~np.isfinite(pts).all(axis=1))[0])
-            raise InvalidMeshError(f"{where}vertex {bad} has a non-finite coordinate "
-                                   f"{pts[bad].tolist()}")
+            raise InvalidMeshError(where + non_finite_problem(pts, show=True))
         n = len(pts)
         self._points = _frozen(pts)
         self._tets = _indices(tets, 4, "tetrahedra", n, where, required=True)
@@ -128,11 +127,7 @@ class TetMesh:
 
     def with_points(self, points) -> TetMesh:
         """A new mesh with the same cells and tags at new positions ``(N, 3)``."""
-        q = np.asarray(points, dtype=np.float64)
-        if q.shape != self._points.shape:
-            raise InvalidMeshError(f"new points have shape {q.shape}, the mesh has "
-                                   f"{self._points.shape}")
-        return TetMesh(q, self._tets, tet_tags=self._tet_tags, triangles=self._triangles,
+        return TetMesh(new_points(points, self._points.shape), self._tets, tet_tags=self._tet_tags, triangles=self._triangles,
                        triangle_tags=self._triangle_tags, lines=self._lines,
                        line_tags=self._line_tags, tag_names=self._tag_names,
                        source=self._source)

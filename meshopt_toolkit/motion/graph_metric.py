@@ -76,11 +76,6 @@ class GraphMetric(AssembledMetric):
         out = np.bincount(tri_cols.ravel(), back.ravel(), minlength=V.size)
         return out.reshape(V.shape) + self.mass[:, None] * V
 
-    def segment_lengths(self, frames: FloatArray) -> FloatArray:
-        """``|X(Q_{k+1}) − X(Q_k)|`` for consecutive frames (K+1, N, 2) → (K,)."""
-        X = [np.concatenate(self.embed(Q)) for Q in frames]
-        return np.array([np.linalg.norm(b - a) for a, b in zip(X[:-1], X[1:])])
-
     # -- the Metric protocol (riemannian.metrics) -------------------------------------------
 
     def matrix(self, Q: FloatArray) -> sp.csr_matrix:

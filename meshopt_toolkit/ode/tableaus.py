@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._options import check_choice
 from .._typing import FloatArray
 from ..errors import IntegrationError
 from .base import _combine
@@ -130,8 +131,7 @@ def rk_pair(name: str) -> _Pair:
     """The embedded pair ``"dopri5"``, ``"dop853"`` or ``"bs3"`` (built once)."""
     if name not in _PAIR_CACHE:
         builders = {"dopri5": _dopri5_pair, "dop853": _dop853_pair, "bs3": _bs3_pair}
-        if name not in builders:
-            raise IntegrationError(f"unknown Runge–Kutta pair {name!r}; choose one of {PAIRS}")
+        check_choice(name, PAIRS, "Runge–Kutta pair", error=IntegrationError)
         _PAIR_CACHE[name] = builders[name]()
     return _PAIR_CACHE[name]
 

@@ -89,6 +89,14 @@ def stormer_verlet(
             f"Störmer–Verlet: {what} at t = {t:.6g} (step {n_steps}); use more steps"
         )
 
+    def kick(p0, q, grad, p_half, dt: float, t: float, what: str) -> FloatArray:
+        """The momentum half-step ``p0 + dt/2 · F(q, p_half)``; non-finite is ``what``."""
+        with np.errstate(over="ignore", invalid="ignore"):
+            new = p0 + 0.5 * dt * _force(field, q, grad, p_half)
+        if not np.isfinite(new).all():
+            raise fail(what, t)
+        return new
+
     for k, t_next in enumerate(t_out):
         n_sub = max(1, round(steps * (t_next - t_prev) / t_end))
         dt = (t_next - t_prev) / n_sub
@@ -97,10 +105,7 @@ def stormer_verlet(
             # 1. implicit momentum half-step at Q_n (∇f(Q_n) is fixed during the iteration)
             p_half = p
             for _ in range(max_iterations):
-                with np.errstate(over="ignore", invalid="ignore"):
-                    new = p + 0.5 * dt * _force(field, q, grad, p_half)
-                if not np.isfinite(new).all():
-                    raise fail("the momentum fixed point diverged", t_here)
+                new = kick(p, q, grad, p_half, dt, t_here, "the momentum fixed point diverged")
                 done = _converged(new, p_half, tolerance)
                 p_half = new
                 if done:
@@ -123,10 +128,7 @@ def stormer_verlet(
             else:
                 raise fail("the position fixed point did not converge", t_here)
             # 3. explicit momentum half-step at Q_{n+1}
-            with np.errstate(over="ignore", invalid="ignore"):
-                p = p_half + 0.5 * dt * _force(field, q_new, grad_new, p_half)
-            if not np.isfinite(p).all():
-                raise fail("the momentum became non-finite", t_here)
+            p = kick(p_half, q_new, grad_new, p_half, dt, t_here, "the momentum became non-finite")
             q, grad = q_new, grad_new
             n_steps += 1
             if e0 > 0:

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import FilterError
+from ..kernels.surface import pad3
 from ..mesh.kinds import is_tets
 
 __all__ = ["MeshStats", "stats_of", "stats_of_arrays", "estimate_meshlab", "check_budget"]
@@ -58,8 +59,7 @@ def stats_of_arrays(points, triangles) -> MeshStats:
     T = np.asarray(triangles)
     if P.size == 0 or T.size == 0:
         return MeshStats(int(len(T)))
-    if P.shape[1] == 2:
-        P = np.column_stack([P, np.zeros(len(P))])
+    P = pad3(P)
     a, b, c = P[T[:, 0]], P[T[:, 1]], P[T[:, 2]]
     with np.errstate(all="ignore"):
         area = 0.5 * float(np.linalg.norm(np.cross(b - a, c - a), axis=1).sum())

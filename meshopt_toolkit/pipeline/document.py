@@ -449,14 +449,13 @@ class Document:
                 entry.source_workpiece = old.source_workpiece
                 entry.source_cells = old.source_cells if old.keeps_source_cells else None
             nv, nf = mesh.n_vertices, mesh.n_triangles
-            if m.has_vertex_scalar():
-                entry.vertex_attributes["quality"] = np.array(m.vertex_scalar_array())
-            if m.has_face_scalar():
-                entry.face_attributes["quality"] = np.array(m.face_scalar_array())
-            if m.has_vertex_color():
-                entry.vertex_attributes["color"] = np.array(m.vertex_color_matrix())
-            if m.has_face_color():
-                entry.face_attributes["color"] = np.array(m.face_color_matrix())
+            for attributes, name, has, values in (
+                    (entry.vertex_attributes, "quality", m.has_vertex_scalar, m.vertex_scalar_array),
+                    (entry.face_attributes, "quality", m.has_face_scalar, m.face_scalar_array),
+                    (entry.vertex_attributes, "color", m.has_vertex_color, m.vertex_color_matrix),
+                    (entry.face_attributes, "color", m.has_face_color, m.face_color_matrix)):
+                if has():
+                    attributes[name] = np.array(values())
             vs, fs = np.array(m.vertex_selection_array()), np.array(m.face_selection_array())
             if vs.shape == (nv,) and vs.any():
                 entry.vertex_attributes["selected"] = vs.astype(bool)

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..kernels.surface import pad3
 from ..orientation import PLANE_RTOL
 
 __all__ = ["admissible_normal", "count_inverted"]
@@ -20,8 +21,7 @@ def _normals(points, triangles) -> tuple[np.ndarray, np.ndarray]:
     P = np.asarray(points, dtype=np.float64)
     if P.ndim != 2 or P.shape[1] not in (2, 3):
         raise ValueError("points must be (N, 2) or (N, 3)")
-    if P.shape[1] == 2:
-        P = np.column_stack([P, np.zeros(len(P))])
+    P = pad3(P)
     T = np.asarray(triangles, dtype=np.int64)
     a = P[T[:, 0]]
     return P, np.cross(P[T[:, 1]] - a, P[T[:, 2]] - a)

@@ -142,7 +142,11 @@ class Param:
         """Value of a ``<Param>`` element (its ``value`` attribute), validated."""
         if "value" not in attrs:
             raise self._error(filter_name, "Param element has no 'value' attribute")
-        return self.validate(attrs["value"], filter_name)
+        return self._from_mlx_value(attrs["value"], attrs, filter_name)
+
+    def _from_mlx_value(self, raw: str, attrs: dict[str, str], filter_name: str) -> Any:
+        """The value of the ``value`` attribute ``raw`` (the element's ``attrs`` beside)."""
+        return self.validate(raw, filter_name)
 
 
 @dataclass(frozen=True)
@@ -181,6 +185,38 @@ class _NumberParam(Param):
         return {**super().spec(), "min": self.min, "max": self.max,
                 "exclusive_min": self.exclusive_min}
 
+    #: the words of a type error ("expected an integer, got ...")
+    expected: ClassVar[str] = "a number"
+
+    def _number(self, value):
+        """``value`` (not a string) as this parameter's type, or None where it is not one."""
+        raise NotImplementedError
+
+    def _parse(self, text: str):
+        raise NotImplementedError
+
+    def validate(self, value, filter_name="?"):
+        if isinstance(value, str):
+            try:
+                value = self._parse(value.strip())
+            except ValueError:
+                raise self._error(filter_name, f"expected {self.expected}, got {value!r}")
+        number = None if isinstance(value, bool) else self._number(value)
+        if number is None:
+            raise self._error(filter_name, f"expected {self.expected}, got {value!r}")
+        if isinstance(number, float) and not math.isfinite(number):
+            raise self._error(filter_name, f"expected a finite number, got {value!r}")
+        return self._check_range(number, filter_name)
+
+    def to_mlx(self, value, diameter=None):
+        out = super().to_mlx(value, diameter)
+        # the range as attributes in the value's format (MeshLab's RichInt has none: it
+        # ignores them)
+        for key, bound in (("min", self.min), ("max", self.max)):
+            if bound is not None:
+                out[key] = self._mlx_value(bound)
+        return out
+
 
 @dataclass(frozen=True)
 class IntParam(_NumberParam):
@@ -188,28 +224,13 @@ class IntParam(_NumberParam):
     kind: ClassVar[str] = "int"
     mlx_type: ClassVar[str] = "RichInt"
 
-    def validate(self, value, filter_name="?") -> int:
-        if isinstance(value, bool):
-            raise self._error(filter_name, f"expected an integer, got {value!r}")
-        if isinstance(value, str):
-            try:
-                value = int(value.strip())
-            except ValueError:
-                raise self._error(filter_name, f"expected an integer, got {value!r}")
-        elif isinstance(value, float) and value.is_integer():
-            value = int(value)
-        if not isinstance(value, int):
-            raise self._error(filter_name, f"expected an integer, got {value!r}")
-        return self._check_range(int(value), filter_name)
+    expected: ClassVar[str] = "an integer"
+    _parse = staticmethod(int)
 
-    def to_mlx(self, value, diameter=None):
-        out = super().to_mlx(value, diameter)
-        # RichInt has no range in MeshLab: keep ours as extra attributes it ignores
-        if self.min is not None:
-            out["min"] = str(self.min)
-        if self.max is not None:
-            out["max"] = str(self.max)
-        return out
+    def _number(self, value) -> int | None:
+        if isinstance(value, float) and value.is_integer():
+            return int(value)
+        return int(value) if isinstance(value, int) else None
 
 
 @dataclass(frozen=True)
@@ -222,31 +243,13 @@ class FloatParam(_NumberParam):
         bounded = self.min is not None and self.max is not None
         return "RichDynamicFloat" if bounded else "RichFloat"
 
-    def validate(self, value, filter_name="?") -> float:
-        if isinstance(value, bool):
-            raise self._error(filter_name, f"expected a number, got {value!r}")
-        if isinstance(value, str):
-            try:
-                value = float(value.strip())
-            except ValueError:
-                raise self._error(filter_name, f"expected a number, got {value!r}")
-        if not isinstance(value, (int, float)):
-            raise self._error(filter_name, f"expected a number, got {value!r}")
-        value = float(value)
-        if not math.isfinite(value):
-            raise self._error(filter_name, f"expected a finite number, got {value!r}")
-        return self._check_range(value, filter_name)
+    _parse = staticmethod(float)
+
+    def _number(self, value) -> float | None:
+        return float(value) if isinstance(value, (int, float)) else None
 
     def _mlx_value(self, value) -> str:
         return meshlab_float(float(value))
-
-    def to_mlx(self, value, diameter=None):
-        out = super().to_mlx(value, diameter)
-        if self.min is not None:
-            out["min"] = meshlab_float(self.min)
-        if self.max is not None:
-            out["max"] = meshlab_float(self.max)
-        return out
 
 
 @dataclass(frozen=True)
@@ -285,10 +288,7 @@ class EnumParam(Param):
             out[f"enum_val{i}"] = c
         return out
 
-    def from_mlx(self, attrs, filter_name="?"):
-        raw = attrs.get("value")
-        if raw is None:
-            raise self._error(filter_name, "Param element has no 'value' attribute")
+    def _from_mlx_value(self, raw, attrs, filter_name):
         try:
             return self.validate(int(raw), filter_name)
         except ValueError:
@@ -414,10 +414,7 @@ class LengthParam(Param):
                        max=meshlab_float(max(d, 0.0)))
         return out
 
-    def from_mlx(self, attrs, filter_name="?"):
-        raw = attrs.get("value")
-        if raw is None:
-            raise self._error(filter_name, "Param element has no 'value' attribute")
+    def _from_mlx_value(self, raw, attrs, filter_name):
         if attrs.get("percent", "").lower() == "true":
             return self.validate(f"{raw}%", filter_name)
         return self.validate(raw, filter_name)

@@ -12,7 +12,7 @@ import scipy.sparse as sp
 from .._linalg import dot
 from .._typing import FloatArray
 from ..solvers import factorize_spd
-from .metrics import MetricNotImplementedError
+from .metrics import MetricNotImplementedError, _derivative
 
 __all__ = ["AssembledMetric"]
 
@@ -32,6 +32,17 @@ class AssembledMetric:
     def matrix(self, Q: FloatArray) -> sp.spmatrix:
         raise NotImplementedError
 
+    def embed(self, Q: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """The isometric embedding ``X(Q)`` in two flat parts, where the metric has one
+        (the distortion metrics: ``(m^½ ⊙ Q, w φ(Q))``)."""
+        raise MetricNotImplementedError(f"{type(self).__name__}.embed is not implemented")
+
+    def segment_lengths(self, frames: FloatArray) -> FloatArray:
+        """``|X(Q_{k+1}) − X(Q_k)|`` for consecutive frames (K+1, N, d) → (K,), ``X`` the
+        embedding :meth:`embed`."""
+        X = [np.concatenate(self.embed(Q)) for Q in frames]
+        return np.array([np.linalg.norm(b - a) for a, b in zip(X[:-1], X[1:])])
+
     def inner(self, Q: FloatArray, U: FloatArray, V: FloatArray) -> float:
         """``vec U · g_Q vec V``. ``Q, U, V`` : (N, d)."""
         return dot(np.asarray(U, dtype=float), self.apply(Q, np.asarray(V, dtype=float)))
@@ -44,11 +55,9 @@ class AssembledMetric:
         """Gradient ``g_Q⁻¹ vec P`` of a derivative ``P`` (N, d); returns (N, d).
         With an (N,) bool mask ``free`` the system is restricted to the free vertices'
         dofs and the fixed rows of the result are 0 (one sparse factorization per call)."""
-        P = np.asarray(P, dtype=float)
         A = self.matrix(Q)
         d = np.shape(Q)[1]
-        if P.shape != (A.shape[0] // d, d):
-            raise ValueError(f"derivative has shape {P.shape}, expected {(A.shape[0] // d, d)}")
+        P = _derivative(P, (A.shape[0] // d, d))
         keep = np.ones(P.shape[0], bool) if free is None else np.asarray(free, dtype=bool)
         if keep.shape != (P.shape[0],):
             raise ValueError(f"free mask has shape {keep.shape}, expected ({P.shape[0]},)")
@@ -58,7 +67,7 @@ class AssembledMetric:
             out[keep] = factorize_spd(A[dof][:, dof].tocsc())(P[keep].ravel()).reshape(-1, d)
         return out
 
-    def exp(self, Q: FloatArray, V: FloatArray, t: float = 1.0) -> FloatArray:
+    def exp(self, Q: FloatArray, V: FloatArray, time: float = 1.0) -> FloatArray:
         """Not available: this metric's geodesics are boundary-value problems."""
         raise MetricNotImplementedError(
             f"{type(self).__name__}.exp is not implemented: the distortion metric's geodesics "

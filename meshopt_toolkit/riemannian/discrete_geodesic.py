@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._options import check_choice
 from .._typing import FloatArray
 from ..errors import InvalidMeshError
 from ._boundary_value import _as_points, _path_frames
@@ -26,8 +27,7 @@ from .path_options import METHODS, options_for
 
 def _method_of(metric, method: str) -> str:
     """``method`` checked, "auto" resolved by what the metric provides."""
-    if method not in METHODS:
-        raise ValueError(f"unknown discrete-geodesic method {method!r}; choose one of {METHODS}")
+    check_choice(method, METHODS, "discrete-geodesic method", error=ValueError)
     has_model = callable(getattr(metric, "path_model", None))
     if method == "auto":
         return "levenberg-marquardt" if has_model else "newton-cg"

@@ -7,7 +7,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from .._options import options_of
+from .._options import check_choice, options_of
 from ..errors import IntegrationError
 
 #: the integration methods (see :mod:`.geodesics`)
@@ -62,8 +62,7 @@ class GeodesicOptions:
     fixed_point_max_iterations: int = 10
 
     def __post_init__(self) -> None:
-        if self.method not in METHODS:
-            raise IntegrationError(f"unknown geodesic method {self.method!r}; choose one of {METHODS}")
+        check_choice(self.method, METHODS, "geodesic method", error=IntegrationError)
         if self.on_violation not in ON_VIOLATION:
             raise IntegrationError("on_violation must be 'warn', 'raise' or 'ignore', got "
                                    f"{self.on_violation!r}")

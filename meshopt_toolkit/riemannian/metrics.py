@@ -11,7 +11,7 @@ and tetrahedra):
   ``inner(Q, riesz(Q, P), V) == P · V`` for every ``V``. With ``free`` (an (N,) bool
   mask) it is the Riesz map of the metric restricted to the tangent vectors that vanish
   on the fixed vertices: the result vanishes there and the identity holds for such ``V``;
-- ``exp(Q, V, t=1.0) -> (N, d)``: the exponential map (or the retraction the thesis pairs
+- ``exp(Q, V, time=1.0) -> (N, d)``: the exponential map (or the retraction the thesis pairs
   with the metric); optional, missing ones raise :class:`MetricNotImplementedError`
   naming the class and the method.
 
@@ -82,7 +82,7 @@ class Metric(Protocol):
 
     def riesz(self, Q: FloatArray, P: FloatArray, free: np.ndarray | None = None) -> FloatArray: ...
 
-    def exp(self, Q: FloatArray, V: FloatArray, t: float = 1.0) -> FloatArray: ...
+    def exp(self, Q: FloatArray, V: FloatArray, time: float = 1.0) -> FloatArray: ...
 
 
 def _vdot(U: FloatArray, V: FloatArray) -> float:
@@ -183,9 +183,9 @@ class EuclideanMetric:
             P[~mask] = 0.0
         return P
 
-    def exp(self, Q: FloatArray, V: FloatArray, t: float = 1.0) -> FloatArray:
-        """Straight line ``Q + t V`` (N, 2) (the Euclidean retraction of §6.4)."""
-        return np.asarray(Q, dtype=np.float64) + t * np.asarray(V, dtype=np.float64)
+    def exp(self, Q: FloatArray, V: FloatArray, time: float = 1.0) -> FloatArray:
+        """Straight line ``Q + time V`` (N, 2) (the Euclidean retraction of §6.4)."""
+        return np.asarray(Q, dtype=np.float64) + time * np.asarray(V, dtype=np.float64)
 
     def __repr__(self) -> str:
         return "EuclideanMetric()"
@@ -365,11 +365,11 @@ class ElasticityMetric:
         out[mask] = solver.solve(P[mask].ravel()).reshape(-1, 2)
         return out
 
-    def exp(self, Q: FloatArray, V: FloatArray, t: float = 1.0) -> FloatArray:
+    def exp(self, Q: FloatArray, V: FloatArray, time: float = 1.0) -> FloatArray:
         """Not available: use the Euclidean retraction with this metric (thesis §6.4)."""
         raise MetricNotImplementedError(
             "ElasticityMetric.exp is not implemented: the thesis pairs the elasticity metric "
-            "with the Euclidean retraction, use EuclideanMetric().exp(Q, V, t)"
+            "with the Euclidean retraction, use EuclideanMetric().exp(Q, V, time)"
         )
 
     def __repr__(self) -> str:
@@ -441,15 +441,15 @@ class CompleteMetric:
         out += P
         return out
 
-    def exp(self, Q: FloatArray, V: FloatArray, t: float = 1.0, **options) -> FloatArray:
-        """Exponential map ``γ(t)`` of this metric, ``γ(0) = Q``, ``γ'(0) = V`` (5.35).
+    def exp(self, Q: FloatArray, V: FloatArray, time: float = 1.0, **options) -> FloatArray:
+        """Exponential map ``γ(time)`` of this metric, ``γ(0) = Q``, ``γ'(0) = V`` (5.35).
 
         Delegates to :func:`meshopt_toolkit.riemannian.geodesics.exp_map` (imported on first use);
         ``options`` (integrator, tolerances, ...) are passed through.
         """
         from .geodesics import exp_map
 
-        return exp_map(self, Q, V, t, **options)
+        return exp_map(self, Q, V, time, **options)
 
     def __repr__(self) -> str:
         return f"CompleteMetric({self.penalty!r})"

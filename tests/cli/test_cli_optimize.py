@@ -26,7 +26,7 @@ def test_default_run_writes_everything(tmp_path, capsys):
         assert key in summary
     assert summary["iterations"] == 3 and summary["n_vertices"] == 146
     # set 2 at 146 vertices, β4 fixed, and the contact barrier β3
-    assert summary["penalty_beta"] == pytest.approx([0.1, 0.01, 0.01, 0.146])
+    assert summary["penalty_weights"] == pytest.approx([0.1, 0.01, 0.01, 0.146])
     for name in ("optimized.msh", "history.csv", "history.json", "summary.json", "mesh.png",
                  "history.png"):
         assert (out / name).stat().st_size > 0, name
@@ -180,7 +180,7 @@ def test_the_library_default_is_the_commands_default(tmp_path, capsys, method):
         main(["optimize", *args, "-o", str(out), "--method", method, "--max-iterations", "6",
               "--no-plots", "--json"])
         summary = json.loads(capsys.readouterr().out)
-        assert summary["penalty_beta"] == pytest.approx(DEFAULT_PENALTY_BETA)
+        assert summary["penalty_weights"] == pytest.approx(DEFAULT_PENALTY_BETA)
         res = mt.optimize(mt.load(path).as_planar(), method=method, max_iterations=6)
         assert res.nit == summary["iterations"] and res.status == summary["status"]
         assert res.fun == pytest.approx(summary["objective"], rel=1e-12)

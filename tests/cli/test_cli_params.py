@@ -83,3 +83,15 @@ def test_cli_filter_and_library_defaults_agree(cli, filter_cls, library):
     assert shared  # the library names the same parameters
     for name in shared:
         assert signature[name].default == defaults[name], name
+
+
+@pytest.mark.parametrize("param, words", [
+    (FloatParam("w", 1.0, "a weight", min=0.0, max=10.0, exclusive_min=True), "> 0 and <= 10"),
+    (FloatParam("w", 1.0, "a weight", min=0.0, max=10.0), "0 to 10"),
+    (IntParam("k", 1, "a count", min=1), ">= 1"),
+    (IntParam("k", 1, "a count", max=5), "<= 5"),
+])
+def test_an_options_help_states_its_whole_range(param, words):
+    from meshopt_toolkit.cli._params import _help
+
+    assert f"({words}; default: %(default)s)" in _help(param)
