@@ -281,8 +281,9 @@ def move(
     contact : bool
         A surface: keep it from passing through itself along the motion
         (:mod:`~meshopt_toolkit.motion.contact`) where its rest is free of
-        self-intersections; False: the motion as without contact, the result still
-        checked.
+        self-intersections; a TetMesh: keep the free parts of its boundary from passing
+        through each other and the handles (:mod:`~meshopt_toolkit.motion.tet_contact`);
+        False: the motion as without contact, the result still checked.
 
     Returns
     -------
@@ -318,12 +319,10 @@ def move(
     if solver is not None:  # another kind of mesh: its own solver, the same options
         _check_options(frames, steps, relax_iter, quality_rounds, max_splits, weight)
         rounds = {} if quality_rounds is None else {"quality_rounds": quality_rounds}
-        if solver is move_surface_mesh:
-            rounds["contact"] = contact
         guard = SelfIntersectionGuard(mesh, handles, targets)  # refuses crossing targets
         result = solver(mesh, handles, targets, frames=frames, steps=steps, weight=weight,
                         relax_iter=relax_iter, max_splits=max_splits, progress=progress,
-                        **rounds)
+                        contact=contact, **rounds)
         guard.check(result.frames)  # and a motion through itself
         return result
     quality_rounds = 6 if quality_rounds is None else quality_rounds
