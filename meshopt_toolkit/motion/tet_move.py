@@ -19,7 +19,9 @@ some boundary vertex is free) the free parts of the boundary cannot pass through
 other or through the handles (:mod:`.tet_contact`, IPC): the barrier joins the energy of
 the steps and the quality rounds, a step starts only at a prediction reached from the last
 frame along a straight path free of contact (CCD; else it is halved), and every trial of
-the line searches and of the polish is capped by CCD.
+the line searches and of the polish is capped by CCD. IPC has no pair for two boundary
+triangles sharing a vertex: a step whose end has two such triangles intersecting (exact)
+is halved, and a finish or polish whose result has is dropped.
 """
 
 from __future__ import annotations
@@ -239,13 +241,14 @@ def move_tets(points: FloatArray, tets: IntArray, handles, targets, *, steps: in
                                        True, touch)
         details.update(cont)
         if quality_rounds > 0:
-            residual[-1], fin = _finish(P, T, problem, residual[-1], quality_rounds,
-                                        relax_iter, True, fixed_ceiling(residual[-1], T, h),
-                                        touch)
+            end, fin = _finish(P, T, problem, residual[-1], quality_rounds, relax_iter, True,
+                               fixed_ceiling(residual[-1], T, h), touch)
+            residual[-1] = end if touch.embedded(end) else residual[-1]
             details.update(fin)
         if polish > 0:
-            residual[-1], pol = polish_worst_tets(residual[-1], T, h, iterations=polish,
-                                                  clear=touch.clear)
+            end, pol = polish_worst_tets(residual[-1], T, h, iterations=polish,
+                                         clear=touch.clear)
+            residual[-1] = end if touch.embedded(end) else residual[-1]
             details.update(pol)
         details["contact"] = touch.kappa is not None  # the barrier acted
         emb = [np.concatenate([(np.sqrt(mass)[:, None] * residual[i]).ravel(),
@@ -309,6 +312,8 @@ def _continuation(problem: Problem, P: FloatArray, h: IntArray, path: HandlePath
         res = minimize(problem, start, Q, rest, rtol=STEP_RTOL, max_iterations=relax_iter,
                        newton=newton, contact=contact)
         nit += res.iterations
+        if not contact.embedded(res.points):  # two boundary triangles of a fan meet
+            return None
         rate = (res.points - Q) / (s_try - s_now)
         return res.points
 
