@@ -227,7 +227,7 @@ def move_tets(points: FloatArray, tets: IntArray, handles, targets, *, steps: in
     strain = TetDistortion(P, T)
     mass = lumped_mass(P, T)
     details: dict = {"continuation_splits": 0, "step_iterations": 0, "finish_iterations": 0,
-                     "finish_rounds_kept": 0}
+                     "finish_rounds_kept": 0, "contact": False}
     scale = np.ptp(P, axis=0).max()
     if np.allclose(residual_targets, P[h], rtol=0.0, atol=1e-12 * scale):
         residual = [P.copy() for _ in times]  # the handles move by a similarity: so does all
@@ -250,7 +250,7 @@ def move_tets(points: FloatArray, tets: IntArray, handles, targets, *, steps: in
                                          clear=touch.clear)
             residual[-1] = end if touch.embedded(end) else residual[-1]
             details.update(pol)
-        details["contact"] = touch.kappa is not None  # the barrier acted
+        details["contact"] = touch.kappa is not None  # whether the barrier acted
         emb = [np.concatenate([(np.sqrt(mass)[:, None] * residual[i]).ravel(),
                                weight * strain.values(residual[i]).ravel()]) for i in pick]
         length = float(sum(np.linalg.norm(b - a) for a, b in zip(emb[:-1], emb[1:])))
