@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from test_tet_move import cube_tets
 
 import meshopt_toolkit as mt
 from meshopt_toolkit.diagnostics import check_gradient, check_hvp
@@ -23,31 +24,16 @@ from meshopt_toolkit.motion.tet_move import move_tets
 
 pytest.importorskip("ipctk")
 
-KUHN = [(0, 1, 2), (0, 2, 1), (1, 0, 2), (1, 2, 0), (2, 0, 1), (2, 1, 0)]
-
 
 def slotted_block(h: float = 1.0):
     """[0, 5] × [0, 1] × [0, 3] in cubes of side ``h`` (six Kuhn tets each) less the slot
     2 < x < 3, z > 1 and the corner x > 3, z > 2: a left arm 3 high and a right arm 2
     high, a slot of width 1 between them."""
-    nx, ny, nz = round(5 / h), round(1 / h), round(3 / h)
-    axes = [np.linspace(0, v, n + 1) for v, n in ((5, nx), (1, ny), (3, nz))]
-    P = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
-    idx = np.arange(len(P)).reshape(nx + 1, ny + 1, nz + 1)
-    i, _, k = np.meshgrid(np.arange(nx), np.arange(ny), np.arange(nz), indexing="ij")
-    cx, cz = (i + 0.5) * h, (k + 0.5) * h
-    keep = ~((cx > 2) & (cx < 3) & (cz > 1)) & ~((cx > 3) & (cz > 2))
-    corner = idx[:-1, :-1, :-1][keep]
-    step = np.array([(ny + 1) * (nz + 1), nz + 1, 1])
-    T = []
-    for perm in KUHN:
-        b = corner + step[perm[0]]
-        c = b + step[perm[1]]
-        T.append(np.stack([corner, b, c, c + step[perm[2]]], 1))
-    T = np.concatenate(T)
-    flip = signed_volumes(P, T) < 0
-    T[flip] = T[flip][:, [1, 0, 2, 3]]
-    used, local = np.unique(T, return_inverse=True)
+    P, T = cube_tets(round(5 / h))
+    P = 5.0 * P
+    x, y, z = P[T].mean(axis=1).T  # each tet's centroid is inside its cube
+    keep = (y < 1) & (z < 3) & ~((x > 2) & (x < 3) & (z > 1)) & ~((x > 3) & (z > 2))
+    used, local = np.unique(T[keep], return_inverse=True)
     return P[used], local.reshape(-1, 4)
 
 
