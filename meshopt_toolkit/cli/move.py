@@ -81,8 +81,9 @@ def add_args(p: argparse.ArgumentParser) -> None:
                    help="with --targets: the boundary vertices the file does not list move "
                         "freely (default: they stay fixed)")
     p.add_argument("--contact", choices=("on", "off"), default="on",
-                   help="a surface in 3D never passes through itself along the motion "
-                        "(where its rest is free of self-intersections; default on)")
+                   help="a surface in 3D, or the free parts of a tet mesh's boundary, "
+                        "never passes through itself along the motion (where its rest is "
+                        "free of self-intersections; default on)")
     add_options(p, PrescribedMotion, OPTIONS)
     add_output_flags(p, frames=MAX_FRAMES, frame_format="the input's")
 

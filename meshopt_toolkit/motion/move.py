@@ -281,8 +281,9 @@ def move(
     contact : bool
         A surface: keep it from passing through itself along the motion
         (:mod:`~meshopt_toolkit.motion.contact`) where its rest is free of
-        self-intersections; False: the motion as without contact, the result still
-        checked.
+        self-intersections; a TetMesh: keep the free parts of its boundary from passing
+        through each other and the handles (:mod:`~meshopt_toolkit.motion.tet_contact`);
+        False: the motion as without contact, the result still checked.
 
     Returns
     -------
@@ -319,13 +320,12 @@ def move(
     if solver is not None:  # another kind of mesh: its own solver, the same options
         _check_options(frames, steps, relax_iter, quality_rounds, max_splits, weight)
         rounds = {} if quality_rounds is None else {"quality_rounds": quality_rounds}
-        if solver is move_surface_mesh:
-            rounds["contact"] = contact
         guard = SelfIntersectionGuard(mesh, handles, targets)  # refuses crossing targets
         result = at_unit_size(
             lambda m, t: solver(m, handles, t, frames=frames, steps=steps, weight=weight,
                                 relax_iter=relax_iter, max_splits=max_splits,
-                                progress=progress, **rounds),
+                                progress=progress, contact=contact,
+                                **rounds),
             size_scale(mesh, columns=3), (mesh, targets),
             lambda r, scale: _scaled_up(r, scale, mesh, handles, targets))
         guard.check(result.frames)  # and a motion through itself

@@ -13,6 +13,11 @@ projected onto the positive semidefinite cone instead) with a backtracking line 
 where a tet is inverted, so every accepted iterate has every tet positively oriented. The
 sparse matrices are lower triangles on a pattern built once
 (:class:`.sparse_pattern.FreePattern`), factorized by CHOLMOD on a kept analysis.
+
+With a contact term (:mod:`.tet_contact`) ``E`` gains ``κ B(Q)``, the IPC barrier of the
+boundary: its gradient and PSD-projected Hessian join the Gauss–Newton equations where a
+pair is within ``d̂`` (a matrix of its own pattern, factorized afresh), and every trial
+of the line search starts at the fraction of the step that CCD finds free of contact.
 """
 
 from __future__ import annotations
@@ -26,6 +31,7 @@ import scipy.sparse as sp
 from .._typing import FloatArray, IntArray
 from ..descent import backtrack, halvings, sufficient_decrease
 from ..solvers import cholesky_spd, cholmod_available, factorize_spd, pcg
+from .contact import NoContact
 from .sparse_pattern import FreePattern
 from .tet_distortion import TetDistortion
 
@@ -142,14 +148,16 @@ class Problem:
         return g[self.pattern.free], gn, full
 
     def solve_step(self, lower: sp.csc_matrix, rhs: FloatArray, *,
-                   maybe_indefinite: bool = False) -> FloatArray:
+                   maybe_indefinite: bool = False, fresh: bool = False) -> FloatArray:
         """Solve with the matrix of lower triangle ``lower``: by conjugate gradients
         preconditioned with the kept factorization of an earlier matrix where they reach
         ``cg_rtol`` within ``cg_maxiter`` iterations, else by factorizing it.
 
         With ``maybe_indefinite``, a direction of non-positive curvature met by the
         conjugate gradients raises RuntimeError at once (the matrix is not positive
-        definite: its factorization would fail, and the kept one would be lost)."""
+        definite: its factorization would fail, and the kept one would be lost).
+        With ``fresh`` (a matrix off the kept pattern: the contact barrier's) a
+        factorization is made for this matrix alone, the kept one unchanged."""
         if self.cg_rtol > 0 and self.factor.solve is not None:
             d = lower.diagonal()
             upper = lower.T.tocsr()
@@ -162,7 +170,7 @@ class Problem:
             except FloatingPointError as exc:
                 if maybe_indefinite and "pᵀAp" in str(exc):  # not "non-finite"
                     raise RuntimeError("the matrix is not positive definite") from exc
-        return self.factor(lower)(rhs)
+        return (Factor() if fresh else self.factor)(lower)(rhs)
 
 
 @dataclass
@@ -185,7 +193,7 @@ class Minimized:
 
 def minimize(problem: Problem, Q: FloatArray, centre: FloatArray, anchor: FloatArray,
              cell_weights: FloatArray | None = None, *, rtol: float = 1e-2, gtol: float = 1e-10,
-             max_iterations: int = 20, newton: bool = False) -> Minimized:
+             max_iterations: int = 20, newton: bool = False, contact=None) -> Minimized:
     """Minimize ``E`` from the admissible ``Q`` (its fixed coordinates kept bitwise).
 
     Stops when the free gradient fell by ``rtol`` (or below ``gtol``), after ``max_iterations``
@@ -194,10 +202,15 @@ def minimize(problem: Problem, Q: FloatArray, centre: FloatArray, anchor: FloatA
     the remaining iterations take Gauss–Newton steps without trying it again: it rarely
     becomes definite again within a few iterations, and each failed factorization costs
     as much as a successful one.
+
+    ``contact``: a :class:`.contact.ContactTerm` on the problem's free coordinates (its
+    ``κ`` set and raised here by IPC's rule); None: none. Where a pair is within ``d̂``
+    the step is Gauss–Newton's with the barrier's Hessian.
     """
+    contact = NoContact() if contact is None else contact
     Q = np.array(Q, float)
     w = np.ones(len(problem.strain.tets)) if cell_weights is None else np.asarray(cell_weights)
-    E = problem.energy(Q, centre, anchor, w)
+    E = problem.energy(Q, centre, anchor, w) + contact.energy(Q)
     if not np.isfinite(E):
         raise ValueError("the start of a tet least-squares problem must be admissible")
     free = problem.pattern.free
@@ -205,6 +218,12 @@ def minimize(problem: Problem, Q: FloatArray, centre: FloatArray, anchor: FloatA
     ratio = 1.0
     for it in range(max_iterations):
         g, gn, full = problem.normal_equations(Q, centre, anchor, w, newton)
+        if contact.set_stiffness(Q, g):  # κ set or raised: the energy changes
+            E = problem.energy(Q, centre, anchor, w) + contact.energy(Q)
+        barrier = contact.hessian(Q)
+        if barrier is not None:
+            g = g + contact.gradient(Q)
+            gn, full = (gn + sp.tril(barrier)).tocsc(), None
         gnorm = float(np.linalg.norm(g))
         g0 = gnorm if g0 is None else g0
         ratio = gnorm / g0 if g0 > 0 else 0.0
@@ -220,16 +239,18 @@ def minimize(problem: Problem, Q: FloatArray, centre: FloatArray, anchor: FloatA
                 step = None
             newton = step is not None  # from now on Gauss–Newton where it failed
         if step is None:
-            step = -problem.solve_step(gn, g)
+            step = -problem.solve_step(gn, g, fresh=barrier is not None)
         slope = float(step @ g)
 
         def try_step(t: float, Q=Q, E=E, step=step, slope=slope):
             trial = Q.copy()
             trial.reshape(-1)[free] += t * step
             Et = problem.energy(trial, centre, anchor, w)
+            if np.isfinite(Et):
+                Et += contact.energy(trial)
             return (trial, Et) if sufficient_decrease(Et, E, t, slope) else None
 
-        found = backtrack(try_step, halvings(count=40))
+        found = backtrack(try_step, halvings(contact.step_cap(Q, -step), count=40))
         if found is None:
             return Minimized(Q, it, E, ratio)
         Q, E = found[1]

@@ -13,6 +13,15 @@ where all three invert a tet is halved), and minimizes ``½|Q − Q_prev|²_M + 
 every accepted iterate admissible). A quality finish
 with the handles fixed then fits the distortion from regular tets, pressing on the worst,
 and a local polish raises the worst tets' mean ratio (:mod:`.tet_polish`).
+
+With ``contact`` (the default, where the rest's boundary is free of self-intersections and
+some boundary vertex is free) the free parts of the boundary cannot pass through each
+other or through the handles (:mod:`.tet_contact`, IPC): the barrier joins the energy of
+the steps and the quality rounds, a step starts only at a prediction reached from the last
+frame along a straight path free of contact (CCD; else it is halved), and every trial of
+the line searches and of the polish is capped by CCD. IPC has no pair for two boundary
+triangles sharing a vertex: a step whose end has two such triangles intersecting (exact)
+is halved, and a finish or polish whose result has is dropped.
 """
 
 from __future__ import annotations
@@ -31,11 +40,13 @@ from ..kernels.tetrahedra import orientations as tet_orientations
 from ..kernels.tetrahedra import signed_volumes as tet_signed_volumes
 from ..mesh import TetMesh
 from ..scaling import UnitScale
+from .contact import NoContact
 from .continuation import NoAdmissiblePathError, march
 from .handles3d import SolvedVertices, check_handles, distinct_handles
 from .pinned_cells import pinned, turned_over_problem
 from .similarity import HandlePath, Similarity3, fit_similarity_3d, handle_groups
 from .similarity_3d import tet_boundary_faces
+from .tet_contact import tet_contact_term
 from .tet_distortion import SQRT3, TetDistortion
 from .tet_least_squares import Problem, extend, minimize
 from .tet_polish import fixed_ceiling, polish_worst_tets
@@ -129,14 +140,15 @@ def _check(points, tets, handles, targets) -> tuple[FloatArray, IntArray, IntArr
 
 
 def _finish(strain_source: FloatArray, tets: IntArray, problem: Problem, Q: FloatArray,
-            rounds: int, max_iter: int, newton: bool, ceiling: float = np.inf
-            ) -> tuple[FloatArray, dict]:
+            rounds: int, max_iter: int, newton: bool, ceiling: float = np.inf,
+            contact=None) -> tuple[FloatArray, dict]:
     """Quality rounds with the handles fixed: proximal least squares of the distortion
     from regular tets of the source's volumes, each round's tet weights those of the last
     times ``max(1, |φ_shape|/rms)^½`` (the tets that stay the worst weigh more and more);
     the iterate with the best minimum mean ratio is kept (the unfinished one included).
     The rounds stop once it reaches ``ceiling`` (the worst mean ratio of the tets with
-    only fixed corners: no later round can beat it)."""
+    only fixed corners: no later round can beat it). ``contact``: the motion's contact
+    term (:func:`.minimize`)."""
     absolute = TetDistortion.regular(strain_source, tets)
     quality = replace(problem, strain=absolute)  # the same pattern, factor and settings
     best, best_q = Q, float(tet_mean_ratios(Q, tets).min())
@@ -146,7 +158,7 @@ def _finish(strain_source: FloatArray, tets: IntArray, problem: Problem, Q: Floa
         if best_q >= ceiling:
             break
         res = minimize(quality, Q, Q, zero, weights, rtol=QUALITY_RTOL, max_iterations=max_iter,
-                       newton=newton)
+                       newton=newton, contact=contact)
         nit += res.iterations
         Q = res.points
         q = float(tet_mean_ratios(Q, tets).min())
@@ -159,8 +171,8 @@ def _finish(strain_source: FloatArray, tets: IntArray, problem: Problem, Q: Floa
 
 def move_tets(points: FloatArray, tets: IntArray, handles, targets, *, steps: int = 4,
               frames: int | None = None, weight: float = 1.0, relax_iter: int = 15,
-              quality_rounds: int = 4, max_splits: int = 12, newton: bool = True,
-              polish: int = 300) -> TetMoveResult:
+              quality_rounds: int = 4, max_splits: int = 12, polish: int = 300,
+              contact: bool = True) -> TetMoveResult:
     """Move the ``handles`` vertices of a tet mesh exactly to ``targets``; place the
     other vertices to keep every tet positively oriented and as good as the motion allows.
 
@@ -182,10 +194,13 @@ def move_tets(points: FloatArray, tets: IntArray, handles, targets, *, steps: in
         Iterations of each step's minimization and of each quality round.
     quality_rounds : int
         Rounds of the quality finish (0: none).
-    newton : bool
-        Newton steps (falling back to Gauss–Newton where not positive definite).
     polish : int
         L-BFGS iterations of the local polish of the worst tets (0: none).
+    contact : bool
+        Keep the free parts of the boundary from passing through each other and through
+        the handles (module docstring) where the rest's boundary is free of
+        self-intersections (else a :class:`.contact.ContactWarning` with the count, and
+        no contact).
 
     Returns
     -------
@@ -197,7 +212,8 @@ def move_tets(points: FloatArray, tets: IntArray, handles, targets, *, steps: in
         Bad points, tets, handles or targets; targets that turn over or flatten a tet
         whose vertices are all handles (a mirror image of the mesh turns every tet over).
     NoAdmissiblePathError
-        No admissible step found after ``max_splits`` halvings.
+        No admissible step found after ``max_splits`` halvings (with contact: also where
+        the handles' own path brings the boundary into contact).
     """
     t_start = time.perf_counter()
     P, T, h, tg = _check(points, tets, handles, targets)
@@ -211,7 +227,7 @@ def move_tets(points: FloatArray, tets: IntArray, handles, targets, *, steps: in
     strain = TetDistortion(P, T)
     mass = lumped_mass(P, T)
     details: dict = {"continuation_splits": 0, "step_iterations": 0, "finish_iterations": 0,
-                     "finish_rounds_kept": 0}
+                     "finish_rounds_kept": 0, "contact": False}
     scale = np.ptp(P, axis=0).max()
     if np.allclose(residual_targets, P[h], rtol=0.0, atol=1e-12 * scale):
         residual = [P.copy() for _ in times]  # the handles move by a similarity: so does all
@@ -220,16 +236,21 @@ def move_tets(points: FloatArray, tets: IntArray, handles, targets, *, steps: in
         path = HandlePath(P[h], residual_targets,
                           handle_groups(h, tet_boundary_faces(T), len(P)))
         problem = Problem.build(strain, weight, mass, h)
+        touch = tet_contact_term(P, T, problem.pattern.free, mass, contact)
         residual, cont = _continuation(problem, P, h, path, times, relax_iter, max_splits,
-                                       newton)
+                                       True, touch)
         details.update(cont)
         if quality_rounds > 0:
-            residual[-1], fin = _finish(P, T, problem, residual[-1], quality_rounds,
-                                        relax_iter, newton, fixed_ceiling(residual[-1], T, h))
+            end, fin = _finish(P, T, problem, residual[-1], quality_rounds, relax_iter, True,
+                               fixed_ceiling(residual[-1], T, h), touch)
+            residual[-1] = end if touch.embedded(end) else residual[-1]
             details.update(fin)
         if polish > 0:
-            residual[-1], pol = polish_worst_tets(residual[-1], T, h, iterations=polish)
+            end, pol = polish_worst_tets(residual[-1], T, h, iterations=polish,
+                                         clear=touch.clear)
+            residual[-1] = end if touch.embedded(end) else residual[-1]
             details.update(pol)
+        details["contact"] = touch.kappa is not None  # whether the barrier acted
         emb = [np.concatenate([(np.sqrt(mass)[:, None] * residual[i]).ravel(),
                                weight * strain.values(residual[i]).ravel()]) for i in pick]
         length = float(sum(np.linalg.norm(b - a) for a, b in zip(emb[:-1], emb[1:])))
@@ -265,11 +286,13 @@ def _predictions(problem: Problem, Q: FloatArray, h: IntArray, target: FloatArra
 
 
 def _continuation(problem: Problem, P: FloatArray, h: IntArray, path: HandlePath,
-                  times: FloatArray, relax_iter: int, max_splits: int, newton: bool
-                  ) -> tuple[list[FloatArray], dict]:
+                  times: FloatArray, relax_iter: int, max_splits: int, newton: bool,
+                  contact=None) -> tuple[list[FloatArray], dict]:
     """Frames at ``times`` of the minimizing movement (see :func:`move_tets`):
     :func:`.continuation.march` with each step started at the first admissible of
-    :func:`_predictions`."""
+    :func:`_predictions` (with a ``contact`` term: reached along a straight path free of
+    contact, :meth:`.contact.ContactTerm.clear`)."""
+    contact = NoContact() if contact is None else contact
     nit, rate = 0, None  # the last step's motion per unit of s
     used = {"extension": 0, "velocity": 0, "kept": 0}  # steps started by each prediction
     # each step's distortion is measured from the rest shape: anchored at the last frame
@@ -281,14 +304,16 @@ def _continuation(problem: Problem, P: FloatArray, h: IntArray, path: HandlePath
         nonlocal nit, rate
         velocity = None if rate is None else rate * (s_try - s_now)
         for name, start in _predictions(problem, Q, h, path(s_try), velocity):
-            if (problem.strain.determinants(start) > 0).all():
+            if (problem.strain.determinants(start) > 0).all() and contact.clear(Q, start):
                 used[name] += 1
                 break
         else:
             return None
         res = minimize(problem, start, Q, rest, rtol=STEP_RTOL, max_iterations=relax_iter,
-                       newton=newton)
+                       newton=newton, contact=contact)
         nit += res.iterations
+        if not contact.embedded(res.points):  # two boundary triangles of a fan meet
+            return None
         rate = (res.points - Q) / (s_try - s_now)
         return res.points
 
@@ -336,10 +361,11 @@ class TetMeshMoveResult:
 def move_tet_mesh(mesh: TetMesh, handles, targets, *, frames: int | None = None,
                   steps: int = 4, weight: float = 1.0, relax_iter: int = 15,
                   quality_rounds: int = 4, max_splits: int = 12,
-                  progress: Callable[[float], None] | None = None) -> TetMeshMoveResult:
+                  progress: Callable[[float], None] | None = None,
+                  contact: bool = True) -> TetMeshMoveResult:
     """:func:`move_tets` on a :class:`TetMesh`: the moved mesh and frames keep its tets,
     tags and names (``mt.move`` calls this for a TetMesh, at unit size:
-    :func:`~meshopt_toolkit.scaling.at_unit_size`).
+    :func:`~meshopt_toolkit.scaling.at_unit_size`); ``contact`` as there.
 
     Raises
     ------
@@ -357,7 +383,8 @@ def move_tet_mesh(mesh: TetMesh, handles, targets, *, frames: int | None = None,
     solved = SolvedVertices(mesh.points, mesh.tets, h, tg)
     res = move_tets(solved.points, solved.cells, solved.handles, solved.targets, steps=steps,
                     frames=frames, weight=weight, relax_iter=relax_iter,
-                    quality_rounds=quality_rounds, max_splits=max_splits)
+                    quality_rounds=quality_rounds, max_splits=max_splits,
+                    contact=contact)
 
     moved = mesh.with_points(solved.full(res.points))
     out = ([mesh.with_points(solved.full(F)) for F in res.frames[:-1]] + [moved]

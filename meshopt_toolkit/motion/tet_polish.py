@@ -10,7 +10,8 @@ mean ratios ``q = 1/η = Σℓ² / (12 (3V)^{2/3})`` of the tets these vertices 
 by L-BFGS whose backtracking line search refuses every trial with an inverted tet (``F``
 is ``+inf`` there): every accepted iterate has every tet positively oriented, and the
 result is kept only where its worst mean ratio is higher (it is not tried where the worst tet
-has only fixed corners).
+has only fixed corners). With ``clear`` (a motion's contact, :mod:`.tet_contact`) a trial
+is also refused where the straight path to it passes through contact (CCD).
 """
 
 from __future__ import annotations
@@ -84,7 +85,7 @@ def fixed_ceiling(points: FloatArray, tets: IntArray, fixed: IntArray) -> float:
 
 def polish_worst_tets(points: FloatArray, tets: IntArray, fixed: IntArray, *,
                       worst: int = 300, rings: int = 3, iterations: int = 300,
-                      sharpness: float = 1.0) -> tuple[FloatArray, dict]:
+                      sharpness: float = 1.0, clear=None) -> tuple[FloatArray, dict]:
     """Raise the worst mean ratio of a positively oriented tet mesh by moving the vertices
     near its worst tets (the ``fixed`` vertices kept bitwise).
 
@@ -102,6 +103,10 @@ def polish_worst_tets(points: FloatArray, tets: IntArray, fixed: IntArray, *,
         L-BFGS iterations.
     sharpness : float
         ``s`` of the soft maximum (``s → ∞``: the worst tet alone).
+    clear : callable ``(Q0, Q1) -> bool``, optional
+        Whether the straight step between two configurations is free of contact
+        (:meth:`.contact.ContactTerm.clear`); every accepted trial is, from the last
+        iterate.
 
     Returns
     -------
@@ -124,14 +129,27 @@ def polish_worst_tets(points: FloatArray, tets: IntArray, fixed: IntArray, *,
     active = movable[T].any(axis=1)
     energy = _SoftMax(T[active], len(P), free, float(sharpness))
 
-    def objective(u: FloatArray):
+    def at(u: FloatArray) -> FloatArray:
         x = P.copy()
         x[free] = u.reshape(-1, 3)
-        return energy(x)
+        return x
+
+    def objective(u: FloatArray):
+        return energy(at(u))
+
+    last = [P[free].ravel()]  # the last accepted iterate: the start of the next trials
+
+    def admissible(u: FloatArray) -> bool:
+        if not clear(at(last[0]), at(u)):
+            return False
+        last[0] = u
+        return True
 
     out = P.copy()
     out[free] = minimize_lbfgs(objective, P[free].ravel(), iterations, first_step=1e-3,
-                               min_step=1e-12, curvature=1e-16).reshape(-1, 3)
+                               min_step=1e-12, curvature=1e-16,
+                               admissible=None if clear is None else admissible
+                               ).reshape(-1, 3)
     after = float(mean_ratios(out, T).min())
     if not after > before:
         return P, info
