@@ -23,6 +23,7 @@ import json
 import math
 import os
 import platform
+import signal
 import subprocess
 import sys
 import tempfile
@@ -52,9 +53,13 @@ class Case:
 
 # ---------------------------------------------------------------- runners (in a worker)
 
+_CPU = [0.0]  # the CPU seconds of the last timed call (all threads: robust to the load)
+
+
 def _timed(fn, *args, **kwargs):
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     out = fn(*args, **kwargs)
+    _CPU[0] = time.process_time() - c0
     return out, time.perf_counter() - t0
 
 
@@ -69,7 +74,7 @@ def run_move(index: int, more: bool = False, size: float = 0.05) -> dict:
 
     _, mesh, handles, targets = next(itertools.islice(
         (b.more_cases if more else b.cases)(size), index, None))
-    row, why = b.measure(b.ours, mesh, handles, targets)
+    (row, why), _ = _timed(b.measure, b.ours, mesh, handles, targets)
     if row is None:
         raise RuntimeError(why)
     ar, lam, inv, err, sec, _ = row
@@ -205,7 +210,7 @@ def worker(tree: str, runner: str, kwargs: str) -> None:
     where = Path(meshopt_toolkit.__file__).resolve()
     if Path(tree).resolve() not in where.parents:
         raise SystemExit(f"meshopt_toolkit imported from {where}, not from {tree}")
-    out = RUNNERS[runner](**json.loads(kwargs))
+    out = {**RUNNERS[runner](**json.loads(kwargs)), "cpu": _CPU[0]}
     print("\n" + json.dumps(out, default=float))
 
 
@@ -312,9 +317,11 @@ def summarize(runs: list[dict]) -> dict:
     the fastest time, the last run's other measures and the first error."""
     ok = [r for r in runs if "error" not in r]
     if not ok:
-        return {"worst": None, "seconds": None, "measures": {}, "error": runs[0]["error"]}
+        return {"worst": None, "seconds": None, "cpu": None, "measures": {},
+                "error": runs[0]["error"]}
     worsts = [r["worst"] for r in ok]
     return {"worst": min(worsts), "seconds": min(r["seconds"] for r in ok),
+            "cpu": min(r["cpu"] for r in ok),
             "measures": ok[-1]["measures"], "varies": len(set(worsts)) > 1}
 
 
@@ -322,6 +329,7 @@ def row(case: Case, old: dict, new: dict) -> dict:
     good = equal_or_better(old["worst"], new["worst"])
     fast = within(old["seconds"], new["seconds"])
     ratio = new["seconds"] / old["seconds"] if old["seconds"] and new["seconds"] else None
+    cpu = new["cpu"] / old["cpu"] if old["cpu"] and new["cpu"] else None
     other = [f"{k} {_fmt(old['measures'].get(k))} → {_fmt(v)}"
              for k, v in new["measures"].items() if not _same(old["measures"].get(k), v)]
     if None not in (old["worst"], new["worst"]) and not _same(old["worst"], new["worst"]):
@@ -332,21 +340,21 @@ def row(case: Case, old: dict, new: dict) -> dict:
         if r.get("varies"):
             other.append(f"{side}: worst differs between repeats")
     return {"table": case.table, "case": case.name, "old": old, "new": new, "good": good,
-            "fast": fast, "ratio": ratio, "other": "; ".join(other) or "same"}
+            "fast": fast, "ratio": ratio, "cpu": cpu, "other": "; ".join(other) or "same"}
 
 
 def markdown_table(rows: list[dict]) -> str:
     lines = ["| table | case | worst old | worst new | equal or better | s old | s new | "
-             "new / old | within 1.2× | other measures (old → new) |",
-             "| --- | --- | ---: | ---: | --- | ---: | ---: | ---: | --- | --- |"]
+             "new / old | within 1.2× | CPU new / old | other measures (old → new) |",
+             "| --- | --- | ---: | ---: | --- | ---: | ---: | ---: | --- | ---: | --- |"]
     sec = lambda x: "–" if x is None else f"{x:.2f}"  # noqa: E731
     for r in rows:
-        ratio = "–" if r["ratio"] is None else f"{r['ratio']:.2f}"
+        ratio, cpu = ("–" if x is None else f"{x:.2f}" for x in (r["ratio"], r["cpu"]))
         lines.append(
             f"| {r['table']} | {r['case']} | {_fmt(r['old']['worst'])} | "
             f"{_fmt(r['new']['worst'])} | {'yes' if r['good'] else '**no**'} | "
             f"{sec(r['old']['seconds'])} | {sec(r['new']['seconds'])} | {ratio} | "
-            f"{'yes' if r['fast'] else '**no**'} | {r['other']} |")
+            f"{'yes' if r['fast'] else '**no**'} | {cpu} | {r['other']} |")
     return "\n".join(lines)
 
 
@@ -439,6 +447,7 @@ def main(argv=None) -> int:
     if args.list:
         print("\n".join(f"{c.page} | {c.table} | {c.name}" for c in cases))
         return 0
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(1))  # remove the worktrees when killed
     started = time.time()
     load0 = os.getloadavg()
     with tempfile.TemporaryDirectory(prefix="compare_revisions_") as tmp:
@@ -460,7 +469,8 @@ def main(argv=None) -> int:
         f"{describe(args.new)}. Each case is built by that revision's benchmark script and "
         f"ours is run {args.repeats} times in each revision, alternating (old, new, new, old, "
         "...), each run in a process of its own with one BLAS/OpenMP thread; the seconds are "
-        "ours' call alone, the fastest of the runs. Worst: the worst quality the page's "
+        "ours' call alone (wall; CPU: all the process's threads, less sensitive to the load), "
+        "the fastest of the runs. Worst: the worst quality the page's "
         f"table prints (higher is better), equal or better to {RTOL:g} relative; the time "
         f"within {TIME_RATIO}× of the old. Machine: {platform.machine()}, "
         f"{os.cpu_count()} cores, Python {platform.python_version()}, shared with other work "
