@@ -255,7 +255,8 @@ def all_cases() -> list[Case]:
         why = "" if small else "tens of seconds to minutes per run (the page's mesh sizes)"
         out += [Case(_3D, "bench_move3d" + tag, n, "run_move3d", {"name": n, "box_size": box},
                      small and "180" not in n, why or _SLOW) for n in _BOX3D]
-        out += [Case(_3D, "bench_move3d" + tag.replace("box", "channel"), n, "run_move3d",
+        out += [Case(_3D, "bench_move3d" + tag.replace("box size 0.25", "channel size 0.15"),
+                     n, "run_move3d",
                      {"name": n, "channel_size": 0.15 if small else 0.06}, False,
                      "1.5–4 minutes per run at the page's size" if not small else
                      "still 10 s and more per run at channel size 0.15") for n in _CHANNEL3D]
@@ -267,7 +268,7 @@ def all_cases() -> list[Case]:
                      False, why or "the case of bench_move3d's first row, the finish's options")]
         out += [Case(_3D, "bench_tet_morph" + tag, f"box, sphere turned {d}°", "run_tet_morph",
                      {"size": box if small else 0.12, "degrees": d}, small and d == 90, why or
-                     "the target by move_tets first (150°: the slower one)") for d in (90, 150)]
+                     "the slower of the two") for d in (90, 150)]
     out += [Case(_SURF, "bench_surface (contact=False)", n, "run_surface", {"name": n}, d,
                  "" if d else ("about a minute per run" if "armadillo" in n else _SLOW))
             for n, d in _SURFACE.items()]
@@ -276,7 +277,8 @@ def all_cases() -> list[Case]:
                      {"pair": pair, "method": meth},
                      "libigl" in pair and "armadillo" not in pair and (
                          meth == "ours" or (meth == "ours, energy stop" and "bar" in pair)),
-                     "the pose by move_surface first" if "ours" in pair.split("-")[1] else _SLOW)
+                     "the pose by move_surface first" if pair.endswith("ours") else
+                     "the pose by libigl's ARAP first, a minute" if "armadillo" in pair else _SLOW)
                 for meth in _MORPH_METHODS]
     return out
 
@@ -330,8 +332,8 @@ def row(case: Case, old: dict, new: dict) -> dict:
     fast = within(old["seconds"], new["seconds"])
     ratio = new["seconds"] / old["seconds"] if old["seconds"] and new["seconds"] else None
     cpu = new["cpu"] / old["cpu"] if old["cpu"] and new["cpu"] else None
-    other = [f"{k} {_fmt(old['measures'].get(k))} → {_fmt(v)}"
-             for k, v in new["measures"].items() if not _same(old["measures"].get(k), v)]
+    other = [f"{k} {_fmt(old['measures'][k])} → {_fmt(v)}" for k, v in new["measures"].items()
+             if k in old["measures"] and not _same(old["measures"][k], v)]
     if None not in (old["worst"], new["worst"]) and not _same(old["worst"], new["worst"]):
         other.insert(0, f"worst {new['worst'] - old['worst']:+.2e}")
     for side, r in (("old", old), ("new", new)):
@@ -415,15 +417,19 @@ def report(rows: list[dict], cases: list[Case], header: str, selected_all: bool)
         out += ["", f"## {page}", "", markdown_table([r for r, c in zip(rows, cases)
                                                       if c.page == page])]
         if not selected_all:
-            left = [c for c in all_cases() if c.page == page and not c.default]
+            left: dict = {}
+            for c in all_cases():
+                if c.page == page and not c.default:
+                    left.setdefault((c.table, c.why_not), []).append(c.name)
             if left:
                 out += ["", "Left out of the default set (`--all` runs them):", ""]
-                out += [f"- {c.table}: {c.name} ({c.why_not})" for c in left]
+                out += [f"- {t}: {'; '.join(names)} ({why})" for (t, why), names in left.items()]
     bad = [r for r in rows if not (r["good"] and r["fast"])]
     out += ["", "## Rows where the new revision is worse", ""]
     out += [f"- {r['table']}: {r['case']}: " + ", ".join(
         (["worst quality lower"] if not r["good"] else [])
-        + ([f"time ×{_fmt(r['ratio'])}"] if not r["fast"] else [])) for r in bad] or ["none"]
+        + ([f"time ×{r['ratio']:.2f} (CPU ×{r['cpu']:.2f})" if r["ratio"] else "no time"]
+           if not r["fast"] else [])) for r in bad] or ["none"]
     return "\n".join(out) + "\n"
 
 
