@@ -406,7 +406,8 @@ def compare(trees: dict, cases: list[Case], repeats: int, timeout: float, log) -
                 runs[side].append(run_once(trees[side], case, timeout))
         r = row(case, summarize(runs["old"]), summarize(runs["new"]))
         log(f"{case.page} | {r['table']} | {r['case']}: worst {_fmt(r['old']['worst'])} → "
-            f"{_fmt(r['new']['worst'])}, {r['old']['seconds']} → {r['new']['seconds']} s")
+            f"{_fmt(r['new']['worst'])}, {r['old']['seconds']} → {r['new']['seconds']} s, "
+            f"CPU ×{r['cpu']}; {r['other']}")
         rows.append(r)
     return rows
 
