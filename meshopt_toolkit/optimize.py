@@ -44,6 +44,7 @@ from ._typing import FloatArray
 from .errors import OptimizationError, OptionError
 from .kernels.triangles import aspect_ratios
 from .mesh import PlanarMesh, require_admissible
+from .mesh.kinds import is_tets
 from .shape.options import OptimizeOptions
 from .shape.spec import ProblemSpec
 from .shape.result import PHASES, IterationRecord, OptimizeResult
@@ -241,9 +242,9 @@ def optimize(
     o = OptimizeOptions.of(options)
     exp_options = o.exp_options
     retraction = _retraction_kind(variant, o.retraction, exp_options)
-    mesh = require_admissible(mesh, "shape optimization")
+    tets = is_tets(mesh)
+    mesh = mesh.require_admissible() if tets else require_admissible(mesh, "shape optimization")
     _check_size(mesh.points)
-    tri = mesh.triangles
     N = mesh.n_vertices
     spec = ProblemSpec() if problem is None else problem
     if objective is None:
@@ -258,27 +259,35 @@ def optimize(
             raise OptimizationError("every vertex is fixed: nothing to optimize")
     if (spec.keep_area or spec.keep_barycenter) and method == "steepest":
         raise OptionError("keep_area and keep_barycenter need method 'lbfgs' or 'cg'")
-    f2 = None
-    if penalty is not None and any(b != 0 for b in penalty):
-        from .penalties import QualityPenalty
+    auto = spec.scale == "auto"
+    if tets:
+        from .shape.tets import tet_setup
 
-        contact = contact_options(mesh) if penalty[2] > 0 else {}
-        f2 = QualityPenalty(mesh, beta=tuple(penalty), **contact)
-    metric = _make_metric(variant, mesh, metric_beta, dict(o.metric_options or {}))
+        f2, metric, Problem, floor = tet_setup(mesh, variant, penalty, o.lbfgs_preconditioner)
+        cells, boundary, norm_metric = mesh.tets, mesh.boundary_faces, metric
+    else:
+        f2 = None
+        if penalty is not None and any(b != 0 for b in penalty):
+            from .penalties import QualityPenalty
+
+            contact = contact_options(mesh) if penalty[2] > 0 else {}
+            f2 = QualityPenalty(mesh, beta=tuple(penalty), **contact)
+        metric = _make_metric(variant, mesh, metric_beta, dict(o.metric_options or {}))
+        cells, boundary, norm_metric, Problem = mesh.triangles, mesh.boundary_edges, None, ShapeProblem
+        floor = QUALITY_GUARD * aspect_ratios(mesh.points, cells).min() if auto else None
     retract = (None if retraction is None
                else _make_retraction(retraction, metric, exp_options, free))
     constraint = spec.constraint(mesh, lambda Q, P: metric.riesz(Q, P, free=free), free)
-    weight = spec.weight(lambda: _elasticity_gradient_norm(mesh, objective, free, spec))
-    auto = spec.scale == "auto"
-    floor = QUALITY_GUARD * aspect_ratios(mesh.points, tri).min() if auto else None
+    weight = spec.weight(lambda: _gradient_norm(mesh, objective, free, spec, norm_metric))
     start = time.perf_counter()
     step = _iteration_hook(callback, progress, max_iterations)
     for attempt in range(1 + (GUARD_TRIES if auto else 0)):
         weighed = objective if weight == 1.0 else ScaledObjective(objective, weight)
-        problem = ShapeProblem(weighed, f2, metric, tri, mesh.boundary_edges, free,
-                               constraint, quality_floor=floor)
-        h0 = make_preconditioner(o.lbfgs_preconditioner, metric_kind=VARIANT_PARTS[variant][0],
-                                 method=method, mesh=mesh, penalty=f2, free=free)
+        problem = Problem(weighed, f2, metric, cells, boundary, free, constraint,
+                          quality_floor=floor)
+        h0 = None if tets else make_preconditioner(
+            o.lbfgs_preconditioner, metric_kind=VARIANT_PARTS[variant][0], method=method,
+            mesh=mesh, penalty=f2, free=free)
         result = run_descent(mesh, problem, method=method, variant=variant, retraction=retract,
                              max_iterations=max_iterations, options=o, callback=step, h0=h0)
         if not auto or result.status != "step_too_small":
@@ -317,16 +326,16 @@ def _unweighed(result: OptimizeResult, objective, weight: float) -> OptimizeResu
     return result
 
 
-def _elasticity_gradient_norm(mesh: PlanarMesh, objective, free, spec: ProblemSpec) -> float:
-    """``‖grad j‖`` at the initial mesh in the elasticity metric (projected onto the
-    tangent space of ``spec``'s constraints)."""
+def _gradient_norm(mesh, objective, free, spec: ProblemSpec, metric=None) -> float:
+    """``‖grad j‖`` at the initial mesh in ``metric`` (None: the elasticity metric),
+    projected onto the tangent space of ``spec``'s constraints."""
     from .riemannian.metrics import ElasticityMetric
 
     Q = mesh.points
     P = np.asarray(objective.derivative(Q), dtype=float)
     if free is not None:
         P = np.where(free[:, None], P, 0.0)
-    metric = ElasticityMetric(mesh)
+    metric = ElasticityMetric(mesh) if metric is None else metric
     g = metric.riesz(Q, P, free=free)
     constraint = spec.constraint(mesh, lambda X, V: metric.riesz(X, V, free=free), free)
     if constraint is not None:

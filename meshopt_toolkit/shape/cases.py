@@ -164,3 +164,69 @@ def user_mesh(case: str, path: str | os.PathLike, size: float = 0.1, *,
         path.parent.mkdir(parents=True, exist_ok=True)
         gmsh.write(str(path))
     return path
+
+
+#: the 3D Stokes case: an 8 × 6 × 6 box around a body at the origin
+BOX_3D = (8.0, 6.0, 6.0)
+
+
+def body_in_box(path: str | os.PathLike, size: float = 1.0, body_size: float = 0.15, *,
+                aspect: float = 1.0, radius: float = 0.5) -> Path:
+    """Tetrahedra of the ``8 × 6 × 6`` box centred at the origin around a prolate spheroid
+    with the volume of the sphere of ``radius`` (``aspect`` = its axis along ``x`` over
+    the other two; 1: the sphere), surface groups ``"body"`` and ``"outer"``, the volume
+    ``"domain"``: the 3D Stokes case (drag of the body moving along ``x``).
+
+    Parameters
+    ----------
+    path : where the ``.msh`` (format 4.1) goes
+    size : element size at the box
+    body_size : element size on the body, graded to ``size`` away from it
+    aspect : the spheroid's axis ratio
+    radius : the radius of the sphere of equal volume
+
+    Returns
+    -------
+    Path
+    """
+    path = Path(path)
+    b = radius * aspect ** (-1.0 / 3.0)  # a b² = r³ with a = aspect · b
+    with gmsh_session() as gmsh:
+        gmsh.option.setNumber("General.NumThreads", 1)
+        gmsh.option.setNumber("Mesh.RandomSeed", 1)
+        gmsh.model.add("body_in_box")
+        occ = gmsh.model.occ
+        lx, ly, lz = BOX_3D
+        box = occ.addBox(-lx / 2, -ly / 2, -lz / 2, lx, ly, lz)
+        ball = occ.addSphere(0, 0, 0, b)
+        if aspect != 1.0:
+            occ.dilate([(3, ball)], 0, 0, 0, aspect, 1.0, 1.0)
+        occ.cut([(3, box)], [(3, ball)])
+        occ.synchronize()
+        body, outer = [], []
+        for _, s in gmsh.model.getEntities(2):
+            x, y, z = occ.getCenterOfMass(2, s)
+            (body if max(abs(x), abs(y), abs(z)) < 1.5 * max(aspect * b, b) else outer).append(s)
+        f = gmsh.model.mesh.field
+        dist = f.add("Distance")
+        f.setNumbers(dist, "SurfacesList", body)
+        f.setNumber(dist, "Sampling", 60)
+        thr = f.add("Threshold")
+        f.setNumber(thr, "InField", dist)
+        f.setNumber(thr, "SizeMin", body_size)
+        f.setNumber(thr, "SizeMax", size)
+        f.setNumber(thr, "DistMin", 0.0)
+        f.setNumber(thr, "DistMax", 2.5)
+        f.setAsBackgroundMesh(thr)
+        for opt in ("Mesh.MeshSizeExtendFromBoundary", "Mesh.MeshSizeFromPoints",
+                    "Mesh.MeshSizeFromCurvature"):
+            gmsh.option.setNumber(opt, 0)
+        gmsh.option.setNumber("Mesh.MeshSizeMax", size)
+        gmsh.model.addPhysicalGroup(2, body, name="body")
+        gmsh.model.addPhysicalGroup(2, outer, name="outer")
+        gmsh.model.addPhysicalGroup(3, [v for _, v in gmsh.model.getEntities(3)], name="domain")
+        gmsh.model.mesh.generate(3)
+        gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        gmsh.write(str(path))
+    return path
