@@ -27,7 +27,7 @@ from ..solvers import factorize_spd
 from .problem import ShapeProblem
 
 __all__ = ["TET_QUALITY_GUARD", "DistortionPenalty", "FactoredMetric", "TetShapeProblem",
-           "tet_step_limit"]
+           "check_tet_options", "tet_setup", "tet_step_limit"]
 
 #: trial meshes whose worst mean ratio is below this times the initial one are rejected
 TET_QUALITY_GUARD = 0.3
@@ -195,15 +195,10 @@ class TetShapeProblem(ShapeProblem):
         return 0.5 * tet_step_limit(Q, self.triangles, d)
 
 
-def tet_setup(mesh, variant: str, penalty, preconditioner: str):
-    """``(f2, metric, problem class, quality floor)`` of a run on the ``TetMesh`` ``mesh``.
-
-    ``variant``'s metric: ``"elasticity"`` is the tet motion's metric (:class:`FactoredMetric`
-    of the tet kind's default metric), ``"euclidean"`` the Euclidean one; the complete metric
-    is planar and refused, as is an L-BFGS preconditioner. f2 is :class:`DistortionPenalty`
-    with ``β`` = β1 of ``penalty`` (None or 0: no penalty)."""
+def check_tet_options(variant: str, preconditioner: str) -> str:
+    """The metric kind of ``variant`` on tetrahedra; a planar-only variant (the complete
+    metric) or L-BFGS preconditioner is refused (``OptionError``)."""
     from ..errors import OptionError
-    from ..riemannian.metrics import EuclideanMetric
     from .setup import VARIANT_PARTS
 
     kind = VARIANT_PARTS[variant][0]
@@ -214,6 +209,19 @@ def tet_setup(mesh, variant: str, penalty, preconditioner: str):
     if preconditioner not in ("auto", "none"):
         raise OptionError(f"--lbfgs-preconditioner {preconditioner} is planar; on tetrahedra "
                           "use auto or none")
+    return kind
+
+
+def tet_setup(mesh, variant: str, penalty, preconditioner: str):
+    """``(f2, metric, problem class, quality floor)`` of a run on the ``TetMesh`` ``mesh``.
+
+    ``variant``'s metric: ``"elasticity"`` is the tet motion's metric (:class:`FactoredMetric`
+    of the tet kind's default metric), ``"euclidean"`` the Euclidean one; the complete metric
+    is planar and refused, as is an L-BFGS preconditioner. f2 is :class:`DistortionPenalty`
+    with ``β`` = β1 of ``penalty`` (None or 0: no penalty)."""
+    from ..riemannian.metrics import EuclideanMetric
+
+    kind = check_tet_options(variant, preconditioner)
     Q, tets = np.asarray(mesh.points, dtype=float), np.asarray(mesh.tets)
     metric = (EuclideanMetric() if kind == "euclidean"
               else FactoredMetric(TETRAHEDRA.default_metric(Q, tets)))
