@@ -12,7 +12,7 @@ conditions, the objective, the exact constraints and the objective's weight.
 
 :class:`ProblemSpec` is what ``meshopt optimize``'s options, the
 ``apply_coord_shape_optimization`` filter's parameters and library callers fill in; physical
-groups are gmsh physical groups of line elements, by name or number
+groups are gmsh physical groups of line elements (of triangles on a tet mesh), by name or number
 (:func:`~meshopt_toolkit.fem.boundary_data.group_key`).
 """
 
