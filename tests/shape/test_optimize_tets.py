@@ -229,3 +229,19 @@ def test_tet_problem_rejects_inverted_and_squeezed_trials(mesh):
     X = Q.copy()
     X[body[0]] = -X[body[0]]  # a body vertex through the sphere's centre: tets invert
     assert not problem.admissible(X) and problem.values(X)[0] == np.inf
+
+
+def test_filter_optimizes_a_tet_document_as_the_library_does(mesh):
+    from meshopt_toolkit.optimize import optimize
+    from meshopt_toolkit.pipeline import Document, registry
+
+    doc = Document([mesh])
+    registry.get("apply_coord_shape_optimization")()(
+        doc, pde="stokes", dirichlet="body=1,0,0, outer=0,0,0", move="body", keep_area=True,
+        max_iterations=2, tolerance=0)
+    spec = spec_from_options(**STOKES, keep_area=True)
+    expected = optimize(mesh, problem=spec, max_iterations=2, options=dict(tolerance=None))
+    moved = doc.mesh
+    assert np.allclose(moved.points, expected.x, rtol=0, atol=1e-12)
+    assert not np.allclose(moved.points, mesh.points)
+    assert moved.tag_names == mesh.tag_names and np.array_equal(moved.tets, mesh.tets)
