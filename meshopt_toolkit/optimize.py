@@ -180,8 +180,10 @@ def optimize(
 
     Parameters
     ----------
-    mesh : PlanarMesh
-        Initial mesh; also the reference Q_ref of the penalty. Must be admissible.
+    mesh : PlanarMesh or TetMesh
+        Initial mesh; also the reference Q_ref of the penalty. Must be admissible. A tet
+        mesh is optimized with the tet kind's admissibility, metric and distortion penalty
+        (:mod:`meshopt_toolkit.shape.tets`; ``penalty``'s β1 is that penalty's weight).
     objective : object with ``value(Q)`` and ``derivative(Q)`` (shape (N, 2)); None:
         ``problem``'s objective (:meth:`ProblemSpec.make_objective`: Poisson, elasticity
         compliance or Stokes dissipation).
@@ -273,7 +275,8 @@ def optimize(
             contact = contact_options(mesh) if penalty[2] > 0 else {}
             f2 = QualityPenalty(mesh, beta=tuple(penalty), **contact)
         metric = _make_metric(variant, mesh, metric_beta, dict(o.metric_options or {}))
-        cells, boundary, norm_metric, Problem = mesh.triangles, mesh.boundary_edges, None, ShapeProblem
+        cells, boundary, norm_metric = mesh.triangles, mesh.boundary_edges, None
+        Problem = ShapeProblem
         floor = QUALITY_GUARD * aspect_ratios(mesh.points, cells).min() if auto else None
     retract = (None if retraction is None
                else _make_retraction(retraction, metric, exp_options, free))

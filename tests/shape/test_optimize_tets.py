@@ -192,10 +192,17 @@ def test_cli_stokes_writes_every_group_and_keeps_the_box(sphere, tmp_path):
 def test_cli_elasticity_and_poisson_in_3d(sphere, mesh, tmp_path, options):
     out = tmp_path / "out"
     main(["optimize", str(sphere), *options, "--max-iterations", "2", "-o", str(out)])
-    Q1 = load_cells(out / "optimized.msh").to_tet_mesh("t").points
-    stay = spec_from_options(move=["body"]).fixed_mask(mesh)
-    assert np.array_equal(Q1[stay], mesh.points[stay]) and not np.array_equal(Q1, mesh.points)
+    Q0, Q1 = mesh.points, load_cells(out / "optimized.msh").to_tet_mesh("t").points
+    spec = spec_from_options(move=["body"])
+    stay = spec.fixed_mask(mesh)
+    assert np.array_equal(Q1[stay], Q0[stay]) and not np.array_equal(Q1, Q0)
     assert (exact_orientations(Q1, mesh.tets) > 0).all()
+    if "--keep-volume" in options:  # the domain's volume, all its faces
+        F = mesh.boundary_faces
+        assert enclosed_measure(Q1, F) == pytest.approx(enclosed_measure(Q0, F), rel=1e-9)
+    else:
+        F = spec.body_facets(mesh)
+        np.testing.assert_allclose(barycenter(Q1, F), barycenter(Q0, F), rtol=0, atol=1e-9)
 
 
 @pytest.mark.parametrize("args, words", [
