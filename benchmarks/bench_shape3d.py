@@ -23,7 +23,7 @@ meshing path, not the mesh the optimizer adapted.
 Speed: the seconds per iteration over the seconds of one state solve (the objective at
 the initial mesh, a fresh solver).
 
-Usage: python benchmarks/bench_shape3d.py [--size 1.0] [--body-size 0.15]
+Usage: python benchmarks/bench_shape3d.py [--size 1.0] [--body-size 0.15] [--remesh 0.8,0.1]
        [--max-iterations 40] [--aspects 1,1.5,1.75,2,2.25,2.5] [--write]
 """
 
@@ -41,7 +41,7 @@ from meshopt_toolkit.gmsh_session import gmsh_session
 from meshopt_toolkit.io import load_cells
 from meshopt_toolkit.kernels.tetrahedra import mean_ratios
 from meshopt_toolkit.optimize import optimize
-from meshopt_toolkit.shape.cases import BOX_3D, body_in_box
+from meshopt_toolkit.shape.cases import BOX_3D, body_in_box, mesh_body_in_box
 from meshopt_toolkit.shape.constraints import barycenter, enclosed_measure
 from meshopt_toolkit.shape.spec import spec_from_options
 
@@ -87,28 +87,10 @@ def remesh(mesh, path: Path, size: float, body_size: float) -> Path:
         for _, t in gmsh.model.getEntities(2):
             box = gmsh.model.getBoundingBox(2, t)
             (body if max(map(abs, box)) < 0.25 * min(BOX_3D) else outer).append(t)
-        loops = [gmsh.model.geo.addSurfaceLoop(outer), gmsh.model.geo.addSurfaceLoop(body)]
-        volume = gmsh.model.geo.addVolume(loops)
+        gmsh.model.geo.addVolume([gmsh.model.geo.addSurfaceLoop(outer),
+                                  gmsh.model.geo.addSurfaceLoop(body)])
         gmsh.model.geo.synchronize()
-        f = gmsh.model.mesh.field
-        dist = f.add("Distance")
-        f.setNumbers(dist, "SurfacesList", body)
-        f.setNumber(dist, "Sampling", 60)
-        thr = f.add("Threshold")
-        for key, value in (("InField", dist), ("SizeMin", body_size), ("SizeMax", size),
-                           ("DistMin", 0.0), ("DistMax", 2.5)):
-            f.setNumber(thr, key, value)
-        f.setAsBackgroundMesh(thr)
-        for opt in ("Mesh.MeshSizeExtendFromBoundary", "Mesh.MeshSizeFromPoints",
-                    "Mesh.MeshSizeFromCurvature"):
-            gmsh.option.setNumber(opt, 0)
-        gmsh.option.setNumber("Mesh.MeshSizeMax", size)
-        gmsh.model.addPhysicalGroup(2, body, name="body")
-        gmsh.model.addPhysicalGroup(2, outer, name="outer")
-        gmsh.model.addPhysicalGroup(3, [volume], name="domain")
-        gmsh.model.mesh.generate(3)
-        gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
-        gmsh.write(str(path))
+        mesh_body_in_box(gmsh, body, outer, path, size, body_size)
     return path
 
 
@@ -125,7 +107,7 @@ def run(args) -> str:
     rows = []
     for a in args.aspects:
         m = tets(body_in_box(work / f"spheroid_{a}.msh", args.size, args.body_size, aspect=a))
-        r = tets(remesh(m, work / f"spheroid_{a}_remeshed.msh", args.size, args.body_size))
+        r = tets(remesh(m, work / f"spheroid_{a}_remeshed.msh", *args.remesh))
         (j, s), jr = drag(m), drag(r)[0]
         rows.append((f"prolate spheroid a/b = {a:g}", m.n_tets, j, r.n_tets, jr))
         print(f"spheroid {a:g}: {m.n_tets} tets, drag {j:.5f} ({s:.1f} s), remeshed {jr:.5f}",
@@ -146,8 +128,7 @@ def run(args) -> str:
     q0, q1 = mean_ratios(Q0, sphere.tets).min(), mean_ratios(Q1, sphere.tets).min()
     stay = spec.fixed_mask(sphere)
     box_moved = float(np.abs(Q1[stay] - Q0[stay]).max())
-    fresh = tets(remesh(sphere.with_points(Q1), work / "optimized.msh", args.size,
-                        args.body_size))
+    fresh = tets(remesh(sphere.with_points(Q1), work / "optimized.msh", *args.remesh))
     j_fresh = drag(fresh)[0]
     length, width = body_extent(sphere, Q1)
     rows.append((f"optimized body (length/width {length / width:.2f})", sphere.n_tets,
@@ -162,7 +143,8 @@ def run(args) -> str:
     lines += [
         "",
         f"Optimization of the sphere's mesh ({sphere.n_tets} tets, {sphere.n_vertices} "
-        f"vertices; `--size {args.size:g} --body-size {args.body_size:g}`): {result.status} "
+        f"vertices; `--size {args.size:g} --body-size {args.body_size:g} --remesh "
+        f"{args.remesh[0]:g},{args.remesh[1]:g}`): {result.status} "
         f"after {result.nit} iterations in {seconds:.0f} s; drag {j0:.5f} → {result.j:.5f} on "
         f"the optimizer's own mesh, {j_fresh:.5f} remeshed. Volume kept to {dv:.1e} "
         f"(relative), barycenter to {db:.1e} (of the radius); worst mean ratio "
@@ -178,12 +160,16 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--size", type=float, default=1.0)
     p.add_argument("--body-size", type=float, default=0.15)
+    p.add_argument("--remesh", type=lambda s: [float(x) for x in s.split(",")],
+                   metavar="SIZE,BODY_SIZE", help="the element sizes of the remeshed bodies "
+                   "(default: --size, --body-size)")
     p.add_argument("--max-iterations", type=int, default=40)
     p.add_argument("--aspects", type=lambda s: [float(x) for x in s.split(",")],
                    default=[1.0, 1.5, 1.75, 2.0, 2.25, 2.5])
     p.add_argument("--write", action="store_true",
                    help="put the table into docs/shape-optimization.md's 3D section")
     args = p.parse_args()
+    args.remesh = args.remesh or [args.size, args.body_size]
     table = run(args)
     print(table)
     if args.write:

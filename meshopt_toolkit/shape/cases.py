@@ -143,18 +143,7 @@ def user_mesh(case: str, path: str | os.PathLike, size: float = 0.1, *,
                      if n in ("hole1", "hole2", "hole", "body", "reentrant", "airfoil", "disc",
                               "square")
                      for c in cs]
-            f = gmsh.model.mesh.field
-            dist = f.add("Distance")
-            f.setNumbers(dist, "CurvesList", inner)
-            f.setNumber(dist, "Sampling", 100)
-            thr = f.add("Threshold")
-            f.setNumber(thr, "InField", dist)
-            f.setNumber(thr, "SizeMin", refine_near)
-            f.setNumber(thr, "SizeMax", size)
-            f.setNumber(thr, "DistMin", 0.0)
-            f.setNumber(thr, "DistMax", 10 * size)
-            f.setAsBackgroundMesh(thr)
-            gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
+            graded_sizes(gmsh, 1, inner, refine_near, size, 10 * size, sampling=100)
         for name, curves in sorted(groups.items()):
             gmsh.model.addPhysicalGroup(1, curves, name=name)
         surfaces = [s for _, s in gmsh.model.getEntities(2)]
@@ -166,8 +155,27 @@ def user_mesh(case: str, path: str | os.PathLike, size: float = 0.1, *,
     return path
 
 
-#: the 3D Stokes case: an 8 × 6 × 6 box around a body at the origin
+#: the 3D Stokes case: an 8 × 6 × 6 box around a body at the origin, its elements graded
+#: from the body's size to the box's within this distance of the body
 BOX_3D = (8.0, 6.0, 6.0)
+BODY_REACH = 2.5
+
+
+def graded_sizes(gmsh, dim: int, tags, fine: float, coarse: float, reach: float, *,
+                 sampling: int = 100) -> None:
+    """Element sizes ``fine`` on the entities ``tags`` of dimension ``dim`` (curves 1,
+    surfaces 2), graded to ``coarse`` at distance ``reach``: gmsh's background mesh, not
+    extended from the boundary."""
+    f = gmsh.model.mesh.field
+    dist = f.add("Distance")
+    f.setNumbers(dist, "CurvesList" if dim == 1 else "SurfacesList", list(tags))
+    f.setNumber(dist, "Sampling", sampling)
+    thr = f.add("Threshold")
+    for key, value in (("InField", dist), ("SizeMin", fine), ("SizeMax", coarse),
+                       ("DistMin", 0.0), ("DistMax", reach)):
+        f.setNumber(thr, key, value)
+    f.setAsBackgroundMesh(thr)
+    gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
 
 
 def body_in_box(path: str | os.PathLike, size: float = 1.0, body_size: float = 0.15, *,
@@ -207,26 +215,21 @@ def body_in_box(path: str | os.PathLike, size: float = 1.0, body_size: float = 0
         for _, s in gmsh.model.getEntities(2):
             x, y, z = occ.getCenterOfMass(2, s)
             (body if max(abs(x), abs(y), abs(z)) < 1.5 * max(aspect * b, b) else outer).append(s)
-        f = gmsh.model.mesh.field
-        dist = f.add("Distance")
-        f.setNumbers(dist, "SurfacesList", body)
-        f.setNumber(dist, "Sampling", 60)
-        thr = f.add("Threshold")
-        f.setNumber(thr, "InField", dist)
-        f.setNumber(thr, "SizeMin", body_size)
-        f.setNumber(thr, "SizeMax", size)
-        f.setNumber(thr, "DistMin", 0.0)
-        f.setNumber(thr, "DistMax", 2.5)
-        f.setAsBackgroundMesh(thr)
-        for opt in ("Mesh.MeshSizeExtendFromBoundary", "Mesh.MeshSizeFromPoints",
-                    "Mesh.MeshSizeFromCurvature"):
-            gmsh.option.setNumber(opt, 0)
-        gmsh.option.setNumber("Mesh.MeshSizeMax", size)
-        gmsh.model.addPhysicalGroup(2, body, name="body")
-        gmsh.model.addPhysicalGroup(2, outer, name="outer")
-        gmsh.model.addPhysicalGroup(3, [v for _, v in gmsh.model.getEntities(3)], name="domain")
-        gmsh.model.mesh.generate(3)
-        gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        gmsh.write(str(path))
+        mesh_body_in_box(gmsh, body, outer, path, size, body_size)
     return path
+
+
+def mesh_body_in_box(gmsh, body, outer, path: Path, size: float, body_size: float) -> None:
+    """Mesh the current gmsh model, a volume between the surfaces ``outer`` and ``body``,
+    with :func:`body_in_box`'s sizes and groups and write it to ``path`` (format 4.1)."""
+    graded_sizes(gmsh, 2, body, body_size, size, BODY_REACH, sampling=60)
+    gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
+    gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
+    gmsh.option.setNumber("Mesh.MeshSizeMax", size)
+    gmsh.model.addPhysicalGroup(2, list(body), name="body")
+    gmsh.model.addPhysicalGroup(2, list(outer), name="outer")
+    gmsh.model.addPhysicalGroup(3, [v for _, v in gmsh.model.getEntities(3)], name="domain")
+    gmsh.model.mesh.generate(3)
+    gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    gmsh.write(str(path))

@@ -39,7 +39,7 @@ def mesh(sphere):
 
 
 def _direction(mesh, free, seed=0):
-    """A random field on the free vertices, a tenth of the shortest edge at most."""
+    """A standard normal field on the free vertices, zero on the others."""
     V = np.random.default_rng(seed).standard_normal(mesh.points.shape)
     V[~free] = 0.0
     return V
