@@ -45,6 +45,7 @@ from ._typing import FloatArray
 from .errors import OptimizationError, OptionError
 from .kernels.triangles import aspect_ratios
 from .mesh import PlanarMesh, require_admissible
+from .mesh.kinds import is_tets
 from .shape.options import OptimizeOptions
 from .shape.spec import ProblemSpec
 from .shape.result import PHASES, IterationRecord, OptimizeResult
@@ -192,8 +193,10 @@ def optimize(
 
     Parameters
     ----------
-    mesh : PlanarMesh
-        Initial mesh; also the reference Q_ref of the penalty. Must be admissible.
+    mesh : PlanarMesh or TetMesh
+        Initial mesh; also the reference Q_ref of the penalty. Must be admissible. A tet
+        mesh is optimized with the tet kind's admissibility, metric and distortion penalty
+        (:mod:`meshopt_toolkit.shape.tets`; ``penalty``'s β1 is that penalty's weight).
     objective : object with ``value(Q)`` and ``derivative(Q)`` (shape (N, 2)); None:
         ``problem``'s objective (:meth:`ProblemSpec.make_objective`: Poisson, elasticity
         compliance or Stokes dissipation).
@@ -255,13 +258,14 @@ def optimize(
     o = OptimizeOptions.of(options)
     exp_options = o.exp_options
     retraction = _retraction_kind(variant, o.retraction, exp_options)
-    mesh = require_admissible(mesh, "shape optimization")
+    mesh = (mesh.require_admissible() if is_tets(mesh)
+            else require_admissible(mesh, "shape optimization"))
     spec = ProblemSpec() if problem is None else problem
     if objective is None:
         objective = spec.make_objective(mesh)
     # at unit size (the mesh divided by its size, the objective read at the user's scale)
     # and back: the same optimization at every scale
-    scale = size_scale(mesh)
+    scale = size_scale(mesh, columns=3 if is_tets(mesh) else 2)
     run = dict(spec=spec, variant=variant, method=method, penalty=penalty,
                metric_beta=metric_beta, fixed=fixed, max_iterations=max_iterations,
                options=o, retraction=retraction,
@@ -283,7 +287,7 @@ def _optimize(mesh: PlanarMesh, objective, *, spec: ProblemSpec, variant: str, m
     from .shape.spec import GUARD_FACTOR, GUARD_TRIES, QUALITY_GUARD, ScaledObjective
 
     o, exp_options = options, options.exp_options
-    tri = mesh.triangles
+    tets = is_tets(mesh)
     N = mesh.n_vertices
     free = None
     stay = spec.fixed_mask(mesh)
@@ -295,33 +299,41 @@ def _optimize(mesh: PlanarMesh, objective, *, spec: ProblemSpec, variant: str, m
             raise OptimizationError("every vertex is fixed: nothing to optimize")
     if (spec.keep_area or spec.keep_barycenter) and method == "steepest":
         raise OptionError("keep_area and keep_barycenter need method 'lbfgs' or 'cg'")
-    f2 = None
-    if penalty is not None and any(b != 0 for b in penalty):
-        from .penalties import QualityPenalty
+    auto = spec.scale == "auto"
+    f2, anchored = None, None
+    if tets:
+        from .shape.tets import tet_setup
 
-        contact = contact_options(mesh) if penalty[2] > 0 else {}
-        f2 = QualityPenalty(mesh, beta=tuple(penalty), **contact)
+        f2, metric, Problem, floor = tet_setup(mesh, variant, penalty, o.lbfgs_preconditioner)
+        cells, boundary, norm_metric = mesh.tets, mesh.boundary_faces, metric
+    else:
+        if penalty is not None and any(b != 0 for b in penalty):
+            from .penalties import QualityPenalty
 
-        def anchored(start: PlanarMesh):
-            """The same f2 with its anchor ``Q_ref`` (β4) at ``start``."""
-            return QualityPenalty(start, beta=tuple(penalty), **contact)
-    metric = _make_metric(variant, mesh, metric_beta, dict(o.metric_options or {}))
+            contact = contact_options(mesh) if penalty[2] > 0 else {}
+            f2 = QualityPenalty(mesh, beta=tuple(penalty), **contact)
+
+            def anchored(start: PlanarMesh):
+                """The same f2 with its anchor ``Q_ref`` (β4) at ``start``."""
+                return QualityPenalty(start, beta=tuple(penalty), **contact)
+        metric = _make_metric(variant, mesh, metric_beta, dict(o.metric_options or {}))
+        cells, boundary, norm_metric = mesh.triangles, mesh.boundary_edges, None
+        Problem = ShapeProblem
+        floor = QUALITY_GUARD * aspect_ratios(mesh.points, cells).min() if auto else None
     retract = (None if retraction is None
                else _make_retraction(retraction, metric, exp_options, free))
     constraint = spec.constraint(mesh, lambda Q, P: metric.riesz(Q, P, free=free), free)
-    weight = spec.weight(lambda: _elasticity_gradient_norm(mesh, objective, free, spec))
-    auto = spec.scale == "auto"
-    floor = QUALITY_GUARD * aspect_ratios(mesh.points, tri).min() if auto else None
+    weight = spec.weight(lambda: _gradient_norm(mesh, objective, free, spec, norm_metric))
     start = time.perf_counter()
 
-    def descend(start: PlanarMesh, penalty_f2, iterations: int, done: int = 0,
-                w: float | None = None):
+    def descend(start, penalty_f2, iterations: int, done: int = 0, w: float | None = None):
         w = weight if w is None else w
         weighed = objective if w == 1.0 else ScaledObjective(objective, w)
-        problem = ShapeProblem(weighed, penalty_f2, metric, tri, mesh.boundary_edges, free,
-                               constraint, quality_floor=floor)
-        h0 = make_preconditioner(o.lbfgs_preconditioner, metric_kind=VARIANT_PARTS[variant][0],
-                                 method=method, mesh=start, penalty=penalty_f2, free=free)
+        problem = Problem(weighed, penalty_f2, metric, cells, boundary, free, constraint,
+                          quality_floor=floor)
+        h0 = None if tets else make_preconditioner(
+            o.lbfgs_preconditioner, metric_kind=VARIANT_PARTS[variant][0], method=method,
+            mesh=start, penalty=penalty_f2, free=free)
         hook = step if step is None or not done else (
             lambda record, Q: step(dataclasses.replace(record, iteration=record.iteration + done),
                                    Q))
@@ -336,7 +348,7 @@ def _optimize(mesh: PlanarMesh, objective, *, spec: ProblemSpec, variant: str, m
         logger.info("no step at weight %.3g (%s): restarting with %.3g", weight, result.message,
                     weight / GUARD_FACTOR)
         weight /= GUARD_FACTOR
-    if auto and f2 is not None and constraint is not None:
+    if auto and anchored is not None and constraint is not None:  # planar f2 only
         result = _follow_anchor(
             result, lambda start, n, done, k: descend(start, anchored(start), n, done,
                                                       weight * ANCHOR_GROWTH ** k),
@@ -435,16 +447,16 @@ def _unweighed(result: OptimizeResult, objective, weight: float) -> OptimizeResu
     return result
 
 
-def _elasticity_gradient_norm(mesh: PlanarMesh, objective, free, spec: ProblemSpec) -> float:
-    """``‖grad j‖`` at the initial mesh in the elasticity metric (projected onto the
-    tangent space of ``spec``'s constraints)."""
+def _gradient_norm(mesh, objective, free, spec: ProblemSpec, metric=None) -> float:
+    """``‖grad j‖`` at the initial mesh in ``metric`` (None: the elasticity metric),
+    projected onto the tangent space of ``spec``'s constraints."""
     from .riemannian.metrics import ElasticityMetric
 
     Q = mesh.points
     P = np.asarray(objective.derivative(Q), dtype=float)
     if free is not None:
         P = np.where(free[:, None], P, 0.0)
-    metric = ElasticityMetric(mesh)
+    metric = ElasticityMetric(mesh) if metric is None else metric
     g = metric.riesz(Q, P, free=free)
     constraint = spec.constraint(mesh, lambda X, V: metric.riesz(X, V, free=free), free)
     if constraint is not None:

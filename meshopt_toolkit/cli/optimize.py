@@ -16,12 +16,15 @@ import logging
 import os
 import sys
 import tempfile
+from dataclasses import replace
 from pathlib import Path
+
+import numpy as np
 
 from ..errors import ExpressionError, MeshoptError, WriteError
 from ._common import (add_output_flags, check_output_dir, exclusive_output_dir, float_list,
-                      load_workpiece, print_json, save_moved, write_summary,
-                      write_text)
+                      load_workpiece, print_json, save_moved, warn_dropped,
+                      write_summary, write_text)
 from ._params import add_options, check_options
 from ._validate import OptionError
 
@@ -36,11 +39,14 @@ EPILOG = (
     "acts only where a hole or notch is about to close, β^metric = (10, 1, 0, 0.01·N).\n"
     "With a MESH, j is weighed to the mesh (--objective-scale auto). Physical groups\n"
     "(--fixed, --move, --dirichlet, --neumann, --stress, --clamped) are gmsh physical\n"
-    "groups of boundary lines, by name or number.\n"
+    "groups of boundary lines (of boundary triangles on a tet mesh), by name or number.\n"
     "--pde stokes --objective dissipation: --dirichlet GROUP=VX,VY sets the velocity, u = 0\n"
     "on the rest of the boundary. --pde elasticity --objective compliance: --stress\n"
     "GROUP=SXX,SYY,SXY loads the group by the traction σn (plane stress); without\n"
     "--clamped the body floats and the loads must balance.\n"
+    "A tet mesh: --dirichlet GROUP=VX,VY,VZ, --stress GROUP=SXX,SYY,SZZ,SYZ,SXZ,SXY,\n"
+    "--rhs in x, y, z; the tet motion's metric and a distortion penalty (β1 of --penalty)\n"
+    "keep the worst mean ratio at least 0.3 times its initial value.\n"
     "Exit status 1 when the run does not converge (max iterations, step too small);\n"
     "its (admissible) last mesh is still written."
 )
@@ -135,6 +141,7 @@ def run(args: argparse.Namespace) -> int:
     from ..datasets import data_path
     from ..expressions import quoted
     from ..filters.apply_coord_shape_optimization import ShapeOptimization
+    from ..io import save_cells
     from ..optimize import (DEFAULT_PENALTY_BETA, DEFAULT_RETRACTION, VARIANT_PARTS,
                             OptimizeOptions, optimize)
     from ..progress import ProgressBar
@@ -150,10 +157,7 @@ def run(args: argparse.Namespace) -> int:
     input_path = Path(args.mesh) if args.mesh else data_path(DEFAULT_MESH)
     check_output_dir(Path(args.output), force=args.force,  # before any work
                      names=("optimized" + input_path.suffix.lower(),) + OUTPUT_NAMES)
-    # the plane's coordinates at the file's scale (r is given in them); every block, tag
-    # and datum written back
-    wp = load_workpiece(input_path, "optimize", unit_size=False)
-    mesh = wp.mesh
+    wp, cells, mesh = _load(input_path)
     penalty = args.penalty if args.penalty is not None else DEFAULT_PENALTY_BETA
     spec = spec_from_options(
         fixed=args.fixed, move=args.move, dirichlet=args.dirichlet, neumann=args.neumann,
@@ -169,7 +173,7 @@ def run(args: argparse.Namespace) -> int:
             raise ExpressionError(f"--rhs {quoted(args.rhs)}: {exc}") from None
         raise ExpressionError(f"--rhs {quoted(args.rhs)} / --objective {quoted(args.objective)}: "
                               f"{exc}") from None
-    _check_problem(spec, mesh, args.method)
+    _check_problem(spec, mesh, args)
     outdir = Path(args.output)
     mesh_name = "optimized" + input_path.suffix.lower()
     _prepare_outdir(outdir, mesh_name, args.force, input_path)
@@ -179,7 +183,7 @@ def run(args: argparse.Namespace) -> int:
         bar = ProgressBar(args.max_iterations, "optimize")
 
         def callback(record):
-            bar.update(status=f"j={record.j:.5f} Λ={record.mean_shape_quality:.4f}")
+            bar.update(status=f"j={record.j:.5f} q={record.mean_shape_quality:.4f}")
 
         with bar:
             result = optimize(
@@ -200,10 +204,14 @@ def run(args: argparse.Namespace) -> int:
                        keep_barycenter=args.keep_barycenter)
         written = [mesh_name, "history.csv", "history.json", "summary.json"]
         try:
-            save_moved(wp, result.mesh, outdir / mesh_name)
+            if wp is None:  # tets: the file's cells, tags and data at the new points
+                save_cells(replace(cells, points=np.array(result.x, dtype=float)),
+                           outdir / mesh_name, overwrite=True)
+            else:
+                save_moved(wp, result.mesh, outdir / mesh_name)
             _write_history(outdir, result)
             write_summary(outdir, summary)
-            if not args.no_plots and _write_plots(outdir, mesh, result,
+            if wp is not None and not args.no_plots and _write_plots(outdir, mesh, result,
                                                  args.rhs if spec.pde == "poisson" else None):
                 written += ["mesh.png", "history.png"]
         except OSError as exc:
@@ -214,7 +222,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"{result.status}: {result.message}")
         F = "j + f2" if result.objective_weight == 1.0 else f"{result.objective_weight:.3g}·j + f2"
         print(f"iterations {result.nit}  j = {result.j:.6f}  {F} = {result.fun:.6f}  "
-              f"Λ = {summary['mean_shape_quality']:.4f}  AR = {summary['min_aspect_ratio']:.4f}  "
+              f"{_quality_text(summary)}  "
               f"({result.seconds:.2f} s)")
         print(f"wrote {outdir}/ ({', '.join(written)})")
     if not result.success:
@@ -224,9 +232,37 @@ def run(args: argparse.Namespace) -> int:
     return 0 if result.success else 1
 
 
-def _check_problem(spec, mesh, method: str) -> None:
-    """What :func:`~meshopt_toolkit.optimize.optimize` would refuse of the groups and the
-    constraints, before the output directory is made."""
+def _quality_text(summary: dict) -> str:
+    if "min_mean_ratio" in summary:
+        return f"mean ratio {summary['mean_mean_ratio']:.4f}, worst {summary['min_mean_ratio']:.4f}"
+    return f"Λ = {summary['mean_shape_quality']:.4f}  AR = {summary['min_aspect_ratio']:.4f}"
+
+
+def _load(path: Path):
+    """``(workpiece, cells, mesh)``: a planar file's workpiece (the plane's coordinates at
+    the file's scale, in which ``--rhs`` is given; every block, tag and datum written
+    back) and its mesh, or a tet file's cells and admissible ``TetMesh`` (workpiece None)."""
+    from ..io import load_cells
+    from ..mesh.kinds import cells_kind
+    from ._info_cells import TETS
+
+    cells = load_cells(path)
+    warn_dropped(cells, path)
+    if cells_kind(cells) == TETS:
+        return None, cells, cells.to_tet_mesh("optimize").require_admissible()
+    wp = load_workpiece(path, "optimize", unit_size=False, cells=cells)
+    return wp, cells, wp.mesh
+
+
+def _check_problem(spec, mesh, args) -> None:
+    """What :func:`~meshopt_toolkit.optimize.optimize` would refuse of the groups, the
+    constraints and the options a tet mesh does not take, before the output directory
+    is made."""
+    method = args.method
+    if hasattr(mesh, "tets"):
+        from ..shape.tets import check_tet_options
+
+        check_tet_options(args.variant, args.lbfgs_preconditioner)
     free = spec.fixed_mask(mesh)
     if (spec.keep_area or spec.keep_barycenter) and method == "steepest":
         raise OptionError("--keep-area and --keep-barycenter need --method lbfgs or cg")

@@ -6,7 +6,7 @@ from __future__ import annotations
 from meshopt_toolkit.expressions import DEFAULT_RHS
 from meshopt_toolkit.optimize import (DEFAULT_METHOD, DEFAULT_RETRACTION, DEFAULT_VARIANT, METHODS,
                                       RETRACTIONS, VARIANTS)
-from meshopt_toolkit.pipeline.filter import PLANAR, Filter, register
+from meshopt_toolkit.pipeline.filter import PLANAR, TETS, Filter, register
 from meshopt_toolkit.shape.spec import PDES
 from meshopt_toolkit.shape.preconditioners import DEFAULT_PRECONDITIONER, PRECONDITIONERS
 from meshopt_toolkit.pipeline.params import (
@@ -23,7 +23,7 @@ from meshopt_toolkit.pipeline.params import (
 
 @register
 class ShapeOptimization(Filter):
-    """PDE-constrained shape optimization of the current planar mesh (thesis ch. 6).
+    """PDE-constrained shape optimization of the current planar or tet mesh (thesis ch. 6).
 
     Minimizes ``w j(Q) + f2(Q; Q0)`` with ``j = ∫ y`` (or ``½∫(y − y_d)²``), ``−Δy = r``,
     ``y = 0`` on the boundary unless Dirichlet/Neumann data per physical group say otherwise
@@ -36,8 +36,10 @@ class ShapeOptimization(Filter):
     evaluator (never ``eval``). β4 is unscaled (f2 divides it by 2N). Empty β strings mean
     the defaults: β^penalty = (0.1, 0.01, 0.01, 0.146), thesis parameter set 2 at 146 vertices
     with β4 fixed on every mesh (:data:`meshopt_toolkit.optimize.DEFAULT_PENALTY_BETA`),
-    β^metric = (10, 1, 0, 0.01·N). The optimized mesh replaces the current one; the summary
-    holds status, iterations, j, j + f2, Λ and AR.
+    β^metric = (10, 1, 0, 0.01·N). A tet mesh is optimized in 3D
+    (:mod:`meshopt_toolkit.shape.tets`: the tet motion's metric, a distortion penalty with
+    β = β1). The optimized mesh replaces the current one; the summary holds status,
+    iterations, j, j + f2 and the quality (Λ and AR; the mean ratios on tets).
     """
 
     name = "apply_coord_shape_optimization"
@@ -46,7 +48,7 @@ class ShapeOptimization(Filter):
     aliases = ("compute_shape_optimization",)
     description = ("Minimize a PDE objective (Poisson, elasticity compliance, Stokes dissipation) "
                    "plus a mesh-quality penalty, keeping the mesh admissible.")
-    kinds = (PLANAR,)
+    kinds = (PLANAR, TETS)
     parameters = (
         EnumParam("variant", DEFAULT_VARIANT, "gradient metric and retraction",
                   label="Variant", choices=VARIANTS),
@@ -121,9 +123,9 @@ class ShapeOptimization(Filter):
         from meshopt_toolkit.shape.spec import spec_from_options
 
         entry = document.current_entry
-        # the plane's coordinates at the file's scale (r is given in them)
-        wp = entry.workpiece(self.name, unit_size=False)
-        mesh = wp.mesh
+        # the plane's coordinates at the file's scale (r is given in them); None: tets
+        wp = entry.workpiece(self.name, unit_size=False, required=False)
+        mesh = entry.mesh.require_admissible() if wp is None else wp.mesh
         beta = number_list(penalty, 4, "penalty") or DEFAULT_PENALTY_BETA
         spec = spec_from_options(fixed=fixed, move=move, dirichlet=dirichlet, neumann=neumann,
                                  keep_area=keep_area, objective=objective, rhs=rhs,
@@ -139,5 +141,8 @@ class ShapeOptimization(Filter):
                                     lbfgs_preconditioner=lbfgs_preconditioner,
                                     tolerance=tolerance or None),
         )
-        entry.set_workpiece(wp.moved(result.mesh.points))
+        if wp is None:  # the same tets at new points: the file's groups and data kept
+            entry.replace_mesh(entry.mesh.with_points(result.x))
+        else:
+            entry.set_workpiece(wp.moved(result.mesh.points))
         return result.summary()

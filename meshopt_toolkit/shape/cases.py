@@ -179,18 +179,7 @@ def _mesh(path, name: str, build, size: float, refine_near: float | None,
         gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
         if refine_near is not None:
             inner = [c for n, cs in groups.items() if n in refined for c in cs]
-            f = gmsh.model.mesh.field
-            dist = f.add("Distance")
-            f.setNumbers(dist, "CurvesList", inner)
-            f.setNumber(dist, "Sampling", 100)
-            thr = f.add("Threshold")
-            f.setNumber(thr, "InField", dist)
-            f.setNumber(thr, "SizeMin", refine_near)
-            f.setNumber(thr, "SizeMax", size)
-            f.setNumber(thr, "DistMin", 0.0)
-            f.setNumber(thr, "DistMax", 10 * size)
-            f.setAsBackgroundMesh(thr)
-            gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
+            graded_sizes(gmsh, 1, inner, refine_near, size, 10 * size, sampling=100)
         for name, curves in sorted(groups.items()):
             gmsh.model.addPhysicalGroup(1, curves, name=name)
         surfaces = [s for _, s in gmsh.model.getEntities(2)]
@@ -200,3 +189,83 @@ def _mesh(path, name: str, build, size: float, refine_near: float | None,
         path.parent.mkdir(parents=True, exist_ok=True)
         gmsh.write(str(path))
     return path
+
+
+#: the 3D Stokes case: an 8 × 6 × 6 box around a body at the origin, its elements graded
+#: from the body's size to the box's within this distance of the body
+BOX_3D = (8.0, 6.0, 6.0)
+BODY_REACH = 2.5
+
+
+def graded_sizes(gmsh, dim: int, tags, fine: float, coarse: float, reach: float, *,
+                 sampling: int = 100) -> None:
+    """Element sizes ``fine`` on the entities ``tags`` of dimension ``dim`` (curves 1,
+    surfaces 2), graded to ``coarse`` at distance ``reach``: gmsh's background mesh, not
+    extended from the boundary."""
+    f = gmsh.model.mesh.field
+    dist = f.add("Distance")
+    f.setNumbers(dist, "CurvesList" if dim == 1 else "SurfacesList", list(tags))
+    f.setNumber(dist, "Sampling", sampling)
+    thr = f.add("Threshold")
+    for key, value in (("InField", dist), ("SizeMin", fine), ("SizeMax", coarse),
+                       ("DistMin", 0.0), ("DistMax", reach)):
+        f.setNumber(thr, key, value)
+    f.setAsBackgroundMesh(thr)
+    gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
+
+
+def body_in_box(path: str | os.PathLike, size: float = 1.0, body_size: float = 0.15, *,
+                aspect: float = 1.0, radius: float = 0.5) -> Path:
+    """Tetrahedra of the ``8 × 6 × 6`` box centred at the origin around a prolate spheroid
+    with the volume of the sphere of ``radius`` (``aspect`` = its axis along ``x`` over
+    the other two; 1: the sphere), surface groups ``"body"`` and ``"outer"``, the volume
+    ``"domain"``: the 3D Stokes case (drag of the body moving along ``x``).
+
+    Parameters
+    ----------
+    path : where the ``.msh`` (format 4.1) goes
+    size : element size at the box
+    body_size : element size on the body, graded to ``size`` away from it
+    aspect : the spheroid's axis ratio
+    radius : the radius of the sphere of equal volume
+
+    Returns
+    -------
+    Path
+    """
+    path = Path(path)
+    b = radius * aspect ** (-1.0 / 3.0)  # a b² = r³ with a = aspect · b
+    with gmsh_session() as gmsh:
+        gmsh.option.setNumber("General.NumThreads", 1)
+        gmsh.option.setNumber("Mesh.RandomSeed", 1)
+        gmsh.model.add("body_in_box")
+        occ = gmsh.model.occ
+        lx, ly, lz = BOX_3D
+        box = occ.addBox(-lx / 2, -ly / 2, -lz / 2, lx, ly, lz)
+        ball = occ.addSphere(0, 0, 0, b)
+        if aspect != 1.0:
+            occ.dilate([(3, ball)], 0, 0, 0, aspect, 1.0, 1.0)
+        occ.cut([(3, box)], [(3, ball)])
+        occ.synchronize()
+        body, outer = [], []
+        for _, s in gmsh.model.getEntities(2):
+            x, y, z = occ.getCenterOfMass(2, s)
+            (body if max(abs(x), abs(y), abs(z)) < 1.5 * max(aspect * b, b) else outer).append(s)
+        mesh_body_in_box(gmsh, body, outer, path, size, body_size)
+    return path
+
+
+def mesh_body_in_box(gmsh, body, outer, path: Path, size: float, body_size: float) -> None:
+    """Mesh the current gmsh model, a volume between the surfaces ``outer`` and ``body``,
+    with :func:`body_in_box`'s sizes and groups and write it to ``path`` (format 4.1)."""
+    graded_sizes(gmsh, 2, body, body_size, size, BODY_REACH, sampling=60)
+    gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
+    gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
+    gmsh.option.setNumber("Mesh.MeshSizeMax", size)
+    gmsh.model.addPhysicalGroup(2, list(body), name="body")
+    gmsh.model.addPhysicalGroup(2, list(outer), name="outer")
+    gmsh.model.addPhysicalGroup(3, [v for _, v in gmsh.model.getEntities(3)], name="domain")
+    gmsh.model.mesh.generate(3)
+    gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    gmsh.write(str(path))

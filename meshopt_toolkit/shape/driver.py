@@ -10,8 +10,8 @@ along the variant's retraction — ``Q + t d``, or a retraction of the complete 
 curve's velocity) — then the rule's memory (L-BFGS's curvature pair, CG's last direction)
 and the stopping tests. On straight lines the Wolfe search's trials go at most
 ``segment_fraction`` of the way to the first degeneracy
-(:func:`~meshopt_toolkit.kernels.triangles.segment_limit`); the Armijo search keeps the
-thesis' travel guard (6.23) (:func:`.problem.max_travel_step`).
+(:meth:`.problem.ShapeProblem.step_limit`: a triangle's area, a tet's volume); the Armijo
+search keeps the thesis' travel guard (6.23) (:meth:`.problem.ShapeProblem.travel_limit`).
 """
 
 from __future__ import annotations
@@ -23,11 +23,10 @@ import time
 import numpy as np
 
 from ..errors import OptimizationError
-from ..kernels.triangles import quality_summary, segment_limit
 from .directions import DIRECTION_RULES
 from .linesearch import armijo_backtracking, wolfe_line_search
 from .options import OptimizeOptions
-from .problem import ShapeProblem, max_travel_step
+from .problem import ShapeProblem
 from .result import IterationRecord, OptimizeResult, PhaseTimer
 
 logger = logging.getLogger(__name__)
@@ -48,7 +47,6 @@ def run_descent(mesh, problem: ShapeProblem, *, method: str, variant: str, retra
     armijo = method == "steepest"
     rule = DIRECTION_RULES[method]() if method != "lbfgs" else DIRECTION_RULES[method](o.memory, h0)
     c2 = None if armijo else (DEFAULT_C2[method] if o.c2 is None else float(o.c2))
-    tri = problem.triangles
     start = time.perf_counter()
     Q = np.array(mesh.points, dtype=float)
     timer = PhaseTimer()
@@ -58,8 +56,8 @@ def run_descent(mesh, problem: ShapeProblem, *, method: str, variant: str, retra
     if not math.isfinite(F):
         raise OptimizationError("the objective is not finite at the initial mesh")
     P = None
-    q = quality_summary(Q, tri)
-    history = [IterationRecord(0, J, F - J, F, q.mean_shape_quality, q.min_aspect_ratio, 0.0, 0,
+    mean_q, min_q = problem.quality(Q)
+    history = [IterationRecord(0, J, F - J, F, mean_q, min_q, 0.0, 0,
                                math.nan, dict(timer.seconds), method=method)]
     t_prev = slope_prev = None
     g0 = None
@@ -130,9 +128,9 @@ def run_descent(mesh, problem: ShapeProblem, *, method: str, variant: str, retra
         pair_rejected = rule.remember(Q_new - Q, P_new, P, d)
         t_prev, slope_prev = ls.step, slope
         Q, F, J, P = Q_new, ls.value, J_new, P_new
-        q = quality_summary(Q, tri)
+        mean_q, min_q = problem.quality(Q)
         record = IterationRecord(
-            n, J, F - J, F, q.mean_shape_quality, q.min_aspect_ratio, ls.step,
+            n, J, F - J, F, mean_q, min_q, ls.step,
             ls.evaluations - 1, gnorm, dict(timer.seconds), method=method,
             relative_gradient_norm=gnorm / g0, wolfe=None if armijo else ls.wolfe,
             pair_rejected=pair_rejected, rejected_trials=ls.rejected,
@@ -177,8 +175,8 @@ def _line_search(problem, Q, d, F, slope, t_init, retraction, o: OptimizeOptions
     curve = retraction if problem.constraint is None else problem.constraint.curve(Q, retraction)
     if retraction is None:  # straight lines: the Armijo search's travel guard, or a cap
         t0 = time.perf_counter()
-        t_max = (max_travel_step(Q, problem.triangles, d) if armijo
-                 else o.segment_fraction * segment_limit(Q, problem.triangles, d))
+        t_max = (problem.travel_limit(Q, d) if armijo
+                 else o.segment_fraction * problem.step_limit(Q, d))
         timer.add("retraction", t0)
     else:
         t_max = math.inf

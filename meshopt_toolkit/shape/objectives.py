@@ -90,7 +90,7 @@ def _poisson(mesh, rhs, dirichlet, neumann, tracking, solver):
     from ..fem.poisson_simplex import SimplexPoisson
 
     if neumann:
-        raise OptionError("Neumann data on tet meshes is not supported")
+        raise OptionError("--neumann: Neumann data is planar only, not supported on tetrahedra")
     lift = np.zeros(mesh.n_vertices)
     nodes = [mesh.boundary_vertices]
     for group, value in (dirichlet or {}).items():

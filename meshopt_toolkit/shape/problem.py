@@ -18,7 +18,7 @@ import numpy as np
 from .._linalg import dot
 from .._typing import FloatArray
 from ..errors import NotAdmissibleError
-from ..kernels.triangles import aspect_ratios, heights, signed_areas
+from ..kernels.triangles import aspect_ratios, heights, quality_summary, segment_limit, signed_areas
 from ..mesh import boundary_self_intersections
 
 
@@ -119,6 +119,20 @@ class ShapeProblem:
     def project(self, Q: FloatArray, V: FloatArray) -> FloatArray:
         """``V`` projected onto the constraint's tangent space (``V`` without one)."""
         return V if self.constraint is None else self.constraint.project(Q, V)
+
+    def quality(self, Q: FloatArray) -> tuple[float, float]:
+        """``(mean, worst)`` cell quality at ``Q``: the mean shape quality Λ (6.25) and
+        the minimum aspect ratio (5.49)."""
+        q = quality_summary(Q, self.triangles)
+        return q.mean_shape_quality, q.min_aspect_ratio
+
+    def step_limit(self, Q: FloatArray, d: FloatArray) -> float:
+        """The first ``t > 0`` at which a cell of ``Q + t d`` degenerates (inf: none)."""
+        return segment_limit(Q, self.triangles, d)
+
+    def travel_limit(self, Q: FloatArray, d: FloatArray) -> float:
+        """Steepest descent's guard on ``Q + t d`` (:func:`max_travel_step`)."""
+        return max_travel_step(Q, self.triangles, d)
 
     @staticmethod
     def pair(P: FloatArray, V: FloatArray) -> float:

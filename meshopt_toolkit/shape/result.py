@@ -20,7 +20,7 @@ class IterationRecord:
     """One row of the optimization history.
 
     ``objective`` is F = j + f (penalty), ``mean_shape_quality`` is Λ (6.25),
-    ``min_aspect_ratio`` is AR (5.49); ``seconds`` maps each phase of :data:`PHASES` to
+    ``min_aspect_ratio`` is AR (5.49) (on tets: the mean and the worst mean ratio); ``seconds`` maps each phase of :data:`PHASES` to
     its wall time in this iteration. Row 0 describes the initial mesh (step 0).
     """
 
@@ -133,12 +133,20 @@ class OptimizeResult:
             "objective_weight": self.objective_weight,
             "penalty": last.penalty,
             "objective": self.fun,
-            "mean_shape_quality": last.mean_shape_quality,
-            "min_aspect_ratio": last.min_aspect_ratio,
+            **self._quality(last),
             "seconds": self.seconds,
-            "n_vertices": self.mesh.n_vertices,
-            "n_triangles": self.mesh.n_triangles,
         }
+
+    def _quality(self, last: IterationRecord) -> dict:
+        """The final quality and size: Λ and AR of triangles, mean ratios of tets (the
+        history's two quality columns hold the tets' mean and worst mean ratio)."""
+        if hasattr(self.mesh, "tets"):
+            return {"mean_mean_ratio": last.mean_shape_quality,
+                    "min_mean_ratio": last.min_aspect_ratio,
+                    "n_vertices": self.mesh.n_vertices, "n_tets": self.mesh.n_tets}
+        return {"mean_shape_quality": last.mean_shape_quality,
+                "min_aspect_ratio": last.min_aspect_ratio,
+                "n_vertices": self.mesh.n_vertices, "n_triangles": self.mesh.n_triangles}
 
 
 class PhaseTimer:

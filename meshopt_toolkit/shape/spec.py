@@ -12,7 +12,7 @@ conditions, the objective, the exact constraints and the objective's weight.
 
 :class:`ProblemSpec` is what ``meshopt optimize``'s options, the
 ``apply_coord_shape_optimization`` filter's parameters and library callers fill in; physical
-groups are gmsh physical groups of line elements, by name or number
+groups are gmsh physical groups of line elements (of triangles on a tet mesh), by name or number
 (:func:`~meshopt_toolkit.fem.boundary_data.group_key`).
 """
 
@@ -189,6 +189,22 @@ def stress_tensor(components, d: int, group) -> np.ndarray:
     return np.array([[c[0], c[5], c[4]], [c[5], c[1], c[3]], [c[4], c[3], c[2]]])
 
 
+def _boundary_facets(mesh) -> np.ndarray:
+    """A mesh's oriented boundary facets: its boundary edges, or a tet mesh's outward faces."""
+    return mesh.boundary_faces if np.shape(mesh.points)[1] == 3 else mesh.boundary_edges
+
+
+def _closed(facets: np.ndarray) -> bool:
+    """Whether oriented facets close around regions: every vertex (2D) or directed edge
+    (3D) of a facet is met once, reversed, by another."""
+    if facets.shape[1] == 2:
+        starts, ends = np.sort(facets[:, 0]), np.sort(facets[:, 1])
+        return bool(np.array_equal(starts, ends) and len(np.unique(starts)) == len(starts))
+    edges = np.concatenate([facets[:, [0, 1]], facets[:, [1, 2]], facets[:, [2, 0]]])
+    forward = {tuple(e) for e in edges.tolist()}
+    return len(forward) == len(edges) and forward == {(b, a) for a, b in forward}
+
+
 @dataclass(frozen=True)
 class ProblemSpec:
     """A shape problem on a mesh with physical groups.
@@ -299,21 +315,21 @@ class ProblemSpec:
                               **options)
 
     def body_facets(self, mesh) -> np.ndarray:
-        """The oriented boundary edges of the region the moving groups enclose (for
-        ``keep_barycenter``); refused when they do not close around a region."""
-        from ..fem.boundary_data import group_edges
+        """The oriented boundary facets (edges in 2D, triangles on tets) of the region the
+        moving groups enclose (for ``keep_barycenter``); refused when they do not close
+        around a region."""
+        from ..fem.boundary_data import group_facets
         from .constraints import body_facets
 
         if not self.move:
             raise OptionError("--keep-barycenter keeps the moving body's barycenter: "
                               "name the body with --move")
-        vertices = np.unique(np.concatenate([group_edges(mesh, g).ravel() for g in self.move]))
-        edges = body_facets(mesh.points, mesh.boundary_edges, vertices)
-        starts, ends = np.sort(edges[:, 0]), np.sort(edges[:, 1])
-        if not np.array_equal(starts, ends) or len(np.unique(starts)) != len(starts):
+        vertices = np.unique(np.concatenate([group_facets(mesh, g).ravel() for g in self.move]))
+        facets = body_facets(mesh.points, _boundary_facets(mesh), vertices)
+        if not _closed(facets):
             raise OptionError(f"--keep-barycenter: --move {', '.join(map(str, self.move))} "
-                              "does not enclose a region (its edges do not close)")
-        return edges
+                              "does not enclose a region (its facets do not close)")
+        return facets
 
     def constraint(self, mesh, riesz, free=None):
         """The exact constraints as the line search uses them (None without any):
@@ -327,9 +343,11 @@ class ProblemSpec:
         if not (self.keep_area or self.keep_barycenter):
             return None
         Q = mesh.points
-        if self.keep_barycenter:
-            c = ExactConstraints(self.body_facets(mesh), Q, riesz, measure=self.keep_area,
-                                 barycenter=True)
+        if self.keep_barycenter or Q.shape[1] == 3:
+            # on tets keep_area alone is the domain's volume, enclosed by all its faces
+            facets = self.body_facets(mesh) if self.keep_barycenter else _boundary_facets(mesh)
+            c = ExactConstraints(facets, Q, riesz, measure=self.keep_area,
+                                 barycenter=self.keep_barycenter)
             J = c.jacobian(Q)
         else:
             c = AreaConstraint(mesh.boundary_edges, shoelace_area(Q, mesh.boundary_edges), riesz)
@@ -344,15 +362,17 @@ class ProblemSpec:
         return c
 
     def fixed_mask(self, mesh) -> np.ndarray | None:
-        """``(N,)`` True on the vertices that stay, or None when every vertex moves."""
-        from ..fem.boundary_data import group_edges
+        """``(N,)`` True on the vertices that stay, or None when every vertex moves (groups
+        of line elements on a planar mesh, of triangles on a tet mesh)."""
+        from ..fem.boundary_data import group_facets
 
         fixed = np.zeros(mesh.n_vertices, bool)
         for g in self.fixed:
-            fixed[np.unique(group_edges(mesh, g))] = True
+            fixed[np.unique(group_facets(mesh, g))] = True
         if self.move:
-            moving = {tuple(e) for g in self.move for e in np.sort(group_edges(mesh, g), 1).tolist()}
-            be = np.sort(mesh.boundary_edges, axis=1)
+            moving = {tuple(e) for g in self.move
+                      for e in np.sort(group_facets(mesh, g), 1).tolist()}
+            be = np.sort(_boundary_facets(mesh), axis=1)
             stay = np.array([tuple(e) not in moving for e in be.tolist()], dtype=bool)
             fixed[np.unique(be[stay])] = True
             on_boundary = np.zeros(mesh.n_vertices, bool)

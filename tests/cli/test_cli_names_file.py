@@ -126,9 +126,10 @@ def test_a_file_without_nodes_is_one_line_naming_it(files, tmp_path, capsys, com
 
 
 # ------------------------------------------------ planar-only commands say what they take
-@pytest.mark.parametrize("command", ["optimize", "deform"])
-@pytest.mark.parametrize("mesh,kind", [("cube.msh", "a tetrahedral mesh (384 tetrahedra)"),
-                                       ("sphere.obj", "a triangle surface in 3D")])
+@pytest.mark.parametrize("command,mesh,kind", [  # optimize takes tetrahedra too
+    ("optimize", "sphere.obj", "a triangle surface in 3D"),
+    ("deform", "cube.msh", "a tetrahedral mesh (384 tetrahedra)"),
+    ("deform", "sphere.obj", "a triangle surface in 3D")])
 def test_planar_commands_name_what_they_support(files, tmp_path, capsys, command, mesh, kind):
     out = tmp_path / ("out" if command == "optimize" else f"out{(files / mesh).suffix}")
     argv = [command, str(files / mesh), "-o", str(out)]

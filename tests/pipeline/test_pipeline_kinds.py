@@ -24,10 +24,11 @@ from meshopt_toolkit.pipeline.document import kind_of
 trimesh = pytest.importorskip("trimesh")
 
 MOVE = {"name": "apply_coord_prescribed_motion", "params": {"map": "x + 0.01*z; y; z"}}
-OPTIMIZE = {"name": "apply_coord_shape_optimization", "params": {"max_iterations": 1}}
+PLANAR_STEP = {"name": "apply_coord_quality_preserving_deformation",
+               "params": {"displacement": "v.npy"}}
 SMOOTH = {"name": "apply_coord_laplacian_smoothing", "params": {"stepsmoothnum": 1}}
-PLANAR_ONLY = ("step 2 (apply_coord_shape_optimization): supports planar triangle meshes; "
-               "the current mesh is {}")
+PLANAR_ONLY = ("step 2 (apply_coord_quality_preserving_deformation): supports planar triangle "
+               "meshes; the current mesh is {}")
 
 
 @pytest.fixture(scope="module")
@@ -37,7 +38,8 @@ def files(tmp_path_factory):
     save_cells(CellMesh(P, [("tetra", T)]), d / "cube.msh")
     trimesh.creation.icosphere(subdivisions=1).export(d / "sphere.obj")
     (d / "disc.msh").write_bytes(data_path("disc_25.msh").read_bytes())
-    (d / "late.json").write_text(json.dumps({"filters": [MOVE, OPTIMIZE]}))
+    np.save(d / "v.npy", np.zeros((_planar().n_vertices, 2)))  # the planar step's velocity
+    (d / "late.json").write_text(json.dumps({"filters": [MOVE, PLANAR_STEP]}))
     return d
 
 
@@ -54,7 +56,7 @@ def no_move(monkeypatch):
 @pytest.mark.parametrize("dry_run", [True, False])
 def test_a_step_that_needs_another_kind_fails_before_any_work(files, tmp_path, no_move, mesh,
                                                               kind, dry_run):
-    rec = run_file(Pipeline.from_dict({"filters": [MOVE, OPTIMIZE]}), files / mesh, tmp_path,
+    rec = run_file(Pipeline.from_dict({"filters": [MOVE, PLANAR_STEP]}), files / mesh, tmp_path,
                    options=RunOptions(dry_run=dry_run))
     assert rec["status"] == "failed" and rec["error"] == PLANAR_ONLY.format(kind)
     assert no_move == [] and not list(tmp_path.iterdir())
@@ -63,7 +65,8 @@ def test_a_step_that_needs_another_kind_fails_before_any_work(files, tmp_path, n
 def test_dry_run_counts_each_file_that_does_not_fit(files, capsys):
     late = files / "late.json"
     assert main(["run", str(late), *(str(files / m) for m in ("cube.msh", "sphere.obj",
-                                                              "disc.msh")), "--dry-run"]) == 1
+                                                              "disc.msh")), "--dry-run",
+                 "--allow-read", str(files)]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     errors = [ln for ln in err if ": error: " in ln]
     assert errors == [f"meshopt run: error: {files / m}: {late}: " + PLANAR_ONLY.format(k)
@@ -85,7 +88,7 @@ def test_a_meshlab_step_keeps_the_kind(files, tmp_path):
     """A MeshLab step on a surface leaves a surface: the planar step after it is refused
     before the MeshLab step runs."""
     pytest.importorskip("pymeshlab")
-    rec = run_file({"filters": [SMOOTH, OPTIMIZE]}, files / "sphere.obj", tmp_path,
+    rec = run_file({"filters": [SMOOTH, PLANAR_STEP]}, files / "sphere.obj", tmp_path,
                    options=RunOptions(dry_run=True))
     assert rec["error"] == PLANAR_ONLY.format("a triangle surface in 3D")
 
@@ -94,7 +97,7 @@ def test_the_kind_after_a_load_is_checked_once_it_is_read(files, tmp_path):
     """``load_mesh`` says only running it tells the kind: the dry run cannot refuse the
     planar step after it, the run refuses it once the tets are read, before it runs."""
     data = {"filters": [{"name": "load_mesh", "params": {"path": str(files / "cube.msh")}},
-                        OPTIMIZE]}
+                        PLANAR_STEP]}
     pipeline = Pipeline.from_dict(data)
     doc = Document()
     doc.dry_run = True
@@ -103,9 +106,9 @@ def test_the_kind_after_a_load_is_checked_once_it_is_read(files, tmp_path):
     doc.dry_run = True
     pipeline.check(doc)  # the load's result is unknown (and a tet file is read for its size)
     doc.dry_run = False
-    with pytest.raises(FilterError, match=r"step 2 \(apply_coord_shape_optimization\): "
-                                          r"supports planar triangle meshes; the current "
-                                          r"mesh is a tetrahedral mesh"):
+    with pytest.raises(FilterError, match=r"step 2 \(apply_coord_quality_preserving_"
+                                          r"deformation\): supports planar triangle meshes; "
+                                          r"the current mesh is a tetrahedral mesh"):
         pipeline.run(doc)
     assert len(doc.entries) == 2 and kind_of(doc.mesh) == TETS and doc.results[0]["loaded"]
 
@@ -131,7 +134,7 @@ def test_kind_of_each_mesh(files):
 
 def test_every_builtin_declares_its_kinds():
     declared = {cls.name: set(cls.kinds) for cls in registry if cls.origin == "builtin"}
-    assert declared["apply_coord_shape_optimization"] == {PLANAR}
+    assert declared["apply_coord_shape_optimization"] == {PLANAR, TETS}
     assert declared["apply_coord_quality_preserving_deformation"] == {PLANAR}
     assert declared["apply_coord_prescribed_motion"] == set(MESH_KINDS)
     assert declared["compute_scalar_by_shape_quality_per_face"] == {PLANAR, SURFACE}
