@@ -201,7 +201,7 @@ def elasticity(tmp: Path, size: float, refine_near: float) -> None:
 
 def metric_factor_choices(path, spec_args, solve: float, iterations: int) -> None:
     """The elasticity metric's choice of a factorization per iterate: by its operation
-    counts (the default, ``metrics.refactorize_pays``), against keeping the factor until
+    counts (the default, ``kept_factor.refactorize_pays``), against keeping the factor until
     CG needs more than ``REFACTOR_AFTER_CG`` iterations (no counts) and against a
     factorization at every iterate (``REFACTOR_AFTER_CG = 0``)."""
     from meshopt_toolkit.optimize import optimize
@@ -210,7 +210,7 @@ def metric_factor_choices(path, spec_args, solve: float, iterations: int) -> Non
     mesh = load_workpiece(path, "optimize", unit_size=False).mesh
     spec = spec_from_options(**spec_args)
     kept_cg, counts_of, factorize = (metrics.ElasticityMetric.REFACTOR_AFTER_CG,
-                                     metrics._KeptCosts.of, metrics.factorize)
+                                     metrics.KeptFactorCosts.of, metrics.factorize)
     made = [0]
 
     def counted(*args, **kwargs):
@@ -224,14 +224,14 @@ def metric_factor_choices(path, spec_args, solve: float, iterations: int) -> Non
     metrics.factorize = counted
     try:
         for name, cg, of in choices:
-            metrics.ElasticityMetric.REFACTOR_AFTER_CG, metrics._KeptCosts.of = cg, of
+            metrics.ElasticityMetric.REFACTOR_AFTER_CG, metrics.KeptFactorCosts.of = cg, of
             made[0] = 0
             t0 = time.perf_counter()
             r = optimize(mesh, problem=spec, max_iterations=iterations)
             out[name] = (r.x, r.phase_totals(), r.nit, made[0], time.perf_counter() - t0)
     finally:
         metrics.ElasticityMetric.REFACTOR_AFTER_CG = kept_cg
-        metrics._KeptCosts.of = counts_of
+        metrics.KeptFactorCosts.of = counts_of
         metrics.factorize = factorize
     x0 = out[choices[0][0]][0]
     print(f"\nThe elasticity metric's factorizations over {iterations} iterations:\n")

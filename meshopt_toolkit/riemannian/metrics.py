@@ -45,6 +45,7 @@ from .._typing import FloatArray
 from ..fem.elasticity import (BlockPattern, SPDSolve, assemble, factorize, kept_ordering,
                              lame_parameters, solver_method)
 from ..solvers import SOLVERS, pcg
+from .kept_factor import KeptFactorCosts
 from ..errors import InvalidMeshError, MeshoptError
 
 __all__ = [
@@ -198,60 +199,6 @@ def _block_submatrix(A: sp.bsr_matrix, keep: np.ndarray) -> sp.bsr_matrix:
     return sp.bsr_matrix(sub, blocksize=(2, 2))
 
 
-def refactorize_pays(cycle_cost: float, cycle_iterates: int, next_cost: float) -> bool:
-    """Whether to factorize at a new iterate instead of solving by CG on the kept factor.
-
-    A factorization at one iterate followed by CG solves preconditioned by it at the next
-    ones costs ``cycle_cost`` over the ``cycle_iterates`` iterates since that
-    factorization (its iterate included); CG's cost grows as the
-    iterates move away from the factor. The average cost per iterate is least when the
-    cycle ends as soon as the next iterate's CG cost, ``next_cost`` (estimated by the
-    last iterate's), reaches the cycle's average so far: then a new factorization pays.
-    """
-    return cycle_iterates > 1 and next_cost * cycle_iterates >= cycle_cost
-
-
-class _KeptCosts:
-    """Operation counts (multiply-adds) of a kept Cholesky factor and of the CG solves it
-    preconditions, for :func:`refactorize_pays`: the factorization ``Σ c_j²`` over the
-    column counts ``c_j`` of ``L``, a solve with the factor ``2 nnz(L)`` (two triangular
-    solves), a CG iteration that solve and a product with ``A`` (``nnz(A)``)."""
-
-    __slots__ = ("factorization", "cg_iteration", "cycle_cost", "cycle_iterates",
-                 "iterate_cost")
-
-    def __init__(self, column_counts: np.ndarray, nnz_matrix: int) -> None:
-        counts = np.asarray(column_counts, dtype=np.float64)
-        self.factorization = float(dot(counts, counts))
-        self.cg_iteration = 2.0 * float(counts.sum()) + float(nnz_matrix)
-        self.cycle_cost = self.factorization
-        self.cycle_iterates = 1  # the factorization's iterate
-        self.iterate_cost = 0.0  # CG at the last iterate
-
-    @classmethod
-    def of(cls, solver: SPDSolve, nnz_matrix: int) -> "_KeptCosts | None":
-        """The counts of a direct solver whose factor reports its column counts; None for
-        another (SuperLU, AMG, ``cvxopt``'s CHOLMOD): such a factor is kept until CG
-        needs more than ``REFACTOR_AFTER_CG`` iterations."""
-        counts = getattr(solver.solve, "column_counts", None)
-        counts = counts() if callable(counts) else None
-        return None if counts is None else cls(counts, nnz_matrix)
-
-    def add_cg(self, iterations: int) -> None:
-        """A CG solve of ``iterations`` at the current iterate."""
-        self.iterate_cost += iterations * self.cg_iteration
-        self.cycle_cost += iterations * self.cg_iteration
-
-    def start_iterate(self) -> bool:
-        """At a new iterate: whether a factorization pays (:func:`refactorize_pays`, the
-        last iterate's CG cost as the estimate); if not, the iterate joins the cycle."""
-        if refactorize_pays(self.cycle_cost, self.cycle_iterates, self.iterate_cost):
-            return True
-        self.cycle_iterates += 1
-        self.iterate_cost = 0.0
-        return False
-
-
 class ElasticityMetric:
     """Linear elasticity metric ``(U, V) = vec U · (K + δM) vec V`` (thesis (6.24)).
 
@@ -307,7 +254,7 @@ class ElasticityMetric:
         self._matrix_cache = _LastQCache()
         self._solver_cache = _LastQCache()
         self._kept: dict = {}  # the last factorization, by free mask
-        self._costs: _KeptCosts | None = None  # its operation counts, where known
+        self._costs: KeptFactorCosts | None = None  # its operation counts, where known
         self._orderings: dict = {}  # the direct solver's ordering, by free mask
         self._element_blocks: FloatArray | None = None  # assembly buffer (T, 3, 3, 2, 2)
 
@@ -346,8 +293,8 @@ class ElasticityMetric:
         """The solve at ``Q``: exact with a factorization made at ``Q``; else conjugate
         gradients to ``rtol`` preconditioned by the factorization kept from an earlier
         ``Q`` (an optimizer's consecutive iterates are close, so a few iterations do).
-        A new ``Q`` is factorized where :func:`refactorize_pays` finds it cheaper than
-        keeping, on the operation counts of :class:`_KeptCosts` (known for CHOLMOD's
+        A new ``Q`` is factorized where :func:`.kept_factor.refactorize_pays` finds it cheaper than
+        keeping, on the operation counts of :class:`KeptFactorCosts` (known for CHOLMOD's
         factors); any ``Q`` is refactorized when CG does not converge within
         ``REFACTOR_AFTER_CG`` iterations. The decisions are by counts, so results do not
         depend on timing; ``SPDSolve.method`` is "kept" for a CG solve."""
@@ -370,7 +317,7 @@ class ElasticityMetric:
             logger.debug("elasticity metric: %s factorization #%d", fresh.method,
                          self.n_factorizations)
             self._kept = {key: fresh}
-            self._costs = _KeptCosts.of(fresh, A.nnz)
+            self._costs = KeptFactorCosts.of(fresh, A.nnz)
             self._solver_cache.put(Q, fresh, free)
             return fresh
 

@@ -10,7 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import meshopt_toolkit.riemannian.metrics as metrics
-from meshopt_toolkit.riemannian.metrics import ElasticityMetric, refactorize_pays
+from meshopt_toolkit.riemannian.kept_factor import refactorize_pays
+from meshopt_toolkit.riemannian.metrics import ElasticityMetric
 from meshopt_toolkit._cholmod import library
 from meshopt_toolkit.solvers import factorize_spd, pcg
 
@@ -65,7 +66,7 @@ def test_without_counts_the_kept_factor_solves_as_before(mesh, rng, monkeypatch)
     """Where the factor reports no counts (``cvxopt``, SuperLU) the metric keeps the
     factor of the first iterate for all the later ones: each solve equals, to the bit,
     CG preconditioned by that factor, replayed here from the public pieces."""
-    monkeypatch.setattr(metrics._KeptCosts, "of", classmethod(lambda cls, s, nnz: None))
+    monkeypatch.setattr(metrics.KeptFactorCosts, "of", classmethod(lambda cls, s, nnz: None))
     metric = ElasticityMetric(mesh, solver="direct")
     path = _path(mesh, rng, 6)
     P = rng.standard_normal(mesh.points.shape)
