@@ -103,7 +103,6 @@ def test_the_metric_refactorizes_as_the_rule_says(mesh, rng, monkeypatch):
         A = metric.matrix(Q)
         if cycle is None or refactorize_pays(cycle, iterates, last):
             expected += 1
-            counts = metric._kept[None].solve.column_counts() if cycle is not None else None
             cycle, iterates, last = None, 1, 0.0
         else:
             iterates, last = iterates + 1, 0.0
