@@ -130,19 +130,21 @@ def body_report(before, after, group, fixed_group):
                 min_area=float(signed_areas(P1, T).min()), worst=ar1 / ar0, P=P1, loop=loop)
 
 
-def iteration_table(rows, every: int) -> None:
-    """Per iteration: j, the worst cell against the start, state and total seconds."""
+def iteration_table(rows, every: int, solve: float) -> None:
+    """Per iteration: j, the worst cell against the start, state and total seconds, and
+    the iteration in state solves (``solve`` seconds each)."""
     ar0 = float(rows[0]["min_aspect_ratio"])
     phases = [k for k in rows[0] if k.startswith("time_")]
-    print("| iteration | j | worst AR / start | state solves (s) | iteration (s) |")
-    print("| ---: | ---: | ---: | ---: | ---: |")
+    print("| iteration | j | worst AR / start | state solves (s) | iteration (s) "
+          "| iteration / state solve |")
+    print("| ---: | ---: | ---: | ---: | ---: | ---: |")
     for r in rows[1:]:
         i = int(r["iteration"])
         if i % every and r is not rows[-1]:
             continue
         total = sum(float(r[k]) for k in phases)
         print(f"| {i} | {float(r['j']):.6g} | {float(r['min_aspect_ratio']) / ar0:.3f} | "
-              f"{float(r['time_state']):.3f} | {total:.3f} |")
+              f"{float(r['time_state']):.3f} | {total:.3f} | {total / solve:.2f} |")
 
 
 def speed(rows, solve: float) -> str:
@@ -192,36 +194,55 @@ def elasticity(tmp: Path, size: float, refine_near: float) -> None:
     rows = runs["anchor follows (default)"][2]
     solve = state_seconds(plate, dict(spec, move="hole"))
     print(speed(rows, solve))
-    refactor_every_iterate(plate, solve)
+    metric_factor_choices(plate, dict(spec, move="hole", keep_area=True), solve, 30)
     print()
-    iteration_table(rows, 10)
+    iteration_table(rows, 10, solve)
 
 
-def refactor_every_iterate(plate, solve: float, iterations: int = 30) -> None:
-    """The elasticity metric's kept factor (CG preconditioned by the factor of an earlier
-    iterate) against a factorization at every iterate (``REFACTOR_AFTER_CG = 0``)."""
+def metric_factor_choices(path, spec_args, solve: float, iterations: int) -> None:
+    """The elasticity metric's choice of a factorization per iterate: by its operation
+    counts (the default, ``kept_factor.refactorize_pays``), against keeping the factor until
+    CG needs more than ``REFACTOR_AFTER_CG`` iterations (no counts) and against a
+    factorization at every iterate (``REFACTOR_AFTER_CG = 0``)."""
     from meshopt_toolkit.optimize import optimize
-    from meshopt_toolkit.riemannian.metrics import ElasticityMetric
+    from meshopt_toolkit.riemannian import metrics
 
-    mesh = load_workpiece(plate, "optimize", unit_size=False).mesh
-    spec = spec_from_options(pde="elasticity", stress="outer=2,1,0", move="hole",
-                             keep_area=True)
-    kept = ElasticityMetric.REFACTOR_AFTER_CG
+    mesh = load_workpiece(path, "optimize", unit_size=False).mesh
+    spec = spec_from_options(**spec_args)
+    kept_cg, counts_of, factorize = (metrics.ElasticityMetric.REFACTOR_AFTER_CG,
+                                     metrics.KeptFactorCosts.of, metrics.factorize)
+    made = [0]
+
+    def counted(*args, **kwargs):
+        made[0] += 1
+        return factorize(*args, **kwargs)
+
+    choices = (("by operation counts (default)", kept_cg, counts_of),
+               ("kept until CG exceeds REFACTOR_AFTER_CG", kept_cg, lambda *a: None),
+               ("at every iterate", 0, counts_of))
     out = {}
+    metrics.factorize = counted
     try:
-        for name, cg in (("kept factor", kept), ("refactorized", 0)):
-            ElasticityMetric.REFACTOR_AFTER_CG = cg
+        for name, cg, of in choices:
+            metrics.ElasticityMetric.REFACTOR_AFTER_CG, metrics.KeptFactorCosts.of = cg, of
+            made[0] = 0
+            t0 = time.perf_counter()
             r = optimize(mesh, problem=spec, max_iterations=iterations)
-            out[name] = (r.x, r.phase_totals(), r.nit)
+            out[name] = (r.x, r.phase_totals(), r.nit, made[0], time.perf_counter() - t0)
     finally:
-        ElasticityMetric.REFACTOR_AFTER_CG = kept
-    for name, (x, phases, nit) in out.items():
+        metrics.ElasticityMetric.REFACTOR_AFTER_CG = kept_cg
+        metrics.KeptFactorCosts.of = counts_of
+        metrics.factorize = factorize
+    x0 = out[choices[0][0]][0]
+    print(f"\nThe elasticity metric's factorizations over {iterations} iterations:\n")
+    print("| factorization | factorizations | iteration (s) | iteration / state solve "
+          "| metric solves per iteration (s) | total (s) | iterates' max difference |")
+    print("| --- | ---: | ---: | ---: | ---: | ---: | ---: |")
+    for name, (x, phases, nit, factorizations, total) in out.items():
         per = sum(phases.values()) / nit
-        print(f"Elasticity metric, {name} ({nit} iterations): one iteration {per:.3f} s = "
-              f"{per / solve:.2f} state solves, {phases['gradient'] / nit:.3f} s of it in "
-              f"the gradient and direction.")
-    a, b = (v[0] for v in out.values())
-    print(f"The iterates differ by {np.abs(a - b).max():.1e} at most.")
+        diff = np.abs(x - x0).max() / np.abs(x0).max()
+        print(f"| {name} | {factorizations} | {per:.3f} | {per / solve:.2f} | "
+              f"{phases['gradient'] / nit:.3f} | {total:.1f} | {diff:.1e} |")
 
 
 def stokes(tmp: Path, size: float, refine_near: float, ratios) -> None:
@@ -257,8 +278,12 @@ def stokes(tmp: Path, size: float, refine_near: float, ratios) -> None:
           f"{r['area_change']:.1e} relative, barycenter to {r['barycenter_shift']:.1e} of "
           f"√area, box untouched: {r['outer_untouched']}, smallest area "
           f"{r['min_area']:.2e}, worst AR {r['worst']:.3f} × the start.")
-    print(speed(rows, state_seconds(body, dict(spec, move="body"))) + "\n")
-    iteration_table(rows, 10)
+    solve = state_seconds(body, dict(spec, move="body"))
+    print(speed(rows, solve))
+    metric_factor_choices(body, dict(spec, move="body", keep_area=True,
+                                     keep_barycenter=True), solve, 20)
+    print()
+    iteration_table(rows, 10, solve)
 
 
 def main_(argv=None) -> None:

@@ -57,10 +57,12 @@ class _Dense(ctypes.Structure):
 
 
 class _FactorHead(ctypes.Structure):
-    """The first fields of ``cholmod_factor``: its order and, after a failed
-    factorization, the column where it failed (``minor < n``)."""
+    """The first fields of ``cholmod_factor``: its order, after a failed factorization
+    the column where it failed (``minor < n``), and the analysis' column counts of ``L``
+    (``ColCount``, n integers of the factor's ``itype``)."""
 
-    _fields_ = [("n", ctypes.c_size_t), ("minor", ctypes.c_size_t)]
+    _fields_ = [("n", ctypes.c_size_t), ("minor", ctypes.c_size_t),
+                ("perm", ctypes.c_void_p), ("col_count", ctypes.c_void_p)]
 
 
 def _find() -> str | None:
@@ -163,6 +165,12 @@ class _NativeFactor:
                 raise RuntimeError(f"CHOLMOD: the matrix is not positive definite "
                                    f"(column {head.minor})")
 
+    def column_counts(self) -> IntArray:
+        """The nonzeros of each column of ``L`` (diagonal included), from the analysis."""
+        head = _FactorHead.from_address(self._factor.value)
+        values = ctypes.cast(head.col_count, ctypes.POINTER(ctypes.c_int64))
+        return np.ctypeslib.as_array(values, (self.n,)).copy()
+
     def __call__(self, b: FloatArray) -> FloatArray:
         rhs = np.array(b, dtype=np.float64, order="F").reshape(self.n, -1, order="F")
         dense = _Dense(self.n, rhs.shape[1], rhs.size, self.n, rhs.ctypes.data, None,
@@ -253,6 +261,13 @@ class CholeskyFactor:
             self._failed = False
             return
         self._cvxopt_factorize(lower, same)
+
+    def column_counts(self) -> IntArray | None:
+        """The nonzeros of each column of ``L`` (diagonal included, ``(n,)``) where the
+        factor is CHOLMOD's through ``ctypes``; else None (``cvxopt`` does not expose them)."""
+        if not self.releases_gil or self._factor is None:
+            return None
+        return self._factor.column_counts()
 
     def _cvxopt_factorize(self, lower: sp.csc_matrix, same: bool) -> None:
         import cvxopt

@@ -45,6 +45,7 @@ from .._typing import FloatArray
 from ..fem.elasticity import (BlockPattern, SPDSolve, assemble, factorize, kept_ordering,
                              lame_parameters, solver_method)
 from ..solvers import SOLVERS, pcg
+from .kept_factor import KeptFactorCosts
 from ..errors import InvalidMeshError, MeshoptError
 
 __all__ = [
@@ -253,6 +254,7 @@ class ElasticityMetric:
         self._matrix_cache = _LastQCache()
         self._solver_cache = _LastQCache()
         self._kept: dict = {}  # the last factorization, by free mask
+        self._costs: KeptFactorCosts | None = None  # its operation counts, where known
         self._orderings: dict = {}  # the direct solver's ordering, by free mask
         self._element_blocks: FloatArray | None = None  # assembly buffer (T, 3, 3, 2, 2)
 
@@ -290,10 +292,12 @@ class ElasticityMetric:
     def _solver(self, Q: FloatArray, free: np.ndarray | None) -> SPDSolve:
         """The solve at ``Q``: exact with a factorization made at ``Q``; else conjugate
         gradients to ``rtol`` preconditioned by the factorization kept from an earlier
-        ``Q`` (an optimizer's consecutive iterates are close, so a few iterations do),
-        refactorizing at ``Q`` when CG does not converge within ``REFACTOR_AFTER_CG``
-        iterations. The decision is by iteration count, so results do not depend on
-        timing; ``SPDSolve.method`` is "kept" for such a solve."""
+        ``Q`` (an optimizer's consecutive iterates are close, so a few iterations do).
+        A new ``Q`` is factorized where :func:`.kept_factor.refactorize_pays` finds it cheaper than
+        keeping, on the operation counts of :class:`KeptFactorCosts` (known for CHOLMOD's
+        factors); any ``Q`` is refactorized when CG does not converge within
+        ``REFACTOR_AFTER_CG`` iterations. The decisions are by counts, so results do not
+        depend on timing; ``SPDSolve.method`` is "kept" for a CG solve."""
         s = self._solver_cache.get(Q, free)
         if s is not None:
             return s
@@ -313,10 +317,14 @@ class ElasticityMetric:
             logger.debug("elasticity metric: %s factorization #%d", fresh.method,
                          self.n_factorizations)
             self._kept = {key: fresh}
+            self._costs = KeptFactorCosts.of(fresh, A.nnz)
             self._solver_cache.put(Q, fresh, free)
             return fresh
 
         if kept is None or kept.matrix.shape != A.shape:
+            return refactorize()
+        costs = self._costs
+        if costs is not None and costs.start_iterate():
             return refactorize()
         csr = A.tocsr()
 
@@ -325,12 +333,14 @@ class ElasticityMetric:
             if current is not None and current.method != "kept":
                 return current.solve(b)  # refactorized at this Q meanwhile
             try:
-                x, _, residual = pcg(csr, b, kept.precondition or kept.solve, self.rtol,
-                                     max_iterations=self.REFACTOR_AFTER_CG)
+                x, iterations, residual = pcg(csr, b, kept.precondition or kept.solve,
+                                              self.rtol, max_iterations=self.REFACTOR_AFTER_CG)
             except FloatingPointError:  # the kept factor is too far off to precondition
                 residual = np.inf
             if not residual <= self.rtol:
                 return refactorize().solve(b)
+            if costs is not None:
+                costs.add_cg(iterations)
             return x
 
         s = SPDSolve("kept", solve, A)

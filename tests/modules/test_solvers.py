@@ -351,3 +351,31 @@ def test_refined_spd_solve_reaches_rtol_and_falls_back_to_double():
     x2 = solve2(b2)  # ... so the double factor did it
     assert np.linalg.norm(b2 - near @ x2) <= 1e-9 * np.linalg.norm(b2)
     assert np.allclose(precondition2(b2), np.linalg.solve(near.toarray(), b2), rtol=1e-8)
+
+
+def test_cholesky_column_counts_are_those_of_the_dense_factor(rng):
+    """The factor's column counts (CHOLMOD's analysis) are the nonzeros of each column of
+    NumPy's dense Cholesky factor of the matrix in the factor's permutation."""
+    import ctypes
+
+    from meshopt_toolkit import _cholmod as native
+
+    if native.library() is None:
+        pytest.skip("CHOLMOD does not load through ctypes here")
+    n = 60
+    for seed in range(3):
+        B = sp.random(n, n, 0.05, random_state=seed)
+        A = (B + B.T + 20 * sp.eye(n)).tocsc()
+        factor = native.CholeskyFactor(A, rng.permutation(n))
+        head = native._FactorHead.from_address(factor._factor._factor.value)
+        perm = np.ctypeslib.as_array(ctypes.cast(head.perm, ctypes.POINTER(ctypes.c_int64)),
+                                     (n,))
+        L = np.linalg.cholesky(A.toarray()[np.ix_(perm, perm)])
+        assert np.array_equal(factor.column_counts(), (L != 0).sum(axis=0))
+
+
+def test_cholesky_column_counts_are_unknown_through_cvxopt(monkeypatch):
+    from meshopt_toolkit import _cholmod as native
+
+    monkeypatch.setattr(native, "library", lambda: None)
+    assert native.CholeskyFactor(sp.eye(4, format="csc")).column_counts() is None

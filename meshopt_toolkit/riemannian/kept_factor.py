@@ -1,0 +1,66 @@
+"""When the elasticity metric factorizes a new iterate instead of solving by CG on the
+factor it keeps: :func:`refactorize_pays` on the operation counts of
+:class:`KeptFactorCosts` (docs/design-notes.md, "Elasticity metric at scale")."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._linalg import dot
+
+__all__ = ["KeptFactorCosts", "refactorize_pays"]
+
+
+def refactorize_pays(cycle_cost: float, cycle_iterates: int, next_cost: float) -> bool:
+    """Whether to factorize at a new iterate instead of solving by CG on the kept factor.
+
+    A factorization at one iterate followed by CG solves preconditioned by it at the next
+    ones costs ``cycle_cost`` over the ``cycle_iterates`` iterates since that
+    factorization (its iterate included); CG's cost grows as the
+    iterates move away from the factor. The average cost per iterate is least when the
+    cycle ends as soon as the next iterate's CG cost, ``next_cost`` (estimated by the
+    last iterate's), reaches the cycle's average so far: then a new factorization pays.
+    """
+    return cycle_iterates > 1 and next_cost * cycle_iterates >= cycle_cost
+
+
+class KeptFactorCosts:
+    """Operation counts (multiply-adds) of a kept Cholesky factor and of the CG solves it
+    preconditions, for :func:`refactorize_pays`: the factorization ``Σ c_j²`` over the
+    column counts ``c_j`` of ``L``, a solve with the factor ``2 nnz(L)`` (two triangular
+    solves), a CG iteration that solve and a product with ``A`` (``nnz(A)``)."""
+
+    __slots__ = ("factorization", "cg_iteration", "cycle_cost", "cycle_iterates",
+                 "iterate_cost")
+
+    def __init__(self, column_counts: np.ndarray, nnz_matrix: int) -> None:
+        counts = np.asarray(column_counts, dtype=np.float64)
+        self.factorization = float(dot(counts, counts))
+        self.cg_iteration = 2.0 * float(counts.sum()) + float(nnz_matrix)
+        self.cycle_cost = self.factorization
+        self.cycle_iterates = 1  # the factorization's iterate
+        self.iterate_cost = 0.0  # CG at the last iterate
+
+    @classmethod
+    def of(cls, solver, nnz_matrix: int) -> "KeptFactorCosts | None":
+        """The counts of a direct solver (``fem.elasticity.SPDSolve``) whose factor
+        reports its column counts (``CholeskyFactor.column_counts``); None for
+        another (SuperLU, AMG, ``cvxopt``'s CHOLMOD): such a factor is kept until CG
+        needs more than ``REFACTOR_AFTER_CG`` iterations."""
+        counts = getattr(solver.solve, "column_counts", None)
+        counts = counts() if callable(counts) else None
+        return None if counts is None else cls(counts, nnz_matrix)
+
+    def add_cg(self, iterations: int) -> None:
+        """A CG solve of ``iterations`` at the current iterate."""
+        self.iterate_cost += iterations * self.cg_iteration
+        self.cycle_cost += iterations * self.cg_iteration
+
+    def start_iterate(self) -> bool:
+        """At a new iterate: whether a factorization pays (:func:`refactorize_pays`, the
+        last iterate's CG cost as the estimate); if not, the iterate joins the cycle."""
+        if refactorize_pays(self.cycle_cost, self.cycle_iterates, self.iterate_cost):
+            return True
+        self.cycle_iterates += 1
+        self.iterate_cost = 0.0
+        return False

@@ -1,0 +1,120 @@
+"""The elasticity metric's choice between its kept factor (CG) and a new factorization
+(:func:`refactorize_pays`, by operation counts) and the solves either choice gives."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import grid_mesh
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import meshopt_toolkit.riemannian.metrics as metrics
+from meshopt_toolkit.riemannian.kept_factor import refactorize_pays
+from meshopt_toolkit.riemannian.metrics import ElasticityMetric
+from meshopt_toolkit._cholmod import library
+from meshopt_toolkit.solvers import factorize_spd, pcg
+
+needs_counts = pytest.mark.skipif(
+    library() is None, reason="needs CHOLMOD through ctypes (the factor's column counts)")
+
+
+def _stop(factorization, costs):
+    """The cycle length (iterates since the factorization's, included) after which the
+    rule, told each next iterate's CG cost, refactorizes; None: not within ``costs``."""
+    for k in range(2, len(costs) + 1):
+        if refactorize_pays(factorization + sum(costs[:k - 1]), k, costs[k - 1]):
+            return k
+    return None
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.floats(1e-3, 1e3), st.lists(st.floats(0.0, 1e2), min_size=1, max_size=30))
+def test_the_rule_ends_the_cycle_of_least_average_cost(factorization, steps):
+    """For CG costs that grow with the factor's age, the rule ends the cycle (one
+    factorization, then kept iterates; one kept iterate at least, to measure CG) of least
+    average cost per iterate, against a brute-force search over the cycle lengths."""
+    costs = list(np.cumsum(steps))  # non-decreasing
+    average = {k: (factorization + sum(costs[:k - 1])) / k for k in range(2, len(costs) + 2)}
+    stop = _stop(factorization, costs)
+    stop = len(costs) + 1 if stop is None else stop
+    best = min(average.values())
+    assert average[stop] <= best * (1 + 1e-12)
+    assert all(average[k] > best * (1 - 1e-12) for k in range(2, stop))
+
+
+def test_the_rule_on_synthetic_costs():
+    """Counts from which the decision follows by hand: a cycle of 4 iterates that cost 10
+    in all ends when the last iterate's CG cost reaches the average 2.5."""
+    assert not refactorize_pays(10.0, 4, 2.4)
+    assert refactorize_pays(10.0, 4, 2.5)
+    assert not refactorize_pays(0.0, 1, 1e9)  # the factorization's own iterate: keep
+    assert not refactorize_pays(np.inf, 50, 1e300)  # a factorization too costly to pay
+
+
+def _path(mesh, rng, n):
+    step = 2e-3 * rng.standard_normal((n,) + mesh.points.shape)
+    return [mesh.points + s for s in np.cumsum(step, axis=0)]
+
+
+@pytest.fixture
+def mesh():
+    return grid_mesh(8, jitter=0.2, seed=3)
+
+
+def test_without_counts_the_kept_factor_solves_as_before(mesh, rng, monkeypatch):
+    """Where the factor reports no counts (``cvxopt``, SuperLU) the metric keeps the
+    factor of the first iterate for all the later ones: each solve equals, to the bit,
+    CG preconditioned by that factor, replayed here from the public pieces."""
+    monkeypatch.setattr(metrics.KeptFactorCosts, "of", classmethod(lambda cls, s, nnz: None))
+    metric = ElasticityMetric(mesh, solver="direct")
+    path = _path(mesh, rng, 6)
+    P = rng.standard_normal(mesh.points.shape)
+    first = metric.riesz(path[0], P)
+    factor = factorize_spd(metric.matrix(path[0]), metric._orderings[None])
+    assert np.array_equal(first, factor(P.ravel()).reshape(P.shape))
+    for Q in path[1:]:
+        x, _, residual = pcg(metric.matrix(Q), P.ravel(), factor, metric.rtol,
+                             ElasticityMetric.REFACTOR_AFTER_CG)
+        assert residual <= metric.rtol
+        assert np.array_equal(metric.riesz(Q, P), x.reshape(P.shape))
+    assert metric.n_factorizations == 1
+
+
+@needs_counts
+def test_the_metric_refactorizes_as_the_rule_says(mesh, rng, monkeypatch):
+    """Along a path, the metric factorizes exactly where :func:`refactorize_pays` on the
+    recorded CG iterations and the factor's column counts says so, and every solve meets
+    the metric's tolerance (checked on the residual)."""
+    iterations = []
+    real_pcg = metrics.pcg
+
+    def recording(*args, **kwargs):
+        out = real_pcg(*args, **kwargs)
+        iterations.append(out[1])
+        return out
+
+    monkeypatch.setattr(metrics, "pcg", recording)
+    metric = ElasticityMetric(mesh, solver="direct")
+    P = rng.standard_normal(mesh.points.shape)
+    expected = 0
+    cycle = iterates = last = None
+    for Q in _path(mesh, rng, 12):
+        A = metric.matrix(Q)
+        if cycle is None or refactorize_pays(cycle, iterates, last):
+            expected += 1
+            cycle, iterates, last = None, 1, 0.0
+        else:
+            iterates, last = iterates + 1, 0.0
+        before = len(iterations)
+        G = metric.riesz(Q, P)
+        assert metric.n_factorizations == expected
+        assert np.linalg.norm(P.ravel() - A @ G.ravel()) <= metric.rtol * np.linalg.norm(P)
+        counts = metric._kept[None].solve.column_counts()
+        per_cg = 2.0 * counts.sum() + A.nnz
+        if cycle is None:
+            cycle = float(counts @ counts)
+        for it in iterations[before:]:
+            cycle += it * per_cg
+            last += it * per_cg
+    assert 1 < metric.n_factorizations < 12  # both choices were made along the path
