@@ -37,7 +37,7 @@ import meshopt_toolkit as mt
 from meshopt_toolkit.generate import (annulus, channel_with_cylinder, log_twist,
                                       rotate_inner_boundary, shift_hole)
 from meshopt_toolkit.kernels.triangles import aspect_ratios
-from meshopt_toolkit.motion.morph import distortion_morph
+from meshopt_toolkit.motion.planar.morph import distortion_morph
 from meshopt_toolkit.generate import twisted
 
 

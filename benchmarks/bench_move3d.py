@@ -35,7 +35,7 @@ from _meshes3d import box_with_ball, channel_with_ball, obstacle_path
 from meshopt_toolkit.kernels.tetrahedra import mean_ratios as tet_mean_ratios
 
 try:
-    from meshopt_toolkit.motion.tet_move import move_tets
+    from meshopt_toolkit.motion.tets.move import move_tets
 except ImportError:
     move_tets = None
 
@@ -151,7 +151,7 @@ def main() -> None:
         growth()
         return
     if move_tets is None:
-        print("ours: not available (meshopt_toolkit.motion.tet_move.move_tets not installed)")
+        print("ours: not available (meshopt_toolkit.motion.tets.move.move_tets not installed)")
     table(args.box_size, args.channel_size, args.cases, set(args.skip))
 
 

@@ -22,7 +22,7 @@ displacements; libigl ARAP single shot (100 iterations from the biharmonic resul
 10 increments along the handles' path (50 iterations each, ``--step-iterations``, from the
 previous result; the handles' rotations are interpolated in angle, the knight's handles
 follow the tutorial's own animation path); ours
-(``meshopt_toolkit.motion.surface_move.move_surface``) when it exists.
+(``meshopt_toolkit.motion.surface.move.move_surface``) when it exists.
 
 Printed per case and method: worst relative quality (aspect ratio 2r/R over its rest value,
 triangles not wholly handles), folds, max handle error, seconds and the ARAP energy
@@ -528,8 +528,8 @@ def arap_incremental(case: Case, steps: int = STEPS) -> np.ndarray:
 
 
 def ours(case: Case) -> np.ndarray:
-    """``meshopt_toolkit.motion.surface_move.move_surface`` (ImportError when absent)."""
-    from meshopt_toolkit.motion.surface_move import move_surface
+    """``meshopt_toolkit.motion.surface.move.move_surface`` (ImportError when absent)."""
+    from meshopt_toolkit.motion.surface.move import move_surface
 
     return np.asarray(move_surface(case.V, case.F, case.handles, case.path(1.0)).points)
 

@@ -1,6 +1,6 @@
 """Morphing two poses of a triangle surface in 3D: linear interpolation, as-rigid-as-possible
 interpolation (Alexa, Cohen-Or & Levin 2000; ``_arap_interpolation.py``) and ours
-(``meshopt_toolkit.motion.surface_morph.morph_surface``) side by side in one process.
+(``meshopt_toolkit.motion.surface.morph.morph_surface``) side by side in one process.
 
 Pairs: the rest surfaces and handle motions of ``bench_surface.py`` (data/surfaces/README.md
 names the meshes' sources and terms), the target pose made by libigl ARAP in 10 steps (not
@@ -11,7 +11,7 @@ our solver) or by our ``move_surface``:
 * armadillo-libigl (not in the default list: libigl takes minutes): the hand raised 90°.
 
 "ours' start" is the library's as-rigid-as-possible interpolation with the pair's best
-rotation factored out (``motion/surface_interpolation.py``), its frames below the worse
+rotation factored out (``motion/surface/interpolation.py``), its frames below the worse
 end's quality lifted by local/global steps: the path ours starts from ("no steps": Alexa
 et al.'s fit alone);
 "ours" stops as soon as every frame is at least as healthy as the worse end (the start
@@ -52,7 +52,7 @@ def pose(case_name: str, maker: str) -> tuple:
     if maker == "libigl":
         V1 = bench.arap_incremental(case)
     else:
-        from meshopt_toolkit.motion.surface_move import move_surface
+        from meshopt_toolkit.motion.surface.move import move_surface
 
         V1 = move_surface(case.V, case.F, case.handles, case.path(1.0)).points
     return case.V, case.F, np.asarray(V1, float)
@@ -67,14 +67,14 @@ REPEATS = 3
 
 
 def ours(V0, V1, F, times, **options):
-    from meshopt_toolkit.motion.surface_morph import morph_surface
+    from meshopt_toolkit.motion.surface.morph import morph_surface
 
     return list(morph_surface(V0, V1, F, len(times), **options).points)
 
 
 def path_energy(V0, V1, F, path) -> float:
     """``morph_surface``'s path energy of ``path`` (NaN where a triangle degenerates)."""
-    from meshopt_toolkit.motion.surface_morph import BENDING, WEIGHT, _PathProblem
+    from meshopt_toolkit.motion.surface.morph import BENDING, WEIGHT, _PathProblem
 
     problem = _PathProblem(V0, V1, F, WEIGHT, BENDING)
     X = [problem.embed(Q) for Q in path]
@@ -87,8 +87,8 @@ def ours_start(V0, V1, F, times, steps=True):
     """The start of ``morph_surface``: its frames below the worse end's quality lifted by
     local/global steps (``steps``), or Alexa et al.'s fit alone."""
     from meshopt_toolkit.kernels.surface import aspect_ratios
-    from meshopt_toolkit.motion.surface_interpolation import arap_interpolation as start
-    from meshopt_toolkit.motion.surface_morph import START_ITERATIONS
+    from meshopt_toolkit.motion.surface.interpolation import arap_interpolation as start
+    from meshopt_toolkit.motion.surface.morph import START_ITERATIONS
 
     if not steps:
         return start(V0, V1, F, times)

@@ -18,8 +18,8 @@ from bench_tet_move import box_with_hole, turn_case
 
 from meshopt_toolkit.kernels.tetrahedra import mean_ratios, signed_volumes
 from meshopt_toolkit.mesh import TetMesh
-from meshopt_toolkit.motion.tet_morph import morph_tets
-from meshopt_toolkit.motion.tet_move import move_tets
+from meshopt_toolkit.motion.tets.morph import morph_tets
+from meshopt_toolkit.motion.tets.move import move_tets
 
 
 def frame_quality(frames, tets) -> tuple[int, float]:

@@ -22,8 +22,8 @@ from meshopt_toolkit.gmsh_session import gmsh_session
 from meshopt_toolkit.kernels.cell_maps import barycentric_gradients
 from meshopt_toolkit.kernels.tetrahedra import mean_ratios as tet_mean_ratios
 from meshopt_toolkit.kernels.tetrahedra import signed_volumes as tet_signed_volumes
-from meshopt_toolkit.motion.similarity_3d import tet_boundary_faces
-from meshopt_toolkit.motion.tet_move import move_tets
+from meshopt_toolkit.motion.engine.similarity_3d import tet_boundary_faces
+from meshopt_toolkit.motion.tets.move import move_tets
 from meshopt_toolkit.solvers import factorize_spd
 
 

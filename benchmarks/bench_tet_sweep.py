@@ -34,7 +34,7 @@ from scipy.spatial.transform import Rotation
 
 from meshopt_toolkit.gmsh_session import gmsh_session
 from meshopt_toolkit.kernels.tetrahedra import mean_ratios as tet_mean_ratios
-from meshopt_toolkit.motion.tet_move import move_tets
+from meshopt_toolkit.motion.tets.move import move_tets
 
 
 @dataclass

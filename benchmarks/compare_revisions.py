@@ -148,7 +148,7 @@ def run_tet_morph(size: float = 0.12, degrees: float = 90.0) -> dict:
 
 def _surface_ours(V, F, handles, targets):
     """``move_surface`` as the tables above the contact section run it (no contact)."""
-    from meshopt_toolkit.motion.surface_move import move_surface
+    from meshopt_toolkit.motion.surface.move import move_surface
 
     return move_surface(V, F, handles, targets, **_accepted(move_surface, contact=False))
 

@@ -48,7 +48,7 @@ _EXPORTS = {
     "EuclideanMetric": "riemannian.metrics",
     "ElasticityMetric": "riemannian.metrics",
     "CompleteMetric": "riemannian.metrics",
-    "GraphMetric": "motion.graph_metric",
+    "GraphMetric": "motion.planar.metric",
     "metric_for": "cells.registry",
     "check_gradient": "diagnostics",
     "check_hvp": "diagnostics",
@@ -64,8 +64,8 @@ _EXPORTS = {
     # prescribed motion (the per-triangle distortion metric)
     "move": "motion.move",
     "MoveResult": "motion.move",
-    "NoAdmissiblePathError": "motion.continuation",
-    "TriangleDistortion": "motion.strain",
+    "NoAdmissiblePathError": "motion.engine.continuation",
+    "TriangleDistortion": "motion.planar.distortion",
     # shape optimization
     "PoissonObjective": "fem.poisson",
     "parse_expression": "expressions",
@@ -77,8 +77,8 @@ _EXPORTS = {
     "CompleteMorph": "operations",
     "log_map": "riemannian.log_map",
     "LogMapOptions": "riemannian.log_map",
-    "MorphResult": "motion.scalar_morph_result",
-    "DistortionMorph": "motion.morph",
+    "MorphResult": "motion.planar.scalar_morph_result",
+    "DistortionMorph": "motion.planar.morph",
     # the result protocol and the bad-argument error of the operations
     "Result": "results",
     "PathIteration": "results",

@@ -78,7 +78,7 @@ def _no_healthy_stop(o: _Settings, what: str) -> None:
 
 
 def _distortion(source, target, frames: int, o: _Settings):
-    from .motion.morph import distortion_morph
+    from .motion.planar.morph import distortion_morph
 
     _no_healthy_stop(o, "planar morphs")
     return distortion_morph(source, target, frames, weight=o.weight,
@@ -86,7 +86,7 @@ def _distortion(source, target, frames: int, o: _Settings):
 
 
 def _complete(source, target, frames: int, o: _Settings):
-    from .motion.scalar_morph import DEFAULT_BETA, geodesic_morph
+    from .motion.planar.scalar_morph import DEFAULT_BETA, geodesic_morph
 
     if o.weight != 1.0:
         raise OptionError("weight applies to metric='distortion' only")
@@ -103,7 +103,7 @@ MORPH_METRICS = {"distortion": _distortion, "complete": _complete}
 
 
 def _tets(source, target, frames: int, o: _Settings):
-    from .motion.tet_morph import morph_tets
+    from .motion.tets.morph import morph_tets
 
     _no_healthy_stop(o, "tet morphs")
     return morph_tets(source, target, frames, weight=o.weight,
@@ -111,7 +111,7 @@ def _tets(source, target, frames: int, o: _Settings):
 
 
 def _surfaces(source, target, frames: int, o: _Settings):
-    from .motion.surface_mesh_morph import morph_surface_mesh
+    from .motion.surface.mesh_morph import morph_surface_mesh
 
     hook = o.callback
     return morph_surface_mesh(source, target, frames, weight=o.weight,

@@ -321,7 +321,7 @@ def save_optimization_plots(
 
 
 def save_morph_figures(result, strip_path, quality_path, max_panels: int = 9) -> tuple[Path, Path]:
-    """Figures of a geodesic morph (:class:`~meshopt_toolkit.motion.scalar_morph_result.MorphResult`): a strip of
+    """Figures of a geodesic morph (:class:`~meshopt_toolkit.motion.planar.scalar_morph_result.MorphResult`): a strip of
     at most ``max_panels`` equally spaced frames, and the minimum aspect ratio per frame
     against linear interpolation of the same pair (negative = inverted triangles)."""
     K = result.n_frames

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 from hypothesis import settings
 
-from meshopt_toolkit.motion.graph_metric import GraphMetric
+from meshopt_toolkit.motion.planar.metric import GraphMetric
 
 
 FAST = settings(max_examples=15, deadline=None)

@@ -14,8 +14,8 @@ from .._typing import FloatArray, IntArray
 from ..kernels.admissibility import BoundaryCheck, area_problem, area_signs
 from ..kernels.triangles import aspect_ratios, signed_areas
 from ..mesh import TriangleMesh
-from ..motion.graph_metric import GraphMetric
-from ..motion.strain import TriangleDistortion
+from ..motion.planar.distortion import TriangleDistortion
+from ..motion.planar.metric import GraphMetric
 from .base import SimplexKind
 
 __all__ = ["PLANAR", "PlanarTriangles"]

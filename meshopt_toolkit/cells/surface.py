@@ -21,9 +21,9 @@ from ..kernels.intersections3d import degenerate_triangles_exact, self_intersect
 from ..kernels.surface import areas, aspect_ratios
 from ..mesh import SurfaceMesh
 from ..mesh.surface import listed
-from ..motion.surface_distortion import SurfaceDistortion
-from ..motion.surface_metric import SurfaceGraphMetric
-from ..motion.surface_paths import FoldTest
+from ..motion.surface.distortion import SurfaceDistortion
+from ..motion.surface.folds import FoldTest
+from ..motion.surface.metric import SurfaceGraphMetric
 from .base import SimplexKind
 
 __all__ = ["SURFACE", "SurfaceTriangles"]

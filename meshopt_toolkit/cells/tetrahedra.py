@@ -19,8 +19,8 @@ from ..kernels.predicates import orient3d
 from ..kernels.tetrahedra import mean_ratios, signed_volumes
 from ..mesh import TetMesh
 from ..mesh.surface import listed
-from ..motion.tet_distortion import TetDistortion
-from ..motion.tet_metric import TetGraphMetric
+from ..motion.tets.distortion import TetDistortion
+from ..motion.tets.metric import TetGraphMetric
 from .base import SimplexKind
 
 __all__ = ["TETRAHEDRA", "Tetrahedra"]

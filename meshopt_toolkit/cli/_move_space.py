@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import strict_json
-from ..motion.contact import ContactWarning
+from ..motion.engine.contact import ContactWarning
 from ._common import frame_names, prepare_output_dir, warn_dropped, write_text
 from ._info_cells import SURFACE, TETS
 
@@ -61,7 +61,7 @@ def run_in_space(args: argparse.Namespace, cells, kind: str) -> int:
     The output checks (:func:`~._common.check_output_target`) are done by the caller.
     """
     from ..io import save_cells
-    from ..motion.handles3d import handles_in_space
+    from ..motion.engine.handles import handles_in_space
     from ..motion.move import move
 
     as_mesh, table, line = KINDS[kind]

@@ -10,21 +10,21 @@ of linear interpolation, with the linear path's inverted frames marked) and
 ``summary.json``.
 
 Tetrahedral meshes (a file with any tetrahedron) are morphed with the tet distortion
-metric (:func:`meshopt_toolkit.motion.tet_morph.morph_tets`): every frame has every tet
+metric (:func:`meshopt_toolkit.motion.tets.morph.morph_tets`): every frame has every tet
 positively oriented; the frames are the source file with only its points replaced (every
 block, physical group, name and datum kept), with ``quality.csv`` and ``summary.json``
 beside them (no plots). An end whose boundary intersects itself, or a morph with a frame
 whose boundary (or surface) does, is refused in one line and nothing is written.
 
 Two poses of a triangle surface in 3D (same triangles) are morphed by
-:mod:`meshopt_toolkit.motion.surface_morph` (membrane distortion and bending, every frame
+:mod:`meshopt_toolkit.motion.surface.morph` (membrane distortion and bending, every frame
 fold-free): the frames are the source's file with new points, with ``quality.csv`` (per
 frame the worst relative quality and the folds) and ``summary.json``. ``--stop healthy``
 (their default, ``auto``) stops as soon as every interior frame is as healthy as the worse
 end, ``--stop converged`` runs the energy tests alone; planar and tet morphs stop on those
 only and refuse ``--stop healthy``. Where both poses are free of self-intersections no
 frame passes through the surface, nor the motion between two frames (``--contact on``, the
-default: :mod:`meshopt_toolkit.motion.surface_morph_contact`); a pose that intersects
+default: :mod:`meshopt_toolkit.motion.surface.morph_contact`); a pose that intersects
 itself is morphed without contact, with one warning line naming the file and the count;
 ``--contact off`` morphs without contact, a frame through the surface refused.
 
@@ -58,7 +58,7 @@ PLOTS = ("strip.png", "quality.png")
 
 
 def add_args(p: argparse.ArgumentParser) -> None:
-    from ..motion.scalar_morph import DEFAULT_BETA
+    from ..motion.planar.scalar_morph import DEFAULT_BETA
 
     p.add_argument("source", help="source mesh (frame 0)")
     p.add_argument("target", help="target mesh (last frame), same vertices and triangles")
@@ -130,7 +130,7 @@ def _morph(args: argparse.Namespace, source, target, default_iterations: int, **
 def run(args: argparse.Namespace) -> int:
     from .. import io
     from ..io.workpiece import Workpiece
-    from ..motion.scalar_morph import DEFAULT_BETA
+    from ..motion.planar.scalar_morph import DEFAULT_BETA
     from ..operations import DEFAULT_MAX_ITER, METRIC_ALIASES
     from ..plotting import save_morph_figures
     from ._info_cells import SURFACE, TETS, read_kind
@@ -233,7 +233,7 @@ def _run_surface(args: argparse.Namespace, cells) -> int:
 
     from .. import io
     from ..errors import OptionError
-    from ..motion.contact import ContactWarning
+    from ..motion.engine.contact import ContactWarning
 
     src_path, outdir = Path(args.source), Path(args.output)
     if (args.metric != "distortion" or args.beta is not None or args.no_normalize

@@ -31,10 +31,10 @@ from __future__ import annotations
 import argparse
 from .. import strict_json
 
-from ._common import (add_output_flags, checked_paths, frame_names, load_workpiece,
-                      save_moved, save_moved_frames, warn_dropped, write_text)
 from ..bounds import MAX_FRAMES
 from ..filters.apply_coord_prescribed_motion import PrescribedMotion
+from ._common import (add_output_flags, checked_paths, frame_names, load_workpiece,
+                      save_moved, save_moved_frames, warn_dropped, write_text)
 from ._params import add_options, check_options
 from ._validate import OptionError, check_int
 
@@ -104,7 +104,7 @@ def _check_numbers(args: argparse.Namespace) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..io import load_cells
-    from ..motion.handles3d import handles_in_space
+    from ..motion.engine.handles import handles_in_space
     from ..motion.move import move
     from ..progress import ProgressBar
     from ..mesh.kinds import SURFACE, TETS, cells_kind

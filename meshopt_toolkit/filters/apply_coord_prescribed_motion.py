@@ -8,7 +8,7 @@ from meshopt_toolkit.pipeline.filter import MESH_KINDS, Filter, register
 from meshopt_toolkit.pipeline.params import (BoolParam, FloatParam, IntParam, PathParam,
                                               StringParam)
 
-#: the messages of :func:`~meshopt_toolkit.motion.handles3d.handles_in_space` name parameters
+#: the messages of :func:`~meshopt_toolkit.motion.engine.handles.handles_in_space` name parameters
 _OPTIONS = {"group": "group", "selection": "selection", "map": "map", "targets": "targets",
             "where": "where"}
 
@@ -62,7 +62,7 @@ class PrescribedMotion(Filter):
     def apply(self, document, *, targets: str = "", map: str = "", where: str = "",
               group: str = "", selection: str = "", free_boundary: bool = False,
               steps: int = 8, weight: float = 1.0) -> dict:
-        from meshopt_toolkit.motion.handles3d import handles_in_space
+        from meshopt_toolkit.motion.engine.handles import handles_in_space
         from meshopt_toolkit.motion.move import move
 
         entry = document.current_entry
@@ -93,7 +93,7 @@ class PrescribedMotion(Filter):
 
         from meshopt_toolkit.mesh import SurfaceMesh, TriangleMesh
         from meshopt_toolkit.mesh.kinds import is_tets
-        from meshopt_toolkit.motion.handles3d import handles_in_space
+        from meshopt_toolkit.motion.engine.handles import handles_in_space
         from meshopt_toolkit.motion.move import move
 
         mesh = entry.mesh

@@ -11,7 +11,7 @@ from meshopt_toolkit.pipeline.params import (BoolParam, EnumParam, FloatParam, I
 
 METHODS = ("discrete", "shooting", "auto")
 METRICS = ("distortion", "scalar")
-#: f2's coefficients when ``penalty`` is empty (:data:`meshopt_toolkit.motion.scalar_morph.DEFAULT_BETA`)
+#: f2's coefficients when ``penalty`` is empty (:data:`meshopt_toolkit.motion.planar.scalar_morph.DEFAULT_BETA`)
 DEFAULT_PENALTY = (1.0, 1.0, 0.0, 1.0)
 #: the four floats that ``penalty`` replaced, still accepted in saved pipelines
 FORMER_BETAS = ("beta1", "beta2", "beta3", "beta4")
@@ -34,7 +34,7 @@ class GenerateGeodesicMorph(Filter):
     the energy tests alone; planar morphs stop on these only and refuse ``"healthy"``.
     ``contact`` (a surface in 3D, default True) keeps every frame, and the motion between
     frames, from passing through the surface where both poses are free of
-    self-intersections (:mod:`meshopt_toolkit.motion.surface_morph_contact`).
+    self-intersections (:mod:`meshopt_toolkit.motion.surface.morph_contact`).
     The ``frames`` meshes of
     the morph (frame 0 the source, the last the target) are appended to the document as ``morph_000``, ``morph_001``, …, the last
     one current, each with its per-face aspect ratio 2r/R as face quality. The summary
@@ -101,7 +101,7 @@ class GenerateGeodesicMorph(Filter):
               normalize: bool = True, method: str = METHODS[0],
               stop: str = STOP_RULES[0], contact: bool = True) -> dict:
         from meshopt_toolkit.kernels.triangles import aspect_ratios
-        from meshopt_toolkit.motion.scalar_morph import DEFAULT_BETA
+        from meshopt_toolkit.motion.planar.scalar_morph import DEFAULT_BETA
         from meshopt_toolkit.operations import METRIC_ALIASES, CompleteMorph, morph
         from meshopt_toolkit.pipeline.document import MeshEntry
 

@@ -4,7 +4,7 @@
 exactly, free of strain) and a residual motion of the handles along :class:`HandlePath`
 (each connected piece of boundary turns and scales with its own best similarity), built
 frame by frame as a minimizing movement of the graph metric ``M + w² JᵀJ`` of the triangle
-distortion (:mod:`.continuation`), and finished by a quality step with the handles fixed
+distortion (:mod:`.engine.continuation`), and finished by a quality step with the handles fixed
 that presses on the worst triangles. Every frame is admissible by construction (every
 accepted step is checked) and the handles end bitwise at their targets.
 """
@@ -29,15 +29,16 @@ from ..mesh.kinds import SURFACE, TETS, class_kind
 from ..riemannian.discrete_geodesic import discrete_geodesic
 from ..riemannian.path_options import LevenbergMarquardtOptions
 from ..scaling import UnitScale, at_unit_size, size_scale
-from .continuation import RELAX_CG_RTOL, NoAdmissiblePathError, continuation_path
-from .frame_blocks import FrameBlocks
-from .graph_metric import GraphMetric
-from .handles3d import SelfIntersectionGuard
-from .pinned_cells import pinned, turned_over_problem
-from .similarity import HandlePath, Similarity, fit_similarity, handle_groups
-from .strain import TriangleDistortion
-from .surface_mesh_move import move_surface_mesh
-from .tet_move import move_tet_mesh
+from .engine.continuation import NoAdmissiblePathError
+from .engine.handles import SelfIntersectionGuard
+from .engine.pinned_cells import pinned, turned_over_problem
+from .engine.similarity import HandlePath, Similarity, fit_similarity, handle_groups
+from .planar.continuation import RELAX_CG_RTOL, continuation_path
+from .planar.distortion import TriangleDistortion
+from .planar.frame_blocks import FrameBlocks
+from .planar.metric import GraphMetric
+from .surface.mesh_move import move_surface_mesh
+from .tets.move import move_tet_mesh
 
 __all__ = ["MoveResult", "move", "NoAdmissiblePathError"]
 
@@ -238,10 +239,10 @@ def move(
     ----------
     mesh : PlanarMesh, TetMesh, SurfaceMesh, or a meshio, trimesh or pymeshlab mesh
         An admissible mesh. A :class:`~meshopt_toolkit.mesh.TetMesh` is moved by
-        :func:`~meshopt_toolkit.motion.tet_move.move_tet_mesh` (targets ``(k, 3)``, no
+        :func:`~meshopt_toolkit.motion.tets.move.move_tet_mesh` (targets ``(k, 3)``, no
         callable path, ``finish_frames`` unused), which returns a ``TetMeshMoveResult``.
         A :class:`~meshopt_toolkit.mesh.SurfaceMesh` is moved by
-        :func:`~meshopt_toolkit.motion.surface_mesh_move.move_surface_mesh` (targets
+        :func:`~meshopt_toolkit.motion.surface.mesh_move.move_surface_mesh` (targets
         ``(k, 3)``; no boundary is kept unless its vertices are handles), which returns a
         ``SurfaceMeshMoveResult``. A ``trimesh.Trimesh``, ``pymeshlab.Mesh`` (surfaces) or
         ``meshio.Mesh`` (tets, planar triangles with ``(k, 2)`` targets, or a surface) is
@@ -280,9 +281,9 @@ def move(
         Called with the fraction of the work done, in [0, 1].
     contact : bool
         A surface: keep it from passing through itself along the motion
-        (:mod:`~meshopt_toolkit.motion.contact`) where its rest is free of
+        (:mod:`~meshopt_toolkit.motion.engine.contact`) where its rest is free of
         self-intersections; a TetMesh: keep the free parts of its boundary from passing
-        through each other and the handles (:mod:`~meshopt_toolkit.motion.tet_contact`);
+        through each other and the handles (:mod:`~meshopt_toolkit.motion.tets.contact`);
         False: the motion as without contact, the result still checked.
 
     Returns
@@ -301,11 +302,11 @@ def move(
     InvalidMeshError
         Bad handles or targets, targets that make the boundary cross itself, or that
         turn over a cell whose vertices are all handles (a mirror image turns every
-        cell over; :mod:`.pinned_cells`).
+        cell over; :mod:`.engine.pinned_cells`).
     SelfIntersectionError
         In space: a tet mesh whose boundary intersects itself, targets that make it (or a
         surface free of self-intersections) intersect itself, or a motion that does
-        (:class:`~meshopt_toolkit.motion.handles3d.SelfIntersectionGuard`).
+        (:class:`~meshopt_toolkit.motion.engine.handles.SelfIntersectionGuard`).
     NoAdmissiblePathError
         No admissible interior found after a bounded effort.
     """

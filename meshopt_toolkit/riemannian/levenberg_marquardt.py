@@ -1,6 +1,6 @@
 """The Levenberg–Marquardt method of the discrete geodesic, for metrics whose path energy
 is a sparse nonlinear least-squares problem ``E = |r|²`` in the free coordinates of the
-frames (the per-triangle distortion metric: :mod:`meshopt_toolkit.motion.path`).
+frames (the per-triangle distortion metric: :mod:`meshopt_toolkit.motion.planar.path`).
 
 The metric provides the problem through :class:`PathModelMetric` (``path_model``): the
 residuals, the normal equations of a step (gradient, step matrix, Levenberg–Marquardt's

@@ -6,7 +6,7 @@ place of the planar penalty, metric and admissibility when the mesh is a ``TetMe
   positively oriented by ``orient3d``, the boundary free of self-intersections) and a
   floor on the worst mean ratio, :data:`TET_QUALITY_GUARD` times its initial value;
 * the descent direction's metric: the tet motion's ``M + JᵀJ`` of the tet distortion
-  (:class:`~meshopt_toolkit.motion.tet_metric.TetGraphMetric`, the tet kind's default
+  (:class:`~meshopt_toolkit.motion.tets.metric.TetGraphMetric`, the tet kind's default
   metric) at the current mesh, one factorization per iterate (:class:`FactoredMetric`);
 * the penalty f2 (:class:`DistortionPenalty`): ``½β Σ_c (|K_c|/|Ω|) |φ_c(Q)|²`` of the
   same distortion ``φ`` relative to the initial mesh, a barrier (``|φ_c| → ∞`` as a tet
@@ -22,7 +22,7 @@ import numpy as np
 from .._typing import FloatArray, IntArray
 from ..cells.tetrahedra import TETRAHEDRA
 from ..kernels.tetrahedra import mean_ratios, signed_volumes
-from ..motion.tet_distortion import TetDistortion
+from ..motion.tets.distortion import TetDistortion
 from ..solvers import factorize_spd
 from .problem import ShapeProblem
 
@@ -98,7 +98,7 @@ def tet_step_limit(Q: FloatArray, tets: IntArray, d: FloatArray) -> float:
 
 class DistortionPenalty:
     """``f2(Q) = ½β Σ_c a_c |φ_c(Q)|²``: the tet distortion ``φ`` relative to ``reference``
-    (:class:`~meshopt_toolkit.motion.tet_distortion.TetDistortion`) with the volume
+    (:class:`~meshopt_toolkit.motion.tets.distortion.TetDistortion`) with the volume
     fractions ``a_c = |K_c| / |Ω|`` of the reference; ``+inf`` where a tet is inverted.
 
     Parameters

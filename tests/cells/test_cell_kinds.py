@@ -19,11 +19,11 @@ from meshopt_toolkit.kernels import surface as ks
 from meshopt_toolkit.kernels import tetrahedra as kt
 from meshopt_toolkit.kernels import triangles as ktri
 from meshopt_toolkit.mesh import SurfaceMesh, TetMesh, TriangleMesh
-from meshopt_toolkit.motion import surface_move
-from meshopt_toolkit.motion.graph_metric import GraphMetric
-from meshopt_toolkit.motion.surface_distortion import SurfaceDistortion
-from meshopt_toolkit.motion.tet_distortion import TetDistortion
-from meshopt_toolkit.motion.tet_metric import TetGraphMetric
+from meshopt_toolkit.motion.surface import move as surface_move
+from meshopt_toolkit.motion.planar.metric import GraphMetric
+from meshopt_toolkit.motion.surface.distortion import SurfaceDistortion
+from meshopt_toolkit.motion.tets.distortion import TetDistortion
+from meshopt_toolkit.motion.tets.metric import TetGraphMetric
 
 FAST = settings(max_examples=12, deadline=None)
 KINDS = pytest.mark.parametrize("name", sorted(CASES))

@@ -14,9 +14,9 @@ from meshopt_toolkit.cells.registry import KINDS, cells_of, kind_of, metric_for
 from meshopt_toolkit.cells.surface import SURFACE
 from meshopt_toolkit.cells.tetrahedra import TETRAHEDRA
 from meshopt_toolkit.errors import InvalidMeshError, NotAdmissibleError, OptionError
-from meshopt_toolkit.motion.graph_metric import GraphMetric
-from meshopt_toolkit.motion.surface_morph import _PathProblem
-from meshopt_toolkit.motion.tet_metric import TetGraphMetric
+from meshopt_toolkit.motion.planar.metric import GraphMetric
+from meshopt_toolkit.motion.surface.morph import _PathProblem
+from meshopt_toolkit.motion.tets.metric import TetGraphMetric
 from meshopt_toolkit.riemannian.metrics import MetricNotImplementedError
 
 

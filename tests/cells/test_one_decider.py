@@ -35,7 +35,7 @@ ALLOWED = {
     "io/__init__.py": (1, "save: the argument's type (WriteError)"),
     "io/workpiece.py": (1, "an assert on the plane view's type"),
     "penalties/penalty.py": (1, "the argument's type (TypeError)"),
-    "motion/scalar_morph.py": (1, "the arguments' type (InvalidMeshError)"),
+    "motion/planar/scalar_morph.py": (1, "the arguments' type (InvalidMeshError)"),
 }
 
 

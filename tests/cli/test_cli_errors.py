@@ -135,7 +135,7 @@ def no_work(monkeypatch):
     import importlib
 
     d = importlib.import_module("meshopt_toolkit.deform")  # the module (mt.deform: the call)
-    import meshopt_toolkit.motion.morph as mm
+    import meshopt_toolkit.motion.planar.morph as mm
     import meshopt_toolkit.motion.move as mv
 
     def boom(*args, **kwargs):

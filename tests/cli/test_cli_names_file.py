@@ -198,7 +198,7 @@ def test_a_message_naming_its_file_is_kept(files, tmp_path, capsys):
 
 # ---------------------------------------------------------------- the library's messages
 def test_library_handle_checks_name_the_entry():
-    from meshopt_toolkit.motion.handles3d import check_handles, distinct_handles
+    from meshopt_toolkit.motion.engine.handles import check_handles, distinct_handles
 
     with pytest.raises(InvalidMeshError, match=r"handles\[1\] = 200 is out of range "
                                                r"\(the mesh has 125 vertices, 0 to 124\)"):

@@ -18,8 +18,8 @@ from meshopt_toolkit.cli import main
 from meshopt_toolkit.io import load_cells, save_cells
 from meshopt_toolkit.io.cells import CellMesh
 from meshopt_toolkit.mesh import SurfaceMesh
-from meshopt_toolkit.motion.surface_paths import FoldTest
-from meshopt_toolkit.motion.targets import handles_of
+from meshopt_toolkit.motion.surface.folds import FoldTest
+from meshopt_toolkit.motion.engine.targets import handles_of
 from meshopt_toolkit.results import Result
 
 trimesh = pytest.importorskip("trimesh")

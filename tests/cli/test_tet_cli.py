@@ -17,7 +17,7 @@ from meshopt_toolkit.errors import ExpressionError, InvalidMeshError
 from meshopt_toolkit.io import load_cells, save_cells
 from meshopt_toolkit.kernels.tetrahedra import signed_volumes
 from meshopt_toolkit.mesh import TetMesh
-from meshopt_toolkit.motion.targets import handles_of
+from meshopt_toolkit.motion.engine.targets import handles_of
 from meshopt_toolkit.results import Result
 
 pytest.importorskip("gmsh")

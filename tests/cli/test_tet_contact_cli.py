@@ -11,7 +11,7 @@ from test_tet_contact_move import closing, slotted_block  # (tests/motion: on th
 from meshopt_toolkit.cli import main
 from meshopt_toolkit.io import load_cells
 from meshopt_toolkit.kernels.intersections3d import self_intersections
-from meshopt_toolkit.motion.similarity_3d import tet_boundary_faces
+from meshopt_toolkit.motion.engine.similarity_3d import tet_boundary_faces
 
 pytest.importorskip("ipctk")
 

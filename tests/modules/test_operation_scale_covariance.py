@@ -135,7 +135,7 @@ def test_a_surface_move_is_scale_covariant_at_powers_of_two(k):
 
 
 # the first increment weighs each triangle by its distortion over the rms one; at the
-# rest both are rounding noise, which the weights then follow (motion/surface_move.py
+# rest both are rounding noise, which the weights then follow (motion/surface/move.py
 # must read an rms within rounding as none)
 @pytest.mark.slow
 @pytest.mark.xfail(strict=True, reason="surface_move's emphasis weights follow rounding "

@@ -1,4 +1,4 @@
-"""The contact barrier and CCD of a surface (:mod:`meshopt_toolkit.motion.contact`):
+"""The contact barrier and CCD of a surface (:mod:`meshopt_toolkit.motion.engine.contact`):
 derivatives by Taylor tests, the projected Hessian's sign, the barrier's support, and the
 CCD bound against the closed-form time of impact of a flap dropped onto a sheet."""
 
@@ -10,7 +10,7 @@ from test_morph_self_intersection import flap_through_sheet
 
 from meshopt_toolkit.diagnostics import check_gradient, check_hvp
 from meshopt_toolkit.kernels.intersections3d import self_intersections
-from meshopt_toolkit.motion.contact import DHAT_FRACTION, SurfaceContact
+from meshopt_toolkit.motion.engine.contact import DHAT_FRACTION, SurfaceContact
 
 pytest.importorskip("ipctk")
 
@@ -97,7 +97,7 @@ def test_ccd_stops_short_of_the_closed_form_impact(contact, drop):
 def test_cap_skips_the_ccd_only_where_no_pair_can_close(contact, monkeypatch):
     """Far from contact a step shorter than d̂/2 needs no CCD; a longer one, or one from
     a configuration with a pair within d̂, is CCD's."""
-    from meshopt_toolkit.motion.contact import ContactTerm
+    from meshopt_toolkit.motion.engine.contact import ContactTerm
 
     src, _ = flap_through_sheet()
     term = ContactTerm(contact, np.ones(src.points.size, bool), 1.0)
@@ -118,7 +118,7 @@ def test_short_steps_from_one_start_share_candidates_and_agree_with_the_broad_ph
     coordinate by more than REACH d̂ run on candidates kept around the start, with the
     fractions of each path's own broad phase, impacts included; longer steps use their
     own."""
-    from meshopt_toolkit.motion.contact import ContactTerm
+    from meshopt_toolkit.motion.engine.contact import ContactTerm
 
     rng = np.random.default_rng(seed)
     Q0 = _near(0.505)  # the flap's lowest corner just above the sheet
@@ -163,7 +163,7 @@ def test_ccd_from_a_near_touch_stops_before_the_impact(contact, gap):
 
 
 def test_stiffness_doubles_as_the_closest_pair_nears(contact):
-    from meshopt_toolkit.motion.contact import ContactTerm
+    from meshopt_toolkit.motion.engine.contact import ContactTerm
 
     term = ContactTerm(contact, np.ones(_near(0.4).size, bool), 1.0)
     g = np.ones(_near(0.4).size)

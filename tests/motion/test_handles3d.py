@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from meshopt_toolkit.errors import InvalidMeshError
-from meshopt_toolkit.motion.handles3d import SolvedVertices, check_handles, distinct_handles
+from meshopt_toolkit.motion.engine.handles import SolvedVertices, check_handles, distinct_handles
 
 
 @settings(max_examples=40, deadline=None)

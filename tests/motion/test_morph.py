@@ -16,7 +16,7 @@ from meshopt_toolkit.kernels.triangles import aspect_ratios, signed_areas
 from meshopt_toolkit.fem.interpolation import arap_interpolation
 from meshopt_toolkit.mesh import PlanarMesh, check_mesh
 from meshopt_toolkit.riemannian.metrics import CompleteMetric
-from meshopt_toolkit.motion.scalar_morph import (
+from meshopt_toolkit.motion.planar.scalar_morph import (
     DEFAULT_BETA,
     SHOOTING_RTOL,
     discrete_geodesic,
@@ -355,7 +355,7 @@ def test_cli_morph_max_iter_and_callback(tmp_path, capsys, disc):
 
 @pytest.mark.parametrize("metric", ["distortion", "scalar"])
 def test_filter_generate_geodesic_morph(metric):
-    from meshopt_toolkit.motion.morph import distortion_morph
+    from meshopt_toolkit.motion.planar.morph import distortion_morph
     from meshopt_toolkit.pipeline.document import Document
     from meshopt_toolkit.pipeline.filter import registry
     from meshopt_toolkit.scaling import unit_scale

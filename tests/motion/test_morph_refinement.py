@@ -8,8 +8,8 @@ from conftest import grid_mesh
 
 import meshopt_toolkit as mt
 from meshopt_toolkit.generate import twisted
-from meshopt_toolkit.motion.morph import distortion_morph
-from meshopt_toolkit.motion.refinement import refine_frames, unrefined
+from meshopt_toolkit.motion.planar.morph import distortion_morph
+from meshopt_toolkit.motion.planar.refinement import refine_frames, unrefined
 
 
 @pytest.mark.parametrize("levels", [1, 2])

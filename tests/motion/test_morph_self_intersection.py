@@ -20,13 +20,13 @@ from meshopt_toolkit.io.cells import CellMesh
 from meshopt_toolkit.kernels.intersections3d import self_intersections
 from meshopt_toolkit.kernels.tetrahedra import signed_volumes
 from meshopt_toolkit.mesh import SurfaceMesh, TetMesh
-from meshopt_toolkit.motion.contact import ContactWarning
-from meshopt_toolkit.motion.handles3d import SelfIntersectionGuard
-from meshopt_toolkit.motion.surface_mesh_morph import morph_surface_mesh
-from meshopt_toolkit.motion.similarity_3d import tet_boundary_faces
-from meshopt_toolkit.motion.tet_metric import TetGraphMetric
-from meshopt_toolkit.motion.tet_morph import _initial_path, morph_tets
-from meshopt_toolkit.motion.tet_path import TetPath
+from meshopt_toolkit.motion.engine.contact import ContactWarning
+from meshopt_toolkit.motion.engine.handles import SelfIntersectionGuard
+from meshopt_toolkit.motion.surface.mesh_morph import morph_surface_mesh
+from meshopt_toolkit.motion.engine.similarity_3d import tet_boundary_faces
+from meshopt_toolkit.motion.tets.metric import TetGraphMetric
+from meshopt_toolkit.motion.tets.morph import _initial_path, morph_tets
+from meshopt_toolkit.motion.tets.path import TetPath
 
 CUBE_P, CUBE_T = cube_tets(1)  # the unit cube in six tets
 
@@ -185,7 +185,7 @@ def test_auto_start_skips_a_linear_path_through_itself():
 
 
 def test_avoidance_reaches_the_geodesic_on_request(monkeypatch):
-    import meshopt_toolkit.motion.tet_morph as tet_morph
+    import meshopt_toolkit.motion.tets.morph as tet_morph
 
     seen = []
 

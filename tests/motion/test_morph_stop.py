@@ -21,8 +21,8 @@ from meshopt_toolkit.errors import FilterError, OptionError
 from meshopt_toolkit.io import load_cells, save, save_cells
 from meshopt_toolkit.io.cells import CellMesh
 from meshopt_toolkit.mesh import SurfaceMesh, TetMesh
-from meshopt_toolkit.motion.surface_morph import morph_surface
-from meshopt_toolkit.motion.surface_move import move_surface
+from meshopt_toolkit.motion.surface.morph import morph_surface
+from meshopt_toolkit.motion.surface.move import move_surface
 from meshopt_toolkit.pipeline import Document, load_pipeline
 from meshopt_toolkit.pipeline.document import load_entry
 from meshopt_toolkit.pipeline.filter import registry

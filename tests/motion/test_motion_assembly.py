@@ -1,4 +1,4 @@
-"""The path matrix (motion/assembly.py): the mesh pattern, symmetric assembly and the
+"""The path matrix (motion/planar/assembly.py): the mesh pattern, symmetric assembly and the
 block-tridiagonal matrix kept as its frame blocks.
 """
 
@@ -7,16 +7,16 @@ from __future__ import annotations
 import numpy as np
 from motion_helpers import _random_admissible
 
-from meshopt_toolkit.motion.assembly import upper_to_blocks
-from meshopt_toolkit.motion.graph_metric import GraphMetric
-from meshopt_toolkit.motion.path import GraphPath
+from meshopt_toolkit.motion.planar.assembly import upper_to_blocks
+from meshopt_toolkit.motion.planar.metric import GraphMetric
+from meshopt_toolkit.motion.planar.path import GraphPath
 
 
 def test_mesh_pattern_is_the_sorted_coordinate_pattern(disc):
     """The pattern built from vertex pairs is the sorted set of the coordinate entries,
     each triangle entry and diagonal entry lands on its own (row, col), and ``transposed``
     maps every slot to the slot of (col, row)."""
-    from meshopt_toolkit.motion.assembly import MeshPattern
+    from meshopt_toolkit.motion.planar.assembly import MeshPattern
 
     n = 2 * disc.n_vertices
     cols = (2 * disc.triangles[:, :, None] + np.arange(2)).reshape(-1, 6)
@@ -35,7 +35,7 @@ def test_mesh_pattern_is_the_sorted_coordinate_pattern(disc):
 def test_symmetric_assembly_is_the_full_one(disc, rng):
     """Symmetric blocks assembled from their 21 upper entries (one bincount and the
     transpose) equal the full blocks' assembly."""
-    from meshopt_toolkit.motion.assembly import MeshPattern, symmetric_products
+    from meshopt_toolkit.motion.planar.assembly import MeshPattern, symmetric_products
 
     pattern = MeshPattern(disc.triangles, disc.n_vertices)
     a = rng.standard_normal((6, 3, disc.n_triangles))
@@ -76,7 +76,7 @@ def test_block_tridiagonal_products_match_the_assembled_matrix(disc, rng):
     assert H.shift is None  # damping made a new matrix
     from concurrent.futures import ThreadPoolExecutor
 
-    from meshopt_toolkit.motion.assembly import BlockTridiagonal
+    from meshopt_toolkit.motion.planar.assembly import BlockTridiagonal
 
     with ThreadPoolExecutor(2) as pool:  # frames in threads: the same products, bitwise
         threaded = BlockTridiagonal(H.ranges, H.blocks, H.upper, H.lower, shift,

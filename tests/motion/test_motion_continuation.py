@@ -1,4 +1,4 @@
-"""Admissible paths frame by frame (motion/continuation.py): the one continuation loop
+"""Admissible paths frame by frame (motion/engine/continuation.py): the one continuation loop
 (its step control on a path whose admissible steps are known in closed form) and the
 extension through kept factors.
 """
@@ -11,15 +11,15 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from motion_helpers import _random_admissible
 
-from meshopt_toolkit.motion.continuation import NoAdmissiblePathError, march
-from meshopt_toolkit.motion.graph_metric import GraphMetric
+from meshopt_toolkit.motion.engine.continuation import NoAdmissiblePathError, march
+from meshopt_toolkit.motion.planar.metric import GraphMetric
 
 
 def test_extension_through_kept_factors_matches_a_fresh_factorization(disc, rng):
     """A continuation reuses one factorization across its steps: the extension solved by
     PCG on a factorization made at another mesh is the one of a fresh factorization."""
-    from meshopt_toolkit.motion.continuation import extend
-    from meshopt_toolkit.motion.frame_blocks import FrameBlocks
+    from meshopt_toolkit.motion.planar.continuation import extend
+    from meshopt_toolkit.motion.planar.frame_blocks import FrameBlocks
 
     P = disc.points
     metric = GraphMetric(P, disc.triangles)

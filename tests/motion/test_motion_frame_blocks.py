@@ -1,4 +1,4 @@
-"""The frames' kept factorizations (motion/frame_blocks.py): orderings, precision,
+"""The frames' kept factorizations (motion/planar/frame_blocks.py): orderings, precision,
 threads, stale and failed factors.
 """
 
@@ -9,15 +9,15 @@ import pytest
 import scipy.sparse as sp
 from motion_helpers import _random_admissible, _straight_path
 
-from meshopt_toolkit.motion.graph_metric import GraphMetric
-from meshopt_toolkit.motion.path import GraphPath
+from meshopt_toolkit.motion.planar.metric import GraphMetric
+from meshopt_toolkit.motion.planar.path import GraphPath
 
 
 def test_time_coupled_solve_on_stale_factors_goes_on_with_fresh_ones(disc, rng, monkeypatch):
     """Factors of a far-away matrix (heavily damped) do not bring the time-coupled CG
     to its tolerance within ``STALE_CG_LIMIT`` iterations: the solve goes on from its
     iterate on fresh factors and still reaches the tolerance."""
-    import meshopt_toolkit.motion.frame_blocks as frame_blocks
+    import meshopt_toolkit.motion.planar.frame_blocks as frame_blocks
 
     frames, free, metric = _straight_path(disc, rng, K=6)
     path = GraphPath(metric, frames, free, None)
@@ -44,7 +44,7 @@ def test_frame_blocks_in_nested_dissection_order_solve_the_path_system(disc, rng
     same preconditioner as in minimum-degree order: PCG reaches the direct solution."""
     from scipy.sparse.linalg import spsolve
 
-    from meshopt_toolkit.motion.frame_blocks import FrameBlocks
+    from meshopt_toolkit.motion.planar.frame_blocks import FrameBlocks
 
     P, K = disc.points, 3
     target = _random_admissible(disc, rng, 0.3)
@@ -68,7 +68,7 @@ def test_frame_blocks_in_nested_dissection_order_solve_the_path_system(disc, rng
 def test_frame_blocks_refuse_an_indefinite_matrix_and_refactorize_after(rng):
     """An indefinite matrix (a Newton matrix may be one) raises FloatingPointError; the
     next solve, of a positive definite matrix, factorizes afresh and succeeds."""
-    from meshopt_toolkit.motion.frame_blocks import FrameBlocks
+    from meshopt_toolkit.motion.planar.frame_blocks import FrameBlocks
 
     n = 200
     laplacian = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(n, n)).tocsr()
@@ -85,7 +85,7 @@ def test_frame_blocks_refuse_an_indefinite_matrix_and_refactorize_after(rng):
 def test_frame_blocks_redo_a_failed_single_precision_solve_in_double(monkeypatch):
     """Where CG does not converge on the float32 factors, the solve is redone (and the
     next ones made) on double-precision factors."""
-    import meshopt_toolkit.motion.frame_blocks as frame_blocks
+    import meshopt_toolkit.motion.planar.frame_blocks as frame_blocks
     from meshopt_toolkit.solvers import factorize_spd
 
     def float32_is_useless(A, ordering=None, single=False):  # stands for a bad float32 factor
@@ -108,8 +108,8 @@ def test_frame_blocks_factorize_in_double_precision_with_cholmod(monkeypatch):
     threads for large frames where its calls release the GIL (:mod:`._cholmod`), else one
     frame after another; without it, SuperLU's float32 factors, in threads."""
     import meshopt_toolkit._cholmod as native
-    import meshopt_toolkit.motion.frame_blocks as frame_blocks
-    import meshopt_toolkit.motion.frame_threads as frame_threads
+    import meshopt_toolkit.motion.planar.frame_blocks as frame_blocks
+    import meshopt_toolkit.motion.engine.frame_threads as frame_threads
 
     pool = frame_threads.frame_pool()
 

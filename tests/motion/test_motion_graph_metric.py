@@ -1,4 +1,4 @@
-"""The graph metric M + w²JᵀJ (motion/graph_metric.py): its products and the bound of
+"""The graph metric M + w²JᵀJ (motion/planar/metric.py): its products and the bound of
 every triangle by the path length.
 """
 
@@ -11,8 +11,8 @@ from hypothesis import strategies as st
 from motion_helpers import FAST, _random_admissible
 
 from meshopt_toolkit.kernels.triangles import inverse_shape_quality
-from meshopt_toolkit.motion.graph_metric import GraphMetric
-from meshopt_toolkit.motion.strain import shape_quality_bound
+from meshopt_toolkit.motion.planar.metric import GraphMetric
+from meshopt_toolkit.motion.planar.distortion import shape_quality_bound
 
 
 @FAST

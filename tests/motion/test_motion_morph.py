@@ -1,4 +1,4 @@
-"""distortion_morph (motion/morph.py): similar ends give similar frames, frames as
+"""distortion_morph (motion/planar/morph.py): similar ends give similar frames, frames as
 healthy as the ends, the proven bound on every frame.
 """
 
@@ -11,8 +11,8 @@ from hypothesis import strategies as st
 from motion_helpers import FAST, _similar
 
 from meshopt_toolkit.kernels.triangles import aspect_ratios, inverse_shape_quality
-from meshopt_toolkit.motion.morph import distortion_morph
-from meshopt_toolkit.motion.strain import shape_quality_bound
+from meshopt_toolkit.motion.planar.morph import distortion_morph
+from meshopt_toolkit.motion.planar.distortion import shape_quality_bound
 
 
 @FAST

@@ -15,7 +15,7 @@ from motion_helpers import FAST, _similar
 from meshopt_toolkit.errors import InvalidMeshError
 from meshopt_toolkit.kernels.triangles import aspect_ratios, inverse_shape_quality
 from meshopt_toolkit.motion.move import move
-from meshopt_toolkit.motion.strain import shape_quality_bound
+from meshopt_toolkit.motion.planar.distortion import shape_quality_bound
 
 
 @FAST
@@ -109,7 +109,7 @@ def test_move_rejects_bad_input(annulus):
 
 
 def test_move_reports_targets_without_admissible_interior(annulus):
-    from meshopt_toolkit.motion.continuation import NoAdmissiblePathError
+    from meshopt_toolkit.motion.engine.continuation import NoAdmissiblePathError
 
     b = np.unique(annulus.boundary_edges)
     outside = annulus.points[b].copy()

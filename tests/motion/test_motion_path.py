@@ -1,4 +1,4 @@
-"""The distortion metric's least-squares path (motion/path.py): residuals, normal
+"""The distortion metric's least-squares path (motion/planar/path.py): residuals, normal
 equations and Newton's matrix, and its discrete geodesics (Levenberg–Marquardt).
 """
 
@@ -9,8 +9,8 @@ import pytest
 from motion_helpers import _random_admissible, _straight_path
 
 from meshopt_toolkit.diagnostics import check_gradient, check_hvp
-from meshopt_toolkit.motion.graph_metric import GraphMetric
-from meshopt_toolkit.motion.path import GraphPath
+from meshopt_toolkit.motion.planar.metric import GraphMetric
+from meshopt_toolkit.motion.planar.path import GraphPath
 from meshopt_toolkit.riemannian.discrete_geodesic import discrete_geodesic
 
 
@@ -116,7 +116,7 @@ def test_discrete_geodesic_damps_more_where_the_newton_matrix_is_indefinite(
         disc, rng, monkeypatch):
     """A step whose solve meets non-positive curvature is rejected and the damping grows:
     the path still converges, to the same frames as without the failure."""
-    from meshopt_toolkit.motion.frame_blocks import FrameBlocks
+    from meshopt_toolkit.motion.planar.frame_blocks import FrameBlocks
 
     P = disc.points
     target = _random_admissible(disc, rng, 0.3)

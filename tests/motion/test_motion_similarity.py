@@ -1,4 +1,4 @@
-"""Similarities z ↦ az + b (motion/similarity.py), the planar screw motion and the one
+"""Similarities z ↦ az + b (motion/engine/similarity.py), the planar screw motion and the one
 handle grouping of every cell kind.
 """
 
@@ -10,7 +10,12 @@ from hypothesis import given
 from hypothesis import strategies as st
 from motion_helpers import FAST, _similar
 
-from meshopt_toolkit.motion.similarity import HandlePath, Similarity, fit_similarity, handle_groups
+from meshopt_toolkit.motion.engine.similarity import (
+    HandlePath,
+    Similarity,
+    fit_similarity,
+    handle_groups,
+)
 
 
 @FAST

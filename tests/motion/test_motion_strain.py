@@ -1,4 +1,4 @@
-"""The triangle distortion φ (motion/strain.py): closed forms, Taylor tests of its
+"""The triangle distortion φ (motion/planar/distortion.py): closed forms, Taylor tests of its
 Jacobian and second derivatives, invariances, and the per-triangle quality bound.
 """
 
@@ -13,8 +13,12 @@ from motion_helpers import FAST, _random_admissible, _similar
 
 from meshopt_toolkit.diagnostics import check_gradient, check_hvp
 from meshopt_toolkit.kernels.triangles import inverse_shape_quality
-from meshopt_toolkit.motion.assembly import upper_to_blocks
-from meshopt_toolkit.motion.strain import TriangleDistortion, shape_quality_bound, stretch_ratios
+from meshopt_toolkit.motion.planar.assembly import upper_to_blocks
+from meshopt_toolkit.motion.planar.distortion import (
+    TriangleDistortion,
+    shape_quality_bound,
+    stretch_ratios,
+)
 
 
 def test_distortion_matches_singular_values(disc, rng):

@@ -1,4 +1,4 @@
-"""The time-coupled preconditioner of the path systems (motion/time_coupling.py).
+"""The time-coupled preconditioner of the path systems (motion/planar/time_coupling.py).
 """
 
 from __future__ import annotations
@@ -6,15 +6,15 @@ from __future__ import annotations
 import numpy as np
 from motion_helpers import _random_admissible
 
-from meshopt_toolkit.motion.graph_metric import GraphMetric
-from meshopt_toolkit.motion.path import GraphPath
+from meshopt_toolkit.motion.planar.metric import GraphMetric
+from meshopt_toolkit.motion.planar.path import GraphPath
 
 
 def test_time_coupled_preconditioner_is_exact_for_equal_frames(disc, rng):
     """``P⁻¹ = 𝔻⁺(T⁻¹ ⊗ I)𝔻⁺ᵀ/K`` inverts the Gauss–Newton matrix exactly where every
     frame has the same Jacobian (a path standing still at a random admissible mesh), with
     a free last frame (``T_KK = 1``): one CG iteration, to rounding."""
-    from meshopt_toolkit.motion.frame_blocks import FrameBlocks
+    from meshopt_toolkit.motion.planar.frame_blocks import FrameBlocks
 
     P, K = disc.points, 4
     Q = _random_admissible(disc, rng, 0.3)
@@ -37,7 +37,7 @@ def test_time_coupled_preconditioner_is_symmetric_positive_definite(disc, rng):
     reaches the direct solution."""
     from scipy.sparse.linalg import spsolve
 
-    from meshopt_toolkit.motion.frame_blocks import FrameBlocks
+    from meshopt_toolkit.motion.planar.frame_blocks import FrameBlocks
 
     P, K = disc.points, 6
     target = _random_admissible(disc, rng, 0.3)

@@ -13,7 +13,7 @@ from meshopt_toolkit import data_path
 from meshopt_toolkit.cli import main
 from meshopt_toolkit.errors import InvalidMeshError
 from meshopt_toolkit.io import load
-from meshopt_toolkit.motion.targets import fix_boundary, group_vertices, handles_of
+from meshopt_toolkit.motion.engine.targets import fix_boundary, group_vertices, handles_of
 
 DISC = data_path("disc_25.msh")
 

@@ -15,9 +15,12 @@ from meshopt_toolkit.cli import main
 from meshopt_toolkit.errors import InvalidMeshError, OptionError
 from meshopt_toolkit.io import load_cells, save_cells
 from meshopt_toolkit.kernels.tetrahedra import signed_volumes
-from meshopt_toolkit.motion.handles3d import (MESHLAB_SELECTED_BIT, handles_in_space,
-                                              selected_vertices)
-from meshopt_toolkit.motion.surface_paths import FoldTest
+from meshopt_toolkit.motion.engine.handles import (
+    MESHLAB_SELECTED_BIT,
+    handles_in_space,
+    selected_vertices,
+)
+from meshopt_toolkit.motion.surface.folds import FoldTest
 
 pymeshlab = pytest.importorskip("pymeshlab")
 

@@ -12,7 +12,7 @@ from meshopt_toolkit.cli import main
 from meshopt_toolkit.errors import SelfIntersectionError
 from meshopt_toolkit.io import load_cells
 from meshopt_toolkit.mesh import SurfaceMesh, TetMesh
-from meshopt_toolkit.motion.handles3d import SelfIntersectionGuard
+from meshopt_toolkit.motion.engine.handles import SelfIntersectionGuard
 
 trimesh = pytest.importorskip("trimesh")
 

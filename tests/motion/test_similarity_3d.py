@@ -1,4 +1,4 @@
-"""The one similarity of space (motion/similarity_3d.py) that tets and surfaces share: its
+"""The one similarity of space (motion/engine/similarity_3d.py) that tets and surfaces share: its
 two paths from the identity against closed forms, the screw motion a one-parameter group,
 both paths ending bitwise at the similarity, the inverse, the fit, and the handle paths
 built on it."""
@@ -12,9 +12,13 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from meshopt_toolkit.errors import OptionError
-from meshopt_toolkit.motion.similarity import (HandlePath, Similarity3, fit_similarity_3d,
-                                               handle_groups)
-from meshopt_toolkit.motion.similarity_3d import global_similarity
+from meshopt_toolkit.motion.engine.similarity import (
+    HandlePath,
+    Similarity3,
+    fit_similarity_3d,
+    handle_groups,
+)
+from meshopt_toolkit.motion.engine.similarity_3d import global_similarity
 
 
 def rodrigues(axis, angle: float) -> np.ndarray:

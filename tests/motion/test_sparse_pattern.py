@@ -1,4 +1,4 @@
-"""The one sort of the per-cell block assemblers (motion/sparse_pattern.py): the whole
+"""The one sort of the per-cell block assemblers (motion/engine/sparse_pattern.py): the whole
 matrix, its transpose, and the lower triangle of the free block against dense sums."""
 
 from __future__ import annotations
@@ -7,9 +7,9 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from meshopt_toolkit.motion.sparse_pattern import CellPattern, FreePattern, pattern_slots
-from meshopt_toolkit.motion.surface_normal import FreePattern as UpperProductPattern
-from meshopt_toolkit.motion.surface_normal import upper_products
+from meshopt_toolkit.motion.engine.sparse_pattern import CellPattern, FreePattern, pattern_slots
+from meshopt_toolkit.motion.surface.normal_equations import FreePattern as UpperProductPattern
+from meshopt_toolkit.motion.surface.normal_equations import upper_products
 
 
 def dense_sum(columns, blocks, diagonal, n):

@@ -1,5 +1,5 @@
-"""Surface moves with contact (:mod:`meshopt_toolkit.motion.contact` in
-:func:`~meshopt_toolkit.motion.surface_move.move_surface`): an upright flap over a fixed
+"""Surface moves with contact (:mod:`meshopt_toolkit.motion.engine.contact` in
+:func:`~meshopt_toolkit.motion.surface.move.move_surface`): an upright flap over a fixed
 sheet, its top pushed down past the point where a rigid flap would pierce the sheet. With
 contact every frame is free of self-intersections by the exact kernel, the handles land
 exactly and nothing folds; without, the frames pass through the sheet."""
@@ -19,8 +19,8 @@ from meshopt_toolkit.io import save_cells
 from meshopt_toolkit.io.cells import CellMesh
 from meshopt_toolkit.kernels.intersections3d import self_intersections
 from meshopt_toolkit.mesh import SurfaceMesh
-from meshopt_toolkit.motion.contact import ContactWarning
-from meshopt_toolkit.motion.surface_move import move_surface
+from meshopt_toolkit.motion.engine.contact import ContactWarning
+from meshopt_toolkit.motion.surface.move import move_surface
 
 pytest.importorskip("ipctk")
 
@@ -119,8 +119,8 @@ def test_random_pushes_towards_contact_give_clean_frames(drop, dx, dy):
 def test_the_polish_takes_only_trials_clear_of_contact():
     """A sheared flap the polish improves; with every straight path reported in contact
     it moves nothing, and with the CCD of the contact it moves only along clean paths."""
-    from meshopt_toolkit.motion.contact import SurfaceContact
-    from meshopt_toolkit.motion.surface_polish import polish_worst_triangles
+    from meshopt_toolkit.motion.engine.contact import SurfaceContact
+    from meshopt_toolkit.motion.surface.polish import polish_worst_triangles
 
     V, F, h, tg = _pushed(0.3, (0.4, 0.0))
     P = move_surface(V, F, h, tg, polish=0).points

@@ -17,8 +17,8 @@ from meshopt_toolkit.diagnostics import check_gradient, check_hvp
 from meshopt_toolkit.errors import InvalidMeshError
 from meshopt_toolkit.kernels.cell_maps import surface_inverse_shape_quality
 from meshopt_toolkit.kernels.triangles import inverse_shape_quality
-from meshopt_toolkit.motion.strain import TriangleDistortion
-from meshopt_toolkit.motion.surface_distortion import (
+from meshopt_toolkit.motion.planar.distortion import TriangleDistortion
+from meshopt_toolkit.motion.surface.distortion import (
     SurfaceDistortion,
     surface_path_quality_bound,
     surface_quality_bound,

@@ -1,5 +1,5 @@
 """As-rigid-as-possible interpolation of two surface poses with local/global steps
-(``motion/surface_interpolation.py``): the closed-form best rotations against the SVD,
+(``motion/surface/interpolation.py``): the closed-form best rotations against the SVD,
 a folded hinge followed exactly, the steps' energy never rising, rigid motions carried
 along, and a bar twisted half a turn by libigl whose start is lifted to the target's
 quality (no Levenberg–Marquardt step left to ``morph_surface``)."""
@@ -16,12 +16,15 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from meshopt_toolkit.kernels.surface import aspect_ratios
-from meshopt_toolkit.motion.surface_distortion import SurfaceDistortion
-from meshopt_toolkit.motion.surface_interpolation import (_best_rotated, _plane_frames,
-                                                             arap_interpolation,
-                                                             continuous_rotation_vectors)
-from meshopt_toolkit.motion.surface_morph import morph_surface
-from meshopt_toolkit.motion.surface_paths import FoldTest
+from meshopt_toolkit.motion.surface.distortion import SurfaceDistortion
+from meshopt_toolkit.motion.surface.interpolation import (
+    _best_rotated,
+    _plane_frames,
+    arap_interpolation,
+    continuous_rotation_vectors,
+)
+from meshopt_toolkit.motion.surface.morph import morph_surface
+from meshopt_toolkit.motion.surface.folds import FoldTest
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "benchmarks"))
@@ -160,7 +163,7 @@ def test_steps_end_where_until_accepts():
 def test_a_step_with_a_degenerate_triangle_is_not_taken(monkeypatch):
     """Where the closed-form rotation is undefined (a triangle of a frame degenerate), the
     frames of the last step are kept."""
-    import meshopt_toolkit.motion.surface_interpolation as si
+    import meshopt_toolkit.motion.surface.interpolation as si
 
     V0, F = sheet()
     V1 = random_pose(11, V0)
@@ -184,7 +187,7 @@ def test_a_step_with_a_degenerate_triangle_is_not_taken(monkeypatch):
 def test_morph_falls_back_to_the_fit_without_steps(monkeypatch):
     """Where the stepped start is not admissible, ``morph_surface`` starts from Alexa et
     al.'s fit without steps, not from linear interpolation."""
-    import meshopt_toolkit.motion.surface_morph as smorph
+    import meshopt_toolkit.motion.surface.morph as smorph
 
     V0, F = sheet()
     V1 = random_pose(5, V0)

@@ -1,4 +1,4 @@
-"""Morphing two poses of a triangle surface in 3D (``motion/surface_morph.py``,
+"""Morphing two poses of a triangle surface in 3D (``motion/surface/morph.py``,
 ``mt.morph`` and ``meshopt morph`` on surfaces): frames fold-free and as healthy as the
 worse end, at least as healthy as linear and as-rigid-as-possible interpolation, identical
 pairs bitwise, similarities followed exactly, the type given kept, bad input refused in
@@ -21,8 +21,8 @@ from meshopt_toolkit.errors import InvalidMeshError
 from meshopt_toolkit.io import load_cells, save_cells
 from meshopt_toolkit.io.cells import CellMesh
 from meshopt_toolkit.mesh import SurfaceMesh
-from meshopt_toolkit.motion.surface_morph import RTOL, _minimize, _PathProblem, morph_surface
-from meshopt_toolkit.motion.surface_move import move_surface
+from meshopt_toolkit.motion.surface.morph import RTOL, _minimize, _PathProblem, morph_surface
+from meshopt_toolkit.motion.surface.move import move_surface
 from meshopt_toolkit.results import Result
 
 trimesh = pytest.importorskip("trimesh")

@@ -1,4 +1,4 @@
-"""Surface morphs with contact (:mod:`meshopt_toolkit.motion.surface_morph_contact`): a
+"""Surface morphs with contact (:mod:`meshopt_toolkit.motion.surface.morph_contact`): a
 flap moved from above a sheet to below it, whose straight-line interpolation passes through
 the sheet, morphs around it with every frame clean by the exact kernel, the motion between
 frames clean by ipctk's CCD, and every frame as healthy as the worse end; without contact
@@ -21,12 +21,12 @@ from meshopt_toolkit.errors import SelfIntersectionError
 from meshopt_toolkit.kernels.intersections3d import self_intersections
 from meshopt_toolkit.kernels.surface import aspect_ratios
 from meshopt_toolkit.mesh import SurfaceMesh
-from meshopt_toolkit.motion.contact import ContactWarning, pair_contact
-from meshopt_toolkit.motion.surface_mesh_morph import morph_surface_mesh
-from meshopt_toolkit.motion.surface_morph import morph_surface
-from meshopt_toolkit.motion.surface_morph_contact import PathContact
-from meshopt_toolkit.motion.surface_move import move_surface
-from meshopt_toolkit.motion.surface_path_system import PathSystem
+from meshopt_toolkit.motion.engine.contact import ContactWarning, pair_contact
+from meshopt_toolkit.motion.surface.mesh_morph import morph_surface_mesh
+from meshopt_toolkit.motion.surface.morph import morph_surface
+from meshopt_toolkit.motion.surface.morph_contact import PathContact
+from meshopt_toolkit.motion.surface.move import move_surface
+from meshopt_toolkit.motion.surface.path_system import PathSystem
 
 ipctk = pytest.importorskip("ipctk")
 
@@ -71,7 +71,7 @@ def test_minimizing_with_the_barrier_active_keeps_every_frame_clean(monkeypatch)
     contact), morphed to the energy tests alone: the barrier comes into play in the
     frames, every frame and every motion between frames stays clean; without contact the
     frames pass through the sheet."""
-    import meshopt_toolkit.motion.surface_morph_contact as smc
+    import meshopt_toolkit.motion.surface.morph_contact as smc
 
     poses = []
     for push in ((0.2, 0.3), (-0.2, -0.3)):

@@ -14,11 +14,11 @@ from hypothesis import strategies as st
 from meshopt_toolkit.diagnostics import check_gradient
 from meshopt_toolkit.errors import InvalidMeshError
 from meshopt_toolkit.kernels.cell_maps import surface_inverse_shape_quality
-from meshopt_toolkit.motion.bending import ShellBending, dihedral_angles, edge_diamonds
-from meshopt_toolkit.motion.surface_distortion import SurfaceDistortion, surface_quality_bound
-from meshopt_toolkit.motion.surface_move import move_surface
-from meshopt_toolkit.motion.similarity_3d import HandlePath, handle_groups
-from meshopt_toolkit.motion.surface_paths import FoldTest, best_rotations
+from meshopt_toolkit.motion.surface.bending import ShellBending, dihedral_angles, edge_diamonds
+from meshopt_toolkit.motion.surface.distortion import SurfaceDistortion, surface_quality_bound
+from meshopt_toolkit.motion.surface.move import move_surface
+from meshopt_toolkit.motion.engine.similarity_3d import HandlePath, handle_groups
+from meshopt_toolkit.motion.surface.folds import FoldTest, best_rotations
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "benchmarks"))
@@ -259,7 +259,7 @@ def test_normal_matrix_is_the_lower_triangle_of_jtj_plus_m_at_the_free_coordinat
     # against scipy's own sparse product of the stacked Jacobian (an independent assembly)
     import scipy.sparse as sp
 
-    from meshopt_toolkit.motion import surface_move as smv
+    from meshopt_toolkit.motion.surface import move as smv
 
     V, F = sphere(2)
     handles = np.flatnonzero(V[:, 2] > 0.5)
@@ -280,7 +280,7 @@ def test_normal_matrix_is_the_lower_triangle_of_jtj_plus_m_at_the_free_coordinat
 
 @pytest.mark.parametrize("shape", [(7, 3, 9), (11, 12)])
 def test_upper_products_are_the_upper_triangles_of_jtj(shape):
-    from meshopt_toolkit.motion.surface_move import upper_products
+    from meshopt_toolkit.motion.surface.move import upper_products
 
     J = np.random.default_rng(2).normal(size=shape)
     J3 = J[:, None, :] if J.ndim == 2 else J
@@ -353,7 +353,7 @@ def _bar_problem(seed=0):
     blocks' assembly and products)."""
     import scipy.sparse as sp
 
-    from meshopt_toolkit.motion import surface_move as smv
+    from meshopt_toolkit.motion.surface import move as smv
 
     case = coarse_bar(90.0)
     V, F = case.V, case.F
@@ -390,7 +390,7 @@ def test_a_kept_factor_turned_with_a_rotated_surface_solves_its_matrix():
     solves it; unturned it is far off."""
     import scipy.sparse.linalg as sla
 
-    from meshopt_toolkit.motion.surface_normal import turned_solve
+    from meshopt_toolkit.motion.surface.normal_equations import turned_solve
     from meshopt_toolkit.solvers import factorize_spd
 
     problem, Q0, exact = _bar_problem()
@@ -440,7 +440,7 @@ def test_steps_on_kept_factors_need_fewer_factorizations_at_the_same_quality():
     """bench_surface's bar twisted 180° in 10 increments: steps of four conjugate gradients
     on the kept factor against plain chord steps (counted by a spy on the factorization),
     the default."""
-    from meshopt_toolkit.motion import surface_move as smv
+    from meshopt_toolkit.motion.surface import move as smv
 
     case = coarse_bar(180.0, spacing=0.1)
     args = (case.V, case.F, case.handles, case.path(1.0))

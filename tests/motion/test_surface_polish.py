@@ -1,4 +1,4 @@
-"""The local polish of a moved surface's worst triangles (motion/surface_polish.py)."""
+"""The local polish of a moved surface's worst triangles (motion/surface/polish.py)."""
 
 from __future__ import annotations
 
@@ -11,10 +11,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from meshopt_toolkit.diagnostics import check_gradient
-from meshopt_toolkit.motion.surface_distortion import SurfaceDistortion
-from meshopt_toolkit.motion.surface_move import move_surface
-from meshopt_toolkit.motion.surface_polish import (SoftMaxObjective, _tangent_bases,
-                                                   inverse_qualities, polish_worst_triangles)
+from meshopt_toolkit.motion.surface.distortion import SurfaceDistortion
+from meshopt_toolkit.motion.surface.move import move_surface
+from meshopt_toolkit.motion.surface.polish import (
+    SoftMaxObjective,
+    _tangent_bases,
+    inverse_qualities,
+    polish_worst_triangles,
+)
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "benchmarks"))

@@ -1,5 +1,5 @@
-"""Contact on the free parts of a tet mesh's boundary (motion/tet_contact.py and its use in
-motion/tet_move.py): a slot closed by a motion past contact."""
+"""Contact on the free parts of a tet mesh's boundary (motion/tets/contact.py and its use in
+motion/tets/move.py): a slot closed by a motion past contact."""
 
 from __future__ import annotations
 
@@ -17,10 +17,10 @@ from meshopt_toolkit.errors import SelfIntersectionError
 from meshopt_toolkit.kernels.intersections3d import self_intersections
 from meshopt_toolkit.kernels.tetrahedra import signed_volumes
 from meshopt_toolkit.mesh import TetMesh
-from meshopt_toolkit.motion.contact import ContactTerm, ContactWarning, NoContact
-from meshopt_toolkit.motion.similarity_3d import tet_boundary_faces
-from meshopt_toolkit.motion.tet_contact import tet_contact_term
-from meshopt_toolkit.motion.tet_move import move_tets
+from meshopt_toolkit.motion.engine.contact import ContactTerm, ContactWarning, NoContact
+from meshopt_toolkit.motion.engine.similarity_3d import tet_boundary_faces
+from meshopt_toolkit.motion.tets.contact import tet_contact_term
+from meshopt_toolkit.motion.tets.move import move_tets
 
 pytest.importorskip("ipctk")
 

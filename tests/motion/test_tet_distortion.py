@@ -19,7 +19,7 @@ from meshopt_toolkit.diagnostics import check_gradient, check_hvp
 from meshopt_toolkit.errors import InvalidMeshError
 from meshopt_toolkit.kernels.cell_maps import REGULAR_TET_EDGES, tet_condition_numbers
 from meshopt_toolkit.kernels.tetrahedra import mean_ratios, signed_volumes
-from meshopt_toolkit.motion.tet_distortion import (
+from meshopt_toolkit.motion.tets.distortion import (
     TetDistortion,
     hencky_strains,
     sym_vec,
@@ -28,7 +28,7 @@ from meshopt_toolkit.motion.tet_distortion import (
     tet_path_quality_bound,
     tet_quality_bound,
 )
-from meshopt_toolkit.motion.tet_metric import TetGraphMetric
+from meshopt_toolkit.motion.tets.metric import TetGraphMetric
 
 FAST = settings(max_examples=12, deadline=None)
 

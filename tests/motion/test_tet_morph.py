@@ -1,4 +1,4 @@
-"""The morph of tetrahedral meshes (motion/tet_morph.py, its path model motion/tet_path.py,
+"""The morph of tetrahedral meshes (motion/tets/morph.py, its path model motion/tets/path.py,
 ``mt.morph`` and ``meshopt morph`` on tet files)."""
 
 from __future__ import annotations
@@ -19,11 +19,11 @@ from meshopt_toolkit.diagnostics import check_gradient, check_hvp
 from meshopt_toolkit.errors import InvalidMeshError, NotAdmissibleError, OptionError
 from meshopt_toolkit.kernels.tetrahedra import mean_ratios, signed_volumes
 from meshopt_toolkit.mesh import TetMesh
-from meshopt_toolkit.motion.similarity_3d import tet_boundary_faces
-from meshopt_toolkit.motion.tet_metric import TetGraphMetric
-from meshopt_toolkit.motion.tet_morph import morph_tets
-from meshopt_toolkit.motion.tet_move import move_tets
-from meshopt_toolkit.motion.tet_path import TetPath
+from meshopt_toolkit.motion.engine.similarity_3d import tet_boundary_faces
+from meshopt_toolkit.motion.tets.metric import TetGraphMetric
+from meshopt_toolkit.motion.tets.morph import morph_tets
+from meshopt_toolkit.motion.tets.move import move_tets
+from meshopt_toolkit.motion.tets.path import TetPath
 from meshopt_toolkit.results import Result
 
 #: the physical names of the CLI tests' file

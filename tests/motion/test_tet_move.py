@@ -1,4 +1,4 @@
-"""Prescribed motion of tet meshes (motion/tet_move.py and its solver and similarities)."""
+"""Prescribed motion of tet meshes (motion/tets/move.py and its solver and similarities)."""
 
 from __future__ import annotations
 
@@ -15,13 +15,13 @@ from meshopt_toolkit.errors import InvalidMeshError
 from meshopt_toolkit.kernels.cell_maps import barycentric_gradients
 from meshopt_toolkit.kernels.tetrahedra import mean_ratios as tet_mean_ratios
 from meshopt_toolkit.kernels.tetrahedra import signed_volumes as tet_signed_volumes
-from meshopt_toolkit.motion.similarity import HandlePath, fit_similarity_3d, handle_groups
-from meshopt_toolkit.motion.similarity_3d import tet_boundary_faces
-from meshopt_toolkit.motion.tet_distortion import TetDistortion
-from meshopt_toolkit.motion.sparse_pattern import FreePattern
-from meshopt_toolkit.motion.tet_least_squares import Factor, Problem, minimize
-from meshopt_toolkit.motion.tet_move import move_tets
-from meshopt_toolkit.motion.tet_polish import inverse_mean_ratios, polish_worst_tets
+from meshopt_toolkit.motion.engine.similarity import HandlePath, fit_similarity_3d, handle_groups
+from meshopt_toolkit.motion.engine.similarity_3d import tet_boundary_faces
+from meshopt_toolkit.motion.tets.distortion import TetDistortion
+from meshopt_toolkit.motion.engine.sparse_pattern import FreePattern
+from meshopt_toolkit.motion.tets.least_squares import Factor, Problem, minimize
+from meshopt_toolkit.motion.tets.move import move_tets
+from meshopt_toolkit.motion.tets.polish import inverse_mean_ratios, polish_worst_tets
 from meshopt_toolkit.solvers import factorize_spd
 
 
@@ -350,7 +350,7 @@ def test_every_vertex_a_handle():
     assert np.array_equal(res.points, targets) and res.inverted == 0
 
 
-# --- the local polish of the worst tets (motion/tet_polish.py) ---------------------------
+# --- the local polish of the worst tets (motion/tets/polish.py) ---------------------------
 
 
 @settings(max_examples=15, deadline=None)
@@ -422,8 +422,8 @@ def test_steps_that_shrink_towards_a_point_stop_with_an_error(monkeypatch):
     zero step."""
     import itertools
 
-    from meshopt_toolkit.motion import tet_move
-    from meshopt_toolkit.motion.continuation import NoAdmissiblePathError
+    from meshopt_toolkit.motion.tets import move as tet_move
+    from meshopt_toolkit.motion.engine.continuation import NoAdmissiblePathError
 
     P, T = cube_tets(2, jitter=0.2)
     h = np.unique(tet_boundary_faces(T))
@@ -502,8 +502,8 @@ def test_negative_curvature_in_conjugate_gradients_reports_indefinite_without_fa
 
 
 def test_polish_is_not_tried_where_the_worst_tet_has_only_fixed_corners(monkeypatch):
-    from meshopt_toolkit.motion import tet_polish
-    from meshopt_toolkit.motion.tet_polish import fixed_ceiling
+    from meshopt_toolkit.motion.tets import polish as tet_polish
+    from meshopt_toolkit.motion.tets.polish import fixed_ceiling
 
     P, T = cube_tets(3, jitter=0.3, seed=2)
     h = np.unique(tet_boundary_faces(T))

@@ -17,7 +17,7 @@ from meshopt_toolkit.cli import main
 from meshopt_toolkit.io import load_cells, save_cells
 from meshopt_toolkit.io.cells import CellMesh
 from meshopt_toolkit.kernels.tetrahedra import signed_volumes
-from meshopt_toolkit.motion.surface_paths import FoldTest
+from meshopt_toolkit.motion.surface.folds import FoldTest
 from meshopt_toolkit.pipeline import formats
 from meshopt_toolkit.pipeline.runner import Pipeline
 

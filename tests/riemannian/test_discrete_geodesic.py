@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from conftest import grid_mesh
 
-from meshopt_toolkit.motion.graph_metric import GraphMetric
+from meshopt_toolkit.motion.planar.metric import GraphMetric
 from meshopt_toolkit.penalties import QualityPenalty
 from meshopt_toolkit.riemannian.discrete_geodesic import discrete_geodesic
 from meshopt_toolkit.riemannian.geodesic_result import DiscreteGeodesic

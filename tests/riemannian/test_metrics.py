@@ -13,7 +13,7 @@ from conftest import grid_mesh
 
 from meshopt_toolkit.fem import elasticity
 from meshopt_toolkit.errors import InvalidMeshError, MeshoptError, NotAdmissibleError
-from meshopt_toolkit.motion.graph_metric import GraphMetric
+from meshopt_toolkit.motion.planar.metric import GraphMetric
 from meshopt_toolkit.riemannian.metrics import (
     CompleteMetric,
     ElasticityMetric,
