@@ -145,7 +145,7 @@ QUALITY_RTOL = 1e-3
 
 
 def _finish(metric: GraphMetric, Q: FloatArray, handles: IntArray, boundary_edges: IntArray,
-            relax_iter: int, rounds: int) -> tuple[FloatArray, dict]:
+            relax_iterations: int, rounds: int) -> tuple[FloatArray, dict]:
     """The final quality step with the handles fixed (see :func:`move`): proximal
     least-squares rounds on the distortion from equilateral triangles of the source's
     areas, each round's triangle weights those of the last times ``max(1, |F_t|/rms|F|)^½``
@@ -175,7 +175,7 @@ def _finish(metric: GraphMetric, Q: FloatArray, handles: IntArray, boundary_edge
         res = discrete_geodesic(m, Q, Q, 1, free=free, boundary_edges=boundary_edges,
                                 anchor=np.zeros((len(tri), 3)),
                                 options=LevenbergMarquardtOptions(
-                                    gtol=1e-6, rtol=QUALITY_RTOL, max_iterations=relax_iter,
+                                    gtol=1e-6, rtol=QUALITY_RTOL, max_iterations=relax_iterations,
                                     cg_rtol=RELAX_CG_RTOL, newton=True, factors=factors))
         nit += res.nit
         Q = res.points[1]
@@ -194,11 +194,11 @@ def _frame_quality(points: FloatArray, triangles: IntArray) -> tuple[float, floa
         inverse_shape_quality(points, triangles).mean())
 
 
-def _check_options(frames, steps, relax_iter, quality_rounds, max_splits, weight) -> None:
+def _check_options(frames, steps, relax_iterations, quality_rounds, max_splits, weight) -> None:
     """:class:`OptionError` for an option out of range (see :func:`move`)."""
     if frames is not None and int(frames) < 2:
         raise OptionError(f"frames must be at least 2 (the input and the result), got {frames}")
-    for name, value in (("steps", steps), ("relax_iterations", relax_iter),
+    for name, value in (("steps", steps), ("relax_iterations", relax_iterations),
                         ("quality_rounds", quality_rounds)):
         if value is not None and int(value) < 1:
             raise OptionError(f"{name} must be at least 1, got {value}")
@@ -316,15 +316,15 @@ def move(
             relax_iterations=relax_iterations, quality_rounds=quality_rounds,
             finish_frames=finish_frames, max_splits=max_splits, progress=progress,
             contact=contact))
-    relax_iter = relax_iterations
+    relax_iterations = relax_iterations
     solver = _solver(mesh)
     if solver is not None:  # another kind of mesh: its own solver, the same options
-        _check_options(frames, steps, relax_iter, quality_rounds, max_splits, weight)
+        _check_options(frames, steps, relax_iterations, quality_rounds, max_splits, weight)
         rounds = {} if quality_rounds is None else {"quality_rounds": quality_rounds}
         guard = SelfIntersectionGuard(mesh, handles, targets)  # refuses crossing targets
         result = at_unit_size(
             lambda m, t: solver(m, handles, t, frames=frames, steps=steps, weight=weight,
-                                relax_iter=relax_iter, max_splits=max_splits,
+                                relax_iterations=relax_iterations, max_splits=max_splits,
                                 progress=progress, contact=contact,
                                 **rounds),
             size_scale(mesh, columns=3), (mesh, targets),
@@ -332,10 +332,10 @@ def move(
         guard.check(result.frames)  # and a motion through itself
         return result
     quality_rounds = 6 if quality_rounds is None else quality_rounds
-    _check_options(frames, steps, relax_iter, quality_rounds, max_splits, weight)
+    _check_options(frames, steps, relax_iterations, quality_rounds, max_splits, weight)
     mesh = require_admissible(mesh, "move")
     _check_handles(mesh, handles, targets)  # named in the user's units
-    options = dict(frames=frames, steps=steps, weight=weight, relax_iter=relax_iter,
+    options = dict(frames=frames, steps=steps, weight=weight, relax_iterations=relax_iterations,
                    quality_rounds=quality_rounds, finish_frames=finish_frames,
                    max_splits=max_splits, progress=progress)
     return at_unit_size(lambda m, t: _move_planar(m, handles, t, **options),
@@ -363,7 +363,7 @@ def _at_targets(points: FloatArray, handles, targets) -> FloatArray:
     return out
 
 
-def _move_planar(mesh: PlanarMesh, handles, targets, *, frames, steps, weight, relax_iter,
+def _move_planar(mesh: PlanarMesh, handles, targets, *, frames, steps, weight, relax_iterations,
                  quality_rounds, finish_frames, max_splits, progress) -> MoveResult:
     """:func:`move` of an admissible planar mesh (options checked)."""
     t_start = time.perf_counter()
@@ -404,10 +404,11 @@ def _move_planar(mesh: PlanarMesh, handles, targets, *, frames, steps, weight, r
         share = 1.0 / (2 + len(inner))
         report = (lambda s: progress(s * share)) if progress is not None else None
         cont = continuation_path(metric, P, h, path, times, boundary_edges=be,
-                                 max_splits=max_splits, max_iterations=relax_iter,
+                                 max_splits=max_splits, max_iterations=relax_iterations,
                                  progress=report)
         residual = cont.frames
-        residual[-1], finish = _finish(metric, residual[-1], h, be, relax_iter, quality_rounds)
+        residual[-1], finish = _finish(metric, residual[-1], h, be, relax_iterations,
+                                       quality_rounds)
         details = {"continuation_splits": cont.splits,
                    "relax_iterations": cont.relax_iterations + finish["iterations"],
                    "finish_rounds_kept": finish["kept"]}
@@ -418,7 +419,7 @@ def _move_planar(mesh: PlanarMesh, handles, targets, *, frames, steps, weight, r
             # (CHOLMOD through .._cholmod, or SuperLU; a pool of its own: the frame
             # pool of .path may be in use by the steps)
             with ThreadPoolExecutor(min(len(inner), thread_budget())) as pool:
-                done = pool.map(lambda i: _finish(metric, residual[i], h, be, relax_iter,
+                done = pool.map(lambda i: _finish(metric, residual[i], h, be, relax_iterations,
                                                   quality_rounds), inner)
                 for n, (i, (Q, more)) in enumerate(zip(inner, done), start=1):
                     residual[i] = Q

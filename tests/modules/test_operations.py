@@ -4,6 +4,7 @@ no public operation takes more than 12 parameters."""
 
 from __future__ import annotations
 
+import importlib
 import inspect
 import json
 
@@ -126,6 +127,40 @@ def test_public_calls_speak_the_filters_vocabulary():
     assert {n: p for n, p in short.items() if p} == {}
     assert "max_iterations" in inspect.signature(mt.optimize).parameters
     assert "time" in inspect.signature(mt.deform).parameters
+
+
+#: names the issue of one vocabulary retired everywhere, not only in the public calls
+RETIRED = ("max_iter", "relax_iter", "ftol", "t_end", "penalty_beta")
+
+
+def _package_callables():
+    """Every public function, class and public method of every module of the package."""
+    import pkgutil
+
+    for info in pkgutil.walk_packages(mt.__path__, "meshopt_toolkit."):
+        module = importlib.import_module(info.name)
+        for name, obj in vars(module).items():
+            if name.startswith("_") or getattr(obj, "__module__", None) != info.name:
+                continue
+            if inspect.isfunction(obj):
+                yield f"{info.name}.{name}", obj
+            elif inspect.isclass(obj):
+                yield f"{info.name}.{name}", obj
+                for attr, member in vars(obj).items():
+                    if inspect.isfunction(member) and not attr.startswith("_"):
+                        yield f"{info.name}.{name}.{attr}", member
+
+
+def test_no_public_parameter_anywhere_has_a_retired_name():
+    bad = {}
+    for where, obj in _package_callables():
+        try:
+            params = inspect.signature(obj).parameters
+        except (TypeError, ValueError):
+            continue
+        if found := sorted(set(params) & set(RETIRED)):
+            bad[where] = found
+    assert bad == {}
 
 
 def test_the_parameter_count_test_sees_a_long_signature():

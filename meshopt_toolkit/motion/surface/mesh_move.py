@@ -65,14 +65,14 @@ class SurfaceMeshMoveResult:
 
 
 def move_surface_mesh(mesh, handles, targets, *, frames: int | None = None, steps: int = 4,
-                      weight: float = 1.0, relax_iter: int = 15, max_splits: int = 8,
+                      weight: float = 1.0, relax_iterations: int = 15, max_splits: int = 8,
                       quality_rounds: int | None = None,
                       progress: Callable[[float], None] | None = None,
                       contact: bool = True) -> SurfaceMeshMoveResult:
     """:func:`move_surface` on a :class:`SurfaceMesh` (what ``mt.move`` calls for one).
 
     ``steps``, ``weight`` and ``contact`` are those of :func:`move_surface`, ``max_splits``
-    its ``max_halvings``; ``relax_iter`` and ``quality_rounds`` (options of the planar and tet
+    its ``max_halvings``; ``relax_iterations`` and ``quality_rounds`` (options of the planar and tet
     solvers) are not used. With ``frames = K`` at least ``K − 1`` increments are taken and
     the K frames are those whose path fractions are nearest to ``0, 1/(K−1), …, 1``.
     The motion is solved at unit size (the surface divided by the power of two nearest
@@ -88,7 +88,7 @@ def move_surface_mesh(mesh, handles, targets, *, frames: int | None = None, step
     NotAdmissibleError
         No fold-free increment of the handles' path.
     """
-    del relax_iter, quality_rounds  # options of the other solvers
+    del relax_iterations, quality_rounds  # options of the other solvers
     if not is_surface(mesh):
         raise InvalidMeshError(f"cannot move a {type(mesh).__name__} as a surface")
     surface = mesh

@@ -170,7 +170,7 @@ def _finish(strain_source: FloatArray, tets: IntArray, problem: Problem, Q: Floa
 
 
 def move_tets(points: FloatArray, tets: IntArray, handles, targets, *, steps: int = 4,
-              frames: int | None = None, weight: float = 1.0, relax_iter: int = 15,
+              frames: int | None = None, weight: float = 1.0, relax_iterations: int = 15,
               quality_rounds: int = 4, max_splits: int = 12, polish: int = 300,
               contact: bool = True) -> TetMoveResult:
     """Move the ``handles`` vertices of a tet mesh exactly to ``targets``; place the
@@ -190,7 +190,7 @@ def move_tets(points: FloatArray, tets: IntArray, handles, targets, *, steps: in
         Return the motion as this many frames (≥ 2; at least ``frames − 1`` steps).
     weight : float
         ``w`` of the metric ``M + w² JᵀJ``.
-    relax_iter : int
+    relax_iterations : int
         Iterations of each step's minimization and of each quality round.
     quality_rounds : int
         Rounds of the quality finish (0: none).
@@ -237,11 +237,11 @@ def move_tets(points: FloatArray, tets: IntArray, handles, targets, *, steps: in
                           handle_groups(h, tet_boundary_faces(T), len(P)))
         problem = Problem.build(strain, weight, mass, h)
         touch = tet_contact_term(P, T, problem.pattern.free, mass, contact)
-        residual, cont = _continuation(problem, P, h, path, times, relax_iter, max_splits,
+        residual, cont = _continuation(problem, P, h, path, times, relax_iterations, max_splits,
                                        True, touch)
         details.update(cont)
         if quality_rounds > 0:
-            end, fin = _finish(P, T, problem, residual[-1], quality_rounds, relax_iter, True,
+            end, fin = _finish(P, T, problem, residual[-1], quality_rounds, relax_iterations, True,
                                fixed_ceiling(residual[-1], T, h), touch)
             residual[-1] = end if touch.embedded(end) else residual[-1]
             details.update(fin)
@@ -286,7 +286,7 @@ def _predictions(problem: Problem, Q: FloatArray, h: IntArray, target: FloatArra
 
 
 def _continuation(problem: Problem, P: FloatArray, h: IntArray, path: HandlePath,
-                  times: FloatArray, relax_iter: int, max_splits: int, newton: bool,
+                  times: FloatArray, relax_iterations: int, max_splits: int, newton: bool,
                   contact=None) -> tuple[list[FloatArray], dict]:
     """Frames at ``times`` of the minimizing movement (see :func:`move_tets`):
     :func:`..engine.continuation.march` with each step started at the first admissible of
@@ -309,7 +309,7 @@ def _continuation(problem: Problem, P: FloatArray, h: IntArray, path: HandlePath
                 break
         else:
             return None
-        res = minimize(problem, start, Q, rest, rtol=STEP_RTOL, max_iterations=relax_iter,
+        res = minimize(problem, start, Q, rest, rtol=STEP_RTOL, max_iterations=relax_iterations,
                        newton=newton, contact=contact)
         nit += res.iterations
         if not contact.embedded(res.points):  # two boundary triangles of a fan meet
@@ -359,7 +359,7 @@ class TetMeshMoveResult:
 
 
 def move_tet_mesh(mesh: TetMesh, handles, targets, *, frames: int | None = None,
-                  steps: int = 4, weight: float = 1.0, relax_iter: int = 15,
+                  steps: int = 4, weight: float = 1.0, relax_iterations: int = 15,
                   quality_rounds: int = 4, max_splits: int = 12,
                   progress: Callable[[float], None] | None = None,
                   contact: bool = True) -> TetMeshMoveResult:
@@ -382,7 +382,7 @@ def move_tet_mesh(mesh: TetMesh, handles, targets, *, frames: int | None = None,
     # vertices in no tet (a file may hold some) are left out of the solve and stay put
     solved = SolvedVertices(mesh.points, mesh.tets, h, tg)
     res = move_tets(solved.points, solved.cells, solved.handles, solved.targets, steps=steps,
-                    frames=frames, weight=weight, relax_iter=relax_iter,
+                    frames=frames, weight=weight, relax_iterations=relax_iterations,
                     quality_rounds=quality_rounds, max_splits=max_splits,
                     contact=contact)
 
