@@ -72,6 +72,8 @@ from .surface_paths import FoldTest
 from .surface_polish import polish_worst_triangles
 
 SQRT2 = np.sqrt(2.0)
+#: the fractions of a fresh linearized predictor tried in turn (0: the handles alone)
+PREDICTOR = (1.0, 0.0, 0.5, 0.25)
 
 
 def lumped_mass(points: FloatArray, triangles: IntArray) -> FloatArray:
@@ -151,7 +153,7 @@ class _Problem:
                                     self.free_index, int(free_coord.sum()))
         self.phi_ref = None
         self.previous = None
-        self.factor = None
+        self.factor, self.factor_signature = None, None
         self.fresh = False  # whether the factor is of the matrix at the current iterate
         self.factorizations = 0
         #: conjugate gradients on a kept factor: at most this many, to this relative residual
@@ -234,6 +236,7 @@ class _Problem:
         else:
             self.factor.refactorize(D)
         self.fresh, self.factor_points = True, Q.copy()
+        self.factor_signature = self.contact.signature(Q)
 
     def kept_step(self, Jm, Jb, g, Q) -> FloatArray:
         """A step ``≈ (JᵀJ + M)⁻¹ g`` at ``Q`` on the kept factor ``F``: its own solve where
@@ -276,24 +279,26 @@ def _step(problem: _Problem, Q0, H1, handles, max_iterations: int, rtol: float,
     # the residuals' change of the handles' displacement, to first order
     dm, db = problem.jacobian_products(Jm, Jb, d)
     g = problem.gradient(rm + dm, Jm, rb + db, Jb, np.zeros_like(Q0))
-    # the predictor on the last increment's factor where one is kept, else a fresh one
-    for fresh in ((False, True) if hasattr(problem.factor, "refactorize") else (True,)):
+    # the predictor on the last increment's factor where one is kept, else a fresh one;
+    # where neither is admissible and clear of contact, the handles alone (the barrier
+    # then pushes the free vertices), then fractions of the fresh one
+    kept = hasattr(problem.factor, "refactorize")
+    for fresh, scales in (((False, (1.0,)),) if kept else ()) + ((True, PREDICTOR),):
         if fresh:
             problem.refactorize(Jm, Jb, Q0)
-        Q = Q0 + d
-        Q.ravel()[problem.free] -= problem.kept_step(Jm, Jb, g, Q0)
-        Q[handles] = H1
-        parts = problem.parts(Q)
-        if problem.admissible(Q, parts[0]):
-            break
+        step = problem.kept_step(Jm, Jb, g, Q0)
+        for scale in scales:
+            Q = Q0 + d
+            Q.ravel()[problem.free] -= scale * step
+            Q[handles] = H1
+            parts = problem.parts(Q)
+            if problem.admissible(Q, parts[0]) and problem.contact.clear(Q0, Q):
+                break
+        else:
+            continue
+        break
     else:
         return None
-    if not problem.contact.clear(Q0, Q):  # in contact: the handles alone, the barrier acts
-        Q = Q0 + d
-        Q[handles] = H1
-        parts = problem.parts(Q)
-        if not (problem.admissible(Q, parts[0]) and problem.contact.clear(Q0, Q)):
-            return None
     E = problem.energy(Q, parts)
     if not np.isfinite(E):
         return None
@@ -303,8 +308,9 @@ def _step(problem: _Problem, Q0, H1, handles, max_iterations: int, rtol: float,
         g = problem.gradient(rm, Jm, rb, Jb, Q - problem.previous)
         if problem.contact.set_stiffness(Q, g):  # κ set: the energy gains the barrier
             E = problem.energy(Q)
-        g = g + problem.contact.gradient(Q)  # the barrier's Hessian in a fresh factor
-        stale = stale or problem.contact.active(Q)
+        g = g + problem.contact.gradient(Q)
+        # the factor is renewed where the barrier's pairs or κ are not those it holds
+        stale = stale or problem.contact.signature(Q) != problem.factor_signature
         renewed = stale
         if stale:  # otherwise the factor of the increment's start serves (chord steps)
             problem.refactorize(Jm, Jb, Q)
@@ -389,7 +395,8 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
         Steps on a kept factor are this many conjugate gradients on the current normal
         equations, preconditioned by the factor turned with the surface (module
         docstring); 0: the factor's own solve, a chord step.
-    max_halvings : how often one increment may be halved.
+    max_halvings : how often one increment may be halved in a row (a halved increment
+        doubles again, up to ``1/steps``, after two taken in a row).
     contact : bool
         Keep the surface from passing through itself (:mod:`.contact`: the barrier in the
         energy, every step capped by CCD) where its rest is free of self-intersections
@@ -437,7 +444,8 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
     phi = problem.membrane.values(V)
     phi_lengths = np.zeros(len(F))
     length = 0.0
-    dt, halvings = 1.0 / max(int(steps), 1), 0
+    dt0 = 1.0 / max(int(steps), 1)
+    dt, halvings, taken = dt0, 0, 0
     while t < 1.0:
         t1 = min(1.0, t + dt) if 1.0 - (t + dt) > 1e-12 else 1.0
         start = Q
@@ -468,6 +476,11 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
                     f"no fold-free increment of the handles' path from t = {t:.4g}")
             dt /= 2.0
             continue
+        # a halved increment grows back after two taken in a row
+        taken = taken + 1 if halvings == 0 else 1
+        halvings = 0
+        if taken >= 2 and dt < dt0:
+            dt, taken = min(2.0 * dt, dt0), 0
         Q, n_it = out
         if t1 >= 1.0 and polish > 0:  # the result's worst triangles polished
             Qp, polished = polish_worst_triangles(V, F, Q, handles, iterations=polish,
