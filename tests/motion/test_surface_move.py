@@ -467,3 +467,23 @@ def test_steps_on_kept_factors_need_fewer_factorizations_at_the_same_quality():
     assert cg.worst_quality >= chord.worst_quality - 0.005
     assert sm.arap_energy(case.V, cg.points, case.F) <= 1.02 * sm.arap_energy(
         case.V, chord.points, case.F)
+
+
+def test_a_halved_increment_grows_back_and_only_halvings_in_a_row_count(monkeypatch):
+    """An increment that cannot be taken is halved; after two taken in a row it doubles
+    again (up to 1/steps), and ``max_halvings`` bounds the halvings in a row, not those of
+    the whole motion (here two, one apart, with ``max_halvings=1``)."""
+    import meshopt_toolkit.motion.surface_move as surface_move
+
+    case = coarse_bar(90.0)
+    step, calls = surface_move._step, []
+
+    def refusing(*args, **kwargs):  # the 2nd and 5th increments tried cannot be taken
+        calls.append(1)
+        return None if len(calls) in (2, 5) else step(*args, **kwargs)
+
+    monkeypatch.setattr(surface_move, "_step", refusing)
+    res = move_surface(case.V, case.F, case.handles, case.path(1.0), steps=4, polish=0,
+                       max_halvings=1, contact=False)
+    np.testing.assert_allclose(res.times, [0.0, 0.25, 0.375, 0.5, 0.625, 0.75, 1.0])
+    assert np.array_equal(res.points[case.handles], case.path(1.0)) and res.folds == 0
