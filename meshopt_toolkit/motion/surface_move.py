@@ -34,8 +34,10 @@ k back-solves (docs/benchmarks-surface.md measures the trade).
 
 With ``contact`` (the default, where the rest is free of self-intersections) the energy
 gains IPC's barrier and every step, the predictor included, starts its backtracking at
-the fraction CCD allows (:mod:`.contact`; the handles move alone where the predictor would
-pass through): no iterate passes through the surface (docs/move-3d.md, "Contact").
+the fraction CCD allows (:mod:`.contact`; the handles move alone, then with a half or a
+quarter of the predictor, where it is folded or would pass through): no iterate passes
+through the surface (docs/move-3d.md, "Contact"). The factor is kept while the barrier's
+pairs and ``κ`` are those it holds.
 
 Where one similarity moves all handles, the whole surface follows it exactly (φ moves by
 ``√2 log s`` in its first component, bending not at all), so a rigid motion of the
