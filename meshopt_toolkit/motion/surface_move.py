@@ -26,11 +26,9 @@ iterated further (``final_iterations``, ``final_rtol``), its factor kept through
 steps until they stall (``final_stall``: chord steps).
 
 With ``cg_iterations = k > 0`` a step on a kept factor ``F`` is k conjugate gradients on
-the current normal equations ``A``, preconditioned by ``R F⁻¹ Rᵀ`` (``R`` each vertex's
-rotation since the factorization: φ and the bending are invariant under rotations, so
-``A`` turns with the surface), products with ``A`` from the Jacobian blocks (no
-assembly). Such steps are seldom shortened, so factors are renewed seldom, but each costs
-k back-solves (docs/benchmarks-surface.md measures the trade).
+the current normal equations ``A`` (products from the Jacobian blocks), preconditioned by
+``R F⁻¹ Rᵀ`` (``R`` each vertex's rotation since the factorization: ``A`` turns with the
+surface); docs/benchmarks-surface.md measures the trade.
 
 With ``contact`` (the default, where the rest is free of self-intersections) the energy
 gains IPC's barrier and every step, the predictor included, starts its backtracking at
@@ -62,7 +60,8 @@ from scipy.sparse.linalg import LinearOperator
 
 from .._typing import FloatArray, IntArray
 from ..errors import InvalidMeshError, NotAdmissibleError
-from ..kernels.surface import aspect_ratios
+from ..cells.base import scale_free_mass
+from ..kernels.surface import areas, aspect_ratios
 from ..scaling import UnitScale
 from ..solvers import factorize_spd, pcg
 from .bending import ShellBending
@@ -79,15 +78,8 @@ PREDICTOR = (1.0, 0.0, 0.5, 0.25)
 
 
 def lumped_mass(points: FloatArray, triangles: IntArray) -> FloatArray:
-    """Vertex weights: a third of the adjacent triangles' areas over the total, divided by
-    the area-weighted mean squared distance from the centroid (dimensionless, independent
-    of size and resolution)."""
-    P = points[triangles]
-    area = 0.5 * np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1)
-    m = np.bincount(triangles.ravel(), np.repeat(area / 3.0, 3), minlength=len(points))
-    m /= m.sum()
-    centroid = m @ points
-    return m / float(m @ np.sum((points - centroid) ** 2, axis=1))
+    """Vertex weights (:func:`..cells.base.scale_free_mass` of the triangles' areas)."""
+    return scale_free_mass(points, triangles, areas(points, triangles))
 
 
 @dataclass
@@ -281,9 +273,8 @@ def _step(problem: _Problem, Q0, H1, handles, max_iterations: int, rtol: float,
     # the residuals' change of the handles' displacement, to first order
     dm, db = problem.jacobian_products(Jm, Jb, d)
     g = problem.gradient(rm + dm, Jm, rb + db, Jb, np.zeros_like(Q0))
-    # the predictor on the last increment's factor where one is kept, else a fresh one;
-    # where neither is admissible and clear of contact, the handles alone (the barrier
-    # then pushes the free vertices), then fractions of the fresh one
+    # the predictor on the kept factor, else a fresh one; where neither is admissible and
+    # clear, the handles alone (the barrier pushes the rest), then fractions of the fresh
     kept = hasattr(problem.factor, "refactorize")
     for fresh, scales in (((False, (1.0,)),) if kept else ()) + ((True, PREDICTOR),):
         if fresh:
@@ -301,8 +292,7 @@ def _step(problem: _Problem, Q0, H1, handles, max_iterations: int, rtol: float,
         break
     else:
         return None
-    E = problem.energy(Q, parts)
-    if not np.isfinite(E):
+    if not np.isfinite(E := problem.energy(Q, parts)):
         return None
     iterations, stale, first = 0, not fresh, None
     for _ in range(max_iterations):
@@ -437,9 +427,7 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
     problem.contact = contact_term(V, F, problem.free, problem.mass, contact)
     area_w = np.ones(len(F))  # √a_t
     if area_weights and len(F):
-        P = V[F]
-        area = np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1)
-        area_w = np.sqrt(area / area.mean())
+        area_w = np.sqrt(areas(V, F) / areas(V, F).mean())
     problem.row_weights = weight * area_w
     Q, t, iterations = V.copy(), 0.0, 0
     frames, times = [V.copy()], [0.0]
@@ -478,10 +466,8 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
                     f"no fold-free increment of the handles' path from t = {t:.4g}")
             dt /= 2.0
             continue
-        # a halved increment grows back after two taken in a row
-        taken = taken + 1 if halvings == 0 else 1
-        halvings = 0
-        if taken >= 2 and dt < dt0:
+        taken, halvings = (taken + 1 if halvings == 0 else 1), 0
+        if taken >= 2 and dt < dt0:  # a halved increment grows back after two taken
             dt, taken = min(2.0 * dt, dt0), 0
         Q, n_it = out
         if t1 >= 1.0 and polish > 0:  # the result's worst triangles polished
