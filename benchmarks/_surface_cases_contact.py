@@ -58,10 +58,10 @@ def hand_finger() -> Case:
 
 def sheet_fold(spacing: float = 0.05) -> Case:
     """An open 4×1 strip (grid ``spacing``) folded in two: the band x ≥ 3.9 turned 180°
-    upwards about the lateral (y) axis through (2, ·, 0.2), landing 0.4 above the fixed
-    band x ≤ 0.1 (the turned half brought down over the fixed one)."""
+    upwards about the lateral (y) axis through (2, ·, 0.05), landing 0.1 above the fixed
+    band x ≤ 0.1 (the turned half pressed down onto the fixed one)."""
     V, F = strip_surface(4.0, 1.0, spacing)
-    pivot = planar_pivot([4.0, 0.0, 0.0], [0.0, 0.0, 0.4], [0, -1, 0], np.pi)
+    pivot = planar_pivot([4.0, 0.0, 0.0], [0.0, 0.0, 0.1], [0, -1, 0], np.pi)
     return region_turn("sheet folded in two", V, F, V[:, 0] > 3.9 - 1e-9,
                        V[:, 0] < 0.1 + 1e-9, [0, -1, 0], np.pi, pivot)
 

@@ -6,7 +6,7 @@ about the long axis, the other fixed) at grid spacings 0.1, 0.05, 0.025 and 0.01
 to 333k triangles), and the armadillo with its hand raised 90°, as read (86k) and
 subdivided once (346k: every triangle cut into four; the handles chosen by the same
 coordinate rules); with ``--families fold``, a motion in contact: ``--contact2``'s strip
-folded in two (its turned half brought down 0.4 over its fixed half) at grid spacings 0.1,
+folded in two (its turned half pressed down to 0.1 over its fixed half) at grid spacings 0.1,
 0.05, 0.025 and 0.0125 (800 to 51k triangles).
 
 Each (mesh, method) runs in its own process pinned to its own core with one BLAS thread,
