@@ -41,6 +41,9 @@ REACH = 4.0
 #: (:meth:`SurfaceContact.swept`): its pairs serve the collisions at points within
 #: ``(SWEPT − 1) d̂ / 2`` of the step's path
 SWEPT = 1.02
+#: the most swept candidates per triangle kept for the pairs at a step's trials (more:
+#: a broad phase at each trial costs less than the narrow phase over them)
+SWEPT_PAIRS = 1.0
 
 
 def _ipctk():
@@ -326,7 +329,9 @@ class ContactTerm:
         candidates = self._candidates(Q0, Q1)
         if candidates is None:  # the step's own broad phase, kept for its trials' pairs
             candidates = self.contact.swept(Q0, Q1)
-            self._path = (np.array(Q0), Q1 - Q0, candidates)
+            # unless a long step's many pairs cost more than a broad phase at each trial
+            few = len(candidates) <= SWEPT_PAIRS * len(self.contact.triangles)
+            self._path = (np.array(Q0), Q1 - Q0, candidates) if few else None
         return self.contact.stepsize(Q0, Q1, collisions, candidates)
 
     def _candidates(self, Q0: FloatArray, Q1: FloatArray):

@@ -151,11 +151,20 @@ def test_a_steps_trials_take_their_pairs_from_its_swept_candidates(contact, drop
     broad phase of the whole surface; off the path the whole surface's broad phase runs."""
     from meshopt_toolkit.motion.contact import ContactTerm
 
+    import meshopt_toolkit.motion.contact as module
+
     rng = np.random.default_rng(seed)
     Q0 = _near(0.45)
     Q1 = _near(drop) + contact.dhat * rng.uniform(-1, 1, Q0.shape)
     term = ContactTerm(contact, np.ones(Q0.size, bool), 1.0)
-    cap = term.cap(Q0, Q1)
+    pairs = len(contact.swept(Q0, Q1)) / len(contact.triangles)
+    with pytest.MonkeyPatch.context() as patch:  # more pairs than kept: none kept
+        patch.setattr(module, "SWEPT_PAIRS", 0.99 * pairs)
+        term.cap(Q0, Q1)
+        assert term._path is None
+        patch.setattr(module, "SWEPT_PAIRS", pairs)
+        term = ContactTerm(contact, np.ones(Q0.size, bool), 1.0)
+        cap = term.cap(Q0, Q1)
     trial = Q0 + alpha * cap * (Q1 - Q0)
     assert term._on_path(trial) is not None
     assert (contact.signature(term.collisions(trial))
