@@ -387,7 +387,7 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
         Steps on a kept factor are this many conjugate gradients on the current normal
         equations, preconditioned by the factor turned with the surface (module
         docstring); 0: the factor's own solve, a chord step.
-    max_halvings : how often one increment may be halved in a row (a halved increment
+    max_halvings : an increment is at least ``2^-max_halvings / steps`` (a halved increment
         doubles again, up to ``1/steps``, after two taken in a row).
     contact : bool
         Keep the surface from passing through itself (:mod:`.contact`: the barrier in the
@@ -459,9 +459,9 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
         out = _step(problem, start, H1, handles,
                     max(max_iterations, final_iterations) if last else max_iterations,
                     final_rtol if last else rtol, final_stall if last else None)
-        if out is None:
+        if out is None:  # halved, at most max_halvings times below 1/steps
             halvings += 1
-            if halvings > max_halvings:
+            if dt / 2.0 < dt0 / 2.0**max_halvings:
                 raise NotAdmissibleError(
                     f"no fold-free increment of the handles' path from t = {t:.4g}")
             dt /= 2.0

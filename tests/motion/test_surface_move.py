@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from meshopt_toolkit.diagnostics import check_gradient
-from meshopt_toolkit.errors import InvalidMeshError
+from meshopt_toolkit.errors import InvalidMeshError, NotAdmissibleError
 from meshopt_toolkit.kernels.cell_maps import surface_inverse_shape_quality
 from meshopt_toolkit.motion.bending import ShellBending, dihedral_angles, edge_diamonds
 from meshopt_toolkit.motion.surface_distortion import SurfaceDistortion, surface_quality_bound
@@ -471,8 +471,9 @@ def test_steps_on_kept_factors_need_fewer_factorizations_at_the_same_quality():
 
 def test_a_halved_increment_grows_back_and_only_halvings_in_a_row_count(monkeypatch):
     """An increment that cannot be taken is halved; after two taken in a row it doubles
-    again (up to 1/steps), and ``max_halvings`` bounds the halvings in a row, not those of
-    the whole motion (here two, one apart, with ``max_halvings=1``)."""
+    again (up to 1/steps), and ``max_halvings`` bounds how small an increment gets, not
+    the halvings of the whole motion (here two, one apart, with ``max_halvings=1``); an
+    increment refused again and again ends in a refusal."""
     import meshopt_toolkit.motion.surface_move as surface_move
 
     case = coarse_bar(90.0)
@@ -487,3 +488,12 @@ def test_a_halved_increment_grows_back_and_only_halvings_in_a_row_count(monkeypa
                        max_halvings=1, contact=False)
     np.testing.assert_allclose(res.times, [0.0, 0.25, 0.375, 0.5, 0.625, 0.75, 1.0])
     assert np.array_equal(res.points[case.handles], case.path(1.0)) and res.folds == 0
+
+    def alternating(*args, **kwargs):  # every other increment refused: dt would shrink
+        calls.append(1)
+        return None if len(calls) % 2 else step(*args, **kwargs)
+
+    monkeypatch.setattr(surface_move, "_step", alternating)
+    with pytest.raises(NotAdmissibleError):
+        move_surface(case.V, case.F, case.handles, case.path(1.0), steps=4, polish=0,
+                     max_halvings=3, contact=False)
