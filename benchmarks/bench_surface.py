@@ -30,10 +30,12 @@ triangles not wholly handles), folds, max handle error, seconds and the ARAP ene
 ``--figures DIR`` writes one PNG per case.
 
 * ``--contact``: motions that drive parts of a surface into each other: the bunny's ear
-  turned 120° (into its back), the bar folded back onto itself.
+  turned 120° (into its back), the bar folded back onto itself; ``--contact2``
+  (``_surface_cases_contact.py``): a hand-like plate's finger curled onto its palm, a strip
+  folded in two.
 
 Run ``python benchmarks/bench_surface.py [--cases knight,bar] [--unseen] [--unseen2] [--contact]
-[--figures DIR]``.
+[--contact2] [--figures DIR]``.
 """
 
 from __future__ import annotations
@@ -686,10 +688,12 @@ def check(rows: dict) -> str:
 
 def main(argv=None) -> int:
     from _surface_cases3 import UNSEEN3  # imports this module's helpers
+    from _surface_cases_contact import CONTACT2
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--cases", help="comma-separated: "
-                    + ", ".join({**CASES, **UNSEEN, **UNSEEN2, **UNSEEN3, **CONTACT})
+                    + ", ".join({**CASES, **UNSEEN, **UNSEEN2, **UNSEEN3, **CONTACT,
+                                 **CONTACT2})
                     + " (default: " + ", ".join(CASES) + ")")
     ap.add_argument("--unseen", action="store_true",
                     help="the cases defined after the method: " + ", ".join(UNSEEN))
@@ -700,6 +704,9 @@ def main(argv=None) -> int:
     ap.add_argument("--contact", action="store_true",
                     help="motions that drive parts of a surface into each other: "
                     + ", ".join(CONTACT))
+    ap.add_argument("--contact2", action="store_true",
+                    help="two such motions defined before ours was run on them "
+                    "(_surface_cases_contact.py): " + ", ".join(CONTACT2))
     ap.add_argument("--methods", default=",".join(METHODS),
                     help="comma-separated: " + ", ".join(METHODS))
     ap.add_argument("--figures", type=Path, help="write one PNG per case into this folder")
@@ -711,10 +718,11 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     MARKDOWN[0] = args.markdown
     STEP_ITERATIONS[0] = args.step_iterations
-    every = {**CASES, **UNSEEN, **UNSEEN2, **UNSEEN3, **CONTACT}
+    every = {**CASES, **UNSEEN, **UNSEEN2, **UNSEEN3, **CONTACT, **CONTACT2}
     default = {**(UNSEEN if args.unseen else {}), **(UNSEEN2 if args.unseen2 else {}),
                **(UNSEEN3 if args.unseen3 else {}),
-               **(CONTACT if args.contact else {})} or CASES
+               **(CONTACT if args.contact else {}),
+               **(CONTACT2 if args.contact2 else {})} or CASES
     names = [c for c in (args.cases or ",".join(default)).split(",") if c]
     methods = [m for m in args.methods.split(",") if m]
     unknown = [c for c in names if c not in every] + [m for m in methods if m not in METHODS]

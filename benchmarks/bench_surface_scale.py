@@ -5,7 +5,9 @@ Meshes: the bar twisted 180° of ``bench_surface.py`` (6×1×1 box surface, one 
 about the long axis, the other fixed) at grid spacings 0.1, 0.05, 0.025 and 0.0125 (5.2k
 to 333k triangles), and the armadillo with its hand raised 90°, as read (86k) and
 subdivided once (346k: every triangle cut into four; the handles chosen by the same
-coordinate rules).
+coordinate rules); with ``--families fold``, a motion in contact: ``--contact2``'s strip
+folded in two (its turned half pressed down to 0.1 over its fixed half) at grid spacings 0.1,
+0.05, 0.025 and 0.0125 (800 to 51k triangles).
 
 Each (mesh, method) runs in its own process pinned to its own core with one BLAS thread,
 ``--jobs`` at once (default: as many as there are cores, at most the number of runs), so a
@@ -13,7 +15,8 @@ many-core machine runs the whole table in the time of its largest run. Printed: 
 seconds of each method, their ratio, the worst relative quality of each, and the growth
 exponent of each method's time between consecutive sizes (seconds ∝ triangles^k).
 
-Run ``python benchmarks/bench_surface_scale.py [--max-triangles 100000] [--jobs 4]``.
+Run ``python benchmarks/bench_surface_scale.py [--max-triangles 100000] [--jobs 4]
+[--families bar,armadillo,fold]``.
 """
 
 from __future__ import annotations
@@ -35,6 +38,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import bench_surface as bench  # noqa: E402
 
 BAR_SPACINGS = (0.1, 0.05, 0.025, 0.0125)
+FOLD_SPACINGS = (0.1, 0.05, 0.025, 0.0125)
 METHODS = ("ours", "ARAP 10 steps")
 
 
@@ -67,18 +71,32 @@ def armadillo_case(subdivisions: int) -> bench.Case:
     return case
 
 
-def cases(max_triangles: int) -> list:
-    """(label, builder, argument, triangles) of every mesh up to ``max_triangles``."""
+def fold_case(spacing: float) -> bench.Case:
+    """``--contact2``'s strip folded in two at another grid spacing."""
+    from _surface_cases_contact import sheet_fold
+
+    case = sheet_fold(spacing)
+    case.name = f"fold h={spacing}"
+    return case
+
+
+BUILDERS = {"bar": bar_case, "armadillo": armadillo_case, "fold": fold_case}
+
+
+def cases(max_triangles: int, families=("bar", "armadillo")) -> list:
+    """(label, builder, argument, triangles) of every mesh of ``families`` up to
+    ``max_triangles``."""
     out = [("bar", bar_case, h, int(round(52 / h**2))) for h in BAR_SPACINGS]
     out += [("armadillo", armadillo_case, k, 86482 * 4**k) for k in (0, 1)]
-    return [c for c in out if c[3] <= max_triangles]
+    out += [("fold", fold_case, h, int(round(8 / h**2))) for h in FOLD_SPACINGS]
+    return [c for c in out if c[3] <= max_triangles and c[0] in families]
 
 
 def run_one(job) -> dict:
     """One method on one mesh, in this process pinned to core ``job["core"]``."""
     if hasattr(os, "sched_setaffinity") and job["core"] is not None:
         os.sched_setaffinity(0, {job["core"]})
-    builder = {"bar": bar_case, "armadillo": armadillo_case}[job["family"]]
+    builder = BUILDERS[job["family"]]
     case = builder(job["arg"])
     run = bench.ours if job["method"] == "ours" else bench.arap_incremental
     t0 = time.perf_counter()
@@ -118,9 +136,12 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--max-triangles", type=int, default=100_000)
     parser.add_argument("--jobs", type=int, default=0, help="processes at once (0: cores)")
+    parser.add_argument("--families", default="bar,armadillo",
+                        help="comma-separated: " + ", ".join(BUILDERS))
     args = parser.parse_args(argv)
+    families = args.families.split(",")
     jobs = [{"family": f, "arg": a, "method": m, "size": size}
-            for f, _, a, size in cases(args.max_triangles) for m in METHODS]
+            for f, _, a, size in cases(args.max_triangles, families) for m in METHODS]
     cores = sorted(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else []
     n = args.jobs or max(1, min(len(cores) or 1, len(jobs)))
     jobs.sort(key=lambda j: -j["size"])  # the largest first

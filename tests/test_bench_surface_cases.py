@@ -16,6 +16,8 @@ import _surface_measures as sm  # noqa: E402
 
 bench = pytest.importorskip("bench_surface")
 pytest.importorskip("trimesh")
+pytest.importorskip("gmsh")
+import _surface_cases_contact as cc  # noqa: E402
 
 
 def triangle_areas(V, F):
@@ -35,8 +37,8 @@ def boundary_edge_count(F):
     return int(np.sum(counts == 1))
 
 
-#: the cases of ``--unseen2`` and ``--contact``
-CHECKED = {**bench.UNSEEN2, **bench.CONTACT}
+#: the cases of ``--unseen2``, ``--contact`` and ``--contact2``
+CHECKED = {**bench.UNSEEN2, **bench.CONTACT, **cc.CONTACT2}
 
 
 @pytest.mark.parametrize("name", list(CHECKED))
@@ -311,3 +313,29 @@ def test_bar_folded_lands_the_cap_over_the_bar_and_bunny_120_turns_a_third():
     i, j = 0, int(np.argmax(np.linalg.norm(a[:, :2] - a[0, :2], axis=1)))
     assert turned(a[j] - a[i], c[j] - c[i]) == pytest.approx(-2 * np.pi / 3, abs=1e-9)
     assert turned(a[j] - a[i], b[j] - b[i]) == pytest.approx(-np.pi / 2, abs=1e-9)
+
+
+def test_hand_is_closed_outward_of_the_boxes_volume_and_its_finger_lands_over_the_palm():
+    V, F = cc.hand_surface()
+    assert euler_characteristic(V, F) == 2 and boundary_edge_count(F) == 0
+    volume = np.einsum("ij,ij->i", V[F[:, 0]], np.cross(V[F[:, 1]], V[F[:, 2]])).sum() / 6
+    assert volume == pytest.approx(2.0 * 2.0 * 0.3 + 0.6 * 2.0 * 0.3, rel=1e-9)
+    assert not sm.self_intersecting_faces(V, F)
+    case = cc.hand_finger()
+    tip = case.groups == 1
+    Q, P = case.V[case.handles[tip]], case.path(1.0)[tip]
+    assert (Q[:, 1] >= 3.8 - 1e-9).all() and (case.V[case.handles[~tip], 1] <= 0.2).all()
+    # a half turn about x through (·, 2.15, 0.45): y ↦ 4.3 − y, z ↦ 0.9 − z
+    np.testing.assert_allclose(P, np.c_[Q[:, 0], 4.3 - Q[:, 1], 0.9 - Q[:, 2]], atol=1e-12)
+    assert P[:, 2].min() == pytest.approx(0.3 + 0.3)  # 0.3 above the palm's top face
+    assert case.path(0.5)[tip][:, 2].min() > 0.3  # over the palm, not under it
+
+
+def test_sheet_fold_lands_the_end_band_over_the_fixed_one():
+    case = cc.sheet_fold()
+    assert boundary_edge_count(case.F) > 0  # open
+    end = case.groups == 1
+    Q, P = case.V[case.handles[end]], case.path(1.0)[end]
+    np.testing.assert_allclose(P, np.c_[4.0 - Q[:, 0], Q[:, 1], np.full(len(Q), 0.1)],
+                               atol=1e-12)
+    assert case.path(0.5)[end][:, 2].min() > 0.1  # turned upwards

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from test_morph_self_intersection import flap_through_sheet
 
 from meshopt_toolkit.diagnostics import check_gradient, check_hvp
@@ -137,6 +139,40 @@ def test_short_steps_from_one_start_share_candidates_and_agree_with_the_broad_ph
     far = _near(2.0)  # further than REACH d̂
     assert term._candidates(Q0, far) is None
     assert term.cap(Q0, far) == contact.stepsize(Q0, far) < 1.0
+
+
+@settings(max_examples=25, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.floats(0.3, 0.7), st.floats(0.0, 1.0), st.integers(0, 2**31 - 1))
+def test_a_steps_trials_take_their_pairs_from_its_swept_candidates(contact, drop, alpha,
+                                                                   seed):
+    """After a step is capped, the pairs within d̂ at a point of its path (a line
+    search's trial) come from the step's own swept candidates, and are exactly those of a
+    broad phase of the whole surface; off the path the whole surface's broad phase runs."""
+    from meshopt_toolkit.motion.contact import ContactTerm
+
+    import meshopt_toolkit.motion.contact as module
+
+    rng = np.random.default_rng(seed)
+    Q0 = _near(0.45)
+    Q1 = _near(drop) + contact.dhat * rng.uniform(-1, 1, Q0.shape)
+    term = ContactTerm(contact, np.ones(Q0.size, bool), 1.0)
+    pairs = len(contact.swept(Q0, Q1)) / len(contact.triangles)
+    with pytest.MonkeyPatch.context() as patch:  # more pairs than kept: none kept
+        patch.setattr(module, "SWEPT_PAIRS", 0.99 * pairs)
+        term.cap(Q0, Q1)
+        assert term._path is None
+        patch.setattr(module, "SWEPT_PAIRS", pairs)
+        term = ContactTerm(contact, np.ones(Q0.size, bool), 1.0)
+        cap = term.cap(Q0, Q1)
+    trial = Q0 + alpha * cap * (Q1 - Q0)
+    assert term._on_path(trial) is not None
+    assert (contact.signature(term.collisions(trial))
+            == contact.signature(contact.collisions(trial)))
+    assert contact.value(trial, term.collisions(trial)) == pytest.approx(
+        contact.value(trial), rel=1e-12)
+    off = trial + [0.0, 0.0, 10.0 * contact.dhat]
+    assert term._on_path(off) is None
 
 
 def test_triangles_of_one_fan_through_each_other_are_found():

@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from meshopt_toolkit.diagnostics import check_gradient
-from meshopt_toolkit.errors import InvalidMeshError
+from meshopt_toolkit.errors import InvalidMeshError, NotAdmissibleError
 from meshopt_toolkit.kernels.cell_maps import surface_inverse_shape_quality
 from meshopt_toolkit.motion.surface.bending import ShellBending, dihedral_angles, edge_diamonds
 from meshopt_toolkit.motion.surface.distortion import SurfaceDistortion, surface_quality_bound
@@ -311,7 +311,8 @@ def test_chord_steps_of_the_last_increment_reach_the_minimizer_of_full_gauss_new
     the kept factor end there too, on no more factorizations."""
     case = coarse_bar(90.0)
     args = (case.V, case.F, case.handles, case.path(1.0))
-    tight = dict(steps=1, final_iterations=400, final_rtol=1e-13, polish=0)  # minimizers
+    # without contact: its barrier's pairs, not the steps' lengths, decide the renewals
+    tight = dict(steps=1, final_iterations=400, final_rtol=1e-13, polish=0, contact=False)
     full = move_surface(*args, final_stall=None, cg_iterations=0, **tight)
     chord = move_surface(*args, final_stall=0.1, cg_iterations=0, **tight)
     assert np.array_equal(chord.points[case.handles], case.path(1.0)) and chord.folds == 0
@@ -320,8 +321,9 @@ def test_chord_steps_of_the_last_increment_reach_the_minimizer_of_full_gauss_new
         sm.arap_energy(case.V, full.points, case.F), rel=1e-6)
     assert chord.worst_quality == pytest.approx(full.worst_quality, abs=1e-6)
     assert chord.factorizations < full.factorizations
-    default_full = move_surface(*args, steps=1, final_stall=None, cg_iterations=0)
-    default = move_surface(*args, steps=1, cg_iterations=0)
+    default_full = move_surface(*args, steps=1, final_stall=None, cg_iterations=0,
+                                contact=False)
+    default = move_surface(*args, steps=1, cg_iterations=0, contact=False)
     assert default.factorizations < default_full.factorizations
     assert default.folds == 0 and np.array_equal(default.points[case.handles], case.path(1.0))
     assert sm.fold_count(case.V, default.points, case.F, case.handles) == 0
@@ -456,7 +458,8 @@ def test_steps_on_kept_factors_need_fewer_factorizations_at_the_same_quality():
         mp.setattr(smv._Problem, "refactorize", spy)
         for k in (0, 4):
             counts.append(0)
-            results.append(move_surface(*args, cg_iterations=k))
+            # without contact: its barrier's pairs, not the steps, decide the renewals
+            results.append(move_surface(*args, cg_iterations=k, contact=False))
     chord, cg = results
     assert counts == [chord.factorizations, cg.factorizations] and chord.cg_iterations == 0
     assert counts[1] < counts[0]
@@ -465,3 +468,33 @@ def test_steps_on_kept_factors_need_fewer_factorizations_at_the_same_quality():
     assert cg.worst_quality >= chord.worst_quality - 0.005
     assert sm.arap_energy(case.V, cg.points, case.F) <= 1.02 * sm.arap_energy(
         case.V, chord.points, case.F)
+
+
+def test_a_halved_increment_grows_back_and_only_halvings_in_a_row_count(monkeypatch):
+    """An increment that cannot be taken is halved; after two taken in a row it doubles
+    again (up to 1/steps), and ``max_halvings`` bounds how small an increment gets, not
+    the halvings of the whole motion (here two, one apart, with ``max_halvings=1``); an
+    increment refused again and again ends in a refusal."""
+    import meshopt_toolkit.motion.surface_move as surface_move
+
+    case = coarse_bar(90.0)
+    step, calls = surface_move._step, []
+
+    def refusing(*args, **kwargs):  # the 2nd and 5th increments tried cannot be taken
+        calls.append(1)
+        return None if len(calls) in (2, 5) else step(*args, **kwargs)
+
+    monkeypatch.setattr(surface_move, "_step", refusing)
+    res = move_surface(case.V, case.F, case.handles, case.path(1.0), steps=4, polish=0,
+                       max_halvings=1, contact=False)
+    np.testing.assert_allclose(res.times, [0.0, 0.25, 0.375, 0.5, 0.625, 0.75, 1.0])
+    assert np.array_equal(res.points[case.handles], case.path(1.0)) and res.folds == 0
+
+    def alternating(*args, **kwargs):  # every other increment refused: dt would shrink
+        calls.append(1)
+        return None if len(calls) % 2 else step(*args, **kwargs)
+
+    monkeypatch.setattr(surface_move, "_step", alternating)
+    with pytest.raises(NotAdmissibleError):
+        move_surface(case.V, case.F, case.handles, case.path(1.0), steps=4, polish=0,
+                     max_halvings=3, contact=False)

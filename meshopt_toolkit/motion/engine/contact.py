@@ -37,6 +37,13 @@ DHAT_FRACTION = 0.1
 #: the largest coordinate move, over ``d̂``, of the steps from one start whose CCD runs on
 #: candidates kept around it (:meth:`ContactTerm.cap`; a polish's trials move ~2 d̂)
 REACH = 4.0
+#: the growth, over ``d̂``, of the boxes of a step's swept broad phase
+#: (:meth:`SurfaceContact.swept`): its pairs serve the collisions at points within
+#: ``(SWEPT − 1) d̂ / 2`` of the step's path
+SWEPT = 1.02
+#: the most swept candidates per triangle kept for the pairs at a step's trials (more:
+#: a broad phase at each trial costs less than the narrow phase over them)
+SWEPT_PAIRS = 1.0
 
 
 def _ipctk():
@@ -99,11 +106,37 @@ class SurfaceContact:
         return bool(intersecting_pairs(exactly_scaled(np.asarray(Q, float))[0],
                                        self.triangles, self.neighbours).any())
 
-    def collisions(self, Q: FloatArray):
-        """The pairs closer than ``d̂`` at ``Q`` (an ``ipctk.NormalCollisions``)."""
+    def collisions(self, Q: FloatArray, candidates=None):
+        """The pairs closer than ``d̂`` at ``Q`` (an ``ipctk.NormalCollisions``), from
+        ``candidates`` where given (a superset of those pairs, e.g. :meth:`swept`'s of a
+        path through ``Q``), else from a broad phase of the whole surface."""
         c = _ipctk().NormalCollisions()
-        c.build(self.mesh, np.asfortranarray(Q, dtype=float), self.dhat)
+        Q = np.asfortranarray(Q, dtype=float)
+        if candidates is None:
+            c.build(self.mesh, Q, self.dhat)
+        else:
+            c.build(candidates, self.mesh, Q, self.dhat)
         return c
+
+    def swept(self, Q0: FloatArray, Q1: FloatArray):
+        """The pairs whose boxes swept along the straight path from ``Q0`` to ``Q1``, each
+        grown by ``SWEPT d̂``, meet (an ``ipctk.Candidates``): every pair that the path can
+        bring into contact, and every pair within ``d̂`` of each other at a point within
+        ``(SWEPT − 1) d̂ / 2`` of the path (:meth:`ContactTerm.collisions`)."""
+        c = _ipctk().Candidates()
+        c.build(self.mesh, np.asfortranarray(Q0, dtype=float),
+                np.asfortranarray(Q1, dtype=float), SWEPT * self.dhat)
+        return c
+
+    @staticmethod
+    def signature(collisions) -> frozenset:
+        """The pairs in ``collisions`` by kind and primitive ids, each pair of one kind
+        once whatever its order (the active set)."""
+        return frozenset(
+            [(0, *sorted((p.vertex0_id, p.vertex1_id))) for p in collisions.vv_collisions]
+            + [(1, p.edge_id, p.vertex_id) for p in collisions.ev_collisions]
+            + [(2, *sorted((p.edge0_id, p.edge1_id))) for p in collisions.ee_collisions]
+            + [(3, p.face_id, p.vertex_id) for p in collisions.fv_collisions])
 
     def value(self, Q: FloatArray, collisions=None) -> float:
         """The barrier's sum at ``Q`` (unit stiffness); +inf where a pair touches. (A
@@ -194,11 +227,38 @@ class ContactTerm:
         #: the start of the last short CCD steps, their largest move, and candidates
         #: within a reach (and the reach) around it
         self._start, self._move, self._reach = None, 0.0, None
+        #: the start, the move and the swept candidates of the last step given its own
+        #: broad phase
+        self._path = None
 
     def collisions(self, Q: FloatArray):
+        """The pairs within ``d̂`` at ``Q``, kept for the last ``Q`` asked; from the
+        candidates of the last step capped where ``Q`` is on its path (a line search's
+        trials), else from a broad phase of the whole surface."""
         if self._key is None or not np.array_equal(self._key, Q):
-            self._key, self._collisions = np.array(Q), self.contact.collisions(Q)
+            self._key = np.array(Q)
+            self._collisions = self.contact.collisions(Q, self._on_path(Q))
         return self._collisions
+
+    def _on_path(self, Q: FloatArray):
+        """The swept candidates of the last capped step where ``Q`` lies on its path (no
+        coordinate off it by more than ``(SWEPT − 1) d̂ / 2``), else None."""
+        if self._path is None:
+            return None
+        start, D, candidates = self._path
+        Y = Q - start
+        dd = float(np.vdot(D, D))
+        a = float(np.vdot(Y, D)) / dd if dd > 0 else 0.0
+        if not -1e-9 <= a <= 1.0 + 1e-9:
+            return None
+        off = float(np.max(np.abs(Y - a * D))) if Y.size else 0.0
+        return candidates if off <= 0.5 * (SWEPT - 1.0) * self.contact.dhat else None
+
+    def signature(self, Q: FloatArray) -> tuple:
+        """``κ`` and the pairs within ``d̂`` at ``Q``: where both are those of a factor's
+        point, the factor holds the barrier's Hessian of the same pairs."""
+        pairs = self.contact.signature(self.collisions(Q)) if self.active(Q) else frozenset()
+        return self.kappa, pairs
 
     def active(self, Q: FloatArray) -> bool:
         """Whether a pair is within ``d̂`` at ``Q``."""
@@ -265,7 +325,14 @@ class ContactTerm:
         step = float(np.sqrt(np.max(np.sum((Q1 - Q0) ** 2, axis=1)))) if len(Q0) else 0.0
         if 2.0 * step < self.contact.dhat and not self.active(Q0):
             return 1.0
-        return self.contact.stepsize(Q0, Q1, self.collisions(Q0), self._candidates(Q0, Q1))
+        collisions = self.collisions(Q0)
+        candidates = self._candidates(Q0, Q1)
+        if candidates is None:  # the step's own broad phase, kept for its trials' pairs
+            candidates = self.contact.swept(Q0, Q1)
+            # unless a long step's many pairs cost more than a broad phase at each trial
+            few = len(candidates) <= SWEPT_PAIRS * len(self.contact.triangles)
+            self._path = (np.array(Q0), Q1 - Q0, candidates) if few else None
+        return self.contact.stepsize(Q0, Q1, collisions, candidates)
 
     def _candidates(self, Q0: FloatArray, Q1: FloatArray):
         """Candidates for the CCD of the short step from ``Q0`` to ``Q1`` kept across steps
@@ -314,6 +381,9 @@ class NoContact:
 
     def step_cap(self, Q, step):
         return 1.0
+
+    def signature(self, Q):
+        return None
 
 
 class ContactWarning(UserWarning):

@@ -26,16 +26,16 @@ iterated further (``final_iterations``, ``final_rtol``), its factor kept through
 steps until they stall (``final_stall``: chord steps).
 
 With ``cg_iterations = k > 0`` a step on a kept factor ``F`` is k conjugate gradients on
-the current normal equations ``A``, preconditioned by ``R F⁻¹ Rᵀ`` (``R`` each vertex's
-rotation since the factorization: φ and the bending are invariant under rotations, so
-``A`` turns with the surface), products with ``A`` from the Jacobian blocks (no
-assembly). Such steps are seldom shortened, so factors are renewed seldom, but each costs
-k back-solves (docs/benchmarks-surface.md measures the trade).
+the current normal equations ``A`` (products from the Jacobian blocks), preconditioned by
+``R F⁻¹ Rᵀ`` (``R`` each vertex's rotation since the factorization: ``A`` turns with the
+surface); docs/benchmarks-surface.md measures the trade.
 
 With ``contact`` (the default, where the rest is free of self-intersections) the energy
 gains IPC's barrier and every step, the predictor included, starts its backtracking at
-the fraction CCD allows (:mod:`..engine.contact`; the handles move alone where the predictor would
-pass through): no iterate passes through the surface (docs/move-3d.md, "Contact").
+the fraction CCD allows (:mod:`..engine.contact`; the handles move alone, then with a half or a
+quarter of the predictor, where it is folded or would pass through): no iterate passes
+through the surface (docs/move-3d.md, "Contact"). The factor is kept while the barrier's
+pairs and ``κ`` are those it holds.
 
 Where one similarity moves all handles, the whole surface follows it exactly (φ moves by
 ``√2 log s`` in its first component, bending not at all), so a rigid motion of the
@@ -59,8 +59,9 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import LinearOperator
 
 from ..._typing import FloatArray, IntArray
+from ...cells.base import scale_free_mass
 from ...errors import InvalidMeshError, NotAdmissibleError
-from ...kernels.surface import aspect_ratios
+from ...kernels.surface import areas, aspect_ratios
 from ...scaling import UnitScale
 from ...solvers import factorize_spd, pcg
 from ..engine.contact import NoContact, contact_term
@@ -72,18 +73,13 @@ from .normal_equations import FreePattern, turned_solve, upper_products
 from .polish import polish_worst_triangles
 
 SQRT2 = np.sqrt(2.0)
+#: the fractions of a fresh linearized predictor tried in turn (0: the handles alone)
+PREDICTOR = (1.0, 0.0, 0.5, 0.25)
 
 
 def lumped_mass(points: FloatArray, triangles: IntArray) -> FloatArray:
-    """Vertex weights: a third of the adjacent triangles' areas over the total, divided by
-    the area-weighted mean squared distance from the centroid (dimensionless, independent
-    of size and resolution)."""
-    P = points[triangles]
-    area = 0.5 * np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1)
-    m = np.bincount(triangles.ravel(), np.repeat(area / 3.0, 3), minlength=len(points))
-    m /= m.sum()
-    centroid = m @ points
-    return m / float(m @ np.sum((points - centroid) ** 2, axis=1))
+    """Vertex weights (:func:`..cells.base.scale_free_mass` of the triangles' areas)."""
+    return scale_free_mass(points, triangles, areas(points, triangles))
 
 
 @dataclass
@@ -151,7 +147,7 @@ class _Problem:
                                     self.free_index, int(free_coord.sum()))
         self.phi_ref = None
         self.previous = None
-        self.factor = None
+        self.factor, self.factor_signature = None, None
         self.fresh = False  # whether the factor is of the matrix at the current iterate
         self.factorizations = 0
         #: conjugate gradients on a kept factor: at most this many, to this relative residual
@@ -234,6 +230,7 @@ class _Problem:
         else:
             self.factor.refactorize(D)
         self.fresh, self.factor_points = True, Q.copy()
+        self.factor_signature = self.contact.signature(Q)
 
     def kept_step(self, Jm, Jb, g, Q) -> FloatArray:
         """A step ``≈ (JᵀJ + M)⁻¹ g`` at ``Q`` on the kept factor ``F``: its own solve where
@@ -276,26 +273,26 @@ def _step(problem: _Problem, Q0, H1, handles, max_iterations: int, rtol: float,
     # the residuals' change of the handles' displacement, to first order
     dm, db = problem.jacobian_products(Jm, Jb, d)
     g = problem.gradient(rm + dm, Jm, rb + db, Jb, np.zeros_like(Q0))
-    # the predictor on the last increment's factor where one is kept, else a fresh one
-    for fresh in ((False, True) if hasattr(problem.factor, "refactorize") else (True,)):
+    # the predictor on the kept factor, else a fresh one; where neither is admissible and
+    # clear, the handles alone (the barrier pushes the rest), then fractions of the fresh
+    kept = hasattr(problem.factor, "refactorize")
+    for fresh, scales in (((False, (1.0,)),) if kept else ()) + ((True, PREDICTOR),):
         if fresh:
             problem.refactorize(Jm, Jb, Q0)
-        Q = Q0 + d
-        Q.ravel()[problem.free] -= problem.kept_step(Jm, Jb, g, Q0)
-        Q[handles] = H1
-        parts = problem.parts(Q)
-        if problem.admissible(Q, parts[0]):
-            break
+        step = problem.kept_step(Jm, Jb, g, Q0)
+        for scale in scales:
+            Q = Q0 + d
+            Q.ravel()[problem.free] -= scale * step
+            Q[handles] = H1
+            parts = problem.parts(Q)
+            if problem.admissible(Q, parts[0]) and problem.contact.clear(Q0, Q):
+                break
+        else:
+            continue
+        break
     else:
         return None
-    if not problem.contact.clear(Q0, Q):  # in contact: the handles alone, the barrier acts
-        Q = Q0 + d
-        Q[handles] = H1
-        parts = problem.parts(Q)
-        if not (problem.admissible(Q, parts[0]) and problem.contact.clear(Q0, Q)):
-            return None
-    E = problem.energy(Q, parts)
-    if not np.isfinite(E):
+    if not np.isfinite(E := problem.energy(Q, parts)):
         return None
     iterations, stale, first = 0, not fresh, None
     for _ in range(max_iterations):
@@ -303,8 +300,9 @@ def _step(problem: _Problem, Q0, H1, handles, max_iterations: int, rtol: float,
         g = problem.gradient(rm, Jm, rb, Jb, Q - problem.previous)
         if problem.contact.set_stiffness(Q, g):  # κ set: the energy gains the barrier
             E = problem.energy(Q)
-        g = g + problem.contact.gradient(Q)  # the barrier's Hessian in a fresh factor
-        stale = stale or problem.contact.active(Q)
+        g = g + problem.contact.gradient(Q)
+        # the factor is renewed where the barrier's pairs or κ are not those it holds
+        stale = stale or problem.contact.signature(Q) != problem.factor_signature
         renewed = stale
         if stale:  # otherwise the factor of the increment's start serves (chord steps)
             problem.refactorize(Jm, Jb, Q)
@@ -389,7 +387,8 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
         Steps on a kept factor are this many conjugate gradients on the current normal
         equations, preconditioned by the factor turned with the surface (module
         docstring); 0: the factor's own solve, a chord step.
-    max_halvings : how often one increment may be halved.
+    max_halvings : an increment is at least ``2^-max_halvings / steps`` (a halved increment
+        doubles again, up to ``1/steps``, after two taken in a row).
     contact : bool
         Keep the surface from passing through itself (:mod:`..engine.contact`: the barrier in the
         energy, every step capped by CCD) where its rest is free of self-intersections
@@ -428,16 +427,15 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
     problem.contact = contact_term(V, F, problem.free, problem.mass, contact)
     area_w = np.ones(len(F))  # √a_t
     if area_weights and len(F):
-        P = V[F]
-        area = np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1)
-        area_w = np.sqrt(area / area.mean())
+        area_w = np.sqrt(areas(V, F) / areas(V, F).mean())
     problem.row_weights = weight * area_w
     Q, t, iterations = V.copy(), 0.0, 0
     frames, times = [V.copy()], [0.0]
     phi = problem.membrane.values(V)
     phi_lengths = np.zeros(len(F))
     length = 0.0
-    dt, halvings = 1.0 / max(int(steps), 1), 0
+    dt0 = 1.0 / max(int(steps), 1)
+    dt, halvings, taken = dt0, 0, 0
     while t < 1.0:
         t1 = min(1.0, t + dt) if 1.0 - (t + dt) > 1e-12 else 1.0
         start = Q
@@ -461,13 +459,16 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
         out = _step(problem, start, H1, handles,
                     max(max_iterations, final_iterations) if last else max_iterations,
                     final_rtol if last else rtol, final_stall if last else None)
-        if out is None:
+        if out is None:  # halved, at most max_halvings times below 1/steps
             halvings += 1
-            if halvings > max_halvings:
+            if dt / 2.0 < dt0 / 2.0**max_halvings:
                 raise NotAdmissibleError(
                     f"no fold-free increment of the handles' path from t = {t:.4g}")
             dt /= 2.0
             continue
+        taken, halvings = (taken + 1 if halvings == 0 else 1), 0
+        if taken >= 2 and dt < dt0:  # a halved increment grows back after two taken
+            dt, taken = min(2.0 * dt, dt0), 0
         Q, n_it = out
         if t1 >= 1.0 and polish > 0:  # the result's worst triangles polished
             Qp, polished = polish_worst_triangles(V, F, Q, handles, iterations=polish,
