@@ -121,7 +121,7 @@ def rewrite_text(text: str, mapping: dict[str, str]) -> str:
         new = mapping[old]
         text = re.sub(rf"(?<![\w.]){re.escape(old)}(?![\w])", new, text)
         o, n = old.split(".", 1)[1], new.split(".", 1)[1]
-        text = re.sub(rf"(['\"]){re.escape(o)}\1", rf"\g<1>{n}\g<1>", text)
+        text = re.sub(rf"(?<![\w.]){re.escape(o)}(?![\w])", n, text)  # "motion.x", ``motion.x.f``
         op = old.split(".", 1)[1].replace(".", "/") + ".py"
         np_ = new.split(".", 1)[1].replace(".", "/") + ".py"
         text = re.sub(rf"(?<![\w/]){re.escape(op)}", np_, text)
@@ -132,6 +132,9 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("mapping", type=Path)
     ap.add_argument("--dry-run", action="store_true")
+    ap.add_argument("--rewrite-only", action="store_true",
+                    help="the modules are moved already (a merged branch still names the old "
+                         "places): rewrite the references only")
     args = ap.parse_args(argv)
     mapping = {}
     for line in args.mapping.read_text().splitlines():
@@ -142,6 +145,8 @@ def main(argv: list[str] | None = None) -> int:
     for old, new in mapping.items():
         src = ROOT / (old.replace(".", "/") + ".py")
         dst = ROOT / (new.replace(".", "/") + ".py")
+        if args.rewrite_only:
+            continue
         if not src.exists():
             sys.exit(f"{src}: no such module")
         print(f"{src.relative_to(ROOT)} -> {dst.relative_to(ROOT)}")
@@ -156,7 +161,8 @@ def main(argv: list[str] | None = None) -> int:
         subprocess.run(["git", "mv", str(src), str(dst)], check=True, cwd=ROOT)
     if args.dry_run:
         return 0
-    moved_from = {ROOT / (new.replace(".", "/") + ".py"): old for old, new in mapping.items()}
+    moved_from = ({} if args.rewrite_only else
+                  {ROOT / (new.replace(".", "/") + ".py"): old for old, new in mapping.items()})
     files = [p for t in TREES for p in (ROOT / t).rglob("*.py")]
     for path in files:
         old_package = (moved_from[path].split(".")[:-1] if path in moved_from

@@ -1,6 +1,6 @@
 """The :class:`~.metrics.Metric` protocol of a metric given as an operator and its
 assembled matrix: the distortion metrics ``M + w² JᵀJ`` of the plane, of surfaces and of
-tetrahedra (``motion.graph_metric``, ``motion.surface_metric``, ``motion.tet_metric``)
+tetrahedra (``motion.planar.metric``, ``motion.surface.metric``, ``motion.tets.metric``)
 share it on ``(N, d)`` points, ``d`` read from the arrays.
 """
 

@@ -7,7 +7,7 @@ metric, one entry for every metric. Two methods:
 - ``"levenberg-marquardt"`` (:mod:`.levenberg_marquardt`): metrics whose path energy is a
   sparse least-squares problem, which they provide through ``path_model``
   (:class:`.levenberg_marquardt.PathModelMetric`; the per-triangle distortion metric
-  ``motion.graph_metric.GraphMetric``).
+  ``motion.planar.metric.GraphMetric``).
 """
 
 from __future__ import annotations

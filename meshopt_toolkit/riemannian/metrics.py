@@ -27,8 +27,8 @@ Metrics: :class:`EuclideanMetric` (5.2, any ``d``), :class:`ElasticityMetric` (6
 :class:`CompleteMetric` ``g = I + ∇f∇fᵀ`` (5.17, 5.34) here (both planar, ``d = 2``); the
 distortion metrics ``M + w² JᵀJ`` live with the motions built on them and implement the
 same protocol through :class:`.assembled.AssembledMetric`: planar
-(``motion.graph_metric.GraphMetric``, with ``path_model``), tetrahedra
-(``motion.tet_metric.TetGraphMetric``) and surfaces (``motion.surface_metric``). Each
+(``motion.planar.metric.GraphMetric``, with ``path_model``), tetrahedra
+(``motion.tets.metric.TetGraphMetric``) and surfaces (``motion.surface.metric``). Each
 cell kind's default is ``cells.registry.metric_for(mesh)`` (``mt.metric_for``).
 """
 

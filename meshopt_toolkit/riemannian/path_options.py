@@ -77,14 +77,14 @@ class LevenbergMarquardtOptions:
         it cannot reach: move's relaxations and quality step), Gauss–Newton converges only
         linearly and Newton's steps save iterations. On the morph's paths from a cold
         start they save none; from the refined frames of a coarser level they do
-        (``motion.morph.REFINED_CG_RTOL``). The Hessian may be indefinite: a step on which
+        (``motion.planar.morph.REFINED_CG_RTOL``). The Hessian may be indefinite: a step on which
         conjugate gradients meet non-positive curvature is rejected like one that raises
         the energy (the damping ``λ·diag(JᵀJ)`` grows until the matrix is positive
         definite).
     lambda_decrease : the damping's factor after a step whose decrease the model predicted
         well (``ρ > 0.75``; :data:`LAMBDA_DECREASE`). Newton steps from a start close to
         the minimizer converge quadratically only once the damping is gone: there a
-        smaller factor gets there sooner (``motion.morph.REFINED_LAMBDA_DECREASE``).
+        smaller factor gets there sooner (``motion.planar.morph.REFINED_LAMBDA_DECREASE``).
     factors : the step solver's kept state (for the distortion metric a ``FrameBlocks``,
         the preconditioner's frame factorizations), shared with the caller: a sequence of
         close problems with the same free coordinates (the frames of a continuation)

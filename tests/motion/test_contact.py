@@ -149,9 +149,9 @@ def test_a_steps_trials_take_their_pairs_from_its_swept_candidates(contact, drop
     """After a step is capped, the pairs within d̂ at a point of its path (a line
     search's trial) come from the step's own swept candidates, and are exactly those of a
     broad phase of the whole surface; off the path the whole surface's broad phase runs."""
-    from meshopt_toolkit.motion.contact import ContactTerm
+    from meshopt_toolkit.motion.engine.contact import ContactTerm
 
-    import meshopt_toolkit.motion.contact as module
+    import meshopt_toolkit.motion.engine.contact as module
 
     rng = np.random.default_rng(seed)
     Q0 = _near(0.45)

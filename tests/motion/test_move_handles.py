@@ -1,6 +1,6 @@
 """Which vertices ``meshopt move`` holds: ``--targets`` keeps the boundary it does not list
 (``--free-boundary`` frees it), ``--group NAME`` moves a physical group's nodes by
-``--map``; the command line, the move filter and ``motion.targets`` agree."""
+``--map``; the command line, the move filter and ``motion.engine.targets`` agree."""
 
 from __future__ import annotations
 

@@ -1,15 +1,14 @@
 """What the local polishes (:mod:`..tets.polish`, :mod:`..surface.polish`) share: the
 vertices they move (:func:`cell_neighbourhood`) and the soft maximum they lower; their
-L-BFGS is :func:`..descent.minimize_lbfgs` (named here for :mod:`..surface.polish`)."""
+L-BFGS is :func:`...descent.minimize_lbfgs`."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from ..._typing import FloatArray, IntArray
-from ...descent import minimize_lbfgs
 
-__all__ = ["cell_neighbourhood", "minimize_lbfgs", "soft_maximum"]
+__all__ = ["cell_neighbourhood", "soft_maximum"]
 
 
 def cell_neighbourhood(cells: IntArray, seeds: IntArray, rings: int, n_vertices: int

@@ -2,7 +2,7 @@
 exactly at their targets and every other vertex so that the triangles keep their shapes
 as well as the motion allows, with no degenerate and no folded triangle.
 
-The handles travel along :class:`..engine.similarity_3d.HandlePath` (each connected group's
+The handles travel along :class:`..engine.similarity.HandlePath` (each connected group's
 similarity followed along its screw motion, the remainder linearly) in ``steps`` increments, an
 increment halved where it cannot be taken. Each increment is a minimizing movement:
 
@@ -21,9 +21,9 @@ Gauss–Newton on the stacked residuals: a linearized predictor carries the hand
 displacement into the free vertices, then steps on the normal equations (CHOLMOD; the
 increment's first factor is kept while full steps are taken), each iterate accepted only
 where the energy decreases, every triangle keeps ``det C > 0`` and none folds
-(:class:`.folds.FoldTest`). The last increment, whose end is the result, is
-iterated further (``final_iterations``, ``final_rtol``), its factor kept through shortened
-steps until they stall (``final_stall``: chord steps).
+(:class:`.folds.FoldTest`). The last increment, whose end is the result, is iterated further
+(``final_iterations``, ``final_rtol``), its factor kept through shortened steps until they
+stall (``final_stall``: chord steps).
 
 With ``cg_iterations = k > 0`` a step on a kept factor ``F`` is k conjugate gradients on
 the current normal equations ``A`` (products from the Jacobian blocks), preconditioned by
@@ -31,8 +31,8 @@ the current normal equations ``A`` (products from the Jacobian blocks), precondi
 surface); docs/benchmarks-surface.md measures the trade.
 
 With ``contact`` (the default, where the rest is free of self-intersections) the energy
-gains IPC's barrier and every step, the predictor included, starts its backtracking at
-the fraction CCD allows (:mod:`..engine.contact`; the handles move alone, then with a half or a
+gains IPC's barrier and every step, the predictor included, starts its backtracking at the
+fraction CCD allows (:mod:`..engine.contact`; the handles move alone, then with a half or a
 quarter of the predictor, where it is folded or would pass through): no iterate passes
 through the surface (docs/move-3d.md, "Contact"). The factor is kept while the barrier's
 pairs and ``κ`` are those it holds.
@@ -41,12 +41,11 @@ Where one similarity moves all handles, the whole surface follows it exactly (φ
 ``√2 log s`` in its first component, bending not at all), so a rigid motion of the
 handles is a rigid motion of the surface.
 
-The bound: along the frames ``Q_0, …, Q_K``, the polygon's length in the embedding
-``Q ↦ (M^½ Q, w φ(Q))``, ``ℓ = Σ_k (|ΔQ_k|²_M + w²|Δφ_k|²)^½``, bounds every triangle's
-summed change of distortion, ``Σ_k |Δφ_t| ≤ ℓ/w`` (``SurfaceMoveResult.phi_lengths``,
-``.length``; a property of the frames, whatever weights chose them); from the rest,
-``1/ψ_t ≤ 1/ψ_t(rest) · e^{asinh(√2|φ_t|)}``
-(:func:`.distortion.surface_quality_bound`).
+The bound: along the frames ``Q_0, …, Q_K``, the polygon's length in the embedding ``Q ↦
+(M^½ Q, w φ(Q))``, ``ℓ = Σ_k (|ΔQ_k|²_M + w²|Δφ_k|²)^½``, bounds every triangle's summed
+change of distortion, ``Σ_k |Δφ_t| ≤ ℓ/w`` (``SurfaceMoveResult.phi_lengths``, ``.length``;
+a property of the frames, whatever weights chose them); from the rest, ``1/ψ_t ≤ 1/ψ_t(rest)
+· e^{asinh(√2|φ_t|)}`` (:func:`.distortion.surface_quality_bound`).
 """
 
 from __future__ import annotations
@@ -60,12 +59,14 @@ from scipy.sparse.linalg import LinearOperator
 
 from ..._typing import FloatArray, IntArray
 from ...cells.base import scale_free_mass
+from ...descent import backtrack, halvings
 from ...errors import InvalidMeshError, NotAdmissibleError
 from ...kernels.surface import areas, aspect_ratios
 from ...scaling import UnitScale
 from ...solvers import factorize_spd, pcg
 from ..engine.contact import NoContact, contact_term
-from ..engine.similarity_3d import HandlePath, global_similarity, handle_groups
+from ..engine.similarity import HandlePath, handle_groups
+from ..engine.similarity_3d import global_similarity
 from .bending import ShellBending
 from .distortion import SurfaceDistortion
 from .folds import FoldTest
@@ -255,13 +256,12 @@ class _Problem:
 def _step(problem: _Problem, Q0, H1, handles, max_iterations: int, rtol: float,
           stall: float | None = None):
     """One increment from the admissible ``Q0`` to handles at ``H1``: the converged
-    positions and the iterations, or None where no admissible predictor exists.
-
-    The factor is kept while full steps are taken. ``stall=None``: renewed after every
-    shortened step. A number: kept (chord steps) while each shortened step lowers the
-    energy by at least ``stall`` times the first step on that factor and by more than
-    ``rtol·E``; the increment ends where a full step, or one on a factor of its own
-    linearization, lowers it by ``rtol·E`` or less."""
+    positions and the iterations, or None where no admissible predictor exists; the factor
+    is kept while full steps are taken. ``stall=None``: renewed after every shortened step.
+    A number: kept (chord steps) while each shortened step lowers the energy by at least
+    ``stall`` times the first step on that factor and by more than ``rtol·E``; the increment
+    ends where a full step, or one on a factor of its own linearization, lowers it by
+    ``rtol·E`` or less."""
     d = np.zeros_like(Q0)
     d[handles] = H1 - Q0[handles]
     if not problem.free.any():  # every vertex a handle: the step is the handles' path
@@ -273,8 +273,7 @@ def _step(problem: _Problem, Q0, H1, handles, max_iterations: int, rtol: float,
     # the residuals' change of the handles' displacement, to first order
     dm, db = problem.jacobian_products(Jm, Jb, d)
     g = problem.gradient(rm + dm, Jm, rb + db, Jb, np.zeros_like(Q0))
-    # the predictor on the kept factor, else a fresh one; where neither is admissible and
-    # clear, the handles alone (the barrier pushes the rest), then fractions of the fresh
+    # predictors, each admissible and clear: kept factor, fresh one, PREDICTOR's fractions
     kept = hasattr(problem.factor, "refactorize")
     for fresh, scales in (((False, (1.0,)),) if kept else ()) + ((True, PREDICTOR),):
         if fresh:
@@ -309,21 +308,23 @@ def _step(problem: _Problem, Q0, H1, handles, max_iterations: int, rtol: float,
             first = None
         step = problem.kept_step(Jm, Jb, g, Q)
         iterations += 1
-        # backtracking from the CCD bound: the first fraction of the step that lowers the
-        # energy and keeps every triangle proper and unfolded
-        for alpha in problem.contact.step_cap(Q, step) * 0.5 ** np.arange(12):
+        def at(alpha: float):  # from the CCD bound: lower, every triangle proper, unfolded
             trial = Q.copy()
             trial.ravel()[problem.free] -= alpha * step
             parts = problem.parts(trial)
-            if np.all(np.isfinite(parts[0][problem.free_triangles])):
-                E_trial = problem.energy(trial, parts)
-                if E_trial < E and problem.admissible(trial, parts[0]):
-                    break
-        else:
+            if not np.all(np.isfinite(parts[0][problem.free_triangles])):
+                return None
+            E_trial = problem.energy(trial, parts)
+            ok = E_trial < E and problem.admissible(trial, parts[0])
+            return (trial, E_trial) if ok else None
+
+        found = backtrack(at, halvings(problem.contact.step_cap(Q, step), count=12))
+        if found is None:
             if stale:
                 break
             stale = True
             continue
+        alpha, (trial, E_trial) = found
         decrease = E - E_trial
         Q, E = trial, E_trial
         if stall is None:
@@ -331,8 +332,7 @@ def _step(problem: _Problem, Q0, H1, handles, max_iterations: int, rtol: float,
                 break
             stale = alpha < 1.0
             continue
-        # a small decrease is convergence only from a full step or a renewed factor (a
-        # shortened chord step may be small because the factor is old)
+        # small decreases converge only from full steps or renewed factors (not old chords)
         if decrease <= rtol * E and (renewed or alpha == 1.0):
             break
         first = decrease if first is None else first
@@ -421,7 +421,7 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
         raise InvalidMeshError("a triangle refers to a vertex that does not exist")
     diameter = float(np.linalg.norm(V.max(0) - V.min(0)))
     whole = global_similarity(V[handles], targets, diameter) if len(handles) else None
-    path = HandlePath(V[handles], targets, handle_groups(F, handles, len(V)))
+    path = HandlePath(V[handles], targets, handle_groups(handles, F, len(V)), motion="screw")
     problem = _Problem(V, F, handles, weight, bending, lumped_mass(V, F))
     problem.cg_iterations = int(cg_iterations)
     problem.contact = contact_term(V, F, problem.free, problem.mass, contact)

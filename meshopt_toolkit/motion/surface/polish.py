@@ -30,9 +30,10 @@ from __future__ import annotations
 import numpy as np
 
 from ..._typing import FloatArray, IntArray
+from ...descent import minimize_lbfgs
 from ...kernels.surface import area_vectors, aspect_ratios
 from ...kernels.surface import areas as triangle_areas
-from ..engine.polish import cell_neighbourhood, minimize_lbfgs, soft_maximum
+from ..engine.polish import cell_neighbourhood, soft_maximum
 from .distortion import SurfaceDistortion
 from .folds import FoldTest
 
