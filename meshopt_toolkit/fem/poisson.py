@@ -31,7 +31,7 @@ from .boundary_data import BoundaryData, neumann_load, neumann_shape_derivative
 from .._typing import FloatArray, IntArray
 from ..errors import ExpressionError, InvalidMeshError, MeshoptError, NotAdmissibleError
 from ..expressions import DEFAULT_RHS, Expression, parse_expression
-from ..kernels.admissibility import BoundaryCheck, area_problem
+from ..kernels.admissibility import BoundaryCheck, area_problem, first_non_finite_row
 from ..mesh import PlanarMesh, TriangleMesh, require_admissible
 
 __all__ = ["DEFAULT_RHS", "PoissonObjective"]
@@ -251,7 +251,7 @@ class PoissonObjective(CachedPoisson):
         if g.shape != (len(xi), 2):
             raise ExpressionError(f"rhs gradient returned shape {g.shape}, expected ({len(xi)}, 2)")
         if not np.isfinite(g).all():
-            i = int(np.flatnonzero(~np.isfinite(g).all(axis=1))[0])
+            i = first_non_finite_row(g)
             raise ExpressionError(f"rhs gradient is not finite at {tuple(xi[i])}")
         return g
 
