@@ -3,15 +3,34 @@
 An objective solves its state once per configuration ``Q`` and keeps it until a
 different ``Q`` comes: :class:`CachedObjective` holds that cache and ``value``;
 :class:`CachedPoisson` adds the Poisson state ``y`` and its adjoint ``p`` (solved on
-demand, with the state's solver).
+demand, with the state's solver); :func:`poisson_value` is the Poisson objectives' ``j``.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 from .._typing import FloatArray
-from .simplex import same_configuration
+from .simplex import Geometry, same_configuration
+
+
+@dataclass
+class SimplexState:
+    """What the cached state of an objective on simplices starts with: the positions
+    ``Q`` it was computed at and their :class:`~.simplex.Geometry`."""
+
+    Q: FloatArray
+    geo: Geometry
+
+
+def poisson_value(m: FloatArray, y: FloatArray, target: FloatArray | None) -> float:
+    """``j = mᵀy`` (``target`` None) or the tracking ``½ Σ_a m_a (y_a − y_d,a)²`` of the
+    nodal target ``y_d``, with the lumped mass weights ``m``."""
+    if target is None:
+        return float(m @ y)
+    misfit = y - target
+    return 0.5 * float(m @ (misfit * misfit))
 
 
 class CachedObjective:

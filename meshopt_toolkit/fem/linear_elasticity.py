@@ -31,7 +31,7 @@ from .._typing import FloatArray, IntArray
 from ..errors import MeshoptError
 from ..solvers import factorize_spd
 from .elasticity import factorize
-from .cached import CachedObjective
+from .cached import CachedObjective, SimplexState
 from .simplex import (Geometry, LagrangeSpace, assemble, facet_normal_gradient, facet_normals,
                       geometry, node_gradient, oriented_facets)
 
@@ -125,9 +125,7 @@ def rigid_pins(points: FloatArray) -> IntArray:
 
 
 @dataclass
-class _State:
-    Q: FloatArray
-    geo: Geometry
+class _State(SimplexState):
     u: FloatArray  # (n_dofs, d)
     value: float
 

@@ -26,7 +26,7 @@ from numbers import Real
 import numpy as np
 
 from . import p1 as fem
-from .cached import CachedPoisson
+from .cached import CachedPoisson, poisson_value
 from .boundary_data import BoundaryData, neumann_load, neumann_shape_derivative
 from .._typing import FloatArray, IntArray
 from ..errors import ExpressionError, InvalidMeshError, MeshoptError, NotAdmissibleError
@@ -272,11 +272,7 @@ class PoissonObjective(CachedPoisson):
             y = solver.solve(b - K @ self._lift) + self._lift  # y = g_D on Dirichlet nodes
         else:
             y = solver.solve(b)
-        if self.tracking_text is None:
-            value = float(m @ y)
-        else:
-            misfit = y - self._yd_at(Q)
-            value = 0.5 * float(m @ (misfit * misfit))
+        value = poisson_value(m, y, None if self.tracking_text is None else self._yd_at(Q))
         return _State(Q.copy(), solver, xi, r, m, y, value)
 
     def _yd_at(self, Q: FloatArray) -> FloatArray:

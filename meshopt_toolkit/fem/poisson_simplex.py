@@ -28,7 +28,7 @@ from .._typing import FloatArray, IntArray
 from ..errors import ExpressionError, MeshoptError
 from ..expressions import parse_expression
 from .p1 import PoissonSolver
-from .cached import CachedPoisson
+from .cached import CachedPoisson, SimplexState, poisson_value
 from .simplex import Geometry, assemble, geometry, node_gradient
 
 __all__ = ["SimplexPoisson", "data_function", "p1_matrices", "poisson_node_gradient"]
@@ -108,9 +108,7 @@ def poisson_node_gradient(geo: Geometry, cells: IntArray, y: FloatArray, p: Floa
 
 
 @dataclass
-class _State:
-    Q: FloatArray
-    geo: Geometry
+class _State(SimplexState):
     solver: PoissonSolver
     m: FloatArray
     r: FloatArray
@@ -166,11 +164,7 @@ class SimplexPoisson(CachedPoisson):
         if self._g is not None:
             lift[self._g_nodes] = self._g
         y = solver.solve(b - K @ lift) + lift
-        if self.tracking is None:
-            value = float(m @ y)
-        else:
-            misfit = y - self.tracking(Q)
-            value = 0.5 * float(m @ (misfit * misfit))
+        value = poisson_value(m, y, None if self.tracking is None else self.tracking(Q))
         return _State(Q, geo, solver, m, r, xi, y, value)
 
     def _adjoint_load(self, s: _State) -> FloatArray:

@@ -30,7 +30,7 @@ from ..errors import MeshoptError
 from ..solvers import (choose_method, factorize_spd, import_pyamg, minres_block_solve,
                        nested_dissection, schur_complement_solve)
 from .linear_elasticity import strain_energy_tensor, vector_dofs, vector_stiffness
-from .cached import CachedObjective
+from .cached import CachedObjective, SimplexState
 from .simplex import (Geometry, LagrangeSpace, all_boundary_facets, assemble, geometry,
                       node_gradient)
 
@@ -42,9 +42,7 @@ STOKES_AMG_THRESHOLD = 200_000
 
 
 @dataclass
-class _State:
-    Q: FloatArray
-    geo: Geometry
+class _State(SimplexState):
     u: FloatArray  # (n2, d)
     p: FloatArray  # (N,)
     value: float
