@@ -18,6 +18,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ._options import check_choice
 from .conversions import Carried
 from .errors import InvalidMeshError, OptionError
 from .results import PathIteration
@@ -224,8 +225,7 @@ def morph(
         default_iterations = DEFAULT_MAX_ITER[name]
     if int(frames) < 2:
         raise OptionError(f"frames must be at least 2, got {frames}")
-    if stop not in STOP_RULES:
-        raise OptionError(f"unknown stop rule {stop!r}; choose one of {', '.join(STOP_RULES)}")
+    check_choice(stop, STOP_RULES, "stop rule", error=OptionError)
     n_iter = default_iterations if max_iterations is None else int(max_iterations)
     if n_iter < 1:
         raise OptionError(f"max_iterations must be at least 1, got {max_iterations}")

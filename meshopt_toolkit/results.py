@@ -19,7 +19,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
-__all__ = ["PathFrames", "PathIteration", "Result"]
+__all__ = ["DoneMotion", "PathFrames", "PathIteration", "Result", "WrappedMotion"]
 
 
 @runtime_checkable
@@ -62,3 +62,23 @@ class PathFrames:
     @property
     def n_frames(self) -> int:
         return len(self.points)
+
+
+class DoneMotion:
+    """A motion's result: the solvers raise where they cannot reach the targets, so a
+    returned one is done."""
+
+    @property
+    def status(self) -> str:
+        """``"done"``: a returned motion always reached its targets (else it raises)."""
+        return "done"
+
+
+class WrappedMotion(DoneMotion):
+    """A mesh's motion around its solver's result ``motion`` (which has ``seconds`` and
+    ``summary()``)."""
+
+    seconds = property(lambda self: self.motion.seconds, doc="Wall time.")
+
+    def summary(self) -> dict:
+        return {"status": self.status, **self.motion.summary()}

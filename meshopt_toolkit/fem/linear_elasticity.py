@@ -31,8 +31,9 @@ from .._typing import FloatArray, IntArray
 from ..errors import MeshoptError
 from ..solvers import factorize_spd
 from .elasticity import factorize
+from .cached import CachedObjective, SimplexState
 from .simplex import (Geometry, LagrangeSpace, assemble, facet_normal_gradient, facet_normals,
-                      geometry, node_gradient, oriented_facets, same_configuration)
+                      geometry, node_gradient, oriented_facets)
 
 __all__ = ["ComplianceObjective", "elastic_lame", "facet_weights", "strain_energy_tensor",
            "vector_dofs", "vector_stiffness"]
@@ -124,14 +125,12 @@ def rigid_pins(points: FloatArray) -> IntArray:
 
 
 @dataclass
-class _State:
-    Q: FloatArray
-    geo: Geometry
+class _State(SimplexState):
     u: FloatArray  # (n_dofs, d)
     value: float
 
 
-class ComplianceObjective:
+class ComplianceObjective(CachedObjective):
     """Compliance ``J = ∫_Γ t·u`` of a linear elastic body, P1 or P2, in 2D or 3D.
 
     Parameters
@@ -185,7 +184,6 @@ class ComplianceObjective:
         self._facet_dofs = self.space.facet_dofs(self.facets)
         self._omega = facet_weights(self.dim, degree)
         self.solver, self.rtol = solver, float(rtol)
-        self._cache: _State | None = None
         if self.floating:
             b = self.load(points).ravel()
             R = rigid_modes(self.space.dof_points(points))
@@ -212,9 +210,7 @@ class ComplianceObjective:
         n = self.dim * self.space.n_dofs
         return assemble(dofs, dofs, vector_stiffness(self.space, geo, self.lam, self.mu), (n, n))
 
-    def _state(self, Q) -> _State:
-        if same_configuration(self._cache, Q):
-            return self._cache
+    def _compute(self, Q) -> _State:
         Q = np.array(Q, dtype=float)
         geo = geometry(Q, self.cells)
         b = self.load(Q).ravel()
@@ -228,12 +224,7 @@ class ComplianceObjective:
         else:
             points = self.space.dof_points(Q)[self._free_nodes]
             u[free] = factorize(K[free][:, free], points, self.solver, self.rtol).solve(b[free])
-        self._cache = _State(Q, geo, u.reshape(-1, self.dim), float(b @ u))
-        return self._cache
-
-    def value(self, Q: FloatArray) -> float:
-        """``J(Q) = bᵀu``."""
-        return self._state(Q).value
+        return _State(Q, geo, u.reshape(-1, self.dim), float(b @ u))
 
     def displacement(self, Q: FloatArray) -> FloatArray:
         """Nodal displacements ``(n_dofs, d)`` (P2: vertices, then edge midpoints)."""

@@ -26,11 +26,12 @@ from numbers import Real
 import numpy as np
 
 from . import p1 as fem
+from .cached import CachedPoisson, poisson_value
 from .boundary_data import BoundaryData, neumann_load, neumann_shape_derivative
 from .._typing import FloatArray, IntArray
 from ..errors import ExpressionError, InvalidMeshError, MeshoptError, NotAdmissibleError
 from ..expressions import DEFAULT_RHS, Expression, parse_expression
-from ..kernels.admissibility import BoundaryCheck, area_problem
+from ..kernels.admissibility import BoundaryCheck, area_problem, first_non_finite_row
 from ..mesh import PlanarMesh, TriangleMesh, require_admissible
 
 __all__ = ["DEFAULT_RHS", "PoissonObjective"]
@@ -101,7 +102,7 @@ class _State:
     p: FloatArray | None = None  # (N,) adjoint, on demand
 
 
-class PoissonObjective:
+class PoissonObjective(CachedPoisson):
     """``j(Q) = ∫ y`` subject to ``−Δy = r``, ``y = 0`` on Dirichlet nodes, P1 (6.2).
 
     Parameters
@@ -187,7 +188,6 @@ class PoissonObjective:
             self.tracking_text, self._yd, self._grad_yd = _resolve_rhs(tracking, None, scale)
         self.solver = solver
         self.rtol = float(rtol)
-        self._cache: _State | None = None
 
     def __repr__(self) -> str:
         return (
@@ -251,16 +251,13 @@ class PoissonObjective:
         if g.shape != (len(xi), 2):
             raise ExpressionError(f"rhs gradient returned shape {g.shape}, expected ({len(xi)}, 2)")
         if not np.isfinite(g).all():
-            i = int(np.flatnonzero(~np.isfinite(g).all(axis=1))[0])
+            i = first_non_finite_row(g)
             raise ExpressionError(f"rhs gradient is not finite at {tuple(xi[i])}")
         return g
 
     # ---------------------------------------------------------------- evaluation
 
-    def _state(self, Q) -> _State:
-        c = self._cache
-        if c is not None and np.shape(Q) == c.Q.shape and np.array_equal(Q, c.Q):
-            return c
+    def _compute(self, Q) -> _State:
         Q = self._check_Q(Q)
         tri = self.triangles
         K = fem.p1_stiffness(Q, tri)
@@ -275,13 +272,8 @@ class PoissonObjective:
             y = solver.solve(b - K @ self._lift) + self._lift  # y = g_D on Dirichlet nodes
         else:
             y = solver.solve(b)
-        if self.tracking_text is None:
-            value = float(m @ y)
-        else:
-            misfit = y - self._yd_at(Q)
-            value = 0.5 * float(m @ (misfit * misfit))
-        self._cache = _State(Q.copy(), solver, xi, r, m, y, value)
-        return self._cache
+        value = poisson_value(m, y, None if self.tracking_text is None else self._yd_at(Q))
+        return _State(Q.copy(), solver, xi, r, m, y, value)
 
     def _yd_at(self, Q: FloatArray) -> FloatArray:
         """``y_d`` at the nodes ``(N,)``."""
@@ -296,27 +288,10 @@ class PoissonObjective:
             return s.m
         return s.m * (s.y - self._yd_at(s.Q))
 
-    def value(self, Q: FloatArray) -> float:
-        """``j(Q) = ∫ y = mᵀy``, (6.2), or ``½ Σ m_a (y_a − y_d(q_a))²`` (tracking)."""
-        return self._state(Q).value
-
-    def state(self, Q: FloatArray) -> FloatArray:
-        """Nodal values ``(N,)`` of the P1 state ``y`` (0 on Dirichlet nodes)."""
-        return self._state(Q).y.copy()
-
-    def adjoint(self, Q: FloatArray) -> FloatArray:
-        """Nodal values ``(N,)`` of the adjoint ``p``: ``K p = −∂j/∂y`` (``−m`` for ``∫y``),
-        0 on Dirichlet nodes."""
-        s = self._state(Q)
-        if s.p is None:
-            s.p = s.solver.solve(-self._adjoint_load(s))
-        return s.p.copy()
-
     def value_and_derivative(self, Q: FloatArray) -> tuple[float, FloatArray]:
         """``j(Q)`` and its exact derivative ``(N, 2)`` w.r.t. all nodes, (6.12)."""
         s = self._state(Q)
-        if s.p is None:
-            s.p = s.solver.solve(-self._adjoint_load(s))
+        self._adjoint(s)
         z = None
         if self.tracking_text is not None:
             misfit = s.y - self._yd_at(s.Q)

@@ -28,7 +28,8 @@ from .._typing import FloatArray, IntArray
 from ..errors import ExpressionError, MeshoptError
 from ..expressions import parse_expression
 from .p1 import PoissonSolver
-from .simplex import Geometry, assemble, geometry, node_gradient, same_configuration
+from .cached import CachedPoisson, SimplexState, poisson_value
+from .simplex import Geometry, assemble, geometry, node_gradient
 
 __all__ = ["SimplexPoisson", "data_function", "p1_matrices", "poisson_node_gradient"]
 
@@ -107,9 +108,7 @@ def poisson_node_gradient(geo: Geometry, cells: IntArray, y: FloatArray, p: Floa
 
 
 @dataclass
-class _State:
-    Q: FloatArray
-    geo: Geometry
+class _State(SimplexState):
     solver: PoissonSolver
     m: FloatArray
     r: FloatArray
@@ -119,7 +118,7 @@ class _State:
     p: FloatArray | None = None
 
 
-class SimplexPoisson:
+class SimplexPoisson(CachedPoisson):
     """``j = ∫y`` (or ``½∫(y − y_d)²``) subject to ``−Δy = r``, ``y = g_D`` on Dirichlet
     nodes, P1 on triangles ``(N, 2)``/``(T, 3)`` or tetrahedra ``(N, 3)``/``(T, 4)``.
 
@@ -151,11 +150,8 @@ class SimplexPoisson:
         self.rhs = data_function(rhs)
         self.tracking = None if tracking is None else data_function(tracking)
         self.solver, self.rtol = solver, float(rtol)
-        self._cache: _State | None = None
 
-    def _state(self, Q) -> _State:
-        if same_configuration(self._cache, Q):
-            return self._cache
+    def _compute(self, Q) -> _State:
         Q = np.array(Q, dtype=float)
         geo, K, m = p1_matrices(Q, self.cells)
         solver = PoissonSolver(K, self.dirichlet, method=self.solver, rtol=self.rtol)
@@ -168,34 +164,17 @@ class SimplexPoisson:
         if self._g is not None:
             lift[self._g_nodes] = self._g
         y = solver.solve(b - K @ lift) + lift
-        if self.tracking is None:
-            value = float(m @ y)
-        else:
-            misfit = y - self.tracking(Q)
-            value = 0.5 * float(m @ (misfit * misfit))
-        self._cache = _State(Q, geo, solver, m, r, xi, y, value)
-        return self._cache
+        value = poisson_value(m, y, None if self.tracking is None else self.tracking(Q))
+        return _State(Q, geo, solver, m, r, xi, y, value)
 
-    def value(self, Q: FloatArray) -> float:
-        """``j(Q)``."""
-        return self._state(Q).value
-
-    def state(self, Q: FloatArray) -> FloatArray:
-        """The P1 state ``y`` ``(N,)``."""
-        return self._state(Q).y.copy()
-
-    def adjoint(self, Q: FloatArray) -> FloatArray:
-        """The adjoint ``p`` ``(N,)``: ``K p = −∂j/∂y``, 0 on Dirichlet nodes."""
-        s = self._state(Q)
-        if s.p is None:
-            load = s.m if self.tracking is None else s.m * (s.y - self.tracking(s.Q))
-            s.p = s.solver.solve(-load)
-        return s.p.copy()
+    def _adjoint_load(self, s: _State) -> FloatArray:
+        """``∂j/∂y``: ``m`` for ``∫y``, ``m (y − y_d)`` for tracking."""
+        return s.m if self.tracking is None else s.m * (s.y - self.tracking(s.Q))
 
     def derivative(self, Q: FloatArray) -> FloatArray:
         """Exact ``dj/dQ`` ``(N, d)``, every node included."""
         s = self._state(Q)
-        p = self.adjoint(Q)
+        p = self._adjoint(s)
         z = None
         if self.tracking is not None:
             misfit = s.y - self.tracking(s.Q)

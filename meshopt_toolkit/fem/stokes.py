@@ -30,8 +30,9 @@ from ..errors import MeshoptError
 from ..solvers import (choose_method, factorize_spd, import_pyamg, minres_block_solve,
                        nested_dissection, schur_complement_solve)
 from .linear_elasticity import strain_energy_tensor, vector_dofs, vector_stiffness
+from .cached import CachedObjective, SimplexState
 from .simplex import (Geometry, LagrangeSpace, all_boundary_facets, assemble, geometry,
-                      node_gradient, same_configuration)
+                      node_gradient)
 
 __all__ = ["StokesDissipation"]
 
@@ -41,15 +42,13 @@ STOKES_AMG_THRESHOLD = 200_000
 
 
 @dataclass
-class _State:
-    Q: FloatArray
-    geo: Geometry
+class _State(SimplexState):
     u: FloatArray  # (n2, d)
     p: FloatArray  # (N,)
     value: float
 
 
-class StokesDissipation:
+class StokesDissipation(CachedObjective):
     """``J = ∫ 2μ |ε(u)|²`` of the Stokes flow with Dirichlet velocities per facet group.
 
     Parameters
@@ -100,7 +99,6 @@ class StokesDissipation:
         n_unknowns = d * self.space.n_dofs + len(points)
         self.method = choose_method(solver, n_unknowns, STOKES_AMG_THRESHOLD)
         self.rtol = float(rtol)
-        self._cache: _State | None = None
 
     def _lift(self, Q: FloatArray) -> FloatArray:
         g = np.zeros((self.space.n_dofs, self.dim))
@@ -152,18 +150,11 @@ class StokesDissipation:
             p -= (mass @ p) / mass.sum()
         return u, p, A
 
-    def _state(self, Q) -> _State:
-        if same_configuration(self._cache, Q):
-            return self._cache
+    def _compute(self, Q) -> _State:
         Q = np.array(Q, dtype=float)
         geo = geometry(Q, self.cells)
         u, p, A = self._solve(Q, geo)
-        self._cache = _State(Q, geo, u.reshape(-1, self.dim), p, float(u @ (A @ u)))
-        return self._cache
-
-    def value(self, Q: FloatArray) -> float:
-        """``J(Q) = ∫ 2μ |ε(u)|²``."""
-        return self._state(Q).value
+        return _State(Q, geo, u.reshape(-1, self.dim), p, float(u @ (A @ u)))
 
     def velocity(self, Q: FloatArray) -> FloatArray:
         """Nodal velocities ``(n2, d)``: vertices, then edge midpoints."""

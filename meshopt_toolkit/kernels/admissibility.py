@@ -20,17 +20,22 @@ from .boundary import BoundaryLoops, boundary_self_intersections, loop_orientati
 from .predicates import dot_sign_xy, exactly_scaled, orient2d_xy, triangle_orientations
 
 __all__ = ["BoundaryCheck", "area_message", "area_problem", "area_signs", "loop_message",
-           "non_finite_problem", "target_loop_problem"]
+           "first_non_finite_row", "non_finite_problem", "target_loop_problem"]
+
+
+def first_non_finite_row(points: FloatArray) -> int | None:
+    """The first row of ``points`` ``(N, d)`` with a non-finite entry, or None."""
+    bad = np.flatnonzero(~np.isfinite(points).all(axis=1))
+    return int(bad[0]) if bad.size else None
 
 
 def non_finite_problem(points: FloatArray, *, show: bool = False) -> str | None:
     """The first vertex with a non-finite coordinate, in words (with its coordinates
     where ``show``), or None when every coordinate is finite. ``points`` is ``(N, d)``."""
     points = np.asarray(points)
-    bad = np.flatnonzero(~np.isfinite(points).all(axis=1))
-    if not bad.size:
+    v = first_non_finite_row(points)
+    if v is None:
         return None
-    v = int(bad[0])
     return f"vertex {v} has a non-finite coordinate" + (f" {points[v].tolist()}" if show else "")
 
 

@@ -22,16 +22,19 @@ from .._typing import FloatArray, IntArray
 from ..conversions import Carried
 from ..cores import thread_budget
 from ..errors import InvalidMeshError, OptionError
-from ..kernels.admissibility import BoundaryCheck, area_problem, target_loop_problem
+from ..kernels.admissibility import (BoundaryCheck, area_problem, first_non_finite_row,
+                                      target_loop_problem)
 from ..kernels.triangles import aspect_ratios, inverse_shape_quality, signed_areas
 from ..mesh import PlanarMesh, require_admissible
 from ..mesh.kinds import SURFACE, TETS, class_kind
 from ..riemannian.discrete_geodesic import discrete_geodesic
 from ..riemannian.path_options import LevenbergMarquardtOptions
+from ..results import DoneMotion
 from ..scaling import UnitScale, at_unit_size, size_scale
 from .engine.continuation import NoAdmissiblePathError
 from .engine.handles import SelfIntersectionGuard
 from .engine.pinned_cells import pinned, turned_over_problem
+from .engine.polish import quality_rounds
 from .engine.similarity import HandlePath, Similarity, fit_similarity, handle_groups
 from .planar.continuation import RELAX_CG_RTOL, continuation_path
 from .planar.distortion import TriangleDistortion
@@ -44,7 +47,7 @@ __all__ = ["MoveResult", "move", "NoAdmissiblePathError"]
 
 
 @dataclass
-class MoveResult:
+class MoveResult(DoneMotion):
     """Result of :func:`move`.
 
     Attributes
@@ -75,11 +78,6 @@ class MoveResult:
     strain_bound: FloatArray
     inverted: int = 0
     details: dict = field(default_factory=dict)
-
-    @property
-    def status(self) -> str:
-        """``"done"``: a returned motion always reached its targets (else it raises)."""
-        return "done"
 
     def summary(self) -> dict:
         return {
@@ -121,8 +119,7 @@ def _check_handles(mesh: PlanarMesh, handles, targets) -> tuple[IntArray, FloatA
     t = np.asarray(targets, dtype=float)
     if t.shape != (h.size, 2):
         raise InvalidMeshError(f"targets must have shape ({h.size}, 2), got {t.shape}")
-    if not np.isfinite(t).all():
-        row = int(np.flatnonzero(~np.isfinite(t).all(axis=1))[0])
+    if (row := first_non_finite_row(t)) is not None:
         raise InvalidMeshError(f"target of handle {int(h[row])} is not finite: {t[row].tolist()}")
     order = np.argsort(h, kind="stable")
     hs, ts = h[order], t[order]
@@ -165,11 +162,10 @@ def _finish(metric: GraphMetric, Q: FloatArray, handles: IntArray, boundary_edge
     free[0] = False
     free[1, handles] = False
     absolute = TriangleDistortion.equilateral(metric.reference, tri)
-    best, best_ar, kept, nit = Q, aspect_ratios(Q, tri).min(), 0, 0
-    weights = None
     # one preconditioner for the rounds (their matrices differ by the weights only)
     factors = FrameBlocks([np.arange(2 * int(free[1].sum()))], [metric.reference[free[1]]])
-    for k in range(1, rounds + 1):
+
+    def relax(Q, weights):
         m = GraphMetric(metric.reference, tri, metric.weight, triangle_weights=weights)
         m.strain = absolute
         res = discrete_geodesic(m, Q, Q, 1, free=free, boundary_edges=boundary_edges,
@@ -177,15 +173,14 @@ def _finish(metric: GraphMetric, Q: FloatArray, handles: IntArray, boundary_edge
                                 options=LevenbergMarquardtOptions(
                                     gtol=1e-6, rtol=QUALITY_RTOL, max_iterations=relax_iterations,
                                     cg_rtol=RELAX_CG_RTOL, newton=True, factors=factors))
-        nit += res.nit
-        Q = res.points[1]
-        ar = aspect_ratios(Q, tri).min()
-        if ar > best_ar:
-            best, best_ar, kept = Q, ar, k
+        return res.points[1], res.nit
+
+    def sizes(Q):
         phi = absolute.values(Q)
-        size = np.hypot(phi[:, 1], phi[:, 2])
-        pressed = np.sqrt(np.maximum(1.0, size / np.sqrt(np.mean(size**2))))
-        weights = pressed if weights is None else weights * pressed
+        return np.hypot(phi[:, 1], phi[:, 2])
+
+    best, nit, kept = quality_rounds(Q, rounds, relax, lambda Q: aspect_ratios(Q, tri).min(),
+                                     sizes)
     return best, {"iterations": nit, "kept": kept}
 
 

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._options import check_choice
 from .._typing import FloatArray
 from ..errors import OptimizationError, OptionError
 
@@ -135,9 +136,7 @@ class ElasticityInverse:
 
 def make_preconditioner(kind: str, *, metric_kind: str, method: str, mesh, penalty, free):
     """The ``H_0`` operator ``(Q, P) ↦ B⁻¹P`` asked for, or None (``B = G_Q``)."""
-    if kind not in PRECONDITIONERS:
-        raise OptionError(f"unknown lbfgs_preconditioner {kind!r}; choose one of "
-                          f"{', '.join(PRECONDITIONERS)}")
+    check_choice(kind, PRECONDITIONERS, "lbfgs_preconditioner", error=OptionError)
     has_penalty = penalty is not None and penalty.beta[0] > 0
     if kind == "auto":
         kind = "penalty" if method == "lbfgs" and metric_kind == "complete" and has_penalty \

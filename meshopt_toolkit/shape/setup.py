@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._options import check_choice
 from .._typing import FloatArray
 from ..errors import OptimizationError, OptionError
 from ..mesh import PlanarMesh
@@ -75,9 +76,7 @@ def _retraction_options(exp_options: dict | None):
 def _retraction_kind(variant: str, retraction: str, exp_options: dict | None) -> str | None:
     """The retraction asked for, checked against the variant (None: the straight line;
     the default retraction names no request, so it passes with every variant)."""
-    if retraction not in RETRACTIONS:
-        raise OptionError(f"unknown retraction {retraction!r}; choose one of "
-                          f"{', '.join(RETRACTIONS)}")
+    check_choice(retraction, RETRACTIONS, "retraction", error=OptionError)
     if not VARIANT_PARTS[variant][1]:
         if retraction != DEFAULT_RETRACTION or exp_options is not None:
             raise OptionError(f"{variant} moves along straight lines; a retraction and "

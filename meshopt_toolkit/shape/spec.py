@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._options import check_choice
 from .._typing import FloatArray
 from ..errors import MeshoptError, OptimizationError, OptionError
 
@@ -253,8 +254,7 @@ class ProblemSpec:
     def __post_init__(self) -> None:
         name = _objective_name(self.objective)
         pde = self.pde or next(p for p, names in PDES.items() if name in names)
-        if pde not in PDES:
-            raise OptionError(f"unknown PDE {pde!r}; choose one of {', '.join(PDES)}")
+        check_choice(pde, PDES, "PDE", error=OptionError)
         if name not in PDES[pde]:
             raise OptionError(f"--objective {name} is not defined by --pde {pde} "
                               f"(it defines {', '.join(PDES[pde])})")

@@ -8,6 +8,7 @@ import numpy as np
 from ..._typing import FloatArray, IntArray
 from ...cells.registry import cells_of
 from ...errors import InvalidMeshError, SelfIntersectionError
+from ...kernels.admissibility import first_non_finite_row
 from ...kernels.intersections3d import self_intersections
 
 
@@ -31,10 +32,9 @@ def check_handles(handles, targets, n_vertices: int) -> tuple[np.ndarray, FloatA
                                f"has {n_vertices} vertices, 0 to {n_vertices - 1})")
     if tg.shape != (h.size, 3):
         raise InvalidMeshError(f"targets must have shape ({h.size}, 3), got {tg.shape}")
-    bad = np.flatnonzero(~np.isfinite(tg).all(axis=1))
-    if bad.size:
-        raise InvalidMeshError(f"targets[{bad[0]}] (of vertex {h[bad[0]]}) is not finite: "
-                               f"{tg[bad[0]].tolist()}")
+    if (k := first_non_finite_row(tg)) is not None:
+        raise InvalidMeshError(f"targets[{k}] (of vertex {h[k]}) is not finite: "
+                               f"{tg[k].tolist()}")
     return h.astype(np.int64), tg
 
 

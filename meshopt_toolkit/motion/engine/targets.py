@@ -31,6 +31,7 @@ from ..._typing import FloatArray, IntArray
 from ...cells.registry import cells_of
 from ...errors import ExpressionError, InvalidMeshError, ReadError
 from ...expressions import parse_expression, quoted
+from ...kernels.admissibility import first_non_finite_row
 from ...mesh import PlanarMesh, SurfaceMesh, TetMesh
 from ...mesh.kinds import is_surface
 
@@ -111,9 +112,7 @@ def _check_rows(path: Path, index: FloatArray, targets: FloatArray, n_vertices: 
         k = int(bad[0])
         raise ReadError(f"{path}: {row(k)}: vertex index {int(index[k])} is out of range "
                         f"(the mesh has {n_vertices} vertices, 0 to {n_vertices - 1})")
-    bad = np.flatnonzero(~np.isfinite(targets).all(axis=1))
-    if bad.size:
-        k = int(bad[0])
+    if (k := first_non_finite_row(targets)) is not None:
         raise ReadError(f"{path}: {row(k)}: the target of vertex {int(index[k])} is not "
                         f"finite: {targets[k].tolist()}")
     order = np.argsort(index, kind="stable")

@@ -74,8 +74,3 @@ class TetGraphMetric(AssembledMetric):
         back = np.matmul(np.swapaxes(jb, 1, 2), strain)[:, :, 0] * self.weight**2
         out = np.bincount(cols.ravel(), back.ravel(), minlength=V.size)
         return out.reshape(V.shape) + self.mass[:, None] * V
-
-    def segment_lengths(self, frames: FloatArray) -> FloatArray:
-        """``|X(Q_{k+1}) − X(Q_k)|`` for consecutive frames (K+1, N, 3) → (K,)."""
-        X = [np.concatenate(self.embed(Q)) for Q in frames]
-        return np.array([np.linalg.norm(b - a) for a, b in zip(X[:-1], X[1:])])

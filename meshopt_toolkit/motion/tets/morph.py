@@ -25,6 +25,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..._options import check_choice
 from ..._typing import FloatArray, IntArray
 from ...errors import InvalidMeshError, NotAdmissibleError, OptionError
 from ...kernels.intersections3d import self_intersections
@@ -238,9 +239,7 @@ def morph_tets(source: TetMesh, target: TetMesh, frames: int = 9, *, weight: flo
     """
     t_start = time.perf_counter()
     check_frames_and_weight(frames, weight)
-    if initial not in INITIAL_PATHS:
-        raise OptionError(f"unknown initial path {initial!r}; choose one of "
-                          f"{', '.join(INITIAL_PATHS)}")
+    check_choice(initial, INITIAL_PATHS, "initial path", error=OptionError)
     _check_pair(source, target)
     guard = SelfIntersectionGuard.of_morph(source, target)  # refuses crossing ends
     times = np.linspace(0.0, 1.0, int(frames))

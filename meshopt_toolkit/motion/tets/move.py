@@ -39,11 +39,13 @@ from ...kernels.tetrahedra import mean_ratios as tet_mean_ratios
 from ...kernels.tetrahedra import orientations as tet_orientations
 from ...kernels.tetrahedra import signed_volumes as tet_signed_volumes
 from ...mesh import TetMesh
+from ...results import WrappedMotion
 from ...scaling import UnitScale
 from ..engine.contact import NoContact
 from ..engine.continuation import NoAdmissiblePathError, march
 from ..engine.handles import SolvedVertices, check_handles, distinct_handles
 from ..engine.pinned_cells import pinned, turned_over_problem
+from ..engine.polish import quality_rounds
 from ..engine.similarity import HandlePath, Similarity3, fit_similarity_3d, handle_groups
 from ..engine.similarity_3d import tet_boundary_faces
 from .contact import tet_contact_term
@@ -151,21 +153,17 @@ def _finish(strain_source: FloatArray, tets: IntArray, problem: Problem, Q: Floa
     term (:func:`.minimize`)."""
     absolute = TetDistortion.regular(strain_source, tets)
     quality = replace(problem, strain=absolute)  # the same pattern, factor and settings
-    best, best_q = Q, float(tet_mean_ratios(Q, tets).min())
-    kept, nit, weights = 0, 0, np.ones(len(tets))
     zero = np.zeros((len(tets), 7))
-    for k in range(1, rounds + 1):
-        if best_q >= ceiling:
-            break
+
+    def relax(Q, weights):
+        weights = np.ones(len(tets)) if weights is None else weights
         res = minimize(quality, Q, Q, zero, weights, rtol=QUALITY_RTOL, max_iterations=max_iter,
                        newton=newton, contact=contact)
-        nit += res.iterations
-        Q = res.points
-        q = float(tet_mean_ratios(Q, tets).min())
-        if q > best_q:
-            best, best_q, kept = Q, q, k
-        size = np.linalg.norm(absolute.values(Q)[:, 1:], axis=1)
-        weights = weights * np.sqrt(np.maximum(1.0, size / np.sqrt(np.mean(size**2))))
+        return res.points, res.iterations
+
+    best, nit, kept = quality_rounds(
+        Q, rounds, relax, lambda Q: float(tet_mean_ratios(Q, tets).min()),
+        lambda Q: np.linalg.norm(absolute.values(Q)[:, 1:], axis=1), ceiling)
     return best, {"finish_iterations": nit, "finish_rounds_kept": kept}
 
 
@@ -323,7 +321,7 @@ def _continuation(problem: Problem, P: FloatArray, h: IntArray, path: HandlePath
 
 
 @dataclass
-class TetMeshMoveResult:
+class TetMeshMoveResult(WrappedMotion):
     """What :func:`meshopt_toolkit.move` returns for a :class:`~meshopt_toolkit.mesh.TetMesh`
     (the :class:`~meshopt_toolkit.results.Result` protocol).
 
@@ -344,18 +342,9 @@ class TetMeshMoveResult:
     motion: TetMoveResult
 
     points = property(lambda self: self.mesh.points, doc="The moved points ``(N, 3)``.")
-    seconds = property(lambda self: self.motion.seconds, doc="Wall time.")
     strain_bound = property(lambda self: self.motion.strain_bound, doc="See TetMoveResult.")
     min_mean_ratio = property(lambda self: self.motion.min_mean_ratio,
                               doc="``min η`` per returned frame.")
-
-    @property
-    def status(self) -> str:
-        """``"done"``: a returned motion always reached its targets (else it raises)."""
-        return "done"
-
-    def summary(self) -> dict:
-        return {"status": self.status, **self.motion.summary()}
 
 
 def move_tet_mesh(mesh: TetMesh, handles, targets, *, frames: int | None = None,
