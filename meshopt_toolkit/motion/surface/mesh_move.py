@@ -17,6 +17,7 @@ from ..._typing import FloatArray
 from ...errors import InvalidMeshError
 from ...mesh import SurfaceMesh
 from ...mesh.kinds import is_surface
+from ...results import WrappedMotion
 from ...scaling import unit_scale
 from ..engine.handles import SolvedVertices, check_handles, distinct_handles
 from ..engine.pinned_cells import surface_targets_problem
@@ -33,7 +34,7 @@ def surface_with_points(mesh: SurfaceMesh, points: FloatArray) -> SurfaceMesh:
 
 
 @dataclass
-class SurfaceMeshMoveResult:
+class SurfaceMeshMoveResult(WrappedMotion):
     """What :func:`meshopt_toolkit.move` returns for a surface (the
     :class:`~meshopt_toolkit.results.Result` protocol).
 
@@ -53,16 +54,6 @@ class SurfaceMeshMoveResult:
     frames: list[SurfaceMesh]
     motion: SurfaceMoveResult
 
-    seconds = property(lambda self: self.motion.seconds, doc="Wall time.")
-
-    @property
-    def status(self) -> str:
-        """``"done"``: a returned motion always reached its targets (else it raises)."""
-        return "done"
-
-    def summary(self) -> dict:
-        return {"status": self.status, **self.motion.summary()}
-
 
 def move_surface_mesh(mesh, handles, targets, *, frames: int | None = None, steps: int = 4,
                       weight: float = 1.0, relax_iterations: int = 15, max_splits: int = 8,
@@ -72,8 +63,8 @@ def move_surface_mesh(mesh, handles, targets, *, frames: int | None = None, step
     """:func:`move_surface` on a :class:`SurfaceMesh` (what ``mt.move`` calls for one).
 
     ``steps``, ``weight`` and ``contact`` are those of :func:`move_surface`, ``max_splits``
-    its ``max_halvings``; ``relax_iterations`` and ``quality_rounds`` (options of the planar and tet
-    solvers) are not used. With ``frames = K`` at least ``K − 1`` increments are taken and
+    its ``max_halvings``; ``relax_iterations`` and ``quality_rounds`` (options of the
+    planar and tet solvers) are not used. With ``frames = K`` at least ``K − 1`` increments are taken and
     the K frames are those whose path fractions are nearest to ``0, 1/(K−1), …, 1``.
     The motion is solved at unit size (the surface divided by the power of two nearest
     its size, :mod:`..scaling`) and scaled back: a surface scaled by ``2**k`` moves to
