@@ -135,11 +135,8 @@ def test_a_surface_move_is_scale_covariant_at_powers_of_two(k):
 
 
 # the first increment weighs each triangle by its distortion over the rms one; at the
-# rest both are rounding noise, which the weights then follow (motion/surface/move.py
-# must read an rms within rounding as none)
+# rest both are rounding noise, which the weights must not follow
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="surface_move's emphasis weights follow rounding "
-                                       "noise at the rest")
 @settings(max_examples=3, deadline=None)
 @given(e=st.integers(1, 12) | st.integers(-12, -1))
 @example(e=12)

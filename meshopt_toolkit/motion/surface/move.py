@@ -450,7 +450,7 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
         if emphasis > 0 and problem.free_triangles.any():  # the worst weigh more (c_t ≥ 1)
             size = np.linalg.norm(problem.membrane.values(start), axis=1)
             rms = float(np.sqrt(np.mean(size[problem.free_triangles] ** 2)))
-            if rms > 0:
+            if rms > 1e-8:  # φ is dimensionless: below, the rest's rounding noise
                 problem.row_weights = (weight * area_w
                                        * np.maximum(1.0, size / rms) ** (0.5 * emphasis))
         problem.phi_ref = np.zeros_like(phi) if anchor == "rest" else problem.membrane.values(start)
