@@ -242,14 +242,20 @@ def _load(path: Path):
     """``(workpiece, cells, mesh)``: a planar file's workpiece (the plane's coordinates at
     the file's scale, in which ``--rhs`` is given; every block, tag and datum written
     back) and its mesh, or a tet file's cells and admissible ``TetMesh`` (workpiece None)."""
+    from ..errors import InvalidMeshError
     from ..io import load_cells
     from ..mesh.kinds import cells_kind
-    from ._info_cells import TETS
+    from ._info_cells import SURFACE, TETS
 
     cells = load_cells(path)
     warn_dropped(cells, path)
-    if cells_kind(cells) == TETS:
+    kind = cells_kind(cells)
+    if kind == TETS:
         return None, cells, cells.to_tet_mesh("optimize").require_admissible()
+    if kind == SURFACE:
+        raise InvalidMeshError(f"{path}: optimize supports planar triangle and tetrahedral "
+                               "meshes; this is a triangle surface in 3D (its points are not "
+                               "on one plane)")
     wp = load_workpiece(path, "optimize", unit_size=False, cells=cells)
     return wp, cells, wp.mesh
 
