@@ -10,8 +10,12 @@ towards the guide frame ``P(t)`` in the lumped mass, IPC's barrier) by Newton st
 capped by CCD, so the polyline of iterates passes through no contact. At ``t = 1`` the
 attraction is raised tenfold until the iterate is within ``REACH_TOLERANCE`` of the
 target and the last straight piece onto it is clear; where it stalls before (the barrier
-holds it), there is no start (None). The frames are the iterates joined by the longest
-clear chords (CCD), the chords then split where there are frames to spare.
+holds it), there is no start (:class:`SelfIntersectionError`, saying how far short). The
+frames are the iterates joined by the longest chords clear by the morph's segment test (a
+step is taken only where that test passes it), the longest chords then halved where there
+are frames to spare; where more are needed than asked, the refusal gives the count. The
+barrier is ``STIFFER`` times IPC's initial stiffness: the iterates keep further from
+contact and the clear chords between them are longer.
 """
 
 from __future__ import annotations
@@ -27,10 +31,13 @@ from .surface_interpolation import arap_interpolation
 
 __all__ = ["homotopy_path", "homotopy_start"]
 
-CROSSING = "the morph finds no path free of self-contact: the interpolations of the ends pass through the surface"
+#: the start of the homotopy's refusals
+CROSSING = ("the morph finds no path free of self-contact: the interpolations of the ends "
+            "pass through the surface")
 #: guide frames per segment of the path, Newton steps per increment at most
 INCREMENTS, NEWTON_STEPS = 4, 12
-#: the attraction stiffness over the segment energy's scale, and its raises at the end
+#: the attraction's stiffness ``k`` (against the segment energy's mass term, 1), and its
+#: tenfold raises at most at the end
 ATTRACTION, RAISES = 1.0, 8
 #: the barrier's stiffness over IPC's initial one: the further the iterates keep from
 #: contact, the longer the clear chords between them
@@ -39,9 +46,10 @@ STIFFER = 100.0
 REACH_TOLERANCE = 0.5
 
 
-def _newton(problem, term: ContactTerm, Q: FloatArray, Xprev, P: FloatArray, k: float,
-            mass: FloatArray) -> list:
-    """The clear iterates of Newton's method on one increment's energy from ``Q``."""
+def _newton(problem, term: ContactTerm, clear, Q: FloatArray, Xprev, P: FloatArray,
+            k: float, mass: FloatArray) -> list:
+    """The iterates of Newton's method on one increment's energy from ``Q``, each step
+    CCD-capped and taken only where ``clear`` (the path's segment test) passes it."""
     def energy(Qt):
         X = problem.embed(Qt)
         if X is None:
@@ -71,7 +79,7 @@ def _newton(problem, term: ContactTerm, Q: FloatArray, Xprev, P: FloatArray, k: 
         for alpha in cap * 0.5 ** np.arange(10):
             trial = Q + alpha * step.reshape(-1, 3)
             E_trial = energy(trial)
-            if E_trial < E:
+            if E_trial < E and clear(Q, trial):
                 break
         else:
             break
@@ -95,12 +103,14 @@ def homotopy_path(problem, contact, V0: FloatArray, V1: FloatArray, guide,
     term = ContactTerm(contact.contact, np.ones(V0.size, bool), float(np.mean(mass)))
     dhat = contact.contact.dhat
     times = np.linspace(0.0, 1.0, INCREMENTS * segments + 1)
-    P = guide(times)
+    P = list(guide(times))
+    P[-1] = V1
     poly, Q = [V0], V0
     for j in range(1, len(times)):
         k = ATTRACTION
         for _ in range(RAISES if j == len(times) - 1 else 1):
-            steps = _newton(problem, term, Q, problem.embed(poly[-1]), P[j], k, mass)
+            steps = _newton(problem, term, contact.segment_clear, Q,
+                            problem.embed(poly[-1]), P[j], k, mass)
             poly += steps
             Q = poly[-1]
             if j < len(times) - 1 or np.abs(Q - V1).max() <= REACH_TOLERANCE * dhat:
@@ -117,10 +127,17 @@ def homotopy_path(problem, contact, V0: FloatArray, V1: FloatArray, guide,
         raise SelfIntersectionError(
             f"{CROSSING}; the clean path found around the contact needs {len(frames)} "
             f"frames, {segments + 1} asked")
-    while len(frames) - 1 < segments:  # halve the longest chord: its halves are clear
+    while len(frames) - 1 < segments:  # halve the longest chord whose halves CCD clears
         gaps = [np.abs(q - p).max() for p, q in zip(frames[:-1], frames[1:])]
-        i = int(np.argmax(gaps))
-        frames.insert(i + 1, 0.5 * (frames[i] + frames[i + 1]))
+        for i in np.argsort(gaps)[::-1]:
+            half = 0.5 * (frames[i] + frames[i + 1])
+            if contact.segment_clear(frames[i], half) and contact.segment_clear(
+                    half, frames[i + 1]):
+                frames.insert(i + 1, half)
+                break
+        else:
+            raise SelfIntersectionError(f"{CROSSING}; no chord of the clean path found "
+                                        "around the contact halves clear")
     return frames
 
 
