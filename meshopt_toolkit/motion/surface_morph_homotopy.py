@@ -34,8 +34,9 @@ __all__ = ["homotopy_path", "homotopy_start"]
 #: the start of the homotopy's refusals
 CROSSING = ("the morph finds no path free of self-contact: the interpolations of the ends "
             "pass through the surface")
-#: guide frames per segment of the path, Newton steps per increment at most
-INCREMENTS, NEWTON_STEPS = 4, 12
+#: the increments along the guide (whatever the frames asked), Newton steps per increment
+#: at most
+INCREMENTS, NEWTON_STEPS = 32, 12
 #: the attraction's stiffness ``k`` (against the segment energy's mass term, 1), and its
 #: tenfold raises at most at the end
 ATTRACTION, RAISES = 1.0, 8
@@ -102,7 +103,7 @@ def homotopy_path(problem, contact, V0: FloatArray, V1: FloatArray, guide,
     mass = problem.sqrt_m ** 2
     term = ContactTerm(contact.contact, np.ones(V0.size, bool), float(np.mean(mass)))
     dhat = contact.contact.dhat
-    times = np.linspace(0.0, 1.0, INCREMENTS * segments + 1)
+    times = np.linspace(0.0, 1.0, INCREMENTS + 1)
     P = list(guide(times))
     P[-1] = V1
     poly, Q = [V0], V0
