@@ -1,9 +1,9 @@
 """``mt.morph``: the morph between two meshes, one call whatever the metric.
 
 The metric is chosen in one place, :data:`MORPH_METRICS`: ``"distortion"`` (the
-per-triangle distortion metric ``M + w² JᵀJ``, :func:`~.motion.morph.distortion_morph`:
+per-triangle distortion metric ``M + w² JᵀJ``, :func:`~.motion.planar.morph.distortion_morph`:
 frames as healthy as their ends) or ``"complete"`` (the complete metric of ``√N·f2``,
-:func:`~.motion.scalar_morph.geodesic_morph`: frames only non-inverted). The command
+:func:`~.motion.planar.scalar_morph.geodesic_morph`: frames only non-inverted). The command
 line's ``--metric scalar`` is the complete metric (:data:`METRIC_ALIASES`).
 
 When a morph stops is :data:`STOP_RULES`: ``"healthy"`` stops a surface's morph as soon as
@@ -50,7 +50,7 @@ class CompleteMorph:
     Attributes
     ----------
     beta : (β1, β2, β3, β4), optional
-        The f2 coefficients (default :data:`~.motion.scalar_morph.DEFAULT_BETA`).
+        The f2 coefficients (default :data:`~.motion.planar.scalar_morph.DEFAULT_BETA`).
     normalize : bool
         The metric of ``√N·f2`` (default) or of f2.
     method : str
@@ -123,7 +123,7 @@ def _surfaces(source, target, frames: int, o: _Settings):
 
 
 #: meshes in space, each morphed with its own distortion metric (tets:
-#: :mod:`~.motion.tet_morph`, surfaces: :mod:`~.motion.surface_morph`), and its default
+#: :mod:`~.motion.tets.morph`, surfaces: :mod:`~.motion.surface.morph`), and its default
 #: iterations of the discrete geodesic
 IN_SPACE = {"tetrahedra": (_tets, 200), "surfaces": (_surfaces, 10)}
 
@@ -168,7 +168,7 @@ def morph(
         Surfaces in 3D (default True): where both poses are free of self-intersections, no
         frame, nor the motion between two frames, passes through the surface (an IPC
         barrier in the path energy, every step capped by continuous collision detection;
-        :mod:`~.motion.surface_morph_contact`). Planar and tet meshes need none: an
+        :mod:`~.motion.surface.morph_contact`). Planar and tet meshes need none: an
         admissible frame cannot overlap itself.
     max_iterations : int, optional
         Iterations of the discrete geodesic (default :data:`DEFAULT_MAX_ITER`, in space

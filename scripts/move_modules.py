@@ -121,7 +121,7 @@ def rewrite_text(text: str, mapping: dict[str, str]) -> str:
         new = mapping[old]
         text = re.sub(rf"(?<![\w.]){re.escape(old)}(?![\w])", new, text)
         o, n = old.split(".", 1)[1], new.split(".", 1)[1]
-        text = re.sub(rf"(?<![\w.]){re.escape(o)}(?![\w])", n, text)  # "motion.x", ``motion.x.f``
+        text = re.sub(rf"(?<![\w]){re.escape(o)}(?![\w])", n, text)  # "motion.x", ``..motion.x.f``
         op = old.split(".", 1)[1].replace(".", "/") + ".py"
         np_ = new.split(".", 1)[1].replace(".", "/") + ".py"
         text = re.sub(rf"(?<![\w/]){re.escape(op)}", np_, text)

@@ -1,7 +1,7 @@
 """Triangles in the plane: points ``(N, 2)``, cells ``(T, 3)`` counter-clockwise.
 
 Measures are the signed areas and quality the signed aspect ratio 2r/R
-(:mod:`..kernels.triangles`), the distortion :class:`..motion.strain.TriangleDistortion`,
+(:mod:`..kernels.triangles`), the distortion :class:`..motion.planar.distortion.TriangleDistortion`,
 admissibility the exact tests of :mod:`..kernels.admissibility` (areas, then the
 boundary), boundary facets the mesh's directed boundary edges (:class:`..mesh.TriangleMesh`).
 """

@@ -3,10 +3,10 @@
 A triangle in space has no orientation of its own: measures are the unsigned areas and
 quality the unsigned aspect ratio 2r/R (:mod:`..kernels.surface`); a fold is a normal
 turned against the rest normal carried by its neighbourhood's best rotation
-(:class:`..motion.surface_paths.FoldTest`). Admissibility is exact
+(:class:`..motion.surface.folds.FoldTest`). Admissibility is exact
 (:mod:`..kernels.intersections3d`): finite points, no triangle of exactly collinear
 corners, no two triangles that intersect improperly. The distortion is the membrane one,
-:class:`..motion.surface_distortion.SurfaceDistortion`, its Jacobians those of the maps
+:class:`..motion.surface.distortion.SurfaceDistortion`, its Jacobians those of the maps
 from each rest triangle's own plane.
 """
 

@@ -2,7 +2,7 @@
 
 Measures are the signed volumes and quality the signed mean ratio
 (:mod:`..kernels.tetrahedra`), the distortion
-:class:`..motion.tet_distortion.TetDistortion`, boundary facets the outward faces of
+:class:`..motion.tets.distortion.TetDistortion`, boundary facets the outward faces of
 :class:`..mesh.TetMesh`. Admissibility is exact: every tet positively oriented
 (``orient3d``, :mod:`..kernels.predicates`) and a boundary that does not intersect itself
 (:mod:`..kernels.intersections3d`).

@@ -2,7 +2,7 @@
 ``x, y, z``, the file written back with only its points replaced (every block, tag, name
 and datum kept). A surface map's candidates are all its vertices (an open surface's
 boundary stays); a tet map's are the boundary vertices, a physical group's nodes or the
-vertices a point datum selects (``--selection``, :func:`~..motion.handles3d.handles_in_space`,
+vertices a point datum selects (``--selection``, :func:`~..motion.engine.handles.handles_in_space`,
 which the move filter shares)."""
 
 from __future__ import annotations

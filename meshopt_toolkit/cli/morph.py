@@ -226,7 +226,7 @@ def _run_tets(args: argparse.Namespace, cells) -> int:
 
 
 def _run_surface(args: argparse.Namespace, cells) -> int:
-    """Morph two poses of a triangle surface in 3D (:mod:`..motion.surface_morph`); the
+    """Morph two poses of a triangle surface in 3D (:mod:`..motion.surface.morph`); the
     frames are the source's file (every block, tag and datum) with new points, plus
     ``quality.csv`` (per frame: worst relative quality, folds) and ``summary.json``."""
     import warnings

@@ -105,6 +105,7 @@ def test_far_from_contact_the_morph_is_the_one_without_bitwise():
     np.testing.assert_array_equal(on.points, off.points)
 
 
+@pytest.mark.slow
 def test_too_few_frames_for_a_detour_are_refused():
     src, tgt = flap_through_sheet()
     with pytest.raises(SelfIntersectionError, match="no path free of self-contact"):

@@ -38,7 +38,8 @@ With contact (the default, where both ends are free of self-intersections and th
 interior frame) no frame passes through the surface, nor the straight motion between two
 frames: each frame's IPC barrier joins the energy, every step is capped by CCD and taken
 only on a clean path, from a clean start (:mod:`.morph_contact`; a detour of the
-moving components where neither interpolation is clean).
+moving components where neither interpolation is clean, else the homotopy of
+:mod:`.morph_homotopy`).
 
 A pair related by a similarity (to ``1e-10`` of the diameter) is followed along that
 similarity exactly (rotation in angle, scale geometrically), an identical pair by copies;
@@ -70,6 +71,7 @@ from .folds import FoldTest
 from .interpolation import arap_interpolation
 from .metric import BENDING, WEIGHT, SurfaceGraphMetric
 from .morph_contact import PathContact, detour_path
+from .morph_homotopy import homotopy_start
 from .path_system import PathSystem
 
 __all__ = ["SurfaceMorph", "morph_surface", "frame_measures"]
@@ -117,7 +119,8 @@ class SurfaceMorph:
     triangles : (T, 3) int array
     status : "healthy", "converged", "max_iterations", "stalled", "stopped", "similarity" or
         "identical"
-    initial_path : "arap", "linear", "detour" (with contact), "similarity" or "identical"
+    initial_path : "arap", "linear", "detour" or "homotopy" (with contact), "similarity" or
+        "identical"
     energy : the path energy ``E`` (module docstring) at the end
     length : the frames' polygon length ``ℓ`` in the embedding
     """
@@ -284,7 +287,8 @@ def morph_surface(source: FloatArray, target: FloatArray, triangles: IntArray,
     NotAdmissibleError
         Neither interpolation is free of folds and degenerate triangles.
     SelfIntersectionError
-        With contact: no clean start path (neither interpolation nor a detour).
+        With contact: no clean start path (neither interpolation, a detour nor the
+        homotopy; the homotopy's line says where it stalls or how many frames it needs).
     """
     t_start = time.perf_counter()
     V0, V1 = np.asarray(source, float), np.asarray(target, float)
@@ -370,19 +374,24 @@ def _initial_path(problem: _PathProblem, V0, V1, F, times,
     """The as-rigid-as-possible interpolation (with its local/global steps, else without)
     where every frame is admissible, else the linear one where it is
     (:class:`NotAdmissibleError` else); with ``contact`` only a clean one, else a clean
-    detour (:func:`.morph_contact.detour_path`; :class:`SelfIntersectionError`
-    where there is none)."""
+    detour (:func:`.morph_contact.detour_path`), else the homotopy
+    (:func:`.morph_homotopy.homotopy_start`, its :class:`SelfIntersectionError`
+    where it finds none)."""
     candidates = (("arap", lambda: arap_interpolation(V0, V1, F, times,
                                                       iterations=START_ITERATIONS,
                                                       until=problem.healthy)),
                   ("arap", lambda: arap_interpolation(V0, V1, F, times)),
                   ("linear", lambda: [(1.0 - t) * V0 + t * V1 for t in times]),
-                  ("detour", lambda: detour_path(contact, V0, V1, F, len(times) - 1)))
+                  ("detour", lambda: detour_path(contact, V0, V1, F, len(times) - 1)),
+                  ("homotopy", lambda: homotopy_start(problem, contact, V0, V1, F,
+                                                     len(times) - 1)))
     crossed = False
     for name, make in candidates[:3] if contact is None else candidates:
+        if name == "homotopy" and not crossed:  # only around contact, not folds
+            break
         path = make()
         if path is None:
-            break
+            continue
         path[0], path[-1] = V0, V1
         if all(problem.embed(Q) is not None and problem.admissible(Q) for Q in path[1:-1]):
             if contact is None or contact.clean(path):

@@ -1,0 +1,173 @@
+"""A clean start for a surface morph whose interpolations cross (:mod:`.morph`), by
+IPC's incremental-potential homotopy towards a guide path.
+
+From the source, each increment minimizes over ``Q``
+
+    ½ |X(Q) − X(Q_prev)|² + ½ k |Q − P(t)|²_M + κ B(Q)
+
+(the morph's segment energy from the last increment, an attraction of stiffness ``k``
+towards the guide frame ``P(t)`` in the lumped mass, IPC's barrier) by Newton steps, each
+capped by CCD, so the polyline of iterates passes through no contact. At ``t = 1`` the
+attraction is raised tenfold until the iterate is within ``REACH_TOLERANCE`` of the
+target and the last straight piece onto it is clear; where it stalls before (the barrier
+holds it), there is no start (:class:`SelfIntersectionError`, saying how far short). The
+frames are the iterates joined by the longest chords clear by the morph's segment test (a
+step is taken only where that test passes it), the longest chords then halved where there
+are frames to spare; where more are needed than asked, the refusal gives the count. The
+barrier is ``STIFFER`` times IPC's initial stiffness: the iterates keep further from
+contact and the clear chords between them are longer.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..._typing import FloatArray
+from ...errors import SelfIntersectionError
+from ...solvers import factorize_spd
+from ..engine.contact import ContactTerm
+from .interpolation import arap_interpolation
+
+__all__ = ["homotopy_path", "homotopy_start"]
+
+#: the start of the homotopy's refusals
+CROSSING = ("the morph finds no path free of self-contact: the interpolations of the ends "
+            "pass through the surface")
+#: the increments along the guide (whatever the frames asked), Newton steps per increment
+#: at most
+INCREMENTS, NEWTON_STEPS = 32, 12
+#: the attraction's stiffness ``k`` (against the segment energy's mass term, 1), and its
+#: tenfold raises at most at the end
+ATTRACTION, RAISES = 1.0, 8
+#: the barrier's stiffness over IPC's initial one: the further the iterates keep from
+#: contact, the longer the clear chords between them
+STIFFER = 100.0
+#: the largest point distance to the target, over d̂, from which the last piece is taken
+REACH_TOLERANCE = 0.5
+
+
+def _newton(problem, term: ContactTerm, clear, Q: FloatArray, Xprev, P: FloatArray,
+            k: float, mass: FloatArray) -> list:
+    """The iterates of Newton's method on one increment's energy from ``Q``, each step
+    CCD-capped and taken only where ``clear`` (the path's segment test) passes it."""
+    def energy(Qt):
+        X = problem.embed(Qt)
+        if X is None:
+            return np.inf
+        r = problem.segment(Xprev, X)
+        d = (Qt - P).ravel()
+        return 0.5 * float(r @ r) + 0.5 * k * float(d @ (mass * d)) + term.energy(Qt)
+
+    out, E = [], energy(Q)
+    for _ in range(NEWTON_STEPS):
+        J = problem.jacobian(Q)
+        r = problem.segment(Xprev, problem.embed(Q))
+        g = J.T @ r + k * mass * (Q - P).ravel()
+        unset = term.kappa is None
+        if term.set_stiffness(Q, g):
+            if unset:  # stiffer than IPC's: the iterates keep further from contact
+                term.kappa *= STIFFER
+                term.max_kappa *= STIFFER
+            E = energy(Q)
+        g = g + term.gradient(Q)
+        H = (J.T @ J + sp.diags(k * mass)).tocsr()
+        B = term.hessian(Q)
+        if B is not None:
+            H = H + B
+        step = -factorize_spd(sp.csc_matrix(H))(g)
+        cap = term.step_cap(Q, -step)
+        for alpha in cap * 0.5 ** np.arange(10):
+            trial = Q + alpha * step.reshape(-1, 3)
+            E_trial = energy(trial)
+            if E_trial < E and clear(Q, trial):
+                break
+        else:
+            break
+        decrease, Q, E = E - E_trial, trial, E_trial
+        out.append(Q)
+        if decrease <= 1e-10 * max(E, 1e-300):
+            break
+    return out
+
+
+def homotopy_path(problem, contact, V0: FloatArray, V1: FloatArray, guide,
+                  segments: int) -> list:
+    """A clean path of ``segments + 1`` frames from ``V0`` to ``V1`` (module docstring),
+    pulled along ``guide`` (a callable of the times, its frames from ``V0`` to ``V1``);
+    :class:`SelfIntersectionError` where the attraction stalls or the iterates need more
+    chords than ``segments``.
+
+    ``problem`` is the morph's path problem (``embed``, ``segment``, ``jacobian``,
+    ``sqrt_m``), ``contact`` its :class:`.morph_contact.PathContact`."""
+    mass = problem.sqrt_m ** 2
+    term = ContactTerm(contact.contact, np.ones(V0.size, bool), float(np.mean(mass)))
+    dhat = contact.contact.dhat
+    times = np.linspace(0.0, 1.0, INCREMENTS + 1)
+    P = list(guide(times))
+    P[-1] = V1
+    poly, Q = [V0], V0
+    for j in range(1, len(times)):
+        k = ATTRACTION
+        for _ in range(RAISES if j == len(times) - 1 else 1):
+            steps = _newton(problem, term, contact.segment_clear, Q,
+                            problem.embed(poly[-1]), P[j], k, mass)
+            poly += steps
+            Q = poly[-1]
+            if j < len(times) - 1 or np.abs(Q - V1).max() <= REACH_TOLERANCE * dhat:
+                break
+            k *= 10.0
+    gap = float(np.abs(Q - V1).max())
+    if gap > REACH_TOLERANCE * dhat or not contact.segment_clear(Q, V1):
+        raise SelfIntersectionError(
+            f"{CROSSING}; pulled towards the target through contact, the surface stalls "
+            f"{gap:.3g} short of it")
+    poly.append(V1)
+    frames = _chords(contact, poly)
+    if len(frames) - 1 > segments:
+        raise SelfIntersectionError(
+            f"{CROSSING}; the clean path found around the contact needs {len(frames)} "
+            f"frames, {segments + 1} asked")
+    while len(frames) - 1 < segments:  # halve the longest chord whose halves CCD clears
+        gaps = [np.abs(q - p).max() for p, q in zip(frames[:-1], frames[1:])]
+        for i in np.argsort(gaps)[::-1]:
+            half = 0.5 * (frames[i] + frames[i + 1])
+            if contact.segment_clear(frames[i], half) and contact.segment_clear(
+                    half, frames[i + 1]):
+                frames.insert(i + 1, half)
+                break
+        else:
+            raise SelfIntersectionError(f"{CROSSING}; no chord of the clean path found "
+                                        "around the contact halves clear")
+    return frames
+
+
+def _chords(contact, poly: list) -> list:
+    """Frames on the clear polyline ``poly``: from each, the farthest iterate up to which
+    every chord is clear (CCD)."""
+    picks, a = [0], 0
+    while a < len(poly) - 1:
+        b = a + 1
+        while b + 1 < len(poly) and contact.segment_clear(poly[a], poly[b + 1]):
+            b += 1
+        picks.append(b)
+        a = b
+    return [poly[i] for i in picks]
+
+
+def homotopy_start(problem, contact, V0: FloatArray, V1: FloatArray, triangles,
+                   segments: int) -> list:
+    """:func:`homotopy_path` pulled along the as-rigid-as-possible interpolation, else
+    (where it has none or stalls) along the linear one; the linear one's refusal."""
+    def arap(ts):
+        return arap_interpolation(V0, V1, triangles, ts)
+
+    def linear(ts):
+        return [(1.0 - t) * V0 + t * V1 for t in ts]
+
+    if arap(np.array([0.0, 0.5, 1.0])) is not None:
+        try:
+            return homotopy_path(problem, contact, V0, V1, arap, segments)
+        except SelfIntersectionError:
+            pass
+    return homotopy_path(problem, contact, V0, V1, linear, segments)
