@@ -10,7 +10,6 @@ import meshio
 import numpy as np
 import pytest
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from meshopt_toolkit.cli import main
 from meshopt_toolkit.kernels.triangles import aspect_ratios, signed_areas

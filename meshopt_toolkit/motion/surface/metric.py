@@ -16,7 +16,6 @@ import scipy.sparse as sp
 from ..._typing import FloatArray, IntArray
 from ...cells.base import lumped_mass
 from ...errors import NotAdmissibleError
-from ...kernels.surface import areas
 from ...riemannian.assembled import AssembledMetric
 from .bending import ShellBending
 from .distortion import SurfaceDistortion
