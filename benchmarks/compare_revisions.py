@@ -146,10 +146,22 @@ def run_tet_morph(size: float = 0.12, degrees: float = 90.0) -> dict:
         "iterations": res.nit, "status": res.status}}
 
 
+def _first(name: str, *modules: str):
+    """``name`` from the first of ``modules`` the revision has (a module that moved)."""
+    import importlib
+
+    for module in modules:
+        try:
+            return getattr(importlib.import_module(module), name)
+        except ModuleNotFoundError:
+            continue
+    raise ModuleNotFoundError(f"{name}: in none of {modules}")
+
+
 def _surface_ours(V, F, handles, targets):
     """``move_surface`` as the tables above the contact section run it (no contact)."""
-    from meshopt_toolkit.motion.surface.move import move_surface
-
+    move_surface = _first("move_surface", "meshopt_toolkit.motion.surface.move",
+                          "meshopt_toolkit.motion.surface_move")
     return move_surface(V, F, handles, targets, **_accepted(move_surface, contact=False))
 
 
@@ -186,7 +198,15 @@ def run_surface_morph(pair: str, method: str = "ours", frames: int = 9) -> dict:
         V1 = np.asarray(_surface_ours(V0, F, case.handles, case.path(1.0)).points, float)
     else:
         V0, F, V1 = m.pose(case_name, maker)
-    path, sec = _timed(m.METHODS[method], V0, V1, F, np.linspace(0.0, 1.0, frames))
+    run = m.METHODS[method]
+    if method in ("ours", "ours, energy stop"):  # without contact, as the previous main
+        morph_surface = _first("morph_surface", "meshopt_toolkit.motion.surface.morph",
+                               "meshopt_toolkit.motion.surface_morph")
+        options = _accepted(morph_surface, contact=False)
+        if method != "ours":
+            options["stop_when_healthy"] = False
+        run = lambda V0, V1, F, t: m.ours(V0, V1, F, t, **options)  # noqa: E731
+    path, sec = _timed(run, V0, V1, F, np.linspace(0.0, 1.0, frames))
     measures = {"folds": sum(m.fold_count(V0, X, F) for X in path)}
     try:
         measures["E"] = m.path_energy(V0, V1, F, path)
