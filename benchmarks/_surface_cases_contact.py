@@ -14,11 +14,9 @@ def hand_surface(size: float = 0.1):
     """A closed hand-like plate (gmsh, OpenCASCADE): the palm [0, 2]×[0, 2]×[0, 0.3] fused
     with one finger [0.7, 1.3]×[2, 4]×[0, 0.3], its surface meshed at ``size``, normals
     out."""
-    import gmsh
+    from meshopt_toolkit.gmsh_session import gmsh_session
 
-    gmsh.initialize(interruptible=False)
-    try:
-        gmsh.option.setNumber("General.Terminal", 0)
+    with gmsh_session() as gmsh:
         gmsh.model.add("hand")
         palm = gmsh.model.occ.addBox(0.0, 0.0, 0.0, 2.0, 2.0, 0.3)
         finger = gmsh.model.occ.addBox(0.7, 2.0, 0.0, 0.6, 2.0, 0.3)
@@ -29,8 +27,6 @@ def hand_surface(size: float = 0.1):
         gmsh.model.mesh.generate(2)
         tags, coords, _ = gmsh.model.mesh.getNodes()
         _, _, nodes = gmsh.model.mesh.getElements(2)
-    finally:
-        gmsh.finalize()
     V = np.asarray(coords, float).reshape(-1, 3)
     index = np.zeros(int(tags.max()) + 1, np.int64)
     index[tags.astype(np.int64)] = np.arange(len(tags))

@@ -264,8 +264,10 @@ def _check_problem(spec, mesh, args) -> None:
     """What :func:`~meshopt_toolkit.optimize.optimize` would refuse of the groups, the
     constraints and the options a tet mesh does not take, before the output directory
     is made."""
+    from ..mesh.kinds import is_tets
+
     method = args.method
-    if hasattr(mesh, "tets"):
+    if is_tets(mesh):
         from ..shape.tets import check_tet_options
 
         check_tet_options(args.variant, args.lbfgs_preconditioner)

@@ -140,7 +140,9 @@ class OptimizeResult:
     def _quality(self, last: IterationRecord) -> dict:
         """The final quality and size: Λ and AR of triangles, mean ratios of tets (the
         history's two quality columns hold the tets' mean and worst mean ratio)."""
-        if hasattr(self.mesh, "tets"):
+        from ..mesh.kinds import is_tets
+
+        if is_tets(self.mesh):
             return {"mean_mean_ratio": last.mean_shape_quality,
                     "min_mean_ratio": last.min_aspect_ratio,
                     "n_vertices": self.mesh.n_vertices, "n_tets": self.mesh.n_tets}

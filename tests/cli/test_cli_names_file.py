@@ -136,9 +136,11 @@ def test_planar_commands_name_what_they_support(files, tmp_path, capsys, command
     argv += ["--no-plots"] if command == "optimize" else ["--displacement", str(files / "v.npy")]
     assert main(argv) == 1
     line = _one_line(capsys)
-    assert line == (f"meshopt {command}: error: {files / mesh}: {command} supports planar "
-                    f"triangle meshes; this is {kind}" + ("" if "tetra" in kind else
-                                                          " (its points are not on one plane)"))
+    takes = ("planar triangle and tetrahedral meshes" if command == "optimize"
+             else "planar triangle meshes")
+    assert line == (f"meshopt {command}: error: {files / mesh}: {command} supports {takes}; "
+                    f"this is {kind}" + ("" if "tetra" in kind else
+                                         " (its points are not on one plane)"))
     assert "not planar" not in line and not out.exists()
 
 

@@ -55,8 +55,17 @@ class BoundaryContact:
     def _on(self, Q: FloatArray) -> FloatArray:
         return np.asarray(Q, float)[self.vertices]
 
-    def collisions(self, Q: FloatArray):
-        return self.surface.collisions(self._on(Q))
+    @property
+    def triangles(self) -> IntArray:
+        return self.surface.triangles
+
+    signature = staticmethod(SurfaceContact.signature)
+
+    def collisions(self, Q: FloatArray, candidates=None):
+        return self.surface.collisions(self._on(Q), candidates)
+
+    def swept(self, Q0: FloatArray, Q1: FloatArray):
+        return self.surface.swept(self._on(Q0), self._on(Q1))
 
     def value(self, Q: FloatArray, collisions=None) -> float:
         return self.surface.value(self._on(Q), collisions)
