@@ -391,18 +391,22 @@ class ContactWarning(UserWarning):
 
 
 def contact_term(points: FloatArray, triangles: IntArray, free: np.ndarray,
-                 mass: FloatArray, on: bool = True) -> ContactTerm | NoContact:
+                 mass: FloatArray, on: bool = True, *, contact=None,
+                 what: str = "surface") -> ContactTerm | NoContact:
     """The contact term of a motion from ``points`` (the rest) over the ``free``
     coordinates, ``mass`` the vertex masses; :class:`NoContact` where ``on`` is False, and,
     with a :class:`ContactWarning` giving the count, where the rest intersects itself
-    (exact, :mod:`..kernels.intersections3d`)."""
+    (exact, :mod:`...kernels.intersections3d`). ``contact``: the triangles' contact where
+    not a :class:`SurfaceContact` of ``points`` (a tet mesh's boundary), ``what`` they are
+    in the warning."""
+    free = np.asarray(free, bool)
     if not on or len(triangles) < 2 or not free.any():
         return NoContact()
-    contact = SurfaceContact(points, triangles)
+    contact = SurfaceContact(points, triangles) if contact is None else contact
     if not contact.usable:
         pairs = len(self_intersections(points, triangles))
         if pairs:
-            warnings.warn(f"the surface intersects itself at rest ({pairs} pairs of "
+            warnings.warn(f"the {what} intersects itself at rest ({pairs} pairs of "
                           "triangles): moved without contact", ContactWarning, stacklevel=3)
         return NoContact()
     return ContactTerm(contact, free, float(np.mean(mass)))

@@ -11,14 +11,12 @@ that :class:`..engine.contact.ContactTerm` serves the tet solver's free coordina
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 import scipy.sparse as sp
 
 from ..._typing import FloatArray, IntArray
-from ...kernels.intersections3d import self_intersections
-from ..engine.contact import DHAT_FRACTION, ContactTerm, ContactWarning, NoContact, SurfaceContact
+from ..engine.contact import (DHAT_FRACTION, ContactTerm, NoContact, SurfaceContact,
+                              contact_term)
 from ..engine.similarity_3d import tet_boundary_faces
 
 __all__ = ["BoundaryContact", "tet_contact_term"]
@@ -102,23 +100,14 @@ class BoundaryContact:
 
 def tet_contact_term(points: FloatArray, tets: IntArray, free: np.ndarray, mass: FloatArray,
                      on: bool = True) -> ContactTerm | NoContact:
-    """The contact term of a tet motion from ``points`` (the rest) over the ``free``
-    coordinates (a mask over ``points.ravel()``), ``mass`` the vertex masses:
-    :class:`..engine.contact.ContactTerm` of the boundary; :class:`..engine.contact.NoContact` where ``on``
-    is False, where no boundary vertex is free (the boundary's path is prescribed), and,
-    with a :class:`..engine.contact.ContactWarning` giving the count, where the rest's boundary
-    intersects itself (exact, :mod:`..kernels.intersections3d`)."""
+    """:func:`..engine.contact.contact_term` of the boundary of a tet motion from ``points``
+    (the rest) over the ``free`` coordinates (a mask over ``points.ravel()``), ``mass`` the
+    vertex masses: no contact where no boundary vertex is free either (the boundary's
+    path is prescribed)."""
     faces = tet_boundary_faces(tets)
     if not on or len(faces) < 2:
         return NoContact()
-    boundary = np.unique(faces)
-    if not np.asarray(free, bool).reshape(-1, 3)[boundary].any():
+    if not np.asarray(free, bool).reshape(-1, 3)[np.unique(faces)].any():
         return NoContact()
-    contact = BoundaryContact(points, faces)
-    if not contact.usable:
-        pairs = len(self_intersections(points, faces))
-        if pairs:
-            warnings.warn(f"the boundary intersects itself at rest ({pairs} pairs of "
-                          "triangles): moved without contact", ContactWarning, stacklevel=3)
-        return NoContact()
-    return ContactTerm(contact, np.asarray(free, bool), float(np.mean(mass)))
+    return contact_term(points, faces, free, mass, contact=BoundaryContact(points, faces),
+                        what="boundary")
