@@ -16,7 +16,6 @@ from ...mesh.kinds import is_surface
 from ...results import PathIteration
 from ...scaling import unit_scale
 from ..engine.handles import SelfIntersectionGuard
-from .mesh_move import surface_with_points
 from .morph import BENDING, WEIGHT, SurfaceMorph, morph_surface
 
 __all__ = ["SurfaceMeshMorph", "morph_surface_mesh"]
@@ -101,7 +100,7 @@ def morph_surface_mesh(source, target, frames: int = 9, *, weight: float = WEIGH
 
     guard.check(res.points, motion="the morph", last=False)
 
-    out = [surface_with_points(s, P) for P in res.points]
+    out = [s.with_points(P) for P in res.points]
     if progress is not None:
         progress(1.0)
     return SurfaceMeshMorph(mesh=out[-1], frames=out, morph=res)

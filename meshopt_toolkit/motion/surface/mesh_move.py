@@ -13,7 +13,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..._typing import FloatArray
 from ...errors import InvalidMeshError
 from ...mesh import SurfaceMesh
 from ...mesh.kinds import is_surface
@@ -23,14 +22,7 @@ from ..engine.handles import SolvedVertices, check_handles, distinct_handles
 from ..engine.pinned_cells import surface_targets_problem
 from .move import SurfaceMoveResult, move_surface
 
-__all__ = ["SurfaceMeshMoveResult", "move_surface_mesh", "surface_with_points"]
-
-
-def surface_with_points(mesh: SurfaceMesh, points: FloatArray) -> SurfaceMesh:
-    """``mesh`` with its points replaced (the same triangles, lines, tags and names)."""
-    return SurfaceMesh(points, mesh.triangles, triangle_tags=mesh.triangle_tags,
-                       lines=mesh.lines, line_tags=mesh.line_tags, tag_names=mesh.tag_names,
-                       source=mesh.source)
+__all__ = ["SurfaceMeshMoveResult", "move_surface_mesh"]
 
 
 @dataclass
@@ -100,11 +92,11 @@ def move_surface_mesh(mesh, handles, targets, *, frames: int | None = None, step
                        max_halvings=max_splits, contact=contact).scaled_up(scale)
     res.points[solved.handles] = solved.targets  # bitwise, subnormal targets included
 
-    moved = surface_with_points(surface, solved.full(res.points))
+    moved = surface.with_points(solved.full(res.points))
     if frames is not None:
         times = np.asarray(res.times)
         pick = [int(np.argmin(np.abs(times - s))) for s in np.linspace(0, 1, int(frames))]
-        out = [surface_with_points(surface, solved.full(res.frames[i])) for i in pick[:-1]]
+        out = [surface.with_points(solved.full(res.frames[i])) for i in pick[:-1]]
         out.append(moved)
     else:
         out = [mesh, moved]
