@@ -74,12 +74,7 @@ class PathContact:
     def segment_clear(self, Q0: FloatArray, Q1: FloatArray) -> bool:
         """Whether the straight segment from the clean ``Q0`` to ``Q1`` is free of
         contact (CCD)."""
-        term = self._segments  # the whole surface's broad phase: candidates grown by d̂
-        # would make additive CCD (conservative) stop short on a pair that only approaches
-        step = float(np.sqrt(np.max(np.sum((Q1 - Q0) ** 2, axis=1)))) if len(Q0) else 0.0
-        if 2.0 * step < term.contact.dhat and not term.active(Q0):
-            return True
-        return term.contact.stepsize(Q0, Q1) >= 1.0
+        return self._segments.cap(Q0, Q1, swept=False) >= 1.0
 
     def clean(self, path: list) -> bool:
         """Whether every segment between consecutive frames is free of contact and no
