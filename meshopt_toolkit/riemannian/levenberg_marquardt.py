@@ -72,11 +72,12 @@ class LeastSquaresPath(Protocol):
 
 class PathModelMetric(Protocol):
     """A metric whose discrete geodesics Levenberg–Marquardt computes (optional capability
-    of :class:`~meshopt_toolkit.riemannian.metrics.Metric`)."""
+    of :class:`~meshopt_toolkit.riemannian.metrics.Metric`); the points' columns are its
+    ``dimension`` where it has one (3 for tets), else 2."""
 
     def path_model(self, frames: FloatArray, free: np.ndarray, boundary_edges=None,
                    anchor: FloatArray | None = None) -> LeastSquaresPath:
-        """The path energy of ``frames`` (K+1, N, 2) in the coordinates ``free`` (K+1, N)
+        """The path energy of ``frames`` (K+1, N, d) in the coordinates ``free`` (K+1, N)
         marks (frame 0 never moves), with the boundaries ``boundary_edges`` kept simple;
         ``anchor`` replaces the embedding's metric-specific part at ``Q_0``."""
 
