@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from motion_helpers import record_damped_steps
 from scipy.optimize import least_squares
 from test_surface_morph import bent, tube
 
@@ -23,14 +24,7 @@ def test_minimum_is_minpacks_each_step_a_decrease_and_the_damping_rule(monkeypat
     problem = sm._PathProblem(V0, V1, F, WEIGHT, BENDING)
     K = 3
     start, _ = sm._initial_path(problem, V0, V1, F, np.linspace(0.0, 1.0, K + 1))
-    steps, damped_step = [], sm.damped_step
-
-    def spy(solve, try_step, damping, **kwargs):
-        out = damped_step(solve, try_step, damping, **kwargs)
-        steps.append((damping, out))
-        return out
-
-    monkeypatch.setattr(sm, "damped_step", spy)
+    steps = record_damped_steps(monkeypatch, sm)
     path, status, iterations, _, E0, _ = sm._minimize(problem, list(start), 60, 1e-13, None)
     assert iterations > 2 and status in ("converged", "stalled")
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from motion_helpers import record_damped_steps
 from scipy.optimize import minimize as scipy_minimize
 from test_tet_move import cube_tets
 
@@ -24,14 +25,7 @@ def test_gauss_newton_minimum_is_scipys_and_every_step_armijos(monkeypatch, seed
     problem = ls.Problem.build(TetDistortion(P, T), 1.5, lumped_mass(P, T), handles)
     anchor = 0.1 * np.random.default_rng(seed).standard_normal((len(T), 7))
     ones, free = np.ones(len(T)), problem.pattern.free
-    steps, damped_step = [], ls.damped_step
-
-    def spy(solve, try_step, damping, **kwargs):
-        out = damped_step(solve, try_step, damping, **kwargs)
-        steps.append(out)
-        return out
-
-    monkeypatch.setattr(ls, "damped_step", spy)
+    steps = record_damped_steps(monkeypatch, ls)
     res = ls.minimize(problem, P, P, anchor, rtol=1e-8, max_iterations=100)
     assert res.gradient_ratio <= 1e-8 and steps
 
@@ -41,7 +35,7 @@ def test_gauss_newton_minimum_is_scipys_and_every_step_armijos(monkeypatch, seed
         return out
 
     Q = P
-    for out in steps:
+    for _, out in steps:
         if not out.accepted:
             break
         E = problem.energy(Q, P, anchor, ones)

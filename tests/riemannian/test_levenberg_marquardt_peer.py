@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from conftest import grid_mesh
+from motion_helpers import record_damped_steps
 from scipy.optimize import least_squares
 
 import meshopt_toolkit.riemannian.levenberg_marquardt as lm
@@ -22,14 +23,7 @@ def test_minimum_is_scipys_and_every_iteration_a_decrease(monkeypatch, seed):
     bump = np.sin(np.pi * P[:, 0]) * np.sin(np.pi * P[:, 1])
     Q1 = P + 0.15 * bump[:, None] * np.array([1.0, -0.5])
     metric, K = GraphMetric(P, mesh.triangles), 3
-    steps, damped_step = [], lm.damped_step
-
-    def spy(solve, try_step, damping, **kwargs):
-        out = damped_step(solve, try_step, damping, **kwargs)
-        steps.append((damping, out))
-        return out
-
-    monkeypatch.setattr(lm, "damped_step", spy)
+    steps = record_damped_steps(monkeypatch, lm)
     res = discrete_geodesic(metric, P, Q1, K, options={"gtol": 1e-14, "max_iterations": 300})
     assert res.converged and steps
     # each step lowers E, or, where E's change is rounding, its gradient
