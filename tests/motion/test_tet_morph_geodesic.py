@@ -10,6 +10,7 @@ import pytest
 from test_tet_morph import twisted_cube
 
 import meshopt_toolkit.motion.tets.morph as tm
+from meshopt_toolkit.errors import OptionError
 from meshopt_toolkit.kernels.intersections3d import self_intersections
 from meshopt_toolkit.motion.engine.similarity_3d import tet_boundary_faces
 from meshopt_toolkit.motion.tets.metric import TetGraphMetric
@@ -44,9 +45,9 @@ def test_the_tet_path_model_refuses_a_free_set_or_anchor_it_cannot_take():
     metric, P0, P1, init = _pair()
     free = np.zeros(init.shape[:2], bool)
     free[1] = True
-    with pytest.raises(ValueError, match="every vertex of the interior frames"):
+    with pytest.raises(OptionError, match="every vertex of the interior frames"):
         discrete_geodesic(metric, P0, P1, 3, path=init, free=free)
-    with pytest.raises(ValueError, match="anchor"):
+    with pytest.raises(OptionError, match="anchor"):
         discrete_geodesic(metric, P0, P1, 3, path=init, anchor=np.zeros((len(metric.tets), 7)))
 
 

@@ -59,8 +59,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..._typing import FloatArray, IntArray
-from ...errors import InvalidMeshError, NotAdmissibleError, OptionError, SelfIntersectionError
 from ...descent import halvings
+from ...errors import InvalidMeshError, NotAdmissibleError, OptionError, SelfIntersectionError
 from ...kernels.intersections3d import self_intersections
 from ...kernels.surface import aspect_ratios
 from ...least_squares import damped_step, model_decrease, step_length_damping
@@ -413,8 +413,8 @@ def _minimize(problem: _PathProblem, path: list, max_iterations: int, rtol: floa
     """Levenberg–Marquardt on the interior frames (module docstring): the frames, the
     status, iterations, factorizations, the initial energy (None where the start is
     returned as healthy, unevaluated) and the last gradient norm. Each step is a
-    :func:`...least_squares.damped_step` (8 halvings from the cap, the damping ×10 per
-    refused attempt, :func:`...least_squares.step_length_damping`). With ``healthy``, a
+    :func:`...least_squares.damped_step` (8 trials halving from the cap, the damping ×10
+    per refused attempt, :func:`...least_squares.step_length_damping`). With ``healthy``, a
     path (the start included) whose frames pass :meth:`_PathProblem.healthy` ends it.
     With ``contact`` (a clean start), the frames' barriers join the energy, each step is
     capped by the CCD of the frames' moves and a trial is taken only on a clean path."""

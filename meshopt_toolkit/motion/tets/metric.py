@@ -14,7 +14,7 @@ import scipy.sparse as sp
 
 from ..._typing import FloatArray, IntArray
 from ...cells.base import lumped_mass
-from ...errors import NotAdmissibleError
+from ...errors import NotAdmissibleError, OptionError
 from ...kernels.intersections3d import self_intersections
 from ...riemannian.assembled import AssembledMetric
 from .distortion import TetDistortion
@@ -86,12 +86,13 @@ class TetGraphMetric(AssembledMetric):
                    boundary_faces: IntArray | None = None,
                    anchor: FloatArray | None = None) -> TetPath:
         """The path energy of ``frames`` (K+1, N, 3) in every coordinate of the interior
-        frames (:class:`.path.TetPath`; ``free`` must say so, and no ``anchor``); with
-        ``boundary_faces`` (F, 3) a frame whose faces intersect is not admissible."""
+        frames (:class:`.path.TetPath`; ``free`` must say so, and no ``anchor``:
+        :class:`OptionError` else); with ``boundary_faces`` (F, 3) a frame whose faces
+        intersect is not admissible."""
         inner = np.zeros_like(free, dtype=bool)
         inner[1:-1] = True
         if anchor is not None or not np.array_equal(free, inner):
-            raise ValueError("the tet path model moves every vertex of the interior frames "
+            raise OptionError("the tet path model moves every vertex of the interior frames "
                              "and takes no anchor")
         faces = boundary_faces
         return TetPath(self, frames, None if faces is None else
