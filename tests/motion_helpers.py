@@ -41,3 +41,17 @@ def _straight_path(disc, rng, K=4):
     free = np.ones((K + 1, disc.n_vertices), bool)
     free[0] = free[-1] = False
     return frames, free, GraphMetric(P, disc.triangles)
+
+
+def record_damped_steps(monkeypatch, module) -> list:
+    """``(damping, DampedStep)`` of every call of ``module.damped_step`` from now on (the
+    least-squares step a minimizer takes, :mod:`meshopt_toolkit.least_squares`)."""
+    steps, damped_step = [], module.damped_step
+
+    def spy(solve, try_step, damping, **kwargs):
+        out = damped_step(solve, try_step, damping, **kwargs)
+        steps.append((damping, out))
+        return out
+
+    monkeypatch.setattr(module, "damped_step", spy)
+    return steps

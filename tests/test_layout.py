@@ -14,7 +14,7 @@ from test_architecture import PACKAGE, ROOT, find_cycle, module_level_imports
 LAYERS = {
     "foundations": ["_typing", "_linalg", "_lazy", "errors", "bounds", "progress", "scaling",
                     "diagnostics", "_cholmod", "solvers", "strict_json", "results", "_options",
-                    "descent"],
+                    "descent", "least_squares"],
     "kernels": ["kernels"],
     "mesh": ["mesh", "orientation", "generate", "gmsh_session"],
     "numerics": ["penalties", "fem", "ode", "riemannian", "expressions"],

@@ -17,11 +17,12 @@ DEFAULT_TOL = 1e-8
 SHOOTING_RTOL = 1e-10
 
 
-def _as_points(Q, what: str) -> FloatArray:
+def _as_points(Q, what: str, dimension: int = 2) -> FloatArray:
+    """The first ``dimension`` columns of the points ``Q`` (or of ``Q.points``)."""
     Q = np.array(getattr(Q, "points", Q), dtype=np.float64)
-    if Q.ndim != 2 or Q.shape[1] < 2:
-        raise InvalidMeshError(f"{what} must have shape (N, 2), got {Q.shape}")
-    return np.ascontiguousarray(Q[:, :2])
+    if Q.ndim != 2 or Q.shape[1] < dimension:
+        raise InvalidMeshError(f"{what} must have shape (N, {dimension}), got {Q.shape}")
+    return np.ascontiguousarray(Q[:, :dimension])
 
 
 def _path_frames(path, Q0: FloatArray, Q1: FloatArray, segments: int) -> FloatArray:

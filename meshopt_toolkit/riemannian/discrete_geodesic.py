@@ -64,18 +64,19 @@ def discrete_geodesic(
     metric : a :class:`~.metrics.Metric`: a complete metric or a penalty (Newton–CG),
         ``EuclideanMetric``/None (straight lines), or a metric with ``path_model``
         (Levenberg–Marquardt)
-    Q0, Q1 : (N, 2) admissible end frames
+    Q0, Q1 : (N, d) admissible end frames (``d`` the metric's ``dimension``, 2 where it
+        has none: the tet distortion metric's is 3)
     segments : K ≥ 1
     method : "auto" (Levenberg–Marquardt where the metric has ``path_model``, else
         Newton–CG), "newton-cg" or "levenberg-marquardt"
-    path : (K+1, N, 2) admissible initial path; its ends are set to ``Q0`` and ``Q1``
+    path : (K+1, N, d) admissible initial path; its ends are set to ``Q0`` and ``Q1``
         (default: :func:`.initial_path` for Newton–CG, the straight line for
         Levenberg–Marquardt)
     free : (K+1, N) bool, Levenberg–Marquardt only: which vertices of which frame move
         (frame 0 never does; default every vertex of the interior frames). A free vertex
         of the last frame starts at ``Q1``.
     boundary_edges : (E, 2) int, Levenberg–Marquardt only: boundaries kept simple in
-        every accepted frame
+        every accepted frame (for tets the boundary faces (F, 3))
     anchor : Levenberg–Marquardt only: replaces the metric-specific part of ``X(Q0)`` in
         the first segment (for the distortion metric a (T, 3) strain: with one segment,
         the frame that stays close to ``Q0`` while its strain approaches ``anchor``)
@@ -97,8 +98,9 @@ def discrete_geodesic(
     MetricNotImplementedError
         ``method="levenberg-marquardt"`` for a metric without ``path_model``.
     """
-    Q0 = _as_points(Q0, "Q0")
-    Q1 = _as_points(Q1, "Q1")
+    dimension = getattr(metric, "dimension", 2)  # the points' columns the metric takes
+    Q0 = _as_points(Q0, "Q0", dimension)
+    Q1 = _as_points(Q1, "Q1", dimension)
     K = int(segments)
     if K < 1:
         raise ValueError(f"segments must be >= 1, got {segments}")

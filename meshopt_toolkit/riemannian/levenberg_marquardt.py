@@ -5,7 +5,10 @@ frames (the per-triangle distortion metric: :mod:`meshopt_toolkit.motion.planar.
 The metric provides the problem through :class:`PathModelMetric` (``path_model``): the
 residuals, the normal equations of a step (gradient, step matrix, Levenberg–Marquardt's
 scaling) and the admissibility of frames (:class:`LeastSquaresPath`), and the solver of
-the damped step systems (:class:`StepSolver`). A trial with an inadmissible frame is
+the damped step systems (:class:`StepSolver`). Each step is the package's one damped
+Gauss–Newton step (:func:`..least_squares.damped_step`): the full step only, the damping
+quadrupled per refused attempt and updated by Marquardt's gain ratio
+(:func:`..least_squares.gain_ratio_damping`). A trial with an inadmissible frame is
 rejected like a trial that raises the energy.
 """
 
@@ -17,6 +20,7 @@ import numpy as np
 
 from .._typing import FloatArray
 from ..errors import NotAdmissibleError
+from ..least_squares import STOP, damped_step, gain_ratio_damping, model_decrease
 from .geodesic_result import DiscreteGeodesic
 from .path_options import ENERGY_RESOLUTION, UNDAMPED, LevenbergMarquardtOptions
 
@@ -68,11 +72,12 @@ class LeastSquaresPath(Protocol):
 
 class PathModelMetric(Protocol):
     """A metric whose discrete geodesics Levenberg–Marquardt computes (optional capability
-    of :class:`~meshopt_toolkit.riemannian.metrics.Metric`)."""
+    of :class:`~meshopt_toolkit.riemannian.metrics.Metric`); the points' columns are its
+    ``dimension`` where it has one (3 for tets), else 2."""
 
     def path_model(self, frames: FloatArray, free: np.ndarray, boundary_edges=None,
                    anchor: FloatArray | None = None) -> LeastSquaresPath:
-        """The path energy of ``frames`` (K+1, N, 2) in the coordinates ``free`` (K+1, N)
+        """The path energy of ``frames`` (K+1, N, d) in the coordinates ``free`` (K+1, N)
         marks (frame 0 never moves), with the boundaries ``boundary_edges`` kept simple;
         ``anchor`` replaces the embedding's metric-specific part at ``Q_0``."""
 
@@ -121,54 +126,54 @@ def levenberg_marquardt(path: LeastSquaresPath, frames: FloatArray,
             it -= 1
             break
         x = path.unknowns(frames)
-        accepted = False
         # whether an admissible trial's model decrease exceeded E's rounding (None: no
         # admissible trial was evaluated)
         resolvable: bool | None = None
-        at_floor = False
         judged = None  # the normal equations at a step judged by its gradient
-        for _ in range(30):
-            A = H.damped(lam * (d + 1e-12 * d.max()))
+        tried = lam  # the damping of the step being tried
+
+        def solve(damping: float, attempt: int):
+            nonlocal tried
+            tried = damping
             try:
-                step = blocks.solve(A, -g, cg_rtol)
-            except FloatingPointError:  # A is not positive definite (Newton): damp more
-                lam *= 4.0
-                continue
+                return blocks.solve(H.damped(damping * (d + 1e-12 * d.max())), -g, cg_rtol)
+            except FloatingPointError:  # not positive definite (Newton): damp more
+                return None
+
+        def try_step(step: FloatArray, t: float):
+            nonlocal resolvable, judged
             trial = path.with_unknowns(x + step)
-            if path.admissible(trial):
-                r_t, _ = path.evaluate(trial, jacobian=False)
-                E_t = float(r_t @ r_t)
-                predicted = -(2 * g @ step + step @ (H @ step))  # the quadratic model's
-                resolvable = bool(resolvable or predicted > ENERGY_RESOLUTION * E)
-                if lam <= UNDAMPED and predicted <= ENERGY_RESOLUTION * E:
-                    # E cannot judge the model's own step (its change is rounding): the
-                    # gradient, computed to full precision, does
-                    judged = path.normal_equations(trial, newton)
-                    if 2.0 * float(np.linalg.norm(judged[1])) < gnorm:
-                        frames = trial
-                        accepted = True
-                    else:
-                        at_floor = True
-                    break
-                if np.isfinite(E_t) and E_t < E:
-                    rho = (E - E_t) / max(predicted, 1e-300)
-                    frames = trial
-                    lam = lam * (lambda_decrease if rho > 0.75 else 1.0 if rho > 0.25 else 2.0)
-                    lam = max(lam, 1e-12)
-                    accepted = True
-                    break
-            lam *= 4.0
-        if at_floor:
-            # neither E nor its gradient can be lowered: the minimum to machine precision
+            if not path.admissible(trial):
+                return None
+            r_t, _ = path.evaluate(trial, jacobian=False)
+            E_t = float(r_t @ r_t)
+            predicted = 2.0 * model_decrease(g, step, H @ step)  # of E = |r|²
+            resolvable = bool(resolvable or predicted > ENERGY_RESOLUTION * E)
+            if tried <= UNDAMPED and predicted <= ENERGY_RESOLUTION * E:
+                # E cannot judge the model's own step (its change is rounding): the
+                # gradient, computed to full precision, does; where it does not fall
+                # either, the minimum to machine precision
+                judged = path.normal_equations(trial, newton)
+                return (trial, None) if 2.0 * float(np.linalg.norm(judged[1])) < gnorm else STOP
+            if np.isfinite(E_t) and E_t < E:
+                return trial, (E - E_t) / max(predicted, 1e-300)
+            return None
+
+        found = damped_step(solve, try_step, lam, attempts=30, increase=4.0,
+                            update=lambda lam, t, out: lam if out[1] is None else
+                            gain_ratio_damping(lam, out[1], lambda_decrease))
+        lam = found.damping
+        if found.outcome == "stopped":
             status = "converged"
             it -= 1
             break
-        if not accepted:
+        if not found.accepted:
             # no step lowers E, and the admissible ones promised no more than E's
             # floating-point resolution: the minimum to machine precision (a tight gtol
             # cannot be met there)
             status = "converged" if resolvable is False else "stalled"
             break
+        frames = found.payload[0]
         path.frames = frames
         r, g, H, d = path.normal_equations(frames, newton) if judged is None else judged
         E = float(r @ r)

@@ -59,9 +59,11 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..._typing import FloatArray, IntArray
+from ...descent import halvings
 from ...errors import InvalidMeshError, NotAdmissibleError, OptionError, SelfIntersectionError
 from ...kernels.intersections3d import self_intersections
 from ...kernels.surface import aspect_ratios
+from ...least_squares import damped_step, model_decrease, step_length_damping
 from ...results import PathIteration
 from ...scaling import unit_scale
 from ..engine.contact import ContactWarning, pair_contact
@@ -410,7 +412,9 @@ def _minimize(problem: _PathProblem, path: list, max_iterations: int, rtol: floa
               callback, healthy: bool = False, contact: PathContact | None = None) -> tuple:
     """Levenberg–Marquardt on the interior frames (module docstring): the frames, the
     status, iterations, factorizations, the initial energy (None where the start is
-    returned as healthy, unevaluated) and the last gradient norm. With ``healthy``, a
+    returned as healthy, unevaluated) and the last gradient norm. Each step is a
+    :func:`...least_squares.damped_step` (8 trials halving from the cap, the damping ×10
+    per refused attempt, :func:`...least_squares.step_length_damping`). With ``healthy``, a
     path (the start included) whose frames pass :meth:`_PathProblem.healthy` ends it.
     With ``contact`` (a clean start), the frames' barriers join the energy, each step is
     capped by the CCD of the frames' moves and a trial is taken only on a clean path."""
@@ -441,44 +445,45 @@ def _minimize(problem: _PathProblem, path: list, max_iterations: int, rtol: floa
             g = g + contact.gradient(path)
             barriers = contact.hessians(path)
         gnorm = float(np.linalg.norm(g))
-        accepted = stationary = False
-        for attempt in range(4):  # raise the damping until a step is taken
-            system.update(D, damping, fresh, barriers)
+
+        def solve(damping: float, attempt: int, D=D, g=g, barriers=barriers):
+            nonlocal fresh
+            system.update(D, damping, fresh or attempt > 0, barriers)
             step = -system.solve(g, max_iterations=CG_ITERATIONS)
             # the kept factors serve while conjugate gradients converge quickly with them
             fresh = system.iterations > CG_REFACTORIZE
-            if attempt == 0 and damping <= 1e-3:
-                # the Gauss–Newton model's decrease along the step, −g·s − ½ sᵀHs
-                predicted = -float(g @ step) - 0.5 * float(step @ system.product(step, 0.0))
-                if predicted <= rtol * E:
-                    stationary = True
-                    break
-            cap = 1.0 if contact is None else contact.cap(path, step)
-            for alpha in cap * 0.5 ** np.arange(8):
-                trial = [path[0]] + [path[j] + alpha * step[(j - 1) * n:j * n].reshape(-1, 3)
-                                     for j in range(1, K)] + [path[K]]
-                Xt = [X[0]] + [problem.embed(Q) for Q in trial[1:-1]] + [X[K]]
-                if any(x is None for x in Xt):
-                    continue
-                E_trial, r_trial = energy_of(Xt, trial)
-                if E_trial < E and all(problem.admissible(Q) for Q in trial[1:-1]) and (
-                        contact is None or contact.clean(trial)):
-                    accepted = True
-                    break
-            if accepted:
-                break
-            damping *= 10.0
-            fresh = True
-        if stationary:
-            status = "converged"
-            break
-        if not accepted:
-            status = "stalled"
+            return step
+
+        def try_step(step: FloatArray, alpha: float, path=path, X=X, E=E):
+            trial = [path[0]] + [path[j] + alpha * step[(j - 1) * n:j * n].reshape(-1, 3)
+                                 for j in range(1, K)] + [path[K]]
+            Xt = [X[0]] + [problem.embed(Q) for Q in trial[1:-1]] + [X[K]]
+            if any(x is None for x in Xt):
+                return None
+            E_trial, r_trial = energy_of(Xt, trial)
+            if E_trial < E and all(problem.admissible(Q) for Q in trial[1:-1]) and (
+                    contact is None or contact.clean(trial)):
+                return trial, Xt, E_trial, r_trial
+            return None
+
+        def stationary(step: FloatArray, damping: float, g=g, E=E) -> bool:
+            # a barely damped step whose Gauss–Newton model promises under rtol·E
+            return damping <= 1e-3 and model_decrease(g, step, system.product(step, 0.0)
+                                                      ) <= rtol * E
+
+        found = damped_step(
+            solve, try_step, damping, attempts=4, increase=10.0, stationary=stationary,
+            lengths=lambda step, path=path: halvings(
+                1.0 if contact is None else contact.cap(path, step), count=8),
+            update=lambda damping, alpha, _: step_length_damping(damping, alpha))
+        damping = found.damping
+        if not found.accepted:  # the model stationary, or every trial refused
+            status = "converged" if found.outcome == "stationary" else "stalled"
             break
         steps += 1
+        trial, Xt, E_trial, r_trial = found.payload
         decrease = E - E_trial
         path, X, E, r = trial, Xt, E_trial, r_trial
-        damping = max(damping / 3.0, 1e-8) if alpha == 1.0 else damping * 2.0
         if callback is not None and callback(PathIteration(steps, E, gnorm)):
             status = "stopped"
             break

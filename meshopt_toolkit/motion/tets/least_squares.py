@@ -8,8 +8,9 @@ It minimizes
 over the free vertices (``P`` the proximal centre, ``a`` the anchor distortion, ``ω`` the
 tet weights) by Newton (the residual curvature taken on the tets far from their anchor;
 Gauss–Newton where that matrix is not positive definite; optionally each tet's block
-projected onto the positive semidefinite cone instead) with a backtracking line search
-(:func:`..descent.backtrack`) that accepts only steps that lower ``E``: ``E`` is ``+inf``
+projected onto the positive semidefinite cone instead): the undamped configuration of
+the package's one Gauss–Newton step (:func:`...least_squares.damped_step`), backtracking
+(:func:`...descent.halvings`) over trials that lower ``E`` enough: ``E`` is ``+inf``
 where a tet is inverted, so every accepted iterate has every tet positively oriented. The
 sparse matrices are lower triangles on a pattern built once
 (:class:`..engine.sparse_pattern.FreePattern`), factorized by CHOLMOD on a kept analysis.
@@ -29,7 +30,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..._typing import FloatArray, IntArray
-from ...descent import backtrack, halvings, sufficient_decrease
+from ...descent import halvings, sufficient_decrease
+from ...least_squares import damped_step
 from ...solvers import cholesky_spd, cholmod_available, factorize_spd, pcg
 from ..engine.contact import NoContact
 from ..engine.sparse_pattern import FreePattern
@@ -229,31 +231,37 @@ def minimize(problem: Problem, Q: FloatArray, centre: FloatArray, anchor: FloatA
         ratio = gnorm / g0 if g0 > 0 else 0.0
         if gnorm <= gtol or ratio <= rtol:
             return Minimized(Q, it, E, ratio)
-        step = None
-        if full is not None:
-            try:
-                step = -problem.solve_step(full, g, maybe_indefinite=True)
-                if step @ g >= 0:
-                    step = None
-            except RuntimeError:  # not positive definite: Gauss–Newton
-                step = None
-            newton = step is not None  # from now on Gauss–Newton where it failed
-        if step is None:
-            step = -problem.solve_step(gn, g, fresh=barrier is not None)
-        slope = float(step @ g)
 
-        def try_step(t: float, Q=Q, E=E, step=step, slope=slope):
+        def solve(damping: float, attempt: int, g=g, gn=gn, full=full, barrier=barrier):
+            nonlocal newton
+            step = None
+            if full is not None:
+                try:
+                    step = -problem.solve_step(full, g, maybe_indefinite=True)
+                    if step @ g >= 0:
+                        step = None
+                except RuntimeError:  # not positive definite: Gauss–Newton
+                    step = None
+                newton = step is not None  # from now on Gauss–Newton where it failed
+            if step is None:
+                step = -problem.solve_step(gn, g, fresh=barrier is not None)
+            return step
+
+        def try_step(step: FloatArray, t: float, Q=Q, E=E, g=g):
             trial = Q.copy()
             trial.reshape(-1)[free] += t * step
             Et = problem.energy(trial, centre, anchor, w)
             if np.isfinite(Et):
                 Et += contact.energy(trial)
-            return (trial, Et) if sufficient_decrease(Et, E, t, slope) else None
+            return (trial, Et) if sufficient_decrease(Et, E, t, float(step @ g)) else None
 
-        found = backtrack(try_step, halvings(contact.step_cap(Q, -step), count=40))
-        if found is None:
+        # undamped: one step, backtracked from the contact's cap
+        found = damped_step(solve, try_step, 0.0,
+                            lengths=lambda step, Q=Q: halvings(contact.step_cap(Q, -step),
+                                                               count=40))
+        if not found.accepted:
             return Minimized(Q, it, E, ratio)
-        Q, E = found[1]
+        Q, E = found.payload
     return Minimized(Q, max_iterations, E, ratio)
 
 

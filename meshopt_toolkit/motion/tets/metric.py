@@ -7,15 +7,18 @@ length bounds every tet's change of distortion (``|Δφ_c| ≤ ℓ/w``). It impl
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import numpy as np
 import scipy.sparse as sp
 
 from ..._typing import FloatArray, IntArray
 from ...cells.base import lumped_mass
-from ...errors import NotAdmissibleError
+from ...errors import NotAdmissibleError, OptionError
+from ...kernels.intersections3d import self_intersections
 from ...riemannian.assembled import AssembledMetric
 from .distortion import TetDistortion
+from .path import TetPath
 
 
 @dataclass
@@ -36,6 +39,8 @@ class TetGraphMetric(AssembledMetric):
     weight: float = 1.0
     strain: TetDistortion = field(init=False)
     mass: FloatArray = field(init=False)
+    #: the points' columns (the discrete geodesic's frames are (K+1, N, 3))
+    dimension: ClassVar[int] = 3
 
     def __post_init__(self) -> None:
         self.reference = np.asarray(self.reference, dtype=float)
@@ -74,3 +79,21 @@ class TetGraphMetric(AssembledMetric):
         back = np.matmul(np.swapaxes(jb, 1, 2), strain)[:, :, 0] * self.weight**2
         out = np.bincount(cols.ravel(), back.ravel(), minlength=V.size)
         return out.reshape(V.shape) + self.mass[:, None] * V
+
+    # -- the discrete path energy (riemannian.levenberg_marquardt.PathModelMetric) ----------
+
+    def path_model(self, frames: FloatArray, free: np.ndarray,
+                   boundary_faces: IntArray | None = None,
+                   anchor: FloatArray | None = None) -> TetPath:
+        """The path energy of ``frames`` (K+1, N, 3) in every coordinate of the interior
+        frames (:class:`.path.TetPath`; ``free`` must say so, and no ``anchor``:
+        :class:`OptionError` else); with ``boundary_faces`` (F, 3) a frame whose faces
+        intersect is not admissible."""
+        inner = np.zeros_like(free, dtype=bool)
+        inner[1:-1] = True
+        if anchor is not None or not np.array_equal(free, inner):
+            raise OptionError("the tet path model moves every vertex of the interior frames "
+                             "and takes no anchor")
+        faces = boundary_faces
+        return TetPath(self, frames, None if faces is None else
+                       lambda Q: bool(len(self_intersections(Q, faces))))

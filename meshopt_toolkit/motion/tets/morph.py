@@ -5,7 +5,8 @@ The pair is factored as the similarity that best fits the target's boundary to t
 source's (Umeyama, followed exactly: it costs no shape strain) and a residual pair; the
 residual frames are the nodes of a discrete geodesic of ``g = M + w² JᵀJ`` of the tet
 distortion relative to the source (:mod:`.path`, minimized by the Riemannian layer's
-Levenberg–Marquardt method, every accepted iterate admissible) between the two fixed
+:func:`...riemannian.discrete_geodesic.discrete_geodesic`, the metric's ``path_model``
+by Levenberg–Marquardt, every accepted iterate admissible) between the two fixed
 ends. The start is the linear interpolation of the residual pair where every frame of it
 is admissible, else a minimizing movement: the boundary along each boundary piece's
 similarity to its target, the interior relaxed at each step towards the interpolated
@@ -33,7 +34,7 @@ from ...kernels.tetrahedra import mean_ratios, signed_volumes
 from ...mesh import TetMesh
 from ...mesh.kinds import is_tets
 from ...results import PathFrames
-from ...riemannian.levenberg_marquardt import levenberg_marquardt
+from ...riemannian.discrete_geodesic import discrete_geodesic
 from ...riemannian.path_options import LevenbergMarquardtOptions
 from ...scaling import UnitScale
 from ..engine.continuation import NoAdmissiblePathError, check_frames_and_weight, march
@@ -43,7 +44,6 @@ from ..engine.similarity_3d import tet_boundary_faces
 from .distortion import SQRT3
 from .least_squares import Problem, extend, minimize
 from .metric import TetGraphMetric
-from .path import TetPath
 
 __all__ = ["TetMorphResult", "morph_tets"]
 
@@ -271,10 +271,12 @@ def morph_tets(source: TetMesh, target: TetMesh, frames: int = 9, *, weight: flo
             # trials through themselves refused on request, unless the start is one
             avoid = avoid_crossings and crosses is not None and not any(
                 crosses(Q) for Q in init[1:-1])
-            model = TetPath(metric, init, crosses=crosses if avoid else None)
-            geo = levenberg_marquardt(model, init, LevenbergMarquardtOptions(
-                max_iterations=int(max_iterations), gtol=gtol, cg_rtol=PATH_CG_RTOL, newton=newton),
-                callback)
+            geo = discrete_geodesic(metric, P0, R1, len(times) - 1, path=init,
+                                    boundary_edges=faces if avoid else None,
+                                    options=LevenbergMarquardtOptions(
+                                        max_iterations=int(max_iterations), gtol=gtol,
+                                        cg_rtol=PATH_CG_RTOL, newton=newton),
+                                    callback=callback)
             residual = geo.points
     moved = np.array([R if S.is_identity else S.at(float(s))(R) for s, R in zip(times, residual)])
     moved[0], moved[-1] = P0, P1

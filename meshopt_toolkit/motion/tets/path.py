@@ -30,7 +30,6 @@ from ..engine.sparse_pattern import CellPattern
 from ..planar.assembly import BlockTridiagonal
 from ..planar.frame_blocks import FrameBlocks
 from ..planar.time_coupling import FrameEmbedding
-from .metric import TetGraphMetric
 
 
 class TetPath:
@@ -39,7 +38,7 @@ class TetPath:
 
     Parameters
     ----------
-    metric : TetGraphMetric
+    metric : :class:`.metric.TetGraphMetric`
     frames : (K+1, N, 3) float array
         Every vertex in some tet (the mass of the others is zero). The ends are fixed:
         the frames given later have the same ends.
@@ -47,7 +46,7 @@ class TetPath:
         Whether a frame's boundary intersects itself; such a frame is not admissible.
     """
 
-    def __init__(self, metric: TetGraphMetric, frames: FloatArray,
+    def __init__(self, metric, frames: FloatArray,
                  crosses: Callable[[FloatArray], bool] | None = None) -> None:
         self.metric = metric
         self.crosses = crosses
