@@ -19,7 +19,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from .._typing import FloatArray, IntArray
-from ..kernels.cell_maps import affine_maps, barycentric_gradients
+from ..kernels.cell_maps import affine_maps, barycentric_gradients, coordinate_columns
 from ..kernels.surface import areas
 from ..kernels.tetrahedra import signed_volumes
 from ..kernels.triangles import signed_areas
@@ -151,6 +151,6 @@ class SimplexKind:
         phi, blocks = self.distortion(reference, cells).values_and_jacobian(points)
         per_cell = np.einsum("cm,cmj->cj", np.asarray(weights, dtype=float), blocks)
         d = self.point_dimension
-        cols = (d * np.asarray(cells)[:, :, None] + np.arange(d)).reshape(len(cells), -1)
+        cols = coordinate_columns(cells, d)
         out = np.bincount(cols.ravel(), per_cell.ravel(), minlength=d * len(points))
         return phi, out.reshape(len(points), d)
