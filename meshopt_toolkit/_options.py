@@ -1,13 +1,33 @@
 """The one way an options dataclass is given: an instance, a mapping of its fields, or
 None (the defaults), with changes on top (:func:`options_of`); the one check of a named
-choice (:func:`check_choice`)."""
+choice (:func:`check_choice`) and of a number's range (:func:`require_positive`,
+:func:`require_at_least`)."""
 
 from __future__ import annotations
 
 import dataclasses
 from collections.abc import Mapping
 
-__all__ = ["check_choice", "options_of"]
+from .errors import OptionError
+
+__all__ = ["check_choice", "options_of", "require_at_least", "require_positive"]
+
+
+def require_positive(name: str, value, *, error: type[Exception] = OptionError):
+    """``value`` if it is None (left to its default) or > 0, else ``error`` naming ``name``
+    (``"weight must be > 0, got -1"``); NaN is refused."""
+    if value is not None and not value > 0:
+        raise error(f"{name} must be > 0, got {value!r}")
+    return value
+
+
+def require_at_least(name: str, value, low: int, *, error: type[Exception] = OptionError):
+    """``value`` if it is None (left to its default) or ``>= low``, else ``error`` naming
+    ``name`` (``"frames must be at least 2, got 1"``); for counts such as frames and
+    iterations."""
+    if value is not None and not value >= low:
+        raise error(f"{name} must be at least {low}, got {value!r}")
+    return value
 
 
 def check_choice(value, choices, what: str, *, error: type[Exception]):

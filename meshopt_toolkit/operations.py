@@ -18,7 +18,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ._options import check_choice
+from ._options import check_choice, require_at_least
 from .conversions import Carried
 from .errors import InvalidMeshError, OptionError
 from .results import PathIteration
@@ -223,12 +223,10 @@ def morph(
         run, default_iterations = IN_SPACE[space]
     else:
         default_iterations = DEFAULT_MAX_ITER[name]
-    if int(frames) < 2:
-        raise OptionError(f"frames must be at least 2, got {frames}")
+    require_at_least("frames", frames, 2)
     check_choice(stop, STOP_RULES, "stop rule", error=OptionError)
     n_iter = default_iterations if max_iterations is None else int(max_iterations)
-    if n_iter < 1:
-        raise OptionError(f"max_iterations must be at least 1, got {max_iterations}")
+    require_at_least("max_iterations", n_iter, 1)
 
     def step(nit: int, energy: float, gradient_norm: float) -> bool:
         if progress is not None:
