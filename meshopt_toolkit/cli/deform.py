@@ -21,7 +21,7 @@ import argparse
 import logging
 
 from ..bounds import MAX_FRAMES
-from ._common import (add_output_flags, checked_paths, float_list, frame_names,
+from ._common import (add_output_flags, checked_paths, csv_table, float_list, frame_names,
                       load_workpiece, save_moved, save_moved_frames, write_text)
 from ..filters.apply_coord_quality_preserving_deformation import QualityPreservingDeformation
 from ._params import add_options, check_options
@@ -98,9 +98,9 @@ def run(args: argparse.Namespace) -> int:
     save_moved_frames(wp, res.meshes(), out, frame_names(frames, args.format, src),
                       force=args.force)
     g = res.geodesic
-    write_text(out / "quality.csv", "t,min_aspect_ratio,penalty,energy\n" + "".join(
-        f"{t:.10g},{ar:.10g},{f:.10g},{e:.10g}\n"
-        for t, ar, f, e in zip(res.times, res.aspect_ratio, g.penalty, g.energy)))
+    write_text(out / "quality.csv", csv_table({
+        "t": res.times, "min_aspect_ratio": res.aspect_ratio, "penalty": g.penalty,
+        "energy": g.energy}))
     if not args.no_plots:
         from ..plotting import save_quality_plot, save_snapshot_strip
 

@@ -33,7 +33,7 @@ from .. import strict_json
 
 from ..bounds import MAX_FRAMES
 from ..filters.apply_coord_prescribed_motion import PrescribedMotion
-from ._common import (add_output_flags, checked_paths, frame_names, load_workpiece,
+from ._common import (add_output_flags, checked_paths, csv_table, frame_names, load_workpiece,
                       save_moved, save_moved_frames, warn_dropped, write_text)
 from ._params import add_options, check_options
 from ._validate import OptionError, check_int
@@ -135,10 +135,9 @@ def run(args: argparse.Namespace) -> int:
     else:
         save_moved_frames(wp, result.frames, out, frame_names(frames, args.format, src),
                           force=args.force)
-        rows = zip(result.min_aspect_ratio, result.mean_quality, result.strain_bound)
-        write_text(out / "quality.csv", "frame,min_aspect_ratio,mean_quality,strain_bound\n"
-                   + "".join(f"{k},{a:.10g},{q:.10g},{b:.10g}\n"
-                             for k, (a, q, b) in enumerate(rows)))
+        write_text(out / "quality.csv", csv_table({
+            "frame": range(frames), "min_aspect_ratio": result.min_aspect_ratio,
+            "mean_quality": result.mean_quality, "strain_bound": result.strain_bound}))
         written = f"{out}/ ({frames} frames, quality.csv)"
     summary = {**result.summary(), "unit_scale": wp.scale.factor}
     if args.json:
