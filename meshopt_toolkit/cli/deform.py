@@ -9,7 +9,7 @@ fig. 5.26) and ``quality.csv``. Existing outputs are never overwritten without `
 outputs are checked before the integration starts, which shows a progress bar on a
 terminal.
 
-The mesh is deformed at unit size (divided by the power of two nearest its size, see
+The mesh is deformed at unit size (``mt.deform`` divides it by its size, see
 :mod:`meshopt_toolkit.scaling`) and scaled back, so the result does not depend on the
 units of the file, and coordinates near 1e300 or 1e-300 work; the ``penalty`` and
 ``energy`` columns of ``quality.csv`` are those of the unit-size problem.
@@ -79,10 +79,11 @@ def run(args: argparse.Namespace) -> int:
     _check_numbers(args)
     src, out = checked_paths(args)
     frames = args.frames
-    # the plane's coordinates at unit size; every block, tag and datum written back
-    wp = load_workpiece(src, "deform")
+    # the plane's coordinates at the file's scale (mt.deform works at unit size); every
+    # block, tag and datum written back
+    wp = load_workpiece(src, "deform", unit_size=False)
     mesh = wp.mesh
-    V = wp.to_unit(load_displacement(args.displacement, wp.user_mesh, wp.plane_coordinates))
+    V = load_displacement(args.displacement, wp.user_mesh, wp.plane_coordinates)
     with ProgressBar(1000, "deform") as bar:
         res = deform(
             mesh, V, time=args.time, frames=frames, alpha=args.alpha, penalty=args.penalty,
