@@ -79,11 +79,17 @@ def _no_healthy_stop(o: _Settings, what: str) -> None:
 
 
 def _distortion(source, target, frames: int, o: _Settings):
-    from .motion.planar.morph import distortion_morph
+    """The distortion morph of planar or tet meshes, which stop on their energy tests."""
+    if _kind_in_space(source) == "tetrahedra":
+        from .motion.tets.morph import morph_tets as solve
 
-    _no_healthy_stop(o, "planar morphs")
-    return distortion_morph(source, target, frames, weight=o.weight,
-                            max_iterations=o.max_iterations, callback=o.callback)
+        _no_healthy_stop(o, "tet morphs")
+    else:
+        from .motion.planar.morph import distortion_morph as solve
+
+        _no_healthy_stop(o, "planar morphs")
+    return solve(source, target, frames, weight=o.weight, max_iterations=o.max_iterations,
+                 callback=o.callback)
 
 
 def _complete(source, target, frames: int, o: _Settings):
@@ -103,14 +109,6 @@ def _complete(source, target, frames: int, o: _Settings):
 MORPH_METRICS = {"distortion": _distortion, "complete": _complete}
 
 
-def _tets(source, target, frames: int, o: _Settings):
-    from .motion.tets.morph import morph_tets
-
-    _no_healthy_stop(o, "tet morphs")
-    return morph_tets(source, target, frames, weight=o.weight,
-                      max_iterations=o.max_iterations, callback=o.callback)
-
-
 def _surfaces(source, target, frames: int, o: _Settings):
     from .motion.surface.mesh_morph import morph_surface_mesh
 
@@ -125,7 +123,7 @@ def _surfaces(source, target, frames: int, o: _Settings):
 #: meshes in space, each morphed with its own distortion metric (tets:
 #: :mod:`~.motion.tets.morph`, surfaces: :mod:`~.motion.surface.morph`), and its default
 #: iterations of the discrete geodesic
-IN_SPACE = {"tetrahedra": (_tets, 200), "surfaces": (_surfaces, 10)}
+IN_SPACE = {"tetrahedra": (_distortion, 200), "surfaces": (_surfaces, 10)}
 
 
 def _kind_in_space(source) -> str | None:
