@@ -150,8 +150,9 @@ def run(args: argparse.Namespace) -> int:
         return _run_surface(args, cells)
     _check_outputs(args)
     src_path, tgt_path = Path(args.source), Path(args.target)
-    # the source's plane at unit size (one power of two for both ends); the frames are
-    # written with every block, tag and datum of the source
+    # the source's plane at unit size (one power of two for both ends: the summary's
+    # areas at the file's scale overflow near 1e300); the frames are written with every
+    # block, tag and datum of the source
     wp, twp = Workpiece.from_cells(cells if cells is not None else io.load_cells(
         src_path)).with_target(io.load_cells(tgt_path))
     source, target = wp.mesh, twp.mesh
