@@ -1,16 +1,27 @@
 """The one way an options dataclass is given: an instance, a mapping of its fields, or
 None (the defaults), with changes on top (:func:`options_of`); the one check of a named
-choice (:func:`check_choice`) and of a number's range (:func:`require_positive`,
-:func:`require_at_least`)."""
+choice (:func:`check_choice`), of a number's range (:func:`require_positive`,
+:func:`require_at_least`) and of an array's shape (:func:`require_shape`)."""
 
 from __future__ import annotations
 
 import dataclasses
 from collections.abc import Mapping
 
+import numpy as np
+
 from .errors import OptionError
 
-__all__ = ["check_choice", "options_of", "require_at_least", "require_positive"]
+__all__ = ["check_choice", "options_of", "require_at_least", "require_positive",
+           "require_shape"]
+
+
+def require_shape(name: str, array, shape: tuple, *, error: type[Exception] = ValueError):
+    """``array`` if its shape is ``shape``, else ``error`` naming ``name`` and both shapes
+    (``"derivative: shape (3, 2), expected (4, 2)"``)."""
+    if np.shape(array) != tuple(shape):
+        raise error(f"{name}: shape {np.shape(array)}, expected {tuple(shape)}")
+    return array
 
 
 def require_positive(name: str, value, *, error: type[Exception] = OptionError):

@@ -1,10 +1,11 @@
 """The one check of a number's range (``_options.require_positive``/``require_at_least``),
-as the library's entry points raise it."""
+as the library's entry points raise it, and of an array's shape (``require_shape``)."""
 
 from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
@@ -57,3 +58,15 @@ def test_the_entry_points_refuse_one_frame_before_any_work(square, entry):
             mt.morph(square, square, frames=1)
         else:
             mt.move(square, [0], square.points[[0]], frames=1)
+
+
+def test_require_shape_names_both_shapes_with_the_callers_error():
+    from meshopt_toolkit._options import require_shape
+    from meshopt_toolkit.errors import InvalidMeshError
+
+    a = np.zeros((4, 2))
+    assert require_shape("Q", a, (4, 2)) is a
+    with pytest.raises(InvalidMeshError, match=r"^Q: shape \(4, 2\), expected \(4, 3\)$"):
+        require_shape("Q", a, (4, 3), error=InvalidMeshError)
+    with pytest.raises(ValueError, match=r"free mask: shape \(4, 2\), expected \(8,\)"):
+        require_shape("free mask", a, [8])
