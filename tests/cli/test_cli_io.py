@@ -242,4 +242,5 @@ def test_csv_table_keeps_integers_and_ten_digits_of_floats():
     for i, line in enumerate(lines[1:]):
         frame, value, count = line.split(",")
         assert frame == str(i) and count == str(k[i])
-        assert float(value) == float(f"{x[i]:.10g}") and abs(float(value) - x[i]) <= 1e-9 * abs(x[i])
+        assert float(value) == float(f"{x[i]:.10g}")
+        assert abs(float(value) - x[i]) <= 1e-9 * abs(x[i])
