@@ -1,13 +1,44 @@
 """The one way an options dataclass is given: an instance, a mapping of its fields, or
 None (the defaults), with changes on top (:func:`options_of`); the one check of a named
-choice (:func:`check_choice`)."""
+choice (:func:`check_choice`), of a number's range (:func:`require_positive`,
+:func:`require_at_least`) and of an array's shape (:func:`require_shape`)."""
 
 from __future__ import annotations
 
 import dataclasses
 from collections.abc import Mapping
 
-__all__ = ["check_choice", "options_of"]
+import numpy as np
+
+from .errors import OptionError
+
+__all__ = ["check_choice", "options_of", "require_at_least", "require_positive",
+           "require_shape"]
+
+
+def require_shape(name: str, array, shape: tuple, *, error: type[Exception] = ValueError):
+    """``array`` if its shape is ``shape``, else ``error`` naming ``name`` and both shapes
+    (``"derivative: shape (3, 2), expected (4, 2)"``)."""
+    if np.shape(array) != tuple(shape):
+        raise error(f"{name}: shape {np.shape(array)}, expected {tuple(shape)}")
+    return array
+
+
+def require_positive(name: str, value, *, error: type[Exception] = OptionError):
+    """``value`` if it is None (left to its default) or > 0, else ``error`` naming ``name``
+    (``"weight must be > 0, got -1"``); NaN is refused."""
+    if value is not None and not value > 0:
+        raise error(f"{name} must be > 0, got {value!r}")
+    return value
+
+
+def require_at_least(name: str, value, low: int, *, error: type[Exception] = OptionError):
+    """``value`` if it is None (left to its default) or ``>= low``, else ``error`` naming
+    ``name`` (``"frames must be at least 2, got 1"``); for counts such as frames and
+    iterations."""
+    if value is not None and not value >= low:
+        raise error(f"{name} must be at least {low}, got {value!r}")
+    return value
 
 
 def check_choice(value, choices, what: str, *, error: type[Exception]):

@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ._options import require_at_least
 from ._typing import FloatArray
 from .conversions import Carried
 from .errors import IntegrationError, InvalidMeshError, OptionError, ReadError
@@ -177,8 +178,7 @@ def deform(
                                      alpha=alpha, metric=metric, options=options,
                                      progress=progress))
     start = perf_counter()
-    if frames is not None and int(frames) < 2:
-        raise OptionError(f"frames must be at least 2, got {frames}")
+    require_at_least("frames", frames, 2)
     if metric not in ("complete", "euclidean"):
         raise OptionError(f"metric must be 'complete' or 'euclidean', got {metric!r}")
     m = require_admissible(mesh, "deform")

@@ -18,6 +18,8 @@ from typing import Callable
 
 import numpy as np
 
+from ._options import require_shape
+
 __all__ = ["TaylorResult", "check_gradient", "check_hvp", "taylor_remainders"]
 
 
@@ -57,10 +59,7 @@ def _as_direction(x: np.ndarray, direction, rng) -> np.ndarray:
     if direction is None:
         rng = np.random.default_rng(rng)
         direction = rng.standard_normal(np.shape(x))
-    v = np.asarray(direction, dtype=float)
-    if v.shape != np.shape(x):
-        raise ValueError(f"direction has shape {v.shape}, x has {np.shape(x)}")
-    return v
+    return require_shape("direction", np.asarray(direction, dtype=float), np.shape(x))
 
 
 def taylor_remainders(

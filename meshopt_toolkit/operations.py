@@ -18,7 +18,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ._options import check_choice
+from ._options import check_choice, require_at_least
 from .conversions import Carried
 from .errors import InvalidMeshError, OptionError
 from .results import PathIteration
@@ -79,11 +79,17 @@ def _no_healthy_stop(o: _Settings, what: str) -> None:
 
 
 def _distortion(source, target, frames: int, o: _Settings):
-    from .motion.planar.morph import distortion_morph
+    """The distortion morph of planar or tet meshes, which stop on their energy tests."""
+    if _kind_in_space(source) == "tetrahedra":
+        from .motion.tets.morph import morph_tets as solve
 
-    _no_healthy_stop(o, "planar morphs")
-    return distortion_morph(source, target, frames, weight=o.weight,
-                            max_iterations=o.max_iterations, callback=o.callback)
+        _no_healthy_stop(o, "tet morphs")
+    else:
+        from .motion.planar.morph import distortion_morph as solve
+
+        _no_healthy_stop(o, "planar morphs")
+    return solve(source, target, frames, weight=o.weight, max_iterations=o.max_iterations,
+                 callback=o.callback)
 
 
 def _complete(source, target, frames: int, o: _Settings):
@@ -103,14 +109,6 @@ def _complete(source, target, frames: int, o: _Settings):
 MORPH_METRICS = {"distortion": _distortion, "complete": _complete}
 
 
-def _tets(source, target, frames: int, o: _Settings):
-    from .motion.tets.morph import morph_tets
-
-    _no_healthy_stop(o, "tet morphs")
-    return morph_tets(source, target, frames, weight=o.weight,
-                      max_iterations=o.max_iterations, callback=o.callback)
-
-
 def _surfaces(source, target, frames: int, o: _Settings):
     from .motion.surface.mesh_morph import morph_surface_mesh
 
@@ -125,7 +123,7 @@ def _surfaces(source, target, frames: int, o: _Settings):
 #: meshes in space, each morphed with its own distortion metric (tets:
 #: :mod:`~.motion.tets.morph`, surfaces: :mod:`~.motion.surface.morph`), and its default
 #: iterations of the discrete geodesic
-IN_SPACE = {"tetrahedra": (_tets, 200), "surfaces": (_surfaces, 10)}
+IN_SPACE = {"tetrahedra": (_distortion, 200), "surfaces": (_surfaces, 10)}
 
 
 def _kind_in_space(source) -> str | None:
@@ -223,12 +221,10 @@ def morph(
         run, default_iterations = IN_SPACE[space]
     else:
         default_iterations = DEFAULT_MAX_ITER[name]
-    if int(frames) < 2:
-        raise OptionError(f"frames must be at least 2, got {frames}")
+    require_at_least("frames", frames, 2)
     check_choice(stop, STOP_RULES, "stop rule", error=OptionError)
     n_iter = default_iterations if max_iterations is None else int(max_iterations)
-    if n_iter < 1:
-        raise OptionError(f"max_iterations must be at least 1, got {max_iterations}")
+    require_at_least("max_iterations", n_iter, 1)
 
     def step(nit: int, energy: float, gradient_norm: float) -> bool:
         if progress is not None:

@@ -40,7 +40,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from ._options import check_choice
+from ._options import check_choice, require_at_least
 from ._typing import FloatArray
 from .errors import OptimizationError, OptionError
 from .kernels.triangles import aspect_ratios
@@ -253,8 +253,7 @@ def optimize(
     """
     check_choice(variant, VARIANTS, "variant", error=OptionError)
     check_choice(method, METHODS, "method", error=OptionError)
-    if int(max_iterations) < 0:
-        raise OptionError(f"max_iterations must be at least 0, got {max_iterations}")
+    require_at_least("max_iterations", max_iterations, 0)
     o = OptimizeOptions.of(options)
     exp_options = o.exp_options
     retraction = _retraction_kind(variant, o.retraction, exp_options)

@@ -1,5 +1,6 @@
-"""Shared by the tests of the motion package (tests/motion/test_motion_*.py): hypothesis settings,
-similar and random admissible meshes, a straight path."""
+"""Shared by the tests of the motion package (tests/motion/): hypothesis settings, similar
+and random admissible meshes, a straight path, random rotations of R³, the weighted sum of
+a distortion with its derivatives (Taylor tests) and the rate it bounds."""
 
 from __future__ import annotations
 
@@ -55,3 +56,45 @@ def record_damped_steps(monkeypatch, module) -> list:
 
     monkeypatch.setattr(module, "damped_step", spy)
     return steps
+
+
+def random_rotation(rng) -> np.ndarray:
+    """A uniformly random rotation of R³ (det +1)."""
+    q, r = np.linalg.qr(rng.standard_normal((3, 3)))
+    q = q * np.sign(np.diag(r))
+    return q * np.linalg.det(q)
+
+
+def distortion_functional(dist, weights, columns, second=None):
+    """``f(X) = Σ ρ·φ(X)`` of the distortion ``dist`` with weights ``ρ = weights`` (C, m), its
+    gradient through the assembled Jacobian and its Hessian-vector product through the
+    per-cell ``dist.second_order`` (``second`` maps its output to (C, K, K) blocks),
+    scattered to the coordinates ``columns`` (C, K)."""
+    second = (lambda H: H) if second is None else second
+
+    def f(X):
+        return float(np.sum(weights * dist.values(X)))
+
+    def grad(X):
+        _, blocks = dist.values_and_jacobian(X)
+        return (dist.jacobian_matrix(blocks).T @ weights.ravel()).reshape(X.shape)
+
+    def hvp(X, V):
+        local = np.matmul(second(dist.second_order(X, weights)),
+                          V.ravel()[columns][:, :, None])[:, :, 0]
+        return np.bincount(columns.ravel(), local.ravel(), minlength=V.size).reshape(V.shape)
+
+    return f, grad, hvp
+
+
+def rates(dist, Q, V):
+    """Per cell: ``|J V|`` of the distortion ``dist`` at ``Q`` and the affine-invariant rate
+    ``½‖C^{-½} Ċ C^{-½}‖_F`` (``C = AᵀA``) that it bounds from above."""
+    _, blocks = dist.values_and_jacobian(Q)
+    rate = np.linalg.norm(np.einsum("tij,tj->ti", blocks, V.ravel()[dist.columns()]), axis=1)
+    A, dA = dist.affine_maps(Q), dist.affine_maps(V)
+    C = np.swapaxes(A, 1, 2) @ A
+    dC = np.swapaxes(dA, 1, 2) @ A + np.swapaxes(A, 1, 2) @ dA
+    lam, U = np.linalg.eigh(C)
+    root = U @ (lam[:, :, None] ** -0.5 * np.swapaxes(U, 1, 2))
+    return rate, 0.5 * np.linalg.norm(root @ dC @ root, axis=(1, 2))

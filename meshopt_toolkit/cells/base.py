@@ -14,12 +14,13 @@ Which kind a mesh object is, is decided in one place, :func:`.registry.kind_of`.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Protocol, runtime_checkable
 
 import numpy as np
 
 from .._typing import FloatArray, IntArray
-from ..kernels.cell_maps import affine_maps, barycentric_gradients
+from ..kernels.cell_maps import affine_maps, barycentric_gradients, coordinate_columns
 from ..kernels.surface import areas
 from ..kernels.tetrahedra import signed_volumes
 from ..kernels.triangles import signed_areas
@@ -118,15 +119,34 @@ def lumped_mass(points: FloatArray, cells: IntArray) -> FloatArray:
 
 class SimplexKind:
     """What every simplicial kind computes the same way from its own measures and rest
-    coordinates (a kind subclasses it and supplies the rest of :class:`CellKind`)."""
+    coordinates (a kind subclasses it, names its kernels and distortion, and supplies
+    the rest of :class:`CellKind`)."""
 
     name: str
     point_dimension: int
     cell_dimension: int
     simplex_size: int
+    #: ``(points, cells) -> (C,)``: the kind's measure and quality kernels
+    measure_kernel: Callable[[FloatArray, IntArray], FloatArray]
+    quality_kernel: Callable[[FloatArray, IntArray], FloatArray]
+    #: ``(reference, cells) ->`` the kind's :class:`CellDistortion`
+    distortion_class: type
 
     def __repr__(self) -> str:
         return f"<cell kind {self.name}>"
+
+    def measures(self, points: FloatArray, cells: IntArray) -> FloatArray:
+        """The cells' measures (C,) (:attr:`measure_kernel`): signed where the kind has an
+        orientation (areas in the plane, volumes), else unsigned areas."""
+        return self.measure_kernel(np.asarray(points, dtype=float), np.asarray(cells))
+
+    def quality(self, points: FloatArray, cells: IntArray) -> FloatArray:
+        """The cells' quality (C,) (:attr:`quality_kernel`), 1 for a regular cell."""
+        return self.quality_kernel(np.asarray(points, dtype=float), np.asarray(cells))
+
+    def distortion(self, reference: FloatArray, cells: IntArray) -> CellDistortion:
+        """The per-cell distortion relative to ``reference`` (:attr:`distortion_class`)."""
+        return self.distortion_class(reference, cells)
 
     def rest_coordinates(self, rest: FloatArray, cells: IntArray) -> FloatArray:
         """Corners of each rest cell in coordinates of its own dimension:
@@ -151,6 +171,6 @@ class SimplexKind:
         phi, blocks = self.distortion(reference, cells).values_and_jacobian(points)
         per_cell = np.einsum("cm,cmj->cj", np.asarray(weights, dtype=float), blocks)
         d = self.point_dimension
-        cols = (d * np.asarray(cells)[:, :, None] + np.arange(d)).reshape(len(cells), -1)
+        cols = coordinate_columns(cells, d)
         out = np.bincount(cols.ravel(), per_cell.ravel(), minlength=d * len(points))
         return phi, out.reshape(len(points), d)

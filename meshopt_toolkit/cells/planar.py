@@ -35,18 +35,11 @@ class PlanarTriangles(SimplexKind):
     point_dimension = 2
     cell_dimension = 2
     simplex_size = 3
-
-    def measures(self, points: FloatArray, cells: IntArray) -> FloatArray:
-        """Signed areas (T,), positive iff counter-clockwise."""
-        return signed_areas(np.asarray(points, dtype=float), np.asarray(cells))
-
-    def quality(self, points: FloatArray, cells: IntArray) -> FloatArray:
-        """Aspect ratio 2r/R (T,): 1 iff equilateral, signed like the area."""
-        return aspect_ratios(np.asarray(points, dtype=float), np.asarray(cells))
-
-    def distortion(self, reference: FloatArray, cells: IntArray) -> TriangleDistortion:
-        """The per-triangle distortion (T, 3) relative to ``reference``."""
-        return TriangleDistortion(reference, cells)
+    #: signed areas (T,), positive iff counter-clockwise; aspect ratio 2r/R (T,), signed
+    #: like the area; the per-triangle distortion (T, 3)
+    measure_kernel = staticmethod(signed_areas)
+    quality_kernel = staticmethod(aspect_ratios)
+    distortion_class = TriangleDistortion
 
     def boundary_facets(self, points: FloatArray, cells: IntArray) -> IntArray:
         """Boundary edges (B, 2), directed as in their triangle (interior on the left)."""

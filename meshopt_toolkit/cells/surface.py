@@ -36,22 +36,15 @@ class SurfaceTriangles(SimplexKind):
     point_dimension = 3
     cell_dimension = 2
     simplex_size = 3
-
-    def measures(self, points: FloatArray, cells: IntArray) -> FloatArray:
-        """Areas (T,), ≥ 0 (unsigned: no orientation of its own)."""
-        return areas(points, cells)
-
-    def quality(self, points: FloatArray, cells: IntArray) -> FloatArray:
-        """Aspect ratio 2r/R (T,) in [0, 1], 1 iff equilateral."""
-        return aspect_ratios(points, cells)
+    #: areas (T,) ≥ 0 (unsigned: no orientation of its own); aspect ratio 2r/R (T,) in
+    #: [0, 1]; the membrane distortion (T, 3)
+    measure_kernel = staticmethod(areas)
+    quality_kernel = staticmethod(aspect_ratios)
+    distortion_class = SurfaceDistortion
 
     def rest_coordinates(self, rest: FloatArray, cells: IntArray) -> FloatArray:
         """Rest corners in an orthonormal frame of each triangle's own plane (T, 3, 2)."""
         return triangle_plane_coordinates(rest, cells)
-
-    def distortion(self, reference: FloatArray, cells: IntArray) -> SurfaceDistortion:
-        """The membrane distortion (T, 3) relative to ``reference``."""
-        return SurfaceDistortion(reference, cells)
 
     def boundary_facets(self, points: FloatArray, cells: IntArray) -> IntArray:
         """Boundary edges (B, 2), directed as in their triangle."""

@@ -39,18 +39,11 @@ class Tetrahedra(SimplexKind):
     point_dimension = 3
     cell_dimension = 3
     simplex_size = 4
-
-    def measures(self, points: FloatArray, cells: IntArray) -> FloatArray:
-        """Signed volumes (C,), positive iff positively oriented."""
-        return signed_volumes(points, cells)
-
-    def quality(self, points: FloatArray, cells: IntArray) -> FloatArray:
-        """Mean ratio (C,): 1 iff regular, signed like the volume."""
-        return mean_ratios(points, cells)
-
-    def distortion(self, reference: FloatArray, cells: IntArray) -> TetDistortion:
-        """The per-tet distortion (C, 7) relative to ``reference``."""
-        return TetDistortion(reference, cells)
+    #: signed volumes (C,), positive iff positively oriented; mean ratio (C,), signed
+    #: like the volume; the per-tet distortion (C, 7)
+    measure_kernel = staticmethod(signed_volumes)
+    quality_kernel = staticmethod(mean_ratios)
+    distortion_class = TetDistortion
 
     def boundary_facets(self, points: FloatArray, cells: IntArray) -> IntArray:
         """Boundary faces (F, 3), outward for positive tets."""

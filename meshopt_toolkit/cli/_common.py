@@ -10,8 +10,10 @@ import logging
 import os
 import sys
 import tempfile
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
+
+import numpy as np
 
 from .. import strict_json
 from ..errors import MeshoptError, WriteError
@@ -369,6 +371,17 @@ def write_text(path: Path, text: str) -> None:
 
     with atomic_path(path) as tmp, writing(path):
         tmp.write_text(text, encoding="utf-8")
+
+
+def csv_table(columns: Mapping[str, Iterable]) -> str:
+    """CSV text of ``columns`` (name → values, all of one length): the names as the header,
+    then a row per index; floats with 10 significant digits, other values as written."""
+
+    def cell(value) -> str:
+        return f"{value:.10g}" if isinstance(value, (float, np.floating)) else str(value)
+
+    return ",".join(columns) + "\n" + "".join(
+        ",".join(map(cell, row)) + "\n" for row in zip(*columns.values()))
 
 
 def write_summary(outdir: Path, summary: dict) -> None:

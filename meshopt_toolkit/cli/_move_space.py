@@ -17,7 +17,7 @@ import numpy as np
 
 from .. import strict_json
 from ..motion.engine.contact import ContactWarning
-from ._common import frame_names, prepare_output_dir, warn_dropped, write_text
+from ._common import csv_table, frame_names, prepare_output_dir, warn_dropped, write_text
 from ._info_cells import SURFACE, TETS
 
 
@@ -26,8 +26,8 @@ def _tet_mesh(cells):
 
 
 def _tet_table(result, frames: int) -> tuple[str, str]:
-    return "quality.csv", "frame,min_mean_ratio\n" + "".join(
-        f"{k},{q:.10g}\n" for k, q in enumerate(result.min_mean_ratio))
+    return "quality.csv", csv_table({"frame": range(len(result.min_mean_ratio)),
+                                     "min_mean_ratio": result.min_mean_ratio})
 
 
 def _tet_line(mesh, result, summary: dict) -> str:
@@ -38,8 +38,7 @@ def _tet_line(mesh, result, summary: dict) -> str:
 def _surface_table(result, frames: int) -> tuple[str, str]:
     times = np.asarray(result.motion.times)
     picked = [times[int(np.argmin(np.abs(times - s)))] for s in np.linspace(0, 1, frames)]
-    return "frames.csv", "frame,path_fraction\n" + "".join(
-        f"{k},{s:.10g}\n" for k, s in enumerate(picked))
+    return "frames.csv", csv_table({"frame": range(frames), "path_fraction": picked})
 
 
 def _surface_line(mesh, result, summary: dict) -> str:

@@ -9,7 +9,7 @@ fig. 5.26) and ``quality.csv``. Existing outputs are never overwritten without `
 outputs are checked before the integration starts, which shows a progress bar on a
 terminal.
 
-The mesh is deformed at unit size (divided by the power of two nearest its size, see
+The mesh is deformed at unit size (``mt.deform`` divides it by its size, see
 :mod:`meshopt_toolkit.scaling`) and scaled back, so the result does not depend on the
 units of the file, and coordinates near 1e300 or 1e-300 work; the ``penalty`` and
 ``energy`` columns of ``quality.csv`` are those of the unit-size problem.
@@ -21,7 +21,7 @@ import argparse
 import logging
 
 from ..bounds import MAX_FRAMES
-from ._common import (add_output_flags, checked_paths, float_list, frame_names,
+from ._common import (add_output_flags, checked_paths, csv_table, float_list, frame_names,
                       load_workpiece, save_moved, save_moved_frames, write_text)
 from ..filters.apply_coord_quality_preserving_deformation import QualityPreservingDeformation
 from ._params import add_options, check_options
@@ -79,10 +79,11 @@ def run(args: argparse.Namespace) -> int:
     _check_numbers(args)
     src, out = checked_paths(args)
     frames = args.frames
-    # the plane's coordinates at unit size; every block, tag and datum written back
-    wp = load_workpiece(src, "deform")
+    # the plane's coordinates at the file's scale (mt.deform works at unit size); every
+    # block, tag and datum written back
+    wp = load_workpiece(src, "deform", unit_size=False)
     mesh = wp.mesh
-    V = wp.to_unit(load_displacement(args.displacement, wp.user_mesh, wp.plane_coordinates))
+    V = load_displacement(args.displacement, wp.user_mesh, wp.plane_coordinates)
     with ProgressBar(1000, "deform") as bar:
         res = deform(
             mesh, V, time=args.time, frames=frames, alpha=args.alpha, penalty=args.penalty,
@@ -98,9 +99,9 @@ def run(args: argparse.Namespace) -> int:
     save_moved_frames(wp, res.meshes(), out, frame_names(frames, args.format, src),
                       force=args.force)
     g = res.geodesic
-    write_text(out / "quality.csv", "t,min_aspect_ratio,penalty,energy\n" + "".join(
-        f"{t:.10g},{ar:.10g},{f:.10g},{e:.10g}\n"
-        for t, ar, f, e in zip(res.times, res.aspect_ratio, g.penalty, g.energy)))
+    write_text(out / "quality.csv", csv_table({
+        "t": res.times, "min_aspect_ratio": res.aspect_ratio, "penalty": g.penalty,
+        "energy": g.energy}))
     if not args.no_plots:
         from ..plotting import save_quality_plot, save_snapshot_strip
 

@@ -43,7 +43,7 @@ from pathlib import Path
 
 from ..bounds import MAX_ITERATIONS
 from ..filters.generate_geodesic_morph import GenerateGeodesicMorph
-from ._common import (add_output_flags, check_mesh_format, check_output_dir, float_list,
+from ._common import (add_output_flags, check_mesh_format, check_output_dir, csv_table, float_list,
                       frame_names, prepare_output_dir, print_json, save_moved, warn_dropped,
                       write_summary, write_text)
 from ._params import add_options, check_options
@@ -150,8 +150,9 @@ def run(args: argparse.Namespace) -> int:
         return _run_surface(args, cells)
     _check_outputs(args)
     src_path, tgt_path = Path(args.source), Path(args.target)
-    # the source's plane at unit size (one power of two for both ends); the frames are
-    # written with every block, tag and datum of the source
+    # the source's plane at unit size (one power of two for both ends: the summary's
+    # areas at the file's scale overflow near 1e300); the frames are written with every
+    # block, tag and datum of the source
     wp, twp = Workpiece.from_cells(cells if cells is not None else io.load_cells(
         src_path)).with_target(io.load_cells(tgt_path))
     source, target = wp.mesh, twp.mesh
@@ -216,9 +217,9 @@ def _run_tets(args: argparse.Namespace, cells) -> int:
         "minimizer)")
     return _write_cell_frames(
         args, cells, result.points, names, summary,
-        "frame,min_mean_ratio,linear_min_mean_ratio,linear_inverted\n" + "".join(
-            f"{k},{q:.10g},{lq:.10g},{li}\n" for k, (q, lq, li) in enumerate(zip(
-                stats.min_mean_ratio, linear.min_mean_ratio, linear.inverted))),
+        csv_table({"frame": range(len(names)), "min_mean_ratio": stats.min_mean_ratio,
+                   "linear_min_mean_ratio": linear.min_mean_ratio,
+                   "linear_inverted": linear.inverted}),
         f"{result.n_frames} frames (distortion metric, tetrahedra), all admissible: "
         f"{summary['admissible']}, worst mean ratio {summary['min_mean_ratio']:.4g} "
         f"(ends {stats.min_mean_ratio[0]:.4g}, {stats.min_mean_ratio[-1]:.4g}); "
@@ -257,8 +258,8 @@ def _run_surface(args: argparse.Namespace, cells) -> int:
     summary, m = result.summary(), result.morph
     return _write_cell_frames(
         args, cells, [mesh.points for mesh in result.frames], names, summary,
-        "frame,worst_relative_quality,folds\n" + "".join(
-            f"{k},{q:.10g},{f}\n" for k, (q, f) in enumerate(zip(m.worst_quality, m.folds))),
+        csv_table({"frame": range(len(names)), "worst_relative_quality": m.worst_quality,
+                   "folds": m.folds}),
         f"{len(names)} frames (surface), folds {summary['folds']}, worst relative "
         f"quality {summary['worst_relative_quality']:.4g} (target "
         f"{summary['target_worst_relative_quality']:.4g}; linear interpolation "

@@ -10,11 +10,11 @@ directory with ``frame_000.<ext>`` … and ``quality.csv``. ``--json`` prints a 
 (inverted count, min aspect ratio, mean Λ, handle error, seconds). Existing outputs are
 never overwritten without ``--force``; they are checked before the mesh is read.
 
-The mesh moves in its plane (x, y for z = const), at unit size (divided by the power of
-two nearest its size, see :mod:`meshopt_toolkit.io.workpiece`; ``--map`` and ``--targets``
-stay in the file's units and the plane's coordinates) and is scaled back, so coordinates
-near 1e300 or 1e-300 work; the summary's numbers are those of the unit-size problem,
-with the factor as ``unit_scale``.
+The mesh moves in its plane (x, y for z = const; ``--map`` and ``--targets`` in the file's
+units and the plane's coordinates), at unit size (``mt.move`` divides it by its size, see
+:mod:`meshopt_toolkit.scaling`) and scaled back, so coordinates near 1e300 or 1e-300
+work; the summary's lengths (handle error, the similarity's shift) are in the file's
+units, its other numbers free of scale.
 
 A file of tetrahedra moves in 3D (:mod:`._move_space`): ``--targets`` rows
 ``index,x,y,z`` (.npy k × 4), ``--map "X_EXPR; Y_EXPR; Z_EXPR"`` in ``x, y, z``, the
@@ -33,7 +33,7 @@ from .. import strict_json
 
 from ..bounds import MAX_FRAMES
 from ..filters.apply_coord_prescribed_motion import PrescribedMotion
-from ._common import (add_output_flags, checked_paths, frame_names, load_workpiece,
+from ._common import (add_output_flags, checked_paths, csv_table, frame_names, load_workpiece,
                       save_moved, save_moved_frames, warn_dropped, write_text)
 from ._params import add_options, check_options
 from ._validate import OptionError, check_int
@@ -117,16 +117,16 @@ def run(args: argparse.Namespace) -> int:
     kind = cells_kind(cells)
     if kind in (TETS, SURFACE):  # handles in x, y, z; the file written back, new points
         return run_in_space(args, cells, kind)
-    # the plane's coordinates at unit size; every block, tag and datum written back
-    wp = load_workpiece(src, "move", cells=cells)
+    # the plane's coordinates at the file's scale (mt.move works at unit size); every
+    # block, tag and datum written back
+    wp = load_workpiece(src, "move", unit_size=False, cells=cells)
     mesh = wp.mesh
-    # handles and targets in the file's units
     handles, targets = handles_in_space(
-        wp.user_mesh, targets=args.targets, mapping=args.map, where=args.where,
+        mesh, targets=args.targets, mapping=args.map, where=args.where,
         group=args.group, selection=args.selection, point_data=wp.cells.point_data,
         free_boundary=args.free_boundary, source=str(src))
     with ProgressBar(1000, "move") as bar:
-        result = move(mesh, handles, wp.to_unit(targets), frames=frames, steps=args.steps,
+        result = move(mesh, handles, targets, frames=frames, steps=args.steps,
                       weight=args.weight, progress=bar.to_fraction)
     warn_dropped(cells, src)
     if frames is None:
@@ -135,12 +135,11 @@ def run(args: argparse.Namespace) -> int:
     else:
         save_moved_frames(wp, result.frames, out, frame_names(frames, args.format, src),
                           force=args.force)
-        rows = zip(result.min_aspect_ratio, result.mean_quality, result.strain_bound)
-        write_text(out / "quality.csv", "frame,min_aspect_ratio,mean_quality,strain_bound\n"
-                   + "".join(f"{k},{a:.10g},{q:.10g},{b:.10g}\n"
-                             for k, (a, q, b) in enumerate(rows)))
+        write_text(out / "quality.csv", csv_table({
+            "frame": range(frames), "min_aspect_ratio": result.min_aspect_ratio,
+            "mean_quality": result.mean_quality, "strain_bound": result.strain_bound}))
         written = f"{out}/ ({frames} frames, quality.csv)"
-    summary = {**result.summary(), "unit_scale": wp.scale.factor}
+    summary = result.summary()
     if args.json:
         print(strict_json.dumps({"output": str(out), **summary}, indent=2))
     else:

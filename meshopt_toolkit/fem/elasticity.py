@@ -22,6 +22,7 @@ from typing import Callable
 import numpy as np
 import scipy.sparse as sp
 
+from .._options import require_positive
 from .._typing import FloatArray, IntArray
 from ..errors import NotAdmissibleError
 from ..kernels.triangles import areas_from_edges, edge_vectors
@@ -61,8 +62,7 @@ def lame_parameters(E: float, nu: float) -> tuple[float, float]:
 
     ``μ = E / (2(1 + ν))``, ``λ = E ν / ((1 + ν)(1 − 2ν))``, thesis (6.24).
     """
-    if not E > 0:
-        raise ValueError(f"Young's modulus E must be > 0, got {E}")
+    require_positive("Young's modulus E", E, error=ValueError)
     if not -1.0 < nu < 0.5:
         raise ValueError(f"Poisson ratio nu must lie in (-1, 0.5), got {nu}")
     return E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)), E / (2.0 * (1.0 + nu))

@@ -28,6 +28,7 @@ import numpy as np
 from . import p1 as fem
 from .cached import CachedPoisson, poisson_value
 from .boundary_data import BoundaryData, neumann_load, neumann_shape_derivative
+from .._options import require_shape
 from .._typing import FloatArray, IntArray
 from ..errors import ExpressionError, InvalidMeshError, MeshoptError, NotAdmissibleError
 from ..expressions import DEFAULT_RHS, Expression, parse_expression
@@ -229,9 +230,8 @@ class PoissonObjective(CachedPoisson):
         return idx
 
     def _check_Q(self, Q) -> FloatArray:
-        Q = np.asarray(Q, dtype=float)
-        if Q.shape != (self.n_vertices, 2):
-            raise InvalidMeshError(f"Q has shape {Q.shape}, expected ({self.n_vertices}, 2)")
+        Q = require_shape("Q", np.asarray(Q, dtype=float), (self.n_vertices, 2),
+                          error=InvalidMeshError)
         problem = area_problem(Q, self._tri_t) or self._boundary_check.problem(Q)
         if problem is not None:
             raise NotAdmissibleError(problem)

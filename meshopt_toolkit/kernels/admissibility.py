@@ -23,6 +23,10 @@ __all__ = ["BoundaryCheck", "area_message", "area_problem", "area_signs", "loop_
            "first_non_finite_row", "non_finite_problem", "target_loop_problem"]
 
 
+#: a boundary loop's orientation in words, by its sign
+_RUNS = {1: "counter-clockwise", -1: "clockwise", 0: "nowhere"}
+
+
 def first_non_finite_row(points: FloatArray) -> int | None:
     """The first row of ``points`` ``(N, d)`` with a non-finite entry, or None."""
     bad = np.flatnonzero(~np.isfinite(points).all(axis=1))
@@ -219,14 +223,13 @@ def loop_message(Q: FloatArray, boundary_edges: IntArray,
         return None
     i = int(bad[0])
     v = int(vertex[i])
-    runs = {1: "counter-clockwise", -1: "clockwise", 0: "nowhere"}
     d = int(depth[i])
     where = "an outer boundary" if d == 0 else (
         f"a hole (inside {d} other loop{'s' if d > 1 else ''})" if d % 2 else
         f"an island (inside {d} other loops)")
     more = f" ({bad.size} loops break the rule)" if bad.size > 1 else ""
     return (f"boundary loop {i} (through vertex {v}) is {where} but runs "
-            f"{runs[int(sign[i])]} (it must run {runs[int(want[i])]}): the mesh covers part "
+            f"{_RUNS[int(sign[i])]} (it must run {_RUNS[int(want[i])]}): the mesh covers part "
             f"of the plane twice, no embedding{more}")
 
 
@@ -262,7 +265,6 @@ def target_loop_problem(P0: FloatArray, P1: FloatArray, boundary_edges: IntArray
     if not bad.size:
         return None
     i = int(bad[0])
-    runs = {1: "counter-clockwise", -1: "clockwise"}
     return (f"reverse boundary loop {int(full[i])} (through vertex {int(vertex[i])}): it runs "
-            f"{runs[int(before[i])]} and would run {runs[int(after[i])]}, which no motion "
+            f"{_RUNS[int(before[i])]} and would run {_RUNS[int(after[i])]}, which no motion "
             "without folds reaches (the result would cover part of the plane twice)")

@@ -12,8 +12,10 @@ to the rest triangle.
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 
 from .._typing import FloatArray, IntArray
+from ..errors import InvalidMeshError
 
 SQRT3 = np.sqrt(3.0)
 
@@ -73,6 +75,40 @@ def affine_maps(points: FloatArray, cells: IntArray, gradients: FloatArray) -> F
     """Linear parts ``A = Σ_j x_j ⊗ γ_j`` of the cells' affine maps: (C, dim, k)."""
     # a batched product (C, dim, k+1) @ (C, k+1, k): several times faster than einsum here
     return np.matmul(np.swapaxes(np.asarray(points, float)[cells], 1, 2), gradients)
+
+
+def space_cells(points: FloatArray, cells: IntArray, corners: int,
+                what: str) -> tuple[FloatArray, IntArray]:
+    """``points`` as an (N, 3) float array and ``cells`` as a (C, ``corners``) array.
+
+    Raises
+    ------
+    InvalidMeshError
+        Other shapes: ``"{what} needs (N, 3) points and (C, 4) cells"``.
+    """
+    points, cells = np.asarray(points, dtype=float), np.asarray(cells)
+    if points.ndim != 2 or points.shape[1] != 3 or cells.shape[1:] != (corners,):
+        raise InvalidMeshError(f"{what} needs (N, 3) points and (C, {corners}) cells")
+    return points, cells
+
+
+def coordinate_columns(cells: IntArray, dimension: int) -> IntArray:
+    """Global coordinate index ``dimension·vertex + a`` of each corner coordinate of each
+    cell ``(C, k)``: (C, k·dimension), corner-major (the columns of per-cell Jacobian
+    blocks)."""
+    cells = np.asarray(cells)
+    return (dimension * cells[:, :, None] + np.arange(dimension)).reshape(len(cells), -1)
+
+
+def block_jacobian(blocks: FloatArray, columns: IntArray, n_columns: int) -> sp.csr_matrix:
+    """Assemble per-cell blocks (C, m, K) into the sparse Jacobian (m·C × ``n_columns``):
+    row ``m·c + i`` of block ``[c, i]``, its entries in the columns ``columns[c]`` (C, K)
+    (:func:`coordinate_columns`); duplicates summed."""
+    n, m, _ = blocks.shape
+    rows = np.broadcast_to(np.arange(n * m).reshape(n, m, 1), blocks.shape)
+    cols = np.broadcast_to(np.asarray(columns)[:, None, :], blocks.shape)
+    return sp.coo_matrix((blocks.ravel(), (rows.ravel(), cols.ravel())),
+                         shape=(n * m, n_columns)).tocsr()
 
 
 def tet_condition_numbers(points: FloatArray, tets: IntArray) -> FloatArray:

@@ -17,6 +17,7 @@ from collections.abc import Iterator
 import numpy as np
 from scipy.spatial import cKDTree
 
+from .._options import require_at_least
 from .._typing import FloatArray, IntArray
 from ..errors import NotAdmissibleError
 
@@ -76,8 +77,7 @@ def iter_boundary_pairs(
     vertices in the given order), ``i0 ∉ {j0, j1}``. Their concatenation equals
     ``boundary_pairs(boundary_vertices, boundary_edges)``. Empty chunks are skipped.
     """
-    if chunk < 1:
-        raise ValueError(f"chunk must be positive, got {chunk}")
+    require_at_least("chunk", chunk, 1, error=ValueError)
     bv, be = _pair_grid(boundary_vertices, boundary_edges)
     total = bv.size * be.shape[0]
     for start in range(0, total, chunk):

@@ -15,6 +15,7 @@ from typing import Protocol
 import numpy as np
 
 from .._lazy import lazy_module
+from .._options import require_shape
 from .._typing import FloatArray, IntArray
 from ..errors import InvalidMeshError
 
@@ -38,10 +39,8 @@ class MeshTables(Protocol):
 def new_points(points, shape: tuple[int, ...]) -> FloatArray:
     """``points`` as float64 for a mesh whose points have ``shape``; another shape is an
     InvalidMeshError naming both."""
-    q = np.asarray(points, dtype=np.float64)
-    if q.shape != shape:
-        raise InvalidMeshError(f"new points have shape {q.shape}, the mesh has {shape}")
-    return q
+    return require_shape("new points", np.asarray(points, dtype=np.float64), shape,
+                         error=InvalidMeshError)
 
 
 def _frozen(a: np.ndarray) -> np.ndarray:

@@ -18,10 +18,11 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from .._options import require_at_least, require_positive
 from .._typing import FloatArray, IntArray
 from ..conversions import Carried
 from ..cores import thread_budget
-from ..errors import InvalidMeshError, OptionError
+from ..errors import InvalidMeshError
 from ..kernels.admissibility import (BoundaryCheck, area_problem, first_non_finite_row,
                                       target_loop_problem)
 from ..kernels.triangles import aspect_ratios, inverse_shape_quality, signed_areas
@@ -191,16 +192,12 @@ def _frame_quality(points: FloatArray, triangles: IntArray) -> tuple[float, floa
 
 def _check_options(frames, steps, relax_iterations, quality_rounds, max_splits, weight) -> None:
     """:class:`OptionError` for an option out of range (see :func:`move`)."""
-    if frames is not None and int(frames) < 2:
-        raise OptionError(f"frames must be at least 2 (the input and the result), got {frames}")
+    require_at_least("frames", frames, 2)  # the input and the result
     for name, value in (("steps", steps), ("relax_iterations", relax_iterations),
                         ("quality_rounds", quality_rounds)):
-        if value is not None and int(value) < 1:
-            raise OptionError(f"{name} must be at least 1, got {value}")
-    if int(max_splits) < 0:
-        raise OptionError(f"max_splits must be at least 0, got {max_splits}")
-    if not weight > 0:
-        raise OptionError(f"weight must be > 0, got {weight}")
+        require_at_least(name, value, 1)
+    require_at_least("max_splits", max_splits, 0)
+    require_positive("weight", weight)
 
 
 #: the solver of each kind of mesh that has one by its class

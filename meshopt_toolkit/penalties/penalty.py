@@ -54,6 +54,7 @@ from functools import cached_property
 
 import numpy as np
 
+from .._options import require_shape
 from .._typing import FloatArray, IntArray
 from ..errors import InvalidMeshError, NotAdmissibleError
 from ..kernels import distance as _distance
@@ -121,9 +122,9 @@ class Penalty:
         if reference is None:
             ref = np.array(mesh.points, dtype=np.float64)
         else:
-            ref = np.array(getattr(reference, "points", reference), dtype=np.float64)
-            if ref.shape != (n, 2):
-                raise InvalidMeshError(f"reference has shape {ref.shape}, expected {(n, 2)}")
+            ref = require_shape("reference", np.array(getattr(reference, "points", reference),
+                                                      dtype=np.float64), (n, 2),
+                                error=InvalidMeshError)
         ref.setflags(write=False)
         self.reference = ref
         self._triangle_term: _TriangleQuotientTerm | None = None

@@ -10,6 +10,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .._linalg import dot
+from .._options import require_shape
 from .._typing import FloatArray
 from ..solvers import factorize_spd
 from .metrics import MetricNotImplementedError, _derivative
@@ -58,9 +59,8 @@ class AssembledMetric:
         A = self.matrix(Q)
         d = np.shape(Q)[1]
         P = _derivative(P, (A.shape[0] // d, d))
-        keep = np.ones(P.shape[0], bool) if free is None else np.asarray(free, dtype=bool)
-        if keep.shape != (P.shape[0],):
-            raise ValueError(f"free mask has shape {keep.shape}, expected ({P.shape[0]},)")
+        keep = require_shape("free mask", np.ones(P.shape[0], bool) if free is None
+                             else np.asarray(free, dtype=bool), (P.shape[0],))
         dof = np.repeat(keep, d)
         out = np.zeros_like(P)
         if dof.any():

@@ -7,7 +7,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from .._options import check_choice, options_of
+from .._options import check_choice, options_of, require_at_least, require_positive
 from ..errors import IntegrationError
 
 #: the integration methods (see :mod:`.geodesics`)
@@ -67,15 +67,11 @@ class GeodesicOptions:
             raise IntegrationError("on_violation must be 'warn', 'raise' or 'ignore', got "
                                    f"{self.on_violation!r}")
         for name in ("rtol", "energy_tol", "h0"):
-            value = getattr(self, name)
-            if value is not None and not value > 0:  # NaN fails too
-                raise IntegrationError(f"{name} must be > 0, got {value!r}")
+            require_positive(name, getattr(self, name), error=IntegrationError)
         if self.atol is not None and not self.atol >= 0:
             raise IntegrationError(f"atol must be >= 0, got {self.atol!r}")
         for name in ("max_steps", "fixed_point_max_iterations", "steps"):
-            value = getattr(self, name)
-            if value is not None and not value >= 1:
-                raise IntegrationError(f"{name} must be at least 1, got {value!r}")
+            require_at_least(name, getattr(self, name), 1, error=IntegrationError)
 
     @classmethod
     def of(cls, options: GeodesicOptions | Mapping | None = None, **settings) -> GeodesicOptions:

@@ -41,6 +41,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .._linalg import dot
+from .._options import require_shape
 from .._typing import FloatArray
 from ..fem.elasticity import (BlockPattern, SPDSolve, assemble, factorize, kept_ordering,
                              lame_parameters, solver_method)
@@ -134,19 +135,14 @@ class _LastQCache:
 
 def _derivative(P, shape: tuple) -> FloatArray:
     """``P`` as a float array of ``shape`` (ValueError for another)."""
-    P = np.asarray(P, dtype=np.float64)
-    if P.shape != shape:
-        raise ValueError(f"derivative has shape {P.shape}, expected {shape}")
-    return P
+    return require_shape("derivative", np.asarray(P, dtype=np.float64), shape)
 
 
 def _free_mask(free, n: int) -> np.ndarray | None:
     """Validate an optional per-vertex ``free`` mask (N,) bool; None if all are free."""
     if free is None:
         return None
-    free = np.ascontiguousarray(free, dtype=bool)
-    if free.shape != (n,):
-        raise ValueError(f"free mask has shape {free.shape}, expected ({n},)")
+    free = require_shape("free mask", np.ascontiguousarray(free, dtype=bool), (n,))
     return None if free.all() else free
 
 
@@ -416,9 +412,8 @@ class CompleteMetric:
         Q = _as_points(Q)
         hit = self._cache.get(Q)
         if hit is None:
-            g = np.ascontiguousarray(self.penalty.gradient(Q), dtype=np.float64)
-            if g.shape != Q.shape:
-                raise ValueError(f"penalty gradient has shape {g.shape}, expected {Q.shape}")
+            g = require_shape("penalty gradient", np.ascontiguousarray(
+                self.penalty.gradient(Q), dtype=np.float64), Q.shape)
             self.n_gradient_evaluations += 1
             hit = (g, _vdot(g, g))
             self._cache.put(Q, hit)

@@ -7,7 +7,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from .._options import options_of
+from .._options import options_of, require_positive
 from ..errors import OptionError
 from .setup import DEFAULT_RETRACTION
 
@@ -72,10 +72,8 @@ class OptimizeOptions:
         return out
 
     def _check(self) -> None:
-        positive = {"memory": self.memory, "sigma": self.sigma, "min_step": self.min_step}
-        for name, value in positive.items():
-            if not value > 0:
-                raise OptionError(f"{name} must be > 0, got {value}")
+        for name in ("memory", "sigma", "min_step"):
+            require_positive(name, getattr(self, name))
         if not 0 < self.tau < 1:
             raise OptionError(f"tau must be in (0, 1), got {self.tau}")
         if not 0 < self.segment_fraction <= 1:

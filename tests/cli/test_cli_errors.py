@@ -15,18 +15,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from cli_helpers import one_line
 
 from meshopt_toolkit import data_path
 from meshopt_toolkit.cli import main
 
 DISC = data_path("disc_25.msh")
-
-
-def one_line(capsys) -> str:
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1, err
-    assert "internal error" not in err[0] and "Traceback" not in err[0]
-    return err[0]
 
 
 @pytest.fixture

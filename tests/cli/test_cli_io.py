@@ -229,3 +229,18 @@ def test_directory_input_names_skipped_subfolders_or_recurses(files, tmp_path, c
     assert sorted(p.name for p in (tmp_path / "o1").rglob("*.vtu")) == ["a.vtu"]
     assert main(["convert", str(src), "-o", str(tmp_path / "o2"), "--to", "vtu", "-r"]) == 0
     assert (tmp_path / "o2" / "sub" / "b.vtu").exists() and (tmp_path / "o2" / "a.vtu").exists()
+
+
+def test_csv_table_keeps_integers_and_ten_digits_of_floats():
+    from meshopt_toolkit.cli._common import csv_table
+
+    rng = np.random.default_rng(3)
+    x, k = rng.normal(size=5) * 10.0 ** rng.integers(-20, 20, 5), rng.integers(0, 9, 5)
+    text = csv_table({"frame": range(5), "value": x, "count": k})
+    lines = text.splitlines()
+    assert lines[0] == "frame,value,count" and len(lines) == 6 and text.endswith("\n")
+    for i, line in enumerate(lines[1:]):
+        frame, value, count = line.split(",")
+        assert frame == str(i) and count == str(k[i])
+        assert float(value) == float(f"{x[i]:.10g}")
+        assert abs(float(value) - x[i]) <= 1e-9 * abs(x[i])

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from cli_helpers import one_line
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -28,13 +29,6 @@ def _refuse(constant: str):
 def strict_loads(text: str):
     """``json.loads`` that refuses ``NaN``, ``Infinity`` and ``-Infinity``."""
     return json.loads(text, parse_constant=_refuse)
-
-
-def one_line(capsys) -> str:
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1, err
-    assert "internal error" not in err[0] and "Traceback" not in err[0]
-    return err[0]
 
 
 @pytest.fixture

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from cli_helpers import one_line
 
 from gmsh_files import assert_same_but_points
 
@@ -181,8 +182,7 @@ def test_cli_where_selecting_nothing_is_one_line(bar_file, tmp_path, capsys):
     out = tmp_path / "x.msh"
     assert main(["move", str(bar_file), "-o", str(out), "--map", TWIST,
                  "--where", "x > 7"]) != 0
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "selects no vertex" in err[0] and not out.exists()
+    assert "selects no vertex" in one_line(capsys) and not out.exists()
 
 
 def test_mt_move_keeps_a_pymeshlab_mesh_a_pymeshlab_mesh(bar):
@@ -223,8 +223,7 @@ def test_cli_group_of_a_surface(bar_file, tmp_path, capsys):
     np.testing.assert_array_equal(b.points[end], a.points[end] + [0.0, 0.0, 0.25])
     assert main(["move", str(bar_file), "-o", str(tmp_path / "x.msh"), "--group", "inlet",
                  "--map", "x; y; z"]) != 0
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "it has: left (1), right (2)" in err[0]
+    assert "it has: left (1), right (2)" in one_line(capsys)
 
 
 def test_cli_frames_of_a_surface(bar_file, tmp_path):

@@ -11,6 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
+from test_tet_move import cube_tets
 
 from meshopt_toolkit.cli import main
 from meshopt_toolkit.errors import InvalidMeshError, NotAdmissibleError, ReadError, WriteError
@@ -134,30 +135,8 @@ def test_dihedral_angles_sum_rule():
 
 
 # ----------------------------------------------------------------------------- TetMesh
-def cube(n: int = 2):
-    """[0, 1]³ in n³ cubes of 6 positive tets each (Kuhn subdivision)."""
-    x = np.linspace(0, 1, n + 1)
-    pts = np.stack(np.meshgrid(x, x, x, indexing="ij"), -1).reshape(-1, 3)
-    idx = np.arange((n + 1) ** 3).reshape(n + 1, n + 1, n + 1)
-    tets = []
-    paths = [(0, 1, 2), (0, 2, 1), (1, 0, 2), (1, 2, 0), (2, 0, 1), (2, 1, 0)]
-    for i, j, k in np.ndindex(n, n, n):
-        for path in paths:
-            v = np.array([i, j, k])
-            chain = [idx[tuple(v)]]
-            for axis in path:
-                v = v.copy()
-                v[axis] += 1
-                chain.append(idx[tuple(v)])
-            tets.append(chain)
-    tets = np.array(tets)
-    bad = signed_volumes(pts, tets) < 0
-    tets[bad] = tets[bad][:, [0, 2, 1, 3]]
-    return pts, tets
-
-
 def test_cube_boundary_is_outward_and_closed():
-    pts, tets = cube(3)
+    pts, tets = cube_tets(3)
     m = TetMesh(pts, tets)
     assert m.is_admissible and m.problems == []
     assert len(m.boundary_faces) == 6 * 2 * 3 * 3
@@ -177,7 +156,7 @@ def test_boundary_is_independent_of_numbering(seed):
     # renumber vertices, shuffle tets and rotate each tet's vertices (an even permutation
     # keeps the orientation): the same outward boundary faces, as oriented cycles
     r = np.random.default_rng(seed)
-    pts, tets = cube(2)
+    pts, tets = cube_tets(2)
     perm = r.permutation(len(pts))
     inverse = np.argsort(perm)
     even = np.array([[0, 1, 2, 3], [1, 2, 0, 3], [0, 2, 3, 1], [3, 1, 0, 2]])
@@ -195,7 +174,7 @@ def test_boundary_is_independent_of_numbering(seed):
 
 
 def test_inverted_tets_are_named():
-    pts, tets = cube(2)
+    pts, tets = cube_tets(2)
     tets = tets.copy()
     tets[[3, 17]] = tets[[3, 17]][:, [1, 0, 2, 3]]
     m = TetMesh(pts, tets, source="c.msh")
@@ -208,7 +187,7 @@ def test_inverted_tets_are_named():
 
 
 def test_readable_checks():
-    pts, tets = cube(1)
+    pts, tets = cube_tets(1)
     with pytest.raises(InvalidMeshError, match=r"points must have shape \(N, 3\)"):
         TetMesh(pts[:, :2], tets)
     with pytest.raises(InvalidMeshError, match="out of range"):
@@ -392,7 +371,7 @@ def test_info_on_tets(tmp_path, box_msh, capsys):
     assert info["n_inverted"] == 0 and info["inverted"] == []
     assert 0.3 <= info["min_mean_ratio"] <= 0.45
     assert info["boundary_closed"] and info["boundary_components"] == 2
-    pts, tets = cube(2)
+    pts, tets = cube_tets(2)
     tets[[4, 9]] = tets[[4, 9]][:, [1, 0, 2, 3]]
     save_cells(CellMesh(pts, [("tetra", tets)]), tmp_path / "bad.vtu")
     assert main(["info", str(tmp_path / "bad.vtu")]) == 0

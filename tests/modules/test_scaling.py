@@ -130,6 +130,45 @@ def test_deform_morph_move_work_at_any_scale(tmp_path, capsys, factor):
     assert "error" not in capsys.readouterr().err
 
 
+# the command hands the file's mesh to mt.deform, which alone works at unit size: its
+# frames are mt.deform's on the mesh read from the file, bit for bit, at any scale
+@pytest.mark.parametrize("factor", [3.7, 1e300, 1e-300])
+def test_cli_deform_is_the_library_call_on_the_files_mesh(tmp_path, factor):
+    import meshopt_toolkit as mt
+
+    d = _scaled_files(tmp_path, factor)
+    argv = ["deform", str(d / "m.msh"), "--displacement", str(d / "v.npy"), "--time", "0.5"]
+    assert main([*argv, "-o", str(d / "out.msh")]) == 0
+    assert main([*argv, "--frames", "3", "--no-plots", "-o", str(d / "frames")]) == 0
+    mesh = load(d / "m.msh").as_planar()
+    V = np.load(d / "v.npy")
+    assert np.array_equal(load(d / "out.msh").points[:, :2],
+                          mt.deform(mesh, V, time=0.5).mesh.points)
+    ref = mt.deform(mesh, V, time=0.5, frames=3)
+    for k in range(3):
+        got = load(d / "frames" / f"frame_00{k}.msh").points[:, :2]
+        assert np.array_equal(got, ref.points[k]), k
+
+
+@pytest.mark.parametrize("factor", [3.7, 1e300, 1e-300])
+def test_cli_move_is_the_library_call_on_the_files_mesh(tmp_path, capsys, factor):
+    import meshopt_toolkit as mt
+
+    d = _scaled_files(tmp_path, factor)
+    mesh = load(d / "m.msh").as_planar()
+    handles = mesh.boundary_vertices
+    targets = 1.1 * mesh.points[handles]
+    (d / "h.csv").write_text("".join(f"{i},{x!r},{y!r}\n"
+                                     for i, (x, y) in zip(handles, targets.tolist())))
+    assert main(["move", str(d / "m.msh"), "--targets", str(d / "h.csv"), "--json",
+                 "-o", str(d / "out.msh")]) == 0
+    ref = mt.move(mesh, handles, targets)
+    assert np.array_equal(load(d / "out.msh").points[:, :2], ref.mesh.points)
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["handle_error"] == ref.handle_error  # in the file's units
+    assert summary["similarity"]["shift"] == [ref.similarity.shift.real, ref.similarity.shift.imag]
+
+
 @pytest.mark.parametrize("factor", [1e300, 1e-300])
 def test_filters_work_at_any_scale(tmp_path, factor):
     from meshopt_toolkit.pipeline import Document

@@ -9,9 +9,10 @@ import pytest
 from conftest import grid_mesh
 from hypothesis import given
 from hypothesis import strategies as st
-from motion_helpers import FAST, _random_admissible, _similar
+from motion_helpers import FAST, _random_admissible, _similar, distortion_functional
 
 from meshopt_toolkit.diagnostics import check_gradient, check_hvp
+from meshopt_toolkit.kernels.cell_maps import coordinate_columns
 from meshopt_toolkit.kernels.triangles import inverse_shape_quality
 from meshopt_toolkit.motion.planar.assembly import upper_to_blocks
 from meshopt_toolkit.motion.planar.distortion import (
@@ -40,15 +41,9 @@ def test_distortion_jacobian_taylor(disc, rng, at_reference):
     P, T = disc.points, disc.triangles
     dist = TriangleDistortion(P, T)
     Q = P.copy() if at_reference else _random_admissible(disc, rng, 0.3)
-    weights = rng.standard_normal((len(T), 3))  # a scalar functional of φ tests every row
-
-    def f(X):
-        return float(np.sum(weights * dist.values(X)))
-
-    def grad(X):
-        _, blocks = dist.values_and_jacobian(X)
-        return (dist.jacobian_matrix(blocks).T @ weights.ravel()).reshape(X.shape)
-
+    # a scalar functional of φ tests every row
+    f, grad, _ = distortion_functional(dist, rng.standard_normal((len(T), 3)),
+                                       coordinate_columns(T, 2))
     result = check_gradient(f, grad, Q, eps0=1e-3, rng=rng)
     assert abs(result.order - 2) < 0.2, result
 
@@ -59,21 +54,8 @@ def test_distortion_second_order_taylor(disc, rng, at_reference):
     P, T = disc.points, disc.triangles
     dist = TriangleDistortion(P, T)
     Q = P.copy() if at_reference else _random_admissible(disc, rng, 0.3)
-    weights = rng.standard_normal((len(T), 3))
-    cols = (2 * T[:, :, None] + np.arange(2)).reshape(-1, 6)
-
-    def f(X):
-        return float(np.sum(weights * dist.values(X)))
-
-    def grad(X):
-        _, blocks = dist.values_and_jacobian(X)
-        return (dist.jacobian_matrix(blocks).T @ weights.ravel()).reshape(X.shape)
-
-    def hvp(X, V):
-        blocks = upper_to_blocks(dist.second_order(X, weights))
-        local = np.matmul(blocks, V.ravel()[cols][:, :, None])[:, :, 0]
-        return np.bincount(cols.ravel(), local.ravel(), minlength=V.size).reshape(V.shape)
-
+    f, grad, hvp = distortion_functional(dist, rng.standard_normal((len(T), 3)),
+                                         coordinate_columns(T, 2), second=upper_to_blocks)
     result = check_hvp(f, grad, hvp, Q, eps0=1e-3, rng=rng)
     assert abs(result.order - 3) < 0.2, result
 

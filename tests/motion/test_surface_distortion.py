@@ -12,6 +12,7 @@ import pytest
 from conftest import grid_mesh
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from motion_helpers import distortion_functional, random_rotation, rates
 
 from meshopt_toolkit.diagnostics import check_gradient, check_hvp
 from meshopt_toolkit.errors import InvalidMeshError
@@ -32,12 +33,6 @@ def bumpy(n: int = 4, seed: int = 0):
     mesh = grid_mesh(n, jitter=0.3, seed=seed)
     x, y = mesh.points.T
     return np.column_stack([x, y, 0.4 * np.sin(3 * x) * y + 0.2 * x**2]), mesh.triangles
-
-
-def random_rotation(rng):
-    q, r = np.linalg.qr(rng.standard_normal((3, 3)))
-    q = q * np.sign(np.diag(r))
-    return q * np.linalg.det(q)
 
 
 def random_motion(points, rng, amplitude):
@@ -103,20 +98,7 @@ def test_jacobian_and_second_order_taylor(surface, rng, at_reference):
     P, T = surface
     dist = SurfaceDistortion(P, T)
     Q = P.copy() if at_reference else random_motion(P, rng, 0.5)
-    weights = rng.standard_normal((len(T), 3))
-    cols = dist.columns()
-
-    def f(X):
-        return float(np.sum(weights * dist.values(X)))
-
-    def grad(X):
-        _, blocks = dist.values_and_jacobian(X)
-        return (dist.jacobian_matrix(blocks).T @ weights.ravel()).reshape(X.shape)
-
-    def hvp(X, V):
-        local = np.matmul(dist.second_order(X, weights), V.ravel()[cols][:, :, None])[:, :, 0]
-        return np.bincount(cols.ravel(), local.ravel(), minlength=V.size).reshape(V.shape)
-
+    f, grad, hvp = distortion_functional(dist, rng.standard_normal((len(T), 3)), dist.columns())
     first = check_gradient(f, grad, Q, eps0=1e-3, rng=rng)
     assert abs(first.order - 2) < 0.2, first
     second = check_hvp(f, grad, hvp, Q, eps0=1e-3, rng=rng)
@@ -168,15 +150,7 @@ def test_metric_dominates_half_the_affine_invariant_metric(seed, amplitude):
     rng = np.random.default_rng(seed)
     dist = SurfaceDistortion(P, T)
     Q = random_motion(P, rng, amplitude) if amplitude else P
-    V = rng.standard_normal(Q.shape)
-    _, blocks = dist.values_and_jacobian(Q)
-    rate = np.linalg.norm(np.einsum("tij,tj->ti", blocks, V.ravel()[dist.columns()]), axis=1)
-    A, dA = dist.affine_maps(Q), dist.affine_maps(V)
-    C = np.swapaxes(A, 1, 2) @ A
-    dC = np.swapaxes(dA, 1, 2) @ A + np.swapaxes(A, 1, 2) @ dA
-    lam, U = np.linalg.eigh(C)
-    root = U @ (lam[:, :, None] ** -0.5 * np.swapaxes(U, 1, 2))
-    affine = 0.5 * np.linalg.norm(root @ dC @ root, axis=(1, 2))
+    rate, affine = rates(dist, Q, rng.standard_normal(Q.shape))
     assert (rate >= affine * (1 - 1e-10)).all()
     if not amplitude:
         np.testing.assert_allclose(rate, affine, rtol=1e-10)

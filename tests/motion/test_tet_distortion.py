@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from motion_helpers import distortion_functional, random_rotation, rates
 
 from meshopt_toolkit.diagnostics import check_gradient, check_hvp
 from meshopt_toolkit.errors import InvalidMeshError
@@ -64,12 +65,6 @@ def random_admissible(points, tets, rng, amplitude):
     return Q + noise
 
 
-def random_rotation(rng):
-    q, r = np.linalg.qr(rng.standard_normal((3, 3)))
-    q = q * np.sign(np.diag(r))
-    return q * np.linalg.det(q)
-
-
 def singular_values(P, Q, tets):
     D0 = np.stack([P[tets[:, j]] - P[tets[:, 0]] for j in (1, 2, 3)], axis=2)
     D1 = np.stack([Q[tets[:, j]] - Q[tets[:, 0]] for j in (1, 2, 3)], axis=2)
@@ -103,29 +98,12 @@ def test_values_at_the_reference_are_zero_and_reference_is_checked(mesh):
 
 
 # ------------------------------------------------------------------ derivatives
-def _functional(dist, weights):
-    cols = dist.columns()
-
-    def f(X):
-        return float(np.sum(weights * dist.values(X)))
-
-    def grad(X):
-        _, blocks = dist.values_and_jacobian(X)
-        return (dist.jacobian_matrix(blocks).T @ weights.ravel()).reshape(X.shape)
-
-    def hvp(X, V):
-        local = np.matmul(dist.second_order(X, weights), V.ravel()[cols][:, :, None])[:, :, 0]
-        return np.bincount(cols.ravel(), local.ravel(), minlength=V.size).reshape(V.shape)
-
-    return f, grad, hvp
-
-
 @pytest.mark.parametrize("at_reference", [True, False])
 def test_jacobian_and_second_order_taylor(mesh, rng, at_reference):
     P, T = mesh
     dist = TetDistortion(P, T)
     Q = P.copy() if at_reference else random_admissible(P, T, rng, 0.5)
-    f, grad, hvp = _functional(dist, rng.standard_normal((len(T), 7)))
+    f, grad, hvp = distortion_functional(dist, rng.standard_normal((len(T), 7)), dist.columns())
     first = check_gradient(f, grad, Q, eps0=1e-3, rng=rng)
     assert abs(first.order - 2) < 0.2, first
     second = check_hvp(f, grad, hvp, Q, eps0=1e-3, rng=rng)
@@ -166,15 +144,7 @@ def test_metric_dominates_half_the_affine_invariant_metric(seed, amplitude):
     rng = np.random.default_rng(seed)
     dist = TetDistortion(P, T)
     Q = random_admissible(P, T, rng, amplitude) if amplitude else P
-    V = rng.standard_normal(Q.shape)
-    _, blocks = dist.values_and_jacobian(Q)
-    rate = np.linalg.norm(np.einsum("tij,tj->ti", blocks, V.ravel()[dist.columns()]), axis=1)
-    A, dA = dist.affine_maps(Q), dist.affine_maps(V)
-    C = np.swapaxes(A, 1, 2) @ A
-    dC = np.swapaxes(dA, 1, 2) @ A + np.swapaxes(A, 1, 2) @ dA
-    lam, U = np.linalg.eigh(C)
-    root = U @ (lam[:, :, None] ** -0.5 * np.swapaxes(U, 1, 2))
-    affine = 0.5 * np.linalg.norm(root @ dC @ root, axis=(1, 2))
+    rate, affine = rates(dist, Q, rng.standard_normal(Q.shape))
     assert (rate >= affine * (1 - 1e-10)).all()
     if not amplitude:
         np.testing.assert_allclose(rate, affine, rtol=1e-10)

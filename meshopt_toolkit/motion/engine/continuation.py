@@ -11,7 +11,8 @@ from collections.abc import Callable
 import numpy as np
 
 from ..._typing import FloatArray
-from ...errors import MeshoptError, OptionError
+from ..._options import require_at_least, require_positive
+from ...errors import MeshoptError
 
 class NoAdmissiblePathError(MeshoptError):
     """No admissible motion was found within the effort allowed."""
@@ -20,10 +21,8 @@ class NoAdmissiblePathError(MeshoptError):
 def check_frames_and_weight(frames: int, weight: float) -> None:
     """Refuse a path of fewer than two frames or a metric weight that is not positive
     (:class:`~meshopt_toolkit.errors.OptionError`)."""
-    if int(frames) < 2:
-        raise OptionError(f"frames must be at least 2, got {frames}")
-    if not weight > 0:
-        raise OptionError(f"weight must be > 0, got {weight}")
+    require_at_least("frames", frames, 2)
+    require_positive("weight", weight)
 
 
 def march(start: FloatArray, times: FloatArray,

@@ -29,6 +29,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..._typing import FloatArray, IntArray
+from ...kernels.cell_maps import block_jacobian, coordinate_columns
 from .assembly import UPPER_COLS, UPPER_ROWS
 
 SQRT_HALF = np.sqrt(0.5)
@@ -245,13 +246,7 @@ class TriangleDistortion:
 
     def jacobian_matrix(self, blocks: FloatArray) -> sp.csr_matrix:
         """Assemble per-triangle blocks (T, 3, 6) into the sparse ``J`` (3T × 2N)."""
-        T = self.triangles.shape[0]
-        rows = np.broadcast_to(np.arange(3 * T).reshape(T, 3, 1), (T, 3, 6))
-        cols = (2 * self.triangles[:, :, None] + np.arange(2)).reshape(T, 1, 6)
-        cols = np.broadcast_to(cols, (T, 3, 6))
-        return sp.csr_matrix((blocks.ravel(), (rows.ravel(), cols.ravel())),
-                             shape=(3 * T, 2 * self.n_vertices))
-
+        return block_jacobian(blocks, coordinate_columns(self.triangles, 2), 2 * self.n_vertices)
 
 def _real_pairs(w: np.ndarray) -> FloatArray:
     """(3, T) complex ``w_j`` → (6, T) ``(Re w_0, −Im w_0, Re w_1, …)``: the real gradient

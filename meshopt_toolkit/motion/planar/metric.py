@@ -15,6 +15,7 @@ import scipy.sparse as sp
 from ..._typing import FloatArray, IntArray
 from ...cells.base import lumped_mass
 from ...errors import NotAdmissibleError
+from ...kernels.cell_maps import coordinate_columns
 from ...riemannian.assembled import AssembledMetric
 from .distortion import TriangleDistortion
 from .path import GraphPath
@@ -68,7 +69,7 @@ class GraphMetric(AssembledMetric):
         """``g_Q V = (M + w² JᵀJ) V`` for a displacement ``V`` (N, 2), triangle by
         triangle (no matrix)."""
         _, jb = self.strain.values_and_jacobian(Q)
-        tri_cols = (2 * self.triangles[:, :, None] + np.arange(2)).reshape(-1, 6)
+        tri_cols = coordinate_columns(self.triangles, 2)
         v = V.ravel()[tri_cols]  # (T, 6)
         w2 = self.row_weights.reshape(-1, 3) ** 2
         strain = np.matmul(jb, v[:, :, None])[:, :, 0] * w2  # W² J V per triangle (T, 3)

@@ -25,6 +25,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..._typing import FloatArray, IntArray
+from ...kernels.cell_maps import coordinate_columns
 from ..engine.frame_threads import frame_map
 from .assembly import (
     UPPER_DIAGONAL,
@@ -143,7 +144,7 @@ class GraphPath:
         # frame 0 is fixed: only its strain enters (and not even that with an anchor)
         phis = [strain.values(frames[0]) if self.anchor_strain is None
                 else self.anchor_strain.reshape(-1, 3)]
-        tri_cols = (2 * strain.triangles[:, :, None] + np.arange(2)).reshape(-1, 6)  # (T, 6)
+        tri_cols = coordinate_columns(strain.triangles, 2)  # (T, 6)
         pattern = self._assembly_pattern(tri_cols)
         moving = set(pattern.frames)
 

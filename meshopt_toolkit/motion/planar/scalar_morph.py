@@ -80,6 +80,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from ..._options import require_at_least
 from ..._typing import FloatArray
 from ...errors import InvalidMeshError, OptionError
 from ...generate import twisted
@@ -240,9 +241,7 @@ def geodesic_morph(
     start = time.perf_counter()
     if method not in ("auto", "discrete", "shooting"):
         raise OptionError(f"method must be 'auto', 'discrete' or 'shooting', got {method!r}")
-    frames = int(frames)
-    if frames < 2:
-        raise OptionError(f"frames must be at least 2, got {frames}")
+    frames = require_at_least("frames", int(frames), 2)
     src, tgt = _check_pair(source, target)
     Q0, Q1 = src.points, tgt.points
     if metric is None:

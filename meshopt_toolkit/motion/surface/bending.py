@@ -16,6 +16,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..._typing import FloatArray, IntArray
+from ...kernels.cell_maps import block_jacobian, coordinate_columns
 
 
 def edge_diamonds(triangles: IntArray) -> IntArray:
@@ -117,15 +118,12 @@ class ShellBending:
 
     def columns(self) -> IntArray:
         """Global coordinate index ``3·vertex + d`` of each block column: (E, 12)."""
-        return (3 * self.diamonds[:, :, None] + np.arange(3)).reshape(-1, 12)
+        return coordinate_columns(self.diamonds, 3)
 
     def jacobian_matrix(self, Q: FloatArray) -> sp.csr_matrix:
         """The residuals' Jacobian (E × 3N)."""
         blocks = self.jacobian_blocks(Q)
-        n = len(blocks)
-        rows = np.repeat(np.arange(n), 12)
-        return sp.coo_matrix((blocks.ravel(), (rows, self.columns().ravel())),
-                             shape=(n, 3 * self.n_vertices)).tocsr()
+        return block_jacobian(blocks[:, None, :], self.columns(), 3 * self.n_vertices)
 
     def gradient(self, Q: FloatArray) -> FloatArray:
         """``∇E_b`` (N, 3)."""

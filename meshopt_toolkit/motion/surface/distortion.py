@@ -29,7 +29,9 @@ import scipy.sparse as sp
 
 from ..._typing import FloatArray, IntArray
 from ...errors import InvalidMeshError
-from ...kernels.cell_maps import affine_maps, barycentric_gradients, triangle_plane_coordinates
+from ...kernels.cell_maps import (affine_maps, barycentric_gradients, block_jacobian,
+                                  coordinate_columns, space_cells,
+                                  triangle_plane_coordinates)
 from ..planar.distortion import shape_quality_bound
 
 S = np.sqrt(0.5)
@@ -58,12 +60,9 @@ class SurfaceDistortion:
     n_components = 3
 
     def __init__(self, reference: FloatArray, triangles: IntArray) -> None:
-        self.reference = np.asarray(reference, dtype=float)
-        self.triangles = np.asarray(triangles)
-        self.n_vertices = self.reference.shape[0]
-        if (self.reference.ndim != 2 or self.reference.shape[1] != 3
-                or self.triangles.shape[1:] != (3,)):
-            raise InvalidMeshError("a surface distortion needs (N, 3) points and (T, 3) triangles")
+        self.reference, self.triangles = space_cells(reference, triangles, 3,
+                                                     "a surface distortion")
+        self.n_vertices = len(self.reference)
         rest = triangle_plane_coordinates(self.reference, self.triangles)
         # twice the area against the squared edges: degenerate up to rounding is refused
         scale = np.einsum("tij,tij->t", rest, rest)
@@ -178,16 +177,11 @@ class SurfaceDistortion:
 
     def columns(self) -> IntArray:
         """Global coordinate index ``3·vertex + d`` of each block column: (T, 9)."""
-        return (3 * self.triangles[:, :, None] + np.arange(3)).reshape(-1, 9)
+        return coordinate_columns(self.triangles, 3)
 
     def jacobian_matrix(self, blocks: FloatArray) -> sp.csr_matrix:
         """Assemble per-triangle blocks (T, 3, 9) into the sparse ``J`` (3T × 3N)."""
-        n = len(self.triangles)
-        rows = np.broadcast_to(np.arange(3 * n).reshape(n, 3, 1), (n, 3, 9))
-        cols = np.broadcast_to(self.columns()[:, None, :], (n, 3, 9))
-        return sp.coo_matrix((blocks.ravel(), (rows.ravel(), cols.ravel())),
-                             shape=(3 * n, 3 * self.n_vertices)).tocsr()
-
+        return block_jacobian(blocks, self.columns(), 3 * self.n_vertices)
 
 def surface_quality_bound(inverse_quality_reference: FloatArray, change: FloatArray) -> FloatArray:
     """Upper bound of ``1/ψ_t`` (5.23, in the triangle's own plane) from the reference's

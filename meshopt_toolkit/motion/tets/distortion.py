@@ -30,7 +30,8 @@ import scipy.sparse as sp
 
 from ..._typing import FloatArray, IntArray
 from ...errors import InvalidMeshError
-from ...kernels.cell_maps import REGULAR_TET_EDGES, affine_maps, barycentric_gradients
+from ...kernels.cell_maps import (REGULAR_TET_EDGES, affine_maps, barycentric_gradients,
+                                  block_jacobian, coordinate_columns, space_cells)
 
 SQRT2 = np.sqrt(2.0)
 SQRT3 = np.sqrt(3.0)
@@ -76,12 +77,8 @@ class TetDistortion:
     n_components = 7
 
     def __init__(self, reference: FloatArray, tets: IntArray) -> None:
-        self.reference = np.asarray(reference, dtype=float)
-        self.tets = np.asarray(tets)
-        self.n_vertices = self.reference.shape[0]
-        if (self.reference.ndim != 2 or self.reference.shape[1] != 3
-                or self.tets.shape[1:] != (4,)):
-            raise InvalidMeshError("a tet distortion needs (N, 3) points and (C, 4) tets")
+        self.reference, self.tets = space_cells(reference, tets, 4, "a tet distortion")
+        self.n_vertices = len(self.reference)
         p = self.reference[self.tets]
         vol = np.linalg.det(np.swapaxes(p[:, 1:] - p[:, :1], 1, 2))
         if not (vol > 0).all():
@@ -251,19 +248,13 @@ class TetDistortion:
     def columns(self) -> IntArray:
         """Global coordinate index ``3·vertex + d`` of each block column: (C, 12)."""
         if getattr(self, "_columns_of", None) is not self.tets:  # kept for these tets
-            self._columns = (3 * self.tets[:, :, None] + np.arange(3)).reshape(-1, 12)
+            self._columns = coordinate_columns(self.tets, 3)
             self._columns_of = self.tets
         return self._columns
 
     def jacobian_matrix(self, blocks: FloatArray) -> sp.csr_matrix:
-        """Assemble per-tet blocks (C, 7, 12) into the sparse ``J`` (7C × 3N), from COO
-        index arrays (duplicates summed)."""
-        n_cells = len(self.tets)
-        rows = np.broadcast_to(np.arange(7 * n_cells).reshape(n_cells, 7, 1), (n_cells, 7, 12))
-        cols = np.broadcast_to(self.columns()[:, None, :], (n_cells, 7, 12))
-        return sp.coo_matrix((blocks.ravel(), (rows.ravel(), cols.ravel())),
-                             shape=(7 * n_cells, 3 * self.n_vertices)).tocsr()
-
+        """Assemble per-tet blocks (C, 7, 12) into the sparse ``J`` (7C × 3N)."""
+        return block_jacobian(blocks, self.columns(), 3 * self.n_vertices)
 
 def tet_quality_bound(mean_ratio_reference: FloatArray, change: FloatArray) -> FloatArray:
     """Lower bound of the mean ratio ``η`` of each tet from its reference value and

@@ -32,6 +32,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..._options import require_at_least
 from ..._typing import FloatArray, IntArray
 from ...cells.base import lumped_mass
 from ...errors import InvalidMeshError
@@ -215,8 +216,7 @@ def move_tets(points: FloatArray, tets: IntArray, handles, targets, *, steps: in
     """
     t_start = time.perf_counter()
     P, T, h, tg = _check(points, tets, handles, targets)
-    if frames is not None and int(frames) < 2:
-        raise InvalidMeshError("frames must be at least 2 (the input and the result)")
+    require_at_least("frames", frames, 2, error=InvalidMeshError)  # the input and the result
     S = fit_similarity_3d(P[h], tg)
     residual_targets = S.inverse(tg)
     n_steps = max(int(steps), (frames or 2) - 1)
