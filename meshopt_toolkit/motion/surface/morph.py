@@ -28,7 +28,9 @@ returned without a Gauss–Newton model: 0.2–26 % above the converged path's e
 pairs of the tests and of ``bench_surface_morph.py``, the worst quality the same). Else
 it stops where the Gauss–Newton model of the next step predicts, or a step achieved, a
 decrease below ``rtol·E`` (a start stationary to that tolerance is returned unchanged);
-``stop_when_healthy=False`` leaves the energy tests alone. Every accepted iterate has
+each frame still below the worse end is then polished towards it (:mod:`.morph_polish`,
+every trial fold-free and, with contact, clean). ``stop_when_healthy=False`` leaves the
+energy tests alone and polishes nothing. Every accepted iterate has
 ``det C > 0`` in every triangle of every frame and no fold
 (:class:`.folds.FoldTest` against the source) that the target does not have. The
 mass term fixes the frames' rigid motions (a rotation of one frame costs ``|ΔQ|²_M``), so
@@ -72,6 +74,7 @@ from .interpolation import arap_interpolation
 from .metric import BENDING, WEIGHT, SurfaceGraphMetric
 from .morph_contact import PathContact, detour_path
 from .morph_homotopy import homotopy_start
+from .morph_polish import polish_frames
 from .path_system import PathSystem
 
 __all__ = ["SurfaceMorph", "morph_surface", "frame_measures"]
@@ -123,6 +126,7 @@ class SurfaceMorph:
         "identical"
     energy : the path energy ``E`` (module docstring) at the end
     length : the frames' polygon length ``ℓ`` in the embedding
+    polished : the interior frames polished after the relaxation (:mod:`.morph_polish`)
     """
 
     points: FloatArray
@@ -140,6 +144,7 @@ class SurfaceMorph:
     seconds: float = 0.0
     weight: float = 1.0
     gradient_norm: float = field(default=0.0)
+    polished: int = 0
 
     def linear_measures(self) -> tuple[FloatArray, IntArray]:
         """:func:`frame_measures` of linear interpolation at the same times (measured at
@@ -169,7 +174,7 @@ class SurfaceMorph:
             "initial_energy": self.initial_energy, "length": self.length,
             "strain_bound": self.length / self.weight, "iterations": self.iterations,
             "factorizations": self.factorizations, "gradient_norm": self.gradient_norm,
-            "seconds": self.seconds,
+            "polished_frames": self.polished, "seconds": self.seconds,
         }
 
 
@@ -273,7 +278,8 @@ def morph_surface(source: FloatArray, target: FloatArray, triangles: IntArray,
         or when a step lowered the energy by less than ``rtol·E``.
     stop_when_healthy : stop (``"healthy"``) as soon as the path, the start included, has
         every interior frame's worst relative quality at least the worse end's (module
-        docstring), before the energy tests.
+        docstring), before the energy tests; where these stop it first, polish the frames
+        below the worse end (:mod:`.morph_polish`).
     callback : called once per iteration with a :class:`PathIteration`; True stops.
     contact : keep every frame, and the segments between frames, from passing through the
         surface (:mod:`.morph_contact`) where both ends are free of
@@ -311,6 +317,7 @@ def morph_surface(source: FloatArray, target: FloatArray, triangles: IntArray,
         raise InvalidMeshError("the target has a degenerate triangle")
     diameter = float(np.linalg.norm(W0.max(0) - W0.min(0)))
     S = global_similarity(W0, W1, diameter) if len(W0) > 2 else None
+    polished = 0
     if np.array_equal(V0, V1):
         path, status, it, nf, E0, gnorm = [W0.copy() for _ in times], "identical", 0, 0, 0.0, 0.0
         initial = "identical"
@@ -323,6 +330,8 @@ def morph_surface(source: FloatArray, target: FloatArray, triangles: IntArray,
         path, initial = _initial_path(problem, W0, W1, G, times, guard)
         path, status, it, nf, E0, gnorm = _minimize(problem, path, max_iterations, rtol,
                                                     callback, stop_when_healthy, guard)
+        if stop_when_healthy and not problem.healthy(path):
+            path, polished = polish_frames(problem, path, guard)
     X = [problem.embed(Q) for Q in path]
     residuals = [problem.segment(X[k], X[k + 1]) for k in range(K)]
     energy = 0.5 * float(sum(r @ r for r in residuals))
@@ -345,7 +354,7 @@ def morph_surface(source: FloatArray, target: FloatArray, triangles: IntArray,
                         triangles=F, status=status, initial_path=initial, energy=energy,
                         initial_energy=E0, length=length, iterations=it,
                         factorizations=nf, seconds=time.perf_counter() - t_start,
-                        weight=float(weight), gradient_norm=gnorm)
+                        weight=float(weight), gradient_norm=gnorm, polished=polished)
 
 
 def _path_contact(problem: _PathProblem, V0, V1, frames: int, on: bool
