@@ -4,9 +4,9 @@ surface motion's polish (:func:`.polish.polish_worst_triangles`, the source its 
 handle), every trial refused that has a degenerate triangle or a new fold.
 
 With contact (:class:`.morph_contact.PathContact`) a trial is also refused unless the
-straight segment from the previous frame to it is free of contact (CCD), no two of its
-triangles sharing a vertex meet (exact) and the segment from it to the next frame is free
-of contact: from a clean path, the path stays clean.
+straight segments from the previous frame to it and from it to the next are free of
+contact (CCD) and no two of its triangles sharing a vertex meet (exact): from a clean
+path, the path stays clean.
 
 The neighbourhoods of ``NEIGHBOURHOODS`` are tried in turn, the smallest first, until the
 frame reaches the worse end: a few worst triangles and one ring of neighbours move only
@@ -77,7 +77,6 @@ def _clear_between(contact, before: FloatArray, after: FloatArray):
     """The polish's ``clear`` of a frame between the clean frames ``before`` and ``after``:
     a trial frame is taken only where the path through it stays clean."""
     def clear(_start: FloatArray, trial: FloatArray) -> bool:
-        return (contact.segment_clear(before, trial)
-                and contact.embedded(trial)
-                and contact.segment_clear(trial, after))
+        return (contact.segment_clear(before, trial) and contact.segment_clear(trial, after)
+                and contact.embedded(trial))  # the exact test, the costliest, last
     return clear
