@@ -221,7 +221,6 @@ def test_polished_frames_rise_and_stay_clean(seed, lift):
     assert _steps_collision_free(out, F)
 
 
-@pytest.mark.slow
 def test_the_polish_without_contact_passes_the_flap_through_the_sheet():
     """The constraint matters: polished without contact, the squashed flap stretches down
     through the sheet."""

@@ -1,7 +1,8 @@
 """The last step of a surface morph that stops short of healthy (:mod:`.morph`): each
 interior frame whose worst relative quality is below the worse end's is polished by the
 surface motion's polish (:func:`.polish.polish_worst_triangles`, the source its rest, no
-handle), every trial refused that has a degenerate triangle or a new fold.
+handle), every trial refused that has a degenerate triangle or a new fold or raises the
+frame's membrane energy by more than 2 %.
 
 With contact (:class:`.morph_contact.PathContact`) a trial is also refused unless the
 straight segments from the previous frame to it and from it to the next are free of
@@ -12,8 +13,8 @@ The neighbourhoods of ``NEIGHBOURHOODS`` are tried in turn, the smallest first, 
 frame reaches the worse end: a few worst triangles and one ring of neighbours move only
 the vertices near them, where the whole surface moved towards its best shape can press a
 frame against its neighbours' segments (and the next frame, polished from there, finds no
-clear trial). ``SWEEPS`` passes over the frames at most: a frame left low may pass once
-its neighbours have moved.
+clear trial). With contact, ``SWEEPS`` passes over the frames at most: a frame left low is
+polished again where the next frame, polished after it, has moved since.
 """
 
 from __future__ import annotations
@@ -53,8 +54,10 @@ def polish_frames(problem, path: list, contact=None) -> tuple[list, int]:
     """
     path, changed = list(path), set()
     no_handles = np.zeros(0, np.int64)
+    todo = range(1, len(path) - 1)
     for _ in range(SWEEPS):
-        low = [j for j in range(1, len(path) - 1) if not problem.healthy(path[j - 1:j + 2])]
+        low = [j for j in todo if not problem.healthy(path[j - 1:j + 2])]
+        moved = set()
         for j in low:
             clear = None if contact is None else _clear_between(contact, path[j - 1],
                                                                 path[j + 1])
@@ -65,11 +68,13 @@ def polish_frames(problem, path: list, contact=None) -> tuple[list, int]:
                 if info["polish_vertices"] and problem.embed(Q) is not None and \
                         problem.admissible(Q):
                     path[j] = Q
-                    changed.add(j)
+                    moved.add(j)
                 if problem.healthy(path[j - 1:j + 2]):
                     break
-        if all(problem.healthy(path[j - 1:j + 2]) for j in low):
+        changed |= moved
+        if contact is None:  # no segment binds a frame to its neighbours
             break
+        todo = [j for j in low if j + 1 in moved]
     return path, len(changed)
 
 
