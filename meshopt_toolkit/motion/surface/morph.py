@@ -28,13 +28,11 @@ returned without a Gauss–Newton model: 0.2–26 % above the converged path's e
 pairs of the tests and of ``bench_surface_morph.py``, the worst quality the same). Else
 it stops where the Gauss–Newton model of the next step predicts, or a step achieved, a
 decrease below ``rtol·E`` (a start stationary to that tolerance is returned unchanged);
-each frame still below the worse end is then polished towards it (:mod:`.morph_polish`,
-every trial fold-free and, with contact, clean). ``stop_when_healthy=False`` leaves the
-energy tests alone and polishes nothing. Every accepted iterate has
-``det C > 0`` in every triangle of every frame and no fold
-(:class:`.folds.FoldTest` against the source) that the target does not have. The
-mass term fixes the frames' rigid motions (a rotation of one frame costs ``|ΔQ|²_M``), so
-nothing is pinned.
+the frames it leaves below the worse end are then polished (:mod:`.morph_polish`).
+``stop_when_healthy=False`` leaves both alone. Every accepted iterate has ``det C > 0``
+in every triangle of every frame and no fold (:class:`.folds.FoldTest` against the
+source) that the target does not have. The mass term fixes the frames' rigid motions (a
+rotation of one frame costs ``|ΔQ|²_M``), so nothing is pinned.
 
 With contact (the default, where both ends are free of self-intersections and there is an
 interior frame) no frame passes through the surface, nor the straight motion between two
@@ -126,7 +124,6 @@ class SurfaceMorph:
         "identical"
     energy : the path energy ``E`` (module docstring) at the end
     length : the frames' polygon length ``ℓ`` in the embedding
-    polished : the interior frames polished after the relaxation (:mod:`.morph_polish`)
     """
 
     points: FloatArray
@@ -276,10 +273,9 @@ def morph_surface(source: FloatArray, target: FloatArray, triangles: IntArray,
         when the Gauss–Newton model predicts a decrease below ``rtol·E`` for the next step
         (the start path included: then it is returned as it is, stationary to ``rtol``),
         or when a step lowered the energy by less than ``rtol·E``.
-    stop_when_healthy : stop (``"healthy"``) as soon as the path, the start included, has
-        every interior frame's worst relative quality at least the worse end's (module
-        docstring), before the energy tests; where these stop it first, polish the frames
-        below the worse end (:mod:`.morph_polish`).
+    stop_when_healthy : stop (``"healthy"``) as soon as every interior frame of the path,
+        the start's included, is as healthy as the worse end (module docstring), before
+        the energy tests; where these stop first, polish those below (:mod:`.morph_polish`).
     callback : called once per iteration with a :class:`PathIteration`; True stops.
     contact : keep every frame, and the segments between frames, from passing through the
         surface (:mod:`.morph_contact`) where both ends are free of
@@ -330,8 +326,7 @@ def morph_surface(source: FloatArray, target: FloatArray, triangles: IntArray,
         path, initial = _initial_path(problem, W0, W1, G, times, guard)
         path, status, it, nf, E0, gnorm = _minimize(problem, path, max_iterations, rtol,
                                                     callback, stop_when_healthy, guard)
-        if stop_when_healthy and not problem.healthy(path):
-            path, polished = polish_frames(problem, path, guard)
+        path, polished = polish_frames(problem, path, guard) if stop_when_healthy else (path, 0)
     X = [problem.embed(Q) for Q in path]
     residuals = [problem.segment(X[k], X[k + 1]) for k in range(K)]
     energy = 0.5 * float(sum(r @ r for r in residuals))
