@@ -179,6 +179,68 @@ def test_steps_are_capped_before_the_sheet_and_crossing_paths_are_not_clean():
     assert pc.clean(path)
 
 
+@pytest.mark.slow
+@settings(max_examples=4, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(push=st.tuples(st.floats(0.35, 0.9), st.floats(-0.2, 0.2), st.floats(-0.3, 0.3)),
+       other=st.tuples(st.floats(0.0, 0.9), st.floats(-0.2, 0.2), st.floats(-0.3, 0.3)))
+def test_random_pushes_towards_contact_move_and_morph_clean(push, other):
+    """The flap's top pushed down and sideways towards the sheet by two random motions
+    (moves with contact), then the morph from one pushed pose to the other: every frame of
+    the moves and of the morph clean by the exact kernel, the morph's motion between
+    frames by ipctk's CCD."""
+    poses = []
+    for drop, dx, dy in (push, other):
+        V, F, h, tg = _pushed(drop, (dx, dy))
+        moved = move_surface(V, F, h, tg)
+        assert _crossings(moved.frames, F) == [0] * len(moved.frames)
+        poses.append(SurfaceMesh(moved.points, F))
+    res = mt.morph(*poses, 5)
+    frames = [f.points for f in res.frames]
+    assert _crossings(frames, F) == [0] * 5
+    assert _steps_collision_free(frames, F)
+
+
+def test_cli_contact_on_writes_clean_frames_off_refuses(tmp_path, capsys):
+    src, tgt = flap_through_sheet()
+    a, b = _surface_file(tmp_path / "s.vtu", src), _surface_file(tmp_path / "t.vtu", tgt)
+    out = tmp_path / "frames"
+    args = ["morph", str(a), str(b), "-o", str(out), "--frames", "7"]
+    assert main(args + ["--contact", "off"]) == 1
+    assert "intersect itself at frame" in capsys.readouterr().err
+    assert not out.exists()
+    assert main(args) == 0
+    from meshopt_toolkit.io import load_cells
+
+    frames = [load_cells(p).points for p in sorted(out.glob("frame_*.vtu"))]
+    assert len(frames) == 7 and _crossings(frames, src.triangles) == [0] * 7
+
+
+def test_filter_morphs_around_the_sheet_and_without_contact_refuses():
+    from meshopt_toolkit.errors import FilterError
+    from meshopt_toolkit.pipeline import Document
+    from meshopt_toolkit.pipeline.filter import registry
+
+    src, tgt = flap_through_sheet()
+    doc = Document([src, tgt])
+    with pytest.raises(FilterError, match="intersect itself at frame"):
+        registry.get("generate_geodesic_morph")()(doc, frames=5, contact=False)
+    assert len(doc) == 2
+    registry.get("generate_geodesic_morph")()(doc, frames=5)
+    frames = [np.asarray(e.mesh.points) for e in doc.entries[2:]]
+    assert len(frames) == 5 and _crossings(frames, src.triangles) == [0] * 5
+
+
+def test_cli_names_the_file_of_an_end_through_itself(tmp_path, capsys):
+    src, _ = flap_through_sheet()
+    inside = SurfaceMesh(flap_through_sheet(1.0)[1].points, src.triangles)
+    pairs = len(self_intersections(inside.points, src.triangles))
+    a = _surface_file(tmp_path / "s.vtu", src)
+    b = _surface_file(tmp_path / "inside.vtu", inside)
+    assert main(["morph", str(a), str(b), "-o", str(tmp_path / "f"), "--frames", "3"]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "warning" in err[0]
+    assert f"inside.vtu intersects itself ({pairs} pairs of triangles)" in err[0]
+
 
 def _squashed(seed: int, lift: float):
     """The flap squashed to half its height, its bottom edge ``lift`` d̂ above the sheet,
