@@ -240,3 +240,56 @@ def test_cli_names_the_file_of_an_end_through_itself(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "warning" in err[0]
     assert f"inside.vtu intersects itself ({pairs} pairs of triangles)" in err[0]
+
+
+def _squashed(seed: int, lift: float):
+    """The flap squashed to half its height, its bottom edge ``lift`` d̂ above the sheet,
+    its points shaken within its plane: the path (source, it, source), the morph's path
+    problem and its contact."""
+    from meshopt_toolkit.motion.surface.metric import BENDING, WEIGHT
+    from meshopt_toolkit.motion.surface.morph import _PathProblem
+
+    src, _ = flap_through_sheet()
+    V0, F = np.asarray(src.points), src.triangles
+    contact = pair_contact(V0, V0, F)
+    rng = np.random.default_rng(seed)
+    low = V0.copy()
+    low[16:, 0] += rng.uniform(-0.03, 0.03, 16)
+    low[16:, 2] = 0.5 * (low[16:, 2] - 0.5) + rng.uniform(-0.05, 0.05, 16)
+    low[16::4, 2] = lift * contact.dhat  # the flap's bottom edge (v = 0)
+    problem = _PathProblem(V0, V0, F, WEIGHT, BENDING)
+    return [V0, low, V0], F, problem, PathContact(contact, 3, problem.sqrt_m ** 2)
+
+
+@pytest.mark.slow
+@settings(max_examples=4, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2**32 - 1), lift=st.floats(0.1, 0.9))
+def test_polished_frames_rise_and_stay_clean(seed, lift):
+    """A middle frame of :func:`_squashed` (below the ends' quality): the polish of the
+    morph's frames raises its worst relative quality or leaves the frame, every frame clean
+    by the exact kernel and every segment by ipctk's CCD, the ends bitwise."""
+    from hypothesis import assume
+
+    from meshopt_toolkit.motion.surface.morph_polish import polish_frames
+
+    path, F, problem, guard = _squashed(seed, lift)
+    V0, low = path[0], path[1]
+    assume(problem.embed(low) is not None and problem.admissible(low) and guard.clean(path))
+    out, polished = polish_frames(problem, path, guard)
+    assert out[0] is V0 and out[2] is V0
+    assert _worst(out[1], V0, F) >= _worst(low, V0, F)
+    assert polished == int(out[1] is not low)
+    assert _crossings(out, F) == [0] * 3
+    assert _steps_collision_free(out, F)
+
+
+def test_the_polish_without_contact_passes_the_flap_through_the_sheet():
+    """The constraint matters: polished without contact, the squashed flap stretches down
+    through the sheet."""
+    from meshopt_toolkit.motion.surface.morph_polish import polish_frames
+
+    path, F, problem, guard = _squashed(0, 0.1)
+    assert guard.clean(path)
+    out, polished = polish_frames(problem, path)
+    assert polished == 1 and not guard.clean(out)
+    assert max(_crossings(out, F)) > 0

@@ -2,8 +2,9 @@
 one connected strip whose flap, moved by either interpolation, passes through a ramp of the
 same strip; pulled by the homotopy it slides off the ramp's edge, every frame clean by the
 exact kernel, the motion between frames clean by ipctk's CCD, the last frame the target,
-every frame within 1 % of the worse end's worst relative quality (the geodesic relaxation
-stops on the energy tests 0.26 % below it); too few frames for the clean path are refused."""
+every frame at least as healthy as the worse end (the frames the relaxation leaves below
+it polished, the path kept clean), also with the ends shaken by rounding; too few frames
+for the clean path are refused."""
 
 from __future__ import annotations
 
@@ -88,12 +89,25 @@ def test_the_morph_starts_from_the_homotopy_with_clean_frames(strip_morph):
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="the relaxation from a homotopy start stops on its "
-                                       "energy test with frames a few % below the worse end")
 def test_the_homotopy_morph_s_frames_are_as_healthy_as_the_worse_end(strip_morph):
-    _, frames, _, _, F = strip_morph
+    res, frames, _, _, F = strip_morph
     worst = _worst(frames, F)
     assert min(worst) >= min(worst[0], worst[-1]) * (1 - 1e-12)
+    assert res.morph.polished > 0  # the relaxation alone stops below it
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [1, 2])
+def test_ends_shaken_by_rounding_morph_as_healthy_and_clean(seed):
+    """Each point of both ends moved by about 1e-9: the same guarantees, no hang."""
+    V0, V1, F = ramp_and_flap()
+    rng = np.random.default_rng(seed)
+    V0, V1 = (V + 1e-9 * rng.standard_normal(V.shape) for V in (V0, V1))
+    frames = list(morph_surface(V0, V1, F, 17).points)
+    worst = _worst(frames, F)
+    assert min(worst) >= min(worst[0], worst[-1]) * (1 - 1e-12)
+    assert [len(self_intersections(Q, F)) for Q in frames] == [0] * 17
+    assert _clean_steps(frames, F)
 
 
 @pytest.mark.slow
@@ -117,5 +131,44 @@ def test_cli_writes_the_homotopys_clean_frames(tmp_path):
     assert main(["morph", str(a), str(b), "-o", str(out), "--frames", "17"]) == 0
     frames = [np.asarray(load_cells(p).points) for p in sorted(out.glob("frame_*.vtu"))]
     assert len(frames) == 17
+    assert [len(self_intersections(Q, F)) for Q in frames] == [0] * 17
+    assert _clean_steps(frames, F)
+
+
+def hinge_band(angle: float = 170.0, nu: int = 4, nv: int = 2):
+    """One strip of 2 nu × nv quads (x in [0, 1]): a base y in [−1, 0], z = 0, and a band
+    hinged on its edge y = 0 turned by ``angle`` degrees about the x axis (folded back over
+    the base); the target has it turned by −``angle`` (folded under the base): the band
+    must swing the long way round its hinge."""
+    u, v = np.linspace(-1, 1, 2 * nu + 1), np.linspace(0, 1, nv + 1)
+    U, W = (a.ravel() for a in np.meshgrid(u, v, indexing="ij"))
+    s = np.clip(U, 0, None)
+
+    def pose(degrees):
+        t = np.radians(degrees)
+        return np.c_[W, np.where(U <= 0, U, s * np.cos(t)), s * np.sin(t)]
+
+    n = nv + 1
+    i, j = (a.ravel() for a in np.meshgrid(np.arange(2 * nu), np.arange(nv), indexing="ij"))
+    a, b = i * n + j, (i + 1) * n + j
+    F = np.vstack([np.c_[a, b, b + 1], np.c_[a, b + 1, a + 1]])
+    return pose(angle), pose(-angle), F
+
+
+def test_the_hinge_band_s_interpolations_cross_between_clean_ends():
+    V0, V1, F = hinge_band()
+    assert not len(self_intersections(V0, F)) and not len(self_intersections(V1, F))
+    ts = np.linspace(0.0, 1.0, 17)
+    linear = [(1 - t) * V0 + t * V1 for t in ts]
+    assert max(len(self_intersections(Q, F)) for Q in linear) > 0
+    assert not _clean_steps(arap_interpolation(V0, V1, F, ts), F)
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, raises=SelfIntersectionError,
+                   reason="both guides pull the band through the base: the homotopy stalls")
+def test_a_band_swung_round_its_hinge_morphs_clean():
+    V0, V1, F = hinge_band()
+    frames = list(morph_surface(V0, V1, F, 17).points)
     assert [len(self_intersections(Q, F)) for Q in frames] == [0] * 17
     assert _clean_steps(frames, F)

@@ -28,11 +28,11 @@ returned without a Gauss–Newton model: 0.2–26 % above the converged path's e
 pairs of the tests and of ``bench_surface_morph.py``, the worst quality the same). Else
 it stops where the Gauss–Newton model of the next step predicts, or a step achieved, a
 decrease below ``rtol·E`` (a start stationary to that tolerance is returned unchanged);
-``stop_when_healthy=False`` leaves the energy tests alone. Every accepted iterate has
-``det C > 0`` in every triangle of every frame and no fold
-(:class:`.folds.FoldTest` against the source) that the target does not have. The
-mass term fixes the frames' rigid motions (a rotation of one frame costs ``|ΔQ|²_M``), so
-nothing is pinned.
+the frames it leaves below the worse end are then polished (:mod:`.morph_polish`).
+``stop_when_healthy=False`` leaves both alone. Every accepted iterate has ``det C > 0``
+in every triangle of every frame and no fold (:class:`.folds.FoldTest` against the
+source) that the target does not have. The mass term fixes the frames' rigid motions (a
+rotation of one frame costs ``|ΔQ|²_M``), so nothing is pinned.
 
 With contact (the default, where both ends are free of self-intersections and there is an
 interior frame) no frame passes through the surface, nor the straight motion between two
@@ -74,6 +74,7 @@ from .interpolation import arap_interpolation
 from .metric import BENDING, WEIGHT, SurfaceGraphMetric
 from .morph_contact import PathContact, detour_path
 from .morph_homotopy import homotopy_start
+from .morph_polish import polish_frames
 from .path_system import PathSystem
 
 __all__ = ["SurfaceMorph", "morph_surface", "frame_measures"]
@@ -142,6 +143,7 @@ class SurfaceMorph:
     seconds: float = 0.0
     weight: float = 1.0
     gradient_norm: float = field(default=0.0)
+    polished: int = 0
 
     def linear_measures(self) -> tuple[FloatArray, IntArray]:
         """:func:`frame_measures` of linear interpolation at the same times (measured at
@@ -171,7 +173,7 @@ class SurfaceMorph:
             "initial_energy": self.initial_energy, "length": self.length,
             "strain_bound": self.length / self.weight, "iterations": self.iterations,
             "factorizations": self.factorizations, "gradient_norm": self.gradient_norm,
-            "seconds": self.seconds,
+            "polished_frames": self.polished, "seconds": self.seconds,
         }
 
 
@@ -273,9 +275,9 @@ def morph_surface(source: FloatArray, target: FloatArray, triangles: IntArray,
         when the Gauss–Newton model predicts a decrease below ``rtol·E`` for the next step
         (the start path included: then it is returned as it is, stationary to ``rtol``),
         or when a step lowered the energy by less than ``rtol·E``.
-    stop_when_healthy : stop (``"healthy"``) as soon as the path, the start included, has
-        every interior frame's worst relative quality at least the worse end's (module
-        docstring), before the energy tests.
+    stop_when_healthy : stop (``"healthy"``) as soon as every interior frame of the path,
+        the start's included, is as healthy as the worse end (module docstring), before
+        the energy tests; where these stop first, polish those below (:mod:`.morph_polish`).
     callback : called once per iteration with a :class:`PathIteration`; True stops.
     contact : keep every frame, and the segments between frames, from passing through the
         surface (:mod:`.morph_contact`) where both ends are free of
@@ -313,6 +315,7 @@ def morph_surface(source: FloatArray, target: FloatArray, triangles: IntArray,
         raise InvalidMeshError("the target has a degenerate triangle")
     diameter = float(np.linalg.norm(W0.max(0) - W0.min(0)))
     S = global_similarity(W0, W1, diameter) if len(W0) > 2 else None
+    polished = 0
     if np.array_equal(V0, V1):
         path, status, it, nf, E0, gnorm = [W0.copy() for _ in times], "identical", 0, 0, 0.0, 0.0
         initial = "identical"
@@ -325,6 +328,7 @@ def morph_surface(source: FloatArray, target: FloatArray, triangles: IntArray,
         path, initial = _initial_path(problem, W0, W1, G, times, guard)
         path, status, it, nf, E0, gnorm = _minimize(problem, path, max_iterations, rtol,
                                                     callback, stop_when_healthy, guard)
+        path, polished = polish_frames(problem, path, guard) if stop_when_healthy else (path, 0)
     X = [problem.embed(Q) for Q in path]
     residuals = [problem.segment(X[k], X[k + 1]) for k in range(K)]
     energy = 0.5 * float(sum(r @ r for r in residuals))
@@ -347,7 +351,7 @@ def morph_surface(source: FloatArray, target: FloatArray, triangles: IntArray,
                         triangles=F, status=status, initial_path=initial, energy=energy,
                         initial_energy=E0, length=length, iterations=it,
                         factorizations=nf, seconds=time.perf_counter() - t_start,
-                        weight=float(weight), gradient_norm=gnorm)
+                        weight=float(weight), gradient_norm=gnorm, polished=polished)
 
 
 def _path_contact(problem: _PathProblem, V0, V1, frames: int, on: bool

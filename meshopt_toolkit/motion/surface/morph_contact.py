@@ -76,11 +76,15 @@ class PathContact:
         contact (CCD)."""
         return self._segments.cap(Q0, Q1, swept=False) >= 1.0
 
+    def embedded(self, Q: FloatArray) -> bool:
+        """Whether no two triangles sharing a vertex meet at ``Q`` (exact)."""
+        return self._segments.embedded(Q)
+
     def clean(self, path: list) -> bool:
         """Whether every segment between consecutive frames is free of contact and no
         interior frame has two triangles sharing a vertex that meet (module docstring)."""
         return all(self.segment_clear(a, b) for a, b in zip(path[:-1], path[1:])) and all(
-            self._segments.embedded(Q) for Q in path[1:-1])
+            self.embedded(Q) for Q in path[1:-1])
 
 
 def _components(n: int, triangles: IntArray) -> IntArray:
