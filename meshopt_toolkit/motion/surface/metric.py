@@ -15,10 +15,11 @@ import scipy.sparse as sp
 
 from ..._typing import FloatArray, IntArray
 from ...cells.base import lumped_mass
-from ...errors import NotAdmissibleError
+from ...errors import NotAdmissibleError, OptionError
 from ...riemannian.assembled import AssembledMetric
 from .bending import ShellBending
 from .distortion import SurfaceDistortion
+from .path import SurfacePath
 
 __all__ = ["BENDING", "WEIGHT", "SurfaceGraphMetric"]
 
@@ -43,6 +44,9 @@ class SurfaceGraphMetric(AssembledMetric):
     bending : float
         ``b``, the bending's weight.
     """
+
+    #: the points' columns (:func:`~meshopt_toolkit.riemannian.discrete_geodesic.discrete_geodesic`)
+    dimension = 3
 
     reference: FloatArray
     triangles: IntArray
@@ -94,3 +98,19 @@ class SurfaceGraphMetric(AssembledMetric):
         """``g_Q V = Jᵀ(J V)`` for a displacement ``V`` (N, 3)."""
         J = self._checked_jacobian(Q)
         return (J.T @ (J @ np.ravel(V))).reshape(np.shape(V))
+
+    # -- the discrete path energy (riemannian.levenberg_marquardt.PathModelMetric) ----------
+
+    def path_model(self, frames: FloatArray, free: np.ndarray, contact=None,
+                   anchor: FloatArray | None = None):
+        """The path energy of ``frames`` (K+1, N, 3) in every coordinate of the interior
+        frames (:class:`.path.SurfacePath`; ``free`` must say so, and no ``anchor``:
+        :class:`OptionError` else). ``contact`` (in the place of the boundaries kept
+        simple, a :class:`.morph_contact.PathContact` of a clean start): no frame, nor
+        the straight motion between two frames, passes through the surface."""
+        inner = np.zeros_like(free, dtype=bool)
+        inner[1:-1] = True
+        if anchor is not None or not np.array_equal(free, inner):
+            raise OptionError("the surface path model moves every vertex of the interior "
+                              "frames and takes no anchor")
+        return SurfacePath(self, frames, contact)
