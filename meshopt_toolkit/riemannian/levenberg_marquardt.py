@@ -6,9 +6,11 @@ The metric provides the problem through :class:`PathModelMetric` (``path_model``
 residuals, the normal equations of a step (gradient, step matrix, Levenberg–Marquardt's
 scaling) and the admissibility of frames (:class:`LeastSquaresPath`), and the solver of
 the damped step systems (:class:`StepSolver`). Each step is the package's one damped
-Gauss–Newton step (:func:`..least_squares.damped_step`): the full step only, the damping
-quadrupled per refused attempt and updated by Marquardt's gain ratio
-(:func:`..least_squares.gain_ratio_damping`). A trial with an inadmissible frame is
+Gauss–Newton step (:func:`..least_squares.damped_step`), configured, with the stop rules,
+by the path model's :class:`IterationRules` (``iteration_rules``; the surface morph's:
+:mod:`meshopt_toolkit.motion.surface.path`), else by :class:`LeastSquaresRules`: the full
+step only, the damping quadrupled per refused attempt and updated by Marquardt's gain
+ratio (:func:`..least_squares.gain_ratio_damping`). A trial with an inadmissible frame is
 rejected like a trial that raises the energy.
 """
 

@@ -23,6 +23,7 @@ import scipy.sparse as sp
 
 from ..._typing import FloatArray
 from ...descent import halvings
+from ...errors import NotAdmissibleError
 from ...kernels.surface import aspect_ratios
 from ...least_squares import model_decrease, step_length_damping
 from ...riemannian.geodesic_result import DiscreteGeodesic
@@ -146,10 +147,6 @@ class SurfacePath:
         self.contact = contact
         self.n_unknowns = (len(self.frames) - 2) * self.frames[0].size
 
-    def admissible(self, frames) -> bool:
-        problem = self.problem
-        return all(problem.embed(Q) is not None and problem.admissible(Q) for Q in frames[1:-1])
-
     def iteration_rules(self, frames: FloatArray, options) -> SurfaceRules:
         return SurfaceRules(self.problem, list(frames), options, self.contact)
 
@@ -184,6 +181,8 @@ class SurfaceRules:
         problem, path = self.problem, self.path
         if len(path) < 3:
             return "converged"
+        if not all(problem.embed(Q) is not None and problem.admissible(Q) for Q in path[1:-1]):
+            raise NotAdmissibleError("the initial path has a degenerate or folded triangle")
         if self.healthy and problem.healthy(path):
             self.initial_energy = None  # returned unevaluated
             return "healthy"
