@@ -78,10 +78,12 @@ class PathModelMetric(Protocol):
     ``dimension`` where it has one (3 for tets), else 2."""
 
     def path_model(self, frames: FloatArray, free: np.ndarray, boundary_edges=None,
-                   anchor: FloatArray | None = None) -> LeastSquaresPath:
+                   anchor: FloatArray | None = None):
         """The path energy of ``frames`` (K+1, N, d) in the coordinates ``free`` (K+1, N)
         marks (frame 0 never moves), with the boundaries ``boundary_edges`` kept simple;
-        ``anchor`` replaces the embedding's metric-specific part at ``Q_0``."""
+        ``anchor`` replaces the embedding's metric-specific part at ``Q_0``. A
+        :class:`LeastSquaresPath`, or a model with ``iteration_rules(frames, options)``
+        (:class:`IterationRules`: the surface metric's)."""
 
 
 def _length(r: FloatArray, K: int) -> float:
