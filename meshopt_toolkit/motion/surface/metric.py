@@ -19,7 +19,7 @@ from ...errors import NotAdmissibleError, OptionError
 from ...riemannian.assembled import AssembledMetric
 from .bending import ShellBending
 from .distortion import SurfaceDistortion
-from .path import SurfacePath
+from .path import SurfacePath, SurfacePathProblem
 
 __all__ = ["BENDING", "WEIGHT", "SurfaceGraphMetric"]
 
@@ -56,6 +56,8 @@ class SurfaceGraphMetric(AssembledMetric):
     shell: ShellBending = field(init=False)
     sqrt_m: FloatArray = field(init=False)
     sqrt_c: FloatArray = field(init=False)
+    _path_problem: SurfacePathProblem | None = field(init=False, default=None, repr=False,
+                                                     compare=False)
 
     def __post_init__(self) -> None:
         self.reference = np.asarray(self.reference, dtype=float)
@@ -100,6 +102,15 @@ class SurfaceGraphMetric(AssembledMetric):
         return (J.T @ (J @ np.ravel(V))).reshape(np.shape(V))
 
     # -- the discrete path energy (riemannian.levenberg_marquardt.PathModelMetric) ----------
+
+    def path_problem(self, target: FloatArray) -> SurfacePathProblem:
+        """The path energy's pieces of frames ending at ``target``
+        (:class:`.path.SurfacePathProblem`; the last one kept for the same target, with
+        what it measured)."""
+        kept = self._path_problem
+        if kept is None or not np.array_equal(kept.target, target):
+            kept = self._path_problem = SurfacePathProblem(self, target)
+        return kept
 
     def path_model(self, frames: FloatArray, free: np.ndarray, contact=None,
                    anchor: FloatArray | None = None):

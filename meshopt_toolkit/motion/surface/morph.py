@@ -166,7 +166,7 @@ class SurfaceMorph:
 def _PathProblem(V0: FloatArray, V1: FloatArray, F: IntArray, weight: float,
                  bending: float) -> SurfacePathProblem:
     """The path energy's pieces of the frames from ``V0`` to ``V1`` (its metric's)."""
-    return SurfacePathProblem(SurfaceGraphMetric(V0, F, weight, bending), V1)
+    return SurfaceGraphMetric(V0, F, weight, bending).path_problem(V1)
 
 
 def _similar_frames(V0, V1, times, S) -> list:

@@ -63,7 +63,7 @@ class SurfacePathProblem:
     embedding, the segments' residuals, the Jacobians, admissibility and health."""
 
     def __init__(self, metric, target: FloatArray) -> None:
-        self.metric = metric
+        self.metric, self.target = metric, target
         V0, F = metric.reference, metric.triangles
         self.membrane, self.shell = metric.membrane, metric.shell
         self.sqrt_c, self.sqrt_m = metric.sqrt_c, metric.sqrt_m
@@ -77,11 +77,12 @@ class SurfacePathProblem:
         self.floor = min(1.0, self.worst(target))
 
     def _once(self, kind: str, Q: FloatArray, make: Callable):
-        """``make(Q)`` once per frame array (frames are new arrays, never changed in place;
-        the array is held, so its id is not reused while remembered)."""
-        key = (kind, id(Q))
+        """``make(Q)`` once per frame (by its values: a frame copied into the discrete
+        geodesic's array is the same frame; frames are never changed in place, so the
+        array held is the frame's values)."""
+        key = (kind, Q.shape, hash(Q.tobytes()))
         hit = self._memo.get(key)
-        if hit is None or hit[0] is not Q:
+        if hit is None or not (hit[0] is Q or np.array_equal(hit[0], Q)):
             if len(self._memo) >= 96:
                 self._memo.clear()
             hit = self._memo[key] = (Q, make(Q))
@@ -143,7 +144,7 @@ class SurfacePath:
 
     def __init__(self, metric, frames: FloatArray, contact=None) -> None:
         self.frames = np.array(frames, dtype=float)
-        self.problem = SurfacePathProblem(metric, self.frames[-1])
+        self.problem = metric.path_problem(self.frames[-1])
         self.contact = contact
         self.n_unknowns = (len(self.frames) - 2) * self.frames[0].size
 
