@@ -135,3 +135,23 @@ def test_levenberg_marquardt_runs_the_models_iteration_rules(max_iterations):
     status = "converged" if abs(x - 3.0) < 1e-6 else None
     assert (status is None) == (max_iterations == 2)
     assert rules.calls == ["start"] + ["before", "after"] * expected + [status]
+
+
+def test_the_metric_keeps_its_path_problem_and_its_measures_by_frame_values():
+    V0, F = tube(6, 4, length=2.0)
+    V1 = bent(V0, np.pi / 3, length=2.0)
+    metric = SurfaceGraphMetric(V0, F)
+    problem = metric.path_problem(V1)
+    assert metric.path_problem(V1.copy()) is problem
+    assert metric.path_model(np.array([V0, V1]), np.zeros((2, len(V0)), bool)
+                             ).problem is problem
+    calls, mask = [], problem.folds.mask
+    problem.folds.mask = lambda Q: calls.append(Q) or mask(Q)
+    Q = 0.5 * (V0 + V1)
+    first = problem.fold_mask(Q)
+    assert problem.fold_mask(Q.copy()) is first and len(calls) == 1
+    moved = Q.copy()
+    moved[0, 0] += 1e-12
+    problem.fold_mask(moved)
+    assert len(calls) == 2
+    assert metric.path_problem(V0) is not problem
