@@ -7,7 +7,9 @@ metric, one entry for every metric. Two methods:
 - ``"levenberg-marquardt"`` (:mod:`.levenberg_marquardt`): metrics whose path energy is a
   sparse least-squares problem, which they provide through ``path_model``
   (:class:`.levenberg_marquardt.PathModelMetric`; the per-triangle distortion metric
-  ``motion.planar.metric.GraphMetric``).
+  ``motion.planar.metric.GraphMetric``, the tet metric ``motion.tets.metric.TetGraphMetric``
+  and the surface metric ``motion.surface.metric.SurfaceGraphMetric``), each with its
+  iteration's rules (:class:`.levenberg_marquardt.IterationRules`).
 """
 
 from __future__ import annotations
@@ -65,7 +67,7 @@ def discrete_geodesic(
         ``EuclideanMetric``/None (straight lines), or a metric with ``path_model``
         (Levenberg–Marquardt)
     Q0, Q1 : (N, d) admissible end frames (``d`` the metric's ``dimension``, 2 where it
-        has none: the tet distortion metric's is 3)
+        has none: the tet and surface metrics' is 3)
     segments : K ≥ 1
     method : "auto" (Levenberg–Marquardt where the metric has ``path_model``, else
         Newton–CG), "newton-cg" or "levenberg-marquardt"
@@ -76,7 +78,8 @@ def discrete_geodesic(
         (frame 0 never does; default every vertex of the interior frames). A free vertex
         of the last frame starts at ``Q1``.
     boundary_edges : (E, 2) int, Levenberg–Marquardt only: boundaries kept simple in
-        every accepted frame (for tets the boundary faces (F, 3))
+        every accepted frame (for tets the boundary faces (F, 3); for a surface its
+        contact, a ``motion.surface.morph_contact.PathContact``)
     anchor : Levenberg–Marquardt only: replaces the metric-specific part of ``X(Q0)`` in
         the first segment (for the distortion metric a (T, 3) strain: with one segment,
         the frame that stays close to ``Q0`` while its strain approaches ``anchor``)
@@ -89,7 +92,8 @@ def discrete_geodesic(
     -------
     DiscreteGeodesic
         ``status``: "converged", "max_iter", and "stationary" or "line_search"
-        (Newton–CG), "stalled" (Levenberg–Marquardt).
+        (Newton–CG), "stalled" (Levenberg–Marquardt); a path model's own rules may have
+        their own (the surface's: "healthy", "max_iterations").
 
     Raises
     ------

@@ -174,6 +174,9 @@ class DiscreteGeodesic:
         "stalled" (no admissible step lowers the energy); "stopped" when the callback
         returned True
     history : ``(E, |∇E|)`` at each Levenberg–Marquardt iteration
+    initial_energy : the energy of the start where the method reports it (the surface
+        path model's; None where the start was returned unevaluated)
+    factorizations : the step solver's factorizations where the method reports them
     """
 
     points: FloatArray
@@ -186,6 +189,8 @@ class DiscreteGeodesic:
     n_evaluations: int = 0
     status: str = "converged"
     history: list = field(default_factory=list)
+    initial_energy: float | None = None
+    factorizations: int = 0
 
     @property
     def segments(self) -> int:

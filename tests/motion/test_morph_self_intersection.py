@@ -185,7 +185,7 @@ def test_auto_start_skips_a_linear_path_through_itself():
 
 
 def test_avoidance_reaches_the_geodesic_on_request(monkeypatch):
-    import meshopt_toolkit.motion.tets.morph as tet_morph
+    import meshopt_toolkit.motion.tets.metric as tet_metric
 
     seen = []
 
@@ -194,7 +194,7 @@ def test_avoidance_reaches_the_geodesic_on_request(monkeypatch):
             seen.append(crosses)
             super().__init__(metric, frames, crosses)
 
-    monkeypatch.setattr(tet_morph, "TetPath", Spy)
+    monkeypatch.setattr(tet_metric, "TetPath", Spy)  # the tet metric's path model
     P, T = cube_tets(2, 0.2, 1)
     Q = P * [1.0, 1.0, 1.3] + 0.05 * np.sin(3.0 * P[:, [1, 2, 0]])
     res = morph_tets(TetMesh(P, T), TetMesh(Q, T), 4, avoid_crossings=True)

@@ -1,5 +1,6 @@
-"""The surface morph's Levenberg–Marquardt (motion.surface.morph._minimize, a
-configuration of least_squares.damped_step): its minimum of the path energy equals
+"""The surface morph's Levenberg–Marquardt (motion.surface.morph._minimize: the discrete
+geodesic of the surface metric, its steps least_squares.damped_step configured by
+motion.surface.path.SurfaceRules): its minimum of the path energy equals
 MINPACK's on the same residuals, every accepted step lowers the energy, and the damping
 after a step is ``step_length_damping`` of the damping the step was solved with."""
 
@@ -13,6 +14,7 @@ from scipy.optimize import least_squares
 from test_surface_morph import bent, tube
 
 import meshopt_toolkit.motion.surface.morph as sm
+import meshopt_toolkit.riemannian.levenberg_marquardt as lm
 from meshopt_toolkit.least_squares import step_length_damping
 from meshopt_toolkit.motion.surface.metric import BENDING, WEIGHT
 
@@ -24,7 +26,7 @@ def test_minimum_is_minpacks_each_step_a_decrease_and_the_damping_rule(monkeypat
     problem = sm._PathProblem(V0, V1, F, WEIGHT, BENDING)
     K = 3
     start, _ = sm._initial_path(problem, V0, V1, F, np.linspace(0.0, 1.0, K + 1))
-    steps = record_damped_steps(monkeypatch, sm)
+    steps = record_damped_steps(monkeypatch, lm)
     path, status, iterations, _, E0, _ = sm._minimize(problem, list(start), 60, 1e-13, None)
     assert iterations > 2 and status in ("converged", "stalled")
 

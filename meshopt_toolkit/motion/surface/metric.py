@@ -15,10 +15,11 @@ import scipy.sparse as sp
 
 from ..._typing import FloatArray, IntArray
 from ...cells.base import lumped_mass
-from ...errors import NotAdmissibleError
+from ...errors import NotAdmissibleError, OptionError
 from ...riemannian.assembled import AssembledMetric
 from .bending import ShellBending
 from .distortion import SurfaceDistortion
+from .path import SurfacePath, SurfacePathProblem
 
 __all__ = ["BENDING", "WEIGHT", "SurfaceGraphMetric"]
 
@@ -44,6 +45,9 @@ class SurfaceGraphMetric(AssembledMetric):
         ``b``, the bending's weight.
     """
 
+    #: the points' columns (:func:`~meshopt_toolkit.riemannian.discrete_geodesic.discrete_geodesic`)
+    dimension = 3
+
     reference: FloatArray
     triangles: IntArray
     weight: float = WEIGHT
@@ -52,6 +56,8 @@ class SurfaceGraphMetric(AssembledMetric):
     shell: ShellBending = field(init=False)
     sqrt_m: FloatArray = field(init=False)
     sqrt_c: FloatArray = field(init=False)
+    _path_problem: SurfacePathProblem | None = field(init=False, default=None, repr=False,
+                                                     compare=False)
 
     def __post_init__(self) -> None:
         self.reference = np.asarray(self.reference, dtype=float)
@@ -94,3 +100,28 @@ class SurfaceGraphMetric(AssembledMetric):
         """``g_Q V = Jᵀ(J V)`` for a displacement ``V`` (N, 3)."""
         J = self._checked_jacobian(Q)
         return (J.T @ (J @ np.ravel(V))).reshape(np.shape(V))
+
+    # -- the discrete path energy (riemannian.levenberg_marquardt.PathModelMetric) ----------
+
+    def path_problem(self, target: FloatArray) -> SurfacePathProblem:
+        """The path energy's pieces of frames ending at ``target``
+        (:class:`.path.SurfacePathProblem`; the last one kept for the same target, with
+        what it measured)."""
+        kept = self._path_problem
+        if kept is None or not np.array_equal(kept.target, target):
+            kept = self._path_problem = SurfacePathProblem(self, target)
+        return kept
+
+    def path_model(self, frames: FloatArray, free: np.ndarray, contact=None,
+                   anchor: FloatArray | None = None):
+        """The path energy of ``frames`` (K+1, N, 3) in every coordinate of the interior
+        frames (:class:`.path.SurfacePath`; ``free`` must say so, and no ``anchor``:
+        :class:`OptionError` else). ``contact`` (in the place of the boundaries kept
+        simple, a :class:`.morph_contact.PathContact` of a clean start): no frame, nor
+        the straight motion between two frames, passes through the surface."""
+        inner = np.zeros_like(free, dtype=bool)
+        inner[1:-1] = True
+        if anchor is not None or not np.array_equal(free, inner):
+            raise OptionError("the surface path model moves every vertex of the interior "
+                              "frames and takes no anchor")
+        return SurfacePath(self, frames, contact)

@@ -56,41 +56,29 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.sparse as sp
 
 from ..._typing import FloatArray, IntArray
-from ...descent import halvings
 from ...errors import InvalidMeshError, NotAdmissibleError, OptionError, SelfIntersectionError
 from ...kernels.intersections3d import self_intersections
 from ...kernels.surface import aspect_ratios
-from ...least_squares import damped_step, model_decrease, step_length_damping
 from ...results import PathIteration
+from ...riemannian.discrete_geodesic import discrete_geodesic
 from ...scaling import unit_scale
 from ..engine.contact import ContactWarning, pair_contact
 from ..engine.similarity_3d import global_similarity
-from .bending import dihedral_angles, wrap
 from .folds import FoldTest
 from .interpolation import arap_interpolation
 from .metric import BENDING, WEIGHT, SurfaceGraphMetric
 from .morph_contact import PathContact, detour_path
 from .morph_homotopy import homotopy_start
 from .morph_polish import polish_frames
-from .path_system import PathSystem
+from .path import RTOL, SurfacePathOptions, SurfacePathProblem
 
 __all__ = ["SurfaceMorph", "morph_surface", "frame_measures"]
 
-#: the default tolerance of the stopping tests (:func:`morph_surface`'s ``rtol``)
-RTOL = 5e-2
-#: conjugate-gradient iterations per Levenberg–Marquardt step at most, and the count above
-#: which the kept per-frame factors are refactorized at the next iterate
-CG_ITERATIONS, CG_REFACTORIZE = 30, 15
 #: local/global steps at most of the start while a frame is below the worse end's quality
 #: (:func:`.interpolation.arap_interpolation`'s ``iterations``)
 START_ITERATIONS = 10
-#: a frame whose worst relative quality is within this fraction of the worse end's is as
-#: healthy as it (the rounding of the aspect ratios of a moved triangle)
-HEALTHY_RTOL = 1e-12
-
 
 def frame_measures(source: FloatArray, frames, triangles: IntArray,
                    folds: FoldTest | None = None) -> tuple[FloatArray, IntArray]:
@@ -177,75 +165,10 @@ class SurfaceMorph:
         }
 
 
-class _PathProblem:
-    """The path energy of the interior frames, its Gauss–Newton pieces and admissibility."""
-
-    def __init__(self, V0: FloatArray, V1: FloatArray, F: IntArray, weight: float,
-                 bending: float) -> None:
-        self.metric = SurfaceGraphMetric(V0, F, weight, bending)
-        self.membrane, self.shell = self.metric.membrane, self.metric.shell
-        self.sqrt_c, self.sqrt_m = self.metric.sqrt_c, self.metric.sqrt_m
-        self.weight = self.metric.weight
-        self.folds = FoldTest(V0, F)
-        self._memo: dict = {}
-        #: triangles folded at the target itself: not asked of the frames
-        self.allowed = self.fold_mask(V1)
-        self.triangles, self.rest_quality = F, aspect_ratios(V0, F)
-        #: the worse end's worst relative quality (the source's is 1): no path does better
-        self.floor = min(1.0, self.worst(V1))
-
-    def _once(self, kind: str, Q: FloatArray, make: Callable):
-        """``make(Q)`` once per frame array (frames are new arrays, never changed in place;
-        the array is held, so its id is not reused while remembered)."""
-        key = (kind, id(Q))
-        hit = self._memo.get(key)
-        if hit is None or hit[0] is not Q:
-            if len(self._memo) >= 96:
-                self._memo.clear()
-            hit = self._memo[key] = (Q, make(Q))
-        return hit[1]
-
-    def fold_mask(self, Q: FloatArray) -> np.ndarray:
-        """The folded triangles of ``Q`` against the source (:class:`FoldTest`)."""
-        return self._once("folds", Q, self.folds.mask)
-
-    def worst(self, Q: FloatArray) -> float:
-        """The worst relative quality of ``Q``."""
-        return self._once("worst", Q, lambda Q: float(self.relative_quality(Q).min())
-                          if len(self.triangles) else 1.0)
-
-    def relative_quality(self, Q: FloatArray) -> FloatArray:
-        """Per triangle the aspect ratio over its value in the source (T,)."""
-        return aspect_ratios(Q, self.triangles) / self.rest_quality
-
-    def healthy(self, path: list) -> bool:
-        """Every interior frame's worst relative quality at least the worse end's: the
-        path's worst frame is then the worse end, the best any path can have (to
-        ``HEALTHY_RTOL``)."""
-        return all(self.worst(Q) >= self.floor * (1.0 - HEALTHY_RTOL) for Q in path[1:-1])
-
-    def embed(self, Q: FloatArray):
-        """``(m^½ Q, w φ, θ)``; None where a triangle is degenerate."""
-        return self._once("embed", Q, self._embed)
-
-    def _embed(self, Q: FloatArray):
-        phi = self.membrane.values(Q)
-        if not np.all(np.isfinite(phi)):
-            return None
-        return (self.sqrt_m * Q.ravel(), self.weight * phi.ravel(),
-                dihedral_angles(Q, self.shell.diamonds))
-
-    def admissible(self, Q: FloatArray) -> bool:
-        return not np.any(self.fold_mask(Q) & ~self.allowed)
-
-    def segment(self, X0, X1) -> FloatArray:
-        """The residual of one segment, ``X(Q_{k+1}) − X(Q_k)``."""
-        return np.concatenate([X1[0] - X0[0], X1[1] - X0[1],
-                               self.sqrt_c * wrap(X1[2] - X0[2])])
-
-    def jacobian(self, Q: FloatArray) -> sp.csr_matrix:
-        """``∂X/∂Q`` (3N + 3T + E) × 3N (:meth:`.SurfaceGraphMetric.jacobian`)."""
-        return self.metric.jacobian(Q)
+def _PathProblem(V0: FloatArray, V1: FloatArray, F: IntArray, weight: float,
+                 bending: float) -> SurfacePathProblem:
+    """The path energy's pieces of the frames from ``V0`` to ``V1`` (its metric's)."""
+    return SurfaceGraphMetric(V0, F, weight, bending).path_problem(V1)
 
 
 def _similar_frames(V0, V1, times, S) -> list:
@@ -412,89 +335,22 @@ def _initial_path(problem: _PathProblem, V0, V1, F, times,
                              "triangles")
 
 
-def _minimize(problem: _PathProblem, path: list, max_iterations: int, rtol: float,
+def _minimize(problem: SurfacePathProblem, path: list, max_iterations: int, rtol: float,
               callback, healthy: bool = False, contact: PathContact | None = None) -> tuple:
-    """Levenberg–Marquardt on the interior frames (module docstring): the frames, the
-    status, iterations, factorizations, the initial energy (None where the start is
-    returned as healthy, unevaluated) and the last gradient norm. Each step is a
-    :func:`...least_squares.damped_step` (8 trials halving from the cap, the damping ×10
-    per refused attempt, :func:`...least_squares.step_length_damping`). With ``healthy``, a
-    path (the start included) whose frames pass :meth:`_PathProblem.healthy` ends it.
-    With ``contact`` (a clean start), the frames' barriers join the energy, each step is
-    capped by the CCD of the frames' moves and a trial is taken only on a clean path."""
+    """The discrete geodesic of the problem's metric from the frames ``path``
+    (:meth:`.metric.SurfaceGraphMetric.path_model`, :class:`.path.SurfaceRules`): the
+    frames, the status, iterations, factorizations, the initial energy (None where the
+    start is returned as healthy, unevaluated) and the last gradient norm. With ``healthy``,
+    a path (the start included) whose frames pass :meth:`.path.SurfacePathProblem.healthy`
+    ends it. With ``contact`` (a clean start), the frames' barriers join the energy, each
+    step is capped by the CCD of the frames' moves and a trial is taken only on a clean
+    path."""
     K = len(path) - 1
-    if K < 2:
-        return path, "converged", 0, 0, 0.0, 0.0
-    if healthy and problem.healthy(path):
-        return path, "healthy", 0, 0, None, 0.0
-    X = [problem.embed(Q) for Q in path]
-
-    def energy_of(Xs, Qs):
-        r = [problem.segment(Xs[k], Xs[k + 1]) for k in range(K)]
-        barrier = 0.0 if contact is None else contact.energy(Qs)
-        return 0.5 * float(sum(v @ v for v in r)) + barrier, r
-
-    E, r = energy_of(X, path)
-    E_initial, n = E, path[0].size
-    system = PathSystem(K)
-    damping, status, gnorm, steps = 1e-4, "max_iterations", 0.0, 0
-    fresh = True  # factorize the preconditioner's blocks (again)
-    for _ in range(max_iterations):
-        D = [problem.jacobian(path[j]) for j in range(1, K)]
-        g = np.concatenate([D[j - 1].T @ (r[j - 1] - r[j]) for j in range(1, K)])
-        barriers = None
-        if contact is not None:
-            if contact.set_stiffness(path, g):  # κ set or raised: the energy with it
-                E, r = energy_of(X, path)
-            g = g + contact.gradient(path)
-            barriers = contact.hessians(path)
-        gnorm = float(np.linalg.norm(g))
-
-        def solve(damping: float, attempt: int, D=D, g=g, barriers=barriers):
-            nonlocal fresh
-            system.update(D, damping, fresh or attempt > 0, barriers)
-            step = -system.solve(g, max_iterations=CG_ITERATIONS)
-            # the kept factors serve while conjugate gradients converge quickly with them
-            fresh = system.iterations > CG_REFACTORIZE
-            return step
-
-        def try_step(step: FloatArray, alpha: float, path=path, X=X, E=E):
-            trial = [path[0]] + [path[j] + alpha * step[(j - 1) * n:j * n].reshape(-1, 3)
-                                 for j in range(1, K)] + [path[K]]
-            Xt = [X[0]] + [problem.embed(Q) for Q in trial[1:-1]] + [X[K]]
-            if any(x is None for x in Xt):
-                return None
-            E_trial, r_trial = energy_of(Xt, trial)
-            if E_trial < E and all(problem.admissible(Q) for Q in trial[1:-1]) and (
-                    contact is None or contact.clean(trial)):
-                return trial, Xt, E_trial, r_trial
-            return None
-
-        def stationary(step: FloatArray, damping: float, g=g, E=E) -> bool:
-            # a barely damped step whose Gauss–Newton model promises under rtol·E
-            return damping <= 1e-3 and model_decrease(g, step, system.product(step, 0.0)
-                                                      ) <= rtol * E
-
-        found = damped_step(
-            solve, try_step, damping, attempts=4, increase=10.0, stationary=stationary,
-            lengths=lambda step, path=path: halvings(
-                1.0 if contact is None else contact.cap(path, step), count=8),
-            update=lambda damping, alpha, _: step_length_damping(damping, alpha))
-        damping = found.damping
-        if not found.accepted:  # the model stationary, or every trial refused
-            status = "converged" if found.outcome == "stationary" else "stalled"
-            break
-        steps += 1
-        trial, Xt, E_trial, r_trial = found.payload
-        decrease = E - E_trial
-        path, X, E, r = trial, Xt, E_trial, r_trial
-        if callback is not None and callback(PathIteration(steps, E, gnorm)):
-            status = "stopped"
-            break
-        if healthy and problem.healthy(path):
-            status = "healthy"
-            break
-        if decrease <= rtol * E:
-            status = "converged"
-            break
-    return path, status, steps, system.factorizations, E_initial, gnorm
+    options = SurfacePathOptions(max_iterations=max_iterations, rtol=rtol,
+                                 stop_when_healthy=healthy)
+    report = None if callback is None else (
+        lambda steps, E, gnorm: callback(PathIteration(steps, E, gnorm)))
+    geo = discrete_geodesic(problem.metric, path[0], path[K], K, path=np.array(path),
+                            boundary_edges=contact, options=options, callback=report)
+    return (list(geo.points), geo.status, geo.nit, geo.factorizations, geo.initial_energy,
+            geo.gradient_norm)
