@@ -15,6 +15,12 @@ __all__ = ["KeptFactorCosts", "refactorize_pays"]
 #: on that estimate at this many iterates in a row lets the next one measure CG again
 PROBE_EVERY = 4
 
+#: a supernodal factorization's multiply-adds run in dense blocks (BLAS-3), about this
+#: many times faster than those of a triangular solve with one right-hand side, which
+#: reads the whole factor for two multiply-adds per entry (measured with CHOLMOD on the
+#: elasticity metric, ``benchmarks/bench_shape2d.py``)
+FACTORIZATION_SPEED = 3.0
+
 
 def refactorize_pays(cycle_cost: float, cycle_iterates: int, next_cost: float) -> bool:
     """Whether to factorize at a new iterate instead of solving by CG on the kept factor.
@@ -32,8 +38,9 @@ def refactorize_pays(cycle_cost: float, cycle_iterates: int, next_cost: float) -
 class KeptFactorCosts:
     """Operation counts (multiply-adds) of a kept Cholesky factor and of the CG solves it
     preconditions, for :func:`refactorize_pays`: the factorization ``Σ c_j²`` over the
-    column counts ``c_j`` of ``L``, a solve with the factor ``2 nnz(L)`` (two triangular
-    solves), a CG iteration that solve and a product with ``A`` (``nnz(A)``)."""
+    column counts ``c_j`` of ``L`` (divided by :data:`FACTORIZATION_SPEED`), a solve with
+    the factor ``2 nnz(L)`` (two triangular solves), a CG iteration that solve and a
+    product with ``A`` (``nnz(A)``)."""
 
     __slots__ = ("factorization", "cg_iteration", "cycle_cost", "cycle_iterates",
                  "iterate_cost", "first_kept", "estimated")
@@ -41,7 +48,7 @@ class KeptFactorCosts:
     def __init__(self, column_counts: np.ndarray, nnz_matrix: int,
                  previous: "KeptFactorCosts | None" = None) -> None:
         counts = np.asarray(column_counts, dtype=np.float64)
-        self.factorization = float(dot(counts, counts))
+        self.factorization = float(dot(counts, counts)) / FACTORIZATION_SPEED
         self.cg_iteration = 2.0 * float(counts.sum()) + float(nnz_matrix)
         self.cycle_cost = self.factorization
         self.cycle_iterates = 1  # the factorization's iterate

@@ -10,7 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import meshopt_toolkit.riemannian.metrics as metrics
-from meshopt_toolkit.riemannian.kept_factor import PROBE_EVERY, KeptFactorCosts, refactorize_pays
+from meshopt_toolkit.riemannian.kept_factor import (FACTORIZATION_SPEED, PROBE_EVERY,
+                                                    KeptFactorCosts, refactorize_pays)
 from meshopt_toolkit.riemannian.metrics import ElasticityMetric
 from meshopt_toolkit._cholmod import library
 from meshopt_toolkit.solvers import factorize_spd, pcg
@@ -53,16 +54,17 @@ def test_the_rule_on_synthetic_costs():
 
 
 def test_a_first_kept_iterate_dearer_than_a_factorization_makes_the_next_ones_factorize():
-    """Counts by hand (a factorization 8, a CG iteration 8): a first kept iterate that
-    cost two CG iterations (16 ≥ 8) ends its cycle, and at the iterate after each of the
-    next PROBE_EVERY factorizations the estimate 16 says factorize again; then CG is
-    measured once more. A first kept iterate cheaper than a factorization is kept."""
-    counts = np.array([2.0, 2.0])  # Σc² = 8, 2Σc + nnz(A) = 8
+    """Counts by hand (column counts (2, 2): a factorization 8 / FACTORIZATION_SPEED, a CG
+    iteration 8): a first kept iterate of one CG iteration costs more than a
+    factorization and ends its cycle, and at the iterate after each of the next
+    PROBE_EVERY factorizations that estimate says factorize again; then CG is measured
+    once more. A first kept iterate cheaper than a factorization is kept."""
+    counts = np.array([2.0, 2.0])
     costs = KeptFactorCosts(counts, 0)
-    assert (costs.factorization, costs.cg_iteration) == (8.0, 8.0)
+    assert (costs.factorization, costs.cg_iteration) == (8.0 / FACTORIZATION_SPEED, 8.0)
     assert not costs.start_iterate()  # nothing measured yet: keep, and measure CG
-    costs.add_cg(2)
-    assert costs.start_iterate()  # the cycle's average (8 + 16)/2 ≤ 16
+    costs.add_cg(1)
+    assert costs.start_iterate()  # the cycle's average (F + 8)/2 ≤ 8
     for _ in range(PROBE_EVERY):
         costs = KeptFactorCosts(counts, 0, costs)
         assert costs.start_iterate()
@@ -160,7 +162,7 @@ def test_the_metric_refactorizes_as_the_rule_says(mesh, rng, monkeypatch):
         counts = metric._kept[None].solve.column_counts()
         per_cg = 2.0 * counts.sum() + A.nnz
         if cycle is None:
-            cycle = factorization = float(counts @ counts)
+            cycle = factorization = float(counts @ counts) / FACTORIZATION_SPEED
         for it in iterations[before:]:
             cycle += it * per_cg
             last += it * per_cg
