@@ -18,7 +18,8 @@ wedge ends).
 
 Both: every drag and compliance recomputed by scikit-fem on the written meshes
 (:mod:`_peers2d`), the area (and barycenter) kept, the fixed boundary untouched, the
-worst cell against the start, and the time of one iteration against one state solve.
+worst cell against the start, and the time of one iteration against one state solve
+(CPU seconds: on a shared machine other processes add to wall times, not to these).
 
 Usage: python benchmarks/bench_shape2d.py [--elasticity] [--stokes] [--size 0.6]
        [--refine-near 0.08] [--out DIR]
@@ -43,7 +44,6 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _common import best_of  # noqa: E402
 from _peers2d import (compliance_skfem, dissipation_skfem, loop_of, moment_axes,  # noqa: E402
                       read_groups, tip_angles)
 
@@ -84,25 +84,48 @@ def quiet():
             os.close(saved)
 
 
+@contextlib.contextmanager
+def cpu_clock():
+    """``time.perf_counter`` reads this process's CPU time meanwhile: the phases the
+    library times (``history.csv``'s ``time_*`` columns, ``phase_totals``) come in CPU
+    seconds, which other processes on a shared machine do not add to."""
+    wall = time.perf_counter
+    time.perf_counter = time.process_time
+    try:
+        yield
+    finally:
+        time.perf_counter = wall
+
+
 def run_cli(mesh, args, out):
-    """``meshopt optimize`` in this process: ``(seconds, summary, history rows)``."""
-    t0 = time.perf_counter()
-    with contextlib.redirect_stdout(io.StringIO()):
+    """``meshopt optimize`` in this process: ``(summary, history rows)``, the history's
+    phases in CPU seconds (:func:`cpu_clock`); the summary gets the run's CPU seconds
+    (``cpu_seconds``: setup, every anchor restart and writing included)."""
+    c0 = time.process_time()
+    with contextlib.redirect_stdout(io.StringIO()), cpu_clock():
         code = main(["optimize", str(mesh), *args, "--no-plots", "-o", str(out)])
-    seconds = time.perf_counter() - t0
+    cpu = time.process_time() - c0
     if code != 0:
         raise SystemExit(f"meshopt optimize {mesh} failed (exit {code})")
     with open(out / "history.csv", newline="") as fh:
         rows = list(csv.DictReader(fh))
-    return seconds, json.loads((out / "summary.json").read_text()), rows
+    summary = json.loads((out / "summary.json").read_text())
+    summary["cpu_seconds"] = cpu
+    return summary, rows
 
 
-def state_seconds(mesh_path, spec_args) -> float:
-    """Best-of-3 wall time of one state solve (a fresh configuration each time)."""
+def state_seconds(mesh_path, spec_args, repeat: int = 9) -> float:
+    """The median CPU time of one state solve over ``repeat`` (a fresh configuration each
+    time): a typical solve, as the iterations' mean is a typical iteration."""
     mesh = load_workpiece(mesh_path, "optimize", unit_size=False).mesh
     j = spec_from_options(**spec_args).make_objective(mesh)
     rng = np.random.default_rng(0)
-    return best_of(lambda: j.value(mesh.points * (1 + 1e-9 * rng.random())), 3)[0]
+    times = []
+    for _ in range(repeat):
+        c0 = time.process_time()
+        j.value(mesh.points * (1 + 1e-9 * rng.random()))
+        times.append(time.process_time() - c0)
+    return float(np.median(times))
 
 
 def body_report(before, after, group, fixed_group):
@@ -131,8 +154,8 @@ def body_report(before, after, group, fixed_group):
 
 
 def iteration_table(rows, every: int, solve: float) -> None:
-    """Per iteration: j, the worst cell against the start, state and total seconds, and
-    the iteration in state solves (``solve`` seconds each)."""
+    """Per iteration: j, the worst cell against the start, state and total CPU seconds,
+    and the iteration in state solves (``solve`` CPU seconds each)."""
     ar0 = float(rows[0]["min_aspect_ratio"])
     phases = [k for k in rows[0] if k.startswith("time_")]
     print("| iteration | j | worst AR / start | state solves (s) | iteration (s) "
@@ -147,14 +170,20 @@ def iteration_table(rows, every: int, solve: float) -> None:
               f"{float(r['time_state']):.3f} | {total:.3f} | {total / solve:.2f} |")
 
 
-def speed(rows, solve: float) -> str:
-    """The mean iteration against one state solve, and where its time goes."""
+def speed(rows, solve: float, summary) -> str:
+    """The mean iteration against one state solve and where its time goes (CPU
+    seconds), and the whole run's CPU time per iteration (``summary`` of
+    :func:`run_cli`)."""
     phases = [k for k in rows[0] if k.startswith("time_")]
     mean = {k[5:]: np.mean([float(r[k]) for r in rows[1:]]) for k in phases}
     per = sum(mean.values())
-    parts = ", ".join(f"{k} {v:.3f}" for k, v in mean.items() if v >= 0.0005)
-    return (f"One iteration {per:.3f} s = {per / solve:.2f} state solves ({solve:.3f} s each, "
-            f"best of 3); per phase (s): {parts}.")
+    parts = ", ".join(f"{k} {v:.4f}" for k, v in mean.items() if v >= 0.00005)
+    nit = summary["iterations"]
+    return (f"One iteration {per:.4f} s = {per / solve:.2f} state solves ({solve:.4f} s each, "
+            f"the median of 9; CPU seconds); per phase (s): {parts}. The whole run: "
+            f"{summary['cpu_seconds']:.2f} s over {nit} iterations = "
+            f"{summary['cpu_seconds'] / (nit * solve):.2f} state solves per iteration (setup, "
+            f"anchor restarts and output included).")
 
 
 def elasticity(tmp: Path, size: float, refine_near: float) -> None:
@@ -179,11 +208,11 @@ def elasticity(tmp: Path, size: float, refine_near: float) -> None:
             runs[name] = run_cli(plate, ELASTICITY, tmp / f"plate-{restarts}")
         finally:
             optimize_module.ANCHOR_RESTARTS = kept
-        seconds, summary, rows = runs[name]
+        summary, rows = runs[name]
         out = tmp / f"plate-{restarts}" / "optimized.msh"
         r = body_report(plate, out, "hole", "outer")
         print(f"| optimized, {name}: a/b = {r['ratio']:.3f}, {summary['iterations']} "
-              f"iterations, {seconds:.1f} s | {summary['j']:.6f} | "
+              f"iterations, {summary['cpu_seconds']:.1f} s CPU | {summary['j']:.6f} | "
               f"{compliance_skfem(out, 'outer', (2, 1, 0)):.6f} |")
     r = body_report(plate, tmp / f"plate-{optimize_module.ANCHOR_RESTARTS}" / "optimized.msh",
                     "hole", "outer")
@@ -191,9 +220,9 @@ def elasticity(tmp: Path, size: float, refine_near: float) -> None:
           f"axis at {r['angle']:.1f}° from x), area kept to {r['area_change']:.1e} relative, "
           f"outer boundary untouched: {r['outer_untouched']}, smallest area {r['min_area']:.2e},"
           f" worst AR {r['worst']:.3f} × the start.")
-    rows = runs["anchor follows (default)"][2]
+    summary, rows = runs["anchor follows (default)"]
     solve = state_seconds(plate, dict(spec, move="hole"))
-    print(speed(rows, solve))
+    print(speed(rows, solve, summary))
     metric_factor_choices(plate, dict(spec, move="hole", keep_area=True), solve, 30)
     print()
     iteration_table(rows, 10, solve)
@@ -201,40 +230,48 @@ def elasticity(tmp: Path, size: float, refine_near: float) -> None:
 
 def metric_factor_choices(path, spec_args, solve: float, iterations: int) -> None:
     """The elasticity metric's choice of a factorization per iterate: by its operation
-    counts (the default, ``kept_factor.refactorize_pays``), against keeping the factor until
-    CG needs more than ``REFACTOR_AFTER_CG`` iterations (no counts) and against a
-    factorization at every iterate (``REFACTOR_AFTER_CG = 0``)."""
+    counts (the default, ``kept_factor.refactorize_pays``), against the counts with a
+    factorization's multiply-adds as dear as a solve's (``FACTORIZATION_SPEED = 1``),
+    keeping the factor until CG needs more than ``REFACTOR_AFTER_CG`` iterations (no
+    counts) and a factorization at every iterate (``REFACTOR_AFTER_CG = 0``)."""
     from meshopt_toolkit.optimize import optimize
-    from meshopt_toolkit.riemannian import metrics
+    from meshopt_toolkit.riemannian import kept_factor, metrics
 
     mesh = load_workpiece(path, "optimize", unit_size=False).mesh
     spec = spec_from_options(**spec_args)
-    kept_cg, counts_of, factorize = (metrics.ElasticityMetric.REFACTOR_AFTER_CG,
-                                     metrics.KeptFactorCosts.of, metrics.factorize)
-    made = [0]
+    kept_cg, counts_of, init = (metrics.ElasticityMetric.REFACTOR_AFTER_CG,
+                                metrics.KeptFactorCosts.of, metrics.ElasticityMetric.__init__)
+    speed_ = kept_factor.FACTORIZATION_SPEED
+    made = []
 
-    def counted(*args, **kwargs):
-        made[0] += 1
-        return factorize(*args, **kwargs)
+    def recorded(self, *args, **kwargs):
+        init(self, *args, **kwargs)
+        made.append(self)
 
-    choices = (("by operation counts (default)", kept_cg, counts_of),
-               ("kept until CG exceeds REFACTOR_AFTER_CG", kept_cg, lambda *a: None),
-               ("at every iterate", 0, counts_of))
+    choices = (("by operation counts (default)", kept_cg, counts_of, speed_),
+               ("by operation counts, FACTORIZATION_SPEED = 1", kept_cg, counts_of, 1.0),
+               ("kept until CG exceeds REFACTOR_AFTER_CG", kept_cg, lambda *a: None, speed_),
+               ("at every iterate", 0, counts_of, speed_))
     out = {}
-    metrics.factorize = counted
+    metrics.ElasticityMetric.__init__ = recorded
     try:
-        for name, cg, of in choices:
+        for name, cg, of, fast in choices:
             metrics.ElasticityMetric.REFACTOR_AFTER_CG, metrics.KeptFactorCosts.of = cg, of
-            made[0] = 0
-            t0 = time.perf_counter()
-            r = optimize(mesh, problem=spec, max_iterations=iterations)
-            out[name] = (r.x, r.phase_totals(), r.nit, made[0], time.perf_counter() - t0)
+            kept_factor.FACTORIZATION_SPEED = fast
+            made.clear()
+            t0 = time.process_time()
+            with cpu_clock():
+                r = optimize(mesh, problem=spec, max_iterations=iterations)
+            out[name] = (r.x, r.phase_totals(), r.nit, sum(m.n_factorizations for m in made),
+                         time.process_time() - t0)
     finally:
         metrics.ElasticityMetric.REFACTOR_AFTER_CG = kept_cg
         metrics.KeptFactorCosts.of = counts_of
-        metrics.factorize = factorize
+        metrics.ElasticityMetric.__init__ = init
+        kept_factor.FACTORIZATION_SPEED = speed_
     x0 = out[choices[0][0]][0]
-    print(f"\nThe elasticity metric's factorizations over {iterations} iterations:\n")
+    print(f"\nThe elasticity metric's factorizations over {iterations} iterations (CPU "
+          f"seconds):\n")
     print("| factorization | factorizations | iteration (s) | iteration / state solve "
           "| metric solves per iteration (s) | total (s) | iterates' max difference |")
     print("| --- | ---: | ---: | ---: | ---: | ---: | ---: |")
@@ -264,13 +301,14 @@ def stokes(tmp: Path, size: float, refine_near: float, ratios) -> None:
         print(f"| ellipse a/b = {ratio:g} (gmsh) | {ours:.5f} | "
               f"{dissipation_skfem(path, 'body'):.5f} | {front:.0f} / {back:.0f} |")
         best = min(best, (ours, ratio))
-    seconds, summary, rows = run_cli(body, STOKES, tmp / "body-out")
+    summary, rows = run_cli(body, STOKES, tmp / "body-out")
     out = tmp / "body-out" / "optimized.msh"
     r = body_report(body, out, "body", "outer")
     front, back = tip_angles(r["P"], r["loop"], reach)
     peer = dissipation_skfem(out, "body")
-    print(f"| optimized disc ({summary['iterations']} iterations, {seconds:.1f} s) | "
-          f"{summary['j']:.5f} | {peer:.5f} | {front:.0f} / {back:.0f} |")
+    print(f"| optimized disc ({summary['iterations']} iterations, "
+          f"{summary['cpu_seconds']:.1f} s CPU) | {summary['j']:.5f} | {peer:.5f} | "
+          f"{front:.0f} / {back:.0f} |")
     print(f"\nBest ellipse a/b = {best[1]:g}: drag {best[0]:.5f}; the optimized body "
           f"{peer:.5f} ({100 * (peer / best[0] - 1):+.2f} %), {2 * r['a']:.3f} × "
           f"{2 * r['b']:.3f} across its second moments; angles measured between the chords "
@@ -279,7 +317,7 @@ def stokes(tmp: Path, size: float, refine_near: float, ratios) -> None:
           f"√area, box untouched: {r['outer_untouched']}, smallest area "
           f"{r['min_area']:.2e}, worst AR {r['worst']:.3f} × the start.")
     solve = state_seconds(body, dict(spec, move="body"))
-    print(speed(rows, solve))
+    print(speed(rows, solve, summary))
     metric_factor_choices(body, dict(spec, move="body", keep_area=True,
                                      keep_barycenter=True), solve, 20)
     print()

@@ -10,6 +10,17 @@ from .._linalg import dot
 
 __all__ = ["KeptFactorCosts", "refactorize_pays"]
 
+#: at the iterate after a factorization (no CG measured on it yet) the first kept
+#: iterate's CG cost of the last cycle that had one stands for it; a factorization made
+#: on that estimate at this many iterates in a row lets the next one measure CG again
+PROBE_EVERY = 4
+
+#: a supernodal factorization's multiply-adds run in dense blocks (BLAS-3), about this
+#: many times faster than those of a triangular solve with one right-hand side, which
+#: reads the whole factor for two multiply-adds per entry (measured with CHOLMOD on the
+#: elasticity metric, ``benchmarks/bench_shape2d.py``)
+FACTORIZATION_SPEED = 3.0
+
 
 def refactorize_pays(cycle_cost: float, cycle_iterates: int, next_cost: float) -> bool:
     """Whether to factorize at a new iterate instead of solving by CG on the kept factor.
@@ -27,29 +38,37 @@ def refactorize_pays(cycle_cost: float, cycle_iterates: int, next_cost: float) -
 class KeptFactorCosts:
     """Operation counts (multiply-adds) of a kept Cholesky factor and of the CG solves it
     preconditions, for :func:`refactorize_pays`: the factorization ``Σ c_j²`` over the
-    column counts ``c_j`` of ``L``, a solve with the factor ``2 nnz(L)`` (two triangular
-    solves), a CG iteration that solve and a product with ``A`` (``nnz(A)``)."""
+    column counts ``c_j`` of ``L`` (divided by :data:`FACTORIZATION_SPEED`), a solve with
+    the factor ``2 nnz(L)`` (two triangular solves), a CG iteration that solve and a
+    product with ``A`` (``nnz(A)``)."""
 
     __slots__ = ("factorization", "cg_iteration", "cycle_cost", "cycle_iterates",
-                 "iterate_cost")
+                 "iterate_cost", "first_kept", "estimated")
 
-    def __init__(self, column_counts: np.ndarray, nnz_matrix: int) -> None:
+    def __init__(self, column_counts: np.ndarray, nnz_matrix: int,
+                 previous: "KeptFactorCosts | None" = None) -> None:
         counts = np.asarray(column_counts, dtype=np.float64)
-        self.factorization = float(dot(counts, counts))
+        self.factorization = float(dot(counts, counts)) / FACTORIZATION_SPEED
         self.cg_iteration = 2.0 * float(counts.sum()) + float(nnz_matrix)
         self.cycle_cost = self.factorization
         self.cycle_iterates = 1  # the factorization's iterate
         self.iterate_cost = 0.0  # CG at the last iterate
+        # the CG cost of the first kept iterate of the last cycle that had one (None:
+        # none yet), and how many factorizations in a row were made on it
+        self.first_kept = None if previous is None else previous.first_kept
+        self.estimated = 0 if previous is None else previous.estimated
 
     @classmethod
-    def of(cls, solver, nnz_matrix: int) -> "KeptFactorCosts | None":
+    def of(cls, solver, nnz_matrix: int,
+           previous: "KeptFactorCosts | None" = None) -> "KeptFactorCosts | None":
         """The counts of a direct solver (``fem.elasticity.SPDSolve``) whose factor
-        reports its column counts (``CholeskyFactor.column_counts``); None for
+        reports its column counts (``CholeskyFactor.column_counts``), with the first kept
+        iterate's CG cost carried over from the ``previous`` factor's counts; None for
         another (SuperLU, AMG, ``cvxopt``'s CHOLMOD): such a factor is kept until CG
         needs more than ``REFACTOR_AFTER_CG`` iterations."""
         counts = getattr(solver.solve, "column_counts", None)
         counts = counts() if callable(counts) else None
-        return None if counts is None else cls(counts, nnz_matrix)
+        return None if counts is None else cls(counts, nnz_matrix, previous)
 
     def add_cg(self, iterations: int) -> None:
         """A CG solve of ``iterations`` at the current iterate."""
@@ -58,7 +77,20 @@ class KeptFactorCosts:
 
     def start_iterate(self) -> bool:
         """At a new iterate: whether a factorization pays (:func:`refactorize_pays`, the
-        last iterate's CG cost as the estimate); if not, the iterate joins the cycle."""
+        last iterate's CG cost as the estimate); if not, the iterate joins the cycle.
+
+        Right after a factorization no CG cost is known: there a factorization pays when
+        the last measured first kept iterate cost at least a factorization (a cycle of one
+        iterate costs less on average than one of two), except after
+        :data:`PROBE_EVERY` such factorizations in a row, when CG is measured again."""
+        if self.cycle_iterates == 1:
+            if (self.first_kept is not None and self.estimated < PROBE_EVERY
+                    and self.first_kept >= self.factorization):
+                self.estimated += 1
+                return True
+            self.estimated = 0
+        elif self.cycle_iterates == 2:
+            self.first_kept = self.iterate_cost
         if refactorize_pays(self.cycle_cost, self.cycle_iterates, self.iterate_cost):
             return True
         self.cycle_iterates += 1

@@ -195,6 +195,15 @@ def _block_submatrix(A: sp.bsr_matrix, keep: np.ndarray) -> sp.bsr_matrix:
     return sp.bsr_matrix(sub, blocksize=(2, 2))
 
 
+def _refactorizes(kept: SPDSolve, A) -> bool:
+    """Whether ``kept``'s factor can factorize ``A`` on its own analysis: a CHOLMOD
+    factor (:class:`~meshopt_toolkit._cholmod.CholeskyFactor`) of a matrix of ``A``'s
+    shape (one pattern per free mask)."""
+    return (kept.method == "direct" and kept.precondition is kept.solve
+            and callable(getattr(kept.solve, "refactorize", None))
+            and kept.matrix.shape == A.shape)
+
+
 class ElasticityMetric:
     """Linear elasticity metric ``(U, V) = vec U · (K + δM) vec V`` (thesis (6.24)).
 
@@ -307,13 +316,19 @@ class ElasticityMetric:
 
         def refactorize() -> SPDSolve:
             method = solver_method(self.solver, A.shape[0])
-            fresh = factorize(A, points, method, rtol=self.rtol,
-                              ordering=kept_ordering(self._orderings, key, A, points, method))
+            if kept is not None and _refactorizes(kept, A):
+                # the same pattern: the kept factor's analysis serves (numeric part only)
+                kept.solve.refactorize(A)
+                fresh = SPDSolve("direct", kept.solve, A, kept.solve)
+            else:
+                fresh = factorize(A, points, method, rtol=self.rtol,
+                                  ordering=kept_ordering(self._orderings, key, A, points,
+                                                         method))
             self.n_factorizations += 1
             logger.debug("elasticity metric: %s factorization #%d", fresh.method,
                          self.n_factorizations)
             self._kept = {key: fresh}
-            self._costs = KeptFactorCosts.of(fresh, A.nnz)
+            self._costs = KeptFactorCosts.of(fresh, A.nnz, self._costs)
             self._solver_cache.put(Q, fresh, free)
             return fresh
 

@@ -20,6 +20,7 @@ from .._typing import FloatArray
 from ..errors import NotAdmissibleError
 from ..kernels.triangles import aspect_ratios, heights, quality_summary, segment_limit, signed_areas
 from ..mesh import boundary_self_intersections
+from ..penalties import QualityPenalty
 
 
 def max_travel_step(Q: FloatArray, triangles: np.ndarray, d: FloatArray) -> float:
@@ -65,27 +66,41 @@ class ShapeProblem:
         self.constraint = constraint
         self.quality_floor = quality_floor
         self.n_rejected = 0  # trial configurations outside M+
+        # a planar penalty tests the boundary itself (its value is +∞ where the boundary
+        # touches itself) and gives its gradient with its value at little more cost: a
+        # trial point's boundary is tested once, and the accepted one's gradient kept
+        self._penalty_checks = isinstance(penalty, QualityPenalty)
+        self._penalty_gradient: tuple[FloatArray, FloatArray] | None = None
 
     def admissible(self, Q: FloatArray) -> bool:
         """All coordinates finite, every signed area > 0 (every aspect ratio ≥ the quality
         floor), the boundary simple."""
+        return self._cells_admissible(Q) and \
+            len(boundary_self_intersections(Q, self.boundary_edges)) == 0
+
+    def _cells_admissible(self, Q: FloatArray) -> bool:
+        """:meth:`admissible` without the boundary test."""
         if not np.isfinite(Q).all():
             return False
         if not np.all(signed_areas(Q, self.triangles) > 0):
             return False
-        if self.quality_floor is not None and \
-                aspect_ratios(Q, self.triangles).min() < self.quality_floor:
-            return False
-        return len(boundary_self_intersections(Q, self.boundary_edges)) == 0
+        return self.quality_floor is None or \
+            aspect_ratios(Q, self.triangles).min() >= self.quality_floor
 
     def values(self, Q: FloatArray) -> tuple[float, float]:
-        """``(F, j)`` at ``Q``; ``(inf, inf)`` outside ``M+`` (counted in ``n_rejected``)."""
-        if not self.admissible(Q):
+        """``(F, j)`` at ``Q``; ``(inf, inf)`` outside ``M+`` (counted in ``n_rejected``).
+        A planar penalty is evaluated first, with its gradient (kept for
+        :meth:`derivative`), and tests the boundary."""
+        if not (self._cells_admissible(Q) if self._penalty_checks else self.admissible(Q)):
             self.n_rejected += 1
             return np.inf, np.inf
         try:
+            if self._penalty_checks:
+                fp, gradient = self.penalty.value_and_gradient(Q)
+                self._penalty_gradient = (np.array(Q, dtype=float), gradient)
+            else:
+                fp = 0.0 if self.penalty is None else float(self.penalty.value(Q))
             J = float(self.objective.value(Q))
-            fp = 0.0 if self.penalty is None else float(self.penalty.value(Q))
         except NotAdmissibleError:
             self.n_rejected += 1
             return np.inf, np.inf
@@ -104,7 +119,9 @@ class ShapeProblem:
         if timer is not None:
             t0 = timer.add("derivative", t0)
         if self.penalty is not None:
-            P = P + self.penalty.gradient(Q)
+            kept = self._penalty_gradient
+            same = kept is not None and np.array_equal(kept[0], Q)
+            P = P + (kept[1] if same else self.penalty.gradient(Q))
             if timer is not None:
                 timer.add("penalty_derivative", t0)
         if self.free is not None:

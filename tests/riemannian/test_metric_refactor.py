@@ -10,7 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import meshopt_toolkit.riemannian.metrics as metrics
-from meshopt_toolkit.riemannian.kept_factor import refactorize_pays
+from meshopt_toolkit.riemannian.kept_factor import (FACTORIZATION_SPEED, PROBE_EVERY,
+                                                    KeptFactorCosts, refactorize_pays)
 from meshopt_toolkit.riemannian.metrics import ElasticityMetric
 from meshopt_toolkit._cholmod import library
 from meshopt_toolkit.solvers import factorize_spd, pcg
@@ -52,6 +53,44 @@ def test_the_rule_on_synthetic_costs():
     assert not refactorize_pays(np.inf, 50, 1e300)  # a factorization too costly to pay
 
 
+def test_a_first_kept_iterate_dearer_than_a_factorization_makes_the_next_ones_factorize():
+    """Counts by hand (column counts (2, 2): a factorization 8 / FACTORIZATION_SPEED, a CG
+    iteration 8): a first kept iterate of one CG iteration costs more than a
+    factorization and ends its cycle, and at the iterate after each of the next
+    PROBE_EVERY factorizations that estimate says factorize again; then CG is measured
+    once more. A first kept iterate cheaper than a factorization is kept."""
+    counts = np.array([2.0, 2.0])
+    costs = KeptFactorCosts(counts, 0)
+    assert (costs.factorization, costs.cg_iteration) == (8.0 / FACTORIZATION_SPEED, 8.0)
+    assert not costs.start_iterate()  # nothing measured yet: keep, and measure CG
+    costs.add_cg(1)
+    assert costs.start_iterate()  # the cycle's average (F + 8)/2 ≤ 8
+    for _ in range(PROBE_EVERY):
+        costs = KeptFactorCosts(counts, 0, costs)
+        assert costs.start_iterate()
+    costs = KeptFactorCosts(counts, 0, costs)
+    assert not costs.start_iterate()  # measured again
+    costs.add_cg(0)
+    assert not costs.start_iterate()  # a first kept iterate that cost nothing ...
+    costs = KeptFactorCosts(counts, 0, costs)
+    assert not costs.start_iterate()  # ... is worth keeping the next factor for
+
+
+def test_a_refactorization_reuses_the_analysis_and_solves_as_a_fresh_one(mesh, rng):
+    """The metric factorizes a new iterate on its kept factor's analysis (the same
+    factor object, refactorized in place): each solve equals, to the bit, that of a
+    fresh factorization in the same ordering."""
+    metric = ElasticityMetric(mesh, solver="direct")
+    P = rng.standard_normal(mesh.points.shape)
+    metric.riesz(mesh.points, P)
+    factor = metric._kept[None].solve
+    for far in (mesh.points * [3.0, 0.2], mesh.points * [0.2, 3.0]):  # CG fails: refactorize
+        G = metric.riesz(far, P)
+        fresh = factorize_spd(metric.matrix(far), metric._orderings[None])
+        assert np.array_equal(G, fresh(P.ravel()).reshape(P.shape))
+    assert metric.n_factorizations == 3 and metric._kept[None].solve is factor
+
+
 def _path(mesh, rng, n):
     step = 2e-3 * rng.standard_normal((n,) + mesh.points.shape)
     return [mesh.points + s for s in np.cumsum(step, axis=0)]
@@ -66,7 +105,7 @@ def test_without_counts_the_kept_factor_solves_as_before(mesh, rng, monkeypatch)
     """Where the factor reports no counts (``cvxopt``, SuperLU) the metric keeps the
     factor of the first iterate for all the later ones: each solve equals, to the bit,
     CG preconditioned by that factor, replayed here from the public pieces."""
-    monkeypatch.setattr(metrics.KeptFactorCosts, "of", classmethod(lambda cls, s, nnz: None))
+    monkeypatch.setattr(metrics.KeptFactorCosts, "of", classmethod(lambda cls, s, nnz, previous=None: None))
     metric = ElasticityMetric(mesh, solver="direct")
     path = _path(mesh, rng, 6)
     P = rng.standard_normal(mesh.points.shape)
@@ -98,10 +137,20 @@ def test_the_metric_refactorizes_as_the_rule_says(mesh, rng, monkeypatch):
     metric = ElasticityMetric(mesh, solver="direct")
     P = rng.standard_normal(mesh.points.shape)
     expected = 0
-    cycle = iterates = last = None
+    cycle = iterates = last = factorization = first_kept = None
+    estimated = 0
     for Q in _path(mesh, rng, 12):
         A = metric.matrix(Q)
-        if cycle is None or refactorize_pays(cycle, iterates, last):
+        if cycle is None:
+            refactor = True
+        elif (iterates == 1 and first_kept is not None and estimated < PROBE_EVERY
+              and first_kept >= factorization):
+            refactor, estimated = True, estimated + 1
+        else:
+            estimated = 0 if iterates == 1 else estimated
+            first_kept = last if iterates == 2 else first_kept
+            refactor = refactorize_pays(cycle, iterates, last)
+        if refactor:
             expected += 1
             cycle, iterates, last = None, 1, 0.0
         else:
@@ -113,7 +162,7 @@ def test_the_metric_refactorizes_as_the_rule_says(mesh, rng, monkeypatch):
         counts = metric._kept[None].solve.column_counts()
         per_cg = 2.0 * counts.sum() + A.nnz
         if cycle is None:
-            cycle = float(counts @ counts)
+            cycle = factorization = float(counts @ counts) / FACTORIZATION_SPEED
         for it in iterations[before:]:
             cycle += it * per_cg
             last += it * per_cg
