@@ -15,14 +15,15 @@ plane through its start position orthogonal to its area-weighted normal there, s
 surface keeps its shape to first order. Two passes start from the moved points: one at the
 given sharpness ``s`` and, where it is sharper, one at ``focus`` over the gap between the
 worst and the median ``r_t`` (where most triangles are nearly as good as the worst, a fixed
-``s`` spreads the descent over all of them); the better is kept. The line search refuses
-every trial with a degenerate triangle (``F = +inf``), a new fold
+``s`` spreads the descent over all of them); the better is kept. A pass ends where the
+budget below refuses its steps: a third, from the better with ``μ`` doubled, follows the
+budget's bound further (kept where the worst rises). The line search refuses every trial with a degenerate triangle (``F = +inf``), a new fold
 (:class:`.folds.FoldTest` against the rest surface, evaluated on the triangles
 whose corners' fans the free vertices touch) or a rise of the surface's membrane energy
 ``Σ_t a_t |φ_t|²`` (``a_t`` the rest areas) by more than ``max_energy_rise`` of itself: a
 nearly isometric motion is not traded for a sliver of quality. The result is kept only
-where the worst relative quality of the triangles not wholly handles rises. A surface with
-no triangle worse than at rest (worst relative quality ≥ 1) is left as it is.
+where the worst relative quality of the triangles not wholly handles rises. A surface whose
+worst relative quality is 1 to rounding (a similarity of the rest) is left as it is.
 """
 
 from __future__ import annotations
@@ -37,8 +38,8 @@ from ..engine.polish import cell_neighbourhood, soft_maximum
 from .distortion import SurfaceDistortion
 from .folds import FoldTest
 
-#: a worst relative quality this close to 1 (or above) is left alone: no triangle is worse
-#: than at rest, and trading shape for rounding-level gains would only cost energy
+#: a worst relative quality this close to 1 is left alone: every triangle is at rest to
+#: rounding (a similarity), and trading shape for rounding-level gains would only cost energy
 _AT_REST = 1e-9
 
 
@@ -202,23 +203,23 @@ def polish_worst_triangles(rest: FloatArray, triangles: IntArray, points: FloatA
         of a second, where that is sharper, ``focus`` over the gap between the worst and
         the median inverse relative quality of the triangles moved (where most are nearly
         as good as the worst, a fixed ``s`` spreads the descent over all of them); both
-        from ``points``, the better kept.
+        from ``points``, the better kept, then a third from it (module docstring).
     shape : float
         ``μ``, the weight of the area-weighted mean squared membrane distortion
         (:class:`.distortion.SurfaceDistortion`) of the triangles moved, against
-        the soft maximum (0: the soft maximum alone).
+        the soft maximum (0: the soft maximum alone); the third pass's is ``2μ``.
     max_energy_rise : float
         The largest relative rise of the whole surface's area-weighted membrane energy
         that a trial may cost (a constraint of the line search).
     clear : callable ``(P0, P1) -> bool``, optional
-        Whether the straight path from ``points`` to a trial is free of contact
+        Whether the straight path from a pass's start to a trial is free of contact
         (:mod:`..engine.contact`: a constraint of the line search; None: none).
 
     Returns
     -------
     points : (N, 3) float array
         The polished points, or ``points`` itself where the polish did not raise the worst
-        relative quality or where it is ≥ 1 already.
+        relative quality or where it is 1 to rounding.
     info : dict
         ``polish_vertices`` (how many moved; 0 where ``points`` is returned),
         ``polish_worst_quality`` (before, after).
@@ -233,21 +234,32 @@ def polish_worst_triangles(rest: FloatArray, triangles: IntArray, points: FloatA
     rel = np.where(counted, aspect_ratios(P, F) / rest_q, np.inf)
     before = float(rel.min()) if counted.any() else 1.0
     info = {"polish_vertices": 0, "polish_worst_quality": [before, before]}
-    if iterations <= 0 or not counted.any() or before >= 1.0 - _AT_REST:
-        return P, info  # nothing to do, or no triangle worse than at rest
+    if iterations <= 0 or not counted.any() or abs(before - 1.0) <= _AT_REST:
+        return P, info  # nothing to do, or the worst triangle at rest to rounding
     areas = triangle_areas(V, F)
-    energy = areas * np.sum(SurfaceDistortion(V, F).values(P) ** 2, axis=1)
+    membrane = SurfaceDistortion(V, F)
+    energy = areas * np.sum(membrane.values(P) ** 2, axis=1)
     limit = (1.0 + max_energy_rise) * float(energy.sum())
     out, after = P, before
+
+    def better(start, start_rel, start_energy, pass_focus, mu):  # the pass's, where higher
+        moved = _descend(V, F, start, is_handle, rest_q, start_rel, areas, start_energy,
+                         limit, worst, rings, iterations, sharpness, pass_focus, mu, clear)
+        if moved is None:
+            return out, after
+        quality = float((aspect_ratios(moved, F)[counted] / rest_q[counted]).min())
+        return (moved, quality) if quality > after else (out, after)
+
     # a pass at the given sharpness and, where that is sharper, one sharpened to the gap
     for pass_focus in (0.0, focus) if focus > 0 else (0.0,):
-        moved = _descend(V, F, P, is_handle, rest_q, rel, areas, energy, limit, worst, rings,
-                         iterations, sharpness, pass_focus, shape, clear)
-        if moved is None:
-            continue
-        quality = float((aspect_ratios(moved, F)[counted] / rest_q[counted]).min())
-        if quality > after:
-            out, after = moved, quality
+        out, after = better(P, rel, energy, pass_focus, shape)
+    # a pass ends where the energy budget refuses its steps: one more from the better,
+    # μ doubled, follows the budget's bound further (the limit stays that of ``points``)
+    if after > before:
+        start = out
+        out, after = better(start, np.where(counted, aspect_ratios(start, F) / rest_q, np.inf),
+                            areas * np.sum(membrane.values(start) ** 2, axis=1),
+                            max(focus, 0.0), 2.0 * shape)
     if not after > before:
         return P, info
     info["polish_vertices"] = int(np.any(out != P, axis=1).sum())
