@@ -231,3 +231,68 @@ def test_the_soft_maximum_singles_out_the_worst_among_many_nearly_as_good():
     assert blunt["polish_worst_quality"][0] < 0.998
     assert blunt["polish_worst_quality"][1] < 0.998
     assert focused["polish_worst_quality"][1] > 0.9995
+
+
+def test_a_worst_above_one_is_polished_further_towards_the_best_in_the_plane():
+    """A poor rest (one vertex of a flat grid off its regular place) and a surface whose
+    every triangle is better than at rest (that vertex halfway to the best worst relative
+    quality, found by brute force over its plane): the polish of the soft maximum alone
+    raises the worst further, up to that best; only a worst of 1 to rounding is left
+    alone."""
+    R, F, _ = patch(5)
+    R[:, 2] = 0.0
+    k = 12  # the centre, off its place in the rest
+    R[k, :2] += [0.1, 0.06]
+    handles = np.setdiff1d(np.arange(len(R)), [k])
+
+    def worst_at(offsets):  # the worst relative quality with k at R[k] + each offset
+        out = []
+        for d in offsets:
+            T = R.copy()
+            T[k, :2] += d
+            out.append(sm.worst_relative_quality(R, T, F, handles))
+        return np.array(out)
+
+    g = np.linspace(-0.01, 0.01, 41)
+    grid = np.stack(np.meshgrid(g, g), axis=-1).reshape(-1, 2)
+    q = worst_at(grid)
+    best, arg = q.max(), grid[np.argmax(q)]
+    P = R.copy()
+    P[k, :2] += 0.5 * arg
+    before = sm.worst_relative_quality(R, P, F, handles)
+    assert 1.0 + 1e-6 < before < best - 1e-4
+    out, info = polish_worst_triangles(R, F, P, handles, shape=0.0, max_energy_rise=np.inf)
+    after = sm.worst_relative_quality(R, out, F, handles)
+    assert after > before + 1e-5 and info["polish_vertices"] == 1
+    assert after <= best + 1e-4  # the grid's best, within its spacing's reach
+    out, info = polish_worst_triangles(R, F, R, handles)  # at rest: left alone
+    assert out is R and info["polish_vertices"] == 0
+
+
+def test_a_second_pass_with_a_heavier_membrane_weight_follows_the_budget_further():
+    """One vertex of a flat patch pushed sideways, three handles, the 2% budget: the first
+    pass (the polish's ``_descend`` alone) ends on the budget; the polish's result keeps
+    the budget and its worst is above that pass's."""
+    from meshopt_toolkit.kernels.surface import aspect_ratios
+    from meshopt_toolkit.motion.surface.polish import _descend
+
+    V, F, boundary = patch(6)
+    V[:, 2] = 0.0
+    P = V.copy()
+    P[20] += 0.05 * (P[21] - P[20])
+    handles = boundary[:3]
+    out, info = polish_worst_triangles(V, F, P, handles, max_energy_rise=0.02)
+    after = sm.worst_relative_quality(V, out, F, handles)
+    start = membrane_energy(V, F, P)
+    assert membrane_energy(V, F, out) <= 1.02 * start * (1 + 1e-12)
+    is_handle = np.zeros(len(V), bool)
+    is_handle[handles] = True
+    rest_q = aspect_ratios(V, F)
+    rel = np.where(~is_handle[F].all(axis=1), aspect_ratios(P, F) / rest_q, np.inf)
+    areas = 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]),
+                                 axis=1)
+    energy = areas * np.sum(SurfaceDistortion(V, F).values(P) ** 2, axis=1)
+    first = _descend(V, F, P, is_handle, rest_q, rel, areas, energy, 1.02 * energy.sum(), 400,
+                     5, 100, 200.0, 20.0, 10.0)
+    assert membrane_energy(V, F, first) > 1.019 * start  # on the budget
+    assert after > sm.worst_relative_quality(V, first, F, handles) + 1e-3

@@ -12,17 +12,18 @@ triangles these vertices touch,
 area-weighted mean ``|φ_t|²`` of their membrane distortion (the neighbourhood stays where
 the motion put it), by L-BFGS over tangential displacements: each free vertex moves in the
 plane through its start position orthogonal to its area-weighted normal there, so the
-surface keeps its shape to first order. Two passes start from the moved points: one at the
-given sharpness ``s`` and, where it is sharper, one at ``focus`` over the gap between the
-worst and the median ``r_t`` (where most triangles are nearly as good as the worst, a fixed
-``s`` spreads the descent over all of them); the better is kept. The line search refuses
-every trial with a degenerate triangle (``F = +inf``), a new fold
+surface keeps its shape to first order. A pass starts from the moved points at the sharper
+of the given ``s`` and ``focus`` over the gap between the worst and the median ``r_t`` (where
+most triangles are nearly as good as the worst, a fixed ``s`` spreads the descent over all
+of them). It ends where the budget below refuses its steps: a second, from its result with
+``μ`` doubled (the planes those of the moved points), follows the budget's bound further,
+kept where the worst rises. The line search refuses every trial with a degenerate triangle (``F = +inf``), a new fold
 (:class:`.folds.FoldTest` against the rest surface, evaluated on the triangles
 whose corners' fans the free vertices touch) or a rise of the surface's membrane energy
 ``Σ_t a_t |φ_t|²`` (``a_t`` the rest areas) by more than ``max_energy_rise`` of itself: a
 nearly isometric motion is not traded for a sliver of quality. The result is kept only
-where the worst relative quality of the triangles not wholly handles rises. A surface with
-no triangle worse than at rest (worst relative quality ≥ 1) is left as it is.
+where the worst relative quality of the triangles not wholly handles rises. A surface whose
+worst relative quality is 1 to rounding (a similarity of the rest) is left as it is.
 """
 
 from __future__ import annotations
@@ -37,18 +38,29 @@ from ..engine.polish import cell_neighbourhood, soft_maximum
 from .distortion import SurfaceDistortion
 from .folds import FoldTest
 
-#: a worst relative quality this close to 1 (or above) is left alone: no triangle is worse
-#: than at rest, and trading shape for rounding-level gains would only cost energy
+#: a worst relative quality this close to 1 is left alone: every triangle is at rest to
+#: rounding (a similarity), and trading shape for rounding-level gains would only cost energy
 _AT_REST = 1e-9
+
+
+#: each corner's next and the one after (cyclic)
+_NEXT, _AFTER = np.array([1, 2, 0]), np.array([2, 0, 1])
+
+
+def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
+    """``a × b`` over the last axis (broadcast; the products of ``np.cross``, cheaper)."""
+    return np.stack([a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
+                     a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
+                     a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
 
 
 def inverse_qualities(points: FloatArray, triangles: IntArray) -> tuple[FloatArray, FloatArray]:
     """``1/q = (ℓ_0+ℓ_1+ℓ_2) ℓ_0 ℓ_1 ℓ_2 / (4|n|²)`` per triangle (T,) (``q`` the aspect ratio
     2r/R) and its gradient in the corners (T, 3, 3); ``inf`` (gradient 0) where ``|n| = 0``."""
     p = np.asarray(points, float)[triangles]
-    e = np.roll(p, -2, axis=1) - np.roll(p, -1, axis=1)  # e_i = p_{i+2} − p_{i+1}, opposite i
+    e = p[:, _AFTER] - p[:, _NEXT]  # e_i = p_{i+2} − p_{i+1}, opposite i
     ell = np.linalg.norm(e, axis=2)
-    n = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    n = _cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
     nn = np.einsum("ti,ti->t", n, n)
     ok = (nn > 0) & (ell > 0).all(axis=1)
     safe_nn = np.where(ok, nn, 1.0)
@@ -58,8 +70,8 @@ def inverse_qualities(points: FloatArray, triangles: IntArray) -> tuple[FloatArr
     # ∂ log(1/q): Σ_i (1/P + 1/ℓ_i) ∂ℓ_i − ∂ log|n|², with ∂ℓ_i/∂p_{i+2} = −∂ℓ_i/∂p_{i+1}
     # = e_i/ℓ_i and ∂|n|²/∂p_i = 2 n × e_i
     u = ((1.0 / perimeter[:, None] + 1.0 / safe_ell) / safe_ell)[:, :, None] * e
-    dlog = np.roll(u, -1, axis=1) - np.roll(u, -2, axis=1)  # corner j: u_{j+1} − u_{j+2}
-    dlog -= 2.0 * np.cross(n[:, None, :], e) / safe_nn[:, None, None]
+    dlog = u[:, _NEXT] - u[:, _AFTER]  # corner j: u_{j+1} − u_{j+2}
+    dlog -= 2.0 * _cross(n[:, None, :], e) / safe_nn[:, None, None]
     grad = np.where(ok, r, 0.0)[:, None, None] * dlog
     return r, grad
 
@@ -118,11 +130,13 @@ def _tangent_bases(points: FloatArray, triangles: IntArray, vertices: IntArray) 
 def _descend(V: FloatArray, F: IntArray, P: FloatArray, is_handle, rest_q: FloatArray,
              rel: FloatArray, areas: FloatArray, energy: FloatArray, limit: float,
              worst: int, rings: int, iterations: int, sharpness: float, focus: float,
-             shape: float, clear=None) -> FloatArray | None:
+             shape: float, clear=None, planes: FloatArray | None = None
+             ) -> FloatArray | None:
     """One L-BFGS pass of :func:`polish_worst_triangles` from ``P`` (relative qualities
     ``rel``, ``inf`` where not counted; membrane energies ``energy`` per triangle, their sum
-    at most ``limit``): the moved points, or None where nothing can move or ``focus`` would
-    not sharpen the soft maximum."""
+    at most ``limit``) at the sharper of ``sharpness`` and ``focus`` over the gap, each
+    vertex in its tangent plane at ``planes`` (None: ``P``): the moved points, or None where
+    nothing can move."""
     seeds = np.argsort(rel)[:min(worst, int(np.isfinite(rel).sum()))]
     movable = cell_neighbourhood(F, seeds, rings, len(P)) & ~is_handle
     free = np.flatnonzero(movable)
@@ -133,11 +147,11 @@ def _descend(V: FloatArray, F: IntArray, P: FloatArray, is_handle, rest_q: Float
         with np.errstate(divide="ignore"):  # a degenerate triangle: 1/q = inf, no gap
             inverse = 1.0 / rel[active]
         gap = inverse.max() - np.median(inverse)
-        if not (np.isfinite(gap) and gap > 0 and focus > sharpness * gap):
-            return None
-        sharpness = focus / gap
+        if np.isfinite(gap) and gap > 0 and focus > sharpness * gap:
+            sharpness = focus / gap
     objective = SoftMaxObjective(P, F[active], rest_q[active], free,
-                                 _tangent_bases(P, F, free), sharpness,
+                                 _tangent_bases(P if planes is None else planes, F, free),
+                                 sharpness,
                                  SurfaceDistortion(V, F[active]), areas[active], shape)
     # a triangle's fold test reads the fans of its corners: those that can change are the
     # triangles with a corner on or next to a free vertex; their corners' fans make the
@@ -198,27 +212,26 @@ def polish_worst_triangles(rest: FloatArray, triangles: IntArray, points: FloatA
     iterations : int
         L-BFGS iterations.
     sharpness, focus : float
-        ``s`` of the soft maximum (``s → ∞``: the worst triangle alone) of one pass, and
-        of a second, where that is sharper, ``focus`` over the gap between the worst and
-        the median inverse relative quality of the triangles moved (where most are nearly
-        as good as the worst, a fixed ``s`` spreads the descent over all of them); both
-        from ``points``, the better kept.
+        ``s`` of the soft maximum (``s → ∞``: the worst triangle alone), or where that is
+        sharper, ``focus`` over the gap between the worst and the median inverse relative
+        quality of the triangles moved (where most are nearly as good as the worst, a fixed
+        ``s`` spreads the descent over all of them); 0: ``s``.
     shape : float
         ``μ``, the weight of the area-weighted mean squared membrane distortion
         (:class:`.distortion.SurfaceDistortion`) of the triangles moved, against
-        the soft maximum (0: the soft maximum alone).
+        the soft maximum (0: the soft maximum alone); the second pass's is ``2μ``.
     max_energy_rise : float
         The largest relative rise of the whole surface's area-weighted membrane energy
         that a trial may cost (a constraint of the line search).
     clear : callable ``(P0, P1) -> bool``, optional
-        Whether the straight path from ``points`` to a trial is free of contact
+        Whether the straight path from a pass's start to a trial is free of contact
         (:mod:`..engine.contact`: a constraint of the line search; None: none).
 
     Returns
     -------
     points : (N, 3) float array
         The polished points, or ``points`` itself where the polish did not raise the worst
-        relative quality or where it is ≥ 1 already.
+        relative quality or where it is 1 to rounding.
     info : dict
         ``polish_vertices`` (how many moved; 0 where ``points`` is returned),
         ``polish_worst_quality`` (before, after).
@@ -233,21 +246,29 @@ def polish_worst_triangles(rest: FloatArray, triangles: IntArray, points: FloatA
     rel = np.where(counted, aspect_ratios(P, F) / rest_q, np.inf)
     before = float(rel.min()) if counted.any() else 1.0
     info = {"polish_vertices": 0, "polish_worst_quality": [before, before]}
-    if iterations <= 0 or not counted.any() or before >= 1.0 - _AT_REST:
-        return P, info  # nothing to do, or no triangle worse than at rest
+    if iterations <= 0 or not counted.any() or abs(before - 1.0) <= _AT_REST:
+        return P, info  # nothing to do, or the worst triangle at rest to rounding
     areas = triangle_areas(V, F)
-    energy = areas * np.sum(SurfaceDistortion(V, F).values(P) ** 2, axis=1)
+    membrane = SurfaceDistortion(V, F)
+    energy = areas * np.sum(membrane.values(P) ** 2, axis=1)
     limit = (1.0 + max_energy_rise) * float(energy.sum())
     out, after = P, before
-    # a pass at the given sharpness and, where that is sharper, one sharpened to the gap
-    for pass_focus in (0.0, focus) if focus > 0 else (0.0,):
-        moved = _descend(V, F, P, is_handle, rest_q, rel, areas, energy, limit, worst, rings,
-                         iterations, sharpness, pass_focus, shape, clear)
+
+    def better(start, start_rel, start_energy, mu):  # the pass's, where higher
+        moved = _descend(V, F, start, is_handle, rest_q, start_rel, areas, start_energy,
+                         limit, worst, rings, iterations, sharpness, focus, mu, clear, P)
         if moved is None:
-            continue
+            return out, after
         quality = float((aspect_ratios(moved, F)[counted] / rest_q[counted]).min())
-        if quality > after:
-            out, after = moved, quality
+        return (moved, quality) if quality > after else (out, after)
+
+    out, after = better(P, rel, energy, shape)
+    # a pass ends where the energy budget refuses its steps: a second from its result, μ
+    # doubled, follows the budget's bound further (the limit and planes stay those of P)
+    if after > before:
+        start = out
+        out, after = better(start, np.where(counted, aspect_ratios(start, F) / rest_q, np.inf),
+                            areas * np.sum(membrane.values(start) ** 2, axis=1), 2.0 * shape)
     if not after > before:
         return P, info
     info["polish_vertices"] = int(np.any(out != P, axis=1).sum())
