@@ -79,6 +79,7 @@ def test_the_pulled_contact_adds_the_penalty_to_the_barrier(rng):
                                term.hessian(Q).toarray())
 
 
+@pytest.mark.slow
 def test_a_paddle_whose_arc_runs_through_the_sheet_is_pulled_round_it():
     V, F, h, tg = paddle_over_sheet()
     res = move_surface(V, F, h, tg)
@@ -93,3 +94,14 @@ def test_a_paddle_whose_arc_runs_through_the_sheet_is_pulled_round_it():
     Q = V.copy()
     Q[h] = path(0.5)
     assert len(self_intersections(Q, F)) > 0
+
+
+@pytest.mark.slow
+def test_targets_through_the_fixed_border_are_refused():
+    """The paddle's end stands through the sheet's fixed border: no pull gets there."""
+    V, F, h, tg = paddle_over_sheet(n=4, turn=-90.0, shift=-0.5)
+    Q = V.copy()
+    Q[h] = tg
+    assert len(self_intersections(Q, F)) > 0
+    with pytest.raises(NotAdmissibleError, match="their targets"):
+        move_surface(V, F, h, tg, steps=1)

@@ -10,13 +10,14 @@ The handles become unknowns with the free vertices, pulled to their increment's 
 
 added to the increment's energy, every step capped by CCD over the whole surface (the
 handles included): no iterate passes through the surface, the handles stop at what is in
-their way and slide along it. After each solve the multipliers are updated, ``λ ← λ −
-κ_a √m (x − x̂)``, and ``κ_a`` is doubled where the handles' weighted distance to their
-targets did not halve. An intermediate frame keeps the handles where the pull leaves them;
-at the last frame, once they are within ``d̂/10`` of their targets, the ordinary increment
-(handles fixed) places them exactly, its step checked by CCD. Where they do not get there
-(the targets themselves make the surface intersect, or the way to them is shut) the motion
-is refused as before.
+their way and slide along it. An intermediate increment is one solve at the current
+``κ_a`` and keeps the handles where the pull leaves them. The last one repeats the solve,
+each time updating the multipliers, ``λ ← λ − κ_a √m (x − x̂)``, or doubling ``κ_a`` where
+the handles' weighted distance to their targets did not halve (ending where two rounds
+in a row bring them less than 1 % closer); once they are within
+``d̂/10`` of them, the ordinary increment (handles fixed) places them exactly, its step
+checked by CCD. Where they do not get there (the targets themselves make the surface
+intersect, or the way to them is shut) the motion is refused.
 
 The mode is entered only where an ordinary increment fails and either the handles' own
 prescribed step is not clear of the surface or the increment cannot be halved further;
@@ -29,6 +30,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..._typing import FloatArray, IntArray
+from ...errors import NotAdmissibleError
 from ..engine.contact import ContactTerm
 
 __all__ = ["HandlePenalty", "HandlePull", "PulledContact"]
@@ -36,9 +38,12 @@ __all__ = ["HandlePenalty", "HandlePull", "PulledContact"]
 #: ``κ_a`` at entry over the mean diagonal of the normal matrix at the handles over their mass
 KAPPA_START = 10.0
 #: the largest ``κ_a`` over its value at entry
-KAPPA_GROWTH = 1e4
+KAPPA_GROWTH = 1e3
 #: augmented-Lagrangian rounds of an intermediate increment and of the last one
-ROUNDS, FINAL_ROUNDS = 2, 16
+ROUNDS, FINAL_ROUNDS = 1, 16
+#: a round of the last increment stalls where the handles' weighted distance to their
+#: targets stays above this fraction of the last one; two in a row end the pull
+STALL = 0.99
 #: the handles' largest distance to their targets, over ``d̂``, from which the last
 #: increment places them exactly
 SNAP = 0.1
@@ -104,8 +109,13 @@ class PulledContact:
     def __init__(self, contact: ContactTerm, penalty: HandlePenalty) -> None:
         self.contact, self.penalty = contact, penalty
 
-    def __getattr__(self, name: str):  # set_stiffness, clear, embedded, step_cap, active
+    def __getattr__(self, name: str):  # clear, embedded, step_cap, active
         return getattr(self.contact, name)
+
+    def set_stiffness(self, Q: FloatArray, energy_gradient: FloatArray) -> bool:
+        """``κ`` against the energy's gradient with the pull's (IPC: the augmented
+        Lagrangian is part of the energy the barrier balances)."""
+        return self.contact.set_stiffness(Q, energy_gradient + self.penalty.gradient(Q))
 
     def energy(self, Q: FloatArray) -> float:
         return self.contact.energy(Q) + self.penalty.value(Q)
@@ -162,8 +172,9 @@ class HandlePull:
     def increment(self, start: FloatArray, H1: FloatArray, last: bool, max_iterations: int,
                   rtol: float, stall: float | None):
         """One increment from ``start`` (the last frame, handles where the pull left them)
-        to handles pulled towards ``H1``: the positions and iterations, or None. The last
-        increment ends with the handles exactly at ``H1`` or returns None."""
+        to handles pulled towards ``H1``: the positions and iterations, or None (halved).
+        The last increment ends with the handles exactly at ``H1``; where they do not get
+        there, or their exact placement is not clear, :class:`NotAdmissibleError`."""
         p, m = self.problem, self.main
         p.previous, p.phi_ref, p.row_weights = m.previous, m.phi_ref, m.row_weights
         p.cg_iterations = m.cg_iterations
@@ -174,16 +185,19 @@ class HandlePull:
             diag = p.normal_matrix(Jm, Jb).diagonal().reshape(-1, 3)[self.handles]
             self.kappa0 = KAPPA_START * float(np.mean(diag / pen.mass[:, None]))
             pen.kappa = self.kappa0
-        Q, iterations, before = start, 0, pen.distance(start)
-        for _ in range(FINAL_ROUNDS if last else ROUNDS):
+        Q, iterations, before, stalled = start, 0, pen.distance(start), 0
+        rounds = FINAL_ROUNDS if last else ROUNDS
+        for k in range(rounds):
             out = self.step(p, Q, H1[:0], self.none, max_iterations, rtol, stall)
             if out is None:
                 break
             Q, its = out
             iterations += its
-            if np.abs(pen.gap(Q)).max() <= SNAP * self.dhat:
-                break
             now = pen.distance(Q)
+            stalled = stalled + 1 if now > STALL * before else 0
+            if (k + 1 == rounds or stalled == 2
+                    or np.abs(pen.gap(Q)).max() <= SNAP * self.dhat):
+                break
             if now > 0.5 * before and pen.kappa < KAPPA_GROWTH * self.kappa0:
                 pen.kappa *= 2.0
             else:
@@ -193,7 +207,12 @@ class HandlePull:
             return None
         if not last:
             return Q, iterations
-        if np.abs(pen.gap(Q)).max() > SNAP * self.dhat:
-            return None
-        out = self.step(m, Q, H1, self.handles, max_iterations, rtol, stall)
-        return None if out is None else (out[0], iterations + out[1])
+        gap = float(np.abs(pen.gap(Q)).max())
+        out = self.step(m, Q, H1, self.handles, max_iterations, rtol, stall) \
+            if gap <= SNAP * self.dhat else None
+        if out is None:  # the targets are the result: a shorter increment cannot help
+            raise NotAdmissibleError(
+                f"the handles, pulled along their path, stop {gap:.3g} short of their targets"
+                if gap > SNAP * self.dhat else f"the handles' last {gap:.3g} to their "
+                "targets cannot be taken clear of the surface")
+        return out[0], iterations + out[1]
