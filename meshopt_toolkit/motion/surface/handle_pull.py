@@ -208,8 +208,8 @@ class HandlePull:
         if not last:
             return Q, iterations
         gap = float(np.abs(pen.gap(Q)).max())
-        out = self.step(m, Q, H1, self.handles, max_iterations, rtol, stall) \
-            if gap <= SNAP * self.dhat else None
+        out = (self.step(m, Q, H1, self.handles, max_iterations, rtol, stall)
+               if gap <= SNAP * self.dhat else None)
         if out is None:  # the targets are the result: a shorter increment cannot help
             raise NotAdmissibleError(
                 f"the handles, pulled along their path, stop {gap:.3g} short of their targets"
