@@ -10,14 +10,14 @@ The handles become unknowns with the free vertices, pulled to their increment's 
 
 added to the increment's energy, every step capped by CCD over the whole surface (the
 handles included): no iterate passes through the surface, the handles stop at what is in
-their way and slide along it. An intermediate increment is one solve at the current
-``κ_a`` and keeps the handles where the pull leaves them. The last one repeats the solve,
-each time updating the multipliers, ``λ ← λ − κ_a √m (x − x̂)``, or doubling ``κ_a`` where
-the handles' weighted distance to their targets did not halve (ending where two rounds
-in a row bring them less than 1 % closer); once they are within
-``d̂/10`` of them, the ordinary increment (handles fixed) places them exactly, its step
-checked by CCD. Where they do not get there (the targets themselves make the surface
-intersect, or the way to them is shut) the motion is refused.
+their way and slide along it. An intermediate increment is one solve at the current ``κ_a``
+and keeps the handles where the pull leaves them. The last one repeats the solve (each to
+an intermediate increment's tolerance), each time updating the multipliers, ``λ ← λ − κ_a
+√m (x − x̂)``, or doubling ``κ_a`` where the handles' weighted distance to their targets
+did not halve (ending where two rounds in a row bring them less than 1 % closer); once they
+are within ``d̂/10`` of them, the ordinary increment (handles fixed) places them exactly,
+its step checked by CCD. Where they do not get there (the targets themselves make the
+surface intersect, or the way to them is shut) the motion is refused.
 
 The mode is entered only where an ordinary increment fails and either the handles' own
 prescribed step is not clear of the surface or the increment cannot be halved further;
@@ -44,6 +44,8 @@ ROUNDS, FINAL_ROUNDS = 1, 16
 #: a round of the last increment stalls where the handles' weighted distance to their
 #: targets stays above this fraction of the last one; two in a row end the pull
 STALL = 0.99
+#: the Gauss–Newton iterations and relative decrease of one round
+ROUND_ITERATIONS, ROUND_RTOL = 8, 1e-3
 #: the handles' largest distance to their targets, over ``d̂``, from which the last
 #: increment places them exactly
 SNAP = 0.1
@@ -187,8 +189,9 @@ class HandlePull:
             pen.kappa = self.kappa0
         Q, iterations, before, stalled = start, 0, pen.distance(start), 0
         rounds = FINAL_ROUNDS if last else ROUNDS
-        for k in range(rounds):
-            out = self.step(p, Q, H1[:0], self.none, max_iterations, rtol, stall)
+        for k in range(rounds):  # each round to an intermediate increment's tolerance
+            out = self.step(p, Q, H1[:0], self.none, min(max_iterations, ROUND_ITERATIONS),
+                            max(rtol, ROUND_RTOL), None)
             if out is None:
                 break
             Q, its = out
