@@ -69,7 +69,9 @@ def move_surface_mesh(mesh, handles, targets, *, frames: int | None = None, step
         whose corners are all handles degenerate, or turn a closed surface whose
         vertices are all handles inside out (a mirror image).
     NotAdmissibleError
-        No fold-free increment of the handles' path.
+        No fold-free increment of the handles' path; or, where the path runs into the
+        surface, handles that pulled along it cannot reach their targets
+        (:mod:`.handle_pull`).
     """
     del relax_iterations, quality_rounds  # options of the other solvers
     if not is_surface(mesh):

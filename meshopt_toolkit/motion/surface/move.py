@@ -23,19 +23,16 @@ increment's first factor is kept while full steps are taken), each iterate accep
 where the energy decreases, every triangle keeps ``det C > 0`` and none folds
 (:class:`.folds.FoldTest`). The last increment, whose end is the result, is iterated further
 (``final_iterations``, ``final_rtol``), its factor kept through shortened steps until they
-stall (``final_stall``: chord steps).
-
-With ``cg_iterations = k > 0`` a step on a kept factor ``F`` is k conjugate gradients on
-the current normal equations ``A`` (products from the Jacobian blocks), preconditioned by
-``R F⁻¹ Rᵀ`` (``R`` each vertex's rotation since the factorization: ``A`` turns with the
-surface); docs/benchmarks-surface.md measures the trade.
+stall (``final_stall``: chord steps). With ``cg_iterations > 0`` a step on a kept
+factor is conjugate gradients preconditioned by the factor turned with the surface.
 
 With ``contact`` (the default, where the rest is free of self-intersections) the energy
 gains IPC's barrier and every step, the predictor included, starts its backtracking at the
 fraction CCD allows (:mod:`..engine.contact`; the handles move alone, then with a half or a
 quarter of the predictor, where it is folded or would pass through): no iterate passes
 through the surface (docs/move-3d.md, "Contact"). The factor is kept while the barrier's
-pairs and ``κ`` are those it holds.
+pairs and ``κ`` are those it holds. Where the handles' own path runs into the surface they
+are pulled along it instead (:mod:`.handle_pull`), exactly at their targets at the end.
 
 Where one similarity moves all handles, the whole surface follows it exactly (φ moves by
 ``√2 log s`` in its first component, bending not at all), so a rigid motion of the
@@ -70,6 +67,7 @@ from ..engine.similarity_3d import global_similarity
 from .bending import ShellBending
 from .distortion import SurfaceDistortion
 from .folds import FoldTest
+from .handle_pull import HandlePull
 from .normal_equations import FreePattern, turned_solve, upper_products
 from .polish import polish_worst_triangles
 
@@ -237,8 +235,8 @@ class _Problem:
         """A step ``≈ (JᵀJ + M)⁻¹ g`` at ``Q`` on the kept factor ``F``: its own solve where
         it is this matrix's; else ``cg_iterations`` conjugate gradients (or fewer, to the
         relative residual ``cg_rtol``) preconditioned by ``R F⁻¹ Rᵀ``, ``R`` each vertex's
-        rotation since the factorization (φ and the bending are invariant under rotations:
-        the matrix turns with the surface); ``cg_iterations = 0``: ``F⁻¹ g``."""
+        rotation since the factorization (the matrix turns with the surface: φ and the
+        bending are rotation invariant); ``cg_iterations = 0``: ``F⁻¹ g``."""
         if self.fresh or self.cg_iterations == 0:
             self.fresh = False
             return self.factor(g)
@@ -385,8 +383,7 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
         every shortened step, as in the other increments.
     cg_iterations : int
         Steps on a kept factor are this many conjugate gradients on the current normal
-        equations, preconditioned by the factor turned with the surface (module
-        docstring); 0: the factor's own solve, a chord step.
+        equations, preconditioned by the factor turned with the surface; 0: chord steps.
     max_halvings : an increment is at least ``2^-max_halvings / steps`` (a halved increment
         doubles again, up to ``1/steps``, after two taken in a row).
     contact : bool
@@ -435,16 +432,14 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
     phi_lengths = np.zeros(len(F))
     length = 0.0
     dt0 = 1.0 / max(int(steps), 1)
-    dt, halvings, taken = dt0, 0, 0
+    dt, halvings, taken, pull = dt0, 0, 0, None
     while t < 1.0:
         t1 = min(1.0, t + dt) if 1.0 - (t + dt) > 1e-12 else 1.0
-        start = Q
+        start, shift = Q, 0.0
         if whole is not None:  # the whole surface follows the handles' similarity
             a, b = whole.screw(t), whole.screw(t1)
             start = b((Q - a.image) @ a.rotation / a.scale + a.centre)
             shift = SQRT2 * np.log(b.scale)
-        else:
-            shift = 0.0
         H1 = path(t1) if whole is None or t1 >= 1.0 else whole.screw(t1)(V[handles])
         problem.previous = start
         if emphasis > 0 and problem.free_triangles.any():  # the worst weigh more (c_t ≥ 1)
@@ -456,9 +451,15 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
         problem.phi_ref = np.zeros_like(phi) if anchor == "rest" else problem.membrane.values(start)
         problem.phi_ref[:, 0] += shift if anchor == "rest" else 0.0
         last = t1 >= 1.0  # the end state is the result: converged further
-        out = _step(problem, start, H1, handles,
-                    max(max_iterations, final_iterations) if last else max_iterations,
-                    final_rtol if last else rtol, final_stall if last else None)
+        budget = ((max(max_iterations, final_iterations), final_rtol, final_stall) if last
+                  else (max_iterations, rtol, None))
+        out = (_step(problem, start, H1, handles, *budget) if pull is None
+               else pull.increment(start, H1, last, *budget))
+        if out is None and pull is None and (pull := HandlePull.where_blocked(
+                problem, start, H1, handles, dt / 2.0 < dt0 / 2.0**max_halvings,
+                lambda: _Problem(V, F, handles[:0], weight, bending, problem.mass), _step)):
+            dt, halvings = dt0, 0  # from here on the handles are pulled (.handle_pull)
+            continue
         if out is None:  # halved, at most max_halvings times below 1/steps
             halvings += 1
             if dt / 2.0 < dt0 / 2.0**max_halvings:
@@ -473,10 +474,9 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
         if t1 >= 1.0 and polish > 0:  # the result's worst triangles polished
             Qp, polished = polish_worst_triangles(V, F, Q, handles, iterations=polish,
                                                   clear=problem.contact.clear)
-            if problem.contact.embedded(Qp):  # else two triangles of a fan meet: dropped
-                Q = Qp
-            else:
-                polished = {"polish_vertices": 0}
+            if not problem.contact.embedded(Qp):  # two triangles of a fan meet: dropped
+                Qp, polished = Q, {"polish_vertices": 0}
+            Q = Qp
         iterations += n_it
         new_phi = problem.membrane.values(Q)
         dphi = np.linalg.norm(new_phi - phi, axis=1)

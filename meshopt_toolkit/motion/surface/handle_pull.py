@@ -1,0 +1,221 @@
+"""Handles pulled along their path instead of placed on it: the surface motion's
+increments (:mod:`.move`) from the point where the handles' prescribed path runs into a
+free part of the surface, IPC's augmented Lagrangian for prescribed boundary motion
+(Li et al. 2020, §4).
+
+The handles become unknowns with the free vertices, pulled to their increment's targets
+``x̂`` by
+
+    P(Q) = κ_a/2 Σ_h m_h |x_h − x̂_h|² − Σ_h √m_h λ_hᵀ (x_h − x̂_h)
+
+added to the increment's energy, every step capped by CCD over the whole surface (the
+handles included): no iterate passes through the surface, the handles stop at what is in
+their way and slide along it. An intermediate increment is one solve at the current ``κ_a``
+and keeps the handles where the pull leaves them. The last one repeats the solve (each to
+an intermediate increment's tolerance), each time updating the multipliers, ``λ ← λ − κ_a
+√m (x − x̂)``, or doubling ``κ_a`` where the handles' weighted distance to their targets
+did not halve (ending where two rounds in a row bring them less than 1 % closer); once they
+are within ``d̂/10`` of them, the ordinary increment (handles fixed) places them exactly,
+its step checked by CCD. Where they do not get there (the targets themselves make the
+surface intersect, or the way to them is shut) the motion is refused.
+
+The mode is entered only where an ordinary increment fails and either the handles' own
+prescribed step is not clear of the surface or the increment cannot be halved further;
+motions that never need it are unchanged bit for bit.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..._typing import FloatArray, IntArray
+from ...errors import NotAdmissibleError
+from ..engine.contact import ContactTerm
+
+__all__ = ["HandlePenalty", "HandlePull", "PulledContact"]
+
+#: ``κ_a`` at entry over the mean diagonal of the normal matrix at the handles over their mass
+KAPPA_START = 10.0
+#: the largest ``κ_a`` over its value at entry
+KAPPA_GROWTH = 1e3
+#: augmented-Lagrangian rounds of an intermediate increment and of the last one
+ROUNDS, FINAL_ROUNDS = 1, 16
+#: a round of the last increment stalls where the handles' weighted distance to their
+#: targets stays above this fraction of the last one; two in a row end the pull
+STALL = 0.99
+#: the Gauss–Newton iterations and relative decrease of one round
+ROUND_ITERATIONS, ROUND_RTOL = 8, 1e-3
+#: the handles' largest distance to their targets, over ``d̂``, from which the last
+#: increment places them exactly
+SNAP = 0.1
+
+
+class HandlePenalty:
+    """``P(Q)`` (module docstring) on the flattened coordinates of ``n`` vertices.
+
+    Parameters
+    ----------
+    handles : (H,) int array
+    mass : (N,) float array
+        The vertex masses ``m``.
+    kappa : float
+        ``κ_a``.
+    """
+
+    def __init__(self, handles: IntArray, mass: FloatArray, kappa: float) -> None:
+        self.n = len(mass)
+        self.handles = np.asarray(handles, np.int64)
+        self.mass = np.asarray(mass, float)[self.handles]
+        self.kappa = float(kappa)
+        self.targets = np.zeros((len(self.handles), 3))
+        self.multipliers = np.zeros((len(self.handles), 3))
+
+    def gap(self, Q: FloatArray) -> FloatArray:
+        """``x_h − x̂_h`` (H, 3)."""
+        return np.asarray(Q).reshape(-1, 3)[self.handles] - self.targets
+
+    def distance(self, Q: FloatArray) -> float:
+        """``(Σ_h m_h |x_h − x̂_h|²)^½``."""
+        g = self.gap(Q)
+        return float(np.sqrt(self.mass @ np.sum(g * g, axis=1)))
+
+    def value(self, Q: FloatArray) -> float:
+        g = self.gap(Q)
+        return float(0.5 * self.kappa * self.mass @ np.sum(g * g, axis=1)
+                     - np.sum(np.sqrt(self.mass)[:, None] * self.multipliers * g))
+
+    def gradient(self, Q: FloatArray) -> FloatArray:
+        """(3N,) over ``Q.ravel()``."""
+        out = np.zeros((self.n, 3))
+        out[self.handles] = (self.kappa * self.mass[:, None] * self.gap(Q)
+                             - np.sqrt(self.mass)[:, None] * self.multipliers)
+        return out.ravel()
+
+    def hessian(self) -> sp.csr_matrix:
+        """(3N, 3N): ``κ_a m_h`` on the handles' coordinates."""
+        d = np.zeros((self.n, 3))
+        d[self.handles] = self.kappa * self.mass[:, None]
+        return sp.diags(d.ravel(), format="csr")
+
+    def update(self, Q: FloatArray) -> None:
+        """The multipliers' update ``λ ← λ − κ_a √m (x − x̂)``."""
+        self.multipliers -= self.kappa * np.sqrt(self.mass)[:, None] * self.gap(Q)
+
+
+class PulledContact:
+    """A :class:`..engine.contact.ContactTerm` over every coordinate with a
+    :class:`HandlePenalty` added: the contact protocol of :mod:`.move`'s increments
+    (energy, gradient, Hessian, the factor's signature; CCD and the rest delegated)."""
+
+    def __init__(self, contact: ContactTerm, penalty: HandlePenalty) -> None:
+        self.contact, self.penalty = contact, penalty
+
+    def __getattr__(self, name: str):  # clear, embedded, step_cap, active
+        return getattr(self.contact, name)
+
+    def set_stiffness(self, Q: FloatArray, energy_gradient: FloatArray) -> bool:
+        """``κ`` against the energy's gradient with the pull's (IPC: the augmented
+        Lagrangian is part of the energy the barrier balances)."""
+        return self.contact.set_stiffness(Q, energy_gradient + self.penalty.gradient(Q))
+
+    def energy(self, Q: FloatArray) -> float:
+        return self.contact.energy(Q) + self.penalty.value(Q)
+
+    def gradient(self, Q: FloatArray) -> FloatArray:
+        return self.contact.gradient(Q) + self.penalty.gradient(Q)
+
+    def hessian(self, Q: FloatArray) -> sp.csr_matrix:
+        H = self.contact.hessian(Q)
+        return self.penalty.hessian() if H is None else (H + self.penalty.hessian()).tocsr()
+
+    def signature(self, Q: FloatArray) -> tuple:
+        return self.contact.signature(Q), self.penalty.kappa
+
+
+class HandlePull:
+    """The increments of one motion with the handles pulled (module docstring).
+
+    Parameters
+    ----------
+    problem : the motion's increment problem (:class:`.move._Problem`, handles fixed)
+    free_problem : the same energy with every vertex free (its contact replaced here)
+    handles : (H,) int array
+    step : :func:`.move._step`, one increment of a problem
+    """
+
+    def __init__(self, problem, free_problem, handles: IntArray, step) -> None:
+        self.main, self.problem, self.step = problem, free_problem, step
+        self.handles = np.asarray(handles, np.int64)
+        self.none = self.handles[:0]
+        contact = problem.contact
+        free = np.ones(free_problem.free.size, bool)
+        term = ContactTerm(contact.contact, free, contact.mean_mass)
+        self.dhat = contact.contact.dhat
+        self.penalty = HandlePenalty(self.handles, problem.mass, 0.0)
+        free_problem.contact = PulledContact(term, self.penalty)
+        self.kappa0 = None
+
+    @classmethod
+    def where_blocked(cls, problem, start: FloatArray, H1: FloatArray, handles: IntArray,
+                      exhausted: bool, free_problem, step) -> HandlePull | None:
+        """The pull from ``start`` where an ordinary increment to handles at ``H1`` failed
+        and the motion has contact, and either the handles' straight step (the rest
+        still) is not clear or the increment cannot be halved further (``exhausted``);
+        else None. ``free_problem``: a callable making the problem with every vertex free."""
+        if not isinstance(problem.contact, ContactTerm):
+            return None
+        end = start.copy()
+        end[handles] = H1
+        if not exhausted and problem.contact.clear(start, end):
+            return None
+        return cls(problem, free_problem(), handles, step)
+
+    def increment(self, start: FloatArray, H1: FloatArray, last: bool, max_iterations: int,
+                  rtol: float, stall: float | None):
+        """One increment from ``start`` (the last frame, handles where the pull left them)
+        to handles pulled towards ``H1``: the positions and iterations, or None (halved).
+        The last increment ends with the handles exactly at ``H1``; where they do not get
+        there, or their exact placement is not clear, :class:`NotAdmissibleError`."""
+        p, m = self.problem, self.main
+        p.previous, p.phi_ref, p.row_weights = m.previous, m.phi_ref, m.row_weights
+        p.cg_iterations = m.cg_iterations
+        pen = self.penalty
+        pen.targets, pen.multipliers = np.asarray(H1, float), np.zeros_like(pen.multipliers)
+        if self.kappa0 is None:  # κ_a against the elastic stiffness at the handles
+            rm, Jm, rb, Jb = p.linearization(start)
+            diag = p.normal_matrix(Jm, Jb).diagonal().reshape(-1, 3)[self.handles]
+            self.kappa0 = KAPPA_START * float(np.mean(diag / pen.mass[:, None]))
+            pen.kappa = self.kappa0
+        Q, iterations, before, stalled = start, 0, pen.distance(start), 0
+        rounds = FINAL_ROUNDS if last else ROUNDS
+        for k in range(rounds):  # each round to an intermediate increment's tolerance
+            out = self.step(p, Q, H1[:0], self.none, min(max_iterations, ROUND_ITERATIONS),
+                            max(rtol, ROUND_RTOL), None)
+            if out is None:
+                break
+            Q, its = out
+            iterations += its
+            now = pen.distance(Q)
+            stalled = stalled + 1 if now > STALL * before else 0
+            if (k + 1 == rounds or stalled == 2
+                    or np.abs(pen.gap(Q)).max() <= SNAP * self.dhat):
+                break
+            if now > 0.5 * before and pen.kappa < KAPPA_GROWTH * self.kappa0:
+                pen.kappa *= 2.0
+            else:
+                pen.update(Q)
+            before = now
+        if Q is start:
+            return None
+        if not last:
+            return Q, iterations
+        gap = float(np.abs(pen.gap(Q)).max())
+        out = (self.step(m, Q, H1, self.handles, max_iterations, rtol, stall)
+               if gap <= SNAP * self.dhat else None)
+        if out is None:  # the targets are the result: a shorter increment cannot help
+            raise NotAdmissibleError(
+                f"the handles, pulled along their path, stop {gap:.3g} short of their targets"
+                if gap > SNAP * self.dhat else f"the handles' last {gap:.3g} to their "
+                "targets cannot be taken clear of the surface")
+        return out[0], iterations + out[1]

@@ -1,0 +1,107 @@
+"""Handles pulled along a path that runs into the surface
+(:mod:`meshopt_toolkit.motion.surface.handle_pull`): the augmented-Lagrangian penalty's
+derivatives by Taylor tests, and a paddle swung about a hinge above a sheet whose border is
+fixed: the paddle's prescribed arc passes below the sheet, its end is clear of it. The
+handles cannot stay on their path; pulled, every frame is free of self-intersections by the
+exact kernel and the handles are bitwise at their targets at the end."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from test_morph_self_intersection import _grid
+
+from meshopt_toolkit.diagnostics import check_gradient, check_hvp
+from meshopt_toolkit.errors import NotAdmissibleError
+from meshopt_toolkit.kernels.intersections3d import self_intersections
+from meshopt_toolkit.motion.engine.contact import SurfaceContact, contact_term
+from meshopt_toolkit.motion.engine.similarity import HandlePath, handle_groups
+from meshopt_toolkit.motion.surface.handle_pull import HandlePenalty, PulledContact
+from meshopt_toolkit.motion.surface.move import lumped_mass, move_surface
+
+pytest.importorskip("ipctk")
+
+
+def paddle_over_sheet(n: int = 6, height: float = 0.15, turn: float = -165.0,
+                      shift: float = 0.0):
+    """A sheet z = 0 over [0, 1]² (its border the first handles, its inside free) and a
+    paddle (every vertex a handle) in the plane z = ``height``, x in [0.35, 0.65], at 0.05
+    to 0.45 from the hinge line y = 0.5, z = ``height``, turned by ``turn`` degrees about
+    it (and moved by ``shift`` along y) at the targets. Points, triangles, handles,
+    targets."""
+    uv, F = _grid(n)
+    sheet = np.c_[uv, np.zeros(len(uv))]
+    border = np.flatnonzero((uv == 0.0).any(axis=1) | (uv == 1.0).any(axis=1))
+    pu, pF = _grid(2)
+    rho = 0.05 + 0.4 * pu[:, 1]
+    paddle = np.c_[0.35 + 0.3 * pu[:, 0], 0.5 + rho, np.full(len(pu), height)]
+    a = np.radians(turn)
+    moved = np.c_[paddle[:, 0], 0.5 + shift + rho * np.cos(a), height + rho * np.sin(a)]
+    handles = np.r_[border, len(uv) + np.arange(len(pu))]
+    return (np.vstack([sheet, paddle]), np.vstack([F, pF + len(uv)]), handles,
+            np.vstack([sheet[border], moved]))
+
+
+def test_the_penalty_derivatives_pass_taylor_tests(rng):
+    mass = rng.uniform(0.5, 2.0, 7)
+    pen = HandlePenalty(np.array([1, 4, 6]), mass, kappa=3.0)
+    pen.targets = rng.normal(size=(3, 3))
+    pen.multipliers = rng.normal(size=(3, 3))
+    x = rng.normal(size=21)
+    assert check_gradient(pen.value, pen.gradient, x, rng=rng).order > 1.8
+    r = check_hvp(pen.value, pen.gradient, lambda q, v: pen.hessian() @ v, x, rng=rng)
+    assert r.order > 2.7
+
+
+def test_the_pulled_contact_adds_the_penalty_to_the_barrier(rng):
+    """Near contact (pairs within d̂, κ set): energy, gradient and Hessian of the sum."""
+    V, F, h, _ = paddle_over_sheet(n=2, height=0.15)
+    contact = SurfaceContact(V, F)
+    Q = V.copy()
+    Q[h[-9:], 2] = 0.6 * contact.dhat  # the paddle lowered to within d̂ of the sheet
+    Q[h[-9:], 0] += 0.01
+    free = np.ones(V.size, bool)
+    term = contact_term(V, F, free, lumped_mass(V, F), contact=contact)
+    pen = HandlePenalty(h, lumped_mass(V, F), kappa=2.0)
+    pen.targets = V[h] + rng.normal(scale=0.1, size=(len(h), 3))
+    pen.multipliers = rng.normal(size=(len(h), 3))
+    both = PulledContact(term, pen)
+    assert both.set_stiffness(Q, rng.normal(size=V.size)) and term.active(Q)
+
+    def flat(f):
+        return lambda x: f(x.reshape(-1, 3))
+
+    x = Q.ravel()
+    v = rng.normal(size=x.size)  # the pairs stay within d̂ along the sweep
+    e = flat(both.energy)
+    assert check_gradient(e, flat(both.gradient), x, v, eps0=1e-6).order > 1.8
+    np.testing.assert_allclose((both.hessian(Q) - pen.hessian()).toarray(),
+                               term.hessian(Q).toarray())
+
+
+@pytest.mark.slow
+def test_a_paddle_whose_arc_runs_through_the_sheet_is_pulled_round_it():
+    V, F, h, tg = paddle_over_sheet()
+    res = move_surface(V, F, h, tg)
+    path = HandlePath(V[h], tg, handle_groups(h, F, len(V)), motion="screw")
+    lag = [np.abs(X[h] - path(t)).max() for X, t in zip(res.frames, res.times)]
+    assert max(lag) > 1e-3  # the handles left their path: pulled
+    assert [len(self_intersections(X, F)) for X in res.frames] == [0] * len(res.frames)
+    np.testing.assert_array_equal(res.points[h], tg)
+    np.testing.assert_array_equal(res.frames[-1][h], tg)
+    assert res.folds == 0 and res.handle_error == 0.0
+    # the rigid paddle on its arc crosses the sheet at rest: the path itself runs into it
+    Q = V.copy()
+    Q[h] = path(0.5)
+    assert len(self_intersections(Q, F)) > 0
+
+
+@pytest.mark.slow
+def test_targets_through_the_fixed_border_are_refused():
+    """The paddle's end stands through the sheet's fixed border: no pull gets there."""
+    V, F, h, tg = paddle_over_sheet(n=4, turn=-90.0, shift=-0.5)
+    Q = V.copy()
+    Q[h] = tg
+    assert len(self_intersections(Q, F)) > 0
+    with pytest.raises(NotAdmissibleError, match="their targets"):
+        move_surface(V, F, h, tg, steps=1)
