@@ -44,6 +44,10 @@ SWEPT = 1.02
 #: the most swept candidates per triangle kept for the pairs at a step's trials (more:
 #: a broad phase at each trial costs less than the narrow phase over them)
 SWEPT_PAIRS = 1.0
+#: the iterations of tight-inclusion CCD per pair: past them it returns the start of the
+#: time interval it has not yet cleared, a conservative time of impact however few (pairs
+#: nearly touching at a step's start reach the bound, each iteration costing alike)
+TIGHT_ITERATIONS = 10**4
 
 
 def _ipctk():
@@ -190,7 +194,8 @@ class SurfaceContact:
         Q0 = np.asfortranarray(Q0, dtype=float)
         Q1 = np.asfortranarray(Q1, dtype=float)
         close = self.minimum_distance(Q0, collisions) < 1e-3 * self.dhat
-        ccd = ipctk.TightInclusionCCD(1e-6, 10**6) if close else ipctk.AdditiveCCD()
+        ccd = (ipctk.TightInclusionCCD(1e-6, TIGHT_ITERATIONS) if close
+               else ipctk.AdditiveCCD())
         if candidates is not None:
             return float(candidates.compute_collision_free_stepsize(self.mesh, Q0, Q1, 0.0, ccd))
         return float(ipctk.compute_collision_free_stepsize(self.mesh, Q0, Q1, 0.0, None, ccd))
