@@ -33,7 +33,7 @@ __all__ = ["MINRES_FROM_3D", "STOKES_AMG_THRESHOLD", "STOKES_SOLVERS", "pressure
 #: ``solver="auto"`` uses MINRES with AMG from this many unknowns
 STOKES_AMG_THRESHOLD = 200_000
 #: ``solver="auto"`` in 3D uses MINRES over the scalar Laplacian's factor from this many
-#: unknowns (about 6,000 tets of the drag benchmark's grading), the direct solve below
+#: unknowns (about 4,000 tets of the drag benchmark's grading), the direct solve below
 MINRES_FROM_3D = 20_000
 STOKES_SOLVERS = ("auto", "direct", "minres", "amg")
 
