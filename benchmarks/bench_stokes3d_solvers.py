@@ -42,15 +42,15 @@ def solve_once(mesh, solver: str) -> tuple[float, float, float, int]:
 def run(sizes) -> str:
     work = Path(tempfile.mkdtemp(prefix="bench_stokes3d-"))
     threads = os.environ.get("OMP_NUM_THREADS", "unset")
-    lines = [f"| tets | unknowns | direct: s (CPU s) | MINRES: s (CPU s) | direct / MINRES | "
-             f"drag difference |", "| ---: | ---: | ---: | ---: | ---: | ---: |"]
+    lines = ["| tets | unknowns | direct: s (CPU s) | MINRES: s (CPU s) | direct / MINRES, CPU | "
+             "drag difference |", "| ---: | ---: | ---: | ---: | ---: | ---: |"]
     for size, body_size in sizes:
         mesh = load_cells(body_in_box(work / f"m_{size}_{body_size}.msh", size, body_size)
                           ).to_tet_mesh("bench")
         jd, wd, cd, unknowns = solve_once(mesh, "direct")
         jm, wm, cm, _ = solve_once(mesh, "minres")
         row = (f"| {mesh.n_tets} | {unknowns} | {wd:.1f} ({cd:.1f}) | {wm:.1f} ({cm:.1f}) | "
-               f"{wd / wm:.2f} | {abs(jm - jd) / jd:.1e} |")
+               f"{cd / cm:.2f} | {abs(jm - jd) / jd:.1e} |")
         print(row, flush=True)
         lines.append(row)
     return f"OMP_NUM_THREADS={threads}:\n\n" + "\n".join(lines)

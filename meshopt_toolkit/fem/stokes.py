@@ -29,9 +29,9 @@ from .._typing import FloatArray, IntArray
 from ..errors import MeshoptError
 from .linear_elasticity import strain_energy_tensor, vector_dofs, vector_stiffness
 from .cached import CachedObjective, SimplexState
-from .stokes_solver import STOKES_SOLVERS, pressure_mass, stokes_method, stokes_saddle_solve
 from .simplex import (Geometry, LagrangeSpace, all_boundary_facets, assemble, geometry,
                       node_gradient)
+from .stokes_solver import STOKES_SOLVERS, pressure_mass, stokes_method, stokes_saddle_solve
 
 __all__ = ["StokesDissipation"]
 
