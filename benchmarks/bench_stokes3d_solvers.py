@@ -9,7 +9,7 @@ and the relative difference of the two drags. Run it once per thread count
 (``OMP_NUM_THREADS=1``, ``=2``): BLAS and CHOLMOD read it at start-up.
 
 Usage: OMP_NUM_THREADS=1 python benchmarks/bench_stokes3d_solvers.py
-       [--sizes 1,0.15:0.8,0.1:0.7,0.08:0.6,0.07:0.55,0.06] [--write]
+       [--sizes 1,0.15:0.8,0.1:0.7,0.08:0.6,0.07] [--write]
 """
 
 from __future__ import annotations
@@ -58,7 +58,7 @@ def run(sizes) -> str:
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--sizes", default="1,0.15:0.8,0.1:0.7,0.08:0.6,0.07:0.55,0.06",
+    p.add_argument("--sizes", default="1,0.15:0.8,0.1:0.7,0.08:0.6,0.07",
                    type=lambda s: [tuple(float(x) for x in pair.split(","))
                                    for pair in s.split(":")],
                    metavar="SIZE,BODY_SIZE:...", help="element sizes at the box and the body")
