@@ -29,7 +29,7 @@ the initial mesh, a fresh solver), printed at every iteration.
 Usage: python benchmarks/bench_shape3d.py [--size 1.0] [--body-size 0.15] [--remesh 0.8,0.1]
        [--max-iterations 40] [--aspects 1,1.5,1.75,2,2.25,2.5] [--peer] [--write]
        python benchmarks/bench_shape3d.py --large   (about 26,000 tets: --size 0.6
-       --body-size 0.07 --aspects 2.1 --max-iterations 20)
+       --body-size 0.07 --aspects 2.1 --max-iterations 10)
 """
 
 from __future__ import annotations
@@ -212,7 +212,7 @@ def main() -> None:
     p.add_argument("--peer", action="store_true",
                    help="also the remeshed drags by scikit-fem's assembly (_peers3d.py)")
     p.add_argument("--large", action="store_true", help="the ~26,000-tet case in one "
-                   "command: --size 0.6 --body-size 0.07 --aspects 2.1 --max-iterations 20 "
+                   "command: --size 0.6 --body-size 0.07 --aspects 2.1 --max-iterations 10 "
                    "unless given")
     p.add_argument("--write", action="store_true",
                    help="put the table into docs/shape-optimization.md's 3D section")
@@ -220,7 +220,7 @@ def main() -> None:
     if args.large:
         given = set(sys.argv[1:])
         for flag, value in (("--size", 0.6), ("--body-size", 0.07), ("--aspects", [2.1]),
-                            ("--max-iterations", 20)):
+                            ("--max-iterations", 10)):
             if flag not in given:
                 setattr(args, flag[2:].replace("-", "_"), value)
     args.remesh = args.remesh or [args.size, args.body_size]
