@@ -366,6 +366,17 @@ def _v_cycle(ml, lvl: int, x: FloatArray, b: FloatArray) -> None:
     level.postsmoother(A, x, b)
 
 
+def v_cycle_precondition(ml) -> Solve:
+    """``r ↦`` one V-cycle of the pyamg hierarchy ``ml`` from zero (a symmetric
+    preconditioner of the hierarchy's matrix)."""
+    def precondition(r: FloatArray) -> FloatArray:
+        x = np.zeros_like(r)
+        _v_cycle(ml, 0, x, r)
+        return x
+
+    return precondition
+
+
 def amg_pcg_solve(A, ml, rtol: float, max_iterations: int = 500) -> Solve:
     """``b ↦ x`` with ``‖b − Ax‖ ≤ rtol ‖b‖``: :func:`pcg` preconditioned by one V-cycle of
     the pyamg hierarchy ``ml`` (built once for ``A``, reused for every right-hand side).
@@ -375,10 +386,7 @@ def amg_pcg_solve(A, ml, rtol: float, max_iterations: int = 500) -> Solve:
     MeshoptError
         When CG does not reach ``rtol`` within ``max_iterations`` iterations.
     """
-    def precondition(r: FloatArray) -> FloatArray:
-        x = np.zeros_like(r)
-        _v_cycle(ml, 0, x, r)
-        return x
+    precondition = v_cycle_precondition(ml)
 
     def solve(b: FloatArray) -> FloatArray:
         x, iterations, residual = pcg(A, b, precondition, rtol, max_iterations)
@@ -391,13 +399,13 @@ def amg_pcg_solve(A, ml, rtol: float, max_iterations: int = 500) -> Solve:
     return solve
 
 
-def schur_complement_solve(primal_solve: Solve, B: sp.spmatrix, dual_diagonal: FloatArray,
+def schur_complement_solve(primal_solve: Solve, B: sp.spmatrix, dual_precondition: Solve,
                            rtol: float, max_iterations: int = 1000) -> Solve:
     """``b ↦ x`` for a saddle-point matrix ``[[A, Bᵀ], [B, 0]]`` with ``A`` SPD and ``B`` of
     full row rank: :func:`pcg` on the Schur complement ``S = B A⁻¹ Bᵀ`` preconditioned by
-    ``D⁻¹`` (``dual_diagonal``, spectrally equivalent to ``S``: for Stokes the lumped
-    pressure mass over the viscosity), each product one solve with ``A``'s factor
-    ``primal_solve`` (:func:`factorize_spd`); then ``u = A⁻¹(f − Bᵀp)``.
+    ``dual_precondition`` (an SPD ``r ↦ D⁻¹ r`` with ``D`` spectrally equivalent to ``S``:
+    for Stokes the pressure mass over the viscosity), each product one solve with ``A``'s
+    factor ``primal_solve`` (:func:`factorize_spd`); then ``u = A⁻¹(f − Bᵀp)``.
 
     Raises
     ------
@@ -410,28 +418,34 @@ def schur_complement_solve(primal_solve: Solve, B: sp.spmatrix, dual_diagonal: F
     n_dual, n_primal = B.shape
     BT = B.T.tocsr()
     S = LinearOperator((n_dual, n_dual), matvec=lambda q: B @ primal_solve(BT @ q), dtype=float)
-    inv_d = 1.0 / np.asarray(dual_diagonal, dtype=float)
 
     def solve(b: FloatArray) -> FloatArray:
         f, g = b[:n_primal], b[n_primal:]
-        p, iterations, residual = pcg(S, B @ primal_solve(f) - g, lambda r: inv_d * r, rtol,
+        p, iterations, residual = pcg(S, B @ primal_solve(f) - g, dual_precondition, rtol,
                                       max_iterations)
         if residual > rtol:
             raise MeshoptError(f"CG on the Schur complement did not converge: relative "
                                f"residual {residual:.2e} > {rtol:.1e} after {iterations} "
                                f"iterations")
+        logger.debug("Schur complement CG: %d iterations", iterations)
         return np.concatenate([primal_solve(f - BT @ p), p])
 
     return solve
 
 
-def minres_block_solve(M: sp.spmatrix, n_primal: int, primal_ml, dual_diagonal: FloatArray,
-                       rtol: float, max_iterations: int = 1000) -> Solve:
+def minres_block_solve(M: sp.spmatrix, n_primal: int, primal_precondition: Solve,
+                       dual_precondition: Solve, rtol: float, max_iterations: int = 2000
+                       ) -> Solve:
     """``b ↦ x`` for a symmetric saddle-point matrix ``M = [[A, Bᵀ], [B, 0]]`` by MINRES
-    with the block-diagonal preconditioner ``diag(V-cycle of A, D⁻¹)``: ``primal_ml`` a
-    pyamg hierarchy of ``A`` (the first ``n_primal`` unknowns), ``D`` ``dual_diagonal``
-    a positive diagonal spectrally equivalent to the Schur complement (for Stokes the
-    lumped pressure mass over the viscosity).
+    with the block-diagonal SPD preconditioner ``P⁻¹ = diag(primal_precondition,
+    dual_precondition)``: ``≈ A⁻¹`` on the first ``n_primal`` unknowns (a factor of a
+    spectrally equivalent matrix, a V-cycle) and ``≈ S⁻¹`` on the rest, ``S`` the Schur
+    complement (for Stokes the pressure mass over the viscosity).
+
+    MINRES (scipy's) stops on the residual in the preconditioner's norm ``‖r‖_{P⁻¹}``, the
+    one that weighs the two blocks alike (the Euclidean norm mixes velocity and pressure
+    residuals of different units), at ``rtol`` relative to its estimate of
+    ``‖M‖‖x‖ + ‖b‖``.
 
     Raises
     ------
@@ -442,15 +456,9 @@ def minres_block_solve(M: sp.spmatrix, n_primal: int, primal_ml, dual_diagonal: 
 
     from scipy.sparse.linalg import LinearOperator, minres
 
-    inv_d = 1.0 / np.asarray(dual_diagonal, dtype=float)
-
     def precondition(r: FloatArray) -> FloatArray:
-        z = np.empty_like(r)
-        x = np.zeros(n_primal)
-        _v_cycle(primal_ml, 0, x, r[:n_primal])
-        z[:n_primal] = x
-        z[n_primal:] = inv_d * r[n_primal:]
-        return z
+        return np.concatenate([primal_precondition(r[:n_primal]),
+                               dual_precondition(r[n_primal:])])
 
     P = LinearOperator(M.shape, matvec=precondition, dtype=float)
     key = "rtol" if "rtol" in inspect.signature(minres).parameters else "tol"

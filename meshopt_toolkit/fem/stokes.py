@@ -27,19 +27,13 @@ import scipy.sparse as sp
 
 from .._typing import FloatArray, IntArray
 from ..errors import MeshoptError
-from ..solvers import (choose_method, factorize_spd, import_pyamg, minres_block_solve,
-                       nested_dissection, schur_complement_solve)
 from .linear_elasticity import strain_energy_tensor, vector_dofs, vector_stiffness
 from .cached import CachedObjective, SimplexState
 from .simplex import (Geometry, LagrangeSpace, all_boundary_facets, assemble, geometry,
                       node_gradient)
+from .stokes_solver import STOKES_SOLVERS, pressure_mass, stokes_method, stokes_saddle_solve
 
 __all__ = ["StokesDissipation"]
-
-#: ``solver="auto"`` uses MINRES with AMG from this many unknowns, the velocity block's
-#: factor and CG on the Schur complement below
-STOKES_AMG_THRESHOLD = 200_000
-
 
 @dataclass
 class _State(SimplexState):
@@ -59,11 +53,10 @@ class StokesDissipation(CachedObjective):
         nodes, a constant ``(d,)`` vector or a callable ``(M, d) → (M, d)`` of the nodes'
         current positions (a later group wins at shared nodes)
     mu : viscosity
-    solver : ``"direct"`` (CHOLMOD's factor of the velocity block on a nested-dissection
-        ordering, CG on the pressure's Schur complement preconditioned by the lumped
-        pressure mass), ``"amg"`` (MINRES
-        with a V-cycle on the velocity block and the lumped pressure mass) or ``"auto"``
-        (direct below :data:`STOKES_AMG_THRESHOLD` unknowns)
+    solver : ``"direct"`` (the velocity block's factor, CG on the pressure's Schur
+        complement), ``"minres"`` (MINRES preconditioned by the scalar Laplacian's factor
+        and the pressure mass), ``"amg"`` (MINRES with a V-cycle of the velocity block) or
+        ``"auto"`` (by size: :func:`.stokes_solver.stokes_method`)
     rtol : relative residual of CG on the Schur complement or of MINRES
 
     Notes
@@ -97,7 +90,9 @@ class StokesDissipation(CachedObjective):
         self.fix_pressure = bool(np.isin(bnd, fixed).all())
         self.constant_data = not any(callable(g[1]) for g in self._groups)
         n_unknowns = d * self.space.n_dofs + len(points)
-        self.method = choose_method(solver, n_unknowns, STOKES_AMG_THRESHOLD)
+        if solver not in STOKES_SOLVERS:
+            raise ValueError(f"solver must be one of {STOKES_SOLVERS}, got {solver!r}")
+        self.method = stokes_method(solver, n_unknowns, d)
         self.rtol = float(rtol)
 
     def _lift(self, Q: FloatArray) -> FloatArray:
@@ -131,23 +126,17 @@ class StokesDissipation(CachedObjective):
         Aff = A[free_v][:, free_v]
         Bf = B[keep_p][:, free_v]
         rhs = -np.concatenate([(A @ g)[free_v], (B @ g)[keep_p]])
-        mass = np.bincount(self.cells.ravel(), minlength=n_p,  # lumped P1 pressure mass
-                           weights=np.repeat(geo.volumes / (self.dim + 1), self.dim + 1))
-        if self.method == "direct":
-            nodes = np.unique(free_v // self.dim)  # whole nodes: Dirichlet fixes all components
-            order = nested_dissection(self.space.dof_points(Q)[nodes], Aff, block=self.dim)
-            x = schur_complement_solve(factorize_spd(Aff, order), Bf, mass[keep_p] / self.mu,
-                                       self.rtol)(rhs)
-        else:
-            ml = import_pyamg().smoothed_aggregation_solver(Aff.tocsr())
-            M = sp.bmat([[Aff, Bf.T], [Bf, None]], format="csr")
-            x = minres_block_solve(M, len(free_v), ml, mass[keep_p] / self.mu, self.rtol)(rhs)
+        mass = pressure_mass(geo, self.cells, n_p)
+        nodes = free_v[::self.dim] // self.dim  # whole nodes: Dirichlet fixes all components
+        x = stokes_saddle_solve(self.method, Aff, Bf, mass[keep_p][:, keep_p], self.mu,
+                                self.rtol, space=self.space, geo=geo, free_nodes=nodes,
+                                node_points=self.space.dof_points(Q)[nodes])(rhs)
         u = g.copy()
         u[free_v] = x[:len(free_v)]
         p = np.zeros(n_p)
         p[keep_p] = x[len(free_v):]
         if self.fix_pressure:
-            p -= (mass @ p) / mass.sum()
+            p -= (mass @ p).sum() / mass.sum()
         return u, p, A
 
     def _compute(self, Q) -> _State:

@@ -66,6 +66,16 @@ def test_objective_derivatives_pass_the_taylor_test_in_3d(mesh, options):
     assert abs(res.order - 2) < 0.15, res
 
 
+def test_dissipation_derivative_by_minres_passes_the_taylor_test(mesh):
+    # the iterative Stokes solve the larger 3D meshes get (fem.stokes_solver)
+    spec = spec_from_options(**STOKES)
+    j = spec.make_objective(mesh, solver="minres")
+    assert j.method == "minres"
+    res = check_gradient(j.value, j.derivative, np.array(mesh.points),
+                         _direction(mesh, _free(spec, mesh)), eps0=2e-3, n=6)
+    assert abs(res.order - 2) < 0.15, res
+
+
 def test_penalized_problem_derivative_passes_the_taylor_test(mesh):
     spec = spec_from_options(**STOKES)
     f2, metric, Problem, floor = tet_setup(mesh, "elasticity-euclidean", (0.1, 0, 0, 0), "auto")
