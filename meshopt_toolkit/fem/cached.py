@@ -33,6 +33,14 @@ def poisson_value(m: FloatArray, y: FloatArray, target: FloatArray | None) -> fl
     return 0.5 * float(m @ (misfit * misfit))
 
 
+def tracking_terms(m: FloatArray, y: FloatArray,
+                   target: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """The tracking objective's two nodal pieces of ``dj/dQ``: the mass-derivative weights
+    ``½ (y − y_d)²`` and the factor ``m (y − y_d)`` of ``−∇y_d`` (also ``∂j/∂y``)."""
+    misfit = y - target
+    return 0.5 * misfit * misfit, m * misfit
+
+
 class CachedObjective:
     """An objective whose ``_compute(Q)`` returns a state with the positions ``.Q`` it
     was computed at and the objective's ``.value``; the last one is kept."""
