@@ -339,9 +339,17 @@ def save_moved(wp, mesh, path: Path, *, force: bool = True, what: str = "the res
     save_workpiece(cells, path, overwrite=force, computed=tuple(cell_data or ()))
 
 
-def checked_paths(args: argparse.Namespace) -> tuple[Path, Path]:
+def checked_paths(args: argparse.Namespace, filter_cls, options) -> tuple[Path, Path]:
     """``(input, output)`` of a command that writes a mesh or ``--frames`` (``args.mesh``,
-    ``args.output``), the output checked before any work (:func:`check_output_target`)."""
+    ``args.output``), checked before any work: ``--frames`` in ``[2, MAX_FRAMES]``, the
+    options of ``filter_cls`` (:func:`~._params.check_options`) and the output
+    (:func:`check_output_target`)."""
+    from ..bounds import MAX_FRAMES
+    from ._params import check_options
+    from ._validate import check_int
+
+    check_int("--frames", args.frames, 2, MAX_FRAMES)
+    check_options(args, filter_cls, options)
     src, out = Path(args.mesh), Path(args.output)
     check_output_target(out, src, args.frames, args.force, frame_format=args.format)
     return src, out

@@ -24,8 +24,8 @@ from ..bounds import MAX_FRAMES
 from ._common import (add_output_flags, checked_paths, csv_table, float_list, frame_names,
                       load_workpiece, save_moved, save_moved_frames, write_text)
 from ..filters.apply_coord_quality_preserving_deformation import QualityPreservingDeformation
-from ._params import add_options, check_options
-from ._validate import check_int, check_number, check_numbers
+from ._params import add_options
+from ._validate import check_number, check_numbers
 
 #: accepted range of --rtol (tighter stalls in round-off, looser is not an integration)
 MIN_RTOL, MAX_RTOL = 1e-14, 0.1
@@ -64,8 +64,6 @@ def add_args(p: argparse.ArgumentParser) -> None:
 
 
 def _check_numbers(args: argparse.Namespace) -> None:
-    check_options(args, QualityPreservingDeformation, OPTIONS)
-    check_int("--frames", args.frames, 2, MAX_FRAMES)
     check_numbers("--alpha", args.alpha)
     check_numbers("--penalty", args.penalty)
     check_number("--rtol", args.rtol, low=MIN_RTOL, high=MAX_RTOL)
@@ -77,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
     from ..progress import ProgressBar
 
     _check_numbers(args)
-    src, out = checked_paths(args)
+    src, out = checked_paths(args, QualityPreservingDeformation, OPTIONS)
     frames = args.frames
     # the plane's coordinates at the file's scale (mt.deform works at unit size); every
     # block, tag and datum written back

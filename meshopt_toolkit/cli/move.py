@@ -35,8 +35,8 @@ from ..bounds import MAX_FRAMES
 from ..filters.apply_coord_prescribed_motion import PrescribedMotion
 from ._common import (add_output_flags, checked_paths, csv_table, frame_names, load_workpiece,
                       save_moved, save_moved_frames, warn_dropped, write_text)
-from ._params import add_options, check_options
-from ._validate import OptionError, check_int
+from ._params import add_options
+from ._validate import OptionError
 
 HELP = "move chosen vertices exactly to targets; the rest follows, no triangle inverts"
 EPILOG = (
@@ -88,9 +88,7 @@ def add_args(p: argparse.ArgumentParser) -> None:
     add_output_flags(p, frames=MAX_FRAMES, frame_format="the input's")
 
 
-def _check_numbers(args: argparse.Namespace) -> None:
-    check_int("--frames", args.frames, 2, MAX_FRAMES)
-    check_options(args, PrescribedMotion, OPTIONS)
+def _check_choices(args: argparse.Namespace) -> None:
     for option, given in (("--where", args.where), ("--group", args.group),
                           ("--selection", args.selection)):
         if given is not None and args.map is None:
@@ -110,8 +108,8 @@ def run(args: argparse.Namespace) -> int:
     from ..mesh.kinds import SURFACE, TETS, cells_kind
     from ._move_space import run_in_space
 
-    _check_numbers(args)
-    src, out = checked_paths(args)
+    _check_choices(args)
+    src, out = checked_paths(args, PrescribedMotion, OPTIONS)
     frames = args.frames
     cells = load_cells(src)  # what it cannot keep named once the motion is done
     kind = cells_kind(cells)

@@ -29,8 +29,15 @@ def poisson_value(m: FloatArray, y: FloatArray, target: FloatArray | None) -> fl
     nodal target ``y_d``, with the lumped mass weights ``m``."""
     if target is None:
         return float(m @ y)
+    return float(m @ tracking_terms(m, y, target)[0])
+
+
+def tracking_terms(m: FloatArray, y: FloatArray,
+                   target: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """The tracking objective's two nodal pieces of ``dj/dQ``: the mass-derivative weights
+    ``½ (y − y_d)²`` and the factor ``m (y − y_d)`` of ``−∇y_d`` (also ``∂j/∂y``)."""
     misfit = y - target
-    return 0.5 * float(m @ (misfit * misfit))
+    return 0.5 * misfit * misfit, m * misfit
 
 
 class CachedObjective:

@@ -26,7 +26,7 @@ from numbers import Real
 import numpy as np
 
 from . import p1 as fem
-from .cached import CachedPoisson, poisson_value
+from .cached import CachedPoisson, poisson_value, tracking_terms
 from .boundary_data import BoundaryData, neumann_load, neumann_shape_derivative
 from .._options import require_shape
 from .._typing import FloatArray, IntArray
@@ -286,7 +286,7 @@ class PoissonObjective(CachedPoisson):
         """``∂j/∂y``: ``m`` for ``∫y``, ``m (y − y_d)`` for tracking."""
         if self.tracking_text is None:
             return s.m
-        return s.m * (s.y - self._yd_at(s.Q))
+        return tracking_terms(s.m, s.y, self._yd_at(s.Q))[1]
 
     def value_and_derivative(self, Q: FloatArray) -> tuple[float, FloatArray]:
         """``j(Q)`` and its exact derivative ``(N, 2)`` w.r.t. all nodes, (6.12)."""
@@ -294,8 +294,7 @@ class PoissonObjective(CachedPoisson):
         self._adjoint(s)
         z = None
         if self.tracking_text is not None:
-            misfit = s.y - self._yd_at(s.Q)
-            z = 0.5 * misfit * misfit
+            z, weight = tracking_terms(s.m, s.y, self._yd_at(s.Q))
         g = fem.poisson_shape_derivative(
             s.Q, self.triangles, s.y, s.p, s.r, self._eval_grad_r(s.xi), mass_values=z
         )
@@ -303,7 +302,7 @@ class PoissonObjective(CachedPoisson):
             g -= neumann_shape_derivative(s.Q, self._n_edges, self._n_values, s.p)
         if self.tracking_text is not None:
             grad_yd = np.asarray(self._grad_yd(s.Q), dtype=float)
-            g -= (s.m * misfit)[:, None] * grad_yd
+            g -= weight[:, None] * grad_yd
         return s.value, g
 
     def derivative(self, Q: FloatArray) -> FloatArray:

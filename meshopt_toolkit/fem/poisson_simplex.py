@@ -28,7 +28,7 @@ from .._typing import FloatArray, IntArray
 from ..errors import ExpressionError, MeshoptError
 from ..expressions import parse_expression
 from .p1 import PoissonSolver
-from .cached import CachedPoisson, SimplexState, poisson_value
+from .cached import CachedPoisson, SimplexState, poisson_value, tracking_terms
 from .simplex import Geometry, assemble, geometry, node_gradient
 
 __all__ = ["SimplexPoisson", "data_function", "p1_matrices", "poisson_node_gradient"]
@@ -169,7 +169,9 @@ class SimplexPoisson(CachedPoisson):
 
     def _adjoint_load(self, s: _State) -> FloatArray:
         """``∂j/∂y``: ``m`` for ``∫y``, ``m (y − y_d)`` for tracking."""
-        return s.m if self.tracking is None else s.m * (s.y - self.tracking(s.Q))
+        if self.tracking is None:
+            return s.m
+        return tracking_terms(s.m, s.y, self.tracking(s.Q))[1]
 
     def derivative(self, Q: FloatArray) -> FloatArray:
         """Exact ``dj/dQ`` ``(N, d)``, every node included."""
@@ -177,9 +179,8 @@ class SimplexPoisson(CachedPoisson):
         p = self._adjoint(s)
         z = None
         if self.tracking is not None:
-            misfit = s.y - self.tracking(s.Q)
-            z = 0.5 * misfit * misfit
+            z, weight = tracking_terms(s.m, s.y, self.tracking(s.Q))
         g = poisson_node_gradient(s.geo, self.cells, s.y, p, s.r, self.rhs.gradient(s.xi), z)
         if self.tracking is not None:
-            g -= (s.m * misfit)[:, None] * self.tracking.gradient(s.Q)
+            g -= weight[:, None] * self.tracking.gradient(s.Q)
         return g

@@ -27,10 +27,15 @@ __all__ = ["BoundaryCheck", "area_message", "area_problem", "area_signs", "loop_
 _RUNS = {1: "counter-clockwise", -1: "clockwise", 0: "nowhere"}
 
 
+def _first_true(mask: np.ndarray) -> int | None:
+    """The first index where the 1D boolean ``mask`` holds, or None."""
+    bad = np.flatnonzero(mask)
+    return int(bad[0]) if bad.size else None
+
+
 def first_non_finite_row(points: FloatArray) -> int | None:
     """The first row of ``points`` ``(N, d)`` with a non-finite entry, or None."""
-    bad = np.flatnonzero(~np.isfinite(points).all(axis=1))
-    return int(bad[0]) if bad.size else None
+    return _first_true(~np.isfinite(points).all(axis=1))
 
 
 def non_finite_problem(points: FloatArray, *, show: bool = False) -> str | None:
@@ -261,10 +266,8 @@ def target_loop_problem(P0: FloatArray, P1: FloatArray, boundary_edges: IntArray
     labels = np.searchsorted(full, loops[sub])
     before, vertex = loop_orientations(P0, edges, labels)
     after, _ = loop_orientations(P1, edges, labels)
-    bad = np.flatnonzero(before != after)
-    if not bad.size:
+    if (i := _first_true(before != after)) is None:
         return None
-    i = int(bad[0])
     return (f"reverse boundary loop {int(full[i])} (through vertex {int(vertex[i])}): it runs "
             f"{_RUNS[int(before[i])]} and would run {_RUNS[int(after[i])]}, which no motion "
             "without folds reaches (the result would cover part of the plane twice)")
