@@ -196,7 +196,7 @@ def _descend(V: FloatArray, F: IntArray, P: FloatArray, is_handle, rest_q: Float
     edges = np.linalg.norm(P[F[active]] - np.roll(P[F[active]], 1, axis=1), axis=2)
     u = minimize_lbfgs(objective, np.zeros(2 * len(free)), int(iterations),
                        first_step=1e-2 * float(edges.mean()), admissible=admissible,
-                       min_step=1e-6)
+                       min_step=1e-3)
     out = objective.points(u)
     out[is_handle] = P[is_handle]
     return out
