@@ -193,6 +193,8 @@ def _descend(V: FloatArray, F: IntArray, P: FloatArray, is_handle, rest_q: Float
             return False
         return clear is None or clear(P, x)
 
+    # the pass stops where no step above a thousandth of the quasi-Newton one is admissible
+    # and lowers F: the soft maximum has stalled (on the budget, a fold or its minimum)
     edges = np.linalg.norm(P[F[active]] - np.roll(P[F[active]], 1, axis=1), axis=2)
     u = minimize_lbfgs(objective, np.zeros(2 * len(free)), int(iterations),
                        first_step=1e-2 * float(edges.mean()), admissible=admissible,
