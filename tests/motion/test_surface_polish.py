@@ -294,5 +294,5 @@ def test_a_second_pass_with_a_heavier_membrane_weight_follows_the_budget_further
     energy = areas * np.sum(SurfaceDistortion(V, F).values(P) ** 2, axis=1)
     first = _descend(V, F, P, is_handle, rest_q, rel, areas, energy, 1.02 * energy.sum(), 400,
                      5, 100, 200.0, 20.0, 10.0)
-    assert membrane_energy(V, F, first) > 1.015 * start  # at the budget, to where the line search stalls
+    assert membrane_energy(V, F, first) > 1.015 * start  # at the budget (to the stall)
     assert after > sm.worst_relative_quality(V, first, F, handles) + 1e-3
