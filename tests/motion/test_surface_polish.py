@@ -85,6 +85,23 @@ def test_objective_gradient_taylor(shape):
     assert r.max() <= value <= r.max() + np.log(len(F)) / 50.0 + 1e-12
 
 
+def test_membrane_values_are_those_at_the_asked_point_whatever_was_called_last():
+    """The line search's membrane check reads ``φ`` at its trial: the last call's where the
+    trial is that call's, a fresh evaluation (the distortion's own) elsewhere."""
+    rng = np.random.default_rng(5)
+    V, F, boundary = patch(5)
+    P = V + 0.02 * rng.normal(size=V.shape)
+    free = np.setdiff1d(np.arange(len(V)), boundary)
+    membrane = SurfaceDistortion(V, F)
+    objective = SoftMaxObjective(P, F, sm.aspect_ratios(V, F), free, _tangent_bases(P, F, free),
+                                 50.0, membrane, np.ones(len(F)), 10.0)
+    u, w = (0.01 * rng.normal(size=2 * len(free)) for _ in range(2))
+    objective(u)
+    for at in (u, w, u.copy()):
+        assert np.array_equal(objective.membrane_values(at),
+                              membrane.values(objective.points(at)))
+
+
 def test_a_pushed_vertex_is_polished_back_to_its_rest_shapes():
     """One interior vertex of a flat grid pushed sideways, every other vertex a handle: the
     best worst relative quality is 1 (the rest position, closed form), and the polish comes
