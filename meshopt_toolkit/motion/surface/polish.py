@@ -91,6 +91,14 @@ class SoftMaxObjective:
         self.membrane, self.shape = membrane, float(shape)
         # the term is ½ Σ_t (2μ a_t / Σa) |φ_t|²
         self.area_weights = 2.0 * self.shape * areas / areas.sum()
+        self._last: tuple = (None, None)  # (u, φ) of the last call: the line search's trial
+
+    def membrane_values(self, u: FloatArray) -> FloatArray:
+        """``φ`` (T, 3) of the triangles at ``u``: the last call's where it was at ``u``."""
+        last_u, phi = self._last
+        if last_u is not None and np.array_equal(last_u, u):
+            return phi
+        return self.membrane.values(self.points(u))
 
     def points(self, u: FloatArray) -> FloatArray:
         """The positions at tangential coordinates ``u`` (k, 2)."""
@@ -106,6 +114,7 @@ class SoftMaxObjective:
         value, g = soft_maximum(self.rest * r, self.rest[:, None, None] * g, self.sharpness)
         if self.shape > 0:
             phi, J = self.membrane.values_and_jacobian(x)
+            self._last = (np.array(u, copy=True), phi)
             value += 0.5 * float(self.area_weights @ np.einsum("ti,ti->t", phi, phi))
             g = g + np.einsum("t,ti,tij->tj", self.area_weights, phi, J).reshape(-1, 3, 3)
         flat, n = self.triangles.ravel(), len(self.start)
@@ -162,26 +171,34 @@ def _descend(V: FloatArray, F: IntArray, P: FloatArray, is_handle, rest_q: Float
     corners = np.zeros(len(P), bool)
     corners[F[watched]] = True
     sub = np.flatnonzero(corners[F].any(axis=1))
-    folds = FoldTest(V, F[sub])
+    # the submesh's vertices numbered in order (the test's sums over them, not all of P)
+    local = np.zeros(len(P), bool)
+    local[F[sub]] = True
+    local = np.flatnonzero(local)
+    number = np.zeros(len(P), np.int64)
+    number[local] = np.arange(len(local))
+    folds = FoldTest(V[local], number[F[sub]])
     check = watched[sub]
-    folded = folds.mask(P) & check
+    folded = folds.mask(P[local]) & check
     # the whole surface's membrane energy Σ a_t|φ_t|² stays within ``limit``: only the
     # active triangles' part changes
     budget = limit - float(energy[~active].sum())
 
     def admissible(u: FloatArray) -> bool:  # the membrane energy within budget, no new fold
-        x = objective.points(u)
-        phi = objective.membrane.values(x)
+        phi = objective.membrane_values(u)
         if float(areas[active] @ np.sum(phi**2, axis=1)) > budget:
             return False
-        if np.any(folds.mask(x) & check & ~folded):
+        x = objective.points(u)
+        if np.any(folds.mask(x[local]) & check & ~folded):
             return False
         return clear is None or clear(P, x)
 
+    # the pass stops where no step above a thousandth of the quasi-Newton one is admissible
+    # and lowers F: the soft maximum has stalled (on the budget, a fold or its minimum)
     edges = np.linalg.norm(P[F[active]] - np.roll(P[F[active]], 1, axis=1), axis=2)
     u = minimize_lbfgs(objective, np.zeros(2 * len(free)), int(iterations),
                        first_step=1e-2 * float(edges.mean()), admissible=admissible,
-                       min_step=1e-6)
+                       min_step=1e-3)
     out = objective.points(u)
     out[is_handle] = P[is_handle]
     return out
