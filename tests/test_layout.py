@@ -7,7 +7,6 @@ import ast
 import importlib
 import importlib.util
 
-import pytest
 from test_architecture import PACKAGE, ROOT, find_cycle, module_level_imports
 
 # the layers, lowest first: a module may import its own layer and the layers below

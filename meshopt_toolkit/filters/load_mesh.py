@@ -51,7 +51,6 @@ class LoadMesh(Filter):
         if not document.dry_run:
             return None  # measured after the step
         from meshopt_toolkit.pipeline.budget import stats_of
-        from meshopt_toolkit.mesh.kinds import is_tets
         from meshopt_toolkit.pipeline.document import load_entry
 
         return stats_of(load_entry(p).mesh)  # triangles, or tetrahedra

@@ -5,7 +5,6 @@ impact, its stop clean. Elsewhere the CCD is additive."""
 
 from __future__ import annotations
 
-import numpy as np
 import pytest
 from test_morph_self_intersection import flap_through_sheet
 
