@@ -67,16 +67,11 @@ def compliance_skfem(path, group: str, stress, E: float = 1.0, nu: float = 0.3) 
     return float(f @ u)
 
 
-def dissipation_skfem(path, group: str, velocity=(1.0, 0.0), mu: float = 1.0) -> float:
-    """``∫ 2μ|ε(u)|²`` of the Stokes flow in ``path``, ``u = velocity`` on ``group``, 0 on
-    the rest of the boundary."""
+def taylor_hood_forms(mu: float):
+    """scikit-fem's forms of Stokes flow: the viscous ``2μ ε(u):ε(v)`` and the
+    divergence ``−div(u) q``."""
     import skfem
     from skfem.helpers import ddot, div, sym_grad
-
-    P, T, groups = read_groups(path)
-    m = skfem.MeshTri(P.T.copy(), T.T.copy())
-    ub = skfem.Basis(m, skfem.ElementVector(skfem.ElementTriP2()), intorder=4)
-    pb = skfem.Basis(m, skfem.ElementTriP1(), intorder=4)
 
     @skfem.BilinearForm
     def visc(u, v, w):
@@ -85,6 +80,20 @@ def dissipation_skfem(path, group: str, velocity=(1.0, 0.0), mu: float = 1.0) ->
     @skfem.BilinearForm
     def bdiv(u, q, w):
         return -div(u) * q
+
+    return visc, bdiv
+
+
+def dissipation_skfem(path, group: str, velocity=(1.0, 0.0), mu: float = 1.0) -> float:
+    """``∫ 2μ|ε(u)|²`` of the Stokes flow in ``path``, ``u = velocity`` on ``group``, 0 on
+    the rest of the boundary."""
+    import skfem
+    P, T, groups = read_groups(path)
+    m = skfem.MeshTri(P.T.copy(), T.T.copy())
+    ub = skfem.Basis(m, skfem.ElementVector(skfem.ElementTriP2()), intorder=4)
+    pb = skfem.Basis(m, skfem.ElementTriP1(), intorder=4)
+
+    visc, bdiv = taylor_hood_forms(mu)
 
     A, B = visc.assemble(ub), bdiv.assemble(ub, pb)
     K = sp.bmat([[A, B.T], [B, None]], format="csr")

@@ -16,6 +16,7 @@ import meshio
 import numpy as np
 import scipy.sparse as sp
 
+from _peers2d import taylor_hood_forms
 from meshopt_toolkit.solvers import factorize_spd, schur_complement_solve
 
 
@@ -37,8 +38,6 @@ def dissipation_skfem3d(path, group: str = "body", velocity=(1.0, 0.0, 0.0),
                         mu: float = 1.0) -> float:
     """``∫ 2μ|ε(u)|²`` of the Stokes flow in the tet mesh ``path``."""
     import skfem
-    from skfem.helpers import ddot, div, sym_grad
-
     P, T, groups = read_groups3d(path)
     used = np.unique(T)  # gmsh may keep unused nodes
     remap = np.full(len(P), -1)
@@ -47,13 +46,7 @@ def dissipation_skfem3d(path, group: str = "body", velocity=(1.0, 0.0, 0.0),
     ub = skfem.Basis(m, skfem.ElementVector(skfem.ElementTetP2()), intorder=4)
     pb = skfem.Basis(m, skfem.ElementTetP1(), intorder=4)
 
-    @skfem.BilinearForm
-    def visc(u, v, w):
-        return 2.0 * mu * ddot(sym_grad(u), sym_grad(v))
-
-    @skfem.BilinearForm
-    def bdiv(u, q, w):
-        return -div(u) * q
+    visc, bdiv = taylor_hood_forms(mu)
 
     A, B = visc.assemble(ub).tocsr(), bdiv.assemble(ub, pb).tocsr()
     index = {tuple(f): i for i, f in enumerate(np.sort(m.facets.T, axis=1).tolist())}

@@ -9,7 +9,8 @@ import pytest
 import scipy.sparse as sp
 
 from fem_helpers import box_mesh
-from meshopt_toolkit.fem.simplex import LagrangeSpace, all_boundary_facets, geometry
+from test_stokes import obstacle
+from meshopt_toolkit.fem.simplex import LagrangeSpace, geometry
 from meshopt_toolkit.fem.stokes import StokesDissipation
 from meshopt_toolkit.fem.stokes_solver import (MINRES_FROM_3D, pressure_mass, scalar_laplacian,
                                                stokes_method, stokes_saddle_solve)
@@ -17,15 +18,8 @@ from meshopt_toolkit.fem.stokes_solver import (MINRES_FROM_3D, pressure_mass, sc
 
 def obstacle_flow(d, solver, rtol=1e-11):
     """The unit box without its central cube, the cube moving along ``x``."""
-    P, T, _ = box_mesh(d, 4, jitter=0.2)
-    T = T[~np.all(np.abs(P[T].mean(axis=1) - 0.5) < 0.25, axis=1)]
-    used = np.unique(T)
-    remap = np.full(len(P), -1)
-    remap[used] = np.arange(len(used))
-    P, T = P[used], remap[T]
-    F = all_boundary_facets(T)
-    outer = np.any(np.all((P[F] < 1e-12) | (P[F] > 1 - 1e-12), axis=1), axis=1)
-    j = StokesDissipation(P, T, [(F[outer], np.zeros(d)), (F[~outer], np.eye(d)[0])], mu=0.7,
+    P, T, outer, body = obstacle(d, 4, jitter=0.2)
+    j = StokesDissipation(P, T, [(outer, np.zeros(d)), (body, np.eye(d)[0])], mu=0.7,
                           solver=solver, rtol=rtol)
     return P, j
 
