@@ -20,7 +20,6 @@ from .._typing import FloatArray
 from ..errors import NotAdmissibleError
 from ..kernels.triangles import aspect_ratios, heights, quality_summary, segment_limit, signed_areas
 from ..mesh import boundary_self_intersections
-from ..penalties import QualityPenalty
 
 
 def max_travel_step(Q: FloatArray, triangles: np.ndarray, d: FloatArray) -> float:
@@ -69,6 +68,8 @@ class ShapeProblem:
         # a planar penalty tests the boundary itself (its value is +∞ where the boundary
         # touches itself) and gives its gradient with its value at little more cost: a
         # trial point's boundary is tested once, and the accepted one's gradient kept
+        from ..penalties import QualityPenalty  # here: the penalties import scipy
+
         self._penalty_checks = isinstance(penalty, QualityPenalty)
         self._penalty_gradient: tuple[FloatArray, FloatArray] | None = None
 
