@@ -20,17 +20,20 @@ import numpy as np
 import scipy.sparse as sp
 
 
-def read_groups(path):
-    """``(points (N, 2), triangles (T, 3), {group name: line elements (E, 2)})``."""
+def read_groups(path, cell: str = "triangle", facet: str = "line"):
+    """``(points (N, d), cells, {group name: facets})`` of a gmsh file: triangles with
+    their line groups in the plane (``d = 2``), or ``cell="tetra", facet="triangle"`` in
+    space (``d = 3``)."""
+    d = 2 if cell == "triangle" else 3
     with contextlib.redirect_stdout(io.StringIO()):  # meshio's empty line on gmsh files
         m = meshio.read(path)
-    P = np.asarray(m.points[:, :2], dtype=float)
-    T = np.asarray(m.cells_dict["triangle"], dtype=np.int64)
-    lines = np.concatenate([c.data for c in m.cells if c.type == "line"])
-    tags = np.concatenate([d for c, d in zip(m.cells, m.cell_data["gmsh:physical"])
-                           if c.type == "line"])
-    groups = {name: lines[tags == tag].astype(np.int64)
-              for name, (tag, dim) in m.field_data.items() if dim == 1}
+    P = np.asarray(m.points[:, :d], dtype=float)
+    T = np.asarray(m.cells_dict[cell], dtype=np.int64)
+    facets = np.concatenate([c.data for c in m.cells if c.type == facet])
+    tags = np.concatenate([t for c, t in zip(m.cells, m.cell_data["gmsh:physical"])
+                           if c.type == facet])
+    groups = {name: facets[tags == tag].astype(np.int64)
+              for name, (tag, dim) in m.field_data.items() if dim == d - 1}
     return P, T, groups
 
 

@@ -9,36 +9,19 @@ linear algebra: scipy's SuperLU takes too long on 3D P2 systems).
 
 from __future__ import annotations
 
-import contextlib
-import io
-
-import meshio
 import numpy as np
 import scipy.sparse as sp
 
-from _peers2d import taylor_hood_forms
+from _peers2d import read_groups, taylor_hood_forms
 from meshopt_toolkit.solvers import factorize_spd, schur_complement_solve
-
-
-def read_groups3d(path):
-    """``(points (N, 3), tets (T, 4), {group name: triangles (F, 3)})``."""
-    with contextlib.redirect_stdout(io.StringIO()):
-        m = meshio.read(path)
-    P = np.asarray(m.points, dtype=float)
-    T = np.asarray(m.cells_dict["tetra"], dtype=np.int64)
-    tris = np.concatenate([c.data for c in m.cells if c.type == "triangle"])
-    tags = np.concatenate([d for c, d in zip(m.cells, m.cell_data["gmsh:physical"])
-                           if c.type == "triangle"])
-    groups = {name: tris[tags == tag].astype(np.int64)
-              for name, (tag, dim) in m.field_data.items() if dim == 2}
-    return P, T, groups
 
 
 def dissipation_skfem3d(path, group: str = "body", velocity=(1.0, 0.0, 0.0),
                         mu: float = 1.0) -> float:
     """``∫ 2μ|ε(u)|²`` of the Stokes flow in the tet mesh ``path``."""
     import skfem
-    P, T, groups = read_groups3d(path)
+
+    P, T, groups = read_groups(path, "tetra", "triangle")
     used = np.unique(T)  # gmsh may keep unused nodes
     remap = np.full(len(P), -1)
     remap[used] = np.arange(len(used))
@@ -47,7 +30,6 @@ def dissipation_skfem3d(path, group: str = "body", velocity=(1.0, 0.0, 0.0),
     pb = skfem.Basis(m, skfem.ElementTetP1(), intorder=4)
 
     visc, bdiv = taylor_hood_forms(mu)
-
     A, B = visc.assemble(ub).tocsr(), bdiv.assemble(ub, pb).tocsr()
     index = {tuple(f): i for i, f in enumerate(np.sort(m.facets.T, axis=1).tolist())}
     facets = np.array([index[tuple(f)] for f in np.sort(remap[groups[group]], axis=1).tolist()])
