@@ -231,6 +231,8 @@ class CholeskyFactor:
         self.ordering = ordering
         self._factor = None
         self._failed = False
+        #: counts the factorizations: a holder of an earlier one sees it replaced
+        self.generation = 0
         #: whether factorizing and solving release the GIL (:mod:`._cholmod`): then
         #: several factors are worth factorizing and solving in threads
         self.releases_gil = library() is not None
@@ -241,6 +243,7 @@ class CholeskyFactor:
         same. Raises RuntimeError where ``A`` is not positive definite."""
         if A.shape != (self.n, self.n):
             raise ValueError(f"expected a {self.n}×{self.n} matrix, got {A.shape}")
+        self.generation += 1
         if self.n == 0:  # nothing to factorize (CHOLMOD refuses an empty matrix)
             return
         lower = sp.tril(A, format="csc")

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import scipy.sparse.linalg as spla
 from conftest import grid_mesh
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -83,12 +84,28 @@ def test_a_refactorization_reuses_the_analysis_and_solves_as_a_fresh_one(mesh, r
     metric = ElasticityMetric(mesh, solver="direct")
     P = rng.standard_normal(mesh.points.shape)
     metric.riesz(mesh.points, P)
-    factor = metric._kept[None].solve
+    factor = metric._kept[None].precondition
     for far in (mesh.points * [3.0, 0.2], mesh.points * [0.2, 3.0]):  # CG fails: refactorize
         G = metric.riesz(far, P)
         fresh = factorize_spd(metric.matrix(far), metric._orderings[None])
         assert np.array_equal(G, fresh(P.ravel()).reshape(P.shape))
-    assert metric.n_factorizations == 3 and metric._kept[None].solve is factor
+    assert metric.n_factorizations == 3 and metric._kept[None].precondition is factor
+
+
+def test_a_solve_handed_out_before_a_refactorization_still_solves_its_own_matrix(mesh, rng):
+    """The metric refactorizes its factor in place for a far iterate; the solver it
+    returned for the first iterate still solves the first matrix (against SuperLU), and
+    the new one the new matrix."""
+    metric = ElasticityMetric(mesh, solver="direct")
+    b = rng.standard_normal(2 * len(mesh.points))
+    first = metric._solver(mesh.points, None)
+    far = mesh.points * [3.0, 0.2]
+    second = metric._solver(far, None)
+    second.solve(b)  # CG on the kept factor fails this far: refactorized in place
+    assert metric.n_factorizations == 2 and metric._kept[None].precondition is first.precondition
+    for Q, solver in ((mesh.points, first), (far, second)):
+        exact = spla.spsolve(metric.matrix(Q).tocsc(), b)
+        assert np.linalg.norm(solver.solve(b) - exact) <= 1e-8 * np.linalg.norm(exact)
 
 
 def _path(mesh, rng, n):
