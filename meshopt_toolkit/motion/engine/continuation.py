@@ -134,19 +134,27 @@ def march(start: FloatArray, times: FloatArray,
     """The one continuation loop of the motions: frames at ``times`` (increasing, from
     ``times[0]``), each reached by steps of the path parameter ``s``.
 
-    A step from ``s_now`` tries ``s_try`` (the ``rule``'s, by default
-    ``HalvedSteps(max_splits, what)``: the next frame's time first) through
-    ``advance(Q, s_now, s_try)``: the positions at ``s_try`` (the prediction checked
-    admissible and relaxed), or None where no prediction is admissible; then the rule
-    shortens the step, or raises where it may not. Before that, a refused step is offered to
-    ``fallback(Q, s_now, s_try, exhausted)`` (``exhausted``: the rule allows no shorter
-    step): True where it changed how ``advance`` steps, and the step is tried again from the
-    rule's first length. ``progress(s)`` after each accepted step.
+    A step from ``s_now`` tries the ``rule``'s ``s_try`` through ``advance(Q, s_now,
+    s_try)``: the positions at ``s_try`` (the prediction checked admissible and relaxed),
+    or None where no prediction is admissible; then the rule shortens the step, or raises
+    where it may not. A refused step is first offered to ``fallback(Q, s_now, s_try,
+    exhausted)`` (``exhausted``: the rule allows no shorter step): True where it changed how
+    ``advance`` steps, and the step is tried again from the rule's first length.
+
+    Parameters
+    ----------
+    max_splits, what
+        The default rule, ``HalvedSteps(max_splits, what)``.
+    rule : StepRule, optional
+    fallback : callable, optional
+    every_step : bool
+        Every accepted step is a frame (else only those at ``times``).
+    progress : callable ``s -> None``, optional
+        Called after each accepted step.
 
     Returns
     -------
-    frames : list of arrays, ``frames[0]`` a copy of ``start``; then the positions at each
-        of ``times[1:]``, or with ``every_step`` at every accepted step
+    frames : list of arrays, ``frames[0]`` a copy of ``start``
     splits : int
         How many times a step was shortened.
     """
