@@ -66,3 +66,96 @@ def test_march_gives_up_after_max_splits_and_on_vanishing_steps():
     # every step refused until it is tiny: the steps shrink towards s = 0
     with pytest.raises(NoAdmissiblePathError, match="shrink"):
         march(np.zeros(1), np.array([0.0, 1.0]), lambda Q, a, b: None, max_splits=60)
+
+
+def _toy(longest: float, log: list):
+    """A path whose steps are admissible when no longer than ``longest``: the state is the
+    sum of the steps taken; ``log`` gets each trial's (s_now, s_try, taken)."""
+
+    def advance(Q, s_now, s_try):
+        ok = s_try - s_now <= longest
+        log.append((s_now, s_try, ok))
+        return Q + (s_try - s_now) if ok else None
+
+    return advance
+
+
+def test_growing_steps_halve_a_refused_step_and_double_back_after_two_taken():
+    """The recurrence by hand: steps of 1/4, the 2nd and 5th trials refused."""
+    from meshopt_toolkit.motion.engine.continuation import GrowingSteps
+
+    trials, times = [], [0.0]
+
+    def advance(Q, s_now, s_try):
+        trials.append(s_try)
+        return None if len(trials) in (2, 5) else Q + (s_try - s_now)
+
+    rule = GrowingSteps(0.25, 3, lambda s: AssertionError(s))
+    frames, splits = march(np.zeros(1), [0.0, 1.0], advance, rule=rule, every_step=True,
+                           progress=times.append)
+    assert trials == [0.25, 0.5, 0.375, 0.5, 0.75, 0.625, 0.75, 1.0]
+    assert times == [0.0, 0.25, 0.375, 0.5, 0.625, 0.75, 1.0] and splits == 2
+    assert [F[0] for F in frames] == times  # every accepted step a frame
+
+
+@settings(max_examples=40, deadline=None)
+@given(longest=st.floats(0.002, 1.0), steps=st.integers(1, 8), n_frames=st.integers(2, 4))
+def test_growing_steps_take_only_admissible_steps_and_reach_every_frame(longest, steps,
+                                                                      n_frames):
+    """Steps admissible up to ``longest``: the first ``k`` trials (``length / 2^k ≤
+    longest``) are refused, every step taken is admissible, every refused one is not, the
+    splits are the refusals and every frame time is reached exactly."""
+    from meshopt_toolkit.motion.engine.continuation import GrowingSteps
+
+    length = 1.0 / steps
+    k = max(0, int(np.ceil(np.log2(length / longest) - 1e-12)))
+    log = []
+    times = np.linspace(0.0, 1.0, n_frames)
+    frames, splits = march(np.zeros(1), times, _toy(longest, log),
+                           rule=GrowingSteps(length, 12, lambda s: AssertionError(s)))
+    np.testing.assert_allclose([F[0] for F in frames], times, atol=1e-12)
+    taken = [b - a for a, b, ok in log if ok]
+    refused = [b - a for a, b, ok in log if not ok]
+    assert splits == len(refused) and all(d <= longest for d in taken)
+    assert all(d > longest for d in refused)
+    first = []
+    march(np.zeros(1), [0.0, 1.0], _toy(longest, first),
+          rule=GrowingSteps(length, 12, lambda s: AssertionError(s)))
+    assert [ok for _, _, ok in first[:k + 1]] == [False] * k + [True]
+    assert first[k][1] == min(1.0, length / 2**k)
+
+
+def test_a_fallback_restarts_the_steps_and_otherwise_the_rule_refuses():
+    """A fallback is offered every refused step with whether the rule is exhausted; where it
+    takes over (True) the steps start again at their first length."""
+    from meshopt_toolkit.motion.engine.continuation import GrowingSteps, HalvedSteps
+
+    seen, mode = [], ["plain"]
+
+    def advance(Q, s_now, s_try):
+        return None if mode[0] == "plain" else Q + (s_try - s_now)
+
+    def fallback(Q, s_now, s_try, exhausted):
+        seen.append((s_try, exhausted))
+        if exhausted:
+            mode[0] = "other"
+        return exhausted
+
+    times = [0.0]
+    rule = GrowingSteps(0.5, 2, lambda s: AssertionError(s))
+    march(np.zeros(1), [0.0, 1.0], advance, rule=rule, fallback=fallback, every_step=True,
+          progress=times.append)
+    assert seen == [(0.5, False), (0.25, False), (0.125, True)] and times == [0.0, 0.5, 1.0]
+
+    class Refused(Exception):
+        pass
+
+    with pytest.raises(Refused, match="at 0.0"):
+        march(np.zeros(1), [0.0, 1.0], lambda Q, a, b: None, fallback=lambda *a: False,
+              rule=GrowingSteps(0.5, 2, lambda s: Refused(f"at {s}")))
+    seen.clear()
+    mode[0] = "plain"
+    frames, splits = march(np.zeros(1), [0.0, 1.0], advance, fallback=fallback,
+                           rule=HalvedSteps(2, "toy"))
+    assert seen == [(1.0, False), (0.5, False), (0.25, True)] and splits == 2
+    assert frames[-1][0] == 1.0

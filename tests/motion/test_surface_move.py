@@ -260,11 +260,12 @@ def test_normal_matrix_is_the_lower_triangle_of_jtj_plus_m_at_the_free_coordinat
     # against scipy's own sparse product of the stacked Jacobian (an independent assembly)
     import scipy.sparse as sp
 
+    from meshopt_toolkit.motion.surface import least_squares as ls
     from meshopt_toolkit.motion.surface import move as smv
 
     V, F = sphere(2)
     handles = np.flatnonzero(V[:, 2] > 0.5)
-    problem = smv._Problem(V, F, handles, 1.3, 0.2, smv.lumped_mass(V, F))
+    problem = ls.Problem(V, F, handles, 1.3, 0.2, smv.lumped_mass(V, F))
     problem.phi_ref = np.zeros((len(F), 3))
     Q = V + 0.05 * np.random.default_rng(1).normal(size=V.shape)
     rm, Jm, rb, Jb = problem.linearization(Q)
@@ -281,7 +282,7 @@ def test_normal_matrix_is_the_lower_triangle_of_jtj_plus_m_at_the_free_coordinat
 
 @pytest.mark.parametrize("shape", [(7, 3, 9), (11, 12)])
 def test_upper_products_are_the_upper_triangles_of_jtj(shape):
-    from meshopt_toolkit.motion.surface.move import upper_products
+    from meshopt_toolkit.motion.surface.normal_equations import upper_products
 
     J = np.random.default_rng(2).normal(size=shape)
     J3 = J[:, None, :] if J.ndim == 2 else J
@@ -356,11 +357,12 @@ def _bar_problem(seed=0):
     blocks' assembly and products)."""
     import scipy.sparse as sp
 
+    from meshopt_toolkit.motion.surface import least_squares as ls
     from meshopt_toolkit.motion.surface import move as smv
 
     case = coarse_bar(90.0)
     V, F = case.V, case.F
-    problem = smv._Problem(V, F, case.handles, 1.0, 0.3, smv.lumped_mass(V, F))
+    problem = ls.Problem(V, F, case.handles, 1.0, 0.3, smv.lumped_mass(V, F))
     problem.phi_ref = np.zeros((len(F), 3))
     Q0 = V + 0.01 * np.random.default_rng(seed).normal(size=V.shape)
 
@@ -443,12 +445,12 @@ def test_steps_on_kept_factors_need_fewer_factorizations_at_the_same_quality():
     """bench_surface's bar twisted 180° in 10 increments: steps of four conjugate gradients
     on the kept factor against plain chord steps (counted by a spy on the factorization),
     the default."""
-    from meshopt_toolkit.motion.surface import move as smv
+    from meshopt_toolkit.motion.surface import least_squares as ls
 
     case = coarse_bar(180.0, spacing=0.1)
     args = (case.V, case.F, case.handles, case.path(1.0))
     counts = []
-    original = smv._Problem.refactorize
+    original = ls.Problem.refactorize
 
     def spy(self, *a):
         counts[-1] += 1
@@ -456,7 +458,7 @@ def test_steps_on_kept_factors_need_fewer_factorizations_at_the_same_quality():
 
     results = []
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(smv._Problem, "refactorize", spy)
+        mp.setattr(ls.Problem, "refactorize", spy)
         for k in (0, 4):
             counts.append(0)
             # without contact: its barrier's pairs, not the steps, decide the renewals
@@ -479,13 +481,13 @@ def test_a_halved_increment_grows_back_and_only_halvings_in_a_row_count(monkeypa
     import meshopt_toolkit.motion.surface.move as surface_move
 
     case = coarse_bar(90.0)
-    step, calls = surface_move._step, []
+    step, calls = surface_move.solve_increment, []
 
     def refusing(*args, **kwargs):  # the 2nd and 5th increments tried cannot be taken
         calls.append(1)
         return None if len(calls) in (2, 5) else step(*args, **kwargs)
 
-    monkeypatch.setattr(surface_move, "_step", refusing)
+    monkeypatch.setattr(surface_move, "solve_increment", refusing)
     res = move_surface(case.V, case.F, case.handles, case.path(1.0), steps=4, polish=0,
                        max_halvings=1, contact=False)
     np.testing.assert_allclose(res.times, [0.0, 0.25, 0.375, 0.5, 0.625, 0.75, 1.0])
@@ -495,7 +497,7 @@ def test_a_halved_increment_grows_back_and_only_halvings_in_a_row_count(monkeypa
         calls.append(1)
         return None if len(calls) % 2 else step(*args, **kwargs)
 
-    monkeypatch.setattr(surface_move, "_step", alternating)
+    monkeypatch.setattr(surface_move, "solve_increment", alternating)
     with pytest.raises(NotAdmissibleError):
         move_surface(case.V, case.F, case.handles, case.path(1.0), steps=4, polish=0,
                      max_halvings=3, contact=False)

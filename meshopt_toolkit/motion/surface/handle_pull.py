@@ -138,10 +138,10 @@ class HandlePull:
 
     Parameters
     ----------
-    problem : the motion's increment problem (:class:`.move._Problem`, handles fixed)
+    problem : the motion's increment problem (:class:`.least_squares.Problem`, handles fixed)
     free_problem : the same energy with every vertex free (its contact replaced here)
     handles : (H,) int array
-    step : :func:`.move._step`, one increment of a problem
+    step : :func:`.least_squares.solve_increment`, one increment of a problem
     """
 
     def __init__(self, problem, free_problem, handles: IntArray, step) -> None:
