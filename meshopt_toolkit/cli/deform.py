@@ -79,7 +79,7 @@ def run(args: argparse.Namespace) -> int:
     frames = args.frames
     # the plane's coordinates at the file's scale (mt.deform works at unit size); every
     # block, tag and datum written back
-    wp = load_workpiece(src, "deform", unit_size=False)
+    wp = load_workpiece(src, "deform")
     mesh = wp.mesh
     V = load_displacement(args.displacement, wp.user_mesh, wp.plane_coordinates)
     with ProgressBar(1000, "deform") as bar:

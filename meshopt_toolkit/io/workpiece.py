@@ -102,12 +102,11 @@ class Workpiece:
         """Unit-size values back at the file's scale."""
         return self.scale.up(values, power, what=what)
 
-    def with_target(self, cells: CellMesh) -> tuple["Workpiece", "Workpiece"]:
-        """This workpiece and that of ``cells`` (the same vertices, in this plane: a
-        morph's target) at one unit scale for both; the target in this frame."""
+    def target(self, cells: CellMesh) -> "Workpiece":
+        """The workpiece of ``cells`` (the same vertices, in this plane: a morph's target)
+        in this frame and at this workpiece's scale."""
         plane = self.plane_coordinates(cells.points, cells.source or "the target")
-        s = unit_scale(self.plane, plane)
-        return replace(self, scale=s), Workpiece(cells, plane, self.frame, s)
+        return Workpiece(cells, plane, self.frame, self.scale)
 
     def with_file_points(self, points) -> "Workpiece":
         """The workpiece with its file's vertices at ``points`` (the same vertices, moved

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from meshopt_toolkit import data_path
+from meshopt_toolkit import data_path, strict_json
 from meshopt_toolkit.cli import main
 from meshopt_toolkit.errors import InvalidMeshError
 from meshopt_toolkit.io import load, save
@@ -125,7 +125,7 @@ def test_deform_morph_move_work_at_any_scale(tmp_path, capsys, factor):
         m = DISC.with_points(s.down(got[:, :2]))
         assert (m.signed_areas() > 0).all(), name
     summary = json.loads((big / "morph" / "summary.json").read_text())
-    both = unit_scale(load(big / "m.msh"), load(big / "t.msh"))  # one scale for both ends
+    both = size_scale(load(big / "m.msh"), load(big / "t.msh"))  # one scale for both ends
     assert summary["unit_scale"] == both.factor and summary["admissible"]
     assert "error" not in capsys.readouterr().err
 
@@ -167,6 +167,35 @@ def test_cli_move_is_the_library_call_on_the_files_mesh(tmp_path, capsys, factor
     summary = json.loads(capsys.readouterr().out)
     assert summary["handle_error"] == ref.handle_error  # in the file's units
     assert summary["similarity"]["shift"] == [ref.similarity.shift.real, ref.similarity.shift.imag]
+
+
+# the command hands the files' meshes to mt.morph, which alone works at unit size: its
+# frames and summary are mt.morph's on the meshes read from the files, bit for bit
+@pytest.mark.parametrize("metric", ["distortion", "scalar"])
+@pytest.mark.parametrize("factor", [3.7, 1e300, 1e-300])
+def test_cli_morph_is_the_library_call_on_the_files_mesh(tmp_path, capsys, factor, metric):
+    import meshopt_toolkit as mt
+
+    d = _scaled_files(tmp_path, factor)
+    assert main(["morph", str(d / "m.msh"), str(d / "t.msh"), "--frames", "3", "--no-plots",
+                 "--metric", metric, "--json", "-o", str(d / "morph")]) == 0
+    source, target = load(d / "m.msh").as_planar(), load(d / "t.msh").as_planar()
+    ref = mt.morph(source, target, 3, metric=metric)
+    for k in range(3):
+        got = load(d / "morph" / f"frame_00{k}.msh").points[:, :2]
+        assert np.array_equal(got, ref.frames[k].points), k
+    summary = _timeless(json.loads(capsys.readouterr().out))
+    expected = _timeless(json.loads(strict_json.dumps(ref.summary())))
+    assert summary["admissible"] and {**summary, **expected} == summary
+
+
+def _timeless(summary):
+    """A summary without its wall times (``seconds`` at any depth)."""
+    if isinstance(summary, dict):
+        return {k: _timeless(v) for k, v in summary.items() if k != "seconds"}
+    if isinstance(summary, list):
+        return [_timeless(v) for v in summary]
+    return summary
 
 
 @pytest.mark.parametrize("factor", [1e300, 1e-300])
