@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from cli_helpers import timeless
 
 from meshopt_toolkit import data_path, strict_json
 from meshopt_toolkit.cli import main
@@ -184,18 +185,10 @@ def test_cli_morph_is_the_library_call_on_the_files_mesh(tmp_path, capsys, facto
     for k in range(3):
         got = load(d / "morph" / f"frame_00{k}.msh").points[:, :2]
         assert np.array_equal(got, ref.frames[k].points), k
-    summary = _timeless(json.loads(capsys.readouterr().out))
-    expected = _timeless(json.loads(strict_json.dumps(ref.summary())))
+    summary = timeless(json.loads(capsys.readouterr().out))
+    expected = timeless(json.loads(strict_json.dumps(ref.summary())))
     assert summary["admissible"] and {**summary, **expected} == summary
 
-
-def _timeless(summary):
-    """A summary without its wall times (``seconds`` at any depth)."""
-    if isinstance(summary, dict):
-        return {k: _timeless(v) for k, v in summary.items() if k != "seconds"}
-    if isinstance(summary, list):
-        return [_timeless(v) for v in summary]
-    return summary
 
 
 @pytest.mark.parametrize("factor", [1e300, 1e-300])
