@@ -142,7 +142,7 @@ def test_moves_at_1e300_keep_their_quality(name, scale):
     q, q_unit = result.summary()[key], unit.summary()[key]
     # tets and planar meshes follow any scale to rounding; the surface solver's result
     # moves with rounding-level changes of its input
-    # (test_operation_scale_covariance.test_a_surface_move_is_scale_covariant_at_powers_of_ten)
+    # (test_operation_scale_covariance.test_every_operation_is_scale_covariant, 1e12)
     assert q == pytest.approx(q_unit, rel=1e-9 if name != "surface" else 2e-2)
     assert np.isfinite(np.asarray(result.mesh.points)).all()
 
