@@ -326,16 +326,16 @@ def load_workpiece(src: Path, what: str, *, cells=None):
         n = sum(len(c) for t, c in cells.cells if t == "tetra")
         raise InvalidMeshError(f"{src}: {what} supports planar triangle meshes; this is "
                                + _NOT_PLANAR[kind].format(n=n))
-    return Workpiece.from_cells(cells, unit_size=False).admissible(what)
+    return Workpiece.from_cells(cells).admissible(what)
 
 
-def save_moved(wp, mesh, path: Path, *, force: bool = True, what: str = "the result",
+def save_moved(wp, mesh, path: Path, *, force: bool = True,
                cell_data: dict | None = None) -> None:
     """Write the workpiece ``wp`` with the working mesh's vertices where ``mesh`` has
     them: every block, tag and datum of the input, ``cell_data`` added."""
     from ..io.workpiece import save_workpiece
 
-    cells = wp.moved(mesh.points, what=what).to_cells(cell_data=cell_data)
+    cells = wp.moved(mesh.points).to_cells(cell_data=cell_data)
     save_workpiece(cells, path, overwrite=force, computed=tuple(cell_data or ()))
 
 
@@ -361,7 +361,7 @@ def save_moved_frames(wp, meshes, out: Path, names: list[str], *, force: bool) -
     workpiece ``wp`` moved to each of ``meshes`` (:func:`save_moved`)."""
     prepare_output_dir(out, force=force)
     for name, m in zip(names, meshes):
-        save_moved(wp, m, out / name, what=name)
+        save_moved(wp, m, out / name)
 
 
 @contextlib.contextmanager

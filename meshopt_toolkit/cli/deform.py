@@ -81,7 +81,7 @@ def run(args: argparse.Namespace) -> int:
     # block, tag and datum written back
     wp = load_workpiece(src, "deform")
     mesh = wp.mesh
-    V = load_displacement(args.displacement, wp.user_mesh, wp.plane_coordinates)
+    V = load_displacement(args.displacement, mesh, wp.plane_coordinates)
     with ProgressBar(1000, "deform") as bar:
         res = deform(
             mesh, V, time=args.time, frames=frames, alpha=args.alpha, penalty=args.penalty,

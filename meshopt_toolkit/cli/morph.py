@@ -152,8 +152,7 @@ def run(args: argparse.Namespace) -> int:
     src_path, tgt_path = Path(args.source), Path(args.target)
     # the source's plane at the file's scale (mt.morph works at unit size); the frames
     # are written with every block, tag and datum of the source
-    wp = Workpiece.from_cells(cells if cells is not None else io.load_cells(src_path),
-                              unit_size=False)
+    wp = Workpiece.from_cells(cells if cells is not None else io.load_cells(src_path))
     source, target = wp.mesh, wp.target(io.load_cells(tgt_path)).mesh
     outdir = Path(args.output)
     names = frame_names(args.frames, args.format, src_path)
@@ -163,7 +162,7 @@ def run(args: argparse.Namespace) -> int:
                     DEFAULT_MAX_ITER[METRIC_ALIASES.get(args.metric, args.metric)],
                     **_metric_options(args))
     for name, mesh in zip(names, result.frames):
-        save_moved(wp, mesh, outdir / name, what=name)
+        save_moved(wp, mesh, outdir / name)
     summary = result.summary()
     summary.update(source=str(src_path), target=str(tgt_path), files=names)
     if args.metric == "scalar":

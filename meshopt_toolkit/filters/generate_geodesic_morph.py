@@ -131,7 +131,7 @@ class GenerateGeodesicMorph(Filter):
             width = max(3, len(str(frames - 1)))
             # 2r/R is free of scale: taken at the frame's power-of-two unit size, exact and
             # in the float range at any scale
-            meshes = [(f"morph_{k:0{width}d}", src.moved(m.points, what=f"frame {k}"),
+            meshes = [(f"morph_{k:0{width}d}", src.moved(m.points),
                        aspect_ratios(unit_scale(m.points).down(m.points), m.triangles))
                       for k, m in enumerate(result.frames)]
         except MeshoptError as exc:
