@@ -191,6 +191,30 @@ def test_cli_morph_is_the_library_call_on_the_files_mesh(tmp_path, capsys, facto
 
 
 
+# the figures mark the inverted triangles by the signs of their areas, taken at unit size:
+# at 1e300 the areas overflow, at 1e-300 they underflow
+@pytest.mark.parametrize("factor", [1.0, 1e300, 1e-300])
+def test_the_figures_mark_the_inverted_triangles_at_any_scale(factor):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.collections import PolyCollection
+
+    from meshopt_toolkit.plotting import draw_mesh
+
+    points = DISC.points.copy()
+    inner = np.setdiff1d(np.arange(DISC.n_vertices), DISC.boundary_vertices)[0]
+    points[inner] = 0.5 * (points[inner] + DISC.points[DISC.boundary_vertices[0]]) * 3.0
+    inverted = DISC.with_points(points).signed_areas() <= 0
+    assert 0 < inverted.sum() < DISC.n_triangles
+    fig, ax = plt.subplots()
+    draw_mesh(ax, points * factor, DISC.triangles)
+    red = [c for c in ax.collections if isinstance(c, PolyCollection)]
+    plt.close(fig)
+    assert len(red) == 1 and len(red[0].get_paths()) == inverted.sum()
+
+
 @pytest.mark.parametrize("factor", [1e300, 1e-300])
 def test_filters_work_at_any_scale(tmp_path, factor):
     from meshopt_toolkit.pipeline import Document
