@@ -61,7 +61,7 @@ class PrescribedMotion(Filter):
 
     def apply(self, document, *, targets: str = "", map: str = "", where: str = "",
               group: str = "", selection: str = "", free_boundary: bool = False,
-              steps: int = 8, weight: float = 1.0) -> dict:
+              steps: int = 4, weight: float = 1.0) -> dict:
         from meshopt_toolkit.motion.engine.handles import handles_in_space
         from meshopt_toolkit.motion.move import move
 
