@@ -117,7 +117,7 @@ def run_cli(mesh, args, out):
 def state_seconds(mesh_path, spec_args, repeat: int = 9) -> float:
     """The median CPU time of one state solve over ``repeat`` (a fresh configuration each
     time): a typical solve, as the iterations' mean is a typical iteration."""
-    mesh = load_workpiece(mesh_path, "optimize", unit_size=False).mesh
+    mesh = load_workpiece(mesh_path, "optimize").mesh
     j = spec_from_options(**spec_args).make_objective(mesh)
     rng = np.random.default_rng(0)
     times = []
@@ -196,7 +196,7 @@ def elasticity(tmp: Path, size: float, refine_near: float) -> None:
     for ratio in (1.0, 1.6, 1.8, 2.0, 2.2, 2.5):
         path = plate if ratio == 1 else ellipse(tmp / f"plate{ratio}.msh", ratio, (8, 8), size,
                                                 refine_near, "hole")
-        mesh = load_workpiece(path, "optimize", unit_size=False).mesh
+        mesh = load_workpiece(path, "optimize").mesh
         ours = spec_from_options(**spec).make_objective(mesh).value(mesh.points)
         print(f"| ellipse a/b = {ratio:g} (gmsh) | {ours:.6f} | "
               f"{compliance_skfem(path, 'outer', (2, 1, 0)):.6f} |")
@@ -237,7 +237,7 @@ def metric_factor_choices(path, spec_args, solve: float, iterations: int) -> Non
     from meshopt_toolkit.optimize import optimize
     from meshopt_toolkit.riemannian import kept_factor, metrics
 
-    mesh = load_workpiece(path, "optimize", unit_size=False).mesh
+    mesh = load_workpiece(path, "optimize").mesh
     spec = spec_from_options(**spec_args)
     kept_cg, counts_of, init = (metrics.ElasticityMetric.REFACTOR_AFTER_CG,
                                 metrics.KeptFactorCosts.of, metrics.ElasticityMetric.__init__)
@@ -294,7 +294,7 @@ def stokes(tmp: Path, size: float, refine_near: float, ratios) -> None:
     for ratio in ratios:
         path = body if ratio == 1 else ellipse(tmp / f"body{ratio}.msh", ratio, (6, 4), size,
                                                refine_near, "body")
-        mesh = load_workpiece(path, "optimize", unit_size=False).mesh
+        mesh = load_workpiece(path, "optimize").mesh
         ours = spec_from_options(**spec).make_objective(mesh).value(mesh.points)
         P, _, g = read_groups(path)
         front, back = tip_angles(P, loop_of(g["body"]), reach)

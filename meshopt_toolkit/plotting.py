@@ -20,6 +20,7 @@ import numpy as np
 from ._typing import FloatArray, IntArray
 from .errors import MeshoptError
 from .kernels.triangles import signed_areas
+from .scaling import unit_scale
 
 __all__ = [
     "draw_mesh",
@@ -112,8 +113,8 @@ def draw_mesh(
     loops = p[tri]  # (T, 3, 2)
     segs = np.concatenate([loops, loops[:, :1]], axis=1)  # closed triangles (T, 4, 2)
     ax.add_collection(LineCollection(segs, colors=color, linewidths=linewidth, alpha=alpha))
-    if show_inverted:
-        bad = signed_areas(p, tri) <= 0
+    if show_inverted:  # the signs at the mesh's power-of-two unit size: exact, no overflow
+        bad = signed_areas(unit_scale(p).down(p), tri) <= 0
         if bad.any():
             ax.add_collection(PolyCollection(loops[bad], facecolors="red", alpha=0.4,
                                              edgecolors="red"))

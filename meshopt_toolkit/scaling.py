@@ -13,10 +13,11 @@ rounding only, so do the results, and for ``s`` a power of two they are the same
 scaled by ``s`` (a mesh of size 1 is not changed at all; a vertex an operation leaves
 alone stays bitwise, :meth:`UnitScale.points_up`).
 
-The commands and filters read files through
-:class:`meshopt_toolkit.io.workpiece.Workpiece`, which divides the coordinates of the
-mesh's plane (z, or the plane's offset, is never scaled) by a power of two ``2**k`` close
-to its size (:func:`unit_scale`), exact in floating point apart from subnormal numbers.
+Only the operations scale: the commands and filters hand them the file's mesh at its own
+scale, and their results are the library calls' bit for bit. Where a whole mesh is to be
+measured at unit size without rounding (``meshopt info``, a filter's face quality),
+:func:`unit_scale` gives a power of two ``2**k`` close to its size, exact in floating point
+apart from subnormal numbers (of a planar mesh only x and y: z is never scaled).
 The per-cell measures (mean ratios, aspect ratios, angles) go further: :func:`unit_cells`
 scales each cell by a power of two of its own size, so they are the same numbers at every
 scale.

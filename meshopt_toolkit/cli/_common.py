@@ -299,10 +299,10 @@ def warn_dropped(cells, src) -> None:
                                              "; ".join(cells.dropped))
 
 
-def load_workpiece(src: Path, what: str, *, unit_size: bool = True, cells=None):
+def load_workpiece(src: Path, what: str, *, cells=None):
     """The file's :class:`~meshopt_toolkit.io.workpiece.Workpiece` (every block, tag and
-    datum kept; the plane's coordinates at unit size), its mesh checked admissible for
-    ``what``. ``unit_size=False`` keeps the file's scale; ``cells``: the file's
+    datum kept; the plane's coordinates at the file's scale: the operations scale it
+    themselves), its mesh checked admissible for ``what``; ``cells``: the file's
     :class:`~meshopt_toolkit.io.cells.CellMesh` when already read.
 
     Raises
@@ -326,16 +326,16 @@ def load_workpiece(src: Path, what: str, *, unit_size: bool = True, cells=None):
         n = sum(len(c) for t, c in cells.cells if t == "tetra")
         raise InvalidMeshError(f"{src}: {what} supports planar triangle meshes; this is "
                                + _NOT_PLANAR[kind].format(n=n))
-    return Workpiece.from_cells(cells, unit_size=unit_size).admissible(what)
+    return Workpiece.from_cells(cells).admissible(what)
 
 
-def save_moved(wp, mesh, path: Path, *, force: bool = True, what: str = "the result",
+def save_moved(wp, mesh, path: Path, *, force: bool = True,
                cell_data: dict | None = None) -> None:
-    """Write the workpiece ``wp`` with the working mesh's vertices where ``mesh`` (unit
-    size) has them: every block, tag and datum of the input, ``cell_data`` added."""
+    """Write the workpiece ``wp`` with the working mesh's vertices where ``mesh`` has
+    them: every block, tag and datum of the input, ``cell_data`` added."""
     from ..io.workpiece import save_workpiece
 
-    cells = wp.moved(mesh.points, what=what).to_cells(cell_data=cell_data)
+    cells = wp.moved(mesh.points).to_cells(cell_data=cell_data)
     save_workpiece(cells, path, overwrite=force, computed=tuple(cell_data or ()))
 
 
@@ -361,7 +361,7 @@ def save_moved_frames(wp, meshes, out: Path, names: list[str], *, force: bool) -
     workpiece ``wp`` moved to each of ``meshes`` (:func:`save_moved`)."""
     prepare_output_dir(out, force=force)
     for name, m in zip(names, meshes):
-        save_moved(wp, m, out / name, what=name)
+        save_moved(wp, m, out / name)
 
 
 @contextlib.contextmanager

@@ -79,9 +79,9 @@ def run(args: argparse.Namespace) -> int:
     frames = args.frames
     # the plane's coordinates at the file's scale (mt.deform works at unit size); every
     # block, tag and datum written back
-    wp = load_workpiece(src, "deform", unit_size=False)
+    wp = load_workpiece(src, "deform")
     mesh = wp.mesh
-    V = load_displacement(args.displacement, wp.user_mesh, wp.plane_coordinates)
+    V = load_displacement(args.displacement, mesh, wp.plane_coordinates)
     with ProgressBar(1000, "deform") as bar:
         res = deform(
             mesh, V, time=args.time, frames=frames, alpha=args.alpha, penalty=args.penalty,

@@ -28,11 +28,11 @@ default: :mod:`meshopt_toolkit.motion.surface.morph_contact`); a pose that inter
 itself is morphed without contact, with one warning line naming the file and the count;
 ``--contact off`` morphs without contact, a frame through the surface refused.
 
-Both planar meshes are morphed at unit size (divided by one power of two nearest their size, see
-:mod:`meshopt_toolkit.scaling`) and the frames scaled back, so coordinates near 1e300 or
-1e-300 work and the frames do not depend on the units; the numbers in ``summary.json`` are
-those of the unit-size problem (lengths, areas, energies), with the factor as
-``unit_scale``.
+The meshes go to ``mt.morph`` at the file's scale; it morphs them at unit size (both
+divided by their size, see :mod:`meshopt_toolkit.scaling`) and scales the frames back, so
+coordinates near 1e300 or 1e-300 work and the frames do not depend on the units. The
+lengths in ``summary.json`` are in the file's units, its areas and energies those of the
+unit-size problem (``--metric scalar`` gives the size as ``unit_scale``).
 """
 
 from __future__ import annotations
@@ -150,12 +150,10 @@ def run(args: argparse.Namespace) -> int:
         return _run_surface(args, cells)
     _check_outputs(args)
     src_path, tgt_path = Path(args.source), Path(args.target)
-    # the source's plane at unit size (one power of two for both ends: the summary's
-    # areas at the file's scale overflow near 1e300); the frames are written with every
-    # block, tag and datum of the source
-    wp, twp = Workpiece.from_cells(cells if cells is not None else io.load_cells(
-        src_path)).with_target(io.load_cells(tgt_path))
-    source, target = wp.mesh, twp.mesh
+    # the source's plane at the file's scale (mt.morph works at unit size); the frames
+    # are written with every block, tag and datum of the source
+    wp = Workpiece.from_cells(cells if cells is not None else io.load_cells(src_path))
+    source, target = wp.mesh, wp.target(io.load_cells(tgt_path)).mesh
     outdir = Path(args.output)
     names = frame_names(args.frames, args.format, src_path)
     prepare_output_dir(outdir, force=args.force, names=names + list(PLOTS) + ["summary.json"])
@@ -164,10 +162,9 @@ def run(args: argparse.Namespace) -> int:
                     DEFAULT_MAX_ITER[METRIC_ALIASES.get(args.metric, args.metric)],
                     **_metric_options(args))
     for name, mesh in zip(names, result.frames):
-        save_moved(wp, mesh, outdir / name, what=name)
+        save_moved(wp, mesh, outdir / name)
     summary = result.summary()
-    summary.update(source=str(src_path), target=str(tgt_path), files=names,
-                   unit_scale=wp.scale.factor)
+    summary.update(source=str(src_path), target=str(tgt_path), files=names)
     if args.metric == "scalar":
         summary["beta"] = list(args.beta or DEFAULT_BETA)
     write_summary(outdir, summary)

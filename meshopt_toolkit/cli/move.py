@@ -117,7 +117,7 @@ def run(args: argparse.Namespace) -> int:
         return run_in_space(args, cells, kind)
     # the plane's coordinates at the file's scale (mt.move works at unit size); every
     # block, tag and datum written back
-    wp = load_workpiece(src, "move", unit_size=False, cells=cells)
+    wp = load_workpiece(src, "move", cells=cells)
     mesh = wp.mesh
     handles, targets = handles_in_space(
         mesh, targets=args.targets, mapping=args.map, where=args.where,

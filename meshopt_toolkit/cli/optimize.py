@@ -256,7 +256,7 @@ def _load(path: Path):
         raise InvalidMeshError(f"{path}: optimize supports planar triangle and tetrahedral "
                                "meshes; this is a triangle surface in 3D (its points are not "
                                "on one plane)")
-    wp = load_workpiece(path, "optimize", unit_size=False, cells=cells)
+    wp = load_workpiece(path, "optimize", cells=cells)
     return wp, cells, wp.mesh
 
 

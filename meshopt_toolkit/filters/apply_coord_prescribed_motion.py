@@ -30,8 +30,8 @@ class PrescribedMotion(Filter):
     MeshLab's ``quality``, or ``selected`` after a MeshLab selection step), where
     ``where`` holds, e.g. ``"x**2 + y**2 < 0.25"``; the other boundary vertices stay).
     The moved mesh replaces the current one with every block, group and datum of its
-    file. A planar motion is computed at unit size (:mod:`meshopt_toolkit.scaling`) and
-    scaled back, like ``meshopt move``; a motion in 3D in the file's coordinates.
+    file. The mesh goes to ``mt.move`` at the file's scale, as with ``meshopt move``
+    (``mt.move`` works at unit size itself, :mod:`meshopt_toolkit.scaling`).
     """
 
     name = "apply_coord_prescribed_motion"
@@ -61,7 +61,7 @@ class PrescribedMotion(Filter):
 
     def apply(self, document, *, targets: str = "", map: str = "", where: str = "",
               group: str = "", selection: str = "", free_boundary: bool = False,
-              steps: int = 8, weight: float = 1.0) -> dict:
+              steps: int = 4, weight: float = 1.0) -> dict:
         from meshopt_toolkit.motion.engine.handles import handles_in_space
         from meshopt_toolkit.motion.move import move
 
@@ -74,18 +74,17 @@ class PrescribedMotion(Filter):
                  "point_data": entry.point_data(), "source": entry.name,
                  "options": _OPTIONS}
         try:
-            # the plane's coordinates at unit size (None: a mesh in space)
+            # the plane's coordinates at the file's scale (None: a mesh in space)
             wp = entry.workpiece(self.name, required=False)
             if wp is None:
                 return self._in_space(entry, given, steps, weight)
             wp = wp.admissible(self.name)
-            # handles and targets in the mesh's units
-            handles, positions = handles_in_space(wp.user_mesh, **given)
+            handles, positions = handles_in_space(wp.mesh, **given)
         except OptionError as exc:
             raise FilterError(f"{self.name}: {exc}") from None
-        result = move(wp.mesh, handles, wp.to_unit(positions), steps=steps, weight=weight)
+        result = move(wp.mesh, handles, positions, steps=steps, weight=weight)
         entry.set_workpiece(wp.moved(result.mesh.points))
-        return {**result.summary(), "unit_scale": wp.scale.factor}
+        return result.summary()
 
     def _in_space(self, entry, given: dict, steps: int, weight: float) -> dict:
         """Move a tet mesh or a triangle surface in 3D; its file's cells and data stay."""

@@ -19,10 +19,10 @@ class QualityPreservingDeformation(Filter):
     replaced by the input file's stem. At ``time = 1`` a Euclidean path would have moved
     every vertex by exactly ``V``; the geodesic never inverts a triangle. The penalty is f1
     with ``alpha`` (default thesis §5.5: 1, 0, 1) or f2 with ``penalty`` (β4 unscaled). The
-    deformed mesh replaces the current one; per-face quality is left untouched. Like
-    ``meshopt deform``, the deformation is computed at unit size
-    (:mod:`meshopt_toolkit.scaling`) and scaled back; the penalties reported are those of
-    the unit-size problem.
+    deformed mesh replaces the current one; per-face quality is left untouched. As with
+    ``meshopt deform``, the mesh goes to ``mt.deform`` at the file's scale (``mt.deform``
+    works at unit size itself, :mod:`meshopt_toolkit.scaling`); the penalties reported are
+    those of the unit-size problem.
     """
 
     name = "apply_coord_quality_preserving_deformation"
@@ -51,16 +51,16 @@ class QualityPreservingDeformation(Filter):
         a, b = number_list(alpha, 3, "alpha"), number_list(penalty, 4, "penalty")
         if a is not None and b is not None:
             raise FilterError(f"{self.name}: give alpha or penalty, not both")
-        # the plane's coordinates at unit size; the file's blocks, tags and data kept
+        # the plane's coordinates at the file's scale; the file's blocks, tags and data kept
         wp = entry.workpiece(self.name).admissible(self.name)
         mesh = wp.mesh
-        V = load_displacement(displacement.replace("{stem}", entry.name), wp.user_mesh,
+        V = load_displacement(displacement.replace("{stem}", entry.name), mesh,
                               wp.plane_coordinates)
-        result = deform(mesh, wp.to_unit(V), time=time, alpha=a, penalty=b)
+        result = deform(mesh, V, time=time, alpha=a, penalty=b)
         entry.set_workpiece(wp.moved(result.mesh.points))
-        moved = float(np.abs(result.mesh.points - mesh.points).max())
+        with np.errstate(over="ignore"):  # a displacement past the float range: inf
+            moved = float(np.abs(result.mesh.points - mesh.points).max())
         return {"time": float(time), "min_aspect_ratio": float(np.min(result.aspect_ratio)),
-                "max_displacement": float(wp.from_unit(moved)),
+                "max_displacement": moved,
                 "penalty_start": float(result.geodesic.penalty[0]),
-                "penalty_end": float(result.geodesic.penalty[-1]),
-                "unit_scale": wp.scale.factor}
+                "penalty_end": float(result.geodesic.penalty[-1])}

@@ -124,7 +124,7 @@ class ShapeOptimization(Filter):
 
         entry = document.current_entry
         # the plane's coordinates at the file's scale (r is given in them); None: tets
-        wp = entry.workpiece(self.name, unit_size=False, required=False)
+        wp = entry.workpiece(self.name, required=False)
         mesh = entry.mesh.require_admissible() if wp is None else wp.mesh
         beta = number_list(penalty, 4, "penalty") or DEFAULT_PENALTY_BETA
         spec = spec_from_options(fixed=fixed, move=move, dirichlet=dirichlet, neumann=neumann,

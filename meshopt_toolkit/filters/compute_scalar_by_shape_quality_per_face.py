@@ -40,7 +40,7 @@ class ShapeQualityPerFace(Filter):
 
         entry = document.current_entry
         required = is_tets(entry.mesh)  # refused with one line
-        wp = entry.workpiece(self.name, unit_size=False, required=required)
+        wp = entry.workpiece(self.name, required=required)
         if wp is None:  # a surface in 3D
             return _in_space(entry, metric)
         mesh = wp.mesh  # in its plane's coordinates

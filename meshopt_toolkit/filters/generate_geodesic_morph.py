@@ -39,10 +39,9 @@ class GenerateGeodesicMorph(Filter):
     the morph (frame 0 the source, the last the target) are appended to the document as ``morph_000``, ``morph_001``, …, the last
     one current, each with its per-face aspect ratio 2r/R as face quality. The summary
     holds the morph's diagnostics (``target_error``, ``min_aspect_ratio``,
-    ``admissible``, ``linear_min_area``, …). The morph runs at unit size (both meshes
-    divided by one power of two, :mod:`meshopt_toolkit.scaling`) and the frames are scaled
-    back, like ``meshopt morph``; the diagnostics are those of the unit-size problem, with
-    the factor as ``unit_scale``.
+    ``admissible``, ``linear_min_area``, …). The meshes go to ``mt.morph`` at the file's
+    scale, as with ``meshopt morph`` (``mt.morph`` works at unit size itself,
+    :mod:`meshopt_toolkit.scaling`).
     """
 
     name = "generate_geodesic_morph"
@@ -104,6 +103,7 @@ class GenerateGeodesicMorph(Filter):
         from meshopt_toolkit.motion.planar.scalar_morph import DEFAULT_BETA
         from meshopt_toolkit.operations import METRIC_ALIASES, CompleteMorph, morph
         from meshopt_toolkit.pipeline.document import MeshEntry
+        from meshopt_toolkit.scaling import unit_scale
 
         beta1, beta2, beta3, beta4 = number_list(penalty, 4, "penalty") or DEFAULT_PENALTY
         n = len(document)
@@ -117,10 +117,9 @@ class GenerateGeodesicMorph(Filter):
                                  contact)
         tgt = document.entries[target].workpiece(f"{self.name}: the target")
         try:
-            # the source's plane at unit size (one power of two for both); the frames
-            # carry the source's blocks, tags and data
-            src, tgt = src.with_target(tgt.cells)
-            base, end = src.mesh, tgt.mesh
+            # the source's plane at the file's scale (mt.morph works at unit size); the
+            # frames carry the source's blocks, tags and data
+            base, end = src.mesh, src.target(tgt.cells).mesh
             beta = (beta1, beta2, beta3, beta4)
             if METRIC_ALIASES.get(metric, metric) == "complete":
                 metric = CompleteMorph(beta=None if beta == DEFAULT_BETA else beta,
@@ -130,8 +129,10 @@ class GenerateGeodesicMorph(Filter):
                                   "only")
             result = morph(base, end, frames, metric=metric, weight=weight, stop=stop)
             width = max(3, len(str(frames - 1)))
-            meshes = [(f"morph_{k:0{width}d}", src.moved(m.points, what=f"frame {k}"),
-                       aspect_ratios(m.points, m.triangles))
+            # 2r/R is free of scale: taken at the frame's power-of-two unit size, exact and
+            # in the float range at any scale
+            meshes = [(f"morph_{k:0{width}d}", src.moved(m.points),
+                       aspect_ratios(unit_scale(m.points).down(m.points), m.triangles))
                       for k, m in enumerate(result.frames)]
         except MeshoptError as exc:
             raise FilterError(f"{self.name}: {exc}") from None
@@ -140,7 +141,7 @@ class GenerateGeodesicMorph(Filter):
             entry.set_workpiece(wp)
             document.add(entry)
             entry.set_face_attribute("quality", quality)
-        return {**result.summary(), "unit_scale": src.scale.factor}
+        return result.summary()
 
     def _surface(self, document, source, target, frames: int, metric: str, weight: float,
                  penalty: str, normalize: bool, method: str, stop: str,

@@ -60,7 +60,7 @@ class UniformRefinement(Filter):
     def apply(self, document, *, iterations: int = 1) -> dict:
         entry = document.current_entry
         before = entry.mesh.n_triangles
-        wp = entry.workpiece(self.name, unit_size=False, required=False)
+        wp = entry.workpiece(self.name, required=False)
         if wp is not None:
             for _ in range(iterations):
                 _refine_attributes(entry, wp.mesh)

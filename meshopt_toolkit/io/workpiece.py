@@ -1,7 +1,8 @@
 """A file's mesh as the planar operations work on it, and back: :class:`Workpiece`.
 
 ``move``, ``deform``, ``optimize``, ``morph`` and the pipeline filters work on a
-:class:`~meshopt_toolkit.mesh.PlanarMesh` at unit size; the file holds a
+:class:`~meshopt_toolkit.mesh.PlanarMesh` at the file's scale (the operations work at unit
+size themselves, :mod:`meshopt_toolkit.scaling`); the file holds a
 :class:`~meshopt_toolkit.io.cells.CellMesh` (every block, tag, name and datum). A
 workpiece is the one way between the two:
 
@@ -10,8 +11,6 @@ workpiece is the one way between the two:
   (within :data:`~meshopt_toolkit.orientation.PLANE_RTOL`) in the coordinates of an
   orthonormal frame of it. Written back, a vertex the operation did not move keeps its
   original coordinates bit for bit; a moved one is mapped into the plane.
-* **the size**: the plane coordinates divided by an exact power of two
-  (:mod:`meshopt_toolkit.scaling`), multiplied back on the way out.
 * **the rest**: every cell block in order with its data (``gmsh:physical``,
   ``gmsh:geometrical``, anything else), vertex cells, point data (it travels with its
   vertex) and field data (physical names) are written back unchanged; what an operation
@@ -21,7 +20,7 @@ workpiece is the one way between the two:
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from functools import cached_property
 
 import numpy as np
@@ -30,7 +29,6 @@ from ..errors import FileWriteError, InvalidMeshError, WriteError
 from ..mesh import PlanarMesh, TriangleMesh
 from ..mesh.topology import new_points
 from ..orientation import PLANE_RTOL, PlaneEmbedding, plane_embedding
-from ..scaling import UnitScale, unit_scale
 from .cells import PHYSICAL, TRIANGLE_KINDS, CellMesh
 
 logger = logging.getLogger(__name__)
@@ -40,7 +38,7 @@ __all__ = ["Workpiece", "save_workpiece", "cells_with_attributes"]
 
 @dataclass(frozen=True, eq=False)
 class Workpiece:
-    """The planar mesh of a :class:`CellMesh`, at unit size, with the way back.
+    """The planar mesh of a :class:`CellMesh`, with the way back.
 
     Attributes
     ----------
@@ -50,20 +48,16 @@ class Workpiece:
         Plane coordinates of ``cells.points`` at the file's scale.
     frame : PlaneEmbedding or None
         None: the plane coordinates are x, y themselves (2D points, or z constant).
-    scale : UnitScale
-        ``mesh`` is ``plane`` divided by ``scale.factor``.
     """
 
     cells: CellMesh
     plane: np.ndarray
     frame: PlaneEmbedding | None
-    scale: UnitScale = field(default_factory=UnitScale)
 
     # -- in ---------------------------------------------------------------------------
     @classmethod
-    def from_cells(cls, cells: CellMesh, *, unit_size: bool = True,
-                   scale: UnitScale | None = None) -> "Workpiece":
-        """The workpiece of ``cells``; ``unit_size=False`` keeps the file's scale.
+    def from_cells(cls, cells: CellMesh) -> "Workpiece":
+        """The workpiece of ``cells``.
 
         Raises
         ------
@@ -73,16 +67,14 @@ class Workpiece:
         """
         cells.require_cell_types(TRIANGLE_KINDS, "triangles")  # before the plane's check
         plane, frame = _plane_coordinates(cells)
-        if scale is None:
-            scale = unit_scale(plane) if unit_size else UnitScale(0)
-        wp = cls(cells, plane, frame, scale)
+        wp = cls(cells, plane, frame)
         wp.mesh  # noqa: B018 - the cells are checked now, not at first use
         return wp
 
     @classmethod
-    def from_mesh(cls, mesh: TriangleMesh, **kwargs) -> "Workpiece":
+    def from_mesh(cls, mesh: TriangleMesh) -> "Workpiece":
         """The workpiece of a triangle mesh (its points, lines, triangles and tags)."""
-        return cls.from_cells(CellMesh.from_triangle_mesh(mesh), **kwargs)
+        return cls.from_cells(CellMesh.from_triangle_mesh(mesh))
 
     def admissible(self, what: str = "this operation") -> "Workpiece":
         """This workpiece with its mesh checked (and oriented) by
@@ -94,20 +86,11 @@ class Workpiece:
         new.__dict__["mesh"] = mesh
         return new
 
-    def to_unit(self, values, power: int = 1) -> np.ndarray:
-        """Plane coordinates (or lengths, ``power=1``; areas, ``power=2``) at unit size."""
-        return self.scale.down(values, power)
-
-    def from_unit(self, values, power: int = 1, what: str = "the result") -> np.ndarray:
-        """Unit-size values back at the file's scale."""
-        return self.scale.up(values, power, what=what)
-
-    def with_target(self, cells: CellMesh) -> tuple["Workpiece", "Workpiece"]:
-        """This workpiece and that of ``cells`` (the same vertices, in this plane: a
-        morph's target) at one unit scale for both; the target in this frame."""
+    def target(self, cells: CellMesh) -> "Workpiece":
+        """The workpiece of ``cells`` (the same vertices, in this plane: a morph's target)
+        in this frame."""
         plane = self.plane_coordinates(cells.points, cells.source or "the target")
-        s = unit_scale(self.plane, plane)
-        return replace(self, scale=s), Workpiece(cells, plane, self.frame, s)
+        return Workpiece(cells, plane, self.frame)
 
     def with_file_points(self, points) -> "Workpiece":
         """The workpiece with its file's vertices at ``points`` (the same vertices, moved
@@ -121,36 +104,22 @@ class Workpiece:
         """
         p = _pad(np.asarray(points, dtype=np.float64), self.cells.points.shape[1])
         plane = self.plane_coordinates(p)
-        return Workpiece(replace(self.cells, points=p), plane, self.frame, self.scale)
-
-    def at_file_scale(self) -> "Workpiece":
-        """This workpiece with :attr:`mesh` at the file's scale."""
-        return self if self.scale.is_identity else replace(self, scale=UnitScale(0))
-
-    def rescaled(self) -> "Workpiece":
-        """This workpiece at the unit scale of its current points."""
-        s = unit_scale(self.plane)
-        return self if s == self.scale else replace(self, scale=s)
+        return Workpiece(replace(self.cells, points=p), plane, self.frame)
 
     # -- the working mesh -------------------------------------------------------------
     @cached_property
     def mesh(self) -> PlanarMesh:
-        """The triangles, lines and physical tags at unit size, in plane coordinates."""
+        """The triangles, lines and physical tags in plane coordinates."""
         cm = self.cells
         # the vertex cells and data stay in ``cells`` (the working mesh has no place for them)
         keep = [i for i, (t, _) in enumerate(cm.cells) if t != "vertex"]
         phys = cm.cell_data.get(PHYSICAL)
         data = {} if phys is None else {PHYSICAL: [phys[i] for i in keep]}
-        flat = CellMesh(self.scale.down(self.plane), [cm.cells[i] for i in keep],
+        flat = CellMesh(self.plane, [cm.cells[i] for i in keep],
                         cell_data=data, field_data=cm.field_data, source=cm.source)
         mesh = flat.to_triangle_mesh()
         assert isinstance(mesh, PlanarMesh)  # 2D points
         return mesh
-
-    @property
-    def user_mesh(self) -> PlanarMesh:
-        """:attr:`mesh` at the file's scale (plane coordinates)."""
-        return self.mesh.with_points(self.plane)
 
     def file_mesh(self) -> TriangleMesh:
         """The triangle mesh in file coordinates (a PlanarMesh where z is dropped exactly)."""
@@ -162,19 +131,18 @@ class Workpiece:
         return TriangleMesh(pts, m.triangles, **kw)
 
     # -- out --------------------------------------------------------------------------
-    def moved(self, points, *, what: str = "the result") -> "Workpiece":
-        """The workpiece with the working mesh's vertices at ``points`` (unit size).
+    def moved(self, points) -> "Workpiece":
+        """The workpiece with the working mesh's vertices at ``points``.
 
         A vertex whose plane coordinates come back bit for bit keeps its file
         coordinates; the others are mapped into the plane.
         """
         q = new_points(points, self.plane.shape)
-        # compared at unit size: scaling is exact except for subnormal numbers
-        moved = ~(q == self.scale.down(self.plane)).all(axis=1)
+        moved = ~(q == self.plane).all(axis=1)
         plane = np.array(self.plane, copy=True)
         pts = np.array(self.cells.points, dtype=np.float64, copy=True)
         if moved.any():
-            plane[moved] = self.scale.up(q[moved], what=what)
+            plane[moved] = q[moved]
             pts[moved] = self._to_file(plane[moved])
         new = replace(self, cells=replace(self.cells, points=pts), plane=plane)
         new.__dict__["mesh"] = self.mesh.with_points(q)
@@ -244,10 +212,9 @@ class Workpiece:
         """
         fine = self.mesh.refine()
         n = self.mesh.n_vertices
-        plane = np.vstack([self.plane, self.scale.up(fine.points[n:])])
+        plane = np.vstack([self.plane, fine.points[n:]])
         pts = np.vstack([self.cells.points, self._to_file(plane[n:])])
-        return Workpiece(_refine_cells(self.cells, self.mesh, pts), plane, self.frame,
-                         self.scale)
+        return Workpiece(_refine_cells(self.cells, self.mesh, pts), plane, self.frame)
 
 
 def _refine_cells(cm: CellMesh, mesh: PlanarMesh, points: np.ndarray) -> CellMesh:

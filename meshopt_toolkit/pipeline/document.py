@@ -129,11 +129,11 @@ class MeshEntry:
             data = {}
         return {**data, **self.vertex_attributes}
 
-    def workpiece(self, what: str = "this filter", *, unit_size: bool = True,
-                  required: bool = True) -> Workpiece | None:
+    def workpiece(self, what: str = "this filter", *, required: bool = True
+                  ) -> Workpiece | None:
         """The mesh as a :class:`~meshopt_toolkit.io.workpiece.Workpiece` (its plane's
-        coordinates, at unit size unless ``unit_size`` is false), with the extras of its
-        file while the mesh keeps their triangles.
+        coordinates at the file's scale: the operations scale it themselves), with the
+        extras of its file while the mesh keeps their triangles.
 
         Raises
         ------
@@ -154,12 +154,12 @@ class MeshEntry:
                 if not _same_points(wp.cells.points, self.mesh.points):
                     wp = wp.with_file_points(self.mesh.points)  # moved by a MeshLab step
             else:
-                wp = Workpiece.from_mesh(self.mesh, unit_size=unit_size)
+                wp = Workpiece.from_mesh(self.mesh)
         except InvalidMeshError as exc:
             if not required:
                 return None
             raise FilterError(f"{what} needs a planar mesh; {self.name}: {exc}") from None
-        return wp.rescaled() if unit_size else wp.at_file_scale()
+        return wp
 
     def set_workpiece(self, wp: Workpiece) -> None:
         """Make ``wp`` this entry's mesh (in file coordinates) and its extras."""
@@ -237,7 +237,7 @@ def load_entry(path) -> MeshEntry:
             raise ReadError(str(exc)) from exc
     entry = MeshEntry(_as_best(triangle_mesh(cells)), name=name)
     if kind_of(entry.mesh) == PLANAR:
-        entry.set_workpiece(Workpiece.from_cells(cells, unit_size=False))
+        entry.set_workpiece(Workpiece.from_cells(cells))
     else:  # a surface in 3D: its file's blocks, tags and data kept beside it
         entry.source_cells = cells
     return entry

@@ -96,8 +96,7 @@ def test_constant_z_and_2d_points_are_worked_on_as_x_y_bit_for_bit(files):
     cm = load_cells(files / "plate_z2.vtu")
     wp = Workpiece.from_cells(cm)
     assert wp.frame is None and np.array_equal(wp.plane, cm.points[:, :2])
-    assert wp.scale.exponent == 2  # half-extent 3: the mesh is worked on divided by 4
-    assert np.array_equal(wp.from_unit(wp.mesh.points), cm.points[:, :2])
+    assert np.array_equal(wp.mesh.points, cm.points[:, :2])  # the file's scale
     back = wp.moved(wp.mesh.points).to_cells()
     _assert_same_extras(cm, back)
     flat = replace(cm, points=cm.points[:, :2].copy())
@@ -106,11 +105,9 @@ def test_constant_z_and_2d_points_are_worked_on_as_x_y_bit_for_bit(files):
 
 
 def test_subnormal_coordinates_come_back_bit_for_bit():
-    # scaling by a power of two loses bits of subnormal numbers: unmoved vertices are
-    # recognised at unit size and keep their file coordinates
     pts = np.array([[2.225e-313, 3.0, 1.0], [3.0, 0.0, 1.0], [0.0, -3.0, 1.0]])
     wp = Workpiece.from_cells(CellMesh(pts, [("triangle", np.array([[0, 1, 2]]))]))
-    assert wp.scale.exponent == 2 and wp.mesh.points[0, 0] * 4 != pts[0, 0]  # bits lost
+    assert np.array_equal(wp.mesh.points, pts[:, :2])
     assert np.array_equal(wp.moved(wp.mesh.points).cells.points, pts)
 
 
@@ -122,7 +119,7 @@ def test_a_moved_vertex_of_a_constant_z_plate_keeps_its_z(files):
     out = wp.moved(q).cells.points
     assert np.all(out[:, 2] == 2.0)
     assert np.array_equal(out[1:], cm.points[1:])
-    assert np.array_equal(out[0, :2], wp.from_unit(q[0]))
+    assert np.array_equal(out[0, :2], q[0])
 
 
 def test_points_off_every_plane_are_refused_with_the_one_tolerance():

@@ -142,7 +142,7 @@ def test_moves_at_1e300_keep_their_quality(name, scale):
     q, q_unit = result.summary()[key], unit.summary()[key]
     # tets and planar meshes follow any scale to rounding; the surface solver's result
     # moves with rounding-level changes of its input
-    # (test_operation_scale_covariance.test_a_surface_move_is_scale_covariant_at_powers_of_ten)
+    # (test_operation_scale_covariance.test_every_operation_is_scale_covariant, 1e12)
     assert q == pytest.approx(q_unit, rel=1e-9 if name != "surface" else 2e-2)
     assert np.isfinite(np.asarray(result.mesh.points)).all()
 
@@ -163,9 +163,18 @@ def _planar_morph(scale: float):
                     DISC.with_points(DISC.points * [1.3, 0.8] * scale), frames=4)
 
 
+def _complete_morph(scale: float):
+    return mt.morph(DISC.with_points(DISC.points * scale),
+                    DISC.with_points(DISC.points * [1.3, 0.8] * scale), frames=3,
+                    metric="complete")
+
+
+# the complete morph's summary holds areas: those of the unit-size problem (at 1e300 the
+# user's would be past the float range, at 1e-300 below it)
 MORPHS = {"tets": (_tet_morph, "min_mean_ratio"),
           "surface": (_surface_morph, "worst_relative_quality"),
-          "planar": (_planar_morph, "min_aspect_ratio")}
+          "planar": (_planar_morph, "min_aspect_ratio"),
+          "planar complete": (_complete_morph, "linear_min_area")}
 UNIT_MORPHS = {name: morph(1.0) for name, (morph, _) in MORPHS.items()}
 
 

@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from cli_helpers import timeless
 
-from meshopt_toolkit import data_path
+from meshopt_toolkit import data_path, strict_json
 from meshopt_toolkit.cli import main
 from meshopt_toolkit.errors import InvalidMeshError
 from meshopt_toolkit.io import load, save
@@ -125,7 +126,7 @@ def test_deform_morph_move_work_at_any_scale(tmp_path, capsys, factor):
         m = DISC.with_points(s.down(got[:, :2]))
         assert (m.signed_areas() > 0).all(), name
     summary = json.loads((big / "morph" / "summary.json").read_text())
-    both = unit_scale(load(big / "m.msh"), load(big / "t.msh"))  # one scale for both ends
+    both = size_scale(load(big / "m.msh"), load(big / "t.msh"))  # one scale for both ends
     assert summary["unit_scale"] == both.factor and summary["admissible"]
     assert "error" not in capsys.readouterr().err
 
@@ -167,6 +168,51 @@ def test_cli_move_is_the_library_call_on_the_files_mesh(tmp_path, capsys, factor
     summary = json.loads(capsys.readouterr().out)
     assert summary["handle_error"] == ref.handle_error  # in the file's units
     assert summary["similarity"]["shift"] == [ref.similarity.shift.real, ref.similarity.shift.imag]
+
+
+# the command hands the files' meshes to mt.morph, which alone works at unit size: its
+# frames and summary are mt.morph's on the meshes read from the files, bit for bit
+@pytest.mark.parametrize("metric", ["distortion", "scalar"])
+@pytest.mark.parametrize("factor", [3.7, 1e300, 1e-300])
+def test_cli_morph_is_the_library_call_on_the_files_mesh(tmp_path, capsys, factor, metric):
+    import meshopt_toolkit as mt
+
+    d = _scaled_files(tmp_path, factor)
+    assert main(["morph", str(d / "m.msh"), str(d / "t.msh"), "--frames", "3", "--no-plots",
+                 "--metric", metric, "--json", "-o", str(d / "morph")]) == 0
+    source, target = load(d / "m.msh").as_planar(), load(d / "t.msh").as_planar()
+    ref = mt.morph(source, target, 3, metric=metric)
+    for k in range(3):
+        got = load(d / "morph" / f"frame_00{k}.msh").points[:, :2]
+        assert np.array_equal(got, ref.frames[k].points), k
+    summary = timeless(json.loads(capsys.readouterr().out))
+    expected = timeless(json.loads(strict_json.dumps(ref.summary())))
+    assert summary["admissible"] and {**summary, **expected} == summary
+
+
+
+# the figures mark the inverted triangles by the signs of their areas, taken at unit size:
+# at 1e300 the areas overflow, at 1e-300 they underflow
+@pytest.mark.parametrize("factor", [1.0, 1e300, 1e-300])
+def test_the_figures_mark_the_inverted_triangles_at_any_scale(factor):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.collections import PolyCollection
+
+    from meshopt_toolkit.plotting import draw_mesh
+
+    points = DISC.points.copy()
+    inner = np.setdiff1d(np.arange(DISC.n_vertices), DISC.boundary_vertices)[0]
+    points[inner] = 0.5 * (points[inner] + DISC.points[DISC.boundary_vertices[0]]) * 3.0
+    inverted = DISC.with_points(points).signed_areas() <= 0
+    assert 0 < inverted.sum() < DISC.n_triangles
+    fig, ax = plt.subplots()
+    draw_mesh(ax, points * factor, DISC.triangles)
+    red = [c for c in ax.collections if isinstance(c, PolyCollection)]
+    plt.close(fig)
+    assert len(red) == 1 and len(red[0].get_paths()) == inverted.sum()
 
 
 @pytest.mark.parametrize("factor", [1e300, 1e-300])

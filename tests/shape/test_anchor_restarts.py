@@ -20,7 +20,7 @@ SPEC = dict(pde="elasticity", stress="outer=2,1,0", move="hole", keep_area=True)
 def plate(tmp_path_factory):
     path = ellipse_in_box(tmp_path_factory.mktemp("anchor") / "plate.msh", (0.5, 0.5), (8, 8),
                           2.0, refine_near=0.25)
-    return load_workpiece(path, "optimize", unit_size=False).mesh
+    return load_workpiece(path, "optimize").mesh
 
 
 def _single(mesh, monkeypatch, **kw):

@@ -141,7 +141,7 @@ def test_stokes_body_drag_decreases_with_area_and_barycenter_kept(body):
     from meshopt_toolkit.shape.constraints import barycenter, enclosed_measure
     from meshopt_toolkit.shape.spec import spec_from_options
 
-    mesh = load_workpiece(body, "optimize", unit_size=False).mesh
+    mesh = load_workpiece(body, "optimize").mesh
     spec = spec_from_options(pde="stokes", dirichlet=["body=1,0", "box=0,0"],
                              objective="dissipation", move="body", keep_area=True,
                              keep_barycenter=True)
@@ -222,6 +222,6 @@ def test_filter_runs_the_same_problem_as_the_library(plate):
     spec = spec_from_options(pde="elasticity", stress="outer=2,1,0", move="hole",
                              keep_area=True, material={"poisson_ratio": 0.25})
     expected = optimize(mesh, problem=spec, max_iterations=3, options=dict(tolerance=None))
-    moved = doc.current_entry.workpiece("test", unit_size=False).mesh.points
+    moved = doc.current_entry.workpiece("test").mesh.points
     assert np.allclose(moved, expected.x, rtol=0, atol=1e-12)
     assert not np.allclose(moved, mesh.points)

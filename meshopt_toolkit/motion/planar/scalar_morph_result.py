@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -49,6 +49,9 @@ class MorphResult:
     between_frames_min_area : (K − 1,) exact smallest signed area along the straight
         segment between consecutive frames (:func:`~.geometry.min_signed_areas_on_segment`):
         all positive means that linear in-betweening of the frames never inverts either
+    unit_scale : the size the ends were divided by (:func:`~meshopt_toolkit.scaling.size_scale`):
+        every area above is one of the unit-size problem (times ``unit_scale.factor**2``
+        at the user's scale, a number that may leave the floating-point range)
     """
 
     points: FloatArray
@@ -72,6 +75,7 @@ class MorphResult:
     metric_scale: float | None = None
     #: the source mesh: the frames carry its tags
     source: PlanarMesh | None = None
+    unit_scale: UnitScale = field(default_factory=UnitScale)
 
     @property
     def n_frames(self) -> int:
@@ -79,17 +83,11 @@ class MorphResult:
 
     def scaled_up(self, scale: UnitScale, source: PlanarMesh) -> MorphResult:
         """This morph of the meshes at unit size, at the user's scale: frames, the target
-        error, the areas and the user's ``source`` (the rest is scale-free, or the unit
-        problem's: ``length``)."""
-        def area(a):
-            return None if a is None else scale.up(a, power=2)
-
+        error and the user's ``source``; the areas stay the unit problem's, with ``scale``
+        as :attr:`unit_scale` (an area of a mesh near 1e300 is past the float range), the
+        rest is scale-free or the unit problem's (``length``)."""
         return replace(self, points=scale.up(self.points), source=source,
-                       target_error=float(scale.up(self.target_error)),
-                       min_area=area(self.min_area), linear_min_area=area(self.linear_min_area),
-                       linear_min_area_dense=float(area(self.linear_min_area_dense)),
-                       rigid_min_area=area(self.rigid_min_area),
-                       between_frames_min_area=area(self.between_frames_min_area))
+                       target_error=float(scale.up(self.target_error)), unit_scale=scale)
 
     @property
     def frames(self) -> list:
@@ -143,6 +141,7 @@ class MorphResult:
             "discrete_status": None if self.discrete is None else self.discrete.status,
             "status": self.status,
             "seconds": float(self.seconds),
+            "unit_scale": self.unit_scale.factor,
         }
 
 
