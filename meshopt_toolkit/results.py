@@ -16,7 +16,7 @@ Callbacks: ``progress(fraction)`` with ``fraction`` in [0, 1], for a progress ba
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Protocol, runtime_checkable
 
 __all__ = ["DoneMotion", "PathFrames", "PathIteration", "Result", "WrappedMotion"]
@@ -50,6 +50,13 @@ class PathFrames:
     ``status`` and the other fields of a discrete geodesic's frames (``nit``, ``energy``,
     ``gradient_norm``, ``initial_path``, ``seconds``, ``strain_bound``, ``similarity``, and
     the per-frame ``stats`` of the morph and of the ``linear`` interpolation)."""
+
+    def scaled_up(self, scale, source):
+        """This morph of the meshes at unit size, at the user's scale (a
+        :class:`~meshopt_toolkit.scaling.UnitScale`): frames, the similarity's centre and
+        shift and the user's ``source`` (the rest is scale-free)."""
+        return replace(self, points=scale.up(self.points), source=source,
+                       similarity=self.similarity.scaled_up(scale))
 
     def path_summary(self) -> dict:
         """The part of ``summary()`` that every distortion morph has."""

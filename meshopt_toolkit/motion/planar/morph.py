@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -26,7 +26,6 @@ from ...results import PathFrames
 from ...riemannian.discrete_geodesic import discrete_geodesic
 from ...riemannian.geodesic_result import DiscreteGeodesic
 from ...riemannian.path_options import LevenbergMarquardtOptions
-from ...scaling import UnitScale
 from ..engine.continuation import check_frames_and_weight
 from ..engine.similarity import HandlePath, Similarity, fit_similarity, handle_groups
 from .continuation import continuation_path
@@ -128,12 +127,6 @@ class DistortionMorph(PathFrames):
     @property
     def rigid_min_aspect_ratio(self) -> FloatArray:
         return self.rigid.min_aspect_ratio
-
-    def scaled_up(self, scale: UnitScale, source: PlanarMesh) -> DistortionMorph:
-        """This morph of the meshes at unit size, at the user's scale: frames, the
-        similarity's centre and shift and the user's ``source`` (the rest is scale-free)."""
-        return replace(self, points=scale.up(self.points), source=source,
-                       similarity=self.similarity.scaled_up(scale))
 
     def meshes(self, like: PlanarMesh | None = None) -> list[PlanarMesh]:
         """The frames as meshes (tags of ``like`` kept when given)."""

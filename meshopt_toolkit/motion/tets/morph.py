@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -36,7 +36,6 @@ from ...mesh.kinds import is_tets
 from ...results import PathFrames
 from ...riemannian.discrete_geodesic import discrete_geodesic
 from ...riemannian.path_options import LevenbergMarquardtOptions
-from ...scaling import UnitScale
 from ..engine.continuation import NoAdmissiblePathError, check_frames_and_weight, march
 from ..engine.handles import SelfIntersectionGuard
 from ..engine.similarity import HandlePath, Similarity3, fit_similarity_3d, handle_groups
@@ -116,12 +115,6 @@ class TetMorphResult(PathFrames):
     def frames(self) -> list[TetMesh]:
         """The frames as meshes with the source's tets and tags (first = source)."""
         return [self.source.with_points(p) for p in self.points]
-
-    def scaled_up(self, scale: UnitScale, source: TetMesh) -> TetMorphResult:
-        """This morph of the meshes at unit size, at the user's scale: frames, the
-        similarity's centre and shift and the user's ``source`` (the rest is scale-free)."""
-        return replace(self, points=scale.up(self.points), source=source,
-                       similarity=self.similarity.scaled_up(scale))
 
     @property
     def mesh(self) -> TetMesh:
