@@ -16,7 +16,7 @@ Callbacks: ``progress(fraction)`` with ``fraction`` in [0, 1], for a progress ba
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Protocol, runtime_checkable
 
 __all__ = ["DoneMotion", "PathFrames", "PathIteration", "Result", "WrappedMotion"]
@@ -24,19 +24,13 @@ __all__ = ["DoneMotion", "PathFrames", "PathIteration", "Result", "WrappedMotion
 
 @runtime_checkable
 class Result(Protocol):
-    """The result protocol of the public operations (module docstring)."""
+    """The result protocol of the public operations (module docstring): read-only
+    ``mesh``, ``frames``, ``seconds``, ``status`` and ``summary()``."""
 
-    @property
-    def mesh(self) -> Any: ...
-
-    @property
-    def frames(self) -> list: ...
-
-    @property
-    def seconds(self) -> float: ...
-
-    @property
-    def status(self) -> str: ...
+    mesh: Any
+    frames: list
+    seconds: float
+    status: str
 
     def summary(self) -> dict: ...
 
@@ -52,8 +46,27 @@ class PathIteration:
 
 
 class PathFrames:
-    """What a morph's result derives from its ``points`` (one array per frame) and its
-    ``status``."""
+    """What a morph's result derives from its ``points`` (one array per frame), its
+    ``status`` and the other fields of a discrete geodesic's frames (``nit``, ``energy``,
+    ``gradient_norm``, ``initial_path``, ``seconds``, ``strain_bound``, ``similarity``, and
+    the per-frame ``stats`` of the morph and of the ``linear`` interpolation)."""
+
+    def scaled_up(self, scale, source):
+        """This morph of the meshes at unit size, at the user's scale (a
+        :class:`~meshopt_toolkit.scaling.UnitScale`): frames, the similarity's centre and
+        shift and the user's ``source`` (the rest is scale-free)."""
+        return replace(self, points=scale.up(self.points), source=source,
+                       similarity=self.similarity.scaled_up(scale))
+
+    def path_summary(self) -> dict:
+        """The part of ``summary()`` that every distortion morph has."""
+        return {"status": self.status, "converged": self.converged,
+                "iterations": int(self.nit), "energy": float(self.energy),
+                "gradient_norm": float(self.gradient_norm), "initial_path": self.initial_path,
+                "seconds": float(self.seconds),
+                "strain_bound": [float(v) for v in self.strain_bound],
+                "similarity": self.similarity.as_dict(), "ours": self.stats.as_dict(),
+                "linear": self.linear.as_dict()}
 
     @property
     def converged(self) -> bool:
@@ -74,9 +87,25 @@ class DoneMotion:
         return "done"
 
 
+@dataclass
 class WrappedMotion(DoneMotion):
     """A mesh's motion around its solver's result ``motion`` (which has ``seconds`` and
-    ``summary()``)."""
+    ``summary()``): what :func:`meshopt_toolkit.move` returns for a mesh in space.
+
+    Attributes
+    ----------
+    mesh : the moved mesh's type
+        The moved mesh (same cells, tags and names), handles bitwise at their targets.
+    frames : list of meshes of that type
+        The motion (first = input, last = ``mesh``): ``frames`` meshes when asked for,
+        else the input and ``mesh``.
+    motion : the solver's result
+        Its points are those of the vertices in some cell, in order.
+    """
+
+    mesh: Any
+    frames: list
+    motion: Any
 
     seconds = property(lambda self: self.motion.seconds, doc="Wall time.")
 

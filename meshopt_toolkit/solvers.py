@@ -377,26 +377,31 @@ def v_cycle_precondition(ml) -> Solve:
     return precondition
 
 
-def amg_pcg_solve(A, ml, rtol: float, max_iterations: int = 500) -> Solve:
-    """``b ↦ x`` with ``‖b − Ax‖ ≤ rtol ‖b‖``: :func:`pcg` preconditioned by one V-cycle of
-    the pyamg hierarchy ``ml`` (built once for ``A``, reused for every right-hand side).
+def converged_pcg(A, b: FloatArray, precondition: Solve, rtol: float, max_iterations: int,
+                  what: str) -> FloatArray:
+    """:func:`pcg`'s ``x``, which must reach ``rtol`` (a linear solve, not an inexact step).
 
     Raises
     ------
     MeshoptError
-        When CG does not reach ``rtol`` within ``max_iterations`` iterations.
+        When CG does not reach ``rtol`` within ``max_iterations`` iterations (the message
+        names ``what`` was solved).
     """
+    x, iterations, residual = pcg(A, b, precondition, rtol, max_iterations)
+    if residual > rtol:
+        raise MeshoptError(f"{what} did not converge: relative residual {residual:.2e} > "
+                           f"{rtol:.1e} after {iterations} iterations")
+    logger.debug("%s: %d iterations, relative residual %.2e", what, iterations, residual)
+    return x
+
+
+def amg_pcg_solve(A, ml, rtol: float, max_iterations: int = 500) -> Solve:
+    """``b ↦ x`` with ``‖b − Ax‖ ≤ rtol ‖b‖``: :func:`converged_pcg` preconditioned by one
+    V-cycle of the pyamg hierarchy ``ml`` (built once for ``A``, reused for every
+    right-hand side); its error where CG does not converge."""
     precondition = v_cycle_precondition(ml)
-
-    def solve(b: FloatArray) -> FloatArray:
-        x, iterations, residual = pcg(A, b, precondition, rtol, max_iterations)
-        if residual > rtol:
-            raise MeshoptError(f"AMG-preconditioned CG did not converge: relative residual "
-                               f"{residual:.2e} > {rtol:.1e} after {iterations} iterations")
-        logger.debug("AMG-PCG: %d iterations, relative residual %.2e", iterations, residual)
-        return x
-
-    return solve
+    return lambda b: converged_pcg(A, b, precondition, rtol, max_iterations,
+                                   "AMG-preconditioned CG")
 
 
 def schur_complement_solve(primal_solve: Solve, B: sp.spmatrix, dual_precondition: Solve,
@@ -405,12 +410,8 @@ def schur_complement_solve(primal_solve: Solve, B: sp.spmatrix, dual_preconditio
     full row rank: :func:`pcg` on the Schur complement ``S = B A⁻¹ Bᵀ`` preconditioned by
     ``dual_precondition`` (an SPD ``r ↦ D⁻¹ r`` with ``D`` spectrally equivalent to ``S``:
     for Stokes the pressure mass over the viscosity), each product one solve with ``A``'s
-    factor ``primal_solve`` (:func:`factorize_spd`); then ``u = A⁻¹(f − Bᵀp)``.
-
-    Raises
-    ------
-    MeshoptError
-        When CG does not reach ``rtol`` within ``max_iterations`` iterations.
+    factor ``primal_solve`` (:func:`factorize_spd`); then ``u = A⁻¹(f − Bᵀp)``. The CG is
+    :func:`converged_pcg`, with its error where it does not converge.
     """
     from scipy.sparse.linalg import LinearOperator
 
@@ -421,13 +422,8 @@ def schur_complement_solve(primal_solve: Solve, B: sp.spmatrix, dual_preconditio
 
     def solve(b: FloatArray) -> FloatArray:
         f, g = b[:n_primal], b[n_primal:]
-        p, iterations, residual = pcg(S, B @ primal_solve(f) - g, dual_precondition, rtol,
-                                      max_iterations)
-        if residual > rtol:
-            raise MeshoptError(f"CG on the Schur complement did not converge: relative "
-                               f"residual {residual:.2e} > {rtol:.1e} after {iterations} "
-                               f"iterations")
-        logger.debug("Schur complement CG: %d iterations", iterations)
+        p = converged_pcg(S, B @ primal_solve(f) - g, dual_precondition, rtol,
+                          max_iterations, "CG on the Schur complement")
         return np.concatenate([primal_solve(f - BT @ p), p])
 
     return solve

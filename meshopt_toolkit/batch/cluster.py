@@ -151,21 +151,17 @@ class DaskExecutor:
         self._task = client.submit(_identity, task, pure=False)
         self._max_bytes = getattr(task, "max_bytes", None)
         threads = sum(client.nthreads().values()) or 1
-        self._slots = slots or 2 * threads
+        self.slots = slots or 2 * threads  # the most payloads in flight
         self._wait = distributed.wait
         self._ids: dict = {}  # future key -> (id, future, payload)
         self._suspects: list = []  # (id, payload) that ended in KilledWorker once
         self._retried: set = set()
 
     @property
-    def slots(self) -> int:
-        return self._slots
-
-    @property
     def free(self) -> int:
         if self._suspects:  # drain, then retry the suspects one at a time
             return 0
-        return self._slots - len(self._ids)
+        return self.slots - len(self._ids)
 
     def submit(self, ident, payload) -> None:
         """Send one input (read here in bytes mode: an unreadable file raises OSError,

@@ -72,13 +72,11 @@ class WorkerCrash:
 class InlineExecutor:
     """Run each payload at once, in this process (``-j 1`` without isolation)."""
 
+    slots = 1  # the most payloads at once
+
     def __init__(self, task: Callable[[Any], Any]) -> None:
         self.task = task
         self._done: list = []
-
-    @property
-    def slots(self) -> int:
-        return 1
 
     @property
     def free(self) -> int:
@@ -214,19 +212,15 @@ class ProcessPool:
 
     def __init__(self, task, workers: int, *, single_thread: bool = True) -> None:
         self.task = task
-        self.workers = max(int(workers), 1)
+        self.slots = max(int(workers), 1)  # the most payloads at once: one per process
         self.single_thread = single_thread
         self._ctx = multiprocessing.get_context("spawn")
         self._idle: list[_Worker] = []
         self._busy: list[_Worker] = []
 
     @property
-    def slots(self) -> int:
-        return self.workers
-
-    @property
     def free(self) -> int:
-        return self.workers - len(self._busy)
+        return self.slots - len(self._busy)
 
     def submit(self, ident, payload) -> None:
         if self.free <= 0:

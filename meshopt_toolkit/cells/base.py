@@ -31,7 +31,11 @@ __all__ = ["CellDistortion", "CellKind", "SimplexKind", "lumped_mass", "scale_fr
 @runtime_checkable
 class CellDistortion(Protocol):
     """A per-cell distortion ``φ(Q)`` (C, m) relative to a reference, with its Jacobian
-    blocks (C, m, k·d): block ``[c, i, d·j + a]`` is ``∂φ_ci / ∂Q[cells[c, j], a]``."""
+    blocks (C, m, k·d): block ``[c, i, d·j + a]`` is ``∂φ_ci / ∂Q[cells[c, j], a]``.
+
+    Every distortion is made as ``Distortion(reference, cells)`` from the node positions
+    ``reference`` (N, d) float at which ``φ = 0`` and the cells (C, k) int; each one names
+    what its reference cells must be (a :class:`CellKind`'s ``distortion`` makes it)."""
 
     n_components: int
 
@@ -40,15 +44,21 @@ class CellDistortion(Protocol):
     def values_and_jacobian(self, Q: FloatArray) -> tuple[FloatArray, FloatArray]: ...
 
 
-@runtime_checkable
-class CellKind(Protocol):
-    """A kind of simplicial cell (triangles in the plane, triangles in space,
-    tetrahedra). Points are ``(N, point_dimension)``, cells ``(C, simplex_size)`` ints."""
+class KindSizes(Protocol):
+    """The name and sizes of a kind of simplicial cell: points are
+    ``(N, point_dimension)``, cells ``(C, simplex_size)`` ints of dimension
+    ``cell_dimension``."""
 
     name: str
     point_dimension: int
     cell_dimension: int
     simplex_size: int
+
+
+@runtime_checkable
+class CellKind(KindSizes, Protocol):
+    """A kind of simplicial cell (triangles in the plane, triangles in space,
+    tetrahedra)."""
 
     def measures(self, points: FloatArray, cells: IntArray) -> FloatArray: ...
 
@@ -117,15 +127,11 @@ def lumped_mass(points: FloatArray, cells: IntArray) -> FloatArray:
     return scale_free_mass(points, cells, measures)
 
 
-class SimplexKind:
+class SimplexKind(KindSizes):
     """What every simplicial kind computes the same way from its own measures and rest
-    coordinates (a kind subclasses it, names its kernels and distortion, and supplies
-    the rest of :class:`CellKind`)."""
+    coordinates (a kind subclasses it, sets its sizes, names its kernels and distortion,
+    and supplies the rest of :class:`CellKind`)."""
 
-    name: str
-    point_dimension: int
-    cell_dimension: int
-    simplex_size: int
     #: ``(points, cells) -> (C,)``: the kind's measure and quality kernels
     measure_kernel: Callable[[FloatArray, IntArray], FloatArray]
     quality_kernel: Callable[[FloatArray, IntArray], FloatArray]

@@ -63,9 +63,14 @@ class CachedPoisson(CachedObjective):
     """A Poisson objective: its state has the nodal state ``.y``, the mass weights ``.m``,
     the ``.solver`` of the stiffness matrix and the adjoint ``.p`` (None until asked)."""
 
-    def _adjoint_load(self, s) -> FloatArray:
-        """``∂j/∂y`` at the state ``s``."""
+    def _target(self, Q: FloatArray) -> FloatArray | None:
+        """The tracking target ``y_d`` at the nodes ``(N,)``; None for ``j = ∫y``."""
         raise NotImplementedError
+
+    def _adjoint_load(self, s) -> FloatArray:
+        """``∂j/∂y`` at the state ``s``: ``m`` for ``∫y``, ``m (y − y_d)`` for tracking."""
+        yd = self._target(s.Q)
+        return s.m if yd is None else tracking_terms(s.m, s.y, yd)[1]
 
     def _adjoint(self, s) -> FloatArray:
         if s.p is None:

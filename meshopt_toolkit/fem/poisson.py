@@ -272,21 +272,16 @@ class PoissonObjective(CachedPoisson):
             y = solver.solve(b - K @ self._lift) + self._lift  # y = g_D on Dirichlet nodes
         else:
             y = solver.solve(b)
-        value = poisson_value(m, y, None if self.tracking_text is None else self._yd_at(Q))
+        value = poisson_value(m, y, self._target(Q))
         return _State(Q.copy(), solver, xi, r, m, y, value)
 
-    def _yd_at(self, Q: FloatArray) -> FloatArray:
-        """``y_d`` at the nodes ``(N,)``."""
+    def _target(self, Q: FloatArray) -> FloatArray | None:
+        if self.tracking_text is None:
+            return None
         yd = np.asarray(self._yd(Q), dtype=float)
         if yd.shape != (len(Q),) or not np.isfinite(yd).all():
             raise ExpressionError("the tracking target is not finite (or not one value per node)")
         return yd
-
-    def _adjoint_load(self, s: _State) -> FloatArray:
-        """``∂j/∂y``: ``m`` for ``∫y``, ``m (y − y_d)`` for tracking."""
-        if self.tracking_text is None:
-            return s.m
-        return tracking_terms(s.m, s.y, self._yd_at(s.Q))[1]
 
     def value_and_derivative(self, Q: FloatArray) -> tuple[float, FloatArray]:
         """``j(Q)`` and its exact derivative ``(N, 2)`` w.r.t. all nodes, (6.12)."""
@@ -294,7 +289,7 @@ class PoissonObjective(CachedPoisson):
         self._adjoint(s)
         z = None
         if self.tracking_text is not None:
-            z, weight = tracking_terms(s.m, s.y, self._yd_at(s.Q))
+            z, weight = tracking_terms(s.m, s.y, self._target(s.Q))
         g = fem.poisson_shape_derivative(
             s.Q, self.triangles, s.y, s.p, s.r, self._eval_grad_r(s.xi), mass_values=z
         )

@@ -164,14 +164,11 @@ class SimplexPoisson(CachedPoisson):
         if self._g is not None:
             lift[self._g_nodes] = self._g
         y = solver.solve(b - K @ lift) + lift
-        value = poisson_value(m, y, None if self.tracking is None else self.tracking(Q))
+        value = poisson_value(m, y, self._target(Q))
         return _State(Q, geo, solver, m, r, xi, y, value)
 
-    def _adjoint_load(self, s: _State) -> FloatArray:
-        """``∂j/∂y``: ``m`` for ``∫y``, ``m (y − y_d)`` for tracking."""
-        if self.tracking is None:
-            return s.m
-        return tracking_terms(s.m, s.y, self.tracking(s.Q))[1]
+    def _target(self, Q: FloatArray) -> FloatArray | None:
+        return None if self.tracking is None else self.tracking(Q)
 
     def derivative(self, Q: FloatArray) -> FloatArray:
         """Exact ``dj/dQ`` ``(N, d)``, every node included."""
@@ -179,7 +176,7 @@ class SimplexPoisson(CachedPoisson):
         p = self._adjoint(s)
         z = None
         if self.tracking is not None:
-            z, weight = tracking_terms(s.m, s.y, self.tracking(s.Q))
+            z, weight = tracking_terms(s.m, s.y, self._target(s.Q))
         g = poisson_node_gradient(s.geo, self.cells, s.y, p, s.r, self.rhs.gradient(s.xi), z)
         if self.tracking is not None:
             g -= weight[:, None] * self.tracking.gradient(s.Q)

@@ -23,6 +23,7 @@ from ..kernels.triangles import quality_summary, signed_areas
 from ..orientation import plane_embedding
 from .topology import (_clean_manifold, _corner_table, _edge_index, _frozen, _sorted_half_edges,
                        new_points)
+from .value import MeshValue
 
 sp = lazy_module("scipy.sparse")  # imported on first use: info/convert need no scipy
 
@@ -32,7 +33,7 @@ __all__ = ["PlanarMesh", "TriangleMesh"]
 _KEPT = ("triangle_tags", "lines", "line_tags", "tag_names", "source")
 
 
-class TriangleMesh:
+class TriangleMesh(MeshValue):
     """A readable triangle mesh: points ``(N, 2)`` or ``(N, 3)``, triangles ``(T, 3)``.
 
     Parameters
@@ -55,6 +56,8 @@ class TriangleMesh:
     InvalidMeshError
         Non-finite coordinates, indices out of range, wrong shapes, or no triangle.
     """
+
+    _cells, _count = "triangles", "n_triangles"  # repr and == (MeshValue)
 
     def __init__(
         self,
@@ -121,49 +124,21 @@ class TriangleMesh:
             self._line_tags = _frozen(lt)
         self._tag_names = dict(tag_names or {})
 
-    # -- plain data -----------------------------------------------------------------
-    @property
-    def points(self) -> FloatArray:
-        """Node positions, read-only ``(N, d)`` float64."""
-        return self._points
-
-    @property
-    def triangles(self) -> IntArray:
-        """Connectivity, read-only ``(T, 3)`` int64."""
-        return self._triangles
-
-    @property
-    def triangle_tags(self) -> IntArray | None:
-        """Physical tag per triangle ``(T,)``, or None."""
-        return self._triangle_tags
-
-    @property
-    def lines(self) -> IntArray | None:
-        """Tagged line elements ``(L, 2)``, or None."""
-        return self._lines
-
-    @property
-    def line_tags(self) -> IntArray | None:
-        """Physical tag per line element ``(L,)``, or None."""
-        return self._line_tags
-
-    @property
-    def tag_names(self) -> dict:
-        """``{name: (tag, dim)}`` physical names."""
-        return dict(self._tag_names)
-
-    @property
-    def source(self) -> str | None:
-        """The file this mesh was read from, if any."""
-        return self._source
-
-    @property
-    def n_vertices(self) -> int:
-        return len(self._points)
-
-    @property
-    def n_triangles(self) -> int:
-        return len(self._triangles)
+    # -- plain data (read-only views, the idiom of every mesh class) ---------------
+    points = property(lambda self: self._points,
+                      doc="Node positions, read-only ``(N, d)`` float64.")
+    triangles = property(lambda self: self._triangles,
+                         doc="Connectivity, read-only ``(T, 3)`` int64.")
+    triangle_tags = property(lambda self: self._triangle_tags,
+                             doc="Physical tag per triangle ``(T,)``, or None.")
+    lines = property(lambda self: self._lines, doc="Tagged line elements ``(L, 2)``, or None.")
+    line_tags = property(lambda self: self._line_tags,
+                         doc="Physical tag per line element ``(L,)``, or None.")
+    tag_names = property(lambda self: dict(self._tag_names),
+                         doc="``{name: (tag, dim)}`` physical names.")
+    source = property(lambda self: self._source, doc="The file this mesh was read from, if any.")
+    n_vertices = property(lambda self: len(self._points))
+    n_triangles = property(lambda self: len(self._triangles))
 
     @property
     def dim(self) -> int:
@@ -225,22 +200,6 @@ class TriangleMesh:
             return np.zeros(0, np.int64)
         return _edge_index(self.edges, key)
 
-    def __repr__(self) -> str:
-        name = type(self).__name__
-        src = f", source={self._source!r}" if self._source else ""
-        return f"{name}(n_vertices={self.n_vertices}, n_triangles={self.n_triangles}{src})"
-
-    def __eq__(self, other: object) -> bool:
-        if not isinstance(other, TriangleMesh):
-            return NotImplemented
-        return (
-            self._points.shape == other._points.shape
-            and np.array_equal(self._points, other._points)
-            and np.array_equal(self._triangles, other._triangles)
-        )
-
-    __hash__ = None  # type: ignore[assignment]
-
     # -- topology (cached) ----------------------------------------------------------
     @cached_property
     def _triangle_columns(self) -> IntArray:
@@ -291,25 +250,15 @@ class TriangleMesh:
         corners = _clean_manifold(self)
         return None if corners is None else _frozen(corners)
 
-    @property
-    def _edge_corners(self) -> IntArray:
-        """First two corners ``3 k + l`` containing each edge ``(E, 2)``; -1 if only one."""
-        return self._edge_data[3]
-
-    @property
-    def edges(self) -> IntArray:
-        """Unique undirected edges ``(E, 2)``, each sorted (i < j), lexicographic order."""
-        return self._edge_data[0]
-
-    @property
-    def triangle_edges(self) -> IntArray:
-        """Index into :attr:`edges` of the edge opposite each local vertex, ``(T, 3)``."""
-        return self._edge_data[1]
-
-    @property
-    def edge_triangle_counts(self) -> IntArray:
-        """Number of triangles containing each edge ``(E,)``."""
-        return self._edge_data[2]
+    # the parts of :attr:`_edge_data`
+    edges = property(lambda self: self._edge_data[0], doc="Unique undirected edges ``(E, 2)``, "
+                     "each sorted (i < j), lexicographic order.")
+    triangle_edges = property(lambda self: self._edge_data[1], doc="Index into :attr:`edges` "
+                              "of the edge opposite each local vertex, ``(T, 3)``.")
+    edge_triangle_counts = property(lambda self: self._edge_data[2],
+                                    doc="Number of triangles containing each edge ``(E,)``.")
+    _edge_corners = property(lambda self: self._edge_data[3], doc="First two corners "
+                             "``3 k + l`` containing each edge ``(E, 2)``; -1 if only one.")
 
     @cached_property
     def boundary_edges(self) -> IntArray:

@@ -19,6 +19,7 @@ from ..kernels.surface import area_vectors, aspect_ratios, degenerate_triangles,
 from ..orientation import component_labels, orient_components
 from .core import TriangleMesh
 from .topology import _frozen
+from .value import MeshValue
 
 __all__ = ["SurfaceMesh"]
 
@@ -32,7 +33,7 @@ def listed(indices, shown: int = SHOWN) -> str:
     return ", ".join(idx) + (", ..." if np.size(indices) > shown else "")
 
 
-class SurfaceMesh:
+class SurfaceMesh(MeshValue):
     """A triangle surface in 3D ``SurfaceMesh(points, triangles)``.
 
     Parameters
@@ -48,6 +49,8 @@ class SurfaceMesh:
     InvalidMeshError
         The readable checks of :class:`~meshopt_toolkit.mesh.TriangleMesh` fail.
     """
+
+    _cells, _count = "triangles", "n_triangles"  # repr and == (MeshValue)
 
     def __init__(self, points, triangles, *, triangle_tags=None, lines=None, line_tags=None,
                  tag_names: dict | None = None, source: str | None = None) -> None:
@@ -93,17 +96,6 @@ class SurfaceMesh:
     edge_triangle_counts = property(lambda self: self._mesh.edge_triangle_counts)
     boundary_edges = property(lambda self: self._mesh.boundary_edges,
                               doc="Edges of one triangle ``(B, 2)``, directed as in it.")
-
-    def __repr__(self) -> str:
-        src = f", source={self.source!r}" if self.source else ""
-        return f"SurfaceMesh(n_vertices={self.n_vertices}, n_triangles={self.n_triangles}{src})"
-
-    def __eq__(self, other: object) -> bool:
-        if not isinstance(other, SurfaceMesh):
-            return NotImplemented
-        return self._mesh == other._mesh
-
-    __hash__ = None  # type: ignore[assignment]
 
     # -- topology (cached) ----------------------------------------------------------
     @cached_property

@@ -24,16 +24,12 @@ _csgraph = lazy_module("scipy.sparse.csgraph")
 
 
 class MeshTables(Protocol):
-    """What the fan walk and the manifold test read of a mesh (a ``TriangleMesh`` has it)."""
+    """What the fan walk and the manifold test read of a mesh (a ``TriangleMesh`` has it):
+    read-only ``triangles``, ``n_vertices`` and ``_edge_corners``."""
 
-    @property
-    def triangles(self) -> IntArray: ...
-
-    @property
-    def n_vertices(self) -> int: ...
-
-    @property
-    def _edge_corners(self) -> IntArray: ...
+    triangles: IntArray
+    n_vertices: int
+    _edge_corners: IntArray
 
 
 def new_points(points, shape: tuple[int, ...]) -> FloatArray:

@@ -21,6 +21,7 @@ from ..kernels.tetrahedra import (TET_FACES, mean_ratios, orientations, signed_v
                                   tet_quality_summary)
 from .surface import SurfaceMesh, listed
 from .topology import _frozen, new_points
+from .value import MeshValue
 
 __all__ = ["TetMesh"]
 
@@ -54,7 +55,7 @@ def _tags(values, m: int, name: str, where: str, default_zero: bool = False):
     return _frozen(t)
 
 
-class TetMesh:
+class TetMesh(MeshValue):
     """A tetrahedral mesh ``TetMesh(points, tets)``.
 
     Parameters
@@ -76,6 +77,8 @@ class TetMesh:
         Points not ``(N, 3)`` or not finite, indices out of range, wrong shapes, no
         tetrahedron.
     """
+
+    _cells, _count = "tets", "n_tets"  # repr and == (MeshValue)
 
     def __init__(self, points, tets, *, tet_tags=None, triangles=None, triangle_tags=None,
                  lines=None, line_tags=None, tag_names: dict | None = None,
@@ -111,19 +114,6 @@ class TetMesh:
     source = property(lambda self: self._source, doc="The file it was read from.")
     n_vertices = property(lambda self: len(self._points))
     n_tets = property(lambda self: len(self._tets))
-
-    def __repr__(self) -> str:
-        src = f", source={self._source!r}" if self._source else ""
-        return f"TetMesh(n_vertices={self.n_vertices}, n_tets={self.n_tets}{src})"
-
-    def __eq__(self, other: object) -> bool:
-        if not isinstance(other, TetMesh):
-            return NotImplemented
-        return (self._points.shape == other._points.shape
-                and np.array_equal(self._points, other._points)
-                and np.array_equal(self._tets, other._tets))
-
-    __hash__ = None  # type: ignore[assignment]
 
     def with_points(self, points) -> TetMesh:
         """A new mesh with the same cells and tags at new positions ``(N, 3)``."""

@@ -89,9 +89,7 @@ class MoveResult(DoneMotion):
             "min_aspect_ratio_per_frame": [float(v) for v in self.min_aspect_ratio],
             "handle_error": float(self.handle_error),
             "seconds": float(self.seconds),
-            "similarity": {"angle_degrees": float(np.degrees(self.similarity.angle)),
-                           "scale": float(np.exp(self.similarity.log_scale)),
-                           "shift": [self.similarity.shift.real, self.similarity.shift.imag]},
+            "similarity": self.similarity.as_dict(),
             **self.details,
         }
 

@@ -149,6 +149,14 @@ def _inside(path: str, root: str) -> bool:
     return path == root or path.startswith(root.rstrip(os.sep) + os.sep)
 
 
+def _expanded(document: Document, template: str, to_path) -> Path:
+    """``to_path`` of ``template`` with the run's variables; a :class:`ResolvedPath`
+    (made by the runner) as it is."""
+    if isinstance(template, ResolvedPath):
+        return Path(template)
+    return to_path(expand_template(template, template_variables(document)))
+
+
 def resolve_output(document: Document, template: str) -> Path:
     """The confined output path for ``template`` (relative to the output directory).
 
@@ -161,12 +169,12 @@ def resolve_output(document: Document, template: str) -> Path:
         outside the output directory.
     """
     root = _output_root(document)
-    if isinstance(template, ResolvedPath):
-        path = Path(template)
-    else:
-        text = expand_template(template, template_variables(document))
+
+    def inside_root(text: str) -> Path:
         _check_relative(text, template)
-        path = root / text
+        return root / text
+
+    path = _expanded(document, template, inside_root)
     real_root = os.path.realpath(root)
     real = os.path.realpath(path)
     if not _inside(real, real_root):
@@ -190,15 +198,15 @@ def resolve_input(document: Document, template: str) -> Path:
         Bad template, or a file that is neither an input of the run nor inside a path
         given with ``--allow-read`` (symlinks are followed before deciding).
     """
-    if isinstance(template, ResolvedPath):
-        path = Path(template)
-    else:
-        text = expand_template(template, template_variables(document))
+    def from_input_dir(text: str) -> Path:
         if not text.strip():
             raise FilterError(f"input path {template!r} is empty")
         path = Path(text)
         if not path.is_absolute() and document.variables.get("input_dir"):
             path = Path(document.variables["input_dir"]) / path
+        return path
+
+    path = _expanded(document, template, from_input_dir)
     if document.allow_read is None:  # a document made in Python: the program decides
         return path
     real = os.path.realpath(path)

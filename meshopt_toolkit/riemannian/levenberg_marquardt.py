@@ -21,7 +21,7 @@ from typing import Protocol
 import numpy as np
 
 from .._typing import FloatArray
-from ..errors import NotAdmissibleError
+from ..errors import NotAdmissibleError, OptionError
 from ..least_squares import STOP, damped_step, gain_ratio_damping, model_decrease
 from .geodesic_result import DiscreteGeodesic
 from .path_options import ENERGY_RESOLUTION, UNDAMPED, LevenbergMarquardtOptions
@@ -84,6 +84,16 @@ class PathModelMetric(Protocol):
         ``anchor`` replaces the embedding's metric-specific part at ``Q_0``. A
         :class:`LeastSquaresPath`, or a model with ``iteration_rules(frames, options)``
         (:class:`IterationRules`: the surface metric's)."""
+
+
+def require_interior_frames(free: np.ndarray, anchor: FloatArray | None, model: str) -> None:
+    """Refuse, for a path ``model`` that moves every vertex of the interior frames, a
+    ``free`` mask (K+1, N) that says otherwise or an ``anchor`` (:class:`OptionError`)."""
+    inner = np.zeros_like(free, dtype=bool)
+    inner[1:-1] = True
+    if anchor is not None or not np.array_equal(free, inner):
+        raise OptionError(f"the {model} path model moves every vertex of the interior "
+                          "frames and takes no anchor")
 
 
 def _length(r: FloatArray, K: int) -> float:

@@ -85,8 +85,15 @@ class ShapeProblem:
             return False
         if not np.all(signed_areas(Q, self.triangles) > 0):
             return False
+        return self._above_floor(Q)
+
+    #: the per-cell quality that :attr:`quality_floor` bounds from below
+    floor_quality = staticmethod(aspect_ratios)
+
+    def _above_floor(self, Q: FloatArray) -> bool:
+        """No :attr:`floor_quality` below the quality floor (always, without one)."""
         return self.quality_floor is None or \
-            aspect_ratios(Q, self.triangles).min() >= self.quality_floor
+            self.floor_quality(Q, self.triangles).min() >= self.quality_floor
 
     def values(self, Q: FloatArray) -> tuple[float, float]:
         """``(F, j)`` at ``Q``; ``(inf, inf)`` outside ``M+`` (counted in ``n_rejected``).

@@ -175,13 +175,14 @@ class TetShapeProblem(ShapeProblem):
     volume cubic as the straight-line step limit. ``triangles`` are the tets ``(C, 4)``,
     ``boundary_edges`` the boundary faces (unused: the tet kind finds them)."""
 
+    floor_quality = staticmethod(mean_ratios)
+
     def admissible(self, Q: FloatArray) -> bool:
         """Finite, every tet positively oriented (exact), the boundary free of
         self-intersections, the worst mean ratio at least the quality floor."""
         if TETRAHEDRA.admissibility_problem(Q, self.triangles) is not None:
             return False
-        return self.quality_floor is None or \
-            mean_ratios(Q, self.triangles).min() >= self.quality_floor
+        return self._above_floor(Q)
 
     def quality(self, Q: FloatArray) -> tuple[float, float]:
         """``(mean, worst)`` mean ratio of the tets."""

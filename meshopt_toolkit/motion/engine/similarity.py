@@ -75,6 +75,12 @@ class Similarity:
     def is_identity(self) -> bool:
         return self.shift == 0 and self.log_scale == 0 and self.angle == 0
 
+    def as_dict(self) -> dict:
+        """JSON-ready: ``angle_degrees``, ``scale`` and ``shift`` ``[x, y]``."""
+        return {"angle_degrees": float(np.degrees(self.angle)),
+                "scale": float(np.exp(self.log_scale)),
+                "shift": [self.shift.real, self.shift.imag]}
+
     def scaled_up(self, scale: UnitScale) -> Similarity:
         """This similarity of unit-size coordinates in the user's (centre and shift
         multiplied by ``scale.factor``; the angle and scale are the same)."""
@@ -143,6 +149,19 @@ class Similarity3:
     def is_identity(self) -> bool:
         return (not np.any(self.shift) and self.log_scale == 0.0
                 and not np.any(self.rotvec))
+
+    def as_dict(self) -> dict:
+        """JSON-ready: ``angle_degrees``, the unit rotation ``axis``, ``scale`` and
+        ``shift``."""
+        return {"angle_degrees": float(np.degrees(self.angle)),
+                "axis": (self.rotvec / (self.angle or 1.0)).tolist(),
+                "scale": float(np.exp(self.log_scale)), "shift": self.shift.tolist()}
+
+    def scaled_up(self, scale: UnitScale) -> Similarity3:
+        """This similarity of unit-size coordinates in the user's (centre and shift
+        scaled up; the rotation and scale are the same)."""
+        return Similarity3(scale.up(self.centre), scale.up(self.shift), self.log_scale,
+                           self.rotvec)
 
     def __call__(self, P: FloatArray) -> FloatArray:
         return self.centre + self.shift + (np.asarray(P, float) - self.centre) @ self.matrix.T

@@ -68,14 +68,9 @@ def wirtinger_coefficients(reference: FloatArray, triangles: IntArray) -> tuple[
 
 
 class TriangleDistortion:
-    """The per-triangle distortion ``φ(Q)`` (shape ``(T, 3)``) relative to a reference.
-
-    Parameters
-    ----------
-    reference : (N, 2) float array
-        Node positions at which ``φ = 0`` (counter-clockwise triangles).
-    triangles : (T, 3) int array
-    """
+    """The per-triangle distortion ``φ(Q)`` (shape ``(T, 3)``) relative to a reference:
+    the :class:`~meshopt_toolkit.cells.base.CellDistortion` of ``(reference, triangles)``,
+    reference (N, 2) with counter-clockwise triangles."""
 
     n_components = 3
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -26,7 +26,6 @@ from ...results import PathFrames
 from ...riemannian.discrete_geodesic import discrete_geodesic
 from ...riemannian.geodesic_result import DiscreteGeodesic
 from ...riemannian.path_options import LevenbergMarquardtOptions
-from ...scaling import UnitScale
 from ..engine.continuation import check_frames_and_weight
 from ..engine.similarity import HandlePath, Similarity, fit_similarity, handle_groups
 from .continuation import continuation_path
@@ -129,12 +128,6 @@ class DistortionMorph(PathFrames):
     def rigid_min_aspect_ratio(self) -> FloatArray:
         return self.rigid.min_aspect_ratio
 
-    def scaled_up(self, scale: UnitScale, source: PlanarMesh) -> DistortionMorph:
-        """This morph of the meshes at unit size, at the user's scale: frames, the
-        similarity's centre and shift and the user's ``source`` (the rest is scale-free)."""
-        return replace(self, points=scale.up(self.points), source=source,
-                       similarity=self.similarity.scaled_up(scale))
-
     def meshes(self, like: PlanarMesh | None = None) -> list[PlanarMesh]:
         """The frames as meshes (tags of ``like`` kept when given)."""
         if like is not None:
@@ -154,19 +147,7 @@ class DistortionMorph(PathFrames):
             "target_error": 0.0,
             "linear_inverts": bool((self.linear.inverted > 0).any()),
             "rigid_inverts": bool((self.rigid.inverted > 0).any()),
-            "status": self.status,
-            "converged": self.converged,
-            "gradient_norm": float(self.gradient_norm),
-            "energy": float(self.energy),
-            "iterations": int(self.nit),
-            "initial_path": self.initial_path,
-            "seconds": float(self.seconds),
-            "strain_bound": [float(v) for v in self.strain_bound],
-            "similarity": {"angle_degrees": float(np.degrees(self.similarity.angle)),
-                           "scale": float(np.exp(self.similarity.log_scale)),
-                           "shift": [self.similarity.shift.real, self.similarity.shift.imag]},
-            "ours": self.stats.as_dict(),
-            "linear": self.linear.as_dict(),
+            **self.path_summary(),
             "rigid": self.rigid.as_dict(),
             **self.details,
         }

@@ -43,13 +43,9 @@ HESS_D = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -2.0]])
 
 
 class SurfaceDistortion:
-    """The per-triangle membrane distortion ``φ(Q)`` (shape ``(T, 3)``) of a surface.
-
-    Parameters
-    ----------
-    reference : (N, 3) float array
-        Node positions at which ``φ = 0`` (no degenerate triangle).
-    triangles : (T, 3) int array
+    """The per-triangle membrane distortion ``φ(Q)`` (shape ``(T, 3)``) of a surface: the
+    :class:`~meshopt_toolkit.cells.base.CellDistortion` of ``(reference, triangles)``,
+    reference (N, 3).
 
     Raises
     ------

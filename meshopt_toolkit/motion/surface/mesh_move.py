@@ -14,37 +14,22 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...errors import InvalidMeshError
-from ...mesh import SurfaceMesh
 from ...mesh.kinds import is_surface
 from ...results import WrappedMotion
 from ...scaling import unit_scale
 from ..engine.handles import SolvedVertices, check_handles, distinct_handles
 from ..engine.pinned_cells import surface_targets_problem
-from .move import SurfaceMoveResult, move_surface
+from .move import move_surface
 
 __all__ = ["SurfaceMeshMoveResult", "move_surface_mesh"]
 
 
 @dataclass
 class SurfaceMeshMoveResult(WrappedMotion):
-    """What :func:`meshopt_toolkit.move` returns for a surface (the
-    :class:`~meshopt_toolkit.results.Result` protocol).
-
-    Attributes
-    ----------
-    mesh : SurfaceMesh
-        The moved surface (same triangles and tags), handles bitwise at their targets.
-    frames : list of SurfaceMesh
-        The motion (first = input, last = ``mesh``): ``frames`` meshes when asked for,
-        else the input and ``mesh``.
-    motion : SurfaceMoveResult
-        The solver's result (worst relative quality, folds, bound; its points are those
-        of the vertices in some triangle, in order).
-    """
-
-    mesh: SurfaceMesh
-    frames: list[SurfaceMesh]
-    motion: SurfaceMoveResult
+    """What :func:`meshopt_toolkit.move` returns for a surface: a
+    :class:`~meshopt_toolkit.results.WrappedMotion` of
+    :class:`~meshopt_toolkit.mesh.SurfaceMesh` frames around a
+    :class:`~.move.SurfaceMoveResult` (worst relative quality, folds, bound)."""
 
 
 def move_surface_mesh(mesh, handles, targets, *, frames: int | None = None, steps: int = 4,

@@ -15,8 +15,9 @@ import scipy.sparse as sp
 
 from ..._typing import FloatArray, IntArray
 from ...cells.base import lumped_mass
-from ...errors import NotAdmissibleError, OptionError
+from ...errors import NotAdmissibleError
 from ...riemannian.assembled import AssembledMetric
+from ...riemannian.levenberg_marquardt import require_interior_frames
 from .bending import ShellBending
 from .distortion import SurfaceDistortion
 from .path import SurfacePath, SurfacePathProblem
@@ -119,9 +120,5 @@ class SurfaceGraphMetric(AssembledMetric):
         :class:`OptionError` else). ``contact`` (in the place of the boundaries kept
         simple, a :class:`.morph_contact.PathContact` of a clean start): no frame, nor
         the straight motion between two frames, passes through the surface."""
-        inner = np.zeros_like(free, dtype=bool)
-        inner[1:-1] = True
-        if anchor is not None or not np.array_equal(free, inner):
-            raise OptionError("the surface path model moves every vertex of the interior "
-                              "frames and takes no anchor")
+        require_interior_frames(free, anchor, "surface")
         return SurfacePath(self, frames, contact)

@@ -60,13 +60,9 @@ def _mm(X: FloatArray, Y: FloatArray) -> FloatArray:
 
 
 class TetDistortion:
-    """The per-tet distortion ``φ(Q)`` (shape ``(C, 7)``) relative to a reference.
-
-    Parameters
-    ----------
-    reference : (N, 3) float array
-        Node positions at which ``φ = 0`` (every tet positively oriented).
-    tets : (C, 4) int array
+    """The per-tet distortion ``φ(Q)`` (shape ``(C, 7)``) relative to a reference: the
+    :class:`~meshopt_toolkit.cells.base.CellDistortion` of ``(reference, tets)``, reference
+    (N, 3).
 
     Raises
     ------

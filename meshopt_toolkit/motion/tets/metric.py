@@ -14,9 +14,10 @@ import scipy.sparse as sp
 
 from ..._typing import FloatArray, IntArray
 from ...cells.base import lumped_mass
-from ...errors import NotAdmissibleError, OptionError
+from ...errors import NotAdmissibleError
 from ...kernels.intersections3d import self_intersections
 from ...riemannian.assembled import AssembledMetric
+from ...riemannian.levenberg_marquardt import require_interior_frames
 from .distortion import TetDistortion
 from .path import TetPath
 
@@ -89,11 +90,7 @@ class TetGraphMetric(AssembledMetric):
         frames (:class:`.path.TetPath`; ``free`` must say so, and no ``anchor``:
         :class:`OptionError` else); with ``boundary_faces`` (F, 3) a frame whose faces
         intersect is not admissible."""
-        inner = np.zeros_like(free, dtype=bool)
-        inner[1:-1] = True
-        if anchor is not None or not np.array_equal(free, inner):
-            raise OptionError("the tet path model moves every vertex of the interior frames "
-                             "and takes no anchor")
+        require_interior_frames(free, anchor, "tet")
         faces = boundary_faces
         return TetPath(self, frames, None if faces is None else
                        lambda Q: bool(len(self_intersections(Q, faces))))

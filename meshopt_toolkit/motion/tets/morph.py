@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -36,7 +36,6 @@ from ...mesh.kinds import is_tets
 from ...results import PathFrames
 from ...riemannian.discrete_geodesic import discrete_geodesic
 from ...riemannian.path_options import LevenbergMarquardtOptions
-from ...scaling import UnitScale
 from ..engine.continuation import NoAdmissiblePathError, check_frames_and_weight, march
 from ..engine.handles import SelfIntersectionGuard
 from ..engine.similarity import HandlePath, Similarity3, fit_similarity_3d, handle_groups
@@ -117,14 +116,6 @@ class TetMorphResult(PathFrames):
         """The frames as meshes with the source's tets and tags (first = source)."""
         return [self.source.with_points(p) for p in self.points]
 
-    def scaled_up(self, scale: UnitScale, source: TetMesh) -> TetMorphResult:
-        """This morph of the meshes at unit size, at the user's scale: frames, the
-        similarity's centre and shift and the user's ``source`` (the rest is scale-free)."""
-        S = self.similarity
-        return replace(self, points=scale.up(self.points), source=source,
-                       similarity=Similarity3(scale.up(S.centre), scale.up(S.shift),
-                                              S.log_scale, S.rotvec))
-
     @property
     def mesh(self) -> TetMesh:
         """The last frame: the target's points, the source's tags."""
@@ -136,7 +127,6 @@ class TetMorphResult(PathFrames):
 
     def summary(self) -> dict:
         q = self.stats.min_mean_ratio
-        S = self.similarity
         return {
             "metric": "distortion",
             "cells": "tetrahedra",
@@ -146,19 +136,7 @@ class TetMorphResult(PathFrames):
             "worse_end_min_mean_ratio": float(min(q[0], q[-1])),
             "linear_inverts": bool((self.linear.inverted > 0).any()),
             "linear_min_mean_ratio": float(self.linear.min_mean_ratio.min()),
-            "status": self.status,
-            "converged": self.converged,
-            "iterations": int(self.nit),
-            "energy": float(self.energy),
-            "gradient_norm": float(self.gradient_norm),
-            "initial_path": self.initial_path,
-            "seconds": float(self.seconds),
-            "strain_bound": [float(v) for v in self.strain_bound],
-            "similarity": {"angle_degrees": float(np.degrees(S.angle)),
-                           "axis": (S.rotvec / (S.angle or 1.0)).tolist(),
-                           "scale": float(np.exp(S.log_scale)), "shift": S.shift.tolist()},
-            "ours": self.stats.as_dict(),
-            "linear": self.linear.as_dict(),
+            **self.path_summary(),
             **self.details,
         }
 

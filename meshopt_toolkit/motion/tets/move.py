@@ -101,22 +101,16 @@ class TetMoveResult:
             "handle_error": float(self.handle_error),
             "strain_bound": float(self.strain_bound),
             "seconds": float(self.seconds),
-            "similarity": {"angle_degrees": float(np.degrees(self.similarity.angle)),
-                           "axis": (self.similarity.rotvec / (self.similarity.angle or 1.0)
-                                    ).tolist(),
-                           "scale": float(np.exp(self.similarity.log_scale)),
-                           "shift": self.similarity.shift.tolist()},
+            "similarity": self.similarity.as_dict(),
             **self.details,
         }
 
     def scaled_up(self, scale: UnitScale) -> TetMoveResult:
         """This motion of the mesh at unit size, at the user's scale (points, frames, the
         similarity's centre and shift, the handle error; the rest is scale-free)."""
-        S = self.similarity
         return replace(
             self, points=scale.up(self.points), frames=[scale.up(F) for F in self.frames],
-            similarity=Similarity3(scale.up(S.centre), scale.up(S.shift), S.log_scale,
-                                   S.rotvec),
+            similarity=self.similarity.scaled_up(scale),
             handle_error=float(scale.up(self.handle_error)))
 
 
@@ -322,24 +316,9 @@ def _continuation(problem: Problem, P: FloatArray, h: IntArray, path: HandlePath
 
 @dataclass
 class TetMeshMoveResult(WrappedMotion):
-    """What :func:`meshopt_toolkit.move` returns for a :class:`~meshopt_toolkit.mesh.TetMesh`
-    (the :class:`~meshopt_toolkit.results.Result` protocol).
-
-    Attributes
-    ----------
-    mesh : TetMesh
-        The moved mesh (same tets, tags and names), handles bitwise at their targets.
-    frames : list of TetMesh
-        The motion (first = input, last = ``mesh``): ``frames`` meshes when asked for,
-        else the input and ``mesh``.
-    motion : TetMoveResult
-        The solver's result (per-frame ``min η``, similarity, strain bound; its points
-        are those of the vertices in some tet, in order).
-    """
-
-    mesh: TetMesh
-    frames: list[TetMesh]
-    motion: TetMoveResult
+    """What :func:`meshopt_toolkit.move` returns for a :class:`~meshopt_toolkit.mesh.TetMesh`:
+    a :class:`~meshopt_toolkit.results.WrappedMotion` of :class:`TetMesh` frames around a
+    :class:`TetMoveResult` (per-frame ``min η``, similarity, strain bound)."""
 
     points = property(lambda self: self.mesh.points, doc="The moved points ``(N, 3)``.")
     strain_bound = property(lambda self: self.motion.strain_bound, doc="See TetMoveResult.")
