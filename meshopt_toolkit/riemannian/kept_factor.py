@@ -1,14 +1,17 @@
 """When the elasticity metric factorizes a new iterate instead of solving by CG on the
 factor it keeps: :func:`refactorize_pays` on the operation counts of
-:class:`KeptFactorCosts` (docs/design-notes.md, "Elasticity metric at scale")."""
+:class:`KeptFactorCosts` (docs/design-notes.md, "Elasticity metric at scale"), and
+:class:`FactorOf`, a solve that stays its matrix's when the factor is refactorized in place."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from .._linalg import dot
+from .._typing import FloatArray
+from ..fem.elasticity import SPDSolve
 
-__all__ = ["KeptFactorCosts", "refactorize_pays"]
+__all__ = ["FactorOf", "KeptFactorCosts", "owned_factor", "refactorize_pays"]
 
 #: at the iterate after a factorization (no CG measured on it yet) the first kept
 #: iterate's CG cost of the last cycle that had one stands for it; a factorization made
@@ -96,3 +99,32 @@ class KeptFactorCosts:
         self.cycle_iterates += 1
         self.iterate_cost = 0.0
         return False
+
+
+class FactorOf:
+    """The direct solve of ``matrix`` by a CHOLMOD factor
+    (:class:`~meshopt_toolkit._cholmod.CholeskyFactor`) that the metric may refactorize
+    in place for a later ``Q``: a holder of this solve then gets a factor of its own
+    ``matrix`` (made once, in the same ordering), never another matrix's solution."""
+
+    def __init__(self, factor, matrix) -> None:
+        self.factor, self.matrix = factor, matrix
+        self.generation = factor.generation
+        self.column_counts = factor.column_counts
+        self._own = None
+
+    def __call__(self, b: FloatArray) -> FloatArray:
+        if self.factor.generation == self.generation:
+            return self.factor(b)
+        if self._own is None:
+            self._own = type(self.factor)(self.matrix, self.factor.ordering)
+        return self._own(b)
+
+
+def owned_factor(solve: SPDSolve) -> SPDSolve:
+    """``solve`` with a CHOLMOD factor wrapped in :class:`FactorOf` (others as they are)."""
+    if not (solve.method == "direct" and solve.precondition is solve.solve
+            and callable(getattr(solve.solve, "refactorize", None))):
+        return solve
+    return SPDSolve("direct", FactorOf(solve.solve, solve.matrix), solve.matrix,
+                    solve.solve)

@@ -46,7 +46,7 @@ from .._typing import FloatArray
 from ..fem.elasticity import (BlockPattern, SPDSolve, assemble, factorize, kept_ordering,
                              lame_parameters, solver_method)
 from ..solvers import SOLVERS, pcg
-from .kept_factor import KeptFactorCosts
+from .kept_factor import FactorOf, KeptFactorCosts, owned_factor
 from ..errors import InvalidMeshError, MeshoptError
 
 __all__ = [
@@ -195,39 +195,10 @@ def _block_submatrix(A: sp.bsr_matrix, keep: np.ndarray) -> sp.bsr_matrix:
     return sp.bsr_matrix(sub, blocksize=(2, 2))
 
 
-class _FactorOf:
-    """The direct solve of ``matrix`` by a CHOLMOD factor
-    (:class:`~meshopt_toolkit._cholmod.CholeskyFactor`) that the metric may refactorize
-    in place for a later ``Q``: a holder of this solve then gets a factor of its own
-    ``matrix`` (made once, in the same ordering), never another matrix's solution."""
-
-    def __init__(self, factor, matrix) -> None:
-        self.factor, self.matrix = factor, matrix
-        self.generation = factor.generation
-        self.column_counts = factor.column_counts
-        self._own = None
-
-    def __call__(self, b: FloatArray) -> FloatArray:
-        if self.factor.generation == self.generation:
-            return self.factor(b)
-        if self._own is None:
-            self._own = type(self.factor)(self.matrix, self.factor.ordering)
-        return self._own(b)
-
-
-def _owned(solve: SPDSolve) -> SPDSolve:
-    """``solve`` with a CHOLMOD factor wrapped in :class:`_FactorOf` (others as they are)."""
-    if not (solve.method == "direct" and solve.precondition is solve.solve
-            and callable(getattr(solve.solve, "refactorize", None))):
-        return solve
-    return SPDSolve("direct", _FactorOf(solve.solve, solve.matrix), solve.matrix,
-                    solve.solve)
-
-
 def _refactorizes(kept: SPDSolve, A) -> bool:
     """Whether ``kept``'s factor can factorize ``A`` on its own analysis: a CHOLMOD
-    factor (:class:`_FactorOf`) of a matrix of ``A``'s shape (one pattern per free mask)."""
-    return isinstance(kept.solve, _FactorOf) and kept.matrix.shape == A.shape
+    factor (:class:`FactorOf`) of a matrix of ``A``'s shape (one pattern per free mask)."""
+    return isinstance(kept.solve, FactorOf) and kept.matrix.shape == A.shape
 
 
 class ElasticityMetric:
@@ -344,12 +315,12 @@ class ElasticityMetric:
             method = solver_method(self.solver, A.shape[0])
             if kept is not None and _refactorizes(kept, A):
                 # the same pattern: the kept factor's analysis serves (numeric part only);
-                # solves handed out earlier stay those of their own matrix (_FactorOf)
+                # solves handed out earlier stay those of their own matrix (FactorOf)
                 factor = kept.solve.factor
                 factor.refactorize(A)
-                fresh = SPDSolve("direct", _FactorOf(factor, A), A, factor)
+                fresh = SPDSolve("direct", FactorOf(factor, A), A, factor)
             else:
-                fresh = _owned(factorize(A, points, method, rtol=self.rtol,
+                fresh = owned_factor(factorize(A, points, method, rtol=self.rtol,
                                          ordering=kept_ordering(self._orderings, key, A,
                                                                 points, method)))
             self.n_factorizations += 1

@@ -338,7 +338,7 @@ def test_elasticity_direct_solves_in_float32_from_a_size(mesh, rng, monkeypatch)
         if not cholmod:
             monkeypatch.setattr(elasticity, "SINGLE_PRECISION_MIN_DOFS", 10**9)
         exact_factor = ElasticityMetric(mesh, solver="direct")._solver(Q, None)
-        # double precision: the factor itself solves (behind the metric's ownership check)
+        # double precision: the factor itself solves (behind `kept_factor.FactorOf`)
         assert getattr(exact_factor.solve, "factor", exact_factor.solve) is exact_factor.precondition
         np.testing.assert_allclose(exact_factor.solve(P.ravel()), exact, rtol=0,
                                    atol=1e-12 * abs(exact).max())
