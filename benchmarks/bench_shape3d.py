@@ -14,8 +14,8 @@ Rows, all with the same solver and the same element sizes (``--size`` at the box
 * prolate spheroids of the sphere's volume, axis ratio ``a/b`` scanned, each meshed by
   gmsh from its exact geometry;
 * with ``--anchors pironneau``, bodies of the sphere's volume with the 60° conical ends of
-  Pironneau's optimum in unbounded flow (``_bodies3d.py``), length over width scanned
-  (``--anchor-aspects``), meshed the same way;
+  Pironneau's optimum in unbounded flow (``_bodies3d.py``), length over width and shoulder
+  scanned (``--anchor-aspects``, ``--anchor-shoulders``), meshed the same way;
 * the optimized body on the optimizer's own mesh (which it has also adapted to the flow).
 
 Every body is also *remeshed* (:func:`remesh`: its surface triangles reparametrized, the
@@ -150,14 +150,15 @@ def body_row(name: str, path: Path, work: Path, args) -> tuple:
 
 def anchor_rows(work: Path, args) -> list[tuple]:
     """The anchor bodies of ``--anchors``: Pironneau's ends (``_bodies3d.py``), length over
-    width scanned over ``--anchor-aspects``."""
+    width and shoulder scanned over ``--anchor-aspects`` × ``--anchor-shoulders``."""
     rows = []
     if "pironneau" in args.anchors:
         for a in args.anchor_aspects:
-            p = conical_profile(a)
-            rows.append(body_row(f"60° conical ends, length/width {a:g}",
-                                 conical_body_in_box(work / f"conical_{a}.msh", p,
-                                                     args.size, args.body_size), work, args))
+            for m in args.anchor_shoulders:
+                path = conical_body_in_box(work / f"conical_{a}_{m}.msh",
+                                           conical_profile(a, m), args.size, args.body_size)
+                rows.append(body_row(f"60° conical ends, length/width {a:g}"
+                                     + (f", shoulder {m:g}" if m else ""), path, work, args))
     return rows
 
 
@@ -245,6 +246,8 @@ def main() -> None:
                    "_bodies3d.py)")
     p.add_argument("--anchor-aspects", type=lambda s: [float(x) for x in s.split(",")],
                    default=[1.8, 2.0, 2.2], help="length over width of the anchor bodies")
+    p.add_argument("--anchor-shoulders", type=lambda s: [float(x) for x in s.split(",")],
+                   default=[0.0], help="their shoulder, c2 / (c0 + c1 + c2) (_bodies3d.py)")
     p.add_argument("--no-optimize", dest="optimize", action="store_false",
                    help="the spheroids and anchors only (--write: their own block)")
     p.add_argument("--peer", action="store_true",
