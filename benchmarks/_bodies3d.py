@@ -26,8 +26,7 @@ import numpy as np
 from numpy.polynomial import Polynomial
 from scipy.optimize import brentq
 
-from meshopt_toolkit.gmsh_session import gmsh_session
-from meshopt_toolkit.shape.cases import BOX_3D, mesh_body_in_box
+from meshopt_toolkit.shape.cases import solid_in_box
 
 TIP_HALF_ANGLE = 60.0  # degrees, Pironneau's ends
 
@@ -126,16 +125,10 @@ def conical_body_in_box(path, profile: ConicalProfile, size: float = 1.0,
                         body_size: float = 0.15) -> Path:
     """Tetrahedra of the ``8 × 6 × 6`` box around the body of revolution of ``profile``
     (axis ``x``, centred at the origin), meshed by
-    :func:`meshopt_toolkit.shape.cases.mesh_body_in_box` with the spheroids' sizes and
-    groups (``"body"``, ``"outer"``, ``"domain"``)."""
-    path = Path(path)
-    with gmsh_session() as gmsh:
-        gmsh.option.setNumber("General.NumThreads", 1)
-        gmsh.option.setNumber("Mesh.RandomSeed", 1)
-        gmsh.model.add("conical_body_in_box")
-        occ = gmsh.model.occ
-        lx, ly, lz = BOX_3D
-        box = occ.addBox(-lx / 2, -ly / 2, -lz / 2, lx, ly, lz)
+    :func:`meshopt_toolkit.shape.cases.solid_in_box` as the spheroids are: the same sizes
+    and groups (``"body"``, ``"outer"``, ``"domain"``)."""
+
+    def revolved(occ) -> list[tuple[int, int]]:
         poles = [occ.addPoint(x, r, 0.0) for x, r in profile.bezier_poles()]
         arc = occ.addBezier(poles)
         axis = occ.addLine(poles[-1], poles[0])
@@ -144,11 +137,6 @@ def conical_body_in_box(path, profile: ConicalProfile, size: float = 1.0,
                 if e[0] == 3]
         occ.remove([(2, face)], recursive=True)  # the generating face stays otherwise
         occ.remove([(0, p) for p in poles[1:-1]])  # the inner control points
-        occ.cut([(3, box)], body)
-        occ.synchronize()
-        inner, outer = [], []
-        for _, s in gmsh.model.getEntities(2):
-            centre = occ.getCenterOfMass(2, s)
-            (inner if max(map(abs, centre)) < 0.25 * min(BOX_3D) else outer).append(s)
-        mesh_body_in_box(gmsh, inner, outer, path, size, body_size)
-    return path
+        return body
+
+    return solid_in_box(path, revolved, size, body_size)
