@@ -241,13 +241,14 @@ def main() -> None:
     p.add_argument("--max-iterations", type=int, default=40)
     p.add_argument("--aspects", type=lambda s: [float(x) for x in s.split(",")],
                    default=[1.0, 1.5, 1.75, 2.0, 2.25, 2.5])
-    p.add_argument("--anchors", type=lambda s: s.split(","), default=[],
-                   help="anchor bodies besides the spheroids: pironneau (60° conical ends, "
-                   "_bodies3d.py)")
+    p.add_argument("--anchors", choices=["pironneau"], action="append", default=[],
+                   help="anchor bodies besides the spheroids: Pironneau's 60° conical ends "
+                   "(_bodies3d.py)")
     p.add_argument("--anchor-aspects", type=lambda s: [float(x) for x in s.split(",")],
                    default=[1.8, 2.0, 2.2], help="length over width of the anchor bodies")
     p.add_argument("--anchor-shoulders", type=lambda s: [float(x) for x in s.split(",")],
-                   default=[0.0], help="their shoulder, c2 / (c0 + c1 + c2) (_bodies3d.py)")
+                   default=[0.0], help="their shoulder, c2 / (c0 + c1 + c2) (_bodies3d.py; "
+                   "a list starting with a minus sign as --anchor-shoulders=-0.3,0)")
     p.add_argument("--no-optimize", dest="optimize", action="store_false",
                    help="the spheroids and anchors only (--write: their own block)")
     p.add_argument("--peer", action="store_true",
