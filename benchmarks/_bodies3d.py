@@ -2,8 +2,8 @@
 
 Among bodies of a given volume in unbounded Stokes flow, the one of least drag has a
 constant vorticity on its surface and conical ends of 120° (a half-angle of 60° with the
-axis; Pironneau, *J. Fluid Mech.* 59 (1973) 117–128); Bourot (*J. Fluid Mech.* 65 (1974)
-513–515) computed its profile, drag about 0.954 of the sphere's of the same volume. The
+axis; Pironneau, *J. Fluid Mech.* 59 (1973) 117–128); Bourot (*J. Fluid Mech.* 65, 1974)
+computed its profile, drag about 0.954 of the sphere's of the same volume. The
 profile itself is not tabulated here. The anchor is instead the family
 
     r(x) = (1 − u²)(c₀ + c₁ u² + c₂ u⁴),   u = x / h,   −h ≤ x ≤ h,
