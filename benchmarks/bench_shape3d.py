@@ -13,6 +13,9 @@ Rows, all with the same solver and the same element sizes (``--size`` at the box
 
 * prolate spheroids of the sphere's volume, axis ratio ``a/b`` scanned, each meshed by
   gmsh from its exact geometry;
+* with ``--anchors pironneau``, bodies of the sphere's volume with the 60° conical ends of
+  Pironneau's optimum in unbounded flow (``_bodies3d.py``), length over width and shoulder
+  scanned (``--anchor-aspects``, ``--anchor-shoulders``), meshed the same way;
 * the optimized body on the optimizer's own mesh (which it has also adapted to the flow).
 
 Every body is also *remeshed* (:func:`remesh`: its surface triangles reparametrized, the
@@ -28,6 +31,8 @@ the initial mesh, a fresh solver), printed at every iteration.
 
 Usage: python benchmarks/bench_shape3d.py [--size 1.0] [--body-size 0.15] [--remesh 0.8,0.1]
        [--max-iterations 40] [--aspects 1,1.5,1.75,2,2.25,2.5] [--peer] [--write]
+       python benchmarks/bench_shape3d.py --aspects 1,2.1 --anchors pironneau --no-optimize
+       (the spheroids and anchors only; ``--write`` puts them in their own block)
        python benchmarks/bench_shape3d.py --large   (about 26,000 tets: --size 0.6
        --body-size 0.07 --aspects 2.1 --max-iterations 10)
 """
@@ -43,6 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
+from _bodies3d import conical_body_in_box, conical_profile
 from _peers3d import dissipation_skfem3d
 from meshopt_toolkit.gmsh_session import gmsh_session
 from meshopt_toolkit.io import load_cells
@@ -55,7 +61,7 @@ from meshopt_toolkit.shape.spec import spec_from_options
 SPEC = dict(pde="stokes", dirichlet=["body=1,0,0", "outer=0,0,0"], objective="dissipation",
             move=["body"])
 DOC = Path(__file__).resolve().parents[1] / "docs" / "shape-optimization.md"
-BEGIN, END = "<!-- bench_shape3d: begin -->", "<!-- bench_shape3d: end -->"
+BLOCKS = {True: "bench_shape3d", False: "bench_shape3d anchors"}  # by --optimize
 
 
 def drag(mesh) -> tuple[float, float]:
@@ -130,17 +136,52 @@ def tip_angles(mesh, Q, reach: float = 0.1) -> tuple[float, float]:
     return angles[0], angles[1]
 
 
+def body_row(name: str, path: Path, work: Path, args) -> tuple:
+    """``(name, tets, drag, tets remeshed, drag remeshed, scikit-fem remeshed)`` of the gmsh
+    mesh in ``path``, printed."""
+    m = tets(path)
+    remeshed = remesh(m, work / f"{path.stem}_remeshed.msh", *args.remesh)
+    r = tets(remeshed)
+    (j, s), jr, jp = drag(m), drag(r)[0], peer(remeshed, args.peer)
+    print(f"{name}: {m.n_tets} tets, drag {j:.5f} ({s:.1f} s), remeshed {jr:.5f}"
+          f" (scikit-fem {jp:.5f})", flush=True)
+    return name, m.n_tets, j, r.n_tets, jr, jp
+
+
+def anchor_rows(work: Path, args) -> list[tuple]:
+    """The anchor bodies of ``--anchors``: Pironneau's ends (``_bodies3d.py``), length over
+    width and shoulder scanned over ``--anchor-aspects`` × ``--anchor-shoulders``."""
+    rows = []
+    if "pironneau" in args.anchors:
+        for a in args.anchor_aspects:
+            for m in args.anchor_shoulders:
+                path = conical_body_in_box(work / f"conical_{a}_{m}.msh",
+                                           conical_profile(a, m), args.size, args.body_size)
+                rows.append(body_row(f"60° conical ends, length/width {a:g}"
+                                     + (f", shoulder {m:g}" if m else ""), path, work, args))
+    return rows
+
+
+def table(rows: list[tuple], spheroids: list[tuple]) -> list[str]:
+    """The rows as a markdown table, every drag also over the best spheroid's."""
+    best, best_remeshed, best_peer = (min(r[k] for r in spheroids) for k in (2, 4, 5))
+    lines = ["| body | tets | drag | / best spheroid | tets, remeshed | drag, remeshed | "
+             "/ best spheroid, remeshed | scikit-fem, remeshed | / best spheroid |",
+             "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
+    return lines + [f"| {name} | {n} | {j:.5f} | {j / best:.4f} | {nr} | {jr:.5f} | "
+                    f"{jr / best_remeshed:.4f} | {jp:.5f} | {jp / best_peer:.4f} |"
+                    for name, n, j, nr, jr, jp in rows]
+
+
 def run(args) -> str:
     work = Path(tempfile.mkdtemp(prefix="bench_shape3d-"))
-    rows = []
-    for a in args.aspects:
-        m = tets(body_in_box(work / f"spheroid_{a}.msh", args.size, args.body_size, aspect=a))
-        path = remesh(m, work / f"spheroid_{a}_remeshed.msh", *args.remesh)
-        r = tets(path)
-        (j, s), jr, jp = drag(m), drag(r)[0], peer(path, args.peer)
-        rows.append((f"prolate spheroid a/b = {a:g}", m.n_tets, j, r.n_tets, jr, jp))
-        print(f"spheroid {a:g}: {m.n_tets} tets, drag {j:.5f} ({s:.1f} s), remeshed {jr:.5f}"
-              f" (scikit-fem {jp:.5f})", flush=True)
+    spheroids = [body_row(f"prolate spheroid a/b = {a:g}",
+                          body_in_box(work / f"spheroid_{a}.msh", args.size, args.body_size,
+                                      aspect=a), work, args)
+                 for a in args.aspects]
+    anchors = anchor_rows(work, args)
+    if not args.optimize:
+        return "\n".join(table(spheroids + anchors, spheroids))
     sphere = tets(body_in_box(work / "sphere.msh", args.size, args.body_size))
     j0, solve = drag(sphere)
     print(f"sphere: {sphere.n_tets} tets, drag {j0:.5f}, one state solve {solve:.1f} s",
@@ -170,18 +211,9 @@ def run(args) -> str:
     j_fresh, j_peer = drag(fresh)[0], peer(path, args.peer)
     length, width = body_extent(sphere, Q1)
     front, back = tip_angles(sphere, Q1)
-    rows.append((f"optimized body (length/width {length / width:.2f}, ends {front:.0f}° / "
-                 f"{back:.0f}°)", sphere.n_tets,
-                 result.j, fresh.n_tets, j_fresh, j_peer))
-    best = min(r[2] for r in rows[:-1])
-    best_remeshed = min(r[4] for r in rows[:-1])
-    best_peer = min(r[5] for r in rows[:-1])
-    lines = ["| body | tets | drag | / best spheroid | tets, remeshed | drag, remeshed | "
-             "/ best spheroid, remeshed | scikit-fem, remeshed | / best spheroid |",
-             "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
-    lines += [f"| {name} | {n} | {j:.5f} | {j / best:.4f} | {nr} | {jr:.5f} | "
-              f"{jr / best_remeshed:.4f} | {jp:.5f} | {jp / best_peer:.4f} |"
-              for name, n, j, nr, jr, jp in rows]
+    optimized = (f"optimized body (length/width {length / width:.2f}, ends {front:.0f}° / "
+                 f"{back:.0f}°)", sphere.n_tets, result.j, fresh.n_tets, j_fresh, j_peer)
+    lines = table(spheroids + anchors + [optimized], spheroids)
     per_iteration = seconds / max(result.nit, 1)
     lines += [
         "",
@@ -209,6 +241,16 @@ def main() -> None:
     p.add_argument("--max-iterations", type=int, default=40)
     p.add_argument("--aspects", type=lambda s: [float(x) for x in s.split(",")],
                    default=[1.0, 1.5, 1.75, 2.0, 2.25, 2.5])
+    p.add_argument("--anchors", choices=["pironneau"], action="append", default=[],
+                   help="anchor bodies besides the spheroids: Pironneau's 60° conical ends "
+                   "(_bodies3d.py)")
+    p.add_argument("--anchor-aspects", type=lambda s: [float(x) for x in s.split(",")],
+                   default=[1.8, 2.0, 2.2], help="length over width of the anchor bodies")
+    p.add_argument("--anchor-shoulders", type=lambda s: [float(x) for x in s.split(",")],
+                   default=[0.0], help="their shoulder, c2 / (c0 + c1 + c2) (_bodies3d.py; "
+                   "a list starting with a minus sign as --anchor-shoulders=-0.3,0)")
+    p.add_argument("--no-optimize", dest="optimize", action="store_false",
+                   help="the spheroids and anchors only (--write: their own block)")
     p.add_argument("--peer", action="store_true",
                    help="also the remeshed drags by scikit-fem's assembly (_peers3d.py)")
     p.add_argument("--large", action="store_true", help="the ~26,000-tet case in one "
@@ -224,12 +266,15 @@ def main() -> None:
             if flag not in given:
                 setattr(args, flag[2:].replace("-", "_"), value)
     args.remesh = args.remesh or [args.size, args.body_size]
-    table = run(args)
-    print(table)
+    result = run(args)
+    print(result)
     if args.write:
         text = DOC.read_text(encoding="utf-8")
-        block = f"{BEGIN}\n{table}\n{END}"
-        text = re.sub(re.escape(BEGIN) + ".*?" + re.escape(END), lambda _: block, text,
+        begin, end = (f"<!-- {BLOCKS[args.optimize]}: {m} -->" for m in ("begin", "end"))
+        block = f"{begin}\n{result}\n{end}"
+        if begin not in text:
+            raise SystemExit(f"{DOC} has no {begin} block")
+        text = re.sub(re.escape(begin) + ".*?" + re.escape(end), lambda _: block, text,
                       flags=re.S)
         DOC.write_text(text, encoding="utf-8")
 

@@ -233,8 +233,37 @@ def body_in_box(path: str | os.PathLike, size: float = 1.0, body_size: float = 0
     -------
     Path
     """
-    path = Path(path)
     b = radius * aspect ** (-1.0 / 3.0)  # a b² = r³ with a = aspect · b
+
+    def spheroid(occ) -> list[tuple[int, int]]:
+        ball = occ.addSphere(0, 0, 0, b)
+        if aspect != 1.0:
+            occ.dilate([(3, ball)], 0, 0, 0, aspect, 1.0, 1.0)
+        return [(3, ball)]
+
+    return solid_in_box(path, spheroid, size, body_size)
+
+
+def solid_in_box(path: str | os.PathLike, add_body, size: float = 1.0,
+                 body_size: float = 0.15) -> Path:
+    """Tetrahedra of the ``8 × 6 × 6`` box centred at the origin around the solid that
+    ``add_body(occ)`` adds to gmsh's OpenCASCADE model, meshed by
+    :func:`mesh_body_in_box`.
+
+    Parameters
+    ----------
+    path : where the ``.msh`` (format 4.1) goes
+    add_body : callable
+        ``add_body(gmsh.model.occ)`` adds the body inside the box and returns its
+        ``(3, tag)`` pairs
+    size : element size at the box
+    body_size : element size on the body, graded to ``size`` away from it
+
+    Returns
+    -------
+    Path
+    """
+    path = Path(path)
     with gmsh_session() as gmsh:
         gmsh.option.setNumber("General.NumThreads", 1)
         gmsh.option.setNumber("Mesh.RandomSeed", 1)
@@ -242,15 +271,12 @@ def body_in_box(path: str | os.PathLike, size: float = 1.0, body_size: float = 0
         occ = gmsh.model.occ
         lx, ly, lz = BOX_3D
         box = occ.addBox(-lx / 2, -ly / 2, -lz / 2, lx, ly, lz)
-        ball = occ.addSphere(0, 0, 0, b)
-        if aspect != 1.0:
-            occ.dilate([(3, ball)], 0, 0, 0, aspect, 1.0, 1.0)
-        occ.cut([(3, box)], [(3, ball)])
+        occ.cut([(3, box)], add_body(occ))
         occ.synchronize()
         body, outer = [], []
         for _, s in gmsh.model.getEntities(2):
-            x, y, z = occ.getCenterOfMass(2, s)
-            (body if max(abs(x), abs(y), abs(z)) < 1.5 * max(aspect * b, b) else outer).append(s)
+            on_box = np.isclose(np.abs(occ.getCenterOfMass(2, s)), np.divide(BOX_3D, 2))
+            (outer if on_box.any() else body).append(s)
         mesh_body_in_box(gmsh, body, outer, path, size, body_size)
     return path
 
