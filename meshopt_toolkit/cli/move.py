@@ -16,25 +16,34 @@ units and the plane's coordinates), at unit size (``mt.move`` divides it by its 
 work; the summary's lengths (handle error, the similarity's shift) are in the file's
 units, its other numbers free of scale.
 
-A file of tetrahedra moves in 3D (:mod:`._move_space`): ``--targets`` rows
+A file of tetrahedra moves in 3D: ``--targets`` rows
 ``index,x,y,z`` (.npy k × 4), ``--map "X_EXPR; Y_EXPR; Z_EXPR"`` in ``x, y, z``, the
 candidates the boundary vertices or a physical group's nodes; the file is written back
 with only its points replaced.
 
-A triangle surface in 3D (:mod:`._move_space` too) takes the same forms, but a map's
+A triangle surface in 3D takes the same forms, but a map's
 candidates are all its vertices (a closed surface has no boundary); the selected ones move,
 an open surface's boundary stays, every other vertex is free.
+
+The kind of the file's mesh is decided by ``mt.move``'s
+:class:`~meshopt_toolkit.motion.moved_file.MovedFile`, which also writes it back; the
+command parses, calls and prints.
 """
 
 from __future__ import annotations
 
 import argparse
-from .. import strict_json
+import sys
+import warnings
 
+import numpy as np
+
+from .. import strict_json
 from ..bounds import MAX_FRAMES
 from ..filters.apply_coord_prescribed_motion import PrescribedMotion
-from ._common import (add_output_flags, checked_paths, csv_table, frame_names, load_workpiece,
-                      save_moved, save_moved_frames, warn_dropped, write_text)
+from ..mesh.kinds import PLANAR, SURFACE, TETS
+from ._common import (add_output_flags, checked_paths, csv_table, frame_names,
+                      prepare_output_dir, warn_dropped, write_text)
 from ._params import add_options
 from ._validate import OptionError
 
@@ -100,48 +109,88 @@ def _check_choices(args: argparse.Namespace) -> None:
         raise OptionError("give one of --group and --selection")
 
 
+def _planar_table(result, frames: int) -> tuple[str, dict]:
+    return "quality.csv", {"frame": range(frames), "min_aspect_ratio": result.min_aspect_ratio,
+                           "mean_quality": result.mean_quality,
+                           "strain_bound": result.strain_bound}
+
+
+def _planar_line(mesh, result) -> str:
+    return (f"inverted 0, min aspect ratio {result.min_aspect_ratio[0]:.4f} -> "
+            f"{result.min_aspect_ratio[-1]:.4f}, mean Λ {result.mean_quality[-1]:.4f}")
+
+
+def _tet_table(result, frames: int) -> tuple[str, dict]:
+    return "quality.csv", {"frame": range(len(result.min_mean_ratio)),
+                           "min_mean_ratio": result.min_mean_ratio}
+
+
+def _tet_line(mesh, result) -> str:
+    return (f"inverted 0, min mean ratio {float(mesh.mean_ratios().min()):.4f} -> "
+            f"{result.min_mean_ratio[-1]:.4f}")
+
+
+def _surface_table(result, frames: int) -> tuple[str, dict]:
+    times = np.asarray(result.motion.times)
+    picked = [times[int(np.argmin(np.abs(times - s)))] for s in np.linspace(0, 1, frames)]
+    return "frames.csv", {"frame": range(frames), "path_fraction": picked}
+
+
+def _surface_line(mesh, result) -> str:
+    summary = result.summary()
+    return (f"folds {summary['folds']}, worst relative quality "
+            f"{summary['worst_relative_quality']:.4f}")
+
+
+#: how each kind's result is written (the kind is mt.move's: MovedFile.kind): the frames'
+#: table and the console line's middle
+WRITTEN = {PLANAR: (_planar_table, _planar_line), TETS: (_tet_table, _tet_line),
+           SURFACE: (_surface_table, _surface_line)}
+
+
 def run(args: argparse.Namespace) -> int:
     from ..io import load_cells
+    from ..motion.engine.contact import ContactWarning
     from ..motion.engine.handles import handles_in_space
     from ..motion.move import move
+    from ..motion.moved_file import MovedFile
     from ..progress import ProgressBar
-    from ..mesh.kinds import SURFACE, TETS, cells_kind
-    from ._move_space import run_in_space
 
     _check_choices(args)
     src, out = checked_paths(args, PrescribedMotion, OPTIONS)
     frames = args.frames
     cells = load_cells(src)  # what it cannot keep named once the motion is done
-    kind = cells_kind(cells)
-    if kind in (TETS, SURFACE):  # handles in x, y, z; the file written back, new points
-        return run_in_space(args, cells, kind)
-    # the plane's coordinates at the file's scale (mt.move works at unit size); every
-    # block, tag and datum written back
-    wp = load_workpiece(src, "move", cells=cells)
-    mesh = wp.mesh
+    # the mesh mt.move moves (a planar one in its plane's coordinates) at the file's
+    # scale (mt.move works at unit size), and the way back to every block, tag and datum
+    moving = MovedFile.of_cells(cells, "move")
     handles, targets = handles_in_space(
-        mesh, targets=args.targets, mapping=args.map, where=args.where,
-        group=args.group, selection=args.selection, point_data=wp.cells.point_data,
+        moving.mesh, targets=args.targets, mapping=args.map, where=args.where,
+        group=args.group, selection=args.selection, point_data=cells.point_data,
         free_boundary=args.free_boundary, source=str(src))
-    with ProgressBar(1000, "move") as bar:
-        result = move(mesh, handles, targets, frames=frames, steps=args.steps,
-                      weight=args.weight, progress=bar.to_fraction)
-    warn_dropped(cells, src)
+    with warnings.catch_warnings(record=True) as caught, \
+            ProgressBar(1000, "move") as bar:  # each warning one line naming the file
+        warnings.simplefilter("always", ContactWarning)
+        result = move(moving.mesh, handles, targets, frames=frames, steps=args.steps,
+                      weight=args.weight, progress=bar.to_fraction,
+                      contact=getattr(args, "contact", "on") == "on")
+    for w in caught:
+        print(f"meshopt move: warning: {src}: {w.message}", file=sys.stderr)
+    warn_dropped(cells, src)  # a refused motion is its one error line alone
+    table, line = WRITTEN[moving.kind]
     if frames is None:
-        save_moved(wp, result.mesh, out, force=args.force)
+        moving.moved(result.mesh).save(out, overwrite=args.force)
         written = str(out)
-    else:
-        save_moved_frames(wp, result.frames, out, frame_names(frames, args.format, src),
-                          force=args.force)
-        write_text(out / "quality.csv", csv_table({
-            "frame": range(frames), "min_aspect_ratio": result.min_aspect_ratio,
-            "mean_quality": result.mean_quality, "strain_bound": result.strain_bound}))
-        written = f"{out}/ ({frames} frames, quality.csv)"
-    summary = result.summary()
+    else:  # created only now: a refused motion leaves nothing behind
+        prepare_output_dir(out, force=args.force)
+        for name, m in zip(frame_names(frames, args.format, src), result.frames):
+            moving.moved(m).save(out / name)
+        name, columns = table(result, frames)
+        write_text(out / name, csv_table(columns))
+        written = f"{out}/ ({frames} frames, {name})"
+    summary = moving.summary(result, handles)
     if args.json:
         print(strict_json.dumps({"output": str(out), **summary}, indent=2))
     else:
-        print(f"wrote {written}: {len(handles)} handles exact, inverted 0, min aspect ratio "
-              f"{result.min_aspect_ratio[0]:.4f} -> {result.min_aspect_ratio[-1]:.4f}, "
-              f"mean Λ {result.mean_quality[-1]:.4f} ({result.seconds:.2f} s)")
+        print(f"wrote {written}: {summary.get('handles', len(handles))} handles exact, "
+              f"{line(moving.mesh, result)} ({result.seconds:.2f} s)")
     return 0

@@ -64,6 +64,7 @@ class PrescribedMotion(Filter):
               steps: int = 4, weight: float = 1.0) -> dict:
         from meshopt_toolkit.motion.engine.handles import handles_in_space
         from meshopt_toolkit.motion.move import move
+        from meshopt_toolkit.motion.moved_file import MovedFile
 
         entry = document.current_entry
         if free_boundary and not targets:
@@ -74,38 +75,17 @@ class PrescribedMotion(Filter):
                  "point_data": entry.point_data(), "source": entry.name,
                  "options": _OPTIONS}
         try:
-            # the plane's coordinates at the file's scale (None: a mesh in space)
-            wp = entry.workpiece(self.name, required=False)
-            if wp is None:
-                return self._in_space(entry, given, steps, weight)
-            wp = wp.admissible(self.name)
-            handles, positions = handles_in_space(wp.mesh, **given)
+            # the mesh mt.move moves (a planar one in its plane's coordinates, at the
+            # file's scale) and the way back; its kind is decided there
+            moving = MovedFile.of_mesh(
+                entry.mesh, lambda: entry.workpiece(self.name, required=False), self.name)
+            handles, positions = handles_in_space(moving.mesh, **given)
         except OptionError as exc:
             raise FilterError(f"{self.name}: {exc}") from None
-        result = move(wp.mesh, handles, positions, steps=steps, weight=weight)
-        entry.set_workpiece(wp.moved(result.mesh.points))
-        return result.summary()
-
-    def _in_space(self, entry, given: dict, steps: int, weight: float) -> dict:
-        """Move a tet mesh or a triangle surface in 3D; its file's cells and data stay."""
-        import numpy as np
-
-        from meshopt_toolkit.mesh import SurfaceMesh, TriangleMesh
-        from meshopt_toolkit.mesh.kinds import is_tets
-        from meshopt_toolkit.motion.engine.handles import handles_in_space
-        from meshopt_toolkit.motion.move import move
-
-        mesh = entry.mesh
-        if is_tets(mesh):
-            solid = mesh.require_admissible()
-        else:
-            solid = SurfaceMesh(mesh.points, mesh.triangles, **mesh._tag_kwargs())
-        handles, positions = handles_in_space(solid, **given)
-        result = move(solid, handles, positions, steps=steps, weight=weight)
-        points = np.array(result.mesh.points, dtype=float)
-        if is_tets(mesh):
-            moved = mesh.with_points(points)
-        else:
-            moved = TriangleMesh(points, mesh.triangles, **mesh._tag_kwargs())
-        entry.replace_mesh(moved)  # same vertices and cells: attributes, file data kept
-        return {**result.summary(), "handles": int(len(np.unique(handles)))}
+        result = move(moving.mesh, handles, positions, steps=steps, weight=weight)
+        moved = moving.moved(result.mesh)
+        # same vertices and cells: attributes and the file's blocks, groups and data kept
+        entry.replace_mesh(moved.file_mesh)
+        if moved.workpiece is not None:
+            entry.source_workpiece = moved.workpiece
+        return moving.summary(result, handles)

@@ -2,7 +2,8 @@
 package sniffs a mesh's class (``isinstance`` against the mesh classes, ``hasattr`` or
 ``getattr`` of ``tets``) or its plane (``.is_planar``), except the few named here with
 their reason; and the rule there is one for every object (a file's cells, our meshes,
-meshio)."""
+meshio). Of the front ends (``cli/``, ``filters/``) only those named ask a decider: the
+verbs decide for the others."""
 
 from __future__ import annotations
 
@@ -34,6 +35,25 @@ ALLOWED = {
     "io/workpiece.py": (1, "an assert on the plane view's type"),
     "penalties/penalty.py": (1, "the argument's type (TypeError)"),
     "motion/planar/scalar_morph.py": (1, "the arguments' type (InvalidMeshError)"),
+}
+
+
+#: the functions that decide a mesh's kind (``mesh/kinds.py``, and the registry and the
+#: document over it)
+DECIDERS = {"cells_kind", "mesh_kind", "class_kind", "is_tets", "is_surface", "kind_of"}
+
+#: the front ends (``cli/``, ``filters/``) that ask a decider, with why; the verbs decide
+#: for the rest (``meshopt move`` and the move filter hand their file to ``mt.move``'s
+#: ``motion/moved_file.py``)
+FRONT_ENDS_DECIDING = {
+    "cli/_common.py": "load_workpiece: a planar operation names the kind it refuses",
+    "cli/_info_cells.py": "info: the kind is what it prints",
+    "cli/info.py": "info: the kind is what it prints",
+    "cli/morph.py": "the target file read as the source's kind",
+    "cli/optimize.py": "optimize: planar and tet files read differently",
+    "filters/compute_scalar_by_shape_quality_per_face.py": "per face or per tet",
+    "filters/generate_geodesic_morph.py": "the frames stored per kind",
+    "filters/load_mesh.py": "the summary counts tets or triangles",
 }
 
 
@@ -81,6 +101,35 @@ def test_only_the_allowed_modules_decide_a_mesh_s_kind():
     assert not extra, f"decide the kind with meshopt_toolkit.mesh.kinds: {sorted(extra)}"
     # the list stays exact: a module that stopped sniffing leaves it
     assert {rel: n for rel, n in found.items()} == {rel: n for rel, (n, _) in ALLOWED.items()}
+
+
+def deciding_sites(source: str) -> list[int]:
+    """Line numbers where ``source`` calls or imports a kind decider."""
+    lines = []
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Call) and _name(node.func) in DECIDERS:
+            lines.append(node.lineno)
+        elif isinstance(node, ast.ImportFrom) and {a.name for a in node.names} & DECIDERS:
+            lines.append(node.lineno)
+    return sorted(lines)
+
+
+def test_the_decider_finder_sees_calls_and_imports():
+    code = ("from ..mesh.kinds import TETS, cells_kind\nk = cells_kind(c)\n"
+            "t = kinds.is_tets(m)\nfrom ..mesh.kinds import PLANAR\nx = kind(m)\n")
+    assert deciding_sites(code) == [1, 2, 3]
+
+
+def test_the_front_ends_leave_the_kind_to_the_verbs():
+    found = {}
+    for folder in ("cli", "filters"):
+        for path in sorted((ROOT / folder).glob("*.py")):
+            if deciding_sites(path.read_text(encoding="utf-8")):
+                found[path.relative_to(ROOT).as_posix()] = True
+    assert set(found) == set(FRONT_ENDS_DECIDING), \
+        f"let the verb decide the kind: {sorted(set(found) - set(FRONT_ENDS_DECIDING))}"
+    for moving in ("cli/move.py", "filters/apply_coord_prescribed_motion.py"):
+        assert moving not in FRONT_ENDS_DECIDING
 
 
 def test_every_layer_names_the_kinds_alike():

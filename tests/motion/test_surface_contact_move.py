@@ -20,7 +20,7 @@ from meshopt_toolkit.io.cells import CellMesh
 from meshopt_toolkit.kernels.intersections3d import self_intersections
 from meshopt_toolkit.mesh import SurfaceMesh
 from meshopt_toolkit.motion.engine.contact import ContactWarning
-from meshopt_toolkit.motion.surface.move import move_surface
+from meshopt_toolkit.motion.surface.move import SurfaceMoveOptions, move_surface
 
 pytest.importorskip("ipctk")
 
@@ -123,7 +123,7 @@ def test_the_polish_takes_only_trials_clear_of_contact():
     from meshopt_toolkit.motion.surface.polish import polish_worst_triangles
 
     V, F, h, tg = _pushed(0.3, (0.4, 0.0))
-    P = move_surface(V, F, h, tg, polish=0).points
+    P = move_surface(V, F, h, tg, options=SurfaceMoveOptions(polish=0)).points
     seen = []
 
     def never(a, b):

@@ -16,7 +16,7 @@ from meshopt_toolkit.errors import InvalidMeshError, NotAdmissibleError
 from meshopt_toolkit.kernels.cell_maps import surface_inverse_shape_quality
 from meshopt_toolkit.motion.surface.bending import ShellBending, dihedral_angles, edge_diamonds
 from meshopt_toolkit.motion.surface.distortion import SurfaceDistortion, surface_quality_bound
-from meshopt_toolkit.motion.surface.move import move_surface
+from meshopt_toolkit.motion.surface.move import SurfaceMoveOptions, move_surface
 from meshopt_toolkit.motion.engine.similarity import HandlePath, handle_groups
 from meshopt_toolkit.motion.surface.folds import FoldTest, best_rotations
 
@@ -175,7 +175,7 @@ def test_bad_input_raises():
     with pytest.raises(InvalidMeshError):
         move_surface(V, F, [0, 1], V[[0]])
     with pytest.raises(InvalidMeshError):
-        move_surface(V, F, [0], V[[0]], anchor="nope")
+        move_surface(V, F, [0], V[[0]], options=SurfaceMoveOptions(anchor="nope"))
 
 
 @settings(max_examples=8, deadline=None)
@@ -189,7 +189,8 @@ def test_phi_lengths_within_path_length_over_w_and_quality_bound(seed, angle, we
     bottom = np.flatnonzero(V[:, 2] < -0.5)
     handles = np.concatenate([top, bottom])
     targets = np.concatenate([V[top] @ bench.rotation(axis, angle).T, V[bottom]])
-    r = move_surface(V, F, handles, targets, steps=3, weight=weight, anchor=anchor)
+    r = move_surface(V, F, handles, targets, steps=3,
+                     options=SurfaceMoveOptions(weight=weight, anchor=anchor))
     # the stated bound: every triangle's summed φ-change is at most ℓ/w
     assert np.all(r.phi_lengths <= r.length / weight * (1 + 1e-12))
     frames = np.array(r.frames)
@@ -314,22 +315,24 @@ def test_chord_steps_of_the_last_increment_reach_the_minimizer_of_full_gauss_new
     case = coarse_bar(90.0)
     args = (case.V, case.F, case.handles, case.path(1.0))
     # without contact: its barrier's pairs, not the steps' lengths, decide the renewals
-    tight = dict(steps=1, final_iterations=400, final_rtol=1e-13, polish=0, contact=False)
-    full = move_surface(*args, final_stall=None, cg_iterations=0, **tight)
-    chord = move_surface(*args, final_stall=0.1, cg_iterations=0, **tight)
+    tight = dict(final_iterations=400, final_rtol=1e-13, polish=0)
+    full = move_surface(*args, steps=1, contact=False,
+                        options=SurfaceMoveOptions(final_stall=None, cg_iterations=0, **tight))
+    chord = move_surface(*args, steps=1, contact=False,
+                         options=SurfaceMoveOptions(final_stall=0.1, cg_iterations=0, **tight))
     assert np.array_equal(chord.points[case.handles], case.path(1.0)) and chord.folds == 0
     assert np.abs(chord.points - full.points).max() < 1e-5 * np.ptp(case.V, axis=0).max()
     assert sm.arap_energy(case.V, chord.points, case.F) == pytest.approx(
         sm.arap_energy(case.V, full.points, case.F), rel=1e-6)
     assert chord.worst_quality == pytest.approx(full.worst_quality, abs=1e-6)
     assert chord.factorizations < full.factorizations
-    default_full = move_surface(*args, steps=1, final_stall=None, cg_iterations=0,
-                                contact=False)
-    default = move_surface(*args, steps=1, cg_iterations=0, contact=False)
+    default_full = move_surface(*args, steps=1, contact=False,
+                                options=SurfaceMoveOptions(final_stall=None, cg_iterations=0))
+    default = move_surface(*args, steps=1, contact=False, options=SurfaceMoveOptions(cg_iterations=0))
     assert default.factorizations < default_full.factorizations
     assert default.folds == 0 and np.array_equal(default.points[case.handles], case.path(1.0))
     assert sm.fold_count(case.V, default.points, case.F, case.handles) == 0
-    cg = move_surface(*args, cg_iterations=4, **tight)
+    cg = move_surface(*args, steps=1, contact=False, options=SurfaceMoveOptions(cg_iterations=4, **tight))
     assert np.abs(cg.points - full.points).max() < 1e-5 * np.ptp(case.V, axis=0).max()
     assert cg.factorizations <= chord.factorizations and cg.folds == 0
 
@@ -462,7 +465,7 @@ def test_steps_on_kept_factors_need_fewer_factorizations_at_the_same_quality():
         for k in (0, 4):
             counts.append(0)
             # without contact: its barrier's pairs, not the steps, decide the renewals
-            results.append(move_surface(*args, cg_iterations=k, contact=False))
+            results.append(move_surface(*args, contact=False, options=SurfaceMoveOptions(cg_iterations=k)))
     chord, cg = results
     assert counts == [chord.factorizations, cg.factorizations] and chord.cg_iterations == 0
     assert counts[1] < counts[0]
@@ -488,8 +491,8 @@ def test_a_halved_increment_grows_back_and_only_halvings_in_a_row_count(monkeypa
         return None if len(calls) in (2, 5) else step(*args, **kwargs)
 
     monkeypatch.setattr(surface_move, "solve_increment", refusing)
-    res = move_surface(case.V, case.F, case.handles, case.path(1.0), steps=4, polish=0,
-                       max_halvings=1, contact=False)
+    res = move_surface(case.V, case.F, case.handles, case.path(1.0), steps=4, contact=False,
+                       options=SurfaceMoveOptions(polish=0, max_halvings=1))
     np.testing.assert_allclose(res.times, [0.0, 0.25, 0.375, 0.5, 0.625, 0.75, 1.0])
     assert np.array_equal(res.points[case.handles], case.path(1.0)) and res.folds == 0
 
@@ -499,5 +502,5 @@ def test_a_halved_increment_grows_back_and_only_halvings_in_a_row_count(monkeypa
 
     monkeypatch.setattr(surface_move, "solve_increment", alternating)
     with pytest.raises(NotAdmissibleError):
-        move_surface(case.V, case.F, case.handles, case.path(1.0), steps=4, polish=0,
-                     max_halvings=3, contact=False)
+        move_surface(case.V, case.F, case.handles, case.path(1.0), steps=4, contact=False,
+                     options=SurfaceMoveOptions(polish=0, max_halvings=3))

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from meshopt_toolkit.diagnostics import check_gradient
 from meshopt_toolkit.motion.surface.distortion import SurfaceDistortion
-from meshopt_toolkit.motion.surface.move import move_surface
+from meshopt_toolkit.motion.surface.move import SurfaceMoveOptions, move_surface
 from meshopt_toolkit.motion.surface.polish import (
     SoftMaxObjective,
     _tangent_bases,
@@ -177,7 +177,7 @@ def test_polish_raises_a_twisted_patch_and_move_surface_reports_it():
     assert a > b + 0.01 and info["polish_vertices"] > 0
     assert sm.worst_relative_quality(V, out, F, boundary) == pytest.approx(a, rel=1e-12)
     targets = P[boundary]
-    plain = move_surface(V, F, boundary, targets, steps=4, polish=0)
+    plain = move_surface(V, F, boundary, targets, steps=4, options=SurfaceMoveOptions(polish=0))
     polished = move_surface(V, F, boundary, targets, steps=4)
     assert plain.polished == 0 and plain.summary()["polished_vertices"] == 0
     assert polished.worst_quality >= plain.worst_quality and polished.folds == 0
@@ -242,7 +242,8 @@ def test_the_soft_maximum_singles_out_the_worst_among_many_nearly_as_good():
     import _surface_cases3 as cases
 
     case = cases.UNSEEN3["l-plate-roll"]()
-    P = move_surface(case.V, case.F, case.handles, case.path(1.0), polish=0).points
+    P = move_surface(case.V, case.F, case.handles, case.path(1.0),
+                     options=SurfaceMoveOptions(polish=0)).points
     _, blunt = polish_worst_triangles(case.V, case.F, P, case.handles, focus=0.0)
     _, focused = polish_worst_triangles(case.V, case.F, P, case.handles)
     assert blunt["polish_worst_quality"][0] < 0.998

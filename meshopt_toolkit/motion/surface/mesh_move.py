@@ -19,7 +19,7 @@ from ...results import WrappedMotion
 from ...scaling import unit_scale
 from ..engine.handles import SolvedVertices, check_handles, distinct_handles
 from ..engine.pinned_cells import surface_targets_problem
-from .move import move_surface
+from .move import SurfaceMoveOptions, move_surface
 
 __all__ = ["SurfaceMeshMoveResult", "move_surface_mesh"]
 
@@ -75,8 +75,9 @@ def move_surface_mesh(mesh, handles, targets, *, frames: int | None = None, step
             scale.down(solved.targets), surface.is_closed and surface.is_oriented):
         raise InvalidMeshError(problem)
     res = move_surface(scale.down(solved.points), solved.cells, solved.handles,
-                       scale.down(solved.targets), steps=n_steps, weight=weight,
-                       max_halvings=max_splits, contact=contact).scaled_up(scale)
+                       scale.down(solved.targets), steps=n_steps, contact=contact,
+                       options=SurfaceMoveOptions(weight=weight, max_halvings=max_splits)
+                       ).scaled_up(scale)
     res.points[solved.handles] = solved.targets  # bitwise, subnormal targets included
 
     moved = surface.with_points(solved.full(res.points))

@@ -59,8 +59,9 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..._typing import FloatArray, IntArray
+from ..._options import options_of
 from ...cells.base import scale_free_mass
-from ...errors import InvalidMeshError, NotAdmissibleError
+from ...errors import InvalidMeshError, NotAdmissibleError, OptionError
 from ...kernels.surface import areas, aspect_ratios
 from ...scaling import UnitScale
 from ..engine.contact import contact_term
@@ -140,14 +141,64 @@ def _path_lengths(frames: list, membrane, mass: FloatArray, weight: float):
     return phi_lengths, length
 
 
+@dataclass(frozen=True)
+class SurfaceMoveOptions:
+    """The settings of :func:`move_surface` (the energy's weights and the solver's limits).
+
+    Attributes
+    ----------
+    weight : float
+        ``w``, the weight of the membrane distortion against ``M``.
+    bending : float
+        ``b``, the weight of the dihedral bending energy (0: membrane only).
+    anchor : {"rest", "previous"}
+        ``φ̄`` of each increment: 0 (elastic) or the previous frame's φ.
+    emphasis : float
+        ``p``: each increment weighs triangle t's membrane rows by ``c_t = max(1,
+        |φ_t|/rms|φ|)^p`` at its start (0: all alike).
+    area_weights : bool
+        Weigh triangle t's membrane rows by its rest area over the mean, ``a_t``.
+    max_iterations, rtol : int, float
+        Gauss–Newton–Marquardt steps per increment; stop when an accepted step lowers
+        the energy by less than ``rtol`` times the energy. An increment left short of its
+        minimizer is the next one's start: too few steps can carry a transient kink to
+        the end (a strip rolled into an arc ends kinked with 4).
+    final_iterations, final_rtol : int, float
+        The same for the last increment (the result).
+    final_stall : float or None
+        The last increment keeps its factor while each shortened step lowers the energy
+        by at least this fraction of the first step on it (chord steps; a shortened step's
+        small decrease is convergence only on a renewed factor); None: renewed after
+        every shortened step, as in the other increments.
+    cg_iterations : int
+        Steps on a kept factor are this many conjugate gradients on the current normal
+        equations, preconditioned by the factor turned with the surface; 0: chord steps.
+    max_halvings : int
+        An increment is at least ``2^-max_halvings / steps`` (a halved increment doubles
+        again, up to ``1/steps``, after two taken in a row).
+    polish : int
+        L-BFGS iterations of the last frame's local polish of the worst triangles
+        (:mod:`.polish`; 0: none).
+    """
+
+    weight: float = 1.0
+    bending: float = 0.3
+    anchor: str = "rest"
+    emphasis: float = 1.0
+    area_weights: bool = True
+    max_iterations: int = 8
+    rtol: float = 1e-3
+    final_iterations: int = 30
+    final_rtol: float = 1e-6
+    final_stall: float | None = 0.1
+    cg_iterations: int = 0
+    max_halvings: int = 8
+    polish: int = 100
+
+
 def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatArray, *,
-                 steps: int = 10, weight: float = 1.0, bending: float = 0.3,
-                 anchor: str = "rest", emphasis: float = 1.0, area_weights: bool = True,
-                 max_iterations: int = 8, rtol: float = 1e-3, final_iterations: int = 30,
-                 final_rtol: float = 1e-6, final_stall: float | None = 0.1,
-                 cg_iterations: int = 0,
-                 max_halvings: int = 8, polish: int = 100,
-                 contact: bool = True) -> SurfaceMoveResult:
+                 steps: int = 10, contact: bool = True,
+                 options: SurfaceMoveOptions | dict | None = None) -> SurfaceMoveResult:
     """Move a triangle surface: ``handles`` exactly to ``targets``, the rest placed so
     that each triangle's shape changes as little as the motion allows (module docstring).
 
@@ -162,46 +213,27 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
     targets : (H, 3) float array
     steps : int
         Increments along the handles' path (each halved where it cannot be taken).
-    weight : float
-        ``w``, the weight of the membrane distortion against ``M``.
-    bending : float
-        ``b``, the weight of the dihedral bending energy (0: membrane only).
-    anchor : {"rest", "previous"}
-        ``φ̄`` of each increment: 0 (elastic) or the previous frame's φ.
-    emphasis : float
-        ``p``: each increment weighs triangle t's membrane rows by ``c_t = max(1,
-        |φ_t|/rms|φ|)^p`` at its start (0: all alike).
-    area_weights : bool
-        Weigh triangle t's membrane rows by its rest area over the mean, ``a_t``.
-    max_iterations, rtol : Gauss–Newton–Marquardt steps per increment; stop when an accepted
-        step lowers the energy by less than ``rtol`` times the energy. An increment left
-        short of its minimizer is the next one's start: too few steps can carry a transient
-        kink to the end (a strip rolled into an arc ends kinked with 4).
-    final_iterations, final_rtol : the same for the last increment (the result).
-    final_stall : float or None
-        The last increment keeps its factor while each shortened step lowers the energy
-        by at least this fraction of the first step on it (chord steps; a shortened step's
-        small decrease is convergence only on a renewed factor); None: renewed after
-        every shortened step, as in the other increments.
-    cg_iterations : int
-        Steps on a kept factor are this many conjugate gradients on the current normal
-        equations, preconditioned by the factor turned with the surface; 0: chord steps.
-    max_halvings : an increment is at least ``2^-max_halvings / steps`` (a halved increment
-        doubles again, up to ``1/steps``, after two taken in a row).
     contact : bool
         Keep the surface from passing through itself (:mod:`..engine.contact`: the barrier in the
         energy, every step capped by CCD) where its rest is free of self-intersections
         (else a :class:`..engine.contact.ContactWarning` with the count, and no contact).
-    polish : L-BFGS iterations of the last frame's local polish of the worst triangles
-        (:mod:`.polish`; 0: none).
+    options : SurfaceMoveOptions, a mapping of its fields, or None (the defaults)
+        The energy's weights and the solver's limits.
 
     Raises
     ------
     InvalidMeshError
         Bad shapes, repeated or out-of-range handles, a degenerate rest triangle.
+    OptionError
+        ``options`` of another type or with a field :class:`SurfaceMoveOptions` lacks.
     NotAdmissibleError
         Where an increment cannot be taken without a fold or a degenerate triangle.
     """
+    o = options_of(SurfaceMoveOptions, options, {}, error=OptionError,
+                   what="move_surface option(s)")
+    weight, bending, anchor, emphasis = o.weight, o.bending, o.anchor, o.emphasis
+    max_iterations, rtol, final_iterations = o.max_iterations, o.rtol, o.final_iterations
+    final_rtol, final_stall, polish = o.final_rtol, o.final_stall, o.polish
     t_start = time.perf_counter()
     V = np.asarray(V, float)
     F = np.asarray(F, np.int64)
@@ -222,10 +254,10 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
     whole = global_similarity(V[handles], targets, diameter) if len(handles) else None
     path = HandlePath(V[handles], targets, handle_groups(handles, F, len(V)), motion="screw")
     problem = Problem(V, F, handles, weight, bending, lumped_mass(V, F))
-    problem.cg_iterations = int(cg_iterations)
+    problem.cg_iterations = int(o.cg_iterations)
     problem.contact = contact_term(V, F, problem.free, problem.mass, contact)
     area_w = np.ones(len(F))  # √a_t
-    if area_weights and len(F):
+    if o.area_weights and len(F):
         area_w = np.sqrt(areas(V, F) / areas(V, F).mean())
     problem.row_weights = weight * area_w
     iterations, pull = 0, None
@@ -277,7 +309,7 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
 
     times = [0.0]
     frames, _ = march(V, [0.0, 1.0], advance, every_step=True, progress=times.append,
-                      rule=GrowingSteps(1.0 / max(int(steps), 1), max_halvings, lambda t: (
+                      rule=GrowingSteps(1.0 / max(int(steps), 1), o.max_halvings, lambda t: (
                           NotAdmissibleError(
                               f"no fold-free increment of the handles' path from t = {t:.4g}"))),
                       fallback=fallback)
