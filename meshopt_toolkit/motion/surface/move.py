@@ -67,7 +67,7 @@ from ..engine.similarity_3d import global_similarity
 from .bending import ShellBending
 from .distortion import SurfaceDistortion
 from .folds import FoldTest
-from .handle_pull import HandlePull
+from .handle_pull import HandlePull, require_placeable
 from .normal_equations import FreePattern, turned_solve, upper_products
 from .polish import polish_worst_triangles
 
@@ -422,12 +422,12 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
     problem = _Problem(V, F, handles, weight, bending, lumped_mass(V, F))
     problem.cg_iterations = int(cg_iterations)
     problem.contact = contact_term(V, F, problem.free, problem.mass, contact)
+    require_placeable(problem.contact, F, handles, targets)  # targets alone intersecting
     area_w = np.ones(len(F))  # √a_t
     if area_weights and len(F):
         area_w = np.sqrt(areas(V, F) / areas(V, F).mean())
     problem.row_weights = weight * area_w
-    Q, t, iterations = V.copy(), 0.0, 0
-    frames, times = [V.copy()], [0.0]
+    Q, t, iterations, frames, times = V.copy(), 0.0, 0, [V.copy()], [0.0]
     phi = problem.membrane.values(V)
     phi_lengths = np.zeros(len(F))
     length = 0.0
