@@ -10,14 +10,19 @@ The handles become unknowns with the free vertices, pulled to their increment's 
 
 added to the increment's energy, every step capped by CCD over the whole surface (the
 handles included): no iterate passes through the surface, the handles stop at what is in
-their way and slide along it. An intermediate increment is one solve at the current ``κ_a``
-and keeps the handles where the pull leaves them. The last one repeats the solve (each to
-an intermediate increment's tolerance), each time updating the multipliers, ``λ ← λ − κ_a
-√m (x − x̂)``, or doubling ``κ_a`` where the handles' weighted distance to their targets
-did not halve (ending where two rounds in a row bring them less than 1 % closer); once they
-are within ``d̂/10`` of them, the ordinary increment (handles fixed) places them exactly,
-its step checked by CCD. Where they do not get there (the targets themselves make the
-surface intersect, or the way to them is shut) the motion is refused.
+their way and slide along it. An increment is a sequence of solves (rounds of
+``ROUND_ITERATIONS`` Gauss–Newton steps) with IPC's schedule between them: a round that
+used all its steps and brought the handles at least 1 % closer is not at a minimizer and
+the next goes on with the same ``κ_a`` and ``λ``; at a minimizer ``κ_a`` is doubled while
+the handles' progress ``η = 1 − |x − x̂|_m / |x⁰ − x̂|_m`` over the increment is below
+0.99, else the multipliers are updated, ``λ ← λ − κ_a √m (x − x̂)``. An intermediate
+increment ends at ``η ≥ 0.99`` (or after ``ROUNDS``) and keeps the handles where the pull
+leaves them. The last one goes on (``FINAL_ROUNDS``; ended where two rounds in a row bring
+the handles less than 1 % closer) until their straight remaining step, the rest still, is
+clear of the surface and the ordinary increment (handles fixed) from there places them
+exactly, its steps checked by CCD. Where they do not get there the motion is refused.
+Targets whose handles alone make the surface intersect itself
+(:func:`placed_targets_problem`) are refused before any increment.
 
 The mode is entered only where an ordinary increment fails and either the handles' own
 prescribed step is not clear of the surface or the increment cannot be halved further;
@@ -32,6 +37,7 @@ import scipy.sparse as sp
 from ..._typing import FloatArray, IntArray
 from ...errors import NotAdmissibleError
 from ...kernels.intersections3d import self_intersections
+from ...solvers import factorize_spd
 from ..engine.contact import ContactTerm
 
 __all__ = ["HandlePenalty", "HandlePull", "PulledContact", "placed_targets_problem",
@@ -42,18 +48,15 @@ KAPPA_START = 10.0
 #: the largest ``κ_a`` over its value at entry
 KAPPA_GROWTH = 1e3
 #: augmented-Lagrangian rounds of an intermediate increment and of the last one
-ROUNDS, FINAL_ROUNDS = 4, 16
+ROUNDS, FINAL_ROUNDS = 4, 64
 #: IPC's progress ``η`` of the handles towards their targets below which ``κ_a`` doubles
 #: (else the multipliers are updated); an intermediate increment ends at it
 PROGRESS = 0.99
 #: a round of the last increment stalls where the handles' weighted distance to their
 #: targets stays above this fraction of the last one; two in a row end the pull
 STALL = 0.99
-#: the Gauss–Newton iterations and relative decrease of one round
-ROUND_ITERATIONS, ROUND_RTOL = 8, 1e-3
-#: the handles' largest distance to their targets, over ``d̂``, from which the last
-#: increment places them exactly
-SNAP = 0.1
+#: the Gauss–Newton iterations of one round
+ROUND_ITERATIONS = 8
 
 
 def placed_targets_problem(triangles: IntArray, handles: IntArray, targets: FloatArray,
@@ -203,7 +206,6 @@ class HandlePull:
         contact = problem.contact
         free = np.ones(free_problem.free.size, bool)
         term = ContactTerm(contact.contact, free, contact.mean_mass)
-        self.dhat = contact.contact.dhat
         self.penalty = HandlePenalty(self.handles, problem.mass, 0.0)
         free_problem.contact = PulledContact(term, self.penalty)
         self.kappa0 = None
@@ -241,9 +243,9 @@ class HandlePull:
             pen.kappa = self.kappa0
         Q, iterations, initial = start, 0, pen.distance(start)
         before, stalled = initial, 0
-        for _ in range(FINAL_ROUNDS if last else ROUNDS):  # each to an intermediate tolerance
-            out = self.step(p, Q, H1[:0], self.none, min(max_iterations, ROUND_ITERATIONS),
-                            max(rtol, ROUND_RTOL), None)
+        limit = min(max_iterations, ROUND_ITERATIONS)
+        for _ in range(FINAL_ROUNDS if last else ROUNDS):
+            out = self.step(p, Q, H1[:0], self.none, limit, rtol, None)
             if out is None:
                 break
             Q, its = out
@@ -253,6 +255,9 @@ class HandlePull:
             now = pen.distance(Q)
             if not last and now <= (1.0 - PROGRESS) * initial:
                 break
+            if its == limit and now < STALL * before:  # not converged, still gaining:
+                before = now  # the same κ_a and λ (IPC updates them at a minimizer)
+                continue
             stalled = stalled + 1 if now > STALL * before else 0
             if stalled == 2:
                 break
@@ -268,25 +273,48 @@ class HandlePull:
             return Q, iterations
         gap = float(np.abs(pen.gap(Q)).max())
         raise NotAdmissibleError(
-            f"the handles, pulled along their path, stop {gap:.3g} short of their targets"
-            if gap > SNAP * self.dhat else f"the handles' last {gap:.3g} to their targets "
-            "cannot be taken clear of the surface")
+            f"the handles, pulled along their path, stop {gap:.3g} short of their targets "
+            "(the straight step there, the rest still, not clear of the surface)")
 
     def _place(self, Q: FloatArray, H1: FloatArray, max_iterations: int, rtol: float,
                stall: float | None):
-        """The ordinary increment (handles fixed) from the pulled ``Q`` placing the handles
-        exactly at ``H1``, where they are within ``SNAP d̂`` of them and their straight
-        remaining step, the rest still, is clear of the surface (else None: the pull goes
-        on). The motion's barrier takes the pull's stiffness where that is larger."""
-        if np.abs(self.penalty.gap(Q)).max() > SNAP * self.dhat:
-            return None
+        """The ordinary increment (handles fixed) from the pulled ``Q`` with the handles
+        moved exactly to ``H1``: the rest still, or else carried to first order
+        (:meth:`_carried`), where that step is admissible and clear of the surface; None
+        where neither is or the increment fails (the pull goes on). The motion's barrier
+        takes the pull's stiffness where that is larger."""
+        pulled, main = self.problem.contact.contact, self.main.contact
         end = Q.copy()
         end[self.handles] = H1
-        pulled, main = self.problem.contact.contact, self.main.contact
         if not pulled.clear(Q, end):
-            return None
+            end = self._carried(Q, H1)
+            if not (self.problem.admissible(end, self.problem.parts(end)[0])
+                    and pulled.clear(Q, end)):
+                return None
         if pulled.kappa is not None and (main.kappa is None or main.kappa < pulled.kappa):
             main.max_kappa = pulled.max_kappa if main.kappa is None else max(
                 main.max_kappa, pulled.max_kappa)
             main.kappa, main.closest = pulled.kappa, min(main.closest, pulled.closest)
-        return self.step(self.main, Q, H1, self.handles, max_iterations, rtol, stall)
+        return self.step(self.main, end, H1, self.handles, max_iterations, rtol, stall)
+
+    def _carried(self, Q: FloatArray, H1: FloatArray) -> FloatArray:
+        """``Q`` with the handles at ``H1`` and the rest moved by ``−K_ff⁻¹ K_fh δ_h``,
+        ``K`` the Gauss–Newton matrix of the pull's increment with the barrier's Hessian
+        (its pairs carried along with the handles, so they keep their distance to first
+        order), ``δ_h`` the handles' remaining step."""
+        p = self.problem
+        rm, Jm, rb, Jb = p.linearization(Q)
+        L = p.normal_matrix(Jm, Jb)
+        if (H := p.contact.contact.hessian(Q)) is not None:
+            L = (L + sp.tril(H)).tocsr()
+        on = np.zeros(Q.shape, bool)
+        on[self.handles] = True
+        on = on.ravel()
+        d = np.zeros(Q.shape)
+        d[self.handles] = H1 - Q[self.handles]
+        K = (L + L.T - sp.diags(L.diagonal())).tocsr()
+        Kff = L[~on][:, ~on].tocsr()
+        Kff = (Kff + sp.diags(1e-6 * Kff.diagonal())).tocsr()
+        out = Q + d
+        out.ravel()[~on] -= factorize_spd(Kff)(K[~on][:, on] @ d.ravel()[on])
+        return out
