@@ -12,6 +12,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from test_morph_self_intersection import _grid
 
 from meshopt_toolkit.diagnostics import check_gradient, check_hvp
@@ -19,7 +21,8 @@ from meshopt_toolkit.errors import NotAdmissibleError
 from meshopt_toolkit.kernels.intersections3d import self_intersections
 from meshopt_toolkit.motion.engine.contact import SurfaceContact, contact_term
 from meshopt_toolkit.motion.engine.similarity import HandlePath, handle_groups
-from meshopt_toolkit.motion.surface.handle_pull import (HandlePenalty, PulledContact,
+from meshopt_toolkit.motion.surface.handle_pull import (HandlePenalty, HandlePull,
+                                                        PulledContact,
                                                         placed_targets_problem)
 from meshopt_toolkit.motion.surface.move import lumped_mass, move_surface
 
@@ -231,3 +234,51 @@ def test_the_bunny_s_ear_cropped_is_pulled_into_its_back():
     assert _clean(res.frames, F) == [0] * len(res.frames)
     np.testing.assert_array_equal(res.points[h], tg)
     assert res.folds == 0 and res.handle_error == 0.0
+
+
+def test_the_last_step_carries_the_pairs_along_with_the_handles(monkeypatch):
+    """Pressed into the sphere, the paddle stops a few d̂ short with the barrier's pairs far
+    closer: its straight last step, the sphere still, is not clear; carried by the barrier's
+    Hessian the sphere keeps its distance to the paddle (to first order) and the step is."""
+    seen, carried = [], HandlePull._carried
+
+    def recorded(self, Q, H1):
+        out = carried(self, Q, H1)
+        term = self.problem.contact.contact
+        straight = Q.copy()
+        straight[self.handles] = H1
+        seen.append((term.cap(Q, straight), term.clear(Q, out),
+                     term.contact.minimum_distance(Q), term.contact.minimum_distance(out)))
+        return out
+
+    monkeypatch.setattr(HandlePull, "_carried", recorded)
+    V, F, h, tg, _ = paddle_onto_sphere(0.1)
+    res = move_surface(V, F, h, tg)
+    np.testing.assert_array_equal(res.points[h], tg)
+    assert seen and all(cap < 1.0 for cap, *_ in seen)
+    cap, clear, before, after = seen[-1]
+    assert clear and abs(after - before) < 1e-2 * before
+
+
+@settings(max_examples=40, deadline=None)
+@given(turn=st.floats(-180.0, 0.0), shift=st.floats(-0.6, 0.2), height=st.floats(-0.2, 0.3))
+def test_placed_crossings_agree_with_ipctk(turn, shift, height):
+    """Random placements of the paddle by the sheet's fixed band (y ≤ 0.25 and the
+    border): refused exactly where ipctk finds an edge through a triangle among the
+    elements whose every vertex is a handle."""
+    import ipctk
+
+    V, F, h, _ = _paddle_through_fixed_band()
+    a, paddle = np.radians(turn), V[25:]
+    rho = paddle[:, 1] - 0.5
+    tg = np.vstack([V[h[:-9]], np.c_[paddle[:, 0], 0.5 + shift + rho * np.cos(a),
+                                     height + rho * np.sin(a)]])
+    P = np.zeros_like(V)
+    P[h] = tg
+    placed = np.zeros(len(V), bool)
+    placed[h] = True
+    faces = F[placed[F].all(axis=1)].astype(np.int32)
+    E = ipctk.edges(F.astype(np.int32))
+    mesh = ipctk.CollisionMesh(P, E[placed[E].all(axis=1)], faces)
+    assert (placed_targets_problem(F, h, tg, len(V)) is not None) == ipctk.has_intersections(
+        mesh, P)

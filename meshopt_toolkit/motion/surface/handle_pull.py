@@ -274,7 +274,7 @@ class HandlePull:
         gap = float(np.abs(pen.gap(Q)).max())
         raise NotAdmissibleError(
             f"the handles, pulled along their path, stop {gap:.3g} short of their targets "
-            "(the straight step there, the rest still, not clear of the surface)")
+            "(no step placing them there clear of the surface)")
 
     def _place(self, Q: FloatArray, H1: FloatArray, max_iterations: int, rtol: float,
                stall: float | None):
@@ -303,7 +303,7 @@ class HandlePull:
         (its pairs carried along with the handles, so they keep their distance to first
         order), ``δ_h`` the handles' remaining step."""
         p = self.problem
-        rm, Jm, rb, Jb = p.linearization(Q)
+        _, Jm, _, Jb = p.linearization(Q)
         L = p.normal_matrix(Jm, Jb)
         if (H := p.contact.contact.hessian(Q)) is not None:
             L = (L + sp.tril(H)).tocsr()
