@@ -68,7 +68,7 @@ from ..engine.contact import contact_term
 from ..engine.continuation import GrowingSteps, march
 from ..engine.similarity import HandlePath, handle_groups
 from ..engine.similarity_3d import global_similarity
-from .handle_pull import HandlePull
+from .handle_pull import HandlePull, require_placeable
 from .least_squares import Problem, solve_increment
 from .polish import polish_worst_triangles
 
@@ -256,6 +256,7 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
     problem = Problem(V, F, handles, weight, bending, lumped_mass(V, F))
     problem.cg_iterations = int(o.cg_iterations)
     problem.contact = contact_term(V, F, problem.free, problem.mass, contact)
+    require_placeable(problem.contact, F, handles, targets)  # targets alone intersecting
     area_w = np.ones(len(F))  # √a_t
     if o.area_weights and len(F):
         area_w = np.sqrt(areas(V, F) / areas(V, F).mean())
