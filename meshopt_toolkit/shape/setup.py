@@ -8,7 +8,9 @@ import numpy as np
 from .._options import check_choice
 from .._typing import FloatArray
 from ..errors import OptimizationError, OptionError
+from ..kernels.triangles import signed_areas
 from ..mesh import PlanarMesh
+from ..scaling import size_scale
 
 #: the contact barrier (β3 of f2): ``μ`` and the cut-off in units of the shortest boundary
 #: edge ``h``: ``D^μ`` is smoothed over ``h/4`` and the barrier acts only where a boundary
@@ -51,6 +53,26 @@ EXP_DEFAULTS = {"method": "line-search"}
 def default_metric_beta(n_vertices: int) -> tuple[float, float, float, float]:
     """β^metric of thesis §6.4.3, (10, 1, 0, 1.46) for 146 vertices, i.e. β4 = 0.01·N."""
     return (10.0, 1.0, 0.0, 0.01 * n_vertices)
+
+
+def area_relative_beta(beta, mesh: PlanarMesh) -> tuple[float, float, float, float]:
+    """β^penalty of :func:`~meshopt_toolkit.optimize.optimize` on ``mesh``: β2 times
+    ``A0 / (π R²)``, the mesh's area over that of the disc of its size ``R``
+    (:func:`~meshopt_toolkit.scaling.size_scale`; ``R = 1`` at unit size).
+
+    f2's area term ``β2/ΣA`` becomes ``(β2/πR²)·A0/ΣA``: it weighs a relative change of
+    the area as the thesis' term does on the unit disc (``A0 = π``), on a domain of any
+    size and proportions. Without the factor, at unit size, a 3:1 plate's area term pulls
+    its boundary outwards ``(π/A0)² ≈ 7`` times harder than the unit disc's: against the
+    objective it squeezes boundary triangles to the quality floor of ``scale="auto"`` on
+    fine meshes, and where the floor's restarts have shrunk the objective's weight it
+    inflates the domain.
+    """
+    b1, b2, b3, b4 = (float(b) for b in beta)
+    if b2:
+        area = float(signed_areas(mesh.points, mesh.triangles).sum())
+        b2 *= area / (np.pi * size_scale(mesh).factor ** 2)
+    return (b1, b2, b3, b4)
 
 
 def contact_options(mesh: PlanarMesh) -> dict:
