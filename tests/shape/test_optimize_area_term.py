@@ -1,0 +1,43 @@
+"""f2's area term in ``mt.optimize``: ``β2`` weighs the area relative to the initial one,
+as the thesis' ``β2/ΣA`` on the unit disc, on domains of every size and proportions
+(:func:`meshopt_toolkit.shape.setup.area_relative_beta`)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from test_optimize import PullObjective
+
+from meshopt_toolkit.mesh import PlanarMesh
+from meshopt_toolkit.optimize import optimize
+
+
+def rectangle(nx: int, ny: int, width: float, height: float) -> PlanarMesh:
+    """[0, width] × [0, height] in nx × ny squares, each cut in two."""
+    X, Y = np.meshgrid(np.linspace(0.0, width, nx + 1), np.linspace(0.0, height, ny + 1))
+    idx = np.arange((nx + 1) * (ny + 1)).reshape(ny + 1, nx + 1)
+    a, b = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel()
+    c, d = idx[1:, 1:].ravel(), idx[1:, :-1].ravel()
+    return PlanarMesh(np.stack([X.ravel(), Y.ravel()], 1),
+                      np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)]))
+
+
+@settings(max_examples=25, deadline=None)
+@given(nx=st.integers(1, 6), ny=st.integers(1, 6), aspect=st.floats(0.125, 8.0),
+       exponent=st.floats(-12.0, 12.0))
+def test_the_area_term_starts_at_the_unit_discs_value_on_every_rectangle(nx, ny, aspect,
+                                                                          exponent):
+    """At the initial mesh f2 = β2/ΣA alone (β1 = β3 = β4 = 0) is ``β2/π``, its value on
+    the unit disc, for a rectangle of any proportions at any scale: the term weighs the
+    area relative to the initial one (read at unit size without that, a 3:1 rectangle's
+    would start at ``β2·R²/A0 = 3β2/4``)."""
+    size = 10.0 ** exponent
+    mesh = rectangle(nx, ny, size * aspect, size)
+    beta2 = 0.01
+    res = optimize(mesh, PullObjective(mesh, mesh.points), penalty=(0.0, beta2, 0.0, 0.0),
+                   max_iterations=0)
+    assert res.history[0].penalty == pytest.approx(beta2 / math.pi, rel=1e-12)
