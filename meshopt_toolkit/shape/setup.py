@@ -1,13 +1,12 @@
 """Set-up pieces of :func:`meshopt_toolkit.optimize.optimize`: the metric, the retraction,
-the size check and the contact barrier's defaults."""
+f2's area-relative β2 and the contact barrier's defaults."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from .._options import check_choice
-from .._typing import FloatArray
-from ..errors import OptimizationError, OptionError
+from ..errors import OptionError
 from ..kernels.triangles import signed_areas
 from ..mesh import PlanarMesh
 from ..scaling import size_scale
@@ -30,13 +29,6 @@ VARIANT_PARTS: dict[str, tuple[str, bool]] = {
     "complete-complete": ("complete", True),
 }
 VARIANTS = tuple(VARIANT_PARTS)
-
-#: meshes whose bounding box diagonal lies outside this range are refused: the penalty
-#: and the metrics are not scale-invariant (β2/Σ A and the β4 term scale like L⁻² and L²),
-#: so the problem changes with the unit of length; on disc_146 (diagonal 2.8) scaled to a
-#: diagonal of 3e-3 the complete metric's Riesz map already cancels to a non-descent
-#: direction, and a diagonal of 100 with the default rhs ends with min AR ~1e-12
-SIZE_RANGE = (1e-2, 1e2)
 
 #: complete-complete's retractions: second order (the default) or the exponential map
 RETRACTIONS = ("second-order", "exp")
@@ -129,16 +121,3 @@ def _make_metric(variant: str, mesh: PlanarMesh, metric_beta, metric_options: di
 
     beta = default_metric_beta(mesh.n_vertices) if metric_beta is None else tuple(metric_beta)
     return CompleteMetric(QualityPenalty(mesh, beta=beta, **metric_options))
-
-
-def _check_size(points: FloatArray) -> None:
-    """Refuse a mesh whose bounding-box diagonal is outside :data:`SIZE_RANGE`."""
-    size = float(np.linalg.norm(np.ptp(points, axis=0)))
-    lo, hi = SIZE_RANGE
-    if not lo <= size <= hi:
-        raise OptimizationError(
-            f"the mesh is {size:.3g} across (bounding-box diagonal); shape optimization "
-            f"needs a size between {lo:g} and {hi:g} because the penalty and the metrics "
-            f"are not scale-invariant: rescale the mesh (e.g. to unit size) first"
-        )
-
