@@ -218,9 +218,9 @@ def optimize(
         inner product and a Wolfe line search), ``"cg"`` (Hestenes–Stiefel+), or
         ``"steepest"`` (the thesis' Armijo steepest descent).
     penalty : (β1, β2, β3, β4) of the penalty f2 added to j (β4 unscaled: f2 divides it
-        by 2N; β2 weighs the area relative to the initial one,
-        :func:`~meshopt_toolkit.shape.setup.area_relative_beta`); None or all zero =
-        unpenalized. The default
+        by 2N; β2 is weighed so that the area term pushes the boundary as on the unit
+        disc, :func:`~meshopt_toolkit.shape.setup.area_relative_beta`); None or all zero
+        = unpenalized. The default
         :data:`DEFAULT_PENALTY_BETA` is that of ``meshopt optimize`` and the filter.
     metric_beta : β^metric of the complete metric (default :func:`default_metric_beta`).
     fixed : vertex indices (or boolean mask) that do not move.

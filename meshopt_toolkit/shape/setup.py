@@ -49,21 +49,21 @@ def default_metric_beta(n_vertices: int) -> tuple[float, float, float, float]:
 
 def area_relative_beta(beta, mesh: PlanarMesh) -> tuple[float, float, float, float]:
     """β^penalty of :func:`~meshopt_toolkit.optimize.optimize` on ``mesh``: β2 times
-    ``A0 / (π R²)``, the mesh's area over that of the disc of its size ``R``
+    ``(A0 / πR²)²``, the square of the mesh's area over that of the disc of its size ``R``
     (:func:`~meshopt_toolkit.scaling.size_scale`; ``R = 1`` at unit size).
 
-    f2's area term ``β2/ΣA`` becomes ``(β2/πR²)·A0/ΣA``: it weighs a relative change of
-    the area as the thesis' term does on the unit disc (``A0 = π``), on a domain of any
-    size and proportions. Without the factor, at unit size, a 3:1 plate's area term pulls
-    its boundary outwards ``(π/A0)² ≈ 7`` times harder than the unit disc's: against the
-    objective it squeezes boundary triangles to the quality floor of ``scale="auto"`` on
-    fine meshes, and where the floor's restarts have shrunk the objective's weight it
-    inflates the domain.
+    f2's area term ``β2/ΣA`` then pushes the initial boundary outwards as the thesis' term
+    does on the unit disc (``A0 = π``): its derivative with respect to the area at unit
+    size is ``−β2/π²`` on a domain of any size and proportions, as ``scale="auto"``
+    weighs the objective by its gradient. Without the factor a 6 × 2 plate's pushes
+    ``(π/A0)² ≈ 7`` times harder than the unit disc's: against the objective it leaves
+    fine meshes without a step at the quality floor of ``scale="auto"``, and once the
+    floor's restarts have shrunk the objective's weight it inflates the domain.
     """
     b1, b2, b3, b4 = (float(b) for b in beta)
     if b2:
         area = float(signed_areas(mesh.points, mesh.triangles).sum())
-        b2 *= area / (np.pi * size_scale(mesh).factor ** 2)
+        b2 *= (area / (np.pi * size_scale(mesh).factor ** 2)) ** 2
     return (b1, b2, b3, b4)
 
 
