@@ -57,8 +57,7 @@ def test_the_defaults_need_no_restart_of_the_quality_floor_on_a_3_to_1_rectangle
     ``scale="auto"`` picks (a run of 0 iterations reports it), keeping the worst triangle
     above half its initial aspect ratio and halving j. With the thesis' ``β2/ΣA`` read at
     unit size the area term pushed the boundary out 5.6 times harder than on the unit disc:
-    the worst triangle reached the quality floor, no step was left and the run restarted
-    with ``w/4``."""
+    the run found no step (step too small) and restarted with ``w/4``."""
     from meshopt_toolkit.optimize import DEFAULT_PENALTY_BETA
     from meshopt_toolkit.shape.spec import ProblemSpec
 
