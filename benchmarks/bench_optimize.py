@@ -33,7 +33,7 @@ weight, the worst triangle (min aspect ratio) and j before and after, as a Markd
 (docs/shape-optimization.md). Done when every run converges and keeps AR ≥ ½ AR0.
 
 Usage: python benchmarks/bench_optimize.py [--table] [--max-vertices 2200]
-       python benchmarks/bench_optimize.py --users [--max-vertices 21000]
+       python benchmarks/bench_optimize.py --users [--max-vertices 21000] [--row N ...]
        python benchmarks/bench_optimize.py --defaults [--max-vertices 14000]
        python benchmarks/bench_optimize.py --per-iteration [--iterations 10] [--repeats 3]
        [--max-vertices 14000] [--exact]
@@ -158,7 +158,7 @@ USER_CASES = (
 )
 
 
-def users(max_vertices: int) -> None:
+def users(max_vertices: int, rows: list[int] | None = None) -> None:
     import tempfile
     from pathlib import Path
 
@@ -173,7 +173,9 @@ def users(max_vertices: int) -> None:
           "| j before → after | area change |")
     print("| --- | ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: | --- | --- | ---: |")
     with tempfile.TemporaryDirectory() as tmp:
-        for label, case, size, near, options in USER_CASES:
+        for row, (label, case, size, near, options) in enumerate(USER_CASES, 1):
+            if rows and row not in rows:
+                continue
             path = user_mesh(case, Path(tmp) / f"{case}-{size}.msh", size, refine_near=near)
             mesh = mt.load(path).as_planar()
             if mesh.n_vertices > max_vertices:
@@ -208,6 +210,8 @@ def main(argv=None):
     p.add_argument("--per-iteration", action="store_true", help="time per iteration per variant")
     p.add_argument("--users", action="store_true",
                    help="the defaults on users' kinds of gmsh meshes (Markdown table)")
+    p.add_argument("--row", type=int, action="append",
+                   help="with --users: only this row of USER_CASES (1-based; repeatable)")
     p.add_argument("--iterations", type=int, default=10)
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--max-vertices", type=int, default=None,
@@ -216,7 +220,7 @@ def main(argv=None):
                    help="also time complete-complete with the exact (1e-6) exponential map")
     args = p.parse_args(argv)
     if args.users:
-        users(args.max_vertices or 21000)
+        users(args.max_vertices or 21000, args.row)
         return
     if args.defaults:
         defaults(args.max_vertices or 14000)

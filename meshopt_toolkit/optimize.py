@@ -59,6 +59,7 @@ from .shape.setup import (  # noqa: F401  (the variants' table and set-up, re-ex
     _make_retraction,
     _retraction_kind,
     _retraction_options,
+    area_relative_beta,
     contact_options,
     default_metric_beta,
 )
@@ -217,7 +218,9 @@ def optimize(
         inner product and a Wolfe line search), ``"cg"`` (Hestenes–Stiefel+), or
         ``"steepest"`` (the thesis' Armijo steepest descent).
     penalty : (β1, β2, β3, β4) of the penalty f2 added to j (β4 unscaled: f2 divides it
-        by 2N); None or all zero = unpenalized. The default
+        by 2N; β2 is weighed so that the area term pushes the boundary as on the unit
+        disc, :func:`~meshopt_toolkit.shape.setup.area_relative_beta`); None or all zero
+        = unpenalized. The default
         :data:`DEFAULT_PENALTY_BETA` is that of ``meshopt optimize`` and the filter.
     metric_beta : β^metric of the complete metric (default :func:`default_metric_beta`).
     fixed : vertex indices (or boolean mask) that do not move.
@@ -310,11 +313,12 @@ def _optimize(mesh: PlanarMesh, objective, *, spec: ProblemSpec, variant: str, m
             from .penalties import QualityPenalty
 
             contact = contact_options(mesh) if penalty[2] > 0 else {}
-            f2 = QualityPenalty(mesh, beta=tuple(penalty), **contact)
+            beta = area_relative_beta(penalty, mesh)
+            f2 = QualityPenalty(mesh, beta=beta, **contact)
 
             def anchored(start: PlanarMesh):
                 """The same f2 with its anchor ``Q_ref`` (β4) at ``start``."""
-                return QualityPenalty(start, beta=tuple(penalty), **contact)
+                return QualityPenalty(start, beta=beta, **contact)
         metric = _make_metric(variant, mesh, metric_beta, dict(o.metric_options or {}))
         cells, boundary, norm_metric = mesh.triangles, mesh.boundary_edges, None
         Problem = ShapeProblem

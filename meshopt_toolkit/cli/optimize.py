@@ -32,6 +32,8 @@ HELP = ("shape optimization: minimize a Poisson, elasticity-compliance or Stokes
         "objective + f2 over admissible meshes")
 EPILOG = (
     "β4 is given unscaled: f2 divides it by 2N (thesis table 6.3 lists β4/N_V).\n"
+    "β2 is weighed by (A0/πR²)² (A0 the mesh's area, R half the largest side of its\n"
+    "bounding box): f2's β2/ΣA pushes the boundary outwards as on the unit disc.\n"
     "Default (no MESH): bundled disc_146.msh, elasticity-euclidean, β^penalty =\n"
     "(0.1, 0.01, 0.01, 0.146) = thesis parameter set 2 at 146 vertices, with β4 fixed on\n"
     "every mesh (set 2 scales it with N, which squeezes fine meshes' boundary\n"

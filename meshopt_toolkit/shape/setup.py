@@ -1,14 +1,15 @@
 """Set-up pieces of :func:`meshopt_toolkit.optimize.optimize`: the metric, the retraction,
-the size check and the contact barrier's defaults."""
+f2's area-relative β2 and the contact barrier's defaults."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from .._options import check_choice
-from .._typing import FloatArray
-from ..errors import OptimizationError, OptionError
+from ..errors import OptionError
+from ..kernels.triangles import signed_areas
 from ..mesh import PlanarMesh
+from ..scaling import size_scale
 
 #: the contact barrier (β3 of f2): ``μ`` and the cut-off in units of the shortest boundary
 #: edge ``h``: ``D^μ`` is smoothed over ``h/4`` and the barrier acts only where a boundary
@@ -29,13 +30,6 @@ VARIANT_PARTS: dict[str, tuple[str, bool]] = {
 }
 VARIANTS = tuple(VARIANT_PARTS)
 
-#: meshes whose bounding box diagonal lies outside this range are refused: the penalty
-#: and the metrics are not scale-invariant (β2/Σ A and the β4 term scale like L⁻² and L²),
-#: so the problem changes with the unit of length; on disc_146 (diagonal 2.8) scaled to a
-#: diagonal of 3e-3 the complete metric's Riesz map already cancels to a non-descent
-#: direction, and a diagonal of 100 with the default rhs ends with min AR ~1e-12
-SIZE_RANGE = (1e-2, 1e2)
-
 #: complete-complete's retractions: second order (the default) or the exponential map
 RETRACTIONS = ("second-order", "exp")
 DEFAULT_RETRACTION = "second-order"
@@ -51,6 +45,26 @@ EXP_DEFAULTS = {"method": "line-search"}
 def default_metric_beta(n_vertices: int) -> tuple[float, float, float, float]:
     """β^metric of thesis §6.4.3, (10, 1, 0, 1.46) for 146 vertices, i.e. β4 = 0.01·N."""
     return (10.0, 1.0, 0.0, 0.01 * n_vertices)
+
+
+def area_relative_beta(beta, mesh: PlanarMesh) -> tuple[float, float, float, float]:
+    """β^penalty of :func:`~meshopt_toolkit.optimize.optimize` on ``mesh``: β2 times
+    ``(A0 / πR²)²``, the square of the mesh's area over that of the disc of its size ``R``
+    (:func:`~meshopt_toolkit.scaling.size_scale`; ``R = 1`` at unit size).
+
+    f2's area term ``β2/ΣA`` then pushes the initial boundary outwards as the thesis' term
+    does on the unit disc (``A0 = π``): its derivative with respect to the area at unit
+    size is ``−β2/π²`` on a domain of any size and proportions, as ``scale="auto"``
+    weighs the objective by its gradient. Without the factor a 6 × 2 plate's pushes
+    ``(π/A0)² ≈ 7`` times harder than the unit disc's: against the objective it leaves
+    fine meshes without a step at the quality floor of ``scale="auto"``, and once the
+    floor's restarts have shrunk the objective's weight it inflates the domain.
+    """
+    b1, b2, b3, b4 = (float(b) for b in beta)
+    if b2:
+        area = float(signed_areas(mesh.points, mesh.triangles).sum())
+        b2 *= (area / (np.pi * size_scale(mesh).factor ** 2)) ** 2
+    return (b1, b2, b3, b4)
 
 
 def contact_options(mesh: PlanarMesh) -> dict:
@@ -107,16 +121,3 @@ def _make_metric(variant: str, mesh: PlanarMesh, metric_beta, metric_options: di
 
     beta = default_metric_beta(mesh.n_vertices) if metric_beta is None else tuple(metric_beta)
     return CompleteMetric(QualityPenalty(mesh, beta=beta, **metric_options))
-
-
-def _check_size(points: FloatArray) -> None:
-    """Refuse a mesh whose bounding-box diagonal is outside :data:`SIZE_RANGE`."""
-    size = float(np.linalg.norm(np.ptp(points, axis=0)))
-    lo, hi = SIZE_RANGE
-    if not lo <= size <= hi:
-        raise OptimizationError(
-            f"the mesh is {size:.3g} across (bounding-box diagonal); shape optimization "
-            f"needs a size between {lo:g} and {hi:g} because the penalty and the metrics "
-            f"are not scale-invariant: rescale the mesh (e.g. to unit size) first"
-        )
-
