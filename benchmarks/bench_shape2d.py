@@ -223,7 +223,7 @@ def elasticity(tmp: Path, size: float, refine_near: float) -> None:
     summary, rows = runs["anchor follows (default)"]
     solve = state_seconds(plate, dict(spec, move="hole"))
     print(speed(rows, solve, summary))
-    metric_factor_choices(plate, dict(spec, move="hole", keep_area=True), solve, 30)
+    metric_factor_choices(plate, dict(spec, move="hole", keep="area"), solve, 30)
     print()
     iteration_table(rows, 10, solve)
 
@@ -318,8 +318,8 @@ def stokes(tmp: Path, size: float, refine_near: float, ratios) -> None:
           f"{r['min_area']:.2e}, worst AR {r['worst']:.3f} × the start.")
     solve = state_seconds(body, dict(spec, move="body"))
     print(speed(rows, solve, summary))
-    metric_factor_choices(body, dict(spec, move="body", keep_area=True,
-                                     keep_barycenter=True), solve, 20)
+    metric_factor_choices(body, dict(spec, move="body",
+                                     keep="area,barycenter"), solve, 20)
     print()
     iteration_table(rows, 10, solve)
 

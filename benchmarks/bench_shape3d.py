@@ -186,7 +186,7 @@ def run(args) -> str:
     j0, solve = drag(sphere)
     print(f"sphere: {sphere.n_tets} tets, drag {j0:.5f}, one state solve {solve:.1f} s",
           flush=True)
-    spec = spec_from_options(**SPEC, keep_area=True, keep_barycenter=True, scale="auto")
+    spec = spec_from_options(**SPEC, keep="volume,barycenter", scale="auto")
     clock = [time.perf_counter()] * 2
 
     def progress(r) -> None:

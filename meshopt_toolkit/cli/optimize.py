@@ -147,7 +147,7 @@ def run(args: argparse.Namespace) -> int:
     from ..optimize import (DEFAULT_PENALTY_BETA, DEFAULT_RETRACTION, VARIANT_PARTS,
                             OptimizeOptions, optimize)
     from ..progress import ProgressBar
-    from ..shape.spec import parse_objective, spec_from_options
+    from ..shape.spec import kept_constraints, parse_objective, spec_from_options
 
     check_options(args, ShapeOptimization, OPTIONS)
     if args.metric_penalty is not None and VARIANT_PARTS[args.variant][0] != "complete":
@@ -163,9 +163,9 @@ def run(args: argparse.Namespace) -> int:
     penalty = args.penalty if args.penalty is not None else DEFAULT_PENALTY_BETA
     spec = spec_from_options(
         fixed=args.fixed, move=args.move, dirichlet=args.dirichlet, neumann=args.neumann,
-        keep_area=args.keep_area, objective=args.objective, rhs=args.rhs,
-        scale=args.objective_scale or ("auto" if args.mesh else 1.0), pde=args.pde,
-        stress=args.stress, clamped=args.clamped, keep_barycenter=args.keep_barycenter,
+        keep=kept_constraints(args.keep_area, args.keep_barycenter), objective=args.objective,
+        rhs=args.rhs, scale=args.objective_scale or ("auto" if args.mesh else 1.0),
+        pde=args.pde, stress=args.stress, clamped=args.clamped,
         material=dict(young=args.young, poisson_ratio=args.poisson_ratio,
                       viscosity=args.viscosity))
     try:

@@ -120,7 +120,7 @@ class ShapeOptimization(Filter):
               clamped: str = "", young: float = 1.0, poisson_ratio: float = 0.3,
               viscosity: float = 1.0, keep_barycenter: bool = False) -> dict:
         from meshopt_toolkit.optimize import DEFAULT_PENALTY_BETA, OptimizeOptions, optimize
-        from meshopt_toolkit.shape.spec import spec_from_options
+        from meshopt_toolkit.shape.spec import kept_constraints, spec_from_options
 
         entry = document.current_entry
         # the plane's coordinates at the file's scale (r is given in them); None: tets
@@ -128,9 +128,9 @@ class ShapeOptimization(Filter):
         mesh = entry.mesh.require_admissible() if wp is None else wp.mesh
         beta = number_list(penalty, 4, "penalty") or DEFAULT_PENALTY_BETA
         spec = spec_from_options(fixed=fixed, move=move, dirichlet=dirichlet, neumann=neumann,
-                                 keep_area=keep_area, objective=objective, rhs=rhs,
-                                 scale=objective_scale, pde=pde, stress=stress,
-                                 clamped=clamped, keep_barycenter=keep_barycenter,
+                                 keep=kept_constraints(keep_area, keep_barycenter),
+                                 objective=objective, rhs=rhs, scale=objective_scale,
+                                 pde=pde, stress=stress, clamped=clamped,
                                  material=dict(young=young, poisson_ratio=poisson_ratio,
                                                viscosity=viscosity))
         result = optimize(

@@ -29,7 +29,8 @@ from .._typing import FloatArray
 from ..errors import MeshoptError, OptimizationError, OptionError
 
 __all__ = ["AUTO_GRADIENT_NORM", "GUARD_FACTOR", "GUARD_TRIES", "OBJECTIVES", "PDES",
-           "QUALITY_GUARD", "ProblemSpec", "ScaledObjective", "parse_assignment",
+           "KEEPS", "QUALITY_GUARD", "ProblemSpec", "ScaledObjective", "kept_constraints",
+           "parse_assignment",
            "parse_objective", "parse_scale", "spec_from_options"]
 
 #: objectives: ``integral`` (∫y), ``tracking: EXPR`` (½∫(y − y_d)², y_d = EXPR),
@@ -126,14 +127,24 @@ def parse_scale(text) -> float | str:
     return v
 
 
-def spec_from_options(*, fixed=(), move=(), dirichlet=(), neumann=(), keep_area=False,
+#: the constraints ``spec_from_options`` holds exactly ("volume": the area's 3D name)
+KEEPS = frozenset({"area", "volume", "barycenter"})
+
+
+def kept_constraints(area: bool, barycenter: bool) -> tuple[str, ...]:
+    """The ``keep`` of :func:`spec_from_options` from the two flags of the CLI and the filter."""
+    return ("area",) * bool(area) + ("barycenter",) * bool(barycenter)
+
+
+def spec_from_options(*, fixed=(), move=(), dirichlet=(), neumann=(), keep=(),
                       objective="", rhs="default", scale="auto", pde="", stress=(),
-                      clamped=(), material=None, keep_barycenter=False) -> ProblemSpec:
+                      clamped=(), material=None) -> ProblemSpec:
     """A :class:`ProblemSpec` from option strings: groups and ``GROUP=VALUE`` items
-    comma-separated (or repeated; a vector value ``GROUP=V1,V2``), ``scale`` ``"auto"``
-    or a number, ``material`` ``{"young", "poisson_ratio", "viscosity"}`` (the defaults
-    where missing). An empty (or ``"auto"``) ``pde`` is the objective's, an empty ``objective`` the PDE's
-    first."""
+    comma-separated (or repeated; a vector value ``GROUP=V1,V2``), ``keep`` the
+    constraints held exactly (``"area"`` or its 3D name ``"volume"``, ``"barycenter"``),
+    ``scale`` ``"auto"`` or a number, ``material`` ``{"young", "poisson_ratio",
+    "viscosity"}`` (the defaults where missing). An empty (or ``"auto"``) ``pde`` is the
+    objective's, an empty ``objective`` the PDE's first."""
     from ..fem.boundary_data import group_key
 
     pde = (pde or "").strip()
@@ -144,6 +155,10 @@ def spec_from_options(*, fixed=(), move=(), dirichlet=(), neumann=(), keep_area=
         objective = PDES[pde or "poisson"][0]
     scalar = (pde or "poisson") == "poisson"
     groups = [(g, "--dirichlet") for g in _assignments(dirichlet)]
+    kept = set(_items(keep))
+    if kept - KEEPS:
+        raise OptionError(f"keep {', '.join(sorted(kept - KEEPS))!r}: choose from "
+                          f"{', '.join(sorted(KEEPS))}")
     return ProblemSpec(
         fixed=tuple(group_key(g) for g in _items(fixed)),
         move=tuple(group_key(g) for g in _items(move)),
@@ -151,7 +166,7 @@ def spec_from_options(*, fixed=(), move=(), dirichlet=(), neumann=(), keep_area=
         neumann=dict(parse_assignment(a, "--neumann") for a in _assignments(neumann)),
         stress=dict(parse_assignment(a, "--stress", None) for a in _assignments(stress)),
         clamped=tuple(group_key(g) for g in _items(clamped)),
-        keep_area=bool(keep_area), keep_barycenter=bool(keep_barycenter),
+        keep_area=bool(kept & {"area", "volume"}), keep_barycenter="barycenter" in kept,
         objective=objective, pde=pde, rhs=rhs, material=dict(material or {}),
         scale=parse_scale(scale))
 

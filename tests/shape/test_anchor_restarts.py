@@ -13,7 +13,7 @@ from meshopt_toolkit.optimize import ANCHOR_GROWTH, optimize
 from meshopt_toolkit.shape.cases import ellipse_in_box
 from meshopt_toolkit.shape.spec import spec_from_options
 
-SPEC = dict(pde="elasticity", stress="outer=2,1,0", move="hole", keep_area=True)
+SPEC = dict(pde="elasticity", stress="outer=2,1,0", move="hole", keep="area")
 
 
 @pytest.fixture(scope="module")

@@ -169,7 +169,7 @@ def _check_run(mesh, Q1, spec):
 def test_stokes_drag_decreases_with_volume_and_barycenter_kept(mesh):
     from meshopt_toolkit.optimize import optimize
 
-    spec = spec_from_options(**STOKES, keep_area=True, keep_barycenter=True, scale="auto")
+    spec = spec_from_options(**STOKES, keep="volume,barycenter", scale="auto")
     result = optimize(mesh, problem=spec, max_iterations=8)
     j0 = spec.make_objective(mesh).value(mesh.points)
     fresh = spec.make_objective(mesh).value(result.x)  # a new solver at the final mesh
@@ -188,7 +188,7 @@ def test_cli_stokes_writes_every_group_and_keeps_the_box(sphere, tmp_path):
     m0, m1 = before.to_tet_mesh("t"), after.to_tet_mesh("t")
     assert m1.tag_names == m0.tag_names and np.array_equal(m1.triangle_tags, m0.triangle_tags)
     assert np.array_equal(m1.tets, m0.tets)
-    spec = spec_from_options(**STOKES, keep_area=True, keep_barycenter=True)
+    spec = spec_from_options(**STOKES, keep="volume,barycenter")
     _check_run(m0, m1.points, spec)
     summary = json.loads((out / "summary.json").read_text())
     assert summary["n_tets"] == m0.n_tets and summary["min_mean_ratio"] > 0
@@ -256,7 +256,7 @@ def test_filter_optimizes_a_tet_document_as_the_library_does(mesh):
     registry.get("apply_coord_shape_optimization")()(
         doc, pde="stokes", dirichlet="body=1,0,0, outer=0,0,0", move="body", keep_area=True,
         max_iterations=2, tolerance=0)
-    spec = spec_from_options(**STOKES, keep_area=True)
+    spec = spec_from_options(**STOKES, keep="volume")
     expected = optimize(mesh, problem=spec, max_iterations=2, options=dict(tolerance=None))
     moved = doc.mesh
     assert np.allclose(moved.points, expected.x, rtol=0, atol=1e-12)

@@ -275,3 +275,14 @@ def test_area_is_kept_along_every_retraction_and_method(variant, method, meshes)
     assert abs(shoelace_area(res.x, mesh.boundary_edges) - A0) <= 1e-10 * A0
     outer = mesh.tagged_vertices("outer")
     assert np.array_equal(res.x[outer], mesh.points[outer])
+
+
+def test_keep_names_the_constraints_held_exactly():
+    """``keep`` spells the area (its 3D name "volume") and the barycenter; a name outside
+    them is refused, naming it."""
+    assert spec_from_options(keep="volume, barycenter").keep_area
+    assert spec_from_options(keep=["barycenter"]).keep_barycenter
+    plain = spec_from_options()
+    assert not (plain.keep_area or plain.keep_barycenter)
+    with pytest.raises(OptionError, match="'mass'"):
+        spec_from_options(keep="area,mass")
