@@ -25,8 +25,8 @@ follow the tutorial's own animation path); ours
 (``meshopt_toolkit.motion.surface.move.move_surface``) when it exists.
 
 Printed per case and method: worst relative quality (aspect ratio 2r/R over its rest value,
-triangles not wholly handles), folds, max handle error, seconds and the ARAP energy
-(``_surface_measures.py``) and the self-intersecting faces by pymeshlab's test.
+triangles not wholly handles), folds, max handle error, seconds (and CPU seconds) and the
+ARAP energy (``_surface_measures.py``) and the self-intersecting faces by pymeshlab's test.
 ``--figures DIR`` writes one PNG per case.
 
 * ``--contact``: motions that drive parts of a surface into each other: the bunny's ear
