@@ -25,8 +25,8 @@ follow the tutorial's own animation path); ours
 (``meshopt_toolkit.motion.surface.move.move_surface``) when it exists.
 
 Printed per case and method: worst relative quality (aspect ratio 2r/R over its rest value,
-triangles not wholly handles), folds, max handle error, seconds and the ARAP energy
-(``_surface_measures.py``) and the self-intersecting faces by pymeshlab's test.
+triangles not wholly handles), folds, max handle error, seconds (and CPU seconds) and the
+ARAP energy (``_surface_measures.py``) and the self-intersecting faces by pymeshlab's test.
 ``--figures DIR`` writes one PNG per case.
 
 * ``--contact``: motions that drive parts of a surface into each other: the bunny's ear
@@ -34,8 +34,11 @@ triangles not wholly handles), folds, max handle error, seconds and the ARAP ene
   (``_surface_cases_contact.py``): a hand-like plate's finger curled onto its palm, a strip
   folded in two.
 
+``--every-frame`` also tests each of ours' frames for self-intersections (the largest
+count is printed, and every frame that passes through itself with its exact pairs).
+
 Run ``python benchmarks/bench_surface.py [--cases knight,bar] [--unseen] [--unseen2] [--contact]
-[--contact2] [--figures DIR]``.
+[--contact2] [--every-frame] [--figures DIR]``.
 """
 
 from __future__ import annotations
@@ -529,11 +532,30 @@ def arap_incremental(case: Case, steps: int = STEPS) -> np.ndarray:
     return U
 
 
+OURS_FRAMES: list = []  # ours' frames of the last run (the rest first, the result last)
+
+
 def ours(case: Case) -> np.ndarray:
     """``meshopt_toolkit.motion.surface.move.move_surface`` (ImportError when absent)."""
     from meshopt_toolkit.motion.surface.move import move_surface
 
-    return np.asarray(move_surface(case.V, case.F, case.handles, case.path(1.0)).points)
+    result = move_surface(case.V, case.F, case.handles, case.path(1.0))
+    OURS_FRAMES[:] = [np.asarray(X) for X in result.frames]
+    return np.asarray(result.points)
+
+
+def frame_intersections(case: Case, frames: list) -> list:
+    """``(frame index, pymeshlab's self-intersecting faces, exact intersecting pairs)`` of
+    every frame whose surface passes through itself (``kernels/intersections3d.py``)."""
+    from meshopt_toolkit.kernels.intersections3d import self_intersections
+
+    out = []
+    for k, X in enumerate(frames):
+        faces = self_intersecting_faces(X, case.F)
+        pairs = self_intersections(X, case.F)
+        if faces or len(pairs):
+            out.append((k, faces, pairs))
+    return out
 
 
 METHODS = {
@@ -613,9 +635,9 @@ def run_case(case: Case, methods) -> dict:
     results, rows = {}, {}
     for name in methods:
         try:
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             U = METHODS[name](case)
-            seconds = time.perf_counter() - t0
+            seconds, cpu = time.perf_counter() - t0, time.process_time() - c0
         except ImportError as err:
             print(f"  {name:<14} not available ({err})")
             continue
@@ -624,9 +646,17 @@ def run_case(case: Case, methods) -> dict:
             continue
         results[name] = U
         r = rows[name] = measure(case, U, seconds)
+        r["CPU seconds"] = cpu
         print(f"  {name:<14} {r['quality']:>12.3f} {r['folds']:>6d} {r['handle error']:>11.1e} "
-              f"{r['seconds']:>8.2f} {r['ARAP energy']:>12.4g} {r['self-intersecting']:>15d}",
-              flush=True)
+              f"{r['seconds']:>8.2f} {r['ARAP energy']:>12.4g} {r['self-intersecting']:>15d}"
+              f"  ({cpu:.2f} CPU s)", flush=True)
+        if name == "ours" and EVERY_FRAME[0]:
+            bad = frame_intersections(case, OURS_FRAMES)
+            r["every frame"] = max((faces for _, faces, _ in bad), default=0)
+            print(f"  ours' {len(OURS_FRAMES)} frames: largest self-intersecting face count "
+                  f"{r['every frame']}" + "".join(
+                      f"; frame {k}: {faces} faces, {len(pairs)} exact pairs "
+                      f"{pairs[:8].tolist()}" for k, faces, pairs in bad), flush=True)
     arap = [rows[m] for m in ("ARAP", f"ARAP {STEPS} steps") if m in rows]
     if "ours" in rows and arap:
         o = rows["ours"]
@@ -646,6 +676,7 @@ def run_case(case: Case, methods) -> dict:
 
 
 MARKDOWN = [False]  # --markdown
+EVERY_FRAME = [False]  # --every-frame
 
 
 def markdown(name: str, rows: dict, verdict: str) -> str:
@@ -662,8 +693,11 @@ def markdown(name: str, rows: dict, verdict: str) -> str:
         e = f"**{e}**" if r["ARAP energy"] == best_e else e
         err = "0" if r["handle error"] == 0 else f"{r['handle error']:.1e}"
         extra = verdict.split(": ", 1)[-1] if m == "ours" and verdict else ""
+        faces = str(r["self-intersecting"])
+        if "every frame" in r:
+            faces += f" ({r['every frame']} over every frame)"
         out.append(f"| {name if i == 0 else ''} | {m} | {q} | {r['folds']} | {err} | "
-                   f"{r['seconds']:.2f} | {e} | {r['self-intersecting']} | {extra} |")
+                   f"{r['seconds']:.2f} ({r['CPU seconds']:.2f} CPU) | {e} | {faces} | {extra} |")
     return "\n".join(out)
 
 
@@ -715,8 +749,12 @@ def main(argv=None) -> int:
                          "default is 10)")
     ap.add_argument("--markdown", action="store_true",
                     help="also print each case's rows as the doc's table rows")
+    ap.add_argument("--every-frame", action="store_true",
+                    help="also test every frame of ours for self-intersections (pymeshlab's "
+                         "faces and the exact kernel's pairs)")
     args = ap.parse_args(argv)
     MARKDOWN[0] = args.markdown
+    EVERY_FRAME[0] = args.every_frame
     STEP_ITERATIONS[0] = args.step_iterations
     every = {**CASES, **UNSEEN, **UNSEEN2, **UNSEEN3, **CONTACT, **CONTACT2}
     default = {**(UNSEEN if args.unseen else {}), **(UNSEEN2 if args.unseen2 else {}),

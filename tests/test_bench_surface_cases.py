@@ -339,3 +339,14 @@ def test_sheet_fold_lands_the_end_band_over_the_fixed_one():
     np.testing.assert_allclose(P, np.c_[4.0 - Q[:, 0], Q[:, 1], np.full(len(Q), 0.1)],
                                atol=1e-12)
     assert case.path(0.5)[end][:, 2].min() > 0.1  # turned upwards
+
+
+def test_frame_intersections_names_the_frame_and_pair_that_pass_through_each_other():
+    # two triangles apart, then the second stood up through the first's middle
+    F = np.array([[0, 1, 2], [3, 4, 5]])
+    apart = np.array([[0, 0, 0], [2, 0, 0], [0, 2, 0], [0, 0, 1], [2, 0, 1], [0, 2, 1.0]])
+    through = apart.copy()
+    through[3:] = [[0.5, 0.5, -1], [0.5, 0.5, 1], [0.2, 0.2, 0.5]]
+    case = bench.Case("two", apart, F, np.array([0]), lambda t: apart[:1], np.zeros(1))
+    bad = bench.frame_intersections(case, [apart, through, apart])
+    assert [(k, faces, pairs.tolist()) for k, faces, pairs in bad] == [(1, 2, [[0, 1]])]
