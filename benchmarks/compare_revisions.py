@@ -23,6 +23,7 @@ import json
 import math
 import os
 import platform
+import shlex
 import signal
 import subprocess
 import sys
@@ -454,6 +455,13 @@ def report(rows: list[dict], cases: list[Case], header: str, selected_all: bool)
     return "\n".join(out) + "\n"
 
 
+def printed_command(argv: list[str]) -> str:
+    """The command line as a shell takes it back (a word with spaces quoted), the
+    ``--markdown`` file as ``FILE``."""
+    given = ["FILE" if k and argv[k - 1] == "--markdown" else a for k, a in enumerate(argv)]
+    return shlex.join(["python", "benchmarks/compare_revisions.py", *given])
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("old", nargs="?", default="6b9c044", help="git revision (default 6b9c044)")
@@ -488,11 +496,10 @@ def main(argv=None) -> int:
             for tree in trees.values():
                 if tree != REPO:
                     _git("worktree", "remove", "--force", str(tree))
-    command = "python benchmarks/compare_revisions.py " + " ".join(
-        argv if argv is not None else sys.argv[1:])
+    command = printed_command(argv if argv is not None else sys.argv[1:])
     header = (
         "# Benchmarks side by side with an earlier revision\n\n"
-        f"Printed by `{command.strip()}`: old = {describe(args.old)}, new = "
+        f"Printed by `{command}`: old = {describe(args.old)}, new = "
         f"{describe(args.new)}. Each case is built by that revision's benchmark script and "
         f"ours is run {args.repeats} times in each revision, alternating (old, new, new, old, "
         "...), each run in a process of its own with one BLAS/OpenMP thread; the seconds are "

@@ -5,6 +5,7 @@ rows where the new revision is worse."""
 from __future__ import annotations
 
 import math
+import shlex
 import sys
 from pathlib import Path
 
@@ -102,3 +103,11 @@ def test_every_case_has_a_runner_and_the_left_out_ones_say_why():
     assert all(c.why_not for c in cases if not c.default)
     assert {c.page for c in cases if c.default} == {
         "docs/benchmarks.md", "docs/benchmarks-3d.md", "docs/benchmarks-surface.md"}
+
+
+def test_the_printed_command_runs_the_same_cases_again():
+    argv = ["6b9c044", "--all", "--cases", "0.25) box, ellipsoidal", "hole shifted 0.4",
+            "--markdown", "/tmp/out.md", "--repeats", "4"]
+    words = shlex.split(cr.printed_command(argv))
+    assert words[:2] == ["python", "benchmarks/compare_revisions.py"]
+    assert words[2:] == [*argv[:6], "FILE", *argv[7:]]
