@@ -62,6 +62,7 @@ from ..._typing import FloatArray, IntArray
 from ..._options import options_of
 from ...cells.base import scale_free_mass
 from ...errors import InvalidMeshError, NotAdmissibleError, OptionError
+from ...kernels.intersections3d import candidate_pairs, intersecting_pairs
 from ...kernels.surface import areas, aspect_ratios
 from ...scaling import UnitScale
 from ..engine.contact import contact_term
@@ -139,6 +140,36 @@ def _path_lengths(frames: list, membrane, mass: FloatArray, weight: float):
         phi_lengths += dphi
         phi = new_phi
     return phi_lengths, length
+
+
+def clearer_half_turns(path: HandlePath, V: FloatArray, F: IntArray, handles: IntArray,
+                       samples: int = 16) -> HandlePath:
+    """``path`` with each group that turns by a half turn (:meth:`HandlePath.half_turns`:
+    the two ways round equally short) turned the way along which its handles, as points
+    on ``samples`` chords of their arcs, cross fewer of the triangles at rest that touch
+    none of them (exact, :func:`...kernels.intersections3d.intersecting_pairs`); the fit's
+    way where both cross as many. A finger curled back over its palm goes over it, not
+    under and through it."""
+    for k in path.half_turns():
+        g = path.pieces[k][0]
+        near = np.zeros(len(V), bool)
+        near[handles[g]] = True
+        faces = F[~near[F].any(axis=1)]
+        counts = []
+        for way in (path, path.turned_the_other_way(k)):
+            P = np.stack([way(t)[g] for t in np.linspace(0.0, 1.0, samples + 1)])
+            m = P[:-1].size // 3  # the chords (p, q, copy of q) as flat triangles
+            X = np.vstack([V, P[:-1].reshape(-1, 3), P[1:].reshape(-1, 3),
+                           P[1:].reshape(-1, 3)])
+            chords = len(V) + np.arange(m)[:, None] + np.array([0, m, 2 * m])
+            T = np.vstack([faces, chords])
+            lo, hi = X[T].min(axis=1), X[T].max(axis=1)
+            pairs = candidate_pairs(lo, hi)
+            pairs = pairs[(pairs < len(faces)).sum(axis=1) == 1]
+            counts.append(int(intersecting_pairs(X, T, pairs).sum()))
+        if counts[1] < counts[0]:
+            path = path.turned_the_other_way(k)
+    return path
 
 
 @dataclass(frozen=True)
@@ -253,6 +284,8 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
     diameter = float(np.linalg.norm(V.max(0) - V.min(0)))
     whole = global_similarity(V[handles], targets, diameter) if len(handles) else None
     path = HandlePath(V[handles], targets, handle_groups(handles, F, len(V)), motion="screw")
+    if contact:  # a half turn goes the way its handles sweep through less of the surface
+        path = clearer_half_turns(path, V, F, handles)
     problem = Problem(V, F, handles, weight, bending, lumped_mass(V, F))
     problem.cg_iterations = int(o.cg_iterations)
     problem.contact = contact_term(V, F, problem.free, problem.mass, contact)

@@ -1,0 +1,89 @@
+"""A group of handles turned by a half turn (:func:`meshopt_toolkit.motion.surface.move.
+clearer_half_turns`): the two ways round are equally short and the fit's rounding picks
+one; a finger curled 180° back over its palm must go over it. On a coarse hand-like plate
+whose fit takes the way under the palm, the tip follows the arc over it, every frame is free
+of self-intersections (the exact kernel and ipctk), the handles end exactly at their
+targets with no fold, and the result's worst triangle is no worse than libigl's
+single-shot ARAP's."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from meshopt_toolkit.kernels.intersections3d import self_intersections
+from meshopt_toolkit.kernels.surface import aspect_ratios
+from meshopt_toolkit.motion.engine.similarity import HandlePath, handle_groups
+from meshopt_toolkit.motion.surface.move import clearer_half_turns, move_surface
+
+ipctk = pytest.importorskip("ipctk")
+
+
+def hand(size: float = 0.3):
+    """gmsh's surface of a 2×2×0.3 palm fused with a 0.6×2×0.3 finger (y from 2 to 4),
+    meshed at ``size``, normals out; the finger's tip band (y ≥ 3.8) turned 180° about the
+    lateral axis through (·, 2.15, 0.45), landing 0.3 above the palm; the palm's bottom band
+    (y ≤ 0.2) fixed. Points, triangles, handles (the tip's first), targets, the tip's count."""
+    from scipy.spatial.transform import Rotation
+
+    from meshopt_toolkit.gmsh_session import gmsh_session
+
+    with gmsh_session() as gmsh:
+        gmsh.model.add("hand")
+        palm = gmsh.model.occ.addBox(0.0, 0.0, 0.0, 2.0, 2.0, 0.3)
+        finger = gmsh.model.occ.addBox(0.7, 2.0, 0.0, 0.6, 2.0, 0.3)
+        gmsh.model.occ.fuse([(3, palm)], [(3, finger)])
+        gmsh.model.occ.synchronize()
+        gmsh.option.setNumber("Mesh.MeshSizeMin", size)
+        gmsh.option.setNumber("Mesh.MeshSizeMax", size)
+        gmsh.model.mesh.generate(2)
+        tags, coords, _ = gmsh.model.mesh.getNodes()
+        _, _, nodes = gmsh.model.mesh.getElements(2)
+    index = np.zeros(int(tags.max()) + 1, np.int64)
+    index[tags.astype(np.int64)] = np.arange(len(tags))
+    F = index[np.concatenate(nodes).astype(np.int64).reshape(-1, 3)]
+    used, F = np.unique(F, return_inverse=True)
+    V, F = np.asarray(coords, float).reshape(-1, 3)[used], F.reshape(-1, 3)
+    P = V[F]
+    if np.einsum("ij,ij->i", P[:, 0], np.cross(P[:, 1], P[:, 2])).sum() < 0:
+        F = F[:, ::-1]
+    tip = np.flatnonzero(V[:, 1] >= 3.8 - 1e-9)
+    band = np.flatnonzero(V[:, 1] <= 0.2 + 1e-9)
+    pivot = np.array([1.0, 2.15, 0.45])
+    R = Rotation.from_rotvec([np.pi, 0.0, 0.0]).as_matrix()
+    targets = np.vstack([(V[tip] - pivot) @ R.T + pivot, V[band]])
+    return V, F, np.r_[tip, band], targets, len(tip)
+
+
+def test_a_half_turn_goes_the_way_that_sweeps_through_no_triangle():
+    V, F, h, tg, k = hand()
+    path = HandlePath(V[h], tg, handle_groups(h, F, len(V)), motion="screw")
+    assert path.half_turns() == [0]
+    for way in (path, path.turned_the_other_way(0)):  # whichever way the fit took
+        chosen = clearer_half_turns(way, V, F, h)
+        np.testing.assert_array_equal(chosen(1.0), tg)
+        for t in np.linspace(0.05, 0.95, 19):  # over the palm: the tip above its top
+            assert chosen(t)[:k, 2].min() >= -1e-12
+        # the other way passes under the palm (its tip below the bottom face)
+        assert chosen.turned_the_other_way(0)(0.5)[:k, 2].max() < 0.0
+
+
+@pytest.mark.slow
+def test_the_finger_curls_over_the_palm_clean():
+    V, F, h, tg, k = hand()
+    res = move_surface(V, F, h, tg)
+    assert [float(X[h[:k], 2].min()) >= -1e-12 for X in res.frames] == [True] * len(
+        res.frames)  # the tip's arc over the palm
+    mesh = ipctk.CollisionMesh(V, ipctk.edges(F.astype(np.int32)), F.astype(np.int32))
+    assert [len(self_intersections(X, F)) + int(ipctk.has_intersections(mesh, X))
+            for X in res.frames] == [0] * len(res.frames)
+    np.testing.assert_array_equal(res.points[h], tg)
+    assert res.folds == 0 and res.handle_error == 0.0
+    igl = pytest.importorskip("igl")
+    data = igl.ARAPData()
+    data.max_iter = 100
+    igl.arap_precomputation(V, F, 3, h.astype(np.int32), data)
+    bc = tg - V[h]
+    U = np.asarray(igl.arap_solve(tg, data, V + igl.harmonic(V, F, h.astype(np.int64), bc, 2)))
+    arap = float((aspect_ratios(U, F) / aspect_ratios(V, F)).min())
+    assert res.worst_quality >= arap
