@@ -3,8 +3,10 @@ exactly at their targets and every other vertex so that the triangles keep their
 as well as the motion allows, with no degenerate and no folded triangle.
 
 The handles travel along :class:`..engine.similarity.HandlePath` (each connected group's
-similarity followed along its screw motion, the remainder linearly) in ``steps`` increments:
-the engine's continuation :func:`..engine.continuation.march` with its
+similarity followed along its screw motion, the remainder linearly; with contact a half
+turn, which the fit could take either way round, goes the way along which the group's
+handles sweep through fewer of the triangles at rest, :func:`clearer_half_turns`) in
+``steps`` increments: the engine's continuation :func:`..engine.continuation.march` with its
 :class:`..engine.continuation.GrowingSteps` (an increment halved where it cannot be taken,
 doubled back after two taken in a row), every increment a frame. Each increment is a
 minimizing movement (:mod:`.least_squares`):
