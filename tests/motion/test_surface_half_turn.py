@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from meshopt_toolkit.kernels.intersections3d import self_intersections
 from meshopt_toolkit.kernels.surface import aspect_ratios
@@ -87,3 +89,28 @@ def test_the_finger_curls_over_the_palm_clean():
     U = np.asarray(igl.arap_solve(tg, data, V + igl.harmonic(V, F, h.astype(np.int64), bc, 2)))
     arap = float((aspect_ratios(U, F) / aspect_ratios(V, F)).min())
     assert res.worst_quality >= arap
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_the_two_ways_of_a_half_turn_are_mirror_arcs(seed):
+    """Turned by ±tπ about the axis ``(u, p)``, a point's two images sum to
+    ``2p + 2 cos(tπ) r⊥ + 2 r∥`` (``r = x − p`` split along ``u``); both end at the targets."""
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(seed)
+    u = rng.normal(size=3)
+    u /= np.linalg.norm(u)
+    p = rng.normal(size=3)
+    X = rng.normal(size=(5, 3))
+    tg = (X - p) @ Rotation.from_rotvec(np.pi * u).as_matrix().T + p
+    path = HandlePath(X, tg, [np.arange(5)], motion="screw")
+    assert path.half_turns() == [0]
+    other = path.turned_the_other_way(0)
+    np.testing.assert_array_equal(other(1.0), tg)
+    r = X - p
+    along = np.outer(r @ u, u)
+    for t in (0.1, 0.37, 0.5, 0.9):
+        expected = 2 * p + 2 * np.cos(t * np.pi) * (r - along) + 2 * along
+        np.testing.assert_allclose(path(t) + other(t), expected, atol=1e-9)
+        assert np.abs(path(t) - other(t)).max() > 1e-3  # two ways, not one
