@@ -111,9 +111,9 @@ def fit_similarity(source: FloatArray, target: FloatArray,
 @dataclass(frozen=True)
 class Similarity3:
     """``x ↦ centre + shift + exp(log_scale) · R (x − centre)``, ``R`` = the rotation of
-    ``rotvec`` (axis × angle; a fit's angle in [0, π], a half turn taken the other way
-    round's up to 2π); the coordinates in which :meth:`at` is
-    linear, as :class:`.similarity.Similarity` in the plane."""
+    ``rotvec`` (axis × angle, angle in [0, π] from a fit, up to 2π for a half turn taken
+    the other way round); the coordinates in which :meth:`at` is linear, as
+    :class:`.similarity.Similarity` in the plane."""
 
     centre: FloatArray
     shift: FloatArray
