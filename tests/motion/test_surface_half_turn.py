@@ -1,12 +1,16 @@
 """A group of handles turned by a half turn (:func:`meshopt_toolkit.motion.surface.move.
 clearer_half_turns`): the two ways round are equally short and the fit's rounding picks
 one; a finger curled 180° back over its palm must go over it. On a coarse hand-like plate
-whose fit takes the way under the palm, the tip follows the arc over it, every frame is free
-of self-intersections (the exact kernel and ipctk), the handles end exactly at their
-targets with no fold, and the result's worst triangle is no worse than libigl's
-single-shot ARAP's."""
+whose fit takes the way under the palm (the handles pulled along it stop 0.84 short of
+their targets, refused), the motion goes the other way: the tip follows the arc over the
+palm, every frame is free of self-intersections (the exact kernel and ipctk), the handles
+end exactly at their targets with no fold, and the result's worst triangle is no worse
+than libigl's single-shot ARAP's."""
 
 from __future__ import annotations
+
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -21,44 +25,25 @@ from meshopt_toolkit.motion.surface.move import clearer_half_turns, move_surface
 ipctk = pytest.importorskip("ipctk")
 
 
-def hand(size: float = 0.3):
-    """gmsh's surface of a 2×2×0.3 palm fused with a 0.6×2×0.3 finger (y from 2 to 4),
-    meshed at ``size``, normals out; the finger's tip band (y ≥ 3.8) turned 180° about the
-    lateral axis through (·, 2.15, 0.45), landing 0.3 above the palm; the palm's bottom band
-    (y ≤ 0.2) fixed. Points, triangles, handles (the tip's first), targets, the tip's count."""
-    from scipy.spatial.transform import Rotation
+def hand(size: float = 0.15):
+    """The benchmark's hand-like plate (a 2×2×0.3 palm fused with a 0.6×2×0.3 finger, y
+    from 2 to 4) meshed at ``size``, with its motion: the finger's tip band (y ≥ 3.8)
+    turned 180° about the lateral axis through (·, 2.15, 0.45), landing 0.3 above the
+    palm; the palm's bottom band fixed. Points, triangles, handles (the tip's first),
+    targets, the tip's count and the benchmark's case."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
+    from _surface_cases_contact import hand_surface
+    from bench_surface import region_turn
 
-    from meshopt_toolkit.gmsh_session import gmsh_session
-
-    with gmsh_session() as gmsh:
-        gmsh.model.add("hand")
-        palm = gmsh.model.occ.addBox(0.0, 0.0, 0.0, 2.0, 2.0, 0.3)
-        finger = gmsh.model.occ.addBox(0.7, 2.0, 0.0, 0.6, 2.0, 0.3)
-        gmsh.model.occ.fuse([(3, palm)], [(3, finger)])
-        gmsh.model.occ.synchronize()
-        gmsh.option.setNumber("Mesh.MeshSizeMin", size)
-        gmsh.option.setNumber("Mesh.MeshSizeMax", size)
-        gmsh.model.mesh.generate(2)
-        tags, coords, _ = gmsh.model.mesh.getNodes()
-        _, _, nodes = gmsh.model.mesh.getElements(2)
-    index = np.zeros(int(tags.max()) + 1, np.int64)
-    index[tags.astype(np.int64)] = np.arange(len(tags))
-    F = index[np.concatenate(nodes).astype(np.int64).reshape(-1, 3)]
-    used, F = np.unique(F, return_inverse=True)
-    V, F = np.asarray(coords, float).reshape(-1, 3)[used], F.reshape(-1, 3)
-    P = V[F]
-    if np.einsum("ij,ij->i", P[:, 0], np.cross(P[:, 1], P[:, 2])).sum() < 0:
-        F = F[:, ::-1]
-    tip = np.flatnonzero(V[:, 1] >= 3.8 - 1e-9)
-    band = np.flatnonzero(V[:, 1] <= 0.2 + 1e-9)
-    pivot = np.array([1.0, 2.15, 0.45])
-    R = Rotation.from_rotvec([np.pi, 0.0, 0.0]).as_matrix()
-    targets = np.vstack([(V[tip] - pivot) @ R.T + pivot, V[band]])
-    return V, F, np.r_[tip, band], targets, len(tip)
+    V, F = hand_surface(size)
+    tip = V[:, 1] >= 3.8 - 1e-9
+    case = region_turn("hand", V, F, tip, V[:, 1] <= 0.2 + 1e-9, [1, 0, 0], np.pi,
+                       np.array([1.0, 2.15, 0.45]))
+    return V, F, case.handles, case.path(1.0), int(tip.sum()), case
 
 
 def test_a_half_turn_goes_the_way_that_sweeps_through_no_triangle():
-    V, F, h, tg, k = hand()
+    V, F, h, tg, k, _ = hand()
     path = HandlePath(V[h], tg, handle_groups(h, F, len(V)), motion="screw")
     assert path.half_turns() == [0]
     for way in (path, path.turned_the_other_way(0)):  # whichever way the fit took
@@ -72,7 +57,7 @@ def test_a_half_turn_goes_the_way_that_sweeps_through_no_triangle():
 
 @pytest.mark.slow
 def test_the_finger_curls_over_the_palm_clean():
-    V, F, h, tg, k = hand()
+    V, F, h, tg, k, case = hand()
     res = move_surface(V, F, h, tg)
     assert [float(X[h[:k], 2].min()) >= -1e-12 for X in res.frames] == [True] * len(
         res.frames)  # the tip's arc over the palm
@@ -81,12 +66,10 @@ def test_the_finger_curls_over_the_palm_clean():
             for X in res.frames] == [0] * len(res.frames)
     np.testing.assert_array_equal(res.points[h], tg)
     assert res.folds == 0 and res.handle_error == 0.0
-    igl = pytest.importorskip("igl")
-    data = igl.ARAPData()
-    data.max_iter = 100
-    igl.arap_precomputation(V, F, 3, h.astype(np.int32), data)
-    bc = tg - V[h]
-    U = np.asarray(igl.arap_solve(tg, data, V + igl.harmonic(V, F, h.astype(np.int64), bc, 2)))
+    pytest.importorskip("igl")
+    from bench_surface import arap_single
+
+    U = arap_single(case)  # libigl's single-shot ARAP, 100 iterations
     arap = float((aspect_ratios(U, F) / aspect_ratios(V, F)).min())
     assert res.worst_quality >= arap
 

@@ -4,12 +4,12 @@ as well as the motion allows, with no degenerate and no folded triangle.
 
 The handles travel along :class:`..engine.similarity.HandlePath` (each connected group's
 similarity followed along its screw motion, the remainder linearly; with contact a half
-turn, which the fit could take either way round, goes the way along which the group's
-handles sweep through fewer of the triangles at rest, :func:`clearer_half_turns`) in
-``steps`` increments: the engine's continuation :func:`..engine.continuation.march` with its
-:class:`..engine.continuation.GrowingSteps` (an increment halved where it cannot be taken,
-doubled back after two taken in a row), every increment a frame. Each increment is a
-minimizing movement (:mod:`.least_squares`):
+turn, which the fit could take either way round, goes the fit's way and, where that motion
+is refused, the way along which the group's handles sweep through fewer of the triangles
+at rest, :func:`clearer_half_turns`) in ``steps`` increments: the engine's continuation
+:func:`..engine.continuation.march` with its :class:`..engine.continuation.GrowingSteps`
+(an increment halved where it cannot be taken, doubled back after two taken in a row),
+every increment a frame. Each increment is a minimizing movement (:mod:`.least_squares`):
 
     min_Q  ½|Q − Q_prev|²_M + ½ w² Σ_t a_t c_t |φ_t(Q) − φ̄_t|² + ½ b Σ_e c_e (θ_e(Q) − θ̄_e)²
 
@@ -264,9 +264,6 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
     """
     o = options_of(SurfaceMoveOptions, options, {}, error=OptionError,
                    what="move_surface option(s)")
-    weight, bending, anchor, emphasis = o.weight, o.bending, o.anchor, o.emphasis
-    max_iterations, rtol, final_iterations = o.max_iterations, o.rtol, o.final_iterations
-    final_rtol, final_stall, polish = o.final_rtol, o.final_stall, o.polish
     t_start = time.perf_counter()
     V = np.asarray(V, float)
     F = np.asarray(F, np.int64)
@@ -279,15 +276,34 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
     if len(handles) and (handles.min() < 0 or handles.max() >= len(V)
                          or len(np.unique(handles)) != len(handles)):
         raise InvalidMeshError("handles must be distinct vertex indices")
-    if anchor not in ("rest", "previous"):
-        raise InvalidMeshError(f"anchor must be 'rest' or 'previous', not {anchor!r}")
+    if o.anchor not in ("rest", "previous"):
+        raise InvalidMeshError(f"anchor must be 'rest' or 'previous', not {o.anchor!r}")
     if F.size and (F.min() < 0 or F.max() >= len(V)):
         raise InvalidMeshError("a triangle refers to a vertex that does not exist")
     diameter = float(np.linalg.norm(V.max(0) - V.min(0)))
     whole = global_similarity(V[handles], targets, diameter) if len(handles) else None
     path = HandlePath(V[handles], targets, handle_groups(handles, F, len(V)), motion="screw")
-    if contact:  # a half turn goes the way its handles sweep through less of the surface
-        path = clearer_half_turns(path, V, F, handles)
+    ways = [path]  # a half turn: the fit's way, where refused the clearer one
+    if contact and (clearer := clearer_half_turns(path, V, F, handles)) is not path:
+        ways.append(clearer)
+    for k, way in enumerate(ways):
+        try:
+            return _move_along(V, F, handles, targets, (way, whole), steps, contact, o,
+                               t_start)
+        except NotAdmissibleError:
+            if k + 1 == len(ways):
+                raise
+
+
+def _move_along(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatArray, paths,
+                steps: int, contact: bool, o: SurfaceMoveOptions,
+                t_start: float) -> SurfaceMoveResult:
+    """:func:`move_surface` along ``paths``, the handles' :class:`HandlePath` and the
+    similarity moving them all (or None), its arguments checked."""
+    path, whole = paths
+    weight, bending, anchor, emphasis = o.weight, o.bending, o.anchor, o.emphasis
+    max_iterations, rtol, final_iterations = o.max_iterations, o.rtol, o.final_iterations
+    final_rtol, final_stall, polish = o.final_rtol, o.final_stall, o.polish
     problem = Problem(V, F, handles, weight, bending, lumped_mass(V, F))
     problem.cg_iterations = int(o.cg_iterations)
     problem.contact = contact_term(V, F, problem.free, problem.mass, contact)
