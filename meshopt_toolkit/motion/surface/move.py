@@ -283,16 +283,14 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
     diameter = float(np.linalg.norm(V.max(0) - V.min(0)))
     whole = global_similarity(V[handles], targets, diameter) if len(handles) else None
     path = HandlePath(V[handles], targets, handle_groups(handles, F, len(V)), motion="screw")
-    ways = [path]  # a half turn: the fit's way, where refused the clearer one
-    if contact and (clearer := clearer_half_turns(path, V, F, handles)) is not path:
-        ways.append(clearer)
-    for k, way in enumerate(ways):
-        try:
-            return _move_along(V, F, handles, targets, (way, whole), steps, contact, o,
-                               t_start)
-        except NotAdmissibleError:
-            if k + 1 == len(ways):
-                raise
+    try:
+        return _move_along(V, F, handles, targets, (path, whole), steps, contact, o, t_start)
+    except NotAdmissibleError:  # a half turn refused the fit's way: the clearer way, if other
+        clearer = clearer_half_turns(path, V, F, handles) if contact and whole is None else path
+        if clearer is path:
+            raise
+        return _move_along(V, F, handles, targets, (clearer, whole), steps, contact, o,
+                           t_start)
 
 
 def _move_along(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatArray, paths,
