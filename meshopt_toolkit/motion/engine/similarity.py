@@ -16,6 +16,7 @@ shift of every cell's measure, so a motion that IS a similarity is followed exac
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import numpy as np
@@ -110,8 +111,9 @@ def fit_similarity(source: FloatArray, target: FloatArray,
 @dataclass(frozen=True)
 class Similarity3:
     """``x ↦ centre + shift + exp(log_scale) · R (x − centre)``, ``R`` = the rotation of
-    ``rotvec`` (axis × angle, angle in [0, π]); the coordinates in which :meth:`at` is
-    linear, as :class:`.similarity.Similarity` in the plane."""
+    ``rotvec`` (axis × angle, angle in [0, π] from a fit, up to 2π for a half turn taken
+    the other way round); the coordinates in which :meth:`at` is linear, as
+    :class:`.similarity.Similarity` in the plane."""
 
     centre: FloatArray
     shift: FloatArray
@@ -306,6 +308,22 @@ class HandlePath:
     def similarities(self) -> list:
         """Each group's similarity (None: the group moves linearly)."""
         return [S for _, S, _ in self.pieces]
+
+    def half_turns(self) -> list[int]:
+        """The groups whose similarity turns by a half turn (within 1e-6 rad), the two
+        ways round equally short: which one the fit took is its rounding's choice."""
+        return [k for k, (_, S, _) in enumerate(self.pieces) if isinstance(S, Similarity3)
+                and abs(S.angle - np.pi) <= 1e-6]
+
+    def turned_the_other_way(self, k: int) -> HandlePath:
+        """This path with group ``k``'s turn the other way round (the same rotation, its
+        angle ``θ − 2π`` about the axis; in space only), the same targets."""
+        g, S, rest = self.pieces[k]
+        other = Similarity3(S.centre, S.shift, S.log_scale,
+                            S.rotvec * (1.0 - 2.0 * np.pi / S.angle))
+        out = copy.copy(self)
+        out.pieces = self.pieces[:k] + [(g, other, rest)] + self.pieces[k + 1:]
+        return out
 
     def __call__(self, s: float) -> FloatArray:
         if s >= 1.0:

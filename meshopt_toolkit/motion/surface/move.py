@@ -3,11 +3,13 @@ exactly at their targets and every other vertex so that the triangles keep their
 as well as the motion allows, with no degenerate and no folded triangle.
 
 The handles travel along :class:`..engine.similarity.HandlePath` (each connected group's
-similarity followed along its screw motion, the remainder linearly) in ``steps`` increments:
-the engine's continuation :func:`..engine.continuation.march` with its
-:class:`..engine.continuation.GrowingSteps` (an increment halved where it cannot be taken,
-doubled back after two taken in a row), every increment a frame. Each increment is a
-minimizing movement (:mod:`.least_squares`):
+similarity followed along its screw motion, the remainder linearly; with contact a half
+turn, which the fit could take either way round, goes the fit's way and, where that motion
+is refused, the way along which the group's handles sweep through fewer of the triangles
+at rest, :func:`clearer_half_turns`) in ``steps`` increments: the engine's continuation
+:func:`..engine.continuation.march` with its :class:`..engine.continuation.GrowingSteps`
+(an increment halved where it cannot be taken, doubled back after two taken in a row),
+every increment a frame. Each increment is a minimizing movement (:mod:`.least_squares`):
 
     min_Q  ½|Q − Q_prev|²_M + ½ w² Σ_t a_t c_t |φ_t(Q) − φ̄_t|² + ½ b Σ_e c_e (θ_e(Q) − θ̄_e)²
 
@@ -62,6 +64,7 @@ from ..._typing import FloatArray, IntArray
 from ..._options import options_of
 from ...cells.base import scale_free_mass
 from ...errors import InvalidMeshError, NotAdmissibleError, OptionError
+from ...kernels.intersections3d import candidate_pairs, intersecting_pairs
 from ...kernels.surface import areas, aspect_ratios
 from ...scaling import UnitScale
 from ..engine.contact import contact_term
@@ -139,6 +142,36 @@ def _path_lengths(frames: list, membrane, mass: FloatArray, weight: float):
         phi_lengths += dphi
         phi = new_phi
     return phi_lengths, length
+
+
+def clearer_half_turns(path: HandlePath, V: FloatArray, F: IntArray, handles: IntArray,
+                       samples: int = 16) -> HandlePath:
+    """``path`` with each group that turns by a half turn (:meth:`HandlePath.half_turns`:
+    the two ways round equally short) turned the way along which its handles, as points
+    on ``samples`` chords of their arcs, cross fewer of the triangles at rest that touch
+    none of them (exact, :func:`...kernels.intersections3d.intersecting_pairs`); the fit's
+    way where both cross as many. A finger curled back over its palm goes over it, not
+    under and through it."""
+    for k in path.half_turns():
+        g = path.pieces[k][0]
+        near = np.zeros(len(V), bool)
+        near[handles[g]] = True
+        faces = F[~near[F].any(axis=1)]
+        counts = []
+        for way in (path, path.turned_the_other_way(k)):
+            P = np.stack([way(t)[g] for t in np.linspace(0.0, 1.0, samples + 1)])
+            m = P[:-1].size // 3  # the chords (p, q, copy of q) as flat triangles
+            X = np.vstack([V, P[:-1].reshape(-1, 3), P[1:].reshape(-1, 3),
+                           P[1:].reshape(-1, 3)])
+            chords = len(V) + np.arange(m)[:, None] + np.array([0, m, 2 * m])
+            T = np.vstack([faces, chords])
+            lo, hi = X[T].min(axis=1), X[T].max(axis=1)
+            pairs = candidate_pairs(lo, hi)
+            pairs = pairs[(pairs < len(faces)).sum(axis=1) == 1]
+            counts.append(int(intersecting_pairs(X, T, pairs).sum()))
+        if counts[1] < counts[0]:
+            path = path.turned_the_other_way(k)
+    return path
 
 
 @dataclass(frozen=True)
@@ -231,9 +264,6 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
     """
     o = options_of(SurfaceMoveOptions, options, {}, error=OptionError,
                    what="move_surface option(s)")
-    weight, bending, anchor, emphasis = o.weight, o.bending, o.anchor, o.emphasis
-    max_iterations, rtol, final_iterations = o.max_iterations, o.rtol, o.final_iterations
-    final_rtol, final_stall, polish = o.final_rtol, o.final_stall, o.polish
     t_start = time.perf_counter()
     V = np.asarray(V, float)
     F = np.asarray(F, np.int64)
@@ -246,13 +276,32 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
     if len(handles) and (handles.min() < 0 or handles.max() >= len(V)
                          or len(np.unique(handles)) != len(handles)):
         raise InvalidMeshError("handles must be distinct vertex indices")
-    if anchor not in ("rest", "previous"):
-        raise InvalidMeshError(f"anchor must be 'rest' or 'previous', not {anchor!r}")
+    if o.anchor not in ("rest", "previous"):
+        raise InvalidMeshError(f"anchor must be 'rest' or 'previous', not {o.anchor!r}")
     if F.size and (F.min() < 0 or F.max() >= len(V)):
         raise InvalidMeshError("a triangle refers to a vertex that does not exist")
     diameter = float(np.linalg.norm(V.max(0) - V.min(0)))
     whole = global_similarity(V[handles], targets, diameter) if len(handles) else None
     path = HandlePath(V[handles], targets, handle_groups(handles, F, len(V)), motion="screw")
+    try:
+        return _move_along(V, F, handles, targets, (path, whole), steps, contact, o, t_start)
+    except NotAdmissibleError:  # a half turn refused the fit's way: the clearer way, if other
+        clearer = clearer_half_turns(path, V, F, handles) if contact and whole is None else path
+        if clearer is path:
+            raise
+        return _move_along(V, F, handles, targets, (clearer, whole), steps, contact, o,
+                           t_start)
+
+
+def _move_along(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatArray, paths,
+                steps: int, contact: bool, o: SurfaceMoveOptions,
+                t_start: float) -> SurfaceMoveResult:
+    """:func:`move_surface` along ``paths``, the handles' :class:`HandlePath` and the
+    similarity moving them all (or None), its arguments checked."""
+    path, whole = paths
+    weight, bending, anchor, emphasis = o.weight, o.bending, o.anchor, o.emphasis
+    max_iterations, rtol, final_iterations = o.max_iterations, o.rtol, o.final_iterations
+    final_rtol, final_stall, polish = o.final_rtol, o.final_stall, o.polish
     problem = Problem(V, F, handles, weight, bending, lumped_mass(V, F))
     problem.cg_iterations = int(o.cg_iterations)
     problem.contact = contact_term(V, F, problem.free, problem.mass, contact)
