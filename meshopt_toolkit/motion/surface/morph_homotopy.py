@@ -1,5 +1,6 @@
 """A clean start for a surface morph whose interpolations cross (:mod:`.morph`), by
-IPC's incremental-potential homotopy towards a guide path.
+IPC's incremental-potential homotopy towards a guide path (the as-rigid-as-possible
+interpolation the short way round, else the long way, else the linear one).
 
 From the source, each increment minimizes over ``Q``
 
@@ -27,7 +28,8 @@ from ..._typing import FloatArray
 from ...errors import SelfIntersectionError
 from ...solvers import factorize_spd
 from ..engine.contact import ContactTerm
-from .interpolation import arap_interpolation
+from .interpolation import arap_interpolation, fold_crossings
+from .morph_contact import chord_picks
 
 __all__ = ["homotopy_path", "homotopy_start"]
 
@@ -123,7 +125,7 @@ def homotopy_path(problem, contact, V0: FloatArray, V1: FloatArray, guide,
             f"{CROSSING}; pulled towards the target through contact, the surface stalls "
             f"{gap:.3g} short of it")
     poly.append(V1)
-    frames = _chords(contact, poly)
+    frames = [poly[i] for i in chord_picks(contact, poly)]
     if len(frames) - 1 > segments:
         raise SelfIntersectionError(
             f"{CROSSING}; the clean path found around the contact needs {len(frames)} "
@@ -142,32 +144,20 @@ def homotopy_path(problem, contact, V0: FloatArray, V1: FloatArray, guide,
     return frames
 
 
-def _chords(contact, poly: list) -> list:
-    """Frames on the clear polyline ``poly``: from each, the farthest iterate up to which
-    every chord is clear (CCD)."""
-    picks, a = [0], 0
-    while a < len(poly) - 1:
-        b = a + 1
-        while b + 1 < len(poly) and contact.segment_clear(poly[a], poly[b + 1]):
-            b += 1
-        picks.append(b)
-        a = b
-    return [poly[i] for i in picks]
-
-
 def homotopy_start(problem, contact, V0: FloatArray, V1: FloatArray, triangles,
                    segments: int) -> list:
     """:func:`homotopy_path` pulled along the as-rigid-as-possible interpolation, else
-    (where it has none or stalls) along the linear one; the linear one's refusal."""
-    def arap(ts):
-        return arap_interpolation(V0, V1, triangles, ts)
-
-    def linear(ts):
-        return [(1.0 - t) * V0 + t * V1 for t in ts]
-
-    if arap(np.array([0.0, 0.5, 1.0])) is not None:
+    (where it stalls) along the one that turns the neighbours whose short way passes the
+    fold the long way round (where there are such,
+    :func:`.interpolation.fold_crossings`), else along the linear one; the linear one's
+    refusal."""
+    guides = [lambda ts: arap_interpolation(V0, V1, triangles, ts)]
+    if fold_crossings(V0, V1, triangles).nnz:
+        guides.append(lambda ts: arap_interpolation(V0, V1, triangles, ts, long_way=True))
+    for guide in guides:
         try:
-            return homotopy_path(problem, contact, V0, V1, arap, segments)
+            return homotopy_path(problem, contact, V0, V1, guide, segments)
         except SelfIntersectionError:
             pass
-    return homotopy_path(problem, contact, V0, V1, linear, segments)
+    return homotopy_path(problem, contact, V0, V1,
+                         lambda ts: [(1.0 - t) * V0 + t * V1 for t in ts], segments)
