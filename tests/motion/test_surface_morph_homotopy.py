@@ -29,6 +29,7 @@ from meshopt_toolkit.motion.surface import morph as smorph
 from meshopt_toolkit.motion.surface import morph_homotopy
 from meshopt_toolkit.motion.surface.interpolation import arap_interpolation, fold_crossings
 from meshopt_toolkit.motion.surface.morph import morph_surface
+from meshopt_toolkit.motion.surface.morph_contact import SAMPLES, sampled_path
 
 ipctk = pytest.importorskip("ipctk")
 
@@ -273,13 +274,36 @@ def hinged_flap(a: float, b: float, axis: int, rotvec):
        rotvec=st.lists(st.floats(-0.5, 0.5), min_size=3, max_size=3))
 def test_random_hinged_flaps_morph_clean_the_long_way_round(a, b, axis, rotvec):
     """The flap folded over the base at the source and under it at the target, about
-    either axis, the target moved rigidly: the straight interpolation crosses; the morph's
-    frames and the motion between them are clean, every frame as healthy as the worse
-    end."""
+    either axis, the target moved rigidly: the as-rigid-as-possible interpolation turns the
+    flap through the base; the morph's frames and the motion between them are clean, every
+    frame as healthy as the worse end, from the long way round where the straight
+    interpolation crosses too."""
     V0, V1, F = hinged_flap(a, b, axis, rotvec)
     assert not len(self_intersections(V0, F)) and not len(self_intersections(V1, F))
     ts = np.linspace(0.0, 1.0, 17)
-    assert max(len(self_intersections((1 - t) * V0 + t * V1, F)) for t in ts) > 0
+    assert not _clean_steps(arap_interpolation(V0, V1, F, ts), F)  # through the base
+    linear = [(1 - t) * V0 + t * V1 for t in ts]
+    res = morph_surface(V0, V1, F, 17)
+    assert res.initial_path == ("linear" if _clean_steps(linear, F) else "long_way")
+    _assert_clean_and_healthy(res, V0, V1, F)
+
+
+def test_a_flap_ending_close_to_the_base_is_sampled_finer_near_it():
+    """Turned to 5° under the base, the flap's last even step ends its pairs much closer
+    than it starts them: CCD's conservative step stops short on it. The frames are picked
+    among finer samples of the long way round, each segment clear, each frame a sample."""
+    V0, V1, F = hinged_flap(160.0, 175.0, 1, [0.48, 0.19, 0.15])
+    contact = smorph._path_contact(smorph._PathProblem(V0, V1, F, 1.0, 1.0), V0, V1, 17, True)
+
+    def long_way(ts):
+        return arap_interpolation(V0, V1, F, ts, long_way=True)
+
+    even = long_way(np.linspace(0.0, 1.0, 17))
+    assert not all(contact.segment_clear(a, b) for a, b in zip(even[:-1], even[1:]))
+    frames = sampled_path(contact, long_way, 16)
+    assert len(frames) == 17 and _clean_steps(frames, F)
+    samples = long_way(np.linspace(0.0, 1.0, 16 * SAMPLES + 1))
+    assert all(any(np.array_equal(Q, S) for S in samples) for Q in frames)
     res = morph_surface(V0, V1, F, 17)
     assert res.initial_path == "long_way"
     _assert_clean_and_healthy(res, V0, V1, F)
