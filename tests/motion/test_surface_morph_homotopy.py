@@ -293,7 +293,8 @@ def test_a_flap_ending_close_to_the_base_is_sampled_finer_near_it():
     than it starts them: CCD's conservative step stops short on it. The frames are picked
     among finer samples of the long way round, each segment clear, each frame a sample."""
     V0, V1, F = hinged_flap(160.0, 175.0, 1, [0.48, 0.19, 0.15])
-    contact = smorph._path_contact(smorph._PathProblem(V0, V1, F, 1.0, 1.0), V0, V1, 17, True)
+    problem = smorph._PathProblem(V0, V1, F, smorph.WEIGHT, smorph.BENDING)
+    contact = smorph._path_contact(problem, V0, V1, 17, True)
 
     def long_way(ts):
         return arap_interpolation(V0, V1, F, ts, long_way=True)
@@ -307,3 +308,18 @@ def test_a_flap_ending_close_to_the_base_is_sampled_finer_near_it():
     res = morph_surface(V0, V1, F, 17)
     assert res.initial_path == "long_way"
     _assert_clean_and_healthy(res, V0, V1, F)
+
+
+@pytest.mark.slow
+def test_the_homotopy_along_the_long_way_splits_its_chords_at_its_iterates():
+    """Pulled round the hinge the long way, the homotopy's chords are split at their middle
+    iterates (not midpoints, which shrink a turning band): every frame admissible (no
+    fold), the path clean."""
+    V0, V1, F = hinge_band()
+    problem = smorph._PathProblem(V0, V1, F, smorph.WEIGHT, smorph.BENDING)
+    contact = smorph._path_contact(problem, V0, V1, 17, True)
+    frames = morph_homotopy.homotopy_path(
+        problem, contact, V0, V1, lambda ts: arap_interpolation(V0, V1, F, ts, long_way=True),
+        16)
+    assert len(frames) == 17 and _clean_steps(frames, F)
+    assert all(problem.admissible(Q) for Q in frames[1:-1])

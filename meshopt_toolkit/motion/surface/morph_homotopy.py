@@ -13,10 +13,12 @@ attraction is raised tenfold until the iterate is within ``REACH_TOLERANCE`` of 
 target and the last straight piece onto it is clear; where it stalls before (the barrier
 holds it), there is no start (:class:`SelfIntersectionError`, saying how far short). The
 frames are the iterates joined by the longest chords clear by the morph's segment test (a
-step is taken only where that test passes it), the longest chords then halved where there
-are frames to spare; where more are needed than asked, the refusal gives the count. The
-barrier is ``STIFFER`` times IPC's initial stiffness: the iterates keep further from
-contact and the clear chords between them are longer.
+step is taken only where that test passes it), the longest chords then split where there
+are frames to spare, at their middle iterate (a midpoint of two frames of a turning part
+shrinks it), at their midpoint where they join two consecutive iterates; where more are
+needed than asked, the refusal gives the count. The barrier is ``STIFFER`` times IPC's
+initial stiffness: the iterates keep further from contact and the clear chords between
+them are longer.
 """
 
 from __future__ import annotations
@@ -125,18 +127,23 @@ def homotopy_path(problem, contact, V0: FloatArray, V1: FloatArray, guide,
             f"{CROSSING}; pulled towards the target through contact, the surface stalls "
             f"{gap:.3g} short of it")
     poly.append(V1)
-    frames = [poly[i] for i in chord_picks(contact, poly)]
+    picks = chord_picks(contact, poly)
+    frames = [poly[i] for i in picks]
     if len(frames) - 1 > segments:
         raise SelfIntersectionError(
             f"{CROSSING}; the clean path found around the contact needs {len(frames)} "
             f"frames, {segments + 1} asked")
-    while len(frames) - 1 < segments:  # halve the longest chord whose halves CCD clears
+    while len(frames) - 1 < segments:  # split the longest chord whose halves CCD clears
         gaps = [np.abs(q - p).max() for p, q in zip(frames[:-1], frames[1:])]
         for i in np.argsort(gaps)[::-1]:
-            half = 0.5 * (frames[i] + frames[i + 1])
+            # at its middle iterate, else its midpoint
+            a, b = picks[i], picks[i + 1]
+            half, m = (poly[(a + b) // 2], (a + b) // 2) if b - a > 1 else (
+                0.5 * (frames[i] + frames[i + 1]), a)
             if contact.segment_clear(frames[i], half) and contact.segment_clear(
                     half, frames[i + 1]):
                 frames.insert(i + 1, half)
+                picks.insert(i + 1, m)
                 break
         else:
             raise SelfIntersectionError(f"{CROSSING}; no chord of the clean path found "
