@@ -1,23 +1,35 @@
 """The homotopy start of a surface morph (:mod:`meshopt_toolkit.motion.surface.morph_homotopy`):
 one connected strip whose flap, moved by either interpolation, passes through a ramp of the
-same strip; pulled by the homotopy it slides off the ramp's edge, every frame clean by the
-exact kernel, the motion between frames clean by ipctk's CCD, the last frame the target,
-every frame at least as healthy as the worse end (the frames the relaxation leaves below
-it polished, the path kept clean), also with the ends shaken by rounding; too few frames
-for the clean path are refused."""
+same strip; without the long way round (:func:`.interpolation.fold_crossings` finding no
+pair) the homotopy pulls it off the ramp's edge, every frame clean by the exact kernel, the
+motion between frames clean by ipctk's CCD, the last frame the target, every frame at least
+as healthy as the worse end (the frames the relaxation leaves below it polished, the path
+kept clean), also with the ends shaken by rounding; too few frames for the clean path are
+refused. With it, the morph starts from the interpolation that turns the strip's folded
+hinges the long way round, as it does a band swung round its hinge and random hinged
+flaps."""
 
 from __future__ import annotations
 
+from contextlib import contextmanager
+
 import numpy as np
 import pytest
+import scipy.sparse as sp
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.spatial.transform import Rotation
 
 from meshopt_toolkit.errors import SelfIntersectionError
 from meshopt_toolkit.kernels.intersections3d import self_intersections
 from meshopt_toolkit.kernels.surface import aspect_ratios
 import meshopt_toolkit as mt
 from meshopt_toolkit.mesh import SurfaceMesh
-from meshopt_toolkit.motion.surface.interpolation import arap_interpolation
+from meshopt_toolkit.motion.surface import morph as smorph
+from meshopt_toolkit.motion.surface import morph_homotopy
+from meshopt_toolkit.motion.surface.interpolation import arap_interpolation, fold_crossings
 from meshopt_toolkit.motion.surface.morph import morph_surface
+from meshopt_toolkit.motion.surface.morph_contact import SAMPLES, sampled_path
 
 ipctk = pytest.importorskip("ipctk")
 
@@ -50,6 +62,18 @@ def ramp_and_flap(nu: int = 4, nv: int = 3):
     return pose(0.0), pose(2.0), F
 
 
+@contextmanager
+def _short_way_only():
+    """The morph with no pair of neighbours found crossing the fold: no long way round."""
+    def none(V0, V1, F):
+        return sp.csr_matrix((len(F), len(F)))
+
+    with pytest.MonkeyPatch.context() as mp:
+        for module in (smorph, morph_homotopy):
+            mp.setattr(module, "fold_crossings", none)
+        yield
+
+
 def _clean_steps(frames, F) -> bool:
     """ipctk's own CCD over each straight segment between consecutive frames."""
     E = ipctk.edges(F.astype(np.int32))
@@ -74,7 +98,8 @@ def test_both_interpolations_of_the_strip_cross_it_between_clean_ends():
 @pytest.fixture(scope="module")
 def strip_morph():
     V0, V1, F = ramp_and_flap()
-    res = mt.morph(SurfaceMesh(V0, F), SurfaceMesh(V1, F), 17)
+    with _short_way_only():
+        res = mt.morph(SurfaceMesh(V0, F), SurfaceMesh(V1, F), 17)
     return res, [np.asarray(f.points) for f in res.frames], V0, V1, F
 
 
@@ -103,7 +128,8 @@ def test_ends_shaken_by_rounding_morph_as_healthy_and_clean(seed):
     V0, V1, F = ramp_and_flap()
     rng = np.random.default_rng(seed)
     V0, V1 = (V + 1e-9 * rng.standard_normal(V.shape) for V in (V0, V1))
-    frames = list(morph_surface(V0, V1, F, 17).points)
+    with _short_way_only():
+        frames = list(morph_surface(V0, V1, F, 17).points)
     worst = _worst(frames, F)
     assert min(worst) >= min(worst[0], worst[-1]) * (1 - 1e-12)
     assert [len(self_intersections(Q, F)) for Q in frames] == [0] * 17
@@ -113,7 +139,8 @@ def test_ends_shaken_by_rounding_morph_as_healthy_and_clean(seed):
 @pytest.mark.slow
 def test_too_few_frames_for_the_homotopy_are_refused_with_the_count():
     V0, V1, F = ramp_and_flap()
-    with pytest.raises(SelfIntersectionError, match=r"needs \d+ frames, 9 asked"):
+    with _short_way_only(), pytest.raises(SelfIntersectionError,
+                                          match=r"needs \d+ frames, 9 asked"):
         morph_surface(V0, V1, F, 9)
 
 
@@ -128,7 +155,8 @@ def test_cli_writes_the_homotopys_clean_frames(tmp_path):
     a = _surface_file(tmp_path / "a.vtu", SurfaceMesh(V0, F))
     b = _surface_file(tmp_path / "b.vtu", SurfaceMesh(V1, F))
     out = tmp_path / "frames"
-    assert main(["morph", str(a), str(b), "-o", str(out), "--frames", "17"]) == 0
+    with _short_way_only():
+        assert main(["morph", str(a), str(b), "-o", str(out), "--frames", "17"]) == 0
     frames = [np.asarray(load_cells(p).points) for p in sorted(out.glob("frame_*.vtu"))]
     assert len(frames) == 17
     assert [len(self_intersections(Q, F)) for Q in frames] == [0] * 17
@@ -164,11 +192,134 @@ def test_the_hinge_band_s_interpolations_cross_between_clean_ends():
     assert not _clean_steps(arap_interpolation(V0, V1, F, ts), F)
 
 
-@pytest.mark.slow
-@pytest.mark.xfail(strict=True, raises=SelfIntersectionError,
-                   reason="both guides pull the band through the base: the homotopy stalls")
+def _assert_clean_and_healthy(res, V0, V1, F):
+    frames = list(res.points)
+    np.testing.assert_array_equal(frames[0], V0)
+    np.testing.assert_array_equal(frames[-1], V1)
+    assert [len(self_intersections(Q, F)) for Q in frames] == [0] * len(frames)
+    assert _clean_steps(frames, F)
+    worst = _worst(frames, F)
+    assert min(worst) >= min(worst[0], worst[-1]) * (1 - 1e-12)
+
+
 def test_a_band_swung_round_its_hinge_morphs_clean():
     V0, V1, F = hinge_band()
-    frames = list(morph_surface(V0, V1, F, 17).points)
-    assert [len(self_intersections(Q, F)) for Q in frames] == [0] * 17
-    assert _clean_steps(frames, F)
+    res = morph_surface(V0, V1, F, 17)
+    assert res.initial_path == "long_way"
+    _assert_clean_and_healthy(res, V0, V1, F)
+
+
+def test_the_strip_morphs_clean_the_long_way_round():
+    V0, V1, F = ramp_and_flap()
+    res = morph_surface(V0, V1, F, 9)  # fewer than the homotopy needs
+    assert res.initial_path == "long_way"
+    _assert_clean_and_healthy(res, V0, V1, F)
+
+
+def _centred(V, F):
+    a = np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)
+    c = (a[:, None] * V[F].mean(1)).sum(0) / a.sum()
+    return V - c
+
+
+def test_the_long_way_round_turns_the_band_rigidly_through_flat():
+    """Closed form: at time t the band is turned by 170° − 340° t about its hinge, the
+    base still (up to the translation of the centroid); the hinge pairs are those found
+    crossing the fold, and the short way turns the band through the base instead."""
+    V0, V1, F = hinge_band()
+    pairs = fold_crossings(V0, V1, F)
+    hinge = {tuple(sorted(f)) for f in zip(*pairs.nonzero())}
+    on_hinge = [i for i, f in enumerate(F) if np.isclose(V0[f, 1], 0.0).sum() == 2
+                and np.isclose(V0[f, 2], 0.0).all()]
+    assert len(hinge) == 2 and all(any(i in h for h in hinge) for i in on_hinge)
+    ts = np.linspace(0.0, 1.0, 9)
+    for t, Q in zip(ts, arap_interpolation(V0, V1, F, ts, long_way=True)):
+        exact = hinge_band(170.0 - 340.0 * t)[0]
+        np.testing.assert_allclose(_centred(Q, F), _centred(exact, F), atol=1e-9)
+    short = arap_interpolation(V0, V1, F, [0.5])[0]
+    np.testing.assert_allclose(_centred(short, F), _centred(hinge_band(180.0)[0], F),
+                               atol=1e-9)
+
+
+def hinged_flap(a: float, b: float, axis: int, rotvec):
+    """A square base (2 × 2 quads) in z = 0 and a flap of 2 × 2 quads hinged on its edge
+    ``axis = 0``: x = 1 (folded about the y axis), ``1``: y = 1 (about x); turned by
+    ``a`` degrees (over the base) at the source and by −``b`` (under it) at the target,
+    the target also moved rigidly (rotation vector ``rotvec``, a shift)."""
+    u = np.linspace(0, 2, 5)
+    v = np.linspace(0, 1, 3)
+    U, W = (x.ravel() for x in np.meshgrid(u, v, indexing="ij"))
+    n = len(v)
+    i, j = (x.ravel() for x in np.meshgrid(np.arange(len(u) - 1), np.arange(len(v) - 1),
+                                           indexing="ij"))
+    p, q = i * n + j, (i + 1) * n + j
+    F = np.vstack([np.c_[p, q, q + 1], np.c_[p, q + 1, p + 1]])
+    s = np.clip(U - 1, 0, None)
+
+    def pose(degrees):
+        t = np.radians(degrees)
+        along = np.where(U <= 1, U, 1 + s * np.cos(t))
+        P = np.c_[along, W, s * np.sin(t)]
+        return P if axis == 0 else np.c_[W, along, -s * np.sin(t)]
+
+    if axis == 1:
+        F = F[:, [0, 2, 1]]  # the same outward side up
+    V1 = pose(-b) @ Rotation.from_rotvec(rotvec).as_matrix().T + np.array([0.3, -0.2, 0.1])
+    return pose(a), V1, F
+
+
+@pytest.mark.slow
+@settings(max_examples=6, deadline=None, derandomize=True, database=None)
+@given(a=st.floats(150.0, 175.0), b=st.floats(150.0, 175.0), axis=st.sampled_from([0, 1]),
+       rotvec=st.lists(st.floats(-0.5, 0.5), min_size=3, max_size=3))
+def test_random_hinged_flaps_morph_clean_the_long_way_round(a, b, axis, rotvec):
+    """The flap folded over the base at the source and under it at the target, about
+    either axis, the target moved rigidly: the as-rigid-as-possible interpolation turns the
+    flap through the base; the morph's frames and the motion between them are clean, every
+    frame as healthy as the worse end, from the long way round where the straight
+    interpolation crosses too."""
+    V0, V1, F = hinged_flap(a, b, axis, rotvec)
+    assert not len(self_intersections(V0, F)) and not len(self_intersections(V1, F))
+    ts = np.linspace(0.0, 1.0, 17)
+    assert not _clean_steps(arap_interpolation(V0, V1, F, ts), F)  # through the base
+    linear = [(1 - t) * V0 + t * V1 for t in ts]
+    res = morph_surface(V0, V1, F, 17)
+    assert res.initial_path == ("linear" if _clean_steps(linear, F) else "long_way")
+    _assert_clean_and_healthy(res, V0, V1, F)
+
+
+def test_a_flap_ending_close_to_the_base_is_sampled_finer_near_it():
+    """Turned to 5° under the base, the flap's last even step ends its pairs much closer
+    than it starts them: CCD's conservative step stops short on it. The frames are picked
+    among finer samples of the long way round, each segment clear, each frame a sample."""
+    V0, V1, F = hinged_flap(160.0, 175.0, 1, [0.48, 0.19, 0.15])
+    problem = smorph._PathProblem(V0, V1, F, smorph.WEIGHT, smorph.BENDING)
+    contact = smorph._path_contact(problem, V0, V1, 17, True)
+
+    def long_way(ts):
+        return arap_interpolation(V0, V1, F, ts, long_way=True)
+
+    even = long_way(np.linspace(0.0, 1.0, 17))
+    assert not all(contact.segment_clear(a, b) for a, b in zip(even[:-1], even[1:]))
+    frames = sampled_path(contact, long_way, 16)
+    assert len(frames) == 17 and _clean_steps(frames, F)
+    samples = long_way(np.linspace(0.0, 1.0, 16 * SAMPLES + 1))
+    assert all(any(np.array_equal(Q, S) for S in samples) for Q in frames)
+    res = morph_surface(V0, V1, F, 17)
+    assert res.initial_path == "long_way"
+    _assert_clean_and_healthy(res, V0, V1, F)
+
+
+@pytest.mark.slow
+def test_the_homotopy_along_the_long_way_splits_its_chords_at_its_iterates():
+    """Pulled round the hinge the long way, the homotopy's chords are split at their middle
+    iterates (not midpoints, which shrink a turning band): every frame admissible (no
+    fold), the path clean."""
+    V0, V1, F = hinge_band()
+    problem = smorph._PathProblem(V0, V1, F, smorph.WEIGHT, smorph.BENDING)
+    contact = smorph._path_contact(problem, V0, V1, 17, True)
+    frames = morph_homotopy.homotopy_path(
+        problem, contact, V0, V1, lambda ts: arap_interpolation(V0, V1, F, ts, long_way=True),
+        16)
+    assert len(frames) == 17 and _clean_steps(frames, F)
+    assert all(problem.admissible(Q) for Q in frames[1:-1])

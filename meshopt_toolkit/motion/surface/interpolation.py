@@ -35,6 +35,7 @@ from ...kernels.surface import areas
 from ...mesh.core import TriangleMesh
 from ...solvers import factorize_spd
 from ..engine.similarity import fit_similarity_3d as fit_similarity
+from .bending import dihedral_angles, edge_diamonds, wrap
 from .distortion import SurfaceDistortion
 
 
@@ -138,17 +139,23 @@ def _best_rotated(J: FloatArray, m: FloatArray) -> FloatArray:
 
 
 def continuous_rotation_vectors(rotvecs: FloatArray, points: FloatArray,
-                                triangles: IntArray) -> FloatArray:
+                                triangles: IntArray, *, long_way=None,
+                                turned: FloatArray | None = None) -> FloatArray:
     """The rotation vectors of the same rotations (T, 3), each triangle's branch
     ``(θ + 2πk) a`` chosen nearest its neighbour's: over a breadth-first tree of the
     triangles' edge adjacency, rooted at the least turned triangle of each connected piece,
     each takes the branch nearest its parent's, level by level. Neighbours near a half turn
     then turn the same way round, and turns beyond a half turn are followed as such
-    (``θ`` beyond π) instead of the other way round."""
+    (``θ`` beyond π) instead of the other way round.
+
+    ``long_way`` (a (T, T) sparse matrix, nonzero on pairs of neighbours) marks the
+    neighbours whose relative turn goes the long way round: a child reached from its parent
+    over a marked pair takes the branch one turn beyond the nearest, away from it.
+    ``turned`` (T,) orders the roots instead of the rotation angles."""
     angle = np.linalg.norm(rotvecs, axis=1)
     adjacency = TriangleMesh(points, triangles).triangle_adjacency
     _, labels = connected_components(adjacency, directed=False)
-    order = np.lexsort((angle, labels))
+    order = np.lexsort((angle if turned is None else turned, labels))
     roots = order[np.r_[0, np.flatnonzero(np.diff(labels[order])) + 1]]
     depth, parent, _ = dijkstra(adjacency, directed=False, indices=roots, unweighted=True,
                                 min_only=True, return_predecessors=True)
@@ -163,13 +170,40 @@ def continuous_rotation_vectors(rotvecs: FloatArray, points: FloatArray,
         a = a / np.where(size > 0, size, 1.0)[:, None]
         # the branch θ + 2πk along a nearest P: k = round((P·a − θ) / 2π)
         k = np.round((np.einsum("ti,ti->t", P, a) - angle[level]) / (2.0 * np.pi))
+        if long_way is not None:  # the relative turn δ the other way round: δ − 2π sign δ
+            delta = angle[level] + 2.0 * np.pi * k - np.einsum("ti,ti->t", P, a)
+            marked = np.asarray(long_way[parent[level], level]).ravel() != 0
+            k = k - np.where(marked, np.where(delta >= 0.0, 1.0, -1.0), 0.0)
         out[level] = (angle[level] + 2.0 * np.pi * k)[:, None] * a
     return out
 
 
+def fold_crossings(source: FloatArray, target: FloatArray, triangles: IntArray
+                   ) -> sp.csr_matrix:
+    """The pairs of neighbouring triangles (a symmetric (T, T) matrix, nonzero on them)
+    whose dihedral angle, turned the short way from ``source`` to ``target``, passes the
+    fold (±π: one triangle laid on the other); turned the long way it passes flat."""
+    F = np.asarray(triangles, np.int64)
+    D = edge_diamonds(F)
+    theta0 = dihedral_angles(source, D)
+    crossing = np.abs(theta0 + wrap(dihedral_angles(target, D) - theta0)) > np.pi
+    n = int(F.max()) + 1 if F.size else 0
+    key = F.ravel() * n + F[:, [1, 2, 0]].ravel()  # each half-edge, its triangle's corner
+    order = np.argsort(key)
+
+    def holder(i, j):
+        return order[np.searchsorted(key[order], i * n + j)] // 3
+
+    D = D[crossing]
+    t1, t2 = holder(D[:, 0], D[:, 1]), holder(D[:, 1], D[:, 0])
+    return sp.csr_matrix((np.ones(2 * len(D)), (np.r_[t1, t2], np.r_[t2, t1])),
+                         shape=(len(F), len(F)))
+
+
 def arap_interpolation(source: FloatArray, target: FloatArray, triangles: IntArray,
                        times, *, iterations: int = 0,
-                       until: Callable[[list], bool] | None = None) -> list:
+                       until: Callable[[list], bool] | None = None,
+                       long_way: bool = False) -> list:
     """The frames of the as-rigid-as-possible interpolation at ``times`` (module
     docstring); ``source`` at ``t = 0`` and ``target`` at ``t = 1`` exactly.
 
@@ -184,6 +218,10 @@ def arap_interpolation(source: FloatArray, target: FloatArray, triangles: IntArr
     until : called with the frames (all of them, new arrays after each step) before each
         step; True ends the steps, so the frames are the fewest steps' it accepts (or all
         ``iterations``')
+    long_way : turn each pair of neighbours whose dihedral angle's short way passes the
+        fold (:func:`fold_crossings`) the long way round, through flat: the least turned
+        triangle stays on its branch, those beyond such a pair take the other
+        (:func:`continuous_rotation_vectors`)
     """
     V0, V1 = np.asarray(source, float), np.asarray(target, float)
     F = np.asarray(triangles, np.int64)
@@ -191,7 +229,12 @@ def arap_interpolation(source: FloatArray, target: FloatArray, triangles: IntArr
     global_vec = Rotation.from_matrix(Rg).as_rotvec()
     A = _frames(V1[F]) @ np.linalg.inv(_frames(V0[F]))
     R, S = _polar(np.swapaxes(Rg, 0, 1)[None] @ A)
-    local_vec = continuous_rotation_vectors(Rotation.from_matrix(R).as_rotvec(), V0, F)
+    if long_way:  # rooted at the least turned in all, so that no piece whirls round
+        local_vec = continuous_rotation_vectors(
+            Rotation.from_matrix(R).as_rotvec(), V0, F, long_way=fold_crossings(V0, V1, F),
+            turned=Rotation.from_matrix(Rg[None] @ R).magnitude())
+    else:
+        local_vec = continuous_rotation_vectors(Rotation.from_matrix(R).as_rotvec(), V0, F)
     fit = _Fit(V0, F)
     A0 = fit.distortion.affine_maps(V0)  # (T, 3, 2)
     c0, c1 = fit.centroids(V0), fit.centroids(V1)

@@ -37,9 +37,12 @@ rotation of one frame costs ``|ΔQ|²_M``), so nothing is pinned.
 With contact (the default, where both ends are free of self-intersections and there is an
 interior frame) no frame passes through the surface, nor the straight motion between two
 frames: each frame's IPC barrier joins the energy, every step is capped by CCD and taken
-only on a clean path, from a clean start (:mod:`.morph_contact`; a detour of the
-moving components where neither interpolation is clean, else the homotopy of
-:mod:`.morph_homotopy`).
+only on a clean path, from a clean start (:mod:`.morph_contact`). Where neither
+interpolation is clean, the start is the as-rigid-as-possible interpolation that turns each
+pair of neighbours whose dihedral angle's short way passes the fold (one triangle laid on
+the other) the long way round, through flat (``long_way``,
+:func:`.interpolation.fold_crossings`), where that is clean; else a detour of the moving
+components; else the homotopy of :mod:`.morph_homotopy`, along either way round.
 
 A pair related by a similarity (to ``1e-10`` of the diameter) is followed along that
 similarity exactly (rotation in angle, scale geometrically), an identical pair by copies;
@@ -67,9 +70,9 @@ from ...scaling import unit_scale
 from ..engine.contact import ContactWarning, pair_contact
 from ..engine.similarity_3d import global_similarity
 from .folds import FoldTest
-from .interpolation import arap_interpolation
+from .interpolation import arap_interpolation, fold_crossings
 from .metric import BENDING, WEIGHT, SurfaceGraphMetric
-from .morph_contact import PathContact, detour_path
+from .morph_contact import PathContact, detour_path, sampled_path
 from .morph_homotopy import homotopy_start
 from .morph_polish import polish_frames
 from .path import RTOL, SurfacePathOptions, SurfacePathProblem
@@ -110,8 +113,8 @@ class SurfaceMorph:
     triangles : (T, 3) int array
     status : "healthy", "converged", "max_iterations", "stalled", "stopped", "similarity" or
         "identical"
-    initial_path : "arap", "linear", "detour" or "homotopy" (with contact), "similarity" or
-        "identical"
+    initial_path : "arap", "linear", "long_way", "detour" or "homotopy" (the last three with
+        contact), "similarity" or "identical"
     energy : the path energy ``E`` (module docstring) at the end
     length : the frames' polygon length ``ℓ`` in the embedding
     """
@@ -302,7 +305,9 @@ def _initial_path(problem: _PathProblem, V0, V1, F, times,
                   contact: PathContact | None = None) -> tuple[list, str]:
     """The as-rigid-as-possible interpolation (with its local/global steps, else without)
     where every frame is admissible, else the linear one where it is
-    (:class:`NotAdmissibleError` else); with ``contact`` only a clean one, else a clean
+    (:class:`NotAdmissibleError` else); with ``contact`` only a clean one, else the
+    as-rigid-as-possible interpolation turning the neighbours whose short way passes
+    the fold the long way round (``long_way``), else a clean
     detour (:func:`.morph_contact.detour_path`), else the homotopy
     (:func:`.morph_homotopy.homotopy_start`, its :class:`SelfIntersectionError`
     where it finds none)."""
@@ -311,6 +316,11 @@ def _initial_path(problem: _PathProblem, V0, V1, F, times,
                                                       until=problem.healthy)),
                   ("arap", lambda: arap_interpolation(V0, V1, F, times)),
                   ("linear", lambda: [(1.0 - t) * V0 + t * V1 for t in times]),
+                  ("long_way", lambda: sampled_path(
+                      contact, lambda ts: arap_interpolation(
+                          V0, V1, F, ts, long_way=True, iterations=START_ITERATIONS,
+                          until=problem.healthy), len(times) - 1)
+                   if fold_crossings(V0, V1, F).nnz else None),
                   ("detour", lambda: detour_path(contact, V0, V1, F, len(times) - 1)),
                   ("homotopy", lambda: homotopy_start(problem, contact, V0, V1, F,
                                                      len(times) - 1)))

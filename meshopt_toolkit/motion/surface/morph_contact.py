@@ -12,6 +12,9 @@ by the CCD of each frame's move and accepted only on a clean path, so every iter
 Where neither interpolation of the ends is clean, :func:`detour_path` builds a clean start
 for a surface of several components: the components that move are shifted along an axis
 until their boxes clear the others', moved to the target there, and shifted back.
+:func:`sampled_path` picks the frames of a path given at any time (an interpolation) where
+those at even times are not clean: CCD's conservative steps stop short on a segment whose
+pairs end much closer than they start, near an end close to contact.
 """
 
 from __future__ import annotations
@@ -23,7 +26,11 @@ from scipy.sparse.csgraph import connected_components
 from ..._typing import FloatArray, IntArray
 from ..engine.contact import ContactTerm, SurfaceContact
 
-__all__ = ["PathContact", "detour_path"]
+__all__ = ["PathContact", "chord_picks", "detour_path", "sampled_path"]
+
+#: samples per segment asked of a path whose frames at even times are not clean, among
+#: which :func:`sampled_path` picks the frames
+SAMPLES = 8
 
 
 class PathContact:
@@ -152,3 +159,43 @@ def detour_path(contact: PathContact, V0: FloatArray, V1: FloatArray, triangles:
             if frames is not None and contact.clean(frames):
                 return frames
     return None
+
+
+def chord_picks(contact: PathContact, poly: list) -> list:
+    """Indices of frames on the clear polyline ``poly``, its ends included: from each, the
+    farthest point of ``poly`` up to which the chord is clear (CCD)."""
+    picks, a = [0], 0
+    while a < len(poly) - 1:
+        b = a + 1
+        while b + 1 < len(poly) and contact.segment_clear(poly[a], poly[b + 1]):
+            b += 1
+        picks.append(b)
+        a = b
+    return picks
+
+
+def sampled_path(contact: PathContact, frames_at, segments: int) -> list | None:
+    """``segments + 1`` frames of the path ``frames_at`` (a callable of times in [0, 1],
+    its frames) from its first to its last: those at even times where every segment
+    between them is clear (CCD); else picked among ``SAMPLES`` times as many samples at
+    even times, the longest clear chords (:func:`chord_picks`), the chords over the most
+    samples then split at their middle sample while there are frames to spare; None where
+    the samples are not clear, the chords need more frames, or none splits clear."""
+    frames = frames_at(np.linspace(0.0, 1.0, segments + 1))
+    if all(contact.segment_clear(a, b) for a, b in zip(frames[:-1], frames[1:])):
+        return frames
+    poly = frames_at(np.linspace(0.0, 1.0, SAMPLES * segments + 1))
+    if not all(contact.segment_clear(a, b) for a, b in zip(poly[:-1], poly[1:])):
+        return None
+    picks = chord_picks(contact, poly)
+    while len(picks) - 1 < segments:
+        spans = np.diff(picks)
+        for i in np.argsort(-spans, kind="stable"):
+            a, m, b = picks[i], (picks[i] + picks[i + 1]) // 2, picks[i + 1]
+            if m > a and contact.segment_clear(poly[a], poly[m]) and contact.segment_clear(
+                    poly[m], poly[b]):
+                picks.insert(i + 1, m)
+                break
+        else:
+            return None
+    return [poly[i] for i in picks] if len(picks) - 1 == segments else None

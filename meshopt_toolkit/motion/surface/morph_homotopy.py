@@ -1,5 +1,6 @@
 """A clean start for a surface morph whose interpolations cross (:mod:`.morph`), by
-IPC's incremental-potential homotopy towards a guide path.
+IPC's incremental-potential homotopy towards a guide path (the as-rigid-as-possible
+interpolation the short way round, else the long way, else the linear one).
 
 From the source, each increment minimizes over ``Q``
 
@@ -12,10 +13,12 @@ attraction is raised tenfold until the iterate is within ``REACH_TOLERANCE`` of 
 target and the last straight piece onto it is clear; where it stalls before (the barrier
 holds it), there is no start (:class:`SelfIntersectionError`, saying how far short). The
 frames are the iterates joined by the longest chords clear by the morph's segment test (a
-step is taken only where that test passes it), the longest chords then halved where there
-are frames to spare; where more are needed than asked, the refusal gives the count. The
-barrier is ``STIFFER`` times IPC's initial stiffness: the iterates keep further from
-contact and the clear chords between them are longer.
+step is taken only where that test passes it), the longest chords then split where there
+are frames to spare, at their middle iterate (a midpoint of two frames of a turning part
+shrinks it), at their midpoint where they join two consecutive iterates; where more are
+needed than asked, the refusal gives the count. The barrier is ``STIFFER`` times IPC's
+initial stiffness: the iterates keep further from contact and the clear chords between
+them are longer.
 """
 
 from __future__ import annotations
@@ -27,7 +30,8 @@ from ..._typing import FloatArray
 from ...errors import SelfIntersectionError
 from ...solvers import factorize_spd
 from ..engine.contact import ContactTerm
-from .interpolation import arap_interpolation
+from .interpolation import arap_interpolation, fold_crossings
+from .morph_contact import chord_picks
 
 __all__ = ["homotopy_path", "homotopy_start"]
 
@@ -123,18 +127,23 @@ def homotopy_path(problem, contact, V0: FloatArray, V1: FloatArray, guide,
             f"{CROSSING}; pulled towards the target through contact, the surface stalls "
             f"{gap:.3g} short of it")
     poly.append(V1)
-    frames = _chords(contact, poly)
+    picks = chord_picks(contact, poly)
+    frames = [poly[i] for i in picks]
     if len(frames) - 1 > segments:
         raise SelfIntersectionError(
             f"{CROSSING}; the clean path found around the contact needs {len(frames)} "
             f"frames, {segments + 1} asked")
-    while len(frames) - 1 < segments:  # halve the longest chord whose halves CCD clears
+    while len(frames) - 1 < segments:  # split the longest chord whose halves CCD clears
         gaps = [np.abs(q - p).max() for p, q in zip(frames[:-1], frames[1:])]
         for i in np.argsort(gaps)[::-1]:
-            half = 0.5 * (frames[i] + frames[i + 1])
+            # at its middle iterate, else its midpoint
+            a, b = picks[i], picks[i + 1]
+            half, m = (poly[(a + b) // 2], (a + b) // 2) if b - a > 1 else (
+                0.5 * (frames[i] + frames[i + 1]), a)
             if contact.segment_clear(frames[i], half) and contact.segment_clear(
                     half, frames[i + 1]):
                 frames.insert(i + 1, half)
+                picks.insert(i + 1, m)
                 break
         else:
             raise SelfIntersectionError(f"{CROSSING}; no chord of the clean path found "
@@ -142,32 +151,20 @@ def homotopy_path(problem, contact, V0: FloatArray, V1: FloatArray, guide,
     return frames
 
 
-def _chords(contact, poly: list) -> list:
-    """Frames on the clear polyline ``poly``: from each, the farthest iterate up to which
-    every chord is clear (CCD)."""
-    picks, a = [0], 0
-    while a < len(poly) - 1:
-        b = a + 1
-        while b + 1 < len(poly) and contact.segment_clear(poly[a], poly[b + 1]):
-            b += 1
-        picks.append(b)
-        a = b
-    return [poly[i] for i in picks]
-
-
 def homotopy_start(problem, contact, V0: FloatArray, V1: FloatArray, triangles,
                    segments: int) -> list:
     """:func:`homotopy_path` pulled along the as-rigid-as-possible interpolation, else
-    (where it has none or stalls) along the linear one; the linear one's refusal."""
-    def arap(ts):
-        return arap_interpolation(V0, V1, triangles, ts)
-
-    def linear(ts):
-        return [(1.0 - t) * V0 + t * V1 for t in ts]
-
-    if arap(np.array([0.0, 0.5, 1.0])) is not None:
+    (where it stalls) along the one that turns the neighbours whose short way passes the
+    fold the long way round (where there are such,
+    :func:`.interpolation.fold_crossings`), else along the linear one; the linear one's
+    refusal."""
+    guides = [lambda ts: arap_interpolation(V0, V1, triangles, ts)]
+    if fold_crossings(V0, V1, triangles).nnz:
+        guides.append(lambda ts: arap_interpolation(V0, V1, triangles, ts, long_way=True))
+    for guide in guides:
         try:
-            return homotopy_path(problem, contact, V0, V1, arap, segments)
+            return homotopy_path(problem, contact, V0, V1, guide, segments)
         except SelfIntersectionError:
             pass
-    return homotopy_path(problem, contact, V0, V1, linear, segments)
+    return homotopy_path(problem, contact, V0, V1,
+                         lambda ts: [(1.0 - t) * V0 + t * V1 for t in ts], segments)
