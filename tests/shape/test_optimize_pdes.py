@@ -143,8 +143,7 @@ def test_stokes_body_drag_decreases_with_area_and_barycenter_kept(body):
 
     mesh = load_workpiece(body, "optimize").mesh
     spec = spec_from_options(pde="stokes", dirichlet=["body=1,0", "box=0,0"],
-                             objective="dissipation", move="body", keep_area=True,
-                             keep_barycenter=True)
+                             objective="dissipation", move="body", keep="area,barycenter")
     result = optimize(mesh, problem=spec, max_iterations=12)
     P0, P1, T = mesh.points, result.x, mesh.triangles
     d0, d1 = reference_dissipation(P0, T), reference_dissipation(P1, T)
@@ -220,7 +219,7 @@ def test_filter_runs_the_same_problem_as_the_library(plate):
         doc, pde="elasticity", stress="outer=2,1,0", move="hole", keep_area=True,
         poisson_ratio=0.25, max_iterations=3, tolerance=0)
     spec = spec_from_options(pde="elasticity", stress="outer=2,1,0", move="hole",
-                             keep_area=True, material={"poisson_ratio": 0.25})
+                             keep="area", material={"poisson_ratio": 0.25})
     expected = optimize(mesh, problem=spec, max_iterations=3, options=dict(tolerance=None))
     moved = doc.current_entry.workpiece("test").mesh.points
     assert np.allclose(moved, expected.x, rtol=0, atol=1e-12)
