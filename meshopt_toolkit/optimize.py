@@ -344,13 +344,17 @@ def _optimize(mesh: PlanarMesh, objective, *, spec: ProblemSpec, variant: str, m
                           max_iterations=iterations, options=o, callback=hook, h0=h0)
         return _unweighed(out, objective, w)
 
+    attempts = []
     for attempt in range(1 + (GUARD_TRIES if auto else 0)):
         result = descend(mesh, f2, max_iterations)
+        attempts.append(result)
         if not auto or result.status != "step_too_small":
             break
         logger.info("no step at weight %.3g (%s): restarting with %.3g", weight, result.message,
                     weight / GUARD_FACTOR)
         weight /= GUARD_FACTOR
+    if result.status == "step_too_small":  # no weight went on to the end: the least j of all
+        result = min(attempts, key=lambda r: r.j)
     if auto and anchored is not None and constraint is not None:  # planar f2 only
         result = _follow_anchor(
             result, lambda start, n, done, k: descend(start, anchored(start), n, done,

@@ -52,7 +52,8 @@ AUTO_GRADIENT_NORM = 0.02
 #: aspect ratio is below ``QUALITY_GUARD`` times the initial one is rejected like one
 #: outside ``M+`` (the mean-quality term of f2 barely sees one triangle among thousands),
 #: and a run that finds no step (``step_too_small``) restarts from the initial mesh with
-#: the weight divided by ``GUARD_FACTOR``, at most ``GUARD_TRIES`` times
+#: the weight divided by ``GUARD_FACTOR``, at most ``GUARD_TRIES`` times (where none
+#: goes on to the end, the attempt of least j is the result)
 QUALITY_GUARD = 0.5
 GUARD_FACTOR = 4.0
 GUARD_TRIES = 4

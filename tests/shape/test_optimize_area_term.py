@@ -70,3 +70,29 @@ def test_the_defaults_need_no_restart_of_the_quality_floor_on_a_3_to_1_rectangle
     assert res.objective_weight == auto.objective_weight
     assert last.min_aspect_ratio >= 0.5 * first.min_aspect_ratio
     assert res.j < 0.5 * first.j
+
+
+def test_a_guard_that_finds_no_step_at_any_weight_returns_the_attempt_of_least_j(monkeypatch):
+    """Where every weight the guard tries ends without a step, the result is the attempt
+    with the least j, not the last one (whose smaller weight lets f2 steer alone): each
+    attempt's run is real, only its status is made "no step"."""
+    import meshopt_toolkit.shape.driver as driver
+
+    real, attempts = driver.run_descent, []
+
+    def no_step(*args, **kwargs):
+        out = real(*args, **kwargs)
+        out.status, out.success = "step_too_small", False
+        attempts.append(out)
+        return out
+
+    monkeypatch.setattr(driver, "run_descent", no_step)
+    from meshopt_toolkit.optimize import DEFAULT_PENALTY_BETA
+    from meshopt_toolkit.shape.spec import ProblemSpec
+
+    mesh = rectangle(12, 4, 6.0, 2.0, jitter=0.2)
+    result = optimize(mesh, problem=ProblemSpec(scale="auto"), penalty=DEFAULT_PENALTY_BETA,
+                      max_iterations=6)
+    js = [a.j for a in attempts]
+    assert len(js) > 1 and js[-1] > min(js)  # the last weight is not the best
+    assert result.j == min(js)
