@@ -14,7 +14,8 @@ from hypothesis import strategies as st
 from meshopt_toolkit.diagnostics import check_gradient
 from meshopt_toolkit.errors import InvalidMeshError, NotAdmissibleError
 from meshopt_toolkit.kernels.cell_maps import surface_inverse_shape_quality
-from meshopt_toolkit.motion.surface.bending import ShellBending, dihedral_angles, edge_diamonds
+from meshopt_toolkit.motion.surface.bending import (ShellBending, diamonds_and_triangles,
+                                                    dihedral_angles, edge_diamonds)
 from meshopt_toolkit.motion.surface.distortion import SurfaceDistortion, surface_quality_bound
 from meshopt_toolkit.motion.surface.move import SurfaceMoveOptions, move_surface
 from meshopt_toolkit.motion.engine.similarity import HandlePath, handle_groups
@@ -132,6 +133,21 @@ def test_diamonds_cover_interior_edges_only():
     E = np.concatenate([open_F[:, [0, 1]], open_F[:, [1, 2]], open_F[:, [2, 0]]])
     _, counts = np.unique(np.sort(E, axis=1), axis=0, return_counts=True)
     assert len(edge_diamonds(open_F)) == int(np.sum(counts == 2))
+
+
+def test_each_diamond_names_the_triangles_that_hold_its_half_edges():
+    """Triangle ``t1`` holds i→j with corner k, ``t2`` holds j→i with corner l (as cyclic
+    orders of their rows), on a sphere with a hole."""
+    V, F = sphere(1)
+    F = F[V[F].mean(axis=1)[:, 2] < 0.5]
+    D, T = diamonds_and_triangles(F)
+    assert np.array_equal(D, edge_diamonds(F)) and len(D)
+
+    def rolls(rows):  # the three cyclic orders of each row
+        return [np.roll(rows, -r, axis=1) for r in range(3)]
+
+    for corners, t in ((D[:, [0, 1, 2]], T[:, 0]), (D[:, [1, 0, 3]], T[:, 1])):
+        assert np.any([np.all(r == corners, axis=1) for r in rolls(F[t])], axis=0).all()
 
 
 def test_fold_test_agrees_with_the_benchmark_measure():

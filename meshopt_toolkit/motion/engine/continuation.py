@@ -104,7 +104,7 @@ class GrowingSteps:
         self.splits, self.dt, self.halvings, self.in_row = 0, length, 0, 0
 
     def trial(self, s_now: float, s_goal: float) -> float:
-        return min(s_goal, s_now + self.dt) if s_goal - (s_now + self.dt) > 1e-12 else s_goal
+        return s_now + self.dt if s_goal - (s_now + self.dt) > 1e-12 else s_goal
 
     def refused(self, s_now: float) -> None:
         self.halvings += 1

@@ -24,6 +24,12 @@ def edge_diamonds(triangles: IntArray) -> IntArray:
     ``(i, j, k)`` holds the half-edge i→j, a second triangle holds j→i with opposite
     corner ``l``; each edge once. Edges on the boundary, edges of more than two triangles
     and edges whose two triangles are oriented alike are left out."""
+    return diamonds_and_triangles(triangles)[0]
+
+
+def diamonds_and_triangles(triangles: IntArray) -> tuple[IntArray, IntArray]:
+    """:func:`edge_diamonds` and, for each diamond, the two triangles holding it (E, 2):
+    that of the half-edge i→j, then that of j→i."""
     F = np.asarray(triangles, dtype=np.int64)
     tails = F.ravel()
     heads = F[:, [1, 2, 0]].ravel()
@@ -38,7 +44,8 @@ def edge_diamonds(triangles: IntArray) -> IntArray:
     ok = (tails < heads) & np.isin(key, single) & np.isin(reverse, single)
     pos = np.searchsorted(sorted_key, reverse[ok])
     mate = order[pos]
-    return np.stack([tails[ok], heads[ok], tips[ok], tips[mate]], axis=1)
+    return (np.stack([tails[ok], heads[ok], tips[ok], tips[mate]], axis=1),
+            np.stack([np.flatnonzero(ok) // 3, mate // 3], axis=1))
 
 
 def _normals(Q: FloatArray, D: IntArray):

@@ -35,7 +35,7 @@ from ...kernels.surface import areas
 from ...mesh.core import TriangleMesh
 from ...solvers import factorize_spd
 from ..engine.similarity import fit_similarity_3d as fit_similarity
-from .bending import dihedral_angles, edge_diamonds, wrap
+from .bending import diamonds_and_triangles, dihedral_angles, wrap
 from .distortion import SurfaceDistortion
 
 
@@ -184,19 +184,11 @@ def fold_crossings(source: FloatArray, target: FloatArray, triangles: IntArray
     whose dihedral angle, turned the short way from ``source`` to ``target``, passes the
     fold (±π: one triangle laid on the other); turned the long way it passes flat."""
     F = np.asarray(triangles, np.int64)
-    D = edge_diamonds(F)
+    D, holders = diamonds_and_triangles(F)
     theta0 = dihedral_angles(source, D)
     crossing = np.abs(theta0 + wrap(dihedral_angles(target, D) - theta0)) > np.pi
-    n = int(F.max()) + 1 if F.size else 0
-    key = F.ravel() * n + F[:, [1, 2, 0]].ravel()  # each half-edge, its triangle's corner
-    order = np.argsort(key)
-
-    def holder(i, j):
-        return order[np.searchsorted(key[order], i * n + j)] // 3
-
-    D = D[crossing]
-    t1, t2 = holder(D[:, 0], D[:, 1]), holder(D[:, 1], D[:, 0])
-    return sp.csr_matrix((np.ones(2 * len(D)), (np.r_[t1, t2], np.r_[t2, t1])),
+    t1, t2 = holders[crossing].T
+    return sp.csr_matrix((np.ones(2 * len(t1)), (np.r_[t1, t2], np.r_[t2, t1])),
                          shape=(len(F), len(F)))
 
 
