@@ -57,7 +57,7 @@ from scipy.sparse.csgraph import connected_components
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _surface_measures import (arap_energy, fold_count, normals,  # noqa: E402
-                               relative_quality, self_intersecting_faces,
+                               relative_quality, rigid_pose_faces, self_intersecting_faces,
                                worst_relative_quality)
 
 DATA = Path(__file__).resolve().parent.parent / "data" / "surfaces"
@@ -569,6 +569,8 @@ METHODS = {
 
 def measure(case: Case, U: np.ndarray, seconds: float) -> dict:
     """The printed measures of one result."""
+    from meshopt_toolkit.kernels.intersections3d import self_intersections
+
     return {
         "quality": worst_relative_quality(case.V, U, case.F, case.handles),
         "folds": fold_count(case.V, U, case.F, case.handles),
@@ -576,6 +578,7 @@ def measure(case: Case, U: np.ndarray, seconds: float) -> dict:
         "seconds": seconds,
         "ARAP energy": arap_energy(case.V, U, case.F),
         "self-intersecting": self_intersecting_faces(U, case.F),
+        "exact pairs": len(self_intersections(U, case.F)),
     }
 
 
@@ -631,7 +634,7 @@ def run_case(case: Case, methods) -> dict:
     print(f"\n{case.name}: {len(case.V)} vertices, {len(case.F)} triangles, "
           f"{len(case.handles)} handle vertices")
     print(f"  {'method':<14} {'worst rel. q':>12} {'folds':>6} {'handle err':>11} "
-          f"{'seconds':>8} {'ARAP energy':>12} {'self-int. faces':>15}")
+          f"{'seconds':>8} {'ARAP energy':>12} {'self-int. faces':>15} {'exact pairs':>11}")
     results, rows = {}, {}
     for name in methods:
         try:
@@ -649,7 +652,7 @@ def run_case(case: Case, methods) -> dict:
         r["CPU seconds"] = cpu
         print(f"  {name:<14} {r['quality']:>12.3f} {r['folds']:>6d} {r['handle error']:>11.1e} "
               f"{r['seconds']:>8.2f} {r['ARAP energy']:>12.4g} {r['self-intersecting']:>15d}"
-              f"  ({cpu:.2f} CPU s)", flush=True)
+              f" {r['exact pairs']:>11d}  ({cpu:.2f} CPU s)", flush=True)
         if name == "ours" and EVERY_FRAME[0]:
             bad = frame_intersections(case, OURS_FRAMES)
             r["every frame"] = max((faces for _, faces, _ in bad), default=0)
@@ -667,6 +670,9 @@ def run_case(case: Case, methods) -> dict:
         if f"ARAP {STEPS} steps" in rows:
             ratio = o["seconds"] / rows[f"ARAP {STEPS} steps"]["seconds"]
             print(f"  ours / ARAP {STEPS} steps: time {ratio:.2f}× (want ≤ 5×)")
+    o = rows.get("ours")
+    if o and o["self-intersecting"] > 0 and o["exact pairs"] == 0:
+        o["rigid-pose faces"] = rigid_pose_faces(case.V, case.F)
     verdict = check(rows)
     if verdict:
         print("  " + verdict)
@@ -716,8 +722,12 @@ def check(rows: dict) -> str:
     ok = (o["handle error"] == 0.0 and o["folds"] == 0 and o["quality"] >= 0.1 and e <= 1.5
           and o["self-intersecting"] <= 0
           and round(o["quality"], 3) >= round(libigl[best]["quality"], 3))
+    why = ""
+    if "rigid-pose faces" in o:  # pymeshlab's faces only, no exact pair
+        why = (f" (pymeshlab's faces only, no exact pair; it selects "
+               f"{o['rigid-pose faces']} on the rest turned rigidly)")
     return (f"ours / best fold-free libigl ({best}): quality {q:.3f}×, ARAP energy "
-            f"{e:.2f}× — {'pass' if ok else 'FAIL'}")
+            f"{e:.2f}× — {'pass' if ok else 'FAIL'}{why}")
 
 
 def main(argv=None) -> int:
