@@ -14,7 +14,7 @@ iterations, the increments whose handles needed the spring, and the final barrie
 stiffness κ.
 
 Run ``python benchmarks/bench_surface_clean_peer.py [--cases tube-twist,bar-folded,hand,
-bunny-120] [--steps 10] [--markdown]``.
+bunny-120] [--steps 10] [--iterations 50] [--markdown]``.
 """
 
 from __future__ import annotations
@@ -43,7 +43,7 @@ def closed_form_twist(case: bench.Case) -> np.ndarray:
     return np.stack([V[:, 0], c * V[:, 1] - s * V[:, 2], s * V[:, 1] + c * V[:, 2]], 1)
 
 
-def rows(name: str, steps: int):
+def rows(name: str, steps: int, iterations: int):
     """(method, measures, note) for each method on one case; printed as they come."""
     from meshopt_toolkit.kernels.intersections3d import self_intersections
 
@@ -51,7 +51,7 @@ def rows(name: str, steps: int):
     print(f"\n{case.name}: {len(case.V)} vertices, {len(case.F)} triangles, "
           f"{len(case.handles)} handle vertices", flush=True)
     methods = {f"libigl ARAP {steps} steps": lambda: (bench.arap_incremental(case, steps), ""),
-               "ARAP + IPC": lambda: peer(case, steps)}
+               "ARAP + IPC": lambda: peer(case, steps, iterations)}
     if name == "tube-twist":
         methods["closed-form twist"] = lambda: (closed_form_twist(case), "")
     out = []
@@ -72,9 +72,10 @@ def rows(name: str, steps: int):
     return case.name, out
 
 
-def peer(case: bench.Case, steps: int):
+def peer(case: bench.Case, steps: int, iterations: int):
     """The clean peer's points and a note of how it went."""
-    r = arap_contact(case.V, case.F, case.handles, case.path, steps=steps)
+    r = arap_contact(case.V, case.F, case.handles, case.path, steps=steps,
+                     max_iterations=iterations)
     note = (f"({sum(r.iterations)} Newton its, {sum(r.converged)}/{len(r.converged)} "
             f"increments converged, spring in {r.spring_increments}, κ {r.kappa:.3g})")
     return r.points, note + (f" STOPPED: {r.message}" if r.message else "")
@@ -98,6 +99,9 @@ def main(argv=None) -> int:
                     help="comma-separated: " + ", ".join(CASES) + " (default: all)")
     ap.add_argument("--steps", type=int, default=bench.STEPS,
                     help="increments of the handle path (default %(default)s)")
+    ap.add_argument("--iterations", type=int, default=bench.STEP_ITERATIONS[0],
+                    help="the peer's Newton iterations per increment (default %(default)s, "
+                         "as libigl's ARAP per increment)")
     ap.add_argument("--markdown", action="store_true", help="also print the doc's table")
     args = ap.parse_args(argv)
     names = [c for c in args.cases.split(",") if c]
@@ -105,7 +109,7 @@ def main(argv=None) -> int:
     if unknown:
         print(f"bench_surface_clean_peer: unknown case {unknown[0]!r}", file=sys.stderr)
         return 2
-    results = [rows(name, args.steps) for name in names]
+    results = [rows(name, args.steps, args.iterations) for name in names]
     if args.markdown:
         print("\n" + markdown(results))
     return 0
