@@ -22,10 +22,10 @@ An increment starts by moving the handles: the free vertices follow the handle i
 by the Laplacian (cotangent) extension, and that predictor is taken whole when CCD says the
 straight move from the previous result is collision free. Otherwise the move is cut to the
 CCD-safe fraction and the handles become unknowns pulled to their targets by a spring
-``½ k Σ_h |x_h − target_h|²`` (IPC's treatment of prescribed boundary motion); k grows ×10
-whenever a converged solve leaves a handle off its target by more than
-``1e-3 · mean edge``; once within it, the handles are snapped (a CCD-checked move) and
-fixed again.
+``½ k Σ_h |x_h − target_h|²`` (IPC's treatment of prescribed boundary motion), k first
+100× the mean diagonal of ARAP's Hessian and ×10 after each solve (at most 8) that leaves
+a handle off its target by more than ``1e-3 · mean edge``; once within it, the handles
+are snapped (a CCD-checked move) and fixed again.
 
 κ is IPC's adaptive barrier stiffness (ipctk's ``initial_barrier_stiffness`` at the first
 contact, raised by ``update_barrier_stiffness`` while the minimum distance falls), with the
