@@ -34,6 +34,7 @@ PACKAGE = ROOT / "meshopt_toolkit"
 TOP_LEVEL = frozenset({
     "test_architecture.py", "test_layout.py", "test_docs.py", "test_packaging.py",
     "test_examples.py", "test_bench_surface_cases.py", "test_public_parameters.py",
+    "test_bench_arap_contact.py",
 })
 
 #: (file-name pattern, folder), first match wins; ``modules`` holds the tests of the
