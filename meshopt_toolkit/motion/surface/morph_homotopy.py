@@ -18,7 +18,12 @@ are frames to spare, at their middle iterate (a midpoint of two frames of a turn
 shrinks it), at their midpoint where they join two consecutive iterates; where more are
 needed than asked, the refusal gives the count. The barrier is ``STIFFER`` times IPC's
 initial stiffness: the iterates keep further from contact and the clear chords between
-them are longer.
+them are longer. Its ``d̂`` is the surface's own (a fraction of the mean edge), not the
+morph's, which ends close to contact lower below half their closest pair: a barrier that
+thin tells Newton nothing of the contact until a step has passed it, CCD cuts such steps
+to a sliver of their length, and the iterates pressed onto the contact creep behind the
+guide. The ends' pairs within the wider ``d̂`` are pushed apart by the first increments and
+come back in the last; every step and chord is still cleared by the morph's CCD.
 """
 
 from __future__ import annotations
@@ -105,8 +110,9 @@ def homotopy_path(problem, contact, V0: FloatArray, V1: FloatArray, guide,
     ``problem`` is the morph's path problem (``embed``, ``segment``, ``jacobian``,
     ``sqrt_m``), ``contact`` its :class:`.morph_contact.PathContact`."""
     mass = problem.sqrt_m ** 2
-    term = ContactTerm(contact.contact, np.ones(V0.size, bool), float(np.mean(mass)))
-    dhat = contact.contact.dhat
+    wide = contact.contact.with_dhat(contact.contact.edge_dhat)
+    term = ContactTerm(wide, np.ones(V0.size, bool), float(np.mean(mass)))
+    dhat = wide.dhat
     times = np.linspace(0.0, 1.0, INCREMENTS + 1)
     P = list(guide(times))
     P[-1] = V1
