@@ -221,6 +221,17 @@ def test_a_deep_push_and_a_sideways_push_morph_clean():
                                  (0.9, 0.1666557411386091, -0.1057174463745035))
 
 
+@pytest.mark.slow
+def test_a_push_off_the_far_edge_and_one_off_the_near_edge_morph_clean():
+    """Two pushes a random search found: the flap's foot slid past the sheet's far edge at
+    one end, off its near edge at the other, so it slides across the whole sheet; with the
+    surface's own d̂ the homotopy's clean path needs more than five frames, with a wider
+    barrier its chords are longer."""
+    _pushes_move_and_morph_clean(
+        (0.6909579028414907, -0.12514264538371248, -0.03911195257404665),
+        (0.795530218249932, -0.049850393192214515, 0.1265289319179202))
+
+
 def test_cli_contact_on_writes_clean_frames_off_refuses(tmp_path, capsys):
     src, tgt = flap_through_sheet()
     a, b = _surface_file(tmp_path / "s.vtu", src), _surface_file(tmp_path / "t.vtu", tgt)
