@@ -140,8 +140,36 @@ def test_ends_shaken_by_rounding_morph_as_healthy_and_clean(seed):
 def test_too_few_frames_for_the_homotopy_are_refused_with_the_count():
     V0, V1, F = ramp_and_flap()
     with _short_way_only(), pytest.raises(SelfIntersectionError,
-                                          match=r"needs \d+ frames, 9 asked"):
-        morph_surface(V0, V1, F, 9)
+                                          match=r"needs \d+ frames, 3 asked"):
+        morph_surface(V0, V1, F, 3)
+
+
+@pytest.mark.slow
+def test_the_homotopy_morphs_the_strip_clean_in_nine_frames():
+    """The ends lie closer than the strip's own d̂ (the morph's is below half their closest
+    pair); the homotopy's barrier keeps the surface's own, its iterates further from the
+    ramp and its clear chords long enough for nine frames."""
+    V0, V1, F = ramp_and_flap()
+    with _short_way_only():
+        res = morph_surface(V0, V1, F, 9)
+    assert res.initial_path == "homotopy"
+    _assert_clean_and_healthy(res, V0, V1, F)
+
+
+@pytest.mark.slow
+def test_the_homotopy_widens_its_barrier_for_five_frames():
+    """With the strip's own d̂ its clean path needs more than five frames; with a wider
+    barrier the iterates keep further from the ramp, their clear chords longer."""
+    V0, V1, F = ramp_and_flap()
+    problem = smorph._PathProblem(V0, V1, F, smorph.WEIGHT, smorph.BENDING)
+    contact = smorph._path_contact(problem, V0, V1, 5, True)
+    with pytest.raises(SelfIntersectionError, match=r"needs \d+ frames, 5 asked"):
+        morph_homotopy.homotopy_path(problem, contact, V0, V1,
+                                     lambda ts: arap_interpolation(V0, V1, F, ts), 4)
+    with _short_way_only():
+        res = morph_surface(V0, V1, F, 5)
+    assert res.initial_path == "homotopy"
+    _assert_clean_and_healthy(res, V0, V1, F)
 
 
 @pytest.mark.slow

@@ -20,6 +20,7 @@ tests those triangle pairs exactly (:mod:`..kernels.intersections3d`).
 
 from __future__ import annotations
 
+import copy
 import warnings
 
 import numpy as np
@@ -83,6 +84,8 @@ class SurfaceContact:
         self.mesh = ipctk.CollisionMesh(V, E, F)
         lengths = np.linalg.norm(V[E[:, 1]] - V[E[:, 0]], axis=1)
         dhat = dhat_fraction * float(lengths.mean()) if len(lengths) else 0.0
+        #: ``d̂`` of the edges alone, before it is lowered below a closest pair
+        self.edge_dhat = dhat
         self.usable = dhat > 0 and not ipctk.has_intersections(self.mesh, V)
         if self.usable:  # d̂ below half the rest's closest pair: no barrier at rest
             rest = ipctk.NormalCollisions()
@@ -102,6 +105,13 @@ class SurfaceContact:
                                   shape=(T, self.n))
         shared = sp.triu(incidence @ incidence.T, k=1).tocoo()
         self.neighbours = np.stack([shared.row, shared.col], axis=1).astype(np.int64)
+
+    def with_dhat(self, dhat: float) -> SurfaceContact:
+        """A copy whose barrier reaches ``dhat`` (the same mesh, pairs and CCD)."""
+        out = copy.copy(self)
+        out.dhat = float(dhat)
+        out.potential = _ipctk().BarrierPotential(max(out.dhat, 1e-300), 1.0)
+        return out
 
     def neighbours_meet(self, Q: FloatArray) -> bool:
         """Whether two triangles sharing a vertex intersect improperly at ``Q`` (exact)."""

@@ -18,7 +18,15 @@ are frames to spare, at their middle iterate (a midpoint of two frames of a turn
 shrinks it), at their midpoint where they join two consecutive iterates; where more are
 needed than asked, the refusal gives the count. The barrier is ``STIFFER`` times IPC's
 initial stiffness: the iterates keep further from contact and the clear chords between
-them are longer.
+them are longer. Its ``d̂`` is the surface's own (a fraction of the mean edge), not the
+morph's, which ends close to contact lower below half their closest pair: a barrier that
+thin tells Newton nothing of the contact until a step has passed it, CCD cuts such steps
+to a sliver of their length, and the iterates pressed onto the contact creep behind the
+guide. The ends' pairs within the wider ``d̂`` are pushed apart by the first increments and
+come back in the last; every step and chord is still cleared by the morph's CCD. Where the
+clean path needs more frames than asked, the homotopy is run again with ``d̂`` twice and
+four times the surface's own (``WIDER``): its iterates keep further from contact and its
+clear chords are longer.
 """
 
 from __future__ import annotations
@@ -49,6 +57,14 @@ ATTRACTION, RAISES = 1.0, 8
 STIFFER = 100.0
 #: the largest point distance to the target, over d̂, from which the last piece is taken
 REACH_TOLERANCE = 0.5
+#: the barrier's d̂ over the surface's own, in turn while the clean path needs more frames
+#: than asked: the wider, the further the iterates keep from contact and the longer the
+#: clear chords between them
+WIDER = (1.0, 2.0, 4.0)
+
+
+class _TooFewFrames(SelfIntersectionError):
+    """The homotopy's clean path needs more frames than asked."""
 
 
 def _newton(problem, term: ContactTerm, clear, Q: FloatArray, Xprev, P: FloatArray,
@@ -96,17 +112,18 @@ def _newton(problem, term: ContactTerm, clear, Q: FloatArray, Xprev, P: FloatArr
 
 
 def homotopy_path(problem, contact, V0: FloatArray, V1: FloatArray, guide,
-                  segments: int) -> list:
+                  segments: int, wider: float = 1.0) -> list:
     """A clean path of ``segments + 1`` frames from ``V0`` to ``V1`` (module docstring),
-    pulled along ``guide`` (a callable of the times, its frames from ``V0`` to ``V1``);
-    :class:`SelfIntersectionError` where the attraction stalls or the iterates need more
-    chords than ``segments``.
+    pulled along ``guide`` (a callable of the times, its frames from ``V0`` to ``V1``),
+    the barrier's d̂ ``wider`` times the surface's own; :class:`SelfIntersectionError`
+    where the attraction stalls or the iterates need more chords than ``segments``.
 
     ``problem`` is the morph's path problem (``embed``, ``segment``, ``jacobian``,
     ``sqrt_m``), ``contact`` its :class:`.morph_contact.PathContact`."""
     mass = problem.sqrt_m ** 2
-    term = ContactTerm(contact.contact, np.ones(V0.size, bool), float(np.mean(mass)))
-    dhat = contact.contact.dhat
+    wide = contact.contact.with_dhat(wider * contact.contact.edge_dhat)
+    term = ContactTerm(wide, np.ones(V0.size, bool), float(np.mean(mass)))
+    dhat = wide.dhat
     times = np.linspace(0.0, 1.0, INCREMENTS + 1)
     P = list(guide(times))
     P[-1] = V1
@@ -130,7 +147,7 @@ def homotopy_path(problem, contact, V0: FloatArray, V1: FloatArray, guide,
     picks = chord_picks(contact, poly)
     frames = [poly[i] for i in picks]
     if len(frames) - 1 > segments:
-        raise SelfIntersectionError(
+        raise _TooFewFrames(
             f"{CROSSING}; the clean path found around the contact needs {len(frames)} "
             f"frames, {segments + 1} asked")
     while len(frames) - 1 < segments:  # split the longest chord whose halves CCD clears
@@ -154,17 +171,23 @@ def homotopy_path(problem, contact, V0: FloatArray, V1: FloatArray, guide,
 def homotopy_start(problem, contact, V0: FloatArray, V1: FloatArray, triangles,
                    segments: int) -> list:
     """:func:`homotopy_path` pulled along the as-rigid-as-possible interpolation, else
-    (where it stalls) along the one that turns the neighbours whose short way passes the
-    fold the long way round (where there are such,
-    :func:`.interpolation.fold_crossings`), else along the linear one; the linear one's
-    refusal."""
+    along the one that turns the neighbours whose short way passes the fold the long way
+    round (where there are such, :func:`.interpolation.fold_crossings`), else along the
+    linear one; where one of them needs more frames than asked, all again with the
+    barrier's d̂ wider (``WIDER``); the last refusal."""
     guides = [lambda ts: arap_interpolation(V0, V1, triangles, ts)]
     if fold_crossings(V0, V1, triangles).nnz:
         guides.append(lambda ts: arap_interpolation(V0, V1, triangles, ts, long_way=True))
-    for guide in guides:
-        try:
-            return homotopy_path(problem, contact, V0, V1, guide, segments)
-        except SelfIntersectionError:
-            pass
-    return homotopy_path(problem, contact, V0, V1,
-                         lambda ts: [(1.0 - t) * V0 + t * V1 for t in ts], segments)
+    guides.append(lambda ts: [(1.0 - t) * V0 + t * V1 for t in ts])
+    for wider in WIDER:
+        short = False
+        for guide in guides:
+            try:
+                return homotopy_path(problem, contact, V0, V1, guide, segments, wider)
+            except _TooFewFrames as error:
+                short, refusal = True, error
+            except SelfIntersectionError as error:
+                refusal = error
+        if not short:
+            break
+    raise refusal
