@@ -40,7 +40,8 @@ from pathlib import Path
 
 from ..errors import MeshoptError
 from ..expressions import quoted
-from ._common import check_mesh_format, check_writable, make_output_dir
+from ._common import (add_force_flag, add_inputs, check_mesh_format, check_writable,
+                      make_output_dir)
 
 HELP = "run a pipeline (.json or MeshLab .mlx) over one mesh or a batch"
 
@@ -60,14 +61,12 @@ def add_args(parser) -> None:
     from ..pipeline.limits import DEFAULT_MAX_TRIANGLES
 
     parser.add_argument("pipeline", metavar="PIPELINE", help="pipeline file (.json or .mlx)")
-    parser.add_argument("inputs", nargs="+", metavar="INPUT",
-                        help="mesh files, globs or directories")
+    add_inputs(parser)
     parser.add_argument("-o", "--output", metavar="OUTDIR",
                         help="output directory (created if missing); the only place the "
                              "pipeline writes (optional with --dry-run)")
     parser.add_argument("--to", metavar="EXT", help="output format (default: the input's)")
-    parser.add_argument("--force", action="store_true",
-                        help="overwrite existing outputs (a pipeline cannot grant this itself)")
+    add_force_flag(parser, "a pipeline cannot grant this itself")
     parser.add_argument("--dry-run", action="store_true",
                         help="check the pipeline, paths and size budget on the inputs; run "
                              "no filter, write nothing")
