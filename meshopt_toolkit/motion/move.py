@@ -31,7 +31,7 @@ from ..riemannian.discrete_geodesic import discrete_geodesic
 from ..riemannian.path_options import LevenbergMarquardtOptions
 from ..results import DoneMotion
 from ..scaling import UnitScale, at_unit_size, size_scale
-from .engine.continuation import NoAdmissiblePathError
+from .engine.continuation import NoAdmissiblePathError, frame_times
 from .engine.handles import (SelfIntersectionGuard, check_handle_indices, check_handles,
                              distinct_handles)
 from .engine.pinned_cells import pinned, turned_over_problem
@@ -359,9 +359,7 @@ def _move_planar(mesh: PlanarMesh, handles, targets, *, frames, steps, weight, r
         path = targets
         tg = np.asarray(targets(1.0), float)
     metric = GraphMetric(P, tri, weight)
-    n_steps = max(int(steps), (frames or 2) - 1)
-    times = np.linspace(0.0, 1.0, n_steps + 1)
-    pick = np.round(np.linspace(0, n_steps, int(frames or 2))).astype(int)
+    times, pick = frame_times(steps, frames)
     if not callable(targets) and np.allclose(residual_targets, P[h], rtol=0,
                                              atol=1e-12 * mesh.diameter):
         # the handles move by a similarity: so does the whole mesh (no strain at all)
