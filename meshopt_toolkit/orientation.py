@@ -43,6 +43,21 @@ ROUNDING_ULPS = 64
 PLANE_TOLERANCE = PLANE_RTOL
 
 
+def orientation_labels(n_triangles: int, t1: IntArray, t2: IntArray,
+                       same: np.ndarray) -> IntArray:
+    """The parity constraints of shared edges as components of the doubled graph.
+
+    Node ``k`` is triangle ``k`` as it is, node ``T + k`` triangle ``k`` flipped; the
+    triangles ``t1[i]`` and ``t2[i]`` share an edge, run the same way in both where
+    ``same[i]`` (then one of them must flip). Returns :func:`component_labels` of the
+    ``2T`` nodes: a component is not orientable where ``k`` and ``T + k`` share a label.
+    """
+    nt = n_triangles
+    a = np.concatenate([t1, t1 + nt])
+    b = np.concatenate([np.where(same, t2 + nt, t2), np.where(same, t2, t2 + nt)])
+    return component_labels(2 * nt, a, b)
+
+
 def component_labels(n: int, a: IntArray, b: IntArray) -> IntArray:
     """Connected components of the graph with ``n`` nodes and edges ``(a[i], b[i])``.
 
@@ -116,10 +131,7 @@ def orient_components(triangles: IntArray, n_vertices: int,
     tri = np.asarray(triangles, np.int64)
     nt = len(tri)
     t1, t2, same = _edge_pairs(tri, n_vertices)
-    # node k: triangle k as it is; node T + k: triangle k flipped
-    a = np.concatenate([t1, t1 + nt])
-    b = np.concatenate([np.where(same, t2 + nt, t2), np.where(same, t2, t2 + nt)])
-    label = component_labels(2 * nt, a, b)
+    label = orientation_labels(nt, t1, t2, same)
     keep, flip = label[:nt], label[nt:]
     bad = keep == flip
     flipped = (keep > flip) & ~bad

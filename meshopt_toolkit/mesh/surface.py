@@ -16,7 +16,7 @@ import numpy as np
 from .._typing import FloatArray, IntArray
 from ..errors import InvalidMeshError
 from ..kernels.surface import area_vectors, aspect_ratios, degenerate_triangles, pad3
-from ..orientation import component_labels, orient_components
+from ..orientation import component_labels, orient_components, orientation_labels
 from .core import TriangleMesh
 from .topology import _frozen
 from .value import MeshValue
@@ -202,14 +202,11 @@ class SurfaceMesh(MeshValue):
 
     @cached_property
     def _orientation(self) -> tuple[IntArray, bool]:
-        """Per component: orientable or not (the parity constraints of its shared edges
-        solved as components of the doubled graph, as ``orient_components`` does)."""
+        """Per component: orientable or not (the parity constraints of its shared edges,
+        :func:`~meshopt_toolkit.orientation.orientation_labels`)."""
         nt = self.n_triangles
         h1, h2, same = self._pairs
-        t1, t2 = h1 % nt, h2 % nt
-        a = np.concatenate([t1, t1 + nt])
-        b = np.concatenate([np.where(same, t2 + nt, t2), np.where(same, t2, t2 + nt)])
-        label = component_labels(2 * nt, a, b)
+        label = orientation_labels(nt, h1 % nt, h2 % nt, same)
         bad = label[:nt] == label[nt:]
         bad_comp = np.bincount(self.components, weights=bad, minlength=self.n_components) > 0
         return _frozen(~bad_comp), bool(not same.any())
