@@ -84,26 +84,33 @@ def component_labels(n: int, a: IntArray, b: IntArray) -> IntArray:
         a, b = a[differ], b[differ]
 
 
-def _edge_pairs(triangles: IntArray, n_vertices: int):
-    """Interior edges shared by exactly two triangles: ``(t1, t2, same_direction)``."""
+def half_edge_pairs(triangles: IntArray,
+                    n_vertices: int) -> tuple[IntArray, IntArray, np.ndarray]:
+    """The half-edges paired across the edges in exactly two triangles.
+
+    Half-edge ``h = l T + t`` is the edge opposite local vertex ``l`` of triangle ``t``,
+    from local ``l+1`` to ``l+2`` (its triangle is ``h % T``). Returns ``(h1, h2, same)``,
+    ``same`` where the two run the same way (their triangles disagree in orientation).
+    """
     tri = np.asarray(triangles, np.int64)
-    nt = len(tri)
     s = np.concatenate([tri[:, 1], tri[:, 2], tri[:, 0]])
     d = np.concatenate([tri[:, 2], tri[:, 0], tri[:, 1]])
-    owner = np.tile(np.arange(nt), 3)
     key = np.minimum(s, d) * np.int64(max(n_vertices, 1)) + np.maximum(s, d)
     order = np.argsort(key, kind="stable")
     k = key[order]
-    if len(k) < 2:
-        z = np.zeros(0, np.int64)
-        return z, z, np.zeros(0, bool)
     eq = k[1:] == k[:-1]
-    prev = np.concatenate([[False], eq[:-1]])
-    nxt = np.concatenate([eq[1:], [False]])
+    prev = np.concatenate([[False], eq[:-1]]) if len(eq) else eq
+    nxt = np.concatenate([eq[1:], [False]]) if len(eq) else eq
     first = np.flatnonzero(eq & ~prev & ~nxt)  # groups of exactly two
-    i, j = order[first], order[first + 1]
-    same = (s[i] > d[i]) == (s[j] > d[j])
-    return owner[i], owner[j], same
+    h1, h2 = order[first], order[first + 1]
+    return h1, h2, s[h1] == s[h2]
+
+
+def _edge_pairs(triangles: IntArray, n_vertices: int):
+    """Interior edges shared by exactly two triangles: ``(t1, t2, same_direction)``."""
+    h1, h2, same = half_edge_pairs(triangles, n_vertices)
+    nt = len(triangles)
+    return h1 % nt, h2 % nt, same
 
 
 def orient_components(triangles: IntArray, n_vertices: int,

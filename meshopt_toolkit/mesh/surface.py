@@ -16,7 +16,8 @@ import numpy as np
 from .._typing import FloatArray, IntArray
 from ..errors import InvalidMeshError
 from ..kernels.surface import area_vectors, aspect_ratios, degenerate_triangles, pad3
-from ..orientation import component_labels, orient_components, orientation_labels
+from ..orientation import (component_labels, half_edge_pairs, orient_components,
+                           orientation_labels)
 from .core import TriangleMesh
 from .topology import _frozen
 from .value import MeshValue
@@ -100,21 +101,8 @@ class SurfaceMesh(MeshValue):
     # -- topology (cached) ----------------------------------------------------------
     @cached_property
     def _pairs(self) -> tuple[IntArray, IntArray, IntArray]:
-        """Half-edges ``h = l T + t`` (edge opposite local vertex ``l`` of triangle ``t``,
-        from local ``l+1`` to ``l+2``) paired across the edges in exactly two triangles:
-        ``(h1, h2, same direction)``."""
-        tri = self.triangles
-        s = np.concatenate([tri[:, 1], tri[:, 2], tri[:, 0]])
-        d = np.concatenate([tri[:, 2], tri[:, 0], tri[:, 1]])
-        key = np.minimum(s, d) * np.int64(self.n_vertices) + np.maximum(s, d)
-        order = np.argsort(key, kind="stable")
-        k = key[order]
-        eq = k[1:] == k[:-1]
-        prev = np.concatenate([[False], eq[:-1]]) if len(eq) else eq
-        nxt = np.concatenate([eq[1:], [False]]) if len(eq) else eq
-        first = np.flatnonzero(eq & ~prev & ~nxt)
-        h1, h2 = order[first], order[first + 1]
-        return _frozen(h1), _frozen(h2), _frozen(s[h1] == s[h2])
+        """``(h1, h2, same)`` of :func:`~meshopt_toolkit.orientation.half_edge_pairs`."""
+        return tuple(_frozen(a) for a in half_edge_pairs(self.triangles, self.n_vertices))
 
     @cached_property
     def non_manifold_edges(self) -> IntArray:
