@@ -83,6 +83,11 @@ class SurfaceMesh(MeshValue):
         """This surface as a readable :class:`TriangleMesh` (what ``io.save`` writes)."""
         return self._mesh
 
+    def tagged_vertices(self, tag: int | str) -> IntArray:
+        """Sorted vertices of the line elements and triangles carrying a physical tag or
+        name, as :meth:`TriangleMesh.tagged_vertices`."""
+        return self._mesh.tagged_vertices(tag)
+
     # -- plain data -----------------------------------------------------------------
     points = property(lambda self: self._mesh.points, doc="Read-only ``(N, 3)`` float64.")
     triangles = property(lambda self: self._mesh.triangles, doc="Read-only ``(T, 3)`` int64.")
