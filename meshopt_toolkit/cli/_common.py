@@ -236,11 +236,8 @@ def check_output_dir(out: Path, *, force: bool, names: Iterable[str] | None = No
     it is empty, or (with ``names``) holds none of ``names``.
     """
     out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise WriteError(f"{out}: exists and is not a directory (a directory is written)")
+    _check_existing_dir(out, force, names)
     if out.is_dir():
-        if not force:
-            _refuse_outputs_in(out, names)
         check_writable(out, out)
         return out
     if out.suffix.lower() in MESH_SUFFIXES:
@@ -255,8 +252,13 @@ def check_output_dir(out: Path, *, force: bool, names: Iterable[str] | None = No
     return out
 
 
-def _refuse_outputs_in(out: Path, names: Iterable[str] | None) -> None:
-    """An existing directory must be empty, or (with ``names``) hold none of ``names``."""
+def _check_existing_dir(out: Path, force: bool, names: Iterable[str] | None) -> None:
+    """An existing ``out`` must be a directory, and without ``force`` empty, or (with
+    ``names``) hold none of ``names``."""
+    if out.exists() and not out.is_dir():
+        raise WriteError(f"{out}: exists and is not a directory (a directory is written)")
+    if not out.is_dir() or force:
+        return
     if names is None:
         if any(out.iterdir()):
             raise WriteError(f"{out}: directory is not empty (use --force to overwrite)")
@@ -279,10 +281,7 @@ def prepare_output_dir(out: Path, *, force: bool, names: Iterable[str] | None = 
         outputs and ``force`` is false. One line naming the path.
     """
     out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise WriteError(f"{out}: exists and is not a directory (a directory is written)")
-    if out.is_dir() and not force:
-        _refuse_outputs_in(out, names)
+    _check_existing_dir(out, force, names)
     make_output_dir(out)
     check_writable(out, out)
     return out
