@@ -168,9 +168,7 @@ def _mesh(path, name: str, build, size: float, refine_near: float | None,
     """Build the model ``name`` (``build(gmsh) -> {group: curves}``), mesh it (size
     ``refine_near`` on the ``refined`` groups' curves) and write it to ``path``."""
     path = Path(path)
-    with gmsh_session() as gmsh:
-        gmsh.option.setNumber("General.NumThreads", 1)
-        gmsh.option.setNumber("Mesh.RandomSeed", 1)
+    with gmsh_session(deterministic=True) as gmsh:
         gmsh.model.add(name)
         groups = build(gmsh)
         gmsh.option.setNumber("Mesh.MeshSizeMax", size)
@@ -262,9 +260,7 @@ def solid_in_box(path: str | os.PathLike, add_body, size: float = 1.0,
     Path
     """
     path = Path(path)
-    with gmsh_session() as gmsh:
-        gmsh.option.setNumber("General.NumThreads", 1)
-        gmsh.option.setNumber("Mesh.RandomSeed", 1)
+    with gmsh_session(deterministic=True) as gmsh:
         gmsh.model.add("body_in_box")
         occ = gmsh.model.occ
         lx, ly, lz = BOX_3D
