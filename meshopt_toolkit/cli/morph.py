@@ -43,9 +43,9 @@ from pathlib import Path
 
 from ..bounds import MAX_ITERATIONS
 from ..filters.generate_geodesic_morph import GenerateGeodesicMorph
-from ._common import (add_contact_flag, add_output_flags, check_mesh_format, check_output_dir, csv_table, float_list,
-                      frame_names, prepare_output_dir, print_json, save_moved, warn_dropped,
-                      write_summary, write_text)
+from ._common import (add_contact_flag, add_output_flags, check_mesh_format, check_output_dir,
+                      csv_table, float_list, frame_names, prepare_output_dir, print_json,
+                      save_moved, warn_dropped, write_summary, write_text)
 from ._params import add_options, check_options
 from ._validate import check_int, check_numbers
 
