@@ -29,6 +29,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import MeshoptError, ReadError
+from ._batch import add_batch_args, batch_client, check_batch_args, reporter
 from ._common import add_force_flag, add_inputs, add_recursive_flag
 from ._params import add_options
 
@@ -60,8 +61,6 @@ def add_args(parser) -> None:
     add_recursive_flag(parser)
     parser.add_argument("--max-file-size", type=_size, default=None, metavar="SIZE",
                         help="refuse input files larger than this (default 4G; e.g. 500M, 16G)")
-    from .run import add_batch_args
-
     add_batch_args(parser)
 
 
@@ -214,7 +213,6 @@ def run(args) -> int:
     from ..batch.progress import BatchProgress
     from ..batch.run import Job, execute
     from ..batch.tasks import ConvertTask
-    from .run import batch_client, check_batch_args, reporter
 
     check_batch_args(args)
     plan = _plan(args)
