@@ -5,12 +5,11 @@ report (:func:`reporter`)."""
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 
 from .. import strict_json
 from ..errors import MeshoptError
-from ..expressions import quoted
+from ._validate import int_at_least
 
 
 def add_batch_args(parser) -> None:
@@ -32,14 +31,7 @@ def add_batch_args(parser) -> None:
 def _jobs(text: str) -> int:
     from ..batch.workers import cpu_count
 
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected 0 (all cores) or a positive integer, "
-                                         f"got {quoted(text)}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected 0 (all cores) or a positive integer, "
-                                         f"got {quoted(text)}")
+    value = int_at_least(0, "0 (all cores) or a positive integer")(text)
     return cpu_count() if value == 0 else value
 
 

@@ -32,28 +32,16 @@ line is ``N done, K skipped, F failed in T s``.
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
 from ..errors import MeshoptError
-from ..expressions import quoted
 from ._batch import add_batch_args, batch_client, check_batch_args, reporter
 from ._common import (add_force_flag, add_inputs, check_mesh_format, check_writable,
                       make_output_dir)
+from ._validate import int_at_least
 
 HELP = "run a pipeline (.json or MeshLab .mlx) over one mesh or a batch"
-
-
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"expected a positive integer, got {quoted(text)}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {quoted(text)}")
-    return value
 
 
 def add_args(parser) -> None:
@@ -72,9 +60,10 @@ def add_args(parser) -> None:
     parser.add_argument("--allow-read", action="append", default=[], metavar="PATH",
                         help="a file or folder the pipeline may read (load_mesh), besides "
                              "the inputs; repeatable")
-    parser.add_argument("--max-triangles", type=_positive_int, default=DEFAULT_MAX_TRIANGLES,
-                        metavar="N", help="refuse steps that would make the mesh larger "
-                                          f"(default {DEFAULT_MAX_TRIANGLES:,})")
+    parser.add_argument("--max-triangles", type=int_at_least(1, "a positive integer"),
+                        default=DEFAULT_MAX_TRIANGLES, metavar="N",
+                        help="refuse steps that would make the mesh larger "
+                             f"(default {DEFAULT_MAX_TRIANGLES:,})")
     parser.add_argument("--allow-inverted", action="store_true",
                         help="write meshes a MeshLab step left with inverted triangles "
                              "(warning) instead of failing the file")
