@@ -15,8 +15,6 @@ from .mesh import PlanarMesh
 
 
 def _mesh_current_model(gmsh, size: float) -> PlanarMesh:
-    gmsh.option.setNumber("General.NumThreads", 1)
-    gmsh.option.setNumber("Mesh.RandomSeed", 1)
     gmsh.option.setNumber("Mesh.MeshSizeMax", size)
     gmsh.option.setNumber("Mesh.MeshSizeMin", size)
     gmsh.model.occ.synchronize()
@@ -41,7 +39,7 @@ def _mesh_current_model(gmsh, size: float) -> PlanarMesh:
 def annulus(size: float = 0.05, inner: float = 0.3, outer: float = 1.0) -> PlanarMesh:
     """Unstructured annulus ``inner ≤ r ≤ outer`` with element size ``size`` (0.05: ~2.7k
     triangles)."""
-    with gmsh_session() as gmsh:
+    with gmsh_session(deterministic=True) as gmsh:
         o = gmsh.model.occ.addDisk(0, 0, 0, outer, outer)
         i = gmsh.model.occ.addDisk(0, 0, 0, inner, inner)
         gmsh.model.occ.cut([(2, o)], [(2, i)])
@@ -51,7 +49,7 @@ def annulus(size: float = 0.05, inner: float = 0.3, outer: float = 1.0) -> Plana
 def channel_with_cylinder(size: float = 0.05, radius: float = 0.15,
                           center: tuple[float, float] = (1.0, 0.5)) -> PlanarMesh:
     """Channel ``[0, 3] × [0, 1]`` with a circular hole (the cylinder)."""
-    with gmsh_session() as gmsh:
+    with gmsh_session(deterministic=True) as gmsh:
         r = gmsh.model.occ.addRectangle(0, 0, 0, 3, 1)
         c = gmsh.model.occ.addDisk(center[0], center[1], 0, radius, radius)
         gmsh.model.occ.cut([(2, r)], [(2, c)])

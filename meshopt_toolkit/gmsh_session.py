@@ -34,13 +34,15 @@ def _restore(handlers: dict[signal.Signals, object]) -> None:
 
 
 @contextlib.contextmanager
-def gmsh_session(*, terminal: bool = False) -> Iterator[ModuleType]:
+def gmsh_session(*, terminal: bool = False, deterministic: bool = False) -> Iterator[ModuleType]:
     """Initialize gmsh, yield the module, finalize; signal handlers stay as they were.
 
     Parameters
     ----------
     terminal : bool
         Let gmsh print its messages (``General.Terminal``).
+    deterministic : bool
+        Mesh in one thread with a fixed random seed: the same mesh on every run.
 
     Examples
     --------
@@ -54,6 +56,9 @@ def gmsh_session(*, terminal: bool = False) -> Iterator[ModuleType]:
     _restore(handlers)
     try:
         gmsh.option.setNumber("General.Terminal", int(terminal))
+        if deterministic:
+            gmsh.option.setNumber("General.NumThreads", 1)
+            gmsh.option.setNumber("Mesh.RandomSeed", 1)
         yield gmsh
     finally:
         gmsh.finalize()

@@ -43,6 +43,21 @@ ROUNDING_ULPS = 64
 PLANE_TOLERANCE = PLANE_RTOL
 
 
+def orientation_labels(n_triangles: int, t1: IntArray, t2: IntArray,
+                       same: np.ndarray) -> IntArray:
+    """The parity constraints of shared edges as components of the doubled graph.
+
+    Node ``k`` is triangle ``k`` as it is, node ``T + k`` triangle ``k`` flipped; the
+    triangles ``t1[i]`` and ``t2[i]`` share an edge, run the same way in both where
+    ``same[i]`` (then one of them must flip). Returns :func:`component_labels` of the
+    ``2T`` nodes: a component is not orientable where ``k`` and ``T + k`` share a label.
+    """
+    nt = n_triangles
+    a = np.concatenate([t1, t1 + nt])
+    b = np.concatenate([np.where(same, t2 + nt, t2), np.where(same, t2, t2 + nt)])
+    return component_labels(2 * nt, a, b)
+
+
 def component_labels(n: int, a: IntArray, b: IntArray) -> IntArray:
     """Connected components of the graph with ``n`` nodes and edges ``(a[i], b[i])``.
 
@@ -69,26 +84,33 @@ def component_labels(n: int, a: IntArray, b: IntArray) -> IntArray:
         a, b = a[differ], b[differ]
 
 
-def _edge_pairs(triangles: IntArray, n_vertices: int):
-    """Interior edges shared by exactly two triangles: ``(t1, t2, same_direction)``."""
+def half_edge_pairs(triangles: IntArray,
+                    n_vertices: int) -> tuple[IntArray, IntArray, np.ndarray]:
+    """The half-edges paired across the edges in exactly two triangles.
+
+    Half-edge ``h = l T + t`` is the edge opposite local vertex ``l`` of triangle ``t``,
+    from local ``l+1`` to ``l+2`` (its triangle is ``h % T``). Returns ``(h1, h2, same)``,
+    ``same`` where the two run the same way (their triangles disagree in orientation).
+    """
     tri = np.asarray(triangles, np.int64)
-    nt = len(tri)
     s = np.concatenate([tri[:, 1], tri[:, 2], tri[:, 0]])
     d = np.concatenate([tri[:, 2], tri[:, 0], tri[:, 1]])
-    owner = np.tile(np.arange(nt), 3)
     key = np.minimum(s, d) * np.int64(max(n_vertices, 1)) + np.maximum(s, d)
     order = np.argsort(key, kind="stable")
     k = key[order]
-    if len(k) < 2:
-        z = np.zeros(0, np.int64)
-        return z, z, np.zeros(0, bool)
     eq = k[1:] == k[:-1]
-    prev = np.concatenate([[False], eq[:-1]])
-    nxt = np.concatenate([eq[1:], [False]])
+    prev = np.concatenate([[False], eq[:-1]]) if len(eq) else eq
+    nxt = np.concatenate([eq[1:], [False]]) if len(eq) else eq
     first = np.flatnonzero(eq & ~prev & ~nxt)  # groups of exactly two
-    i, j = order[first], order[first + 1]
-    same = (s[i] > d[i]) == (s[j] > d[j])
-    return owner[i], owner[j], same
+    h1, h2 = order[first], order[first + 1]
+    return h1, h2, s[h1] == s[h2]
+
+
+def _edge_pairs(triangles: IntArray, n_vertices: int):
+    """Interior edges shared by exactly two triangles: ``(t1, t2, same_direction)``."""
+    h1, h2, same = half_edge_pairs(triangles, n_vertices)
+    nt = len(triangles)
+    return h1 % nt, h2 % nt, same
 
 
 def orient_components(triangles: IntArray, n_vertices: int,
@@ -116,10 +138,7 @@ def orient_components(triangles: IntArray, n_vertices: int,
     tri = np.asarray(triangles, np.int64)
     nt = len(tri)
     t1, t2, same = _edge_pairs(tri, n_vertices)
-    # node k: triangle k as it is; node T + k: triangle k flipped
-    a = np.concatenate([t1, t1 + nt])
-    b = np.concatenate([np.where(same, t2 + nt, t2), np.where(same, t2, t2 + nt)])
-    label = component_labels(2 * nt, a, b)
+    label = orientation_labels(nt, t1, t2, same)
     keep, flip = label[:nt], label[nt:]
     bad = keep == flip
     flipped = (keep > flip) & ~bad

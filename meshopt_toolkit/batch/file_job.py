@@ -150,13 +150,36 @@ def run_file(pipeline: Pipeline | dict, src, outdir, *, ext: str | None = None,
         options = RunOptions(ext=ext, force=force, dry_run=dry_run)
     t0 = time.perf_counter()
     src = Path(src)
-    record: dict = {"input": str(src), "status": "ok", "outputs": [], "results": [],
-                    "warnings": [], "error": None}
+    record = new_record(src)
     with kept_warnings() as logged:  # the library's warnings, in the record
         _run_into(record, pipeline, src, outdir, options, index, source)
     record["warnings"] += logged
     record["seconds"] = time.perf_counter() - t0
     return record
+
+
+def new_record(src: Path) -> dict:
+    """The record of one input before its work: ``status`` ok, nothing written yet."""
+    return {"input": str(src), "status": "ok", "outputs": [], "results": [], "warnings": [],
+            "error": None}
+
+
+@contextlib.contextmanager
+def failures_recorded(record: dict, src: Path) -> Iterator[None]:
+    """Turn an error of the work on ``src`` into ``status="failed"`` and one ``error`` line
+    naming the file in ``record``, so the batch goes on with the next file."""
+    try:
+        yield
+    except MeshoptError as exc:
+        record.update(status="failed", error=str(exc))
+    except OSError as exc:  # a file system refusal the layers below did not name
+        record.update(status="failed", error=f"{exc.filename or src}: {exc.strerror or exc}")
+    except MemoryError:  # this file only; the worker process is then replaced
+        record.update(status="failed", error=f"{src}: out of memory (MemoryError)")
+        record[RESTART_KEY] = True
+    except Exception as exc:  # a bug or a library failure: still per file
+        logger.debug("unexpected error on %s", src, exc_info=True)
+        record.update(status="failed", error=f"{src}: internal error: {type(exc).__name__}: {exc}")
 
 
 def _run_into(record: dict, pipeline, src: Path, outdir, options: RunOptions, index: int,
@@ -165,7 +188,7 @@ def _run_into(record: dict, pipeline, src: Path, outdir, options: RunOptions, in
     from ..pipeline.document import load_entry, save_entry
 
     doc = None
-    try:
+    with failures_recorded(record, src):
         if isinstance(pipeline, dict):
             pipeline = Pipeline.from_dict(pipeline, source)
         pipeline.validate()
@@ -185,16 +208,5 @@ def _run_into(record: dict, pipeline, src: Path, outdir, options: RunOptions, in
             if dst is not None:
                 save_entry(doc.current_entry, dst, overwrite=options.force)
                 record["outputs"].append(str(dst))
-    except MeshoptError as exc:
-        record.update(status="failed", error=str(exc))
-    except OSError as exc:  # a file system refusal the layers below did not name
-        name = exc.filename or src
-        record.update(status="failed", error=f"{name}: {exc.strerror or exc}")
-    except MemoryError:  # this file only; the worker process is then replaced
-        record.update(status="failed", error=f"{src}: out of memory (MemoryError)")
-        record[RESTART_KEY] = True
-    except Exception as exc:  # a bug or a library failure: still per file
-        logger.debug("unexpected error on %s", src, exc_info=True)
-        record.update(status="failed", error=f"{src}: internal error: {type(exc).__name__}: {exc}")
     if doc is not None:
         record["warnings"] = list(doc.warnings)

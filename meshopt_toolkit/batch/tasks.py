@@ -13,25 +13,19 @@ outputs into place). It returns a JSON-able record ``{"input", "status", "output
 from __future__ import annotations
 
 import argparse
-import logging
 import time
 from pathlib import Path
 from typing import Callable
 
-from ..errors import MeshoptError
 from ..pipeline.runner import Pipeline
-from .file_job import RunOptions, output_path, run_file
-from .workers import RESTART_KEY
-
-logger = logging.getLogger(__name__)
+from .file_job import RunOptions, failures_recorded, new_record, output_path, run_file
 
 __all__ = ["RunTask", "ConvertTask", "failed_record"]
 
 
 def failed_record(src, error: str, seconds: float = 0.0) -> dict:
     """A record for a file that failed before or outside its task."""
-    return {"input": str(src), "status": "failed", "outputs": [], "results": [],
-            "warnings": [], "error": error, "seconds": seconds}
+    return {**new_record(src), "status": "failed", "error": error, "seconds": seconds}
 
 
 class RunTask:
@@ -128,9 +122,8 @@ class ConvertTask:
         t0 = time.perf_counter()
         src = Path(src)
         dst = Path(outdir) / (name or self.output_name(src))
-        record = {"input": str(src), "status": "ok", "outputs": [], "results": [],
-                  "warnings": [], "error": None}
-        try:
+        record = new_record(src)
+        with failures_recorded(record, src):
             dst.parent.mkdir(parents=True, exist_ok=True)
             info = self.func(src, dst, self.args)
             record["outputs"] = [str(dst)]
@@ -138,16 +131,5 @@ class ConvertTask:
                 info = dict(info)
                 record["warnings"] = list(info.pop("warnings", ()))
                 record["results"] = [info]
-        except MeshoptError as exc:
-            record.update(status="failed", error=str(exc))
-        except MemoryError:
-            record.update(status="failed", error=f"{src}: out of memory (MemoryError)")
-            record[RESTART_KEY] = True
-        except OSError as exc:
-            record.update(status="failed", error=f"{exc.filename or src}: {exc.strerror or exc}")
-        except Exception as exc:  # a bug or a library failure: still per file
-            logger.debug("unexpected error on %s", src, exc_info=True)
-            record.update(status="failed",
-                          error=f"{src}: internal error: {type(exc).__name__}: {exc}")
         record["seconds"] = time.perf_counter() - t0
         return record

@@ -41,9 +41,39 @@ def add_output_flags(p: argparse.ArgumentParser, *, json: bool = True, plots: bo
     if plots:
         p.add_argument("--no-plots", "--no-png", dest="no_plots", action="store_true",
                        help="do not write PNG figures")
-    p.add_argument("--force", action="store_true", help="overwrite existing output files")
+    add_force_flag(p)
     if json:
         p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
+
+
+def add_force_flag(p: argparse.ArgumentParser, note: str | None = None) -> None:
+    """``--force``, the one way of every command to replace existing outputs; ``note``: what
+    it means besides in this command, shown in parentheses."""
+    p.add_argument("--force", action="store_true",
+                   help="overwrite existing output files" + (f" ({note})" if note else ""))
+
+
+def add_inputs(p: argparse.ArgumentParser, metavar: str = "INPUT") -> None:
+    """The positional ``INPUT...`` (``args.inputs``) of a command over a batch: files, globs
+    and directories, expanded by :func:`expand_inputs`."""
+    p.add_argument("inputs", nargs="+", metavar=metavar,
+                   help="mesh files, globs or directories")
+
+
+def add_recursive_flag(p: argparse.ArgumentParser) -> None:
+    """``-r/--recursive``: :func:`expand_inputs` descends into the input directories'
+    sub-folders."""
+    p.add_argument("-r", "--recursive", action="store_true",
+                   help="include the sub-folders of input directories")
+
+
+def add_contact_flag(p: argparse.ArgumentParser, what: str) -> None:
+    """``--contact on|off`` (default on) of a command that moves ``what`` (e.g. "a surface
+    in 3D"): along the motion it never passes through itself."""
+    p.add_argument("--contact", choices=("on", "off"), default="on",
+                   help=f"{what} never passes through itself along the motion, at the frames "
+                        "or between them (where the given poses are free of "
+                        "self-intersections; default on)")
 
 
 def expand_inputs(items: list[str], recursive: bool = False) -> list[Path]:
@@ -206,11 +236,8 @@ def check_output_dir(out: Path, *, force: bool, names: Iterable[str] | None = No
     it is empty, or (with ``names``) holds none of ``names``.
     """
     out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise WriteError(f"{out}: exists and is not a directory (a directory is written)")
+    _check_existing_dir(out, force, names)
     if out.is_dir():
-        if not force:
-            _refuse_outputs_in(out, names)
         check_writable(out, out)
         return out
     if out.suffix.lower() in MESH_SUFFIXES:
@@ -225,8 +252,13 @@ def check_output_dir(out: Path, *, force: bool, names: Iterable[str] | None = No
     return out
 
 
-def _refuse_outputs_in(out: Path, names: Iterable[str] | None) -> None:
-    """An existing directory must be empty, or (with ``names``) hold none of ``names``."""
+def _check_existing_dir(out: Path, force: bool, names: Iterable[str] | None) -> None:
+    """An existing ``out`` must be a directory, and without ``force`` empty, or (with
+    ``names``) hold none of ``names``."""
+    if out.exists() and not out.is_dir():
+        raise WriteError(f"{out}: exists and is not a directory (a directory is written)")
+    if not out.is_dir() or force:
+        return
     if names is None:
         if any(out.iterdir()):
             raise WriteError(f"{out}: directory is not empty (use --force to overwrite)")
@@ -249,10 +281,7 @@ def prepare_output_dir(out: Path, *, force: bool, names: Iterable[str] | None = 
         outputs and ``force`` is false. One line naming the path.
     """
     out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise WriteError(f"{out}: exists and is not a directory (a directory is written)")
-    if out.is_dir() and not force:
-        _refuse_outputs_in(out, names)
+    _check_existing_dir(out, force, names)
     make_output_dir(out)
     check_writable(out, out)
     return out

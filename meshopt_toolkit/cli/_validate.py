@@ -8,6 +8,7 @@ nothing, silently. The bounds shared with the pipeline filters are in
 
 from __future__ import annotations
 
+import argparse
 import math
 from collections.abc import Iterable
 
@@ -85,3 +86,21 @@ def check_numbers(option: str, values: Iterable[float] | None, *, low: float | N
         shown = ",".join(f"{v:g}" for v in vals)
         raise OptionError(f"{option} must be finite numbers{' ' + rng if rng else ''}, got {shown}")
     return values
+
+
+def int_at_least(low: int, expected: str):
+    """An argparse type: an integer ``>= low``; anything else ``"expected EXPECTED, got
+    'TEXT'"`` (``expected`` says the range in words)."""
+
+    def parse(text: str) -> int:
+        from ..expressions import quoted
+
+        try:
+            value = int(text)
+        except ValueError:
+            value = low - 1
+        if value < low:
+            raise argparse.ArgumentTypeError(f"expected {expected}, got {quoted(text)}")
+        return value
+
+    return parse

@@ -29,6 +29,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import MeshoptError, ReadError
+from ._batch import add_batch_args, batch_client, check_batch_args, reporter
+from ._common import add_force_flag, add_inputs, add_recursive_flag
 from ._params import add_options
 
 HELP = "convert mesh files between formats (msh, obj, ply, off, vtk, vtu, stl)"
@@ -37,14 +39,12 @@ OPTIONS = {"msh_version": "--msh-version"}
 
 
 def add_args(parser) -> None:
-    parser.add_argument("inputs", nargs="+", metavar="INPUT",
-                        help="mesh files, globs or directories")
+    add_inputs(parser)
     parser.add_argument("-o", "--output", required=True, metavar="OUTPUT",
                         help="output file (one input) or directory (several inputs)")
     parser.add_argument("--to", metavar="EXT",
                         help="output format for a batch, e.g. vtu or .msh")
-    parser.add_argument("--force", action="store_true",
-                        help="overwrite existing output files (even an input)")
+    add_force_flag(parser, "even an input")
     from ..filters.save_mesh import SaveMesh, binary_of
 
     # the output options of save_mesh (one schema): --binary/--ascii are its "encoding"
@@ -58,12 +58,9 @@ def add_args(parser) -> None:
     parser.add_argument("--allow-loss", action="store_true",
                         help="write what the output format can hold and name what is "
                              "dropped (physical groups, line cells, data, ...)")
-    parser.add_argument("-r", "--recursive", action="store_true",
-                        help="include the sub-folders of input directories")
+    add_recursive_flag(parser)
     parser.add_argument("--max-file-size", type=_size, default=None, metavar="SIZE",
                         help="refuse input files larger than this (default 4G; e.g. 500M, 16G)")
-    from .run import add_batch_args
-
     add_batch_args(parser)
 
 
@@ -216,7 +213,6 @@ def run(args) -> int:
     from ..batch.progress import BatchProgress
     from ..batch.run import Job, execute
     from ..batch.tasks import ConvertTask
-    from .run import batch_client, check_batch_args, reporter
 
     check_batch_args(args)
     plan = _plan(args)

@@ -21,19 +21,18 @@ import sys
 from pathlib import Path
 
 from ..errors import MeshoptError
+from ._common import add_inputs, add_recursive_flag
 
 HELP = "show counts, planarity, admissibility and quality of mesh files"
 
 
 def add_args(parser) -> None:
-    parser.add_argument("meshes", nargs="+", metavar="MESH",
-                        help="mesh files, globs or directories")
+    add_inputs(parser, metavar="MESH")
     parser.add_argument("--json", action="store_true",
                         help="one JSON object per file and line (JSON Lines)")
     parser.add_argument("--merge-tolerance", type=float, default=None, metavar="TOL",
                         help="merge vertices closer than TOL (0: equal positions) first")
-    parser.add_argument("-r", "--recursive", action="store_true",
-                        help="include the sub-folders of directories")
+    add_recursive_flag(parser)
 
 
 def mesh_info(path: str | Path, merge_tolerance: float | None = None) -> dict:
@@ -163,7 +162,7 @@ def run(args) -> int:
 
     status = 0
     first = True
-    for item in args.meshes:
+    for item in args.inputs:
         try:
             paths = expand_inputs([item], recursive=args.recursive)
         except MeshoptError as exc:

@@ -43,9 +43,9 @@ from pathlib import Path
 
 from ..bounds import MAX_ITERATIONS
 from ..filters.generate_geodesic_morph import GenerateGeodesicMorph
-from ._common import (add_output_flags, check_mesh_format, check_output_dir, csv_table, float_list,
-                      frame_names, prepare_output_dir, print_json, save_moved, warn_dropped,
-                      write_summary, write_text)
+from ._common import (add_contact_flag, add_output_flags, check_mesh_format, check_output_dir,
+                      csv_table, float_list, frame_names, prepare_output_dir, print_json,
+                      save_moved, warn_dropped, write_summary, write_text)
 from ._params import add_options, check_options
 from ._validate import check_int, check_numbers
 
@@ -75,10 +75,7 @@ def add_args(p: argparse.ArgumentParser) -> None:
                    default=None,
                    help="iterations of the discrete geodesic (default: 200 Levenberg–Marquardt "
                         "for the distortion metric, 500 Newton for the scalar one)")
-    p.add_argument("--contact", choices=("on", "off"), default="on",
-                   help="surfaces in 3D: no frame, nor the motion between frames, passes "
-                        "through the surface (where both poses are free of "
-                        "self-intersections; default on)")
+    add_contact_flag(p, "a surface in 3D")
     add_output_flags(p, plots=True, frame_format="the source's")
 
 

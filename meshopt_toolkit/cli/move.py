@@ -42,7 +42,7 @@ from .. import strict_json
 from ..bounds import MAX_FRAMES
 from ..filters.apply_coord_prescribed_motion import PrescribedMotion
 from ..mesh.kinds import PLANAR, SURFACE, TETS
-from ._common import (add_output_flags, checked_paths, csv_table, frame_names,
+from ._common import (add_contact_flag, add_output_flags, checked_paths, csv_table, frame_names,
                       prepare_output_dir, warn_dropped, write_text)
 from ._params import add_options
 from ._validate import OptionError
@@ -89,10 +89,7 @@ def add_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--free-boundary", action="store_true",
                    help="with --targets: the boundary vertices the file does not list move "
                         "freely (default: they stay fixed)")
-    p.add_argument("--contact", choices=("on", "off"), default="on",
-                   help="a surface in 3D, or the free parts of a tet mesh's boundary, "
-                        "never passes through itself along the motion (where its rest is "
-                        "free of self-intersections; default on)")
+    add_contact_flag(p, "a surface in 3D, or the free parts of a tet mesh's boundary,")
     add_options(p, PrescribedMotion, OPTIONS)
     add_output_flags(p, frames=MAX_FRAMES, frame_format="the input's")
 

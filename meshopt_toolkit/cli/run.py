@@ -32,51 +32,38 @@ line is ``N done, K skipped, F failed in T s``.
 
 from __future__ import annotations
 
-import argparse
-import contextlib
-from .. import strict_json
 import sys
 from pathlib import Path
 
 from ..errors import MeshoptError
-from ..expressions import quoted
-from ._common import check_mesh_format, check_writable, make_output_dir
+from ._batch import add_batch_args, batch_client, check_batch_args, reporter
+from ._common import (add_force_flag, add_inputs, check_mesh_format, check_writable,
+                      make_output_dir)
+from ._validate import int_at_least
 
 HELP = "run a pipeline (.json or MeshLab .mlx) over one mesh or a batch"
-
-
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"expected a positive integer, got {quoted(text)}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {quoted(text)}")
-    return value
 
 
 def add_args(parser) -> None:
     from ..pipeline.limits import DEFAULT_MAX_TRIANGLES
 
     parser.add_argument("pipeline", metavar="PIPELINE", help="pipeline file (.json or .mlx)")
-    parser.add_argument("inputs", nargs="+", metavar="INPUT",
-                        help="mesh files, globs or directories")
+    add_inputs(parser)
     parser.add_argument("-o", "--output", metavar="OUTDIR",
                         help="output directory (created if missing); the only place the "
                              "pipeline writes (optional with --dry-run)")
     parser.add_argument("--to", metavar="EXT", help="output format (default: the input's)")
-    parser.add_argument("--force", action="store_true",
-                        help="overwrite existing outputs (a pipeline cannot grant this itself)")
+    add_force_flag(parser, "a pipeline cannot grant this itself")
     parser.add_argument("--dry-run", action="store_true",
                         help="check the pipeline, paths and size budget on the inputs; run "
                              "no filter, write nothing")
     parser.add_argument("--allow-read", action="append", default=[], metavar="PATH",
                         help="a file or folder the pipeline may read (load_mesh), besides "
                              "the inputs; repeatable")
-    parser.add_argument("--max-triangles", type=_positive_int, default=DEFAULT_MAX_TRIANGLES,
-                        metavar="N", help="refuse steps that would make the mesh larger "
-                                          f"(default {DEFAULT_MAX_TRIANGLES:,})")
+    parser.add_argument("--max-triangles", type=int_at_least(1, "a positive integer"),
+                        default=DEFAULT_MAX_TRIANGLES, metavar="N",
+                        help="refuse steps that would make the mesh larger "
+                             f"(default {DEFAULT_MAX_TRIANGLES:,})")
     parser.add_argument("--allow-inverted", action="store_true",
                         help="write meshes a MeshLab step left with inverted triangles "
                              "(warning) instead of failing the file")
@@ -182,87 +169,3 @@ def _would_write(outdir: Path | None):
         return f"checked {rec['input']} ({why})"
 
     return line
-
-
-# -- shared with ``meshopt convert`` -------------------------------------------------------
-
-def add_batch_args(parser) -> None:
-    """``--jobs``, ``--resume``, ``--scheduler``, ``--shared-inputs``."""
-    parser.add_argument("-j", "--jobs", type=_jobs, default=1, metavar="N",
-                        help="files processed in N worker processes (0: all cores; "
-                             "default 1)")
-    parser.add_argument("--resume", action="store_true",
-                        help="skip files an earlier run (killed or not) completely did with "
-                             "the same input and settings (journal in the output directory)")
-    parser.add_argument("--scheduler", metavar="ADDRESS",
-                        help="run on this Dask cluster, e.g. tcp://10.0.0.5:8786 (needs "
-                             "meshopt-toolkit[dask])")
-    parser.add_argument("--shared-inputs", action="store_true",
-                        help="with --scheduler: workers read the inputs from the same path "
-                             "(a shared file system) instead of receiving their bytes")
-
-
-def _jobs(text: str) -> int:
-    from ..batch.workers import cpu_count
-
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected 0 (all cores) or a positive integer, "
-                                         f"got {quoted(text)}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected 0 (all cores) or a positive integer, "
-                                         f"got {quoted(text)}")
-    return cpu_count() if value == 0 else value
-
-
-def check_batch_args(args) -> None:
-    """Refuse contradictory batch options (one line, exit 1)."""
-    if args.shared_inputs and not args.scheduler:
-        raise MeshoptError("--shared-inputs is for --scheduler (local workers read the "
-                           "inputs directly)")
-    if args.scheduler and args.jobs != 1:
-        raise MeshoptError("--jobs is for local workers; with --scheduler the cluster's "
-                           "workers do the work")
-    if getattr(args, "isolate", None) == "never" and args.jobs > 1:
-        raise MeshoptError("--isolate never needs --jobs 1 (several jobs run in worker "
-                           "processes)")
-    if args.resume and getattr(args, "dry_run", False):
-        raise MeshoptError("--resume and --dry-run cannot be combined (a dry run writes "
-                           "nothing)")
-
-
-@contextlib.contextmanager
-def batch_client(args):
-    """A Dask client for ``--scheduler`` (closed afterwards), else None."""
-    if not args.scheduler:
-        yield None
-        return
-    from ..batch.cluster import connect
-
-    client = connect(args.scheduler)
-    try:
-        yield client
-    finally:
-        client.close()
-
-
-def reporter(command: str, as_json: bool, bar, line_ok=None, dry_run: bool = False):
-    """The per-record callback: warnings and errors on stderr, each naming the input, JSON
-    lines on stdout (with ``"dry_run": true`` in a dry run), and ``line_ok(record)`` on
-    stdout for each file done (``meshopt convert``'s "wrote ...", a dry run's "would
-    write ...")."""
-    from ._errors import naming
-
-    def report(rec: dict) -> None:
-        for warning in rec.get("warnings") or ():
-            bar.message(f"meshopt {command}: warning: {naming(warning, [rec['input']])}")
-        if rec["status"] == "failed":
-            bar.message(f"meshopt {command}: error: {naming(rec['error'], [rec['input']])}")
-        elif rec["status"] == "ok" and line_ok is not None:
-            bar.clear()
-            print(line_ok(rec), flush=True)
-        if as_json:
-            print(strict_json.dumps({**rec, "dry_run": True} if dry_run else rec), flush=True)
-
-    return report

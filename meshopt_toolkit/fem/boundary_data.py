@@ -18,6 +18,7 @@ import numpy as np
 from .._typing import FloatArray, IntArray
 from ..errors import InvalidMeshError, MeshoptError
 from ..mesh.kinds import is_tets
+from ..mesh.topology import physical_tag
 
 __all__ = ["BoundaryData", "group_edges", "group_facets", "group_key", "neumann_load",
            "neumann_shape_derivative"]
@@ -37,15 +38,7 @@ def group_key(group) -> int | str:
 
 def group_edges(mesh, group) -> IntArray:
     """The line elements ``(E, 2)`` of physical group ``group`` (name or number)."""
-    key = group_key(group)
-    names = mesh.tag_names
-    if isinstance(key, str):
-        if key not in names:
-            raise InvalidMeshError(f"no physical group named {key!r}; known: {sorted(names)}")
-        key = names[key][0]
-    if mesh.lines is None or not np.any(mesh.line_tags == key):
-        raise InvalidMeshError(f"no line element carries physical group {group!r}")
-    return np.asarray(mesh.lines[mesh.line_tags == key], dtype=np.int64)
+    return _group_cells(mesh, group, mesh.lines, mesh.line_tags, "line element")
 
 
 def group_facets(mesh, group) -> IntArray:
@@ -53,15 +46,16 @@ def group_facets(mesh, group) -> IntArray:
     mesh, its triangles ``(F, 3)`` on a tet mesh."""
     if not is_tets(mesh):
         return group_edges(mesh, group)
-    key = group_key(group)
-    if isinstance(key, str):
-        if key not in mesh.tag_names:
-            raise InvalidMeshError(f"no physical group named {key!r}; known: "
-                                   f"{sorted(mesh.tag_names)}")
-        key = mesh.tag_names[key][0]
-    if mesh.triangles is None or not np.any(mesh.triangle_tags == key):
-        raise InvalidMeshError(f"no triangle carries physical group {group!r}")
-    return np.asarray(mesh.triangles[mesh.triangle_tags == key], dtype=np.int64)
+    return _group_cells(mesh, group, mesh.triangles, mesh.triangle_tags, "triangle")
+
+
+def _group_cells(mesh, group, cells, tags, what: str) -> IntArray:
+    """The ``cells`` whose ``tags`` are the number of ``group``; none is an error naming
+    ``what`` they are."""
+    key = physical_tag(group_key(group), mesh.tag_names)[0]
+    if cells is None or not np.any(tags == key):
+        raise InvalidMeshError(f"no {what} carries physical group {group!r}")
+    return np.asarray(cells[tags == key], dtype=np.int64)
 
 
 def neumann_load(Q: FloatArray, edges: IntArray, g: FloatArray, n: int) -> FloatArray:

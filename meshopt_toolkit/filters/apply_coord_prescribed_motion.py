@@ -5,8 +5,8 @@ from __future__ import annotations
 from meshopt_toolkit.bounds import MAX_STEPS
 from meshopt_toolkit.errors import FilterError, OptionError
 from meshopt_toolkit.pipeline.filter import MESH_KINDS, Filter, register
-from meshopt_toolkit.pipeline.params import (BoolParam, FloatParam, IntParam, PathParam,
-                                              StringParam)
+from meshopt_toolkit.pipeline.params import BoolParam, IntParam, PathParam, StringParam
+from meshopt_toolkit.filters._shared import DISTORTION_WEIGHT
 
 #: the messages of :func:`~meshopt_toolkit.motion.engine.handles.handles_in_space` name parameters
 _OPTIONS = {"group": "group", "selection": "selection", "map": "map", "targets": "targets",
@@ -55,8 +55,7 @@ class PrescribedMotion(Filter):
                   label="Free boundary"),
         IntParam("steps", 4, "continuation steps (split further when needed)", label="Steps",
                  min=1, max=MAX_STEPS),
-        FloatParam("weight", 1.0, "w of the metric M + w² JᵀJ", label="Weight", min=0.0,
-                   exclusive_min=True),
+        DISTORTION_WEIGHT,
     )
 
     def apply(self, document, *, targets: str = "", map: str = "", where: str = "",

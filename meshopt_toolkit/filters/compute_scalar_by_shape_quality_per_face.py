@@ -47,15 +47,16 @@ class ShapeQualityPerFace(Filter):
         pts = mesh.points
         tri = mesh.triangles
         values = inverse_shape_quality(pts, tri) if metric == METRICS[0] else aspect_ratios(pts, tri)
-        entry.set_face_attribute("quality", values.astype(np.float64))
-        finite = values[np.isfinite(values)]
-        return {
-            "metric": metric,
+        return {**_stored(entry, metric, values), **quality_summary(pts, tri).as_dict()}
+
+
+def _stored(entry, metric: str, values) -> dict:
+    """``values`` (one per face) into the face quality of ``entry``; their summary."""
+    entry.set_face_attribute("quality", values.astype(np.float64))
+    finite = values[np.isfinite(values)]
+    return {"metric": metric,
             "min": float(finite.min()) if finite.size else float("nan"),
-            "max": float(values.max()),
-            "mean": float(values.mean()),
-            **quality_summary(pts, tri).as_dict(),
-        }
+            "max": float(values.max()), "mean": float(values.mean())}
 
 
 def _in_space(entry, metric: str) -> dict:
@@ -66,8 +67,4 @@ def _in_space(entry, metric: str) -> dict:
     pts, tri = entry.mesh.points, entry.mesh.triangles
     values = (surface_inverse_shape_quality(pts, tri) if metric == METRICS[0]
               else surface_aspect_ratios(pts, tri))
-    entry.set_face_attribute("quality", values.astype(np.float64))
-    finite = values[np.isfinite(values)]
-    return {"metric": metric,
-            "min": float(finite.min()) if finite.size else float("nan"),
-            "max": float(values.max()), "mean": float(values.mean())}
+    return _stored(entry, metric, values)

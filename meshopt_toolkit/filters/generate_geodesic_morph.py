@@ -6,8 +6,9 @@ from meshopt_toolkit.bounds import MAX_FRAMES
 from meshopt_toolkit.errors import FilterError, MeshoptError, OptionError
 from meshopt_toolkit.operations import STOP_RULES
 from meshopt_toolkit.pipeline.filter import PLANAR, SURFACE, Filter, register
-from meshopt_toolkit.pipeline.params import (BoolParam, EnumParam, FloatParam, IntParam,
-                                             NumberListParam, number_list)
+from meshopt_toolkit.pipeline.params import (BoolParam, EnumParam, IntParam, NumberListParam,
+                                             number_list)
+from meshopt_toolkit.filters._shared import DISTORTION_WEIGHT
 
 METHODS = ("discrete", "shooting", "auto")
 METRICS = ("distortion", "scalar")
@@ -58,8 +59,7 @@ class GenerateGeodesicMorph(Filter):
         EnumParam("metric", METRICS[0], "per-triangle distortion metric (frames as healthy as "
                   "their ends) or the complete metric of f2 (frames only non-inverted)",
                   label="Metric", choices=METRICS),
-        FloatParam("weight", 1.0, "with the distortion metric: w of M + w² JᵀJ",
-                   label="Weight", min=0.0, exclusive_min=True),
+        DISTORTION_WEIGHT,
         NumberListParam("penalty", "", "with the scalar metric: f2's b1,b2,b3,b4 (mean shape "
                         "quality, inverse area, boundary pairs (costly), distance to the "
                         "source, unscaled); empty = 1,1,0,1", label="Penalty", count=4),

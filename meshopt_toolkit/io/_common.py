@@ -1,4 +1,4 @@
-"""Helpers shared by the format modules: building the mesh, text number blocks."""
+"""Helpers shared by the format modules: quiet meshio, text number blocks."""
 
 from __future__ import annotations
 
@@ -6,12 +6,10 @@ import contextlib
 import io
 import logging
 from collections.abc import Iterator
-from pathlib import Path
 
 import numpy as np
 
-from ..errors import InvalidMeshError, ReadError, WriteError
-from ..mesh import PlanarMesh, TriangleMesh
+from ..errors import ReadError, WriteError
 
 logger = logging.getLogger(__name__)
 
@@ -24,28 +22,6 @@ def quiet() -> Iterator[None]:
         yield
     if buf.getvalue().strip():
         logger.debug("meshio: %s", buf.getvalue().strip())
-
-
-def build_mesh(points, triangles, source: str | Path, **tags) -> TriangleMesh:
-    """A :class:`PlanarMesh` when points are 2D or every z is exactly 0, else a
-    :class:`TriangleMesh`; readable-level failures become :class:`ReadError`.
-
-    Parameters
-    ----------
-    points : (N, 2) or (N, 3) array of float
-    triangles : (T, 3) array of int
-    source : file the data came from (named in every error)
-    **tags : ``triangle_tags``, ``lines``, ``line_tags``, ``tag_names``
-    """
-    pts = np.asarray(points, dtype=np.float64)
-    try:
-        planar = pts.ndim == 2 and (
-            pts.shape[1] == 2 or (pts.shape[1] == 3 and not np.any(pts[:, 2]))
-        )
-        cls = PlanarMesh if planar else TriangleMesh
-        return cls(pts, triangles, source=str(source), **tags)
-    except InvalidMeshError as exc:
-        raise ReadError(str(exc)) from exc
 
 
 def format_rows(values: np.ndarray, fmt: str, prefix: str = "", group: int = 1) -> str:

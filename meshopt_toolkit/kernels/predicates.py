@@ -20,6 +20,8 @@ filtered path from overflowing or underflowing at 1e±300).
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import numpy as np
 
 from .._typing import FloatArray, IntArray
@@ -73,24 +75,37 @@ def _sign_products(p1, q1, p2, q2, p3, q3, p4, q4, minus: bool, positive: bool =
     return det, sign, uncertain
 
 
-def _exact_signs(coords: list[FloatArray], minus: bool) -> np.ndarray:
-    """Exact sign of ``(c0 - c1)(c2 - c3) ∓ (c4 - c5)(c6 - c7)`` per entry (Python integers).
+def _integer_rows(X: FloatArray) -> Iterator[list[int]]:
+    """Each row of ``X`` (K, n) as Python integers in units of the row's smallest power of
+    two: its exact binary values, all scaled by one power of two.
 
-    ``coords``: eight 1-D float arrays of the same length (finite)."""
-    X = np.stack([np.asarray(c, dtype=float) for c in coords])  # (8, K)
-    if X.shape[1] == 0:
-        return np.zeros(0, np.int8)
+    Raises
+    ------
+    ValueError
+        A coordinate is not finite.
+    """
     if not np.isfinite(X).all():
         raise ValueError("exact predicates need finite coordinates")
     m, e = np.frexp(X)
     M = np.ldexp(m, 53).astype(np.int64)  # exact: X = M * 2**(e - 53)
     e = e.astype(np.int64) - 53
-    e0 = np.where(M != 0, e, np.iinfo(np.int64).max).min(axis=0)
-    e0 = np.where(e0 == np.iinfo(np.int64).max, 0, e0)
+    big = np.iinfo(np.int64).max
+    e0 = np.where(M != 0, e, big).min(axis=1, keepdims=True)
+    e0 = np.where(e0 == big, 0, e0)
     shift = np.where(M != 0, e - e0, 0)  # >= 0: every coordinate is an integer * 2**e0
+    for mk, sk in zip(M.tolist(), shift.tolist()):
+        yield [v << s for v, s in zip(mk, sk)]
+
+
+def _exact_signs(coords: list[FloatArray], minus: bool) -> np.ndarray:
+    """Exact sign of ``(c0 - c1)(c2 - c3) ∓ (c4 - c5)(c6 - c7)`` per entry (Python integers).
+
+    ``coords``: eight 1-D float arrays of the same length (finite)."""
+    X = np.stack([np.asarray(c, dtype=float) for c in coords], axis=1)  # (K, 8)
+    if len(X) == 0:
+        return np.zeros(0, np.int8)
     out = []
-    for mk, sk in zip(M.T.tolist(), shift.T.tolist()):
-        a = [v << s for v, s in zip(mk, sk)]
+    for a in _integer_rows(X):
         t1 = (a[0] - a[1]) * (a[2] - a[3])
         t2 = (a[4] - a[5]) * (a[6] - a[7])
         d = t1 - t2 if minus else t1 + t2
@@ -230,19 +245,9 @@ def _exact_orient3d(D: FloatArray) -> np.ndarray:
     of the row's smallest power of two)."""
     if len(D) == 0:
         return np.zeros(0, np.int8)
-    if not np.isfinite(D).all():
-        raise ValueError("exact predicates need finite coordinates")
-    X = D.reshape(len(D), 12)
-    m, e = np.frexp(X)
-    M = np.ldexp(m, 53).astype(np.int64)  # exact: X = M * 2**(e - 53)
-    e = e.astype(np.int64) - 53
-    big = np.iinfo(np.int64).max
-    e0 = np.where(M != 0, e, big).min(axis=1, keepdims=True)
-    e0 = np.where(e0 == big, 0, e0)
-    shift = np.where(M != 0, e - e0, 0)
     out = np.empty(len(D), np.int8)
-    for k, (mk, sk) in enumerate(zip(M.tolist(), shift.tolist())):
-        ax, ay, az, bx, by, bz, cx, cy, cz, dx, dy, dz = (v << s for v, s in zip(mk, sk))
+    for k, row in enumerate(_integer_rows(D.reshape(len(D), 12))):
+        ax, ay, az, bx, by, bz, cx, cy, cz, dx, dy, dz = row
         bx, by, bz = bx - ax, by - ay, bz - az
         cx, cy, cz = cx - ax, cy - ay, cz - az
         dx, dy, dz = dx - ax, dy - ay, dz - az

@@ -122,21 +122,25 @@ def segment_limit(points: FloatArray, triangles: IntArray, direction: FloatArray
     def cross(u, v):
         return u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]
 
-    c = cross(e1, e2)
-    b = cross(e1, w2) + cross(w1, e2)
-    a = cross(w1, w2)
+    roots = first_positive_roots(cross(w1, w2), cross(e1, w2) + cross(w1, e2), cross(e1, e2))
+    return float(roots.min()) if roots.size else np.inf
+
+
+def first_positive_roots(a: FloatArray, b: FloatArray, c: FloatArray) -> FloatArray:
+    """Per entry, the first ``t > 0`` at which ``a t² + b t + c`` (``c > 0``: positive at
+    ``t = 0``) vanishes, ``inf`` where it does not; from the stable pair of roots ``q/a``,
+    ``c/q``, and where ``a = 0`` the root ``−c/b`` of the linear part (``b < 0``).
+    """
     with np.errstate(all="ignore"):
         disc = b * b - 4.0 * a * c
         sq = np.sqrt(np.maximum(disc, 0.0))
-        qq = -0.5 * (b + np.where(b >= 0, sq, -sq))  # the stable pair of roots qq/a, c/qq
+        qq = -0.5 * (b + np.where(b >= 0, sq, -sq))
         r1 = np.where(a != 0, qq / a, np.inf)
         r2 = np.where(qq != 0, c / qq, np.inf)
-        lin = np.where(b < 0, -c / b, np.inf)  # a == 0: linear area
+        lin = np.where(b < 0, -c / b, np.inf)
     r1 = np.where((r1 > 0) & np.isfinite(r1), r1, np.inf)
     r2 = np.where((r2 > 0) & np.isfinite(r2), r2, np.inf)
-    roots = np.where(a == 0, lin, np.minimum(r1, r2))
-    roots = np.where((a != 0) & (disc < 0), np.inf, roots)
-    return float(roots.min()) if roots.size else np.inf
+    return np.where(a == 0, lin, np.where(disc < 0, np.inf, np.minimum(r1, r2)))
 
 
 def doubled_areas_of_frames(frames: FloatArray, tri_t: IntArray) -> FloatArray:

@@ -22,7 +22,7 @@ from ..kernels.admissibility import non_finite_problem
 from ..kernels.triangles import quality_summary, signed_areas
 from ..orientation import plane_embedding
 from .topology import (_clean_manifold, _corner_table, _edge_index, _frozen, _sorted_half_edges,
-                       new_points)
+                       new_points, tagged_vertices)
 from .value import MeshValue
 
 sp = lazy_module("scipy.sparse")  # imported on first use: info/convert need no scipy
@@ -315,6 +315,13 @@ class TriangleMesh(MeshValue):
         cols = np.repeat(np.arange(len(t)), 3)
         return sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(self.n_vertices, len(t)))
 
+    def tagged_vertices(self, tag: int | str) -> IntArray:
+        """Sorted vertices of the line elements and triangles carrying a physical tag, or
+        of the group named ``tag`` (the elements of its dimension):
+        :func:`~.topology.tagged_vertices`."""
+        return tagged_vertices(tag, self._tag_names, (
+            (1, self._lines, self._line_tags), (2, self._triangles, self._triangle_tags)))
+
 
 class PlanarMesh(TriangleMesh):
     """An immutable planar triangle mesh ``PlanarMesh(points, triangles)``.
@@ -420,20 +427,4 @@ class PlanarMesh(TriangleMesh):
             source=self._source,
         )
 
-    def tagged_vertices(self, tag: int | str) -> IntArray:
-        """Vertices of the line elements (or triangles) carrying a physical tag or name."""
-        if isinstance(tag, str):
-            if tag not in self._tag_names:
-                raise InvalidMeshError(
-                    f"no physical group named {tag!r}; known: {sorted(self._tag_names)}"
-                )
-            tag = self._tag_names[tag][0]
-        parts = []
-        if self._lines is not None:
-            parts.append(self._lines[self._line_tags == tag].ravel())
-        if self._triangle_tags is not None:
-            parts.append(self._triangles[self._triangle_tags == tag].ravel())
-        if not parts or not sum(len(p) for p in parts):
-            raise InvalidMeshError(f"no element carries physical tag {tag}")
-        return np.unique(np.concatenate(parts))
 

@@ -16,7 +16,8 @@ import numpy as np
 from .._typing import FloatArray, IntArray
 from ..errors import InvalidMeshError
 from ..kernels.surface import area_vectors, aspect_ratios, degenerate_triangles, pad3
-from ..orientation import component_labels, orient_components
+from ..orientation import (component_labels, half_edge_pairs, orient_components,
+                           orientation_labels)
 from .core import TriangleMesh
 from .topology import _frozen
 from .value import MeshValue
@@ -82,6 +83,11 @@ class SurfaceMesh(MeshValue):
         """This surface as a readable :class:`TriangleMesh` (what ``io.save`` writes)."""
         return self._mesh
 
+    def tagged_vertices(self, tag: int | str) -> IntArray:
+        """Sorted vertices of the line elements and triangles carrying a physical tag or
+        name, as :meth:`TriangleMesh.tagged_vertices`."""
+        return self._mesh.tagged_vertices(tag)
+
     # -- plain data -----------------------------------------------------------------
     points = property(lambda self: self._mesh.points, doc="Read-only ``(N, 3)`` float64.")
     triangles = property(lambda self: self._mesh.triangles, doc="Read-only ``(T, 3)`` int64.")
@@ -100,21 +106,8 @@ class SurfaceMesh(MeshValue):
     # -- topology (cached) ----------------------------------------------------------
     @cached_property
     def _pairs(self) -> tuple[IntArray, IntArray, IntArray]:
-        """Half-edges ``h = l T + t`` (edge opposite local vertex ``l`` of triangle ``t``,
-        from local ``l+1`` to ``l+2``) paired across the edges in exactly two triangles:
-        ``(h1, h2, same direction)``."""
-        tri = self.triangles
-        s = np.concatenate([tri[:, 1], tri[:, 2], tri[:, 0]])
-        d = np.concatenate([tri[:, 2], tri[:, 0], tri[:, 1]])
-        key = np.minimum(s, d) * np.int64(self.n_vertices) + np.maximum(s, d)
-        order = np.argsort(key, kind="stable")
-        k = key[order]
-        eq = k[1:] == k[:-1]
-        prev = np.concatenate([[False], eq[:-1]]) if len(eq) else eq
-        nxt = np.concatenate([eq[1:], [False]]) if len(eq) else eq
-        first = np.flatnonzero(eq & ~prev & ~nxt)
-        h1, h2 = order[first], order[first + 1]
-        return _frozen(h1), _frozen(h2), _frozen(s[h1] == s[h2])
+        """``(h1, h2, same)`` of :func:`~meshopt_toolkit.orientation.half_edge_pairs`."""
+        return tuple(_frozen(a) for a in half_edge_pairs(self.triangles, self.n_vertices))
 
     @cached_property
     def non_manifold_edges(self) -> IntArray:
@@ -202,14 +195,11 @@ class SurfaceMesh(MeshValue):
 
     @cached_property
     def _orientation(self) -> tuple[IntArray, bool]:
-        """Per component: orientable or not (the parity constraints of its shared edges
-        solved as components of the doubled graph, as ``orient_components`` does)."""
+        """Per component: orientable or not (the parity constraints of its shared edges,
+        :func:`~meshopt_toolkit.orientation.orientation_labels`)."""
         nt = self.n_triangles
         h1, h2, same = self._pairs
-        t1, t2 = h1 % nt, h2 % nt
-        a = np.concatenate([t1, t1 + nt])
-        b = np.concatenate([np.where(same, t2 + nt, t2), np.where(same, t2, t2 + nt)])
-        label = component_labels(2 * nt, a, b)
+        label = orientation_labels(nt, h1 % nt, h2 % nt, same)
         bad = label[:nt] == label[nt:]
         bad_comp = np.bincount(self.components, weights=bad, minlength=self.n_components) > 0
         return _frozen(~bad_comp), bool(not same.any())

@@ -39,6 +39,41 @@ def new_points(points, shape: tuple[int, ...]) -> FloatArray:
                          error=InvalidMeshError)
 
 
+def physical_tag(tag: int | str, tag_names: dict) -> tuple[int, int | None]:
+    """The number of the physical group ``tag`` (a number, or a name of ``tag_names``,
+    ``{name: (tag, dim)}``) and the dimension a name fixes (None for a number).
+
+    Raises
+    ------
+    InvalidMeshError
+        No group of that name; the message lists the names.
+    """
+    if not isinstance(tag, str):
+        return tag, None
+    if tag not in tag_names:
+        raise InvalidMeshError(f"no physical group named {tag!r}; known: {sorted(tag_names)}")
+    number, dim = tag_names[tag]
+    return number, dim
+
+
+def tagged_vertices(tag: int | str, tag_names: dict, blocks) -> IntArray:
+    """Sorted vertices of the elements carrying a physical tag (a number: every block) or
+    name (only the blocks of its dimension); ``blocks`` are ``(dim, cells, tags)``, those
+    without tags (None) skipped, ``tag_names`` is ``{name: (tag, dim)}``.
+
+    Raises
+    ------
+    InvalidMeshError
+        No group of that name (the message lists the names), or no element carries the tag.
+    """
+    tag, dim = physical_tag(tag, tag_names)
+    parts = [np.asarray(cells)[np.asarray(tags) == tag].ravel() for d, cells, tags in blocks
+             if tags is not None and dim in (None, d)]
+    if not sum(len(p) for p in parts):
+        raise InvalidMeshError(f"no element carries physical tag {tag}")
+    return np.unique(np.concatenate(parts))
+
+
 def _frozen(a: np.ndarray) -> np.ndarray:
     a.setflags(write=False)
     return a

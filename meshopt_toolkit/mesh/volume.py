@@ -20,7 +20,7 @@ from ..kernels.admissibility import non_finite_problem
 from ..kernels.tetrahedra import (TET_FACES, mean_ratios, orientations, signed_volumes,
                                   tet_quality_summary)
 from .surface import SurfaceMesh, listed
-from .topology import _frozen, new_points
+from .topology import _frozen, new_points, tagged_vertices
 from .value import MeshValue
 
 __all__ = ["TetMesh"]
@@ -124,26 +124,11 @@ class TetMesh(MeshValue):
 
     def tagged_vertices(self, tag: int | str) -> IntArray:
         """Sorted vertices of the elements carrying a physical tag (a number: lines,
-        triangles and tets with it) or name (the elements of its dimension only).
-
-        Raises
-        ------
-        InvalidMeshError
-            No group of that name, or no element carries the tag.
-        """
-        dims = (1, 2, 3)
-        if isinstance(tag, str):
-            if tag not in self._tag_names:
-                raise InvalidMeshError(
-                    f"no physical group named {tag!r}; known: {sorted(self._tag_names)}")
-            tag, dim = self._tag_names[tag]
-            dims = (dim,)
-        parts = [cells[tags == tag].ravel() for d, cells, tags in (
+        triangles and tets with it) or name (the elements of its dimension only):
+        :func:`~.topology.tagged_vertices`."""
+        return tagged_vertices(tag, self._tag_names, (
             (1, self._lines, self._line_tags), (2, self._triangles, self._triangle_tags),
-            (3, self._tets, self._tet_tags)) if d in dims and tags is not None]
-        if not sum(len(p) for p in parts):
-            raise InvalidMeshError(f"no element carries physical tag {tag}")
-        return np.unique(np.concatenate(parts))
+            (3, self._tets, self._tet_tags)))
 
     # -- topology (cached) ----------------------------------------------------------
     @cached_property

@@ -23,8 +23,7 @@ from .._typing import FloatArray, IntArray
 from ..conversions import Carried
 from ..cores import thread_budget
 from ..errors import InvalidMeshError
-from ..kernels.admissibility import (BoundaryCheck, area_problem, first_non_finite_row,
-                                      target_loop_problem)
+from ..kernels.admissibility import BoundaryCheck, area_problem, target_loop_problem
 from ..kernels.triangles import aspect_ratios, inverse_shape_quality, signed_areas
 from ..mesh import PlanarMesh, require_admissible
 from ..mesh.kinds import SURFACE, TETS, class_kind
@@ -32,8 +31,9 @@ from ..riemannian.discrete_geodesic import discrete_geodesic
 from ..riemannian.path_options import LevenbergMarquardtOptions
 from ..results import DoneMotion
 from ..scaling import UnitScale, at_unit_size, size_scale
-from .engine.continuation import NoAdmissiblePathError
-from .engine.handles import SelfIntersectionGuard
+from .engine.continuation import NoAdmissiblePathError, frame_times
+from .engine.handles import (SelfIntersectionGuard, check_handle_indices, check_handles,
+                             distinct_handles)
 from .engine.pinned_cells import pinned, turned_over_problem
 from .engine.polish import quality_rounds
 from .engine.similarity import HandlePath, Similarity, fit_similarity, handle_groups
@@ -103,34 +103,14 @@ class MoveResult(DoneMotion):
 
 
 def _check_handles(mesh: PlanarMesh, handles, targets) -> tuple[IntArray, FloatArray | None]:
-    h = np.asarray(handles)
-    if h.ndim != 1 or h.size == 0 or not np.issubdtype(h.dtype, np.integer):
-        raise InvalidMeshError("handles must be a non-empty 1-D array of vertex indices")
-    bad = (h < 0) | (h >= mesh.n_vertices)
-    if bad.any():
-        raise InvalidMeshError(f"handle index {int(h[bad][0])} out of range "
-                               f"(the mesh has {mesh.n_vertices} vertices)")
+    """The checks of :func:`~.engine.handles.check_handles` in the plane, each handle once
+    (:func:`~.engine.handles.distinct_handles`); a target path takes each handle once."""
     if callable(targets):
-        uniq = np.unique(h)
-        if uniq.size != h.size:
+        h = check_handle_indices(handles, mesh.n_vertices)
+        if np.unique(h).size != h.size:
             raise InvalidMeshError("duplicate handles with a target path: give each once")
-        return h.astype(np.int64), None
-    t = np.asarray(targets, dtype=float)
-    if t.shape != (h.size, 2):
-        raise InvalidMeshError(f"targets must have shape ({h.size}, 2), got {t.shape}")
-    if (row := first_non_finite_row(t)) is not None:
-        raise InvalidMeshError(f"target of handle {int(h[row])} is not finite: {t[row].tolist()}")
-    order = np.argsort(h, kind="stable")
-    hs, ts = h[order], t[order]
-    same = hs[1:] == hs[:-1]
-    if same.any():
-        clash = same & np.any(ts[1:] != ts[:-1], axis=1)
-        if clash.any():
-            v = int(hs[1:][clash][0])
-            raise InvalidMeshError(f"vertex {v} is a handle twice with different targets")
-        keep = np.concatenate([[True], ~same])
-        hs, ts = hs[keep], ts[keep]
-    return hs.astype(np.int64), ts
+        return h, None
+    return distinct_handles(*check_handles(handles, targets, mesh.n_vertices, dim=2))
 
 
 # A quality round stops when its gradient fell by this factor: Newton's steps are then in
@@ -379,9 +359,7 @@ def _move_planar(mesh: PlanarMesh, handles, targets, *, frames, steps, weight, r
         path = targets
         tg = np.asarray(targets(1.0), float)
     metric = GraphMetric(P, tri, weight)
-    n_steps = max(int(steps), (frames or 2) - 1)
-    times = np.linspace(0.0, 1.0, n_steps + 1)
-    pick = np.round(np.linspace(0, n_steps, int(frames or 2))).astype(int)
+    times, pick = frame_times(steps, frames)
     if not callable(targets) and np.allclose(residual_targets, P[h], rtol=0,
                                              atol=1e-12 * mesh.diameter):
         # the handles move by a similarity: so does the whole mesh (no strain at all)

@@ -201,14 +201,7 @@ class ComplexEngine(_OneBlockEngine):
         corner = None
         if term is not None:
             c = term.coef
-            sq = er * er
-            sq += ei * ei
-            if term.quality:
-                N = sq.sum(axis=0)  # S = Σ|e_l|²
-            else:
-                E = np.sqrt(sq)
-                N = E.sum(axis=0)
-                iE = 1.0 / E
+            N, iE = term.measure(er, ei)
             ratio = N * inv
             acc.values[term.name] = c * float(ratio.sum())
             if want.gradient:
@@ -224,17 +217,8 @@ class ComplexEngine(_OneBlockEngine):
                     corner -= phi[[2, 0, 1]]
                     corner *= c * inv
             if with_v:
-                ew = er * wr
-                ew += ei * wi  # e_l · w_l
-                ww = wr * wr
-                ww += wi * wi
-                if term.quality:
-                    n1 = 2.0 * ew.sum(axis=0)
-                    n2 = 2.0 * ww.sum(axis=0)
-                else:
-                    fw = ew * iE  # u_l · w_l
-                    n1 = fw.sum(axis=0)
-                    n2 = ((ww - fw * fw) * iE).sum(axis=0)
+                n1, fw = term.first_variation(er, ei, wr, wi, iE)
+                n2 = term.second_variation(wr, wi, fw, iE)
                 a1_a = a1 * inv
                 curv = n2 - ratio * a2
                 curv += 2.0 * a1_a * (ratio * a1 - n1)

@@ -90,19 +90,43 @@ class _TriangleQuotientTerm:
         self.quality = kind == "quality"
         self.coef = float(coef)
 
+    def measure(self, ex, ey) -> tuple[FloatArray, FloatArray | None]:
+        """``N`` per triangle of the edge vectors ``(ex, ey)`` (3, ...), and ``1/E_l``
+        (None for ``S``): what both engines evaluate the term from."""
+        sq = ex * ex
+        sq += ey * ey
+        if self.quality:
+            return sq[0] + sq[1] + sq[2], None
+        E = np.sqrt(sq)
+        return E[0] + E[1] + E[2], 1.0 / E
+
+    @staticmethod
+    def first_variation(ex, ey, wx, wy, iE) -> tuple[FloatArray, FloatArray | None]:
+        """``n1 = N'[V]`` from the edge vectors and their variations ``(wx, wy)`` (3, ...),
+        ``iE`` that of :meth:`measure`; and ``u_l · w_l`` (None for ``S``)."""
+        ew = ex * wx
+        ew += ey * wy  # e_l · w_l
+        if iE is None:
+            return 2.0 * (ew[0] + ew[1] + ew[2]), None
+        fw = ew * iE  # u_l · w_l
+        return fw[0] + fw[1] + fw[2], fw
+
+    @staticmethod
+    def second_variation(wx, wy, fw, iE) -> FloatArray:
+        """``n2 = N''[V, V]``, ``fw`` and ``iE`` those of :meth:`first_variation` and
+        :meth:`measure`."""
+        ww = wx * wx
+        ww += wy * wy
+        if iE is None:
+            return 2.0 * (ww[0] + ww[1] + ww[2])
+        t = (ww - fw * fw) * iE
+        return t[0] + t[1] + t[2]
+
     def block(self, ex, ey, A, wx, wy, want: _Want, gout, hout) -> tuple[float, float]:
         """One block of triangles: ``(value, curvature)``; vertex vectors of the gradient
         and the hvp are written into ``gout``/``hout`` = ``(x (3, b), y (3, b))``."""
         c = self.coef
-        sq = ex * ex
-        sq += ey * ey
-        if self.quality:
-            N = sq[0] + sq[1] + sq[2]
-            iE = None
-        else:
-            E = np.sqrt(sq)
-            N = E[0] + E[1] + E[2]
-            iE = 1.0 / E
+        N, iE = self.measure(ex, ey)
         inv_a = 1.0 / A
         ratio = N * inv_a  # N / A
         value = c * float(ratio.sum())
@@ -115,23 +139,11 @@ class _TriangleQuotientTerm:
             _to_vertices(f * ex, f * ey, r * ex, r * ey, *gout)
         if wx is None:
             return value, curvature
-        ew = ex * wx
-        ew += ey * wy  # e_l · w_l
-        if iE is None:
-            n1 = 2.0 * (ew[0] + ew[1] + ew[2])
-        else:
-            fw = ew * iE  # u_l · w_l
-            n1 = fw[0] + fw[1] + fw[2]
+        n1, fw = self.first_variation(ex, ey, wx, wy, iE)
         a1 = 0.5 * (wx[2] * ey[0] + ex[2] * wy[0] - wy[2] * ex[0] - ey[2] * wx[0])
         a1_a = a1 * inv_a
         if want.curvature:  # second directional derivatives n2 = N''[V, V], a2 = 2 A(V)
-            ww = wx * wx
-            ww += wy * wy
-            if iE is None:
-                n2 = 2.0 * (ww[0] + ww[1] + ww[2])
-            else:
-                t = (ww - fw * fw) * iE
-                n2 = t[0] + t[1] + t[2]
+            n2 = self.second_variation(wx, wy, fw, iE)
             a2 = wx[2] * wy[0] - wy[2] * wx[0]
             curv = inv_a * (n2 - 2.0 * n1 * a1_a - ratio * a2 + 2.0 * ratio * a1_a * a1)
             curvature = c * float(curv.sum())

@@ -55,23 +55,28 @@ def _group_curves(gmsh, tag_of) -> dict[str, list[int]]:
     return groups
 
 
+def _cut_and_group(gmsh, body: int, tools: list[int], tag_of) -> dict[str, list[int]]:
+    """Cut the surfaces ``tools`` out of the surface ``body``, synchronize the model and
+    group the boundary curves by ``tag_of`` (:func:`_group_curves`)."""
+    gmsh.model.occ.cut([(2, body)], [(2, t) for t in tools])
+    gmsh.model.occ.synchronize()
+    return _group_curves(gmsh, tag_of)
+
+
 def _build(gmsh, case: str, size: float) -> dict[str, list[int]]:
     occ = gmsh.model.occ
     if case == "plate":
         r = occ.addRectangle(0, 0, 0, 6, 2)
         h1 = occ.addDisk(1.8, 1.0, 0, 0.45, 0.45)
         h2 = occ.addDisk(4.2, 1.0, 0, 0.45, 0.45)
-        occ.cut([(2, r)], [(2, h1), (2, h2)])
-        occ.synchronize()
-        return _group_curves(gmsh, lambda x, y: "hole1" if abs(x - 1.8) < 0.5 and abs(y - 1) < 0.5
-                             else "hole2" if abs(x - 4.2) < 0.5 and abs(y - 1) < 0.5 else "outer")
+        return _cut_and_group(gmsh, r, [h1, h2], lambda x, y: "hole1" if abs(x - 1.8) < 0.5
+                              and abs(y - 1) < 0.5 else "hole2" if abs(x - 4.2) < 0.5
+                              and abs(y - 1) < 0.5 else "outer")
     if case == "lshape":
         a = occ.addRectangle(0, 0, 0, 2, 2)
         b = occ.addRectangle(1, 1, 0, 1, 1)
-        occ.cut([(2, a)], [(2, b)])
-        occ.synchronize()
-        return _group_curves(gmsh, lambda x, y: "reentrant" if x >= 1 - 1e-9 and y >= 1 - 1e-9
-                             else "outer")
+        return _cut_and_group(gmsh, a, [b], lambda x, y: "reentrant"
+                              if x >= 1 - 1e-9 and y >= 1 - 1e-9 else "outer")
     if case == "airfoil":
         box = occ.addRectangle(-1.5, -1.0, 0, 4.0, 2.0)
         pts = [occ.addPoint(px + 0.0, py, 0, size / 4) for px, py in _naca0012()]
@@ -79,17 +84,13 @@ def _build(gmsh, case: str, size: float) -> dict[str, list[int]]:
         loop = occ.addCurveLoop([spline])
         foil = occ.addPlaneSurface([loop])
         occ.rotate([(2, foil)], 0.25, 0, 0, 0, 0, 1, -np.radians(4.0))
-        occ.cut([(2, box)], [(2, foil)])
-        occ.synchronize()
-        return _group_curves(gmsh, lambda x, y: "airfoil" if -0.2 < x < 1.2 and abs(y) < 0.3
-                             else "box")
+        return _cut_and_group(gmsh, box, [foil], lambda x, y: "airfoil"
+                              if -0.2 < x < 1.2 and abs(y) < 0.3 else "box")
     if case == "channel":
         ch = occ.addRectangle(0, 0, 0, 3, 1)
         d = occ.addDisk(0.8, 0.5, 0, 0.15, 0.15)
         s = occ.addRectangle(1.8, 0.35, 0, 0.3, 0.3)
         occ.rotate([(2, s)], 1.95, 0.5, 0, 0, 0, 1, np.radians(30))
-        occ.cut([(2, ch)], [(2, d), (2, s)])
-        occ.synchronize()
 
         def name(x, y):
             if abs(x) < 1e-9:
@@ -100,7 +101,7 @@ def _build(gmsh, case: str, size: float) -> dict[str, list[int]]:
                 return "walls"
             return "disc" if x < 1.3 else "square"
 
-        return _group_curves(gmsh, name)
+        return _cut_and_group(gmsh, ch, [d, s], name)
     if case == "rectangle":
         occ.addRectangle(0, 0, 0, 2, 1)
         occ.synchronize()
@@ -109,11 +110,10 @@ def _build(gmsh, case: str, size: float) -> dict[str, list[int]]:
     if case in ("holed_square", "disc_in_box"):
         a, b = (1.5, 1.5) if case == "holed_square" else (2.0, 1.5)
         box = occ.addRectangle(-a, -b, 0, 2 * a, 2 * b)
-        occ.cut([(2, box)], [(2, occ.addDisk(0, 0, 0, 0.5, 0.5))])
-        occ.synchronize()
         inner = "hole" if case == "holed_square" else "body"
-        return _group_curves(gmsh, lambda x, y: inner if abs(x) < 1 and abs(y) < 1
-                             else ("outer" if case == "holed_square" else "box"))
+        return _cut_and_group(gmsh, box, [occ.addDisk(0, 0, 0, 0.5, 0.5)],
+                              lambda x, y: inner if abs(x) < 1 and abs(y) < 1
+                              else ("outer" if case == "holed_square" else "box"))
     raise ValueError(f"unknown case {case!r}; choose one of {', '.join(CASES)}")
 
 
@@ -137,10 +137,8 @@ def ellipse_in_box(path: str | os.PathLike, half_axes: tuple[float, float],
         e = occ.addDisk(0, 0, 0, max(a, b), min(a, b))
         if b > a:  # gmsh wants the x radius the larger one
             occ.rotate([(2, e)], 0, 0, 0, 0, 0, 1, np.pi / 2)
-        occ.cut([(2, r)], [(2, e)])
-        occ.synchronize()
-        return _group_curves(gmsh, lambda x, y: inner if abs(x) < w / 2 - 1e-6 and
-                             abs(y) < h / 2 - 1e-6 else outer)
+        return _cut_and_group(gmsh, r, [e], lambda x, y: inner if abs(x) < w / 2 - 1e-6
+                              and abs(y) < h / 2 - 1e-6 else outer)
 
     return _mesh(path, "ellipse_in_box", build, size, refine_near, (inner,))
 
@@ -170,9 +168,7 @@ def _mesh(path, name: str, build, size: float, refine_near: float | None,
     """Build the model ``name`` (``build(gmsh) -> {group: curves}``), mesh it (size
     ``refine_near`` on the ``refined`` groups' curves) and write it to ``path``."""
     path = Path(path)
-    with gmsh_session() as gmsh:
-        gmsh.option.setNumber("General.NumThreads", 1)
-        gmsh.option.setNumber("Mesh.RandomSeed", 1)
+    with gmsh_session(deterministic=True) as gmsh:
         gmsh.model.add(name)
         groups = build(gmsh)
         gmsh.option.setNumber("Mesh.MeshSizeMax", size)
@@ -264,9 +260,7 @@ def solid_in_box(path: str | os.PathLike, add_body, size: float = 1.0,
     Path
     """
     path = Path(path)
-    with gmsh_session() as gmsh:
-        gmsh.option.setNumber("General.NumThreads", 1)
-        gmsh.option.setNumber("Mesh.RandomSeed", 1)
+    with gmsh_session(deterministic=True) as gmsh:
         gmsh.model.add("body_in_box")
         occ = gmsh.model.occ
         lx, ly, lz = BOX_3D

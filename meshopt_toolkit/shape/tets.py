@@ -22,6 +22,7 @@ import numpy as np
 from .._typing import FloatArray, IntArray
 from ..cells.tetrahedra import TETRAHEDRA
 from ..kernels.tetrahedra import mean_ratios, signed_volumes
+from ..kernels.triangles import first_positive_roots
 from ..motion.tets.distortion import TetDistortion
 from ..solvers import factorize_spd
 from .problem import ShapeProblem
@@ -81,18 +82,7 @@ def tet_step_limit(Q: FloatArray, tets: IntArray, d: FloatArray) -> float:
         roots[cubic] = s.min(axis=1)
     low = ~cubic  # at most quadratic: the planar formula
     if low.any():
-        a, b, c0 = p[2, low], p[1, low], p[0, low]
-        with np.errstate(all="ignore"):
-            disc = b * b - 4 * a * c0
-            sq = np.sqrt(np.maximum(disc, 0.0))
-            qq = -0.5 * (b + np.where(b >= 0, sq, -sq))
-            r1 = np.where(a != 0, qq / a, np.inf)
-            r2 = np.where(qq != 0, c0 / qq, np.inf)
-            lin = np.where(b < 0, -c0 / b, np.inf)
-        r1 = np.where((r1 > 0) & np.isfinite(r1), r1, np.inf)
-        r2 = np.where((r2 > 0) & np.isfinite(r2), r2, np.inf)
-        r = np.where(a == 0, lin, np.where(disc < 0, np.inf, np.minimum(r1, r2)))
-        roots[low] = r
+        roots[low] = first_positive_roots(p[2, low], p[1, low], p[0, low])
     return float(np.min(roots * tau))
 
 

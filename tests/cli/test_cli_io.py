@@ -244,3 +244,18 @@ def test_csv_table_keeps_integers_and_ten_digits_of_floats():
         assert frame == str(i) and count == str(k[i])
         assert float(value) == float(f"{x[i]:.10g}")
         assert abs(float(value) - x[i]) <= 1e-9 * abs(x[i])
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["run", "p.json", "m.msh", "--max-triangles", "0"], "expected a positive integer, got '0'"),
+    (["run", "p.json", "m.msh", "--max-triangles", "x"], "expected a positive integer, got 'x'"),
+    (["convert", "m.msh", "-o", "o.vtu", "-j", "-1"],
+     "expected 0 (all cores) or a positive integer, got '-1'"),
+    (["convert", "m.msh", "-o", "o.vtu", "--jobs", "2.5"],
+     "expected 0 (all cores) or a positive integer, got '2.5'"),
+])
+def test_integer_options_below_their_range_are_usage_errors(argv, words, capsys):
+    with pytest.raises(SystemExit) as info:
+        main(argv)
+    assert info.value.code == 2
+    assert capsys.readouterr().err.strip().splitlines()[-1].endswith(words)

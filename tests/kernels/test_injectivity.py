@@ -24,10 +24,8 @@ HOLE = "(x-3)**2+(y-1)**2<0.2"  # the hole at (3, 1) of the plate
 def _gmsh_mesh(build, size: float) -> PlanarMesh:
     gmsh_session = pytest.importorskip("meshopt_toolkit.gmsh_session").gmsh_session
     pytest.importorskip("gmsh")
-    with gmsh_session() as gmsh:
+    with gmsh_session(deterministic=True) as gmsh:
         build(gmsh)
-        gmsh.option.setNumber("General.NumThreads", 1)
-        gmsh.option.setNumber("Mesh.RandomSeed", 1)
         gmsh.option.setNumber("Mesh.MeshSizeMax", size)
         gmsh.model.mesh.generate(2)
         tags, coords, _ = gmsh.model.mesh.getNodes()

@@ -341,3 +341,26 @@ def test_doubled_areas_of_frames_equal_signed_areas_frame_by_frame():
     got = doubled_areas_of_frames(frames, np.ascontiguousarray(mesh.triangles.T))
     want = np.stack([2 * signed_areas(f, mesh.triangles) for f in frames])
     np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-15)
+
+
+_LEADING = st.one_of(st.just(0.0), st.floats(0.01, 10), st.floats(-10, -0.01))
+
+
+@settings(deadline=None, max_examples=200)
+@given(st.lists(st.tuples(_LEADING, st.floats(-10, 10).filter(lambda v: abs(v) > 1e-6 or v == 0),
+                          st.floats(0.01, 10)),
+                min_size=1, max_size=20))
+def test_first_positive_roots_agree_with_the_textbook_formula(coefficients):
+    from meshopt_toolkit.kernels.triangles import first_positive_roots
+
+    a, b, c = (np.array(v) for v in zip(*coefficients))
+    got = first_positive_roots(a, b, c)
+    for ak, bk, ck, g in zip(a, b, c, got):
+        if ak == 0:
+            roots = [-ck / bk] if bk != 0 else []
+        else:
+            disc = bk * bk - 4 * ak * ck
+            roots = [] if disc < 0 else [(-bk + s * math.sqrt(disc)) / (2 * ak) for s in (1, -1)]
+        positive = [r for r in roots if r > 0]
+        expected = min(positive) if positive else math.inf
+        assert g == pytest.approx(expected, rel=1e-9), (ak, bk, ck)

@@ -344,6 +344,20 @@ def test_refine_inherits_tags():
     assert set(map(tuple, f.lines.tolist())) == set(map(tuple, f.boundary_edges.tolist()))
 
 
+@pytest.mark.parametrize("kind", ["planar", "surface"])
+def test_tagged_vertices_by_name_take_the_group_dimension_only(kind):
+    # gmsh numbers physical groups per dimension: line group 1 and surface group 1 differ
+    from meshopt_toolkit.mesh import PlanarMesh, SurfaceMesh
+
+    cls = PlanarMesh if kind == "planar" else SurfaceMesh
+    P = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
+    mesh = cls(P, [[0, 1, 2], [0, 2, 3]], triangle_tags=[1, 1], lines=[[0, 1]],
+               line_tags=[1], tag_names={"bottom": (1, 1), "domain": (1, 2)})
+    np.testing.assert_array_equal(mesh.tagged_vertices("bottom"), [0, 1])
+    np.testing.assert_array_equal(mesh.tagged_vertices("domain"), [0, 1, 2, 3])
+    np.testing.assert_array_equal(mesh.tagged_vertices(1), [0, 1, 2, 3])
+
+
 def test_tagged_vertices_errors(square):
     with pytest.raises(InvalidMeshError, match="no physical group named 'wall'"):
         square.tagged_vertices("wall")

@@ -215,9 +215,7 @@ def box_with_hole(path, size: float = 0.35):
     """A gmsh tet mesh of [-1, 1]³ minus a ball of radius 0.4 (physical groups)."""
     from meshopt_toolkit.gmsh_session import gmsh_session
 
-    with gmsh_session() as gmsh:
-        gmsh.option.setNumber("General.NumThreads", 1)
-        gmsh.option.setNumber("Mesh.RandomSeed", 1)
+    with gmsh_session(deterministic=True) as gmsh:
         box = gmsh.model.occ.addBox(-1, -1, -1, 2, 2, 2)
         ball = gmsh.model.occ.addSphere(0, 0, 0, 0.4)
         gmsh.model.occ.cut([(3, box)], [(3, ball)])

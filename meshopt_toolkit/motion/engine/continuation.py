@@ -32,6 +32,15 @@ def check_frames_and_weight(frames: int, weight: float) -> None:
     require_positive("weight", weight)
 
 
+def frame_times(steps: int, frames: int | None) -> tuple[FloatArray, np.ndarray]:
+    """The times on ``[0, 1]`` a motion's continuation reaches (``steps`` steps, more
+    where more ``frames`` are asked for) and the indices among them of the ``frames``
+    returned (the two ends when ``frames`` is None)."""
+    n_steps = max(int(steps), (frames or 2) - 1)
+    times = np.linspace(0.0, 1.0, n_steps + 1)
+    return times, np.round(np.linspace(0, n_steps, int(frames or 2))).astype(int)
+
+
 class StepRule(Protocol):
     """How :func:`march` chooses the steps of the path parameter ``s``."""
 

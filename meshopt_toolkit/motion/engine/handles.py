@@ -12,9 +12,30 @@ from ...kernels.admissibility import first_non_finite_row
 from ...kernels.intersections3d import self_intersections
 
 
-def check_handles(handles, targets, n_vertices: int) -> tuple[np.ndarray, FloatArray]:
-    """``(handles, targets)`` as arrays after the shape checks: a non-empty 1-D integer
-    array of vertex indices in range, and finite targets ``(k, 3)``.
+def check_handle_indices(handles, n_vertices: int) -> IntArray:
+    """``handles`` as an int64 array after the checks: a non-empty 1-D integer array of
+    vertex indices in range.
+
+    Raises
+    ------
+    InvalidMeshError
+        One line naming the first bad entry by its position ``k`` in ``handles``
+        (``handles[k] = 200 is out of range ...``).
+    """
+    h = np.asarray(handles)
+    if h.ndim != 1 or h.size == 0 or not np.issubdtype(h.dtype, np.integer):
+        raise InvalidMeshError("handles must be a non-empty 1-D array of vertex indices")
+    bad = np.flatnonzero((h < 0) | (h >= n_vertices))
+    if bad.size:
+        raise InvalidMeshError(f"handles[{bad[0]}] = {h[bad[0]]} is out of range (the mesh "
+                               f"has {n_vertices} vertices, 0 to {n_vertices - 1})")
+    return h.astype(np.int64)
+
+
+def check_handles(handles, targets, n_vertices: int,
+                  dim: int = 3) -> tuple[IntArray, FloatArray]:
+    """``(handles, targets)`` as arrays after the shape checks: the handles as
+    :func:`check_handle_indices` takes them, and finite targets ``(k, dim)``.
 
     Raises
     ------
@@ -22,20 +43,14 @@ def check_handles(handles, targets, n_vertices: int) -> tuple[np.ndarray, FloatA
         One line naming what is wrong: the first bad entry by its position ``k`` in
         ``handles`` (``handles[k] = 200 is out of range ...``), its vertex and target.
     """
-    h = np.asarray(handles)
+    h = check_handle_indices(handles, n_vertices)
     tg = np.asarray(targets, dtype=float)
-    if h.ndim != 1 or h.size == 0 or not np.issubdtype(h.dtype, np.integer):
-        raise InvalidMeshError("handles must be a non-empty 1-D array of vertex indices")
-    bad = np.flatnonzero((h < 0) | (h >= n_vertices))
-    if bad.size:
-        raise InvalidMeshError(f"handles[{bad[0]}] = {h[bad[0]]} is out of range (the mesh "
-                               f"has {n_vertices} vertices, 0 to {n_vertices - 1})")
-    if tg.shape != (h.size, 3):
-        raise InvalidMeshError(f"targets must have shape ({h.size}, 3), got {tg.shape}")
+    if tg.shape != (h.size, dim):
+        raise InvalidMeshError(f"targets must have shape ({h.size}, {dim}), got {tg.shape}")
     if (k := first_non_finite_row(tg)) is not None:
         raise InvalidMeshError(f"targets[{k}] (of vertex {h[k]}) is not finite: "
                                f"{tg[k].tolist()}")
-    return h.astype(np.int64), tg
+    return h, tg
 
 
 def distinct_handles(handles: IntArray, targets: FloatArray) -> tuple[IntArray, FloatArray]:

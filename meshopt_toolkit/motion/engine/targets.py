@@ -188,7 +188,8 @@ def fix_boundary(mesh: PlanarMesh | TetMesh, handles: IntArray, targets: FloatAr
             np.concatenate([targets.reshape(-1, _dim(mesh)), mesh.points[kept]]))
 
 
-def group_vertices(mesh: PlanarMesh | TetMesh, group: str, option: str = "--group") -> IntArray:
+def group_vertices(mesh: PlanarMesh | TetMesh | SurfaceMesh, group: str,
+                   option: str = "--group") -> IntArray:
     """The vertices of the physical group ``group``: its name, or its number as digits.
 
     Raises
@@ -200,27 +201,10 @@ def group_vertices(mesh: PlanarMesh | TetMesh, group: str, option: str = "--grou
     text = str(group).strip()
     key: int | str = int(text) if text.isdigit() else text
     try:
-        if is_surface(mesh):
-            return _surface_tagged(mesh, key)
         return mesh.tagged_vertices(key)
     except InvalidMeshError:
         raise InvalidMeshError(f"{option} {quoted(text)}: {_source(mesh)}no such physical "
                                f"group; {_groups(mesh)}") from None
-
-
-def _surface_tagged(mesh: SurfaceMesh, tag: int | str) -> IntArray:
-    """The vertices of a surface's line elements or triangles carrying a physical tag or
-    name (as ``PlanarMesh.tagged_vertices``)."""
-    if isinstance(tag, str):
-        if tag not in mesh.tag_names:
-            raise InvalidMeshError(f"no physical group named {tag!r}")
-        tag = mesh.tag_names[tag][0]
-    parts = [np.asarray(e)[np.asarray(t) == tag].ravel()
-             for e, t in ((mesh.lines, mesh.line_tags), (mesh.triangles, mesh.triangle_tags))
-             if t is not None]
-    if not sum(len(p) for p in parts):
-        raise InvalidMeshError(f"no element carries physical tag {tag}")
-    return np.unique(np.concatenate(parts))
 
 
 def _source(mesh: PlanarMesh | TetMesh) -> str:

@@ -43,7 +43,7 @@ from ...mesh import TetMesh
 from ...results import WrappedMotion
 from ...scaling import UnitScale
 from ..engine.contact import NoContact
-from ..engine.continuation import NoAdmissiblePathError, march
+from ..engine.continuation import NoAdmissiblePathError, frame_times, march
 from ..engine.handles import SolvedVertices, check_handles, distinct_handles
 from ..engine.pinned_cells import pinned, turned_over_problem
 from ..engine.polish import quality_rounds
@@ -213,9 +213,7 @@ def move_tets(points: FloatArray, tets: IntArray, handles, targets, *, steps: in
     require_at_least("frames", frames, 2, error=InvalidMeshError)  # the input and the result
     S = fit_similarity_3d(P[h], tg)
     residual_targets = S.inverse(tg)
-    n_steps = max(int(steps), (frames or 2) - 1)
-    times = np.linspace(0.0, 1.0, n_steps + 1)
-    pick = np.round(np.linspace(0, n_steps, int(frames or 2))).astype(int)
+    times, pick = frame_times(steps, frames)
     strain = TetDistortion(P, T)
     mass = lumped_mass(P, T)
     details: dict = {"continuation_splits": 0, "step_iterations": 0, "finish_iterations": 0,
