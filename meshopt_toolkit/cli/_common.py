@@ -76,11 +76,13 @@ def add_contact_flag(p: argparse.ArgumentParser, what: str) -> None:
                         "self-intersections; default on)")
 
 
-def expand_inputs(items: list[str], recursive: bool = False) -> list[Path]:
+def expand_inputs(items: list[str], recursive: bool = False,
+                  include_hint: str = "use --recursive to include them") -> list[Path]:
     """Files, globs and directories (their mesh files) → sorted unique paths.
 
     A directory contributes the mesh files directly in it; with ``recursive`` also those
-    in its sub-folders (hidden ones excluded). Skipped sub-folders are logged as a warning.
+    in its sub-folders (hidden ones excluded). Skipped sub-folders are logged as a warning
+    ending in ``include_hint`` (how the command includes them).
 
     Raises
     ------
@@ -91,7 +93,7 @@ def expand_inputs(items: list[str], recursive: bool = False) -> list[Path]:
     for item in items:
         p = Path(item)
         if p.is_dir():
-            found = _directory_meshes(p, recursive)
+            found = _directory_meshes(p, recursive, include_hint)
             if not found:
                 raise MeshoptError(f"{item}: directory has no mesh files ({', '.join(MESH_SUFFIXES)})")
             paths.extend(found)
@@ -114,7 +116,7 @@ def expand_inputs(items: list[str], recursive: bool = False) -> list[Path]:
     return unique
 
 
-def _directory_meshes(p: Path, recursive: bool) -> list[Path]:
+def _directory_meshes(p: Path, recursive: bool, include_hint: str) -> list[Path]:
     # a FIFO or device named like a mesh is listed, so that it fails with one line
     files = sorted(q for q in (p.rglob("*") if recursive else p.iterdir())
                    if q.suffix.lower() in MESH_SUFFIXES and not q.is_dir()
@@ -123,8 +125,9 @@ def _directory_meshes(p: Path, recursive: bool) -> list[Path]:
         subs = sorted(q.name for q in p.iterdir() if q.is_dir() and not q.name.startswith("."))
         if subs:
             logging.getLogger("meshopt").warning(
-                "%s: %d sub-folder(s) not searched (%s); use --recursive to include them",
-                p, len(subs), ", ".join(subs[:5]) + (", ..." if len(subs) > 5 else ""))
+                "%s: %d sub-folder(s) not searched (%s); %s",
+                p, len(subs), ", ".join(subs[:5]) + (", ..." if len(subs) > 5 else ""),
+                include_hint)
     return files
 
 

@@ -107,7 +107,7 @@ def run(args) -> int:
     seen: set[Path] = set()
     for item in args.inputs:
         try:
-            for p in expand_inputs([item]):
+            for p in expand_inputs([item], include_hint="name them as inputs to include them"):
                 if p not in seen:
                     seen.add(p)
                     inputs.append(p)
