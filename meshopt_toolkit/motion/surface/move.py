@@ -4,9 +4,10 @@ as well as the motion allows, with no degenerate and no folded triangle.
 
 The handles travel along :class:`..engine.similarity.HandlePath` (each connected group's
 similarity followed along its screw motion, the remainder linearly; with contact a half
-turn, which the fit could take either way round, goes the fit's way and, where that motion
-is refused, the way along which the group's handles sweep through fewer of the triangles
-at rest, :func:`clearer_half_turns`) in ``steps`` increments: the engine's continuation
+turn, which the fit could take either way round, goes the way
+:meth:`..engine.similarity.HandlePath.oriented_half_turns` takes about the surface's
+centroid and, where that motion is refused, the way along which the group's handles sweep
+through fewer of the triangles at rest, :func:`clearer_half_turns`) in ``steps`` increments: the engine's continuation
 :func:`..engine.continuation.march` with its :class:`..engine.continuation.GrowingSteps`
 (an increment halved where it cannot be taken, doubled back after two taken in a row),
 every increment a frame. Each increment is a minimizing movement (:mod:`.least_squares`):
@@ -149,8 +150,8 @@ def clearer_half_turns(path: HandlePath, V: FloatArray, F: IntArray, handles: In
     """``path`` with each group that turns by a half turn (:meth:`HandlePath.half_turns`:
     the two ways round equally short) turned the way along which its handles, as points
     on ``samples`` chords of their arcs, cross fewer of the triangles at rest that touch
-    none of them (exact, :func:`...kernels.intersections3d.intersecting_pairs`); the fit's
-    way where both cross as many. A finger curled back over its palm goes over it, not
+    none of them (exact, :func:`...kernels.intersections3d.intersecting_pairs`); the way
+    ``path`` takes where both cross as many. A finger curled back over its palm goes over it, not
     under and through it."""
     for k in path.half_turns():
         g = path.pieces[k][0]
@@ -282,10 +283,12 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
         raise InvalidMeshError("a triangle refers to a vertex that does not exist")
     diameter = float(np.linalg.norm(V.max(0) - V.min(0)))
     whole = global_similarity(V[handles], targets, diameter) if len(handles) else None
-    path = HandlePath(V[handles], targets, handle_groups(handles, F, len(V)), motion="screw")
+    mass = lumped_mass(V, F)
+    path = HandlePath(V[handles], targets, handle_groups(handles, F, len(V)),
+                      motion="screw").oriented_half_turns(mass @ V / mass.sum())
     try:
         return _move_along(V, F, handles, targets, (path, whole), steps, contact, o, t_start)
-    except NotAdmissibleError:  # a half turn refused the fit's way: the clearer way, if other
+    except NotAdmissibleError:  # a half turn refused its way: the clearer way, if other
         clearer = clearer_half_turns(path, V, F, handles) if contact and whole is None else path
         if clearer is path:
             raise
