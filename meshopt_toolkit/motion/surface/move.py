@@ -198,7 +198,9 @@ class SurfaceMoveOptions:
         minimizer is the next one's start: too few steps can carry a transient kink to
         the end (a strip rolled into an arc ends kinked with 4).
     final_iterations, final_rtol : int, float
-        The same for the last increment (the result).
+        The same for the last increment (the result): iterated to its minimizer, which
+        under a stiff contact barrier (walls pressed together, ``κ`` doubled many times)
+        takes far more steps than an increment's ``max_iterations``.
     final_stall : float or None
         The last increment keeps its factor while each shortened step lowers the energy
         by at least this fraction of the first step on it (chord steps; a shortened step's
@@ -222,7 +224,7 @@ class SurfaceMoveOptions:
     area_weights: bool = True
     max_iterations: int = 8
     rtol: float = 1e-3
-    final_iterations: int = 30
+    final_iterations: int = 150
     final_rtol: float = 1e-6
     final_stall: float | None = 0.1
     cg_iterations: int = 0
