@@ -198,9 +198,13 @@ class SurfaceMoveOptions:
         minimizer is the next one's start: too few steps can carry a transient kink to
         the end (a strip rolled into an arc ends kinked with 4).
     final_iterations, final_rtol : int, float
-        The same for the last increment (the result): iterated to its minimizer, which
-        under a stiff contact barrier (walls pressed together, ``κ`` doubled many times)
-        takes far more steps than an increment's ``max_iterations``.
+        The same for the last increment (the result).
+    final_late_iterations : int
+        Where the last increment is not converged after ``final_iterations`` steps (under
+        a stiff contact barrier, walls pressed together and ``κ`` doubled many times, it
+        may be far from its minimizer), it goes on up to this many steps in all; the result
+        is then whichever of the two iterates is better (the worst relative quality after
+        the polish).
     final_stall : float or None
         The last increment keeps its factor while each shortened step lowers the energy
         by at least this fraction of the first step on it (chord steps; a shortened step's
@@ -224,7 +228,8 @@ class SurfaceMoveOptions:
     area_weights: bool = True
     max_iterations: int = 8
     rtol: float = 1e-3
-    final_iterations: int = 150
+    final_iterations: int = 30
+    final_late_iterations: int = 150
     final_rtol: float = 1e-6
     final_stall: float | None = 0.1
     cg_iterations: int = 0
@@ -342,8 +347,9 @@ def _move_along(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatArr
         problem.phi_ref = np.zeros((len(F), 3)) if rest else problem.membrane.values(start)
         problem.phi_ref[:, 0] += shift if rest else 0.0
         last = t1 >= 1.0  # the end state is the result: converged further
-        budget = ((max(max_iterations, final_iterations), final_rtol, final_stall) if last
-                  else (max_iterations, rtol, None))
+        budget = ((max(max_iterations, final_iterations, o.final_late_iterations), final_rtol,
+                   final_stall) if last else (max_iterations, rtol, None))
+        problem.keep_at = max(max_iterations, final_iterations) if last else None
         out = (solve_increment(problem, start, H1, handles, *budget) if pull is None
                else pull.increment(start, H1, last, *budget))
         if out is None:
@@ -368,14 +374,24 @@ def _move_along(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatArr
                           NotAdmissibleError(
                               f"no fold-free increment of the handles' path from t = {t:.4g}"))),
                       fallback=fallback)
-    polished = {"polish_vertices": 0}
-    if polish > 0:  # the result's worst triangles polished
-        Qp, polished = polish_worst_triangles(V, F, frames[-1], handles, iterations=polish,
+    # the last increment's iterate after final_iterations, where it went on (and clean)
+    early = problem.kept if problem.kept is not None and problem.contact.embedded(
+        problem.kept) else None
+    candidates = [(frames[-1], "late")] + ([(early, "early")] if early is not None else [])
+    best = None
+    for X, _ in candidates:
+        done = {"polish_vertices": 0}
+        if polish > 0:  # the result's worst triangles polished
+            Qp, done = polish_worst_triangles(V, F, X, handles, iterations=polish,
                                               clear=problem.contact.clear)
-        if problem.contact.embedded(Qp):  # else two triangles of a fan meet: dropped
-            frames[-1] = Qp.copy()
-        else:
-            polished = {"polish_vertices": 0}
+            if problem.contact.embedded(Qp):  # else two triangles of a fan meet: dropped
+                X = Qp
+            else:
+                done = {"polish_vertices": 0}
+        worst = float((aspect_ratios(X, F) / aspect_ratios(V, F)).min()) if len(F) else 1.0
+        if best is None or worst > best[0]:
+            best = (worst, X.copy(), done)
+    frames[-1], polished = best[1], best[2]
     phi_lengths, length = _path_lengths(frames, problem.membrane, problem.mass, weight)
     Q = frames[-1].copy()
     Q[handles] = targets
