@@ -7,10 +7,11 @@ similarity followed along its screw motion, the remainder linearly; with contact
 turn, which the fit could take either way round, goes the way
 :meth:`..engine.similarity.HandlePath.oriented_half_turns` takes about the surface's
 centroid and, where that motion is refused, the way along which the group's handles sweep
-through fewer of the triangles at rest, :func:`clearer_half_turns`) in ``steps`` increments: the engine's continuation
-:func:`..engine.continuation.march` with its :class:`..engine.continuation.GrowingSteps`
-(an increment halved where it cannot be taken, doubled back after two taken in a row),
-every increment a frame. Each increment is a minimizing movement (:mod:`.least_squares`):
+through fewer of the triangles at rest, :func:`clearer_half_turns`) in ``steps``
+increments: the engine's continuation :func:`..engine.continuation.march` with its
+:class:`..engine.continuation.GrowingSteps` (an increment halved where it cannot be
+taken, doubled back after two taken in a row), every increment a frame. Each increment
+is a minimizing movement (:mod:`.least_squares`):
 
     min_Q  ½|Q − Q_prev|²_M + ½ w² Σ_t a_t c_t |φ_t(Q) − φ̄_t|² + ½ b Σ_e c_e (θ_e(Q) − θ̄_e)²
 
@@ -29,7 +30,9 @@ on the normal equations (CHOLMOD; the increment's first factor is kept while ful
 are taken), each iterate accepted only where the energy decreases, every triangle keeps
 ``det C > 0`` and none folds (:class:`.folds.FoldTest`). The last increment, whose end is
 the result, is iterated further (``final_iterations``, ``final_rtol``), its factor kept
-through shortened steps until they stall (``final_stall``: chord steps). With
+through shortened steps until they stall (``final_stall``: chord steps); where that does
+not converge it goes on (``final_late_iterations``), and of the two iterates the one
+better after the polish is the result (pressed walls converge slowly under the barrier). With
 ``cg_iterations > 0`` a step on a kept factor is conjugate gradients preconditioned by the
 factor turned with the surface.
 
@@ -151,8 +154,8 @@ def clearer_half_turns(path: HandlePath, V: FloatArray, F: IntArray, handles: In
     the two ways round equally short) turned the way along which its handles, as points
     on ``samples`` chords of their arcs, cross fewer of the triangles at rest that touch
     none of them (exact, :func:`...kernels.intersections3d.intersecting_pairs`); the way
-    ``path`` takes where both cross as many. A finger curled back over its palm goes over it, not
-    under and through it."""
+    ``path`` takes where both cross as many. A finger curled back over its palm goes over
+    it, not under and through it."""
     for k in path.half_turns():
         g = path.pieces[k][0]
         near = np.zeros(len(V), bool)
@@ -375,11 +378,11 @@ def _move_along(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatArr
                               f"no fold-free increment of the handles' path from t = {t:.4g}"))),
                       fallback=fallback)
     # the last increment's iterate after final_iterations, where it went on (and clean)
-    early = problem.kept if problem.kept is not None and problem.contact.embedded(
-        problem.kept) else None
-    candidates = [(frames[-1], "late")] + ([(early, "early")] if early is not None else [])
+    early = problem.kept
+    candidates = [frames[-1]] + ([early] if early is not None and not np.array_equal(
+        early, frames[-1]) and problem.contact.embedded(early) else [])
     best = None
-    for X, _ in candidates:
+    for X in candidates:
         done = {"polish_vertices": 0}
         if polish > 0:  # the result's worst triangles polished
             Qp, done = polish_worst_triangles(V, F, X, handles, iterations=polish,
