@@ -315,6 +315,22 @@ class HandlePath:
         return [k for k, (_, S, _) in enumerate(self.pieces) if isinstance(S, Similarity3)
                 and abs(S.angle - np.pi) <= 1e-6]
 
+    def oriented_half_turns(self, centre: FloatArray) -> HandlePath:
+        """This path with each half turn (:meth:`half_turns`) taken the way the scene
+        decides, not the fit's rounding; ``centre`` is the moving body's centroid. Of the
+        two ways, the one along which the group's centroid passes, half way, nearer
+        ``centre`` (a cap turned about a hinge beside the body folds towards it); where
+        both pass equally near (the centroid on the axis: a twist), the right-handed turn
+        about the axis oriented from ``centre`` towards the group's centroid; where that is
+        perpendicular too, the fit's way. The choice turns with the scene (rotation
+        equivariant); a mirror image flips the second rule's handedness."""
+        out = self
+        for k in self.half_turns():
+            if _half_turn_key(self.pieces[k][1], self.start[self.pieces[k][0]].mean(axis=0),
+                              np.asarray(centre, float)) < 0.0:
+                out = out.turned_the_other_way(k)
+        return out
+
     def turned_the_other_way(self, k: int) -> HandlePath:
         """This path with group ``k``'s turn the other way round (the same rotation, its
         angle ``θ − 2π`` about the axis; in space only), the same targets."""
@@ -336,3 +352,19 @@ class HandlePath:
                 base = (S.screw(s) if self.motion == "screw" else S.at(s))(self.start[g])
             out[g] = base + s * rest
         return out
+
+
+def _half_turn_key(S: Similarity3, group: FloatArray, centre: FloatArray) -> float:
+    """Positive where ``S``'s own way of its half turn is the one
+    :meth:`HandlePath.oriented_half_turns` takes, negative where the other is, 0 where
+    neither rule decides. ``group``: the group's centroid at rest."""
+    q, u, _ = S._axis()
+    r = group - (S.centre + q)  # from the axis line's point nearest the fit's centre
+    r_perp = r - (r @ u) * u
+    size = float(np.linalg.norm(group - centre) + np.linalg.norm(r)) or 1.0
+    # S's way passes, half way, through axis + r∥ + u × r⊥; the other through − u × r⊥
+    nearer = -float(np.cross(u, r_perp) @ (group - r_perp - centre))
+    if abs(nearer) > 1e-9 * size**2:
+        return nearer
+    along = float(u @ (group - centre))  # S right-handed about the axis towards the group
+    return along if abs(along) > 1e-9 * size else 0.0

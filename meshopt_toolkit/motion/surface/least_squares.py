@@ -64,6 +64,8 @@ class Problem:
         self.row_weights = np.full(len(F), float(weight))
         #: the contact barrier on the free coordinates (:func:`..engine.contact.contact_term`)
         self.contact = NoContact()
+        #: the iterate after this many steps of :func:`solve_increment` is kept in ``kept``
+        self.keep_at, self.kept = None, None
 
     def parts(self, Q):
         phi = self.membrane.values(Q)
@@ -168,9 +170,11 @@ def solve_increment(problem: Problem, Q0, H1, handles, max_iterations: int, rtol
     A number: kept (chord steps) while each shortened step lowers the energy by at least
     ``stall`` times the first step on that factor and by more than ``rtol·E``; the increment
     ends where a full step, or one on a factor of its own linearization, lowers it by
-    ``rtol·E`` or less."""
+    ``rtol·E`` or less. The iterate after ``problem.keep_at`` steps, if reached, is kept
+    in ``problem.kept``."""
     d = np.zeros_like(Q0)
     d[handles] = H1 - Q0[handles]
+    problem.kept = None
     if not problem.free.any():  # every vertex a handle: the step is the handles' path
         Q = Q0 + d
         Q[handles] = H1
@@ -234,6 +238,8 @@ def solve_increment(problem: Problem, Q0, H1, handles, max_iterations: int, rtol
         alpha, (trial, E_trial) = found
         decrease = E - E_trial
         Q, E = trial, E_trial
+        if iterations == problem.keep_at:  # this iterate kept: a candidate of the caller
+            problem.kept = Q.copy()
         if stall is None:
             if decrease <= rtol * E:
                 break

@@ -4,12 +4,14 @@ as well as the motion allows, with no degenerate and no folded triangle.
 
 The handles travel along :class:`..engine.similarity.HandlePath` (each connected group's
 similarity followed along its screw motion, the remainder linearly; with contact a half
-turn, which the fit could take either way round, goes the fit's way and, where that motion
-is refused, the way along which the group's handles sweep through fewer of the triangles
-at rest, :func:`clearer_half_turns`) in ``steps`` increments: the engine's continuation
-:func:`..engine.continuation.march` with its :class:`..engine.continuation.GrowingSteps`
-(an increment halved where it cannot be taken, doubled back after two taken in a row),
-every increment a frame. Each increment is a minimizing movement (:mod:`.least_squares`):
+turn, which the fit could take either way round, goes the way
+:meth:`..engine.similarity.HandlePath.oriented_half_turns` takes about the surface's
+centroid and, where that motion is refused, the way along which the group's handles sweep
+through fewer of the triangles at rest, :func:`clearer_half_turns`) in ``steps``
+increments: the engine's continuation :func:`..engine.continuation.march` with its
+:class:`..engine.continuation.GrowingSteps` (an increment halved where it cannot be
+taken, doubled back after two taken in a row), every increment a frame. Each increment
+is a minimizing movement (:mod:`.least_squares`):
 
     min_Q  ½|Q − Q_prev|²_M + ½ w² Σ_t a_t c_t |φ_t(Q) − φ̄_t|² + ½ b Σ_e c_e (θ_e(Q) − θ̄_e)²
 
@@ -28,7 +30,9 @@ on the normal equations (CHOLMOD; the increment's first factor is kept while ful
 are taken), each iterate accepted only where the energy decreases, every triangle keeps
 ``det C > 0`` and none folds (:class:`.folds.FoldTest`). The last increment, whose end is
 the result, is iterated further (``final_iterations``, ``final_rtol``), its factor kept
-through shortened steps until they stall (``final_stall``: chord steps). With
+through shortened steps until they stall (``final_stall``: chord steps); where that does
+not converge it goes on (``final_late_iterations``), and of the two iterates the one
+better after the polish is the result (pressed walls converge slowly under the barrier). With
 ``cg_iterations > 0`` a step on a kept factor is conjugate gradients preconditioned by the
 factor turned with the surface.
 
@@ -149,9 +153,9 @@ def clearer_half_turns(path: HandlePath, V: FloatArray, F: IntArray, handles: In
     """``path`` with each group that turns by a half turn (:meth:`HandlePath.half_turns`:
     the two ways round equally short) turned the way along which its handles, as points
     on ``samples`` chords of their arcs, cross fewer of the triangles at rest that touch
-    none of them (exact, :func:`...kernels.intersections3d.intersecting_pairs`); the fit's
-    way where both cross as many. A finger curled back over its palm goes over it, not
-    under and through it."""
+    none of them (exact, :func:`...kernels.intersections3d.intersecting_pairs`); the way
+    ``path`` takes where both cross as many. A finger curled back over its palm goes over
+    it, not under and through it."""
     for k in path.half_turns():
         g = path.pieces[k][0]
         near = np.zeros(len(V), bool)
@@ -198,6 +202,12 @@ class SurfaceMoveOptions:
         the end (a strip rolled into an arc ends kinked with 4).
     final_iterations, final_rtol : int, float
         The same for the last increment (the result).
+    final_late_iterations : int
+        Where the last increment is not converged after ``final_iterations`` steps (under
+        a stiff contact barrier, walls pressed together and ``κ`` doubled many times, it
+        may be far from its minimizer), it goes on up to this many steps in all; the result
+        is then whichever of the two iterates is better (the worst relative quality after
+        the polish).
     final_stall : float or None
         The last increment keeps its factor while each shortened step lowers the energy
         by at least this fraction of the first step on it (chord steps; a shortened step's
@@ -222,6 +232,7 @@ class SurfaceMoveOptions:
     max_iterations: int = 8
     rtol: float = 1e-3
     final_iterations: int = 30
+    final_late_iterations: int = 150
     final_rtol: float = 1e-6
     final_stall: float | None = 0.1
     cg_iterations: int = 0
@@ -282,10 +293,12 @@ def move_surface(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatAr
         raise InvalidMeshError("a triangle refers to a vertex that does not exist")
     diameter = float(np.linalg.norm(V.max(0) - V.min(0)))
     whole = global_similarity(V[handles], targets, diameter) if len(handles) else None
-    path = HandlePath(V[handles], targets, handle_groups(handles, F, len(V)), motion="screw")
+    mass = lumped_mass(V, F)
+    path = HandlePath(V[handles], targets, handle_groups(handles, F, len(V)),
+                      motion="screw").oriented_half_turns(mass @ V / mass.sum())
     try:
         return _move_along(V, F, handles, targets, (path, whole), steps, contact, o, t_start)
-    except NotAdmissibleError:  # a half turn refused the fit's way: the clearer way, if other
+    except NotAdmissibleError:  # a half turn refused its way: the clearer way, if other
         clearer = clearer_half_turns(path, V, F, handles) if contact and whole is None else path
         if clearer is path:
             raise
@@ -337,8 +350,9 @@ def _move_along(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatArr
         problem.phi_ref = np.zeros((len(F), 3)) if rest else problem.membrane.values(start)
         problem.phi_ref[:, 0] += shift if rest else 0.0
         last = t1 >= 1.0  # the end state is the result: converged further
-        budget = ((max(max_iterations, final_iterations), final_rtol, final_stall) if last
-                  else (max_iterations, rtol, None))
+        budget = ((max(max_iterations, final_iterations, o.final_late_iterations), final_rtol,
+                   final_stall) if last else (max_iterations, rtol, None))
+        problem.keep_at = max(max_iterations, final_iterations) if last else None
         out = (solve_increment(problem, start, H1, handles, *budget) if pull is None
                else pull.increment(start, H1, last, *budget))
         if out is None:
@@ -363,14 +377,24 @@ def _move_along(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatArr
                           NotAdmissibleError(
                               f"no fold-free increment of the handles' path from t = {t:.4g}"))),
                       fallback=fallback)
-    polished = {"polish_vertices": 0}
-    if polish > 0:  # the result's worst triangles polished
-        Qp, polished = polish_worst_triangles(V, F, frames[-1], handles, iterations=polish,
+    # the last increment's iterate after final_iterations, where it went on (and clean)
+    early = problem.kept
+    candidates = [frames[-1]] + ([early] if early is not None and not np.array_equal(
+        early, frames[-1]) and problem.contact.embedded(early) else [])
+    best = None
+    for X in candidates:
+        done = {"polish_vertices": 0}
+        if polish > 0:  # the result's worst triangles polished
+            Qp, done = polish_worst_triangles(V, F, X, handles, iterations=polish,
                                               clear=problem.contact.clear)
-        if problem.contact.embedded(Qp):  # else two triangles of a fan meet: dropped
-            frames[-1] = Qp.copy()
-        else:
-            polished = {"polish_vertices": 0}
+            if problem.contact.embedded(Qp):  # else two triangles of a fan meet: dropped
+                X = Qp
+            else:
+                done = {"polish_vertices": 0}
+        worst = float((aspect_ratios(X, F) / aspect_ratios(V, F)).min()) if len(F) else 1.0
+        if best is None or worst > best[0]:
+            best = (worst, X.copy(), done)
+    frames[-1], polished = best[1], best[2]
     phi_lengths, length = _path_lengths(frames, problem.membrane, problem.mass, weight)
     Q = frames[-1].copy()
     Q[handles] = targets
