@@ -10,13 +10,19 @@ From the source, each increment minimizes over ``Q``
 towards the guide frame ``P(t)`` in the lumped mass, IPC's barrier) by Newton steps, each
 capped by CCD, so the polyline of iterates passes through no contact. At ``t = 1`` the
 attraction is raised tenfold until the iterate is within ``REACH_TOLERANCE`` of the
-target and the last straight piece onto it is clear; where it stalls before (the barrier
-holds it), there is no start (:class:`SelfIntersectionError`, saying how far short). The
+target; where it stalls before (the barrier holds it), there is no start
+(:class:`SelfIntersectionError`, saying how far short). The last straight piece onto the
+target must be clear: CCD stops a pair at a fraction of its distance at a piece's start,
+so a target whose pairs lie far closer than the barrier's ``d̂`` is not reached in one
+piece from where that barrier holds them; the barrier is then thinned (``THINNER`` at a
+time, down to the morph's ``d̂``) and the attraction pulls on, the iterates closing in on
+those pairs step by step, until the piece is clear. The
 frames are the iterates joined by the longest chords clear by the morph's segment test (a
 step is taken only where that test passes it), the longest chords then split where there
 are frames to spare, at their middle iterate (a midpoint of two frames of a turning part
 shrinks it), at their midpoint where they join two consecutive iterates; where more are
-needed than asked, the refusal gives the count. The barrier is ``STIFFER`` times IPC's
+needed than asked, the refusal gives the count (the fewest over the guides and
+``d̂``). The barrier is ``STIFFER`` times IPC's
 initial stiffness: the iterates keep further from contact and the clear chords between
 them are longer. Its ``d̂`` is the surface's own (a fraction of the mean edge), not the
 morph's, which ends close to contact lower below half their closest pair: a barrier that
@@ -61,10 +67,17 @@ REACH_TOLERANCE = 0.5
 #: than asked: the wider, the further the iterates keep from contact and the longer the
 #: clear chords between them
 WIDER = (1.0, 2.0, 4.0)
+#: the barrier's d̂ over the next one, in turn from the surface's own towards the morph's
+#: while the last piece onto the target is not clear
+THINNER = 4.0
 
 
 class _TooFewFrames(SelfIntersectionError):
-    """The homotopy's clean path needs more frames than asked."""
+    """The homotopy's clean path needs more frames than asked (``frames``)."""
+
+    def __init__(self, message: str, frames: int) -> None:
+        super().__init__(message)
+        self.frames = frames
 
 
 def _newton(problem, term: ContactTerm, clear, Q: FloatArray, Xprev, P: FloatArray,
@@ -138,6 +151,20 @@ def homotopy_path(problem, contact, V0: FloatArray, V1: FloatArray, guide,
             if j < len(times) - 1 or np.abs(Q - V1).max() <= REACH_TOLERANCE * dhat:
                 break
             k *= 10.0
+    # reached, but the target's pairs end closer than the last piece clears (CCD stops a
+    # pair at a fraction of its distance at the piece's start): the barrier thinner in turn
+    while (np.abs(Q - V1).max() <= REACH_TOLERANCE * dhat and dhat > contact.contact.dhat
+           and not contact.segment_clear(Q, V1)):
+        dhat = max(dhat / THINNER, contact.contact.dhat)
+        term = ContactTerm(contact.contact.with_dhat(dhat), np.ones(V0.size, bool),
+                           float(np.mean(mass)))
+        for _ in range(RAISES):
+            poly += _newton(problem, term, contact.segment_clear, Q,
+                            problem.embed(poly[-1]), V1, k, mass)
+            Q = poly[-1]
+            if np.abs(Q - V1).max() <= REACH_TOLERANCE * dhat:
+                break
+            k *= 10.0
     gap = float(np.abs(Q - V1).max())
     if gap > REACH_TOLERANCE * dhat or not contact.segment_clear(Q, V1):
         raise SelfIntersectionError(
@@ -149,7 +176,7 @@ def homotopy_path(problem, contact, V0: FloatArray, V1: FloatArray, guide,
     if len(frames) - 1 > segments:
         raise _TooFewFrames(
             f"{CROSSING}; the clean path found around the contact needs {len(frames)} "
-            f"frames, {segments + 1} asked")
+            f"frames, {segments + 1} asked", len(frames))
     while len(frames) - 1 < segments:  # split the longest chord whose halves CCD clears
         gaps = [np.abs(q - p).max() for p, q in zip(frames[:-1], frames[1:])]
         for i in np.argsort(gaps)[::-1]:
@@ -174,20 +201,23 @@ def homotopy_start(problem, contact, V0: FloatArray, V1: FloatArray, triangles,
     along the one that turns the neighbours whose short way passes the fold the long way
     round (where there are such, :func:`.interpolation.fold_crossings`), else along the
     linear one; where one of them needs more frames than asked, all again with the
-    barrier's d̂ wider (``WIDER``); the last refusal."""
+    barrier's d̂ wider (``WIDER``); the refusal with the fewest frames, else the last."""
     guides = [lambda ts: arap_interpolation(V0, V1, triangles, ts)]
     if fold_crossings(V0, V1, triangles).nnz:
         guides.append(lambda ts: arap_interpolation(V0, V1, triangles, ts, long_way=True))
     guides.append(lambda ts: [(1.0 - t) * V0 + t * V1 for t in ts])
+    fewest = None
     for wider in WIDER:
         short = False
         for guide in guides:
             try:
                 return homotopy_path(problem, contact, V0, V1, guide, segments, wider)
             except _TooFewFrames as error:
-                short, refusal = True, error
+                short = True
+                if fewest is None or error.frames < fewest.frames:
+                    fewest = error
             except SelfIntersectionError as error:
                 refusal = error
         if not short:
             break
-    raise refusal
+    raise fewest if fewest is not None else refusal
