@@ -7,26 +7,31 @@ From the source, each increment minimizes over ``Q``
     ½ |X(Q) − X(Q_prev)|² + ½ k |Q − P(t)|²_M + κ B(Q)
 
 (the morph's segment energy from the last increment, an attraction of stiffness ``k``
-towards the guide frame ``P(t)`` in the lumped mass, IPC's barrier) by Newton steps, each
-capped by CCD, so the polyline of iterates passes through no contact. At ``t = 1`` the
-attraction is raised tenfold until the iterate is within ``REACH_TOLERANCE`` of the
-target and the last straight piece onto it is clear; where it stalls before (the barrier
-holds it), there is no start (:class:`SelfIntersectionError`, saying how far short). The
-frames are the iterates joined by the longest chords clear by the morph's segment test (a
-step is taken only where that test passes it), the longest chords then split where there
-are frames to spare, at their middle iterate (a midpoint of two frames of a turning part
-shrinks it), at their midpoint where they join two consecutive iterates; where more are
-needed than asked, the refusal gives the count. The barrier is ``STIFFER`` times IPC's
-initial stiffness: the iterates keep further from contact and the clear chords between
-them are longer. Its ``d̂`` is the surface's own (a fraction of the mean edge), not the
-morph's, which ends close to contact lower below half their closest pair: a barrier that
-thin tells Newton nothing of the contact until a step has passed it, CCD cuts such steps
-to a sliver of their length, and the iterates pressed onto the contact creep behind the
-guide. The ends' pairs within the wider ``d̂`` are pushed apart by the first increments and
-come back in the last; every step and chord is still cleared by the morph's CCD. Where the
-clean path needs more frames than asked, the homotopy is run again with ``d̂`` twice and
-four times the surface's own (``WIDER``): its iterates keep further from contact and its
-clear chords are longer.
+towards the guide frame ``P(t)`` in the lumped mass, IPC's barrier) by Newton steps,
+each capped by CCD, so the polyline of iterates passes through no contact. At ``t = 1``
+the attraction is raised tenfold until the iterate is within ``REACH_TOLERANCE`` of the
+target; where it stalls before (the barrier holds it), there is no start
+(:class:`SelfIntersectionError`, saying how far short). The last straight piece onto the
+target must be clear: CCD stops a pair at a fraction of its distance at a piece's start,
+so a target whose pairs lie far closer than the barrier's ``d̂`` is not reached in one
+piece from where that barrier holds them; the barrier is then thinned (``THINNER`` at a
+time, down to the morph's ``d̂``) and the attraction pulls on, the iterates closing in
+on those pairs step by step, until the piece is clear. The frames are the iterates
+joined by the longest chords clear by the morph's segment test (a step is taken only
+where that test passes it), the longest chords then split where there are frames to
+spare, at their middle iterate (a midpoint of two frames of a turning part shrinks it),
+at their midpoint where they join two consecutive iterates; where more are needed than
+asked, the refusal gives the count (the fewest over the guides and ``d̂``). The barrier
+is ``STIFFER`` times IPC's initial stiffness: the iterates keep further from contact and
+the clear chords between them are longer. Its ``d̂`` is the surface's own (a fraction of
+the mean edge), not the morph's, which ends close to contact lower below half their
+closest pair: a barrier that thin tells Newton nothing of the contact until a step has
+passed it, CCD cuts such steps to a sliver of their length, and the iterates pressed
+onto the contact creep behind the guide. The ends' pairs within the wider ``d̂`` are
+pushed apart by the first increments and come back in the last; every step and chord is
+still cleared by the morph's CCD. Where the clean path needs more frames than asked, the
+homotopy is run again with ``d̂`` twice and four times the surface's own (``WIDER``):
+its iterates keep further from contact and its clear chords are longer.
 """
 
 from __future__ import annotations
@@ -61,10 +66,17 @@ REACH_TOLERANCE = 0.5
 #: than asked: the wider, the further the iterates keep from contact and the longer the
 #: clear chords between them
 WIDER = (1.0, 2.0, 4.0)
+#: the barrier's d̂ over the next one, in turn from the surface's own towards the morph's
+#: while the last piece onto the target is not clear
+THINNER = 4.0
 
 
 class _TooFewFrames(SelfIntersectionError):
-    """The homotopy's clean path needs more frames than asked."""
+    """The homotopy's clean path needs more frames than asked (``frames``)."""
+
+    def __init__(self, message: str, frames: int) -> None:
+        super().__init__(message)
+        self.frames = frames
 
 
 def _newton(problem, term: ContactTerm, clear, Q: FloatArray, Xprev, P: FloatArray,
@@ -111,6 +123,19 @@ def _newton(problem, term: ContactTerm, clear, Q: FloatArray, Xprev, P: FloatArr
     return out
 
 
+def _pull(problem, term: ContactTerm, clear, poly: list, P: FloatArray, k: float,
+          mass: FloatArray, tolerance: float, raises: int) -> float:
+    """One increment towards ``P`` from the last of ``poly`` (:func:`_newton`, its iterates
+    appended to ``poly``), the attraction ``k`` raised tenfold, up to ``raises`` times in
+    all, until the iterate is within ``tolerance`` of ``P``; the last ``k``."""
+    for _ in range(raises):
+        poly += _newton(problem, term, clear, poly[-1], problem.embed(poly[-1]), P, k, mass)
+        if np.abs(poly[-1] - P).max() <= tolerance:
+            break
+        k *= 10.0
+    return k
+
+
 def homotopy_path(problem, contact, V0: FloatArray, V1: FloatArray, guide,
                   segments: int, wider: float = 1.0) -> list:
     """A clean path of ``segments + 1`` frames from ``V0`` to ``V1`` (module docstring),
@@ -127,17 +152,20 @@ def homotopy_path(problem, contact, V0: FloatArray, V1: FloatArray, guide,
     times = np.linspace(0.0, 1.0, INCREMENTS + 1)
     P = list(guide(times))
     P[-1] = V1
-    poly, Q = [V0], V0
+    poly = [V0]
     for j in range(1, len(times)):
-        k = ATTRACTION
-        for _ in range(RAISES if j == len(times) - 1 else 1):
-            steps = _newton(problem, term, contact.segment_clear, Q,
-                            problem.embed(poly[-1]), P[j], k, mass)
-            poly += steps
-            Q = poly[-1]
-            if j < len(times) - 1 or np.abs(Q - V1).max() <= REACH_TOLERANCE * dhat:
-                break
-            k *= 10.0
+        k = _pull(problem, term, contact.segment_clear, poly, P[j], ATTRACTION, mass,
+                  REACH_TOLERANCE * dhat, RAISES if j == len(times) - 1 else 1)
+    # reached, but the target's pairs end closer than the last piece clears (CCD stops a
+    # pair at a fraction of its distance at the piece's start): the barrier thinner in turn
+    while (np.abs(poly[-1] - V1).max() <= REACH_TOLERANCE * dhat
+           and dhat > contact.contact.dhat and not contact.segment_clear(poly[-1], V1)):
+        dhat = max(dhat / THINNER, contact.contact.dhat)
+        term = ContactTerm(contact.contact.with_dhat(dhat), np.ones(V0.size, bool),
+                           float(np.mean(mass)))
+        k = _pull(problem, term, contact.segment_clear, poly, V1, k, mass,
+                  REACH_TOLERANCE * dhat, RAISES)
+    Q = poly[-1]
     gap = float(np.abs(Q - V1).max())
     if gap > REACH_TOLERANCE * dhat or not contact.segment_clear(Q, V1):
         raise SelfIntersectionError(
@@ -149,7 +177,7 @@ def homotopy_path(problem, contact, V0: FloatArray, V1: FloatArray, guide,
     if len(frames) - 1 > segments:
         raise _TooFewFrames(
             f"{CROSSING}; the clean path found around the contact needs {len(frames)} "
-            f"frames, {segments + 1} asked")
+            f"frames, {segments + 1} asked", len(frames))
     while len(frames) - 1 < segments:  # split the longest chord whose halves CCD clears
         gaps = [np.abs(q - p).max() for p, q in zip(frames[:-1], frames[1:])]
         for i in np.argsort(gaps)[::-1]:
@@ -174,20 +202,23 @@ def homotopy_start(problem, contact, V0: FloatArray, V1: FloatArray, triangles,
     along the one that turns the neighbours whose short way passes the fold the long way
     round (where there are such, :func:`.interpolation.fold_crossings`), else along the
     linear one; where one of them needs more frames than asked, all again with the
-    barrier's d̂ wider (``WIDER``); the last refusal."""
+    barrier's d̂ wider (``WIDER``); the refusal with the fewest frames, else the last."""
     guides = [lambda ts: arap_interpolation(V0, V1, triangles, ts)]
     if fold_crossings(V0, V1, triangles).nnz:
         guides.append(lambda ts: arap_interpolation(V0, V1, triangles, ts, long_way=True))
     guides.append(lambda ts: [(1.0 - t) * V0 + t * V1 for t in ts])
+    fewest = None
     for wider in WIDER:
         short = False
         for guide in guides:
             try:
                 return homotopy_path(problem, contact, V0, V1, guide, segments, wider)
             except _TooFewFrames as error:
-                short, refusal = True, error
+                short = True
+                if fewest is None or error.frames < fewest.frames:
+                    fewest = error
             except SelfIntersectionError as error:
                 refusal = error
         if not short:
             break
-    raise refusal
+    raise fewest if fewest is not None else refusal
