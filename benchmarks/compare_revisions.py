@@ -10,8 +10,9 @@ both revisions, whether the new one is equal or better (to 1e-9 relative), both 
 their ratio and whether it is within 1.2×, and the other measures the page prints where
 they differ.
 
-Usage: ``python benchmarks/compare_revisions.py [OLD [NEW]] [--all] [--cases WORD ...]
-[--repeats 2] [--markdown FILE] [--list]`` (defaults: ``6b9c044`` and ``WORKTREE``).
+Usage: ``python benchmarks/compare_revisions.py [OLD [NEW]] [--all | --page-sizes]
+[--cases WORD ...] [--repeats 2] [--markdown FILE] [--list]`` (defaults: ``6b9c044`` and
+``WORKTREE``); ``--page-sizes``: only the 3D cases at the mesh sizes their pages print.
 """
 
 from __future__ import annotations
@@ -50,6 +51,7 @@ class Case:
     kwargs: dict = field(default_factory=dict)
     default: bool = True
     why_not: str = ""  # why a case is not in the default set
+    full: bool = False  # a 3D case at the mesh size its page prints (``--page-sizes``)
 
 
 # ---------------------------------------------------------------- runners (in a worker)
@@ -275,21 +277,29 @@ def all_cases() -> list[Case]:
         tag, box = (" (box size 0.25)", 0.25) if small else ("", 0.115)
         why = "" if small else "tens of seconds to minutes per run (the page's mesh sizes)"
         out += [Case(_3D, "bench_move3d" + tag, n, "run_move3d", {"name": n, "box_size": box},
-                     small and "180" not in n, why or _SLOW) for n in _BOX3D]
+                     small and "180" not in n, why or _SLOW, not small) for n in _BOX3D]
         out += [Case(_3D, "bench_move3d" + tag.replace("box size 0.25", "channel size 0.15"),
                      n, "run_move3d",
                      {"name": n, "channel_size": 0.15 if small else 0.06}, False,
                      "1.5–4 minutes per run at the page's size" if not small else
-                     "still 10 s and more per run at channel size 0.15") for n in _CHANNEL3D]
+                     "still 10 s and more per run at channel size 0.15", not small)
+                for n in _CHANNEL3D]
         out += [Case(_3D, "bench_tet_sweep" + tag, n, "run_tet_sweep",
                      {"name": n, "size": box if small else 0.11}, small and "sphere" in n, why
-                     or "the slower two of the four") for n in _SWEEP]
+                     or "the slower two of the four", not small) for n in _SWEEP]
         out += [Case(_3D, "bench_tet_move" + tag.replace(")", "; page 0.12)"),
                      "box, sphere turned 90°", "run_tet_move", {"size": box if small else 0.12},
-                     False, why or "the case of bench_move3d's first row, the finish's options")]
+                     False, why or "the case of bench_move3d's first row, the finish's options",
+                     not small)]
         out += [Case(_3D, "bench_tet_morph" + tag, f"box, sphere turned {d}°", "run_tet_morph",
                      {"size": box if small else 0.12, "degrees": d}, small and d == 90, why or
-                     "the slower of the two") for d in (90, 150)]
+                     "the slower of the two", not small) for d in (90, 150)]
+    out += [Case(_3D, "bench_tet_sweep (size 0.06)", n, "run_tet_sweep", {"name": n, "size": 0.06},
+                 False, "the page's 150–167k tets: half a minute to 6 minutes per run", True)
+            for n in _SWEEP]
+    out += [Case("docs/move-3d.md", "bench_tet_move (size 0.0595)", "box, sphere turned 90°",
+                 "run_tet_move", {"size": 0.0595}, False,
+                 "the page's 174k tets: 3–5 minutes per run", True)]
     out += [Case(_SURF, "bench_surface (contact=False)", n, "run_surface", {"name": n}, d,
                  "" if d else ("about a minute per run" if "armadillo" in n else _SLOW))
             for n, d in _SURFACE.items()]
@@ -467,6 +477,8 @@ def main(argv=None) -> int:
     ap.add_argument("old", nargs="?", default="6b9c044", help="git revision (default 6b9c044)")
     ap.add_argument("new", nargs="?", default=WORKTREE, help=f"git revision or {WORKTREE}")
     ap.add_argument("--all", action="store_true", help="every case, the pages' sizes too")
+    ap.add_argument("--page-sizes", action="store_true",
+                    help="only the 3D cases at the mesh sizes their pages print")
     ap.add_argument("--cases", nargs="*", default=[], help="only cases whose page, table or "
                     "name has one of these words")
     ap.add_argument("--repeats", type=int, default=2, help="runs per revision (fastest kept)")
@@ -477,8 +489,8 @@ def main(argv=None) -> int:
         worker(*sys.argv[2:5])
         return 0
     args = ap.parse_args(argv)
-    cases = [c for c in all_cases() if (args.all or c.default) and (not args.cases or any(
-        w in f"{c.page} {c.table} {c.name}" for w in args.cases))]
+    cases = [c for c in all_cases() if (c.full if args.page_sizes else args.all or c.default)
+             and (not args.cases or any(w in f"{c.page} {c.table} {c.name}" for w in args.cases))]
     if args.list:
         print("\n".join(f"{c.page} | {c.table} | {c.name}" for c in cases))
         return 0
@@ -511,7 +523,7 @@ def main(argv=None) -> int:
         f"(load average {load0[0]:.1f} at the start, {os.getloadavg()[0]:.1f} at the end, "
         f"{(time.time() - started) / 60:.0f} minutes), so single seconds are noisy: the "
         "ratio of the alternating runs is what counts.")
-    text = report(rows, cases, header, args.all)
+    text = report(rows, cases, header, args.all or args.page_sizes)
     print(text)
     if args.markdown:
         args.markdown.write_text(text, encoding="utf-8")

@@ -111,3 +111,18 @@ def test_the_printed_command_runs_the_same_cases_again():
     words = shlex.split(cr.printed_command(argv))
     assert words[:2] == ["python", "benchmarks/compare_revisions.py"]
     assert words[2:] == [*argv[:6], "FILE", *argv[7:]]
+
+
+def test_page_sizes_lists_the_3d_cases_at_their_pages_sizes(capsys):
+    cases = cr.all_cases()
+    full = [c for c in cases if c.full]
+    assert cr.main(["--page-sizes", "--list"]) == 0
+    assert capsys.readouterr().out.splitlines() == [
+        f"{c.page} | {c.table} | {c.name}" for c in full]
+    # every 3D case the default set runs at a reduced size is there at the page's size
+    reduced = [c for c in cases if "size 0.25" in c.table or "size 0.15" in c.table]
+    assert reduced and all(any((f.runner, f.name) == (c.runner, c.name) for f in full)
+                           for c in reduced)
+    assert not any(c.default for c in full) and not any(c.full for c in reduced)
+    assert {c.kwargs.get("size") for c in full if c.runner == "run_tet_sweep"} == {0.11, 0.06}
+    assert {c.kwargs["size"] for c in full if c.runner == "run_tet_move"} == {0.12, 0.0595}
