@@ -23,8 +23,8 @@ from scipy.spatial import cKDTree
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import bench_surface as bench  # noqa: E402
-from _surface_measures import (_edges, arap_energy, cotangent_weights,  # noqa: E402
-                               fold_count, worst_relative_quality)
+from _surface_measures import (_edges, arap_vertex_energy, fold_count,  # noqa: E402
+                               worst_relative_quality)
 
 CASES = {"hand": ("hand_finger", 1, [0.0, 2.0, 3.0, 3.8, 4.01]),
          "bar-folded": ("bar_folded", 0, [0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.01])}
@@ -37,21 +37,6 @@ def case_of(name: str) -> tuple:
         from _surface_cases_contact import hand_finger
         return hand_finger(), axis, edges
     return getattr(bench, maker)(), axis, edges
-
-
-def vertex_energy(V0, V1, F) -> np.ndarray:
-    """Each vertex's share of the ARAP energy: ``Σ_j w_ij |e'_ij − R_i e_ij|²`` over its
-    directed edges (the shares sum to ``arap_energy``)."""
-    E, W = cotangent_weights(V0, F)
-    W = np.maximum(W, 0.0)
-    _, R = arap_energy(V0, V1, F, return_rotations=True)
-    e0, e1 = V0[E[:, 1]] - V0[E[:, 0]], V1[E[:, 1]] - V1[E[:, 0]]
-    ri = e1 - np.einsum("kij,kj->ki", R[E[:, 0]], e0)
-    rj = e1 - np.einsum("kij,kj->ki", R[E[:, 1]], e0)
-    out = np.zeros(len(V0))
-    np.add.at(out, E[:, 0], W * np.sum(ri * ri, axis=1))
-    np.add.at(out, E[:, 1], W * np.sum(rj * rj, axis=1))
-    return out
 
 
 def rings(F, seeds, n: int, count: int) -> np.ndarray:
@@ -81,7 +66,7 @@ def pressed(V0, V1, near: float, apart: float) -> np.ndarray:
 
 def report(label: str, case, axis: int, edges, U, near: float, apart: float) -> dict:
     """The measures and the energy's split of one result (printed and returned)."""
-    e = vertex_energy(case.V, U, case.F)
+    e = arap_vertex_energy(case.V, U, case.F)
     total = float(e.sum())
     ring = rings(case.F, case.handles, len(case.V), 4)
     press = pressed(case.V, U, near, apart)
