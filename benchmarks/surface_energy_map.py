@@ -97,14 +97,16 @@ def ours(case, options: dict, way: str, polish: int):
     o = move.SurfaceMoveOptions(**{**options, "polish": 0})
     t0 = time.perf_counter()
     if way == "auto":
-        before = move.move_surface(V, F, handles, targets, options=o).points
+        result = move.move_surface(V, F, handles, targets, options=o)
     else:
         path = HandlePath(V[handles], targets, handle_groups(handles, F, len(V)),
                           motion="screw")
         if way == "clearer":
             path = move.clearer_half_turns(path, V, F, handles)
-        before = move._move_along(V, F, handles, targets, (path, None), 10, True, o,
-                                  t0).points
+        result = move._move_along(V, F, handles, targets, (path, None), 10, True, o, t0)
+    before = result.points
+    print(f"  {result.iterations} Gauss-Newton iterations, {result.factorizations} "
+          f"factorizations, {result.steps} increments", flush=True)
     seconds = time.perf_counter() - t0
     free = np.ones(len(V), bool)
     free[handles] = False
