@@ -1,10 +1,11 @@
 """Where a surface move's ARAP energy lies: ours (``move_surface``) on a contact case with
 its options changed, before and after its polish, beside the clean peer (ARAP with
-contact, ``_arap_contact.py``), the peer polished by ours and ours' last increment started
-from the peer. Each result's ARAP energy (``_surface_measures.arap_energy``) is split over
+contact, ``_arap_contact.py``) and ours' last increment started from a given result (the
+peer's), then polished. Each result's ARAP energy (``_surface_measures.arap_energy``) is split over
 the vertices (the directed edges leaving each vertex) and summed over bands of the rest
 along one axis, over the handles' rings and over the pressed vertices (those within
-``--near`` of a part of the surface more than ``--apart`` from them at rest).
+``--near`` of a part of the surface more than ``--apart`` from them at rest); beside it ours'
+own energy ``½Σ a_t|φ_t|² + ½b Σ c_e(θ_e − θ̄_e)²`` (b = 0.3; no emphasis, barrier or step term).
 
     python benchmarks/surface_energy_map.py hand --variant bending=0.1 --save DIR
 """
@@ -64,6 +65,20 @@ def pressed(V0, V1, near: float, apart: float) -> np.ndarray:
     return out
 
 
+def ours_energy(case, U, bending: float = 0.3) -> float:
+    """Ours' membrane and bending energy of ``U`` (area weights, ``c_t = 1``, no barrier
+    and no step term)."""
+    from meshopt_toolkit.kernels.surface import areas
+    from meshopt_toolkit.motion.surface import move
+    from meshopt_toolkit.motion.surface.least_squares import Problem
+
+    V, F = case.V, case.F
+    p = Problem(V, F, case.handles, 1.0, bending, move.lumped_mass(V, F))
+    p.row_weights = np.sqrt(areas(V, F) / areas(V, F).mean())
+    p.phi_ref, p.previous = np.zeros((len(F), 3)), U
+    return p.energy(U)
+
+
 def report(label: str, case, axis: int, edges, U, near: float, apart: float) -> dict:
     """The measures and the energy's split of one result (printed and returned)."""
     e = arap_vertex_energy(case.V, U, case.F)
@@ -77,12 +92,14 @@ def report(label: str, case, axis: int, edges, U, near: float, apart: float) -> 
            "bands": bands,
            "rings": {str(k): float(e[ring == k].sum()) for k in range(6)},
            "pressed": float(e[press].sum()), "pressed_vertices": int(press.sum()),
-           "top1pct": float(np.sort(e)[::-1][: max(1, len(e) // 100)].sum())}
+           "top1pct": float(np.sort(e)[::-1][: max(1, len(e) // 100)].sum()),
+           "ours_energy": ours_energy(case, U)}
     share = " ".join(f"{k}:{v / total:.2f}" for k, v in bands.items())
     rshare = " ".join(f"r{k}:{v / total:.2f}" for k, v in out["rings"].items())
     print(f"{label:<34} q {out['quality']:.3f} folds {out['folds']} ARAP {total:.4g} | "
           f"bands {share} | {rshare} | pressed {out['pressed'] / total:.2f} "
-          f"({out['pressed_vertices']} v) | top1% {out['top1pct'] / total:.2f}", flush=True)
+          f"({out['pressed_vertices']} v) | top1% {out['top1pct'] / total:.2f} | "
+          f"ours' energy {out['ours_energy']:.4g}", flush=True)
     return out
 
 
