@@ -148,11 +148,9 @@ def fold_count(V0, V1, F, handles=None) -> int:
     return int(m.sum())
 
 
-def arap_energy(V0: np.ndarray, V1: np.ndarray, F: np.ndarray, *, clamp: bool = True,
-                return_rotations: bool = False):
-    """As-rigid-as-possible energy of ``V1`` against the rest shape ``V0`` (module
-    docstring): per-vertex best rotations with the cotangent weights of the rest mesh,
-    clamped at 0 unless ``clamp=False``."""
+def _arap_terms(V0: np.ndarray, V1: np.ndarray, F: np.ndarray, clamp: bool):
+    """The edges E (k, 2), their weights W, the per-vertex rotations R and the squared
+    residuals of the directed edges i→j and j→i of each undirected edge (k,) each."""
     V0, V1 = np.asarray(V0, float), np.asarray(V1, float)
     E, W = cotangent_weights(V0, F)
     if clamp:
@@ -163,8 +161,29 @@ def arap_energy(V0: np.ndarray, V1: np.ndarray, F: np.ndarray, *, clamp: bool = 
     # directed edge i→j uses R_i, j→i uses R_j (the sign of e flips on both sides)
     ri = e1 - np.einsum("kij,kj->ki", R[E[:, 0]], e0)
     rj = e1 - np.einsum("kij,kj->ki", R[E[:, 1]], e0)
-    energy = float(np.sum(W * (np.sum(ri * ri, axis=1) + np.sum(rj * rj, axis=1))))
+    return E, W, R, np.sum(ri * ri, axis=1), np.sum(rj * rj, axis=1)
+
+
+def arap_energy(V0: np.ndarray, V1: np.ndarray, F: np.ndarray, *, clamp: bool = True,
+                return_rotations: bool = False):
+    """As-rigid-as-possible energy of ``V1`` against the rest shape ``V0`` (module
+    docstring): per-vertex best rotations with the cotangent weights of the rest mesh,
+    clamped at 0 unless ``clamp=False``."""
+    _, W, R, si, sj = _arap_terms(V0, V1, F, clamp)
+    energy = float(np.sum(W * (si + sj)))
     return (energy, R) if return_rotations else energy
+
+
+def arap_vertex_energy(V0: np.ndarray, V1: np.ndarray, F: np.ndarray, *,
+                       clamp: bool = True) -> np.ndarray:
+    """Each vertex's share of :func:`arap_energy` (n,): ``Σ_{j∈N(i)} w_ij |e'_ij − R_i
+    e_ij|²``, the terms of the directed edges leaving vertex i (the shares sum to the
+    energy)."""
+    E, W, _, si, sj = _arap_terms(V0, V1, F, clamp)
+    out = np.zeros(len(V0))
+    np.add.at(out, E[:, 0], W * si)
+    np.add.at(out, E[:, 1], W * sj)
+    return out
 
 
 def self_intersecting_faces(V: np.ndarray, F: np.ndarray) -> int:

@@ -132,6 +132,31 @@ def test_arap_energy_of_a_shear_is_positive_and_quadratic():
     assert e[1] / e[0] == pytest.approx(4.0, rel=1e-2)  # O(s²) for a small shear
 
 
+@settings(max_examples=10, deadline=None)
+@given(seeds)
+def test_arap_vertex_energy_is_each_fan_fitted_alone(seed):
+    """Each vertex's share against its fan fitted on its own: libigl's cotangent weights
+    (clamped at 0) and scipy's weighted Kabsch rotation of the rest spokes onto the new
+    ones; the shares sum to the energy."""
+    igl = pytest.importorskip("igl")
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(seed)
+    V, F = sphere()
+    V1 = V @ random_rotation(rng).T + 0.1 * rng.normal(size=V.shape)
+    shares = sm.arap_vertex_energy(V, V1, F)
+    L = igl.cotmatrix(V, F).tocsr()
+    for i in rng.choice(len(V), 8, replace=False):
+        row = L.getrow(i).tocoo()
+        keep = row.col != i
+        j, w = row.col[keep], np.maximum(row.data[keep], 0.0)
+        e0, e1 = V[j] - V[i], V1[j] - V1[i]
+        R = Rotation.align_vectors(e1, e0, weights=w)[0].as_matrix()
+        assert shares[i] == pytest.approx(np.sum(w * np.sum((e1 - e0 @ R.T) ** 2, axis=1)),
+                                          rel=1e-9)
+    assert shares.sum() == pytest.approx(sm.arap_energy(V, V1, F), rel=1e-12)
+
+
 def test_cotangent_weights_match_libigl_cotmatrix():
     igl = pytest.importorskip("igl")
     V, F = sphere()
