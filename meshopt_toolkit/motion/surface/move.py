@@ -232,7 +232,7 @@ class SurfaceMoveOptions:
     max_iterations: int = 8
     rtol: float = 1e-3
     final_iterations: int = 30
-    final_late_iterations: int = 150
+    final_late_iterations: int = 400
     final_rtol: float = 1e-6
     final_stall: float | None = 0.1
     cg_iterations: int = 0
