@@ -24,7 +24,7 @@ at their midpoint where they join two consecutive iterates; where more are neede
 asked, the refusal gives the count (the fewest over the guides and ``d̂``). The barrier
 is ``STIFFER`` times IPC's initial stiffness: the iterates keep further from contact and
 the clear chords between them are longer. Its ``d̂`` is the surface's own (a fraction of
-the mean edge), not the morph's, which ends close to contact lower below half their
+the mean edge), not the morph's, which ends close to contact lower to below half their
 closest pair: a barrier that thin tells Newton nothing of the contact until a step has
 passed it, CCD cuts such steps to a sliver of their length, and the iterates pressed
 onto the contact creep behind the guide. The ends' pairs within the wider ``d̂`` are
@@ -146,8 +146,9 @@ def homotopy_path(problem, contact, V0: FloatArray, V1: FloatArray, guide,
     ``problem`` is the morph's path problem (``embed``, ``segment``, ``jacobian``,
     ``sqrt_m``), ``contact`` its :class:`.morph_contact.PathContact`."""
     mass = problem.sqrt_m ** 2
+    free, mean_mass = np.ones(V0.size, bool), float(np.mean(mass))
     wide = contact.contact.with_dhat(wider * contact.contact.edge_dhat)
-    term = ContactTerm(wide, np.ones(V0.size, bool), float(np.mean(mass)))
+    term = ContactTerm(wide, free, mean_mass)
     dhat = wide.dhat
     times = np.linspace(0.0, 1.0, INCREMENTS + 1)
     P = list(guide(times))
@@ -161,8 +162,7 @@ def homotopy_path(problem, contact, V0: FloatArray, V1: FloatArray, guide,
     while (np.abs(poly[-1] - V1).max() <= REACH_TOLERANCE * dhat
            and dhat > contact.contact.dhat and not contact.segment_clear(poly[-1], V1)):
         dhat = max(dhat / THINNER, contact.contact.dhat)
-        term = ContactTerm(contact.contact.with_dhat(dhat), np.ones(V0.size, bool),
-                           float(np.mean(mass)))
+        term = ContactTerm(contact.contact.with_dhat(dhat), free, mean_mass)
         k = _pull(problem, term, contact.segment_clear, poly, V1, k, mass,
                   REACH_TOLERANCE * dhat, RAISES)
     Q = poly[-1]

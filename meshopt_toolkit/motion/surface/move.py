@@ -381,6 +381,7 @@ def _move_along(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatArr
     early = problem.kept
     candidates = [frames[-1]] + ([early] if early is not None and not np.array_equal(
         early, frames[-1]) and problem.contact.embedded(early) else [])
+    rest_q = aspect_ratios(V, F)
     best = None
     for X in candidates:
         done = {"polish_vertices": 0}
@@ -391,7 +392,7 @@ def _move_along(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatArr
                 X = Qp
             else:
                 done = {"polish_vertices": 0}
-        worst = float((aspect_ratios(X, F) / aspect_ratios(V, F)).min()) if len(F) else 1.0
+        worst = float((aspect_ratios(X, F) / rest_q).min()) if len(F) else 1.0
         if best is None or worst > best[0]:
             best = (worst, X.copy(), done)
     frames[-1], polished = best[1], best[2]
@@ -399,7 +400,7 @@ def _move_along(V: FloatArray, F: IntArray, handles: IntArray, targets: FloatArr
     Q = frames[-1].copy()
     Q[handles] = targets
     # the result's measures over all its triangles, those the targets alone place included
-    rq = aspect_ratios(Q, F) / aspect_ratios(V, F)
+    rq = aspect_ratios(Q, F) / rest_q
     return SurfaceMoveResult(
         points=Q, frames=frames, times=times, phi_lengths=phi_lengths, length=length,
         weight=weight, worst_quality=float(rq.min()) if rq.size else 1.0,
