@@ -293,12 +293,8 @@ def geodesic(
     line_search = method_used == "line-search"
     if monitor is None:
         monitor = not line_search
+    free = free_vertex_mask(free, len(Q))
     if free is not None:
-        free = np.asarray(free)
-        if free.dtype != bool:
-            mask = np.zeros(len(Q), dtype=bool)
-            mask[free] = True
-            free = mask
         if free.shape != (len(Q),):
             raise IntegrationError(f"free must be an (N,) mask, got shape {free.shape}")
         if np.any(V[~free]):
@@ -350,6 +346,18 @@ def geodesic(
         raise exc
     return _assemble(fld, Q, V, f0, req, positive, out, method_used, monitor, rtol,
                      energy_tol, opts.on_violation)
+
+
+def free_vertex_mask(free, n: int) -> np.ndarray | None:
+    """``free`` (an (n,) bool mask, vertex indices or None) as a bool mask; None stays None."""
+    if free is None:
+        return None
+    free = np.asarray(free)
+    if free.dtype != bool:
+        mask = np.zeros(n, dtype=bool)
+        mask[free] = True
+        free = mask
+    return free
 
 
 def _all_positive(points, metric) -> bool:
