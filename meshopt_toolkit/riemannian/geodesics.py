@@ -166,6 +166,14 @@ def geodesic_acceleration(metric, Q: FloatArray, V: FloatArray) -> FloatArray:
     return GeodesicField(pen).acceleration(np.asarray(Q, float), np.asarray(V, float))[0]
 
 
+def _default_atol(Q: FloatArray, V: FloatArray, t_end: float, rtol: float,
+                  atol: float | None) -> float:
+    """``atol`` as given, else ``rtol`` times the scale ``max(max|Q|, max|V|·t_end)``."""
+    if atol is not None:
+        return atol
+    return rtol * max(float(np.max(np.abs(Q))), float(np.max(np.abs(V))) * t_end, 1e-300)
+
+
 def _scipy_dop853(fld: GeodesicField, Q0, V0, t_out, rtol, atol) -> IntegrationOutput:
     from scipy.integrate import solve_ivp
 
@@ -317,12 +325,11 @@ def geodesic(
     if positive.size == 0 or not np.any(V):
         out = None
     elif method_used in ("dop853", "dopri5", "bs3", "line-search"):
-        scale = max(float(np.max(np.abs(Q))), float(np.max(np.abs(V))) * positive[-1], 1e-300)
         extra = LINE_SEARCH_OPTIONS if line_search else {}
         if line_search and h0 is None:
             h0 = LINE_SEARCH_FIRST_STEP * positive[-1]
         out = runge_kutta(fld, Q, V, positive, pair="bs3" if line_search else method_used,
-                          rtol=rtol, atol=rtol * scale if atol is None else atol,
+                          rtol=rtol, atol=_default_atol(Q, V, positive[-1], rtol, atol),
                           dense=opts.dense, h0=h0, partial=True, progress=progress,
                           control={"max_steps": opts.max_steps, **extra})
     elif method_used == "stormer-verlet":
@@ -331,8 +338,8 @@ def geodesic(
                              tolerance=opts.fixed_point_tolerance,
                              max_iterations=opts.fixed_point_max_iterations)
     else:
-        scale = max(float(np.max(np.abs(Q))), float(np.max(np.abs(V))) * positive[-1], 1e-300)
-        out = _scipy_dop853(fld, Q, V, positive, rtol, rtol * scale if atol is None else atol)
+        out = _scipy_dop853(fld, Q, V, positive, rtol,
+                            _default_atol(Q, V, positive[-1], rtol, atol))
 
     if out is not None and out.failure:
         reached = positive[: out.n_reached]
