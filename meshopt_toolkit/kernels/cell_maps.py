@@ -104,7 +104,8 @@ def scatter_corners(cells: IntArray, per_corner: FloatArray, n: int) -> FloatArr
     """Sum per-corner vectors ``(C, k, d)`` of the cells ``(C, k)`` onto their vertices:
     ``(n, d)`` (the transpose of gathering ``points[cells]``)."""
     idx = np.asarray(cells).ravel()
-    flat = np.asarray(per_corner).reshape(len(idx), -1)
+    per_corner = np.asarray(per_corner)
+    flat = per_corner.reshape(len(idx), per_corner.shape[-1])
     return np.column_stack([np.bincount(idx, flat[:, k], n) for k in range(flat.shape[1])])
 
 
