@@ -28,6 +28,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import breadth_first_order, connected_components, shortest_path
 
 from .._typing import FloatArray, IntArray
+from ..kernels.cell_maps import scatter_corners
 from .elasticity import p1_gradients
 from .p1 import p1_stiffness
 from ..solvers import factorize_spd
@@ -133,14 +134,12 @@ def arap_interpolation(Q0: FloatArray, Q1: FloatArray, triangles: IntArray, time
         return out
     solve = factorize_spd(K[free][:, free])
     coupling = K[free][:, fixed]
-    rows = triangles.ravel()
     eye = np.eye(2)
     for k, s in enumerate(times):
         J = _rotations(s * theta) @ ((1.0 - s) * eye + s * stretch)  # (T, 2, 2): row i = target gradient of coord i
         # load b_a = Σ_t A_t J_t ∇φ_a (per coordinate)
         contrib = area[:, None, None] * np.einsum("tij,taj->tai", J, grads)  # (T, 3, 2)
-        contrib = contrib.reshape(-1, 2)
-        b = np.stack([np.bincount(rows, contrib[:, i], minlength=N) for i in (0, 1)], axis=1)
+        b = scatter_corners(triangles, contrib, N)
         P = np.empty((N, 2))
         P[fixed] = Q0[fixed] if pinned_still else (1.0 - s) * Q0[fixed] + s * Q1[fixed]
         rhs = b[free] - coupling @ P[fixed]

@@ -29,6 +29,7 @@ import numpy as np
 
 from .._typing import FloatArray, IntArray
 from ..errors import MeshoptError
+from ..kernels.cell_maps import scatter_corners
 from ..solvers import factorize_spd
 from .elasticity import factorize
 from .cached import CachedObjective, SimplexState
@@ -202,12 +203,8 @@ class ComplianceObjective(CachedObjective):
     def load(self, Q: FloatArray) -> FloatArray:
         """The traction load ``(n_dofs, d)``."""
         force = np.einsum("fij,fj->fi", self.stresses, facet_normals(Q, self.facets))
-        b = np.zeros((self.space.n_dofs, self.dim))
         per = self._omega[None, :, None] * force[:, None, :]
-        for i in range(self.dim):
-            b[:, i] = np.bincount(self._facet_dofs.ravel(), weights=per[..., i].ravel(),
-                                  minlength=self.space.n_dofs)
-        return b
+        return scatter_corners(self._facet_dofs, per, self.space.n_dofs)
 
     def stiffness(self, Q: FloatArray, geo: Geometry | None = None):
         """The vector stiffness matrix ``(d n_dofs, d n_dofs)`` at ``Q``."""

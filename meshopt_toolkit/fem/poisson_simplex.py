@@ -27,6 +27,7 @@ import scipy.sparse as sp
 from .._typing import FloatArray, IntArray
 from ..errors import ExpressionError, MeshoptError
 from ..expressions import parse_expression
+from ..kernels.cell_maps import scatter_corners
 from .p1 import PoissonSolver
 from .cached import CachedPoisson, SimplexState, poisson_value, tracking_terms
 from .simplex import Geometry, assemble, geometry, node_gradient
@@ -102,9 +103,7 @@ def poisson_node_gradient(geo: Geometry, cells: IntArray, y: FloatArray, p: Floa
         gy[:, :, None] * gp[:, None, :] + gp[:, :, None] * gy[:, None, :])
     g = node_gradient(S, geo, cells, len(y))
     data = -(vol * sp_ / m**2)[:, None] * grad_r  # (T, d), the same at every vertex of K
-    for i in range(d):
-        g[:, i] += np.bincount(cells.ravel(), weights=np.repeat(data[:, i], m), minlength=len(y))
-    return g
+    return g + scatter_corners(cells, np.repeat(data[:, None, :], m, axis=1), len(y))
 
 
 @dataclass

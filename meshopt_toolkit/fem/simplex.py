@@ -27,7 +27,7 @@ import scipy.sparse as sp
 
 from .._typing import FloatArray, IntArray
 from ..errors import InvalidMeshError, NotAdmissibleError
-from ..kernels.cell_maps import barycentric_gradients
+from ..kernels.cell_maps import barycentric_gradients, scatter_corners
 from ..kernels.tetrahedra import signed_volumes
 from ..kernels.triangles import signed_areas
 
@@ -219,9 +219,7 @@ def assemble(rows: IntArray, cols: IntArray, local: FloatArray, shape: tuple[int
 def node_gradient(S: FloatArray, geo: Geometry, cells: IntArray, n: int) -> FloatArray:
     """``Σ_K S_K ∇λ_a`` at every vertex ``(n, d)``: the derivative of ``Σ_K Φ_K`` with
     ``dΦ_K = S_K : ∇V`` (module docstring). ``S`` is ``(T, d, d)``."""
-    per = np.einsum("tij,taj->tai", S, geo.grads)
-    return np.stack([np.bincount(cells.ravel(), weights=per[..., i].ravel(), minlength=n)
-                     for i in range(S.shape[1])], axis=1)
+    return scatter_corners(cells, np.einsum("tij,taj->tai", S, geo.grads), n)
 
 
 def all_boundary_facets(cells: IntArray) -> IntArray:
@@ -285,6 +283,4 @@ def facet_normal_gradient(points: FloatArray, facets: IntArray, c: FloatArray, n
         u, v = x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]
         gb, gc = 0.5 * np.cross(v, c), 0.5 * np.cross(c, u)
         per = np.stack([-gb - gc, gb, gc], axis=1)
-    d = per.shape[2]
-    return np.stack([np.bincount(facets.ravel(), weights=per[..., i].ravel(), minlength=n)
-                     for i in range(d)], axis=1)
+    return scatter_corners(facets, per, n)

@@ -100,6 +100,15 @@ def coordinate_columns(cells: IntArray, dimension: int) -> IntArray:
     return (dimension * cells[:, :, None] + np.arange(dimension)).reshape(len(cells), -1)
 
 
+def scatter_corners(cells: IntArray, per_corner: FloatArray, n: int) -> FloatArray:
+    """Sum per-corner vectors ``(C, k, d)`` of the cells ``(C, k)`` onto their vertices:
+    ``(n, d)`` (the transpose of gathering ``points[cells]``)."""
+    idx = np.asarray(cells).ravel()
+    per_corner = np.asarray(per_corner)
+    flat = per_corner.reshape(len(idx), per_corner.shape[-1])
+    return np.column_stack([np.bincount(idx, flat[:, k], n) for k in range(flat.shape[1])])
+
+
 def block_jacobian(blocks: FloatArray, columns: IntArray, n_columns: int) -> sp.csr_matrix:
     """Assemble per-cell blocks (C, m, K) into the sparse Jacobian (m·C × ``n_columns``):
     row ``m·c + i`` of block ``[c, i]``, its entries in the columns ``columns[c]`` (C, K)

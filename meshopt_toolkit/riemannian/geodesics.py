@@ -166,6 +166,14 @@ def geodesic_acceleration(metric, Q: FloatArray, V: FloatArray) -> FloatArray:
     return GeodesicField(pen).acceleration(np.asarray(Q, float), np.asarray(V, float))[0]
 
 
+def _default_atol(Q: FloatArray, V: FloatArray, t_end: float, rtol: float,
+                  atol: float | None) -> float:
+    """``atol`` as given, else ``rtol`` times the scale ``max(max|Q|, max|V|·t_end)``."""
+    if atol is not None:
+        return atol
+    return rtol * max(float(np.max(np.abs(Q))), float(np.max(np.abs(V))) * t_end, 1e-300)
+
+
 def _scipy_dop853(fld: GeodesicField, Q0, V0, t_out, rtol, atol) -> IntegrationOutput:
     from scipy.integrate import solve_ivp
 
@@ -293,12 +301,8 @@ def geodesic(
     line_search = method_used == "line-search"
     if monitor is None:
         monitor = not line_search
+    free = free_vertex_mask(free, len(Q))
     if free is not None:
-        free = np.asarray(free)
-        if free.dtype != bool:
-            mask = np.zeros(len(Q), dtype=bool)
-            mask[free] = True
-            free = mask
         if free.shape != (len(Q),):
             raise IntegrationError(f"free must be an (N,) mask, got shape {free.shape}")
         if np.any(V[~free]):
@@ -321,12 +325,11 @@ def geodesic(
     if positive.size == 0 or not np.any(V):
         out = None
     elif method_used in ("dop853", "dopri5", "bs3", "line-search"):
-        scale = max(float(np.max(np.abs(Q))), float(np.max(np.abs(V))) * positive[-1], 1e-300)
         extra = LINE_SEARCH_OPTIONS if line_search else {}
         if line_search and h0 is None:
             h0 = LINE_SEARCH_FIRST_STEP * positive[-1]
         out = runge_kutta(fld, Q, V, positive, pair="bs3" if line_search else method_used,
-                          rtol=rtol, atol=rtol * scale if atol is None else atol,
+                          rtol=rtol, atol=_default_atol(Q, V, positive[-1], rtol, atol),
                           dense=opts.dense, h0=h0, partial=True, progress=progress,
                           control={"max_steps": opts.max_steps, **extra})
     elif method_used == "stormer-verlet":
@@ -335,8 +338,8 @@ def geodesic(
                              tolerance=opts.fixed_point_tolerance,
                              max_iterations=opts.fixed_point_max_iterations)
     else:
-        scale = max(float(np.max(np.abs(Q))), float(np.max(np.abs(V))) * positive[-1], 1e-300)
-        out = _scipy_dop853(fld, Q, V, positive, rtol, rtol * scale if atol is None else atol)
+        out = _scipy_dop853(fld, Q, V, positive, rtol,
+                            _default_atol(Q, V, positive[-1], rtol, atol))
 
     if out is not None and out.failure:
         reached = positive[: out.n_reached]
@@ -350,6 +353,18 @@ def geodesic(
         raise exc
     return _assemble(fld, Q, V, f0, req, positive, out, method_used, monitor, rtol,
                      energy_tol, opts.on_violation)
+
+
+def free_vertex_mask(free, n: int) -> np.ndarray | None:
+    """``free`` (an (n,) bool mask, vertex indices or None) as a bool mask; None stays None."""
+    if free is None:
+        return None
+    free = np.asarray(free)
+    if free.dtype != bool:
+        mask = np.zeros(n, dtype=bool)
+        mask[free] = True
+        free = mask
+    return free
 
 
 def _all_positive(points, metric) -> bool:

@@ -32,7 +32,7 @@ from .._typing import FloatArray
 from ..errors import IntegrationError, NotAdmissibleError
 from .field import GeodesicField
 from .geodesic_options import GeodesicOptions
-from .geodesics import geodesic, penalty_of, triangles_of
+from .geodesics import free_vertex_mask, geodesic, penalty_of, triangles_of
 
 logger = logging.getLogger(__name__)
 
@@ -47,17 +47,6 @@ class Retraction(Protocol):
 
     def __call__(self, Q: FloatArray, V: FloatArray,
                  times: Sequence[float]) -> RetractionPoints: ...
-
-
-def _free_mask(free, n: int) -> np.ndarray | None:
-    if free is None:
-        return None
-    free = np.asarray(free)
-    if free.dtype != bool:
-        mask = np.zeros(n, dtype=bool)
-        mask[free] = True
-        free = mask
-    return free
 
 
 class ExponentialRetraction:
@@ -125,7 +114,8 @@ class SecondOrderRetraction:
             return self._last[2]
         if self._field is None:
             pen = penalty_of(self.metric)
-            self._field = GeodesicField(pen, triangles_of(pen), free=_free_mask(self.free, len(Q)))
+            self._field = GeodesicField(pen, triangles_of(pen),
+                                        free=free_vertex_mask(self.free, len(Q)))
         A = self._field.acceleration(Q, V)[0]
         self._last = (Q, V, A)
         return A

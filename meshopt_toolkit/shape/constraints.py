@@ -28,6 +28,7 @@ import numpy as np
 
 from ..errors import InvalidMeshError, OptionError
 from .._typing import FloatArray, IntArray
+from ..kernels.cell_maps import scatter_corners
 from .area import restored_curve, shoelace_area, shoelace_gradient
 
 
@@ -46,13 +47,6 @@ def _determinants(Q: FloatArray, facets: IntArray) -> tuple[FloatArray, FloatArr
         D = np.einsum("fk,fk->f", a, bc)
         cof = np.stack([bc, np.cross(c, a), np.cross(a, b)], axis=1)
     return D, cof, p
-
-
-def _scatter(facets: IntArray, values: FloatArray, n: int) -> FloatArray:
-    """Sum per-corner vectors ``(F, d, d)`` onto the nodes: ``(n, d)``."""
-    idx = np.asarray(facets).ravel()
-    flat = values.reshape(len(idx), -1)
-    return np.column_stack([np.bincount(idx, flat[:, k], n) for k in range(flat.shape[1])])
 
 
 def _centred(Q: FloatArray, facets: IntArray) -> tuple[FloatArray, FloatArray]:
@@ -77,7 +71,7 @@ def _measure(Qc: FloatArray, facets: IntArray) -> float:
 def _measure_gradient(Qc: FloatArray, facets: IntArray) -> FloatArray:
     if Qc.shape[1] == 2:
         return shoelace_gradient(Qc, np.asarray(facets))
-    return _scatter(facets, _determinants(Qc, facets)[1], len(Qc)) / 6.0
+    return scatter_corners(facets, _determinants(Qc, facets)[1], len(Qc)) / 6.0
 
 
 def _moments(Qc: FloatArray, facets: IntArray) -> FloatArray:
@@ -94,7 +88,7 @@ def _moments_gradient(Qc: FloatArray, facets: IntArray) -> FloatArray:
     for i in range(d):
         per = cof * S[:, None, i, None]
         per[:, :, i] += D[:, None]
-        out[i] = _scatter(facets, per, len(Qc))
+        out[i] = scatter_corners(facets, per, len(Qc))
     return out / (math.factorial(d) * (d + 1))
 
 

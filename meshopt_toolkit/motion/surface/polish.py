@@ -32,6 +32,7 @@ import numpy as np
 
 from ..._typing import FloatArray, IntArray
 from ...descent import minimize_lbfgs
+from ...kernels.cell_maps import scatter_corners
 from ...kernels.surface import area_vectors, aspect_ratios
 from ...kernels.surface import areas as triangle_areas
 from ..engine.polish import cell_neighbourhood, soft_maximum
@@ -117,8 +118,7 @@ class SoftMaxObjective:
             self._last = (np.array(u, copy=True), phi)
             value += 0.5 * float(self.area_weights @ np.einsum("ti,ti->t", phi, phi))
             g = g + np.einsum("t,ti,tij->tj", self.area_weights, phi, J).reshape(-1, 3, 3)
-        flat, n = self.triangles.ravel(), len(self.start)
-        G = np.column_stack([np.bincount(flat, g[:, :, k].ravel(), n) for k in range(3)])
+        G = scatter_corners(self.triangles, g, len(self.start))
         dU = np.einsum("kij,ki->kj", self.basis, G[self.free])
         return float(value), dU.reshape(np.shape(u))
 
@@ -127,8 +127,7 @@ def _tangent_bases(points: FloatArray, triangles: IntArray, vertices: IntArray) 
     """Orthonormal (k, 3, 2) bases of the planes orthogonal to the area-weighted vertex
     normals at ``vertices`` (zero where the normal vanishes: the vertex stays)."""
     n = area_vectors(points, triangles)
-    N = np.column_stack([np.bincount(triangles.ravel(), np.repeat(n[:, k], 3), len(points))
-                         for k in range(3)])[vertices]
+    N = scatter_corners(triangles, np.repeat(n[:, None, :], 3, axis=1), len(points))[vertices]
     size = np.linalg.norm(N, axis=1)
     N = N / np.where(size > 0, size, 1.0)[:, None]
     # the full SVD of each normal's row: its last two right singular vectors span the plane

@@ -22,6 +22,7 @@ import numpy as np
 
 from ..._typing import FloatArray, IntArray
 from ...descent import minimize_lbfgs
+from ...kernels.cell_maps import scatter_corners
 from ...kernels.tetrahedra import mean_ratios
 from ..engine.polish import cell_neighbourhood, soft_maximum
 
@@ -67,10 +68,7 @@ class _SoftMax:
         if not np.isfinite(q).all():
             return np.inf, None
         value, gq = soft_maximum(q, g, self.sharpness)
-        flat = self.tets.ravel()
-        G = np.column_stack([np.bincount(flat, gq[:, :, k].ravel(), self.n_vertices)
-                             for k in range(3)])
-        return value, G[self.free].ravel()
+        return value, scatter_corners(self.tets, gq, self.n_vertices)[self.free].ravel()
 
 
 def fixed_ceiling(points: FloatArray, tets: IntArray, fixed: IntArray) -> float:
