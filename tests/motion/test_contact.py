@@ -12,9 +12,10 @@ from test_morph_self_intersection import flap_through_sheet
 
 from meshopt_toolkit.diagnostics import check_gradient, check_hvp
 from meshopt_toolkit.kernels.intersections3d import self_intersections
-from meshopt_toolkit.motion.engine.contact import DHAT_FRACTION, SurfaceContact
+from meshopt_toolkit.motion.engine.contact import (DHAT_FRACTION, IPCTK_FLOOR, SEGMENT_FLOOR,
+                                                   SurfaceContact)
 
-pytest.importorskip("ipctk")
+ipctk = pytest.importorskip("ipctk")
 
 
 def _near(drop: float) -> np.ndarray:
@@ -211,3 +212,50 @@ def test_stiffness_doubles_as_the_closest_pair_nears(contact):
     close = 0.5 - 1e-3 * contact.dhat
     assert term.set_stiffness(_near(close), g) and term.kappa == min(2 * k0, term.max_kappa)
     assert not term.set_stiffness(_near(close), g)  # no nearer than at the last update
+
+
+def _point_over_slope(scale: float = 1.0):
+    """A triangle on the slope z = y and a small one above it whose lowest point lies
+    ``h`` over the slope's point (0.25, 0.5, 0.5) (distance ``h/√2``, the closest pair):
+    the points at ``h`` (a callable) and the triangles, all times ``scale``."""
+    slope = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 1.0]])
+    top = np.array([[0.0, 0.0, 0.0], [0.2, 0.0, 0.4], [0.0, 0.2, 0.4]])
+    base = np.array([0.25, 0.5, 0.5])
+
+    def at(h):
+        return scale * np.vstack([slope, top + base + [0.0, 0.0, h]])
+
+    return at, np.array([[0, 1, 2], [3, 4, 5]])
+
+
+@settings(max_examples=30, deadline=None, derandomize=True, database=None)
+@given(k=st.sampled_from([-40, -20, 0, 20, 40]),
+       decimal=st.sampled_from([1e-12, 1e-6, 1.0, 1e6, 1e12]),
+       far=st.floats(0.05, 0.5), ratio=st.floats(1.3, 4.0))
+def test_a_segment_is_free_down_to_a_fifth_of_a_pairs_distance_or_the_floor(
+        k, decimal, far, ratio):
+    """The closed-form pair dropped straight down: from any distance a segment may close it
+    down to the floor (``SEGMENT_FLOOR`` of the rest's diagonal), not below; from below
+    the floor by fivefold at most (the CCD's tolerance, conservative, makes both up to
+    twice as strict: the band between is not asserted); the same verdicts at every
+    scale. At the user's scale, wherever the diagonal is at least 1, ipctk's own check
+    passes every segment ours does."""
+    scale = np.ldexp(decimal, k)
+    at, F = _point_over_slope(scale)
+
+    def free(d0, end):
+        """The verdict on the drop from distance ``d0`` to ``end(floor)``."""
+        Q0 = at(np.sqrt(2.0) * d0)
+        contact = SurfaceContact(Q0, F)
+        Q1 = at(np.sqrt(2.0) * end(SEGMENT_FLOOR * contact.bbox_diagonal / scale))
+        verdict = contact.segment_free(Q0, Q1)
+        if verdict and contact.bbox_diagonal >= IPCTK_FLOOR / SEGMENT_FLOOR:
+            assert ipctk.is_step_collision_free(contact.mesh, np.asfortranarray(Q0),
+                                                np.asfortranarray(Q1))
+        return verdict
+
+    assert free(far, lambda floor: 2.0 * ratio * floor)
+    assert not free(far, lambda floor: floor / ratio)
+    near = 0.5 * SEGMENT_FLOOR * SurfaceContact(at(1e-3), F).bbox_diagonal / scale
+    assert free(near, lambda floor: near / 2.0)
+    assert not free(near, lambda floor: near / (5.0 * ratio))

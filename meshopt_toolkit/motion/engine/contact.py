@@ -49,6 +49,12 @@ SWEPT_PAIRS = 1.0
 #: time interval it has not yet cleared, a conservative time of impact however few (pairs
 #: nearly touching at a step's start reach the bound, each iteration costing alike)
 TIGHT_ITERATIONS = 10**4
+#: the separation, over the rest's bounding-box diagonal, within which
+#: :meth:`SurfaceContact.segment_free` takes a pair for touching (where it starts more than
+#: five times as far); ipctk's step check puts it at 10⁻⁴ in any unit
+SEGMENT_FLOOR = 1e-4
+#: that separation in ipctk's step check, in the coordinates' unit
+IPCTK_FLOOR = 1e-4
 
 
 def _ipctk():
@@ -209,6 +215,25 @@ class SurfaceContact:
         if candidates is not None:
             return float(candidates.compute_collision_free_stepsize(self.mesh, Q0, Q1, 0.0, ccd))
         return float(ipctk.compute_collision_free_stepsize(self.mesh, Q0, Q1, 0.0, None, ccd))
+
+    def segment_free(self, Q0: FloatArray, Q1: FloatArray) -> bool:
+        """Whether the straight path from the clean ``Q0`` to ``Q1`` brings no pair within
+        ``min(d₀/5, SEGMENT_FLOOR × the rest's diagonal)`` of touching, ``d₀`` its distance
+        at ``Q0``: ipctk's step check (tight-inclusion CCD, conservative: its tolerance
+        makes both bounds up to about twice as strict, and a pair it cannot clear in
+        ``TIGHT_ITERATIONS`` counts as touching) on coordinates scaled so that its floor
+        (``IPCTK_FLOOR`` in any unit) is ``SEGMENT_FLOOR`` of the diagonal. Unlike a capped
+        step's CCD it bounds no ratio above the floor: a pair may close from any distance
+        down to it in one segment. Scale covariant, and at least as strict as ipctk's own
+        check at the user's scale wherever the diagonal is at least
+        ``IPCTK_FLOOR / SEGMENT_FLOOR``."""
+        ipctk = _ipctk()
+        k = IPCTK_FLOOR / (SEGMENT_FLOOR * self.bbox_diagonal)
+        return bool(ipctk.is_step_collision_free(
+            self.mesh, np.asfortranarray(k * np.asarray(Q0, float)),
+            np.asfortranarray(k * np.asarray(Q1, float)), 0.0, None,
+            ipctk.TightInclusionCCD(ipctk.TightInclusionCCD.DEFAULT_TOLERANCE,
+                                    TIGHT_ITERATIONS)))
 
     def stiffness(self, energy_gradient: FloatArray, Q: FloatArray,
                   mass: float) -> tuple[float, float]:

@@ -34,9 +34,9 @@ in every triangle of every frame and no fold (:class:`.folds.FoldTest` against t
 source) that the target does not have. The mass term fixes the frames' rigid motions (a
 rotation of one frame costs ``|ΔQ|²_M``), so nothing is pinned.
 
-With contact (the default, where both ends are free of self-intersections and there is an
-interior frame) no frame passes through the surface, nor the straight motion between two
-frames: each frame's IPC barrier joins the energy, every step is capped by CCD and taken
+With contact (the default, where both ends are free of self-intersections) no frame
+passes through the surface, nor the straight motion between two frames (two frames alone
+are refused where the motion between them does, with the frames a clean path needs): each frame's IPC barrier joins the energy, every step is capped by CCD and taken
 only on a clean path, from a clean start (:mod:`.morph_contact`). Where neither
 interpolation is clean, the start is the as-rigid-as-possible interpolation that turns each
 pair of neighbours whose dihedral angle's short way passes the fold (one triangle laid on
@@ -72,7 +72,7 @@ from ..engine.similarity_3d import global_similarity
 from .folds import FoldTest
 from .interpolation import arap_interpolation, fold_crossings
 from .metric import BENDING, WEIGHT, SurfaceGraphMetric
-from .morph_contact import PathContact, detour_path, sampled_path
+from .morph_contact import PathContact, detour_path
 from .morph_homotopy import homotopy_start
 from .morph_polish import polish_frames
 from .path import RTOL, SurfacePathOptions, SurfacePathProblem
@@ -286,7 +286,7 @@ def _path_contact(problem: _PathProblem, V0, V1, frames: int, on: bool
     ends are free of self-intersections; a :class:`ContactWarning` with the count where
     one is not."""
     F = problem.triangles
-    if not on or len(F) < 2 or frames < 3:
+    if not on or len(F) < 2:
         return None
     contact = pair_contact(V0, V1, F)
     if contact is None:
@@ -316,11 +316,9 @@ def _initial_path(problem: _PathProblem, V0, V1, F, times,
                                                       until=problem.healthy)),
                   ("arap", lambda: arap_interpolation(V0, V1, F, times)),
                   ("linear", lambda: [(1.0 - t) * V0 + t * V1 for t in times]),
-                  ("long_way", lambda: sampled_path(
-                      contact, lambda ts: arap_interpolation(
-                          V0, V1, F, ts, long_way=True, iterations=START_ITERATIONS,
-                          until=problem.healthy), len(times) - 1)
-                   if fold_crossings(V0, V1, F).nnz else None),
+                  ("long_way", lambda: arap_interpolation(
+                      V0, V1, F, times, long_way=True, iterations=START_ITERATIONS,
+                      until=problem.healthy) if fold_crossings(V0, V1, F).nnz else None),
                   ("detour", lambda: detour_path(contact, V0, V1, F, len(times) - 1)),
                   ("homotopy", lambda: homotopy_start(problem, contact, V0, V1, F,
                                                      len(times) - 1)))

@@ -4,17 +4,16 @@ and no surface point passes through the surface between consecutive frames.
 Each interior frame carries IPC's barrier (:class:`..engine.contact.ContactTerm`, its own
 stiffness ``κ``) on the pairs closer than ``d̂``, ``d̂`` below half of either end's
 closest pair (:func:`..engine.contact.pair_contact`), added to the path energy. A path is *clean*
-where the straight segment between every two consecutive frames is free of contact by CCD
-and no two triangles sharing a vertex meet in a frame (exact): from the clean source, every
-frame is then clean too. The start path must be clean; a Levenberg–Marquardt step is capped
-by the CCD of each frame's move and accepted only on a clean path, so every iterate is clean.
+where the straight segment between every two consecutive frames is free of contact
+(:meth:`..engine.contact.SurfaceContact.segment_free`: ipctk's step check, tight-inclusion
+CCD) and no two triangles sharing a vertex meet in a frame (exact): from the clean source,
+every frame is then clean too. The start path must be clean; a Levenberg–Marquardt step is
+capped by the CCD of each frame's move and accepted only on a clean path, so every iterate
+is clean.
 
 Where neither interpolation of the ends is clean, :func:`detour_path` builds a clean start
 for a surface of several components: the components that move are shifted along an axis
 until their boxes clear the others', moved to the target there, and shifted back.
-:func:`sampled_path` picks the frames of a path given at any time (an interpolation) where
-those at even times are not clean: CCD's conservative steps stop short on a segment whose
-pairs end much closer than they start, near an end close to contact.
 """
 
 from __future__ import annotations
@@ -26,11 +25,7 @@ from scipy.sparse.csgraph import connected_components
 from ..._typing import FloatArray, IntArray
 from ..engine.contact import ContactTerm, SurfaceContact
 
-__all__ = ["PathContact", "chord_picks", "detour_path", "sampled_path"]
-
-#: samples per segment asked of a path whose frames at even times are not clean, among
-#: which :func:`sampled_path` picks the frames
-SAMPLES = 8
+__all__ = ["PathContact", "chord_picks", "detour_path"]
 
 
 class PathContact:
@@ -51,8 +46,6 @@ class PathContact:
         mean = float(np.mean(mass))
         self.contact = contact
         self.terms = [ContactTerm(contact, free, mean) for _ in range(frames - 2)]
-        #: caps the segments between frames (its own candidate cache)
-        self._segments = ContactTerm(contact, free, mean)
 
     def energy(self, path: list) -> float:
         """``Σ κ_j B(Q_j)`` over the interior frames (+inf where a pair touches)."""
@@ -80,12 +73,12 @@ class PathContact:
 
     def segment_clear(self, Q0: FloatArray, Q1: FloatArray) -> bool:
         """Whether the straight segment from the clean ``Q0`` to ``Q1`` is free of
-        contact (CCD)."""
-        return self._segments.cap(Q0, Q1, swept=False) >= 1.0
+        contact (:meth:`..engine.contact.SurfaceContact.segment_free`)."""
+        return self.contact.segment_free(Q0, Q1)
 
     def embedded(self, Q: FloatArray) -> bool:
         """Whether no two triangles sharing a vertex meet at ``Q`` (exact)."""
-        return self._segments.embedded(Q)
+        return not self.contact.neighbours_meet(Q)
 
     def clean(self, path: list) -> bool:
         """Whether every segment between consecutive frames is free of contact and no
@@ -172,30 +165,3 @@ def chord_picks(contact: PathContact, poly: list) -> list:
         picks.append(b)
         a = b
     return picks
-
-
-def sampled_path(contact: PathContact, frames_at, segments: int) -> list | None:
-    """``segments + 1`` frames of the path ``frames_at`` (a callable of times in [0, 1],
-    its frames) from its first to its last: those at even times where every segment
-    between them is clear (CCD); else picked among ``SAMPLES`` times as many samples at
-    even times, the longest clear chords (:func:`chord_picks`), the chords over the most
-    samples then split at their middle sample while there are frames to spare; None where
-    the samples are not clear, the chords need more frames, or none splits clear."""
-    frames = frames_at(np.linspace(0.0, 1.0, segments + 1))
-    if all(contact.segment_clear(a, b) for a, b in zip(frames[:-1], frames[1:])):
-        return frames
-    poly = frames_at(np.linspace(0.0, 1.0, SAMPLES * segments + 1))
-    if not all(contact.segment_clear(a, b) for a, b in zip(poly[:-1], poly[1:])):
-        return None
-    picks = chord_picks(contact, poly)
-    while len(picks) - 1 < segments:
-        spans = np.diff(picks)
-        for i in np.argsort(-spans, kind="stable"):
-            a, m, b = picks[i], (picks[i] + picks[i + 1]) // 2, picks[i + 1]
-            if m > a and contact.segment_clear(poly[a], poly[m]) and contact.segment_clear(
-                    poly[m], poly[b]):
-                picks.insert(i + 1, m)
-                break
-        else:
-            return None
-    return [poly[i] for i in picks] if len(picks) - 1 == segments else None

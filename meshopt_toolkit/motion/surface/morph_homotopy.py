@@ -12,9 +12,9 @@ each capped by CCD, so the polyline of iterates passes through no contact. At ``
 the attraction is raised tenfold until the iterate is within ``REACH_TOLERANCE`` of the
 target; where it stalls before (the barrier holds it), there is no start
 (:class:`SelfIntersectionError`, saying how far short). The last straight piece onto the
-target must be clear: CCD stops a pair at a fraction of its distance at a piece's start,
-so a target whose pairs lie far closer than the barrier's ``d̂`` is not reached in one
-piece from where that barrier holds them; the barrier is then thinned (``THINNER`` at a
+target must be clear: the segment test lets a pair close in by at most fivefold below a
+floor (:meth:`..engine.contact.SurfaceContact.segment_free`), so a target whose pairs lie
+far closer than that is not reached in one piece from where the barrier holds them; the barrier is then thinned (``THINNER`` at a
 time, down to the morph's ``d̂``) and the attraction pulls on, the iterates closing in
 on those pairs step by step, until the piece is clear. The frames are the iterates
 joined by the longest chords clear by the morph's segment test (a step is taken only
@@ -157,8 +157,8 @@ def homotopy_path(problem, contact, V0: FloatArray, V1: FloatArray, guide,
     for j in range(1, len(times)):
         k = _pull(problem, term, contact.segment_clear, poly, P[j], ATTRACTION, mass,
                   REACH_TOLERANCE * dhat, RAISES if j == len(times) - 1 else 1)
-    # reached, but the target's pairs end closer than the last piece clears (CCD stops a
-    # pair at a fraction of its distance at the piece's start): the barrier thinner in turn
+    # reached, but the target's pairs end closer than the last piece clears (a pair below
+    # the segment test's floor closes in by fivefold at most): the barrier thinner in turn
     while (np.abs(poly[-1] - V1).max() <= REACH_TOLERANCE * dhat
            and dhat > contact.contact.dhat and not contact.segment_clear(poly[-1], V1)):
         dhat = max(dhat / THINNER, contact.contact.dhat)
