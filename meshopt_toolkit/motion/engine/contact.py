@@ -358,19 +358,14 @@ class ContactTerm:
         end.ravel()[self.free] -= step
         return self.cap(Q, end)
 
-    def cap(self, Q0: FloatArray, Q1: FloatArray, swept: bool = True) -> float:
+    def cap(self, Q0: FloatArray, Q1: FloatArray) -> float:
         """The CCD fraction of the straight step from ``Q0`` to ``Q1``; 1 without CCD
         where no pair is within ``d̂`` at ``Q0`` and no point moves by ``d̂/2`` (a pair's
-        distance falls by at most twice the largest displacement). ``swept=False``: over
-        the whole surface's broad phase, not candidates grown by ``d̂`` (on those, additive
-        CCD, conservative, stops short on a pair that only approaches: a step that must be
-        clear, not merely safe)."""
+        distance falls by at most twice the largest displacement)."""
         step = float(np.sqrt(np.max(np.sum((Q1 - Q0) ** 2, axis=1)))) if len(Q0) else 0.0
         if 2.0 * step < self.contact.dhat and not self.active(Q0):
             return 1.0
         collisions = self.collisions(Q0)
-        if not swept:
-            return self.contact.stepsize(Q0, Q1, collisions)
         candidates = self._candidates(Q0, Q1)
         if candidates is None:  # the step's own broad phase, kept for its trials' pairs
             candidates = self.contact.swept(Q0, Q1)

@@ -36,8 +36,9 @@ rotation of one frame costs ``|ΔQ|²_M``), so nothing is pinned.
 
 With contact (the default, where both ends are free of self-intersections) no frame
 passes through the surface, nor the straight motion between two frames (two frames alone
-are refused where the motion between them does, with the frames a clean path needs): each frame's IPC barrier joins the energy, every step is capped by CCD and taken
-only on a clean path, from a clean start (:mod:`.morph_contact`). Where neither
+are refused where that motion passes through it, with the frames a clean path needs):
+each frame's IPC barrier joins the energy, every step is capped by CCD and taken only on
+a clean path, from a clean start (:mod:`.morph_contact`). Where neither
 interpolation is clean, the start is the as-rigid-as-possible interpolation that turns each
 pair of neighbours whose dihedral angle's short way passes the fold (one triangle laid on
 the other) the long way round, through flat (``long_way``,
