@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from test_morph_self_intersection import _grid
 
@@ -260,12 +260,14 @@ def test_the_last_step_carries_the_pairs_along_with_the_handles(monkeypatch):
     assert clear and abs(after - before) < 1e-2 * before
 
 
-@settings(max_examples=40, deadline=None)
+@settings(max_examples=40, deadline=None, derandomize=True, database=None)
 @given(turn=st.floats(-180.0, 0.0), shift=st.floats(-0.6, 0.2), height=st.floats(-0.2, 0.3))
 def test_placed_crossings_agree_with_ipctk(turn, shift, height):
     """Random placements of the paddle by the sheet's fixed band (y ≤ 0.25 and the
     border): refused exactly where ipctk finds an edge through a triangle among the
-    elements whose every vertex is a handle."""
+    elements whose every vertex is a handle, wherever ipctk's floating-point test can tell
+    (a paddle lying within 10⁻⁹ of the sheet's plane, e.g. turned by 10⁻¹⁴⁰ just below
+    it, is left out: ipctk finds it through the sheet, the exact kernel below)."""
     import ipctk
 
     V, F, h, _ = _paddle_through_fixed_band()
@@ -280,5 +282,6 @@ def test_placed_crossings_agree_with_ipctk(turn, shift, height):
     faces = F[placed[F].all(axis=1)].astype(np.int32)
     E = ipctk.edges(F.astype(np.int32))
     mesh = ipctk.CollisionMesh(P, E[placed[E].all(axis=1)], faces)
+    assume(np.abs(tg[-9:, 2]).max() > 1e-9)
     assert (placed_targets_problem(F, h, tg, len(V)) is not None) == ipctk.has_intersections(
         mesh, P)
