@@ -325,6 +325,21 @@ def test_random_hinged_flaps_morph_clean_the_long_way_round(a, b, axis, rotvec):
     _assert_clean_and_healthy(res, V0, V1, F)
 
 
+def test_a_flap_ending_close_to_the_base_is_approached_geometrically():
+    """Turned to 0.01° under the base (a pair 2·10⁻⁵ of the size apart at the target), the
+    long way round's last even step closes that pair from 0.3 through the step check's
+    floor: not clear. The frames are picked among samples halving their time towards the
+    target, each segment clear, every frame as healthy as the worse end."""
+    V0, V1, F = hinged_flap(160.0, 179.99, 1, [0.48, 0.19, 0.15])
+    problem = smorph._PathProblem(V0, V1, F, smorph.WEIGHT, smorph.BENDING)
+    contact = smorph._path_contact(problem, V0, V1, 9, True)
+    even = arap_interpolation(V0, V1, F, np.linspace(0.0, 1.0, 9), long_way=True)
+    assert not all(contact.segment_clear(a, b) for a, b in zip(even[:-1], even[1:]))
+    res = morph_surface(V0, V1, F, 9)
+    assert res.initial_path == "long_way"
+    _assert_clean_and_healthy(res, V0, V1, F)
+
+
 @pytest.mark.slow
 def test_the_homotopy_along_the_long_way_splits_its_chords_at_its_iterates():
     """Pulled round the hinge the long way, the homotopy's chords are split at their middle

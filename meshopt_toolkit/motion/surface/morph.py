@@ -73,7 +73,7 @@ from ..engine.similarity_3d import global_similarity
 from .folds import FoldTest
 from .interpolation import arap_interpolation, fold_crossings
 from .metric import BENDING, WEIGHT, SurfaceGraphMetric
-from .morph_contact import PathContact, detour_path
+from .morph_contact import PathContact, detour_path, graded_path
 from .morph_homotopy import homotopy_start
 from .morph_polish import polish_frames
 from .path import RTOL, SurfacePathOptions, SurfacePathProblem
@@ -317,9 +317,11 @@ def _initial_path(problem: _PathProblem, V0, V1, F, times,
                                                       until=problem.healthy)),
                   ("arap", lambda: arap_interpolation(V0, V1, F, times)),
                   ("linear", lambda: [(1.0 - t) * V0 + t * V1 for t in times]),
-                  ("long_way", lambda: arap_interpolation(
-                      V0, V1, F, times, long_way=True, iterations=START_ITERATIONS,
-                      until=problem.healthy) if fold_crossings(V0, V1, F).nnz else None),
+                  ("long_way", lambda: graded_path(
+                      contact, lambda ts: arap_interpolation(
+                          V0, V1, F, ts, long_way=True, iterations=START_ITERATIONS,
+                          until=problem.healthy), len(times) - 1)
+                   if fold_crossings(V0, V1, F).nnz else None),
                   ("detour", lambda: detour_path(contact, V0, V1, F, len(times) - 1)),
                   ("homotopy", lambda: homotopy_start(problem, contact, V0, V1, F,
                                                      len(times) - 1)))

@@ -14,6 +14,8 @@ is clean.
 Where neither interpolation of the ends is clean, :func:`detour_path` builds a clean start
 for a surface of several components: the components that move are shifted along an axis
 until their boxes clear the others', moved to the target there, and shifted back.
+:func:`graded_path` picks the frames of a path given at any time (an interpolation) where
+those at even times are not clean, among samples that approach either end geometrically.
 """
 
 from __future__ import annotations
@@ -25,7 +27,11 @@ from scipy.sparse.csgraph import connected_components
 from ..._typing import FloatArray, IntArray
 from ..engine.contact import ContactTerm, SurfaceContact
 
-__all__ = ["PathContact", "chord_picks", "detour_path"]
+__all__ = ["PathContact", "chord_picks", "detour_path", "graded_path"]
+
+#: samples per segment at even times, and the halvings of the first sample's time towards
+#: either end, among which :func:`graded_path` picks the frames
+SAMPLES, HALVINGS = 4, 40
 
 
 class PathContact:
@@ -165,3 +171,43 @@ def chord_picks(contact: PathContact, poly: list) -> list:
         picks.append(b)
         a = b
     return picks
+
+
+def graded_path(contact: PathContact, frames_at, segments: int) -> list | None:
+    """``segments + 1`` frames of the path ``frames_at`` (a callable of times in [0, 1],
+    its frames) from its first to its last: those at even times where every segment
+    between them is clear; else picked among samples at ``SAMPLES`` times as many even
+    times and at times halving towards either end (``HALVINGS`` of them, none whose points
+    all lie within ``d̂/2`` of that end), the longest
+    clear chords (:func:`chord_picks`), the chords over the most samples then split at
+    their middle sample while there are frames to spare; None where the samples are not
+    clear or the chords need more frames.
+
+    The halvings approach an end close to contact geometrically: below the step check's
+    floor a segment may close a pair by fivefold at most
+    (:meth:`..engine.contact.SurfaceContact.segment_free`), which even times cannot do."""
+    frames = frames_at(np.linspace(0.0, 1.0, segments + 1))
+    if all(contact.segment_clear(a, b) for a, b in zip(frames[:-1], frames[1:])):
+        return frames
+    even = np.linspace(0.0, 1.0, SAMPLES * segments + 1)
+    halved = even[1] * 0.5 ** np.arange(1, HALVINGS + 1)
+    poly = frames_at(np.unique(np.concatenate([even, halved, 1.0 - halved])))
+    # none within d̂/2 of an end (d̂ is below half its closest pair): the segment onto the
+    # end from the next one keeps that pair's distance within twice itself, clear
+    near = 0.5 * contact.contact.dhat
+    poly = [poly[0]] + [Q for Q in poly[1:-1] if min(
+        np.abs(Q - poly[0]).max(), np.abs(Q - poly[-1]).max()) > near] + [poly[-1]]
+    if not all(contact.segment_clear(a, b) for a, b in zip(poly[:-1], poly[1:])):
+        return None
+    picks = chord_picks(contact, poly)
+    while len(picks) - 1 < segments:
+        spans = np.diff(picks)
+        for i in np.argsort(-spans, kind="stable"):
+            a, m, b = picks[i], (picks[i] + picks[i + 1]) // 2, picks[i + 1]
+            if m > a and contact.segment_clear(poly[a], poly[m]) and contact.segment_clear(
+                    poly[m], poly[b]):
+                picks.insert(i + 1, m)
+                break
+        else:
+            return None
+    return [poly[i] for i in picks] if len(picks) - 1 == segments else None
