@@ -6,11 +6,13 @@ exactly and nothing folds; without, the frames pass through the sheet."""
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from test_morph_self_intersection import _grid
 
 import meshopt_toolkit as mt
 from meshopt_toolkit.cli import main
@@ -24,18 +26,8 @@ from meshopt_toolkit.motion.surface.move import SurfaceMoveOptions, move_surface
 
 pytest.importorskip("ipctk")
 
-
-def flap_on_sheet(n: int = 3, gap: float = 0.3):
-    """A sheet z = 0 over [0, 1]² (every vertex a handle at rest) and an upright flap
-    (y = 0.5, x in [0.3, 0.7], z in [gap, gap + 1]); the flap's top row is the other
-    handles. Points, triangles, handles, the handles' rest positions, the top's rows."""
-    uv, F = _grid(n)
-    sheet = np.c_[uv, np.zeros(len(uv))]
-    flap = np.c_[0.3 + 0.4 * uv[:, 0], np.full(len(uv), 0.5), gap + uv[:, 1]]
-    V = np.vstack([sheet, flap])
-    top = len(uv) + np.flatnonzero(uv[:, 1] == 1.0)
-    handles = np.r_[np.arange(len(uv)), top]
-    return V, np.vstack([F, F + len(uv)]), handles, V[handles].copy(), len(uv)
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
+from bench_surface_morph_pushes import flap_on_sheet  # noqa: E402
 
 
 def _pushed(drop: float, shift=(0.0, 0.0)):
