@@ -178,10 +178,10 @@ def graded_path(contact: PathContact, frames_at, segments: int) -> list | None:
     its frames) from its first to its last: those at even times where every segment
     between them is clear; else picked among samples at ``SAMPLES`` times as many even
     times and at times halving towards either end (``HALVINGS`` of them, none whose points
-    all lie within ``d̂/2`` of that end), the longest
-    clear chords (:func:`chord_picks`), the chords over the most samples then split at
-    their middle sample while there are frames to spare; None where the samples are not
-    clear or the chords need more frames.
+    all lie within ``d̂/2`` of that end), the longest clear chords (:func:`chord_picks`),
+    the chords over the most samples then split at their middle sample while there are
+    frames to spare; None where the samples are not clear or the chords need more
+    frames.
 
     The halvings approach an end close to contact geometrically: below the step check's
     floor a segment may close a pair by fivefold at most

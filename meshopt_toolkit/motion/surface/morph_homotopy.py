@@ -13,26 +13,26 @@ the attraction is raised tenfold until the iterate is within ``REACH_TOLERANCE``
 target; where it stalls before (the barrier holds it), there is no start
 (:class:`SelfIntersectionError`, saying how far short). The last straight piece onto the
 target must be clear: the segment test lets a pair close in by at most fivefold below a
-floor (:meth:`..engine.contact.SurfaceContact.segment_free`), so a target whose pairs lie
-far closer than that is not reached in one piece from where the barrier holds them; the barrier is then thinned (``THINNER`` at a
-time, down to the morph's ``d̂``) and the attraction pulls on, the iterates closing in
-on those pairs step by step, until the piece is clear. The frames are the iterates
-joined by the longest chords clear by the morph's segment test (a step is taken only
-where that test passes it), the longest chords then split where there are frames to
-spare, at their middle iterate (a midpoint of two frames of a turning part shrinks it),
-at their midpoint where they join two consecutive iterates; where more are needed than
-asked, the refusal gives the count (the fewest over the guides and ``d̂``). The barrier
-is ``STIFFER`` times IPC's initial stiffness: the iterates keep further from contact and
-the clear chords between them are longer. Its ``d̂`` is the surface's own (a fraction of
-the mean edge), not the morph's, which ends close to contact lower to below half their
-closest pair: a barrier that thin tells Newton nothing of the contact until a step has
-passed it, CCD cuts such steps to a sliver of their length, and the iterates pressed
-onto the contact creep behind the guide. The ends' pairs within the wider ``d̂`` are
-pushed apart by the first increments and come back in the last; every step and chord is
-still cleared by the morph's CCD. Where the clean path needs more frames than asked, the
-homotopy is run again with ``d̂`` twice and four times the surface's own (``WIDER``):
-its iterates keep further from contact and its clear chords are longer.
-"""
+floor (:meth:`..engine.contact.SurfaceContact.segment_free`), so a target whose pairs
+lie far closer than that is not reached in one piece from where the barrier holds them;
+the barrier is then thinned (``THINNER`` at a time, down to the morph's ``d̂``) and the
+attraction pulls on, the iterates closing in on those pairs step by step, until the
+piece is clear. The frames are the iterates joined by the longest chords clear by the
+morph's segment test (a step is taken only where that test passes it), the longest
+chords then split where there are frames to spare, at their middle iterate (a midpoint
+of two frames of a turning part shrinks it), at their midpoint where they join two
+consecutive iterates; where more are needed than asked, the refusal gives the count (the
+fewest over the guides and ``d̂``). The barrier is ``STIFFER`` times IPC's initial
+stiffness: the iterates keep further from contact and the clear chords between them are
+longer. Its ``d̂`` is the surface's own (a fraction of the mean edge), not the morph's,
+which ends close to contact lower to below half their closest pair: a barrier that thin
+tells Newton nothing of the contact until a step has passed it, CCD cuts such steps to a
+sliver of their length, and the iterates pressed onto the contact creep behind the
+guide. The ends' pairs within the wider ``d̂`` are pushed apart by the first increments
+and come back in the last; every step and chord is still cleared by the morph's CCD.
+Where the clean path needs more frames than asked, the homotopy is run again with ``d̂``
+twice and four times the surface's own (``WIDER``): its iterates keep further from
+contact and its clear chords are longer. """
 
 from __future__ import annotations
 
