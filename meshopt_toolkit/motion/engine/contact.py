@@ -219,7 +219,8 @@ class SurfaceContact:
     def segment_free(self, Q0: FloatArray, Q1: FloatArray) -> bool:
         """Whether the straight path from the clean ``Q0`` to ``Q1`` brings no pair within
         ``min(d₀/5, SEGMENT_FLOOR × the rest's diagonal)`` of touching, ``d₀`` its distance
-        at ``Q0``: ipctk's step check (tight-inclusion CCD, conservative: its tolerance
+        at ``Q0`` (a pair whose boxes swept along the path do not meet cannot touch and is
+        not tested): ipctk's step check (tight-inclusion CCD, conservative: its tolerance
         makes both bounds up to about twice as strict, and a pair it cannot clear in
         ``TIGHT_ITERATIONS`` counts as touching) on coordinates scaled so that its floor
         (``IPCTK_FLOOR`` in any unit) is ``SEGMENT_FLOOR`` of the diagonal. Unlike a capped
