@@ -353,3 +353,48 @@ def test_the_homotopy_along_the_long_way_splits_its_chords_at_its_iterates():
         16)
     assert len(frames) == 17 and _clean_steps(frames, F)
     assert all(problem.admissible(Q) for Q in frames[1:-1])
+
+
+@pytest.mark.slow
+def test_six_frames_suffice_the_homotopy_for_a_flap_ending_close_to_the_base():
+    """The flap turned to 0.01° under the base in 6 frames, fewer than the long way round's
+    samples need: the homotopy's iterates keep every pair at least half the morph's d̂
+    apart (not pressed onto the contact, where tight-inclusion CCD grinds), and the clean
+    path it finds fits in 6 frames: every frame and the motion between them clean."""
+    V0, V1, F = hinged_flap(160.0, 179.99, 1, [0.48, 0.19, 0.15])
+    res = morph_surface(V0, V1, F, 6)
+    assert res.initial_path == "homotopy"
+    frames = list(res.points)
+    np.testing.assert_array_equal(frames[0], V0)
+    np.testing.assert_array_equal(frames[-1], V1)
+    assert [len(self_intersections(Q, F)) for Q in frames] == [0] * 6
+    assert _clean_steps(frames, F)
+
+
+def _turning_triangle(gap: float):
+    """A small fixed triangle at height ``gap`` over (0.5, 0.5) and a triangle in z = 0
+    whose corner (1, 0, 0) turns by 90° about the z axis to (0, 1, 0): the straight piece
+    between the two poses carries that corner to (0.5, 0.5, 0), ``gap`` under the small
+    triangle, while both ends keep it about 0.6 away; the scene turned off the axes (else
+    the pair's swept boxes would not meet, and the segment test would not test it)."""
+    small = np.array([[0.5, 0.4, gap], [0.6, 0.55, gap], [0.4, 0.55, gap]])
+    turning = np.array([[1.0, 0.0, 0.0], [2.0, 0.3, 0.0], [2.0, -0.3, 0.0]])
+    quarter = Rotation.from_rotvec([0.0, 0.0, np.pi / 2]).as_matrix()
+    F = np.array([[0, 1, 2], [3, 4, 5]])
+    tilt = Rotation.from_rotvec([0.3, -0.4, 0.2]).as_matrix().T
+    return (np.vstack([small, turning]) @ tilt, np.vstack([small, turning @ quarter.T]) @ tilt,
+            F)
+
+
+@pytest.mark.parametrize("gap, clear", [(1e-2, True), (1e-5, False)])
+def test_the_last_piece_s_samples_agree_with_the_segment_test(gap, clear, monkeypatch):
+    """A piece that dips below the segment test's floor between ends far from contact is
+    refused by its samples (the test not run), as the test refuses it; one that keeps
+    above it passes both."""
+    V0, V1, F = _turning_triangle(gap)
+    problem = smorph._PathProblem(V0, V1, F, smorph.WEIGHT, smorph.BENDING)
+    contact = smorph._path_contact(problem, V0, V1, 3, True)
+    assert contact.segment_clear(V0, V1) == clear
+    if not clear:
+        monkeypatch.setattr(contact, "segment_clear", lambda *a: pytest.fail("tested"))
+    assert morph_homotopy._piece_clear(contact, V0, V1) == clear

@@ -17,7 +17,11 @@ floor (:meth:`..engine.contact.SurfaceContact.segment_free`), so a target whose 
 lie far closer than that is not reached in one piece from where the barrier holds them;
 the barrier is then thinned (``THINNER`` at a time, down to the morph's ``d̂``) and the
 attraction pulls on, the iterates closing in on those pairs step by step, until the
-piece is clear. The frames are the iterates joined by the longest chords clear by the
+piece is clear. No step brings a pair within ``KEEP`` times the morph's ``d̂`` (at most
+half either end's closest pair): an iterate pressed closer by the raised attraction has
+stalled against the contact, and tight-inclusion CCD grinds on the steps and chords from
+it. For the same reason the last piece is first sampled for a pair closer than the
+segment test lets one come (:func:`_piece_clear`). The frames are the iterates joined by the longest chords clear by the
 morph's segment test (a step is taken only where that test passes it), the longest
 chords then split where there are frames to spare, at their middle iterate (a midpoint
 of two frames of a turning part shrinks it), at their midpoint where they join two
@@ -42,7 +46,7 @@ import scipy.sparse as sp
 from ..._typing import FloatArray
 from ...errors import SelfIntersectionError
 from ...solvers import factorize_spd
-from ..engine.contact import ContactTerm
+from ..engine.contact import SEGMENT_FLOOR, ContactTerm
 from .interpolation import arap_interpolation, fold_crossings
 from .morph_contact import chord_picks
 
@@ -66,6 +70,11 @@ REACH_TOLERANCE = 0.5
 #: than asked: the wider, the further the iterates keep from contact and the longer the
 #: clear chords between them
 WIDER = (1.0, 2.0, 4.0)
+#: the closest an iterate's pair may come, over the morph's d̂ (module docstring)
+KEEP = 0.5
+#: the points of the last piece onto the target at which it is first sampled for a pair
+#: too close (:func:`_piece_clear`)
+DIP_SAMPLES = 15
 #: the barrier's d̂ over the next one, in turn from the surface's own towards the morph's
 #: while the last piece onto the target is not clear
 THINNER = 4.0
@@ -136,6 +145,21 @@ def _pull(problem, term: ContactTerm, clear, poly: list, P: FloatArray, k: float
     return k
 
 
+def _piece_clear(contact, Q: FloatArray, V1: FloatArray) -> bool:
+    """Whether the straight piece from ``Q`` to the target ``V1`` is clear
+    (:meth:`.morph_contact.PathContact.segment_clear`); not where a point of it at one of
+    ``DIP_SAMPLES`` even times has a pair closer than the test lets one come (a fifth of
+    ``Q``'s closest pair or of the floor): the test grinds on pieces that dip that close."""
+    surface = contact.contact
+    floor = SEGMENT_FLOOR * surface.bbox_diagonal
+    near = surface.with_dhat(floor)
+    bound = min(near.minimum_distance(Q), floor) / 5.0
+    if any(near.minimum_distance((1.0 - t) * Q + t * V1) < bound
+           for t in np.linspace(0.0, 1.0, DIP_SAMPLES + 2)[1:-1]):
+        return False
+    return contact.segment_clear(Q, V1)
+
+
 def homotopy_path(problem, contact, V0: FloatArray, V1: FloatArray, guide,
                   segments: int, wider: float = 1.0) -> list:
     """A clean path of ``segments + 1`` frames from ``V0`` to ``V1`` (module docstring),
@@ -153,21 +177,26 @@ def homotopy_path(problem, contact, V0: FloatArray, V1: FloatArray, guide,
     times = np.linspace(0.0, 1.0, INCREMENTS + 1)
     P = list(guide(times))
     P[-1] = V1
+    keep = KEEP * contact.contact.dhat
+
+    def clear(Q0, Q1):  # a step that keeps every pair apart, on a clear segment
+        return contact.contact.minimum_distance(Q1) > keep and contact.segment_clear(Q0, Q1)
+
     poly = [V0]
     for j in range(1, len(times)):
-        k = _pull(problem, term, contact.segment_clear, poly, P[j], ATTRACTION, mass,
+        k = _pull(problem, term, clear, poly, P[j], ATTRACTION, mass,
                   REACH_TOLERANCE * dhat, RAISES if j == len(times) - 1 else 1)
     # reached, but the target's pairs end closer than the last piece clears (a pair below
     # the segment test's floor closes in by fivefold at most): the barrier thinner in turn
     while (np.abs(poly[-1] - V1).max() <= REACH_TOLERANCE * dhat
-           and dhat > contact.contact.dhat and not contact.segment_clear(poly[-1], V1)):
+           and dhat > contact.contact.dhat and not _piece_clear(contact, poly[-1], V1)):
         dhat = max(dhat / THINNER, contact.contact.dhat)
         term = ContactTerm(contact.contact.with_dhat(dhat), free, mean_mass)
-        k = _pull(problem, term, contact.segment_clear, poly, V1, k, mass,
+        k = _pull(problem, term, clear, poly, V1, k, mass,
                   REACH_TOLERANCE * dhat, RAISES)
     Q = poly[-1]
     gap = float(np.abs(Q - V1).max())
-    if gap > REACH_TOLERANCE * dhat or not contact.segment_clear(Q, V1):
+    if gap > REACH_TOLERANCE * dhat or not _piece_clear(contact, Q, V1):
         raise SelfIntersectionError(
             f"{CROSSING}; pulled towards the target through contact, the surface stalls "
             f"{gap:.3g} short of it")
