@@ -21,11 +21,11 @@ piece is clear. No step brings a pair within ``KEEP`` times the morph's ``d̂`` 
 half either end's closest pair): an iterate pressed closer by the raised attraction has
 stalled against the contact, and tight-inclusion CCD grinds on the steps and chords from
 it. For the same reason the last piece is first sampled for a pair closer than the
-segment test lets one come (:func:`_piece_clear`). The frames are the iterates joined by the longest chords clear by the
-morph's segment test (a step is taken only where that test passes it), the longest
-chords then split where there are frames to spare, at their middle iterate (a midpoint
-of two frames of a turning part shrinks it), at their midpoint where they join two
-consecutive iterates; where more are needed than asked, the refusal gives the count (the
+segment test lets one come (:func:`_piece_clear`). The frames are the iterates joined by
+the longest chords clear by the morph's segment test (a step is taken only where that
+test passes it), the longest chords then split where there are frames to spare, at
+their middle iterate (a midpoint of two frames of a turning part shrinks it), at their
+midpoint where they join two consecutive iterates; where more are needed than asked, the refusal gives the count (the
 fewest over the guides and ``d̂``). The barrier is ``STIFFER`` times IPC's initial
 stiffness: the iterates keep further from contact and the clear chords between them are
 longer. Its ``d̂`` is the surface's own (a fraction of the mean edge), not the morph's,
