@@ -23,20 +23,20 @@ stalled against the contact, and tight-inclusion CCD grinds on the steps and cho
 it. For the same reason the last piece is first sampled for a pair closer than the
 segment test lets one come (:func:`_piece_clear`). The frames are the iterates joined by
 the longest chords clear by the morph's segment test (a step is taken only where that
-test passes it), the longest chords then split where there are frames to spare, at
-their middle iterate (a midpoint of two frames of a turning part shrinks it), at their
-midpoint where they join two consecutive iterates; where more are needed than asked, the refusal gives the count (the
-fewest over the guides and ``d̂``). The barrier is ``STIFFER`` times IPC's initial
-stiffness: the iterates keep further from contact and the clear chords between them are
-longer. Its ``d̂`` is the surface's own (a fraction of the mean edge), not the morph's,
-which ends close to contact lower to below half their closest pair: a barrier that thin
-tells Newton nothing of the contact until a step has passed it, CCD cuts such steps to a
-sliver of their length, and the iterates pressed onto the contact creep behind the
-guide. The ends' pairs within the wider ``d̂`` are pushed apart by the first increments
-and come back in the last; every step and chord is still cleared by the morph's CCD.
-Where the clean path needs more frames than asked, the homotopy is run again with ``d̂``
-twice and four times the surface's own (``WIDER``): its iterates keep further from
-contact and its clear chords are longer. """
+test passes it), the longest chords then split where there are frames to spare, at their
+middle iterate (a midpoint of two frames of a turning part shrinks it), at their
+midpoint where they join two consecutive iterates; where more are needed than asked, the
+refusal gives the count (the fewest over the guides and ``d̂``). The barrier is
+``STIFFER`` times IPC's initial stiffness: the iterates keep further from contact and
+the clear chords between them are longer. Its ``d̂`` is the surface's own (a fraction of
+the mean edge), not the morph's, which ends close to contact lower to below half their
+closest pair: a barrier that thin tells Newton nothing of the contact until a step has
+passed it, CCD cuts such steps to a sliver of their length, and the iterates pressed
+onto the contact creep behind the guide. The ends' pairs within the wider ``d̂`` are
+pushed apart by the first increments and come back in the last; every step and chord is
+still cleared by the morph's CCD. Where the clean path needs more frames than asked, the
+homotopy is run again with ``d̂`` twice and four times the surface's own (``WIDER``):
+its iterates keep further from contact and its clear chords are longer. """
 
 from __future__ import annotations
 
