@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from scipy.optimize import least_squares
 
@@ -62,8 +62,9 @@ def _fit_problem(seed):
     return r, J
 
 
-@settings(max_examples=15, deadline=None)
+@settings(max_examples=15, deadline=None, derandomize=True, database=None)
 @given(seed=st.integers(0, 10**6), start=st.floats(-0.5, 0.5))
+@example(seed=0, start=0.020245775884746187)
 def test_damped_steps_reach_scipys_minimum_each_one_a_decrease(seed, start):
     r, J = _fit_problem(seed)
     x, lam = np.array([1.0, start, 0.0]), 1e-3
@@ -86,8 +87,11 @@ def test_damped_steps_reach_scipys_minimum_each_one_a_decrease(seed, start):
         x, lam = out.payload[0], out.damping
         energies.append(0.5 * float(r(x) @ r(x)))
     assert all(b < a for a, b in zip(energies, energies[1:]))
-    peer = least_squares(r, np.array([1.0, start, 0.0]), jac=J, method="lm", xtol=1e-15,
-                         ftol=1e-15, gtol=1e-15)
+    # scipy's Levenberg–Marquardt and trust-region fits, those that converged (its LM can
+    # run out of evaluations on an exponential diverging to ±4000, seed 0)
+    peers = [least_squares(r, np.array([1.0, start, 0.0]), jac=J, method=method, xtol=1e-15,
+                           ftol=1e-15, gtol=1e-15) for method in ("lm", "trf")]
+    peer = min((p for p in peers if p.status > 0), key=lambda p: p.cost)
     assert energies[-1] == pytest.approx(peer.cost, rel=1e-9)
     np.testing.assert_allclose(x, peer.x, rtol=1e-5, atol=1e-7)
 
