@@ -49,6 +49,10 @@ SWEPT_PAIRS = 1.0
 #: time interval it has not yet cleared, a conservative time of impact however few (pairs
 #: nearly touching at a step's start reach the bound, each iteration costing alike)
 TIGHT_ITERATIONS = 10**4
+#: that bound in :meth:`SurfaceContact.segment_free`: higher, since a pair it leaves
+#: uncleared fails the segment, and a morph ending close to contact then needs more frames
+#: (and where the first run stops at a time below 10⁻⁶, ipctk reruns it without a bound)
+SEGMENT_ITERATIONS = 10**6
 #: the separation, over the rest's bounding-box diagonal, within which
 #: :meth:`SurfaceContact.segment_free` takes a pair for touching (where it starts more than
 #: five times as far); ipctk's step check puts it at 10⁻⁴ in any unit
@@ -222,7 +226,7 @@ class SurfaceContact:
         at ``Q0`` (a pair whose boxes swept along the path do not meet cannot touch and is
         not tested): ipctk's step check (tight-inclusion CCD, conservative: its tolerance
         makes both bounds up to about twice as strict, and a pair it cannot clear in
-        ``TIGHT_ITERATIONS`` counts as touching) on coordinates scaled so that its floor
+        ``SEGMENT_ITERATIONS`` counts as touching) on coordinates scaled so that its floor
         (``IPCTK_FLOOR`` in any unit) is ``SEGMENT_FLOOR`` of the diagonal. Unlike a capped
         step's CCD it bounds no ratio above the floor: a pair may close from any distance
         down to it in one segment. Scale covariant, and at least as strict as ipctk's own
@@ -234,7 +238,7 @@ class SurfaceContact:
             self.mesh, np.asfortranarray(k * np.asarray(Q0, float)),
             np.asfortranarray(k * np.asarray(Q1, float)), 0.0, None,
             ipctk.TightInclusionCCD(ipctk.TightInclusionCCD.DEFAULT_TOLERANCE,
-                                    TIGHT_ITERATIONS)))
+                                    SEGMENT_ITERATIONS)))
 
     def stiffness(self, energy_gradient: FloatArray, Q: FloatArray,
                   mass: float) -> tuple[float, float]:
