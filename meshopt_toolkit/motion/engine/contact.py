@@ -240,6 +240,13 @@ class SurfaceContact:
             ipctk.TightInclusionCCD(ipctk.TightInclusionCCD.DEFAULT_TOLERANCE,
                                     SEGMENT_ITERATIONS)))
 
+    def segment_bound(self, Q0: FloatArray) -> float:
+        """The distance below which no pair may come along a segment from the clean ``Q0``
+        that :meth:`segment_free` passes: a fifth of ``Q0``'s closest pair or of the floor
+        (``SEGMENT_FLOOR`` of the diagonal), the least of the pairs' own bounds."""
+        floor = SEGMENT_FLOOR * self.bbox_diagonal
+        return min(self.with_dhat(floor).minimum_distance(Q0), floor) / 5.0
+
     def stiffness(self, energy_gradient: FloatArray, Q: FloatArray,
                   mass: float) -> tuple[float, float]:
         """IPC's initial barrier stiffness ``κ`` at ``Q`` against an energy's gradient

@@ -46,7 +46,7 @@ import scipy.sparse as sp
 from ..._typing import FloatArray
 from ...errors import SelfIntersectionError
 from ...solvers import factorize_spd
-from ..engine.contact import SEGMENT_FLOOR, ContactTerm
+from ..engine.contact import ContactTerm
 from .interpolation import arap_interpolation, fold_crossings
 from .morph_contact import chord_picks
 
@@ -148,12 +148,11 @@ def _pull(problem, term: ContactTerm, clear, poly: list, P: FloatArray, k: float
 def _piece_clear(contact, Q: FloatArray, V1: FloatArray) -> bool:
     """Whether the straight piece from ``Q`` to the target ``V1`` is clear
     (:meth:`.morph_contact.PathContact.segment_clear`); not where a point of it at one of
-    ``DIP_SAMPLES`` even times has a pair closer than the test lets one come (a fifth of
-    ``Q``'s closest pair or of the floor): the test grinds on pieces that dip that close."""
-    surface = contact.contact
-    floor = SEGMENT_FLOOR * surface.bbox_diagonal
-    near = surface.with_dhat(floor)
-    bound = min(near.minimum_distance(Q), floor) / 5.0
+    ``DIP_SAMPLES`` even times has a pair closer than the test lets one come
+    (:meth:`..engine.contact.SurfaceContact.segment_bound`): the test grinds on pieces
+    that dip that close."""
+    bound = contact.contact.segment_bound(Q)
+    near = contact.contact.with_dhat(bound)
     if any(near.minimum_distance((1.0 - t) * Q + t * V1) < bound
            for t in np.linspace(0.0, 1.0, DIP_SAMPLES + 2)[1:-1]):
         return False
@@ -186,20 +185,23 @@ def homotopy_path(problem, contact, V0: FloatArray, V1: FloatArray, guide,
     for j in range(1, len(times)):
         k = _pull(problem, term, clear, poly, P[j], ATTRACTION, mass,
                   REACH_TOLERANCE * dhat, RAISES if j == len(times) - 1 else 1)
+
+    def reached():  # the last iterate within reach of the target
+        return np.abs(poly[-1] - V1).max() <= REACH_TOLERANCE * dhat
+
     # reached, but the target's pairs end closer than the last piece clears (a pair below
     # the segment test's floor closes in by fivefold at most): the barrier thinner in turn
-    while (np.abs(poly[-1] - V1).max() <= REACH_TOLERANCE * dhat
-           and dhat > contact.contact.dhat and not _piece_clear(contact, poly[-1], V1)):
+    done = reached() and _piece_clear(contact, poly[-1], V1)
+    while not done and reached() and dhat > contact.contact.dhat:
         dhat = max(dhat / THINNER, contact.contact.dhat)
         term = ContactTerm(contact.contact.with_dhat(dhat), free, mean_mass)
         k = _pull(problem, term, clear, poly, V1, k, mass,
                   REACH_TOLERANCE * dhat, RAISES)
-    Q = poly[-1]
-    gap = float(np.abs(Q - V1).max())
-    if gap > REACH_TOLERANCE * dhat or not _piece_clear(contact, Q, V1):
+        done = reached() and _piece_clear(contact, poly[-1], V1)
+    if not done:
         raise SelfIntersectionError(
             f"{CROSSING}; pulled towards the target through contact, the surface stalls "
-            f"{gap:.3g} short of it")
+            f"{float(np.abs(poly[-1] - V1).max()):.3g} short of it")
     poly.append(V1)
     picks = chord_picks(contact, poly)
     frames = [poly[i] for i in picks]
