@@ -55,9 +55,9 @@ class BatchProgress(ProgressBar):
 
     def __init__(self, total: int | None, label: str = "", stream: IO[str] | None = None,
                  enabled: bool | None = None) -> None:
-        super().__init__(total or 1, label, stream, enabled)
         self.known = total is not None
         self.done = self.skipped = self.failed = 0
+        super().__init__(total or 1, label, stream, enabled)
 
     def record(self, status: str) -> None:
         """Count one file (``"ok"``, ``"skipped"`` or ``"failed"``) and redraw."""
@@ -85,29 +85,29 @@ class BatchProgress(ProgressBar):
             text += f" | {_clock((self.total - finished) / rate)} left"
         return text
 
-    def update(self, n: int = 1, status: str = "") -> None:
+    def update(self, n: int = 1, status: str | None = None) -> None:
         """Redraw (at most 10 times a second, always at the end)."""
-        self.count = self.done + self.skipped + self.failed
-        now = time.perf_counter()
-        last = self.known and self.count >= self.total
-        if not self.enabled or (now - self._last < 0.1 and not last):
-            return
-        self._last = now
-        self.stream.write("\r" + self.line()[:119].ljust(119))
-        self.stream.flush()
+        with self._lock:
+            self.count = self.done + self.skipped + self.failed
+            now = time.perf_counter()
+            last = self.known and self.count >= self.total
+            if self.enabled and (now - self._last >= 0.1 or last):
+                self._draw(now)
 
     def clear(self) -> None:
         """Blank the bar's line (before something else is printed on the terminal)."""
         if self.enabled:
-            self.stream.write("\r" + " " * 119 + "\r")
-            self.stream.flush()
-            self._last = 0.0
+            with self._lock:
+                self.stream.write("\r" + " " * 119 + "\r")
+                self.stream.flush()
+                self._last = 0.0
 
     def message(self, text: str) -> None:
         """Write a line (a warning or an error) without mixing it into the bar."""
-        self.clear()
-        self.stream.write(text + "\n")
-        self.stream.flush()
-        if self.enabled:
-            self._last = 0.0
-            self.update()
+        with self._lock:
+            self.clear()
+            self.stream.write(text + "\n")
+            self.stream.flush()
+            if self.enabled:
+                self._last = 0.0
+                self.update()

@@ -27,7 +27,7 @@ import sys
 
 from .. import __version__
 from ..errors import MeshoptError
-from ._errors import LogLine, error_line
+from ._errors import LogLine, LogStream, error_line
 
 # the order in which subcommands are listed in --help
 _ORDER = ["optimize", "deform", "morph", "info", "convert", "run", "filters"]
@@ -89,7 +89,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser(_command_of(words))
     args = parser.parse_args(words)
     level = logging.WARNING - 10 * min(args.verbose, 2)
-    stderr = logging.StreamHandler()
+    stderr = LogStream(level)  # at the verbosity asked, whatever a logger lets through
     stderr.setFormatter(LogLine(args.command or ""))
     logging.basicConfig(level=level, handlers=[stderr])  # "meshopt CMD: warning: ..."
     if not getattr(args, "command", None):

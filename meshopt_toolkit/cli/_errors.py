@@ -152,6 +152,20 @@ def error_line(exc: BaseException, args) -> str:
     return f"meshopt {args.command}: {kind}: {text}"
 
 
+class LogStream(logging.StreamHandler):
+    """stderr's log handler at a verbosity: on a terminal each line is written over the
+    line a progress bar may have drawn there (the bar is drawn again below it)."""
+
+    def __init__(self, level: int) -> None:
+        super().__init__()
+        self.setLevel(level)
+
+    def format(self, record: logging.LogRecord) -> str:
+        text = super().format(record)
+        isatty = getattr(self.stream, "isatty", None)
+        return "\r" + text.ljust(119) if isatty is not None and isatty() else text
+
+
 class LogLine(logging.Formatter):
     """Log records of a command as its other lines: ``meshopt CMD: warning: message``
     (one line), not ``WARNING:...``."""

@@ -118,7 +118,9 @@ def _morph(args: argparse.Namespace, source, target, default_iterations: int, **
     from ..progress import ProgressBar
 
     max_iterations = args.max_iterations or default_iterations
-    with ProgressBar(max_iterations, "morph") as bar:
+    # the stages before the first iteration (a surface's search for a clean start) as
+    # the bar's status
+    with ProgressBar(max_iterations, "morph") as bar, bar.showing_log("meshopt_toolkit.motion"):
         return morph(source, target, args.frames, weight=args.weight,
                      max_iterations=max_iterations, stop=args.stop,
                      callback=lambda it: bar.update(status=f"E={it.energy:.8g}"), **options)

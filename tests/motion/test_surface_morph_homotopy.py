@@ -11,6 +11,8 @@ flaps."""
 
 from __future__ import annotations
 
+import io
+import sys
 from contextlib import contextmanager
 
 import numpy as np
@@ -182,18 +184,25 @@ def test_the_homotopy_widens_its_barrier_for_five_frames(monkeypatch):
 
 
 @pytest.mark.slow
-def test_cli_writes_the_homotopys_clean_frames(tmp_path):
+def test_cli_writes_the_homotopys_clean_frames(tmp_path, monkeypatch):
+    """... and its progress bar, on a terminal, shows the search for the start."""
     from test_morph_self_intersection import _surface_file
 
     from meshopt_toolkit.cli import main
     from meshopt_toolkit.io import load_cells
 
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
     V0, V1, F = ramp_and_flap()
     a = _surface_file(tmp_path / "a.vtu", SurfaceMesh(V0, F))
     b = _surface_file(tmp_path / "b.vtu", SurfaceMesh(V1, F))
     out = tmp_path / "frames"
+    monkeypatch.setattr(sys, "stderr", Terminal())
     with _short_way_only():
         assert main(["morph", str(a), str(b), "-o", str(out), "--frames", "17"]) == 0
+    assert "start path: the homotopy, increment" in sys.stderr.getvalue()
     frames = [np.asarray(load_cells(p).points) for p in sorted(out.glob("frame_*.vtu"))]
     assert len(frames) == 17
     assert [len(self_intersections(Q, F)) for Q in frames] == [0] * 17

@@ -54,6 +54,7 @@ quality (docs/theory-3d.md §5).
 
 from __future__ import annotations
 
+import logging
 import time
 import warnings
 from collections.abc import Callable
@@ -78,11 +79,19 @@ from .morph_homotopy import homotopy_start
 from .morph_polish import polish_frames
 from .path import RTOL, SurfacePathOptions, SurfacePathProblem
 
+logger = logging.getLogger(__name__)
+
 __all__ = ["SurfaceMorph", "morph_surface", "frame_measures"]
 
 #: local/global steps at most of the start while a frame is below the worse end's quality
 #: (:func:`.interpolation.arap_interpolation`'s ``iterations``)
 START_ITERATIONS = 10
+#: the start paths in the order tried (:func:`_initial_path`), as the log names them
+STARTS = {"arap": "the as-rigid-as-possible interpolation",
+          "linear": "the linear interpolation",
+          "long_way": "the as-rigid-as-possible interpolation the long way round",
+          "detour": "a detour of the moving parts",
+          "homotopy": "the homotopy around the contact"}
 
 def frame_measures(source: FloatArray, frames, triangles: IntArray,
                    folds: FoldTest | None = None) -> tuple[FloatArray, IntArray]:
@@ -329,6 +338,7 @@ def _initial_path(problem: _PathProblem, V0, V1, F, times,
     for name, make in candidates[:3] if contact is None else candidates:
         if name == "homotopy" and not crossed:  # only around contact, not folds
             break
+        logger.info("start path: %s", STARTS[name])
         path = make()
         if path is None:
             continue

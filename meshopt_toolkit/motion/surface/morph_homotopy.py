@@ -40,6 +40,8 @@ its iterates keep further from contact and its clear chords are longer. """
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 import scipy.sparse as sp
 
@@ -51,6 +53,8 @@ from .interpolation import arap_interpolation, fold_crossings
 from .morph_contact import chord_picks
 
 __all__ = ["homotopy_path", "homotopy_start"]
+
+logger = logging.getLogger(__name__)
 
 #: the start of the homotopy's refusals
 CROSSING = ("the morph finds no path free of self-contact: the interpolations of the ends "
@@ -183,6 +187,7 @@ def homotopy_path(problem, contact, V0: FloatArray, V1: FloatArray, guide,
 
     poly = [V0]
     for j in range(1, len(times)):
+        logger.debug("start path: the homotopy, increment %d of %d", j, INCREMENTS)
         k = _pull(problem, term, clear, poly, P[j], ATTRACTION, mass,
                   REACH_TOLERANCE * dhat, RAISES if j == len(times) - 1 else 1)
 
@@ -194,6 +199,7 @@ def homotopy_path(problem, contact, V0: FloatArray, V1: FloatArray, guide,
     done = reached() and _piece_clear(contact, poly[-1], V1)
     while not done and reached() and dhat > contact.contact.dhat:
         dhat = max(dhat / THINNER, contact.contact.dhat)
+        logger.debug("start path: the homotopy closing in on the target, d̂ %.3g", dhat)
         term = ContactTerm(contact.contact.with_dhat(dhat), free, mean_mass)
         k = _pull(problem, term, clear, poly, V1, k, mass,
                   REACH_TOLERANCE * dhat, RAISES)
@@ -203,6 +209,7 @@ def homotopy_path(problem, contact, V0: FloatArray, V1: FloatArray, guide,
             f"{CROSSING}; pulled towards the target through contact, the surface stalls "
             f"{float(np.abs(poly[-1] - V1).max()):.3g} short of it")
     poly.append(V1)
+    logger.debug("start path: the homotopy's frames among its %d iterates", len(poly))
     picks = chord_picks(contact, poly)
     frames = [poly[i] for i in picks]
     if len(frames) - 1 > segments:
@@ -241,7 +248,9 @@ def homotopy_start(problem, contact, V0: FloatArray, V1: FloatArray, triangles,
     fewest = None
     for wider in WIDER:
         short = False
-        for guide in guides:
+        for n, guide in enumerate(guides, 1):
+            logger.info("start path: the homotopy along guide %d of %d, d̂ %g times the "
+                        "surface's own", n, len(guides), wider)
             try:
                 return homotopy_path(problem, contact, V0, V1, guide, segments, wider)
             except _TooFewFrames as error:
