@@ -46,6 +46,13 @@ def add_output_flags(p: argparse.ArgumentParser, *, json: bool = True, plots: bo
         p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
 
 
+def add_mesh_output(p: argparse.ArgumentParser) -> None:
+    """The required ``-o/--output OUT`` of a command that writes a mesh, or with ``--frames``
+    a directory of frames (``args.output``, checked by :func:`checked_paths`)."""
+    p.add_argument("-o", "--output", required=True,
+                   help="output mesh file, or a directory with --frames")
+
+
 def add_force_flag(p: argparse.ArgumentParser, note: str | None = None) -> None:
     """``--force``, the one way of every command to replace existing outputs; ``note``: what
     it means besides in this command, shown in parentheses."""

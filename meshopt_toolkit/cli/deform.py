@@ -21,8 +21,8 @@ import argparse
 import logging
 
 from ..bounds import MAX_FRAMES
-from ._common import (add_output_flags, checked_paths, csv_table, float_list, frame_names,
-                      load_workpiece, save_moved, save_moved_frames, write_text)
+from ._common import (add_mesh_output, add_output_flags, checked_paths, csv_table, float_list,
+                      frame_names, load_workpiece, save_moved, save_moved_frames, write_text)
 from ..filters.apply_coord_quality_preserving_deformation import QualityPreservingDeformation
 from ._params import add_options
 from ._validate import check_number, check_numbers
@@ -43,8 +43,7 @@ logger = logging.getLogger(__name__)
 
 def add_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("mesh", help="input mesh (admissible, planar)")
-    p.add_argument("-o", "--output", required=True,
-                   help="output mesh file, or a directory with --frames")
+    add_mesh_output(p)
     p.add_argument("--displacement", required=True, metavar="D",
                    help="initial velocity: .npy or .csv (N, 2) array, or a mesh with the same "
                         "connectivity")

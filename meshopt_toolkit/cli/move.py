@@ -42,8 +42,8 @@ from .. import strict_json
 from ..bounds import MAX_FRAMES
 from ..filters.apply_coord_prescribed_motion import PrescribedMotion
 from ..mesh.kinds import PLANAR, SURFACE, TETS
-from ._common import (add_contact_flag, add_output_flags, checked_paths, csv_table, frame_names,
-                      prepare_output_dir, warn_dropped, write_text)
+from ._common import (add_contact_flag, add_mesh_output, add_output_flags, checked_paths,
+                      csv_table, frame_names, prepare_output_dir, warn_dropped, write_text)
 from ._params import add_options
 from ._validate import OptionError
 
@@ -66,8 +66,7 @@ OPTIONS = {"steps": "--steps", "weight": "--weight"}
 def add_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("mesh", help="input mesh (admissible; planar triangles, tetrahedra or a "
                    "triangle surface in 3D)")
-    p.add_argument("-o", "--output", required=True,
-                   help="output mesh file, or a directory with --frames")
+    add_mesh_output(p)
     src = p.add_mutually_exclusive_group(required=True)
     src.add_argument("--targets", metavar="FILE", help="CSV 'index,x,y' rows or .npy (k, 3); "
                      "'index,x,y,z' or (k, 4) for tetrahedra")
