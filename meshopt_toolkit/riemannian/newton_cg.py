@@ -166,6 +166,9 @@ def newton_cg(metric, Q0: FloatArray, Q1: FloatArray, K: int, path: FloatArray |
     pen = _Counter(raw)
     f0 = _require_finite(pen, Q0, "the source")
     f1 = _require_finite(pen, Q1, "the target")
+    if np.array_equal(Q0, Q1):  # the geodesic from a frame to itself stays there
+        return DiscreteGeodesic(np.repeat(Q0[None], K + 1, axis=0), np.full(K + 1, f0), 0.0,
+                                0.0, n_evaluations=pen.n)
     if path is None:
         path = initial_path(raw, Q0, Q1, K)
     path = _path_frames(path, Q0, Q1, K)

@@ -102,3 +102,17 @@ def test_euclidean_is_the_straight_line(mesh):
     t = np.linspace(0, 1, 5)[:, None, None]
     np.testing.assert_allclose(res.points, (1 - t) * P + t * Q1, rtol=0, atol=1e-15)
     assert res.length == pytest.approx(np.linalg.norm(Q1 - P), rel=1e-12)
+
+
+@pytest.mark.parametrize("given", [False, True])
+def test_newton_cg_from_a_frame_to_itself_stays_there(mesh, given):
+    """The ends equal: the geodesic is the frame itself, bit for bit, at once, whatever
+    path it is given (a start rounded off the frame stalls on a gradient of rounding)."""
+    Q = mesh.points
+    path = np.repeat(Q[None], 5, axis=0) + 1e-3 * np.sin(np.arange(5))[:, None, None]
+    res = discrete_geodesic(CompleteMetric(QualityPenalty(mesh)), Q, Q, 4, method="newton-cg",
+                            path=path if given else None)
+    assert res.status == "converged" and res.nit == 0
+    assert res.energy == 0.0 and res.length == 0.0
+    for frame in res.points:
+        np.testing.assert_array_equal(frame, Q)
