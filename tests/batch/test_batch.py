@@ -211,6 +211,7 @@ def test_progress_bar_counts_and_stays_out_of_pipes(meshes, capsys):
     text = stream.getvalue().rsplit("\r", 1)[-1]
     assert "3/4" in text and "1 done" in text and "1 skipped" in text and "1 failed" in text
     assert "files/s" in text and "left" in text
+    bar.close()
     quiet = io.StringIO()  # not a terminal: nothing at all
     bar = BatchProgress(2, "run", stream=quiet)
     bar.record("ok")
