@@ -25,6 +25,14 @@ for _folder in [_HERE, *sorted({p.parent for p in _HERE.glob("*/test_*.py")})]:
         sys.path.insert(0, str(_folder))
 
 
+def pytest_collection_modifyitems(config, items):
+    """The files with slow tests first, each file's tests in their order: a file runs on
+    one worker (``--dist loadfile``), so the long ones start early and the short ones
+    even out the workers' ends."""
+    slow = {item.path for item in items if item.get_closest_marker("slow")}
+    items.sort(key=lambda item: item.path not in slow)
+
+
 @pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(20261121)

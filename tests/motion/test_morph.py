@@ -148,6 +148,7 @@ def test_twist_target_admissible_and_linear_interpolation_inverts(disc):
     assert worst < 0
 
 
+@pytest.mark.slow
 def test_twist_morph_is_admissible_and_reaches_the_target(disc, twist_morph):
     res = twist_morph
     Q1 = twisted(disc).points
@@ -196,6 +197,7 @@ def test_twist_morph_is_admissible_and_reaches_the_target(disc, twist_morph):
     assert res.discrete.length <= np.sum(seg) * (1 + 1e-9)
 
 
+@pytest.mark.slow
 def test_stationary_stop_is_close_to_the_minimum(disc):
     # the energy-stagnation stop ends within 1e-5 of the energy of a run to |∇E| ≤ 1e-7·√E
     # (the energy is then converged to round-off; 1e-9 is below what round-off allows here)
@@ -415,6 +417,7 @@ def test_auto_method_shoots_or_falls_back():
         geodesic_morph(mesh, B, frames=3, method="shooting", shooting={"max_exp": 1})
 
 
+@pytest.mark.slow
 def test_normalized_metric_keeps_a_half_turn_rigid(disc):
     # a half turn: straight lines collapse the mesh to a point at t = 1/2; the plain metric
     # of f2 stays close to them on a 146-vertex mesh, the metric of √N·f2 turns it

@@ -23,6 +23,7 @@ def _one_line(capsys) -> str:
     return err[0]
 
 
+@pytest.mark.slow
 def test_cli_tet_move_through_the_wall_is_refused(box_file, tmp_path, capsys):  # noqa: F811
     """The hole (radius 0.35) moved to x = 1.2 crosses the wall x = 1: every boundary
     vertex is a handle, so the targets alone are refused, before any solve."""

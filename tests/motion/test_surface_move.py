@@ -353,6 +353,7 @@ def test_chord_steps_of_the_last_increment_reach_the_minimizer_of_full_gauss_new
     assert cg.factorizations <= chord.factorizations and cg.folds == 0
 
 
+@pytest.mark.slow
 def test_strip_rolled_into_a_quarter_circle_is_rolled_isometrically():
     """bench_surface's rolled strip: the exact answer bends the 4×1 strip into a quarter
     cylinder of radius 8/π without stretching it; its centre line lies on that circle."""
@@ -460,6 +461,7 @@ def test_conjugate_gradients_on_a_stale_factor_reach_the_fresh_step():
     assert model[1] > model[2] and model[1] > 0.45 * model[0]
 
 
+@pytest.mark.slow
 def test_steps_on_kept_factors_need_fewer_factorizations_at_the_same_quality():
     """bench_surface's bar twisted 180° in 10 increments: steps of four conjugate gradients
     on the kept factor against plain chord steps (counted by a spy on the factorization),
