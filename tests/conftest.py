@@ -13,8 +13,15 @@ if "PYTEST_XDIST_WORKER" in os.environ:
 
 import numpy as np  # noqa: E402
 import pytest
+from hypothesis import settings
 
 from meshopt_toolkit.mesh import PlanarMesh
+
+# hypothesis draws the same examples on every run (seeded by each test), so a run's
+# outcome is the same on every machine; HYPOTHESIS_PROFILE=explore draws new ones
+settings.register_profile("deterministic", derandomize=True, database=None)
+settings.register_profile("explore", derandomize=False)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "deterministic"))
 
 # tests/ and each of its test folders (tests/<package>/) on sys.path: the helper modules
 # (gmsh_files, motion_helpers, ...) and the builders other test files share import by

@@ -139,15 +139,20 @@ def test_ends_shaken_by_rounding_morph_as_healthy_and_clean(seed):
 
 
 @pytest.mark.slow
-def test_too_few_frames_for_the_homotopy_are_refused_with_the_count():
+def test_too_few_frames_for_the_homotopy_are_refused_with_the_count(monkeypatch):
     """Two frames, the ends alone: the straight motion between them passes through the
     ramp, so the morph is refused with the frames the clean path needs, which morph
-    clean."""
+    clean; the first homotopy's 3 frames end the search (no path needs fewer)."""
     V0, V1, F = ramp_and_flap()
     assert not _clean_steps([V0, V1], F)
+    runs = []
+    path = morph_homotopy.homotopy_path
+    monkeypatch.setattr(morph_homotopy, "homotopy_path",
+                        lambda *a, **k: runs.append(1) or path(*a, **k))
     with _short_way_only(), pytest.raises(SelfIntersectionError,
-                                          match=r"needs \d+ frames, 2 asked") as refusal:
+                                          match=r"needs 3 frames, 2 asked") as refusal:
         morph_surface(V0, V1, F, 2)
+    assert len(runs) == 1
     needed = int(str(refusal.value).split("needs ")[1].split()[0])
     with _short_way_only():
         _assert_clean_and_healthy(morph_surface(V0, V1, F, needed), V0, V1, F)

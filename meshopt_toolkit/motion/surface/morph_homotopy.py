@@ -240,7 +240,8 @@ def homotopy_start(problem, contact, V0: FloatArray, V1: FloatArray, triangles,
     along the one that turns the neighbours whose short way passes the fold the long way
     round (where there are such, :func:`.interpolation.fold_crossings`), else along the
     linear one; where one of them needs more frames than asked, all again with the
-    barrier's d̂ wider (``WIDER``); the refusal with the fewest frames, else the last."""
+    barrier's d̂ wider (``WIDER``); the refusal with the fewest frames (at once where two
+    are asked and one needs three), else the last."""
     guides = [lambda ts: arap_interpolation(V0, V1, triangles, ts)]
     if fold_crossings(V0, V1, triangles).nnz:
         guides.append(lambda ts: arap_interpolation(V0, V1, triangles, ts, long_way=True))
@@ -257,6 +258,8 @@ def homotopy_start(problem, contact, V0: FloatArray, V1: FloatArray, triangles,
                 short = True
                 if fewest is None or error.frames < fewest.frames:
                     fewest = error
+                if segments == 1 and fewest.frames == 3:  # the straight motion is not
+                    raise fewest  # clear, so no path has 2 frames or needs fewer than 3
             except SelfIntersectionError as error:
                 refusal = error
         if not short:
