@@ -93,6 +93,7 @@ STARTS = {"arap": "the as-rigid-as-possible interpolation",
           "detour": "a detour of the moving parts",
           "homotopy": "the homotopy around the contact"}
 
+
 def frame_measures(source: FloatArray, frames, triangles: IntArray,
                    folds: FoldTest | None = None) -> tuple[FloatArray, IntArray]:
     """Per frame the worst relative quality (aspect ratio 2r/R over its value in
