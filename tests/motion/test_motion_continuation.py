@@ -98,7 +98,7 @@ def test_growing_steps_halve_a_refused_step_and_double_back_after_two_taken():
     assert [F[0] for F in frames] == times  # every accepted step a frame
 
 
-@settings(max_examples=40, deadline=None, derandomize=True, database=None)
+@settings(max_examples=40, deadline=None)
 @given(longest=st.floats(0.002, 1.0), steps=st.integers(1, 8), n_frames=st.integers(2, 4))
 @example(longest=0.9999999999999999, steps=1, n_frames=2)  # the first step just too long
 def test_growing_steps_take_only_admissible_steps_and_reach_every_frame(longest, steps,
